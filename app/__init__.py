@@ -1,0 +1,1 @@
+"""flexvox's front ends: the ``flexvox`` command line (``app.cli``) and the Qt application."""

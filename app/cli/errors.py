@@ -1,0 +1,52 @@
+"""How the command line reports misuse: one line on stderr and exit status 2."""
+
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+
+EXIT_OK = 0
+EXIT_FAILED = 1
+"""The command ran but the answer is "no" (a code that fails a division, a damaged file)."""
+EXIT_USAGE = 2
+"""Bad input: a malformed option value, a missing or unreadable file."""
+
+
+class CliError(Exception):
+    """Bad input on the command line; the message is printed as one line, exit status 2."""
+
+
+class OneLineParser(argparse.ArgumentParser):
+    """An ``ArgumentParser`` whose errors are one line on stderr (no usage dump), exit 2.
+
+    Values that start with a minus and a digit (``--tile -2x2``) are read as values, so
+    their own validation names the rule instead of argparse saying "expected one argument".
+    """
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        # argparse's own knob for "this looks like a negative number, not an option".
+        self._negative_number_matcher = re.compile(r"^-\d")
+
+    def error(self, message: str):  # noqa: D102 - argparse's hook
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
+
+
+def fail(prog: str, message: str) -> int:
+    """Print ``prog: error: message`` on stderr and return :data:`EXIT_USAGE`."""
+    print(f"{prog}: error: {message}", file=sys.stderr)
+    return EXIT_USAGE
+
+
+def arg_type(parse):
+    """Wrap a ``ValueError``-raising parser as an argparse ``type=`` (message kept)."""
+
+    def convert(text):
+        try:
+            return parse(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    convert.__name__ = getattr(parse, "__name__", "value")
+    return convert

@@ -1,0 +1,52 @@
+"""Entry point of the ``flexvox`` console script."""
+
+from __future__ import annotations
+
+import logging
+import sys
+
+from app.cli import demo, design
+from app.cli.errors import EXIT_USAGE, CliError, OneLineParser
+from flexvox_core import __version__
+
+SUBCOMMANDS = (design, demo)
+"""Each module has ``register(subparsers)`` that adds its parser with ``func=run``."""
+
+
+def build_parser() -> OneLineParser:
+    """The top-level parser with every subcommand registered."""
+    parser = OneLineParser(
+        prog="flexvox",
+        description=(
+            "Flexible-voxel videography: design per-pixel shutter codes, simulate and "
+            "capture coded video, reconstruct it at any space-time resolution."
+        ),
+    )
+    parser.add_argument("--version", action="version", version=f"flexvox {__version__}")
+    parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv: debug)")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineParser)
+    for module in SUBCOMMANDS:
+        module.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``flexvox`` with ``argv`` (default ``sys.argv[1:]``); return the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    logging.basicConfig(
+        level={0: logging.WARNING, 1: logging.INFO}.get(args.verbose, logging.DEBUG),
+        format="%(levelname)s %(name)s: %(message)s",
+    )
+    if args.command is None:
+        parser.print_help()
+        return EXIT_USAGE
+    try:
+        return int(args.func(args) or 0)
+    except CliError as exc:
+        print(f"flexvox {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

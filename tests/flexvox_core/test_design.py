@@ -1,0 +1,107 @@
+import numpy as np
+import pytest
+
+from flexvox_core.codes import (
+    code_from_order,
+    neighbour_separation,
+    order_from_code,
+    sequential_order,
+    verify,
+)
+from flexvox_core.design import STATUS_INFEASIBLE, STATUS_SUCCESS, design_code
+from flexvox_core.divisions import Division, enumerate_divisions, parse_division
+
+from .independent import supports_all_slow
+
+ALL_TILES_TO_6 = [(m, n) for m in range(1, 7) for n in range(1, 7)]
+INFEASIBLE_ALL_DIVISIONS = {(6, 6)}  # HiGHS proves it (about 9 s); see flexvox_core.design
+
+
+@pytest.mark.parametrize("tile", ALL_TILES_TO_6, ids=lambda t: f"{t[0]}x{t[1]}")
+def test_eq1_solutions_verify_for_every_tile_up_to_6x6(tile):
+    result = design_code(tile, separation=0)
+    if tile in INFEASIBLE_ALL_DIVISIONS:
+        assert result.status == STATUS_INFEASIBLE and not result.success
+        assert result.order is None and "infeasible" in result.message
+        return
+    assert result.status == STATUS_SUCCESS and result.success
+    assert supports_all_slow(result.order)
+    assert verify(result.code).supports_all
+    assert result.supported == enumerate_divisions(tile)
+
+
+@pytest.mark.parametrize(
+    "tile, gap", [((2, 2), 1), ((2, 4), 2), ((3, 3), 2), ((4, 4), 4), ((3, 5), 3), ((4, 8), 8)]
+)
+def test_auto_separation_reaches_k_over_4(tile, gap):
+    result = design_code(tile)
+    assert result.success and supports_all_slow(result.order)
+    assert result.separation == gap == neighbour_separation(result.order)
+
+
+def test_separation_beyond_reach_is_an_infeasible_result_not_an_exception():
+    result = design_code((4, 4), separation=5)
+    assert result.status == STATUS_INFEASIBLE and not result.success
+    assert result.code is None
+    assert "gap >= 5" in result.message
+
+
+def test_design_is_deterministic_and_canonical():
+    a, b = design_code((4, 4)), design_code((4, 4))
+    assert np.array_equal(a.order, b.order)
+    assert a.order[0, 0] == 0  # the canonical form starts the first pixel at slot 0
+
+
+def test_subset_of_divisions():
+    divs = [parse_division("4x4x1", (4, 4)), parse_division("1x1x16", (4, 4))]
+    result = design_code((4, 4), divisions=divs, separation=0)
+    assert result.success
+    assert set(divs) <= set(result.supported)
+
+
+def test_sequential_firing_fails_2x2x4_as_the_seed_says():
+    seq = code_from_order(sequential_order((4, 4)))
+    r = verify(seq)
+    assert Division(2, 2, 4) in r.unsupported
+    assert not supports_all_slow(sequential_order((4, 4)))
+    # ... while the designed code supports it.
+    assert Division(2, 2, 4) in verify(design_code((4, 4)).code).supported
+
+
+def test_verify_reports_multiplexed_codes_as_not_identity():
+    code = np.ones((1, 3, 3), dtype=bool)
+    r = verify(code)
+    assert not r.identity and "not an identity code" in r.message
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"separation": -1}, r"`separation` must be 'auto' or a whole number >= 0; got -1"),
+        ({"separation": "max"}, r"`separation` must be 'auto' or a whole number >= 0; got 'max'"),
+        ({"node_limit": 0}, r"`node_limit` must be >= 1; got 0"),
+        ({"divisions": [Division(3, 1, 4)]}, r"division 3x1x4 does not divide a 4x4 tile"),
+        ({"divisions": []}, r"`divisions` must name at least one division"),
+    ],
+)
+def test_design_rejects_bad_arguments(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        design_code((4, 4), **kwargs)
+
+
+def test_design_rejects_bad_tiles():
+    with pytest.raises(ValueError, match=r"side n must be between 1 and 8; got 9"):
+        design_code((2, 9))
+
+
+def test_order_code_round_trip_and_errors():
+    order = design_code((2, 4)).order
+    assert np.array_equal(order_from_code(code_from_order(order)), order)
+    with pytest.raises(ValueError, match=r"each slot 0..3 exactly once"):
+        code_from_order([[0, 0], [1, 2]])
+    with pytest.raises(ValueError, match=r"not an identity code"):
+        order_from_code(np.ones((2, 2, 4), dtype=bool))
+    with pytest.raises(ValueError, match=r"must have K = 4 slots; got 3"):
+        verify(np.zeros((2, 2, 3), dtype=bool))
+    with pytest.raises(ValueError, match=r"values must be 0/1"):
+        verify(np.full((1, 1, 1), 2))

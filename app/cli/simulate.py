@@ -1,0 +1,166 @@
+"""``flexvox simulate`` and ``flexvox scenes``: scene-driven simulation into a recording."""
+
+from __future__ import annotations
+
+import json
+import re
+import warnings
+from pathlib import Path
+
+from app.cli.errors import EXIT_OK, CliError, arg_type
+from flexvox_core.recording import RecordingError, write_simulation
+from flexvox_core.simulate.effects import EFFECTS, parse_effects
+from flexvox_core.simulate.scene_file import SceneSpec, load_scene
+from flexvox_core.simulate.scenes import SCENES
+from flexvox_core.simulate.simulator import simulate
+from flexvox_core.simulate.sources import SUFFIXES, TrimWarning, load_video
+from flexvox_core.tiles import parse_tile
+
+_SIZE_RE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
+
+
+def _size(text: str) -> tuple[int, int]:
+    match = _SIZE_RE.match(text)
+    if match is None or min(int(match.group(1)), int(match.group(2))) < 8:
+        raise ValueError(f"--size must be HxW with H, W >= 8 (e.g. 120x160); got {text!r}")
+    return int(match.group(1)), int(match.group(2))
+
+
+def parse_effect_overrides(text: str, current: dict) -> dict:
+    """Apply ``--effects`` overrides: comma-separated ``name``, ``name.param=value`` or ``none``.
+
+    ``none`` removes every effect declared so far; ``name`` declares an effect with its
+    defaults (or keeps its current parameters); ``name.param=value`` sets one parameter.
+    """
+    table = {k: dict(v) for k, v in current.items()}
+    for item in (t.strip() for t in text.split(",")):
+        if not item:
+            continue
+        if item == "none":
+            table = {}
+            continue
+        name, _, assignment = item.partition(".")
+        if name not in EFFECTS:
+            raise ValueError(f"unknown effect {name!r}; effects: {', '.join(EFFECTS)}")
+        table.setdefault(name, {})
+        if assignment:
+            key, eq, value = assignment.partition("=")
+            if not eq:
+                raise ValueError(f"--effects item {item!r} must be name.param=value")
+            try:
+                table[name][key] = float(value)
+            except ValueError:
+                raise ValueError(f"--effects {name}.{key} must be a number; got {value!r}") from None
+    return table
+
+
+def register(sub) -> None:
+    """Add the ``simulate`` and ``scenes`` subcommands."""
+    p = sub.add_parser(
+        "simulate",
+        help="simulate what the rig's camera records of a scene, into a recording",
+        description=(
+            "Simulate a scene into a Zarr recording. SCENE is a scene file (.toml), a built-in "
+            f"scene name ({', '.join(SCENES)}), or a video file ({', '.join(SUFFIXES)}). Only the "
+            "effects the scene declares (or --effects adds) are simulated; with none, the frames "
+            "are the ideal forward model exactly."
+        ),
+    )
+    p.add_argument("scene", metavar="SCENE", help="scene file, built-in scene name, or video file")
+    p.add_argument("-o", "--output", type=Path, required=True, metavar="REC.zarr", help="recording to write")
+    p.add_argument("--tile", type=arg_type(parse_tile), metavar="MxN", help="tile (overrides the scene; default 4x4)")
+    p.add_argument("--effects", metavar="SPEC",
+                   help="effect overrides, comma-separated: NAME, NAME.PARAM=VALUE, or none "
+                        "(e.g. none,photon_noise,read_noise.sigma=2); see `flexvox scenes`")
+    p.add_argument("--frames", type=int, metavar="F", help="camera frames to simulate")
+    p.add_argument("--size", type=arg_type(_size), metavar="HxW", help="size of a built-in scene")
+    p.add_argument("--seed", type=int, metavar="S", help="random seed (scene texture and effect noise)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing recording")
+    p.set_defaults(func=run_simulate)
+
+    q = sub.add_parser("scenes", help="list the built-in scenes and the effects with their parameters",
+                       description="List the built-in scenes and every effect with its parameters, units and ranges.")
+    q.add_argument("--json", action="store_true", help="print one JSON object")
+    q.set_defaults(func=run_scenes)
+
+
+def _spec_from_argument(text: str) -> SceneSpec:
+    path = Path(text)
+    if path.suffix.lower() == ".toml":
+        return load_scene(path)
+    if text in SCENES:
+        return SceneSpec(builtin=text, name=text)
+    if path.suffix.lower() in SUFFIXES:
+        return SceneSpec(builtin=None, file=path, frames=None, name=path.stem)
+    raise ValueError(
+        f"SCENE {text!r} is neither a scene file (.toml), a built-in scene ({', '.join(SCENES)}), "
+        f"nor a video file ({', '.join(SUFFIXES)})"
+    )
+
+
+def run_simulate(args) -> int:
+    """Carry out ``flexvox simulate``."""
+    try:
+        spec = _spec_from_argument(args.scene)
+        if args.tile:
+            spec.tile, spec.order = args.tile, None
+        if args.size:
+            spec.height, spec.width = args.size
+        if args.frames is not None:
+            if args.frames < 1:
+                raise ValueError(f"--frames must be >= 1; got {args.frames}")
+            spec.frames, spec.duration_s = args.frames, None
+        if args.seed is not None:
+            if args.seed < 0:
+                raise ValueError(f"--seed must be >= 0; got {args.seed}")
+            spec.seed = args.seed
+        if args.effects:
+            current = {e.name: e.as_dict() for e in spec.effects}
+            spec.effects = parse_effects(parse_effect_overrides(args.effects, current))
+        video = load_video(spec.file) if spec.file is not None else None
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", TrimWarning)
+            result = simulate(spec, video=video)
+        for w in caught:
+            print(f"warning: {w.message}")
+        write_simulation(args.output, result, overwrite=args.overwrite)
+    except (ValueError, RecordingError) as exc:
+        raise CliError(str(exc)) from None
+    F, H, W = result.frames.shape
+    effects = ", ".join(result.effects) or "none (ideal forward model)"
+    print(f"simulated {result.source}: {F} frames of {H}x{W}, tile {spec.tile[0]}x{spec.tile[1]} "
+          f"(K = {result.K}), {result.ground_truth.shape[0]} sub-frames at {result.rate_hz * result.K:g} Hz")
+    print(f"effects: {effects}; seed {result.seed}; frames stored as {result.frames.dtype}")
+    if result.dropped.any():
+        print(f"dropped frames: {int(result.dropped.sum())} of {F}")
+    print(f"wrote {args.output}")
+    return EXIT_OK
+
+
+def run_scenes(args) -> int:
+    """Carry out ``flexvox scenes``."""
+    payload = {
+        "scenes": {s.name: s.description for s in SCENES.values()},
+        "effects": {
+            cls.name: {
+                "stage": cls.stage,
+                "description": cls.description,
+                "params": {p.name: {"unit": p.unit, "default": p.default, "min": p.minimum, "max": p.maximum,
+                                    "description": p.description} for p in cls.params},
+            }
+            for cls in EFFECTS.values()
+        },
+    }
+    if args.json:
+        print(json.dumps(payload))
+        return EXIT_OK
+    print("built-in scenes:")
+    for name, desc in payload["scenes"].items():
+        print(f"  {name:<9} {desc}")
+    print("\neffects (declare in a scene file's [effects] table, or with --effects):")
+    for name, e in payload["effects"].items():
+        print(f"  {name:<20} [{e['stage']}] {e['description']}")
+        for pname, p in e["params"].items():
+            print(f"      {pname:<12} {p['default']:g} {p['unit']} ({p['min']:g} .. {p['max']:g}): {p['description']}")
+    print("\nelectron-domain effects use [camera] electrons_per_unit (default 1000 e-: a white scene, one open slot)")
+    return EXIT_OK

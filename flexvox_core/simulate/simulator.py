@@ -1,0 +1,214 @@
+"""The simulator: a high-speed video, a code and the declared effects in; camera frames out.
+
+With no effect declared the frames are :func:`flexvox_core.forward.capture`, bit for bit.
+Optical effects (pattern, timing, light stages) turn the code into per-slot weights
+``W (K, H, W)`` and the frames become ``Σ_s W[s] · video[f·K + s]``; electron-domain
+effects then act on ``frames · electrons_per_unit``. Only declared effects run.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from flexvox_core.codes import code_from_order, is_identity_code, order_from_code, validate_code
+from flexvox_core.design import design_code
+from flexvox_core.forward import capture, check_video, tiled_code
+from flexvox_core.multiplex import multiplexed_code
+from flexvox_core.simulate.effects import Adc, Effect, SyncPhase
+from flexvox_core.simulate.scene_file import SceneSpec
+from flexvox_core.simulate.scenes import render_scene
+from flexvox_core.simulate.sources import load_video, trim_to_frames
+
+_logger = logging.getLogger(__name__)
+
+
+@dataclass
+class SimulationResult:
+    """Camera frames and everything a recording needs to describe them.
+
+    Attributes
+    ----------
+    frames : ndarray (F, H, W)
+        float32 in relative units (1 = a white scene seen for one slot), or uint16 counts
+        when the ``adc`` effect is declared.
+    dropped : ndarray (F,) bool
+    ground_truth : ndarray (S, H, W) float32
+    code : ndarray (m, n, K) bool
+    storage : dict
+        How to turn ``frames`` back into relative units (see :meth:`normalised`).
+    effects : dict
+        ``{name: params}`` of exactly the effects applied, in pipeline order.
+    """
+
+    frames: np.ndarray
+    dropped: np.ndarray
+    ground_truth: np.ndarray
+    code: np.ndarray
+    storage: dict
+    effects: dict
+    seed: int
+    rate_hz: float
+    multiplexed: bool = False
+    placement: np.ndarray | None = None
+    source: str = ""
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def K(self) -> int:  # noqa: N802
+        """Slots per frame."""
+        return self.code.shape[2]
+
+    def normalised(self) -> np.ndarray:
+        """Frames as float32 relative units, whatever the storage."""
+        return normalise_frames(self.frames, self.storage)
+
+
+def normalise_frames(frames: np.ndarray, storage: dict) -> np.ndarray:
+    """Counts → relative units: ``(DN − black_level) / (gain · electrons_per_unit)``."""
+    if storage.get("kind") == "counts":
+        scale = storage["gain"] * storage["electrons_per_unit"]
+        return ((frames.astype(np.float32) - np.float32(storage["black_level"])) / np.float32(scale))
+    return frames.astype(np.float32, copy=False)
+
+
+def _weights(code: np.ndarray, H: int, W: int, effects: list[Effect]) -> np.ndarray | None:
+    """Per-slot weights after the pattern and light stages (None: the ideal code)."""
+    optical = [e for e in effects if e.stage in ("pattern", "light")]
+    if not optical:
+        return None
+    weights = tiled_code(code, H, W).astype(np.float32)
+    for e in effects:
+        if e.stage == "pattern":
+            weights = e.apply(weights)
+    return weights
+
+
+def _light(weights: np.ndarray, effects: list[Effect]) -> np.ndarray:
+    for e in effects:
+        if e.stage == "light":
+            weights = e.apply(weights)
+    return weights
+
+
+def _weighted_capture(video: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    K = weights.shape[-3]
+    F = video.shape[0] // K
+    out = np.zeros((F,) + video.shape[1:], dtype=video.dtype)
+    per_frame = weights.ndim == 4
+    tmp = np.empty(video.shape[1:], dtype=video.dtype)
+    for f in range(F):
+        w = weights[f] if per_frame else weights
+        for s in range(K):
+            np.multiply(w[s], video[f * K + s], out=tmp)
+            out[f] += tmp
+    return out
+
+
+def simulate_video(
+    video,
+    code,
+    *,
+    effects: list[Effect] = (),
+    seed: int = 0,
+    rate_hz: float = 15.0,
+    electrons_per_unit: float = 1000.0,
+) -> SimulationResult:
+    """Simulate the camera frames of ``video`` seen through ``code`` with ``effects``.
+
+    Parameters
+    ----------
+    video : ndarray, shape (S, H, W)
+        Ground truth in [0, 1]; S a multiple of K.
+    code : ndarray, shape (m, n, K)
+    effects : list of Effect
+        Only these are simulated (see :mod:`flexvox_core.simulate.effects`).
+    seed : int
+        Seeds every effect's own generator.
+    rate_hz : float
+        Camera frame rate (the exposure of dark current is one frame period).
+    electrons_per_unit : float
+        Electrons from a white scene in one open slot.
+    """
+    code = validate_code(code)
+    K = code.shape[2]
+    video = check_video(video, K)
+    if rate_hz <= 0 or electrons_per_unit <= 0:
+        raise ValueError(f"`rate_hz` and `electrons_per_unit` must be > 0; got {rate_hz}, {electrons_per_unit}")
+    names = [e.name for e in effects]
+    if len(set(names)) != len(names):
+        raise ValueError(f"each effect may be declared once; got {names}")
+    S, H, W = video.shape
+    F = S // K
+
+    weights = _weights(code, H, W, effects)
+    timing = next((e for e in effects if e.stage == "timing"), None)
+    if timing is not None:
+        base = tiled_code(code, H, W).astype(np.float32) if weights is None else weights
+        if timing.jitter > 0:
+            phases = timing.offset + timing.jitter * timing.rng(seed).standard_normal(F)
+            weights = np.stack([_light(SyncPhase.shifted(base, p), effects) for p in phases])
+        else:
+            weights = _light(SyncPhase.shifted(base, timing.offset), effects)
+    elif weights is not None:
+        weights = _light(weights, effects)
+
+    frames = capture(video, code) if weights is None else _weighted_capture(video, weights)
+
+    sensor = [e for e in effects if e.stage == "sensor"]
+    storage = {"kind": "float", "units": "relative (1 = white scene, one open slot)"}
+    if sensor:
+        electrons = frames.astype(np.float64) * electrons_per_unit
+        exposure_s = 1.0 / rate_hz
+        for e in sensor:
+            electrons = e.apply(electrons, exposure_s=exposure_s, rng=e.rng(seed) if e.random else None)
+        adc = next((e for e in sensor if isinstance(e, Adc)), None)
+        if adc is None:
+            frames = (electrons / electrons_per_unit).astype(np.float32)
+        else:
+            frames = electrons  # uint16 counts from Adc.apply
+            storage = {
+                "kind": "counts", "units": "DN", "bits": adc.bits, "gain": adc.gain,
+                "black_level": adc.black_level, "electrons_per_unit": electrons_per_unit,
+            }
+    dropped = np.zeros(F, dtype=bool)
+    for e in effects:
+        if e.stage == "frames":
+            dropped = e.drops(F, e.rng(seed))
+            frames[dropped] = 0
+    applied = {e.name: e.as_dict() for e in effects}
+    _logger.info("simulated %d frames of %dx%d, K=%d, effects: %s", F, H, W, K, ", ".join(applied) or "none")
+    return SimulationResult(frames, dropped, video, code, storage, applied, int(seed), float(rate_hz),
+                            extra={"electrons_per_unit": electrons_per_unit})
+
+
+def code_for(spec: SceneSpec):
+    """The code a scene asks for: (code, multiplexed, placement order or None)."""
+    if spec.order is not None:
+        return code_from_order(spec.order), False, None
+    if spec.multiplexed:
+        mc = multiplexed_code(spec.tile)
+        return mc.code, True, mc.placement
+    return design_code(spec.tile).code, False, None
+
+
+def simulate(spec: SceneSpec, *, video: np.ndarray | None = None) -> SimulationResult:
+    """Simulate a scene file's scene (render or load its source, trim, design its code)."""
+    code, multiplexed, placement = code_for(spec)
+    K = code.shape[2]
+    if video is None:
+        if spec.file is not None:
+            video = load_video(spec.file)
+        else:
+            frames = spec.camera_frames() or 8
+            video = render_scene(spec.builtin, frames * K, spec.height, spec.width, seed=spec.seed)
+    video = trim_to_frames(video, K, frames=spec.camera_frames() if spec.file is not None else None,
+                           source=spec.source_label())
+    result = simulate_video(video, code, effects=spec.effects, seed=spec.seed, rate_hz=spec.rate_hz,
+                            electrons_per_unit=spec.electrons_per_unit)
+    result.multiplexed = multiplexed
+    result.placement = placement if placement is not None else (order_from_code(code) if is_identity_code(code) else None)
+    result.source = spec.source_label()
+    return result

@@ -1,0 +1,142 @@
+"""Video sources from files: ``.npy`` (S, H, W), multi-page TIFF, videos OpenCV reads,
+and the video-SCI benchmark's ``.mat`` files (variable ``orig``, H×W×T uint8).
+
+All load as float32 ``(S, H, W)`` in [0, 1]: uint8 / 255, uint16 / 65535, float kept
+(and required to lie in [0, 1]). Colour is converted to luminance. Nothing is unpickled.
+"""
+
+from __future__ import annotations
+
+import logging
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+_logger = logging.getLogger(__name__)
+
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv")
+SUFFIXES = (".npy", ".tif", ".tiff", *VIDEO_SUFFIXES, ".mat")
+
+
+class TrimWarning(UserWarning):
+    """A source was shortened to whole camera frames (a multiple of K sub-frames)."""
+
+
+def _to_unit_float(arr: np.ndarray, path: Path) -> np.ndarray:
+    if arr.dtype == np.uint8:
+        return arr.astype(np.float32) / np.float32(255)
+    if arr.dtype == np.uint16:
+        return arr.astype(np.float32) / np.float32(65535)
+    if np.issubdtype(arr.dtype, np.floating):
+        arr = arr.astype(np.float32, copy=False)
+        if not np.isfinite(arr).all():
+            bad = int(np.flatnonzero(~np.isfinite(arr).all(axis=(1, 2)))[0])
+            raise ValueError(f"{path}: sub-frame {bad} holds NaN or infinite values")
+        lo, hi = float(arr.min()), float(arr.max())
+        if lo < 0 or hi > 1:
+            raise ValueError(f"{path}: float video values must lie in [0, 1]; found {lo:g} .. {hi:g}")
+        return arr
+    raise ValueError(f"{path}: unsupported pixel type {arr.dtype} (use uint8, uint16 or float in [0, 1])")
+
+
+def _gray(arr: np.ndarray, path: Path) -> np.ndarray:
+    if arr.ndim == 4 and arr.shape[-1] in (3, 4):
+        weights = np.array([0.299, 0.587, 0.114], np.float32)
+        arr = (arr[..., :3].astype(np.float32) @ weights).astype(arr.dtype if arr.dtype != np.uint8 else np.float32)
+        if np.issubdtype(arr.dtype, np.floating) and arr.max() > 1:
+            arr = arr / 255
+    if arr.ndim != 3:
+        raise ValueError(f"{path}: a video must have 3 dimensions (S, H, W); got {arr.ndim} {arr.shape}")
+    return arr
+
+
+def load_video(path) -> np.ndarray:
+    """Load a video file as float32 ``(S, H, W)`` in [0, 1] (see the module docstring)."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in SUFFIXES:
+        raise ValueError(f"{path}: unknown video type {suffix!r}; readable: {', '.join(SUFFIXES)}")
+    if not path.exists():
+        raise ValueError(f"{path}: no such file")
+    try:
+        if suffix == ".npy":
+            arr = np.load(path, allow_pickle=False)
+        elif suffix in (".tif", ".tiff"):
+            import tifffile
+
+            arr = tifffile.imread(path)
+            if arr.ndim == 2:
+                raise ValueError(f"{path}: a single-page TIFF is one image, not a video")
+        elif suffix == ".mat":
+            arr = _load_mat(path)
+        else:
+            arr = _load_opencv_video(path)
+    except ValueError as exc:
+        if str(exc).startswith(str(path)):
+            raise
+        raise ValueError(f"{path}: cannot read: {exc}") from exc
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read: {exc}") from exc
+    arr = _gray(np.asarray(arr), path)
+    if min(arr.shape) == 0:
+        raise ValueError(f"{path}: the video is empty {arr.shape}")
+    return np.ascontiguousarray(_to_unit_float(arr, path))
+
+
+def _load_mat(path: Path) -> np.ndarray:
+    import scipy.io
+
+    try:
+        data = scipy.io.loadmat(path, variable_names=["orig"])
+    except NotImplementedError:
+        raise ValueError(f"{path}: MATLAB v7.3 (HDF5) files are not supported; save with -v7") from None
+    if "orig" not in data:
+        raise ValueError(f"{path}: no variable `orig` (the SCI benchmark's ground-truth frames)")
+    orig = np.asarray(data["orig"])
+    if orig.ndim != 3:
+        raise ValueError(f"{path}: `orig` must be H x W x T; got {orig.shape}")
+    return np.ascontiguousarray(orig.transpose(2, 0, 1))
+
+
+def _load_opencv_video(path: Path) -> np.ndarray:
+    import cv2
+
+    cap = cv2.VideoCapture(str(path))
+    try:
+        if not cap.isOpened():
+            raise ValueError(f"{path}: OpenCV cannot open this video")
+        frames = []
+        while True:
+            ok, frame = cap.read()
+            if not ok:
+                break
+            frames.append(cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY) if frame.ndim == 3 else frame)
+    finally:
+        cap.release()
+    if not frames:
+        raise ValueError(f"{path}: the video holds no readable frame")
+    return np.stack(frames)
+
+
+def trim_to_frames(video: np.ndarray, K: int, *, frames: int | None = None, source: str = "source") -> np.ndarray:
+    """Cut ``video`` to whole camera frames of K sub-frames (at most ``frames`` of them).
+
+    Warns (:class:`TrimWarning`) when sub-frames are dropped because S is not a multiple of K.
+    """
+    S = video.shape[0]
+    whole = S // K
+    if whole == 0:
+        raise ValueError(f"{source} has {S} sub-frames, fewer than one camera frame (K = {K})")
+    if frames is not None:
+        if frames > whole:
+            raise ValueError(f"{source} has {S} sub-frames: {whole} camera frames of K = {K}, not {frames}")
+        whole = frames
+    elif S % K:
+        message = (
+            f"{source}: {S} sub-frames is not a multiple of K = {K}; "
+            f"using the first {whole * K} ({whole} camera frames), dropping {S - whole * K}"
+        )
+        _logger.warning(message)
+        warnings.warn(message, TrimWarning, stacklevel=2)
+    return video[: whole * K]

@@ -1,0 +1,75 @@
+import json
+
+import numpy as np
+import pytest
+
+from app.cli.main import main
+from flexvox_core.forward import capture
+from flexvox_core.recording import open_recording
+
+
+def run_cli(capsys, *argv):
+    code = main(list(argv))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_simulate_npy_matches_the_forward_model(capsys, tmp_path, rng):
+    gt = rng.random((48, 100, 130)).astype(np.float32)
+    np.save(tmp_path / "gt.npy", gt)
+    code, out, err = run_cli(capsys, "simulate", str(tmp_path / "gt.npy"), "--tile", "4x4", "-o", str(tmp_path / "rec.zarr"))
+    assert code == 0, err
+    rec = open_recording(tmp_path / "rec.zarr")
+    assert rec.frames.shape == (3, 100, 130)
+    assert np.max(np.abs(rec.frames[:] - capture(gt, rec.code))) <= 1e-6
+    assert np.array_equal(rec.ground_truth(), gt)
+    assert "none (ideal forward model)" in out
+
+
+def test_simulate_builtin_with_effect_overrides(capsys, tmp_path):
+    code, out, err = run_cli(capsys, "simulate", "balls", "--size", "24x32", "--frames", "2", "--tile", "2x4",
+                             "--effects", "photon_noise,read_noise.sigma=2", "-o", str(tmp_path / "b.zarr"))
+    assert code == 0, err
+    rec = open_recording(tmp_path / "b.zarr")
+    assert rec.attrs["effects"] == {"photon_noise": {}, "read_noise": {"sigma": 2.0}}
+    assert rec.n_frames == 2
+
+
+def test_simulate_warns_when_trimming(capsys, tmp_path, rng):
+    np.save(tmp_path / "v.npy", rng.random((20, 8, 8)).astype(np.float32))
+    code, out, _ = run_cli(capsys, "simulate", str(tmp_path / "v.npy"), "--tile", "2x2", "-o", str(tmp_path / "v.zarr"))
+    assert code == 0 and "warning:" not in out  # 20 is a whole number of K = 4 frames
+    np.save(tmp_path / "w.npy", rng.random((19, 8, 8)).astype(np.float32))
+    code, out, _ = run_cli(capsys, "simulate", str(tmp_path / "w.npy"), "--tile", "2x2", "-o", str(tmp_path / "w.zarr"))
+    assert code == 0 and "19 sub-frames is not a multiple of K = 4" in out
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["simulate", "nosuch", "-o", "x.zarr"], "is neither a scene file"),
+        (["simulate", "fan", "--effects", "glitter", "-o", "x.zarr"], "unknown effect 'glitter'; effects:"),
+        (["simulate", "fan", "--effects", "read_noise.sigma=-2", "-o", "x.zarr"], "read_noise.sigma must be between 0"),
+        (["simulate", "fan", "--effects", "read_noise.sigma=abc", "-o", "x.zarr"], "must be a number; got 'abc'"),
+        (["simulate", "fan", "--size", "3x3", "-o", "x.zarr"], "--size must be HxW with H, W >= 8"),
+        (["simulate", "missing.npy", "-o", "x.zarr"], "missing.npy: no such file"),
+    ],
+)
+def test_simulate_bad_input(capsys, tmp_path, monkeypatch, argv, message):
+    monkeypatch.chdir(tmp_path)
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse-level errors
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "x.zarr").exists()
+
+
+def test_scenes_lists_scenes_and_effects(capsys):
+    code, out, _ = run_cli(capsys, "scenes", "--json")
+    payload = json.loads(out)
+    assert set(payload["scenes"]) == {"fan", "balls", "drummer", "pan", "static"}
+    assert payload["effects"]["read_noise"]["params"]["sigma"]["unit"] == "e- rms"
+    code, out, _ = run_cli(capsys, "scenes")
+    assert code == 0 and "photon_noise" in out and "electrons_per_unit" in out

@@ -1,0 +1,141 @@
+import cv2
+import numpy as np
+import pytest
+import scipy.io
+import tifffile
+
+from flexvox_core.simulate.scene_file import load_scene, scene_from_mapping
+from flexvox_core.simulate.scenes import SCENES, render_scene
+from flexvox_core.simulate.simulator import simulate
+from flexvox_core.simulate.sources import TrimWarning, load_video, trim_to_frames
+
+
+@pytest.mark.parametrize("name", list(SCENES))
+def test_builtin_scenes_are_deterministic_in_range_and_detailed(name):
+    a = render_scene(name, 16, 40, 48, seed=1)
+    b = render_scene(name, 16, 40, 48, seed=1)
+    assert a.shape == (16, 40, 48) and a.dtype == np.float32
+    assert np.array_equal(a, b)
+    assert a.min() >= 0 and a.max() <= 1
+    # Real high-frequency detail: the pixel-to-pixel differences carry energy.
+    assert np.abs(np.diff(a[0], axis=1)).mean() > 0.03
+
+
+@pytest.mark.parametrize("name, moves", [("static", False), ("fan", True), ("balls", True), ("drummer", True), ("pan", True)])
+def test_scenes_move_as_described(name, moves):
+    v = render_scene(name, 16, 40, 48)
+    assert bool(np.abs(np.diff(v, axis=0)).max() > 0.1) == moves
+
+
+def test_render_scene_rejects_unknown_names():
+    with pytest.raises(ValueError, match=r"unknown scene 'fann'; built-in scenes: fan, balls, drummer, pan, static"):
+        render_scene("fann", 8, 16, 16)
+    with pytest.raises(ValueError, match=r"`height` must be a whole number >= 8; got 4"):
+        render_scene("fan", 8, 4, 16)
+
+
+def test_npy_tiff_video_and_mat_sources(tmp_path, rng):
+    v8 = (rng.random((6, 16, 24)) * 255).astype(np.uint8)
+    np.save(tmp_path / "v.npy", v8)
+    tifffile.imwrite(tmp_path / "v.tif", v8)
+    scipy.io.savemat(tmp_path / "v.mat", {"orig": v8.transpose(1, 2, 0)})
+    for name in ("v.npy", "v.tif", "v.mat"):
+        got = load_video(tmp_path / name)
+        assert got.dtype == np.float32 and got.shape == (6, 16, 24)
+        assert np.allclose(got, v8 / 255.0)
+    writer = cv2.VideoWriter(str(tmp_path / "v.avi"), cv2.VideoWriter_fourcc(*"MJPG"), 10, (24, 16), False)
+    for frame in v8:
+        writer.write(np.full((16, 24), frame.mean(), np.uint8))
+    writer.release()
+    got = load_video(tmp_path / "v.avi")
+    assert got.shape == (6, 16, 24)
+
+
+def test_npy_is_never_unpickled(tmp_path):
+    np.save(tmp_path / "obj.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
+    with pytest.raises(ValueError, match=r"obj.npy: cannot read: .*allow_pickle"):
+        load_video(tmp_path / "obj.npy")
+
+
+@pytest.mark.parametrize(
+    "make, match",
+    [
+        (lambda p: np.save(p / "x.npy", np.zeros((4, 4))), r"must have 3 dimensions \(S, H, W\); got 2"),
+        (lambda p: np.save(p / "x.npy", np.full((2, 4, 4), 2.0)), r"must lie in \[0, 1\]; found 2 .. 2"),
+        (lambda p: (p / "x.npy").write_bytes(b"garbage"), r"x.npy: cannot read"),
+        (lambda p: (p / "x.mp4").write_bytes(b"garbage"), r"x.mp4: OpenCV cannot open|holds no readable frame"),
+        (lambda p: scipy.io.savemat(p / "x.mat", {"meas": np.zeros((4, 4, 2))}), r"no variable `orig`"),
+        (lambda p: (p / "x.gif").write_bytes(b"x"), r"unknown video type '.gif'"),
+    ],
+)
+def test_bad_sources(tmp_path, make, match):
+    make(tmp_path)
+    path = next(tmp_path.iterdir())
+    with pytest.raises(ValueError, match=match):
+        load_video(path)
+
+
+def test_missing_file():
+    with pytest.raises(ValueError, match=r"nope.npy: no such file"):
+        load_video("nope.npy")
+
+
+def test_trim_to_whole_frames_warns():
+    v = np.zeros((37, 4, 4), np.float32)
+    with pytest.warns(TrimWarning, match=r"37 sub-frames is not a multiple of K = 16; using the first 32 \(2 camera frames\), dropping 5"):
+        out = trim_to_frames(v, 16, source="clip")
+    assert out.shape[0] == 32
+    with pytest.raises(ValueError, match=r"fewer than one camera frame"):
+        trim_to_frames(v[:10], 16)
+
+
+def test_scene_file_round_trip(tmp_path):
+    (tmp_path / "s.toml").write_text(
+        """
+seed = 3
+[source]
+builtin = "balls"
+height = 24
+width = 32
+frames = 2
+[camera]
+rate_hz = 30
+[code]
+tile = "2x4"
+[effects.read_noise]
+sigma = 1.5
+[effects.photon_noise]
+"""
+    )
+    spec = load_scene(tmp_path / "s.toml")
+    assert spec.builtin == "balls" and spec.tile == (2, 4) and spec.seed == 3 and spec.rate_hz == 30
+    assert [e.name for e in spec.effects] == ["photon_noise", "read_noise"]
+    result = simulate(spec)
+    assert result.frames.shape == (2, 24, 32) and result.ground_truth.shape == (16, 24, 32)
+    assert result.effects["read_noise"] == {"sigma": 1.5}
+
+
+@pytest.mark.parametrize(
+    "data, match",
+    [
+        ({"source": {"builtin": "nope"}}, r"unknown scene 'nope'; built-in scenes: fan"),
+        ({"source": {"builtin": "fan", "file": "x.npy"}}, r"give either `builtin` or `file`"),
+        ({"source": {"colour": 1}}, r"\[source\]: unknown key 'colour'"),
+        ({"camera": {"rate_hz": -1}}, r"rate_hz must be >= 0.001; got -1"),
+        ({"code": {"tile": "0x4"}}, r"\[code\]: `tile` side m must be between 1 and 8; got 0"),
+        ({"effects": {"sparkle": {}}}, r"\[effects\]: unknown effect 'sparkle'"),
+        ({"effects": {"read_noise": {"sigma": -3}}}, r"read_noise.sigma must be between 0 and"),
+        ({"seed": -1}, r"seed must be >= 0; got -1"),
+    ],
+)
+def test_bad_scene_files(data, match):
+    with pytest.raises(ValueError, match=match):
+        scene_from_mapping(data)
+
+
+def test_unreadable_scene_files(tmp_path):
+    (tmp_path / "bad.toml").write_text("seed = = 3")
+    with pytest.raises(ValueError, match=r"bad.toml: not valid TOML"):
+        load_scene(tmp_path / "bad.toml")
+    with pytest.raises(ValueError, match=r"missing.toml: no such scene file"):
+        load_scene(tmp_path / "missing.toml")

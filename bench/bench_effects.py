@@ -11,8 +11,6 @@ import argparse
 import statistics
 import time
 
-import numpy as np
-
 from flexvox_core.design import design_code
 from flexvox_core.simulate.effects import EFFECTS
 from flexvox_core.simulate.scenes import render_scene
@@ -61,7 +59,7 @@ def main(argv=None) -> None:
     rows.append(("all twelve", timed(video, code, everything, args.repeat)))
     print(f"simulator cost per effect: drummer {H}x{W}, K=16, {args.frames} frames ({voxels / 1e6:.1f} M voxels), "
           f"median of {args.repeat}")
-    print(f"| effects | time (ms) | x baseline | M voxels/s |\n|---|---|---|---|")
+    print("| effects | time (ms) | x baseline | M voxels/s |\n|---|---|---|---|")
     for name, t in rows:
         print(f"| {name} | {t * 1e3:.1f} | {t / base:.1f} | {voxels / t / 1e6:.0f} |")
 

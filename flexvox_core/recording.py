@@ -46,7 +46,7 @@ class RecordingError(ValueError):
 
 
 def _now() -> str:
-    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+    return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
 
 
 def recording_attrs(code, *, rate_hz: float, kind: str, storage: dict, effects: dict | None = None,

@@ -1,2 +1,9 @@
 """rig_drivers — device interfaces, the simulated rig and real drivers (projector, camera,
-sync box). Qt-free. Filled in by the *Rig drivers* issue."""
+sync box). Qt-free.
+
+- :mod:`rig_drivers.errors`: the exception hierarchy
+- :mod:`rig_drivers.interfaces`: Device lifecycle, Projector, Camera, SyncController, settings
+- :mod:`rig_drivers.simulated`: SimulatedProjector, SimulatedSyncController
+- :mod:`rig_drivers.dlpc350`: TI DLP LightCrafter 4500 over USB HID (+ a fake transport)
+- :mod:`rig_drivers.syncbox`: the serial sync box (+ a fake serial port)
+"""

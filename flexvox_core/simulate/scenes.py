@@ -7,8 +7,8 @@ seed. Motion is given in pixels per *sub-frame* (one shutter slot).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 

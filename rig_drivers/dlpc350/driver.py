@@ -1,0 +1,319 @@
+"""The DLP LightCrafter 4500 (DLPC350) as a :class:`~rig_drivers.interfaces.Projector`.
+
+Patterns reach the projector as bit-planes of 24-bit frames on its video port (the app
+shows :meth:`DLPC350.frames_for` full-screen on the projector's display output); this driver
+programs the pattern sequence over USB: which bit-plane shows when, for how long, what
+triggers each group of patterns, and how often TRIG_OUT_2 pulses (once per camera frame).
+
+Command order of a session (DLPU010G §4.2 Table 4-2, DESIGN.md §5)::
+
+    0x1A24 = 0 (stop)  0x1A1B = 1 (pattern mode)  0x1A22 (source)  0x1A31 (LUT control)
+    0x1A23 (trigger mode)  0x1A29 (exposure, period)  0x1A33 = 2, 0x1A32, 0x1A34..., 0x1A33 = 0
+    0x1A1A (validate; poll until bit 7 clears)  0x1A24 = 2 (start) ... 0x1A24 = 0 (stop)
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import numpy as np
+
+from rig_drivers.dlpc350 import protocol as p
+from rig_drivers.dlpc350.bitplanes import PLANES_PER_FRAME, pack_bitplanes
+from rig_drivers.dlpc350.transport import Transport
+from rig_drivers.errors import DeviceTimeoutError, IncompatibleStateError, ProtocolError, SettingError
+from rig_drivers.interfaces import (
+    DeviceState,
+    PatternSequence,
+    Projector,
+    ProjectorTrigger,
+    RunState,
+    check_positive_float,
+    check_timeout,
+)
+
+_logger = logging.getLogger(__name__)
+
+MAX_ENTRIES_PER_PACKET = p.MAX_PAYLOAD // p.LUT_ENTRY_BYTES  # 19 entries fit one report
+
+
+class DLPC350(Projector):
+    """TI DLP LightCrafter 4500 over a :class:`~rig_drivers.dlpc350.transport.Transport`.
+
+    Parameters
+    ----------
+    transport : Transport
+        Moves 64-byte reports: :class:`~rig_drivers.dlpc350.transport.PyUsbHidTransport`
+        for the real projector, :class:`~rig_drivers.dlpc350.fake.FakeDLPC350Transport` in tests.
+    vsync_hz : float
+        Refresh rate of the video signal feeding the projector (default 60 Hz). Each group
+        of ``patterns_per_trigger`` patterns must fit in one VSYNC period.
+    reply_timeout_s : float
+        How long to wait for each reply.
+    validate_timeout_s : float
+        How long to poll the validation busy bit before giving up.
+    poll_interval_s : float
+        Pause between validation polls (0 in tests).
+    """
+
+    def __init__(self, transport: Transport, *, vsync_hz: float = 60.0, reply_timeout_s: float = 1.0,
+                 validate_timeout_s: float = 2.0, poll_interval_s: float = 0.01, name: str | None = None):
+        super().__init__(name=name or "DLP LightCrafter 4500")
+        for method in ("open", "close", "write", "read"):
+            if not callable(getattr(transport, method, None)):
+                raise SettingError(f"`transport` must have open/close/write/read methods; "
+                                   f"{type(transport).__name__} has no {method}()")
+        self._transport = transport
+        self.vsync_hz = check_positive_float("vsync_hz", vsync_hz, 1000.0, "Hz")
+        self._reply_timeout_s = check_timeout(reply_timeout_s)
+        self._validate_timeout_s = check_timeout(validate_timeout_s)
+        if not isinstance(poll_interval_s, (int, float)) or not 0 <= poll_interval_s <= 1:
+            raise SettingError(f"`poll_interval_s` must be between 0 and 1 s; got {poll_interval_s!r}")
+        self._poll_interval_s = float(poll_interval_s)
+        self._seq = 0
+        self._needs_reload = False
+
+    # ------------------------------------------------------------------ lifecycle hooks
+    def _do_open(self) -> None:
+        self._seq = 0
+        self._transport.open()
+
+    def _do_close(self) -> None:
+        self._transport.close()
+
+    def _do_enable(self) -> None:
+        self.set_standby(False)
+
+    def _do_disable(self) -> None:
+        try:
+            super()._do_disable()  # stop the sequence
+        finally:
+            self.set_standby(True)
+
+    # ------------------------------------------------------------------ transactions
+    def _transact(self, command: int, payload: bytes = b"", *, read: bool = False) -> bytes:
+        seq = self._seq
+        self._seq = (self._seq + 1) & 0xFF
+        self._transport.write(p.build_packet(command, payload, read=read, seq=seq))
+        try:
+            reply = self._transport.read(self._reply_timeout_s)
+        except DeviceTimeoutError as exc:
+            raise DeviceTimeoutError(
+                f"no reply to {p.command_name(command)} within {self._reply_timeout_s:g} s: check the "
+                f"USB cable, close TI's LightCrafter GUI, and power-cycle the projector if it "
+                f"stays silent") from exc
+        return p.parse_reply(reply, command=command, seq=seq)
+
+    def write_command(self, command: int, payload: bytes) -> None:
+        """Send one write command and check its acknowledgement (raises on NAK)."""
+        self._require(f"send {p.command_name(command)}", DeviceState.OPEN, DeviceState.ENABLED)
+        self._transact(command, payload)
+
+    def read_command(self, command: int) -> bytes:
+        """Send one read command and return the reply's data bytes."""
+        self._require(f"read {p.command_name(command)}", DeviceState.OPEN, DeviceState.ENABLED)
+        return self._transact(command, read=True)
+
+    def _read_byte(self, command: int) -> int:
+        data = self.read_command(command)
+        if not data:
+            raise ProtocolError(f"malformed reply to {p.command_name(command)}: no data bytes")
+        return data[0]
+
+    # ------------------------------------------------------------------ queries
+    def version(self) -> dict[str, str]:
+        """Firmware component versions ("major.minor.patch"), DLPU010G §2.1.4."""
+        return p.decode_version(self.read_command(p.Command.GET_VERSION))
+
+    def status(self) -> p.Status:
+        """Hardware, system and main status bytes, decoded (``.words()``), DLPU010G §2.1."""
+        return p.Status(self._read_byte(p.Command.HW_STATUS), self._read_byte(p.Command.SYS_STATUS),
+                        self._read_byte(p.Command.MAIN_STATUS))
+
+    # ------------------------------------------------------------------ simple settings
+    def set_standby(self, standby: bool) -> None:
+        """Standby (True: DMD interface powered down) or normal operation, 0x0200."""
+        self.write_command(p.Command.POWER_CONTROL, bytes([1 if standby else 0]))
+
+    def set_display_mode(self, pattern: bool) -> None:
+        """Pattern display mode (True) or video mode (False), 0x1A1B."""
+        self.write_command(p.Command.DISPLAY_MODE, bytes([1 if pattern else 0]))
+
+    def set_exposure_period(self, exposure_us: int, period_us: int) -> None:
+        """0x1A29, after checking the 230 µs rule (nothing is sent when it fails)."""
+        self.write_command(p.Command.EXPOSURE_PERIOD, p.encode_exposure_period(exposure_us, period_us))
+
+    def configure_trigger_output(self, number: int, *, invert: bool = False, rising_us: float = 0.0,
+                                 falling_us: float = 0.0) -> None:
+        """Polarity and edge delays of TRIG_OUT_1 or TRIG_OUT_2 (stop the sequence first).
+
+        Delays in µs relative to the pattern on the DMD, −20.05 .. +7.29 µs in 107.2 ns steps.
+        """
+        command, payload = p.encode_trig_out(number, invert=invert, rising_us=rising_us,
+                                             falling_us=falling_us)
+        self._require_stopped("configure a trigger output")
+        self.write_command(command, payload)
+        self._needs_reload = True
+
+    def configure_trigger_input(self, *, delay_us: float = 0.0) -> None:
+        """TRIG_IN_1 rising-edge delay in µs (107.136 ns steps), 0x1A35."""
+        payload = p.encode_trig_in1_delay(delay_us)
+        self._require_stopped("configure the trigger input")
+        self.write_command(p.Command.TRIG_IN1, payload)
+        self._needs_reload = True
+
+    def _require_stopped(self, action: str) -> None:
+        self._require(action, DeviceState.OPEN, DeviceState.ENABLED)
+        if self._run_state is not RunState.STOPPED:
+            raise IncompatibleStateError(
+                f"cannot {action} while the sequence is {self._run_state.value}: stop it first")
+
+    # ------------------------------------------------------------------ pattern sequence
+    def lut_entries_for(self, sequence: PatternSequence) -> list[p.LutEntry]:
+        """The pattern LUT for ``sequence`` (video-port source, trigger mode 0).
+
+        Entry k shows bit-plane ``k % 24`` (DLPU010G Table 2-70) for one 1-bit exposure, white
+        LEDs. Every ``patterns_per_trigger``-th entry waits for VSYNC (trigger type "external
+        positive") and swaps the frame buffer (DLPU010G Table 4-2 step 6); the rest continue.
+
+        Raises
+        ------
+        SettingError
+            When the sequence cannot run from the video port (see the message).
+        """
+        self.check_sequence(sequence)
+        ppt = sequence.patterns_per_trigger
+        entries = []
+        for k in range(sequence.K):
+            starts_group = k % ppt == 0
+            entries.append(p.LutEntry(
+                pattern_number=k % PLANES_PER_FRAME,
+                trigger=p.LutTrigger.EXTERNAL_POSITIVE if starts_group else p.LutTrigger.NONE,
+                bit_depth=1, led=p.LED_WHITE, buffer_swap=starts_group))
+        return entries
+
+    def check_sequence(self, sequence: PatternSequence) -> None:
+        """Raise :class:`SettingError` when this projector cannot show ``sequence``."""
+        if sequence.trigger is not ProjectorTrigger.VSYNC:
+            raise SettingError(
+                f"`trigger` must be VSYNC for the LightCrafter 4500: patterns arrive on the video "
+                f"port, which runs in trigger mode 0 (DLPU010G Table 2-53); got {sequence.trigger.value}")
+        if sequence.exposure_us != sequence.period_us:
+            raise SettingError(
+                f"`exposure_us` must equal `period_us` with video-port patterns (DLPU010G Table 2-63 "
+                f"note); got exposure {sequence.exposure_us} µs, period {sequence.period_us} µs")
+        ppt = sequence.patterns_per_trigger
+        vsync_us = 1e6 / self.vsync_hz
+        if ppt * sequence.period_us > vsync_us:
+            fit = max(1, int(vsync_us // sequence.period_us))
+            raise SettingError(
+                f"`patterns_per_trigger` x `period_us` must fit one VSYNC period of {vsync_us:.0f} µs "
+                f"at {self.vsync_hz:g} Hz; got {ppt} x {sequence.period_us} µs = "
+                f"{ppt * sequence.period_us} µs (at most {fit} patterns per VSYNC)")
+        if ppt > PLANES_PER_FRAME or (sequence.K > PLANES_PER_FRAME and PLANES_PER_FRAME % ppt):
+            raise SettingError(
+                f"`patterns_per_trigger` must divide 24 when K > 24 (each VSYNC frame holds 24 "
+                f"bit-planes); got {ppt} with K = {sequence.K}")
+
+    def frames_for(self, sequence: PatternSequence) -> np.ndarray:
+        """The ``(F, H, W, 3)`` uint8 frames to show on the video port for ``sequence``.
+
+        With K <= 24 one static frame serves every VSYNC; with K > 24 the app shows frame
+        ``g * ppt // 24`` during trigger group g.
+        """
+        return pack_bitplanes(sequence.patterns)
+
+    def configure_sequence(self, sequence: PatternSequence) -> None:
+        """Send the pattern-mode set-up for ``sequence`` (no validation, no start).
+
+        Everything is checked before the first packet goes out.
+        """
+        if not isinstance(sequence, PatternSequence):
+            raise SettingError(f"`sequence` must be a PatternSequence; got {type(sequence).__name__}")
+        entries = self.lut_entries_for(sequence)
+        lut_control = p.encode_lut_control(sequence.K, sequence.repeat, sequence.trigger_out_every,
+                                           -(-sequence.K // PLANES_PER_FRAME))
+        exposure_period = p.encode_exposure_period(sequence.exposure_us, sequence.period_us)
+        self._require("configure a pattern sequence", DeviceState.OPEN, DeviceState.ENABLED)
+
+        self.write_command(p.Command.START_STOP, bytes([0]))
+        self._run_state = RunState.STOPPED
+        self.set_display_mode(True)
+        self.write_command(p.Command.PATTERN_SOURCE, bytes([p.PatternSource.VIDEO_PORT]))
+        self.write_command(p.Command.LUT_CONTROL, lut_control)
+        self.write_command(p.Command.TRIGGER_MODE, bytes([p.TriggerMode.VSYNC]))
+        self.write_command(p.Command.EXPOSURE_PERIOD, exposure_period)
+        self.write_pattern_lut(entries)
+        self._needs_reload = True
+
+    def write_pattern_lut(self, entries: list[p.LutEntry]) -> None:
+        """Open the pattern mailbox, write the entries (19 per packet), close it."""
+        if not 1 <= len(entries) <= p.MAX_LUT_ENTRIES:
+            raise SettingError(f"`entries` must hold 1..{p.MAX_LUT_ENTRIES} LUT entries; got {len(entries)}")
+        self.write_command(p.Command.MAILBOX_CONTROL, bytes([p.Mailbox.PATTERN]))
+        try:
+            for start in range(0, len(entries), MAX_ENTRIES_PER_PACKET):
+                chunk = entries[start:start + MAX_ENTRIES_PER_PACKET]
+                self.write_command(p.Command.MAILBOX_OFFSET, bytes([start]))
+                self.write_command(p.Command.MAILBOX_DATA, b"".join(e.encode() for e in chunk))
+        finally:
+            self.write_command(p.Command.MAILBOX_CONTROL, bytes([p.Mailbox.CLOSED]))
+
+    def validate(self, timeout_s: float | None = None) -> p.ValidationResult:
+        """Ask the controller to validate the set-up; poll bit 7 (busy) until it clears.
+
+        Polling is bounded by ``timeout_s`` (default: the constructor's) and by a maximum
+        number of polls. Warnings (bits 2..4) are logged; failures raise.
+
+        Raises
+        ------
+        ProtocolError
+            When bit 0 (bad timing) or bit 1 (bad pattern number) is set; the message lists
+            every problem in words.
+        DeviceTimeoutError
+            When the busy bit does not clear in time.
+        """
+        timeout_s = self._validate_timeout_s if timeout_s is None else check_timeout(timeout_s)
+        self.write_command(p.Command.VALIDATE, bytes([0]))
+        deadline = time.monotonic() + timeout_s
+        max_polls = 1 + int(timeout_s / max(self._poll_interval_s, 1e-3))
+        for _ in range(max_polls):
+            byte = self._read_byte(p.Command.VALIDATE)
+            if not byte & p.VALIDATE_BUSY:
+                result = p.ValidationResult(byte)
+                if not result.ok:
+                    raise ProtocolError("the projector rejected the pattern sequence: "
+                                        + "; ".join(result.problems))
+                for warning in result.problems:
+                    _logger.warning("DLPC350 validation: %s", warning)
+                self._needs_reload = False
+                return result
+            if time.monotonic() > deadline:
+                break
+            if self._poll_interval_s:
+                time.sleep(self._poll_interval_s)
+        raise DeviceTimeoutError(
+            f"the projector was still validating (busy bit set) after {timeout_s:g} s: "
+            f"power-cycle it if this repeats")
+
+    # ------------------------------------------------------------------ Projector hooks
+    def _do_load_sequence(self, sequence: PatternSequence) -> None:
+        self.configure_sequence(sequence)
+        self.validate()
+
+    def _do_start(self) -> None:
+        # After a stop the LUT must be sent again and validated before start (DLPU010G
+        # Table 2-62 note); after a pause a plain start resumes.
+        if self._needs_reload and self._run_state is RunState.STOPPED:
+            self.configure_sequence(self._sequence)
+            self.validate()
+        self.write_command(p.Command.START_STOP, bytes([2]))
+
+    def _do_pause(self) -> None:
+        self.write_command(p.Command.START_STOP, bytes([1]))
+
+    def _do_stop(self) -> None:
+        self.write_command(p.Command.START_STOP, bytes([0]))
+        self._needs_reload = True
+

@@ -1,0 +1,90 @@
+"""`flexvox devices`, driven through a parser built from the module's own register()."""
+
+import json
+from types import SimpleNamespace
+
+import pytest
+
+from app.cli import devices
+from app.cli.errors import OneLineParser
+
+
+def parse(*argv):
+    parser = OneLineParser(prog="flexvox")
+    sub = parser.add_subparsers(dest="command", parser_class=OneLineParser)
+    devices.register(sub)
+    return parser.parse_args(["devices", *argv])
+
+
+def no_backend(**kwargs):
+    import usb.core
+
+    raise usb.core.NoBackendError("No backend available")
+
+
+NO_HARDWARE = {"list_usb": no_backend, "comports": lambda: [], "environ": {}}
+
+
+def test_register_sets_run(capsys):
+    args = parse("--json")
+    assert args.func is devices.run and args.json is True
+
+
+def test_no_hardware_exits_0_and_says_why(capsys):
+    code = devices.run(parse(), probes=NO_HARDWARE)
+    out = capsys.readouterr().out
+    assert code == 0
+    assert "pyusb found no USB backend: install libusb-1.0" in out
+    assert "no serial ports found" in out
+    assert "GENICAM_GENTL64_PATH is not set" in out
+    assert "simulated projector" in out
+    assert "no rig hardware found on this machine; the simulated rig is available" in out
+
+
+def test_json_lists_what_is_found(capsys, tmp_path):
+    (tmp_path / "viky.cti").write_bytes(b"")
+    (tmp_path / "readme.txt").write_text("x")
+
+    class Dev:
+        bus, address = 3, 9
+
+    port = SimpleNamespace(device="/dev/ttyACM0", description="Arduino Uno", vid=0x2341, pid=0x0043)
+    probes = {"list_usb": lambda **kw: [Dev()], "comports": lambda: [port],
+              "environ": {"GENICAM_GENTL64_PATH": str(tmp_path)}}
+    code = devices.run(parse("--json"), probes=probes)
+    payload = json.loads(capsys.readouterr().out)
+    assert code == 0 and payload["hardware_found"] is True
+    assert payload["projectors"]["devices"] == [{"bus": 3, "address": 9, "vid_pid": "0451:6401"}]
+    assert payload["serial_ports"]["devices"][0] == {"port": "/dev/ttyACM0", "description": "Arduino Uno",
+                                                     "vid_pid": "2341:0043"}
+    assert payload["gentl_producers"]["devices"] == [{"producer": str(tmp_path / "viky.cti")}]
+    assert payload["simulated"]["available"] is True
+
+
+def test_gentl_path_without_producers_says_so(capsys, tmp_path):
+    probes = dict(NO_HARDWARE, environ={"GENICAM_GENTL64_PATH": str(tmp_path)})
+    devices.run(parse("--json"), probes=probes)
+    payload = json.loads(capsys.readouterr().out)
+    assert payload["gentl_producers"]["reason"] == f"no .cti files in GENICAM_GENTL64_PATH ({tmp_path})"
+    assert payload["hardware_found"] is False
+
+
+def test_runs_on_this_machine_for_real(capsys):
+    # Whatever this machine has, the command answers and exits 0.
+    assert devices.run(parse("--json")) == 0
+    payload = json.loads(capsys.readouterr().out)
+    assert set(payload) >= {"projectors", "serial_ports", "gentl_producers", "simulated", "hardware_found"}
+
+
+def test_unknown_option_is_a_usage_error(capsys):
+    with pytest.raises(SystemExit) as exc:
+        parse("--bogus")
+    assert exc.value.code == 2 and "unrecognized arguments: --bogus" in capsys.readouterr().err
+
+
+def test_builtin_uart_is_listed_but_is_not_rig_hardware(capsys):
+    uart = SimpleNamespace(device="/dev/ttyS0", description="n/a", vid=None, pid=None)
+    devices.run(parse("--json"), probes=dict(NO_HARDWARE, comports=lambda: [uart]))
+    payload = json.loads(capsys.readouterr().out)
+    assert payload["serial_ports"]["devices"] == [{"port": "/dev/ttyS0", "description": "n/a", "vid_pid": None}]
+    assert payload["hardware_found"] is False

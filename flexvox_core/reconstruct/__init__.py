@@ -1,0 +1,31 @@
+"""Reconstructions that need no motion information (the seed's §§2–3) and a GAP-TV peer.
+
+Every function takes an identity-code capture ``frames`` (F, H, W) and its ``code``
+(m, n, K) and returns the full video (F·K, H, W). Multiplexed captures are demultiplexed
+first with :func:`prepare`.
+
+- :mod:`~flexvox_core.reconstruct.rebin` — re-binning at every supported division;
+- :mod:`~flexvox_core.reconstruct.diffusion` — constant-tensor diffusion, solvers
+  ``nc`` (normalized convolution), ``explicit`` and ``steady``;
+- :mod:`~flexvox_core.reconstruct.gaptv` — GAP-TV (Yuan 2016) for any 0/1 code.
+"""
+
+from flexvox_core.reconstruct._common import prepare
+from flexvox_core.reconstruct.diffusion import SOLVERS, diffuse, nc_naive, sigmas, stability_bound
+from flexvox_core.reconstruct.gaptv import gap_tv, gap_tv_masks, tv_denoise
+from flexvox_core.reconstruct.rebin import rebin, rebin_blocks, supported_divisions
+
+__all__ = [
+    "SOLVERS",
+    "diffuse",
+    "gap_tv",
+    "gap_tv_masks",
+    "nc_naive",
+    "prepare",
+    "rebin",
+    "rebin_blocks",
+    "sigmas",
+    "stability_bound",
+    "supported_divisions",
+    "tv_denoise",
+]

@@ -1,0 +1,466 @@
+r"""Constant-tensor diffusion (the seed's §3.1): a continuum from high SR to high TR.
+
+The missing voxels of the sparse sample volume are filled by the diffusion
+
+.. math::
+
+    \frac{\partial I}{\partial n} = \operatorname{trace}(T H), \qquad
+    T = \operatorname{diag}(c_x, c_y, c_t),
+
+whose solution after diffusion time ``n`` is a convolution with the Gaussian of
+covariance :math:`2 n T` (the seed's Eq. 3): standard deviations
+:math:`\sigma_i = \sqrt{2 n c_i}` pixels (sub-frames for t). The tensor is not
+normalised: ``(cx, cy, ct)`` and ``time`` only enter as ``time · c_i``. Tensors with
+:math:`c_t \gg c_x, c_y` (e.g. (0, 0, 1)) smooth along time and keep spatial detail
+(high SR, low TR); :math:`c_t \ll c_x, c_y` (e.g. (1, 1, 0)) the opposite.
+
+The diffusion time ``n`` is an accuracy knob, not a convergence tolerance: too little
+leaves the sampling lattice visible, too much blurs (and the steady state, ``n → ∞``
+with the samples held fixed, is worse than stopping early — DESIGN.md §3).
+
+Solvers (one interface, :func:`diffuse`):
+
+``"nc"`` — normalized convolution (Knutsson & Westin 1993), the one-pass form of Eq. 3
+    with missing data: :math:`\hat I = (G * (M \cdot I_0)) / (G * M)` with ``M`` the
+    sample mask. Separable float32 Gaussians (OpenCV for the spatial axes and, on a
+    ``(S, H·W)`` view, for time). Kernels are sampled Gaussians truncated at 4 σ (as
+    ``scipy.ndimage.gaussian_filter``); an axis with ``c_i = 0`` is not blurred.
+    Boundaries reflect (``BORDER_REFLECT``, edge duplicated). Where ``G * M`` is zero or
+    tiny (below :data:`NC_MIN_WEIGHT`: no sample within the truncated kernel, e.g.
+    ``c_x = c_y = 0`` and a short time), the voxel takes the value of its nearest sample
+    in the tensor's metric (distance along axis i divided by σᵢ; zero-variance axes
+    count 1000× the smallest nonzero σ), so the result is never NaN and tends to the
+    nearest-neighbour interpolation as ``n → 0``.
+``"explicit"`` — Eq. 2 iterated on the missing voxels only with the monotone 7-point
+    stencil :math:`\sum_i c_i [I(x + e_i) - 2 I(x) + I(x - e_i)]` and time step
+    :math:`dt = n / \lceil n / dt_{max} \rceil`, :math:`dt_{max} = 1 / (2 \sum_i c_i)`.
+    Under this bound every update is a convex combination of the old values, so the
+    iteration obeys the discrete maximum principle at any anisotropy (unlike the
+    centred 19-point stencil for full tensors, DESIGN.md §3). Reflecting boundary
+    (ghost voxel = edge voxel). Started from ``nc`` with the same tensor and time
+    (``init="nc"``, the default: nc followed by the same amount of data-consistent
+    diffusion) or from the samples' mean (``init="mean"``).
+``"steady"`` — the steady state :math:`\sum_i c_i \partial_i^2 I = 0` at the missing
+    voxels, samples as Dirichlet data, reflecting boundary: a sparse SPD system solved by
+    Jacobi-preconditioned conjugate gradients (scipy), started from ``nc``. ``time`` only
+    sets that starting point. It is here to show that the steady state is not the goal.
+
+``keep_samples`` (data consistency) writes the measured voxels back unchanged; it only
+changes ``nc``, the other two solvers never move a sample. Every solver's output lies in
+``[min(samples), max(samples)]`` (``nc`` is clipped to it, to absorb rounding).
+
+References
+----------
+H. Knutsson, C.-F. Westin, "Normalized and differential convolution", CVPR 1993.
+D. Tschumperlé, R. Deriche, "Vector-valued image regularization with PDEs", PAMI 2005.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+
+import cv2
+import numpy as np
+from scipy.ndimage import distance_transform_edt, gaussian_filter
+from scipy.sparse import coo_matrix, diags
+from scipy.sparse.linalg import cg
+
+from flexvox_core.forward import tiled_order
+from flexvox_core.reconstruct._common import check_dtype, check_frames, check_identity_code
+
+_logger = logging.getLogger(__name__)
+
+__all__ = ["NC_MIN_WEIGHT", "SOLVERS", "diffuse", "nc_naive", "sigmas", "stability_bound"]
+
+SOLVERS = ("nc", "explicit", "steady")
+
+NC_MIN_WEIGHT = 1e-12
+"""Blurred-mask values at or below this (relative to the kernel's peak weight product,
+at most 1) are treated as "no sample nearby": those voxels take the nearest sample."""
+
+TRUNCATE = 4.0
+"""Gaussian kernels are cut at ``TRUNCATE`` standard deviations (as scipy.ndimage)."""
+
+_CHUNK = 16384  # columns per cv2 call for the time axis (a wide thin image filters slowly)
+
+MAX_EXPLICIT_STEPS = 20000
+"""``explicit`` refuses runs longer than this many steps (``time · 2·Σc`` of them)."""
+
+STEADY_RTOL = 1e-6
+STEADY_MAXITER = 5000
+
+
+# --------------------------------------------------------------------------- validation
+
+
+def _check_tensor(tensor) -> tuple[float, float, float]:
+    try:
+        vals = tuple(float(v) for v in tensor)
+    except (TypeError, ValueError):
+        raise ValueError(f"`tensor` must be three numbers (cx, cy, ct); got {tensor!r}") from None
+    if len(vals) != 3:
+        raise ValueError(f"`tensor` must be three numbers (cx, cy, ct); got {len(vals)}: {tensor!r}")
+    if not all(math.isfinite(v) and v >= 0 for v in vals):
+        raise ValueError(f"`tensor` entries must be finite and >= 0; got {tensor!r}")
+    if max(vals) == 0:
+        raise ValueError(f"`tensor` must have at least one positive entry; got {tensor!r}")
+    return vals  # type: ignore[return-value]
+
+
+def _check_time(time) -> float:
+    try:
+        t = float(time)
+    except (TypeError, ValueError):
+        raise ValueError(f"`time` must be a positive number; got {time!r}") from None
+    if not (math.isfinite(t) and t > 0):
+        raise ValueError(f"`time` must be a positive finite number; got {time!r}")
+    return t
+
+
+def sigmas(tensor, time) -> tuple[float, float, float]:
+    """Gaussian standard deviations ``(σx, σy, σt) = sqrt(2·time·c)`` of Eq. 3.
+
+    Examples
+    --------
+    >>> sigmas((1, 1, 0), 2.0)
+    (2.0, 2.0, 0.0)
+    """
+    c = _check_tensor(tensor)
+    t = _check_time(time)
+    return tuple(math.sqrt(2.0 * t * ci) for ci in c)  # type: ignore[return-value]
+
+
+def stability_bound(tensor) -> float:
+    """Largest stable, monotone explicit time step ``1 / (2·(cx + cy + ct))``.
+
+    Examples
+    --------
+    >>> stability_bound((1, 1, 1))
+    0.16666666666666666
+    """
+    return 1.0 / (2.0 * sum(_check_tensor(tensor)))
+
+
+# --------------------------------------------------------------------------- nc kernels
+
+
+def _kernel(sigma: float, dtype) -> np.ndarray | None:
+    """Sampled Gaussian, truncated at TRUNCATE σ and normalised; None when no blur."""
+    radius = int(TRUNCATE * sigma + 0.5)
+    if sigma <= 0 or radius == 0:
+        return None
+    x = np.arange(-radius, radius + 1, dtype=np.float64)
+    g = np.exp(-0.5 * (x / sigma) ** 2)
+    return (g / g.sum()).astype(dtype)
+
+
+def _fold_matrix(g: np.ndarray, length: int) -> np.ndarray:
+    """The ``length × length`` matrix of a 1-D blur with kernel ``g`` and reflecting ends.
+
+    Used when the kernel is longer than the axis (the reflection then wraps many times).
+    """
+    r = g.size // 2
+    period = 2 * length
+    idx = (np.arange(length)[:, None] + np.arange(-r, r + 1)[None, :]) % period
+    idx = np.where(idx >= length, period - 1 - idx, idx)  # reflect: ... 1 0 | 0 1 ... L-1 | L-1 ...
+    mat = np.zeros((length, length), dtype=np.float64)
+    np.add.at(mat, (np.repeat(np.arange(length), g.size), idx.ravel()), np.tile(g.astype(np.float64), length))
+    return mat.astype(g.dtype)
+
+
+_ONE = {np.float32: np.ones(1, np.float32), np.float64: np.ones(1, np.float64)}
+
+
+def _blur_rows(img2d: np.ndarray, g: np.ndarray | None, out: np.ndarray) -> None:
+    """Blur a 2-D array along axis 0 (rows) with reflecting ends, into ``out``."""
+    if g is None:
+        if out is not img2d:
+            out[...] = img2d
+        return
+    L = img2d.shape[0]
+    if g.size // 2 >= L:
+        out[...] = _fold_matrix(g, L) @ img2d
+        return
+    one = _ONE[img2d.dtype.type]
+    for c0 in range(0, img2d.shape[1], _CHUNK):
+        sl = slice(c0, c0 + _CHUNK)
+        cv2.sepFilter2D(img2d[:, sl], -1, one, g, dst=out[:, sl], borderType=cv2.BORDER_REFLECT)
+
+
+def _blur_plane(img: np.ndarray, gy: np.ndarray | None, gx: np.ndarray | None, out: np.ndarray) -> None:
+    """Separable 2-D blur of one ``(H, W)`` plane with reflecting borders, into ``out``."""
+    H, W = img.shape
+    one = _ONE[img.dtype.type]
+    fold_y = gy is not None and gy.size // 2 >= H
+    fold_x = gx is not None and gx.size // 2 >= W
+    if fold_y or fold_x or gx is None and gy is None:
+        tmp = img if gy is None else (_fold_matrix(gy, H) @ img if fold_y else
+                                      cv2.sepFilter2D(img, -1, one, gy, borderType=cv2.BORDER_REFLECT))
+        if gx is None:
+            out[...] = tmp
+        elif fold_x:
+            out[...] = tmp @ _fold_matrix(gx, W).T
+        else:
+            cv2.sepFilter2D(np.ascontiguousarray(tmp), -1, gx, one, dst=out, borderType=cv2.BORDER_REFLECT)
+        return
+    cv2.sepFilter2D(img, -1, one if gx is None else gx, one if gy is None else gy, dst=out,
+                    borderType=cv2.BORDER_REFLECT)
+
+
+def _nearest_fill(values: np.ndarray, mask: np.ndarray, where: np.ndarray, sig) -> None:
+    """Give the voxels ``where`` the value of their nearest sample (tensor metric), in place."""
+    pos = [s for s in sig if s > 0]
+    smallest = min(pos)
+    sampling = [1.0 / (s if s > 0 else 1e-3 * smallest) for s in (sig[2], sig[1], sig[0])]
+    idx = distance_transform_edt(~mask, sampling=sampling, return_distances=False, return_indices=True)
+    values[where] = values[tuple(i[where] for i in idx)]
+
+
+def _sample_volume(frames: np.ndarray, code: np.ndarray, dtype) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Sparse values ``(S, H, W)`` (0 off-sample), bool mask, and the slot of every pixel."""
+    F, H, W = frames.shape
+    K = code.shape[2]
+    order = tiled_order(code, H, W)
+    vals = np.zeros((F, K, H, W), dtype=dtype)
+    np.put_along_axis(vals, order[None, None], frames.astype(dtype, copy=False)[:, None], axis=1)
+    mask = np.arange(K)[:, None, None] == order[None]  # (K, H, W)
+    return vals.reshape(F * K, H, W), np.tile(mask, (F, 1, 1)), order
+
+
+def _nc_kernel(frames, code, sig, keep_samples: bool, dtype) -> np.ndarray:
+    F, H, W = frames.shape
+    K = code.shape[2]
+    S = F * K
+    gx, gy, gt = (_kernel(s, dtype) for s in sig)
+    num, mask, order = _sample_volume(frames, code, dtype)
+    # Numerator: spatial blur of every sub-frame, then time.
+    for s in range(S):
+        _blur_plane(num[s], gy, gx, num[s])
+    flat = num.reshape(S, H * W)
+    _blur_rows(flat, gt, flat)
+    # Denominator: the mask has only K distinct sub-frames; blur those in space, then time.
+    den_k = np.empty((K, H, W), dtype=dtype)
+    for k in range(K):
+        _blur_plane((order == k).astype(dtype), gy, gx, den_k[k])
+    den = np.tile(den_k, (F, 1, 1))
+    dflat = den.reshape(S, H * W)
+    _blur_rows(dflat, gt, dflat)
+    peak = 1.0
+    for g in (gx, gy, gt):
+        if g is not None:
+            peak *= float(g.max())
+    low = den <= NC_MIN_WEIGHT * peak
+    np.divide(num, den, out=num, where=~low)
+    samples = frames.astype(dtype, copy=False)
+    if low.any():
+        _logger.debug("nc: %d voxels without a sample in reach take the nearest sample", int(low.sum()))
+        _put_samples(num, samples, order)
+        _nearest_fill(num, mask, low, sig)
+    np.clip(num, samples.min(), samples.max(), out=num)
+    if keep_samples:
+        _put_samples(num, samples, order)
+    return num
+
+
+def _put_samples(volume: np.ndarray, samples: np.ndarray, order: np.ndarray) -> None:
+    """Write the captured values back at their voxels of ``volume`` (S, H, W), in place."""
+    F, H, W = samples.shape
+    K = volume.shape[0] // F
+    np.put_along_axis(volume.reshape(F, K, H, W), order[None, None], samples[:, None], axis=1)
+
+
+# --------------------------------------------------------------------------- explicit
+
+
+def _add_second_difference(vol: np.ndarray, axis: int, c: float, acc: np.ndarray) -> None:
+    """``acc += c · [I(x+e) − 2 I(x) + I(x−e)]`` along ``axis``, ghost voxels = edge voxels."""
+    n = vol.shape[axis]
+    if c == 0 or n == 1:
+        return
+    v = np.moveaxis(vol, axis, 0)
+    a = np.moveaxis(acc, axis, 0)
+    cc = vol.dtype.type(c)
+    a[1:-1] += cc * (v[2:] + v[:-2] - 2 * v[1:-1])
+    a[0] += cc * (v[1] - v[0])
+    a[-1] += cc * (v[-2] - v[-1])
+
+
+def _explicit_kernel(init: np.ndarray, mask: np.ndarray, tensor, time: float) -> np.ndarray:
+    cx, cy, ct = tensor
+    dt_max = 1.0 / (2.0 * (cx + cy + ct))
+    steps = max(1, math.ceil(time / dt_max - 1e-9))
+    dt = init.dtype.type(time / steps)
+    missing = ~mask
+    vol = init
+    acc = np.empty_like(vol)
+    for _ in range(steps):
+        acc.fill(0)
+        _add_second_difference(vol, 0, ct, acc)
+        _add_second_difference(vol, 1, cy, acc)
+        _add_second_difference(vol, 2, cx, acc)
+        acc *= dt
+        np.add(vol, acc, out=vol, where=missing)
+    _logger.debug("explicit: %d steps of dt = %.4g (bound %.4g)", steps, float(dt), dt_max)
+    return vol
+
+
+# --------------------------------------------------------------------------- steady
+
+
+def _steady_kernel(init: np.ndarray, mask: np.ndarray, tensor) -> np.ndarray:
+    S, H, W = init.shape
+    N = S * H * W
+    index = np.arange(N).reshape(S, H, W)
+    rows, cols, vals = [], [], []
+    for axis, c in ((0, tensor[2]), (1, tensor[1]), (2, tensor[0])):
+        if c == 0 or init.shape[axis] == 1:
+            continue
+        lo = np.take(index, np.arange(init.shape[axis] - 1), axis=axis).ravel()
+        hi = np.take(index, np.arange(1, init.shape[axis]), axis=axis).ravel()
+        rows += [lo, hi]
+        cols += [hi, lo]
+        vals += [np.full(lo.size, c), np.full(lo.size, c)]
+    x = init.astype(np.float64).ravel()
+    if not rows:
+        return init
+    adj = coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(N, N)).tocsr()
+    degree = np.asarray(adj.sum(axis=1)).ravel()
+    unknown = np.flatnonzero(~mask.ravel())
+    known = np.flatnonzero(mask.ravel())
+    a_uu = (diags(degree[unknown]) - adj[unknown][:, unknown]).tocsr()
+    b = adj[unknown][:, known] @ x[known]
+    d = degree[unknown]
+    precond = diags(np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 1.0))
+    sol, info = cg(a_uu, b, x0=x[unknown], rtol=STEADY_RTOL, maxiter=STEADY_MAXITER, M=precond)
+    if info > 0:
+        _logger.warning("steady: CG stopped after %d iterations without reaching rtol %g", info, STEADY_RTOL)
+    x[unknown] = sol
+    out = x.reshape(S, H, W).astype(init.dtype)
+    samples = init[mask]
+    np.clip(out, samples.min(), samples.max(), out=out)  # CG rounding only
+    return out
+
+
+# --------------------------------------------------------------------------- public
+
+
+DEFAULT_TENSOR = (1.0, 1.0, 1.0)
+DEFAULT_TIME = 0.25
+"""Default diffusion time: with the isotropic tensor (σ ≈ 0.7 px) the best of a sweep on
+Runner and Drop with the 2×4 code (bench/bench_nc.py); longer times blur."""
+
+
+def diffuse(
+    frames,
+    code,
+    *,
+    tensor=DEFAULT_TENSOR,
+    time: float = DEFAULT_TIME,
+    solver: str = "nc",
+    keep_samples: bool = True,
+    init: str = "nc",
+    dtype=np.float32,
+) -> np.ndarray:
+    r"""Fill the missing voxels by diffusion with a constant tensor ``diag(cx, cy, ct)``.
+
+    Parameters
+    ----------
+    frames : ndarray, shape (F, H, W)
+        An identity-code capture (demultiplex first: :func:`~flexvox_core.reconstruct.prepare`).
+        A NaN or infinite value raises ``ValueError`` naming the frame.
+    code : ndarray, shape (m, n, K), bool
+        Its identity code. Partial tiles at the borders are fine.
+    tensor : (float, float, float), keyword-only
+        ``(cx, cy, ct) >= 0``, not all zero. Only ``time · c`` matters.
+    time : float, keyword-only
+        Diffusion time n > 0: Gaussian σᵢ = sqrt(2·n·cᵢ) (see :func:`sigmas`).
+    solver : {"nc", "explicit", "steady"}, keyword-only
+        See the module notes.
+    keep_samples : bool, keyword-only
+        Write measured voxels back exactly (``nc`` only; the others never move them).
+    init : {"nc", "mean"}, keyword-only
+        Starting volume of ``explicit`` (and ``steady``).
+    dtype : float32 or float64, keyword-only
+        Working and output precision.
+
+    Returns
+    -------
+    video : ndarray, shape (F·K, H, W), ``dtype``
+        Within ``[min(frames), max(frames)]``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from flexvox_core import capture, code_from_order
+    >>> code = code_from_order([[0, 2], [3, 1]])
+    >>> video = np.full((8, 6, 6), 0.25, dtype=np.float32)
+    >>> out = diffuse(capture(video, code), code, tensor=(1, 1, 1), time=1.0)
+    >>> out.shape, bool(np.all(out == 0.25))
+    ((8, 6, 6), True)
+    """
+    f = check_frames(frames)
+    c = check_identity_code(code)
+    tens = _check_tensor(tensor)
+    t = _check_time(time)
+    if solver not in SOLVERS:
+        raise ValueError(f"`solver` must be one of {', '.join(SOLVERS)}; got {solver!r}")
+    if init not in ("nc", "mean"):
+        raise ValueError(f"`init` must be 'nc' or 'mean'; got {init!r}")
+    dt = check_dtype(dtype)
+    sig = sigmas(tens, t)
+    if solver == "explicit" and math.ceil(t * 2.0 * sum(tens) - 1e-9) > MAX_EXPLICIT_STEPS:
+        raise ValueError(
+            f"`time` {t:g} with `tensor` {tensor!r} needs {math.ceil(t * 2.0 * sum(tens))} explicit "
+            f"steps (time · 2·Σc), more than {MAX_EXPLICIT_STEPS}; scale the tensor down (only "
+            "time · c matters) or use solver='nc'"
+        )
+    if solver == "nc":
+        return _nc_kernel(f, c, sig, bool(keep_samples), dt)
+    F, H, W = f.shape
+    K = c.shape[2]
+    samples = f.astype(dt, copy=False)
+    if init == "nc":
+        start = _nc_kernel(f, c, sig, True, dt)
+        mask = np.tile(np.arange(K)[:, None, None] == tiled_order(c, H, W)[None], (F, 1, 1))
+    else:
+        start, mask, order = _sample_volume(f, c, dt)
+        start[~mask] = samples.mean(dtype=np.float64)
+    if solver == "explicit":
+        return _explicit_kernel(start, mask, tens, t)
+    return _steady_kernel(start, mask, tens)
+
+
+def nc_naive(frames, code, *, tensor=DEFAULT_TENSOR, time: float = DEFAULT_TIME,
+             keep_samples: bool = True) -> np.ndarray:
+    """Normalized convolution with ``scipy.ndimage.gaussian_filter`` in float64 (a baseline).
+
+    The straightforward implementation of ``diffuse(..., solver="nc")``: the same kernels,
+    boundaries and fall-back, on dense float64 volumes, for checking and benchmarking.
+
+    Returns
+    -------
+    video : ndarray, shape (F·K, H, W), float64
+    """
+    f = check_frames(frames)
+    c = check_identity_code(code)
+    sig = sigmas(tensor, time)
+    vals, mask, order = _sample_volume(f, c, np.float64)
+    sigma = (sig[2], sig[1], sig[0])
+    num = gaussian_filter(vals, sigma, mode="reflect", truncate=TRUNCATE)
+    den = gaussian_filter(mask.astype(np.float64), sigma, mode="reflect", truncate=TRUNCATE)
+    peak = 1.0
+    for s in sig:
+        g = _kernel(s, np.float64)
+        if g is not None:
+            peak *= float(g.max())
+    low = den <= NC_MIN_WEIGHT * peak
+    out = np.divide(num, den, out=np.zeros_like(num), where=~low)
+    samples = f.astype(np.float64)
+    if low.any():
+        _put_samples(out, samples, order)
+        _nearest_fill(out, mask, low, sig)
+    np.clip(out, samples.min(), samples.max(), out=out)
+    if keep_samples:
+        _put_samples(out, samples, order)
+    return out

@@ -1,0 +1,69 @@
+import numpy as np
+import pytest
+
+from flexvox_core.metrics import psnr, ssim
+
+
+def test_psnr_known_value_and_identity(rng):
+    ref = rng.random((3, 16, 16))
+    x = ref + 0.01  # MSE 1e-4 -> 40 dB at data range 1
+    scores = psnr(ref, x)
+    assert np.allclose(scores.per_frame, 40.0)
+    assert scores.mean == pytest.approx(40.0)
+    assert psnr(ref, x, data_range=255).mean == pytest.approx(40.0 + 20 * np.log10(255))
+    same = psnr(ref, ref)
+    assert np.all(np.isinf(same.per_frame)) and same.mean == np.inf
+
+
+def test_psnr_per_frame_differs(rng):
+    ref = np.zeros((2, 8, 8))
+    x = ref.copy()
+    x[0] += 0.1
+    x[1] += 0.01
+    assert psnr(ref, x).per_frame.round(6).tolist() == [20.0, 40.0]
+
+
+def test_ssim_identical_is_one_and_noise_lowers_it(rng):
+    ref = rng.random((2, 32, 32))
+    assert ssim(ref, ref).mean == pytest.approx(1.0, abs=1e-12)
+    noisy = ref + 0.2 * rng.standard_normal(ref.shape)
+    s = ssim(ref, noisy)
+    assert np.all(s.per_frame < 0.9)
+    assert np.all(s.per_frame > -1)
+
+
+def test_ssim_of_two_constant_images_is_the_luminance_term():
+    a, b = 0.3, 0.6
+    c1 = (0.01 * 1.0) ** 2
+    want = (2 * a * b + c1) / (a * a + b * b + c1)
+    got = ssim(np.full((1, 20, 20), a), np.full((1, 20, 20), b)).mean
+    assert got == pytest.approx(want, rel=1e-9)
+
+
+def test_ssim_is_symmetric_and_scale_invariant_with_data_range(rng):
+    a = rng.random((1, 24, 24))
+    b = np.clip(a + 0.1 * rng.standard_normal(a.shape), 0, 1)
+    assert ssim(a, b).mean == pytest.approx(ssim(b, a).mean, rel=1e-12)
+    assert ssim(255 * a, 255 * b, data_range=255).mean == pytest.approx(ssim(a, b).mean, rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("ref", "x", "kw", "match"),
+    [
+        (np.zeros((2, 4, 4)), np.zeros((2, 4, 5)), {}, r"`x` must have the shape of `ref`"),
+        (np.zeros(4), np.zeros(4), {}, r"`ref` must have shape \(S, H, W\)"),
+        (np.zeros((2, 4, 4)), np.zeros((2, 4, 4)), {"data_range": 0}, r"`data_range` must be a positive"),
+    ],
+)
+def test_metric_misuse_is_refused(ref, x, kw, match):
+    with pytest.raises(ValueError, match=match):
+        psnr(ref, x, **kw)
+    with pytest.raises(ValueError, match=match):
+        ssim(ref, x, **kw)
+
+
+def test_nan_names_the_frame():
+    x = np.zeros((3, 4, 4))
+    x[2, 1, 1] = np.nan
+    with pytest.raises(ValueError, match=r"`x` frame 2 holds NaN"):
+        psnr(np.zeros((3, 4, 4)), x)

@@ -88,9 +88,9 @@ class Effect:
         """Parameters as recorded in a recording's metadata."""
         return dict(self.values)
 
-    def rng(self, seed: int) -> np.random.Generator:
-        """This effect's own random generator for a scene seed."""
-        return np.random.default_rng([int(seed), zlib.crc32(self.name.encode())])
+    def rng(self, seed: int, stream: int = 0) -> np.random.Generator:
+        """This effect's own random generator for a scene seed (and a stream, e.g. a frame index)."""
+        return np.random.default_rng([int(seed), zlib.crc32(self.name.encode()), int(stream)])
 
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={v!r}" for k, v in self.values.items())

@@ -107,6 +107,114 @@ def _weighted_capture(video: np.ndarray, weights: np.ndarray) -> np.ndarray:
     return out
 
 
+def render_exposures(
+    video,
+    light,
+    *,
+    effects: list[Effect] = (),
+    seed: int = 0,
+    stream: int = 0,
+    rate_hz: float = 15.0,
+    electrons_per_unit: float = 1000.0,
+):
+    """Camera frames of ``video`` lit by arbitrary per-slot projector light, with ``effects``.
+
+    This is the simulator's core, for callers whose patterns are not a tiled code (the
+    simulated rig shows Gray codes, single slots, ...).
+
+    Parameters
+    ----------
+    video : ndarray, shape (F·K, H, W)
+        Scene radiance per sub-frame, in [0, 1].
+    light : ndarray, shape (K, H, W) or (F, K, H, W)
+        Projected light reaching each camera pixel in each slot, in [0, 1] (1 = open),
+        already in camera coordinates; one set for all frames, or one per frame.
+    effects, seed, rate_hz, electrons_per_unit
+        As in :func:`simulate_video`.
+    stream : int
+        Mixed into every effect's random generator: give each call a different stream
+        (a frame counter) so successive calls draw different noise.
+
+    Returns
+    -------
+    frames : ndarray (F, H, W)
+        float32 relative units, or uint16 counts with ``adc``.
+    dropped : ndarray (F,) bool
+    storage : dict
+    """
+    light = np.asarray(light, dtype=np.float32)
+    if light.ndim not in (3, 4):
+        raise ValueError(f"`light` must have shape (K, H, W) or (F, K, H, W); got {light.shape}")
+    K = light.shape[-3]
+    video = check_video(video, K)
+    S, H, W = video.shape
+    F = S // K
+    if light.shape[-2:] != (H, W) or (light.ndim == 4 and light.shape[0] != F):
+        raise ValueError(f"`light` {light.shape} does not match {F} frames of K = {K} slots of {H}x{W}")
+    if not np.isfinite(light).all() or light.min() < 0:
+        raise ValueError("`light` must hold finite values >= 0")
+    _check_effects(effects, rate_hz, electrons_per_unit)
+    per_frame = [light[f] for f in range(F)] if light.ndim == 4 else [light]
+    weights = []
+    for i, base in enumerate(per_frame):
+        w = base
+        for e in effects:
+            if e.stage == "pattern":
+                w = e.apply(w)
+        weights.append(w)
+    weights = np.stack(weights) if light.ndim == 4 else weights[0]
+    timing = next((e for e in effects if e.stage == "timing"), None)
+    weights = _timed(weights, timing, effects, seed, stream, F)
+    frames = _weighted_capture(video, weights)
+    return _sensor_and_drops(frames, effects, seed, stream, rate_hz, electrons_per_unit)
+
+
+def _check_effects(effects, rate_hz, electrons_per_unit) -> None:
+    if rate_hz <= 0 or electrons_per_unit <= 0:
+        raise ValueError(f"`rate_hz` and `electrons_per_unit` must be > 0; got {rate_hz}, {electrons_per_unit}")
+    names = [e.name for e in effects]
+    if len(set(names)) != len(names):
+        raise ValueError(f"each effect may be declared once; got {names}")
+
+
+def _timed(weights, timing, effects, seed, stream, F):
+    """Apply the timing stage (if declared) and then the light stage."""
+    if timing is None:
+        return _light(weights, effects)
+    if timing.jitter > 0:
+        phases = timing.offset + timing.jitter * timing.rng(seed, stream).standard_normal(F)
+        per = [weights[f] if weights.ndim == 4 else weights for f in range(F)]
+        return np.stack([_light(SyncPhase.shifted(w, p), effects) for w, p in zip(per, phases)])
+    if weights.ndim == 4:
+        return np.stack([_light(SyncPhase.shifted(w, timing.offset), effects) for w in weights])
+    return _light(SyncPhase.shifted(weights, timing.offset), effects)
+
+
+def _sensor_and_drops(frames, effects, seed, stream, rate_hz, electrons_per_unit):
+    sensor = [e for e in effects if e.stage == "sensor"]
+    storage = {"kind": "float", "units": "relative (1 = white scene, one open slot)"}
+    if sensor:
+        electrons = frames.astype(np.float64) * electrons_per_unit
+        exposure_s = 1.0 / rate_hz
+        for e in sensor:
+            electrons = e.apply(electrons, exposure_s=exposure_s, rng=e.rng(seed, stream) if e.random else None)
+        adc = next((e for e in sensor if isinstance(e, Adc)), None)
+        if adc is None:
+            frames = (electrons / electrons_per_unit).astype(np.float32)
+        else:
+            frames = electrons  # uint16 counts from Adc.apply
+            storage = {
+                "kind": "counts", "units": "DN", "bits": adc.bits, "gain": adc.gain,
+                "black_level": adc.black_level, "electrons_per_unit": electrons_per_unit,
+            }
+    dropped = np.zeros(frames.shape[0], dtype=bool)
+    for e in effects:
+        if e.stage == "frames":
+            dropped = e.drops(frames.shape[0], e.rng(seed, stream))
+            frames[dropped] = 0
+    return frames, dropped, storage
+
+
 def simulate_video(
     video,
     code,
@@ -135,49 +243,19 @@ def simulate_video(
     code = validate_code(code)
     K = code.shape[2]
     video = check_video(video, K)
-    if rate_hz <= 0 or electrons_per_unit <= 0:
-        raise ValueError(f"`rate_hz` and `electrons_per_unit` must be > 0; got {rate_hz}, {electrons_per_unit}")
-    names = [e.name for e in effects]
-    if len(set(names)) != len(names):
-        raise ValueError(f"each effect may be declared once; got {names}")
+    _check_effects(effects, rate_hz, electrons_per_unit)
     S, H, W = video.shape
     F = S // K
-
     weights = _weights(code, H, W, effects)
     timing = next((e for e in effects if e.stage == "timing"), None)
     if timing is not None:
         base = tiled_code(code, H, W).astype(np.float32) if weights is None else weights
-        if timing.jitter > 0:
-            phases = timing.offset + timing.jitter * timing.rng(seed).standard_normal(F)
-            weights = np.stack([_light(SyncPhase.shifted(base, p), effects) for p in phases])
-        else:
-            weights = _light(SyncPhase.shifted(base, timing.offset), effects)
+        weights = _timed(base, timing, effects, seed, 0, F)
     elif weights is not None:
         weights = _light(weights, effects)
-
+    # No optical effect: the exact forward model, bit for bit.
     frames = capture(video, code) if weights is None else _weighted_capture(video, weights)
-
-    sensor = [e for e in effects if e.stage == "sensor"]
-    storage = {"kind": "float", "units": "relative (1 = white scene, one open slot)"}
-    if sensor:
-        electrons = frames.astype(np.float64) * electrons_per_unit
-        exposure_s = 1.0 / rate_hz
-        for e in sensor:
-            electrons = e.apply(electrons, exposure_s=exposure_s, rng=e.rng(seed) if e.random else None)
-        adc = next((e for e in sensor if isinstance(e, Adc)), None)
-        if adc is None:
-            frames = (electrons / electrons_per_unit).astype(np.float32)
-        else:
-            frames = electrons  # uint16 counts from Adc.apply
-            storage = {
-                "kind": "counts", "units": "DN", "bits": adc.bits, "gain": adc.gain,
-                "black_level": adc.black_level, "electrons_per_unit": electrons_per_unit,
-            }
-    dropped = np.zeros(F, dtype=bool)
-    for e in effects:
-        if e.stage == "frames":
-            dropped = e.drops(F, e.rng(seed))
-            frames[dropped] = 0
+    frames, dropped, storage = _sensor_and_drops(frames, effects, seed, 0, rate_hz, electrons_per_unit)
     applied = {e.name: e.as_dict() for e in effects}
     _logger.info("simulated %d frames of %dx%d, K=%d, effects: %s", F, H, W, K, ", ".join(applied) or "none")
     return SimulationResult(frames, dropped, video, code, storage, applied, int(seed), float(rate_hz),

@@ -30,7 +30,7 @@ def test_no_effect_is_the_ideal_forward_model_exactly(rng):
 def test_undeclared_effects_draw_no_random_numbers(rng, monkeypatch):
     drawn = []
     original = Effect.rng
-    monkeypatch.setattr(Effect, "rng", lambda self, seed: drawn.append(self.name) or original(self, seed))
+    monkeypatch.setattr(Effect, "rng", lambda self, *a: drawn.append(self.name) or original(self, *a))
     v = video(rng)
     sim(v, *parse_effects({"leakage": {}, "ambient": {}, "dark_current": {}, "read_noise": {}}))
     assert drawn == ["read_noise"]  # the deterministic effects drew nothing
@@ -209,3 +209,20 @@ def test_partial_border_tiles_with_effects(rng):
     v = rng.random((8, 7, 9)).astype(np.float32)
     r = sim(v, EFFECTS["leakage"](alpha=0.0))
     assert np.allclose(r.frames, capture(v, code_from_order(design_code((2, 4)).order)), atol=1e-6)
+
+
+def test_render_exposures_with_arbitrary_light_and_streams(rng):
+    from flexvox_core.simulate.simulator import render_exposures
+
+    v = video(rng)
+    light = rng.random((8, 10, 12)).astype(np.float32)  # any pattern, not a tiled code
+    frames, dropped, storage = render_exposures(v, light)
+    want = np.einsum("fkhw,khw->fhw", v.reshape(3, 8, 10, 12).astype(np.float64), light.astype(np.float64))
+    assert np.allclose(frames, want, atol=1e-5) and not dropped.any() and storage["kind"] == "float"
+    noisy = [EFFECTS["read_noise"](sigma=2.0)]
+    a, _, _ = render_exposures(v, light, effects=noisy, stream=0)
+    b, _, _ = render_exposures(v, light, effects=noisy, stream=1)
+    c, _, _ = render_exposures(v, light, effects=noisy, stream=1)
+    assert not np.array_equal(a, b) and np.array_equal(b, c)
+    with pytest.raises(ValueError, match=r"`light` .* does not match 3 frames of K = 8"):
+        render_exposures(v, light[:, :5])

@@ -1,0 +1,189 @@
+"""What accuracy costs in time: every reconstruction and knob on the same captures.
+
+Runs re-binning (every supported division), constant-tensor diffusion (a diffusion-time
+sweep for several tensors, and each solver), and GAP-TV (an iteration sweep) on the
+built-in scenes at K = 8 (2×4) and K = 16 (4×4), and on the SCI benchmark's Runner and
+Drop (2×4 code) when that data is present. Writes ``results.csv``, ``results.json`` and a
+Pareto plot ``pareto.png`` (mean PSNR against log time), and returns the rows.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import logging
+import math
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from flexvox_core.design import design_code
+from flexvox_core.forward import capture
+from flexvox_core.metrics import psnr, ssim
+from flexvox_core.reconstruct.rebin import supported_divisions
+from flexvox_core.reconstruct.run import Method, reconstruct
+from flexvox_core.simulate.scenes import render_scene
+
+_logger = logging.getLogger(__name__)
+
+SCENES_FULL = ("fan", "balls", "drummer", "pan", "static")
+SCENES_QUICK = ("balls", "static")
+TENSORS = {
+    "isotropic (1,1,1)": (1.0, 1.0, 1.0),
+    "high SR (0.05,0.05,1)": (0.05, 0.05, 1.0),
+    "high TR (1,1,0.05)": (1.0, 1.0, 0.05),
+    "between (0.3,0.3,1)": (0.3, 0.3, 1.0),
+}
+TIMES_FULL = (0.1, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0)
+TIMES_QUICK = (0.25, 1.0, 4.0)
+
+
+@dataclass
+class Case:
+    """One capture to reconstruct: its ground truth, frames and code."""
+
+    name: str
+    K: int
+    truth: np.ndarray
+    frames: np.ndarray
+    code: np.ndarray
+
+
+def sci_data_dir() -> Path | None:
+    """``$FLEXVOX_DATA/sci_benchmark`` or ``../shared/data/sci_benchmark`` next to the checkout."""
+    env = os.environ.get("FLEXVOX_DATA")
+    candidates = [Path(env) / "sci_benchmark"] if env else []
+    candidates.append(Path(__file__).resolve().parents[2] / "shared" / "data" / "sci_benchmark")
+    return next((c for c in candidates if (c / "runner40_cacti.mat").exists()), None)
+
+
+def cases(*, quick: bool, sci: bool = True) -> list[Case]:
+    """The captures of the benchmark (seeded, deterministic)."""
+    H, W, F = (48, 64, 4) if quick else (96, 128, 6)
+    out = []
+    for tile in ((2, 4), (4, 4)):
+        code = design_code(tile).code
+        K = tile[0] * tile[1]
+        for scene in SCENES_QUICK if quick else SCENES_FULL:
+            truth = render_scene(scene, F * K, H, W, seed=0)
+            out.append(Case(f"{scene} K={K}", K, truth, capture(truth, code), code))
+    folder = sci_data_dir() if sci else None
+    if folder is not None:
+        from flexvox_core.simulate.sources import load_video
+
+        code = design_code((2, 4)).code
+        for name in ("runner", "drop") if not quick else ("runner",):
+            truth = load_video(folder / f"{name}40_cacti.mat")[:8]
+            out.append(Case(f"{name} (SCI) K=8", 8, truth, capture(truth, code), code))
+    return out
+
+
+def methods_for(case: Case, *, quick: bool) -> list[tuple[str, Method]]:
+    """(family, method) rows for one capture."""
+    rows = []
+    for d in supported_divisions(case.code):
+        rows.append(("rebin", Method("rebin", block=d, interpolate=True)))
+        if not quick:
+            rows.append(("rebin (blocks)", Method("rebin", block=d, interpolate=False)))
+    for family, tensor in TENSORS.items():
+        for n in TIMES_QUICK if quick else TIMES_FULL:
+            rows.append((f"nc {family}", Method("diffusion", tensor=tensor, time=n)))
+    if not quick:
+        for n in (0.25, 1.0):
+            rows.append(("explicit isotropic", Method("diffusion", tensor=(1, 1, 1), time=n, solver="explicit")))
+        rows.append(("steady isotropic", Method("diffusion", tensor=(1, 1, 1), time=1.0, solver="steady")))
+    for it in (5, 20) if quick else (5, 10, 20, 40):
+        rows.append(("gap-tv", Method("gap-tv", iterations=it)))
+    return rows
+
+
+def run_bench(out_dir, *, quick: bool = False, sci: bool = True, progress=None) -> list[dict]:
+    """Run the benchmark, write CSV/JSON/PNG into ``out_dir`` and return the rows."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    rows = []
+    all_cases = cases(quick=quick, sci=sci)
+    for i, case in enumerate(all_cases):
+        for family, method in methods_for(case, quick=quick):
+            t0 = time.perf_counter()
+            video = reconstruct(case.frames, case.code, method, chunk_frames=None)
+            seconds = time.perf_counter() - t0
+            mse = float(np.mean((case.truth.astype(np.float64) - video) ** 2))
+            rows.append({
+                "case": case.name, "K": case.K, "family": family, "method": method.label(),
+                "psnr": round(float(psnr(case.truth, video).mean), 3), "mse": mse,
+                "ssim": round(float(ssim(case.truth, video).mean), 4),
+                "seconds": round(seconds, 5), "mvoxels_per_s": round(video.size / max(seconds, 1e-9) / 1e6, 2),
+            })
+        if progress:
+            progress(i + 1, len(all_cases))
+    _write(out_dir, rows)
+    return rows
+
+
+def summary(rows: list[dict]) -> list[dict]:
+    """Per method over the built-in scenes: PSNR of the mean squared error (so an exact
+    reconstruction of a still scene counts as error 0, not as an infinite PSNR), mean SSIM
+    and mean seconds."""
+    by: dict[tuple, list[dict]] = {}
+    for r in rows:
+        if "SCI" in r["case"]:
+            continue
+        by.setdefault((r["family"], r["method"]), []).append(r)
+    out = []
+    for (family, method), rs in by.items():
+        out.append({"family": family, "method": method,
+                    "psnr": float(10 * np.log10(1 / max(np.mean([r["mse"] for r in rs]), 1e-20))),
+                    "ssim": float(np.mean([r["ssim"] for r in rs])),
+                    "seconds": float(np.mean([r["seconds"] for r in rs])),
+                    "cases": len(rs)})
+    return sorted(out, key=lambda r: -r["psnr"])
+
+
+def pareto(points: list[dict]) -> list[dict]:
+    """The rows not beaten by a faster-or-equal row with higher-or-equal PSNR."""
+    front, best = [], -math.inf
+    for r in sorted(points, key=lambda r: (r["seconds"], -r["psnr"])):
+        if r["psnr"] > best:
+            front.append(r)
+            best = r["psnr"]
+    return front
+
+
+def _write(out_dir: Path, rows: list[dict]) -> None:
+    with open(out_dir / "results.csv", "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        writer.writeheader()
+        writer.writerows(rows)
+    summ = summary(rows)
+    (out_dir / "results.json").write_text(json.dumps({"rows": rows, "summary": summ, "pareto": pareto(summ)}, indent=1))
+    plot_pareto(summ, out_dir / "pareto.png")
+
+
+def plot_pareto(summ: list[dict], path: Path) -> None:
+    """Mean PSNR against time (log), one colour per family, the Pareto front joined."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 5), dpi=110)
+    families = sorted({r["family"] for r in summ})
+    cmap = plt.get_cmap("tab10")
+    for i, fam in enumerate(families):
+        pts = [r for r in summ if r["family"] == fam]
+        ax.scatter([r["seconds"] for r in pts], [r["psnr"] for r in pts], s=22, color=cmap(i % 10), label=fam)
+    front = pareto(summ)
+    ax.plot([r["seconds"] for r in front], [r["psnr"] for r in front], "k--", lw=1, label="Pareto front")
+    ax.set_xscale("log")
+    ax.set_xlabel("seconds per capture (mean over scenes)")
+    ax.set_ylabel("PSNR of the mean squared error over built-in scenes, dB")
+    ax.set_title("What accuracy costs in time")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)

@@ -1,0 +1,58 @@
+"""``flexvox bench``: what accuracy costs in time, on the built-in scenes (and SCI data if present)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from tqdm import tqdm
+
+from app.cli.errors import EXIT_OK
+
+
+def register(sub) -> None:
+    """Add the ``bench`` subcommand."""
+    p = sub.add_parser(
+        "bench",
+        help="accuracy against time for every reconstruction and knob",
+        description=(
+            "Run every reconstruction and knob setting (re-binning at each division, diffusion-time "
+            "and tensor sweeps, the nc/explicit/steady solvers, GAP-TV iterations) on the built-in "
+            "scenes at K=8 and K=16, and on the SCI benchmark's Runner and Drop when "
+            "$FLEXVOX_DATA or ../shared/data holds them. Prints a table (PSNR, SSIM, seconds) and "
+            "writes results.csv, results.json and pareto.png."
+        ),
+    )
+    p.add_argument("--quick", action="store_true", help="fewer scenes, knobs and frames (under a minute)")
+    p.add_argument("--no-sci", action="store_true", help="skip the SCI benchmark data even if present")
+    p.add_argument("-o", "--out", type=Path, default=Path("bench/results"), metavar="DIR",
+                   help="where results go (default bench/results)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    """Carry out ``flexvox bench``."""
+    from app.accuracy_bench import pareto, run_bench, summary
+
+    t0 = time.perf_counter()
+    with tqdm(desc="captures", unit="capture", leave=False) as bar:
+        def progress(done, total):
+            bar.total = total
+            bar.update(done - bar.n)
+        rows = run_bench(args.out, quick=args.quick, sci=not args.no_sci, progress=progress)
+    summ = summary(rows)
+    front = {(r["family"], r["method"]) for r in pareto(summ)}
+    print("| method | PSNR (dB) | SSIM | seconds | Pareto |")
+    print("|---|---|---|---|---|")
+    for r in summ:
+        mark = "yes" if (r["family"], r["method"]) in front else ""
+        print(f"| {r['method']} | {r['psnr']:.2f} | {r['ssim']:.3f} | {r['seconds']:.3f} | {mark} |")
+    sci = [r for r in rows if "SCI" in r["case"]]
+    if sci:
+        print("\nSCI benchmark (2x4 code), best per family:")
+        for case in sorted({r["case"] for r in sci}):
+            for fam in sorted({r["family"] for r in sci}):
+                best = max((r for r in sci if r["case"] == case and r["family"] == fam), key=lambda r: r["psnr"])
+                print(f"  {case:<18} {fam:<26} {best['psnr']:.2f} dB  {best['seconds']:.3f} s  {best['method']}")
+    print(f"\n{len(rows)} runs in {time.perf_counter() - t0:.0f} s; wrote {args.out}/results.csv, results.json, pareto.png")
+    return EXIT_OK

@@ -1,0 +1,89 @@
+import json
+
+import numpy as np
+import pytest
+import tifffile
+import zarr
+
+from app.cli.main import main
+from flexvox_core.metrics import psnr
+from flexvox_core.recording import open_recording
+
+
+@pytest.fixture
+def recording(tmp_path, capsys):
+    path = tmp_path / "r.zarr"
+    assert main(["simulate", "balls", "--size", "24x32", "--frames", "3", "-o", str(path)]) == 0
+    capsys.readouterr()
+    return path
+
+
+@pytest.mark.parametrize("suffix", [".npy", ".tif", ".mp4", ".zarr"])
+def test_reconstruct_writes_every_format(recording, tmp_path, capsys, suffix):
+    out = tmp_path / f"out{suffix}"
+    assert main(["reconstruct", str(recording), "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "PSNR vs ground truth" in text and out.exists()
+    if suffix == ".npy":
+        video = np.load(out)
+    elif suffix == ".tif":
+        video = tifffile.imread(out)
+    elif suffix == ".zarr":
+        video = zarr.open_group(str(out), mode="r")["video"][:]
+    else:
+        return
+    assert video.shape == (48, 24, 32) and video.dtype == np.float32
+    assert 0 <= video.min() and video.max() <= 1
+    assert psnr(open_recording(recording).ground_truth(), video).mean > 15
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["--method", "rebin", "--block", "3,1,5"], "division 3x1x5 does not divide a 4x4 tile"),
+        (["--tensor", "1,1"], "--tensor must be three numbers"),
+        (["--time", "-1"], "time"),
+    ],
+)
+def test_reconstruct_bad_options(recording, tmp_path, capsys, argv, message):
+    try:
+        code = main(["reconstruct", str(recording), "-o", str(tmp_path / "o.npy"), *argv])
+    except SystemExit as exc:
+        code = exc.code
+    err = capsys.readouterr().err
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1
+
+
+def test_reconstruct_refuses_bad_outputs_and_recordings(recording, tmp_path, capsys):
+    assert main(["reconstruct", str(recording), "-o", str(tmp_path / "o.gif")]) == 2
+    assert "the output must end in" in capsys.readouterr().err
+    assert main(["reconstruct", str(tmp_path / "none.zarr"), "-o", str(tmp_path / "o.npy")]) == 2
+    assert "no such recording" in capsys.readouterr().err
+
+
+def test_reconstruct_refuses_dropped_frames(tmp_path, capsys):
+    path = tmp_path / "d.zarr"
+    main(["simulate", "static", "--size", "16x16", "--frames", "8", "--effects", "dropped_frames.probability=0.5",
+          "-o", str(path)])
+    capsys.readouterr()
+    assert main(["reconstruct", str(path), "-o", str(tmp_path / "o.npy")]) == 2
+    assert "dropped frame(s)" in capsys.readouterr().err
+
+
+def test_reconstruct_multiplexed_recording(tmp_path, capsys):
+    path = tmp_path / "m.zarr"
+    (tmp_path / "m.toml").write_text('[source]\nbuiltin = "static"\nheight = 15\nwidth = 20\nframes = 2\n'
+                                     '[code]\ntile = "3x5"\nmultiplexed = true\n')
+    assert main(["simulate", str(tmp_path / "m.toml"), "-o", str(path)]) == 0
+    assert main(["reconstruct", str(path), "-o", str(tmp_path / "o.npy")]) == 0
+    assert np.load(tmp_path / "o.npy").shape == (30, 15, 20)
+
+
+def test_bench_quick_writes_table_csv_json_and_plot(tmp_path, capsys):
+    assert main(["bench", "--quick", "--no-sci", "-o", str(tmp_path / "b")]) == 0
+    out = capsys.readouterr().out
+    assert "| method | PSNR (dB) |" in out and "gap-tv" in out and "rebin" in out
+    payload = json.loads((tmp_path / "b" / "results.json").read_text())
+    assert payload["pareto"] and all(np.isfinite(r["psnr"]) for r in payload["summary"])
+    assert (tmp_path / "b" / "pareto.png").stat().st_size > 10_000
+    assert (tmp_path / "b" / "results.csv").read_text().startswith("case,K,family,method,psnr")

@@ -1,0 +1,72 @@
+import numpy as np
+import pytest
+
+from flexvox_core.design import design_code
+from flexvox_core.divisions import Division
+from flexvox_core.forward import capture
+from flexvox_core.reconstruct.run import Method, default_block, overlap_frames, reconstruct
+
+CODE = design_code((2, 4)).code
+
+
+@pytest.fixture
+def case(rng):
+    truth = rng.random((8 * 9, 10, 12)).astype(np.float32)
+    return truth, capture(truth, CODE)
+
+
+@pytest.mark.parametrize(
+    "method",
+    [
+        Method("rebin"),
+        Method("rebin", interpolate=False),
+        Method("diffusion"),
+        Method("diffusion", tensor=(0.05, 0.05, 1), time=8),
+        Method("diffusion", solver="explicit", time=0.5),
+        Method("gap-tv", iterations=3),
+    ],
+    ids=lambda m: m.label(),
+)
+def test_chunking_does_not_change_the_result(case, method):
+    _, frames = case
+    whole = reconstruct(frames, CODE, method, chunk_frames=None)
+    chunked = reconstruct(frames, CODE, method, chunk_frames=2)
+    assert whole.shape == (72, 10, 12) and whole.dtype == np.float32
+    assert np.array_equal(whole, chunked)
+    assert whole.min() >= 0 and whole.max() <= 1
+
+
+def test_progress_is_reported_per_chunk(case):
+    _, frames = case
+    calls = []
+    reconstruct(frames, CODE, Method("diffusion"), chunk_frames=4, progress=lambda d, t: calls.append((d, t)))
+    assert calls == [(4, 9), (8, 9), (9, 9)]
+
+
+def test_default_block_is_balanced_and_square_first():
+    assert default_block(design_code((4, 4)).code) == Division(2, 2, 4)
+    assert default_block(CODE).tr in (2, 4)
+
+
+def test_overlap_rules():
+    assert overlap_frames(Method("gap-tv"), 8) == 0
+    assert overlap_frames(Method("diffusion", solver="steady"), 8) is None
+    assert overlap_frames(Method("diffusion", tensor=(0, 0, 1), time=8), 8) >= 2
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"name": "magic"}, r"`method` must be one of rebin, diffusion, gap-tv; got 'magic'"),
+        ({"solver": "exact"}, r"`solver` must be one of nc, explicit, steady"),
+        ({"tensor": (-1, 1, 1)}, r"tensor"),
+    ],
+)
+def test_bad_methods(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        Method(**kwargs)
+
+
+def test_bad_chunk(case):
+    with pytest.raises(ValueError, match=r"`chunk_frames` must be >= 1 or None; got 0"):
+        reconstruct(case[1], CODE, Method(), chunk_frames=0)

@@ -81,14 +81,24 @@ def _gentl_producers(environ=None) -> dict:
     return {"available": bool(files), "devices": [{"producer": f} for f in files], "reason": reason}
 
 
-def survey(*, list_usb=None, comports=None, environ=None) -> dict:
+def _simulated(sim_producer=None) -> dict:
+    """The simulated rig (always there), and the genicam wheel's simulated GenTL producer."""
+    if sim_producer is None:
+        from rig_drivers.genicam import simulated_producer as sim_producer
+    devices = [{"name": "simulated projector"}, {"name": "simulated camera"}, {"name": "simulated sync box"}]
+    viky = sim_producer()
+    if viky is not None:
+        devices.append({"name": "simulated GenICam camera (genicam wheel)", "producer": str(viky)})
+    return {"available": True, "reason": None, "devices": devices}
+
+
+def survey(*, list_usb=None, comports=None, environ=None, sim_producer=None) -> dict:
     """What this machine can reach, as a JSON-ready dict (injectable probes for tests)."""
     found = {
         "projectors": _projectors(list_usb),
         "serial_ports": _serial_ports(comports),
         "gentl_producers": _gentl_producers(environ),
-        "simulated": {"available": True, "reason": None,
-                      "devices": [{"name": "simulated projector"}, {"name": "simulated sync box"}]},
+        "simulated": _simulated(sim_producer),
     }
     # Built-in UARTs (/dev/ttyS*, no USB ids) are listed but do not count as rig hardware.
     usb_serial = any(d["vid_pid"] for d in found["serial_ports"]["devices"])
@@ -120,4 +130,5 @@ def run(args, *, probes: dict | None = None) -> int:
             print(f"  ({section['reason']})")
     if not found["hardware_found"]:
         print("no rig hardware found on this machine; the simulated rig is available (--rig mock)")
+    print("pick a rig with --rig mock (the default) or --rig FILE.toml (see rig_drivers/PROFILES.md)")
     return EXIT_OK

@@ -88,3 +88,17 @@ def test_builtin_uart_is_listed_but_is_not_rig_hardware(capsys):
     payload = json.loads(capsys.readouterr().out)
     assert payload["serial_ports"]["devices"] == [{"port": "/dev/ttyS0", "description": "n/a", "vid_pid": None}]
     assert payload["hardware_found"] is False
+
+
+def test_simulated_rig_lists_the_camera_and_the_genicam_simulated_producer(capsys, tmp_path):
+    viky = tmp_path / "viky.cti"
+    devices.run(parse(), probes=dict(NO_HARDWARE, sim_producer=lambda: viky))
+    out = capsys.readouterr().out
+    assert "name simulated camera" in out
+    assert f"name simulated GenICam camera (genicam wheel), producer {viky}" in out
+    assert "pick a rig with --rig mock (the default) or --rig FILE.toml" in out
+    devices.run(parse("--json"), probes=dict(NO_HARDWARE, sim_producer=lambda: None))
+    payload = json.loads(capsys.readouterr().out)
+    assert [d["name"] for d in payload["simulated"]["devices"]] == [
+        "simulated projector", "simulated camera", "simulated sync box"]
+    assert payload["hardware_found"] is False  # a simulated producer is not rig hardware

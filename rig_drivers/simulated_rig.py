@@ -1,0 +1,410 @@
+"""The coupled simulated rig: a projector, a camera and a sync box that see one scene.
+
+The camera sees the scene lit by the projector's *current* pattern sequence. Patterns are
+in projector pixels ``(Hp, Wp)``; they reach camera pixels ``(H, W)`` through a hidden
+projector→camera homography (a co-located rig has one for every depth, DESIGN.md §5).
+Camera pixels that no projector pixel reaches get no projected light, only what the
+scene's ``ambient`` effect declares. The scene's declared effects (ambient light, leakage,
+defocus, noise, sync offset, dropped frames, ...) are applied by
+:func:`flexvox_core.simulate.simulator.render_exposures`; nothing undeclared is simulated.
+
+Warp: area-correct
+------------------
+Each pattern is mapped into the camera with :func:`cv2.warpPerspective` at
+:data:`SUPERSAMPLE`\\ × the camera resolution with *nearest* interpolation, then averaged
+back with :func:`cv2.resize` (``INTER_AREA``). A camera pixel's light is therefore the
+fraction of its area lit by open mirrors (to 1/SUPERSAMPLE² precision), which is what a
+sensor integrates: a camera pixel straddling an open and a closed mirror gets a grey value
+instead of either (nearest) or a bilinear mix of mirror *values* at its centre (which
+blurs an edge by one projector pixel whatever the scale). It keeps light in [0, 1], puts a
+single bright projector pixel's centroid where the homography maps its centre, and with
+the identity homography it reproduces the patterns exactly (every sub-sample of a camera
+pixel rounds to the same mirror), which the forward-model check relies on.
+
+Timing
+------
+Slot = one projector pattern period. With the camera triggered by a hardware line (the
+projector's TRIG_OUT_2, once per K patterns, wired to ``camera_line``), exposure ``e``
+starts ``phase_slots·period + delay_us`` after the start of a sequence (plus the camera's
+own ``TriggerConfig.delay_us``) and integrates K slots, so exposure slot ``t`` sees
+projector pattern ``(t + phase_slots) mod K`` when the delay is 0; a fractional delay mixes
+neighbouring patterns. Free-running and software-triggered exposures start on the camera's
+clock and see whatever the projector shows then. The scene advances K sub-frames per
+exposure and loops. All of it runs on one injectable clock
+(:class:`~rig_drivers.simulated_camera.VirtualClock` in tests: nothing sleeps).
+
+The hidden values are in :attr:`SimulatedRig.truth` for tests; code under test (the
+calibration and sync wizards) must find them from frames.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+
+from flexvox_core.simulate.effects import Effect, parse_effects
+from flexvox_core.simulate.scene_file import SceneSpec
+from flexvox_core.simulate.scenes import SCENES, render_scene
+from rig_drivers.errors import SettingError
+from rig_drivers.interfaces import PatternSequence, RunState, TriggerSource, check_int
+from rig_drivers.simulated import SimulatedProjector, SimulatedSyncController
+from rig_drivers.simulated_camera import MonotonicClock, SimClock, SimulatedCamera
+
+_logger = logging.getLogger(__name__)
+
+SUPERSAMPLE = 4
+"""Sub-samples per camera pixel side in the area-correct warp."""
+
+WIRINGS = ("projector", "syncbox")
+"""How the camera's trigger line is driven: the projector's TRIG_OUT_2, or the sync box."""
+
+
+# --------------------------------------------------------------------------- geometry
+
+
+def default_homography(camera_size, projector_size, seed: int = 0) -> np.ndarray:
+    """A mild, realistic projector→camera homography drawn from ``seed``.
+
+    Scale 1.05–1.10 (projector pixels a little larger than camera pixels), rotation within
+    ±0.5°, the projector centre landing within ±1.5 px (at most 1 % of the smaller camera
+    side) of the camera centre, and a tiny perspective term (a beam splitter a hair off
+    45°). With equal sizes the projector still covers the whole camera.
+    """
+    H, W = camera_size
+    Hp, Wp = projector_size
+    rng = np.random.default_rng([int(seed), 0x486F6D])
+    s = rng.uniform(1.05, 1.10)
+    a = math.radians(rng.uniform(-0.5, 0.5))
+    shift = min(1.5, 0.01 * min(H, W))
+    dx, dy = rng.uniform(-shift, shift, 2)
+    px, py = rng.uniform(-2e-6, 2e-6, 2)
+    to_origin = np.array([[1, 0, -(Wp - 1) / 2], [0, 1, -(Hp - 1) / 2], [0, 0, 1]])
+    tilt = np.array([[1, 0, 0], [0, 1, 0], [px, py, 1]])
+    rot = np.array([[s * math.cos(a), -s * math.sin(a), 0], [s * math.sin(a), s * math.cos(a), 0], [0, 0, 1]])
+    to_camera = np.array([[1, 0, (W - 1) / 2 + dx], [0, 1, (H - 1) / 2 + dy], [0, 0, 1]])
+    h = to_camera @ rot @ tilt @ to_origin
+    return h / h[2, 2]
+
+
+def check_homography(h) -> np.ndarray:
+    """Validate a 3×3 invertible, finite homography; return it as float64 with h[2, 2] = 1."""
+    arr = np.asarray(h, dtype=np.float64)
+    if arr.shape != (3, 3) or not np.isfinite(arr).all():
+        raise SettingError(f"`homography` must be a finite 3x3 matrix; got shape {arr.shape}")
+    if abs(arr[2, 2]) < 1e-12 or abs(np.linalg.det(arr)) < 1e-12:
+        raise SettingError("`homography` must be invertible with h[2, 2] != 0")
+    return arr / arr[2, 2]
+
+
+def warp_patterns(patterns, homography, camera_size, *, supersample: int = SUPERSAMPLE) -> np.ndarray:
+    """Projector patterns ``(K, Hp, Wp)`` → light in camera pixels ``(K, H, W)`` float32.
+
+    Area-correct (see the module docstring): nearest-neighbour warp at ``supersample``×
+    resolution, then area averaging. Outside the projector: 0.
+    """
+    H, W = camera_size
+    s = int(supersample)
+    up = np.array([[s, 0, (s - 1) / 2], [0, s, (s - 1) / 2], [0, 0, 1]], dtype=np.float64)
+    m = up @ check_homography(homography)
+    pats = np.asarray(patterns)
+    out = np.empty((pats.shape[0], H, W), np.float32)
+    for k, p in enumerate(pats):
+        fine = cv2.warpPerspective(p.astype(np.uint8) * np.uint8(255), m, (W * s, H * s), flags=cv2.INTER_NEAREST,
+                                   borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        small = fine if s == 1 else cv2.resize(fine.astype(np.float32), (W, H), interpolation=cv2.INTER_AREA)
+        out[k] = small
+    out /= np.float32(255)
+    return out
+
+
+# --------------------------------------------------------------------------- truth
+
+
+@dataclass(frozen=True, eq=False)
+class RigTruth:
+    """What the simulated rig hides from the code under test. For tests only.
+
+    Attributes
+    ----------
+    homography : ndarray, shape (3, 3)
+        Projector pixel (x, y) → camera pixel (x, y), float64, ``h[2, 2] = 1``.
+    phase_slots : int
+        The projected pattern that lands in exposure slot 0 (hardware trigger, zero delay).
+    delay_us : int
+        Trigger latency (cable, opto-coupler) between TRIG_OUT_2 and the exposure start.
+    seed : int
+        The seed of every effect's noise and of the default homography.
+    video : ndarray, shape (S, H, W)
+        The scene's ground truth (it loops; exposure e sees sub-frames (e·K + s) mod S).
+    effects : dict
+        ``{name: params}`` of the declared effects.
+    """
+
+    homography: np.ndarray
+    phase_slots: int
+    delay_us: int
+    seed: int
+    video: np.ndarray
+    effects: dict = field(default_factory=dict)
+
+    def projector_to_camera(self, xy) -> np.ndarray:
+        """Map projector points ``(N, 2)`` (x, y) to camera points with the true homography."""
+        pts = np.asarray(xy, dtype=np.float64).reshape(-1, 1, 2)
+        return cv2.perspectiveTransform(pts, self.homography).reshape(-1, 2)
+
+    def subframes(self, frame_id: int, K: int) -> np.ndarray:
+        """Sub-frame indices of :attr:`video` integrated by the frame with ``frame_id``."""
+        return (int(frame_id) * K + np.arange(K)) % self.video.shape[0]
+
+
+# --------------------------------------------------------------------------- devices
+
+
+class RigProjector(SimulatedProjector):
+    """The rig's simulated projector: a fixed resolution, and its patterns are what the
+    camera sees."""
+
+    def __init__(self, size: tuple[int, int], *, clock_us, name: str | None = None):
+        super().__init__(clock_us=clock_us, name=name or "simulated projector")
+        self.size = (int(size[0]), int(size[1]))
+
+    def _do_load_sequence(self, sequence: PatternSequence) -> None:
+        if sequence.patterns.shape[1:] != self.size:
+            raise SettingError(
+                f"`patterns` must be {self.size[0]}x{self.size[1]} projector pixels (H x W) for "
+                f"{self.name}; got {sequence.patterns.shape[1]}x{sequence.patterns.shape[2]}")
+        super()._do_load_sequence(sequence)
+
+
+class ProjectorLightPath:
+    """The light path of the rig: projector → homography → camera, and the trigger wire."""
+
+    def __init__(self, projector: RigProjector, truth: RigTruth, camera_size, *,
+                 camera_line: TriggerSource, sync: SimulatedSyncController | None = None):
+        self._projector = projector
+        self._truth = truth
+        self._camera_size = camera_size
+        self._line = camera_line
+        self._sync = sync
+        self._warped_for: PatternSequence | None = None
+        self._warped: np.ndarray | None = None
+
+    def _sequence(self) -> PatternSequence | None:
+        return self._projector.sequence
+
+    def slots(self) -> int | None:
+        """K of the loaded sequence."""
+        seq = self._sequence()
+        return None if seq is None else seq.K
+
+    def warped(self) -> np.ndarray:
+        """The loaded patterns in camera pixels (cached per sequence)."""
+        seq = self._sequence()
+        if self._warped_for is not seq:
+            self._warped = warp_patterns(seq.patterns, self._truth.homography, self._camera_size)
+            self._warped_for = seq
+        return self._warped
+
+    def _elapsed_at(self, t_us: int, now_us: int) -> int:
+        """The projector's display time (µs since start, pauses excluded) at wall time t."""
+        return self._projector.elapsed_us() + (int(t_us) - int(now_us))
+
+    def next_trigger_us(self, line: TriggerSource, after_us: int, now_us: int) -> tuple[int, int] | None:
+        """The next TRIG_OUT_2 pulse (once per sequence) reaching the camera on ``line``."""
+        seq = self._sequence()
+        if line is not self._line or seq is None or self._projector.run_state is not RunState.RUNNING:
+            return None
+        if self._sync is not None and not self._sync.running:
+            return None
+        frame_us = seq.K * seq.period_us
+        offset = self._truth.phase_slots * seq.period_us + self._truth.delay_us
+        elapsed = self._elapsed_at(after_us, now_us)
+        j = max(0, -(-(elapsed - offset) // frame_us))
+        if not seq.repeat and j > 0:
+            return None
+        return int(after_us) + offset + j * frame_us - elapsed, frame_us
+
+    def exposure_light(self, start_us: int, now_us: int, K: int, height: int, width: int) -> np.ndarray | None:
+        """Light per exposure slot for an exposure starting at ``start_us`` (K slots long)."""
+        seq = self._sequence()
+        state = self._projector.run_state
+        if seq is None or state is RunState.STOPPED:
+            return None
+        warped = self.warped()
+        if state is RunState.PAUSED:
+            slot = self._projector.current_slot()
+            return None if slot is None else np.repeat(warped[slot][None], seq.K, axis=0)
+        elapsed = self._elapsed_at(start_us, now_us)
+        first, rem = divmod(elapsed, seq.period_us)
+        f = np.float32(rem / seq.period_us)
+        out = np.empty_like(warped)
+        for t in range(seq.K):
+            out[t] = self._shown(warped, seq, first + t)
+            if f:
+                out[t] *= 1 - f
+                out[t] += f * self._shown(warped, seq, first + t + 1)
+        return out
+
+    @staticmethod
+    def _shown(warped, seq: PatternSequence, slot: int) -> np.ndarray:
+        if slot < 0 or (not seq.repeat and slot >= seq.K):
+            return np.zeros_like(warped[0])
+        return warped[slot % seq.K]
+
+
+def _effects(effects) -> list[Effect]:
+    if effects is None:
+        return []
+    if isinstance(effects, dict):
+        return parse_effects(effects)
+    out = list(effects)
+    for e in out:
+        if not isinstance(e, Effect):
+            raise SettingError(f"`effects` must be Effect objects or a {{name: params}} table; got {e!r}")
+    return out
+
+
+def _size(name: str, value) -> tuple[int, int]:
+    if not isinstance(value, tuple | list) or len(value) != 2:
+        raise SettingError(f"`{name}` must be (H, W); got {value!r}")
+    return (check_int(f"{name}[0]", value[0], 8, 8192), check_int(f"{name}[1]", value[1], 8, 8192))
+
+
+class SimulatedRig:
+    """A simulated projector, camera and sync box coupled through a scene.
+
+    Build one with :meth:`create`. The devices are not opened; open them as any others.
+
+    Attributes
+    ----------
+    projector : RigProjector
+    camera : SimulatedCamera
+    sync : SimulatedSyncController
+    clock : SimClock
+        The clock every device runs on.
+    truth : RigTruth
+        The hidden homography, phase, delay and seed. For tests only.
+    """
+
+    def __init__(self, projector: RigProjector, camera: SimulatedCamera, sync: SimulatedSyncController,
+                 clock: SimClock, truth: RigTruth):
+        self.projector = projector
+        self.camera = camera
+        self.sync = sync
+        self.clock = clock
+        self.truth = truth
+
+    @classmethod
+    def create(cls, scene: str | SceneSpec | np.ndarray = "drummer", *, camera_size: tuple[int, int] | None = None,
+               projector_size: tuple[int, int] | None = None, homography=None, seed: int | None = None,
+               effects=None, subframes: int | None = None, phase_slots: int = 0, delay_us: int = 0,
+               wiring: str = "projector", camera_line: TriggerSource = TriggerSource.LINE0,
+               electrons_per_unit: float | None = None, clock: SimClock | None = None,
+               buffer_frames: int = 16) -> SimulatedRig:
+        """Build a rig around a scene.
+
+        Parameters
+        ----------
+        scene : str, SceneSpec or ndarray (S, H, W)
+            A built-in scene name (``flexvox_core.simulate.scenes.SCENES``), a parsed scene
+            file (its source, seed, ``electrons_per_unit`` and effects are used; a built-in
+            source is rendered at ``camera_size``), or a video in [0, 1] to use as it is.
+        camera_size, projector_size : (H, W)
+            Default: the scene file's size, else (120, 160); the projector defaults to the
+            camera's size.
+        homography : array (3, 3), optional
+            Projector→camera. Default :func:`default_homography` (mild, drawn from ``seed``).
+        seed : int, optional
+            Default: the scene file's seed, else 0.
+        effects : list of Effect or dict, optional
+            Declared effects (``{name: {param: value}}`` like a scene file's table). Default:
+            the scene file's, else none.
+        subframes : int, optional
+            Scene length S (it loops). Default 256, or the scene file's frames × K.
+        phase_slots, delay_us : int
+            Hidden timing of the hardware trigger (see the module docstring).
+        wiring : {"projector", "syncbox"}
+            ``projector``: TRIG_OUT_2 drives the camera line. ``syncbox``: the sync box drives
+            it, so frames also need the sync box running (the projector is assumed slaved).
+        camera_line : TriggerSource
+            The camera line the trigger is wired to.
+        clock : SimClock, optional
+            Default real time; pass a :class:`~rig_drivers.simulated_camera.VirtualClock`
+            in tests.
+        """
+        if wiring not in WIRINGS:
+            raise SettingError(f"`wiring` must be one of {', '.join(WIRINGS)}; got {wiring!r}")
+        if not isinstance(camera_line, TriggerSource) or not camera_line.value.startswith("Line"):
+            raise SettingError(f"`camera_line` must be a TriggerSource line (Line0..Line3); got {camera_line!r}")
+        spec = scene if isinstance(scene, SceneSpec) else None
+        if spec is None and not isinstance(scene, np.ndarray) and (not isinstance(scene, str) or scene not in SCENES):
+            raise SettingError(f"unknown scene {scene!r}; built-in scenes: {', '.join(SCENES)} "
+                               f"(or pass a SceneSpec)")
+        seed = (spec.seed if spec is not None else 0) if seed is None else check_int("seed", seed, 0, 2**63 - 1)
+        declared = _effects(spec.effects if spec is not None and effects is None else effects)
+        epu = electrons_per_unit or (spec.electrons_per_unit if spec is not None else 1000.0)
+        video = cls._video(scene, spec, camera_size, subframes, seed)
+        camera_size = video.shape[1:]
+        projector_size = camera_size if projector_size is None else _size("projector_size", projector_size)
+        h = default_homography(camera_size, projector_size, seed) if homography is None \
+            else check_homography(homography)
+        truth = RigTruth(h, check_int("phase_slots", phase_slots, 0, 1023), check_int("delay_us", delay_us, 0, 10**7),
+                         seed, video, {e.name: e.as_dict() for e in declared})
+        clock = clock or MonotonicClock()
+        projector = RigProjector(projector_size, clock_us=clock.now_us)
+        sync = SimulatedSyncController(clock_us=clock.now_us)
+        path = ProjectorLightPath(projector, truth, camera_size, camera_line=camera_line,
+                                  sync=sync if wiring == "syncbox" else None)
+        camera = SimulatedCamera(video, effects=declared, seed=seed, electrons_per_unit=epu, light_path=path,
+                                 clock=clock, buffer_frames=buffer_frames)
+        _logger.info("simulated rig: camera %dx%d, projector %dx%d, effects: %s", camera_size[0], camera_size[1],
+                     projector_size[0], projector_size[1], ", ".join(truth.effects) or "none")
+        return cls(projector, camera, sync, clock, truth)
+
+    @staticmethod
+    def _video(scene, spec: SceneSpec | None, camera_size, subframes, seed) -> np.ndarray:
+        if isinstance(scene, np.ndarray):
+            if scene.ndim != 3 or not np.isfinite(scene).all() or scene.min() < 0 or scene.max() > 1:
+                raise SettingError(f"a scene video must have shape (S, H, W) with values in [0, 1]; got {scene.shape}")
+            if camera_size is not None and tuple(scene.shape[1:]) != _size("camera_size", camera_size):
+                raise SettingError(f"`camera_size` {tuple(camera_size)} does not match the scene video "
+                                   f"{scene.shape[1]}x{scene.shape[2]}")
+            return scene.astype(np.float32, copy=False)
+        if spec is not None and spec.file is not None:
+            from flexvox_core.simulate.sources import load_video
+
+            try:
+                video = load_video(spec.file)
+            except ValueError as exc:
+                raise SettingError(f"cannot load the scene video: {exc}") from exc
+            if camera_size is not None and tuple(video.shape[1:]) != _size("camera_size", camera_size):
+                raise SettingError(f"`camera_size` {tuple(camera_size)} does not match the scene video "
+                                   f"{video.shape[1]}x{video.shape[2]}")
+            return video
+        if camera_size is None:
+            camera_size = (spec.height, spec.width) if spec is not None else (120, 160)
+        H, W = _size("camera_size", camera_size)
+        if subframes is None:
+            subframes = (spec.camera_frames() or 16) * spec.K if spec is not None else 256
+        S = check_int("subframes", subframes, 1, 1_000_000)
+        name = spec.builtin if spec is not None else scene
+        return render_scene(name, S, H, W, seed=seed)
+
+    @property
+    def devices(self) -> tuple:
+        """``(projector, camera, sync)``."""
+        return self.projector, self.camera, self.sync
+
+    def close(self) -> None:
+        """Close every device (each is closed even when another fails)."""
+        try:
+            self.camera.close()
+        finally:
+            try:
+                self.projector.close()
+            finally:
+                self.sync.close()

@@ -1,0 +1,109 @@
+"""Rig profiles: --rig mock or a TOML file naming the real devices."""
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from rig_drivers.dlpc350 import DLPC350
+from rig_drivers.errors import DeviceNotFoundError, SettingError
+from rig_drivers.genicam import GenICamCamera
+from rig_drivers.interfaces import DeviceState, TriggerSource
+from rig_drivers.profile import MOCK_SPEC, DeferredSerialPort, load_profile, open_rig, parse_profile, resolve_rig
+from rig_drivers.simulated_camera import SimulatedCamera, VirtualClock
+from rig_drivers.simulated_rig import SimulatedRig
+from rig_drivers.syncbox import FakeSyncBoxSerial, SyncBox
+from rig_drivers.uvc import UvcCamera
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "rig_drivers" / "examples" / "lab-rig.toml"
+
+GOOD = {
+    "projector": {"kind": "dlpc350"},
+    "camera": {"kind": "genicam", "cti": "/opt/x.cti", "serial": "1"},
+    "sync": {"kind": "projector-trigger"},
+}
+
+
+def with_(section, **table):
+    return dict(GOOD, **{section: table})
+
+
+def test_mock_is_the_default_and_builds_unopened_simulated_devices():
+    assert resolve_rig() is MOCK_SPEC and resolve_rig("mock").simulated
+    rig = open_rig(scene="static", camera_size=(16, 24), subframes=16, clock=VirtualClock())
+    assert isinstance(rig.simulated, SimulatedRig) and isinstance(rig.camera, SimulatedCamera)
+    assert all(d.state is DeviceState.CLOSED for d in (rig.projector, rig.camera, rig.sync))
+    assert rig.trigger_line is TriggerSource.LINE0
+
+
+def test_example_profile_builds_real_drivers_without_io(tmp_path):
+    spec = load_profile(EXAMPLE)
+    assert spec.name == "lab rig" and spec.camera.options["serial"] == "22334455"
+    rig = open_rig(EXAMPLE)
+    assert isinstance(rig.projector, DLPC350) and isinstance(rig.camera, GenICamCamera)
+    assert isinstance(rig.sync, SyncBox) and rig.sync.state is DeviceState.CLOSED
+    assert rig.camera.cti == Path("/opt/pylon/lib/gentlproducer/gtl/ProducerU3V.cti")
+    copy = tmp_path / "rig.toml"
+    shutil.copy(EXAMPLE, copy)
+    assert load_profile(copy).name == "lab rig"
+
+
+def test_uvc_and_projector_trigger_and_relative_cti(tmp_path):
+    path = tmp_path / "webcam.toml"
+    path.write_text('[projector]\nkind = "dlpc350"\n[camera]\nkind = "uvc"\nindex = 1\n'
+                    '[sync]\nkind = "projector-trigger"\n')
+    rig = open_rig(path)
+    assert isinstance(rig.camera, UvcCamera) and rig.camera.index == 1 and rig.sync is None
+    assert rig.spec.name == "webcam"
+    spec = parse_profile(with_("camera", kind="genicam", cti="p.cti", line="Line2"), source=tmp_path / "r.toml")
+    assert spec.camera.options["cti"] == str(tmp_path / "p.cti") and spec.trigger_line is TriggerSource.LINE2
+
+
+@pytest.mark.parametrize("data, message", [
+    (with_("camera", kind="basler"), r"\[camera\]: unknown kind 'basler'; valid kinds: genicam, uvc"),
+    (with_("sync", kind="arduino"), r"\[sync\]: unknown kind 'arduino'; valid kinds: syncbox, projector-trigger"),
+    (with_("projector", kind="lcr6500"), r"\[projector\]: unknown kind 'lcr6500'; valid kinds: dlpc350"),
+    (with_("camera", kind="genicam"), r"\[camera\] kind 'genicam': missing key\(s\) cti"),
+    (with_("sync", kind="syncbox"), r"\[sync\] kind 'syncbox': missing key\(s\) port"),
+    (with_("camera", cti="/x.cti"), r"\[camera\]: missing key `kind` \(one of genicam, uvc\)"),
+    ({"projector": {"kind": "dlpc350"}, "camera": GOOD["camera"]}, r"missing \[sync\] table"),
+    (with_("camera", kind="uvc", cti="/x.cti"), r"kind 'uvc': unknown key 'cti'; allowed: index, kind"),
+    (with_("camera", kind="genicam", cti="/x", line="Line9"), r"line must be one of Line0, Line1, Line2, Line3"),
+    (with_("camera", kind="uvc", index=-1), r"index must be a whole number 0..255; got -1"),
+    (dict(GOOD, colour="red"), r"unknown key 'colour'; allowed: camera, name, projector, sync"),
+])
+def test_bad_profiles_are_explained(data, message):
+    with pytest.raises(SettingError, match=message):
+        parse_profile(data)
+
+
+def test_missing_or_broken_files_are_explained(tmp_path):
+    with pytest.raises(SettingError, match=r"no rig profile .*nope.toml: give `--rig mock`"):
+        open_rig(tmp_path / "nope.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[camera\n")
+    with pytest.raises(SettingError, match=r"bad.toml is not valid TOML"):
+        load_profile(bad)
+    with pytest.raises(SettingError, match=r"options scene apply to the simulated rig only"):
+        open_rig(EXAMPLE, scene="static")
+
+
+def test_deferred_serial_port_opens_on_first_use_with_typed_errors():
+    opened = []
+
+    def factory(name, baud, **kw):
+        opened.append((name, baud))
+        return FakeSyncBoxSerial()
+
+    port = DeferredSerialPort("/dev/ttyACM7", serial_factory=factory)
+    box = SyncBox(port)
+    assert opened == []  # building does no I/O
+    with box:
+        assert "syncbox" in box.firmware_version()
+    assert opened == [("/dev/ttyACM7", 115200)]
+
+    def missing(name, baud, **kw):
+        raise FileNotFoundError(2, "No such file or directory")
+
+    with pytest.raises(DeviceNotFoundError, match=r"no serial port /dev/ttyACM9: is the sync box plugged in"):
+        SyncBox(DeferredSerialPort("/dev/ttyACM9", serial_factory=missing)).open()

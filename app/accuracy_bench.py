@@ -1,7 +1,8 @@
 """What accuracy costs in time: every reconstruction and knob on the same captures.
 
 Runs re-binning (every supported division), constant-tensor diffusion (a diffusion-time
-sweep for several tensors, and each solver), and GAP-TV (an iteration sweep) on the
+sweep for several tensors, and each solver), GAP-TV (an iteration sweep) and the
+motion-aware reconstruction (diffusion time, refinement, a second pass) on the
 built-in scenes at K = 8 (2×4) and K = 16 (4×4), and on the SCI benchmark's Runner and
 Drop (2×4 code) when that data is present. Writes ``results.csv``, ``results.json`` and a
 Pareto plot ``pareto.png`` (mean PSNR against log time), and returns the rows.
@@ -32,6 +33,7 @@ _logger = logging.getLogger(__name__)
 SCENES_FULL = ("fan", "balls", "drummer", "pan", "static")
 SCENES_QUICK = ("balls", "static")
 TENSORS = {
+    "default (0.15,0.15,1)": (0.15, 0.15, 1.0),
     "isotropic (1,1,1)": (1.0, 1.0, 1.0),
     "high SR (0.05,0.05,1)": (0.05, 0.05, 1.0),
     "high TR (1,1,0.05)": (1.0, 1.0, 0.05),
@@ -97,6 +99,11 @@ def methods_for(case: Case, *, quick: bool) -> list[tuple[str, Method]]:
         rows.append(("steady isotropic", Method("diffusion", tensor=(1, 1, 1), time=1.0, solver="steady")))
     for it in (5, 20) if quick else (5, 10, 20, 40):
         rows.append(("gap-tv", Method("gap-tv", iterations=it)))
+    for n in (4.0,) if quick else (2.0, 4.0):
+        rows.append(("motion-aware", Method("motion-aware", time=n)))
+    if not quick:
+        rows.append(("motion-aware", Method("motion-aware", time=4.0, refine_time=1.0)))
+        rows.append(("motion-aware", Method("motion-aware", time=4.0, passes=2)))
     return rows
 
 

@@ -15,6 +15,7 @@ from flexvox_core.multiplex import multiplexed_code
 from flexvox_core.recording import RecordingError, open_recording
 from flexvox_core.reconstruct import prepare
 from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, SOLVERS
+from flexvox_core.motion.pipeline import DEFAULT_TIME as MA_TIME
 from flexvox_core.reconstruct.run import METHODS, Method, reconstruct
 from flexvox_core.video_io import WRITABLE, write_video
 
@@ -48,10 +49,20 @@ def register(sub) -> None:
     p.add_argument("--no-interpolate", action="store_true", help="rebin: blocks without interpolation")
     p.add_argument("--tensor", type=arg_type(lambda t: _triple(t, "tensor")), default=DEFAULT_TENSOR,
                    metavar="cx,cy,ct", help=f"diffusion tensor (default {','.join(f'{c:g}' for c in DEFAULT_TENSOR)})")
-    p.add_argument("--time", type=float, default=DEFAULT_TIME, metavar="n",
-                   help=f"diffusion time, the accuracy knob (default {DEFAULT_TIME:g})")
+    p.add_argument("--time", type=float, metavar="n",
+                   help=f"diffusion time, the accuracy knob (default {DEFAULT_TIME:g}; motion-aware "
+                        f"{MA_TIME:g})")
     p.add_argument("--solver", choices=SOLVERS, default="nc", help="diffusion solver (default nc)")
     p.add_argument("--iterations", type=int, default=40, help="gap-tv iterations (default 40)")
+    p.add_argument("--flow", choices=("dis", "deepflow", "farneback", "tvl1"), default="dis",
+                   help="motion-aware: optical-flow backend (default dis: DIS + variational refinement)")
+    p.add_argument("--passes", type=int, default=1, metavar="N",
+                   help="motion-aware: flow re-estimated from the previous pass N-1 times (default 1)")
+    p.add_argument("--refine", type=float, default=0.0, metavar="n",
+                   help="motion-aware: extra monotone variable-tensor diffusion time (default 0)")
+    p.add_argument("--figures", type=Path, metavar="DIR",
+                   help="motion-aware: write flow (colour wheel, quiver), resolution map and a panel "
+                        "like the seed's Figs. 7-8 as PNGs")
     p.add_argument("--fps", type=float, default=30.0, help="playback rate of an .mp4 output (default 30)")
     p.add_argument("--chunk", type=int, default=16, metavar="F", help="camera frames per chunk (default 16)")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT", help="output file")
@@ -87,8 +98,12 @@ def run(args) -> int:
         block = None
         if args.block:
             block = parse_division(args.block.replace(",", "x"), tuple(rec.attrs["tile"]))
+        n = args.time if args.time is not None else (MA_TIME if args.method == "motion-aware" else DEFAULT_TIME)
         method = Method(args.method, block=block, interpolate=not args.no_interpolate, tensor=args.tensor,
-                        time=args.time, solver=args.solver, iterations=args.iterations)
+                        time=n, solver=args.solver, iterations=args.iterations, flow=args.flow,
+                        passes=args.passes, refine_time=args.refine)
+        if args.figures and args.method != "motion-aware":
+            raise ValueError("--figures goes with --method motion-aware")
     except (ValueError, RecordingError) as exc:
         raise CliError(str(exc)) from None
     F, H, W = frames.shape
@@ -114,4 +129,9 @@ def run(args) -> int:
         line += f"; PSNR vs ground truth {psnr(rec.ground_truth(), video).mean:.2f} dB"
     print(line)
     print(f"wrote {args.output}")
+    if args.figures:
+        from app.figures import write_figures
+
+        written = write_figures(args.figures, frames, code, method)
+        print(f"wrote {len(written)} figures to {args.figures}")
     return EXIT_OK

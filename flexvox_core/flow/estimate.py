@@ -30,6 +30,9 @@ from flexvox_core.flow.backends import backend_params, make_backend
 
 _logger = logging.getLogger(__name__)
 
+MIN_FLOW_SIDE = 16
+"""Images smaller than this are mirror-padded for the flow backend (DIS needs 12 px)."""
+
 
 @dataclass
 class FlowField:
@@ -58,11 +61,9 @@ class FlowField:
 
 
 def to_uint8(video: np.ndarray) -> np.ndarray:
-    """Map a video to uint8 with one robust range for all frames (0.5 % / 99.5 % quantiles)."""
-    lo, hi = np.quantile(video[:: max(1, video.shape[0] // 16)], [0.005, 0.995])
-    if hi - lo < 1e-12:
-        return np.zeros(video.shape, np.uint8)
-    return np.clip((video - lo) * (255.0 / (hi - lo)), 0, 255).astype(np.uint8)
+    """Map a video in [0, 1] to uint8 (a fixed scale: the same pixels give the same flow in
+    any chunk of a long recording; values outside [0, 1] are clipped)."""
+    return np.clip(video * np.float32(255) + np.float32(0.5), 0, 255).astype(np.uint8)
 
 
 def _warp(field_: np.ndarray, flow: np.ndarray) -> np.ndarray:
@@ -149,15 +150,23 @@ def estimate_flow(
     flow_fn = make_backend(backend, **backend_params_)
     t0 = time.perf_counter()
     u8 = to_uint8(v.astype(np.float32, copy=False))
-    h, w = max(8, round(H * scale)), max(8, round(W * scale))
+    h, w = min(H, max(MIN_FLOW_SIDE, round(H * scale))), min(W, max(MIN_FLOW_SIDE, round(W * scale)))
     if (h, w) != (H, W):
         u8 = np.stack([cv2.resize(f, (w, h), interpolation=cv2.INTER_AREA) for f in u8])
     fwd = np.empty((S - 1, h, w, 2), np.float32)
     conf = np.ones((S - 1, h, w), np.float32)
+    pad_y, pad_x = max(0, MIN_FLOW_SIDE - h), max(0, MIN_FLOW_SIDE - w)
+
+    def pair(a, b):  # backends need a minimum size (DIS: 12 px): mirror-pad small images
+        if pad_y or pad_x:
+            a = cv2.copyMakeBorder(a, 0, pad_y, 0, pad_x, cv2.BORDER_REFLECT)
+            b = cv2.copyMakeBorder(b, 0, pad_y, 0, pad_x, cv2.BORDER_REFLECT)
+        return sanitize_flow(flow_fn(a, b)[:h, :w])
+
     for s in range(S - 1):
-        fwd[s], c = sanitize_flow(flow_fn(u8[s], u8[s + 1]))
+        fwd[s], c = pair(u8[s], u8[s + 1])
         if consistency:
-            bwd, cb = sanitize_flow(flow_fn(u8[s + 1], u8[s]))
+            bwd, cb = pair(u8[s + 1], u8[s])
             c = c * consistency_confidence(fwd[s], bwd) * np.minimum(cb, 1)
         conf[s] = c
     # Velocity at sub-frame s: confidence-weighted mean of forward flows s-w .. s+w (clamped).

@@ -20,7 +20,7 @@ from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, SOL
 from flexvox_core.reconstruct.gaptv import gap_tv
 from flexvox_core.reconstruct.rebin import rebin
 
-METHODS = ("rebin", "diffusion", "gap-tv")
+METHODS = ("rebin", "diffusion", "gap-tv", "motion-aware")
 
 
 @dataclass(frozen=True)
@@ -38,6 +38,9 @@ class Method:
         Diffusion tensor (cx, cy, ct), diffusion time n, solver (nc, explicit, steady).
     iterations, tv_weight, tv_iterations
         GAP-TV.
+    flow, passes, refine_time
+        Motion-aware: flow backend, passes, variable-tensor refinement time (its diffusion
+        time is ``time``; see :func:`flexvox_core.motion.motion_aware`).
     """
 
     name: str = "diffusion"
@@ -49,6 +52,9 @@ class Method:
     iterations: int = 40
     tv_weight: float = 0.3
     tv_iterations: int = 4
+    flow: str = "dis"
+    passes: int = 1
+    refine_time: float = 0.0
 
     def __post_init__(self):
         if self.name not in METHODS:
@@ -64,6 +70,9 @@ class Method:
             return f"rebin {b}{' interp' if self.interpolate else ''}"
         if self.name == "gap-tv":
             return f"gap-tv {self.iterations} it"
+        if self.name == "motion-aware":
+            extra = f" +refine {self.refine_time:g}" if self.refine_time else ""
+            return f"motion-aware {self.flow} n={self.time:g}{extra}{f' x{self.passes}' if self.passes > 1 else ''}"
         t = ",".join(f"{c:g}" for c in self.tensor)
         return f"diffusion {self.solver} ({t}) n={self.time:g}"
 
@@ -90,6 +99,8 @@ def overlap_frames(method: Method, K: int) -> int | None:
         return 0  # each measurement is reconstructed on its own
     if method.name == "rebin":
         return 1 if method.interpolate else 0
+    if method.name == "motion-aware":
+        return 3  # high-TR nc, the K-average motion gate, flow smoothing, one sampling period of reach
     if method.solver == "steady":
         return None  # a global linear solve
     sig_t = sigmas(method.tensor, method.time)[2]
@@ -110,6 +121,11 @@ def _run(frames: np.ndarray, code: np.ndarray, method: Method) -> np.ndarray:
                    tv_iterations=method.tv_iterations)
             for f in range(frames.shape[0])
         ])
+    if method.name == "motion-aware":
+        from flexvox_core.motion import motion_aware
+
+        return motion_aware(frames, code, flow=method.flow, passes=method.passes, time=method.time,
+                            refine_time=method.refine_time).video
     return diffuse(frames, code, tensor=method.tensor, time=method.time, solver=method.solver)
 
 

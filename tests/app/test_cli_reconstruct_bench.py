@@ -87,3 +87,19 @@ def test_bench_quick_writes_table_csv_json_and_plot(tmp_path, capsys):
     assert payload["pareto"] and all(np.isfinite(r["psnr"]) for r in payload["summary"])
     assert (tmp_path / "b" / "pareto.png").stat().st_size > 10_000
     assert (tmp_path / "b" / "results.csv").read_text().startswith("case,K,family,method,psnr")
+
+
+def test_reconstruct_motion_aware_with_figures(recording, tmp_path, capsys):
+    out = tmp_path / "ma.npy"
+    assert main(["reconstruct", str(recording), "--method", "motion-aware", "--flow", "farneback", "-o", str(out),
+                 "--figures", str(tmp_path / "figs")]) == 0
+    text = capsys.readouterr().out
+    assert "motion-aware farneback" in text and "wrote 4 figures" in text
+    assert np.load(out).shape == (48, 24, 32)
+    for name in ("flow_color.png", "flow_quiver.png", "resolution_map.png", "panel.png"):
+        assert (tmp_path / "figs" / name).stat().st_size > 500
+
+
+def test_figures_need_motion_aware(recording, tmp_path, capsys):
+    assert main(["reconstruct", str(recording), "-o", str(tmp_path / "o.npy"), "--figures", str(tmp_path / "f")]) == 2
+    assert "--figures goes with --method motion-aware" in capsys.readouterr().err

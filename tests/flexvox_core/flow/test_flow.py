@@ -117,3 +117,9 @@ def test_magnitude_and_quiver_pictures():
     assert q.shape == (32, 32, 3) and (q != 127).any()
     with pytest.raises(ValueError, match=r"must share \(H, W\)"):
         quiver_image(np.zeros((8, 8)), flow)
+
+
+def test_tiny_images_are_padded_for_the_backend(rng):
+    v = rng.random((3, 6, 9)).astype(np.float32)
+    ff = estimate_flow(v)
+    assert ff.flow.shape == (3, 6, 9, 2) and np.isfinite(ff.flow).all()

@@ -57,7 +57,7 @@ def test_overlap_rules():
 @pytest.mark.parametrize(
     "kwargs, match",
     [
-        ({"name": "magic"}, r"`method` must be one of rebin, diffusion, gap-tv; got 'magic'"),
+        ({"name": "magic"}, r"`method` must be one of rebin, diffusion, gap-tv, motion-aware; got .magic."),
         ({"solver": "exact"}, r"`solver` must be one of nc, explicit, steady"),
         ({"tensor": (-1, 1, 1)}, r"tensor"),
     ],
@@ -70,3 +70,14 @@ def test_bad_methods(kwargs, match):
 def test_bad_chunk(case):
     with pytest.raises(ValueError, match=r"`chunk_frames` must be >= 1 or None; got 0"):
         reconstruct(case[1], CODE, Method(), chunk_frames=0)
+
+
+def test_motion_aware_chunking_matches_the_whole(rng):
+    from flexvox_core.simulate.scenes import render_scene
+
+    truth = render_scene("balls", 8 * 10, 24, 32)
+    frames = capture(truth, CODE)
+    m = Method("motion-aware", time=2.0)
+    whole = reconstruct(frames, CODE, m, chunk_frames=None)
+    chunked = reconstruct(frames, CODE, m, chunk_frames=4)
+    assert np.allclose(whole, chunked, atol=1e-5)

@@ -1,0 +1,128 @@
+"""Motion-aware reconstruction: limiting cases and numerical stability on hard flows."""
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from flexvox_core.design import design_code
+from flexvox_core.forward import capture, sample_mask, sparse_volume
+from flexvox_core.motion import (
+    motion_aware,
+    motion_compensated_nc,
+    resolution_map,
+    tensor_field,
+    variable_tensor_diffusion,
+)
+from flexvox_core.reconstruct.diffusion import diffuse
+from flexvox_core.simulate.scenes import render_scene
+
+CODE = design_code((2, 4)).code  # K = 8
+
+
+@pytest.fixture
+def capture_case(rng):
+    truth = rng.uniform(0.2, 0.8, (8 * 3, 12, 16)).astype(np.float32)
+    frames = capture(truth, CODE)
+    return truth, frames, sparse_volume(frames, CODE), sample_mask(truth.shape, CODE)
+
+
+def test_tensor_of_zero_flow_is_the_fixed_tensor():
+    T = tensor_field(np.zeros((2, 3, 2)), (0.95, 0.05, 0.05))
+    assert np.allclose(T, np.diag([0.05, 0.05, 0.95]))
+
+
+def test_tensor_eigen_structure():
+    T = tensor_field(np.array([[3.0, -4.0]]), (0.9, 0.3, 0.1))[0]
+    lam = np.array([3.0, -4.0, 1.0]) / np.sqrt(26)
+    assert np.allclose(T @ lam, 0.9 * lam, atol=1e-6)
+    assert np.allclose(np.linalg.eigvalsh(T.astype(np.float64)), [0.1, 0.3, 0.9], atol=1e-6)
+
+
+def test_zero_flow_gives_the_fixed_tensor_nc(capture_case):
+    _, frames, sparse, mask = capture_case
+    zero = np.zeros((*sparse.shape, 2), np.float32)
+    got = motion_compensated_nc(sparse, mask, zero, c=(0.95, 0.05, 0.05), time=2.0)
+    want = diffuse(frames, CODE, tensor=(0.05, 0.05, 0.95), time=2.0)
+    # Away from the video's ends (nc reflects time there; a trajectory cannot be reflected).
+    assert np.allclose(got[8:16], want[8:16], atol=1e-5)
+
+
+def hard_flows(shape, rng):
+    S, H, W = shape
+    yield "huge (50 px per sub-frame)", np.full((S, H, W, 2), 50.0, np.float32)
+    nan = rng.normal(0, 2, (S, H, W, 2)).astype(np.float32)
+    nan[::2, ::3] = np.nan
+    nan[1::3, ::2, :, 0] = np.inf
+    yield "NaN and inf", nan
+    out = np.zeros((S, H, W, 2), np.float32)
+    out[..., 0] = -30.0  # everything leaves through the left border
+    yield "out of the image", out
+    occl = np.zeros((S, H, W, 2), np.float32)
+    occl[:, :, W // 2:, 0] = 3.0  # an occlusion boundary down the middle
+    yield "occlusion boundary", occl
+
+
+@pytest.mark.parametrize("kind", ["mcnc", "vardiff"])
+def test_hard_flows_stay_finite_and_within_the_sample_range(capture_case, rng, kind):
+    _, frames, sparse, mask = capture_case
+    lo, hi = frames.min(), frames.max()
+    init = diffuse(frames, CODE, tensor=(1, 1, 0.05), time=2.0)
+    for name, flow in hard_flows(sparse.shape, rng):
+        if kind == "mcnc":
+            out = motion_compensated_nc(sparse, mask, flow, time=2.0, fallback=init)
+        else:
+            out = variable_tensor_diffusion(init, mask, flow, time=1.5)
+        assert np.isfinite(out).all(), name
+        assert out.min() >= lo - 1e-6 and out.max() <= hi + 1e-6, name
+
+
+@given(st.floats(-8, 8), st.floats(-8, 8), st.floats(0.05, 4.0), st.sampled_from([(0.95, 0.05, 0.05), (1, 1, 1),
+                                                                                   (1, 0.5, 0), (0.3, 0.1, 0.01)]))
+def test_variable_diffusion_keeps_the_maximum_principle(u, v, n, c):
+    rng = np.random.default_rng(1)
+    init = rng.random((6, 9, 11)).astype(np.float32)
+    mask = rng.random(init.shape) < 0.2
+    flow = np.empty((*init.shape, 2), np.float32)
+    flow[..., 0], flow[..., 1] = u, v
+    out = variable_tensor_diffusion(init, mask, flow, c=c, time=n)
+    assert np.isfinite(out).all()
+    assert out.min() >= init.min() - 1e-6 and out.max() <= init.max() + 1e-6
+    assert np.array_equal(out[mask], init[mask])  # data consistency
+
+
+def test_constant_video_is_unchanged(rng):
+    frames = np.full((3, 10, 12), 0.4, np.float32)
+    r = motion_aware(frames, CODE)
+    assert np.allclose(r.video, 0.4, atol=1e-6)
+
+
+def test_motion_aware_on_a_moving_scene_outputs_everything():
+    truth = render_scene("balls", 8 * 4, 40, 48)
+    r = motion_aware(capture(truth, CODE), CODE)
+    assert r.video.shape == truth.shape and np.isfinite(r.video).all()
+    assert r.flow.flow.shape == (*truth.shape, 2) and r.tr.shape == truth.shape
+    assert r.tr.min() >= 1 - 1e-6 and r.tr.max() <= 8 + 1e-6
+    assert np.allclose(r.tr * r.sr, 1, atol=1e-5)
+    assert set(r.seconds) == {"high_tr", "flow", "diffusion"}
+
+
+def test_resolution_map_limits():
+    still, _ = resolution_map(np.zeros((2, 2, 2)), 16)
+    fast, _ = resolution_map(np.full((2, 2, 2), 100.0), 16)
+    assert still.max() < 2 and fast.min() > 12
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"passes": 0}, r"`passes` must be a whole number >= 1; got 0"),
+        ({"time": 0}, r"`time` must be a finite number > 0; got 0"),
+        ({"c": (0.05, 0.95, 0.05)}, r"`c` must satisfy c1 >= c2 >= c3 >= 0"),
+        ({"flow": "magic"}, r"unknown flow backend 'magic'"),
+        ({"gate": (0.5, 0.1)}, r"`gate` must be two thresholds"),
+    ],
+)
+def test_bad_arguments(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        motion_aware(np.full((2, 8, 8), 0.5, np.float32), CODE, **kwargs)

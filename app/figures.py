@@ -69,7 +69,7 @@ def write_figures(out_dir, frames, code, method, *, max_frames: int = 4) -> list
         ("motion-aware", r.video[s], "gray"),
     ]
     fig, axes = plt.subplots(1, 5, figsize=(16, 3.6), dpi=100)
-    for ax, (title, img, cmap) in zip(axes, panels):
+    for ax, (title, img, cmap) in zip(axes, panels, strict=True):
         ax.imshow(img, cmap=cmap, vmin=0 if cmap else None, vmax=1 if cmap else None)
         ax.set_title(title, fontsize=10)
         ax.axis("off")

@@ -53,6 +53,8 @@ def run(args) -> int:
         for case in sorted({r["case"] for r in sci}):
             for fam in sorted({r["family"] for r in sci}):
                 best = max((r for r in sci if r["case"] == case and r["family"] == fam), key=lambda r: r["psnr"])
-                print(f"  {case:<18} {fam:<26} {best['psnr']:.2f} dB  {best['seconds']:.3f} s  {best['method']}")
-    print(f"\n{len(rows)} runs in {time.perf_counter() - t0:.0f} s; wrote {args.out}/results.csv, results.json, pareto.png")
+                print(f"  {case:<18} {fam:<26} {best['psnr']:.2f} dB  {best['seconds']:.3f} s  "
+                      f"{best['method']}")
+    print(f"\n{len(rows)} runs in {time.perf_counter() - t0:.0f} s; "
+          f"wrote {args.out}/results.csv, results.json, pareto.png")
     return EXIT_OK

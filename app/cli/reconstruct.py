@@ -11,12 +11,12 @@ from tqdm import tqdm
 
 from app.cli.errors import EXIT_OK, CliError, arg_type
 from flexvox_core.divisions import parse_division
+from flexvox_core.motion.pipeline import DEFAULT_TIME as MA_TIME
 from flexvox_core.multiplex import multiplexed_code
-from flexvox_core.recording import RecordingError, open_recording
 from flexvox_core.reconstruct import prepare
 from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, SOLVERS
-from flexvox_core.motion.pipeline import DEFAULT_TIME as MA_TIME
 from flexvox_core.reconstruct.run import METHODS, Method, reconstruct
+from flexvox_core.recording import RecordingError, open_recording
 from flexvox_core.video_io import WRITABLE, write_video
 
 

@@ -20,10 +20,10 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from time import perf_counter as _now
 
 import numpy as np
 from scipy.ndimage import uniform_filter1d
-from time import perf_counter as _now
 
 from flexvox_core.flow import FlowField, estimate_flow
 from flexvox_core.forward import sample_mask, sparse_volume

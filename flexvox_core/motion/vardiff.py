@@ -72,7 +72,9 @@ def variable_tensor_diffusion(
     m = np.asarray(mask, dtype=bool)
     f = np.asarray(flow, dtype=np.float32)
     if m.shape != vol.shape or f.shape != (S, H, W, 2):
-        raise ValueError(f"`mask` {m.shape} and `flow` {f.shape} must match `init` {vol.shape} (flow with a last axis of 2)")
+        raise ValueError(
+            f"`mask` {m.shape} and `flow` {f.shape} must match `init` {vol.shape} (flow with a last axis of 2)"
+        )
     if not np.isfinite(vol).all():
         raise ValueError("`init` holds NaN or infinite values")
     if not math.isfinite(time) or time < 0:

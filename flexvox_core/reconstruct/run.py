@@ -9,8 +9,8 @@ each chunk, and returning the full ``(F·K, H, W)`` float32 video clipped to [0,
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
-from typing import Callable
 
 import numpy as np
 

@@ -107,7 +107,9 @@ def scene_from_mapping(data: dict, *, base_dir: Path | None = None, where: str =
         spec.file = f if f.is_absolute() or base_dir is None else base_dir / f
     elif "builtin" in src:
         if src["builtin"] not in SCENES:
-            raise ValueError(f"{where} [source]: unknown scene {src['builtin']!r}; built-in scenes: {', '.join(SCENES)}")
+            raise ValueError(
+                f"{where} [source]: unknown scene {src['builtin']!r}; built-in scenes: {', '.join(SCENES)}"
+            )
         spec.builtin = src["builtin"]
     for key in ("height", "width"):
         if key in src:
@@ -126,7 +128,8 @@ def scene_from_mapping(data: dict, *, base_dir: Path | None = None, where: str =
     if "rate_hz" in cam:
         spec.rate_hz = _number(cam["rate_hz"], f"{where} [camera] rate_hz", minimum=1e-3)
     if "electrons_per_unit" in cam:
-        spec.electrons_per_unit = _number(cam["electrons_per_unit"], f"{where} [camera] electrons_per_unit", minimum=1e-3)
+        spec.electrons_per_unit = _number(cam["electrons_per_unit"], f"{where} [camera] electrons_per_unit",
+                                          minimum=1e-3)
     code = data.get("code", {})
     _check_keys(code, _CODE, f"{where} [code]")
     if "tile" in code:

@@ -74,16 +74,19 @@ def normalise_frames(frames: np.ndarray, storage: dict) -> np.ndarray:
     return frames.astype(np.float32, copy=False)
 
 
-def _weights(code: np.ndarray, H: int, W: int, effects: list[Effect]) -> np.ndarray | None:
-    """Per-slot weights after the pattern and light stages (None: the ideal code)."""
-    optical = [e for e in effects if e.stage in ("pattern", "light")]
-    if not optical:
-        return None
-    weights = tiled_code(code, H, W).astype(np.float32)
+def _pattern_stage(light: np.ndarray, effects: list[Effect]) -> np.ndarray:
+    """Projected light per slot after misregistration, pattern blur and leakage (as declared)."""
     for e in effects:
         if e.stage == "pattern":
-            weights = e.apply(weights)
-    return weights
+            light = e.apply(light)
+    return light
+
+
+def _weights(code: np.ndarray, H: int, W: int, effects: list[Effect]) -> np.ndarray | None:
+    """Per-slot weights after the pattern stage (None: no optical effect, the ideal code)."""
+    if not any(e.stage in ("pattern", "light") for e in effects):
+        return None
+    return _pattern_stage(tiled_code(code, H, W).astype(np.float32), effects)
 
 
 def _light(weights: np.ndarray, effects: list[Effect]) -> np.ndarray:
@@ -154,15 +157,10 @@ def render_exposures(
     if not np.isfinite(light).all() or light.min() < 0:
         raise ValueError("`light` must hold finite values >= 0")
     _check_effects(effects, rate_hz, electrons_per_unit)
-    per_frame = [light[f] for f in range(F)] if light.ndim == 4 else [light]
-    weights = []
-    for i, base in enumerate(per_frame):
-        w = base
-        for e in effects:
-            if e.stage == "pattern":
-                w = e.apply(w)
-        weights.append(w)
-    weights = np.stack(weights) if light.ndim == 4 else weights[0]
+    if light.ndim == 4:
+        weights = np.stack([_pattern_stage(light[f], effects) for f in range(F)])
+    else:
+        weights = _pattern_stage(light, effects)
     timing = next((e for e in effects if e.stage == "timing"), None)
     weights = _timed(weights, timing, effects, seed, stream, F)
     frames = _weighted_capture(video, weights)
@@ -184,7 +182,7 @@ def _timed(weights, timing, effects, seed, stream, F):
     if timing.jitter > 0:
         phases = timing.offset + timing.jitter * timing.rng(seed, stream).standard_normal(F)
         per = [weights[f] if weights.ndim == 4 else weights for f in range(F)]
-        return np.stack([_light(SyncPhase.shifted(w, p), effects) for w, p in zip(per, phases)])
+        return np.stack([_light(SyncPhase.shifted(w, p), effects) for w, p in zip(per, phases, strict=True)])
     if weights.ndim == 4:
         return np.stack([_light(SyncPhase.shifted(w, timing.offset), effects) for w in weights])
     return _light(SyncPhase.shifted(weights, timing.offset), effects)
@@ -287,6 +285,8 @@ def simulate(spec: SceneSpec, *, video: np.ndarray | None = None) -> SimulationR
     result = simulate_video(video, code, effects=spec.effects, seed=spec.seed, rate_hz=spec.rate_hz,
                             electrons_per_unit=spec.electrons_per_unit)
     result.multiplexed = multiplexed
-    result.placement = placement if placement is not None else (order_from_code(code) if is_identity_code(code) else None)
+    if placement is None and is_identity_code(code):
+        placement = order_from_code(code)
+    result.placement = placement
     result.source = spec.source_label()
     return result

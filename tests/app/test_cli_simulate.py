@@ -17,7 +17,8 @@ def run_cli(capsys, *argv):
 def test_simulate_npy_matches_the_forward_model(capsys, tmp_path, rng):
     gt = rng.random((48, 100, 130)).astype(np.float32)
     np.save(tmp_path / "gt.npy", gt)
-    code, out, err = run_cli(capsys, "simulate", str(tmp_path / "gt.npy"), "--tile", "4x4", "-o", str(tmp_path / "rec.zarr"))
+    code, out, err = run_cli(capsys, "simulate", str(tmp_path / "gt.npy"), "--tile", "4x4",
+                             "-o", str(tmp_path / "rec.zarr"))
     assert code == 0, err
     rec = open_recording(tmp_path / "rec.zarr")
     assert rec.frames.shape == (3, 100, 130)

@@ -21,7 +21,9 @@ def test_builtin_scenes_are_deterministic_in_range_and_detailed(name):
     assert np.abs(np.diff(a[0], axis=1)).mean() > 0.03
 
 
-@pytest.mark.parametrize("name, moves", [("static", False), ("fan", True), ("balls", True), ("drummer", True), ("pan", True)])
+@pytest.mark.parametrize(
+    "name, moves", [("static", False), ("fan", True), ("balls", True), ("drummer", True), ("pan", True)]
+)
 def test_scenes_move_as_described(name, moves):
     v = render_scene(name, 16, 40, 48)
     assert bool(np.abs(np.diff(v, axis=0)).max() > 0.1) == moves
@@ -82,7 +84,8 @@ def test_missing_file():
 
 def test_trim_to_whole_frames_warns():
     v = np.zeros((37, 4, 4), np.float32)
-    with pytest.warns(TrimWarning, match=r"37 sub-frames is not a multiple of K = 16; using the first 32 \(2 camera frames\), dropping 5"):
+    message = r"37 sub-frames is not a multiple of K = 16; using the first 32 \(2 camera frames\), dropping 5"
+    with pytest.warns(TrimWarning, match=message):
         out = trim_to_frames(v, 16, source="clip")
     assert out.shape[0] == 32
     with pytest.raises(ValueError, match=r"fewer than one camera frame"):

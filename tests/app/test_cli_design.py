@@ -129,12 +129,6 @@ def test_separation_option_validation(capsys):
     assert code == 1 and json.loads(out)["status"] == 2
 
 
-def test_demo_runs_and_says_what_it_did(capsys, tmp_path):
-    code, out, _ = run_cli(capsys, "demo", "--quick", "--out", str(tmp_path / "d"))
-    assert code == 0
-    assert "designed a 4x4 code" in out and "Not in this demo yet" in out
-
-
 def test_no_command_prints_help_and_exits_2(capsys):
     code, out, _ = run_cli(capsys)
     assert code == 2 and "design" in out

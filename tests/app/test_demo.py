@@ -1,0 +1,21 @@
+from app.cli.main import main
+
+
+def test_quick_demo_writes_the_report(tmp_path, capsys):
+    out = tmp_path / "demo"
+    assert main(["demo", "--quick", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "motion-aware" in text and "GAP-TV" in text and "report:" in text
+    page = (out / "index.html").read_text()
+    for name in ("fig1_sampling", "fig3_rebinning", "fig4_continuum", "fig5_flow", "fig7_panel"):
+        assert (out / "figures" / f"{name}.png").stat().st_size > 5_000
+        assert f"figures/{name}.png" in page
+    for name in ("ground_truth", "captured", "high_sr", "high_tr", "motion_aware"):
+        assert (out / "videos" / f"{name}.mp4").stat().st_size > 1_000
+    assert (out / "bench" / "pareto.png").exists() and "What accuracy costs in time" in page
+    assert (out / "recording.zarr").is_dir()
+
+
+def test_demo_rejects_unknown_scene(tmp_path, capsys):
+    assert main(["demo", "--quick", "--scene", "nope", "--out", str(tmp_path)]) == 2
+    assert "unknown scene 'nope'" in capsys.readouterr().err

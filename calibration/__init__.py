@@ -1,2 +1,15 @@
 """calibration — co-location aid, projector–camera homography, shutter masks and
-synchronisation. Qt-free. Filled in by the *Calibration* issue."""
+synchronisation. Qt-free, usable headless; the Qt wizards call it.
+
+Modules
+-------
+session            RigSession: show patterns, accept only frames exposed after the change
+structured_light   Gray code (OpenCV) and binary phase-shift patterns, and their decoding
+homography         capture + RANSAC fit + judgement (HomographyResult)
+geometry           apply/compare homographies; mirrored, nearly singular, folded
+colocation         live alignment numbers and the parallax test
+shutter            shutter masks through the homography; verification on the rig
+sync               phase and sub-slot delay (single-shot band code + delay sweep), drops, drift
+files              versioned JSON calibration files tied to a rig's identity and resolution
+simulated_target   the simulated rig set up for calibration (and depth emulation)
+"""

@@ -15,10 +15,10 @@ from flexvox_core.design import design_code
 from flexvox_core.divisions import Division
 from flexvox_core.metrics import psnr
 from flexvox_core.motion import motion_aware
-from flexvox_core.recording import write_simulation
 from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, diffuse
 from flexvox_core.reconstruct.rebin import rebin
 from flexvox_core.reconstruct.run import Method, reconstruct
+from flexvox_core.recording import write_simulation
 from flexvox_core.simulate.effects import parse_effects
 from flexvox_core.simulate.scene_file import SceneSpec
 from flexvox_core.simulate.simulator import simulate

@@ -1,0 +1,228 @@
+"""``flexvox calibrate``: co-location check, homography, shutter verification and sync, in order."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+from tqdm import tqdm
+
+from app.cli.errors import EXIT_FAILED, EXIT_OK, CliError, arg_type
+
+HELP = "calibrate the rig: co-location, projector-camera homography, shutter masks, synchronisation"
+
+DLPC350_SIZE = (1140, 912)
+"""The LightCrafter 4500's DMD, rows x columns (its driver does not report it)."""
+
+
+def _tile(text: str):
+    from flexvox_core.tiles import parse_tile
+
+    return parse_tile(text)
+
+
+def _baseline(text: str):
+    try:
+        vals = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise ValueError(f"--mock-baseline must be three numbers BX,BY,BZ; got {text!r}") from None
+    if len(vals) != 3:
+        raise ValueError(f"--mock-baseline must be three numbers BX,BY,BZ; got {text!r}")
+    return vals
+
+
+def _seed(text: str) -> int:
+    if not text.isdigit():
+        raise ValueError(f"--seed must be a whole number >= 0; got {text!r}")
+    return int(text)
+
+
+def register(sub) -> None:
+    """Add the ``calibrate`` subcommand."""
+    p = sub.add_parser(
+        "calibrate",
+        help=HELP,
+        description=(
+            "Run the rig's calibration in order: the co-location check (alignment numbers and, on the "
+            "simulated rig, the parallax test across two target depths), the projector-camera homography "
+            "(Gray code + phase shifting, RANSAC), the shutter masks of a code (each slot shown alone and "
+            "decoded) and the synchronisation (phase and sub-slot delay, dropped frames, drift). Exit 0 when "
+            "every step succeeds, 1 when one fails (its message says what to do). With --rig mock the "
+            "simulated rig hides a homography, phase and delay drawn from --seed, and --json compares them."
+        ),
+    )
+    p.add_argument("--rig", default="mock", metavar="mock|RIG.toml",
+                   help="the simulated rig (default) or a rig profile (rig_drivers/PROFILES.md)")
+    p.add_argument("--seed", type=arg_type(_seed), default=0, metavar="S",
+                   help="simulated rig: seed of its hidden homography, timing and noise (default 0)")
+    p.add_argument("--tile", type=arg_type(_tile), default=(4, 4), metavar="MxN",
+                   help="tile of the shutter code to verify (K = M*N slots; default 4x4)")
+    p.add_argument("--mock-baseline", type=arg_type(_baseline), default=(0.0, 0.0, 0.0), metavar="BX,BY,BZ",
+                   help="simulated rig: the projector's offset from the camera's centre, in units of the "
+                        "target distance (default 0,0,0: co-located)")
+    p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+    p.add_argument("-o", "--output", type=Path, metavar="CAL.json",
+                   help="write the calibration (homography + sync) when every step succeeds")
+    p.set_defaults(func=run)
+
+
+class _Progress:
+    """tqdm bars on stderr, one per step."""
+
+    def __init__(self, quiet: bool):
+        self.quiet = quiet
+
+    def __call__(self, desc: str):
+        bar = tqdm(desc=desc, unit="pattern", file=sys.stderr, leave=False, disable=self.quiet or None)
+
+        def update(done: int, total: int) -> None:
+            if bar.total != total:
+                bar.reset(total=total)
+            bar.n = done
+            bar.refresh()
+
+        update.bar = bar
+        return update
+
+
+def _open(args):
+    from calibration.session import RigSession
+    from calibration.simulated_target import calibration_rig
+    from rig_drivers.profile import open_rig, resolve_rig
+
+    spec = resolve_rig(args.rig)
+    if spec.simulated:
+        rig = calibration_rig(args.seed, baseline=args.mock_baseline)
+        return rig, RigSession.from_rig(rig)
+    rig = open_rig(spec)
+    size = getattr(rig.projector, "size", None) or (DLPC350_SIZE if spec.projector.kind == "dlpc350" else None)
+    return rig, RigSession.from_rig(rig, projector_size=size)
+
+
+def _steps(args, rig, session, progress) -> tuple[dict, bool, dict]:
+    from calibration.colocation import capture_view, measure_alignment, parallax_test
+    from calibration.homography import calibrate_homography
+    from calibration.session import RigSession
+    from calibration.shutter import make_shutter_patterns, verify_shutter
+    from calibration.simulated_target import calibration_rig
+    from calibration.sync import band_patterns, check_frames, measure_sync
+    from flexvox_core.design import design_code
+
+    report: dict = {}
+    keep: dict = {}
+    with session:
+        align = measure_alignment(session, progress=progress("co-location"))
+        report["colocation"] = {"alignment": align.summary()}
+        if rig.simulated is not None:
+            near = capture_view(session, progress=progress("parallax: near target"))
+            far_rig = calibration_rig(args.seed, baseline=args.mock_baseline, depth=2.0)
+            with RigSession.from_rig(far_rig) as far_session:
+                far = capture_view(far_session, progress=progress("parallax: far target"))
+            par = parallax_test([near, far], session.projector_size)
+            report["colocation"]["parallax"] = par.summary()
+            colocated = par.success
+        else:
+            report["colocation"]["parallax"] = {
+                "status": "skipped", "message": "the parallax test needs the target at two depths: run it from "
+                                                 "the calibration wizard, which asks you to move the target"}
+            colocated = True
+        if not align.success or not colocated:
+            report["failed"] = "colocation"
+            return report, False, keep
+        hom = calibrate_homography(session, progress=progress("homography"))
+        report["homography"] = hom.summary()
+        keep["homography"] = hom
+        if not hom.success:
+            report["failed"] = "homography"
+            return report, False, keep
+        code = design_code(tuple(args.tile)).code
+        K = code.shape[2]
+        shutter = make_shutter_patterns(code, hom.homography, session.camera_size, session.projector_size)
+        ver = verify_shutter(session, shutter, progress=progress("shutter"))
+        report["shutter"] = ver.summary() | {"addressable": shutter.addressable, "K": K}
+        sync = measure_sync(session, hom.homography, K=K, progress=progress("sync"))
+        report["sync"] = sync.summary()
+        keep["sync"] = sync
+        if sync.success:
+            bands, _ = band_patterns(hom.homography, session.camera_size, session.projector_size, K)
+            frames = check_frames(session, bands, 30)
+            report["frames"] = frames.summary()
+        outcomes = (("shutter", ver.success), ("sync", sync.success),
+                    ("frames", report.get("frames", {}).get("status") == "ok"))
+        failed = [name for name, good in outcomes if not good]
+        ok = not failed
+        if failed:
+            report["failed"] = failed[0]
+    return report, ok, keep
+
+
+def _truth(rig, report: dict, keep: dict, camera_size) -> dict:
+    from calibration.geometry import homography_error_px
+
+    truth = rig.simulated.truth
+    out = {"phase_true": int(truth.phase_slots), "delay_true_us": int(truth.delay_us)}
+    hom = keep.get("homography")
+    if hom is not None and hom.homography is not None:
+        out["homography_error_px"] = homography_error_px(hom.homography, truth.homography, camera_size)
+    return out
+
+
+def run(args) -> int:
+    """Carry out ``flexvox calibrate``."""
+    from calibration.errors import CalibrationError
+    from calibration.files import save_calibration
+    from rig_drivers.errors import DeviceError
+
+    t0 = time.perf_counter()
+    progress = _Progress(quiet=False)
+    try:
+        rig, session = _open(args)
+        try:
+            report, ok, keep = _steps(args, rig, session, progress)
+        finally:
+            rig.close()
+        if ok and args.output is not None:
+            save_calibration(args.output, keep["homography"], session.identity, sync=keep.get("sync"))
+    except (CalibrationError, DeviceError, ValueError) as exc:
+        raise CliError(str(exc).splitlines()[0]) from None
+    elapsed = time.perf_counter() - t0
+    flat = {
+        "success": ok,
+        "rms_px": report.get("homography", {}).get("rms_px"),
+        "coverage": report.get("homography", {}).get("coverage"),
+        "shutter_slot_accuracy": report.get("shutter", {}).get("accuracy"),
+        "phase_found": report.get("sync", {}).get("phase_slots"),
+        "delay_found_us": report.get("sync", {}).get("delay_us"),
+        "seconds": elapsed,
+    }
+    if rig.simulated is not None:
+        flat.update(_truth(rig, report, keep, session.camera_size))
+    if ok and args.output is not None:
+        flat["output"] = str(args.output)
+    if args.json:
+        print(json.dumps(flat | {"steps": report}, default=float))
+        return EXIT_OK if ok else EXIT_FAILED
+    for name in ("colocation", "homography", "shutter", "sync", "frames"):
+        step = report.get(name)
+        if step is None:
+            continue
+        if name == "colocation":
+            print(f"co-location: {step['alignment']['message']}")
+            print(f"parallax:    {step['parallax']['message']}")
+            continue
+        print(f"{name + ':':<12} {step['message']}")
+        for w in step.get("warnings", []):
+            print(f"  warning: {w}")
+    if rig.simulated is not None and "homography_error_px" in flat:
+        print(f"against the simulated rig's truth: homography error {flat['homography_error_px']:.3f} px, "
+              f"phase {flat['phase_found']} (true {flat['phase_true']}), delay "
+              f"{flat['delay_found_us'] if flat['delay_found_us'] is None else round(flat['delay_found_us'])} µs "
+              f"(true {flat['delay_true_us']})")
+    if ok and args.output is not None:
+        print(f"wrote {args.output}")
+    if not ok:
+        print(f"calibration stopped: the {report.get('failed', 'last')} step failed", file=sys.stderr)
+    print(f"done in {elapsed:.1f} s")
+    return EXIT_OK if ok else EXIT_FAILED

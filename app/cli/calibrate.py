@@ -101,78 +101,11 @@ def _open(args):
     return rig, RigSession.from_rig(rig, projector_size=size)
 
 
-def _steps(args, rig, session, progress) -> tuple[dict, bool, dict]:
-    from calibration.colocation import capture_view, measure_alignment, parallax_test
-    from calibration.homography import calibrate_homography
-    from calibration.session import RigSession
-    from calibration.shutter import make_shutter_patterns, verify_shutter
-    from calibration.simulated_target import calibration_rig
-    from calibration.sync import band_patterns, check_frames, measure_sync
-    from flexvox_core.design import design_code
-
-    report: dict = {}
-    keep: dict = {}
-    with session:
-        align = measure_alignment(session, progress=progress("co-location"))
-        report["colocation"] = {"alignment": align.summary()}
-        if rig.simulated is not None:
-            near = capture_view(session, progress=progress("parallax: near target"))
-            far_rig = calibration_rig(args.seed, baseline=args.mock_baseline, depth=2.0)
-            with RigSession.from_rig(far_rig) as far_session:
-                far = capture_view(far_session, progress=progress("parallax: far target"))
-            par = parallax_test([near, far], session.projector_size)
-            report["colocation"]["parallax"] = par.summary()
-            colocated = par.success
-        else:
-            report["colocation"]["parallax"] = {
-                "status": "skipped", "message": "the parallax test needs the target at two depths: run it from "
-                                                 "the calibration wizard, which asks you to move the target"}
-            colocated = True
-        if not align.success or not colocated:
-            report["failed"] = "colocation"
-            return report, False, keep
-        hom = calibrate_homography(session, progress=progress("homography"))
-        report["homography"] = hom.summary()
-        keep["homography"] = hom
-        if not hom.success:
-            report["failed"] = "homography"
-            return report, False, keep
-        code = design_code(tuple(args.tile)).code
-        K = code.shape[2]
-        shutter = make_shutter_patterns(code, hom.homography, session.camera_size, session.projector_size)
-        ver = verify_shutter(session, shutter, progress=progress("shutter"))
-        report["shutter"] = ver.summary() | {"addressable": shutter.addressable, "K": K}
-        sync = measure_sync(session, hom.homography, K=K, progress=progress("sync"))
-        report["sync"] = sync.summary()
-        keep["sync"] = sync
-        if sync.success:
-            bands, _ = band_patterns(hom.homography, session.camera_size, session.projector_size, K)
-            frames = check_frames(session, bands, 30)
-            report["frames"] = frames.summary()
-        outcomes = (("shutter", ver.success), ("sync", sync.success),
-                    ("frames", report.get("frames", {}).get("status") == "ok"))
-        failed = [name for name, good in outcomes if not good]
-        ok = not failed
-        if failed:
-            report["failed"] = failed[0]
-    return report, ok, keep
-
-
-def _truth(rig, report: dict, keep: dict, camera_size) -> dict:
-    from calibration.geometry import homography_error_px
-
-    truth = rig.simulated.truth
-    out = {"phase_true": int(truth.phase_slots), "delay_true_us": int(truth.delay_us)}
-    hom = keep.get("homography")
-    if hom is not None and hom.homography is not None:
-        out["homography_error_px"] = homography_error_px(hom.homography, truth.homography, camera_size)
-    return out
-
-
 def run(args) -> int:
     """Carry out ``flexvox calibrate``."""
     from calibration.errors import CalibrationError
     from calibration.files import save_calibration
+    from calibration.pipeline import run_calibration, truth_comparison
     from rig_drivers.errors import DeviceError
 
     t0 = time.perf_counter()
@@ -180,7 +113,9 @@ def run(args) -> int:
     try:
         rig, session = _open(args)
         try:
-            report, ok, keep = _steps(args, rig, session, progress)
+            outcome = run_calibration(rig, session, tile=tuple(args.tile), seed=args.seed,
+                                      baseline=args.mock_baseline, progress=progress)
+            report, ok, keep = outcome.report, outcome.success, outcome.keep
         finally:
             rig.close()
         if ok and args.output is not None:
@@ -198,7 +133,7 @@ def run(args) -> int:
         "seconds": elapsed,
     }
     if rig.simulated is not None:
-        flat.update(_truth(rig, report, keep, session.camera_size))
+        flat.update(truth_comparison(rig, outcome, session.camera_size))
     if ok and args.output is not None:
         flat["output"] = str(args.output)
     if args.json:

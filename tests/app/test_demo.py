@@ -6,6 +6,7 @@ def test_quick_demo_writes_the_report(tmp_path, capsys):
     assert main(["demo", "--quick", "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert "motion-aware" in text and "GAP-TV" in text and "report:" in text
+    assert "Calibrated the simulated rig" in text and "phase" in text
     page = (out / "index.html").read_text()
     for name in ("fig1_sampling", "fig3_rebinning", "fig4_continuum", "fig5_flow", "fig7_panel"):
         assert (out / "figures" / f"{name}.png").stat().st_size > 5_000
@@ -14,6 +15,7 @@ def test_quick_demo_writes_the_report(tmp_path, capsys):
         assert (out / "videos" / f"{name}.mp4").stat().st_size > 1_000
     assert (out / "bench" / "pareto.png").exists() and "What accuracy costs in time" in page
     assert (out / "recording.zarr").is_dir()
+    assert "homography error over the frame" in page and "shutter slot accuracy" in page
 
 
 def test_demo_rejects_unknown_scene(tmp_path, capsys):

@@ -1,0 +1,106 @@
+"""The whole calibration in order — co-location, homography, shutter masks, sync, frame check —
+as one Qt-free call shared by ``flexvox calibrate``, the demo and the GUI wizards."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+
+@dataclass
+class CalibrationRun:
+    """Outcome of :func:`run_calibration`.
+
+    Attributes
+    ----------
+    report : dict
+        One summary per step (``colocation``, ``homography``, ``shutter``, ``sync``, ``frames``) and
+        ``failed`` naming the first step that failed.
+    success : bool
+    keep : dict
+        The results worth saving: ``homography`` (a HomographyResult), ``sync`` (a SyncResult).
+    """
+
+    report: dict = field(default_factory=dict)
+    success: bool = False
+    keep: dict = field(default_factory=dict)
+
+
+def _no_progress(desc: str):
+    return lambda done, total: None
+
+
+def run_calibration(rig, session, *, tile=(4, 4), seed: int = 0, baseline=(0.0, 0.0, 0.0),
+                    progress=None) -> CalibrationRun:
+    """Run every calibration step on an opened ``session`` of ``rig``; stop at the first failure.
+
+    ``progress(desc)`` returns an ``update(done, total)`` callable for each step. On the
+    simulated rig the parallax test images a second target depth (``seed``/``baseline`` as the
+    rig was made); on a real rig it is skipped with a message (it needs the operator).
+    """
+    from calibration.colocation import capture_view, measure_alignment, parallax_test
+    from calibration.homography import calibrate_homography
+    from calibration.session import RigSession
+    from calibration.shutter import make_shutter_patterns, verify_shutter
+    from calibration.simulated_target import calibration_rig
+    from calibration.sync import band_patterns, check_frames, measure_sync
+    from flexvox_core.design import design_code
+
+    progress = progress or _no_progress
+    run = CalibrationRun()
+    report, keep = run.report, run.keep
+    with session:
+        align = measure_alignment(session, progress=progress("co-location"))
+        report["colocation"] = {"alignment": align.summary()}
+        if rig.simulated is not None:
+            near = capture_view(session, progress=progress("parallax: near target"))
+            far_rig = calibration_rig(seed, baseline=baseline, depth=2.0)
+            with RigSession.from_rig(far_rig) as far_session:
+                far = capture_view(far_session, progress=progress("parallax: far target"))
+            par = parallax_test([near, far], session.projector_size)
+            report["colocation"]["parallax"] = par.summary()
+            colocated = par.success
+        else:
+            report["colocation"]["parallax"] = {
+                "status": "skipped", "message": "the parallax test needs the target at two depths: run it from "
+                                                 "the calibration wizard, which asks you to move the target"}
+            colocated = True
+        if not align.success or not colocated:
+            report["failed"] = "colocation"
+            return run
+        hom = calibrate_homography(session, progress=progress("homography"))
+        report["homography"] = hom.summary()
+        keep["homography"] = hom
+        if not hom.success:
+            report["failed"] = "homography"
+            return run
+        code = design_code(tuple(tile)).code
+        K = code.shape[2]
+        shutter = make_shutter_patterns(code, hom.homography, session.camera_size, session.projector_size)
+        ver = verify_shutter(session, shutter, progress=progress("shutter"))
+        report["shutter"] = ver.summary() | {"addressable": shutter.addressable, "K": K}
+        sync = measure_sync(session, hom.homography, K=K, progress=progress("sync"))
+        report["sync"] = sync.summary()
+        keep["sync"] = sync
+        if sync.success:
+            bands, _ = band_patterns(hom.homography, session.camera_size, session.projector_size, K)
+            frames = check_frames(session, bands, 30)
+            report["frames"] = frames.summary()
+        outcomes = (("shutter", ver.success), ("sync", sync.success),
+                    ("frames", report.get("frames", {}).get("status") == "ok"))
+        failed = [name for name, good in outcomes if not good]
+        run.success = not failed
+        if failed:
+            report["failed"] = failed[0]
+    return run
+
+
+def truth_comparison(rig, run: CalibrationRun, camera_size) -> dict:
+    """On the simulated rig: the hidden truth beside what was found (for tests, the demo, --json)."""
+    from calibration.geometry import homography_error_px
+
+    truth = rig.simulated.truth
+    out = {"phase_true": int(truth.phase_slots), "delay_true_us": int(truth.delay_us)}
+    hom = run.keep.get("homography")
+    if hom is not None and hom.homography is not None:
+        out["homography_error_px"] = homography_error_px(hom.homography, truth.homography, camera_size)
+    return out

@@ -20,7 +20,9 @@ sub-frame, and a confidence in [0, 1]:
 from __future__ import annotations
 
 import logging
+import os
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import cv2
@@ -163,12 +165,16 @@ def estimate_flow(
             b = cv2.copyMakeBorder(b, 0, pad_y, 0, pad_x, cv2.BORDER_REFLECT)
         return sanitize_flow(flow_fn(a, b)[:h, :w])
 
-    for s in range(S - 1):
-        fwd[s], c = pair(u8[s], u8[s + 1])
+    def one(s):
+        f_s, c = pair(u8[s], u8[s + 1])
         if consistency:
             bwd, cb = pair(u8[s + 1], u8[s])
-            c = c * consistency_confidence(fwd[s], bwd) * np.minimum(cb, 1)
-        conf[s] = c
+            c = c * consistency_confidence(f_s, bwd) * np.minimum(cb, 1)
+        fwd[s], conf[s] = f_s, c
+
+    # OpenCV releases the GIL: the pairs run on every core (each writes its own slice).
+    with ThreadPoolExecutor(max_workers=max(1, min(os.cpu_count() or 1, 8))) as pool:
+        list(pool.map(one, range(S - 1)))
     # Velocity at sub-frame s: confidence-weighted mean of forward flows s-w .. s+w (clamped).
     vel = np.empty((S, h, w, 2), np.float32)
     vconf = np.empty((S, h, w), np.float32)

@@ -82,15 +82,23 @@ def motion_compensated_nc(
     out = np.empty((S, H, W), np.float32)
     for t in range(S):
         u, v = f[t, ..., 0], f[t, ..., 1]
-        s2 = 1 + u * u + v * v
-        acc = np.zeros((H, W, 2), np.float32)
-        for d in range(-reach, reach + 1):
-            if not 0 <= t + d < S:
-                continue
-            w = np.exp(-(d * d) * s2 / (4 * time * c1)).astype(np.float32)
-            src = both[t + d] if d == 0 else cv2.remap(both[t + d], gx + d * u, gy + d * v, cv2.INTER_LINEAR,
-                                                      borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-            acc += src * w[..., None]
+        # w_d = e^(d²) with e = exp(-(1 + u² + v²) / (4 n c1)): built by multiplication, since
+        # d² is the sum of the first d odd numbers (no exp per offset).
+        e = np.exp(-(1 + u * u + v * v) / np.float32(4 * time * c1)).astype(np.float32)
+        e2 = e * e
+        w = np.ones((H, W), np.float32)
+        step = e.copy()
+        acc = both[t].copy()  # d = 0, weight 1
+        for d in range(1, reach + 1):
+            w *= step
+            step *= e2
+            if float(w.max()) < MIN_WEIGHT * 1e-3:
+                break  # every trajectory has left the Gaussian's reach
+            for sd in (d, -d):
+                if 0 <= t + sd < S:
+                    src = cv2.remap(both[t + sd], gx + sd * u, gy + sd * v, cv2.INTER_LINEAR,
+                                    borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+                    acc += src * w[..., None]
         if sig_space > 0.05:
             acc = cv2.GaussianBlur(acc, (0, 0), sig_space, borderType=cv2.BORDER_REFLECT)
         num, den = acc[..., 0], acc[..., 1]

@@ -26,6 +26,7 @@ from flexvox_core.motion.tensors import DEFAULT_C, check_c
 MIN_WEIGHT = 1e-6
 
 
+
 def motion_compensated_nc(
     sparse,
     mask,
@@ -36,6 +37,8 @@ def motion_compensated_nc(
     fallback=None,
     keep_samples: bool = True,
     max_reach: int | None = None,
+    still=None,
+    still_value=None,
 ) -> np.ndarray:
     """Reconstruct a video from samples along the flow's trajectories.
 
@@ -55,6 +58,11 @@ def motion_compensated_nc(
     max_reach : int, optional
         Largest |d| in sub-frames (default: the larger of 3 standard deviations of the static
         case and the sampling period K, at most S-1).
+    still, still_value : ndarray (S, H, W), optional
+        Voxels to treat as still (bool) and their value — the fixed-tensor normalized
+        convolution with ``diag(c3, c2, c1)``, which is what this function computes at zero
+        flow. The trajectory gather then runs only over each sub-frame's bounding box of the
+        other voxels, which is where the time goes (a still scene costs almost nothing).
     """
     c1, c2, _ = check_c(c)
     vals = np.asarray(sparse, dtype=np.float32)
@@ -80,33 +88,65 @@ def motion_compensated_nc(
     both = np.stack([vals * m, m.astype(np.float32)], axis=-1)  # (S, H, W, 2): value·mask, mask
     gx, gy = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
     out = np.empty((S, H, W), np.float32)
+    if (still is None) != (still_value is None):
+        raise ValueError("`still` and `still_value` go together")
+    if still is not None:
+        still = np.asarray(still, dtype=bool)
+        still_value = np.asarray(still_value, dtype=np.float32)
+        if still.shape != vals.shape or still_value.shape != vals.shape:
+            raise ValueError(f"`still` and `still_value` must have shape {vals.shape}")
+    out = np.empty((S, H, W), np.float32)
+    pad = int(math.ceil(sig_space * 4)) + 1
     for t in range(S):
-        u, v = f[t, ..., 0], f[t, ..., 1]
-        # w_d = e^(d²) with e = exp(-(1 + u² + v²) / (4 n c1)): built by multiplication, since
-        # d² is the sum of the first d odd numbers (no exp per offset).
-        e = np.exp(-(1 + u * u + v * v) / np.float32(4 * time * c1)).astype(np.float32)
-        e2 = e * e
-        w = np.ones((H, W), np.float32)
-        step = e.copy()
-        acc = both[t].copy()  # d = 0, weight 1
-        for d in range(1, reach + 1):
-            w *= step
-            step *= e2
-            if float(w.max()) < MIN_WEIGHT * 1e-3:
-                break  # every trajectory has left the Gaussian's reach
-            for sd in (d, -d):
-                if 0 <= t + sd < S:
-                    src = cv2.remap(both[t + sd], gx + sd * u, gy + sd * v, cv2.INTER_LINEAR,
-                                    borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-                    acc += src * w[..., None]
-        if sig_space > 0.05:
-            acc = cv2.GaussianBlur(acc, (0, 0), sig_space, borderType=cv2.BORDER_REFLECT)
-        num, den = acc[..., 0], acc[..., 1]
-        ok = den > MIN_WEIGHT
-        est = np.divide(num, den, out=np.zeros_like(num), where=ok)
-        if fallback is not None:
-            est = np.where(ok, est, np.asarray(fallback[t], np.float32))
-        out[t] = est
+        if still is None:
+            out[t] = _gather_box(t, (0, H, 0, W), both, f, gx, gy, reach, time, c1, sig_space, fallback, S)
+            continue
+        moving = ~still[t]
+        if not moving.any():
+            out[t] = still_value[t]
+            continue
+        # Gather only over the bounding box of the moving voxels, padded for the spatial blur so
+        # every moving voxel gets exactly the whole-frame result.
+        rows, cols = np.flatnonzero(moving.any(axis=1)), np.flatnonzero(moving.any(axis=0))
+        box = (max(0, rows[0] - pad), min(H, rows[-1] + 1 + pad), max(0, cols[0] - pad), min(W, cols[-1] + 1 + pad))
+        est = _gather_box(t, box, both, f, gx, gy, reach, time, c1, sig_space, fallback, S)
+        out[t] = still_value[t]
+        y0, y1, x0, x1 = box
+        out[t, y0:y1, x0:x1] = np.where(moving[y0:y1, x0:x1], est, still_value[t, y0:y1, x0:x1])
     if keep_samples:
         out[m] = vals[m]
     return out
+
+
+def _gather_box(t, box, both, f, gx, gy, reach, time, c1, sig_space, fallback, S):
+    """Normalized convolution along the trajectories of sub-frame ``t`` for the voxels in ``box``
+    (y0, y1, x0, x1); returns the box (where no sample is in reach: the fallback, or 0)."""
+    y0, y1, x0, x1 = box
+    region = (np.zeros((y1 - y0, x1 - x0), np.float32) if fallback is None
+              else np.array(fallback[t, y0:y1, x0:x1], np.float32))
+    gx, gy = gx[y0:y1, x0:x1], gy[y0:y1, x0:x1]
+    h, w_ = y1 - y0, x1 - x0
+    u, v = f[t, y0:y1, x0:x1, 0], f[t, y0:y1, x0:x1, 1]
+    # w_d = e^(d²) with e = exp(-(1 + u² + v²) / (4 n c1)): built by multiplication, since
+    # d² is the sum of the first d odd numbers (no exp per offset).
+    e = np.exp(-(1 + u * u + v * v) / np.float32(4 * time * c1)).astype(np.float32)
+    e2 = e * e
+    w = np.ones((h, w_), np.float32)
+    step = e.copy()
+    acc = both[t, y0:y1, x0:x1].copy()  # d = 0, weight 1
+    for d in range(1, reach + 1):
+        w *= step
+        step *= e2
+        if float(w.max()) < MIN_WEIGHT * 1e-3:
+            break  # every trajectory has left the Gaussian's reach
+        for sd in (d, -d):
+            if 0 <= t + sd < S:
+                src = cv2.remap(both[t + sd], gx + sd * u, gy + sd * v, cv2.INTER_LINEAR,
+                                borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+                acc += src * w[..., None]
+    if sig_space > 0.05:
+        acc = cv2.GaussianBlur(acc, (0, 0), sig_space, borderType=cv2.BORDER_REFLECT)
+    num, den = acc[..., 0], acc[..., 1]
+    ok = den > MIN_WEIGHT
+    est = np.divide(num, den, out=np.zeros_like(num), where=ok)
+    return np.where(ok, est, region)

@@ -38,6 +38,9 @@ _logger = logging.getLogger(__name__)
 STEP1_TENSOR = (1.0, 1.0, 0.05)
 STEP1_TIME = 2.0
 DEFAULT_TIME = 4.0
+STILL_SPEED = 0.1
+"""Below this gated speed (px per sub-frame) a voxel takes the fixed-tensor normalized convolution
+(what the trajectory gather gives at zero flow), so the gather runs only where things move."""
 DEFAULT_GATE = (0.03, 0.15)
 """Gate ramp in pixels per sub-frame: below 0.03 still, above 0.15 trusted as moving."""
 
@@ -91,6 +94,7 @@ def motion_aware(
     refine_time: float = 0.0,
     gate=DEFAULT_GATE,
     flow_scale: float = 0.5,
+    still_speed: float | None = STILL_SPEED,
 ) -> MotionAwareResult:
     """Motion-aware reconstruction of an identity-code capture.
 
@@ -111,6 +115,9 @@ def motion_aware(
         Motion-detector ramp, pixels per sub-frame.
     flow_scale : float
         Resolution at which flow is computed.
+    still_speed : float or None
+        Voxels slower than this take the fixed-tensor result (see :data:`STILL_SPEED`);
+        None gathers along trajectories everywhere.
     """
     f = check_frames(frames)
     code = check_identity_code(code)
@@ -131,12 +138,19 @@ def motion_aware(
     lo, hi = float(f.min()), float(f.max())
     current = high_tr
     field_ = None
+    still_value_cache = None
     for _ in range(passes):
         t0 = _now()
         field_ = gated_flow(current, K, backend=flow, gate=gate, scale=flow_scale)
         seconds["flow"] += _now() - t0
         t0 = _now()
-        video = motion_compensated_nc(sparse, mask, field_.flow, c=c, time=time, fallback=high_tr)
+        still = still_value = None
+        if still_speed is not None:
+            if still_value_cache is None:
+                still_value_cache = diffuse(f, code, tensor=(c[2], c[1], c[0]), time=time)
+            still, still_value = field_.magnitude < still_speed, still_value_cache
+        video = motion_compensated_nc(sparse, mask, field_.flow, c=c, time=time, fallback=high_tr,
+                                      still=still, still_value=still_value)
         if refine_time > 0:
             video = variable_tensor_diffusion(video, mask, field_.flow, c=c, time=refine_time)
         current = np.clip(video, lo, hi)

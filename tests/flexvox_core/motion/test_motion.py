@@ -126,3 +126,17 @@ def test_resolution_map_limits():
 def test_bad_arguments(kwargs, match):
     with pytest.raises(ValueError, match=match):
         motion_aware(np.full((2, 8, 8), 0.5, np.float32), CODE, **kwargs)
+
+
+def test_still_voxels_shortcut_keeps_the_moving_ones_exact(capture_case, rng):
+    truth, frames, sparse, mask = capture_case
+    flow = np.zeros((*sparse.shape, 2), np.float32)
+    flow[:, 3:8, 4:10] = [1.5, -0.5]  # a moving patch
+    full = motion_compensated_nc(sparse, mask, flow, time=2.0)
+    still = np.hypot(flow[..., 0], flow[..., 1]) < 0.1
+    still_value = diffuse(frames, CODE, tensor=(0.05, 0.05, 0.95), time=2.0)
+    fast = motion_compensated_nc(sparse, mask, flow, time=2.0, still=still, still_value=still_value)
+    assert np.allclose(fast[~still], full[~still], atol=1e-6)
+    assert np.array_equal(fast[still & ~mask], still_value[still & ~mask])
+    with pytest.raises(ValueError, match=r"`still` and `still_value` go together"):
+        motion_compensated_nc(sparse, mask, flow, time=2.0, still=still)

@@ -78,3 +78,117 @@ def test_damaged_recordings(tmp_path, sim):
     (tmp_path / "junk.zarr").mkdir()
     with pytest.raises(RecordingError, match=r"junk.zarr: not a"):
         open_recording(tmp_path / "junk.zarr")
+
+
+# --------------------------------------------------------------------------- crash safety
+
+from flexvox_core.recording import (  # noqa: E402
+    JOURNAL,
+    RecordingWriter,
+    RowsView,
+    read_journal,
+    recording_attrs,
+    recover_recording,
+)
+
+
+def _writer(path, **kw):
+    attrs = recording_attrs(design_code((2, 2)).code, rate_hz=30.0, kind="captured", storage={"kind": "float"})
+    return RecordingWriter(path, height=4, width=5, dtype="float32", attrs=attrs, **kw)
+
+
+def _fill(w, n, start=0):
+    for i in range(start, start + n):
+        w.append(np.full((4, 5), i + 1, np.float32), frame_id=i, timestamp=i / 30, dropped=False)
+
+
+def test_interrupted_writer_opens_with_the_true_count(tmp_path):
+    path = tmp_path / "i.zarr"
+    w = _writer(path, block_frames=8)
+    _fill(w, 11)  # capacity 16, count 11; never closed (a kill)
+    assert zarr.open_group(str(path), mode="r")["frames"].shape == (16, 4, 5)
+    rec = open_recording(path)
+    assert rec.interrupted and rec.n_frames == 11
+    assert isinstance(rec.frames, RowsView) and rec.frames.shape == (11, 4, 5) and len(rec.frames) == 11
+    assert rec.frames[:].shape == (11, 4, 5) and rec.frames[-1][0, 0] == 11 and rec.frames[2:4, 0, 0].tolist() == [3, 4]
+    assert np.asarray(rec.frames).shape == (11, 4, 5) and rec.normalised_frames(9).shape == (2, 4, 5)
+    with pytest.raises(IndexError, match=r"row 11 is out of range for 11 frames"):
+        rec.frames[11]
+    assert rec.per_frame("frame_id").tolist() == list(range(11))
+    # The per-frame arrays lag a block behind (flushed when the arrays grew): the journal rules.
+    assert zarr.open_group(str(path), mode="r")["frame_id"][:8].tolist() == list(range(8))
+
+
+def test_torn_or_corrupt_journal_records_are_ignored(tmp_path):
+    path = tmp_path / "t.zarr"
+    w = _writer(path)
+    _fill(w, 5)
+    journal = path / JOURNAL
+    with open(journal, "ab") as f:
+        f.write(b"\x01" * 10)  # a record torn by the kill
+    assert open_recording(path).n_frames == 5
+    data = bytearray(journal.read_bytes())
+    data[16 + 3 * 24] ^= 0xFF  # corrupt record 3
+    journal.write_bytes(bytes(data))
+    assert open_recording(path).n_frames == 3 and read_journal(journal)["frame_id"].tolist() == [0, 1, 2]
+    journal.write_bytes(b"garbage")
+    with pytest.raises(RecordingError, match=r"not a flexvox capture journal"):
+        open_recording(path)
+
+
+def test_arrays_of_different_lengths_after_a_kill_mid_resize_still_open(tmp_path):
+    path = tmp_path / "k.zarr"
+    w = _writer(path, block_frames=4)
+    _fill(w, 6)
+    zarr.open_group(str(path), mode="r+")["dropped"].resize((4,))  # killed between two resizes
+    rec = open_recording(path)
+    assert rec.n_frames == 6 and rec.per_frame("dropped").tolist() == [False] * 6
+
+
+def test_close_trims_and_recover_finalises(tmp_path):
+    w = _writer(tmp_path / "c.zarr", block_frames=8)
+    _fill(w, 3)
+    w.append(None, frame_id=3, timestamp=0.1, dropped=True)
+    w.close(attrs_update={"capture": {"rows": 4}})
+    w.close()  # idempotent
+    g = zarr.open_group(str(tmp_path / "c.zarr"), mode="r")
+    assert g["frames"].shape == (4, 4, 5) and g["dropped"][:].tolist() == [False] * 3 + [True]
+    assert not (tmp_path / "c.zarr" / JOURNAL).exists()
+    rec = open_recording(tmp_path / "c.zarr")
+    assert not rec.interrupted and rec.attrs["capture"] == {"rows": 4} and not rec.frames[3].any()
+    with pytest.raises(RecordingError, match=r"the writer is closed"):
+        _fill(w, 1)
+    w2 = _writer(tmp_path / "r.zarr", block_frames=8)
+    _fill(w2, 10)
+    assert recover_recording(tmp_path / "r.zarr") == 10
+    rec = open_recording(tmp_path / "r.zarr")
+    assert not rec.interrupted and rec.frames.shape == (10, 4, 5) and "recovered_utc" in rec.attrs
+    assert rec.per_frame("frame_id").tolist() == list(range(10))
+    assert recover_recording(tmp_path / "r.zarr") == 10  # a finished recording is left as it is
+
+
+def test_full_disk_and_vanished_folder_raise_oserror(tmp_path, monkeypatch):
+    import errno
+    import os
+    import shutil
+
+    import flexvox_core.recording as recording
+
+    w = _writer(tmp_path / "f.zarr")
+    _fill(w, 2)
+    real_write = os.write
+    monkeypatch.setattr(recording.os, "write", lambda fd, data: real_write(fd, data[:5]))
+    with pytest.raises(OSError, match=r"short write") as info:
+        _fill(w, 1, start=2)
+    assert info.value.errno == errno.ENOSPC
+    monkeypatch.undo()
+    assert open_recording(tmp_path / "f.zarr").n_frames == 2  # the torn record does not count
+    v = _writer(tmp_path / "v.zarr")
+    _fill(v, 1)
+    shutil.rmtree(tmp_path / "v.zarr")
+    with pytest.raises(FileNotFoundError, match=r"the recording folder .* vanished"):
+        _fill(v, 1, start=1)
+    with pytest.raises(FileNotFoundError, match=r"vanished"):
+        v.close()
+    with pytest.raises(RecordingError, match=r"`block_frames` must be a whole number 1..65536; got 0"):
+        _writer(tmp_path / "b.zarr", block_frames=0)

@@ -1,0 +1,781 @@
+"""The capture service: the rig's devices set up for a code, frames streamed to a recording.
+
+Qt-free (the Qt application drives it through :meth:`CaptureService.stats` and
+:meth:`CaptureService.latest`, polled on a timer). It sits above ``rig_drivers`` and
+``flexvox_core``.
+
+Threads and the queue policy
+----------------------------
+Two worker threads::
+
+    camera ──read_frame──> [reader] ──put──> bounded queue ──get──> [writer] ──append──> recording
+                               └──> latest-frame slot (display: newest frame only)
+
+* The **reader** owns the devices: it reads frames (each read waits at most
+  ``SyncSetting.read_slice_s``), puts every frame in the latest-frame slot (a single
+  reference swapped under a lock: the display never slows capture, and sees only the newest
+  frame) and in the queue.
+* The **queue** holds at most ``QueuePolicy.capacity`` frames. When it is full (the disk
+  is slower than the camera) the reader *blocks* up to ``QueuePolicy.block_s`` for room
+  (the camera's own buffers absorb that time); if there is still no room the frame is
+  *discarded* and counted in ``queue_drops``. A discarded frame is never lost silently:
+  its frame id is missing, so the writer records it, like every frame-id gap, as a zero
+  row flagged ``dropped`` (the recording convention of simulations). Memory is bounded by
+  ``capacity`` frames.
+* The **writer** appends each frame to the recording as it arrives (one chunk per frame,
+  crash-safe: see :mod:`flexvox_core.recording`), filling frame-id gaps with dropped rows.
+
+Every wait has a timeout; :meth:`CaptureService.stop` sets an event that both threads
+check at least every ``read_slice_s`` / 0.1 s, so it returns promptly.
+
+Failures
+--------
+A full disk or a vanished folder (``OSError`` from the writer), or a camera that fails
+(``DeviceError``, e.g. unplugged), stops the capture: the writer keeps every frame already
+received, the recording is finalised (or left with its journal when the disk refuses even
+that — it still opens), and :attr:`CaptureResult.message` says what happened and how many
+frames the recording holds, as read back from disk.
+"""
+
+from __future__ import annotations
+
+import enum
+import errno
+import logging
+import queue
+import threading
+import time
+from array import array
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from app.capture.patterns import check_homography, shutter_patterns
+from flexvox_core._version import __version__
+from flexvox_core.codes import validate_code
+from flexvox_core.recording import RecordingError, RecordingWriter, open_recording, recording_attrs
+from rig_drivers.errors import DeviceError, DeviceTimeoutError
+from rig_drivers.interfaces import (
+    MIN_DARK_US,
+    MIN_EXPOSURE_1BIT_US,
+    CameraSettings,
+    DeviceState,
+    Frame,
+    PatternSequence,
+    ProjectorTrigger,
+    RunState,
+    SyncSettings,
+    TriggerConfig,
+    TriggerSource,
+)
+
+_logger = logging.getLogger(__name__)
+
+MAX_GAP_FRAMES = 100_000
+"""A frame-id jump larger than this is a broken camera counter, not dropped frames: capture stops."""
+
+
+class CaptureError(RuntimeError):
+    """The capture cannot start (bad settings, a device refusing its setup); the message says why."""
+
+
+# --------------------------------------------------------------------------- settings
+
+
+@dataclass(frozen=True, eq=False)
+class CaptureCalibration:
+    """What capture needs from calibration: where projector pixels land, and the sync phase.
+
+    Parameters
+    ----------
+    homography : array (3, 3)
+        Projector pixel (x, y) → camera pixel (x, y). Default identity.
+    phase_slots : int
+        Exposure slot ``t`` sees projector pattern ``(t + phase_slots) mod K``. Default 0.
+    source : str
+        Where the values come from (stored in the recording).
+    """
+
+    homography: np.ndarray = field(default_factory=lambda: np.eye(3))
+    phase_slots: int = 0
+    source: str = "identity (uncalibrated)"
+
+    def __post_init__(self):
+        try:
+            object.__setattr__(self, "homography", check_homography(self.homography))
+        except ValueError as exc:
+            raise CaptureError(str(exc)) from None
+        if isinstance(self.phase_slots, bool) or not isinstance(self.phase_slots, int) or self.phase_slots < 0:
+            raise CaptureError(f"`phase_slots` must be a whole number >= 0; got {self.phase_slots!r}")
+
+    def as_dict(self) -> dict:
+        """Metadata form."""
+        return {"homography": self.homography.tolist(), "phase_slots": self.phase_slots, "source": self.source}
+
+
+@dataclass(frozen=True)
+class SyncSetting:
+    """Timing of a capture.
+
+    Parameters
+    ----------
+    camera_hz : float
+        Camera frame rate; the projector period is ``floor(1e6 / (camera_hz · K))`` whole µs.
+    exposure_margin_us : int
+        The camera exposes ``K · period − margin`` µs (read-out time before the next trigger).
+    use_sync_box : bool or None
+        Drive projector and camera from the rig's sync box (None: when the rig has one).
+    read_slice_s : float
+        Longest single wait for a frame (stop() is noticed within it).
+    no_frame_timeout_s : float or None
+        Capture stops with an error when no frame arrives for this long
+        (None: ``max(2 s, 10 frame periods)``).
+    """
+
+    camera_hz: float = 15.0
+    exposure_margin_us: int = 300
+    use_sync_box: bool | None = None
+    read_slice_s: float = 0.2
+    no_frame_timeout_s: float | None = None
+
+    def __post_init__(self):
+        if not (isinstance(self.camera_hz, int | float) and 0 < self.camera_hz <= 10_000):
+            raise CaptureError(f"`camera_hz` must be > 0 and <= 10000 Hz; got {self.camera_hz!r}")
+        if not 0 < self.read_slice_s <= 5:
+            raise CaptureError(f"`read_slice_s` must be in (0, 5] s; got {self.read_slice_s!r}")
+
+    def no_frame_s(self) -> float:
+        """The no-frame timeout in seconds."""
+        if self.no_frame_timeout_s is not None:
+            return float(self.no_frame_timeout_s)
+        return max(2.0, 10.0 / self.camera_hz)
+
+
+@dataclass(frozen=True)
+class QueuePolicy:
+    """The bounded queue between camera and disk (see the module docstring).
+
+    Parameters
+    ----------
+    capacity : int
+        Frames held at most.
+    block_s : float
+        How long the camera reader waits for room before it discards a frame.
+    """
+
+    capacity: int = 64
+    block_s: float = 0.5
+
+    def __post_init__(self):
+        if isinstance(self.capacity, bool) or not isinstance(self.capacity, int) or not 1 <= self.capacity <= 100_000:
+            raise CaptureError(f"`capacity` must be a whole number 1..100000; got {self.capacity!r}")
+        if not 0 <= self.block_s <= 60:
+            raise CaptureError(f"`block_s` must be between 0 and 60 s; got {self.block_s!r}")
+
+
+class CaptureState(enum.Enum):
+    """Where a capture is."""
+
+    IDLE = "idle"
+    RUNNING = "running"
+    STOPPING = "stopping"
+    DONE = "done"
+
+
+@dataclass(frozen=True)
+class CaptureStats:
+    """A snapshot of the counters.
+
+    Attributes
+    ----------
+    frames_received : int
+        Frames the camera delivered.
+    rows_written : int
+        Rows in the recording (frames + dropped rows).
+    drops : int
+        Rows flagged dropped (camera gaps and queue discards).
+    queue_drops : int
+        Frames discarded because the queue stayed full for ``block_s``.
+    queue_depth, queue_capacity, max_queue_depth : int
+    write_rate_hz : float
+        Rows written per second since the first frame arrived.
+    camera_rate_hz : float
+        Frames delivered per second (measured).
+    writer_capacity_hz : float
+        Rows per second of time spent writing: what the disk path could sustain.
+    elapsed_s : float
+    state : str
+    """
+
+    frames_received: int = 0
+    rows_written: int = 0
+    drops: int = 0
+    queue_drops: int = 0
+    queue_depth: int = 0
+    queue_capacity: int = 0
+    max_queue_depth: int = 0
+    write_rate_hz: float = 0.0
+    camera_rate_hz: float = 0.0
+    writer_capacity_hz: float = 0.0
+    elapsed_s: float = 0.0
+    state: str = CaptureState.IDLE.value
+
+
+@dataclass(frozen=True)
+class CaptureResult:
+    """How a capture ended.
+
+    ``reason`` is ``done`` (N frames), ``stopped`` (:meth:`CaptureService.stop`) or
+    ``error``; ``frames_in_recording`` is read back from the recording on disk (None when
+    it cannot be opened), ``message`` says it all in one line.
+    """
+
+    path: Path
+    reason: str
+    message: str
+    frames_in_recording: int | None
+    stats: CaptureStats
+    error: str | None = None
+
+    @property
+    def ok(self) -> bool:
+        """True unless the capture ended on an error."""
+        return self.reason != "error"
+
+
+class LatestFrame:
+    """A one-frame slot for the display: the newest frame replaces the previous one.
+
+    ``put`` never blocks (a reference swap under a lock); ``get`` returns the newest frame
+    and its sequence number (increasing with each put), so a display can skip repaints.
+    """
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self._frame: Frame | None = None
+        self._seq = 0
+
+    def put(self, frame: Frame) -> None:
+        """Publish ``frame``."""
+        with self._lock:
+            self._frame = frame
+            self._seq += 1
+
+    def get(self) -> tuple[Frame | None, int]:
+        """``(newest frame or None, sequence number)``."""
+        with self._lock:
+            return self._frame, self._seq
+
+
+# --------------------------------------------------------------------------- the service
+
+Writer = RecordingWriter
+"""The writer interface the service uses: ``append(frame, frame_id=, timestamp=, dropped=)``,
+``count``, ``write_ground_truth_frames(rows)``, ``close(attrs_update=)``."""
+
+
+def default_storage(dtype) -> dict:
+    """The ``storage`` block for frames of ``dtype``: float as is, integers as counts scaled
+    so that normalised values span [0, 1] of the type's range."""
+    dtype = np.dtype(dtype)
+    if np.issubdtype(dtype, np.floating):
+        return {"kind": "float"}
+    return {"kind": "counts", "black_level": 0, "gain": 1.0, "electrons_per_unit": float(np.iinfo(dtype).max)}
+
+
+class CaptureService:
+    """Capture N frames (or until stopped) of a rig shuttered by a code into a recording.
+
+    Parameters
+    ----------
+    rig
+        An object with ``projector``, ``camera`` and ``sync`` (None allowed) devices, and
+        optionally ``trigger_line`` (default Line0): a :class:`rig_drivers.profile.Rig` or a
+        :class:`rig_drivers.simulated_rig.SimulatedRig`. Closed devices are opened and
+        closed again at the end; open ones are left open (stopped).
+    code : ndarray (m, n, K) bool
+    path : str or Path
+        The recording to create.
+    frames : int or None
+        Rows to record (frames + dropped rows); None: until :meth:`stop`.
+    calibration : CaptureCalibration
+    sync : SyncSetting
+    queue_policy : QueuePolicy
+    projector_size : (H, W), optional
+        Default: the projector's ``size`` attribute.
+    pattern_maker : callable, optional
+        ``(code, camera_size, projector_size, homography=, phase_slots=) -> (K, Hp, Wp)``;
+        default :func:`app.capture.patterns.shutter_patterns` (swap in calibration's).
+    storage : dict, optional
+        The recording's ``storage`` block (default :func:`default_storage` of the first frame).
+    ground_truth : callable(frame_id) -> (K, H, W), optional
+        For simulated rigs: stored as ``ground_truth`` when the capture ends without error.
+    writer_factory : callable, optional
+        ``(path, height=, width=, dtype=, attrs=, overwrite=) -> writer`` (tests inject slow
+        or failing writers). Default :class:`~flexvox_core.recording.RecordingWriter`.
+    overwrite : bool
+    rig_info : dict, optional
+        Extra entries for the recording's ``rig`` attribute.
+    """
+
+    def __init__(self, rig, code, path, *, frames: int | None = None,
+                 calibration: CaptureCalibration | None = None, sync: SyncSetting | None = None,
+                 queue_policy: QueuePolicy | None = None, projector_size=None,
+                 pattern_maker: Callable | None = None, storage: dict | None = None,
+                 ground_truth: Callable[[int], np.ndarray] | None = None,
+                 writer_factory: Callable | None = None, overwrite: bool = False, rig_info: dict | None = None):
+        try:
+            self.code = validate_code(code)
+        except ValueError as exc:
+            raise CaptureError(f"`code`: {exc}") from None
+        if frames is not None and (isinstance(frames, bool) or not isinstance(frames, int) or frames < 1):
+            raise CaptureError(f"`frames` must be a whole number >= 1 or None; got {frames!r}")
+        self.rig = rig
+        self.path = Path(path)
+        if self.path.exists() and not overwrite:
+            raise CaptureError(f"{self.path} already exists; choose another path or allow overwriting")
+        if not self.path.parent.is_dir():
+            raise CaptureError(f"cannot write {self.path}: the folder {self.path.parent} does not exist")
+        self.n_target = frames
+        self.calibration = calibration or CaptureCalibration()
+        self.sync_setting = sync or SyncSetting()
+        self.policy = queue_policy or QueuePolicy()
+        self.K = int(self.code.shape[2])
+        if self.calibration.phase_slots >= self.K:
+            raise CaptureError(f"`phase_slots` must be below K = {self.K}; got {self.calibration.phase_slots}")
+        self._projector_size = projector_size
+        self._pattern_maker = pattern_maker or shutter_patterns
+        self._storage = storage
+        self._ground_truth = ground_truth
+        self._writer_factory = writer_factory or RecordingWriter
+        self._overwrite = overwrite
+        self._rig_info = dict(rig_info or {})
+
+        self._queue: queue.Queue = queue.Queue(maxsize=self.policy.capacity)
+        self._latest = LatestFrame()
+        self._stop = threading.Event()
+        self._reader_done = threading.Event()
+        self._done = threading.Event()
+        self._lock = threading.Lock()
+        self._state = CaptureState.IDLE
+        self._threads: list[threading.Thread] = []
+        self._opened: list = []
+        self._error: str | None = None
+        self._result: CaptureResult | None = None
+        self._writer = None
+        self._period_us = 0
+        # counters
+        self._received = 0
+        self._rows = 0
+        self._drops = 0
+        self._queue_drops = 0
+        self._max_depth = 0
+        self._t_start = 0.0
+        self._t_first = None
+        self._t_last_arrival = None
+        self._t_last_write = None
+        self._write_busy = 0.0
+        self._first_id: int | None = None
+        self._last_seen_id: int | None = None
+        self._next_id: int | None = None
+        self._last_ts = 0.0
+        self._ids = array("q")
+        self._use_sync = False
+        self._camera_size = (0, 0)
+        self._rig_attrs: dict = {}
+
+    # ------------------------------------------------------------------ public
+    @property
+    def state(self) -> CaptureState:
+        """The capture's state."""
+        return self._state
+
+    @property
+    def frame_period_s(self) -> float:
+        """The camera frame period set up on the rig (K projector periods)."""
+        return self.K * self._period_us / 1e6
+
+    def latest(self) -> tuple[Frame | None, int]:
+        """The newest frame for display and its sequence number (never blocks capture)."""
+        return self._latest.get()
+
+    def stats(self) -> CaptureStats:
+        """A snapshot of the counters."""
+        now = time.perf_counter()
+        with self._lock:
+            t0 = self._t_first
+            span_w = (self._t_last_write - t0) if (t0 is not None and self._t_last_write is not None) else 0.0
+            span_c = (self._t_last_arrival - t0) if (t0 is not None and self._t_last_arrival is not None) else 0.0
+            return CaptureStats(
+                frames_received=self._received, rows_written=self._rows, drops=self._drops,
+                queue_drops=self._queue_drops, queue_depth=self._queue.qsize(),
+                queue_capacity=self.policy.capacity, max_queue_depth=self._max_depth,
+                write_rate_hz=(self._rows - 1) / span_w if span_w > 0 else 0.0,
+                camera_rate_hz=(self._received - 1) / span_c if span_c > 0 else 0.0,
+                writer_capacity_hz=self._rows / self._write_busy if self._write_busy > 0 else 0.0,
+                elapsed_s=(now - self._t_start) if self._t_start else 0.0,
+                state=self._state.value,
+            )
+
+    def start(self) -> None:
+        """Set up the devices and start capturing on worker threads.
+
+        Raises
+        ------
+        CaptureError
+            When a device refuses its setup (the devices are stopped and closed again).
+        """
+        if self._state is not CaptureState.IDLE:
+            raise CaptureError(f"cannot start: the capture is {self._state.value} (a service captures once)")
+        try:
+            self._setup()
+        except (DeviceError, ValueError) as exc:
+            self._teardown()
+            raise CaptureError(f"cannot set up the rig: {exc}") from exc
+        self._t_start = time.perf_counter()
+        self._state = CaptureState.RUNNING
+        reader = threading.Thread(target=self._read_loop, name="flexvox-capture-reader", daemon=True)
+        writer = threading.Thread(target=self._write_loop, name="flexvox-capture-writer", daemon=True)
+        self._threads = [reader, writer]
+        reader.start()
+        writer.start()
+
+    def wait(self, timeout_s: float) -> bool:
+        """Wait up to ``timeout_s`` for the capture to end; True when it has."""
+        return self._done.wait(timeout_s)
+
+    def stop(self, timeout_s: float = 10.0) -> CaptureResult | None:
+        """Stop capturing, keep what was captured, and return the result.
+
+        Returns None only when the threads did not finish within ``timeout_s`` (the disk
+        hangs); call :meth:`wait` again later.
+        """
+        if self._state is CaptureState.IDLE:
+            raise CaptureError("cannot stop: the capture was not started")
+        if self._state is CaptureState.RUNNING:
+            self._state = CaptureState.STOPPING
+        self._stop.set()
+        if not self._done.wait(timeout_s):
+            _logger.error("capture threads did not finish within %g s", timeout_s)
+            return None
+        return self._result
+
+    @property
+    def result(self) -> CaptureResult | None:
+        """The result once the capture ended, else None."""
+        return self._result
+
+    def run(self, timeout_s: float | None = None) -> CaptureResult:
+        """Start, wait until N frames are recorded (at most ``timeout_s``), stop; the result.
+
+        Without ``timeout_s`` the wait is bounded by twice the capture's nominal length plus
+        30 s.
+        """
+        if self.n_target is None and timeout_s is None:
+            raise CaptureError("capturing until stopped needs `timeout_s` (or give `frames`)")
+        self.start()
+        if timeout_s is None:
+            timeout_s = 2 * self.n_target * self.frame_period_s + 30.0
+        self.wait(timeout_s)
+        result = self.stop()
+        if result is None:
+            raise CaptureError("the capture threads did not finish; the disk may hang")
+        return result
+
+    # ------------------------------------------------------------------ setup
+    def _open(self, device) -> None:
+        if device.state is DeviceState.CLOSED:
+            device.open()
+            self._opened.append(device)
+        device.enable()
+
+    def _setup(self) -> None:
+        rig = self.rig
+        projector, camera = rig.projector, rig.camera
+        sync = getattr(rig, "sync", None)
+        use_sync = self.sync_setting.use_sync_box
+        use_sync = (sync is not None) if use_sync is None else use_sync
+        if use_sync and sync is None:
+            raise CaptureError("the sync setting asks for a sync box, but the rig has none")
+        self._open(camera)
+        if not camera.capabilities.hardware_trigger:
+            raise CaptureError(f"{camera.name} has no hardware trigger: it cannot shutter in sync with the "
+                               "projector (preview and alignment only)")
+        self._open(projector)
+        if use_sync:
+            self._open(sync)
+        H, W = camera.sensor_shape
+        projector_size = self._projector_size or getattr(projector, "size", None)
+        if projector_size is None:
+            raise CaptureError(f"the projector size of {projector.name} is unknown: pass projector_size=(H, W)")
+        patterns = self._pattern_maker(self.code, (H, W), tuple(projector_size),
+                                       homography=self.calibration.homography,
+                                       phase_slots=self.calibration.phase_slots)
+        K = self.K
+        period = int(1e6 // (self.sync_setting.camera_hz * K))
+        if period < MIN_EXPOSURE_1BIT_US:
+            raise CaptureError(f"{self.sync_setting.camera_hz:g} Hz with K = {K} needs a {period} µs pattern "
+                               f"period; the projector's shortest is {MIN_EXPOSURE_1BIT_US} µs "
+                               f"(at most {1e6 / (MIN_EXPOSURE_1BIT_US * K):.1f} Hz)")
+        self._period_us = period
+        if use_sync:
+            # The sync box pulses the projector once per pattern: each pattern is triggered,
+            # so it must end 230 µs before the next trigger (DLPC350 timing rule).
+            exposure = period - MIN_DARK_US if period - MIN_DARK_US >= MIN_EXPOSURE_1BIT_US else period
+            seq = PatternSequence(patterns, exposure, period, trigger=ProjectorTrigger.EXTERNAL_RISING,
+                                  patterns_per_trigger=1)
+        else:
+            seq = PatternSequence(patterns, period, period, trigger=ProjectorTrigger.INTERNAL)
+        if projector.run_state is not RunState.STOPPED:
+            projector.stop()
+        projector.load_sequence(seq)
+        if use_sync:
+            if sync.running:
+                sync.stop()
+            sync.configure(SyncSettings(period_us=period, pulses_per_frame=K))
+        line = getattr(rig, "trigger_line", TriggerSource.LINE0)
+        exposure_us = max(1.0, K * period - float(self.sync_setting.exposure_margin_us))
+        camera.stop_acquisition()
+        camera.configure(CameraSettings(exposure_us=exposure_us, trigger=TriggerConfig(source=line)))
+        camera.start_acquisition()
+        projector.start()
+        if use_sync:
+            sync.start()
+        self._use_sync = use_sync
+        self._camera_size = (H, W)
+        self._rig_attrs = {
+            "kind": "simulated" if getattr(rig, "simulated", None) is not None or hasattr(rig, "truth")
+            else "hardware",
+            "projector": projector.name, "camera": camera.name,
+            "sync": sync.name if use_sync else "projector TRIG_OUT_2",
+            "period_us": period, "camera_exposure_us": exposure_us, "trigger_line": line.value,
+            "projector_size": list(projector_size), **self._rig_info,
+        }
+        _logger.info("capture set up: K = %d, period %d µs (%.3f Hz), %s", K, period, 1e6 / (K * period),
+                     "sync box" if use_sync else "projector trigger")
+
+    def _teardown(self) -> None:
+        rig = self.rig
+        steps = [("stop the camera", lambda: rig.camera.stop_acquisition()
+                  if rig.camera.state is not DeviceState.CLOSED else None)]
+        sync = getattr(rig, "sync", None)
+        if sync is not None:
+            steps.append(("stop the sync box", lambda: sync.stop() if sync.state is not DeviceState.CLOSED else None))
+        steps.append(("stop the projector", lambda: rig.projector.stop()
+                      if rig.projector.state is not DeviceState.CLOSED else None))
+        steps += [(f"close {d.name}", d.close) for d in reversed(self._opened)]
+        for what, step in steps:
+            try:
+                step()
+            except DeviceError as exc:
+                _logger.error("capture teardown: could not %s: %s", what, exc)
+        self._opened = []
+
+    # ------------------------------------------------------------------ threads
+    def _fail(self, message: str) -> None:
+        with self._lock:
+            if self._error is None:
+                self._error = message
+        _logger.error("capture: %s", message)
+        self._stop.set()
+
+    def _read_loop(self) -> None:
+        camera = self.rig.camera
+        slice_s = self.sync_setting.read_slice_s
+        no_frame_s = self.sync_setting.no_frame_s()
+        last_frame_t = time.perf_counter()
+        try:
+            while not self._stop.is_set():
+                try:
+                    frame = camera.read_frame(slice_s)
+                except DeviceTimeoutError as exc:
+                    if time.perf_counter() - last_frame_t > no_frame_s:
+                        self._fail(f"no frame from the camera for {no_frame_s:g} s ({exc})")
+                        break
+                    continue
+                except DeviceError as exc:
+                    self._fail(f"the camera failed (unplugged?): {exc}")
+                    break
+                now = time.perf_counter()
+                last_frame_t = now
+                with self._lock:
+                    if self._t_first is None:
+                        self._t_first = now
+                        self._first_id = frame.frame_id
+                    self._t_last_arrival = now
+                    self._received += 1
+                    self._last_seen_id = frame.frame_id
+                self._latest.put(frame)
+                if not self._enqueue(frame):
+                    break
+                if self.n_target is not None and frame.frame_id - self._first_id >= self.n_target - 1:
+                    break
+        except Exception as exc:  # noqa: BLE001 - a reader bug must still end the capture cleanly
+            _logger.exception("capture reader crashed")
+            self._fail(f"the camera reader crashed: {type(exc).__name__}: {exc}")
+        finally:
+            self._teardown()
+            self._reader_done.set()
+
+    def _enqueue(self, frame: Frame) -> bool:
+        """Queue ``frame`` by the policy (block up to ``block_s``, then discard); False when
+        capture is stopping."""
+        deadline = time.perf_counter() + self.policy.block_s
+        while True:
+            remaining = deadline - time.perf_counter()
+            try:
+                if remaining <= 0:
+                    self._queue.put_nowait(frame)
+                else:
+                    self._queue.put(frame, timeout=min(0.05, remaining))
+            except queue.Full:
+                if self._stop.is_set():
+                    return False
+                if time.perf_counter() < deadline:
+                    continue
+                with self._lock:
+                    self._queue_drops += 1
+                _logger.warning("capture: queue full for %g s, frame %d discarded (recorded as dropped)",
+                                self.policy.block_s, frame.frame_id)
+                return True
+            depth = self._queue.qsize()
+            with self._lock:
+                self._max_depth = max(self._max_depth, depth)
+            return True
+
+    def _write_loop(self) -> None:
+        """Write every received frame (draining the queue after a stop or a camera error)."""
+        writer_ok = True
+        try:
+            while not self._target_reached():
+                try:
+                    frame = self._queue.get(timeout=0.1)
+                except queue.Empty:
+                    if self._reader_done.is_set() and self._queue.empty():
+                        break
+                    continue
+                self._write_frame(frame)
+            # Frames the queue discarded at the very end left no later id behind them.
+            last = self._last_seen_id
+            if last is not None and self._next_id is not None and last >= self._next_id:
+                self._write_gap(last + 1)
+        except (OSError, RecordingError) as exc:
+            writer_ok = False
+            self._fail(f"cannot write {self.path}: {_os_message(exc)}")
+        except Exception as exc:  # noqa: BLE001 - a writer bug must still end the capture cleanly
+            writer_ok = False
+            _logger.exception("capture writer crashed")
+            self._fail(f"the recording writer crashed: {type(exc).__name__}: {exc}")
+        finally:
+            self._stop.set()
+            if not self._reader_done.wait(max(5.0, 3 * self.sync_setting.read_slice_s)):
+                _logger.error("capture: the camera reader did not stop in time")
+            if self._error is not None:
+                reason = "error"
+            elif self.n_target is None or self._rows < self.n_target:
+                reason = "stopped"
+            else:
+                reason = "done"
+            self._finish(reason, writer_ok)
+
+    def _target_reached(self) -> bool:
+        return self.n_target is not None and self._rows >= self.n_target
+
+    def _ensure_writer(self, frame: Frame | None) -> None:
+        if self._writer is not None:
+            return
+        H, W = self._camera_size
+        dtype = np.dtype(np.float32) if frame is None else np.asarray(frame.image).dtype
+        store = np.dtype(np.float32) if np.issubdtype(dtype, np.floating) else np.dtype(np.uint16)
+        if frame is not None and np.issubdtype(dtype, np.integer) and dtype.itemsize > 2:
+            raise RecordingError(f"camera frames of {dtype} cannot be stored (uint8/uint16 or float only)")
+        storage = self._storage or default_storage(np.uint8 if dtype == np.uint8 else store)
+        attrs = recording_attrs(self.code, rate_hz=1e6 / (self.K * self._period_us), kind="captured",
+                                storage=storage, calibration=self.calibration.as_dict(), rig=self._rig_attrs,
+                                source=f"flexvox {__version__} capture")
+        self._writer = self._writer_factory(self.path, height=H, width=W, dtype=store, attrs=attrs,
+                                            overwrite=self._overwrite)
+
+    def _append(self, image, frame_id: int, timestamp: float, dropped: bool) -> None:
+        t0 = time.perf_counter()
+        self._writer.append(image, frame_id=frame_id, timestamp=timestamp, dropped=dropped)
+        t1 = time.perf_counter()
+        self._ids.append(frame_id)
+        with self._lock:
+            self._rows += 1
+            self._drops += int(dropped)
+            self._write_busy += t1 - t0
+            self._t_last_write = t1
+
+    def _write_gap(self, until_id: int) -> None:
+        """Dropped rows for ids ``[next_id, until_id)`` (at most up to N rows)."""
+        gap = until_id - self._next_id
+        if gap > MAX_GAP_FRAMES:
+            raise RecordingError(f"the camera's frame id jumped from {self._next_id - 1} to {until_id} "
+                                 f"(more than {MAX_GAP_FRAMES} frames): a broken frame counter")
+        for fid in range(self._next_id, until_id):
+            if self._target_reached():
+                return
+            self._last_ts += self.frame_period_s
+            self._append(None, fid, self._last_ts, True)
+            self._next_id = fid + 1
+
+    def _write_frame(self, frame: Frame) -> None:
+        self._ensure_writer(frame)
+        fid = int(frame.frame_id)
+        if self._next_id is not None:
+            if fid < self._next_id:
+                raise RecordingError(f"the camera's frame id went backwards ({fid} after {self._next_id - 1})")
+            self._write_gap(fid)
+            if self._target_reached():
+                return
+        self._append(frame.image, fid, float(frame.timestamp_s), False)
+        self._next_id = fid + 1
+        self._last_ts = float(frame.timestamp_s)
+
+    def _finish(self, reason: str, writer_ok: bool = True) -> None:
+        writer_note = ""
+        try:
+            self._ensure_writer(None)
+            if self._ground_truth is not None and reason != "error" and self._writer.count:
+                self._writer.write_ground_truth_frames(self._ground_truth(int(i)) for i in self._ids)
+            s = self.stats()
+            self._writer.close(attrs_update={"capture": {
+                "reason": reason, "error": self._error, "frames_received": s.frames_received,
+                "rows": s.rows_written, "drops": s.drops, "queue_drops": s.queue_drops,
+                "write_rate_hz": s.write_rate_hz, "camera_rate_hz": s.camera_rate_hz,
+                "queue": asdict(self.policy)}})
+        except (OSError, RecordingError) as exc:
+            writer_note = f"; finalising failed ({_os_message(exc)}), the capture journal was kept"
+            _logger.error("capture: finalising %s failed: %s", self.path, exc)
+            if self._writer is not None and not getattr(self._writer, "closed", True):
+                try:
+                    self._writer.close()
+                except (OSError, RecordingError) as exc2:
+                    _logger.error("capture: closing %s failed again: %s", self.path, exc2)
+        self._state = CaptureState.DONE
+        held = None
+        try:
+            held = open_recording(self.path).n_frames
+            where = f"{self.path} holds {held} frame(s) and opens cleanly"
+        except RecordingError as exc:
+            where = f"the recording cannot be opened: {exc}"
+        s = self.stats()
+        drops = f"{s.drops} dropped ({s.queue_drops} by the queue)"
+        if reason == "error":
+            message = f"capture stopped: {self._error}{writer_note}; {where}; {drops}"
+        else:
+            verb = "captured" if reason == "done" else "stopped after"
+            message = f"{verb} {s.rows_written} frames: {drops}; {where}{writer_note}"
+        self._result = CaptureResult(self.path, reason, message, held, s, self._error)
+        _logger.info("%s", message)
+        self._done.set()
+
+
+def _os_message(exc: Exception) -> str:
+    """An operator's reading of a write failure."""
+    if isinstance(exc, OSError) and exc.errno == errno.ENOSPC:
+        return f"the disk is full ({exc})"
+    return str(exc)

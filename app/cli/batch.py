@@ -1,0 +1,59 @@
+"""``flexvox batch``: reconstruct a long recording chunk by chunk with dask, into Zarr."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from tqdm import tqdm
+
+from app.cli.errors import EXIT_OK, CliError
+
+
+def register(sub) -> None:
+    """Add the ``batch`` subcommand."""
+    from app.cli.export import add_method_options
+
+    p = sub.add_parser(
+        "batch",
+        help="reconstruct a long recording chunk by chunk with dask (local or a dask.distributed cluster)",
+        description=(
+            "Reconstruct a recording in time chunks with the overlap the method needs "
+            "(dask.array.map_overlap), writing the (F*K, H, W) float32 video to a Zarr store chunk by "
+            "chunk (array `video`): memory depends on --chunk, not on the recording's length, and the "
+            "result equals `flexvox reconstruct`'s. Runs on dask's local threads, or on a "
+            "dask.distributed cluster with --scheduler (its workers must see REC and OUT)."
+        ),
+    )
+    p.add_argument("recording", type=Path, metavar="REC", help="a flexvox recording (.zarr)")
+    p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT.zarr", help="Zarr store to write")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="dask.distributed scheduler, e.g. tcp://host:8786")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output")
+    add_method_options(p)
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    """Carry out ``flexvox batch``."""
+    from app.cli.export import method_from_args
+    from flexvox_core.batch import reconstruct_batch
+    from flexvox_core.recording import RecordingError, open_recording
+
+    try:
+        rec = open_recording(args.recording)
+        method = method_from_args(args, rec.attrs["tile"])
+    except (ValueError, RecordingError) as exc:
+        raise CliError(str(exc)) from None
+    with tqdm(unit="chunk", desc=method.label(), leave=False, disable=args.scheduler is not None) as bar:
+        def progress(done, total):
+            bar.total = total
+            bar.update(done - bar.n)
+        try:
+            result = reconstruct_batch(args.recording, args.output, method, chunk_frames=args.chunk or 32,
+                                       scheduler=args.scheduler, overwrite=args.overwrite, progress=progress)
+        except (ValueError, OSError, TimeoutError) as exc:
+            raise CliError(str(exc)) from None
+    S, H, W = result.shape
+    print(f"{method.label()}: {S} sub-frames of {H}x{W} in {result.seconds:.2f} s on {result.scheduler} "
+          f"(chunks of {result.chunk_frames} frames, overlap {result.overlap_frames})")
+    print(f"wrote {args.output}")
+    return EXIT_OK

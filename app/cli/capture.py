@@ -1,0 +1,175 @@
+"""``flexvox capture``: headless capture from a rig into a crash-safe recording.
+
+``python -m app.cli.capture ...`` runs the same command on its own (the crash-safety test
+kills such a process).
+"""
+
+from __future__ import annotations
+
+import re
+import signal
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from app.cli.errors import EXIT_FAILED, EXIT_OK, CliError, OneLineParser, arg_type
+from flexvox_core.tiles import parse_tile
+
+_SIZE_RE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
+
+
+def _size(text: str) -> tuple[int, int]:
+    match = _SIZE_RE.match(text)
+    if match is None or min(int(match.group(1)), int(match.group(2))) < 8:
+        raise ValueError(f"a size must be HxW with H, W >= 8 (e.g. 120x160); got {text!r}")
+    return int(match.group(1)), int(match.group(2))
+
+
+def register(sub) -> None:
+    """Add the ``capture`` subcommand."""
+    from flexvox_core.simulate.scenes import SCENES
+
+    p = sub.add_parser(
+        "capture",
+        help="capture coded frames from the rig into a recording (headless)",
+        description=(
+            "Set up the projector's patterns for a code, the sync box and the camera, and record N "
+            "frames (or until Ctrl-C) into a Zarr recording, printing progress and counters (frames, "
+            "drops, queue depth, write rate). The recording is crash-safe: a capture killed at any "
+            "moment leaves every frame it wrote readable. --rig mock is the simulated rig (a scene, "
+            "an identity projector-to-camera map); --rig FILE.toml drives real devices "
+            "(see `flexvox devices`). Exit 0 when the capture ends normally, 1 when it stopped on an "
+            "error (a full disk, a camera unplugged: the recording still holds what was captured)."
+        ),
+    )
+    p.add_argument("--rig", default="mock", metavar="mock|RIG.toml", help="the rig (default mock)")
+    p.add_argument("--frames", type=int, metavar="N", help="frames to record (default: until Ctrl-C)")
+    p.add_argument("-o", "--output", type=Path, required=True, metavar="REC.zarr", help="recording to write")
+    p.add_argument("--tile", type=arg_type(parse_tile), default=(4, 4), metavar="MxN",
+                   help="tile of the designed code (default 4x4)")
+    p.add_argument("--scene", default="drummer", metavar="NAME",
+                   help=f"mock rig: built-in scene ({', '.join(SCENES)}; default drummer)")
+    p.add_argument("--size", type=arg_type(_size), default=(120, 160), metavar="HxW",
+                   help="mock rig: camera (and projector) size (default 120x160)")
+    p.add_argument("--ground-truth", action="store_true",
+                   help="mock rig: store the scene's high-speed video as the recording's ground truth")
+    p.add_argument("--clock", choices=("real", "virtual"), default="real",
+                   help="mock rig: real time at the camera rate (default; a paced simulated clock), or "
+                        "virtual time that runs as fast as frames can be rendered (demos, tests)")
+    p.add_argument("--rate", type=float, default=15.0, metavar="HZ", help="camera frame rate (default 15)")
+    p.add_argument("--phase", type=int, default=0, metavar="SLOTS",
+                   help="sync phase in slots from the sync wizard (default 0)")
+    p.add_argument("--projector-size", type=arg_type(_size), metavar="HxW",
+                   help="projector resolution when the projector does not report it")
+    p.add_argument("--queue", type=int, default=64, metavar="FRAMES",
+                   help="frames the camera-to-disk queue holds (default 64)")
+    p.add_argument("--block", type=float, default=0.5, metavar="S",
+                   help="seconds the camera reader waits for queue room before it discards a frame "
+                        "(recorded as dropped; default 0.5)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing recording")
+    p.set_defaults(func=run)
+
+
+def _build(args):
+    from app.capture import CaptureCalibration, CaptureService, QueuePolicy, SyncSetting
+    from app.capture.pacing import PacedClock
+    from flexvox_core.design import design_code
+    from rig_drivers.profile import open_rig
+    from rig_drivers.simulated_camera import VirtualClock
+
+    if args.frames is not None and args.frames < 1:
+        raise ValueError(f"--frames must be >= 1; got {args.frames}")
+    code = design_code(args.tile).code
+    if args.rig == "mock":
+        rig = open_rig("mock", scene=args.scene, camera_size=args.size, homography=np.eye(3),
+                       clock=VirtualClock() if args.clock == "virtual" else PacedClock())
+        truth = rig.simulated.truth
+        K = code.shape[2]
+        gt = (lambda fid: truth.video[truth.subframes(fid, K)]) if args.ground_truth else None
+    else:
+        if args.ground_truth:
+            raise ValueError("--ground-truth goes with --rig mock (a real scene has no ground truth)")
+        rig = open_rig(args.rig)
+        gt = None
+    service = CaptureService(
+        rig, code, args.output, frames=args.frames,
+        calibration=CaptureCalibration(phase_slots=args.phase,
+                                       source="identity, --phase" if args.phase else "identity (uncalibrated)"),
+        sync=SyncSetting(camera_hz=args.rate), queue_policy=QueuePolicy(capacity=args.queue, block_s=args.block),
+        projector_size=args.projector_size, ground_truth=gt, overwrite=args.overwrite,
+        rig_info={"profile": args.rig})
+    return service
+
+
+def _counters(s) -> str:
+    return (f"{s.rows_written} written, {s.drops} dropped, queue {s.queue_depth}/{s.queue_capacity}, "
+            f"write {s.write_rate_hz:.1f} Hz, camera {s.camera_rate_hz:.1f} Hz")
+
+
+def run(args) -> int:
+    """Carry out ``flexvox capture``."""
+    from app.capture import CaptureError
+    from rig_drivers.errors import DeviceError
+
+    try:
+        service = _build(args)
+        clock = getattr(getattr(service.rig, "simulated", None), "clock", None)
+        if hasattr(clock, "resync"):
+            clock.resync()
+        service.start()
+    except (ValueError, CaptureError, DeviceError) as exc:
+        raise CliError(str(exc)) from None
+    print(f"capturing to {args.output} at {1 / service.frame_period_s:.3f} Hz"
+          f"{'' if args.frames is None else f', {args.frames} frames'} (Ctrl-C stops and keeps what was captured)",
+          flush=True)
+    interactive = sys.stderr.isatty()
+    last = 0.0
+    try:
+        while not service.wait(0.25):
+            now = time.monotonic()
+            if now - last >= (0.25 if interactive else 2.0):
+                last = now
+                line = _counters(service.stats())
+                if interactive:
+                    print(f"\r{line}   ", end="", file=sys.stderr, flush=True)
+                else:
+                    print(line, file=sys.stderr, flush=True)
+    except KeyboardInterrupt:
+        print("\nstopping...", file=sys.stderr, flush=True)
+    result = service.stop(timeout_s=30.0)
+    if interactive:
+        print(file=sys.stderr)
+    if result is None:
+        print(f"flexvox capture: error: the capture did not stop within 30 s; {args.output} keeps what was "
+              "written (check it with `flexvox info`)", file=sys.stderr)
+        return EXIT_FAILED
+    print(_counters(result.stats))
+    if not result.ok:
+        print(f"flexvox capture: error: {result.message}", file=sys.stderr)
+        return EXIT_FAILED
+    print(result.message)
+    return EXIT_OK
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``capture`` alone (``python -m app.cli.capture ...``)."""
+    import logging
+
+    parser = OneLineParser(prog="flexvox")
+    sub = parser.add_subparsers(dest="command", parser_class=OneLineParser)
+    register(sub)
+    args = parser.parse_args(["capture", *(sys.argv[1:] if argv is None else argv)])
+    logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
+    # SIGTERM stops like Ctrl-C (keeps what was captured).
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
+    try:
+        return run(args)
+    except CliError as exc:
+        print(f"flexvox capture: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover - run as a process by the crash-safety test
+    sys.exit(main())

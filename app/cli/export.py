@@ -1,0 +1,197 @@
+"""``flexvox export``: a recording's frames, ground truth or reconstruction to common files.
+
+Formats, by the output's suffix:
+
+``.tif`` / ``.tiff``
+    One ImageJ hyperstack (tifffile, axes TYX, frame interval set) that Fiji opens as a
+    stack: raw frames keep their type (uint16 counts or float32); ground truth and
+    reconstructions are float32 in [0, 1].
+``.npy``
+    The same array (written row by row into a memory-mapped file).
+``.mp4``
+    8-bit grey (OpenCV), values in [0, 1] (counts normalised first) at ``--fps``.
+``.zarr``
+    A Zarr v3 group with array ``video`` (float32 in [0, 1]), as ``flexvox reconstruct`` writes.
+no suffix
+    A folder of 16-bit PNGs ``frame_00000.png`` ...: uint16 counts as they are, float
+    values in [0, 1] scaled to 0..65535.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from app.cli.errors import EXIT_OK, CliError, arg_type
+from flexvox_core.recording import RecordingError, open_recording
+
+WHAT = ("frames", "ground-truth", "reconstruction")
+FORMATS = (".tif", ".tiff", ".npy", ".mp4", ".zarr", "(folder: PNG)")
+
+
+def _triple(text: str):
+    parts = [p for p in re.split(r"[,xX]", text) if p.strip()]
+    try:
+        if len(parts) == 3:
+            return tuple(float(p) for p in parts)
+    except ValueError:
+        pass
+    raise ValueError(f"--tensor must be three numbers separated by commas; got {text!r}")
+
+
+def add_method_options(p) -> None:
+    """The reconstruction options shared by ``export`` and ``batch``."""
+    from flexvox_core.reconstruct.diffusion import SOLVERS
+    from flexvox_core.reconstruct.run import METHODS
+
+    p.add_argument("--method", choices=METHODS, default="diffusion", help="reconstruction (default diffusion)")
+    p.add_argument("--block", metavar="a,b,c", help="rebin: rows,columns,slots of the division")
+    p.add_argument("--no-interpolate", action="store_true", help="rebin: blocks without interpolation")
+    p.add_argument("--tensor", type=arg_type(_triple), metavar="cx,cy,ct", help="diffusion tensor")
+    p.add_argument("--time", type=float, metavar="n", help="diffusion time")
+    p.add_argument("--solver", choices=SOLVERS, default="nc", help="diffusion solver (default nc)")
+    p.add_argument("--iterations", type=int, default=40, help="gap-tv iterations (default 40)")
+    p.add_argument("--chunk", type=int, default=None, metavar="F",
+                   help="camera frames per chunk (default 16 for export, 32 for batch)")
+
+
+def method_from_args(args, tile):
+    """A :class:`~flexvox_core.reconstruct.run.Method` from the shared options."""
+    from flexvox_core.divisions import parse_division
+    from flexvox_core.motion.pipeline import DEFAULT_TIME as MA_TIME
+    from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME
+    from flexvox_core.reconstruct.run import Method
+
+    block = parse_division(args.block.replace(",", "x"), tuple(tile)) if args.block else None
+    n = args.time if args.time is not None else (MA_TIME if args.method == "motion-aware" else DEFAULT_TIME)
+    return Method(args.method, block=block, interpolate=not args.no_interpolate,
+                  tensor=args.tensor or DEFAULT_TENSOR, time=n, solver=args.solver, iterations=args.iterations)
+
+
+def register(sub) -> None:
+    """Add the ``export`` subcommand."""
+    p = sub.add_parser(
+        "export",
+        help="export frames, ground truth or a reconstruction to TIFF (Fiji), MP4, PNG or .npy",
+        description=(
+            "Write a recording's camera frames, its ground truth (simulated recordings) or its "
+            "reconstruction to OUT, by OUT's suffix: .tif/.tiff (an ImageJ hyperstack Fiji opens), "
+            ".npy, .mp4 (8-bit), .zarr, or no suffix for a folder of 16-bit PNGs. Long recordings: "
+            "`flexvox batch` reconstructs chunk by chunk with dask."
+        ),
+    )
+    p.add_argument("recording", type=Path, metavar="REC", help="a flexvox recording (.zarr)")
+    p.add_argument("--what", choices=WHAT, default="frames", help="what to export (default frames)")
+    p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT", help="output file or folder")
+    p.add_argument("--fps", type=float, help="MP4 playback rate (default: the camera rate for frames, else 30)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output")
+    add_method_options(p)
+    p.set_defaults(func=run)
+
+
+class _Source:
+    """Rows to export: ``count`` rows of ``(H, W)``, raw (``row``) and in [0, 1] (``unit``)."""
+
+    def __init__(self, rec, what: str, args):
+        self.rec = rec
+        self.what = what
+        if what == "frames":
+            self.array = rec.frames
+            self.dtype = np.dtype(rec.frames.dtype)
+            self.rate = rec.attrs["rates"]["camera_hz"]
+        elif what == "ground-truth":
+            if not rec.has_ground_truth:
+                raise CliError(f"{rec.path} holds no ground truth (only simulated recordings have one)")
+            self.array = rec.group["ground_truth"]
+            self.dtype = np.dtype(np.float32)
+            self.rate = rec.attrs["rates"]["subframe_hz"]
+        else:
+            from app.cli.reconstruct import load_capture
+            from flexvox_core.reconstruct.run import reconstruct
+
+            _, frames, code = load_capture(rec.path)
+            try:
+                method = method_from_args(args, rec.attrs["tile"])
+                self.array = reconstruct(frames, code, method, chunk_frames=args.chunk or 16)
+            except ValueError as exc:
+                raise CliError(str(exc)) from None
+            self.dtype = np.dtype(np.float32)
+            self.rate = rec.attrs["rates"]["subframe_hz"]
+        self.shape = tuple(self.array.shape)
+
+    def row(self, i: int) -> np.ndarray:
+        return np.asarray(self.array[i])
+
+    def unit(self, i: int) -> np.ndarray:
+        if self.what == "frames":
+            from flexvox_core.simulate.simulator import normalise_frames
+
+            return np.clip(normalise_frames(self.row(i)[None], self.rec.attrs["storage"])[0], 0, 1)
+        return np.clip(self.row(i), 0, 1).astype(np.float32, copy=False)
+
+
+def _write(out: Path, src: _Source, fps: float) -> None:
+    n = src.shape[0]
+    suffix = out.suffix.lower()
+    if suffix in (".tif", ".tiff"):
+        import tifffile
+
+        tifffile.imwrite(out, (src.row(i) for i in range(n)), shape=src.shape, dtype=src.dtype, imagej=True,
+                         metadata={"axes": "TYX", "finterval": 1.0 / src.rate, "unit": "pixel"})
+    elif suffix == ".npy":
+        arr = np.lib.format.open_memmap(out, mode="w+", dtype=src.dtype, shape=src.shape)
+        for i in range(n):
+            arr[i] = src.row(i)
+        arr.flush()
+        del arr
+    elif suffix == ".mp4":
+        import cv2
+
+        H, W = src.shape[1:]
+        writer = cv2.VideoWriter(str(out), cv2.VideoWriter_fourcc(*"mp4v"), float(fps), (W, H), False)
+        if not writer.isOpened():
+            raise CliError(f"cannot write {out}: OpenCV has no MP4 encoder here")
+        try:
+            for i in range(n):
+                writer.write((src.unit(i) * 255 + 0.5).astype(np.uint8))
+        finally:
+            writer.release()
+    elif suffix == ".zarr":
+        from flexvox_core.video_io import write_video
+
+        write_video(out, np.stack([src.unit(i) for i in range(n)]) if n else np.zeros((0, *src.shape[1:])),
+                    attrs={"source": str(src.rec.path), "what": src.what}, overwrite=True)
+    else:
+        import cv2
+
+        out.mkdir(parents=True, exist_ok=True)
+        for i in range(n):
+            row = src.row(i) if src.dtype == np.uint16 else (src.unit(i) * 65535 + 0.5).astype(np.uint16)
+            if not cv2.imwrite(str(out / f"frame_{i:05d}.png"), row):
+                raise CliError(f"cannot write {out / f'frame_{i:05d}.png'}")
+
+
+def run(args) -> int:
+    """Carry out ``flexvox export``."""
+    out: Path = args.output
+    suffix = out.suffix.lower()
+    if suffix and suffix not in FORMATS:
+        raise CliError(f"-o {out}: the output must end in .tif, .tiff, .npy, .mp4 or .zarr, or be a folder (PNG)")
+    if out.exists() and not args.overwrite:
+        raise CliError(f"{out} already exists (use --overwrite)")
+    if not out.parent.is_dir():
+        raise CliError(f"cannot write {out}: the folder {out.parent} does not exist")
+    try:
+        rec = open_recording(args.recording)
+    except RecordingError as exc:
+        raise CliError(str(exc)) from None
+    src = _Source(rec, args.what, args)
+    if out.exists() and args.overwrite and out.is_dir() and suffix == "":
+        for old in out.glob("frame_*.png"):
+            old.unlink()
+    fps = args.fps or (src.rate if args.what == "frames" else 30.0)
+    _write(out, src, fps)
+    print(f"wrote {args.what} ({src.shape[0]} x {src.shape[1]}x{src.shape[2]} {src.dtype}) to {out}")
+    return EXIT_OK

@@ -1,0 +1,129 @@
+"""``flexvox info``: what a recording holds, and whether it is sound."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from app.cli.errors import EXIT_FAILED, EXIT_OK, CliError
+from flexvox_core.recording import RecordingError, open_recording, recover_recording
+
+
+def register(sub) -> None:
+    """Add the ``info`` subcommand."""
+    p = sub.add_parser(
+        "info",
+        help="summarise a recording and check it (schema, counts, gaps)",
+        description=(
+            "Print what a recording holds (kind, code, rates, frames, dropped frames, ground truth, "
+            "calibration, rig) and check it: schema and attributes, array lengths, frame ids (every "
+            "gap must be a row flagged dropped), timestamps. Exit 0 when it is sound, 1 when it is "
+            "damaged, 2 when it cannot be found. A capture that was killed or lost power is "
+            "'interrupted': sound, its journal gives the true count; --repair finalises it."
+        ),
+    )
+    p.add_argument("recording", type=Path, metavar="REC", help="a flexvox recording (.zarr)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--repair", action="store_true",
+                   help="finalise an interrupted capture in place (exact array lengths, journal removed)")
+    p.set_defaults(func=run)
+
+
+def check(rec) -> tuple[dict, list[str]]:
+    """Summary of an opened recording and the problems found beyond its structure."""
+    problems = []
+    ids = rec.per_frame("frame_id")
+    dropped = rec.per_frame("dropped")
+    stamps = rec.per_frame("timestamp")
+    steps = np.diff(ids)
+    if np.any(steps <= 0):
+        k = int(np.flatnonzero(steps <= 0)[0])
+        problems.append(f"frame ids do not increase at row {k + 1} ({ids[k]} then {ids[k + 1]})")
+    gaps = int(np.sum(np.maximum(steps - 1, 0)))
+    if gaps:
+        k = int(np.flatnonzero(steps > 1)[0])
+        problems.append(f"{gaps} frame id(s) missing without a dropped row (first after id {ids[k]})")
+    good = stamps[~dropped]
+    if good.size > 1 and np.any(np.diff(good) < 0):
+        problems.append("timestamps of recorded frames go backwards")
+    if not np.all(np.isfinite(stamps)):
+        problems.append("timestamps hold NaN or infinity")
+    F, H, W = rec.frames.shape
+    if F:
+        try:
+            np.asarray(rec.frames[F - 1])
+        except Exception as exc:  # noqa: BLE001 - any codec or I/O error means a damaged chunk
+            problems.append(f"the last frame cannot be read ({type(exc).__name__}: {exc})")
+    a = rec.attrs
+    rates = a.get("rates", {})
+    summary = {
+        "path": str(rec.path), "kind": a.get("kind"), "schema_version": a.get("schema_version"),
+        "software_version": a.get("software_version"), "created_utc": a.get("created_utc"),
+        "tile": a.get("tile"), "K": rec.K, "multiplexed": bool(a.get("multiplexed")),
+        "camera_hz": rates.get("camera_hz"), "subframe_hz": rates.get("subframe_hz"),
+        "frames": F, "height": H, "width": W, "dtype": str(rec.frames.dtype),
+        "storage": a.get("storage", {}).get("kind"), "dropped": int(dropped.sum()),
+        "first_dropped_rows": np.flatnonzero(dropped)[:5].tolist(),
+        "frame_ids": [int(ids[0]), int(ids[-1])] if F else None,
+        "duration_s": float(F / rates["camera_hz"]) if rates.get("camera_hz") else None,
+        "ground_truth": rec.has_ground_truth, "interrupted": rec.interrupted,
+        "calibration": a.get("calibration"), "rig": a.get("rig"), "capture": a.get("capture"),
+        "effects": a.get("effects"), "problems": problems,
+    }
+    return summary, problems
+
+
+def _text(s: dict) -> list[str]:
+    lines = [
+        f"{s['path']}: {s['kind']} recording, schema {s['schema_version']}, flexvox {s['software_version']}, "
+        f"created {s['created_utc']}",
+        f"code: tile {s['tile'][0]}x{s['tile'][1]}, K = {s['K']}{', multiplexed' if s['multiplexed'] else ''}; "
+        f"camera {s['camera_hz']:g} Hz, sub-frames {s['subframe_hz']:g} Hz",
+        f"frames: {s['frames']} of {s['height']}x{s['width']} {s['dtype']} ({s['storage']})"
+        + (f", ids {s['frame_ids'][0]}..{s['frame_ids'][1]}" if s["frame_ids"] else "")
+        + (f", {s['duration_s']:.2f} s" if s["duration_s"] is not None else ""),
+        f"dropped: {s['dropped']}" + (f" (first rows {s['first_dropped_rows']})" if s["dropped"] else ""),
+        f"ground truth: {'yes' if s['ground_truth'] else 'no'}",
+    ]
+    cal = s["calibration"]
+    if cal:
+        lines.append(f"calibration: {cal.get('source', '?')}, phase {cal.get('phase_slots', '?')} slot(s)")
+    if s["rig"]:
+        lines.append("rig: " + ", ".join(f"{k} {v}" for k, v in s["rig"].items() if not isinstance(v, dict | list)))
+    if s["capture"]:
+        c = s["capture"]
+        lines.append(f"capture: ended {c.get('reason')}" + (f" ({c['error']})" if c.get("error") else "")
+                     + f", {c.get('queue_drops', 0)} frame(s) discarded by the queue")
+    if s["interrupted"]:
+        lines.append("interrupted: the capture did not finish (killed or power lost); every committed frame "
+                     "is readable. `flexvox info --repair` finalises it.")
+    return lines
+
+
+def run(args) -> int:
+    """Carry out ``flexvox info``."""
+    if not args.recording.exists():
+        raise CliError(f"{args.recording}: no such recording")
+    try:
+        if args.repair:
+            n = recover_recording(args.recording)
+            print(f"{args.recording}: finalised, {n} frames")
+        rec = open_recording(args.recording)
+    except RecordingError as exc:
+        payload = {"path": str(args.recording), "problems": [str(exc)]}
+        if args.json:
+            print(json.dumps(payload))
+        else:
+            print(f"{args.recording}: DAMAGED: {exc}")
+        return EXIT_FAILED
+    summary, problems = check(rec)
+    if args.json:
+        print(json.dumps(summary))
+    else:
+        print("\n".join(_text(summary)))
+        for p in problems:
+            print(f"problem: {p}")
+        print("DAMAGED" if problems else "OK")
+    return EXIT_FAILED if problems else EXIT_OK

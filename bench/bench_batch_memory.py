@@ -1,0 +1,99 @@
+"""Batch-reconstruction memory: peak RSS for recordings 10x apart in length, same chunk size.
+
+Each run is a fresh subprocess (``flexvox_core.batch.reconstruct_batch`` on dask's local
+threads); its peak RSS comes from ``resource.getrusage(RUSAGE_CHILDREN).ru_maxrss`` in the
+parent. For contrast, the in-memory ``reconstruct`` of the short recording is measured too
+(it holds the whole (F*K, H, W) video). The recordings are synthetic (a looping coded
+capture of random video), written frame by frame.
+
+    .venv/bin/python bench/bench_batch_memory.py [--frames 60] [--factor 10] [--size 120x160] [--chunk 16]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from flexvox_core.design import design_code  # noqa: E402
+from flexvox_core.forward import capture  # noqa: E402
+from flexvox_core.recording import RecordingWriter, recording_attrs  # noqa: E402
+
+CHILD = """
+import json, sys, time
+sys.path.insert(0, {root!r})
+from flexvox_core.reconstruct.run import Method
+mode, rec, out, chunk = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
+t = time.perf_counter()
+if mode == "batch":
+    from flexvox_core.batch import reconstruct_batch
+    reconstruct_batch(rec, out, Method(), chunk_frames=chunk)
+else:
+    from flexvox_core.recording import open_recording
+    from flexvox_core.reconstruct.run import reconstruct
+    r = open_recording(rec)
+    video = reconstruct(r.normalised_frames(), r.code, Method(), chunk_frames=chunk)
+print(json.dumps({{"seconds": time.perf_counter() - t}}))
+"""
+
+
+def make_recording(path: Path, frames: int, H: int, W: int, code) -> None:
+    K = code.shape[2]
+    rng = np.random.default_rng(5)
+    loop = capture(rng.random((4 * K, H, W)).astype(np.float32), code)  # 4 frames, repeated
+    attrs = recording_attrs(code, rate_hz=15.0, kind="captured", storage={"kind": "float"})
+    with RecordingWriter(path, height=H, width=W, dtype="float32", attrs=attrs) as w:
+        for f in range(frames):
+            w.append(loop[f % 4], frame_id=f, timestamp=f / 15)
+
+
+def peak_rss_mib(mode: str, rec: Path, out: Path, chunk: int) -> tuple[float, float]:
+    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    proc = subprocess.run([sys.executable, "-c", CHILD.format(root=str(ROOT)), mode, str(rec), str(out), str(chunk)],
+                          capture_output=True, text=True, timeout=1800, check=True)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
+    # ru_maxrss of children is the max over all waited-for children: run the smallest first.
+    return max(after, before) / 1024, json.loads(proc.stdout.strip().splitlines()[-1])["seconds"]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--frames", type=int, default=60)
+    ap.add_argument("--factor", type=int, default=10)
+    ap.add_argument("--size", default="120x160")
+    ap.add_argument("--chunk", type=int, default=16)
+    args = ap.parse_args()
+    H, W = (int(v) for v in args.size.split("x"))
+    code = design_code((4, 4)).code
+    K = code.shape[2]
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        rows = []
+        short, long_ = args.frames, args.frames * args.factor
+        for F in (short, long_):
+            make_recording(tmp / f"r{F}.zarr", F, H, W, code)
+        # Increasing order: RUSAGE_CHILDREN reports the largest child so far.
+        for mode, F in (("batch", short), ("batch", long_), ("in-memory", short)):
+            rss, secs = peak_rss_mib(mode, tmp / f"r{F}.zarr", tmp / f"o-{mode}-{F}.zarr", args.chunk)
+            video_mib = F * K * H * W * 4 / 2**20
+            rows.append((mode, F, rss, secs, video_mib))
+        print(f"{H}x{W}, K = {K}, chunk {args.chunk} frames ({args.chunk * K * H * W * 4 / 2**20:.0f} MiB of output "
+              "per chunk), diffusion nc")
+        print(f"{'mode':<10} {'frames':>7} {'video MiB':>10} {'peak RSS MiB':>13} {'seconds':>8}")
+        for mode, F, rss, secs, vm in rows:
+            print(f"{mode:<10} {F:>7} {vm:>10.0f} {rss:>13.0f} {secs:>8.1f}")
+        print("note: the in-memory row is measured after the batch rows; RUSAGE_CHILDREN keeps the max, so a "
+              "value equal to the previous row means 'at most that'.")
+
+
+if __name__ == "__main__":
+    main()

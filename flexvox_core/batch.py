@@ -1,0 +1,201 @@
+"""Batch reconstruction of long recordings with dask: chunks in time, exact overlap, Zarr out.
+
+The recording's frames are a dask array chunked in time (``chunk_frames`` camera frames per
+chunk, read lazily from the Zarr store); :func:`dask.array.map_overlap` gives each chunk
+:func:`~flexvox_core.reconstruct.run.overlap_frames` frames of context on each side (none
+beyond the recording's ends), each chunk is reconstructed and trimmed to its own
+``chunk_frames · K`` sub-frames, and the result is stored chunk by chunk into a Zarr v3 group
+(array ``video``, one sub-frame per Zarr chunk, the same layout ``flexvox reconstruct``
+writes). The result equals the in-memory :func:`~flexvox_core.reconstruct.run.reconstruct`
+(the overlap is exact). Peak memory is a few chunks per worker thread, whatever the
+recording's length.
+
+Scheduling: dask's local threaded scheduler by default; a ``dask.distributed`` scheduler
+address (``tcp://host:8786``) runs the chunks on that cluster (the workers must see the
+recording and the output path).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from flexvox_core.reconstruct.run import Method, _run, overlap_frames
+from flexvox_core.recording import RecordingError, open_recording
+
+_logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class BatchResult:
+    """What a batch run wrote."""
+
+    path: Path
+    shape: tuple[int, int, int]
+    chunk_frames: int
+    overlap_frames: int
+    seconds: float
+    scheduler: str
+
+
+def _chunks(F: int, chunk: int, ov: int) -> tuple[int, ...]:
+    """Chunk lengths along time; a last chunk shorter than the overlap joins its neighbour."""
+    sizes = [chunk] * (F // chunk) + ([F % chunk] if F % chunk else [])
+    if len(sizes) > 1 and sizes[-1] < max(ov, 1):
+        last = sizes.pop()
+        sizes[-1] += last
+    return tuple(sizes) or (0,)
+
+
+def _chunk_kernel(code, K: int, ov: int, F: int, method: Method, storage: dict, multiplexed):
+    """The per-chunk function: normalise, demultiplex, reconstruct, trim to the chunk."""
+
+    def kernel(block: np.ndarray, block_info=None) -> np.ndarray:
+        from flexvox_core.simulate.simulator import normalise_frames
+
+        s0, s1 = block_info[None]["array-location"][0]
+        start, stop = s0 // K, s1 // K
+        left, right = min(ov, start), min(ov, F - stop)
+        if block.shape[0] != stop - start + left + right:
+            raise RuntimeError(f"chunk [{start}, {stop}) arrived with {block.shape[0]} frames, expected "
+                               f"{stop - start + left + right}")
+        frames = normalise_frames(np.asarray(block), storage)
+        c = code
+        if multiplexed is not None:
+            from flexvox_core.reconstruct import prepare
+
+            frames, c = prepare(frames, multiplexed)
+        out = _run(frames, c, method)
+        return np.clip(out[left * K:(left + stop - start) * K], 0, 1).astype(np.float32, copy=False)
+
+    return kernel
+
+
+def batch_video(rec, method: Method | None = None, *, chunk_frames: int = 32):
+    """The reconstruction of an opened recording as a lazy dask array ``(F·K, H, W)`` float32."""
+    import dask.array as da
+
+    method = method or Method()
+    dropped = rec.per_frame("dropped")
+    if dropped.any():
+        raise ValueError(f"{rec.path} has {int(dropped.sum())} dropped frame(s) (first at rows "
+                         f"{np.flatnonzero(dropped)[:5].tolist()}); reconstructing across gaps is not supported yet")
+    if isinstance(chunk_frames, bool) or not isinstance(chunk_frames, int) or chunk_frames < 1:
+        raise ValueError(f"`chunk_frames` must be a whole number >= 1; got {chunk_frames!r}")
+    K = rec.K
+    F, H, W = rec.frames.shape
+    ov = overlap_frames(method, K)
+    if ov is None:
+        raise ValueError(f"{method.label()} is a global solve and cannot run in chunks; choose another solver")
+    if chunk_frames < ov:
+        _logger.info("batch: chunks of %d frames raised to the method's overlap of %d", chunk_frames, ov)
+        chunk_frames = ov  # dask's map_overlap needs chunks at least as long as the overlap
+    multiplexed = None
+    code = rec.code
+    if rec.attrs.get("multiplexed"):
+        from flexvox_core.multiplex import multiplexed_code
+        from flexvox_core.reconstruct import prepare
+
+        multiplexed = multiplexed_code(tuple(rec.attrs["tile"]), placement=rec.attrs.get("placement_order"))
+        code = prepare(np.zeros((1, H, W), np.float32), multiplexed)[1]
+    source = rec.group["frames"]
+    frames = da.from_zarr(source, chunks=(chunk_frames, H, W))[:F].rechunk((_chunks(F, chunk_frames, ov), H, W))
+    kernel = _chunk_kernel(code, K, ov, F, method, rec.attrs["storage"], multiplexed)
+    out_chunks = (tuple(c * K for c in frames.chunks[0]), (H,), (W,))
+    return da.map_overlap(kernel, frames, depth={0: ov, 1: 0, 2: 0}, boundary="none", trim=False,
+                          dtype=np.float32, chunks=out_chunks, meta=np.empty((0, 0, 0), np.float32)), ov
+
+
+def reconstruct_batch(recording, output, method: Method | None = None, *, chunk_frames: int = 32,
+                      scheduler: str | None = None, overwrite: bool = False,
+                      progress: Callable[[int, int], None] | None = None,
+                      connect_timeout_s: float = 10.0) -> BatchResult:
+    """Reconstruct a recording chunk by chunk into a Zarr v3 group (array ``video``).
+
+    Parameters
+    ----------
+    recording : str or Path
+    output : str or Path
+        A ``.zarr`` store to create.
+    method : Method, optional
+        Default: ``Method()`` (diffusion, normalized convolution).
+    chunk_frames : int
+        Camera frames per chunk (memory per task grows with it, not with the recording);
+        raised to the method's overlap when smaller.
+    scheduler : str, optional
+        A ``dask.distributed`` scheduler address; default: dask's local threaded scheduler.
+    progress : callable(done_chunks, total_chunks), optional
+        Local scheduler only: called as chunks finish.
+    connect_timeout_s : float
+        How long to wait for the distributed scheduler.
+
+    Raises
+    ------
+    ValueError
+        Bad arguments, an existing output, or a recording that cannot be reconstructed.
+    """
+    import dask
+    import dask.array as da
+    import zarr
+
+    method = method or Method()
+    output = Path(output)
+    if output.suffix.lower() != ".zarr":
+        raise ValueError(f"the batch output must be a .zarr store; got {output}")
+    if output.exists() and not overwrite:
+        raise ValueError(f"{output} already exists; choose another path or allow overwriting")
+    try:
+        rec = open_recording(recording)
+    except RecordingError as exc:
+        raise ValueError(str(exc)) from None
+    video, ov = batch_video(rec, method, chunk_frames=chunk_frames)
+    chunk_frames = max(chunk_frames, ov)
+    group = zarr.open_group(str(output), mode="w", zarr_format=3)
+    group.attrs["flexvox"] = {"source": str(rec.path), "method": method.as_dict(), "chunk_frames": chunk_frames,
+                              "overlap_frames": ov, "batch": True}
+    target = group.create_array("video", shape=video.shape, chunks=(1, *video.shape[1:]), dtype="float32",
+                                fill_value=0)
+    # Each dask chunk covers whole Zarr chunks (one sub-frame each): parallel writes never share one.
+    store = da.store(video, target, lock=False, compute=False)
+    t0 = time.perf_counter()
+    if scheduler is None:
+        from dask.callbacks import Callback
+
+        total = int(np.prod(video.numblocks))
+
+        class _Progress(Callback):
+            def __init__(self):
+                super().__init__()
+                self.chunks = set()
+
+            @property
+            def done(self) -> int:
+                return len(self.chunks)
+
+            def _posttask(self, key, result, dsk, state, id):  # noqa: A002 - dask's signature
+                name = key[0] if isinstance(key, tuple) else key
+                # Graph optimisation may fuse a chunk's tasks into one renamed key: count chunks.
+                if isinstance(name, str) and "store-map" in name:
+                    self.chunks.add(tuple(key[1:]) if isinstance(key, tuple) else name)
+                    if progress:
+                        progress(min(self.done, total), total)
+
+        with _Progress() as counter:
+            dask.compute(store, scheduler="threads")
+        if progress and counter.done < total:
+            progress(total, total)
+        used = "local threads"
+    else:
+        from distributed import Client
+
+        with Client(scheduler, timeout=connect_timeout_s) as client:
+            client.compute(store, sync=True)
+        used = scheduler
+    seconds = time.perf_counter() - t0
+    _logger.info("batch: %s -> %s, %d sub-frames in %.2f s (%s)", rec.path, output, video.shape[0], seconds, used)
+    return BatchResult(output, tuple(int(v) for v in video.shape), chunk_frames, ov, seconds, used)

@@ -1,0 +1,237 @@
+"""The capture service on the simulated rig (virtual clock: nothing sleeps for the camera)."""
+
+import errno
+import shutil
+
+import numpy as np
+import pytest
+
+from app.capture import (
+    CaptureCalibration,
+    CaptureError,
+    CaptureService,
+    LatestFrame,
+    QueuePolicy,
+    SyncSetting,
+    shutter_patterns,
+)
+from app.capture.pacing import PacedClock
+from flexvox_core.design import design_code
+from flexvox_core.forward import capture, tiled_code
+from flexvox_core.recording import RecordingWriter, open_recording
+from rig_drivers.errors import DeviceError, DeviceTimeoutError
+from rig_drivers.interfaces import DeviceState, Frame
+from rig_drivers.simulated_camera import VirtualClock
+from rig_drivers.simulated_rig import SimulatedRig
+
+CODE = design_code((2, 2)).code  # K = 4: small and fast
+
+
+def make_rig(**kw):
+    kw.setdefault("camera_size", (16, 24))
+    kw.setdefault("subframes", 32)
+    kw.setdefault("homography", np.eye(3))
+    kw.setdefault("clock", VirtualClock())
+    return SimulatedRig.create(kw.pop("scene", "balls"), **kw)
+
+
+def gt_of(rig, K=4):
+    return lambda fid: rig.truth.video[rig.truth.subframes(fid, K)]
+
+
+def test_capture_matches_the_forward_model_with_the_phase_compensated(tmp_path):
+    rig = make_rig(phase_slots=3)
+    svc = CaptureService(rig, CODE, tmp_path / "r.zarr", frames=12, calibration=CaptureCalibration(phase_slots=3),
+                         ground_truth=gt_of(rig))
+    result = svc.run()
+    assert result.ok and result.reason == "done" and result.frames_in_recording == 12
+    assert "captured 12 frames: 0 dropped" in result.message
+    rec = open_recording(tmp_path / "r.zarr")
+    assert not rec.interrupted and rec.frames.chunks == (1, 16, 24)
+    assert rec.per_frame("frame_id").tolist() == list(range(12))
+    np.testing.assert_allclose(rec.frames[:], capture(rec.ground_truth(), CODE), atol=1e-6)
+    assert rec.attrs["kind"] == "captured" and rec.attrs["calibration"]["phase_slots"] == 3
+    assert rec.attrs["capture"]["rows"] == 12 and rec.attrs["rig"]["sync"] == "simulated sync box"
+    s = result.stats
+    assert (s.frames_received, s.rows_written, s.drops, s.queue_drops) == (12, 12, 0, 0)
+    assert s.write_rate_hz > 0 and s.max_queue_depth <= s.queue_capacity
+    # The devices the service opened are closed again.
+    assert all(d.state is DeviceState.CLOSED for d in (rig.camera, rig.projector, rig.sync))
+
+
+def test_latest_frame_is_the_newest(tmp_path):
+    slot = LatestFrame()
+    assert slot.get() == (None, 0)
+    for i in range(3):
+        slot.put(Frame(np.zeros((2, 2)), i, float(i)))
+    frame, seq = slot.get()
+    assert frame.frame_id == 2 and seq == 3
+    rig = make_rig()
+    svc = CaptureService(rig, CODE, tmp_path / "r.zarr", frames=5)
+    svc.run()
+    frame, seq = svc.latest()
+    assert frame.frame_id == 4 and seq == 5
+
+
+def test_frame_id_gaps_become_dropped_zero_rows(tmp_path):
+    rig = make_rig(seed=3, effects={"dropped_frames": {"probability": 0.3}})
+    result = CaptureService(rig, CODE, tmp_path / "r.zarr", frames=20).run()
+    rec = open_recording(tmp_path / "r.zarr")
+    dropped = rec.per_frame("dropped")
+    assert rec.n_frames == 20 and rec.per_frame("frame_id").tolist() == list(range(20))
+    assert dropped.sum() == len([i for i in rig.camera.dropped_ids if i < 20]) == result.stats.drops > 0
+    assert not rec.frames[:][dropped].any() and rec.frames[:][~dropped].all(axis=(1, 2)).any()
+
+
+class SlowWriter(RecordingWriter):
+    """A disk slower than the camera (sleeps in every append)."""
+
+    delay_s = 0.03
+
+    def append(self, frame, **kw):
+        import time
+
+        time.sleep(self.delay_s)
+        super().append(frame, **kw)
+
+
+def test_slow_disk_discards_after_blocking_and_records_the_loss(tmp_path):
+    rig = make_rig()
+    svc = CaptureService(rig, CODE, tmp_path / "r.zarr", frames=15, writer_factory=SlowWriter,
+                         queue_policy=QueuePolicy(capacity=2, block_s=0.001))
+    result = svc.run()
+    rec = open_recording(tmp_path / "r.zarr")
+    s = result.stats
+    assert rec.n_frames == 15 and rec.per_frame("frame_id").tolist() == list(range(15))
+    assert s.queue_drops > 0 and s.drops == s.queue_drops == int(rec.per_frame("dropped").sum())
+    assert s.max_queue_depth <= 2
+    assert f"{s.drops} dropped ({s.queue_drops} by the queue)" in result.message
+
+
+def test_slow_disk_within_the_blocking_time_loses_nothing(tmp_path):
+    rig = make_rig()
+    result = CaptureService(rig, CODE, tmp_path / "r.zarr", frames=10, writer_factory=SlowWriter,
+                            queue_policy=QueuePolicy(capacity=2, block_s=10.0)).run()
+    assert result.stats.drops == 0 and result.stats.rows_written == 10
+
+
+class FullDiskWriter(RecordingWriter):
+    """Raises ENOSPC from the 6th frame on."""
+
+    def append(self, frame, **kw):
+        if self.count >= 5:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        super().append(frame, **kw)
+
+
+def test_full_disk_stops_cleanly_with_a_valid_recording(tmp_path):
+    rig = make_rig()
+    result = CaptureService(rig, CODE, tmp_path / "r.zarr", frames=50, writer_factory=FullDiskWriter).run()
+    assert not result.ok and result.reason == "error" and result.frames_in_recording == 5
+    assert result.message.startswith("capture stopped: cannot write")
+    assert "the disk is full" in result.message and "holds 5 frame(s) and opens cleanly" in result.message
+    rec = open_recording(tmp_path / "r.zarr")
+    assert rec.n_frames == 5 and rec.attrs["capture"]["reason"] == "error"
+    assert all(d.state is DeviceState.CLOSED for d in (rig.camera, rig.projector, rig.sync))
+
+
+class VanishingWriter(RecordingWriter):
+    """Its folder is deleted after 3 frames."""
+
+    def append(self, frame, **kw):
+        if self.count == 3:
+            shutil.rmtree(self.path)
+        super().append(frame, **kw)
+
+
+def test_vanished_folder_stops_with_a_clear_message(tmp_path):
+    result = CaptureService(make_rig(), CODE, tmp_path / "r.zarr", frames=50, writer_factory=VanishingWriter).run()
+    assert result.reason == "error" and result.frames_in_recording is None
+    assert "the recording folder" in result.message and "vanished" in result.message
+    assert "the recording cannot be opened" in result.message
+
+
+def test_camera_unplugged_keeps_the_frames_received(tmp_path, monkeypatch):
+    rig = make_rig()
+    real = rig.camera._do_read_frame
+    calls = {"n": 0}
+
+    def flaky(timeout_s):
+        calls["n"] += 1
+        if calls["n"] > 4:
+            raise DeviceError("USB device disconnected")
+        return real(timeout_s)
+
+    monkeypatch.setattr(rig.camera, "_do_read_frame", flaky)
+    result = CaptureService(rig, CODE, tmp_path / "r.zarr", frames=50).run()
+    assert result.reason == "error" and result.frames_in_recording == 4
+    assert "the camera failed (unplugged?): USB device disconnected" in result.message
+    assert "holds 4 frame(s)" in result.message
+
+
+def test_no_frame_timeout_and_prompt_stop(tmp_path, monkeypatch):
+    rig = make_rig()
+
+    def never(timeout_s):
+        raise DeviceTimeoutError("no frame")
+
+    monkeypatch.setattr(rig.camera, "_do_read_frame", never)
+    svc = CaptureService(rig, CODE, tmp_path / "r.zarr", frames=5,
+                         sync=SyncSetting(read_slice_s=0.01, no_frame_timeout_s=0.05))
+    result = svc.run()
+    assert result.reason == "error" and "no frame from the camera for 0.05 s" in result.message
+    assert result.frames_in_recording == 0
+    # Until stopped: stop() returns a result (its waits are bounded).
+    svc2 = CaptureService(make_rig(), CODE, tmp_path / "s.zarr", frames=None)
+    svc2.start()
+    result2 = svc2.stop(timeout_s=10)
+    assert result2 is not None and result2.reason == "stopped" and result2.frames_in_recording >= 0
+    with pytest.raises(CaptureError, match=r"a service captures once"):
+        svc2.start()
+
+
+def test_setup_errors_are_clear(tmp_path):
+    with pytest.raises(CaptureError, match=r"already exists"):
+        (tmp_path / "r.zarr").mkdir()
+        CaptureService(make_rig(), CODE, tmp_path / "r.zarr", frames=1)
+    with pytest.raises(CaptureError, match=r"shortest is 235 µs"):
+        CaptureService(make_rig(), CODE, tmp_path / "a.zarr", frames=1, sync=SyncSetting(camera_hz=5000)).start()
+    with pytest.raises(CaptureError, match=r"`phase_slots` must be below K = 4; got 4"):
+        CaptureService(make_rig(), CODE, tmp_path / "b.zarr", calibration=CaptureCalibration(phase_slots=4))
+    with pytest.raises(CaptureError, match=r"`frames` must be a whole number >= 1 or None; got 0"):
+        CaptureService(make_rig(), CODE, tmp_path / "c.zarr", frames=0)
+    with pytest.raises(CaptureError, match=r"`homography` must be a finite 3x3 matrix"):
+        CaptureCalibration(homography=np.eye(2))
+    rig = make_rig()
+    with pytest.raises(CaptureError, match=r"the sync setting asks for a sync box, but the rig has none"):
+        rig.sync = None
+        CaptureService(rig, CODE, tmp_path / "d.zarr", frames=1, sync=SyncSetting(use_sync_box=True)).start()
+    assert rig.camera.state is DeviceState.CLOSED  # set-up failures close what they opened
+
+
+def test_patterns_identity_phase_and_shift():
+    code = design_code((4, 4)).code
+    p = shutter_patterns(code, (8, 12), (8, 12))
+    np.testing.assert_array_equal(p, tiled_code(code, 8, 12))
+    np.testing.assert_array_equal(shutter_patterns(code, (8, 12), (8, 12), phase_slots=5), np.roll(p, 5, axis=0))
+    # Projector pixel (x, y) lands on camera pixel (x + 2, y + 1).
+    h = np.array([[1, 0, 2], [0, 1, 1], [0, 0, 1]], float)
+    q = shutter_patterns(code, (8, 12), (8, 12), homography=h)
+    np.testing.assert_array_equal(q[:, :7, :10], p[:, 1:, 2:])
+    assert not q[:, 7:, :].any() and not q[:, :, 10:].any()  # lands outside the camera: dark
+    with pytest.raises(ValueError, match=r"`phase_slots` must be a whole number 0..15; got 16"):
+        shutter_patterns(code, (8, 12), (8, 12), phase_slots=16)
+
+
+def test_paced_clock_only_moves_when_sleeping():
+    clock = PacedClock()
+    t = clock.now_us()
+    assert clock.now_us() == t == clock()
+    clock.sleep_until_us(t + 2000)
+    assert clock.now_us() >= t + 2000
+    before = clock.now_us()
+    clock.sleep_until_us(0)  # already past: jumps to the wall clock, never backwards
+    assert clock.now_us() >= before
+    frozen = clock.now_us()
+    clock.resync()
+    assert clock.now_us() >= frozen

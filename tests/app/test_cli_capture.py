@@ -1,0 +1,67 @@
+"""``flexvox capture`` (parser built with register(); the mock rig on a virtual clock)."""
+
+import pytest
+
+from app.cli import capture
+from app.cli.errors import CliError, OneLineParser
+from flexvox_core.recording import open_recording
+
+
+def cli(argv):
+    parser = OneLineParser(prog="flexvox")
+    sub = parser.add_subparsers(dest="command", parser_class=OneLineParser)
+    capture.register(sub)
+    args = parser.parse_args(argv)
+    return args.func(args)
+
+
+def test_capture_mock_writes_a_recording_with_counters(tmp_path, capsys):
+    out = tmp_path / "r.zarr"
+    assert cli(["capture", "--rig", "mock", "--frames", "6", "-o", str(out), "--tile", "2x2", "--size", "16x24",
+                "--scene", "balls", "--clock", "virtual", "--ground-truth"]) == 0
+    text = capsys.readouterr().out
+    assert "capturing to" in text and "6 written, 0 dropped, queue" in text
+    assert "captured 6 frames: 0 dropped (0 by the queue)" in text and "holds 6 frame(s)" in text
+    rec = open_recording(out)
+    assert rec.n_frames == 6 and rec.K == 4 and rec.has_ground_truth and rec.attrs["rig"]["profile"] == "mock"
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--frames", "0"], r"--frames must be >= 1; got 0"),
+    (["--frames", "2", "--scene", "nope"], r"unknown scene 'nope'"),
+    (["--frames", "2", "--rate", "5000"], r"the projector's shortest is 235 µs"),
+    (["--frames", "2", "--rig", "missing.toml"], r"no rig profile missing.toml"),
+])
+def test_capture_bad_options(tmp_path, argv, message):
+    with pytest.raises(CliError, match=message):
+        cli(["capture", "-o", str(tmp_path / "r.zarr"), "--clock", "virtual", "--size", "16x16", *argv])
+
+
+def test_capture_refuses_an_existing_output_and_bad_sizes(tmp_path, capsys):
+    (tmp_path / "r.zarr").mkdir()
+    with pytest.raises(CliError, match=r"already exists"):
+        cli(["capture", "--frames", "1", "-o", str(tmp_path / "r.zarr")])
+    with pytest.raises(SystemExit) as info:
+        cli(["capture", "--frames", "1", "-o", str(tmp_path / "s.zarr"), "--size", "4x4"])
+    assert info.value.code == 2 and "H, W >= 8" in capsys.readouterr().err
+
+
+def test_capture_error_exits_1_with_the_count(tmp_path, capsys, monkeypatch):
+    from rig_drivers.errors import DeviceError
+    from rig_drivers.simulated_camera import SimulatedCamera
+
+    real = SimulatedCamera._do_read_frame
+    state = {"n": 0}
+
+    def flaky(self, timeout_s):
+        state["n"] += 1
+        if state["n"] > 3:
+            raise DeviceError("cable pulled")
+        return real(self, timeout_s)
+
+    monkeypatch.setattr(SimulatedCamera, "_do_read_frame", flaky)
+    assert cli(["capture", "--frames", "50", "-o", str(tmp_path / "r.zarr"), "--size", "16x16",
+                "--tile", "2x2", "--clock", "virtual"]) == 1
+    err = capsys.readouterr().err
+    assert "the camera failed (unplugged?): cable pulled" in err and "holds 3 frame(s)" in err
+    assert open_recording(tmp_path / "r.zarr").n_frames == 3

@@ -1,0 +1,125 @@
+"""``flexvox info`` and ``flexvox export`` (parsers built with register())."""
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+import tifffile
+import zarr
+
+from app.cli import batch, export, info
+from app.cli.errors import CliError, OneLineParser
+from flexvox_core.reconstruct.run import Method, reconstruct
+from flexvox_core.recording import JOURNAL, RecordingWriter, open_recording, recording_attrs
+
+
+def cli(argv):
+    parser = OneLineParser(prog="flexvox")
+    sub = parser.add_subparsers(dest="command", parser_class=OneLineParser)
+    for module in (info, export, batch):
+        module.register(sub)
+    args = parser.parse_args(argv)
+    return args.func(args)
+
+
+@pytest.fixture
+def recording(tmp_path, capsys):
+    from app.cli.main import main
+
+    path = tmp_path / "r.zarr"
+    assert main(["simulate", "balls", "--size", "16x24", "--frames", "5", "--tile", "2x2", "-o", str(path)]) == 0
+    capsys.readouterr()
+    return path
+
+
+def test_info_summarises_a_sound_recording(recording, capsys):
+    assert cli(["info", str(recording)]) == 0
+    text = capsys.readouterr().out
+    assert "simulated recording, schema 1" in text and "tile 2x2, K = 4" in text
+    assert "frames: 5 of 16x24 float32 (float), ids 0..4" in text and text.strip().endswith("OK")
+    assert cli(["info", str(recording), "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert s["frames"] == 5 and s["ground_truth"] and s["problems"] == [] and not s["interrupted"]
+
+
+def test_info_exits_1_on_damage_and_2_when_missing(recording, tmp_path, capsys):
+    g = zarr.open_group(str(recording), mode="r+")
+    g["frame_id"][3] = 7  # a gap with no dropped row
+    assert cli(["info", str(recording)]) == 1
+    out = capsys.readouterr().out
+    assert "problem: 4 frame id(s) missing without a dropped row (first after id 2)" in out
+    assert "problem: frame ids do not increase at row 4 (7 then 4)" in out and out.strip().endswith("DAMAGED")
+    g["timestamp"].resize((3,))
+    assert cli(["info", str(recording)]) == 1
+    assert "DAMAGED: " in capsys.readouterr().out
+    with pytest.raises(CliError, match=r"none.zarr: no such recording"):
+        cli(["info", str(tmp_path / "none.zarr")])
+
+
+def test_info_reports_and_repairs_an_interrupted_capture(tmp_path, capsys):
+    attrs = recording_attrs(np.eye(4, dtype=bool).reshape(2, 2, 4), rate_hz=30.0, kind="captured",
+                            storage={"kind": "float"})
+    w = RecordingWriter(tmp_path / "i.zarr", height=8, width=8, dtype="float32", attrs=attrs)
+    for i in range(3):
+        w.append(np.ones((8, 8), np.float32), frame_id=i, timestamp=i / 30)
+    assert cli(["info", str(tmp_path / "i.zarr")]) == 0
+    assert "interrupted: the capture did not finish" in capsys.readouterr().out
+    assert cli(["info", "--repair", str(tmp_path / "i.zarr")]) == 0
+    assert "finalised, 3 frames" in capsys.readouterr().out
+    assert not (tmp_path / "i.zarr" / JOURNAL).exists() and not open_recording(tmp_path / "i.zarr").interrupted
+
+
+def test_export_frames_to_every_format(recording, tmp_path, capsys):
+    rec = open_recording(recording)
+    frames = rec.frames[:]
+    assert cli(["export", str(recording), "-o", str(tmp_path / "f.tif")]) == 0
+    with tifffile.TiffFile(tmp_path / "f.tif") as tif:
+        assert tif.is_imagej and tif.imagej_metadata["frames"] == 5
+        np.testing.assert_array_equal(tif.asarray(), frames)
+    assert cli(["export", str(recording), "-o", str(tmp_path / "f.npy")]) == 0
+    np.testing.assert_array_equal(np.load(tmp_path / "f.npy"), frames)
+    assert cli(["export", str(recording), "-o", str(tmp_path / "png")]) == 0
+    pngs = sorted((tmp_path / "png").glob("frame_*.png"))
+    assert len(pngs) == 5
+    img = cv2.imread(str(pngs[2]), cv2.IMREAD_UNCHANGED)
+    assert img.dtype == np.uint16 and np.abs(img / 65535 - np.clip(frames[2], 0, 1)).max() < 1e-4
+    assert cli(["export", str(recording), "-o", str(tmp_path / "f.mp4")]) == 0
+    cap = cv2.VideoCapture(str(tmp_path / "f.mp4"))
+    assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 5
+    cap.release()
+    assert "wrote frames (5 x 16x24 float32)" in capsys.readouterr().out
+
+
+def test_export_ground_truth_and_reconstruction(recording, tmp_path):
+    rec = open_recording(recording)
+    assert cli(["export", str(recording), "--what", "ground-truth", "-o", str(tmp_path / "g.tif")]) == 0
+    np.testing.assert_array_equal(tifffile.imread(tmp_path / "g.tif"), rec.ground_truth())
+    assert cli(["export", str(recording), "--what", "reconstruction", "--method", "rebin",
+                "-o", str(tmp_path / "r.npy")]) == 0
+    expected = reconstruct(rec.normalised_frames(), rec.code, Method("rebin"))
+    np.testing.assert_allclose(np.load(tmp_path / "r.npy"), expected, atol=1e-6)
+
+
+def test_export_refuses_bad_requests(recording, tmp_path):
+    with pytest.raises(CliError, match=r"the output must end in .tif, .tiff, .npy, .mp4 or .zarr"):
+        cli(["export", str(recording), "-o", str(tmp_path / "x.gif")])
+    (tmp_path / "x.npy").write_bytes(b"")
+    with pytest.raises(CliError, match=r"already exists \(use --overwrite\)"):
+        cli(["export", str(recording), "-o", str(tmp_path / "x.npy")])
+    attrs = recording_attrs(np.eye(4, dtype=bool).reshape(2, 2, 4), rate_hz=30.0, kind="captured",
+                            storage={"kind": "float"})
+    with RecordingWriter(tmp_path / "c.zarr", height=8, width=8, dtype="float32", attrs=attrs) as w:
+        w.append(np.ones((8, 8), np.float32), frame_id=0, timestamp=0.0)
+    with pytest.raises(CliError, match=r"holds no ground truth"):
+        cli(["export", str(tmp_path / "c.zarr"), "--what", "ground-truth", "-o", str(tmp_path / "g.npy")])
+
+
+def test_batch_cli_equals_reconstruct(recording, tmp_path, capsys):
+    assert cli(["batch", str(recording), "-o", str(tmp_path / "b.zarr"), "--chunk", "2"]) == 0
+    assert "on local threads (chunks of 3 frames, overlap 3)" in capsys.readouterr().out
+    rec = open_recording(recording)
+    expected = reconstruct(rec.normalised_frames(), rec.code, Method(), chunk_frames=None)
+    np.testing.assert_allclose(zarr.open_group(str(tmp_path / "b.zarr"))["video"][:], expected, atol=1e-5)
+    with pytest.raises(CliError, match=r"the batch output must be a .zarr store"):
+        cli(["batch", str(recording), "-o", str(tmp_path / "b.npy")])

@@ -1,0 +1,58 @@
+"""Batch reconstruction with dask equals the in-memory reconstruction."""
+
+import numpy as np
+import pytest
+import zarr
+
+from flexvox_core.batch import _chunks, batch_video, reconstruct_batch
+from flexvox_core.design import design_code
+from flexvox_core.reconstruct.run import Method, reconstruct
+from flexvox_core.recording import open_recording, write_simulation
+from flexvox_core.simulate.simulator import simulate_video
+
+
+@pytest.fixture
+def rec_path(tmp_path, rng):
+    v = rng.random((11 * 4, 12, 16)).astype(np.float32)
+    return write_simulation(tmp_path / "r.zarr", simulate_video(v, design_code((2, 2)).code, seed=1))
+
+
+METHODS = [Method(), Method("rebin"), Method(solver="explicit"), Method("gap-tv", iterations=5)]
+
+
+@pytest.mark.parametrize("method", METHODS, ids=lambda m: m.label())
+def test_batch_equals_in_memory(rec_path, tmp_path, method):
+    rec = open_recording(rec_path)
+    expected = reconstruct(rec.normalised_frames(), rec.code, method, chunk_frames=None)
+    done = []
+    result = reconstruct_batch(rec_path, tmp_path / "o.zarr", method, chunk_frames=3,
+                               progress=lambda d, t: done.append((d, t)))
+    out = zarr.open_group(str(tmp_path / "o.zarr"), mode="r")["video"]
+    assert out.chunks == (1, 12, 16) and result.shape == (44, 12, 16)
+    np.testing.assert_allclose(out[:], expected, atol=1e-5)
+    assert done[-1][0] == done[-1][1] >= 1 and [d for d, _ in done] == sorted(d for d, _ in done)
+
+
+def test_batch_on_a_distributed_cluster(rec_path, tmp_path):
+    from distributed import LocalCluster
+
+    rec = open_recording(rec_path)
+    expected = reconstruct(rec.normalised_frames(), rec.code, Method(), chunk_frames=None)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+        result = reconstruct_batch(rec_path, tmp_path / "d.zarr", Method(), chunk_frames=4,
+                                   scheduler=cluster.scheduler_address)
+    assert result.scheduler == cluster.scheduler_address
+    np.testing.assert_allclose(zarr.open_group(str(tmp_path / "d.zarr"), mode="r")["video"][:], expected, atol=1e-5)
+
+
+def test_chunks_and_refusals(rec_path, tmp_path):
+    assert _chunks(10, 4, 1) == (4, 4, 2) and _chunks(9, 4, 2) == (4, 5) and _chunks(3, 8, 1) == (3,)
+    rec = open_recording(rec_path)
+    with pytest.raises(ValueError, match=r"global solve and cannot run in chunks"):
+        batch_video(rec, Method(solver="steady"))
+    video, ov = batch_video(rec, Method(solver="explicit"), chunk_frames=1)
+    assert ov > 1 and video.chunks[0][0] >= ov * 4  # chunks raised to the overlap
+    with pytest.raises(ValueError, match=r"`chunk_frames` must be a whole number >= 1; got 0"):
+        batch_video(rec, Method(), chunk_frames=0)
+    with pytest.raises(ValueError, match=r"already exists"):
+        reconstruct_batch(rec_path, rec_path, Method())

@@ -72,13 +72,18 @@ class SimulatedProjector(Projector):
         self._start_us = None
         self._elapsed_before_pause_us = 0
 
-    def elapsed_us(self) -> int:
-        """Display time since start (pauses excluded; 0 when stopped)."""
+    def elapsed_us(self, at_us: int | None = None) -> int:
+        """Display time since start (pauses excluded; 0 when stopped), now or at clock time ``at_us``.
+
+        Callers that already read the clock pass that reading, so a real clock that moved on
+        in between cannot shift the answer.
+        """
         if self._run_state is RunState.STOPPED:
             return 0
         if self._start_us is None:
             return self._elapsed_before_pause_us
-        return self._elapsed_before_pause_us + int(self._clock_us()) - self._start_us
+        now = int(self._clock_us()) if at_us is None else int(at_us)
+        return self._elapsed_before_pause_us + now - self._start_us
 
     def current_slot(self) -> int | None:
         """Index of the pattern on display now, or None when nothing is shown."""

@@ -211,7 +211,9 @@ class ProjectorLightPath:
 
     def _elapsed_at(self, t_us: int, now_us: int) -> int:
         """The projector's display time (µs since start, pauses excluded) at wall time t."""
-        return self._projector.elapsed_us() + (int(t_us) - int(now_us))
+        # Ask for the display time at the caller's clock reading, not at a fresh one: with a
+        # real clock the two differ and the same exposure would be delivered twice.
+        return self._projector.elapsed_us(at_us=now_us) + (int(t_us) - int(now_us))
 
     def next_trigger_us(self, line: TriggerSource, after_us: int, now_us: int) -> tuple[int, int] | None:
         """The next TRIG_OUT_2 pulse (once per sequence) reaching the camera on ``line``."""

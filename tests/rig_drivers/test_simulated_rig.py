@@ -204,3 +204,14 @@ def test_warp_is_exact_for_the_identity_and_keeps_light_in_range():
     h = default_homography((10, 12), (10, 12), 3)
     w = warp_patterns(pats, h, (10, 12))
     assert w.min() >= 0 and w.max() <= 1 and len(np.unique(w)) > 2  # grey where a pixel straddles mirrors
+
+
+def test_a_real_clock_never_repeats_an_exposure():
+    """With a real clock, time moves between the camera's reading and the projector's (about 0.7 s)."""
+    from rig_drivers.simulated_camera import MonotonicClock
+
+    code = design_code((4, 4)).code
+    rig = make_rig(homography=np.eye(3), clock=MonotonicClock())
+    frames = grab(rig, tiled_code(code, 24, 32), 10, timeout_s=1.0)
+    stamps = np.array([f.timestamp_s for f in frames])
+    assert np.all(np.diff(stamps) > 0.5 * 16 * PERIOD / 1e6), np.diff(stamps)  # one exposure per period

@@ -18,10 +18,6 @@ from flexvox_core.motion import motion_aware
 from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, diffuse
 from flexvox_core.reconstruct.rebin import rebin
 from flexvox_core.reconstruct.run import Method, reconstruct
-from flexvox_core.recording import write_simulation
-from flexvox_core.simulate.effects import parse_effects
-from flexvox_core.simulate.scene_file import SceneSpec
-from flexvox_core.simulate.simulator import simulate
 from flexvox_core.video_io import write_video
 
 _logger = logging.getLogger(__name__)
@@ -86,6 +82,33 @@ def _calibrate(cfg: DemoConfig) -> dict:
     return out
 
 
+def _capture(cfg: DemoConfig, path: Path):
+    """Record ``cfg.size[0]`` frames of the scene with the capture service on the simulated rig
+    (virtual clock, identity projector map); returns normalised frames, code, ground truth, counters."""
+    from app.capture import CaptureCalibration, CaptureService
+    from flexvox_core.recording import open_recording
+    from rig_drivers.profile import open_rig
+    from rig_drivers.simulated_camera import VirtualClock
+
+    F, H, W = cfg.size
+    code = design_code(cfg.tile).code
+    K = code.shape[2]
+    rig = open_rig("mock", scene=cfg.scene, camera_size=(H, W), homography=np.eye(3), seed=cfg.seed,
+                   subframes=F * K, clock=VirtualClock(), electrons_per_unit=2000.0,
+                   effects={"photon_noise": {}, "read_noise": {"sigma": 3.0}})
+    truth = rig.simulated.truth
+    service = CaptureService(rig, code, path, frames=F, overwrite=True,
+                             calibration=CaptureCalibration(source="identity (simulated co-located rig)"),
+                             ground_truth=lambda fid: truth.video[truth.subframes(fid, K)],
+                             rig_info={"profile": "mock", "demo": True})
+    result = service.run(timeout_s=120.0)
+    if not result.ok:
+        raise RuntimeError(f"the demo capture failed: {result.message}")
+    rec = open_recording(path)
+    return rec.normalised_frames(), rec.code, rec.ground_truth(), {"rows": rec.n_frames,
+                                                                 "drops": int(rec.per_frame("dropped").sum())}
+
+
 def _timed(fn, *args, **kwargs):
     t0 = time.perf_counter()
     out = fn(*args, **kwargs)
@@ -117,15 +140,13 @@ def run_demo(cfg: DemoConfig, *, step=None) -> DemoResult:
     )
 
     step("capture")
-    spec = SceneSpec(builtin=cfg.scene, height=H, width=W, frames=F, tile=cfg.tile, seed=cfg.seed,
-                     effects=parse_effects({"photon_noise": {}, "read_noise": {"sigma": 3.0}}),
-                     electrons_per_unit=2000.0, name=cfg.scene)
-    sim = simulate(spec)
     rec_path = out / "recording.zarr"
-    write_simulation(rec_path, sim, overwrite=True)
-    frames, code, truth = sim.normalised(), sim.code, sim.ground_truth
-    res.notes.append(f"Simulated the '{cfg.scene}' scene on the rig: {F} frames of {H}x{W} at 15 Hz, K = {K} "
-                     f"({F * K} sub-frames at {15 * K} Hz), with photon and read noise; recording: {rec_path.name}.")
+    frames, code, truth, info = _capture(cfg, rec_path)
+    res.notes.append(
+        f"Captured the '{cfg.scene}' scene on the simulated rig through the capture service: {info['rows']} frames "
+        f"of {H}x{W} at 15 Hz, K = {K} ({F * K} sub-frames at {15 * K} Hz), photon and read noise, "
+        f"{info['drops']} dropped; recording: {rec_path.name}."
+    )
 
     step("reconstruct")
     videos: dict[str, np.ndarray] = {}

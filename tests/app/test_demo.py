@@ -7,6 +7,7 @@ def test_quick_demo_writes_the_report(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "motion-aware" in text and "GAP-TV" in text and "report:" in text
     assert "Calibrated the simulated rig" in text and "phase" in text
+    assert "through the capture service" in text and "0 dropped" in text
     page = (out / "index.html").read_text()
     for name in ("fig1_sampling", "fig3_rebinning", "fig4_continuum", "fig5_flow", "fig7_panel"):
         assert (out / "figures" / f"{name}.png").stat().st_size > 5_000

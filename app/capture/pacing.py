@@ -1,12 +1,12 @@
 """A simulated-rig clock paced to real time, for demos and rate benchmarks.
 
-:class:`~rig_drivers.simulated_camera.MonotonicClock` reads the wall clock at every call; the
-simulated rig reads it more than once per frame (camera, then projector), and the few µs
-between those reads can make it deliver one exposure twice (seen as frames a few µs apart at
-about twice the set rate). :class:`PacedClock` avoids that: its time is *virtual* (constant
-between sleeps) and only :meth:`sleep_until_us` moves it, after sleeping for real until the
-wall clock reaches the target. When the consumer is late, time jumps to the wall clock, so
-the simulated camera sees its buffer overrun and drops frames as a real one would. Call
+:class:`~rig_drivers.simulated_camera.MonotonicClock` reads the wall clock at every call, so
+time moves while one frame is being computed (the rig now asks the projector for its state
+at the camera's reading, so this no longer repeats exposures). :class:`PacedClock` goes
+further: its time is *virtual* (constant between sleeps) and only :meth:`sleep_until_us`
+moves it, after sleeping for real until the wall clock reaches the target, so every frame
+is computed at one instant. When the consumer is late, time jumps to the wall clock, so the
+simulated camera sees its buffer overrun and drops frames as a real one would. Call
 :meth:`resync` right before starting a capture.
 """
 

@@ -1,0 +1,13 @@
+"""The flexvox Qt application (``flexvox app``): device panel, Calibrate, Capture and Review.
+
+Two kinds of module live here, kept apart as napari keeps ``components`` and ``_qt``:
+
+- **Qt-free models and services** (importable on a machine without Qt; a test proves it):
+  :mod:`~app.gui.continuum`, :mod:`~app.gui.expected_quality`, :mod:`~app.gui.jobs`,
+  :mod:`~app.gui.review_session`, :mod:`~app.gui.rig_service`, :mod:`~app.gui.capture_plan`,
+  :mod:`~app.gui.live_stats`.
+- **Qt views** that take those models in their constructors: everything else
+  (``*_workspace``, ``*_panel``, ``main_window``, ``qt_jobs``, ``settings``, ...).
+
+This package file imports nothing, so ``import app.gui.continuum`` never loads Qt.
+"""

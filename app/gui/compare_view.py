@@ -1,0 +1,77 @@
+"""Compare tab of the Review workspace: two reconstructions side by side, views linked."""
+
+from __future__ import annotations
+
+from PySide6.QtWidgets import QComboBox, QFormLayout, QGridLayout, QWidget
+
+from app.gui.image_panel import ImagePanel
+from app.gui.jobs import ReconstructionResult
+
+
+class CompareView(QWidget):
+    """Pick two results (A, B); both show the same sub-frame, panned and zoomed together."""
+
+    def __init__(self, parent: QWidget | None = None):
+        super().__init__(parent)
+        self.box_a = QComboBox()
+        self.box_b = QComboBox()
+        self.panel_a = ImagePanel("A")
+        self.panel_b = ImagePanel("B")
+        self.panel_b.view.setXLink(self.panel_a.view)
+        self.panel_b.view.setYLink(self.panel_a.view)
+        grid = QGridLayout(self)
+        fa, fb = QFormLayout(), QFormLayout()
+        fa.addRow("A", self.box_a)
+        fb.addRow("B", self.box_b)
+        grid.addLayout(fa, 0, 0)
+        grid.addLayout(fb, 0, 1)
+        grid.addWidget(self.panel_a, 1, 0)
+        grid.addWidget(self.panel_b, 1, 1)
+        grid.setRowStretch(1, 1)
+        self._results: list[ReconstructionResult] = []
+        self._truth = None
+        self._K = 1
+        self._s = 0
+        self.box_a.currentIndexChanged.connect(lambda _: self.show_subframe(self._s))
+        self.box_b.currentIndexChanged.connect(lambda _: self.show_subframe(self._s))
+        self.show_subframe(0)
+
+    def set_results(self, results: list[ReconstructionResult], K: int, truth=None) -> None:
+        """The full reconstructions to choose from (newest last: A = the one before, B = newest)."""
+        self._results = list(results)
+        self._K = K
+        self._truth = truth
+        for box in (self.box_a, self.box_b):
+            box.blockSignals(True)
+            box.clear()
+            box.addItems([f"{i + 1}. {r.label()}" for i, r in enumerate(self._results)])
+            box.blockSignals(False)
+        n = len(self._results)
+        if n:
+            self.box_a.setCurrentIndex(max(0, n - 2))
+            self.box_b.setCurrentIndex(n - 1)
+        self.show_subframe(self._s)
+
+    def select(self, a: int, b: int) -> None:
+        """Choose results ``a`` and ``b`` (indices into the list)."""
+        self.box_a.setCurrentIndex(a)
+        self.box_b.setCurrentIndex(b)
+
+    def show_subframe(self, s: int) -> None:
+        """Show sub-frame ``s`` of both results."""
+        self._s = s
+        for box, panel, name in ((self.box_a, self.panel_a, "A"), (self.box_b, self.panel_b, "B")):
+            i = box.currentIndex()
+            if not 0 <= i < len(self._results):
+                panel.clear("run reconstructions to compare them here")
+                panel.set_title(name)
+                continue
+            r = self._results[i]
+            j = min(s, r.video.shape[0] - 1)
+            panel.set_image(r.video[j], levels=(0, 1))
+            score = ""
+            if self._truth is not None:
+                from flexvox_core.metrics import psnr
+
+                score = f" · this sub-frame {psnr(self._truth[j], r.video[j]).mean:.2f} dB"
+            panel.set_title(f"{name}: {r.label()}{score}")

@@ -1,0 +1,96 @@
+"""The device panel: each device's state, connect/disconnect, simulated or real, last error in words."""
+
+from __future__ import annotations
+
+import html
+
+from PySide6.QtWidgets import QGridLayout, QGroupBox, QLabel, QPushButton, QVBoxLayout, QWidget
+
+from app.gui.rig_service import ROLES, RigService
+from rig_drivers.interfaces import DeviceState
+
+_STATE_COLOUR = {DeviceState.CLOSED: "#7f8c8d", DeviceState.OPEN: "#b7950b", DeviceState.ENABLED: "#1e8449"}
+
+
+def _detail(service: RigService, role: str) -> str:
+    dev = service.device(role)
+    if dev is None or dev.state is not DeviceState.ENABLED:
+        return ""
+    if role == "camera" and getattr(dev, "acquiring", False):
+        return " · acquiring"
+    if role == "projector":
+        return f" · {dev.run_state.value}"
+    if role == "sync" and getattr(dev, "running", False):
+        return " · running"
+    return ""
+
+
+class DevicePanel(QWidget):
+    """One row per device of the rig; subscribes to the :class:`RigService`."""
+
+    def __init__(self, service: RigService, parent: QWidget | None = None):
+        super().__init__(parent)
+        self.service = service
+        simulated = service.simulated and "simulat" not in service.name.lower()
+        box = QGroupBox(f"Rig: {service.name}" + (" (simulated)" if simulated else ""))
+        grid = QGridLayout(box)
+        self.rows: dict[str, dict] = {}
+        for i, role in enumerate(ROLES):
+            name = QLabel()
+            name.setWordWrap(True)
+            state = QLabel()
+            button = QPushButton()
+            error = QLabel()
+            error.setWordWrap(True)
+            error.setStyleSheet("color: #c0392b")
+            grid.addWidget(QLabel(f"<b>{role}</b>"), 3 * i, 0)
+            grid.addWidget(state, 3 * i, 1)
+            grid.addWidget(button, 3 * i, 2)
+            grid.addWidget(name, 3 * i + 1, 0, 1, 3)
+            grid.addWidget(error, 3 * i + 2, 0, 1, 3)
+            button.clicked.connect(lambda _=False, r=role: self.toggle(r))
+            self.rows[role] = {"name": name, "state": state, "button": button, "error": error}
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(4, 4, 4, 4)
+        layout.addWidget(box)
+        layout.addStretch(1)
+        service.subscribe(self._on_change)
+        self.destroyed.connect(lambda *_: service.unsubscribe(self._on_change))
+        self.refresh()
+
+    def toggle(self, role: str) -> None:
+        """Connect a closed device, disconnect an open one."""
+        dev = self.service.device(role)
+        if dev is None:
+            return
+        if dev.state is DeviceState.CLOSED:
+            self.service.connect(role)
+        else:
+            self.service.disconnect(role)
+
+    def _on_change(self, role: str) -> None:
+        self.refresh(role)
+
+    def refresh(self, role: str | None = None) -> None:
+        """Redraw one row (or all)."""
+        for r in (role,) if role else ROLES:
+            st = self.service.status(r)
+            row = self.rows[r]
+            kind = "simulated" if st.simulated else "real"
+            row["name"].setText(f"{st.name} <i>({kind})</i>" if st.present else st.name)
+            if not st.present:
+                row["state"].setText("—")
+                row["button"].setEnabled(False)
+                row["button"].setText("Connect")
+            else:
+                colour = _STATE_COLOUR[st.state]
+                state = f"{st.state.value}{_detail(self.service, r)}"
+                row["state"].setText(f"<span style='color:{colour}'>● {state}</span>")
+                row["button"].setEnabled(True)
+                row["button"].setText("Connect" if st.state is DeviceState.CLOSED else "Disconnect")
+            row["error"].setText(html.escape(st.last_error))
+            row["error"].setVisible(bool(st.last_error))
+
+    def state_text(self, role: str) -> str:
+        """The state column's plain text (for tests and accessibility)."""
+        return self.rows[role]["state"].text()

@@ -1,0 +1,98 @@
+"""The main window: the device panel and the Calibrate, Capture and Review workspaces as tabs."""
+
+from __future__ import annotations
+
+import logging
+
+from PySide6.QtCore import Qt
+from PySide6.QtGui import QAction, QKeySequence
+from PySide6.QtWidgets import QDockWidget, QMainWindow, QTabWidget
+
+from app.gui.calibrate_page import CalibratePage
+from app.gui.capture_workspace import CaptureWorkspace
+from app.gui.device_panel import DevicePanel
+from app.gui.qt_jobs import JobRunner
+from app.gui.review_workspace import ReviewWorkspace
+from app.gui.rig_service import RigService
+from app.gui.settings import AppSettings
+
+_logger = logging.getLogger(__name__)
+
+WORKSPACES = ("Calibrate", "Capture", "Review")
+
+
+class MainWindow(QMainWindow):
+    """flexvox's main window.
+
+    Parameters
+    ----------
+    service : RigService
+    settings : AppSettings
+    runner : JobRunner
+    quality_table : dict or None
+    recorder : object, optional
+        The capture service's recorder, when it exists (see :class:`CaptureWorkspace`).
+    """
+
+    def __init__(self, service: RigService, settings: AppSettings, runner: JobRunner, quality_table: dict | None,
+                 *, recorder=None, calibrate_cli: bool | None = None):
+        super().__init__()
+        self.service = service
+        self.settings = settings
+        self.runner = runner
+        rig = "simulated rig" if service.simulated else service.name
+        self.setWindowTitle(f"flexvox — {rig}")
+        self.calibrate = CalibratePage(cli_available=calibrate_cli)
+        self.capture = CaptureWorkspace(service, settings, recorder=recorder)
+        self.review = ReviewWorkspace(settings, runner, quality_table)
+        self.tabs = QTabWidget()
+        for name, w in zip(WORKSPACES, (self.calibrate, self.capture, self.review), strict=True):
+            self.tabs.addTab(w, name)
+        self.setCentralWidget(self.tabs)
+        self.devices = DevicePanel(service)
+        dock = QDockWidget("Devices", self)
+        dock.setObjectName("devices")
+        dock.setWidget(self.devices)
+        dock.setFeatures(QDockWidget.DockWidgetFeature.DockWidgetMovable
+                         | QDockWidget.DockWidgetFeature.DockWidgetFloatable)
+        self.addDockWidget(Qt.DockWidgetArea.LeftDockWidgetArea, dock)
+        self.review.status.connect(lambda text: self.statusBar().showMessage(text, 8000))
+
+        menu = self.menuBar().addMenu("&File")
+        open_action = QAction("&Open recording…", self)
+        open_action.setShortcut(QKeySequence.StandardKey.Open)
+        open_action.triggered.connect(self._open)
+        quit_action = QAction("&Quit", self)
+        quit_action.setShortcut(QKeySequence.StandardKey.Quit)
+        quit_action.triggered.connect(self.close)
+        menu.addAction(open_action)
+        menu.addAction(quit_action)
+
+        geometry = settings.get_bytes("window/geometry")
+        if geometry is not None:
+            self.restoreGeometry(geometry)
+        else:
+            self.resize(1500, 900)
+        self.tabs.setCurrentIndex(min(max(settings.get_int("window/tab", 2), 0), len(WORKSPACES) - 1))
+        self.statusBar().showMessage("simulated rig: every device is a simulation" if service.simulated
+                                     else f"rig profile: {service.name}")
+
+    def _open(self) -> None:
+        self.tabs.setCurrentWidget(self.review)
+        self.review._ask_open()
+
+    def show_workspace(self, name: str) -> None:
+        """Bring the named workspace forward."""
+        self.tabs.setCurrentIndex(WORKSPACES.index(name))
+
+    def closeEvent(self, event) -> None:  # noqa: N802 - Qt's name
+        """Stop live view and jobs, close devices, save the window."""
+        self.settings.set("window/geometry", self.saveGeometry())
+        self.settings.set("window/tab", self.tabs.currentIndex())
+        self.settings.sync()
+        self.capture.shutdown()
+        self.review.set_playing(False)
+        if not self.runner.shutdown(5000):
+            _logger.error("background jobs did not stop within 5 s")
+        self.service.close()
+        super().closeEvent(event)

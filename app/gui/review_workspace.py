@@ -1,0 +1,480 @@
+"""The Review workspace: open a recording, play it, reconstruct, preview, compare and export."""
+
+from __future__ import annotations
+
+import html
+import logging
+from pathlib import Path
+
+from PySide6.QtCore import Qt, QTimer, Signal
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QFileDialog,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QProgressBar,
+    QPushButton,
+    QScrollArea,
+    QSlider,
+    QSpinBox,
+    QSplitter,
+    QTabWidget,
+    QVBoxLayout,
+    QWidget,
+)
+
+from app.gui.compare_view import CompareView
+from app.gui.expected_quality import expected
+from app.gui.image_panel import ImagePanel
+from app.gui.jobs import ReconstructionResult, chunk_frames_for, preview_window, run_reconstruction
+from app.gui.method_form import MethodForm
+from app.gui.motion_view import MotionView
+from app.gui.qt_jobs import JobHandle, JobRunner
+from app.gui.review_session import ReviewSession
+from app.gui.settings import AppSettings
+from flexvox_core.video_io import write_video
+
+_logger = logging.getLogger(__name__)
+
+EXPORT_FILTER = "TIFF stack (*.tif);;MP4 video, 8-bit (*.mp4);;NumPy array (*.npy);;Zarr store (*.zarr)"
+PREVIEW_DELAY_MS = 250
+"""Knob changes within this time make one preview, not many."""
+
+
+class ReviewWorkspace(QWidget):
+    """Post-capture review.
+
+    Parameters
+    ----------
+    settings : AppSettings
+    runner : JobRunner
+        Runs loading, reconstructions, previews and exports off the GUI thread.
+    quality_table : dict or None
+        The shipped bench figures (:func:`app.gui.expected_quality.load_table`).
+    """
+
+    session_opened = Signal(object)
+    result_added = Signal(object)
+    status = Signal(str)
+
+    def __init__(self, settings: AppSettings, runner: JobRunner, quality_table: dict | None,
+                 parent: QWidget | None = None):
+        super().__init__(parent)
+        self.settings = settings
+        self.runner = runner
+        self.table = quality_table
+        self.session: ReviewSession | None = None
+        self.results: list[ReconstructionResult] = []
+        self.shown: ReconstructionResult | None = None
+        self.job: JobHandle | None = None
+        self.preview_job: JobHandle | None = None
+        self._preview_generation = 0
+        self._truth = None
+        self._build()
+        self.form.changed.connect(self._on_form_changed)
+        self._refresh_enabled()
+
+    # ------------------------------------------------------------------ layout
+    def _build(self) -> None:
+        rec = QGroupBox("Recording")
+        self.open_button = QPushButton("Open recording…")
+        self.path_label = QLabel("no recording open")
+        self.path_label.setWordWrap(True)
+        self.path_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.summary_label = QLabel("")
+        self.summary_label.setWordWrap(True)
+        v = QVBoxLayout(rec)
+        v.addWidget(self.open_button)
+        v.addWidget(self.path_label)
+        v.addWidget(self.summary_label)
+
+        box = QGroupBox("Reconstruction")
+        self.form = MethodForm(self.settings)
+        self.preview_check = QCheckBox("live preview around the current frame")
+        self.preview_check.setChecked(self.settings.get_bool("review/preview", True))
+        self.expected_label = QLabel("")
+        self.expected_label.setWordWrap(True)
+        self.reconstruct_button = QPushButton("Reconstruct all frames")
+        self.cancel_button = QPushButton("Cancel")
+        self.progress = QProgressBar()
+        self.progress.setRange(0, 1)
+        self.progress.setValue(0)
+        self.result_label = QLabel("")
+        self.result_label.setWordWrap(True)
+        buttons = QHBoxLayout()
+        buttons.addWidget(self.reconstruct_button, 1)
+        buttons.addWidget(self.cancel_button)
+        v = QVBoxLayout(box)
+        v.addWidget(self.form)
+        v.addWidget(self.preview_check)
+        v.addWidget(QLabel("<b>Expected</b> (from the accuracy-vs-time benchmark):"))
+        v.addWidget(self.expected_label)
+        v.addLayout(buttons)
+        v.addWidget(self.progress)
+        v.addWidget(self.result_label)
+
+        exp = QGroupBox("Export")
+        self.export_button = QPushButton("Export shown reconstruction…")
+        self.export_label = QLabel("")
+        self.export_label.setWordWrap(True)
+        v = QVBoxLayout(exp)
+        v.addWidget(self.export_button)
+        v.addWidget(self.export_label)
+
+        left = QWidget()
+        lv = QVBoxLayout(left)
+        lv.addWidget(rec)
+        lv.addWidget(box)
+        lv.addWidget(exp)
+        lv.addStretch(1)
+        scroll = QScrollArea()
+        scroll.setWidget(left)
+        scroll.setWidgetResizable(True)
+        scroll.setMinimumWidth(360)
+        scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+
+        self.raw_panel = ImagePanel("raw camera frame")
+        self.recon_panel = ImagePanel("reconstruction")
+        frames = QWidget()
+        h = QHBoxLayout(frames)
+        h.addWidget(self.raw_panel, 1)
+        h.addWidget(self.recon_panel, 1)
+        self.motion_view = MotionView()
+        self.compare_view = CompareView()
+        self.tabs = QTabWidget()
+        self.tabs.addTab(frames, "Frames")
+        self.tabs.addTab(self.motion_view, "Motion")
+        self.tabs.addTab(self.compare_view, "Compare")
+
+        self.play_button = QPushButton("Play")
+        self.play_button.setCheckable(True)
+        self.frame_slider = QSlider(Qt.Orientation.Horizontal)
+        self.frame_slider.setRange(0, 0)
+        self.frame_label = QLabel("")
+        self.frame_label.setMinimumWidth(220)
+        self.fps = QSpinBox()
+        self.fps.setRange(1, 120)
+        self.fps.setValue(self.settings.get_int("review/fps", 12))
+        self.fps.setSuffix(" fps")
+        player = QHBoxLayout()
+        player.addWidget(self.play_button)
+        player.addWidget(self.frame_slider, 1)
+        player.addWidget(self.frame_label)
+        player.addWidget(self.fps)
+        right = QWidget()
+        rv = QVBoxLayout(right)
+        rv.addWidget(self.tabs, 1)
+        rv.addLayout(player)
+
+        split = QSplitter()
+        split.addWidget(scroll)
+        split.addWidget(right)
+        split.setStretchFactor(1, 1)
+        split.setSizes([380, 1000])
+        outer = QVBoxLayout(self)
+        outer.addWidget(split)
+
+        self.timer = QTimer(self)
+        self.timer.timeout.connect(self._tick)
+        self.preview_timer = QTimer(self)
+        self.preview_timer.setSingleShot(True)
+        self.preview_timer.setInterval(PREVIEW_DELAY_MS)
+        self.preview_timer.timeout.connect(self.request_preview)
+
+        self.open_button.clicked.connect(self._ask_open)
+        self.reconstruct_button.clicked.connect(self.reconstruct)
+        self.cancel_button.clicked.connect(self.cancel)
+        self.export_button.clicked.connect(self._ask_export)
+        self.play_button.toggled.connect(self.set_playing)
+        self.frame_slider.valueChanged.connect(self._on_frame)
+        self.fps.valueChanged.connect(self._on_fps)
+        self.preview_check.toggled.connect(self._on_preview_toggled)
+        self.raw_panel.clear("open a recording (File ▸ Open, or flexvox app REC.zarr)")
+        self.recon_panel.clear("")
+
+    # ------------------------------------------------------------------ opening
+    def _ask_open(self) -> None:
+        start = self.settings.get_str("review/last_dir", str(Path.cwd()))
+        path = QFileDialog.getExistingDirectory(self, "Open a recording (.zarr folder)", start)
+        if path:
+            self.open_recording(path)
+
+    def open_recording(self, path) -> JobHandle:
+        """Open ``path`` off the GUI thread; ``session_opened`` fires when it is ready."""
+        path = Path(path)
+        self.path_label.setText(f"opening {path} …")
+        return self.runner.submit("open", lambda token, progress: ReviewSession.open(path),
+                                  on_finished=self._opened, on_failed=self._open_failed)
+
+    def _open_failed(self, message: str) -> None:
+        self.path_label.setText(f"<span style='color:#c0392b'>cannot open: {html.escape(message)}</span>")
+        self.status.emit(f"cannot open: {message}")
+
+    def _opened(self, session: ReviewSession) -> None:
+        self.set_playing(False)
+        self.cancel()
+        self.session = session
+        self.results = []
+        self.shown = None
+        self._truth = session.truth() if session.has_ground_truth else None
+        self.settings.set("review/last_dir", str(session.path.parent))
+        self.settings.set("review/last_recording", str(session.path))
+        self.path_label.setText(str(session.path))
+        text = session.summary()
+        if session.blocked:
+            text += f"<br><span style='color:#c0392b'>cannot reconstruct: {html.escape(session.blocked)}</span>"
+        self.summary_label.setText(text)
+        self.form.set_divisions(session.divisions())
+        self._levels = session.raw_levels()
+        self.frame_slider.blockSignals(True)
+        self.frame_slider.setRange(0, session.n_subframes - 1)
+        self.frame_slider.setValue(0)
+        self.frame_slider.blockSignals(False)
+        self.recon_panel.clear("")
+        self.motion_view.set_result(None, session.K)
+        self.compare_view.set_results([], session.K, self._truth)
+        self._show(0)
+        self._refresh_expected()
+        self._refresh_enabled()
+        self.session_opened.emit(session)
+        self.status.emit(f"opened {session.path.name}")
+        self._schedule_preview()
+
+    # ------------------------------------------------------------------ playback
+    @property
+    def subframe(self) -> int:
+        """The current sub-frame index s (camera frame s // K)."""
+        return self.frame_slider.value()
+
+    def set_playing(self, playing: bool) -> None:
+        """Start or stop playback."""
+        playing = bool(playing) and self.session is not None
+        if self.play_button.isChecked() != playing:
+            self.play_button.blockSignals(True)
+            self.play_button.setChecked(playing)
+            self.play_button.blockSignals(False)
+        self.play_button.setText("Pause" if playing else "Play")
+        if playing:
+            self.timer.start(int(1000 / self.fps.value()))
+        else:
+            self.timer.stop()
+            self._schedule_preview()
+
+    @property
+    def playing(self) -> bool:
+        """True while playback runs."""
+        return self.timer.isActive()
+
+    def _step(self) -> int:
+        # Raw frames advance a whole frame; a shown reconstruction advances one sub-frame.
+        return 1 if self.shown is not None else self.session.K
+
+    def _tick(self) -> None:
+        if self.session is None:
+            return
+        s = (self.subframe + self._step()) % self.session.n_subframes
+        self.frame_slider.setValue(s)
+
+    def _on_fps(self, value: int) -> None:
+        self.settings.set("review/fps", value)
+        if self.timer.isActive():
+            self.timer.setInterval(int(1000 / value))
+
+    def _on_frame(self, s: int) -> None:
+        self._show(s)
+        if not self.playing and not self._covers(self.shown, s):
+            self._schedule_preview()
+
+    def _covers(self, r: ReconstructionResult | None, s: int) -> bool:
+        if r is None or self.session is None:
+            return False
+        i = s - r.first_frame * self.session.K
+        return 0 <= i < r.video.shape[0]
+
+    def _show(self, s: int) -> None:
+        if self.session is None:
+            return
+        K = self.session.K
+        f = s // K
+        self.raw_panel.set_image(self.session.raw[f], levels=self._levels)
+        self.raw_panel.set_title(f"raw camera frame {f + 1}/{self.session.n_frames} (all {K} slots in one exposure)")
+        self.frame_label.setText(f"frame {f + 1}/{self.session.n_frames} · "
+                                 f"sub-frame {s + 1}/{self.session.n_subframes}")
+        r = self.shown
+        if self._covers(r, s):
+            i = s - r.first_frame * K
+            self.recon_panel.set_image(r.video[i], levels=(0, 1))
+            kind = "preview" if r.extra.get("preview") else "reconstruction"
+            self.recon_panel.set_title(f"{kind}: {r.method.label()} · sub-frame {s + 1}")
+        elif r is not None:
+            self.recon_panel.clear("outside the preview window: pause to recompute it here")
+        self.motion_view.show_subframe(s)
+        self.compare_view.show_subframe(s)
+
+    # ------------------------------------------------------------------ preview
+    def _on_preview_toggled(self, on: bool) -> None:
+        self.settings.set("review/preview", on)
+        if on:
+            self._schedule_preview()
+
+    def _on_form_changed(self) -> None:
+        self._refresh_expected()
+        self._schedule_preview()
+
+    def _schedule_preview(self) -> None:
+        if self.session is not None and self.session.frames is not None and self.preview_check.isChecked():
+            self.preview_timer.start()
+
+    def request_preview(self) -> JobHandle | None:
+        """Recompute the current settings on a small window of frames around the current one."""
+        s = self.session
+        if s is None or s.frames is None:
+            return None
+        if self.preview_job is not None and self.preview_job.running:
+            self.preview_job.cancel()
+        self._preview_generation += 1
+        gen = self._preview_generation
+        a, b = preview_window(s.n_frames, self.subframe // s.K, half_width=1)
+        method = self.form.method()
+        frames, code, truth = s.frames[a:b], s.code, s.truth(a, b)
+
+        def work(token, progress):
+            r = run_reconstruction(frames, code, method, cancel=token, progress=progress, chunk_frames=b - a,
+                                   first_frame=a, truth=truth)
+            r.extra["preview"] = True
+            return r
+
+        self.preview_job = self.runner.submit(
+            "preview", work, on_finished=lambda r, g=gen: self._preview_done(r, g),
+            on_failed=lambda msg: self.result_label.setText(f"preview failed: {html.escape(msg)}"))
+        return self.preview_job
+
+    def _preview_done(self, result: ReconstructionResult, generation: int) -> None:
+        if generation != self._preview_generation:
+            return  # a newer request superseded it
+        self.set_shown(result)
+
+    def set_shown(self, result: ReconstructionResult | None) -> None:
+        """Show ``result`` in the reconstruction and motion panels."""
+        self.shown = result
+        if self.session is not None:
+            self.motion_view.set_result(result, self.session.K)
+            self._show(self.subframe)
+        self._refresh_enabled()
+
+    # ------------------------------------------------------------------ full reconstruction
+    def reconstruct(self) -> JobHandle | None:
+        """Reconstruct every frame with the current settings (off-thread, cancellable)."""
+        s = self.session
+        if s is None or s.frames is None or self.busy:
+            return None
+        method = self.form.method()
+        chunk = chunk_frames_for(method, s.n_frames)
+        frames, code, truth = s.frames, s.code, self._truth
+
+        def work(token, progress):
+            return run_reconstruction(frames, code, method, cancel=token, progress=progress, chunk_frames=chunk,
+                                      truth=truth)
+
+        self.progress.setRange(0, s.n_frames)
+        self.progress.setValue(0)
+        self.result_label.setText(f"reconstructing with {method.label()} …")
+        self.job = self.runner.submit(
+            "reconstruct", work, on_progress=lambda done, total: self.progress.setValue(done),
+            on_finished=self._reconstructed, on_cancelled=self._reconstruction_cancelled,
+            on_failed=lambda msg: self.result_label.setText(
+                f"<span style='color:#c0392b'>reconstruction failed: {html.escape(msg)}</span>"),
+            on_done=self._refresh_enabled)
+        self._refresh_enabled()
+        return self.job
+
+    @property
+    def busy(self) -> bool:
+        """True while a full reconstruction runs (its outcome is set the moment it ends)."""
+        return self.job is not None and self.job.outcome is None
+
+    def cancel(self) -> None:
+        """Cancel a running reconstruction (the preview is cancelled too)."""
+        for h in (self.job, self.preview_job):
+            if h is not None and h.running:
+                h.cancel()
+
+    def _reconstruction_cancelled(self) -> None:
+        self.progress.setValue(0)
+        self.result_label.setText("cancelled; nothing was kept")
+        self.status.emit("reconstruction cancelled")
+
+    def _reconstructed(self, result: ReconstructionResult) -> None:
+        self.results.append(result)
+        self.progress.setValue(self.progress.maximum())
+        vox = result.video.size / max(result.seconds, 1e-9) / 1e6
+        text = f"{result.method.label()}: {result.video.shape[0]} sub-frames in {result.seconds:.2f} s " \
+               f"({vox:.0f} M voxels/s)"
+        if result.psnr is not None:
+            text += f"; PSNR vs ground truth {result.psnr:.2f} dB"
+        self.result_label.setText(text)
+        self.set_shown(result)
+        self.compare_view.set_results(self.results, self.session.K, self._truth)
+        self.result_added.emit(result)
+        self.status.emit(text)
+
+    # ------------------------------------------------------------------ export
+    def _ask_export(self) -> None:
+        r = self.export_candidate()
+        if r is None:
+            return
+        start = self.settings.get_str("review/export_dir", str(Path.cwd()))
+        name = str(Path(start) / f"{self.session.path.stem}-{r.method.name}.tif")
+        path, _ = QFileDialog.getSaveFileName(self, "Export the reconstruction", name, EXPORT_FILTER)
+        if path:
+            self.export(path, overwrite=True)
+
+    def export_candidate(self) -> ReconstructionResult | None:
+        """The full reconstruction export writes: the shown one, else the newest."""
+        if self.shown is not None and not self.shown.extra.get("preview"):
+            return self.shown
+        return self.results[-1] if self.results else None
+
+    def export(self, path, *, overwrite: bool = False) -> JobHandle | None:
+        """Write the export candidate to ``path`` (.tif, .mp4, .npy, .zarr) off the GUI thread."""
+        r = self.export_candidate()
+        if r is None:
+            self.export_label.setText("reconstruct all frames first (previews are not exported)")
+            return None
+        path = Path(path)
+        self.settings.set("review/export_dir", str(path.parent))
+        attrs = {"source": str(self.session.path), "method": r.method.as_dict(), "seconds": r.seconds}
+        fps = float(self.fps.value())
+        video = r.video
+        self.export_label.setText(f"writing {path.name} …")
+        return self.runner.submit(
+            "export", lambda token, progress: write_video(path, video, fps=fps, attrs=attrs, overwrite=overwrite),
+            on_finished=lambda p: self.export_label.setText(f"wrote {p}"),
+            on_failed=lambda msg: self.export_label.setText(
+                f"<span style='color:#c0392b'>export failed: {html.escape(msg)}</span>"))
+
+    # ------------------------------------------------------------------ state
+    def _refresh_expected(self) -> None:
+        s = self.session
+        if s is None:
+            self.expected_label.setText("open a recording to see the expected time and quality")
+            return
+        method = self.form.method()
+        e = expected(self.table, method, s.code, voxels=s.n_subframes * s.shape[0] * s.shape[1])
+        if e is None:
+            self.expected_label.setText("no bench figures for this method")
+            self.expected_label.setToolTip("")
+            return
+        self.expected_label.setText(f"{e.text()}<br><small>{e.basis}</small>")
+        self.expected_label.setToolTip("time scaled to this recording's size from the bench's voxels/s; "
+                                       "quality measured on the built-in scenes, not on this recording")
+
+    def _refresh_enabled(self) -> None:
+        can = self.session is not None and self.session.frames is not None
+        self.reconstruct_button.setEnabled(can and not self.busy)
+        self.cancel_button.setEnabled(self.busy)
+        self.export_button.setEnabled(self.export_candidate() is not None)
+        self.play_button.setEnabled(self.session is not None)
+        if self.session is None:
+            self._refresh_expected()

@@ -1,0 +1,146 @@
+"""The rig's devices as the device panel sees them (Qt-free service).
+
+Wraps a :class:`rig_drivers.profile.Rig`: each device's role, name, state, whether it is
+simulated, and the last error in words. :meth:`RigService.connect` opens and enables a device,
+:meth:`RigService.disconnect` closes it; failures are caught *as results* (kept in
+``last_error`` and logged at warning level), never swallowed. Views subscribe with
+:meth:`RigService.subscribe` (a plain callback, napari-style events without Qt).
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from rig_drivers.errors import DeviceError
+from rig_drivers.interfaces import Device, DeviceState
+
+_logger = logging.getLogger(__name__)
+
+ROLES = ("projector", "camera", "sync")
+
+
+@dataclass(frozen=True)
+class DeviceStatus:
+    """What the panel shows for one device."""
+
+    role: str
+    name: str
+    state: DeviceState | None
+    simulated: bool
+    last_error: str
+
+    @property
+    def present(self) -> bool:
+        """False for a role the rig does not have (sync wired through the projector)."""
+        return self.state is not None
+
+
+class RigService:
+    """The devices of a rig, their states and their last errors.
+
+    Parameters
+    ----------
+    rig : rig_drivers.profile.Rig
+    """
+
+    def __init__(self, rig):
+        self.rig = rig
+        self._errors: dict[str, str] = dict.fromkeys(ROLES, "")
+        self._listeners: list[Callable[[str], None]] = []
+
+    @property
+    def simulated(self) -> bool:
+        """True for the simulated rig (``--rig mock``)."""
+        return self.rig.simulated is not None
+
+    @property
+    def name(self) -> str:
+        """The rig profile's name."""
+        return self.rig.spec.name
+
+    def device(self, role: str) -> Device | None:
+        """The device in ``role`` (None: the rig has none)."""
+        if role not in ROLES:
+            raise ValueError(f"`role` must be one of {', '.join(ROLES)}; got {role!r}")
+        return getattr(self.rig, role)
+
+    def status(self, role: str) -> DeviceStatus:
+        """The device's current status."""
+        dev = self.device(role)
+        if dev is None:
+            return DeviceStatus(role, "none (the projector's TRIG_OUT_2 triggers the camera)", None,
+                                self.simulated, "")
+        return DeviceStatus(role, dev.name, dev.state, self.simulated, self._errors[role])
+
+    def statuses(self) -> list[DeviceStatus]:
+        """Every role's status."""
+        return [self.status(r) for r in ROLES]
+
+    def subscribe(self, callback: Callable[[str], None]) -> None:
+        """Call ``callback(role)`` whenever a device's state or last error changes."""
+        self._listeners.append(callback)
+
+    def unsubscribe(self, callback: Callable[[str], None]) -> None:
+        """Stop calling ``callback``."""
+        if callback in self._listeners:
+            self._listeners.remove(callback)
+
+    def notify(self, role: str) -> None:
+        """Tell subscribers that the device in ``role`` changed (its run state, say)."""
+        for cb in list(self._listeners):
+            cb(role)
+
+    def _attempt(self, role: str, action: str, fn) -> bool:
+        try:
+            fn()
+        except (DeviceError, OSError, ValueError) as exc:
+            self._errors[role] = f"{action} failed: {exc}"
+            _logger.warning("%s %s: %s", role, action, exc)
+            self.notify(role)
+            return False
+        self._errors[role] = ""
+        self.notify(role)
+        return True
+
+    def connect(self, role: str) -> bool:
+        """Open and enable the device; False (with ``last_error`` set) when it fails."""
+        dev = self.device(role)
+        if dev is None:
+            return False
+
+        def go():
+            if dev.state is DeviceState.CLOSED:
+                dev.open()
+            dev.enable()
+
+        return self._attempt(role, "connect", go)
+
+    def disconnect(self, role: str) -> bool:
+        """Close the device (it always ends closed); False when closing reported an error."""
+        dev = self.device(role)
+        if dev is None:
+            return False
+        return self._attempt(role, "disconnect", dev.close)
+
+    def ensure_connected(self, *roles: str) -> bool:
+        """Connect each of ``roles`` that is not enabled yet; True when all are enabled."""
+        ok = True
+        for role in roles:
+            dev = self.device(role)
+            if dev is not None and dev.state is not DeviceState.ENABLED:
+                ok = self.connect(role) and ok
+        return ok
+
+    def record_error(self, role: str, message: str) -> None:
+        """Keep an error another part of the app met with this device (e.g. during live view)."""
+        self._errors[role] = message
+        self.notify(role)
+
+    def close(self) -> None:
+        """Close every device."""
+        for role in ROLES:
+            dev = self.device(role)
+            if dev is not None and dev.state is not DeviceState.CLOSED:
+                self.disconnect(role)

@@ -1,0 +1,118 @@
+"""Render each workspace to PNG offscreen: ``python -m app.gui.screenshots OUTDIR``.
+
+Makes a small simulated recording in a temporary folder, opens it in Review, runs a motion-aware
+and a diffusion reconstruction, starts the Capture live view on the simulated rig, and saves
+``review.png``, ``review_motion.png``, ``review_compare.png``, ``capture.png`` and ``calibrate.png``.
+Settings go to a temporary INI file, never the user's.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+_logger = logging.getLogger(__name__)
+
+SIZE = (1500, 920)
+
+
+def make_recording(path: Path, *, scene: str = "drummer", tile=(4, 4), frames: int = 8, size=(120, 160)) -> Path:
+    """A simulated recording (with ground truth) at ``path``."""
+    from flexvox_core.design import design_code
+    from flexvox_core.recording import write_simulation
+    from flexvox_core.simulate.scenes import render_scene
+    from flexvox_core.simulate.simulator import simulate_video
+
+    code = design_code(tile).code
+    video = render_scene(scene, frames * code.shape[2], *size, seed=0)
+    return write_simulation(path, simulate_video(video, code, rate_hz=15.0))
+
+
+def wait_until(app, condition, timeout_s: float = 60.0) -> None:
+    """Process events until ``condition()`` holds; TimeoutError after ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline:
+            raise TimeoutError(f"condition not met within {timeout_s} s")
+        app.processEvents()
+        time.sleep(0.01)
+
+
+def render(out_dir) -> list[Path]:
+    """Write the screenshots into ``out_dir``; returns their paths."""
+    os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+    from app.gui.application import build_window, ensure_application
+    from app.gui.settings import settings_at
+    from rig_drivers.profile import open_rig
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    app = ensure_application()
+    written = []
+    with tempfile.TemporaryDirectory() as tmp:
+        rec = make_recording(Path(tmp) / "drummer.zarr")
+        settings = settings_at(Path(tmp) / "settings.ini")
+        window = build_window(open_rig("mock", scene="drummer"), settings=settings, calibrate_cli=None)
+        window.resize(*SIZE)
+        window.show()
+        review = window.review
+
+        def save(name):
+            app.processEvents()
+            p = out / name
+            if not window.grab().save(str(p)):
+                raise OSError(f"cannot write {p}")
+            written.append(p)
+
+        window.show_workspace("Calibrate")
+        save("calibrate.png")
+
+        window.show_workspace("Review")
+        review.open_recording(rec)
+        wait_until(app, lambda: review.session is not None)
+        review.form.set_method_name("diffusion")
+        review.form.set_position(0.18)
+        review.reconstruct()
+        wait_until(app, lambda: len(review.results) == 1)
+        review.form.set_method_name("motion-aware")
+        review.reconstruct()
+        wait_until(app, lambda: len(review.results) == 2, timeout_s=120)
+        review.frame_slider.setValue(4 * 16 + 5)
+        wait_until(app, lambda: review.preview_job is None or not review.preview_job.running)
+        review.tabs.setCurrentIndex(0)
+        save("review.png")
+        review.tabs.setCurrentIndex(1)
+        save("review_motion.png")
+        review.tabs.setCurrentIndex(2)
+        save("review_compare.png")
+
+        window.show_workspace("Capture")
+        capture = window.capture
+        capture.start_live()
+        wait_until(app, lambda: capture.stats.received >= 8, timeout_s=30)
+        time.sleep(0.1)
+        wait_until(app, lambda: capture._latest is None)
+        save("capture.png")
+        capture.stop_live()
+        window.close()
+    return written
+
+
+def main(argv=None) -> int:
+    """Command-line entry."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("out_dir", type=Path)
+    args = parser.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    for p in render(args.out_dir):
+        _logger.info("wrote %s", p)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

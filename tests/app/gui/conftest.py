@@ -1,0 +1,99 @@
+"""Fixtures of the Qt application tests: a small simulated recording, settings in a temp file, a job runner."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+HERE = Path(__file__).parent
+
+# A harmless message of Qt's offscreen platform plugin when windows are shown.
+_OFFSCREEN_NOISE = "propagateSizeHints"
+
+
+def pytest_collection_modifyitems(config, items):
+    """Every GUI test fails on a Qt warning (pytest-qt's qt_log_level_fail), bar the offscreen plugin's note."""
+    for item in items:
+        if HERE in Path(str(item.fspath)).parents:
+            item.add_marker(pytest.mark.qt_log_level_fail("WARNING"))
+            item.add_marker(pytest.mark.qt_log_ignore(_OFFSCREEN_NOISE))
+
+
+TILE = (2, 4)
+FRAMES = 6
+SIZE = (32, 48)
+
+
+@pytest.fixture(scope="session")
+def recording(tmp_path_factory):
+    """A simulated recording with ground truth: balls, 2×4 code (K = 8), 6 frames of 32×48."""
+    from flexvox_core.design import design_code
+    from flexvox_core.recording import write_simulation
+    from flexvox_core.simulate.scenes import render_scene
+    from flexvox_core.simulate.simulator import simulate_video
+
+    code = design_code(TILE).code
+    video = render_scene("balls", FRAMES * 8, *SIZE, seed=0)
+    path = tmp_path_factory.mktemp("rec") / "balls.zarr"
+    return write_simulation(path, simulate_video(video, code, rate_hz=15.0))
+
+
+@pytest.fixture(scope="session")
+def naive_psnr(recording):
+    """PSNR of the raw frames repeated K times: every reconstruction must beat it."""
+    from flexvox_core.metrics import psnr
+    from flexvox_core.recording import open_recording
+
+    rec = open_recording(recording)
+    return float(psnr(rec.ground_truth(), np.repeat(rec.normalised_frames(), rec.K, axis=0)).mean)
+
+
+@pytest.fixture
+def settings(tmp_path):
+    """Settings in a temporary INI file."""
+    from app.gui.settings import settings_at
+
+    return settings_at(tmp_path / "settings.ini")
+
+
+@pytest.fixture
+def runner(qapp):
+    """A job runner on its own thread pool, shut down after the test."""
+    from app.gui.application import configure_pyqtgraph
+    from app.gui.qt_jobs import JobRunner
+
+    configure_pyqtgraph()
+    r = JobRunner()
+    yield r
+    assert r.shutdown(10_000), "a background job did not stop"
+
+
+@pytest.fixture
+def review(qtbot, settings, runner):
+    """A Review workspace with the shipped bench figures."""
+    from app.gui.expected_quality import load_table
+    from app.gui.review_workspace import ReviewWorkspace
+
+    ws = ReviewWorkspace(settings, runner, load_table())
+    qtbot.addWidget(ws)
+    ws.resize(1200, 800)
+    return ws
+
+
+@pytest.fixture
+def opened(qtbot, review, recording):
+    """The Review workspace with the recording open (preview off, so tests control the jobs)."""
+    review.preview_check.setChecked(False)
+    review.open_recording(recording)
+    qtbot.waitUntil(lambda: review.session is not None, timeout=10_000)
+    return review
+
+
+def small_rig(**kw):
+    """The simulated rig, small, on real time."""
+    from rig_drivers.profile import open_rig
+
+    kw.setdefault("scene", "balls")
+    kw.setdefault("camera_size", (48, 64))
+    kw.setdefault("subframes", 64)
+    return open_rig("mock", **kw)

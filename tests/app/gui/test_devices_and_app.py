@@ -1,0 +1,135 @@
+"""Device panel, main window, and ``flexvox app`` started and quit."""
+
+import argparse
+
+import pytest
+
+from app.cli.errors import CliError
+from app.gui.calibrate_page import CalibratePage
+from app.gui.device_panel import DevicePanel
+from app.gui.main_window import WORKSPACES
+from app.gui.rig_service import RigService
+from rig_drivers.errors import DevicePermissionError
+from rig_drivers.interfaces import DeviceState
+from rig_drivers.profile import MOCK_SPEC, Rig
+from rig_drivers.simulated import SimulatedProjector
+
+from .conftest import small_rig
+
+
+class LockedProjector(SimulatedProjector):
+    """A projector whose USB device the user may not open (no udev rule)."""
+
+    def _do_open(self):
+        raise DevicePermissionError("permission denied on USB 0451:6401: add the udev rule (see README)")
+
+
+def test_device_panel_connects_and_disconnects(qtbot):
+    service = RigService(small_rig())
+    panel = DevicePanel(service)
+    qtbot.addWidget(panel)
+    cam = service.rig.camera
+    assert "closed" in panel.state_text("camera") and "(simulated)" in panel.rows["camera"]["name"].text()
+    panel.rows["camera"]["button"].click()
+    assert cam.state is DeviceState.ENABLED and "enabled" in panel.state_text("camera")
+    assert panel.rows["camera"]["button"].text() == "Disconnect"
+    panel.rows["camera"]["button"].click()
+    assert cam.state is DeviceState.CLOSED and "closed" in panel.state_text("camera")
+    service.close()
+
+
+def test_device_panel_says_the_last_error_in_words(qtbot):
+    sim = small_rig()
+    rig = Rig(LockedProjector(name="LightCrafter 4500"), sim.camera, None, MOCK_SPEC)
+    service = RigService(rig)
+    panel = DevicePanel(service)
+    qtbot.addWidget(panel)
+    assert not service.connect("projector")
+    err = panel.rows["projector"]["error"]
+    assert err.isVisibleTo(panel) and "connect failed: permission denied" in err.text() and "udev" in err.text()
+    assert "closed" in panel.state_text("projector")
+    assert panel.state_text("sync") == "—" and not panel.rows["sync"]["button"].isEnabled()
+    assert "TRIG_OUT_2" in panel.rows["sync"]["name"].text()
+    assert service.connect("camera") and not panel.rows["camera"]["error"].isVisibleTo(panel)
+    service.close()
+
+
+def test_calibrate_page_is_an_honest_placeholder(qtbot):
+    for available, phrase in ((True, "flexvox calibrate --rig mock"), (False, "not registered yet")):
+        page = CalibratePage(cli_available=available)
+        qtbot.addWidget(page)
+        text = page.label.text()
+        assert phrase in text and "Homography wizard" in text and "not in the app yet" in text
+
+
+def test_main_window_has_the_three_workspaces_and_closes_cleanly(qtbot, settings, runner, recording):
+    from app.gui.application import build_window
+
+    window = build_window(small_rig(), settings=settings, runner=runner, recording=recording, calibrate_cli=False)
+    qtbot.addWidget(window)
+    window.show()
+    assert [window.tabs.tabText(i) for i in range(window.tabs.count())] == list(WORKSPACES)
+    assert window.tabs.currentWidget() is window.review
+    qtbot.waitUntil(lambda: window.review.session is not None, timeout=10_000)
+    window.service.connect("camera")
+    window.show_workspace("Capture")
+    window.close()
+    assert window.service.rig.camera.state is DeviceState.CLOSED
+    assert settings.get_int("window/tab", -1) == 1 and settings.get_bytes("window/geometry") is not None
+    assert settings.get_str("review/last_recording") == str(recording)
+
+
+APP_SCRIPT = """
+import argparse, sys
+from PySide6.QtCore import QTimer
+from PySide6.QtWidgets import QApplication
+from app.cli import app as cli_app
+from app.gui.application import ensure_application
+from app.gui.main_window import MainWindow
+
+qapp = ensure_application()
+parser = argparse.ArgumentParser()
+cli_app.register(parser.add_subparsers())
+args = parser.parse_args(["app", sys.argv[1], "--rig", "mock"])
+
+def close_when_ready():
+    windows = [w for w in QApplication.topLevelWidgets() if isinstance(w, MainWindow) and w.isVisible()]
+    if windows and windows[0].review.session is not None:
+        print("title:", windows[0].windowTitle())
+        print("summary:", windows[0].review.summary_label.text())
+        windows[0].close()
+        qapp.quit()
+    else:
+        QTimer.singleShot(50, close_when_ready)
+
+QTimer.singleShot(50, close_when_ready)
+status = args.func(args)
+print("status:", status)
+"""
+
+
+def test_flexvox_app_starts_and_quits(recording, tmp_path):
+    """``flexvox app REC`` through the CLI module, in its own process (it runs and quits the event loop):
+    the window opens the recording, closes, and the exit status is 0. Settings go to a temp folder."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, QT_QPA_PLATFORM="offscreen", XDG_CONFIG_HOME=str(tmp_path), HOME=str(tmp_path))
+    out = subprocess.run([sys.executable, "-c", APP_SCRIPT, str(recording)], capture_output=True, text=True,
+                         env=env, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "title: flexvox — simulated rig" in out.stdout and "6 frames of 48×32" in out.stdout
+    assert "status: 0" in out.stdout
+    assert list(tmp_path.rglob("flexvox.conf")), "settings were not saved where QSettings was pointed"
+
+
+def test_flexvox_app_refuses_bad_arguments(tmp_path):
+    from app.cli import app as cli_app
+
+    parser = argparse.ArgumentParser()
+    cli_app.register(parser.add_subparsers())
+    with pytest.raises(CliError, match="no such recording"):
+        cli_app.run(parser.parse_args(["app", str(tmp_path / "none.zarr")]))
+    with pytest.raises(CliError, match="none.toml"):
+        cli_app.run(parser.parse_args(["app", "--rig", str(tmp_path / "none.toml")]))

@@ -1,0 +1,253 @@
+"""The Qt-free models and services of app.gui: continuum, expected quality, jobs, capture plan, live stats."""
+
+import json
+import math
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from app.gui.capture_plan import CapturePlan
+from app.gui.continuum import continuum_division, continuum_tensor, describe, ordered_divisions, tensor_position
+from app.gui.expected_quality import BENCH_CSV, TABLE_PATH, build_table, expected, load_table, parse_label
+from app.gui.jobs import Cancelled, CancelToken, chunk_frames_for, preview_window, run_reconstruction
+from app.gui.live_stats import LiveStats, histogram, saturation_level
+from flexvox_core.design import design_code
+from flexvox_core.reconstruct.rebin import supported_divisions
+from flexvox_core.reconstruct.run import Method
+from rig_drivers.interfaces import Frame
+
+# ---------------------------------------------------------------- continuum
+
+
+def test_continuum_ends_are_the_seeds_tensors_and_the_middle_is_isotropic():
+    assert continuum_tensor(0) == (0.05, 0.05, 1.0)
+    assert continuum_tensor(1) == (1.0, 1.0, 0.05)
+    assert continuum_tensor(0.5) == (1.0, 1.0, 1.0)
+    assert continuum_tensor(0.18) == pytest.approx((0.15, 0.15, 1.0), abs=0.01)  # the default tensor
+
+
+def test_continuum_moves_monotonically_from_space_to_time_and_inverts():
+    ps = np.linspace(0, 1, 41)
+    ratios = [continuum_tensor(p)[2] / continuum_tensor(p)[0] for p in ps]
+    assert all(a > b for a, b in zip(ratios, ratios[1:], strict=False))
+    assert all(max(continuum_tensor(p)) == 1.0 for p in ps)
+    for p in ps:
+        assert tensor_position(continuum_tensor(p)) == pytest.approx(p, abs=0.01)
+
+
+def test_continuum_walks_the_divisions_by_tr():
+    divs = supported_divisions(design_code((4, 4)).code)
+    assert continuum_division(0, divs).label == "1x1x16"
+    assert continuum_division(1, divs).label == "4x4x1"
+    trs = [continuum_division(p, divs).tr for p in np.linspace(0, 1, 21)]
+    assert trs == sorted(trs)
+    assert [d.tr for d in ordered_divisions(divs)] == sorted(d.tr for d in divs)
+
+
+@pytest.mark.parametrize("p", [-0.1, 1.5, float("nan"), True, "0.5"])
+def test_continuum_refuses_positions_outside_the_slider(p):
+    with pytest.raises(ValueError, match=r"`p` must be a number in \[0, 1\]"):
+        continuum_tensor(p)
+
+
+def test_describe_says_which_way_it_leans():
+    assert describe(0).startswith("high SR") and describe(1).startswith("high TR")
+    assert describe(0.5).startswith("balanced")
+
+
+# ---------------------------------------------------------------- expected quality
+
+
+def test_shipped_table_is_generated_from_the_bench_csv():
+    if not BENCH_CSV.exists():
+        pytest.skip("docs/bench/results.csv is not in this checkout")
+    assert json.loads(TABLE_PATH.read_text()) == json.loads(json.dumps(build_table(BENCH_CSV)))
+
+
+def test_build_table_takes_psnr_of_the_mean_mse_and_separates_sci(tmp_path):
+    csv = tmp_path / "r.csv"
+    csv.write_text(
+        "case,K,family,method,psnr,mse,ssim,seconds,mvoxels_per_s\n"
+        "a K=8,8,gap-tv,gap-tv 40 it,20,0.01,0.5,1.0,2.0\n"
+        "b K=8,8,gap-tv,gap-tv 40 it,30,0.001,0.7,3.0,1.0\n"
+        "runner (SCI) K=8,8,gap-tv,gap-tv 40 it,29.4,0.001,0.9,0.5,4.0\n"
+    )
+    (e,) = build_table(csv)["entries"]
+    assert e["psnr"] == pytest.approx(10 * math.log10(1 / 0.0055), abs=0.01)
+    assert (e["ssim"], e["seconds"], e["scenes"], e["sci_psnr"]) == (0.6, 2.0, 2, 29.4)
+    assert e["knobs"] == {"name": "gap-tv", "iterations": 40}
+
+
+@pytest.mark.parametrize("label, knobs", [
+    ("rebin 2x1x4 interp", {"name": "rebin", "block": "2x1x4", "interpolate": True}),
+    ("diffusion nc (0.15,0.15,1) n=0.5", {"name": "diffusion", "solver": "nc", "tensor": [0.15, 0.15, 1.0],
+                                          "time": 0.5}),
+    ("motion-aware dis n=4 x2", {"name": "motion-aware", "flow": "dis", "time": 4.0, "refine_time": 0.0,
+                                 "passes": 2}),
+])
+def test_parse_label_reads_method_labels(label, knobs):
+    assert parse_label(label) == knobs
+
+
+def test_parse_label_refuses_unknown_labels():
+    with pytest.raises(ValueError, match="unknown bench method label 'pnp-ffdnet'"):
+        parse_label("pnp-ffdnet")
+
+
+def test_expected_matches_exact_rows_and_interpolates_between_times():
+    table = load_table()
+    code = design_code((4, 4)).code
+    vox = 16 * 6 * 96 * 128  # the bench's own size: time = the bench's seconds
+    exact = expected(table, Method("diffusion", tensor=(0.15, 0.15, 1.0), time=1.0), code, voxels=vox)
+    row = next(e for e in table["entries"] if e["K"] == 16 and e["label"] == "diffusion nc (0.15,0.15,1) n=1")
+    assert not exact.approximate and exact.psnr == row["psnr"]
+    lo = expected(table, Method("diffusion", tensor=(0.15, 0.15, 1.0), time=1.0), code, voxels=vox)
+    hi = expected(table, Method("diffusion", tensor=(0.15, 0.15, 1.0), time=2.0), code, voxels=vox)
+    mid = expected(table, Method("diffusion", tensor=(0.15, 0.15, 1.0), time=1.5), code, voxels=vox)
+    assert mid.approximate and "interpolated" in mid.basis
+    assert min(lo.psnr, hi.psnr) <= mid.psnr <= max(lo.psnr, hi.psnr)
+    ma = expected(table, Method("motion-aware", time=4.0), code, voxels=vox)
+    gap = expected(table, Method("gap-tv"), code, voxels=vox)
+    assert ma.seconds > 10 * exact.seconds and gap.psnr < ma.psnr  # what the bench found
+    twice = expected(table, Method("gap-tv"), code, voxels=2 * vox)
+    assert twice.seconds == pytest.approx(2 * gap.seconds)
+    other_k = expected(table, Method("rebin"), design_code((3, 5)).code, voxels=vox)
+    assert other_k.approximate and other_k.basis.startswith("bench K=16")
+
+
+def test_missing_table_gives_no_expectation(tmp_path, caplog):
+    assert load_table(tmp_path / "none.json") is None
+    assert "no expected-quality table" in caplog.text
+    assert expected(None, Method(), design_code((2, 2)).code, voxels=10) is None
+
+
+# ---------------------------------------------------------------- jobs
+
+
+def _capture():
+    from flexvox_core.forward import capture
+    from flexvox_core.simulate.scenes import render_scene
+
+    code = design_code((2, 4)).code
+    truth = render_scene("balls", 6 * 8, 24, 32, seed=0)
+    return capture(truth, code), code, truth
+
+
+def test_run_reconstruction_cancels_between_chunks():
+    frames, code, _ = _capture()
+    token = CancelToken()
+    seen = []
+
+    def progress(done, total):
+        seen.append(done)
+        token.cancel()  # the user presses Cancel after the first chunk
+
+    with pytest.raises(Cancelled, match="cancelled"):
+        run_reconstruction(frames, code, Method("gap-tv", iterations=5), cancel=token, progress=progress,
+                           chunk_frames=1)
+    assert seen == [1]
+
+
+def test_run_reconstruction_does_not_depend_on_chunks_and_scores_against_truth():
+    frames, code, truth = _capture()
+    a = run_reconstruction(frames, code, Method("motion-aware"), chunk_frames=2, truth=truth)
+    b = run_reconstruction(frames, code, Method("diffusion"), chunk_frames=2, truth=truth)
+    c = run_reconstruction(frames, code, Method("diffusion"), chunk_frames=6, truth=truth)
+    np.testing.assert_allclose(b.video, c.video, atol=1e-6)
+    assert a.flow.shape == (48, 24, 32, 2) and a.tr.shape == (48, 24, 32)
+    assert 1 <= a.tr.min() and a.tr.max() <= 8
+    assert b.flow is None and b.psnr > 18 and "dB" in b.label()
+
+
+def test_chunk_sizes_and_preview_windows():
+    assert chunk_frames_for(Method("gap-tv"), 100) == 1
+    assert chunk_frames_for(Method("motion-aware"), 10) == 8
+    assert chunk_frames_for(Method("diffusion"), 200) == 20
+    assert preview_window(10, 0) == (0, 3) and preview_window(10, 9) == (7, 10) and preview_window(10, 5) == (4, 7)
+    assert preview_window(2, 1) == (0, 2)
+    with pytest.raises(ValueError, match="`n_frames` must be >= 1"):
+        preview_window(0, 0)
+
+
+# ---------------------------------------------------------------- capture plan and live stats
+
+
+def test_capture_plan_timing_of_the_design_example():
+    t = CapturePlan((4, 4), camera_hz=15.0).timing()
+    assert (t.period_us, t.projector_exposure_us, t.sequence_us) == (4166, 4166, 66656)
+    assert t.ok
+    drift = next(n for n in t.notes if "drifts one slot every" in n)
+    assert "every 26 s" in drift  # DESIGN.md §5
+
+
+@pytest.mark.parametrize("plan, message", [
+    (CapturePlan((4, 4), camera_hz=15.0, projector_exposure_us=4000), r"at most period - 230 µs = 3936 µs"),
+    (CapturePlan((4, 4), camera_hz=1000.0), r"no shorter than 235 µs \(at most 266 Hz at this K\)"),
+    (CapturePlan((4, 4), camera_hz=15.0, camera_exposure_us=40_000), r"misses the last 7 of 16 slots"),
+    (CapturePlan((4, 4), camera_hz=15.0, camera_exposure_us=70_000), r"longer than the frame period"),
+])
+def test_capture_plan_timing_errors_name_the_rule(plan, message):
+    t = plan.timing()
+    assert not t.ok
+    assert any(__import__("re").search(message, e) for e in t.errors), t.errors
+
+
+def test_capture_plan_codes_and_resolutions():
+    ident = CapturePlan((4, 4))
+    assert [(d.tr, str(d.sr)) for d in ident.resolutions()][0] == (1, "1")
+    assert len(ident.resolutions()) == 9
+    mux = CapturePlan((3, 5), multiplexed=True)
+    assert "S-matrix" in mux.code_summary() and mux.code.shape == (3, 5, 15)
+    with pytest.raises(ValueError, match=r"no S-matrix exists for K = 16"):
+        CapturePlan((4, 4), multiplexed=True).code  # noqa: B018 - the property raises
+    seq = ident.sequence((20, 30))
+    assert seq.patterns.shape == (16, 20, 30) and seq.period_us == 4166
+    assert np.array_equal(seq.patterns.sum(axis=0), np.ones((20, 30)))  # identity: one slot per pixel
+
+
+def test_live_stats_count_drops_fps_and_saturation():
+    s = LiveStats(window=5)
+    img = np.zeros((4, 5), np.uint16)
+    img[0, :2] = 65535
+    for fid, t in ((0, 0.0), (1, 0.1), (4, 0.4), (5, 0.5)):
+        s.update(Frame(img, frame_id=fid, timestamp_s=t))
+    assert (s.received, s.dropped) == (4, 2)
+    assert s.fps == pytest.approx(6.0)  # 3 intervals in 0.5 s: frames received, drops excluded
+    assert s.saturated_fraction == pytest.approx(0.1)
+    assert "2 dropped" in s.text() and "6.0 fps" in s.text()
+    assert saturation_level(np.zeros(2, np.float32)) == 1.0
+    counts, edges = histogram(img, bins=4)
+    assert counts.sum() == 20 and edges[-1] == 65535
+
+
+# ---------------------------------------------------------------- Qt stays out of the models
+
+QT_FREE = ("app.gui", "app.gui.continuum", "app.gui.expected_quality", "app.gui.jobs", "app.gui.review_session",
+           "app.gui.rig_service", "app.gui.capture_plan", "app.gui.live_stats", "app.gui.live_source")
+
+
+def test_models_and_services_import_with_qt_blocked():
+    script = textwrap.dedent(f"""
+        import importlib, importlib.abc, sys
+
+        class BlockQt(importlib.abc.MetaPathFinder):
+            BLOCKED = ("PySide6", "PyQt5", "PyQt6", "shiboken6", "pyqtgraph", "qtpy")
+
+            def find_spec(self, name, path=None, target=None):
+                if name.split(".")[0] in self.BLOCKED:
+                    raise ImportError("Qt is blocked: " + name)
+                return None
+
+        sys.meta_path.insert(0, BlockQt())
+        for name in {QT_FREE!r}:
+            importlib.import_module(name)
+        import app.cli.app
+        print("ok")
+    """)
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "ok"
+

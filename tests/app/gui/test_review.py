@@ -1,0 +1,196 @@
+"""The Review workspace driven through its widgets on a simulated recording."""
+
+import numpy as np
+import pytest
+import tifffile
+from PySide6.QtCore import QTimer
+
+from app.gui.review_workspace import ReviewWorkspace
+
+from .conftest import FRAMES, SIZE
+
+S = FRAMES * 8  # sub-frames of the test recording (K = 8)
+
+
+def reconstruct(qtbot, ws, method: str, position: float | None = None, **knobs):
+    ws.form.set_method_name(method)
+    if position is not None:
+        ws.form.set_position(position)
+    for name, value in knobs.items():
+        getattr(ws.form, name).setValue(value)
+    n = len(ws.results)
+    with qtbot.waitSignal(ws.result_added, timeout=30_000):
+        ws.reconstruct_button.click()
+    assert len(ws.results) == n + 1
+    return ws.results[-1]
+
+
+def test_open_shows_the_recording_and_plays_it(qtbot, opened):
+    ws = opened
+    assert "6 frames of 48×32" in ws.summary_label.text() and "K = 8" in ws.summary_label.text()
+    assert ws.raw_panel.has_image() and ws.raw_panel.image.image.shape == SIZE
+    np.testing.assert_array_equal(ws.raw_panel.image.image, ws.session.raw[0])
+    assert ws.frame_slider.maximum() == S - 1
+    assert ws.reconstruct_button.isEnabled() and not ws.cancel_button.isEnabled()
+    assert "dB PSNR" in ws.expected_label.text()
+    ws.fps.setValue(100)
+    ws.play_button.click()
+    assert ws.playing and ws.play_button.text() == "Pause"
+    qtbot.waitUntil(lambda: ws.subframe >= 16, timeout=5000)
+    assert ws.subframe % 8 == 0  # without a reconstruction, playback steps whole camera frames
+    ws.play_button.click()
+    assert not ws.playing
+    f = ws.subframe // 8
+    np.testing.assert_array_equal(ws.raw_panel.image.image, ws.session.raw[f])
+
+
+def test_open_failure_is_said_in_words(qtbot, review, tmp_path):
+    (tmp_path / "junk.zarr").mkdir()
+    review.open_recording(tmp_path / "junk.zarr")
+    qtbot.waitUntil(lambda: "cannot open" in review.path_label.text(), timeout=5000)
+    assert "not a flexvox recording" in review.path_label.text() or "Zarr" in review.path_label.text()
+    assert review.session is None and not review.reconstruct_button.isEnabled()
+
+
+@pytest.mark.parametrize("method, knobs", [
+    ("rebin", {"position": 0.5}),  # the balanced division (2x1x4 / 1x2x4)
+    ("diffusion", {"position": 0.18}),  # the default tensor
+    ("gap-tv", {"iterations": 20}),
+    ("motion-aware", {}),
+])
+def test_reconstruct_each_method_beats_the_raw_frames(qtbot, opened, naive_psnr, method, knobs):
+    r = reconstruct(qtbot, opened, method, **knobs)
+    assert r.method.name == method
+    assert r.video.shape == (S, *SIZE) and r.video.dtype == np.float32
+    assert 0 <= r.video.min() and r.video.max() <= 1
+    assert r.psnr > naive_psnr + 0.8, (r.psnr, naive_psnr)
+    assert f"{r.psnr:.2f} dB" in opened.result_label.text()
+    assert opened.progress.value() == FRAMES
+    # The reconstruction panel now shows the result at the current sub-frame, and playback steps sub-frames.
+    opened.frame_slider.setValue(13)
+    np.testing.assert_array_equal(opened.recon_panel.image.image, r.video[13])
+    opened._tick()
+    assert opened.subframe == 14
+
+
+def test_event_loop_runs_during_a_reconstruction_and_cancel_stops_it(qtbot, opened):
+    ws = opened
+    ticks = []
+    timer = QTimer()
+    timer.timeout.connect(lambda: ticks.append(1))
+    timer.start(10)
+    ws.form.set_method_name("gap-tv")
+    ws.form.iterations.setValue(500)  # about 0.1-0.2 s per camera frame: a slow job of 6 chunks
+    handle = ws.reconstruct()
+    assert ws.cancel_button.isEnabled() and not ws.reconstruct_button.isEnabled()
+    qtbot.waitUntil(lambda: ws.progress.value() >= 1, timeout=20_000)  # the first chunk is done
+    assert len(ticks) >= 3, "the GUI thread's timer did not run while the reconstruction ran"
+    ws.cancel_button.click()
+    qtbot.waitUntil(lambda: not handle.running, timeout=20_000)
+    timer.stop()
+    assert handle.outcome == "cancelled"
+    assert ws.progress.value() == 0 and handle.result is None
+    assert ws.results == [] and "cancelled" in ws.result_label.text()
+    qtbot.waitUntil(lambda: ws.reconstruct_button.isEnabled(), timeout=2000)
+    assert not ws.cancel_button.isEnabled()
+
+
+def test_continuum_slider_changes_the_method_and_recomputes_the_preview(qtbot, opened):
+    ws = opened
+    ws.preview_check.setChecked(True)
+    ws.form.set_method_name("diffusion")
+    ws.frame_slider.setValue(3 * 8 + 2)
+    ws.form.set_position(0.0)
+    assert ws.form.method().tensor == (0.05, 0.05, 1.0)
+    assert "high SR" in ws.form.slider_text.text()
+    qtbot.waitUntil(lambda: ws.shown is not None and ws.shown.method.tensor == (0.05, 0.05, 1.0), timeout=10_000)
+    high_sr = ws.shown
+    assert high_sr.extra["preview"] and high_sr.first_frame == 2 and high_sr.video.shape == (24, *SIZE)
+    assert "preview" in ws.recon_panel.title.text()
+    ws.form.set_position(1.0)
+    assert ws.form.method().tensor == (1.0, 1.0, 0.05)
+    qtbot.waitUntil(lambda: ws.shown.method.tensor == (1.0, 1.0, 0.05), timeout=10_000)
+    assert not np.allclose(ws.shown.video, high_sr.video)
+    np.testing.assert_array_equal(ws.recon_panel.image.image, ws.shown.video[3 * 8 + 2 - 16])
+    # Re-binning: the slider walks the divisions from TR 1 to TR K.
+    ws.form.set_method_name("rebin")
+    ws.form.set_position(0.0)
+    assert ws.form.method().block.label == "1x1x8"
+    ws.form.set_position(1.0)
+    assert ws.form.method().block.label == "2x4x1" and "TR ×8" in ws.form.slider_text.text()
+    ws.form.set_method_name("gap-tv")
+    assert not ws.form.slider.isEnabled()
+
+
+@pytest.mark.parametrize("suffix", [".npy", ".tif", ".mp4"])
+def test_export_writes_the_reconstruction(qtbot, opened, tmp_path, suffix):
+    r = reconstruct(qtbot, opened, "diffusion")
+    path = tmp_path / f"out{suffix}"
+    handle = opened.export(path)
+    qtbot.waitUntil(lambda: not handle.running, timeout=10_000)
+    assert handle.outcome == "finished"
+    assert path.exists() and f"wrote {path}" in opened.export_label.text()
+    if suffix == ".npy":
+        np.testing.assert_array_equal(np.load(path), r.video)
+    elif suffix == ".tif":
+        np.testing.assert_array_equal(tifffile.imread(path), r.video)
+    else:
+        assert path.stat().st_size > 1000
+    again = opened.export(path)  # no silent overwrite
+    qtbot.waitUntil(lambda: not again.running, timeout=10_000)
+    assert again.outcome == "failed"
+    assert "already exists" in opened.export_label.text()
+
+
+def test_export_needs_a_full_reconstruction(opened):
+    assert opened.export("/nonexistent/x.npy") is None
+    assert "reconstruct all frames first" in opened.export_label.text()
+
+
+def test_compare_shows_two_reconstructions_side_by_side(qtbot, opened):
+    a = reconstruct(qtbot, opened, "rebin")
+    b = reconstruct(qtbot, opened, "motion-aware")
+    cv = opened.compare_view
+    assert cv.box_a.count() == 2 and (cv.box_a.currentIndex(), cv.box_b.currentIndex()) == (0, 1)
+    opened.frame_slider.setValue(20)
+    np.testing.assert_array_equal(cv.panel_a.image.image, a.video[20])
+    np.testing.assert_array_equal(cv.panel_b.image.image, b.video[20])
+    assert "rebin" in cv.panel_a.title.text() and "dB" in cv.panel_a.title.text()
+    assert "motion-aware" in cv.panel_b.title.text()
+    cv.select(1, 0)
+    np.testing.assert_array_equal(cv.panel_a.image.image, b.video[20])
+    cv.panel_a.view.setRange(xRange=(0, 10), yRange=(0, 10), padding=0)  # zoom A: B follows
+    assert cv.panel_b.view.viewRange()[0] == pytest.approx(cv.panel_a.view.viewRange()[0])
+
+
+def test_motion_tab_shows_flow_and_resolution_map(qtbot, opened):
+    mv = opened.motion_view
+    assert not mv.flow_panel.has_image()
+    r = reconstruct(qtbot, opened, "motion-aware")
+    opened.frame_slider.setValue(21)
+    colour = mv.flow_panel.image.image.copy()
+    assert colour.shape == (*SIZE, 3) and colour.dtype == np.uint8
+    np.testing.assert_array_equal(mv.map_panel.image.image, r.tr[21])
+    assert mv.map_panel.image.levels.tolist() == [1, 8]
+    mv.quiver.setChecked(True)
+    assert mv.mode == "quiver" and not np.array_equal(mv.flow_panel.image.image, colour)
+    opened.form.set_method_name("diffusion")
+    reconstruct(qtbot, opened, "diffusion")
+    assert not mv.flow_panel.has_image() and "motion-aware" in mv.note.text()
+
+
+def test_settings_persist_between_sessions(qtbot, settings, runner, recording):
+    first = ReviewWorkspace(settings, runner, None)
+    qtbot.addWidget(first)
+    first.form.set_method_name("gap-tv")
+    first.form.iterations.setValue(77)
+    first.form.set_position(0.7)
+    first.fps.setValue(33)
+    first.preview_check.setChecked(False)
+    settings.sync()
+    second = ReviewWorkspace(settings, runner, None)
+    qtbot.addWidget(second)
+    assert second.form.method_box.currentText() == "gap-tv" and second.form.iterations.value() == 77
+    assert second.form.position == pytest.approx(0.7) and second.fps.value() == 33
+    assert not second.preview_check.isChecked()
+    assert "no bench figures" in second.expected_label.text() or "open a recording" in second.expected_label.text()

@@ -1,8 +1,8 @@
 """The Capture workspace (first slice): code, timing check, live view with histogram, saturation and counters.
 
-Recording to disk comes with the capture service (``app/capture/``, being written): the
-workspace takes it as ``recorder`` in its constructor. Until it exists the Recording box says
-so instead of offering a button that would do nothing.
+Recording to disk from this window will use the capture service (``app/capture/``), passed as
+``recorder`` in the constructor. It is not wired yet, so the Recording box says how to record
+from a terminal instead of offering a button that would do nothing.
 """
 
 from __future__ import annotations
@@ -39,8 +39,9 @@ from app.gui.settings import AppSettings
 
 _logger = logging.getLogger(__name__)
 
-RECORDING_PENDING = ("Recording to disk arrives with the capture service (app/capture/, in progress). "
-                     "The live view here does not record; use `flexvox simulate` for test recordings.")
+RECORDING_PENDING = ("Recording from this window is not wired yet. Record with the capture service from a "
+                     "terminal — `flexvox capture --rig mock -o REC.zarr --frames N` — then open REC.zarr "
+                     "in Review. The live view here does not record.")
 DISPLAY_HZ = 30
 """The live image is redrawn at most this often, whatever the camera's rate."""
 SATURATION_RGBA = (255, 0, 0, 170)

@@ -87,7 +87,7 @@ def test_code_choice_lists_tr_sr_and_multiplexed_codes(capture):
 def test_recording_waits_for_the_capture_service(capture):
     assert capture.recorder is None
     assert capture.recording_label.text() == RECORDING_PENDING
-    assert "arrives with the capture service" in RECORDING_PENDING
+    assert "not wired yet" in RECORDING_PENDING and "flexvox capture" in RECORDING_PENDING
 
 
 def test_a_camera_that_stops_delivering_ends_the_live_view_with_the_reason(qtbot, capture):

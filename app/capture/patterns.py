@@ -27,16 +27,7 @@ import numpy as np
 
 from flexvox_core.codes import validate_code
 from flexvox_core.forward import tiled_code
-
-
-def check_homography(homography) -> np.ndarray:
-    """A finite, invertible 3×3 matrix as float64 scaled to ``h[2, 2] = 1``."""
-    h = np.asarray(homography, dtype=np.float64)
-    if h.shape != (3, 3) or not np.isfinite(h).all():
-        raise ValueError(f"`homography` must be a finite 3x3 matrix; got shape {h.shape}")
-    if abs(h[2, 2]) < 1e-12 or abs(np.linalg.det(h)) < 1e-12:
-        raise ValueError("`homography` must be invertible with h[2, 2] != 0")
-    return h / h[2, 2]
+from rig_drivers.simulated_rig import check_homography  # noqa: F401 - re-exported for the service
 
 
 def shutter_patterns(code, camera_size, projector_size, *, homography=None, phase_slots: int = 0) -> np.ndarray:

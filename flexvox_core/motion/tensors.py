@@ -71,10 +71,9 @@ def resolution_map(flow, K: int, c=DEFAULT_C) -> tuple[np.ndarray, np.ndarray]:
     ``diag(1, 1, 0)`` at [K, 1/K], as the seed's limiting cases.
     """
     c1, c2, c3 = check_c(c)
-    f = np.asarray(flow, dtype=np.float64)
-    s2 = f[..., 0] ** 2 + f[..., 1] ** 2
-    s2 = np.where(np.isfinite(s2), s2, 0.0)
-    t_tt = (c1 + c3 * s2) / (1 + s2)
-    tau = t_tt / (c1 + c2 + c3)
-    tr = np.power(float(K), 1 - tau)
-    return tr.astype(np.float32), (1 / tr).astype(np.float32)
+    f = np.asarray(flow, dtype=np.float32)
+    s2 = f[..., 0] * f[..., 0] + f[..., 1] * f[..., 1]
+    s2 = np.where(np.isfinite(s2), s2, np.float32(0))
+    tau = (np.float32(c1) + np.float32(c3) * s2) / ((1 + s2) * np.float32(c1 + c2 + c3))
+    tr = np.exp((1 - tau) * np.float32(np.log(K)))
+    return tr, 1 / tr

@@ -69,14 +69,16 @@ class MotionAwareResult:
     seconds: dict = field(default_factory=dict)
 
 
-def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, scale: float = 0.5) -> FlowField:
+def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, scale: float = 0.5,
+               consistency: bool = False) -> FlowField:
     """Flow of ``video`` with still regions (per the K-average motion detector) set to zero."""
     lo, hi = gate
     if not 0 <= lo < hi:
         raise ValueError(f"`gate` must be two thresholds 0 <= low < high (px per sub-frame); got {gate!r}")
-    raw = estimate_flow(video, backend=backend, scale=scale)
+    raw = estimate_flow(video, backend=backend, scale=scale, consistency=consistency)
     if K > 1 and video.shape[0] > 1:
-        detector = estimate_flow(uniform_filter1d(video, K, axis=0, mode="nearest"), scale=min(scale, 0.25))
+        detector = estimate_flow(uniform_filter1d(video, K, axis=0, mode="nearest"), scale=min(scale, 0.25),
+                                 consistency=False)
         ramp = np.clip((detector.magnitude - lo) / (hi - lo), 0, 1).astype(np.float32)
         raw.flow = raw.flow * ramp[..., None]
         raw.seconds += detector.seconds
@@ -95,6 +97,7 @@ def motion_aware(
     gate=DEFAULT_GATE,
     flow_scale: float = 0.5,
     still_speed: float | None = STILL_SPEED,
+    flow_consistency: bool = False,
 ) -> MotionAwareResult:
     """Motion-aware reconstruction of an identity-code capture.
 
@@ -118,6 +121,9 @@ def motion_aware(
     still_speed : float or None
         Voxels slower than this take the fixed-tensor result (see :data:`STILL_SPEED`);
         None gathers along trajectories everywhere.
+    flow_consistency : bool
+        Also compute backward flow for a forward–backward confidence map. Off by default: on
+        the built-in scenes it changed PSNR by at most 0.06 dB and cost 10–40 % of the flow time.
     """
     f = check_frames(frames)
     code = check_identity_code(code)
@@ -141,7 +147,7 @@ def motion_aware(
     still_value_cache = None
     for _ in range(passes):
         t0 = _now()
-        field_ = gated_flow(current, K, backend=flow, gate=gate, scale=flow_scale)
+        field_ = gated_flow(current, K, backend=flow, gate=gate, scale=flow_scale, consistency=flow_consistency)
         seconds["flow"] += _now() - t0
         t0 = _now()
         still = still_value = None

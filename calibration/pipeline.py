@@ -17,7 +17,9 @@ class CalibrationRun:
         ``failed`` naming the first step that failed.
     success : bool
     keep : dict
-        The results worth saving: ``homography`` (a HomographyResult), ``sync`` (a SyncResult).
+        The full results: ``homography`` (a HomographyResult, with its residual map), ``shutter``
+        (the verification, with its map of wrong pixels), ``parallax`` (simulated rig), ``sync``
+        (a SyncResult, with its leakage curve).
     """
 
     report: dict = field(default_factory=dict)
@@ -58,6 +60,7 @@ def run_calibration(rig, session, *, tile=(4, 4), seed: int = 0, baseline=(0.0, 
                 far = capture_view(far_session, progress=progress("parallax: far target"))
             par = parallax_test([near, far], session.projector_size)
             report["colocation"]["parallax"] = par.summary()
+            keep["parallax"] = par
             colocated = par.success
         else:
             report["colocation"]["parallax"] = {
@@ -78,6 +81,7 @@ def run_calibration(rig, session, *, tile=(4, 4), seed: int = 0, baseline=(0.0, 
         shutter = make_shutter_patterns(code, hom.homography, session.camera_size, session.projector_size)
         ver = verify_shutter(session, shutter, progress=progress("shutter"))
         report["shutter"] = ver.summary() | {"addressable": shutter.addressable, "K": K}
+        keep["shutter"] = ver
         sync = measure_sync(session, hom.homography, K=K, progress=progress("sync"))
         report["sync"] = sync.summary()
         keep["sync"] = sync

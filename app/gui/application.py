@@ -33,12 +33,12 @@ def ensure_application() -> QApplication:
 
 
 def build_window(rig, *, settings: AppSettings | None = None, recording=None, runner: JobRunner | None = None,
-                 calibrate_cli: bool | None = None) -> MainWindow:
+                 capture_factory=None) -> MainWindow:
     """The main window over ``rig`` (a :class:`rig_drivers.profile.Rig`), opening ``recording`` if given."""
     configure_pyqtgraph()
     settings = settings or default_settings()
     window = MainWindow(RigService(rig), settings, runner or JobRunner(), load_table(),
-                        calibrate_cli=calibrate_cli)
+                        capture_factory=capture_factory)
     if recording is not None:
         window.show_workspace("Review")
         window.review.open_recording(recording)

@@ -1,63 +1,567 @@
-"""The Calibrate workspace: an honest placeholder until the calibration package's wizards land."""
+"""The Calibrate workspace: the whole calibration off the GUI thread, its results, save; live co-location numbers.
+
+Run calibration runs :func:`app.gui.calibration_model.run_workspace_calibration` (the pipeline
+``flexvox calibrate`` runs) on the job runner, with the step and its pattern count on screen
+and Cancel taking effect between steps and patterns. The results: co-location numbers and the
+parallax verdict; homography RMS, coverage, inliers and the residual heat map; shutter slot
+accuracy and the map of wrong pixels; sync phase and delay with the leakage curve and the delay
+sweep; drop and drift verdicts; on the simulated rig, the hidden truth beside what was found.
+Save writes the calibration file (:func:`calibration.files.save_calibration`).
+
+"Co-location live" re-measures the alignment numbers (:func:`calibration.colocation.measure_alignment`)
+over and over while the operator adjusts the beam splitter; each measurement is a job, the
+next one starts when the previous ended (never two at once, never during a calibration).
+
+The synchronisation wizard lives in :mod:`app.gui.sync_wizard`.
+"""
 
 from __future__ import annotations
 
-from PySide6.QtCore import Qt
-from PySide6.QtWidgets import QLabel, QScrollArea, QVBoxLayout, QWidget
+import html
+import logging
+from pathlib import Path
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import Qt, QTimer, Signal
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QFileDialog,
+    QFormLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QProgressBar,
+    QPushButton,
+    QScrollArea,
+    QSpinBox,
+    QSplitter,
+    QTabWidget,
+    QVBoxLayout,
+    QWidget,
+)
+
+from app.gui.calibration_model import (
+    STEPS,
+    CalibrationOutcome,
+    StepTracker,
+    measure_live_alignment,
+    run_workspace_calibration,
+    summary_rows,
+    target_for,
+    verdict,
+)
+from app.gui.image_panel import ImagePanel
+from app.gui.jobs import CancelToken
+from app.gui.qt_jobs import JobHandle, JobRunner
+from app.gui.rig_service import RigService
+from app.gui.settings import AppSettings
+
+_logger = logging.getLogger(__name__)
+
+TILES = ((4, 4), (2, 4), (4, 2), (2, 2), (3, 5))
+LIVE_INTERVAL_MS = 300
+"""Pause between two live co-location measurements."""
+UNDECODED_RGBA = (60, 60, 90, 255)
+WRONG_RGB = (230, 40, 40)
+RIGHT_RGB = (70, 110, 70)
+RED, GREEN, GREY = "#c0392b", "#1e8449", "#7f8c8d"
 
 
-def calibrate_cli_available() -> bool:
-    """True when ``flexvox calibrate`` is registered in the command line."""
-    from app.cli.main import SUBCOMMANDS
-
-    return any(m.__name__.rsplit(".", 1)[-1] == "calibrate" for m in SUBCOMMANDS)
+def _colour(good: bool | None) -> str:
+    return GREY if good is None else (GREEN if good else RED)
 
 
-def calibrate_text(cli_available: bool) -> str:
-    """What the page says (rich text)."""
-    cli = ("<p>Today, run the whole calibration from a terminal: <code>flexvox calibrate --rig mock</code> "
-           "(or <code>--rig RIG.toml</code>; <code>-o CAL.json</code> saves the homography and sync).</p>"
-           if cli_available else
-           "<p>The command line <code>flexvox calibrate</code> (co-location, homography, shutter masks, "
-           "synchronisation) is being written in <code>calibration/</code> and <code>app/cli/calibrate.py</code>; "
-           "it is <b>not registered yet</b> in this build, so there is no calibration from the app or the "
-           "command line today.</p>")
-    return (
-        "<h2>Calibrate — not in the app yet</h2>"
-        "<p>This workspace will hold three tools, built on the Qt-free <code>calibration</code> package "
-        "(another engineer is writing it now):</p>"
-        "<ol>"
-        "<li><b>Co-location view</b>: the live camera with the expected projector grid overlaid, and the "
-        "offset, rotation, scale and parallax numbers updating while you adjust the beam splitter.</li>"
-        "<li><b>Homography wizard</b>: Gray-code patterns, progress, decoded coverage, residual heat map, "
-        "RMS reprojection error, save.</li>"
-        "<li><b>Synchronisation wizard</b>: wiring checklist, trigger test, phase sweep with its leakage plot, "
-        "drop and drift test, save.</li>"
-        "</ol>"
-        + cli +
-        "<p>Until then the Capture workspace's live view runs with the rig as it is (the simulated rig needs "
-        "no calibration).</p>"
-    )
+def results_html(outcome: CalibrationOutcome) -> str:
+    """The results page (rich text): one table per step with its verdict and message."""
+    parts = []
+    said = ("succeeded: save it" if outcome.success
+            else f"stopped: the {outcome.report.get('failed', 'last')} step failed")
+    verdict_word = (f"<b style='color:{GREEN if outcome.success else RED}'>calibration {html.escape(said)}</b> "
+                    f"in {outcome.seconds:.1f} s")
+    parts.append(f"<p>{verdict_word}</p>")
+    for title, figures, status, message in summary_rows(outcome):
+        word, good = verdict(status)
+        rows = "".join(f"<tr><td>{html.escape(k)}</td><td><b>{html.escape(v)}</b></td></tr>" for k, v in figures)
+        parts.append(f"<h3>{html.escape(title)} <span style='color:{_colour(good)}'>{html.escape(word)}</span></h3>"
+                     f"<table cellspacing='4'>{rows}</table><p>{html.escape(message)}</p>")
+    for note in outcome.notes:
+        parts.append(f"<p style='color:{GREY}'>Note: {html.escape(note)}.</p>")
+    return "".join(parts)
 
 
-class CalibratePage(QWidget):
-    """Says what will be here and which command line exists."""
+class CalibrateWorkspace(QWidget):
+    """Run the whole calibration, show and save its results; live co-location numbers.
 
-    def __init__(self, *, cli_available: bool | None = None, parent: QWidget | None = None):
+    Parameters
+    ----------
+    service : RigService
+    settings : AppSettings
+    runner : JobRunner
+    rig_guard : callable, optional
+        ``() -> str | None``: a reason the rig is busy elsewhere (a recording), asked before a
+        calibration or a live measurement starts on a real rig.
+    """
+
+    status = Signal(str)
+    """A line for the status bar."""
+    calibrated = Signal(object)
+    """A :class:`CalibrationOutcome` (successful or not) after each run."""
+
+    def __init__(self, service: RigService, settings: AppSettings, runner: JobRunner, *, rig_guard=None,
+                 parent: QWidget | None = None):
         super().__init__(parent)
-        available = calibrate_cli_available() if cli_available is None else cli_available
-        self.label = QLabel(calibrate_text(available))
-        self.label.setWordWrap(True)
-        self.label.setTextFormat(Qt.TextFormat.RichText)
-        self.label.setAlignment(Qt.AlignmentFlag.AlignTop | Qt.AlignmentFlag.AlignLeft)
-        self.label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
-        self.label.setMaximumWidth(820)
-        inner = QWidget()
-        v = QVBoxLayout(inner)
-        v.setContentsMargins(24, 16, 24, 16)
-        v.addWidget(self.label)
-        v.addStretch(1)
+        self.service = service
+        self.settings = settings
+        self.runner = runner
+        self.rig_guard = rig_guard
+        self.outcome: CalibrationOutcome | None = None
+        self.job: JobHandle | None = None
+        self.live_job: JobHandle | None = None
+        self.alignment = None
+        """The newest live co-location result."""
+        self.tracker: StepTracker | None = None
+        self._live_target = None
+        self._build()
+
+    # ------------------------------------------------------------------ layout
+    def _build(self) -> None:
+        run = QGroupBox("Calibration")
+        self.rig_label = QLabel(
+            "simulated rig: calibration runs on its calibration target (a still textured wall, a projector "
+            "finer than the camera, a hidden phase and delay drawn from the seed) and is compared with the truth"
+            if self.service.simulated else f"rig profile {html.escape(self.service.name)}: its own devices")
+        self.rig_label.setWordWrap(True)
+        self.seed_box = QSpinBox()
+        self.seed_box.setRange(0, 1_000_000)
+        self.seed_box.setValue(self.settings.get_int("calibrate/seed", 0))
+        self.seed_box.setVisible(self.service.simulated)
+        self.tile_box = QComboBox()
+        for m, n in TILES:
+            self.tile_box.addItem(f"{m}×{n} (K = {m * n})", (m, n))
+        self.tile_box.setCurrentIndex(max(0, self.tile_box.findText(self.settings.get_str("calibrate/tile", "4×4"),
+                                                                    Qt.MatchFlag.MatchStartsWith)))
+        self.run_button = QPushButton("Run calibration")
+        self.cancel_button = QPushButton("Cancel")
+        self.cancel_button.setEnabled(False)
+        buttons = QHBoxLayout()
+        buttons.addWidget(self.run_button)
+        buttons.addWidget(self.cancel_button)
+        self.progress = QProgressBar()
+        self.progress.setRange(0, 1)
+        self.progress.setValue(0)
+        self.step_label = QLabel("not run")
+        self.step_label.setWordWrap(True)
+        self.step_label.setTextFormat(Qt.TextFormat.RichText)
+        self.steps_label = QLabel(self._steps_html(-1))
+        self.steps_label.setTextFormat(Qt.TextFormat.RichText)
+        f = QFormLayout(run)
+        f.addRow(self.rig_label)
+        if self.service.simulated:
+            f.addRow("seed", self.seed_box)
+        f.addRow("shutter code", self.tile_box)
+        f.addRow(buttons)
+        f.addRow(self.progress)
+        f.addRow(self.step_label)
+        f.addRow(self.steps_label)
+
+        save = QGroupBox("Save")
+        self.save_path = QLineEdit(self.settings.get_str("calibrate/path", ""))
+        self.save_path.setPlaceholderText("folder/rig-calibration.json")
+        self.save_browse = QPushButton("Browse…")
+        row = QHBoxLayout()
+        row.addWidget(self.save_path, 1)
+        row.addWidget(self.save_browse)
+        self.save_button = QPushButton("Save calibration")
+        self.save_button.setEnabled(False)
+        self.save_label = QLabel("run a calibration first")
+        self.save_label.setWordWrap(True)
+        self.save_label.setTextFormat(Qt.TextFormat.RichText)
+        v = QVBoxLayout(save)
+        v.addLayout(row)
+        v.addWidget(self.save_button)
+        v.addWidget(self.save_label)
+
+        live = QGroupBox("Co-location live")
+        self.live_check = QCheckBox("measure continuously (while you adjust the beam splitter)")
+        self.live_label = QLabel("off")
+        self.live_label.setWordWrap(True)
+        self.live_label.setTextFormat(Qt.TextFormat.RichText)
+        v = QVBoxLayout(live)
+        v.addWidget(self.live_check)
+        v.addWidget(self.live_label)
+
+        self.wizard_button = QPushButton("Synchronisation wizard…")
+        left = QWidget()
+        lv = QVBoxLayout(left)
+        for w in (run, save, live):
+            lv.addWidget(w)
+        lv.addWidget(self.wizard_button)
+        lv.addStretch(1)
         scroll = QScrollArea()
-        scroll.setWidget(inner)
+        scroll.setWidget(left)
         scroll.setWidgetResizable(True)
-        QVBoxLayout(self).addWidget(scroll)
+        scroll.setMinimumWidth(380)
+        scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
+
+        self.results = QLabel("<p>Run the calibration: co-location check, homography, shutter masks, "
+                              "synchronisation, drops and drift. The figures appear here.</p>")
+        self.results.setWordWrap(True)
+        self.results.setTextFormat(Qt.TextFormat.RichText)
+        self.results.setAlignment(Qt.AlignmentFlag.AlignTop | Qt.AlignmentFlag.AlignLeft)
+        self.results.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.results.setContentsMargins(12, 8, 12, 8)
+        results_scroll = QScrollArea()
+        results_scroll.setWidget(self.results)
+        results_scroll.setWidgetResizable(True)
+
+        self.residuals = ImagePanel("homography residuals: not measured yet", colormap="inferno")
+        self.wrong_panel = ImagePanel("shutter: not verified yet")
+        self.leakage_plot = pg.PlotWidget(title="leakage: light of each slot that reached the exposure (delay 0)")
+        self.leakage_plot.setBackground("#202020")
+        self.leakage_plot.setLabel("bottom", "projected slot")
+        self.leakage_plot.setLabel("left", "fraction of the slot's light")
+        self.leakage_bars = pg.BarGraphItem(x=[], height=[], width=0.8, brush=(90, 160, 255, 200))
+        self.leakage_plot.addItem(self.leakage_bars)
+        self.sweep_plot = pg.PlotWidget(title="delay sweep: slots of light lost against the camera delay")
+        self.sweep_plot.setBackground("#202020")
+        self.sweep_plot.setLabel("bottom", "camera trigger delay (µs)")
+        self.sweep_plot.setLabel("left", "slots lost")
+        self.sweep_points = self.sweep_plot.plot([], [], pen=None, symbol="o", symbolBrush=(255, 200, 80))
+        self.sweep_fit = self.sweep_plot.plot([], [], pen=pg.mkPen((120, 200, 255), width=1))
+        sync_page = QWidget()
+        sv = QVBoxLayout(sync_page)
+        sv.addWidget(self.leakage_plot)
+        sv.addWidget(self.sweep_plot)
+        self.tabs = QTabWidget()
+        self.tabs.addTab(results_scroll, "Results")
+        self.tabs.addTab(self.residuals, "Homography residuals")
+        self.tabs.addTab(self.wrong_panel, "Shutter: wrong pixels")
+        self.tabs.addTab(sync_page, "Sync leakage")
+
+        split = QSplitter()
+        split.addWidget(scroll)
+        split.addWidget(self.tabs)
+        split.setStretchFactor(1, 1)
+        split.setSizes([420, 880])
+        QHBoxLayout(self).addWidget(split)
+
+        self.live_timer = QTimer(self)
+        self.live_timer.setSingleShot(True)
+        self.live_timer.setInterval(LIVE_INTERVAL_MS)
+        self.live_timer.timeout.connect(self._measure_live)
+
+        self.run_button.clicked.connect(self.run_calibration)
+        self.cancel_button.clicked.connect(self.cancel)
+        self.save_button.clicked.connect(self._save_clicked)
+        self.save_browse.clicked.connect(self._browse)
+        self.live_check.toggled.connect(self.set_live)
+        self.wizard_button.clicked.connect(self.open_sync_wizard)
+        self.seed_box.valueChanged.connect(self._seed_changed)
+        self.tile_box.currentIndexChanged.connect(
+            lambda _: self.settings.set("calibrate/tile", self.tile_box.currentText().split(" ")[0]))
+        self.save_path.textChanged.connect(lambda t: self.settings.set("calibrate/path", t))
+
+    @staticmethod
+    def _steps_html(current: int, failed: str | None = None, finished: bool = False) -> str:
+        lines = []
+        for i, name in enumerate(STEPS):
+            if finished or i < current:
+                mark, colour = "✓", GREEN
+            elif i == current:
+                mark, colour = "▶", "#2e86c1"
+            else:
+                mark, colour = "·", GREY
+            lines.append(f"<span style='color:{colour}'>{mark} {html.escape(name)}</span>")
+        return "<br>".join(lines)
+
+    # ------------------------------------------------------------------ state
+    @property
+    def running(self) -> bool:
+        """True while a calibration job runs."""
+        return self.job is not None and self.job.running
+
+    def rig_busy_reason(self) -> str | None:
+        """Why the Capture workspace may not use the rig now (a calibration or live measurement on a real rig)."""
+        if self.service.simulated:
+            return None  # the simulated rig's calibration runs on its own calibration target
+        if self.running:
+            return "a calibration is running in the Calibrate workspace"
+        if self.live_job is not None and self.live_job.running:
+            return "the co-location live numbers are measuring in the Calibrate workspace"
+        return None
+
+    def _guard(self) -> str | None:
+        if self.service.simulated or self.rig_guard is None:
+            return None
+        return self.rig_guard()
+
+    def tile(self) -> tuple[int, int]:
+        """The shutter code's tile."""
+        return tuple(self.tile_box.currentData())
+
+    def _seed_changed(self, seed: int) -> None:
+        self.settings.set("calibrate/seed", seed)
+        self._live_target = None
+
+    # ------------------------------------------------------------------ the run
+    def run_calibration(self) -> bool:
+        """Start a calibration; False (with the reason shown) when it cannot start now."""
+        if self.running:
+            return False
+        busy = self._guard()
+        if busy:
+            self.step_label.setText(f"<span style='color:{RED}'>cannot start: {html.escape(busy)}</span>")
+            return False
+        self.set_live(False)
+        token = CancelToken()
+        tracker = StepTracker(token)
+        self.tracker = tracker
+        seed, tile, service = self.seed_box.value(), self.tile(), self.service
+
+        def job(token_, progress):
+            tracker.token = token_
+            tracker.report = progress
+            return run_workspace_calibration(target_for(service, seed), tile=tile, cancel=token_, tracker=tracker)
+
+        self.outcome = None
+        self.save_button.setEnabled(False)
+        self.save_label.setText("calibrating …")
+        self.run_button.setEnabled(False)
+        self.cancel_button.setEnabled(True)
+        self.live_check.setEnabled(False)
+        self.wizard_button.setEnabled(False)
+        self.step_label.setText("starting …")
+        self.steps_label.setText(self._steps_html(0))
+        self.progress.setRange(0, 0)
+        self.job = self.runner.submit("calibration", job, on_progress=self._on_progress, on_finished=self._on_done,
+                                      on_failed=self._on_failed, on_cancelled=self._on_cancelled,
+                                      on_done=self._on_job_done)
+        self.status.emit("calibrating …")
+        return True
+
+    def cancel(self) -> None:
+        """Ask the running calibration to stop at its next step or pattern."""
+        if self.running:
+            self.job.cancel()
+            self.step_label.setText("cancelling …")
+
+    def _on_progress(self, done: int, total: int) -> None:
+        t = self.tracker
+        if t is None:
+            return
+        n = len(STEPS)
+        step = f"step {t.index + 1} of {n}: {html.escape(t.step)}"
+        if total > 0:
+            self.progress.setRange(0, total)
+            self.progress.setValue(done)
+            self.step_label.setText(f"{step} — {done}/{total} patterns")
+        else:
+            self.progress.setRange(0, 0)
+            self.step_label.setText(step)
+        self.steps_label.setText(self._steps_html(t.index))
+
+    def _on_done(self, outcome: CalibrationOutcome) -> None:
+        self.show_outcome(outcome)
+        word = "succeeded" if outcome.success else f"stopped at the {outcome.report.get('failed')} step"
+        self.step_label.setText(f"<span style='color:{GREEN if outcome.success else RED}'>calibration {word} "
+                                f"({outcome.seconds:.1f} s)</span>")
+        self.steps_label.setText(self._steps_html(len(STEPS), finished=outcome.success))
+        self.status.emit(f"calibration {word}")
+        self.calibrated.emit(outcome)
+
+    def _on_failed(self, message: str) -> None:
+        self.step_label.setText(f"<span style='color:{RED}'>calibration failed: {html.escape(message)}</span>")
+        self.save_label.setText("nothing to save")
+        self.status.emit(f"calibration failed: {message}")
+
+    def _on_cancelled(self) -> None:
+        step = self.tracker.step if self.tracker is not None else ""
+        self.step_label.setText(f"cancelled during {html.escape(step) or 'set-up'}; the devices were stopped")
+        self.save_label.setText("nothing to save (cancelled)")
+        self.status.emit("calibration cancelled")
+
+    def _on_job_done(self) -> None:
+        self.progress.setRange(0, 1)
+        self.progress.setValue(1 if self.outcome is not None else 0)
+        self.run_button.setEnabled(True)
+        self.cancel_button.setEnabled(False)
+        self.live_check.setEnabled(True)
+        self.wizard_button.setEnabled(True)
+        if not self.service.simulated:
+            for role in ("projector", "camera", "sync"):
+                self.service.notify(role)
+
+    # ------------------------------------------------------------------ results
+    def show_outcome(self, outcome: CalibrationOutcome) -> None:
+        """Show a run's figures, maps and plots."""
+        self.outcome = outcome
+        self.results.setText(results_html(outcome))
+        hom = outcome.homography
+        if hom is not None and np.isfinite(hom.residual_map).any():
+            rmap = hom.residual_map
+            finite = np.isfinite(rmap)
+            top = float(np.percentile(rmap[finite], 99.5)) or 1.0
+            self.residuals.set_image(np.where(finite, rmap, 0.0).astype(np.float32), levels=(0.0, top))
+            over = np.zeros((*rmap.shape, 4), np.uint8)
+            over[~finite] = UNDECODED_RGBA
+            self.residuals.set_overlay(over)
+            self.residuals.set_title(f"homography residual |H(projector point) − camera pixel| (px): RMS "
+                                     f"{hom.rms_px:.3f} px, {hom.coverage:.1%} decoded, {hom.inliers} inliers "
+                                     "(blue-grey: not decoded)")
+        else:
+            self.residuals.clear("no homography fit")
+            self.residuals.set_title("homography residuals: no fit")
+        ver = outcome.shutter
+        if ver is not None:
+            rgb = np.zeros((*ver.wrong.shape, 3), np.uint8)
+            rgb[ver.decodable] = RIGHT_RGB
+            rgb[ver.wrong] = WRONG_RGB
+            self.wrong_panel.set_image(rgb)
+            self.wrong_panel.set_title(f"shutter: {int(ver.wrong.sum())} camera pixels see another slot (red) of "
+                                       f"{int(ver.decodable.sum())} decodable (green); accuracy {ver.accuracy:.3%}")
+        else:
+            self.wrong_panel.clear("the run stopped before the shutter step")
+            self.wrong_panel.set_title("shutter: not verified")
+        sync = outcome.sync
+        if sync is not None and sync.leakage:
+            k = np.arange(len(sync.leakage))
+            self.leakage_bars.setOpts(x=k, height=np.asarray(sync.leakage), width=0.8)
+        else:
+            self.leakage_bars.setOpts(x=[], height=[], width=0.8)
+        if sync is not None and sync.sweep:
+            d = np.array([p[0] for p in sync.sweep])
+            lost = np.array([p[1] for p in sync.sweep])
+            self.sweep_points.setData(d, lost)
+            if np.isfinite(sync.slope) and np.isfinite(sync.offset_slots):
+                self.sweep_fit.setData(d, sync.offset_slots + sync.slope * d / sync.period_us)
+            else:
+                self.sweep_fit.setData([], [])
+        else:
+            self.sweep_points.setData([], [])
+            self.sweep_fit.setData([], [])
+        if outcome.success:
+            self.save_button.setEnabled(True)
+            self.save_label.setText("ready to save (homography and sync)")
+        else:
+            self.save_button.setEnabled(False)
+            self.save_label.setText(f"<span style='color:{RED}'>not saved: the "
+                                    f"{html.escape(str(outcome.report.get('failed')))} step failed "
+                                    "(a failed calibration is never written)</span>")
+
+    # ------------------------------------------------------------------ save
+    def _browse(self) -> None:
+        start = self.save_path.text() or str(Path.home() / "rig-calibration.json")
+        path, _ = QFileDialog.getSaveFileName(self, "Save calibration", start, "Calibration (*.json)")
+        if path:
+            self.save_path.setText(path)
+
+    def _save_clicked(self) -> None:
+        self.save(self.save_path.text().strip())
+
+    def save(self, path) -> Path | None:
+        """Write the calibration file; None (with the reason shown) when it cannot."""
+        from calibration.errors import CalibrationError
+        from calibration.files import save_calibration
+
+        if self.outcome is None or not self.outcome.success:
+            self.save_label.setText(f"<span style='color:{RED}'>nothing to save: run a successful calibration "
+                                    "first</span>")
+            return None
+        if not str(path):
+            self.save_label.setText(f"<span style='color:{RED}'>choose where to save (folder/name.json)</span>")
+            return None
+        try:
+            written = save_calibration(Path(path).expanduser(), self.outcome.homography, self.outcome.identity,
+                                       sync=self.outcome.sync)
+        except CalibrationError as exc:
+            self.save_label.setText(f"<span style='color:{RED}'>not saved: {html.escape(str(exc))}</span>")
+            return None
+        self.save_label.setText(f"<span style='color:{GREEN}'>saved {html.escape(str(written))}</span>")
+        self.status.emit(f"saved {written}")
+        return written
+
+    # ------------------------------------------------------------------ live co-location
+    def set_live(self, on: bool) -> None:
+        """Start or stop the live co-location numbers."""
+        if on and self.running:
+            on = False
+        if on:
+            busy = self._guard()
+            if busy:
+                self.live_label.setText(f"<span style='color:{RED}'>cannot measure: {html.escape(busy)}</span>")
+                on = False
+        self.live_check.blockSignals(True)
+        self.live_check.setChecked(on)
+        self.live_check.blockSignals(False)
+        if on:
+            self.live_label.setText("measuring …")
+            self._measure_live()
+        else:
+            self.live_timer.stop()
+            if self.live_job is not None and self.live_job.running:
+                self.live_job.cancel()
+            if not self.live_label.text().startswith("<span"):
+                self.live_label.setText("off" if self.alignment is None else
+                                        f"stopped · last: {html.escape(self.alignment.message)}")
+
+    @property
+    def live(self) -> bool:
+        """True while live co-location numbers are on."""
+        return self.live_check.isChecked()
+
+    def _measure_live(self) -> None:
+        if not self.live or (self.live_job is not None and self.live_job.running):
+            return
+        if self._live_target is None:
+            self._live_target = target_for(self.service, self.seed_box.value())
+        target = self._live_target
+        self.live_job = self.runner.submit(
+            "co-location", lambda token, progress: measure_live_alignment(target, token),
+            on_finished=self._on_alignment, on_failed=self._on_live_failed, on_done=self._on_live_done)
+
+    def _on_alignment(self, result) -> None:
+        self.alignment = result
+        if result.success:
+            dx, dy = result.offset_px
+            text = (f"<b>offset</b> ({dx:+.2f}, {dy:+.2f}) px · <b>rotation</b> {result.rotation_deg:+.3f}° · "
+                    f"<b>scale</b> {result.scale:.4f} · <b>lit</b> {result.lit_fraction:.1%}"
+                    f"{' · <b>mirrored</b>' if result.mirrored else ''}<br>{html.escape(result.message)}")
+        else:
+            text = f"<span style='color:{RED}'>{html.escape(result.message)}</span>"
+        self.live_label.setText(text)
+
+    def _on_live_failed(self, message: str) -> None:
+        self.live_label.setText(f"<span style='color:{RED}'>live co-location stopped: {html.escape(message)}</span>")
+        self.set_live(False)
+
+    def _on_live_done(self) -> None:
+        if self.live:
+            self.live_timer.start()
+
+    # ------------------------------------------------------------------ wizard
+    def open_sync_wizard(self):
+        """Open the synchronisation wizard (modeless); returns it."""
+        from app.gui.sync_wizard import SyncWizard
+
+        busy = self._guard()
+        if busy:
+            self.status.emit(f"cannot open the wizard: {busy}")
+            return None
+        self.set_live(False)
+        hom = self.outcome.homography.homography if self.outcome is not None and self.outcome.homography \
+            is not None and self.outcome.homography.success else None
+        wizard = SyncWizard(target_for(self.service, self.seed_box.value()), self.runner, tile=self.tile(),
+                            homography=hom, parent=self)
+        wizard.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
+        wizard.show()
+        self.wizard = wizard
+        return wizard
+
+    def shutdown(self) -> None:
+        """Stop the live numbers and cancel a running calibration (window closing)."""
+        self.set_live(False)
+        if self.job is not None and self.job.running:
+            self.job.cancel()

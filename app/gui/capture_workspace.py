@@ -1,29 +1,42 @@
-"""The Capture workspace (first slice): code, timing check, live view with histogram, saturation and counters.
+"""The Capture workspace: code, timing check, live view with histogram, saturation and counters, recording.
 
-Recording to disk from this window will use the capture service (``app/capture/``), passed as
-``recorder`` in the constructor. It is not wired yet, so the Recording box says how to record
-from a terminal instead of offering a button that would do nothing.
+Recording runs through :class:`app.capture.service.CaptureService` (built by
+:func:`app.gui.recording.make_capture`, or the ``capture_factory`` given to the constructor).
+
+Device ownership: a recording *owns* the devices. Record stops the live view first (its reader
+thread and the capture's must not both read the camera); the capture service sets up the
+projector, sync box and camera, reads and writes on its own threads, and stops the devices at
+the end (those it opened it closes again). While it records, the display timer shows
+``service.latest()`` (the newest frame, a reference swap: the display never slows capture) and
+the counters come from ``service.stats()``. Starting (a real projector's pattern upload takes
+seconds) and stopping (the writer drains its queue) run on the job runner, so the window never
+waits on them.
 """
 
 from __future__ import annotations
 
 import html
 import logging
+import time
+from pathlib import Path
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import Qt, QTimer
+from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
     QDoubleSpinBox,
+    QFileDialog,
     QFormLayout,
     QGroupBox,
     QHBoxLayout,
     QLabel,
+    QLineEdit,
     QPushButton,
     QRadioButton,
     QScrollArea,
+    QSpinBox,
     QSplitter,
     QVBoxLayout,
     QWidget,
@@ -34,38 +47,66 @@ from app.gui.image_panel import ImagePanel
 from app.gui.live_source import LiveStartError, start_live, stop_live
 from app.gui.live_stats import LiveStats, histogram, saturation_level, saturation_mask
 from app.gui.live_view import LiveStream
+from app.gui.qt_jobs import JobRunner
+from app.gui.recording import counters_text, make_capture, result_text, resync_clock
 from app.gui.rig_service import RigService
 from app.gui.settings import AppSettings
 
 _logger = logging.getLogger(__name__)
 
-RECORDING_PENDING = ("Recording from this window is not wired yet. Record with the capture service from a "
-                     "terminal — `flexvox capture --rig mock -o REC.zarr --frames N` — then open REC.zarr "
-                     "in Review. The live view here does not record.")
 DISPLAY_HZ = 30
 """The live image is redrawn at most this often, whatever the camera's rate."""
 SATURATION_RGBA = (255, 0, 0, 170)
+COUNTERS_MS = 200
+"""The recording counters are refreshed this often."""
+STOP_TIMEOUT_S = 30.0
+RED, GREEN = "#c0392b", "#1e8449"
+
+
+def _coloured(text: str, colour: str) -> str:
+    return f"<span style='color:{colour}'>{html.escape(text)}</span>"
 
 
 class CaptureWorkspace(QWidget):
-    """Code choice, camera rate and exposure, the projector timing check, and the live view.
+    """Code choice, camera rate and exposure, the projector timing check, the live view and recording.
 
     Parameters
     ----------
     service : RigService
     settings : AppSettings
-    recorder : object, optional
-        The capture service's recorder (``app/capture/``); None until it exists.
+    runner : JobRunner, optional
+        Starts and stops recordings off the GUI thread (default: one of its own).
+    capture_factory : callable, optional
+        ``(rig, code, path, **options) -> CaptureService`` (default the capture service itself).
+    rig_guard : callable, optional
+        ``() -> str | None``: a reason the rig is busy elsewhere (a calibration), checked before
+        the live view or a recording starts.
     """
 
-    def __init__(self, service: RigService, settings: AppSettings, recorder=None, parent: QWidget | None = None):
+    recording_finished = Signal(object)
+    """The :class:`~app.capture.service.CaptureResult` (None when the capture did not stop in time)."""
+    open_requested = Signal(object)
+    """A recording's path the operator wants to review."""
+
+    def __init__(self, service: RigService, settings: AppSettings, runner: JobRunner | None = None, *,
+                 capture_factory=None, rig_guard=None, parent: QWidget | None = None):
         super().__init__(parent)
         self.service = service
         self.settings = settings
-        self.recorder = recorder
+        self.runner = runner or JobRunner(parent=self)
+        self.capture_factory = capture_factory
+        self.rig_guard = rig_guard
         self.stats = LiveStats()
         self.stream = LiveStream(self)
         self._latest = None
+        self.capture = None
+        """The running (or last) :class:`CaptureService`, None before the first recording."""
+        self.last_result = None
+        self._recording = False
+        self._shown_seq = 0
+        self._stop_job = None
+        self._start_job = None
+        self._last_shown_id = None
         self._build()
         self.stream.frame.connect(self._on_frame)
         self.stream.failed.connect(self._on_failed)
@@ -137,9 +178,44 @@ class CaptureWorkspace(QWidget):
         v.addWidget(self.live_label)
 
         rec = QGroupBox("Recording")
-        self.recording_label = QLabel(RECORDING_PENDING if self.recorder is None else "recorder ready")
+        self.path_edit = QLineEdit(self.settings.get_str("capture/recording_path", ""))
+        self.path_edit.setPlaceholderText("folder/name.zarr")
+        self.browse_button = QPushButton("Browse…")
+        path_row = QHBoxLayout()
+        path_row.addWidget(self.path_edit, 1)
+        path_row.addWidget(self.browse_button)
+        self.frames_box = QSpinBox()
+        self.frames_box.setRange(0, 10_000_000)
+        self.frames_box.setSpecialValueText("until Stop")
+        self.frames_box.setValue(self.settings.get_int("capture/frames", 150))
+        self.overwrite_check = QCheckBox("replace an existing recording")
+        self.truth_check = QCheckBox("store the scene's ground truth (simulated rig)")
+        self.truth_check.setChecked(self.service.simulated)
+        self.truth_check.setVisible(self.service.simulated)
+        self.record_button = QPushButton("● Record")
+        self.stop_button = QPushButton("■ Stop")
+        self.stop_button.setEnabled(False)
+        buttons = QHBoxLayout()
+        buttons.addWidget(self.record_button)
+        buttons.addWidget(self.stop_button)
+        self.counters_label = QLabel("not recording")
+        self.counters_label.setWordWrap(True)
+        self.recording_label = QLabel("calibration: identity homography, phase 0 (uncalibrated)")
         self.recording_label.setWordWrap(True)
-        QVBoxLayout(rec).addWidget(self.recording_label)
+        self.recording_label.setTextFormat(Qt.TextFormat.RichText)
+        self.recording_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.review_button = QPushButton("Open in Review")
+        self.review_button.setEnabled(False)
+        f = QFormLayout()
+        f.addRow("path", path_row)
+        f.addRow("frames", self.frames_box)
+        rv = QVBoxLayout(rec)  # word-wrapped labels get their full height in a box layout, not a form
+        rv.addLayout(f)
+        for w in (self.overwrite_check, self.truth_check):
+            rv.addWidget(w)
+        rv.addLayout(buttons)
+        for w in (self.counters_label, self.recording_label, self.review_button):
+            rv.addWidget(w)
 
         left = QWidget()
         lv = QVBoxLayout(left)
@@ -147,6 +223,7 @@ class CaptureWorkspace(QWidget):
             lv.addWidget(w)
         lv.addStretch(1)
         scroll = QScrollArea()
+        self.controls_scroll, self.recording_box = scroll, rec
         scroll.setWidget(left)
         scroll.setWidgetResizable(True)
         scroll.setMinimumWidth(380)
@@ -182,6 +259,15 @@ class CaptureWorkspace(QWidget):
                     self.auto_exposure.toggled, self.exposure.valueChanged, self.projector_exposure.valueChanged):
             sig.connect(self._plan_changed)
         self.live_button.toggled.connect(self._on_live_toggled)
+        self.browse_button.clicked.connect(self._browse)
+        self.record_button.clicked.connect(self.record)
+        self.stop_button.clicked.connect(self.stop_recording)
+        self.review_button.clicked.connect(self._ask_review)
+        self.path_edit.textChanged.connect(lambda text: self.settings.set("capture/recording_path", text))
+        self.frames_box.valueChanged.connect(lambda n: self.settings.set("capture/frames", n))
+        self.counters_timer = QTimer(self)
+        self.counters_timer.setInterval(COUNTERS_MS)
+        self.counters_timer.timeout.connect(self._poll_capture)
 
     # ------------------------------------------------------------------ plan
     def plan(self) -> CapturePlan:
@@ -238,7 +324,7 @@ class CaptureWorkspace(QWidget):
             lines.insert(1, "<span style='color:#1e8449'>✓ the projector accepts this timing "
                             "(exposure = period, or ≤ period − 230 µs)</span>")
         self.timing_label.setText("<br>".join(lines))
-        self.live_button.setEnabled(t.ok or self.stream.running)
+        self._update_buttons()
 
     # ------------------------------------------------------------------ live view
     def _on_live_toggled(self, on: bool) -> None:
@@ -251,6 +337,11 @@ class CaptureWorkspace(QWidget):
         """Start the live view; False (with the reason shown) when it cannot start."""
         if self.stream.running:
             return True
+        busy = self._busy_reason()
+        if busy:
+            self.live_label.setText(_coloured(f"cannot start: {busy}", RED))
+            self._set_button(False)
+            return False
         try:
             note = start_live(self.service, self.plan())
         except LiveStartError as exc:
@@ -297,10 +388,21 @@ class CaptureWorkspace(QWidget):
         self.live_label.setText(f"<span style='color:#c0392b'>live view stopped: {html.escape(message)}</span>")
 
     def _redraw(self) -> None:
+        if self._recording and self.capture is not None:
+            f, seq = self.capture.latest()
+            if f is None or seq == self._shown_seq:
+                return
+            self._shown_seq = seq
+            self._show_frame(f)
+            return
         f = self._latest
         if f is None:
             return
         self._latest = None
+        self._show_frame(f)
+        self.live_label.setText(self.stats.text())
+
+    def _show_frame(self, f) -> None:
         img = f.image
         top = saturation_level(img)
         self.image_panel.set_image(img, levels=(0, top))
@@ -314,10 +416,184 @@ class CaptureWorkspace(QWidget):
         counts, edges = histogram(img, top=top)
         self.hist_curve.setData(edges, counts)
         self.sat_line.setValue(top)
-        self.image_panel.set_title(f"camera: frame {f.frame_id}")
-        self.live_label.setText(self.stats.text())
+        what = "recording" if self._recording else "camera"
+        self._last_shown_id = f.frame_id
+        self.image_panel.set_title(f"{what}: frame {f.frame_id}")
 
-    def shutdown(self) -> None:
-        """Stop the live view (window closing)."""
+    # ------------------------------------------------------------------ recording
+    @property
+    def recording(self) -> bool:
+        """True from Record until the capture has ended."""
+        return self._recording
+
+    def _busy_reason(self) -> str | None:
+        if self._recording:
+            return "a recording is running"
+        return self.rig_guard() if self.rig_guard is not None else None
+
+    def _update_buttons(self) -> None:
+        ok = self.plan().timing().ok
+        self.live_button.setEnabled((ok and not self._recording) or self.stream.running)
+        self.record_button.setEnabled(ok and not self._recording)
+        self.stop_button.setEnabled(self._recording and self._stop_job is None)
+        for w in (self.path_edit, self.browse_button, self.frames_box, self.overwrite_check, self.truth_check,
+                  self.tile_box, self.identity, self.multiplexed, self.rate, self.auto_exposure,
+                  self.projector_exposure):
+            w.setEnabled(not self._recording)
+        self.exposure.setEnabled(not self._recording and not self.auto_exposure.isChecked())
+
+    def _browse(self) -> None:
+        start = self.path_edit.text() or str(Path.home() / "recording.zarr")
+        path, _ = QFileDialog.getSaveFileName(self, "Record to", start, "Zarr recordings (*.zarr)")
+        if path:
+            self.path_edit.setText(path if path.endswith(".zarr") else path + ".zarr")
+
+    def _say(self, text: str, colour: str | None = None) -> None:
+        self.recording_label.setText(_coloured(text, colour) if colour else html.escape(text))
+
+    def record(self) -> bool:
+        """Start recording to the chosen path; False (with the reason shown) when it cannot start.
+
+        The live view is stopped first (the capture service owns the devices while it records).
+        """
+        from app.capture.service import CaptureError
+
+        if self._recording:
+            return False
+        text = self.path_edit.text().strip()
+        if not text:
+            self._say("choose a recording path first (folder/name.zarr)", RED)
+            return False
+        plan = self.plan()
+        if not plan.timing().ok:
+            self._say("cannot record: " + "; ".join(plan.timing().errors), RED)
+            return False
+        busy = self.rig_guard() if self.rig_guard is not None else None
+        if busy:
+            self._say(f"cannot record: {busy}", RED)
+            return False
         if self.stream.running:
             self.stop_live()
+        frames = self.frames_box.value() or None
+        options = {} if self.capture_factory is None else {"factory": self.capture_factory}
+        try:
+            capture = make_capture(self.service, plan, Path(text).expanduser(), frames=frames,
+                                   overwrite=self.overwrite_check.isChecked(),
+                                   ground_truth=self.service.simulated and self.truth_check.isChecked(), **options)
+        except (CaptureError, ValueError) as exc:
+            self._say(f"cannot record: {exc}", RED)
+            return False
+        self.capture = capture
+        self.last_result = None
+        self._recording = True
+        self._shown_seq = 0
+        self._last_shown_id = None
+        self._stop_job = None
+        self.review_button.setEnabled(False)
+        self._update_buttons()
+        self._say(f"starting: setting up the rig for {capture.path.name} …")
+        self.counters_label.setText("starting …")
+        self.image_panel.set_title("recording: waiting for the first frame")
+        resync_clock(self.service)
+        self._start_job = self.runner.submit("capture start", lambda token, progress: capture.start(),
+                           on_finished=lambda _: self._on_capture_started(capture),
+                           on_failed=lambda message: self._on_capture_start_failed(capture, message))
+        return True
+
+    def _on_capture_started(self, capture) -> None:
+        if capture is not self.capture:
+            return
+        for role in ("projector", "camera", "sync"):
+            self.service.notify(role)
+        target = f"{capture.n_target} frames" if capture.n_target else "until Stop"
+        self._say(f"recording to {capture.path} ({target}, {1 / capture.frame_period_s:.3f} Hz)")
+        self.display_timer.start()
+        self.counters_timer.start()
+        self._poll_capture()
+
+    def _on_capture_start_failed(self, capture, message: str) -> None:
+        if capture is not self.capture:
+            return
+        self._recording = False
+        self._update_buttons()
+        self.counters_label.setText("not recording")
+        self._say(f"cannot record: {message}", RED)
+        self.image_panel.set_title("camera: live view stopped")
+        for role in ("projector", "camera", "sync"):
+            self.service.notify(role)
+
+    def stop_recording(self) -> None:
+        """Stop the recording early (it keeps every frame captured); the end is reported when it has stopped."""
+        capture, start = self.capture, self._start_job
+        if not self._recording or capture is None or self._stop_job is not None:
+            return
+        self._say("stopping: writing the frames still queued …")
+
+        def stop(token, progress):
+            while start is not None and start.outcome is None:  # still setting up: stop once it runs
+                token.check()
+                capture.wait(0.05)
+            if start is not None and start.outcome != "finished":
+                return None  # it never started; its failure is reported by the start job
+            return capture.stop(timeout_s=STOP_TIMEOUT_S)
+
+        def stopped(result) -> None:
+            if start is not None and start.outcome != "finished":
+                return
+            self._finish(capture, result)
+
+        self._stop_job = self.runner.submit("capture stop", stop, on_finished=stopped,
+                                            on_failed=lambda m: self._finish(capture, None, m))
+        self._update_buttons()
+
+    def _poll_capture(self) -> None:
+        capture = self.capture
+        if capture is None:
+            return
+        self.counters_label.setText(counters_text(capture.stats(), capture.n_target))
+        if capture.result is not None and self._stop_job is None:
+            self._finish(capture, capture.result)
+
+    def _finish(self, capture, result, error: str | None = None) -> None:
+        if capture is not self.capture or not self._recording:
+            return
+        self.counters_timer.stop()
+        self._redraw()  # the last frame
+        self.display_timer.stop()
+        self._recording = False
+        self._stop_job = None
+        self.last_result = result
+        if result is not None:
+            self.counters_label.setText(counters_text(result.stats, capture.n_target))
+        if error is not None:
+            self._say(f"recording failed: {error}", RED)
+        else:
+            self._say(result_text(result, capture.path), GREEN if result is not None and result.ok else RED)
+        self.review_button.setEnabled(result is not None and result.frames_in_recording is not None
+                                      and result.frames_in_recording > 0)
+        self.image_panel.set_title("recording ended" if self._last_shown_id is None
+                                   else f"recording ended · last frame shown: {self._last_shown_id}")
+        self._update_buttons()
+        for role in ("projector", "camera", "sync"):
+            self.service.notify(role)
+        self.recording_finished.emit(result)
+
+    def _ask_review(self) -> None:
+        if self.capture is not None:
+            self.open_requested.emit(self.capture.path)
+
+    def shutdown(self) -> None:
+        """Stop the live view and any recording (window closing: waits, bounded, for the recording to end)."""
+        if self.stream.running:
+            self.stop_live()
+        capture, start = self.capture, self._start_job
+        if self._recording and capture is not None:
+            deadline = time.monotonic() + STOP_TIMEOUT_S
+            while start is not None and start.outcome is None and time.monotonic() < deadline:
+                time.sleep(0.02)  # the rig is being set up on a worker: let it finish, then stop it
+            if start is not None and start.outcome == "finished":
+                result = capture.stop(timeout_s=STOP_TIMEOUT_S)
+                _logger.info("recording stopped at shutdown: %s",
+                             "did not stop in time" if result is None else result.message)
+        self.counters_timer.stop()
+        self.display_timer.stop()

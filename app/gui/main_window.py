@@ -8,7 +8,7 @@ from PySide6.QtCore import Qt
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import QDockWidget, QMainWindow, QTabWidget
 
-from app.gui.calibrate_page import CalibratePage
+from app.gui.calibrate_page import CalibrateWorkspace
 from app.gui.capture_workspace import CaptureWorkspace
 from app.gui.device_panel import DevicePanel
 from app.gui.qt_jobs import JobRunner
@@ -30,20 +30,25 @@ class MainWindow(QMainWindow):
     settings : AppSettings
     runner : JobRunner
     quality_table : dict or None
-    recorder : object, optional
-        The capture service's recorder, when it exists (see :class:`CaptureWorkspace`).
+    capture_factory : callable, optional
+        Builds capture services for the Capture workspace (tests inject failing writers).
+
+    The Calibrate and Capture workspaces share the rig: each asks the other (``rig_guard``)
+    before it uses the devices, so a calibration never starts during a recording and the
+    reverse.
     """
 
     def __init__(self, service: RigService, settings: AppSettings, runner: JobRunner, quality_table: dict | None,
-                 *, recorder=None, calibrate_cli: bool | None = None):
+                 *, capture_factory=None):
         super().__init__()
         self.service = service
         self.settings = settings
         self.runner = runner
         rig = "simulated rig" if service.simulated else service.name
         self.setWindowTitle(f"flexvox — {rig}")
-        self.calibrate = CalibratePage(cli_available=calibrate_cli)
-        self.capture = CaptureWorkspace(service, settings, recorder=recorder)
+        self.calibrate = CalibrateWorkspace(service, settings, runner, rig_guard=self._capture_busy)
+        self.capture = CaptureWorkspace(service, settings, runner, capture_factory=capture_factory,
+                                        rig_guard=self._calibrate_busy)
         self.review = ReviewWorkspace(settings, runner, quality_table)
         self.tabs = QTabWidget()
         for name, w in zip(WORKSPACES, (self.calibrate, self.capture, self.review), strict=True):
@@ -57,6 +62,8 @@ class MainWindow(QMainWindow):
                          | QDockWidget.DockWidgetFeature.DockWidgetFloatable)
         self.addDockWidget(Qt.DockWidgetArea.LeftDockWidgetArea, dock)
         self.review.status.connect(lambda text: self.statusBar().showMessage(text, 8000))
+        self.capture.open_requested.connect(self._review_recording)
+        self.calibrate.status.connect(lambda text: self.statusBar().showMessage(text, 8000))
 
         menu = self.menuBar().addMenu("&File")
         open_action = QAction("&Open recording…", self)
@@ -77,6 +84,22 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage("simulated rig: every device is a simulation" if service.simulated
                                      else f"rig profile: {service.name}")
 
+    def _capture_busy(self) -> str | None:
+        """What keeps the Calibrate workspace off the rig: a recording (a live view is stopped for it)."""
+        if self.capture.recording:
+            return "a recording is running in the Capture workspace"
+        if self.capture.live:
+            self.capture.stop_live()
+        return None
+
+    def _calibrate_busy(self) -> str | None:
+        """What keeps the Capture workspace off the rig: a calibration using the real rig's devices."""
+        return self.calibrate.rig_busy_reason()
+
+    def _review_recording(self, path) -> None:
+        self.show_workspace("Review")
+        self.review.open_recording(path)
+
     def _open(self) -> None:
         self.tabs.setCurrentWidget(self.review)
         self.review._ask_open()
@@ -91,6 +114,7 @@ class MainWindow(QMainWindow):
         self.settings.set("window/tab", self.tabs.currentIndex())
         self.settings.sync()
         self.capture.shutdown()
+        self.calibrate.shutdown()
         self.review.set_playing(False)
         if not self.runner.shutdown(5000):
             _logger.error("background jobs did not stop within 5 s")

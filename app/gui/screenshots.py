@@ -1,9 +1,12 @@
 """Render each workspace to PNG offscreen: ``python -m app.gui.screenshots OUTDIR``.
 
-Makes a small simulated recording in a temporary folder, opens it in Review, runs a motion-aware
-and a diffusion reconstruction, starts the Capture live view on the simulated rig, and saves
-``review.png``, ``review_motion.png``, ``review_compare.png``, ``capture.png`` and ``calibrate.png``.
-Settings go to a temporary INI file, never the user's.
+Runs the whole calibration on the simulated rig (``calibrate.png``: the results,
+``calibrate_residuals.png``: the homography's residual heat map, ``calibrate_sync.png``: the
+leakage curve and delay sweep), makes a small simulated recording in a temporary folder, opens
+it in Review, runs a motion-aware and a diffusion reconstruction (``review.png``,
+``review_motion.png``, ``review_compare.png``), starts the Capture live view (``capture.png``)
+and records from it (``capture_recording.png``). Settings go to a temporary INI file, never
+the user's.
 """
 
 from __future__ import annotations
@@ -57,7 +60,7 @@ def render(out_dir) -> list[Path]:
     with tempfile.TemporaryDirectory() as tmp:
         rec = make_recording(Path(tmp) / "drummer.zarr")
         settings = settings_at(Path(tmp) / "settings.ini")
-        window = build_window(open_rig("mock", scene="drummer"), settings=settings, calibrate_cli=None)
+        window = build_window(open_rig("mock", scene="drummer"), settings=settings)
         window.resize(*SIZE)
         window.show()
         review = window.review
@@ -70,7 +73,17 @@ def render(out_dir) -> list[Path]:
             written.append(p)
 
         window.show_workspace("Calibrate")
-        save("calibrate.png")
+        calibrate = window.calibrate
+        calibrate.run_calibration()
+        wait_until(app, lambda: not calibrate.running, timeout_s=120)
+        if calibrate.outcome is None or not calibrate.outcome.success:
+            raise RuntimeError(f"the calibration failed: {calibrate.step_label.text()}")
+        calibrate.save_path.setText(str(Path(tmp) / "rig-calibration.json"))
+        calibrate.save_button.click()
+        for index, name in ((0, "calibrate.png"), (1, "calibrate_residuals.png"), (3, "calibrate_sync.png")):
+            calibrate.tabs.setCurrentIndex(index)
+            save(name)
+        calibrate.tabs.setCurrentIndex(0)
 
         window.show_workspace("Review")
         review.open_recording(rec)
@@ -98,7 +111,12 @@ def render(out_dir) -> list[Path]:
         time.sleep(0.1)
         wait_until(app, lambda: capture._latest is None)
         save("capture.png")
-        capture.stop_live()
+        capture.path_edit.setText(str(Path(tmp) / "capture-demo.zarr"))
+        capture.frames_box.setValue(60)
+        capture.record()
+        wait_until(app, lambda: not capture.recording, timeout_s=60)
+        capture.controls_scroll.ensureWidgetVisible(capture.recording_box)
+        save("capture_recording.png")
         window.close()
     return written
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from app.gui.capture_workspace import RECORDING_PENDING, CaptureWorkspace
+from app.gui.capture_workspace import CaptureWorkspace
 from app.gui.rig_service import RigService
 from rig_drivers.interfaces import DeviceState, RunState
 
@@ -82,12 +82,6 @@ def test_code_choice_lists_tr_sr_and_multiplexed_codes(capture):
     assert "no S-matrix exists for K = 8" in ws.code_label.text()
     ws.set_tile((3, 5))
     assert "S-matrix multiplexed, K = 15" in ws.code_label.text() and "3x5x1" in ws.resolutions_label.text()
-
-
-def test_recording_waits_for_the_capture_service(capture):
-    assert capture.recorder is None
-    assert capture.recording_label.text() == RECORDING_PENDING
-    assert "not wired yet" in RECORDING_PENDING and "flexvox capture" in RECORDING_PENDING
 
 
 def test_a_camera_that_stops_delivering_ends_the_live_view_with_the_reason(qtbot, capture):

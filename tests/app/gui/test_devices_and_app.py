@@ -5,7 +5,6 @@ import argparse
 import pytest
 
 from app.cli.errors import CliError
-from app.gui.calibrate_page import CalibratePage
 from app.gui.device_panel import DevicePanel
 from app.gui.main_window import WORKSPACES
 from app.gui.rig_service import RigService
@@ -54,18 +53,10 @@ def test_device_panel_says_the_last_error_in_words(qtbot):
     service.close()
 
 
-def test_calibrate_page_is_an_honest_placeholder(qtbot):
-    for available, phrase in ((True, "flexvox calibrate --rig mock"), (False, "not registered yet")):
-        page = CalibratePage(cli_available=available)
-        qtbot.addWidget(page)
-        text = page.label.text()
-        assert phrase in text and "Homography wizard" in text and "not in the app yet" in text
-
-
 def test_main_window_has_the_three_workspaces_and_closes_cleanly(qtbot, settings, runner, recording):
     from app.gui.application import build_window
 
-    window = build_window(small_rig(), settings=settings, runner=runner, recording=recording, calibrate_cli=False)
+    window = build_window(small_rig(), settings=settings, runner=runner, recording=recording)
     qtbot.addWidget(window)
     window.show()
     assert [window.tabs.tabText(i) for i in range(window.tabs.count())] == list(WORKSPACES)
@@ -77,6 +68,27 @@ def test_main_window_has_the_three_workspaces_and_closes_cleanly(qtbot, settings
     assert window.service.rig.camera.state is DeviceState.CLOSED
     assert settings.get_int("window/tab", -1) == 1 and settings.get_bytes("window/geometry") is not None
     assert settings.get_str("review/last_recording") == str(recording)
+
+
+def test_a_recording_made_in_capture_opens_in_review(qtbot, settings, runner, tmp_path):
+    from app.gui.application import build_window
+
+    window = build_window(small_rig(), settings=settings, runner=runner)
+    qtbot.addWidget(window)
+    window.show_workspace("Calibrate")
+    assert window.calibrate.rig_busy_reason() is None  # the simulated rig calibrates its own target
+    capture = window.capture
+    capture.rate.setValue(60.0)
+    capture.path_edit.setText(str(tmp_path / "made-here.zarr"))
+    capture.frames_box.setValue(6)
+    with qtbot.waitSignal(capture.recording_finished, timeout=20_000):
+        assert capture.record()
+        assert window._capture_busy() == "a recording is running in the Capture workspace"
+    capture.review_button.click()
+    assert window.tabs.currentWidget() is window.review
+    qtbot.waitUntil(lambda: window.review.session is not None, timeout=10_000)
+    assert window.review.session.n_frames == 6
+    window.close()
 
 
 APP_SCRIPT = """

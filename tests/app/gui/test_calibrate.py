@@ -1,0 +1,193 @@
+"""The Calibrate workspace and the synchronisation wizard, driven end to end on the simulated rig."""
+
+import re
+
+import numpy as np
+import pytest
+
+from app.gui.calibrate_page import CalibrateWorkspace
+from app.gui.calibration_model import (
+    CalibrationTarget,
+    run_workspace_calibration,
+    summary_rows,
+    target_for,
+)
+from app.gui.rig_service import RigService
+from calibration.files import load_calibration
+from calibration.simulated_target import calibration_rig, hidden_timing
+from calibration.sync import load_sync_profile
+
+from .conftest import small_rig
+
+SEED = 0
+
+
+@pytest.fixture
+def calibrate(qtbot, settings, runner):
+    ws = CalibrateWorkspace(RigService(small_rig()), settings, runner)
+    qtbot.addWidget(ws)
+    ws.resize(1300, 850)
+    yield ws
+    ws.shutdown()
+
+
+def _run(qtbot, ws):
+    assert ws.run_calibration()
+    assert not ws.run_button.isEnabled() and ws.cancel_button.isEnabled()
+    qtbot.waitUntil(lambda: not ws.running, timeout=30_000)
+
+
+def test_calibration_runs_off_the_gui_thread_shows_its_figures_and_saves(qtbot, calibrate, tmp_path):
+    ws = calibrate
+    steps_seen = set()
+    with qtbot.waitSignal(ws.calibrated, timeout=30_000) as done:
+        assert ws.run_calibration()
+        qtbot.waitUntil(lambda: ws.tracker.step != "", timeout=10_000)
+        while ws.running:
+            steps_seen.add(ws.tracker.step)
+            qtbot.wait(5)
+    outcome = done.args[0]
+    assert outcome.success and ws.outcome is outcome
+    assert {"co-location", "homography"} & steps_seen  # progress named the steps as they ran
+    truth_phase, truth_delay = hidden_timing(SEED)
+    assert outcome.sync.phase_slots == truth_phase and abs(outcome.sync.delay_us - truth_delay) < 200
+    assert outcome.truth["homography_error_px"] < 0.05
+    text = ws.results.text()
+    for phrase in ("calibration succeeded", "Co-location", "co-located: one homography fits all 2 depths",
+                   "RMS reprojection error", "coverage (decoded)", "inliers / decoded", "slot accuracy",
+                   "Synchronisation", "Drops and drift", "no gaps", "hidden truth"):
+        assert phrase in text, phrase
+    assert f"{truth_phase} / {truth_phase}" in text  # phase found / true
+    assert "calibration succeeded" in ws.step_label.text() and ws.run_button.isEnabled()
+    # residual heat map with a colour map, and the map of wrong pixels
+    assert ws.residuals.image.image.shape == (120, 160) and ws.residuals.colorbar is not None
+    assert re.search(r"RMS 0\.\d{3} px, 100\.0% decoded", ws.residuals.title.text())
+    assert ws.wrong_panel.image.image.shape == (120, 160, 3)
+    assert "0 camera pixels see another slot" in ws.wrong_panel.title.text()
+    x, h = ws.leakage_bars.opts["x"], ws.leakage_bars.opts["height"]
+    assert len(x) == 16 and h[truth_phase + 1] > 0.9 and h[max(truth_phase - 1, 0)] < 0.1
+    # save
+    assert ws.save_button.isEnabled()
+    assert ws.save("") is None and "choose where to save" in ws.save_label.text()
+    path = tmp_path / "cal.json"
+    ws.save_path.setText(str(path))
+    ws.save_button.click()
+    assert "saved" in ws.save_label.text()
+    data = load_calibration(path, outcome.identity)
+    np.testing.assert_allclose(data["H"], outcome.homography.homography)
+    assert data["sync"]["phase_slots"] == truth_phase
+
+
+def test_cancel_stops_between_steps_and_keeps_nothing(qtbot, calibrate):
+    ws = calibrate
+    assert ws.run_calibration()
+    qtbot.waitUntil(lambda: ws.tracker.index >= 1, timeout=10_000)  # past the co-location step
+    ws.cancel_button.click()
+    assert ws.step_label.text() == "cancelling …"
+    qtbot.waitUntil(lambda: not ws.running, timeout=20_000)
+    assert re.fullmatch(r"cancelled during (parallax: near target|parallax: far target|homography|shutter|sync|"
+                        r"shutter map); the devices were stopped", ws.step_label.text())
+    assert ws.outcome is None and not ws.save_button.isEnabled() and ws.run_button.isEnabled()
+    assert "nothing to save (cancelled)" in ws.save_label.text()
+    assert ws.save("x.json") is None and "nothing to save" in ws.save_label.text()
+
+
+def test_a_rig_that_is_not_co_located_is_reported_and_not_saved(qtbot, calibrate):
+    """The projector 30 % of the target distance off the camera's axis: the parallax test fails."""
+    ws = calibrate
+    target = CalibrationTarget(calibration_rig(SEED, baseline=(0.3, 0.0, 0.0)), True, SEED)
+    outcome = run_workspace_calibration(target)
+    assert not outcome.success and outcome.report["failed"] == "colocation"
+    ws.show_outcome(outcome)
+    text = ws.results.text()
+    assert "✗ not co located" in text and "NOT co-located" in text and "move the projector" in text
+    assert not ws.save_button.isEnabled()
+    assert "not saved: the colocation step failed" in ws.save_label.text()
+    assert ws.wrong_panel.placeholder.textItem.toPlainText() == "the run stopped before the shutter step"
+    titles = [row[0] for row in summary_rows(outcome)]
+    assert "Homography" not in titles and "Parallax (co-located?)" in titles
+
+
+def test_live_co_location_numbers_update_on_a_timer(qtbot, calibrate):
+    ws = calibrate
+    ws.live_check.setChecked(True)
+    qtbot.waitUntil(lambda: ws.alignment is not None, timeout=20_000)
+    first = ws.alignment
+    qtbot.waitUntil(lambda: ws.alignment is not first, timeout=20_000)  # measured again
+    assert ws.alignment.success and "offset" in ws.live_label.text() and "rotation" in ws.live_label.text()
+    assert abs(ws.alignment.scale - 0.645) < 0.01
+    ws.live_check.setChecked(False)
+    qtbot.waitUntil(lambda: ws.live_job is None or not ws.live_job.running, timeout=10_000)
+    assert ws.live_label.text().startswith("stopped · last: offset")
+    assert ws.run_calibration()  # the live numbers are off: a calibration may start
+    qtbot.waitUntil(lambda: not ws.running, timeout=30_000)
+
+
+def test_sync_wizard_end_to_end(qtbot, calibrate, tmp_path):
+    from PySide6.QtWidgets import QWizard
+
+    ws = calibrate
+    wizard = ws.open_sync_wizard()  # a child of the workspace, deleted when closed
+    truth_phase, _ = hidden_timing(SEED)
+    # 1. wiring checklist: Next only when every box is ticked
+    next_button = wizard.button(QWizard.WizardButton.NextButton)
+    assert wizard.currentPage() is wizard.wiring and not next_button.isEnabled()
+    for box in wizard.wiring.boxes:
+        box.setChecked(True)
+    assert next_button.isEnabled()
+    wizard.next()
+    # 2. trigger test
+    assert wizard.currentPage() is wizard.trigger and not next_button.isEnabled()
+    wizard.trigger.button.click()
+    qtbot.waitUntil(wizard.trigger.isComplete, timeout=10_000)
+    assert "3 triggered frames" in wizard.trigger.verdict.text()
+    wizard.next()
+    # 3. phase sweep (no homography from the workspace yet: the page measures one first)
+    assert wizard.homography is None
+    wizard.phase.button.click()
+    qtbot.waitUntil(wizard.phase.isComplete, timeout=30_000)
+    assert wizard.sync.phase_slots == truth_phase and f"sees projected slot {truth_phase}" in \
+        wizard.phase.verdict.text()
+    assert len(wizard.phase.bars.opts["height"]) == 16 and len(wizard.phase.points.getData()[0]) == 8
+    wizard.next()
+    # 4. drops and drift
+    wizard.drift.button.click()
+    qtbot.waitUntil(wizard.drift.isComplete, timeout=20_000)
+    assert wizard.frame_check.success and "no gaps" in wizard.drift.verdict.text()
+    wizard.next()
+    # 5. save
+    assert wizard.currentPage() is wizard.save_page
+    assert wizard.save_page.save("") is None and "choose where to save" in wizard.save_page.label.text()
+    path = tmp_path / "sync.json"
+    wizard.save_page.path.setText(str(path))
+    wizard.save_page.button.click()
+    assert "saved" in wizard.save_page.label.text()
+    data = load_sync_profile(path, wizard.identity)
+    assert data["sync"]["phase_slots"] == truth_phase and data["frame_check"]["status"] == "ok"
+    with qtbot.waitSignal(wizard.destroyed, timeout=5000):
+        wizard.accept()
+
+
+def test_trigger_test_says_when_the_camera_is_not_triggered(qtbot, runner):
+    from app.gui.sync_wizard import SyncWizard
+    from calibration.session import RigSession
+    from rig_drivers.interfaces import TriggerConfig, TriggerSource
+
+    class Miswired(CalibrationTarget):
+        """TRIG_OUT_2 goes to Line2; the camera listens on Line0."""
+
+        def session(self):
+            return RigSession.from_rig(self.rig, trigger=TriggerConfig(source=TriggerSource.LINE0), timeout_s=0.3)
+
+    target = Miswired(calibration_rig(SEED, camera_line=TriggerSource.LINE2), True, SEED)
+    wizard = SyncWizard(target, runner)
+    qtbot.addWidget(wizard)
+    wizard.trigger.start()
+    qtbot.waitUntil(lambda: wizard.trigger.job is not None and not wizard.trigger.job.running, timeout=20_000)
+    assert not wizard.trigger.isComplete()
+    assert "the camera is not triggered by the projector" in wizard.trigger.verdict.text()
+
+
+def test_target_for_the_simulated_rig_is_the_calibration_target():
+    target = target_for(RigService(small_rig()), seed=3)
+    assert target.simulated and target.seed == 3 and target.rig.simulated.truth.phase_slots == hidden_timing(3)[0]

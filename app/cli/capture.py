@@ -59,8 +59,12 @@ def register(sub) -> None:
                    help="mock rig: real time at the camera rate (default; a paced simulated clock), or "
                         "virtual time that runs as fast as frames can be rendered (demos, tests)")
     p.add_argument("--rate", type=float, default=15.0, metavar="HZ", help="camera frame rate (default 15)")
-    p.add_argument("--phase", type=int, default=0, metavar="SLOTS",
-                   help="sync phase in slots from the sync wizard (default 0)")
+    p.add_argument("--calibration", type=Path, metavar="CAL.json",
+                   help="a calibration from `flexvox calibrate -o` made on this rig: its homography and "
+                        "synchronised phase drive the shutter patterns (refused when made for another rig "
+                        "or resolution)")
+    p.add_argument("--phase", type=int, metavar="SLOTS",
+                   help="sync phase in slots (default: the calibration's, else 0)")
     p.add_argument("--projector-size", type=arg_type(_size), metavar="HxW",
                    help="projector resolution when the projector does not report it")
     p.add_argument("--queue", type=int, default=64, metavar="FRAMES",
@@ -82,6 +86,7 @@ def _build(args):
     if args.frames is not None and args.frames < 1:
         raise ValueError(f"--frames must be >= 1; got {args.frames}")
     code = design_code(args.tile).code
+    calibration = None
     if args.rig == "mock":
         rig = open_rig("mock", scene=args.scene, camera_size=args.size, homography=np.eye(3),
                        clock=VirtualClock() if args.clock == "virtual" else PacedClock())
@@ -93,14 +98,43 @@ def _build(args):
             raise ValueError("--ground-truth goes with --rig mock (a real scene has no ground truth)")
         rig = open_rig(args.rig)
         gt = None
+    projector_size = args.projector_size
+    if args.calibration is not None:
+        calibration, projector_size = _calibration(args, rig, projector_size)
+    elif args.phase:
+        calibration = CaptureCalibration(phase_slots=args.phase, source="identity, --phase")
     service = CaptureService(
-        rig, code, args.output, frames=args.frames,
-        calibration=CaptureCalibration(phase_slots=args.phase,
-                                       source="identity, --phase" if args.phase else "identity (uncalibrated)"),
+        rig, code, args.output, frames=args.frames, calibration=calibration,
         sync=SyncSetting(camera_hz=args.rate), queue_policy=QueuePolicy(capacity=args.queue, block_s=args.block),
-        projector_size=args.projector_size, ground_truth=gt, overwrite=args.overwrite,
+        projector_size=projector_size, ground_truth=gt, overwrite=args.overwrite,
         rig_info={"profile": args.rig})
     return service
+
+
+def _calibration(args, rig, projector_size):
+    """The capture calibration from ``--calibration``, checked against this rig's identity."""
+    from app.capture import CaptureCalibration
+    from calibration.files import load_calibration
+    from calibration.session import RigSession
+
+    # The projector's own size when it reports one (the simulated rig), else --projector-size, else the
+    # file's (a DLPC350 does not report its resolution).
+    size = getattr(rig.projector, "size", None) or projector_size or _file_projector_size(args.calibration)
+    identity = RigSession.from_rig(rig, projector_size=size).identity
+    data = load_calibration(args.calibration, identity)  # refuses another rig or resolution
+    sync = data.get("sync") or {}
+    phase = args.phase if args.phase is not None else int(sync.get("effective_phase_slots") or 0)
+    source = f"{args.calibration} ({data.get('created', 'undated')})"
+    return CaptureCalibration(homography=data["H"], phase_slots=phase, source=source), size
+
+
+def _file_projector_size(path):
+    import json
+
+    try:
+        return tuple(json.loads(Path(path).read_text())["rig"]["projector_size"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return None  # load_calibration will say what is wrong with the file
 
 
 def _counters(s) -> str:

@@ -65,3 +65,37 @@ def test_capture_error_exits_1_with_the_count(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err
     assert "the camera failed (unplugged?): cable pulled" in err and "holds 3 frame(s)" in err
     assert open_recording(tmp_path / "r.zarr").n_frames == 3
+
+
+def _calibration_file(path, *, camera_size=(24, 32), projector_size=(24, 32), phase=3):
+    """A calibration file for the mock capture rig of the given sizes (as `flexvox calibrate -o` writes)."""
+    import numpy as np
+
+    from calibration.files import CALIBRATION_FORMAT, CALIBRATION_VERSION, write_versioned
+    from calibration.session import RigSession
+    from rig_drivers.profile import open_rig
+
+    rig = open_rig("mock", camera_size=camera_size, homography=np.eye(3))
+    identity = RigSession.from_rig(rig, projector_size=projector_size).identity
+    h = np.array([[1.0, 0, 1.0], [0, 1.0, 0], [0, 0, 1.0]])
+    body = {"homography": {"projector_to_camera": h.tolist(), "camera_to_projector": np.linalg.inv(h).tolist()},
+            "quality": {}, "sync": {"effective_phase_slots": phase}}
+    return write_versioned(path, CALIBRATION_FORMAT, CALIBRATION_VERSION, identity, body)
+
+
+def test_capture_uses_a_calibration_file(tmp_path, capsys):
+    cal = _calibration_file(tmp_path / "cal.json")
+    out = tmp_path / "r.zarr"
+    assert cli(["capture", "--frames", "2", "--size", "24x32", "--clock", "virtual", "--calibration", str(cal),
+                "-o", str(out)]) == 0
+    stored = open_recording(out).attrs["calibration"]
+    assert stored["phase_slots"] == 3 and "cal.json" in stored["source"]
+    assert stored["homography"][0][2] == 1.0
+
+
+def test_capture_refuses_a_calibration_for_another_resolution(tmp_path, capsys):
+    cal = _calibration_file(tmp_path / "cal.json", camera_size=(24, 32))
+    with pytest.raises(CliError, match=r"was made for a camera resolution of 24x32, this rig's is 48x64"):
+        cli(["capture", "--frames", "2", "--size", "48x64", "--clock", "virtual", "--calibration", str(cal),
+             "-o", str(tmp_path / "r.zarr")])
+    assert not (tmp_path / "r.zarr").exists()

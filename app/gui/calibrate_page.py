@@ -47,12 +47,13 @@ from app.gui.calibration_model import (
     STEPS,
     CalibrationOutcome,
     StepTracker,
-    measure_live_alignment,
+    measure_live_colocation,
     run_workspace_calibration,
     summary_rows,
     target_for,
     verdict,
 )
+from app.gui.colocation_view import ColocationView
 from app.gui.image_panel import ImagePanel
 from app.gui.jobs import CancelToken
 from app.gui.qt_jobs import JobHandle, JobRunner
@@ -109,6 +110,8 @@ class CalibrateWorkspace(QWidget):
     """A line for the status bar."""
     calibrated = Signal(object)
     """A :class:`CalibrationOutcome` (successful or not) after each run."""
+    use_for_capture = Signal(object, object)
+    """(outcome, saved path or None): the operator hands the successful result to the Capture workspace."""
 
     def __init__(self, service: RigService, settings: AppSettings, runner: JobRunner, *, rig_guard=None,
                  parent: QWidget | None = None):
@@ -122,6 +125,10 @@ class CalibrateWorkspace(QWidget):
         self.live_job: JobHandle | None = None
         self.alignment = None
         """The newest live co-location result."""
+        self.colocation = None
+        """The newest :class:`~app.gui.calibration_model.LiveColocation` (numbers, image, projector size)."""
+        self.saved_path: Path | None = None
+        """Where the current outcome was saved (None: not saved)."""
         self.tracker: StepTracker | None = None
         self._live_target = None
         self._build()
@@ -179,9 +186,15 @@ class CalibrateWorkspace(QWidget):
         self.save_label = QLabel("run a calibration first")
         self.save_label.setWordWrap(True)
         self.save_label.setTextFormat(Qt.TextFormat.RichText)
+        self.use_button = QPushButton("Use for capture")
+        self.use_button.setToolTip("hand this homography and sync phase to the Capture workspace")
+        self.use_button.setEnabled(False)
+        save_buttons = QHBoxLayout()
+        save_buttons.addWidget(self.save_button)
+        save_buttons.addWidget(self.use_button)
         v = QVBoxLayout(save)
         v.addLayout(row)
-        v.addWidget(self.save_button)
+        v.addLayout(save_buttons)
         v.addWidget(self.save_label)
 
         live = QGroupBox("Co-location live")
@@ -240,6 +253,8 @@ class CalibrateWorkspace(QWidget):
         self.tabs.addTab(self.residuals, "Homography residuals")
         self.tabs.addTab(self.wrong_panel, "Shutter: wrong pixels")
         self.tabs.addTab(sync_page, "Sync leakage")
+        self.colocation_view = ColocationView()
+        self.tabs.addTab(self.colocation_view, "Co-location live")
 
         split = QSplitter()
         split.addWidget(scroll)
@@ -256,6 +271,7 @@ class CalibrateWorkspace(QWidget):
         self.run_button.clicked.connect(self.run_calibration)
         self.cancel_button.clicked.connect(self.cancel)
         self.save_button.clicked.connect(self._save_clicked)
+        self.use_button.clicked.connect(self._use_clicked)
         self.save_browse.clicked.connect(self._browse)
         self.live_check.toggled.connect(self.set_live)
         self.wizard_button.clicked.connect(self.open_sync_wizard)
@@ -327,7 +343,9 @@ class CalibrateWorkspace(QWidget):
             return run_workspace_calibration(target_for(service, seed), tile=tile, cancel=token_, tracker=tracker)
 
         self.outcome = None
+        self.saved_path = None
         self.save_button.setEnabled(False)
+        self.use_button.setEnabled(False)
         self.save_label.setText("calibrating …")
         self.run_button.setEnabled(False)
         self.cancel_button.setEnabled(True)
@@ -397,6 +415,8 @@ class CalibrateWorkspace(QWidget):
     # ------------------------------------------------------------------ results
     def show_outcome(self, outcome: CalibrationOutcome) -> None:
         """Show a run's figures, maps and plots."""
+        if outcome is not self.outcome:
+            self.saved_path = None
         self.outcome = outcome
         self.results.setText(results_html(outcome))
         hom = outcome.homography
@@ -442,6 +462,7 @@ class CalibrateWorkspace(QWidget):
         else:
             self.sweep_points.setData([], [])
             self.sweep_fit.setData([], [])
+        self.use_button.setEnabled(outcome.success)
         if outcome.success:
             self.save_button.setEnabled(True)
             self.save_label.setText("ready to save (homography and sync)")
@@ -479,9 +500,14 @@ class CalibrateWorkspace(QWidget):
         except CalibrationError as exc:
             self.save_label.setText(f"<span style='color:{RED}'>not saved: {html.escape(str(exc))}</span>")
             return None
+        self.saved_path = Path(written)
         self.save_label.setText(f"<span style='color:{GREEN}'>saved {html.escape(str(written))}</span>")
         self.status.emit(f"saved {written}")
         return written
+
+    def _use_clicked(self) -> None:
+        if self.outcome is not None and self.outcome.success:
+            self.use_for_capture.emit(self.outcome, self.saved_path)
 
     # ------------------------------------------------------------------ live co-location
     def set_live(self, on: bool) -> None:
@@ -498,6 +524,8 @@ class CalibrateWorkspace(QWidget):
         self.live_check.blockSignals(False)
         if on:
             self.live_label.setText("measuring …")
+            self.tabs.setCurrentWidget(self.colocation_view)
+            self.colocation_view.set_title("co-location live: measuring …")
             self._measure_live()
         else:
             self.live_timer.stop()
@@ -519,8 +547,21 @@ class CalibrateWorkspace(QWidget):
             self._live_target = target_for(self.service, self.seed_box.value())
         target = self._live_target
         self.live_job = self.runner.submit(
-            "co-location", lambda token, progress: measure_live_alignment(target, token),
-            on_finished=self._on_alignment, on_failed=self._on_live_failed, on_done=self._on_live_done)
+            "co-location", lambda token, progress: measure_live_colocation(target, token),
+            on_finished=self._on_colocation, on_failed=self._on_live_failed, on_done=self._on_live_done)
+
+    def _on_colocation(self, live) -> None:
+        self.colocation = live
+        result = live.alignment
+        self.colocation_view.show_alignment(live.image, result.homography if result.success else None,
+                                            live.projector_size)
+        if result.success:
+            self.colocation_view.set_title(
+                "co-location live: the camera with the projector's expected grid (dashed), border (yellow) and "
+                "centre (red) through the current homography estimate; white ○: the camera's centre")
+        else:
+            self.colocation_view.set_title(f"co-location live: no homography estimate ({result.status})")
+        self._on_alignment(result)
 
     def _on_alignment(self, result) -> None:
         self.alignment = result

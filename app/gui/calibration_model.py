@@ -193,6 +193,44 @@ def run_workspace_calibration(target: CalibrationTarget, *, tile=(4, 4), cancel:
     return outcome
 
 
+@dataclass
+class LiveColocation:
+    """One live co-location measurement and the camera image it goes with.
+
+    Attributes
+    ----------
+    alignment : calibration.colocation.AlignmentResult
+        The numbers, and the homography estimate (None when the fit failed).
+    image : ndarray (H, W) float64 or None
+        The camera's view with the projector fully lit, right after the measurement.
+    projector_size : (H, W)
+    """
+
+    alignment: object
+    image: object
+    projector_size: tuple[int, int]
+
+
+def measure_live_colocation(target: CalibrationTarget, cancel: CancelToken | None = None) -> LiveColocation:
+    """:func:`measure_live_alignment` and one camera image under a white projector (one more capture)."""
+    import numpy as np
+
+    from calibration.colocation import measure_alignment
+
+    cancel = cancel or CancelToken()
+
+    def check(done, total):
+        cancel.check()
+
+    with target.session() as session:
+        result = measure_alignment(session, progress=check)
+        cancel.check()
+        image = None
+        if result.status != "no_frames":
+            image = session.capture(np.ones(session.projector_size, bool))
+        return LiveColocation(result, image, tuple(session.projector_size))
+
+
 def measure_live_alignment(target: CalibrationTarget, cancel: CancelToken | None = None):
     """One set of co-location numbers (:func:`calibration.colocation.measure_alignment`) on ``target``."""
     from calibration.colocation import measure_alignment

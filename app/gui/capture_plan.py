@@ -152,9 +152,25 @@ class CapturePlan:
                          f"{period / drift / self.camera_hz:.0f} s: trigger it from TRIG_OUT_2 or the sync box")
         return TimingCheck(period, proj, seq, tuple(errors), tuple(notes))
 
-    def sequence(self, projector_size: tuple[int, int]) -> PatternSequence:
-        """The pattern sequence for a projector of ``projector_size`` (H, W) pixels, one trigger out per frame."""
+    def sequence(self, projector_size: tuple[int, int], *, camera_size: tuple[int, int] | None = None,
+                 calibration=None) -> PatternSequence:
+        """The pattern sequence for a projector of ``projector_size`` (H, W) pixels, one trigger out per frame.
+
+        Without ``calibration`` the code is tiled over the projector (an identity map). With a
+        :class:`~app.capture.service.CaptureCalibration` and the ``camera_size``, the patterns are the
+        capture service's (:func:`app.capture.patterns.shutter_patterns`: through the homography, phase
+        compensated), so the live view shutters the camera as a recording will.
+        """
         H, W = projector_size
         t = self.timing()
-        return PatternSequence(tiled_code(self.code, H, W), exposure_us=t.projector_exposure_us,
+        if calibration is None:
+            patterns = tiled_code(self.code, H, W)
+        else:
+            from app.capture.patterns import shutter_patterns
+
+            if camera_size is None:
+                raise ValueError("`camera_size` is needed with a `calibration`")
+            patterns = shutter_patterns(self.code, camera_size, (H, W), homography=calibration.homography,
+                                        phase_slots=int(calibration.phase_slots) % self.K)
+        return PatternSequence(patterns, exposure_us=t.projector_exposure_us,
                                period_us=t.period_us, trigger=ProjectorTrigger.INTERNAL)

@@ -11,6 +11,16 @@ the end (those it opened it closes again). While it records, the display timer s
 the counters come from ``service.stats()``. Starting (a real projector's pattern upload takes
 seconds) and stopping (the writer drains its queue) run on the job runner, so the window never
 waits on them.
+
+Calibration: the "Calibration" box loads a calibration file (or takes the Calibrate
+workspace's result, :meth:`CaptureWorkspace.use_outcome`), refusing one made for another rig or
+resolution (:mod:`app.gui.capture_calibration`); recordings, the live view's patterns and the
+projector output window then use its homography and sync phase.
+
+Beside the raw view, a motion-aware preview of the newest frames (:mod:`app.gui.live_preview`:
+its own worker thread, newest wins, a bounded duty cycle) says the resolution and rate it runs
+at. The projector output window (:mod:`app.gui.projector_window`) shows the packed patterns
+full-screen and pixel-exact on a chosen screen, for a projector driven through its video input.
 """
 
 from __future__ import annotations
@@ -23,6 +33,7 @@ from pathlib import Path
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt, QTimer, Signal
+from PySide6.QtGui import QGuiApplication
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -42,11 +53,20 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from app.gui.capture_calibration import (
+    ActiveCalibration,
+    CalibrationRefused,
+    capture_identity,
+    from_outcome,
+    load_for_capture,
+)
 from app.gui.capture_plan import TILES, CapturePlan
 from app.gui.image_panel import ImagePanel
-from app.gui.live_source import LiveStartError, start_live, stop_live
+from app.gui.live_preview import LivePreview
+from app.gui.live_source import LiveStartError, projector_size, start_live, stop_live
 from app.gui.live_stats import LiveStats, histogram, saturation_level, saturation_mask
 from app.gui.live_view import LiveStream
+from app.gui.projector_window import ProjectorWindow, packed_frames, screen_label
 from app.gui.qt_jobs import JobRunner
 from app.gui.recording import counters_text, make_capture, result_text, resync_clock
 from app.gui.rig_service import RigService
@@ -60,7 +80,7 @@ SATURATION_RGBA = (255, 0, 0, 170)
 COUNTERS_MS = 200
 """The recording counters are refreshed this often."""
 STOP_TIMEOUT_S = 30.0
-RED, GREEN = "#c0392b", "#1e8449"
+RED, GREEN, AMBER = "#c0392b", "#1e8449", "#b7950b"
 
 
 def _coloured(text: str, colour: str) -> str:
@@ -87,6 +107,8 @@ class CaptureWorkspace(QWidget):
     """The :class:`~app.capture.service.CaptureResult` (None when the capture did not stop in time)."""
     open_requested = Signal(object)
     """A recording's path the operator wants to review."""
+    calibration_changed = Signal(object)
+    """The :class:`~app.gui.capture_calibration.ActiveCalibration` now used (None: identity, uncalibrated)."""
 
     def __init__(self, service: RigService, settings: AppSettings, runner: JobRunner | None = None, *,
                  capture_factory=None, rig_guard=None, parent: QWidget | None = None):
@@ -107,7 +129,18 @@ class CaptureWorkspace(QWidget):
         self._stop_job = None
         self._start_job = None
         self._last_shown_id = None
+        self.calibration: ActiveCalibration | None = None
+        """The calibration recordings use (None: identity homography, phase 0)."""
+        self.projector_window = None
+        """The open :class:`~app.gui.projector_window.ProjectorWindow`, or None."""
+        self._projector_job = None
+        self._calibration_error = ""
+        self.preview = LivePreview(self)
+        self._preview_index = 0
         self._build()
+        self.preview.updated.connect(self._on_preview)
+        self.preview.failed.connect(lambda message: self.preview_label.setText(
+            _coloured(f"preview stopped: {message}", RED)))
         self.stream.frame.connect(self._on_frame)
         self.stream.failed.connect(self._on_failed)
         self._plan_changed()
@@ -165,16 +198,48 @@ class CaptureWorkspace(QWidget):
         f.addRow("pattern exposure", self.projector_exposure)
         f.addRow(self.timing_label)
 
+        cal = QGroupBox("Calibration")
+        self.calibration_label = QLabel()
+        self.calibration_label.setWordWrap(True)
+        self.calibration_label.setTextFormat(Qt.TextFormat.RichText)
+        self.calibration_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.load_calibration_button = QPushButton("Load calibration…")
+        self.clear_calibration_button = QPushButton("Uncalibrated")
+        self.clear_calibration_button.setToolTip("record with the identity homography and phase 0")
+        row = QHBoxLayout()
+        row.addWidget(self.load_calibration_button)
+        row.addWidget(self.clear_calibration_button)
+        cv = QVBoxLayout(cal)
+        cv.addWidget(self.calibration_label)
+        cv.addLayout(row)
+
+        proj = QGroupBox("Projector output (video input)")
+        self.screen_box = QComboBox()
+        self.projector_button = QPushButton("Show patterns full-screen")
+        self.projector_button.setCheckable(True)
+        self.projector_label = QLabel("closed · the packed patterns (24 masks per RGB frame) go full-screen on "
+                                      "the chosen screen, pixel for pixel; Esc closes")
+        self.projector_label.setWordWrap(True)
+        self.projector_label.setTextFormat(Qt.TextFormat.RichText)
+        f = QFormLayout(proj)
+        f.addRow("screen", self.screen_box)
+        f.addRow(self.projector_button)
+        f.addRow(self.projector_label)
+        self._refresh_screens()
+
         live = QGroupBox("Live view")
         self.live_button = QPushButton("Start live view")
         self.live_button.setCheckable(True)
         self.saturation_check = QCheckBox("show saturated pixels in red")
         self.saturation_check.setChecked(True)
+        self.preview_check = QCheckBox("motion-aware preview of the newest frames")
+        self.preview_check.setChecked(self.settings.get_bool("capture/preview", True))
         self.live_label = QLabel("stopped")
         self.live_label.setWordWrap(True)
         v = QVBoxLayout(live)
         v.addWidget(self.live_button)
         v.addWidget(self.saturation_check)
+        v.addWidget(self.preview_check)
         v.addWidget(self.live_label)
 
         rec = QGroupBox("Recording")
@@ -200,7 +265,7 @@ class CaptureWorkspace(QWidget):
         buttons.addWidget(self.stop_button)
         self.counters_label = QLabel("not recording")
         self.counters_label.setWordWrap(True)
-        self.recording_label = QLabel("calibration: identity homography, phase 0 (uncalibrated)")
+        self.recording_label = QLabel("not recorded yet")
         self.recording_label.setWordWrap(True)
         self.recording_label.setTextFormat(Qt.TextFormat.RichText)
         self.recording_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
@@ -219,11 +284,11 @@ class CaptureWorkspace(QWidget):
 
         left = QWidget()
         lv = QVBoxLayout(left)
-        for w in (code, timing, live, rec):
+        for w in (code, timing, cal, live, rec, proj):
             lv.addWidget(w)
         lv.addStretch(1)
         scroll = QScrollArea()
-        self.controls_scroll, self.recording_box = scroll, rec
+        self.controls_scroll, self.recording_box, self.projector_box = scroll, rec, proj
         scroll.setWidget(left)
         scroll.setWidgetResizable(True)
         scroll.setMinimumWidth(380)
@@ -239,9 +304,23 @@ class CaptureWorkspace(QWidget):
         self.hist_curve = self.hist.plot([0, 1], [0], stepMode="center", fillLevel=0, brush=(90, 160, 255, 120))
         self.sat_line = pg.InfiniteLine(angle=90, pen=pg.mkPen((255, 60, 60), width=1, style=Qt.PenStyle.DashLine))
         self.hist.addItem(self.sat_line)
+        self.preview_panel = ImagePanel("motion-aware preview")
+        self.preview_panel.clear("starts with the live view")
+        self.preview_label = QLabel("preview: off")
+        self.preview_label.setWordWrap(True)
+        self.preview_label.setTextFormat(Qt.TextFormat.RichText)
+        preview_box = QWidget()
+        pv = QVBoxLayout(preview_box)
+        pv.setContentsMargins(0, 0, 0, 0)
+        pv.addWidget(self.preview_panel, 1)
+        pv.addWidget(self.preview_label)
+        views = QSplitter()
+        views.addWidget(self.image_panel)
+        views.addWidget(preview_box)
+        views.setSizes([500, 500])
         right = QWidget()
         rv = QVBoxLayout(right)
-        rv.addWidget(self.image_panel, 1)
+        rv.addWidget(views, 1)
         rv.addWidget(self.hist)
 
         split = QSplitter()
@@ -265,6 +344,13 @@ class CaptureWorkspace(QWidget):
         self.review_button.clicked.connect(self._ask_review)
         self.path_edit.textChanged.connect(lambda text: self.settings.set("capture/recording_path", text))
         self.frames_box.valueChanged.connect(lambda n: self.settings.set("capture/frames", n))
+        self.load_calibration_button.clicked.connect(self._ask_calibration)
+        self.clear_calibration_button.clicked.connect(self.clear_calibration)
+        self.projector_button.toggled.connect(self._on_projector_toggled)
+        self.preview_check.toggled.connect(self._on_preview_toggled)
+        app = QGuiApplication.instance()
+        app.screenAdded.connect(self._refresh_screens)
+        app.screenRemoved.connect(self._refresh_screens)
         self.counters_timer = QTimer(self)
         self.counters_timer.setInterval(COUNTERS_MS)
         self.counters_timer.timeout.connect(self._poll_capture)
@@ -324,6 +410,7 @@ class CaptureWorkspace(QWidget):
             lines.insert(1, "<span style='color:#1e8449'>✓ the projector accepts this timing "
                             "(exposure = period, or ≤ period − 230 µs)</span>")
         self.timing_label.setText("<br>".join(lines))
+        self._show_calibration()
         self._update_buttons()
 
     # ------------------------------------------------------------------ live view
@@ -343,7 +430,7 @@ class CaptureWorkspace(QWidget):
             self._set_button(False)
             return False
         try:
-            note = start_live(self.service, self.plan())
+            note = start_live(self.service, self.plan(), self._live_calibration())
         except LiveStartError as exc:
             self.live_label.setText(f"<span style='color:#c0392b'>cannot start: {html.escape(str(exc))}</span>")
             self._set_button(False)
@@ -352,6 +439,7 @@ class CaptureWorkspace(QWidget):
         self._latest = None
         self.stream.start(self.service.rig.camera, timeout_s=max(1.0, 3 / self.rate.value()))
         self.display_timer.start()
+        self._start_preview()
         self.live_label.setText(note or "waiting for frames …")
         self.image_panel.set_title("camera: live")
         self._set_button(True)
@@ -360,6 +448,7 @@ class CaptureWorkspace(QWidget):
     def stop_live(self) -> None:
         """Stop the live view (devices stay connected)."""
         self.display_timer.stop()
+        self._stop_preview()
         stopped = self.stream.stop()
         stop_live(self.service)
         if stopped:
@@ -381,6 +470,7 @@ class CaptureWorkspace(QWidget):
     def _on_frame(self, frame) -> None:
         self.stats.update(frame)
         self._latest = frame
+        self.preview.feed(frame)  # a list append; the reconstruction runs on the preview's own worker
 
     def _on_failed(self, message: str) -> None:
         self.service.record_error("camera", f"live view: {message}")
@@ -388,11 +478,13 @@ class CaptureWorkspace(QWidget):
         self.live_label.setText(f"<span style='color:#c0392b'>live view stopped: {html.escape(message)}</span>")
 
     def _redraw(self) -> None:
+        self._advance_preview()
         if self._recording and self.capture is not None:
             f, seq = self.capture.latest()
             if f is None or seq == self._shown_seq:
                 return
             self._shown_seq = seq
+            self.preview.feed(f)
             self._show_frame(f)
             return
         f = self._latest
@@ -438,7 +530,7 @@ class CaptureWorkspace(QWidget):
         self.stop_button.setEnabled(self._recording and self._stop_job is None)
         for w in (self.path_edit, self.browse_button, self.frames_box, self.overwrite_check, self.truth_check,
                   self.tile_box, self.identity, self.multiplexed, self.rate, self.auto_exposure,
-                  self.projector_exposure):
+                  self.projector_exposure, self.load_calibration_button, self.clear_calibration_button):
             w.setEnabled(not self._recording)
         self.exposure.setEnabled(not self._recording and not self.auto_exposure.isChecked())
 
@@ -478,6 +570,7 @@ class CaptureWorkspace(QWidget):
         options = {} if self.capture_factory is None else {"factory": self.capture_factory}
         try:
             capture = make_capture(self.service, plan, Path(text).expanduser(), frames=frames,
+                                   calibration=self.capture_calibration(),
                                    overwrite=self.overwrite_check.isChecked(),
                                    ground_truth=self.service.simulated and self.truth_check.isChecked(), **options)
         except (CaptureError, ValueError) as exc:
@@ -506,7 +599,9 @@ class CaptureWorkspace(QWidget):
         for role in ("projector", "camera", "sync"):
             self.service.notify(role)
         target = f"{capture.n_target} frames" if capture.n_target else "until Stop"
-        self._say(f"recording to {capture.path} ({target}, {1 / capture.frame_period_s:.3f} Hz)")
+        self._say(f"recording to {capture.path} ({target}, {1 / capture.frame_period_s:.3f} Hz; calibration: "
+                  f"{capture.calibration.source})")
+        self._start_preview()
         self.display_timer.start()
         self.counters_timer.start()
         self._poll_capture()
@@ -560,6 +655,7 @@ class CaptureWorkspace(QWidget):
         self.counters_timer.stop()
         self._redraw()  # the last frame
         self.display_timer.stop()
+        self._stop_preview()
         self._recording = False
         self._stop_job = None
         self.last_result = result
@@ -584,8 +680,11 @@ class CaptureWorkspace(QWidget):
 
     def shutdown(self) -> None:
         """Stop the live view and any recording (window closing: waits, bounded, for the recording to end)."""
+        self.close_projector_window()
         if self.stream.running:
             self.stop_live()
+        if not self.preview.shutdown(5000):
+            _logger.error("the live preview did not stop within 5 s")
         capture, start = self.capture, self._start_job
         if self._recording and capture is not None:
             deadline = time.monotonic() + STOP_TIMEOUT_S
@@ -597,3 +696,248 @@ class CaptureWorkspace(QWidget):
                              "did not stop in time" if result is None else result.message)
         self.counters_timer.stop()
         self.display_timer.stop()
+
+    # ------------------------------------------------------------------ calibration
+    def capture_calibration(self):
+        """The :class:`~app.capture.service.CaptureCalibration` a recording of the current plan uses."""
+        from app.capture.service import CaptureCalibration
+
+        if self.calibration is None:
+            return CaptureCalibration()
+        plan = self.plan()
+        return self.calibration.capture_calibration(plan.K, plan.period_us)
+
+    def _live_calibration(self):
+        return None if self.calibration is None else self.capture_calibration()
+
+    def _identity(self):
+        from rig_drivers.errors import DeviceError
+
+        try:
+            return capture_identity(self.service)
+        except (DeviceError, OSError) as exc:
+            raise CalibrationRefused(f"cannot read this rig's camera and projector sizes: {exc}") from exc
+
+    def _ask_calibration(self) -> None:
+        start = self.settings.get_str("capture/calibration_dir", str(Path.home()))
+        path, _ = QFileDialog.getOpenFileName(self, "Load calibration", start, "Calibration (*.json)")
+        if path:
+            self.settings.set("capture/calibration_dir", str(Path(path).parent))
+            self.load_calibration(path)
+
+    def load_calibration(self, path) -> bool:
+        """Use the calibration file at ``path``; False (with the reason shown, the previous one kept) when refused."""
+        try:
+            active = load_for_capture(path, self._identity())
+        except CalibrationRefused as exc:
+            self._refuse(str(exc))
+            return False
+        self._set_calibration(active)
+        return True
+
+    def use_outcome(self, outcome, path=None) -> bool:
+        """Use the Calibrate workspace's result (saved at ``path``, if it was); False (with the reason) when refused."""
+        try:
+            active = from_outcome(outcome, self._identity(), path=path)
+        except CalibrationRefused as exc:
+            self._refuse(str(exc))
+            return False
+        self._set_calibration(active)
+        return True
+
+    def clear_calibration(self) -> None:
+        """Record uncalibrated (identity homography, phase 0)."""
+        self._set_calibration(None)
+
+    def _set_calibration(self, active: ActiveCalibration | None) -> None:
+        if self._recording:
+            self._refuse("a recording is running: the calibration changes after it")
+            return
+        self.calibration = active
+        self._calibration_error = ""
+        self._show_calibration()
+        if self.stream.running:  # the projector shows the new patterns
+            self.stop_live()
+            self.start_live()
+        if self.projector_window is not None:
+            self.close_projector_window()
+            self.projector_label.setText(_coloured("closed: the calibration changed; show the patterns again", AMBER))
+        self.calibration_changed.emit(active)
+
+    @property
+    def calibration_error(self) -> str:
+        """Why the last calibration offered was refused ("" when it was taken)."""
+        return self._calibration_error
+
+    def _refuse(self, message: str) -> None:
+        self._calibration_error = message
+        self._show_calibration()
+
+    def _show_calibration(self) -> None:
+        active = self.calibration
+        if active is None:
+            lines = ["<b>uncalibrated</b>: identity homography, phase 0 (right for the co-located simulated rig)"]
+        else:
+            plan = self.plan()
+            phase, warning = active.phase_for(plan.K, plan.period_us)
+            lines = [f"<b>active</b>: {html.escape(active.describe())}",
+                     f"recordings use its homography and phase {phase}"]
+            if warning:
+                lines.append(_coloured(f"• {warning}", AMBER))
+        error = self._calibration_error
+        if error:
+            lines.append(_coloured(f"refused: {error}", RED))
+        self.calibration_label.setText("<br>".join(lines))
+
+    # ------------------------------------------------------------------ projector output window
+    def _refresh_screens(self, *_) -> None:
+        current = self.screen_box.currentData()
+        self.screen_box.blockSignals(True)
+        self.screen_box.clear()
+        for i, screen in enumerate(QGuiApplication.screens()):
+            self.screen_box.addItem(screen_label(screen), screen.name() or str(i))
+        idx = self.screen_box.findData(current) if current is not None else -1
+        if idx < 0 and self.screen_box.count() > 1:
+            idx = 1  # a second screen is likely the projector
+        self.screen_box.setCurrentIndex(max(idx, 0))
+        self.screen_box.blockSignals(False)
+
+    def chosen_screen(self):
+        """The QScreen picked in the combo box (None: no screens)."""
+        screens = QGuiApplication.screens()
+        idx = self.screen_box.currentIndex()
+        return screens[idx] if 0 <= idx < len(screens) else None
+
+    def _on_projector_toggled(self, on: bool) -> None:
+        if on:
+            self.open_projector_window()
+        else:
+            self.close_projector_window()
+
+    def _set_projector_button(self, on: bool) -> None:
+        self.projector_button.blockSignals(True)
+        self.projector_button.setChecked(on)
+        self.projector_button.setText("Close projector window" if on else "Show patterns full-screen")
+        self.projector_button.blockSignals(False)
+
+    def open_projector_window(self) -> bool:
+        """Pack the current patterns (on the job runner) and show them full-screen on the chosen screen.
+
+        False (with the reason shown) when the plan's code cannot be made or no screen exists.
+        """
+        if self._projector_job is not None and self._projector_job.running:
+            return True
+        screen = self.chosen_screen()
+        if screen is None:
+            self.projector_label.setText(_coloured("no screen to show the patterns on", RED))
+            self._set_projector_button(False)
+            return False
+        plan = self.plan()
+        try:
+            code = plan.code
+            camera_size = tuple(int(v) for v in self.service.rig.camera.sensor_shape)
+        except (ValueError, OSError) as exc:
+            self.projector_label.setText(_coloured(f"cannot make the patterns: {exc}", RED))
+            self._set_projector_button(False)
+            return False
+        psize = projector_size(self.service.rig.projector)
+        cal = self.capture_calibration()
+        phase = cal.phase_slots % plan.K
+        self.projector_label.setText(f"packing {plan.K} masks of {psize[1]}×{psize[0]} …")
+        self._set_projector_button(True)
+
+        def job(token, progress):
+            return packed_frames(code, camera_size, psize, homography=cal.homography, phase_slots=phase)
+
+        self._projector_job = self.runner.submit(
+            "projector patterns", job, on_finished=lambda frames: self._show_projector(frames, screen, plan.K),
+            on_failed=lambda message: (self.projector_label.setText(_coloured(f"cannot make the patterns: {message}",
+                                                                              RED)),
+                                       self._set_projector_button(False)))
+        return True
+
+    def _show_projector(self, frames, screen, K: int) -> None:
+        if not self.projector_button.isChecked():
+            return  # closed while packing
+        self.close_projector_window(keep_text=True)
+        window = ProjectorWindow(frames, screen=screen)
+        window.closed.connect(self._on_projector_closed)
+        self.projector_window = window
+        window.open()
+        n = frames.shape[0]
+        cycle = (f"{n} frames cycled every {window.timer.interval()} ms (K = {K} > 24; not locked to vsync: "
+                 "prefer K ≤ 24 for the video input)" if n > 1 else f"1 frame: K = {K} masks in its bit-planes")
+        text = [f"showing on {html.escape(screen.name() or 'screen')}: {frames.shape[2]}×{frames.shape[1]} pixels, "
+                f"{cycle}; Esc closes"]
+        warning = window.size_warning()
+        if warning:
+            text.append(_coloured(f"• {warning}", AMBER))
+        self.projector_label.setText("<br>".join(text))
+        self._set_projector_button(True)
+
+    def close_projector_window(self, keep_text: bool = False) -> None:
+        """Close the projector output window if it is open."""
+        window, self.projector_window = self.projector_window, None
+        if window is not None:
+            window.closed.disconnect(self._on_projector_closed)
+            window.close()
+            window.deleteLater()
+            if not keep_text:
+                self.projector_label.setText("closed")
+        self._set_projector_button(False)
+
+    def _on_projector_closed(self) -> None:
+        window, self.projector_window = self.projector_window, None
+        if window is not None:
+            window.deleteLater()
+        self.projector_label.setText("closed (Esc)")
+        self._set_projector_button(False)
+
+    # ------------------------------------------------------------------ live preview
+    def _on_preview_toggled(self, on: bool) -> None:
+        self.settings.set("capture/preview", on)
+        if on and (self.stream.running or self._recording):
+            self._start_preview()
+        elif not on:
+            self._stop_preview()
+
+    def _start_preview(self) -> None:
+        if not self.preview_check.isChecked():
+            self.preview_label.setText("preview: off")
+            return
+        from flexvox_core.multiplex import multiplexed_code
+
+        plan = self.plan()
+        try:
+            code = multiplexed_code(plan.tile) if plan.multiplexed else plan.code
+        except ValueError as exc:
+            self.preview_label.setText(_coloured(f"preview: {exc}", RED))
+            return
+        self.preview.set_code(code, plan.tile)
+        self.preview.start()
+        self._preview_index = 0
+        self.preview_panel.clear("reconstructing the newest frames …")
+        self.preview_panel.set_title("motion-aware preview: waiting for frames")
+        self.preview_label.setText(self.preview.text())
+
+    def _stop_preview(self) -> None:
+        was = self.preview.enabled
+        self.preview.stop()
+        if was:
+            self.preview_label.setText(self.preview.text().replace("preview:", "preview (stopped):", 1)
+                                       if self.preview.result is not None else "preview: off")
+
+    def _on_preview(self, result) -> None:
+        self._preview_index = 0
+        self.preview_label.setText(html.escape(self.preview.text()))
+        self._advance_preview()
+
+    def _advance_preview(self) -> None:
+        r = self.preview.result
+        if r is None:
+            return
+        K = r.video.shape[0]
+        k = self._preview_index % K
+        self._preview_index = k + 1
+        self.preview_panel.set_image(r.video[k], levels=r.levels)
+        self.preview_panel.set_title(f"motion-aware preview: frame {r.frame_id}, sub-frame {k + 1}/{K}")

@@ -30,8 +30,12 @@ def projector_size(projector) -> tuple[int, int]:
     return tuple(size) if size is not None else DLPC350_SIZE
 
 
-def start_live(service: RigService, plan: CapturePlan) -> str:
+def start_live(service: RigService, plan: CapturePlan, calibration=None) -> str:
     """Connect the projector and camera, load and start the plan's sequence, start acquiring.
+
+    With a :class:`~app.capture.service.CaptureCalibration` the projector shows the capture
+    service's patterns (through its homography, phase compensated); without, the code tiled
+    over the projector.
 
     Returns a note for the UI ("" or e.g. "free-running: preview only").
 
@@ -52,9 +56,10 @@ def start_live(service: RigService, plan: CapturePlan) -> str:
         proj = rig.projector
         if proj.run_state is not RunState.STOPPED:
             proj.stop()
-        proj.load_sequence(plan.sequence(projector_size(proj)))
-        proj.start()
         cam = rig.camera
+        proj.load_sequence(plan.sequence(projector_size(proj), camera_size=tuple(cam.sensor_shape),
+                                         calibration=calibration))
+        proj.start()
         cam.stop_acquisition()
         exposure = plan.camera_exposure_us or timing.sequence_us
         if cam.capabilities.hardware_trigger:

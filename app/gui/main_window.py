@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import html
 import logging
 
 from PySide6.QtCore import Qt
@@ -64,6 +65,7 @@ class MainWindow(QMainWindow):
         self.review.status.connect(lambda text: self.statusBar().showMessage(text, 8000))
         self.capture.open_requested.connect(self._review_recording)
         self.calibrate.status.connect(lambda text: self.statusBar().showMessage(text, 8000))
+        self.calibrate.use_for_capture.connect(self._use_for_capture)
 
         menu = self.menuBar().addMenu("&File")
         open_action = QAction("&Open recording…", self)
@@ -95,6 +97,17 @@ class MainWindow(QMainWindow):
     def _calibrate_busy(self) -> str | None:
         """What keeps the Capture workspace off the rig: a calibration using the real rig's devices."""
         return self.calibrate.rig_busy_reason()
+
+    def _use_for_capture(self, outcome, path) -> None:
+        """Hand the Calibrate workspace's result to Capture; say in the status bar whether it was taken."""
+        used = self.capture.use_outcome(outcome, path)
+        self.statusBar().showMessage("Capture now records with this calibration" if used else
+                                     "Capture refused the calibration: see its Calibration box", 8000)
+        if used:
+            self.show_workspace("Capture")
+        else:
+            self.calibrate.save_label.setText("<span style='color:#c0392b'>not used for capture: "
+                                              f"{html.escape(self.capture.calibration_error)}</span>")
 
     def _review_recording(self, path) -> None:
         self.show_workspace("Review")

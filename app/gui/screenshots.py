@@ -2,11 +2,15 @@
 
 Runs the whole calibration on the simulated rig (``calibrate.png``: the results,
 ``calibrate_residuals.png``: the homography's residual heat map, ``calibrate_sync.png``: the
-leakage curve and delay sweep), makes a small simulated recording in a temporary folder, opens
-it in Review, runs a motion-aware and a diffusion reconstruction (``review.png``,
-``review_motion.png``, ``review_compare.png``), starts the Capture live view (``capture.png``)
-and records from it (``capture_recording.png``). Settings go to a temporary INI file, never
-the user's.
+leakage curve and delay sweep), shows co-location live (``calibrate_colocation.png``: the camera
+with the projector grid through the homography estimate), makes a small simulated recording in
+a temporary folder, opens it in Review, runs a motion-aware and a diffusion reconstruction
+(``review.png``, ``review_motion.png``, ``review_compare.png``), starts the Capture live view
+with its motion-aware preview (``capture.png``), records from it (``capture_recording.png``),
+and opens the projector output window (``capture_projector.png``: the workspace saying where it
+shows; ``projector_window.png``: the window's top-left corner, where the packed pattern sits at
+its native size, magnified ×4 without smoothing for the docs). Settings go to a temporary INI
+file, never the user's.
 """
 
 from __future__ import annotations
@@ -49,6 +53,8 @@ def wait_until(app, condition, timeout_s: float = 60.0) -> None:
 def render(out_dir) -> list[Path]:
     """Write the screenshots into ``out_dir``; returns their paths."""
     os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+    from PySide6.QtCore import Qt
+
     from app.gui.application import build_window, ensure_application
     from app.gui.settings import settings_at
     from rig_drivers.profile import open_rig
@@ -83,6 +89,14 @@ def render(out_dir) -> list[Path]:
         for index, name in ((0, "calibrate.png"), (1, "calibrate_residuals.png"), (3, "calibrate_sync.png")):
             calibrate.tabs.setCurrentIndex(index)
             save(name)
+        calibrate.set_live(True)
+        wait_until(app, lambda: calibrate.colocation is not None, timeout_s=60)
+        for _ in range(5):  # let the layout take the numbers' height
+            app.processEvents()
+            time.sleep(0.02)
+        save("calibrate_colocation.png")
+        calibrate.set_live(False)
+        wait_until(app, lambda: calibrate.live_job is None or not calibrate.live_job.running)
         calibrate.tabs.setCurrentIndex(0)
 
         window.show_workspace("Review")
@@ -107,7 +121,7 @@ def render(out_dir) -> list[Path]:
         window.show_workspace("Capture")
         capture = window.capture
         capture.start_live()
-        wait_until(app, lambda: capture.stats.received >= 8, timeout_s=30)
+        wait_until(app, lambda: capture.stats.received >= 8 and capture.preview.runs >= 3, timeout_s=30)
         time.sleep(0.1)
         wait_until(app, lambda: capture._latest is None)
         save("capture.png")
@@ -117,6 +131,19 @@ def render(out_dir) -> list[Path]:
         wait_until(app, lambda: not capture.recording, timeout_s=60)
         capture.controls_scroll.ensureWidgetVisible(capture.recording_box)
         save("capture_recording.png")
+        capture.open_projector_window()
+        wait_until(app, lambda: capture.projector_window is not None, timeout_s=30)
+        capture.controls_scroll.ensureWidgetVisible(capture.projector_box)
+        save("capture_projector.png")
+        projector = capture.projector_window
+        h, w = projector.frame_size
+        p = out / "projector_window.png"  # the pattern corner of the full-screen window, magnified ×4 (no smoothing)
+        corner = projector.grab().toImage().copy(0, 0, w + 16, h + 16)
+        if not corner.scaled(4 * corner.width(), 4 * corner.height(), Qt.AspectRatioMode.IgnoreAspectRatio,
+                             Qt.TransformationMode.FastTransformation).save(str(p)):
+            raise OSError(f"cannot write {p}")
+        written.append(p)
+        capture.close_projector_window()
         window.close()
     return written
 

@@ -227,7 +227,7 @@ def test_live_stats_count_drops_fps_and_saturation():
 
 QT_FREE = ("app.gui", "app.gui.continuum", "app.gui.expected_quality", "app.gui.jobs", "app.gui.review_session",
            "app.gui.rig_service", "app.gui.capture_plan", "app.gui.live_stats", "app.gui.live_source",
-           "app.gui.recording", "app.gui.calibration_model")
+           "app.gui.recording", "app.gui.calibration_model", "app.gui.capture_calibration")
 
 
 def test_models_and_services_import_with_qt_blocked():

@@ -1,0 +1,133 @@
+"""Calibration in the Capture workspace: load a file, refuse another rig's, take the Calibrate workspace's result."""
+
+import html
+import re
+
+import numpy as np
+import pytest
+
+from app.gui.calibration_model import run_workspace_calibration, target_for
+from app.gui.capture_calibration import (
+    CalibrationRefused,
+    capture_identity,
+    from_outcome,
+    load_for_capture,
+)
+from app.gui.capture_workspace import CaptureWorkspace
+from app.gui.rig_service import RigService
+from calibration.files import CALIBRATION_FORMAT, CALIBRATION_VERSION, write_versioned
+from calibration.simulated_target import calibration_rig
+from flexvox_core.recording import open_recording
+
+from .conftest import small_rig
+
+H_SHIFT = np.array([[1.0, 0.0, 0.5], [0.0, 1.0, -0.25], [0.0, 0.0, 1.0]])
+
+
+def _write(path, identity, *, h=H_SHIFT, phase=3, K=16, period_us=1041, rms=0.123):
+    body = {"homography": {"projector_to_camera": h.tolist(), "camera_to_projector": np.linalg.inv(h).tolist()},
+            "quality": {"status": "ok", "rms_px": rms},
+            "sync": {"status": "ok", "phase_slots": phase, "K": K, "period_us": period_us}}
+    import datetime as dt
+
+    return write_versioned(path, CALIBRATION_FORMAT, CALIBRATION_VERSION, identity, body,
+                           now=dt.datetime(2026, 3, 14, 9, 30, tzinfo=dt.UTC))
+
+
+@pytest.fixture
+def capture(qtbot, settings, runner):
+    service = RigService(small_rig())
+    ws = CaptureWorkspace(service, settings, runner)
+    qtbot.addWidget(ws)
+    ws.rate.setValue(60.0)  # K = 16 at 60 Hz: 1041 µs patterns
+    ws.preview_check.setChecked(False)
+    yield ws
+    ws.shutdown()
+    service.close()
+
+
+def test_a_file_for_this_rig_is_used_by_recordings(qtbot, capture, tmp_path):
+    ws = capture
+    assert "uncalibrated" in ws.calibration_label.text()
+    path = _write(tmp_path / "cal.json", capture_identity(ws.service))
+    with qtbot.waitSignal(ws.calibration_changed) as changed:
+        assert ws.load_calibration(path)
+    active = changed.args[0]
+    np.testing.assert_allclose(active.homography, H_SHIFT)
+    text = ws.calibration_label.text()
+    assert str(path) in text and "2026-03-14T09:30:00+00:00" in text and "RMS 0.123 px" in text
+    assert "phase 3 (K = 16)" in text and "recordings use its homography and phase 3" in text
+    cal = ws.capture_calibration()
+    np.testing.assert_allclose(cal.homography, H_SHIFT)
+    assert cal.phase_slots == 3 and cal.source == f"{path} (2026-03-14T09:30:00+00:00)"
+    ws.path_edit.setText(str(tmp_path / "run.zarr"))
+    ws.frames_box.setValue(4)
+    with qtbot.waitSignal(ws.recording_finished, timeout=20_000) as finished:
+        assert ws.record()
+    assert finished.args[0].ok
+    stored = open_recording(tmp_path / "run.zarr").attrs["calibration"]
+    np.testing.assert_allclose(stored["homography"], H_SHIFT)
+    assert stored["phase_slots"] == 3 and stored["source"] == cal.source
+    # another timing: the phase is only a guess, and the box says so
+    ws.set_tile((2, 4))
+    assert "the sync phase was measured at K = 16, 1041 µs patterns; this plan is K = 8" in ws.calibration_label.text()
+    ws.clear_calibration()
+    assert ws.calibration is None and ws.capture_calibration().source == "identity (uncalibrated)"
+
+
+def test_a_file_for_another_resolution_or_rig_is_refused_in_words(capture, tmp_path):
+    ws = capture
+    good = _write(tmp_path / "good.json", capture_identity(ws.service))
+    assert ws.load_calibration(good)
+    other = capture_identity(ws.service).as_dict() | {"camera_size": [120, 160]}
+    path = _write(tmp_path / "other.json", other)
+    assert not ws.load_calibration(path)
+    text = html.unescape(ws.calibration_label.text())
+    assert re.search(r"refused: .*other\.json was made for a camera resolution of 120x160, this rig's is 48x64: "
+                     r"calibrate this rig", text)
+    assert ws.calibration is not None and str(good) in text  # the previous calibration stays active
+    renamed = capture_identity(ws.service).as_dict() | {"name": "lab rig 2"}
+    with pytest.raises(CalibrationRefused, match=r"was made for rig 'lab rig 2', not 'simulated rig \(mock\)'"):
+        load_for_capture(_write(tmp_path / "rig2.json", renamed), capture_identity(ws.service))
+    with pytest.raises(CalibrationRefused, match=r"missing\.json: no such file"):
+        load_for_capture(tmp_path / "missing.json", capture_identity(ws.service))
+
+
+def test_the_calibrate_workspaces_result_hands_over_to_capture(qtbot, settings, runner, tmp_path):
+    """On a rig that calibrates itself, "Use for capture" makes Capture record with the fresh result."""
+    from app.gui.application import build_window
+
+    window = build_window(calibration_rig(0), settings=settings, runner=runner)
+    qtbot.addWidget(window)
+    window.capture.preview_check.setChecked(False)
+    cal = window.calibrate
+    assert not cal.use_button.isEnabled()
+    cal.run_calibration()
+    qtbot.waitUntil(lambda: not cal.running, timeout=30_000)
+    assert cal.outcome.success and cal.use_button.isEnabled()
+    saved = cal.save(tmp_path / "fresh.json")
+    cal.use_button.click()
+    capture = window.capture
+    assert window.tabs.currentWidget() is capture
+    active = capture.calibration
+    np.testing.assert_allclose(active.homography, cal.outcome.homography.homography)
+    assert active.phase_slots == cal.outcome.sync.phase_slots and active.path == saved
+    assert f"RMS {cal.outcome.homography.rms_px:.3f} px" in capture.calibration_label.text()
+    window.close()
+
+
+def test_the_simulated_rigs_calibration_target_is_another_rig_and_is_refused(qtbot, settings, runner):
+    service = RigService(small_rig())
+    outcome = run_workspace_calibration(target_for(service, 0))
+    assert outcome.success
+    with pytest.raises(CalibrationRefused, match=r"made for a camera resolution of 120x160, this rig's is 48x64.*"
+                                                 r"calibration runs on its own calibration target"):
+        from_outcome(outcome, capture_identity(service))
+    ws = CaptureWorkspace(service, settings, runner)
+    qtbot.addWidget(ws)
+    assert not ws.use_outcome(outcome)
+    assert ws.calibration_error.startswith("the Calibrate workspace's result was made for a camera resolution")
+    assert "refused: the Calibrate workspace's result was made for" in html.unescape(ws.calibration_label.text())
+    assert ws.calibration is None
+    ws.shutdown()
+    service.close()

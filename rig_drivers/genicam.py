@@ -60,7 +60,8 @@ from rig_drivers.interfaces import (
 
 _logger = logging.getLogger(__name__)
 
-INSTALL_HINT = "install it with `pip install flexvox[genicam]` (the packages harvesters and genicam)"
+INSTALL_HINT = ("install it from the flexvox checkout with `.venv/bin/pip install -e \".[genicam]\"` "
+                "(the packages harvesters and genicam; `make test` installs them)")
 
 MAX_FETCH_ATTEMPTS = 1000
 """Most fetch calls in one read_frame (each waits at most the time left)."""

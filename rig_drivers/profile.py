@@ -12,7 +12,7 @@
     serial = "A1B2C3"                 # optional: the USB serial number, when several are connected
 
     [camera]
-    kind = "genicam"                  # a GenICam camera through harvesters (pip install flexvox[genicam])
+    kind = "genicam"                  # a GenICam camera through harvesters (pip install -e '.[genicam]')
     cti = "/opt/vendor/lib/producer.cti"   # the vendor's GenTL producer
     serial = "22334455"               # optional: pick the camera by serial ...
     model = "acA640-750um"            # ... and/or model

@@ -73,11 +73,11 @@ def bgr_frames(n=3, shape=(6, 8)):
 
 def viky_or_skip():
     """The genicam wheel's simulated producer, or skip (with the reason) where it is absent."""
-    pytest.importorskip("harvesters.core", reason="harvesters is not installed (pip install flexvox[genicam])",
+    pytest.importorskip("harvesters.core", reason="harvesters is not installed (pip install -e '.[genicam]')",
                         exc_type=ImportError)
     cti = simulated_producer()
     if cti is None:
-        pytest.skip("the genicam wheel (with viky.cti) is not installed (pip install flexvox[genicam])")
+        pytest.skip("the genicam wheel (with viky.cti) is not installed (pip install -e '.[genicam]')")
     return cti
 
 
@@ -375,7 +375,7 @@ def test_genicam_without_harvesters_says_how_to_install(cti, monkeypatch):
     monkeypatch.setitem(sys.modules, "harvesters.core", None)
     cam = GenICamCamera(cti)
     with pytest.raises(DeviceNotFoundError,
-                       match=r"harvesters package, which is not installed: .*pip install flexvox\[genicam\]"):
+                       match=r"harvesters package, which is not installed: .*pip install -e \"\.\[genicam\]\""):
         cam.open()
     assert cam.state.value == "closed"
 

@@ -19,26 +19,16 @@ no suffix
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 import numpy as np
 
 from app.cli.errors import EXIT_OK, CliError, arg_type
+from app.cli.reconstruct import parse_triple
 from flexvox_core.recording import RecordingError, open_recording
 
 WHAT = ("frames", "ground-truth", "reconstruction")
 FORMATS = (".tif", ".tiff", ".npy", ".mp4", ".zarr", "(folder: PNG)")
-
-
-def _triple(text: str):
-    parts = [p for p in re.split(r"[,xX]", text) if p.strip()]
-    try:
-        if len(parts) == 3:
-            return tuple(float(p) for p in parts)
-    except ValueError:
-        pass
-    raise ValueError(f"--tensor must be three numbers separated by commas; got {text!r}")
 
 
 def add_method_options(p) -> None:
@@ -49,7 +39,7 @@ def add_method_options(p) -> None:
     p.add_argument("--method", choices=METHODS, default="diffusion", help="reconstruction (default diffusion)")
     p.add_argument("--block", metavar="a,b,c", help="rebin: rows,columns,slots of the division")
     p.add_argument("--no-interpolate", action="store_true", help="rebin: blocks without interpolation")
-    p.add_argument("--tensor", type=arg_type(_triple), metavar="cx,cy,ct", help="diffusion tensor")
+    p.add_argument("--tensor", type=arg_type(parse_triple), metavar="cx,cy,ct", help="diffusion tensor")
     p.add_argument("--time", type=float, metavar="n", help="diffusion time")
     p.add_argument("--solver", choices=SOLVERS, default="nc", help="diffusion solver (default nc)")
     p.add_argument("--iterations", type=int, default=40, help="gap-tv iterations (default 40)")

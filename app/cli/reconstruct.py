@@ -19,15 +19,15 @@ from flexvox_core.reconstruct.run import METHODS, Method, reconstruct
 from flexvox_core.recording import RecordingError, open_recording
 from flexvox_core.video_io import WRITABLE, write_video
 
+_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 
-def _triple(text: str, what: str):
-    parts = [p for p in re.split(r"[,xX]", text) if p.strip()]
-    if len(parts) != 3:
-        raise ValueError(f"--{what} must be three numbers separated by commas; got {text!r}")
-    try:
+
+def parse_triple(text: str, what: str = "tensor"):
+    """Three numbers written ``a,b,c`` (or ``axbxc``), for ``--tensor`` and the like."""
+    parts = [p.strip() for p in re.split(r"[,xX]", text) if p.strip()]
+    if len(parts) == 3 and all(_NUMBER.fullmatch(p) for p in parts):
         return tuple(float(p) for p in parts)
-    except ValueError:
-        raise ValueError(f"--{what} must be three numbers separated by commas; got {text!r}") from None
+    raise ValueError(f"--{what} must be three numbers separated by commas; got {text!r}")
 
 
 def register(sub) -> None:
@@ -47,7 +47,7 @@ def register(sub) -> None:
     p.add_argument("--block", metavar="a,b,c", help="rebin: rows,columns,slots of the division "
                    "(default: the one with TR closest to sqrt(K))")
     p.add_argument("--no-interpolate", action="store_true", help="rebin: blocks without interpolation")
-    p.add_argument("--tensor", type=arg_type(lambda t: _triple(t, "tensor")), default=DEFAULT_TENSOR,
+    p.add_argument("--tensor", type=arg_type(parse_triple), default=DEFAULT_TENSOR,
                    metavar="cx,cy,ct", help=f"diffusion tensor (default {','.join(f'{c:g}' for c in DEFAULT_TENSOR)})")
     p.add_argument("--time", type=float, metavar="n",
                    help=f"diffusion time, the accuracy knob (default {DEFAULT_TIME:g}; motion-aware "

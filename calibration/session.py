@@ -11,6 +11,13 @@ the camera's frame ids and its read timeout do the waiting.
 Static patterns are shown as a sequence of ``slots`` copies of the same pattern (the
 camera, triggered once per sequence by the projector's TRIG_OUT_2 or by the sync box,
 integrates the pattern over the whole exposure).
+
+A projector that takes its patterns on a video input (the DLPC350) says how to run a
+sequence from it with ``projector.video_sequence(patterns, period_us, repeat=)`` (VSYNC
+triggers, as many patterns per VSYNC as fit); the session uses it when no sync box drives
+the projector. Such a projector shows the patterns' frames through its display sink inside
+``load_sequence``, which returns once they are on the screen, so the frame-id rule below
+holds for it too.
 """
 
 from __future__ import annotations
@@ -246,6 +253,8 @@ class RigSession:
         if self.sync is not None:
             seq = PatternSequence(pats, self.period_us, self.period_us, trigger=ProjectorTrigger.EXTERNAL_RISING,
                                   patterns_per_trigger=1, repeat=repeat)
+        elif callable(getattr(self.projector, "video_sequence", None)):
+            seq = self.projector.video_sequence(pats, self.period_us, repeat=repeat)
         else:
             seq = PatternSequence(pats, self.period_us, self.period_us, repeat=repeat)
         self.projector.load_sequence(seq)

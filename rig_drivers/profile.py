@@ -272,13 +272,18 @@ class DeferredSerialPort:
             port.close()
 
 
-def open_rig(rig=MOCK, **simulated_options) -> Rig:
+def open_rig(rig=MOCK, *, projector_display=None, **simulated_options) -> Rig:
     """Build the devices of a rig without opening them.
 
     Parameters
     ----------
     rig : "mock", str or Path, or RigSpec
         ``mock`` (default) for the simulated rig, else a profile path or a parsed profile.
+    projector_display : callable, optional
+        Real rigs: the projector's display sink, ``display(frames)`` with the packed
+        ``(N, H, W, 3)`` uint8 frames of every sequence loaded (see
+        :mod:`rig_drivers.dlpc350.driver`; the app's is :mod:`app.gui.projector_display`).
+        Ignored by ``mock``, whose simulated projector needs no video input.
     **simulated_options
         Passed to :meth:`SimulatedRig.create` for ``mock`` (scene, sizes, seed, clock, ...).
 
@@ -295,13 +300,13 @@ def open_rig(rig=MOCK, **simulated_options) -> Rig:
         return Rig(sim.projector, sim.camera, sim.sync, spec, simulated=sim)
     if simulated_options:
         raise SettingError(f"options {', '.join(sorted(simulated_options))} apply to the simulated rig only")
-    return Rig(_projector(spec.projector), _camera(spec.camera), _sync(spec.sync), spec)
+    return Rig(_projector(spec.projector, projector_display), _camera(spec.camera), _sync(spec.sync), spec)
 
 
-def _projector(d: DeviceSpec) -> Projector:
+def _projector(d: DeviceSpec, display=None) -> Projector:
     from rig_drivers.dlpc350 import DLPC350, PyUsbHidTransport
 
-    return DLPC350(PyUsbHidTransport(serial_number=d.options.get("serial")))
+    return DLPC350(PyUsbHidTransport(serial_number=d.options.get("serial")), display=display)
 
 
 def _camera(d: DeviceSpec) -> Camera:

@@ -39,6 +39,63 @@ def _seed(text: str) -> int:
     return int(text)
 
 
+def screen_index(text: str) -> int:
+    """``--projector-screen``: a screen index, a whole number >= 0 (its range is checked against the desktop)."""
+    if not text.isdigit():
+        raise ValueError(f"--projector-screen must be a screen index, a whole number >= 0 (see --list-screens); "
+                         f"got {text!r}")
+    return int(text)
+
+
+def add_screen_options(p) -> None:
+    """``--projector-screen N`` and ``--list-screens`` (shared with ``flexvox capture``)."""
+    p.add_argument("--projector-screen", type=arg_type(screen_index), metavar="N",
+                   help="real rig: the screen that feeds the projector's video input (HDMI), by index; the "
+                        "patterns are shown on it full-screen and pixel-exact while the command runs "
+                        "(needs a desktop session; list the screens with --list-screens)")
+    p.add_argument("--list-screens", action="store_true",
+                   help="list the screens (index, name, size, position) and exit")
+
+
+def list_screens() -> int:
+    """Print the screens ``--projector-screen`` can name."""
+    from app.gui.projector_display import ScreenError, screen_lines
+
+    try:
+        lines = screen_lines()
+    except ScreenError as exc:
+        raise CliError(str(exc)) from None
+    print("\n".join(lines))
+    return EXIT_OK
+
+
+def needs_screen(spec) -> bool:
+    """True when the rig's projector takes its patterns on a video input (a DLPC350)."""
+    return not spec.simulated and spec.projector.kind == "dlpc350"
+
+
+def with_projector_screen(args, spec, work):
+    """Run ``work(display, interrupted)`` as the rig needs: directly (no display) or with the patterns on a screen.
+
+    The simulated rig takes no screen; a DLPC350 needs one (``--projector-screen``): a QApplication
+    runs the event loop while ``work`` runs on a worker thread with the window's display sink.
+    """
+    if spec.simulated or not needs_screen(spec):
+        if args.projector_screen is not None:
+            raise CliError("--projector-screen is for a projector driven through its video input (a DLPC350); "
+                           f"{'the simulated rig (--rig mock)' if spec.simulated else 'this rig'} needs none")
+        return work(None, None)
+    if args.projector_screen is None:
+        raise CliError("the DLP LightCrafter 4500 takes its patterns on its video input: give --projector-screen N, "
+                       "the screen its HDMI input is (list them with --list-screens)")
+    from app.gui.projector_display import ScreenError, run_with_projector_screen
+
+    try:
+        return run_with_projector_screen(args.projector_screen, work)
+    except ScreenError as exc:
+        raise CliError(str(exc)) from None
+
+
 def register(sub) -> None:
     """Add the ``calibrate`` subcommand."""
     p = sub.add_parser(
@@ -65,19 +122,28 @@ def register(sub) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     p.add_argument("-o", "--output", type=Path, metavar="CAL.json",
                    help="write the calibration (homography + sync) when every step succeeds")
+    add_screen_options(p)
     p.set_defaults(func=run)
 
 
 class _Progress:
     """tqdm bars on stderr, one per step."""
 
-    def __init__(self, quiet: bool):
+    def __init__(self, quiet: bool, interrupted=None):
         self.quiet = quiet
+        self.interrupted = interrupted
+
+    def check(self) -> None:
+        """Stop (as a CLI error) once Ctrl-C was pressed while Qt's event loop runs."""
+        if self.interrupted is not None and self.interrupted.is_set():
+            raise CliError("interrupted: the devices were stopped and nothing was written")
 
     def __call__(self, desc: str):
+        self.check()
         bar = tqdm(desc=desc, unit="pattern", file=sys.stderr, leave=False, disable=self.quiet or None)
 
         def update(done: int, total: int) -> None:
+            self.check()
             if bar.total != total:
                 bar.reset(total=total)
             bar.n = done
@@ -87,31 +153,42 @@ class _Progress:
         return update
 
 
-def _open(args):
+def _open(args, spec, display=None):
     from calibration.session import RigSession
     from calibration.simulated_target import calibration_rig
-    from rig_drivers.profile import open_rig, resolve_rig
+    from rig_drivers.profile import open_rig
 
-    spec = resolve_rig(args.rig)
     if spec.simulated:
         rig = calibration_rig(args.seed, baseline=args.mock_baseline)
         return rig, RigSession.from_rig(rig)
-    rig = open_rig(spec)
+    rig = open_rig(spec, projector_display=display)
     size = getattr(rig.projector, "size", None) or (DLPC350_SIZE if spec.projector.kind == "dlpc350" else None)
     return rig, RigSession.from_rig(rig, projector_size=size)
 
 
 def run(args) -> int:
     """Carry out ``flexvox calibrate``."""
+    from rig_drivers.profile import resolve_rig
+
+    if args.list_screens:
+        return list_screens()
+    try:
+        spec = resolve_rig(args.rig)
+    except ValueError as exc:
+        raise CliError(str(exc).splitlines()[0]) from None
+    return with_projector_screen(args, spec, lambda display, interrupted: _calibrate(args, spec, display, interrupted))
+
+
+def _calibrate(args, spec, display=None, interrupted=None) -> int:
     from calibration.errors import CalibrationError
     from calibration.files import save_calibration
     from calibration.pipeline import run_calibration, truth_comparison
     from rig_drivers.errors import DeviceError
 
     t0 = time.perf_counter()
-    progress = _Progress(quiet=False)
+    progress = _Progress(quiet=False, interrupted=interrupted)
     try:
-        rig, session = _open(args)
+        rig, session = _open(args, spec, display)
         try:
             outcome = run_calibration(rig, session, tile=tuple(args.tile), seed=args.seed,
                                       baseline=args.mock_baseline, progress=progress)

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from app.cli.calibrate import add_screen_options, list_screens, with_projector_screen
 from app.cli.errors import EXIT_FAILED, EXIT_OK, CliError, OneLineParser, arg_type
 from flexvox_core.tiles import parse_tile
 
@@ -40,13 +41,14 @@ def register(sub) -> None:
             "drops, queue depth, write rate). The recording is crash-safe: a capture killed at any "
             "moment leaves every frame it wrote readable. --rig mock is the simulated rig (a scene, "
             "an identity projector-to-camera map); --rig FILE.toml drives real devices "
-            "(see `flexvox devices`). Exit 0 when the capture ends normally, 1 when it stopped on an "
-            "error (a full disk, a camera unplugged: the recording still holds what was captured)."
+            "(see `flexvox devices`); a DLPC350 takes its patterns on its video input, shown on "
+            "--projector-screen N while the capture runs. Exit 0 when the capture ends normally, 1 when it "
+            "stopped on an error (a full disk, a camera unplugged: the recording still holds what was captured)."
         ),
     )
     p.add_argument("--rig", default="mock", metavar="mock|RIG.toml", help="the rig (default mock)")
     p.add_argument("--frames", type=int, metavar="N", help="frames to record (default: until Ctrl-C)")
-    p.add_argument("-o", "--output", type=Path, required=True, metavar="REC.zarr", help="recording to write")
+    p.add_argument("-o", "--output", type=Path, metavar="REC.zarr", help="recording to write (required)")
     p.add_argument("--tile", type=arg_type(parse_tile), default=(4, 4), metavar="MxN",
                    help="tile of the designed code (default 4x4)")
     p.add_argument("--scene", default="drummer", metavar="NAME",
@@ -73,10 +75,11 @@ def register(sub) -> None:
                    help="seconds the camera reader waits for queue room before it discards a frame "
                         "(recorded as dropped; default 0.5)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing recording")
+    add_screen_options(p)
     p.set_defaults(func=run)
 
 
-def _build(args):
+def _build(args, display=None):
     from app.capture import CaptureCalibration, CaptureService, QueuePolicy, SyncSetting
     from app.capture.pacing import PacedClock
     from flexvox_core.design import design_code
@@ -96,7 +99,7 @@ def _build(args):
     else:
         if args.ground_truth:
             raise ValueError("--ground-truth goes with --rig mock (a real scene has no ground truth)")
-        rig = open_rig(args.rig)
+        rig = open_rig(args.rig, projector_display=display)
         gt = None
     projector_size = args.projector_size
     if args.calibration is not None:
@@ -144,11 +147,26 @@ def _counters(s) -> str:
 
 def run(args) -> int:
     """Carry out ``flexvox capture``."""
+    from rig_drivers.profile import resolve_rig
+
+    if args.list_screens:
+        return list_screens()
+    if args.output is None:
+        raise CliError("the following arguments are required: -o/--output")
+    try:
+        spec = resolve_rig(args.rig)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+    return with_projector_screen(args, spec, lambda display, interrupted: _capture(args, display, interrupted))
+
+
+def _capture(args, display=None, interrupted=None) -> int:
+    """Build, start and follow the capture; ``interrupted`` (an Event) stops it like Ctrl-C."""
     from app.capture import CaptureError
     from rig_drivers.errors import DeviceError
 
     try:
-        service = _build(args)
+        service = _build(args, display)
         clock = getattr(getattr(service.rig, "simulated", None), "clock", None)
         if hasattr(clock, "resync"):
             clock.resync()
@@ -162,6 +180,8 @@ def run(args) -> int:
     last = 0.0
     try:
         while not service.wait(0.25):
+            if interrupted is not None and interrupted.is_set():
+                raise KeyboardInterrupt
             now = time.monotonic()
             if now - last >= (0.25 if interactive else 2.0):
                 last = now

@@ -13,6 +13,13 @@ over and over while the operator adjusts the beam splitter; each measurement is 
 next one starts when the previous ended (never two at once, never during a calibration).
 
 The synchronisation wizard lives in :mod:`app.gui.sync_wizard`.
+
+On a real rig whose projector takes its patterns on a video input (the DLPC350), the workspace
+chooses the projector's screen ("projector screen") and injects a
+:class:`~app.gui.projector_display.ProjectorDisplay` on it as the projector's display sink while a
+calibration, the live numbers or the wizard use the rig: every pattern the session loads is shown
+full-screen, pixel-exact, and on screen before the sequence starts. The window closes and the sink
+is removed when they end.
 """
 
 from __future__ import annotations
@@ -24,6 +31,7 @@ from pathlib import Path
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt, QTimer, Signal
+from PySide6.QtGui import QGuiApplication
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -56,6 +64,8 @@ from app.gui.calibration_model import (
 from app.gui.colocation_view import ColocationView
 from app.gui.image_panel import ImagePanel
 from app.gui.jobs import CancelToken
+from app.gui.projector_display import ProjectorDisplay
+from app.gui.projector_window import screen_label
 from app.gui.qt_jobs import JobHandle, JobRunner
 from app.gui.rig_service import RigService
 from app.gui.settings import AppSettings
@@ -131,6 +141,9 @@ class CalibrateWorkspace(QWidget):
         """Where the current outcome was saved (None: not saved)."""
         self.tracker: StepTracker | None = None
         self._live_target = None
+        self.projector_display: ProjectorDisplay | None = None
+        """The display sink injected into a video-input projector while the rig is in use (None otherwise)."""
+        self._display_users: set[str] = set()
         self._build()
 
     # ------------------------------------------------------------------ layout
@@ -169,6 +182,19 @@ class CalibrateWorkspace(QWidget):
         if self.service.simulated:
             f.addRow("seed", self.seed_box)
         f.addRow("shutter code", self.tile_box)
+        self.screen_box = QComboBox()
+        self.display_label = QLabel("")
+        self.display_label.setWordWrap(True)
+        self.display_label.setTextFormat(Qt.TextFormat.RichText)
+        if self.needs_display:
+            self.screen_box.setToolTip("the screen that feeds the projector's video input (HDMI): the calibration "
+                                       "patterns go there full-screen, pixel for pixel")
+            self._refresh_screens()
+            f.addRow("projector screen", self.screen_box)
+            f.addRow(self.display_label)
+            app = QGuiApplication.instance()
+            app.screenAdded.connect(self._refresh_screens)
+            app.screenRemoved.connect(self._refresh_screens)
         f.addRow(buttons)
         f.addRow(self.progress)
         f.addRow(self.step_label)
@@ -314,6 +340,73 @@ class CalibrateWorkspace(QWidget):
             return None
         return self.rig_guard()
 
+    # ------------------------------------------------------------------ the projector's screen
+    @property
+    def needs_display(self) -> bool:
+        """True on a real rig whose projector takes its patterns on a video input (it has a display sink)."""
+        return not self.service.simulated and hasattr(self.service.rig.projector, "display")
+
+    def _refresh_screens(self, *_) -> None:
+        current = self.screen_box.currentData() or self.settings.get_str("calibrate/screen", "")
+        self.screen_box.blockSignals(True)
+        self.screen_box.clear()
+        for i, screen in enumerate(QGuiApplication.screens()):
+            self.screen_box.addItem(screen_label(screen), screen.name() or str(i))
+        idx = self.screen_box.findData(current) if current else -1
+        if idx < 0 and self.screen_box.count() > 1:
+            idx = 1  # a second screen is likely the projector
+        self.screen_box.setCurrentIndex(max(idx, 0))
+        self.screen_box.blockSignals(False)
+
+    def chosen_screen(self):
+        """The QScreen picked for the projector's video input (None: no screens)."""
+        screens = QGuiApplication.screens()
+        idx = self.screen_box.currentIndex()
+        return screens[idx] if 0 <= idx < len(screens) else None
+
+    def attach_display(self, user: str) -> str | None:
+        """Inject the display sink into the projector for ``user`` (a job); the reason when it cannot."""
+        if not self.needs_display:
+            return None
+        screen = self.chosen_screen()
+        if screen is None:
+            return "no screen to show the patterns on: connect the projector's video input (HDMI) as a screen"
+        if self.projector_display is None or self.projector_display.screen is not screen:
+            self._close_display()
+            self.projector_display = ProjectorDisplay(screen, parent=self)
+            self.projector_display.shown.connect(self._on_display_shown)
+        self.settings.set("calibrate/screen", self.screen_box.currentData() or "")
+        self.service.rig.projector.display = self.projector_display
+        self._display_users.add(user)
+        self.display_label.setText(f"patterns go to {html.escape(screen.name() or 'the chosen screen')}")
+        return None
+
+    def release_display(self, user: str) -> None:
+        """``user`` is done with the rig: when nobody else uses it, remove the sink and close its window."""
+        self._display_users.discard(user)
+        if not self._display_users:
+            self._close_display()
+
+    def _close_display(self) -> None:
+        display, self.projector_display = self.projector_display, None
+        if display is None:
+            return
+        projector = self.service.rig.projector
+        if getattr(projector, "display", None) is display:
+            projector.display = None
+        display.close()
+        display.deleteLater()
+        self.display_label.setText("projector window closed")
+
+    def _on_display_shown(self, n: int) -> None:
+        d = self.projector_display
+        if d is not None and d.window is not None:
+            H, W = d.window.frame_size
+            warning = d.window.size_warning()
+            text = f"showing pattern {d.frames_shown} ({W}×{H}, {n} frame{'s' if n > 1 else ''})"
+            self.display_label.setText(text + (f"<br><span style='color:{RED}'>{html.escape(warning)}</span>"
+                                               if warning else ""))
+
     def tile(self) -> tuple[int, int]:
         """The shutter code's tile."""
         return tuple(self.tile_box.currentData())
@@ -332,6 +425,10 @@ class CalibrateWorkspace(QWidget):
             self.step_label.setText(f"<span style='color:{RED}'>cannot start: {html.escape(busy)}</span>")
             return False
         self.set_live(False)
+        no_screen = self.attach_display("calibration")
+        if no_screen:
+            self.step_label.setText(f"<span style='color:{RED}'>cannot start: {html.escape(no_screen)}</span>")
+            return False
         token = CancelToken()
         tracker = StepTracker(token)
         self.tracker = tracker
@@ -402,6 +499,7 @@ class CalibrateWorkspace(QWidget):
         self.status.emit("calibration cancelled")
 
     def _on_job_done(self) -> None:
+        self.release_display("calibration")
         self.progress.setRange(0, 1)
         self.progress.setValue(1 if self.outcome is not None else 0)
         self.run_button.setEnabled(True)
@@ -515,7 +613,7 @@ class CalibrateWorkspace(QWidget):
         if on and self.running:
             on = False
         if on:
-            busy = self._guard()
+            busy = self._guard() or self.attach_display("live")
             if busy:
                 self.live_label.setText(f"<span style='color:{RED}'>cannot measure: {html.escape(busy)}</span>")
                 on = False
@@ -531,6 +629,8 @@ class CalibrateWorkspace(QWidget):
             self.live_timer.stop()
             if self.live_job is not None and self.live_job.running:
                 self.live_job.cancel()
+            else:
+                self.release_display("live")
             if not self.live_label.text().startswith("<span"):
                 self.live_label.setText("off" if self.alignment is None else
                                         f"stopped · last: {html.escape(self.alignment.message)}")
@@ -581,6 +681,8 @@ class CalibrateWorkspace(QWidget):
     def _on_live_done(self) -> None:
         if self.live:
             self.live_timer.start()
+        else:
+            self.release_display("live")
 
     # ------------------------------------------------------------------ wizard
     def open_sync_wizard(self):
@@ -592,17 +694,27 @@ class CalibrateWorkspace(QWidget):
             self.status.emit(f"cannot open the wizard: {busy}")
             return None
         self.set_live(False)
+        no_screen = self.attach_display("wizard")
+        if no_screen:
+            self.status.emit(f"cannot open the wizard: {no_screen}")
+            return None
         hom = self.outcome.homography.homography if self.outcome is not None and self.outcome.homography \
             is not None and self.outcome.homography.success else None
         wizard = SyncWizard(target_for(self.service, self.seed_box.value()), self.runner, tile=self.tile(),
                             homography=hom, parent=self)
         wizard.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
+        wizard.finished.connect(self._wizard_finished)
         wizard.show()
         self.wizard = wizard
         return wizard
+
+    def _wizard_finished(self, _result: int) -> None:
+        self.release_display("wizard")
 
     def shutdown(self) -> None:
         """Stop the live numbers and cancel a running calibration (window closing)."""
         self.set_live(False)
         if self.job is not None and self.job.running:
             self.job.cancel()
+        self._display_users.clear()
+        self._close_display()

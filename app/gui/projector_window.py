@@ -70,6 +70,15 @@ def screen_label(screen) -> str:
     return f"{screen.name() or 'screen'}{primary} — {g.width()}×{g.height()} at ({g.x()}, {g.y()}){scale}"
 
 
+def check_frames(frames) -> np.ndarray:
+    """``frames`` as an ``(F, H, W, 3)`` uint8 array, or ValueError naming the rule."""
+    frames = np.asarray(frames)
+    if frames.ndim != 4 or frames.shape[3] != 3 or frames.dtype != np.uint8 or frames.shape[0] < 1:
+        raise ValueError(f"`frames` must have shape (F, H, W, 3) uint8 with F >= 1; got {frames.shape} "
+                         f"{frames.dtype}")
+    return frames
+
+
 def _image(frame: np.ndarray) -> QImage:
     frame = np.ascontiguousarray(frame, dtype=np.uint8)
     h, w, _ = frame.shape
@@ -79,9 +88,14 @@ def _image(frame: np.ndarray) -> QImage:
 class _PatternView(QWidget):
     """Paints one image at the origin, one image pixel per device pixel, on black."""
 
+    painted_now = Signal()
+    """A paint event has just drawn :attr:`image`."""
+
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
         self.image: QImage | None = None
+        self.painted: QImage | None = None
+        """The image the last paint event drew (``painted is image``: the current one is on screen)."""
         self.setAttribute(Qt.WidgetAttribute.WA_OpaquePaintEvent)
 
     def set_image(self, image: QImage) -> None:
@@ -96,6 +110,8 @@ class _PatternView(QWidget):
             self.image.setDevicePixelRatio(self.devicePixelRatioF())  # device pixels, not logical ones
             painter.drawImage(QPointF(0, 0), self.image)
         painter.end()
+        self.painted = self.image
+        self.painted_now.emit()
 
 
 class ProjectorWindow(QWidget):
@@ -115,10 +131,7 @@ class ProjectorWindow(QWidget):
 
     def __init__(self, frames: np.ndarray, *, screen=None, cycle_ms: int = CYCLE_MS, parent: QWidget | None = None):
         super().__init__(parent, Qt.WindowType.Window | Qt.WindowType.FramelessWindowHint)
-        frames = np.asarray(frames)
-        if frames.ndim != 4 or frames.shape[3] != 3 or frames.dtype != np.uint8 or frames.shape[0] < 1:
-            raise ValueError(f"`frames` must have shape (F, H, W, 3) uint8 with F >= 1; got {frames.shape} "
-                             f"{frames.dtype}")
+        frames = check_frames(frames)
         self.setWindowTitle("flexvox — projector output")
         self.setCursor(Qt.CursorShape.BlankCursor)
         self.frames = frames
@@ -155,6 +168,22 @@ class ProjectorWindow(QWidget):
             notes.append(f"the screen's scale is {dpr:g}: the pattern is drawn in device pixels, but set the "
                          "projector's screen to 100 % so the desktop does not rescale it")
         return "; ".join(notes)
+
+    def set_frames(self, frames: np.ndarray) -> None:
+        """Replace the frames (shown from frame 0; cycling when there are several)."""
+        frames = check_frames(frames)
+        self.frames = frames
+        self._images = [_image(f) for f in frames]
+        self.index = 0
+        self.view.set_image(self._images[0])
+        if len(self._images) > 1 and self.isVisible():
+            self.timer.start()
+        else:
+            self.timer.stop()
+
+    def on_screen(self) -> bool:
+        """True when the current frame has been painted."""
+        return self.view.image is not None and self.view.painted is self.view.image
 
     def show_frame(self, index: int) -> None:
         """Show frame ``index`` (mod F)."""

@@ -1,9 +1,25 @@
 """The DLP LightCrafter 4500 (DLPC350) as a :class:`~rig_drivers.interfaces.Projector`.
 
-Patterns reach the projector as bit-planes of 24-bit frames on its video port (the app
-shows :meth:`DLPC350.frames_for` full-screen on the projector's display output); this driver
+Patterns reach the projector as bit-planes of 24-bit frames on its video port; this driver
 programs the pattern sequence over USB: which bit-plane shows when, for how long, what
 triggers each group of patterns, and how often TRIG_OUT_2 pulses (once per camera frame).
+
+The video port itself is not USB: something must put :meth:`DLPC350.frames_for` full-screen
+on the screen that feeds the projector's HDMI input. That something is the **display sink**,
+a plain callable injected through the constructor (or :attr:`DLPC350.display`)::
+
+    display(frames)   # frames: (N, H, W, 3) uint8, N = ceil(K / 24), in sequence order
+
+The driver calls it from :meth:`~rig_drivers.interfaces.Projector.load_sequence`, after the
+controller has validated the sequence and before ``load_sequence`` returns, so a caller that
+loads, starts and then waits for a camera frame taken after the change (the calibration
+session's rule) sees the new patterns. The sink must return only once the frames are on the
+screen, and within a bounded time (the app's Qt adapter, :mod:`app.gui.projector_display`, waits
+at most its ``timeout_s`` and raises otherwise); anything it raises becomes a
+:class:`ProjectorDisplayError`. No Qt here: the sink is the app's business. Nothing is blanked
+on stop (a stopped pattern sequence does not show the video input, and the next load replaces
+the frames); without a sink (``display=None``) the frames must be shown some other way, as
+before (the Capture workspace's projector output window).
 
 Command order of a session (DLPU010G §4.2 Table 4-2, DESIGN.md §5)::
 
@@ -16,13 +32,20 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 
 import numpy as np
 
 from rig_drivers.dlpc350 import protocol as p
 from rig_drivers.dlpc350.bitplanes import PLANES_PER_FRAME, pack_bitplanes
 from rig_drivers.dlpc350.transport import Transport
-from rig_drivers.errors import DeviceTimeoutError, IncompatibleStateError, ProtocolError, SettingError
+from rig_drivers.errors import (
+    DeviceError,
+    DeviceTimeoutError,
+    IncompatibleStateError,
+    ProtocolError,
+    SettingError,
+)
 from rig_drivers.interfaces import (
     DeviceState,
     PatternSequence,
@@ -36,6 +59,21 @@ from rig_drivers.interfaces import (
 _logger = logging.getLogger(__name__)
 
 MAX_ENTRIES_PER_PACKET = p.MAX_PAYLOAD // p.LUT_ENTRY_BYTES  # 19 entries fit one report
+
+Display = Callable[[np.ndarray], None]
+"""A display sink: shows ``(N, H, W, 3)`` uint8 frames on the projector's video input, returns when shown."""
+
+
+class ProjectorDisplayError(DeviceError):
+    """The display sink could not put the pattern frames on the projector's video input."""
+
+
+def check_display(display) -> Display | None:
+    """Validate a display sink (a callable or None)."""
+    if display is not None and not callable(display):
+        raise SettingError(f"`display` must be a callable taking the (N, H, W, 3) uint8 frames, or None; "
+                           f"got {type(display).__name__}")
+    return display
 
 
 class DLPC350(Projector):
@@ -55,10 +93,15 @@ class DLPC350(Projector):
         How long to poll the validation busy bit before giving up.
     poll_interval_s : float
         Pause between validation polls (0 in tests).
+    display : callable, optional
+        The display sink ``display(frames)`` (module docstring): called with
+        :meth:`frames_for` of every sequence loaded, after validation. None: nothing is shown
+        by the driver.
     """
 
     def __init__(self, transport: Transport, *, vsync_hz: float = 60.0, reply_timeout_s: float = 1.0,
-                 validate_timeout_s: float = 2.0, poll_interval_s: float = 0.01, name: str | None = None):
+                 validate_timeout_s: float = 2.0, poll_interval_s: float = 0.01, name: str | None = None,
+                 display: Display | None = None):
         super().__init__(name=name or "DLP LightCrafter 4500")
         for method in ("open", "close", "write", "read"):
             if not callable(getattr(transport, method, None)):
@@ -73,6 +116,16 @@ class DLPC350(Projector):
         self._poll_interval_s = float(poll_interval_s)
         self._seq = 0
         self._needs_reload = False
+        self._display = check_display(display)
+
+    @property
+    def display(self) -> Display | None:
+        """The display sink (None: none); settable, e.g. once the app's projector window exists."""
+        return self._display
+
+    @display.setter
+    def display(self, display: Display | None) -> None:
+        self._display = check_display(display)
 
     # ------------------------------------------------------------------ lifecycle hooks
     def _do_open(self) -> None:
@@ -297,10 +350,54 @@ class DLPC350(Projector):
             f"the projector was still validating (busy bit set) after {timeout_s:g} s: "
             f"power-cycle it if this repeats")
 
+    # ------------------------------------------------------------------ the video input
+    def show_frames(self, frames: np.ndarray) -> None:
+        """Hand ``frames`` ``(N, H, W, 3)`` uint8 to the display sink (no-op without one).
+
+        Raises
+        ------
+        ProjectorDisplayError
+            When the sink raises (its timeout included); the message names the cause.
+        """
+        display = self._display
+        if display is None:
+            return
+        try:
+            display(frames)
+        except Exception as exc:  # the sink is the app's code: any failure becomes a device error
+            n, h, w = frames.shape[:3]
+            raise ProjectorDisplayError(
+                f"could not show the {n} pattern frame(s) of {w}x{h} on the projector's video input: "
+                f"{type(exc).__name__}: {exc}") from exc
+
+    def video_sequence(self, patterns, period_us: int, *, repeat: bool = True) -> PatternSequence:
+        """A sequence of ``patterns`` this projector runs from its video port.
+
+        VSYNC-triggered, exposure = ``period_us``, with the largest ``patterns_per_trigger``
+        that divides K and fits one VSYNC period (and divides 24 when K > 24); TRIG_OUT_2
+        once per K patterns (once per camera exposure).
+
+        Raises
+        ------
+        SettingError
+            When not even one pattern fits a VSYNC period.
+        """
+        K = int(np.shape(patterns)[0]) if np.ndim(patterns) == 3 else 0
+        vsync_us = 1e6 / self.vsync_hz
+        fits = [n for n in range(1, K + 1)
+                if K % n == 0 and n * int(period_us) <= vsync_us
+                and (K <= PLANES_PER_FRAME or PLANES_PER_FRAME % n == 0)]
+        if not fits:
+            raise SettingError(f"`period_us` must fit one VSYNC period of {vsync_us:.0f} µs at "
+                               f"{self.vsync_hz:g} Hz; got {period_us} µs with K = {K}")
+        return PatternSequence(patterns, period_us, period_us, trigger=ProjectorTrigger.VSYNC,
+                               patterns_per_trigger=max(fits), repeat=repeat)
+
     # ------------------------------------------------------------------ Projector hooks
     def _do_load_sequence(self, sequence: PatternSequence) -> None:
         self.configure_sequence(sequence)
         self.validate()
+        self.show_frames(self.frames_for(sequence))
 
     def _do_start(self) -> None:
         # After a stop the LUT must be sent again and validated before start (DLPU010G

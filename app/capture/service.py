@@ -520,12 +520,21 @@ class CaptureService:
                                f"period; the projector's shortest is {MIN_EXPOSURE_1BIT_US} µs "
                                f"(at most {1e6 / (MIN_EXPOSURE_1BIT_US * K):.1f} Hz)")
         self._period_us = period
+        video_port = hasattr(projector, "video_sequence")  # a DLPC350 fed by its video input
+        if use_sync and video_port:
+            raise CaptureError(
+                f"{projector.name} takes its patterns on the video port, paced by the video signal's VSYNC: "
+                "a sync box cannot clock it. Wire TRIG_OUT_2 to the camera and use [sync] kind = "
+                "\"projector-trigger\" in the rig profile")
         if use_sync:
             # The sync box pulses the projector once per pattern: each pattern is triggered,
             # so it must end 230 µs before the next trigger (DLPC350 timing rule).
             exposure = period - MIN_DARK_US if period - MIN_DARK_US >= MIN_EXPOSURE_1BIT_US else period
             seq = PatternSequence(patterns, exposure, period, trigger=ProjectorTrigger.EXTERNAL_RISING,
                                   patterns_per_trigger=1)
+        elif video_port:
+            # VSYNC-triggered, as many patterns per video frame as fit; TRIG_OUT_2 once per K.
+            seq = projector.video_sequence(patterns, period)
         else:
             seq = PatternSequence(patterns, period, period, trigger=ProjectorTrigger.INTERNAL)
         if projector.run_state is not RunState.STOPPED:

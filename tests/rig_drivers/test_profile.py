@@ -41,11 +41,18 @@ def test_example_profile_builds_real_drivers_without_io(tmp_path):
     assert spec.name == "lab rig" and spec.camera.options["serial"] == "22334455"
     rig = open_rig(EXAMPLE)
     assert isinstance(rig.projector, DLPC350) and isinstance(rig.camera, GenICamCamera)
-    assert isinstance(rig.sync, SyncBox) and rig.sync.state is DeviceState.CLOSED
+    assert rig.sync is None  # the LightCrafter's video port: TRIG_OUT_2 triggers the camera
     assert rig.camera.cti == Path("/opt/pylon/lib/gentlproducer/gtl/ProducerU3V.cti")
     copy = tmp_path / "rig.toml"
     shutil.copy(EXAMPLE, copy)
     assert load_profile(copy).name == "lab rig"
+    # The example's commented sync-box variant builds a closed SyncBox, without I/O.
+    text = EXAMPLE.read_text().replace('kind = "projector-trigger"\n', "")
+    text = text.replace('# kind = "syncbox"', 'kind = "syncbox"').replace('# port = ', "port = ")
+    boxed = tmp_path / "boxed.toml"
+    boxed.write_text(text)
+    rig = open_rig(boxed)
+    assert isinstance(rig.sync, SyncBox) and rig.sync.state is DeviceState.CLOSED
 
 
 def test_uvc_and_projector_trigger_and_relative_cti(tmp_path):

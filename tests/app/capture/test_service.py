@@ -235,3 +235,35 @@ def test_paced_clock_only_moves_when_sleeping():
     frozen = clock.now_us()
     clock.resync()
     assert clock.now_us() >= frozen
+
+
+def test_capture_on_a_dlpc350_uses_its_video_port(tmp_path):
+    """The LightCrafter runs VSYNC-triggered sequences from its video input; capture must ask for one."""
+    from app.capture import CaptureService
+    from flexvox_core.design import design_code
+    from flexvox_core.recording import open_recording
+    from rig_drivers.interfaces import ProjectorTrigger
+
+    from ...rig_drivers.display_rig import RecordingScreen, display_rig
+
+    screen = RecordingScreen()
+    rig = display_rig(screen)
+    service = CaptureService(rig, design_code((2, 4)).code, tmp_path / "r.zarr", frames=3, projector_size=(48, 64))
+    result = service.run(timeout_s=20.0)
+    assert result.ok, result.message
+    assert rig.projector.sequence.trigger is ProjectorTrigger.VSYNC
+    assert screen.calls and open_recording(tmp_path / "r.zarr").n_frames == 3
+
+
+def test_capture_refuses_a_sync_box_with_a_video_port_projector(tmp_path):
+    from app.capture import CaptureError, CaptureService
+    from flexvox_core.design import design_code
+    from rig_drivers.simulated import SimulatedSyncController
+
+    from ...rig_drivers.display_rig import RecordingScreen, display_rig
+
+    rig = display_rig(RecordingScreen())
+    rig = type(rig)(rig.projector, rig.camera, SimulatedSyncController(), rig.spec)
+    service = CaptureService(rig, design_code((2, 4)).code, tmp_path / "r.zarr", frames=2, projector_size=(48, 64))
+    with pytest.raises(CaptureError, match=r"a sync box cannot clock it.*kind = \"projector-trigger\""):
+        service.run(timeout_s=20.0)

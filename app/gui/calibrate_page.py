@@ -31,7 +31,6 @@ from pathlib import Path
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt, QTimer, Signal
-from PySide6.QtGui import QGuiApplication
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -65,7 +64,7 @@ from app.gui.colocation_view import ColocationView
 from app.gui.image_panel import ImagePanel
 from app.gui.jobs import CancelToken
 from app.gui.projector_display import ProjectorDisplay
-from app.gui.projector_window import screen_label
+from app.gui.projector_window import ScreenPicker
 from app.gui.qt_jobs import JobHandle, JobRunner
 from app.gui.rig_service import RigService
 from app.gui.settings import AppSettings
@@ -182,19 +181,15 @@ class CalibrateWorkspace(QWidget):
         if self.service.simulated:
             f.addRow("seed", self.seed_box)
         f.addRow("shutter code", self.tile_box)
-        self.screen_box = QComboBox()
+        self.screen_box = ScreenPicker(self.settings.get_str("calibrate/screen", ""))
         self.display_label = QLabel("")
         self.display_label.setWordWrap(True)
         self.display_label.setTextFormat(Qt.TextFormat.RichText)
         if self.needs_display:
             self.screen_box.setToolTip("the screen that feeds the projector's video input (HDMI): the calibration "
                                        "patterns go there full-screen, pixel for pixel")
-            self._refresh_screens()
             f.addRow("projector screen", self.screen_box)
             f.addRow(self.display_label)
-            app = QGuiApplication.instance()
-            app.screenAdded.connect(self._refresh_screens)
-            app.screenRemoved.connect(self._refresh_screens)
         f.addRow(buttons)
         f.addRow(self.progress)
         f.addRow(self.step_label)
@@ -346,23 +341,18 @@ class CalibrateWorkspace(QWidget):
         """True on a real rig whose projector takes its patterns on a video input (it has a display sink)."""
         return not self.service.simulated and hasattr(self.service.rig.projector, "display")
 
-    def _refresh_screens(self, *_) -> None:
-        current = self.screen_box.currentData() or self.settings.get_str("calibrate/screen", "")
-        self.screen_box.blockSignals(True)
-        self.screen_box.clear()
-        for i, screen in enumerate(QGuiApplication.screens()):
-            self.screen_box.addItem(screen_label(screen), screen.name() or str(i))
-        idx = self.screen_box.findData(current) if current else -1
-        if idx < 0 and self.screen_box.count() > 1:
-            idx = 1  # a second screen is likely the projector
-        self.screen_box.setCurrentIndex(max(idx, 0))
-        self.screen_box.blockSignals(False)
+    def _claim_rig(self, user: str) -> str | None:
+        """Take the rig for ``user``: refuse while Capture uses it, stop the live numbers, attach the
+        projector display on a real rig. Returns the reason it cannot, or None."""
+        busy = self._guard()
+        if busy:
+            return busy
+        self.set_live(False)
+        return self.attach_display(user)
 
     def chosen_screen(self):
         """The QScreen picked for the projector's video input (None: no screens)."""
-        screens = QGuiApplication.screens()
-        idx = self.screen_box.currentIndex()
-        return screens[idx] if 0 <= idx < len(screens) else None
+        return self.screen_box.chosen()
 
     def attach_display(self, user: str) -> str | None:
         """Inject the display sink into the projector for ``user`` (a job); the reason when it cannot."""
@@ -420,14 +410,9 @@ class CalibrateWorkspace(QWidget):
         """Start a calibration; False (with the reason shown) when it cannot start now."""
         if self.running:
             return False
-        busy = self._guard()
-        if busy:
-            self.step_label.setText(f"<span style='color:{RED}'>cannot start: {html.escape(busy)}</span>")
-            return False
-        self.set_live(False)
-        no_screen = self.attach_display("calibration")
-        if no_screen:
-            self.step_label.setText(f"<span style='color:{RED}'>cannot start: {html.escape(no_screen)}</span>")
+        refused = self._claim_rig("calibration")
+        if refused:
+            self.step_label.setText(f"<span style='color:{RED}'>cannot start: {html.escape(refused)}</span>")
             return False
         token = CancelToken()
         tracker = StepTracker(token)
@@ -689,14 +674,9 @@ class CalibrateWorkspace(QWidget):
         """Open the synchronisation wizard (modeless); returns it."""
         from app.gui.sync_wizard import SyncWizard
 
-        busy = self._guard()
-        if busy:
-            self.status.emit(f"cannot open the wizard: {busy}")
-            return None
-        self.set_live(False)
-        no_screen = self.attach_display("wizard")
-        if no_screen:
-            self.status.emit(f"cannot open the wizard: {no_screen}")
+        refused = self._claim_rig("wizard")
+        if refused:
+            self.status.emit(f"cannot open the wizard: {refused}")
             return None
         hom = self.outcome.homography.homography if self.outcome is not None and self.outcome.homography \
             is not None and self.outcome.homography.success else None

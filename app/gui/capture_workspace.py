@@ -33,7 +33,6 @@ from pathlib import Path
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt, QTimer, Signal
-from PySide6.QtGui import QGuiApplication
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -66,7 +65,7 @@ from app.gui.live_preview import LivePreview
 from app.gui.live_source import LiveStartError, projector_size, start_live, stop_live
 from app.gui.live_stats import LiveStats, histogram, saturation_level, saturation_mask
 from app.gui.live_view import LiveStream
-from app.gui.projector_window import ProjectorWindow, packed_frames, screen_label
+from app.gui.projector_window import ProjectorWindow, ScreenPicker, packed_frames
 from app.gui.qt_jobs import JobRunner
 from app.gui.recording import counters_text, make_capture, result_text, resync_clock
 from app.gui.rig_service import RigService
@@ -214,7 +213,7 @@ class CaptureWorkspace(QWidget):
         cv.addLayout(row)
 
         proj = QGroupBox("Projector output (video input)")
-        self.screen_box = QComboBox()
+        self.screen_box = ScreenPicker()
         self.projector_button = QPushButton("Show patterns full-screen")
         self.projector_button.setCheckable(True)
         self.projector_label = QLabel("closed · the packed patterns (24 masks per RGB frame) go full-screen on "
@@ -225,7 +224,6 @@ class CaptureWorkspace(QWidget):
         f.addRow("screen", self.screen_box)
         f.addRow(self.projector_button)
         f.addRow(self.projector_label)
-        self._refresh_screens()
 
         live = QGroupBox("Live view")
         self.live_button = QPushButton("Start live view")
@@ -348,9 +346,6 @@ class CaptureWorkspace(QWidget):
         self.clear_calibration_button.clicked.connect(self.clear_calibration)
         self.projector_button.toggled.connect(self._on_projector_toggled)
         self.preview_check.toggled.connect(self._on_preview_toggled)
-        app = QGuiApplication.instance()
-        app.screenAdded.connect(self._refresh_screens)
-        app.screenRemoved.connect(self._refresh_screens)
         self.counters_timer = QTimer(self)
         self.counters_timer.setInterval(COUNTERS_MS)
         self.counters_timer.timeout.connect(self._poll_capture)
@@ -790,23 +785,9 @@ class CaptureWorkspace(QWidget):
         self.calibration_label.setText("<br>".join(lines))
 
     # ------------------------------------------------------------------ projector output window
-    def _refresh_screens(self, *_) -> None:
-        current = self.screen_box.currentData()
-        self.screen_box.blockSignals(True)
-        self.screen_box.clear()
-        for i, screen in enumerate(QGuiApplication.screens()):
-            self.screen_box.addItem(screen_label(screen), screen.name() or str(i))
-        idx = self.screen_box.findData(current) if current is not None else -1
-        if idx < 0 and self.screen_box.count() > 1:
-            idx = 1  # a second screen is likely the projector
-        self.screen_box.setCurrentIndex(max(idx, 0))
-        self.screen_box.blockSignals(False)
-
     def chosen_screen(self):
         """The QScreen picked in the combo box (None: no screens)."""
-        screens = QGuiApplication.screens()
-        idx = self.screen_box.currentIndex()
-        return screens[idx] if 0 <= idx < len(screens) else None
+        return self.screen_box.chosen()
 
     def _on_projector_toggled(self, on: bool) -> None:
         if on:

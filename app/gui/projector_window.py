@@ -40,7 +40,7 @@ import logging
 import numpy as np
 from PySide6.QtCore import QPointF, Qt, QTimer, Signal
 from PySide6.QtGui import QGuiApplication, QImage, QPainter
-from PySide6.QtWidgets import QVBoxLayout, QWidget
+from PySide6.QtWidgets import QComboBox, QVBoxLayout, QWidget
 
 _logger = logging.getLogger(__name__)
 
@@ -68,6 +68,41 @@ def screen_label(screen) -> str:
     scale = "" if dpr == 1 else f", scale {dpr:g}"
     primary = " (primary)" if screen is QGuiApplication.primaryScreen() else ""
     return f"{screen.name() or 'screen'}{primary} — {g.width()}×{g.height()} at ({g.x()}, {g.y()}){scale}"
+
+
+class ScreenPicker(QComboBox):
+    """The screens, labelled by :func:`screen_label`, kept current as screens come and go.
+
+    The choice stays on the screen picked before (by name), else ``preferred``, else the second
+    screen when there is one (likely the projector's video input).
+    """
+
+    def __init__(self, preferred: str = "", parent: QWidget | None = None):
+        super().__init__(parent)
+        self._preferred = preferred
+        self.refresh()
+        app = QGuiApplication.instance()
+        app.screenAdded.connect(self.refresh)
+        app.screenRemoved.connect(self.refresh)
+
+    def refresh(self, *_) -> None:
+        """Re-list the screens, keeping the current choice where it still exists."""
+        current = self.currentData() or self._preferred
+        self.blockSignals(True)
+        self.clear()
+        for i, screen in enumerate(QGuiApplication.screens()):
+            self.addItem(screen_label(screen), screen.name() or str(i))
+        idx = self.findData(current) if current else -1
+        if idx < 0 and self.count() > 1:
+            idx = 1  # a second screen is likely the projector
+        self.setCurrentIndex(max(idx, 0))
+        self.blockSignals(False)
+
+    def chosen(self):
+        """The QScreen picked (None: no screens)."""
+        screens = QGuiApplication.screens()
+        idx = self.currentIndex()
+        return screens[idx] if 0 <= idx < len(screens) else None
 
 
 def check_frames(frames) -> np.ndarray:

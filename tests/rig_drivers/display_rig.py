@@ -64,22 +64,22 @@ class ScreenCamera(Camera):
         return self.shape
 
     def _do_open(self) -> None:
-        pass
+        """Nothing to open: the camera is a view of the display sink."""
 
     def _do_close(self) -> None:
-        pass
+        """Nothing to close."""
 
     def _do_configure(self, settings) -> None:
-        pass
+        """Settings do not change what this fake sees."""
 
     def _do_start_acquisition(self) -> None:
-        pass
+        """Frames come whenever the projector runs; nothing to start."""
 
     def _do_stop_acquisition(self) -> None:
-        pass
+        """Nothing to stop."""
 
     def _do_trigger_software(self) -> None:
-        pass
+        """Triggered by the projector only; a software trigger does nothing."""
 
     def _do_read_frame(self, timeout_s: float) -> Frame:
         seq = self.projector.sequence

@@ -114,7 +114,7 @@ def test_fake_answers_bad_checksum_and_long_lines(port):
 
 def test_box_timeout_is_set_on_ports_without_one():
     class Port(FakeSyncBoxSerial):
-        pass
+        """A port class of its own, so setting its timeout does not touch the fake's."""
 
     port = Port()
     port.timeout = None

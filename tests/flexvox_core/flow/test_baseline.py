@@ -66,7 +66,7 @@ def test_short_clip_uses_the_whole_clip_as_baseline(rng):
 
 
 @pytest.mark.parametrize(("args", "kwargs", "match"), [
-    ((np.zeros((1, 8, 8)), 4), {}, r"S >= 2"),
+    ((np.zeros((1, 8, 8)), 4), {}, r"needs at least 2 sub-frames for flow; got 1"),
     ((np.zeros((4, 8, 8)), 0), {}, r"`K` must be a whole number >= 1; got 0"),
     ((np.zeros((4, 8, 8)), 4), {"stride": 0}, r"`stride` must be a whole number >= 1; got 0"),
     ((np.zeros((4, 8, 8)), 4), {"scale": 1.5}, r"`scale` must be in \(0, 1\]"),

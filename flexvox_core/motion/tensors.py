@@ -72,8 +72,15 @@ def resolution_map(flow, K: int, c=DEFAULT_C) -> tuple[np.ndarray, np.ndarray]:
     """
     c1, c2, c3 = check_c(c)
     f = np.asarray(flow, dtype=np.float32)
-    s2 = f[..., 0] * f[..., 0] + f[..., 1] * f[..., 1]
-    s2 = np.where(np.isfinite(s2), s2, np.float32(0))
-    tau = (np.float32(c1) + np.float32(c3) * s2) / ((1 + s2) * np.float32(c1 + c2 + c3))
-    tr = np.exp((1 - tau) * np.float32(np.log(K)))
-    return tr, 1 / tr
+    tr = np.empty(f.shape[:-1], np.float32)
+    sr = np.empty_like(tr)
+    a, b, logk = np.float32(c1), np.float32(c3), np.float32(np.log(K))
+    total = np.float32(c1 + c2 + c3)
+    for i in np.ndindex(f.shape[:-3]) if f.ndim > 3 else [()]:  # a frame at a time: stays in cache
+        u, v = f[i][..., 0], f[i][..., 1]
+        s2 = u * u + v * v
+        s2[~np.isfinite(s2)] = 0
+        tau = (a + b * s2) / ((1 + s2) * total)
+        np.exp((1 - tau) * logk, out=tr[i])
+        np.divide(1, tr[i], out=sr[i])
+    return tr, sr

@@ -45,7 +45,8 @@ def test_zero_flow_gives_the_fixed_tensor_nc(capture_case):
     got = motion_compensated_nc(sparse, mask, zero, c=(0.95, 0.05, 0.05), time=2.0)
     want = diffuse(frames, CODE, tensor=(0.05, 0.05, 0.95), time=2.0)
     # Away from the video's ends (nc reflects time there; a trajectory cannot be reflected).
-    assert np.allclose(got[8:16], want[8:16], atol=1e-5)
+    # The gather drops trajectory weights below CUTOFF (1e-3 of the voxel's own): within 1e-4.
+    assert np.allclose(got[8:16], want[8:16], atol=1e-4)
 
 
 def hard_flows(shape, rng):

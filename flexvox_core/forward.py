@@ -125,7 +125,7 @@ def sparse_volume(frames, code, *, fill: float = 0.0) -> np.ndarray:
     if not np.issubdtype(f.dtype, np.floating):
         f = f.astype(np.float32)
     F, H, W = f.shape
-    idx = tiled_order(c, H, W)
+    slots = np.arange(K)[:, None, None] == tiled_order(c, H, W)[None]  # (K, H, W); refuses non-identity codes
     vol = np.full((F, K, H, W), fill, dtype=f.dtype)
-    np.put_along_axis(vol, idx[None, None], f[:, None], axis=1)
+    np.copyto(vol, f[:, None], where=slots[None])
     return vol.reshape(F * K, H, W)

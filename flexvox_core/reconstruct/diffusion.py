@@ -217,15 +217,20 @@ def _nearest_fill(values: np.ndarray, mask: np.ndarray, where: np.ndarray, sig) 
     values[where] = values[tuple(i[where] for i in idx)]
 
 
-def _sample_volume(frames: np.ndarray, code: np.ndarray, dtype) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Sparse values ``(S, H, W)`` (0 off-sample), bool mask, and the slot of every pixel."""
+def _sample_volume(frames: np.ndarray, code: np.ndarray, dtype) -> tuple[np.ndarray, np.ndarray]:
+    """Sparse values ``(S, H, W)`` (0 off-sample) and the slot of every pixel."""
     F, H, W = frames.shape
     K = code.shape[2]
     order = tiled_order(code, H, W)
+    slots = np.arange(K)[:, None, None] == order[None]  # (K, H, W): one True per pixel
     vals = np.zeros((F, K, H, W), dtype=dtype)
-    np.put_along_axis(vals, order[None, None], frames.astype(dtype, copy=False)[:, None], axis=1)
-    mask = np.arange(K)[:, None, None] == order[None]  # (K, H, W)
-    return vals.reshape(F * K, H, W), np.tile(mask, (F, 1, 1)), order
+    np.copyto(vals, frames.astype(dtype, copy=False)[:, None], where=slots[None])
+    return vals.reshape(F * K, H, W), order
+
+
+def _sample_mask(order: np.ndarray, F: int, K: int) -> np.ndarray:
+    """Bool ``(F·K, H, W)``: True at the sampled voxels."""
+    return np.tile(np.arange(K)[:, None, None] == order[None], (F, 1, 1))
 
 
 def _nc_kernel(frames, code, sig, keep_samples: bool, dtype) -> np.ndarray:
@@ -233,7 +238,7 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype) -> np.ndarray:
     K = code.shape[2]
     S = F * K
     gx, gy, gt = (_kernel(s, dtype) for s in sig)
-    num, mask, order = _sample_volume(frames, code, dtype)
+    num, order = _sample_volume(frames, code, dtype)
     # Numerator: spatial blur of every sub-frame, then time.
     for s in range(S):
         _blur_plane(num[s], gy, gx, num[s])
@@ -256,7 +261,7 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype) -> np.ndarray:
     if low.any():
         _logger.debug("nc: %d voxels without a sample in reach take the nearest sample", int(low.sum()))
         _put_samples(num, samples, order)
-        _nearest_fill(num, mask, low, sig)
+        _nearest_fill(num, _sample_mask(order, F, K), low, sig)
     np.clip(num, samples.min(), samples.max(), out=num)
     if keep_samples:
         _put_samples(num, samples, order)
@@ -267,7 +272,8 @@ def _put_samples(volume: np.ndarray, samples: np.ndarray, order: np.ndarray) -> 
     """Write the captured values back at their voxels of ``volume`` (S, H, W), in place."""
     F, H, W = samples.shape
     K = volume.shape[0] // F
-    np.put_along_axis(volume.reshape(F, K, H, W), order[None, None], samples[:, None], axis=1)
+    slots = np.arange(K)[:, None, None] == order[None]
+    np.copyto(volume.reshape(F, K, H, W), samples[:, None], where=slots[None])
 
 
 # --------------------------------------------------------------------------- explicit
@@ -427,9 +433,10 @@ def diffuse(
     samples = f.astype(dt, copy=False)
     if init == "nc":
         start = _nc_kernel(f, c, sig, True, dt)
-        mask = np.tile(np.arange(K)[:, None, None] == tiled_order(c, H, W)[None], (F, 1, 1))
+        mask = _sample_mask(tiled_order(c, H, W), F, K)
     else:
-        start, mask, order = _sample_volume(f, c, dt)
+        start, order = _sample_volume(f, c, dt)
+        mask = _sample_mask(order, F, K)
         start[~mask] = samples.mean(dtype=np.float64)
     if solver == "explicit":
         return _explicit_kernel(start, mask, tens, t)
@@ -450,7 +457,8 @@ def nc_naive(frames, code, *, tensor=DEFAULT_TENSOR, time: float = DEFAULT_TIME,
     f = check_frames(frames)
     c = check_identity_code(code)
     sig = sigmas(tensor, time)
-    vals, mask, order = _sample_volume(f, c, np.float64)
+    vals, order = _sample_volume(f, c, np.float64)
+    mask = _sample_mask(order, *f.shape[:1], c.shape[2])
     sigma = (sig[2], sig[1], sig[0])
     num = gaussian_filter(vals, sigma, mode="reflect", truncate=TRUNCATE)
     den = gaussian_filter(mask.astype(np.float64), sigma, mode="reflect", truncate=TRUNCATE)

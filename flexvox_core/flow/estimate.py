@@ -178,16 +178,18 @@ def successive_flow(small: np.ndarray, flow_fn, *, consistency: bool, temporal_w
     fwd = np.empty((S - 1, h, w, 2), np.float32)
     conf = np.ones((S - 1, h, w), np.float32)
     run_pairs(flow_fn, u8, list(zip(range(S - 1), range(1, S), strict=True)), fwd, conf, consistency=consistency)
-    # Velocity at sub-frame s: confidence-weighted mean of forward flows s-w .. s+w (clamped).
-    vel = np.empty((S, h, w, 2), np.float32)
-    vconf = np.empty((S, h, w), np.float32)
-    for s in range(S):
-        lo, hi = max(0, min(s, S - 2) - temporal_window), min(S - 2, s + temporal_window)
-        if s == S - 1:
-            lo = max(0, S - 2 - temporal_window)
-        wts = conf[lo: hi + 1] + 1e-3
-        vel[s] = np.sum(fwd[lo: hi + 1] * wts[..., None], axis=0) / np.sum(wts, axis=0)[..., None]
-        vconf[s] = conf[min(s, S - 2)]
+    # Velocity at sub-frame s: confidence-weighted mean of forward flows s-w .. s+w (clamped to
+    # the pairs; the last sub-frame takes the last pair's), one shifted slice per offset.
+    wts = conf + np.float32(1e-3)
+    weighted = fwd * wts[..., None]
+    num, den = np.zeros_like(fwd), np.zeros_like(wts)
+    P = S - 1
+    for o in range(-min(temporal_window, P - 1), min(temporal_window, P - 1) + 1):
+        a, b = max(0, -o), P - max(0, o)  # centres c in [a, b) read pair c + o
+        num[a:b] += weighted[a + o: b + o]
+        den[a:b] += wts[a + o: b + o]
+    vel = np.concatenate([num, num[-1:]]) / np.concatenate([den, den[-1:]])[..., None]
+    vconf = np.concatenate([conf, conf[-1:]])
     return vel, vconf
 
 
@@ -200,6 +202,8 @@ def to_full_size(vel: np.ndarray, conf: np.ndarray, size: tuple[int, int]) -> tu
     H, W = size
     if (h, w) != (H, W):
         vel = upsample_flow(vel, (H, W))
+        if conf.min() == 1:  # the usual case without a round-trip check: a read-only view of 1
+            return vel, np.broadcast_to(np.float32(1), (len(conf), H, W))
         small, conf = conf, np.empty((len(conf), H, W), np.float32)
         for i, c in enumerate(small):
             cv2.resize(c, (W, H), dst=conf[i], interpolation=cv2.INTER_LINEAR)

@@ -122,6 +122,7 @@ def test_resolution_map_limits():
         ({"c": (0.05, 0.95, 0.05)}, r"`c` must satisfy c1 >= c2 >= c3 >= 0"),
         ({"flow": "magic"}, r"unknown flow backend 'magic'"),
         ({"gate": (0.5, 0.1)}, r"`gate` must be two thresholds"),
+        ({"flow_scale": 0}, r"`flow_scale` must be in \(0, 1\] or None; got 0"),
     ],
 )
 def test_bad_arguments(kwargs, match):
@@ -141,3 +142,11 @@ def test_still_voxels_shortcut_keeps_the_moving_ones_exact(capture_case, rng):
     assert np.array_equal(fast[still & ~mask], still_value[still & ~mask])
     with pytest.raises(ValueError, match=r"`still` and `still_value` go together"):
         motion_compensated_nc(sparse, mask, flow, time=2.0, still=still)
+
+
+def test_automatic_flow_scale_puts_the_shorter_side_near_160_px():
+    from flexvox_core.motion.pipeline import auto_flow_scale
+
+    assert auto_flow_scale(96, 128) == 1.0  # never upsampled
+    assert auto_flow_scale(480, 640) == pytest.approx(1 / 3)
+    assert auto_flow_scale(256, 256) == pytest.approx(0.625)

@@ -64,12 +64,18 @@ def default_stride(K: int) -> int:
     return max(1, K // 4)
 
 
-def kaverage_flow(small: np.ndarray, K: int, flow_fn, stride: int) -> tuple[np.ndarray, int]:
+def kaverage(video: np.ndarray, K: int) -> np.ndarray:
+    """Moving average over K sub-frames (every sampling phase once), edges held."""
+    return uniform_filter1d(video, K, axis=0, mode="nearest") if K > 1 else video
+
+
+def kaverage_flow(small: np.ndarray, K: int, flow_fn, stride: int, *, average: np.ndarray | None = None):
     """Velocity ``(S, h, w, 2)`` of the :func:`~flexvox_core.flow.estimate.downscale` d video
-    ``small``, in its pixels, and the baseline used (sub-frames)."""
+    ``small``, in its pixels, and the baseline used (sub-frames). ``average``: its
+    :func:`kaverage`, when the caller has it already."""
     S, h, w = small.shape
     span = max(1, min(K, S - 1))
-    average = uniform_filter1d(small, K, axis=0, mode="nearest") if K > 1 else small
+    average = kaverage(small, K) if average is None else average
     starts = list(range(0, S - span, stride))
     if not starts or starts[-1] != S - 1 - span:
         starts.append(S - 1 - span)

@@ -26,11 +26,10 @@ from dataclasses import dataclass, field
 from time import perf_counter as _now
 
 import numpy as np
-from scipy.ndimage import uniform_filter1d
 
 from flexvox_core.flow import FlowField
 from flexvox_core.flow.backends import backend_params, make_backend
-from flexvox_core.flow.baseline import default_stride, kaverage_flow
+from flexvox_core.flow.baseline import default_stride, kaverage, kaverage_flow
 from flexvox_core.flow.estimate import check_video, downscale, successive_flow, to_full_size, upsample_flow
 from flexvox_core.forward import sample_mask, sparse_volume
 from flexvox_core.motion.mcnc import motion_compensated_nc
@@ -117,7 +116,8 @@ def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, sc
     px = video.shape[2] / vel.shape[2]  # full-size pixels per flow pixel: thresholds are in full-size ones
     params = {**backend_params(flow_fn), "scale": scale, "consistency": consistency, "temporal_window": 1}
     if K > 1 and video.shape[0] > 1:
-        slow, span = kaverage_flow(small, K, flow_fn, default_stride(K))
+        average = kaverage(small, K)
+        slow, span = kaverage_flow(small, K, flow_fn, default_stride(K), average=average)
         speed = np.hypot(slow[..., 0], slow[..., 1]) * np.float32(px)
         if slow_speed is not None and span == K:  # shorter: the averages overlap, too blurred
             use_slow = (speed < slow_speed) & (np.hypot(vel[..., 0], vel[..., 1]) * np.float32(px) < 2 * slow_speed)
@@ -125,8 +125,7 @@ def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, sc
             params["slow_speed"] = slow_speed
         # Fast motion is smeared in the K-average and can escape a flow across K of its
         # sub-frames: the detector also takes flow between its successive sub-frames (at half size).
-        average = downscale(uniform_filter1d(small, K, axis=0, mode="nearest"), 0.5)
-        steps, _ = successive_flow(average, make_backend("dis"), consistency=False, temporal_window=1)
+        steps, _ = successive_flow(downscale(average, 0.5), make_backend("dis"), consistency=False, temporal_window=1)
         steps = upsample_flow(steps, small.shape[1:])
         speed = np.maximum(speed, np.hypot(steps[..., 0], steps[..., 1]) * np.float32(px))
         ramp = np.clip((speed - lo) / (hi - lo), 0, 1).astype(np.float32)

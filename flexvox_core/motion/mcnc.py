@@ -21,6 +21,7 @@ import math
 import cv2
 import numpy as np
 
+from flexvox_core.motion.longreach import selected_boxes
 from flexvox_core.motion.tensors import DEFAULT_C, check_c
 
 MIN_WEIGHT = 1e-6
@@ -63,10 +64,11 @@ def motion_compensated_nc(
         Largest |d| in sub-frames (default: the larger of 3 standard deviations of the static
         case and the sampling period K, at most S-1).
     still, still_value : ndarray (S, H, W), optional
-        Voxels to treat as still (bool) and their value — the fixed-tensor normalized
-        convolution with ``diag(c3, c2, c1)``, which is what this function computes at zero
-        flow. The trajectory gather then runs only over each sub-frame's bounding box of the
-        other voxels, which is where the time goes (a still scene costs almost nothing).
+        Voxels not to gather (bool) and their value (at zero flow this function computes the
+        fixed-tensor normalized convolution with ``diag(c3, c2, c1)``; ``motion_aware`` passes
+        its still and slow voxels' own values). The trajectory gather then runs only over boxes
+        around the other voxels, a band of rows at a time — that is where the time goes (a still
+        scene costs almost nothing).
     """
     c1, c2, _ = check_c(c)
     vals = np.asarray(sparse, dtype=np.float32)
@@ -78,7 +80,7 @@ def motion_compensated_nc(
     if not math.isfinite(time) or time <= 0:
         raise ValueError(f"`time` must be a finite number > 0; got {time!r}")
     S, H, W = vals.shape
-    if not np.isfinite(f).all():
+    if not np.isfinite(f.sum(dtype=np.float64)):  # one pass, no (S, H, W, 2) temporary
         f = np.where(np.isfinite(f), f, 0).astype(np.float32)
     if max_reach is None:
         # Far enough for 3 standard deviations, and at least one sampling period (a pixel is
@@ -90,12 +92,11 @@ def motion_compensated_nc(
         reach = int(max_reach)
     reach = max(0, min(reach, S - 1))
     sig_space = math.sqrt(2 * time * c2)
-    both = np.empty((S, H, W, 2), np.float32)  # value·mask, mask
-    for t in range(S):
-        weight = m[t].astype(np.float32)
-        cv2.merge([vals[t] * weight, weight], dst=both[t])
+    # Value·mask and mask as separate planes (two one-channel remaps cost a third of one
+    # two-channel remap, and interpolate exactly: see :mod:`~flexvox_core.motion.longreach`).
+    weight = m.astype(np.float32)
+    value = vals * weight
     gx, gy = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
-    out = np.empty((S, H, W), np.float32)
     if (still is None) != (still_value is None):
         raise ValueError("`still` and `still_value` go together")
     if still is not None:
@@ -105,40 +106,38 @@ def motion_compensated_nc(
             raise ValueError(f"`still` and `still_value` must have shape {vals.shape}")
     out = np.empty((S, H, W), np.float32)
     pad = int(math.ceil(sig_space * 4)) + 1
+    args = (value, weight, f, gx, gy, reach, time, c1, sig_space, fallback)
     for t in range(S):
         if still is None:
-            out[t] = _gather_box(t, (0, H, 0, W), both, f, gx, gy, reach, time, c1, sig_space, fallback, S)
+            out[t] = _gather_box(t, (0, H, 0, W), *args)
             continue
         moving = ~still[t]
-        if not moving.any():
-            out[t] = still_value[t]
-            continue
-        # Gather only over the bounding box of the moving voxels, padded for the spatial blur, so
-        # every moving voxel gets exactly the whole-frame result.
-        rows, cols = np.flatnonzero(moving.any(axis=1)), np.flatnonzero(moving.any(axis=0))
-        box = (max(0, rows[0] - pad), min(H, rows[-1] + 1 + pad), max(0, cols[0] - pad), min(W, cols[-1] + 1 + pad))
-        y0, y1, x0, x1 = box
-        # The blur mixes in trajectories up to `pad` away: those must be gathered in full too.
-        near = cv2.dilate(moving[y0:y1, x0:x1].view(np.uint8), np.ones((2 * pad + 1,) * 2, np.uint8)) > 0
-        est = _gather_box(t, box, both, f, gx, gy, reach, time, c1, sig_space, fallback, S, active=near)
         out[t] = still_value[t]
-        out[t, y0:y1, x0:x1] = np.where(moving[y0:y1, x0:x1], est, still_value[t, y0:y1, x0:x1])
+        # Gather only over boxes around the moving voxels (a band of rows at a time), padded for
+        # the spatial blur, so every moving voxel gets exactly the whole-frame result.
+        for (y0, y1, x0, x1), (k0, k1) in selected_boxes(moving, pad):
+            # The blur mixes in trajectories up to `pad` away: those must be gathered in full too.
+            near = cv2.dilate(moving[y0:y1, x0:x1].view(np.uint8), np.ones((2 * pad + 1,) * 2, np.uint8)) > 0
+            est = _gather_box(t, (y0, y1, x0, x1), *args, active=near)[k0 - y0: k1 - y0]
+            band = moving[k0:k1, x0:x1]
+            out[t, k0:k1, x0:x1] = np.where(band, est, out[t, k0:k1, x0:x1])
     if keep_samples:
-        out[m] = vals[m]
+        np.copyto(out, vals, where=m)
     return out
 
 
-def _gather_box(t, box, both, f, gx, gy, reach, time, c1, sig_space, fallback, S, active=None):
+def _gather_box(t, box, value, weight, f, gx, gy, reach, time, c1, sig_space, fallback, active=None):
     """Normalized convolution along the trajectories of sub-frame ``t`` for the voxels in ``box``
     (y0, y1, x0, x1); returns the box (where no sample is in reach: the fallback, or 0).
     ``active`` (bool, box-shaped): the voxels whose result is kept; the gather stops once their
     trajectory weights have all fallen below :data:`CUTOFF`."""
+    S = value.shape[0]
     y0, y1, x0, x1 = box
     region = (np.zeros((y1 - y0, x1 - x0), np.float32) if fallback is None
               else np.array(fallback[t, y0:y1, x0:x1], np.float32))
     gx, gy = gx[y0:y1, x0:x1], gy[y0:y1, x0:x1]
     h, w_ = y1 - y0, x1 - x0
-    u, v = f[t, y0:y1, x0:x1, 0], f[t, y0:y1, x0:x1, 1]
+    u, v = np.ascontiguousarray(f[t, y0:y1, x0:x1, 0]), np.ascontiguousarray(f[t, y0:y1, x0:x1, 1])
     # w_d = e^(d²) with e = exp(-(1 + u² + v²) / (4 n c1)): built by multiplication, since
     # d² is the sum of the first d odd numbers (no exp per offset).
     e = np.exp(-(1 + u * u + v * v) / np.float32(4 * time * c1)).astype(np.float32)
@@ -148,27 +147,29 @@ def _gather_box(t, box, both, f, gx, gy, reach, time, c1, sig_space, fallback, S
     e2 = e * e
     w = np.ones((h, w_), np.float32)
     step = e.copy()
-    acc = both[t, y0:y1, x0:x1].copy()  # d = 0, weight 1
-    # Trajectory positions x ± d·(u, v), advanced in place; weights doubled for the 2 channels.
+    acc_num = value[t, y0:y1, x0:x1].copy()  # d = 0, weight 1
+    acc_den = weight[t, y0:y1, x0:x1].copy()
+    # Trajectory positions x ± d·(u, v), advanced in place.
     fwd_x, fwd_y, back_x, back_y = gx.copy(), gy.copy(), gx.copy(), gy.copy()
-    w2 = np.empty((h, w_, 2), np.float32)
-    src = np.empty((h, w_, 2), np.float32)
+    num, den = np.empty((h, w_), np.float32), np.empty((h, w_), np.float32)
     for d in range(1, reach + 1):
-        np.multiply(w, step, out=w)
-        np.multiply(step, e2, out=step)
-        cv2.merge([w, w], dst=w2)
-        np.add(fwd_x, u, out=fwd_x)
-        np.add(fwd_y, v, out=fwd_y)
-        np.subtract(back_x, u, out=back_x)
-        np.subtract(back_y, v, out=back_y)
+        cv2.multiply(w, step, dst=w)
+        cv2.multiply(step, e2, dst=step)
+        cv2.add(fwd_x, u, dst=fwd_x)
+        cv2.add(fwd_y, v, dst=fwd_y)
+        cv2.subtract(back_x, u, dst=back_x)
+        cv2.subtract(back_y, v, dst=back_y)
         for sd, mx, my in ((d, fwd_x, fwd_y), (-d, back_x, back_y)):
             if 0 <= t + sd < S:
-                cv2.remap(both[t + sd], mx, my, cv2.INTER_LINEAR, dst=src,
+                cv2.remap(value[t + sd], mx, my, cv2.INTER_LINEAR, dst=num,
                           borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-                cv2.accumulateProduct(src, w2, acc)
+                cv2.remap(weight[t + sd], mx, my, cv2.INTER_LINEAR, dst=den,
+                          borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+                cv2.accumulateProduct(num, w, acc_num)
+                cv2.accumulateProduct(den, w, acc_den)
     if sig_space > 0.05:
-        acc = cv2.GaussianBlur(acc, (0, 0), sig_space, borderType=cv2.BORDER_REFLECT)
-    num, den = acc[..., 0], acc[..., 1]
-    ok = den > MIN_WEIGHT
-    est = np.divide(num, den, out=np.zeros_like(num), where=ok)
+        cv2.GaussianBlur(acc_num, (0, 0), sig_space, dst=acc_num, borderType=cv2.BORDER_REFLECT)
+        cv2.GaussianBlur(acc_den, (0, 0), sig_space, dst=acc_den, borderType=cv2.BORDER_REFLECT)
+    ok = acc_den > MIN_WEIGHT
+    est = np.divide(acc_num, acc_den, out=np.zeros_like(acc_num), where=ok)
     return np.where(ok, est, region)

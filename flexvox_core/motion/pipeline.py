@@ -26,12 +26,14 @@ from dataclasses import dataclass, field
 from time import perf_counter as _now
 
 import numpy as np
+from scipy.ndimage import uniform_filter1d
 
 from flexvox_core.flow import FlowField
 from flexvox_core.flow.backends import backend_params, make_backend
 from flexvox_core.flow.baseline import default_stride, kaverage, kaverage_flow
 from flexvox_core.flow.estimate import check_video, downscale, successive_flow, to_full_size, upsample_flow
 from flexvox_core.forward import sample_mask, sparse_volume
+from flexvox_core.motion.longreach import long_reach_nc
 from flexvox_core.motion.mcnc import motion_compensated_nc
 from flexvox_core.motion.tensors import DEFAULT_C, check_c, resolution_map
 from flexvox_core.motion.vardiff import variable_tensor_diffusion
@@ -45,12 +47,22 @@ STEP1_TIME = 2.0
 DEFAULT_TIME = 4.0
 FLOW_SIDE = 160
 """Flow runs with the shorter image side at about this many pixels (:func:`auto_flow_scale`)."""
-STILL_SPEED = 0.1
-"""Below this gated speed (px per sub-frame) a voxel takes the fixed-tensor normalized convolution
-(what the trajectory gather gives at zero flow), so the gather runs only where things move."""
+STILL_SPEED = 0.02
+"""Below this gated speed (px per sub-frame) a voxel is still: it takes its own pixel's samples
+averaged in time (a Gaussian of standard deviation K/2 sub-frames: Eq. 4's tensor in the limit
+c -> (0, 0, 1)), exact for a still scene and averaging its noise; no trajectory gather runs there."""
+SLOW_REACH = 0.75
+"""Reach of the slow voxels' range-weighted gather (:mod:`~flexvox_core.motion.longreach`), in
+sampling periods (K sub-frames) each way; also its temporal standard deviation."""
+LONG_REACH_SIGMA_S = 0.3
+"""Spatial standard deviation (px) of the slow voxels' gather."""
+LONG_REACH_RANGE = 0.1
+"""Range-weight scale of the slow voxels' gather, as a fraction of the samples' range."""
 SLOW_SPEED = 0.6
 """Below this speed (px per sub-frame) of the K-average's long-baseline flow, that flow is the velocity."""
 DEFAULT_GATE = (0.03, 0.15)
+PERIOD_GATE = (0.9, 1.5)
+"""Second gate ramp (px per sub-frame) on the successive-sub-frame flow averaged over K sub-frames."""
 """Gate ramp in pixels per sub-frame: below 0.03 still, above 0.15 trusted as moving."""
 
 
@@ -90,7 +102,8 @@ def auto_flow_scale(height: int, width: int) -> float:
 
 
 def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, scale: float = 0.5,
-               consistency: bool = False, slow_speed: float | None = SLOW_SPEED) -> FlowField:
+               consistency: bool = False, slow_speed: float | None = SLOW_SPEED,
+               period_gate=PERIOD_GATE) -> FlowField:
     """Flow of ``video`` with still regions set to zero and slow motion measured over a long baseline.
 
     The motion detector looks only at the K-average, which holds every sampling phase once and
@@ -101,10 +114,21 @@ def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, sc
     of ``video`` not much faster) it is the velocity — 20x more accurate there; elsewhere the
     successive-sub-frame flow of ``video`` is. None, or a clip of at most K sub-frames (whose
     averages overlap): successive-sub-frame flow everywhere.
+
+    Motion that the K-average cannot see — aliased at the sampling period, like the built-in fan
+    (3 blades, a turn every 48 sub-frames: at K = 16 every pixel sees the same blade phase in
+    every frame) — opens the ``period_gate`` ramp instead: the speed of the successive-sub-frame
+    flow averaged over K sub-frames. The high-TR video swims with the code's period (about
+    1 px per sub-frame at K = 16), which that average cancels (0.1 px median on the still scene,
+    0.54 px at the 99th percentile) while steady motion remains (1.5 px median on the fan's blades).
+    None: no second gate.
     """
     lo, hi = gate
     if not 0 <= lo < hi:
         raise ValueError(f"`gate` must be two thresholds 0 <= low < high (px per sub-frame); got {gate!r}")
+    if period_gate is not None and not 0 <= period_gate[0] < period_gate[1]:
+        raise ValueError(f"`period_gate` must be two thresholds 0 <= low < high (px per sub-frame) or None; "
+                         f"got {period_gate!r}")
     if slow_speed is not None and not slow_speed >= 0:
         raise ValueError(f"`slow_speed` must be a number >= 0 (px per sub-frame) or None; got {slow_speed!r}")
     video = check_video(video)
@@ -113,6 +137,7 @@ def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, sc
     # Everything at the flow's own (small) resolution; resized once at the end.
     small = downscale(video, scale)
     vel, conf = successive_flow(small, flow_fn, consistency=consistency, temporal_window=1)
+    successive = vel
     px = video.shape[2] / vel.shape[2]  # full-size pixels per flow pixel: thresholds are in full-size ones
     params = {**backend_params(flow_fn), "scale": scale, "consistency": consistency, "temporal_window": 1}
     if K > 1 and video.shape[0] > 1:
@@ -129,6 +154,15 @@ def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, sc
         steps = upsample_flow(steps, small.shape[1:])
         speed = np.maximum(speed, np.hypot(steps[..., 0], steps[..., 1]) * np.float32(px))
         ramp = np.clip((speed - lo) / (hi - lo), 0, 1).astype(np.float32)
+        if period_gate is not None:
+            # Motion aliased in the K-average (a fan whose blades pass once per K sub-frames leaves
+            # it exactly still): the successive-sub-frame flow averaged over one sampling period.
+            # The high-TR video's swimming repeats every K sub-frames and averages out; steady motion stays.
+            plo, phi = period_gate
+            mean = uniform_filter1d(successive, K, axis=0, mode="nearest")
+            mean_speed = np.hypot(mean[..., 0], mean[..., 1]) * np.float32(px)
+            ramp = np.maximum(ramp, np.clip((mean_speed - plo) / (phi - plo), 0, 1))
+            params["period_gate"] = (plo, phi)
         vel *= ramp[..., None]
         params["gate"] = (lo, hi)
     vel, conf = to_full_size(vel, conf, video.shape[1:])
@@ -149,6 +183,7 @@ def motion_aware(
     still_speed: float | None = STILL_SPEED,
     flow_consistency: bool = False,
     slow_speed: float | None = SLOW_SPEED,
+    slow_reach: float = SLOW_REACH,
 ) -> MotionAwareResult:
     """Motion-aware reconstruction of an identity-code capture.
 
@@ -170,14 +205,19 @@ def motion_aware(
     flow_scale : float or None
         Resolution at which flow is computed, in (0, 1]; None (default): :func:`auto_flow_scale`.
     still_speed : float or None
-        Voxels slower than this take the fixed-tensor result (see :data:`STILL_SPEED`);
-        None gathers along trajectories everywhere.
+        Voxels slower than this take their own samples interpolated in time (see
+        :data:`STILL_SPEED`); None gathers along trajectories everywhere.
     flow_consistency : bool
         Also compute backward flow for a forward–backward confidence map. Off by default: on
         the built-in scenes it changed PSNR by at most 0.06 dB and cost 10–40 % of the flow time.
     slow_speed : float or None
         Below this speed (px per sub-frame) the velocity is the K-average's long-baseline flow
-        (see :func:`gated_flow`); None: successive-sub-frame flow everywhere.
+        (see :func:`gated_flow`); None: successive-sub-frame flow everywhere (and no slow voxels).
+    slow_reach : float
+        Voxels that move, slower than ``slow_speed``, take a range-weighted gather reaching this
+        many sampling periods (K sub-frames) each way along their trajectory
+        (:func:`~flexvox_core.motion.longreach.long_reach_nc`); 0: the short gather of the fast
+        voxels. The accuracy knob that costs most time where the whole picture drifts slowly.
     """
     f = check_frames(frames)
     code = check_identity_code(code)
@@ -186,6 +226,8 @@ def motion_aware(
         raise ValueError(f"`passes` must be a whole number >= 1; got {passes!r}")
     if not np.isfinite(time) or time <= 0:
         raise ValueError(f"`time` must be a finite number > 0; got {time!r}")
+    if isinstance(slow_reach, bool) or not np.isfinite(slow_reach) or slow_reach < 0:
+        raise ValueError(f"`slow_reach` must be a number >= 0 (sampling periods); got {slow_reach!r}")
     if not np.isfinite(refine_time) or refine_time < 0:
         raise ValueError(f"`refine_time` must be a finite number >= 0; got {refine_time!r}")
     K = code.shape[2]
@@ -197,31 +239,45 @@ def motion_aware(
     t0 = _now()
     high_tr = diffuse(f, code, tensor=STEP1_TENSOR, time=STEP1_TIME)
     seconds["high_tr"] = _now() - t0
-    sparse = sparse_volume(f.astype(np.float32), code)
+    sparse = sparse_volume(np.asarray(f, np.float32), code)
     mask = sample_mask(sparse.shape, code)
     lo, hi = float(f.min()), float(f.max())
     current = high_tr
     field_ = None
-    still_value_cache = None
+    fixed = still_value = None
     for _ in range(passes):
         t0 = _now()
         field_ = gated_flow(current, K, backend=flow, gate=gate, scale=flow_scale, consistency=flow_consistency,
                             slow_speed=slow_speed)
         seconds["flow"] += _now() - t0
         t0 = _now()
-        still = still_value = None
-        if still_speed is not None:
-            if still_value_cache is None:
-                still_value_cache = diffuse(f, code, tensor=(c[2], c[1], c[0]), time=time)
-            still, still_value = field_.magnitude < still_speed, still_value_cache
+        speed = field_.magnitude
+        still = np.zeros(speed.shape, bool) if still_speed is None else speed < still_speed
+        slow = np.zeros(speed.shape, bool)
+        if slow_reach > 0 and slow_speed is not None and f.shape[0] > 1:  # one frame: no long-baseline flow
+            slow = ~still & (speed < slow_speed)
+        if fixed is None:  # the fixed-tensor result: the guide of the slow voxels, and where not still
+            fixed = diffuse(f, code, tensor=(c[2], c[1], c[0]), time=time)
+        base = fixed
+        if still.any():
+            # Still voxels: Eq. 4's tensor in the limit c -> (0, 0, 1), the pixel's own samples
+            # averaged in time (a Gaussian of half a sampling period: noise averages out).
+            if still_value is None:
+                still_value = diffuse(f, code, tensor=(0.0, 0.0, 1.0), time=K * K / 8)
+            base = np.where(still, still_value, fixed)
         video = motion_compensated_nc(sparse, mask, field_.flow, c=c, time=time, fallback=high_tr,
-                                      still=still, still_value=still_value)
+                                      still=still | slow, still_value=base)
+        if slow.any():
+            reach = max(1, round(slow_reach * K))
+            video = long_reach_nc(sparse, mask, field_.flow, video, slow, reach=reach, sigma_t=reach,
+                                  sigma_s=LONG_REACH_SIGMA_S, h=LONG_REACH_RANGE * max(hi - lo, 1e-12))
+            np.copyto(video, sparse, where=mask)
         if refine_time > 0:
             video = variable_tensor_diffusion(video, mask, field_.flow, c=c, time=refine_time)
-        current = np.clip(video, lo, hi)
+        current = np.clip(video, lo, hi, out=video)
         seconds["diffusion"] += _now() - t0
     tr, sr = resolution_map(field_.flow, K, c)
     _logger.info("motion-aware: high-TR %.2f s, flow %.2f s, diffusion %.2f s",
                  seconds["high_tr"], seconds["flow"], seconds["diffusion"])
-    return MotionAwareResult(current.astype(np.float32), high_tr, field_, tr, sr, seconds)
+    return MotionAwareResult(current.astype(np.float32, copy=False), high_tr, field_, tr, sr, seconds)
 

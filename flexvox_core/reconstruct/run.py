@@ -100,7 +100,7 @@ def overlap_frames(method: Method, K: int) -> int | None:
     if method.name == "rebin":
         return 1 if method.interpolate else 0
     if method.name == "motion-aware":
-        return 3  # high-TR nc, the K-average motion gate, flow smoothing, one sampling period of reach
+        return 3  # high-TR nc, the K-average gates, flow smoothing; still voxels: 4 σ = 2 periods, slow: 1
     if method.solver == "steady":
         return None  # a global linear solve
     sig_t = sigmas(method.tensor, method.time)[2]

@@ -28,9 +28,9 @@ import math
 import cv2
 import numpy as np
 
+from flexvox_core.motion.subframes import for_each_subframe
+
 MIN_WEIGHT = 1e-6
-BAND = 32
-"""Rows per box of :func:`selected_boxes`."""
 
 
 def long_reach_nc(sparse, mask, flow, guide, select, *, reach: int, sigma_t: float, sigma_s: float = 0.3,
@@ -86,9 +86,9 @@ def long_reach_nc(sparse, mask, flow, guide, select, *, reach: int, sigma_t: flo
     kernel = np.ones((2 * radius + 1,) * 2, np.uint8)
     scale = -0.5 / (h * h)
     gx, gy = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
-    for t in range(S):
+    def one(t):
         if not sel[t].any():
-            continue
+            return
         act = sel[t] if not radius else cv2.dilate(sel[t].view(np.uint8), kernel) > 0
         rows, cols = np.flatnonzero(act.any(axis=1)), np.flatnonzero(act.any(axis=0))
         y0, y1, x0, x1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
@@ -104,7 +104,7 @@ def long_reach_nc(sparse, mask, flow, guide, select, *, reach: int, sigma_t: flo
                     cv2.GaussianBlur(plane, (2 * radius + 1,) * 2, sigma_s, dst=plane, borderType=cv2.BORDER_CONSTANT)
             keep = sel[t][box] & (den > MIN_WEIGHT)
             out[t][box][keep] = num[keep] / den[keep]
-            continue
+            return
         # Sparse: only the selected voxels (and, for the blur, their neighbours), as a list.
         ys, xs = np.nonzero(act)
         grids = [_as_grid(a) for a in (xs, ys, f[t, ys, xs, 0], f[t, ys, xs, 1], g_all[t, ys, xs], value[t, ys, xs],
@@ -120,6 +120,8 @@ def long_reach_nc(sparse, mask, flow, guide, select, *, reach: int, sigma_t: flo
             num, den = planes[0, ys - y0, xs - x0], planes[1, ys - y0, xs - x0]
         ok = den > MIN_WEIGHT
         out[t, ys[ok], xs[ok]] = num[ok] / den[ok]
+
+    for_each_subframe(one, S)
     return out
 
 
@@ -175,20 +177,3 @@ def _gather_grid(t, value, weight, fwd_x, fwd_y, u, v, g, acc_num, acc_den, reac
             cv2.accumulateProduct(num, r, acc_num)
             cv2.accumulateProduct(den, r, acc_den)
     return acc_num, acc_den
-
-
-def selected_boxes(select: np.ndarray, pad: int, band: int = BAND):
-    """Boxes that cover the True pixels of a 2-D mask: one per band of ``band`` rows that holds
-    any, as ((y0, y1, x0, x1), (k0, k1)): the box padded by ``pad`` (what a computation with a
-    blur of that reach must read) and the rows of it to keep (the band's own). Scattered moving
-    regions then cost about their bands' area, not the whole frame's."""
-    H, W = select.shape
-    rows = select.any(axis=1)
-    for b0 in range(0, H, band):
-        b1 = min(H, b0 + band)
-        if not rows[b0:b1].any():
-            continue
-        r = np.flatnonzero(rows[b0:b1]) + b0
-        cols = np.flatnonzero(select[r[0]: r[-1] + 1].any(axis=0))
-        box = (max(0, r[0] - pad), min(H, r[-1] + 1 + pad), max(0, cols[0] - pad), min(W, cols[-1] + 1 + pad))
-        yield box, (int(r[0]), int(r[-1]) + 1)

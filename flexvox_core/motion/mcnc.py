@@ -21,7 +21,7 @@ import math
 import cv2
 import numpy as np
 
-from flexvox_core.motion.longreach import selected_boxes
+from flexvox_core.motion.subframes import for_each_subframe, selected_boxes
 from flexvox_core.motion.tensors import DEFAULT_C, check_c
 
 MIN_WEIGHT = 1e-6
@@ -107,10 +107,10 @@ def motion_compensated_nc(
     out = np.empty((S, H, W), np.float32)
     pad = int(math.ceil(sig_space * 4)) + 1
     args = (value, weight, f, gx, gy, reach, time, c1, sig_space, fallback)
-    for t in range(S):
+    def one(t):
         if still is None:
             out[t] = _gather_box(t, (0, H, 0, W), *args)
-            continue
+            return
         moving = ~still[t]
         out[t] = still_value[t]
         # Gather only over boxes around the moving voxels (a band of rows at a time), padded for
@@ -121,6 +121,8 @@ def motion_compensated_nc(
             est = _gather_box(t, (y0, y1, x0, x1), *args, active=near)[k0 - y0: k1 - y0]
             band = moving[k0:k1, x0:x1]
             out[t, k0:k1, x0:x1] = np.where(band, est, out[t, k0:k1, x0:x1])
+
+    for_each_subframe(one, S)
     if keep_samples:
         np.copyto(out, vals, where=m)
     return out

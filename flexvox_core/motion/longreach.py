@@ -80,7 +80,7 @@ def long_reach_nc(sparse, mask, flow, guide, select, *, reach: int, sigma_t: flo
     # Value·mask and mask as separate planes: two one-channel remaps cost a third of one
     # two-channel remap and interpolate exactly (OpenCV 5, measured at 640×480).
     weight = m.astype(np.float32)
-    value = vals * weight
+    value = np.where(m, vals, np.float32(0))  # unsampled voxels may hold anything, even NaN
     out = g_all.copy()
     radius = int(math.ceil(3 * sigma_s)) if sigma_s > 0.05 else 0
     kernel = np.ones((2 * radius + 1,) * 2, np.uint8)

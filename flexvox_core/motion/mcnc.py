@@ -95,7 +95,7 @@ def motion_compensated_nc(
     # Value·mask and mask as separate planes (two one-channel remaps cost a third of one
     # two-channel remap, and interpolate exactly: see :mod:`~flexvox_core.motion.longreach`).
     weight = m.astype(np.float32)
-    value = vals * weight
+    value = np.where(m, vals, np.float32(0))  # unsampled voxels may hold anything, even NaN
     gx, gy = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
     if (still is None) != (still_value is None):
         raise ValueError("`still` and `still_value` go together")

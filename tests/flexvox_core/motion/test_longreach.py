@@ -136,3 +136,15 @@ def test_box_and_list_gathers_agree(rng, monkeypatch):
         results.append(long_reach_nc(sparse, mask, flow, guide, sel, reach=8, sigma_t=8, sigma_s=0.3, h=0.1))
     assert np.allclose(results[0], results[1], atol=1e-5)
     assert not np.allclose(results[0][sel], guide[sel], atol=1e-3)  # the gather did something
+
+
+def test_values_outside_the_samples_are_ignored(rng):
+    # Only sampled voxels are read: NaN where there is no sample changes nothing.
+    truth = rng.uniform(0.2, 0.8, (8 * 3, 12, 16)).astype(np.float32)
+    _, sparse, mask = _sampled(truth)
+    flow = rng.normal(0, 0.3, (*truth.shape, 2)).astype(np.float32)
+    guide = np.full(truth.shape, 0.5, np.float32)
+    sel = np.ones(truth.shape, bool)
+    clean = long_reach_nc(sparse, mask, flow, guide, sel, reach=8, sigma_t=8)
+    dirty = np.where(mask, sparse, np.nan).astype(np.float32)
+    assert np.array_equal(long_reach_nc(dirty, mask, flow, guide, sel, reach=8, sigma_t=8), clean)

@@ -30,8 +30,7 @@ def for_each_subframe(fn: Callable[[int], None], count: int) -> None:
             fn(t)
         return
     with ThreadPoolExecutor(max_workers=n) as pool:
-        for _ in pool.map(fn, range(count)):
-            pass
+        list(pool.map(fn, range(count)))  # consumes the results, so an exception is raised here
 
 
 def selected_boxes(select: np.ndarray, pad: int, band: int = BAND):

@@ -248,17 +248,24 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype) -> np.ndarray:
     den_k = np.empty((K, H, W), dtype=dtype)
     for k in range(K):
         _blur_plane((order == k).astype(dtype), gy, gx, den_k[k])
-    den = np.tile(den_k, (F, 1, 1))
-    dflat = den.reshape(S, H * W)
-    _blur_rows(dflat, gt, dflat)
+    den = _PeriodicDenominator(den_k, F, gt)
     peak = 1.0
     for g in (gx, gy, gt):
         if g is not None:
             peak *= float(g.max())
-    low = den <= NC_MIN_WEIGHT * peak
-    np.divide(num, den, out=num, where=~low)
+    low = None
+    for s in range(S):
+        d = den[s]
+        low_s = d <= NC_MIN_WEIGHT * peak
+        if low_s.any():
+            if low is None:
+                low = np.zeros((S, H, W), bool)
+            low[s] = low_s
+            np.divide(num[s], d, out=num[s], where=~low_s)
+        else:
+            np.divide(num[s], d, out=num[s])
     samples = frames.astype(dtype, copy=False)
-    if low.any():
+    if low is not None:
         _logger.debug("nc: %d voxels without a sample in reach take the nearest sample", int(low.sum()))
         _put_samples(num, samples, order)
         _nearest_fill(num, _sample_mask(order, F, K), low, sig)
@@ -266,6 +273,54 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype) -> np.ndarray:
     if keep_samples:
         _put_samples(num, samples, order)
     return num
+
+
+class _PeriodicDenominator:
+    """The time-blurred sample mask ``den[s]`` of an ``F·K``-sub-frame clip without the full volume.
+
+    The mask repeats every K sub-frames, so away from the clip's ends (farther than the time
+    kernel's radius r) the blurred mask does too; only the first and last ``r + K`` sub-frames
+    see the reflecting ends. Those come from blurring ``2r + K`` sub-frames at each end (exactly
+    what the whole clip's blur gives there); the rest repeats one period of them. A clip too
+    short for that is blurred whole.
+    """
+
+    def __init__(self, den_k: np.ndarray, F: int, gt: np.ndarray | None) -> None:
+        K, H, W = den_k.shape
+        self.K, self.S = K, F * K
+        self.r = 0 if gt is None else gt.size // 2
+        length = min(self.S, 2 * self.r + K)
+        self.length = length
+        self.den_k = den_k
+        if gt is None:
+            self.head = self.tail = None
+            return
+        # An end's blur is exact wherever its window does not reach the short clip's other end.
+        self.head = self._blurred(den_k, 0, length, gt)
+        self.tail = self.head if length == self.S else self._blurred(den_k, self.S - length, length, gt)
+        if length < self.S:  # one period of the interior, phases r .. r + K - 1 (head[s] exact for s < r + K)
+            interior = self.head[self.r: self.r + K]
+            self.period = np.empty_like(den_k)
+            for j in range(K):
+                self.period[(self.r + j) % K] = interior[j]
+
+    @staticmethod
+    def _blurred(den_k, start, length, gt):
+        K, H, W = den_k.shape
+        phases = (start + np.arange(length)) % K
+        block = den_k[phases]  # (length, H, W), a copy
+        flat = block.reshape(length, H * W)
+        _blur_rows(flat, gt, flat)
+        return block
+
+    def __getitem__(self, s: int) -> np.ndarray:
+        if self.head is None:
+            return self.den_k[s % self.K]
+        if self.length == self.S or s < self.r + self.K:
+            return self.head[s]
+        if s >= self.S - self.r - self.K:
+            return self.tail[s - (self.S - self.length)]
+        return self.period[s % self.K]
 
 
 def _put_samples(volume: np.ndarray, samples: np.ndarray, order: np.ndarray) -> None:

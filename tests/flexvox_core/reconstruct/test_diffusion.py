@@ -28,6 +28,11 @@ def _frames(rng, code, F, H, W, dtype=np.float32):
         ((1e6, 1, 1e-6), 1e-3, (2, 8, 8)),  # ratio 1e12, kernel along x wider than the image
         ((1, 1, 1), 500.0, (1, 5, 7)),  # every kernel longer than its axis (folded)
         ((1, 0, 0), 0.01, (2, 4, 8)),  # nearly nothing in reach: nearest-sample fall-back
+        # Clips longer than the time kernel's reach plus a period: the blurred mask's ends are
+        # computed apart and its interior repeats one period.
+        ((0.3, 0.3, 1), 2.0, (12, 6, 8)),
+        ((1, 1, 0.05), 2.0, (9, 5, 7)),
+        ((0, 0, 1), 8.0, (11, 4, 4)),
     ],
 )
 def test_fast_nc_matches_the_scipy_baseline(code24, rng, tensor, time, shape):

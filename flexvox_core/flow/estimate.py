@@ -20,15 +20,14 @@ sub-frame, and a confidence in [0, 1]:
 from __future__ import annotations
 
 import logging
-import os
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 
 from flexvox_core.flow.backends import backend_params, make_backend
+from flexvox_core.threads import for_each
 
 _logger = logging.getLogger(__name__)
 
@@ -140,8 +139,7 @@ def run_pairs(flow_fn, u8: np.ndarray, pairs, out: np.ndarray, conf: np.ndarray,
             c = c * consistency_confidence(f_ab, bwd) * np.minimum(cb, 1)
         out[i], conf[i] = f_ab, c
 
-    with ThreadPoolExecutor(max_workers=max(1, min(os.cpu_count() or 1, 8))) as pool:
-        list(pool.map(one, range(len(pairs))))
+    for_each(one, len(pairs))
 
 
 def upsample_flow(flow: np.ndarray, size: tuple[int, int]) -> np.ndarray:

@@ -28,7 +28,7 @@ import math
 import cv2
 import numpy as np
 
-from flexvox_core.motion.subframes import for_each_subframe
+from flexvox_core.threads import for_each
 
 MIN_WEIGHT = 1e-6
 
@@ -121,7 +121,7 @@ def long_reach_nc(sparse, mask, flow, guide, select, *, reach: int, sigma_t: flo
         ok = den > MIN_WEIGHT
         out[t, ys[ok], xs[ok]] = num[ok] / den[ok]
 
-    for_each_subframe(one, S)
+    for_each(one, S)
     return out
 
 

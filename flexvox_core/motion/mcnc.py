@@ -21,8 +21,9 @@ import math
 import cv2
 import numpy as np
 
-from flexvox_core.motion.subframes import for_each_subframe, selected_boxes
+from flexvox_core.motion.subframes import selected_boxes
 from flexvox_core.motion.tensors import DEFAULT_C, check_c
+from flexvox_core.threads import for_each
 
 MIN_WEIGHT = 1e-6
 CUTOFF = 1e-3
@@ -122,7 +123,7 @@ def motion_compensated_nc(
             band = moving[k0:k1, x0:x1]
             out[t, k0:k1, x0:x1] = np.where(band, est, out[t, k0:k1, x0:x1])
 
-    for_each_subframe(one, S)
+    for_each(one, S)
     if keep_samples:
         np.copyto(out, vals, where=m)
     return out

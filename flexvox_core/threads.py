@@ -1,0 +1,39 @@
+"""Independent per-item work (one sub-frame, one frame pair) spread over the cores."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+
+import cv2
+
+
+def workers() -> int:
+    """Threads for per-item work: the machine's cores, at most 8."""
+    return max(1, min(os.cpu_count() or 1, 8))
+
+
+def for_each(fn: Callable[[int], None], count: int) -> None:
+    """Call ``fn(i)`` for i in range(count) on :func:`workers` threads (each call writes its own output).
+
+    OpenCV releases the GIL and runs most element-wise operations on one thread: two sub-frames
+    at a time nearly halve a trajectory gather's time on two cores (39 -> 21 ms per 640×480
+    sub-frame, measured). OpenCV's own thread pool is switched off meanwhile
+    (``cv2.setNumThreads(1)``, restored after): its idle workers wait for work by spinning, and
+    beside these threads that cost time in system calls (measured at 640×480, K = 16, 2 cores:
+    a gather 1.52 -> 1.35 s, the clip's successive-sub-frame flow 1.7 -> 1.0 s). An exception in
+    any call is raised here.
+    """
+    n = workers()
+    if n == 1 or count < 2:
+        for i in range(count):
+            fn(i)
+        return
+    saved = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        with ThreadPoolExecutor(max_workers=n) as pool:
+            list(pool.map(fn, range(count)))  # consumes the results, so an exception is raised here
+    finally:
+        cv2.setNumThreads(saved)

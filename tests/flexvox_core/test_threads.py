@@ -1,0 +1,31 @@
+import cv2
+import pytest
+
+from flexvox_core.threads import for_each, workers
+
+
+def test_every_item_runs_once_with_opencv_single_threaded_and_restored_after():
+    before = cv2.getNumThreads()
+    seen, inside = [], []
+
+    def fn(i):
+        seen.append(i)
+        inside.append(cv2.getNumThreads())
+
+    for_each(fn, 37)
+    assert sorted(seen) == list(range(37))
+    if workers() > 1:
+        assert set(inside) == {1}
+    assert cv2.getNumThreads() == before
+
+
+def test_an_exception_in_one_item_is_raised_and_threads_restored():
+    before = cv2.getNumThreads()
+
+    def fn(i):
+        if i == 5:
+            raise ValueError("item 5 failed")
+
+    with pytest.raises(ValueError, match="item 5 failed"):
+        for_each(fn, 9)
+    assert cv2.getNumThreads() == before

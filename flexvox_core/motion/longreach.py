@@ -28,13 +28,14 @@ import math
 import cv2
 import numpy as np
 
+from flexvox_core.motion.subframes import sample_planes
 from flexvox_core.threads import for_each
 
 MIN_WEIGHT = 1e-6
 
 
 def long_reach_nc(sparse, mask, flow, guide, select, *, reach: int, sigma_t: float, sigma_s: float = 0.3,
-                  h: float = 0.1) -> np.ndarray:
+                  h: float = 0.1, out: np.ndarray | None = None) -> np.ndarray:
     """Range-weighted trajectory gather over ±``reach`` sub-frames for the voxels in ``select``.
 
     Parameters
@@ -54,6 +55,9 @@ def long_reach_nc(sparse, mask, flow, guide, select, *, reach: int, sigma_t: flo
         Temporal (along the trajectory) and spatial standard deviations.
     h : float
         Range-weight scale, in the samples' units (> 0).
+    out : ndarray (S, H, W) float32, optional
+        Where to write the result; may be ``guide`` itself (each sub-frame's guide is read
+        before that sub-frame is written).
 
     Returns
     -------
@@ -79,9 +83,13 @@ def long_reach_nc(sparse, mask, flow, guide, select, *, reach: int, sigma_t: flo
     reach = min(int(reach), S - 1)
     # Value·mask and mask as separate planes: two one-channel remaps cost a third of one
     # two-channel remap and interpolate exactly (OpenCV 5, measured at 640×480).
-    weight = m.astype(np.float32)
-    value = np.where(m, vals, np.float32(0))  # unsampled voxels may hold anything, even NaN
-    out = g_all.copy()
+    value, weight = sample_planes(vals, m)  # unsampled voxels may hold anything, even NaN
+    if out is None:
+        out = g_all.copy()
+    elif out is not g_all:
+        if out.shape != vals.shape or out.dtype != np.float32:
+            raise ValueError(f"`out` must be float32 of shape {vals.shape}; got {out.dtype} {out.shape}")
+        np.copyto(out, g_all)
     radius = int(math.ceil(3 * sigma_s)) if sigma_s > 0.05 else 0
     kernel = np.ones((2 * radius + 1,) * 2, np.uint8)
     scale = -0.5 / (h * h)
@@ -107,8 +115,8 @@ def long_reach_nc(sparse, mask, flow, guide, select, *, reach: int, sigma_t: flo
             return
         # Sparse: only the selected voxels (and, for the blur, their neighbours), as a list.
         ys, xs = np.nonzero(act)
-        grids = [_as_grid(a) for a in (xs, ys, f[t, ys, xs, 0], f[t, ys, xs, 1], g_all[t, ys, xs], value[t, ys, xs],
-                                       weight[t, ys, xs])]
+        grids = [_as_grid(a) for a in (xs, ys, f[t, ys, xs, 0], f[t, ys, xs, 1], g_all[t, ys, xs], value[t][ys, xs],
+                                       weight[t][ys, xs])]
         num, den = (a.reshape(-1)[: len(ys)] for a in _gather_grid(t, value, weight, *grids, reach, sigma_t, scale))
         if radius:
             planes = np.zeros((2, y1 - y0, x1 - x0), np.float32)
@@ -145,7 +153,7 @@ def _gather_grid(t, value, weight, fwd_x, fwd_y, u, v, g, acc_num, acc_den, reac
     """Range-weighted sums (numerator, weight) along the trajectories of the voxels whose
     positions are ``fwd_x``, ``fwd_y`` at sub-frame ``t`` (any 2-D layout: a box or a list;
     ``acc_num``, ``acc_den`` hold their own sub-frame's samples and are overwritten)."""
-    S = value.shape[0]
+    S = len(value)
     shape = fwd_x.shape
     back_x, back_y = fwd_x.copy(), fwd_y.copy()
     num, den, r = (np.empty(shape, np.float32) for _ in range(3))

@@ -21,7 +21,7 @@ import math
 import cv2
 import numpy as np
 
-from flexvox_core.motion.subframes import selected_boxes
+from flexvox_core.motion.subframes import sample_planes, selected_boxes
 from flexvox_core.motion.tensors import DEFAULT_C, check_c
 from flexvox_core.threads import for_each
 
@@ -95,8 +95,7 @@ def motion_compensated_nc(
     sig_space = math.sqrt(2 * time * c2)
     # Value·mask and mask as separate planes (two one-channel remaps cost a third of one
     # two-channel remap, and interpolate exactly: see :mod:`~flexvox_core.motion.longreach`).
-    weight = m.astype(np.float32)
-    value = np.where(m, vals, np.float32(0))  # unsampled voxels may hold anything, even NaN
+    value, weight = sample_planes(vals, m)
     gx, gy = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
     if (still is None) != (still_value is None):
         raise ValueError("`still` and `still_value` go together")
@@ -134,7 +133,7 @@ def _gather_box(t, box, value, weight, f, gx, gy, reach, time, c1, sig_space, fa
     (y0, y1, x0, x1); returns the box (where no sample is in reach: the fallback, or 0).
     ``active`` (bool, box-shaped): the voxels whose result is kept; the gather stops once their
     trajectory weights have all fallen below :data:`CUTOFF`."""
-    S = value.shape[0]
+    S = len(value)
     y0, y1, x0, x1 = box
     region = (np.zeros((y1 - y0, x1 - x0), np.float32) if fallback is None
               else np.array(fallback[t, y0:y1, x0:x1], np.float32))
@@ -150,8 +149,8 @@ def _gather_box(t, box, value, weight, f, gx, gy, reach, time, c1, sig_space, fa
     e2 = e * e
     w = np.ones((h, w_), np.float32)
     step = e.copy()
-    acc_num = value[t, y0:y1, x0:x1].copy()  # d = 0, weight 1
-    acc_den = weight[t, y0:y1, x0:x1].copy()
+    acc_num = value[t][y0:y1, x0:x1].copy()  # d = 0, weight 1
+    acc_den = weight[t][y0:y1, x0:x1].copy()
     # Trajectory positions x ± d·(u, v), advanced in place.
     fwd_x, fwd_y, back_x, back_y = gx.copy(), gy.copy(), gx.copy(), gy.copy()
     num, den = np.empty((h, w_), np.float32), np.empty((h, w_), np.float32)

@@ -23,8 +23,10 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from functools import cached_property
 from time import perf_counter as _now
 
+import cv2
 import numpy as np
 from scipy.ndimage import uniform_filter1d
 
@@ -76,18 +78,36 @@ class MotionAwareResult:
     high_tr : ndarray (S, H, W) float32, the Step-1 reconstruction
     flow : FlowField
         The gated flow that drove the tensors (confidence from the high-TR flow).
-    tr, sr : ndarray (S, H, W) float32
-        Effective resolution chosen per voxel (:func:`~flexvox_core.motion.tensors.resolution_map`).
+    K : int
+        Slots of the code.
+    c : (c1, c2, c3)
+        Eigenvalues of Eq. 4 used.
     seconds : dict
         Time of each step: ``high_tr``, ``flow``, ``diffusion``.
+    tr, sr : ndarray (S, H, W) float32
+        Effective resolution chosen per voxel (:func:`~flexvox_core.motion.tensors.resolution_map`),
+        computed from ``flow`` when first asked for (two more volumes a plain reconstruction
+        does not need).
     """
 
     video: np.ndarray
     high_tr: np.ndarray
     flow: FlowField
-    tr: np.ndarray
-    sr: np.ndarray
+    K: int
+    c: tuple = DEFAULT_C
     seconds: dict = field(default_factory=dict)
+
+    @cached_property
+    def _resolution(self) -> tuple[np.ndarray, np.ndarray]:
+        return resolution_map(self.flow.flow, self.K, self.c)
+
+    @property
+    def tr(self) -> np.ndarray:
+        return self._resolution[0]
+
+    @property
+    def sr(self) -> np.ndarray:
+        return self._resolution[1]
 
 
 def auto_flow_scale(height: int, width: int) -> float:
@@ -167,6 +187,22 @@ def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, sc
         params["gate"] = (lo, hi)
     vel, conf = to_full_size(vel, conf, video.shape[1:])
     return FlowField(vel, conf, params, _now() - t0)
+
+
+def _speed_classes(flow: np.ndarray, still_speed: float | None, slow_speed: float | None):
+    """Bool volumes ``still`` (speed < ``still_speed``) and ``slow`` (not still, speed < ``slow_speed``),
+    a sub-frame at a time (no full-volume speed array); None: no such voxels."""
+    S, H, W = flow.shape[:3]
+    still = np.zeros((S, H, W), bool)
+    slow = np.zeros((S, H, W), bool)
+    for t in range(S):
+        speed = cv2.magnitude(flow[t, ..., 0], flow[t, ..., 1])
+        if still_speed is not None:
+            np.less(speed, still_speed, out=still[t])
+        if slow_speed is not None:
+            np.less(speed, slow_speed, out=slow[t])
+            slow[t] &= ~still[t]
+    return still, slow
 
 
 def motion_aware(
@@ -251,11 +287,8 @@ def motion_aware(
                             slow_speed=slow_speed)
         seconds["flow"] += _now() - t0
         t0 = _now()
-        speed = field_.magnitude
-        still = np.zeros(speed.shape, bool) if still_speed is None else speed < still_speed
-        slow = np.zeros(speed.shape, bool)
-        if slow_reach > 0 and slow_speed is not None and f.shape[0] > 1:  # one frame: no long-baseline flow
-            slow = ~still & (speed < slow_speed)
+        still, slow = _speed_classes(field_.flow, still_speed,
+                                     slow_speed if slow_reach > 0 and f.shape[0] > 1 else None)
         if fixed is None:  # the fixed-tensor result: the guide of the slow voxels, and where not still
             fixed = diffuse(f, code, tensor=(c[2], c[1], c[0]), time=time)
         base = fixed
@@ -264,20 +297,21 @@ def motion_aware(
             # averaged in time (a Gaussian of half a sampling period: noise averages out).
             if still_value is None:
                 still_value = diffuse(f, code, tensor=(0.0, 0.0, 1.0), time=K * K / 8)
-            base = np.where(still, still_value, fixed)
+            base = fixed.copy() if passes > 1 else fixed  # `fixed` serves every pass
+            np.copyto(base, still_value, where=still)
         video = motion_compensated_nc(sparse, mask, field_.flow, c=c, time=time, fallback=high_tr,
                                       still=still | slow, still_value=base)
+        del base
         if slow.any():
             reach = max(1, round(slow_reach * K))
-            video = long_reach_nc(sparse, mask, field_.flow, video, slow, reach=reach, sigma_t=reach,
-                                  sigma_s=LONG_REACH_SIGMA_S, h=LONG_REACH_RANGE * max(hi - lo, 1e-12))
+            long_reach_nc(sparse, mask, field_.flow, video, slow, reach=reach, sigma_t=reach,
+                          sigma_s=LONG_REACH_SIGMA_S, h=LONG_REACH_RANGE * max(hi - lo, 1e-12), out=video)
             np.copyto(video, sparse, where=mask)
         if refine_time > 0:
             video = variable_tensor_diffusion(video, mask, field_.flow, c=c, time=refine_time)
         current = np.clip(video, lo, hi, out=video)
         seconds["diffusion"] += _now() - t0
-    tr, sr = resolution_map(field_.flow, K, c)
     _logger.info("motion-aware: high-TR %.2f s, flow %.2f s, diffusion %.2f s",
                  seconds["high_tr"], seconds["flow"], seconds["diffusion"])
-    return MotionAwareResult(current.astype(np.float32, copy=False), high_tr, field_, tr, sr, seconds)
+    return MotionAwareResult(current.astype(np.float32, copy=False), high_tr, field_, K, c, seconds)
 

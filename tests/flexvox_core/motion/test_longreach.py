@@ -148,3 +148,19 @@ def test_values_outside_the_samples_are_ignored(rng):
     clean = long_reach_nc(sparse, mask, flow, guide, sel, reach=8, sigma_t=8)
     dirty = np.where(mask, sparse, np.nan).astype(np.float32)
     assert np.array_equal(long_reach_nc(dirty, mask, flow, guide, sel, reach=8, sigma_t=8), clean)
+
+
+def test_writing_into_the_guide_gives_the_same_result(rng):
+    truth = rng.uniform(0.2, 0.8, (8 * 3, 12, 16)).astype(np.float32)
+    _, sparse, mask = _sampled(truth)
+    flow = rng.normal(0, 0.3, (*truth.shape, 2)).astype(np.float32)
+    guide = diffuse(capture(truth, CODE), CODE, tensor=(1, 1, 0.05), time=2.0)
+    sel = rng.random(truth.shape) < 0.5
+    kw = dict(reach=6, sigma_t=6, sigma_s=0.3, h=0.1)
+    expected = long_reach_nc(sparse, mask, flow, guide, sel, **kw)
+    inplace = guide.copy()
+    got = long_reach_nc(sparse, mask, flow, inplace, sel, out=inplace, **kw)
+    assert got is inplace
+    np.testing.assert_array_equal(got, expected)
+    with pytest.raises(ValueError, match="`out` must be float32 of shape"):
+        long_reach_nc(sparse, mask, flow, guide, sel, out=np.empty((3, 12, 16), np.float32), **kw)

@@ -46,7 +46,7 @@ _logger = logging.getLogger(__name__)
 
 STEP1_TENSOR = (1.0, 1.0, 0.05)
 STEP1_TIME = 2.0
-DEFAULT_TIME = 4.0
+DEFAULT_TIME = 5.0
 FLOW_SIDE = 160
 """Flow runs with the shorter image side at about this many pixels (:func:`auto_flow_scale`)."""
 STILL_SPEED = 0.02

@@ -24,6 +24,7 @@ import numpy as np
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture
 from flexvox_core.metrics import psnr, ssim
+from flexvox_core.motion.pipeline import DEFAULT_TIME as MA_TIME
 from flexvox_core.reconstruct.rebin import supported_divisions
 from flexvox_core.reconstruct.run import Method, reconstruct
 from flexvox_core.simulate.scenes import render_scene
@@ -99,11 +100,11 @@ def methods_for(case: Case, *, quick: bool) -> list[tuple[str, Method]]:
         rows.append(("steady isotropic", Method("diffusion", tensor=(1, 1, 1), time=1.0, solver="steady")))
     for it in (5, 20) if quick else (5, 10, 20, 40):
         rows.append(("gap-tv", Method("gap-tv", iterations=it)))
-    for n in (4.0,) if quick else (2.0, 4.0):
+    for n in (MA_TIME,) if quick else (2.0, 4.0, MA_TIME):
         rows.append(("motion-aware", Method("motion-aware", time=n)))
     if not quick:
-        rows.append(("motion-aware", Method("motion-aware", time=4.0, refine_time=1.0)))
-        rows.append(("motion-aware", Method("motion-aware", time=4.0, passes=2)))
+        rows.append(("motion-aware", Method("motion-aware", time=MA_TIME, refine_time=1.0)))
+        rows.append(("motion-aware", Method("motion-aware", time=MA_TIME, passes=2)))
     return rows
 
 

@@ -21,7 +21,7 @@ import math
 import cv2
 import numpy as np
 
-from flexvox_core.motion.subframes import sample_planes, selected_boxes
+from flexvox_core.motion.subframes import sample_planes, sampling_period, selected_boxes
 from flexvox_core.motion.tensors import DEFAULT_C, check_c
 from flexvox_core.threads import for_each
 
@@ -86,9 +86,7 @@ def motion_compensated_nc(
     if max_reach is None:
         # Far enough for 3 standard deviations, and at least one sampling period (a pixel is
         # sampled once every K sub-frames), so a still pixel always reaches its own samples.
-        per_pixel = int(m.sum(axis=0).min()) if S else 0
-        period = S // per_pixel if per_pixel else S
-        reach = max(math.ceil(3 * math.sqrt(2 * time * c1)), period)
+        reach = max(math.ceil(3 * math.sqrt(2 * time * c1)), sampling_period(m))
     else:
         reach = int(max_reach)
     reach = max(0, min(reach, S - 1))

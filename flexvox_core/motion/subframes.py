@@ -25,6 +25,13 @@ def selected_boxes(select: np.ndarray, pad: int, band: int = BAND):
         yield box, (int(r[0]), int(r[-1]) + 1)
 
 
+def sampling_period(mask: np.ndarray) -> int:
+    """Sub-frames between a pixel's samples (S / the fewest samples any pixel has; S if some pixel has none)."""
+    S = len(mask)
+    per_pixel = int(np.asarray(mask, bool).sum(axis=0).min()) if S else 0
+    return S // per_pixel if per_pixel else S
+
+
 def sample_planes(sparse: np.ndarray, mask: np.ndarray) -> tuple[list, list]:
     """The gathers' inputs, sub-frame by sub-frame, without full-volume copies where none is needed.
 
@@ -44,8 +51,7 @@ def sample_planes(sparse: np.ndarray, mask: np.ndarray) -> tuple[list, list]:
         # Clean: every nonzero (NaN counts) is at a sample.
         clean = np.count_nonzero(vals[t]) == np.count_nonzero(vals[t][m[t]])
         values.append(vals[t] if clean else np.where(m[t], vals[t], np.float32(0)))
-    per_pixel = int(m.sum(axis=0).min()) if S else 0
-    period = S // per_pixel if per_pixel else S
+    period = sampling_period(m)
     if 0 < period < S and S % period == 0 and np.array_equal(m[period:], m[:-period]):
         shared = m[:period].astype(np.float32)
         weights = [shared[t % period] for t in range(S)]

@@ -12,6 +12,7 @@ from tqdm import tqdm
 from app.cli.errors import EXIT_OK, CliError, arg_type
 from flexvox_core.divisions import parse_division
 from flexvox_core.motion.pipeline import DEFAULT_TIME as MA_TIME
+from flexvox_core.motion.pipeline import SLOW_REACH
 from flexvox_core.multiplex import multiplexed_code
 from flexvox_core.reconstruct import prepare
 from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, SOLVERS
@@ -39,7 +40,8 @@ def register(sub) -> None:
             "Reconstruct the full (S, H, W) float32 video in [0, 1] (S = F*K) of a recording and "
             f"write it to OUT ({', '.join(WRITABLE)}). Methods: rebin (re-binning at a division), "
             "diffusion (constant tensor; the default nc solver is the fast normalized convolution), "
-            "gap-tv (the classical peer). Multiplexed recordings are demultiplexed first."
+            "gap-tv (the classical peer), motion-aware (the seed's Section 4: diffusion tensors oriented "
+            "along optical flow). Multiplexed recordings are demultiplexed first."
         ),
     )
     p.add_argument("recording", type=Path, metavar="REC", help="a flexvox recording (.zarr)")
@@ -60,6 +62,10 @@ def register(sub) -> None:
                    help="motion-aware: flow re-estimated from the previous pass N-1 times (default 1)")
     p.add_argument("--refine", type=float, default=0.0, metavar="n",
                    help="motion-aware: extra monotone variable-tensor diffusion time (default 0)")
+    p.add_argument("--slow-reach", type=float, metavar="R",
+                   help="motion-aware: how far the slowly moving voxels' gather reaches along their "
+                        f"trajectory, in sampling periods each way (default {SLOW_REACH:g}; 0: no long "
+                        "gather, faster where the whole picture drifts slowly)")
     p.add_argument("--figures", type=Path, metavar="DIR",
                    help="motion-aware: write flow (colour wheel, quiver), resolution map and a panel "
                         "like the seed's Figs. 7-8 as PNGs")
@@ -101,7 +107,9 @@ def run(args) -> int:
         n = args.time if args.time is not None else (MA_TIME if args.method == "motion-aware" else DEFAULT_TIME)
         method = Method(args.method, block=block, interpolate=not args.no_interpolate, tensor=args.tensor,
                         time=n, solver=args.solver, iterations=args.iterations, flow=args.flow,
-                        passes=args.passes, refine_time=args.refine)
+                        passes=args.passes, refine_time=args.refine, slow_reach=args.slow_reach)
+        if args.slow_reach is not None and args.method != "motion-aware":
+            raise ValueError("--slow-reach goes with --method motion-aware")
         if args.figures and args.method != "motion-aware":
             raise ValueError("--figures goes with --method motion-aware")
     except (ValueError, RecordingError) as exc:

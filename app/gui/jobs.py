@@ -95,10 +95,10 @@ def _motion_aware(frames: np.ndarray, code: np.ndarray, method: Method, *, chunk
     video = np.empty((F * K, H, W), np.float32)
     flow = np.empty((F * K, H, W, 2), np.float32)
     tr = np.empty((F * K, H, W), np.float32)
+    value_range = (float(np.min(frames)), float(np.max(frames)))  # the same in every chunk
     for start, stop, lo, hi in _chunks(F, chunk_frames, overlap_frames(method, K)):
         cancel.check()
-        r = motion_aware(frames[lo:hi], code, flow=method.flow, passes=method.passes, time=method.time,
-                         refine_time=method.refine_time)
+        r = motion_aware(frames[lo:hi], code, **method.motion_kwargs(), value_range=value_range)
         a, b = (start - lo) * K, (stop - lo) * K
         video[start * K: stop * K] = r.video[a:b]
         flow[start * K: stop * K] = r.flow.flow[a:b]

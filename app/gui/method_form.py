@@ -21,6 +21,7 @@ from app.gui.continuum import continuum_division, continuum_tensor, describe
 from app.gui.settings import AppSettings
 from flexvox_core.flow import BACKENDS
 from flexvox_core.motion.pipeline import DEFAULT_TIME as MA_TIME
+from flexvox_core.motion.pipeline import SLOW_REACH
 from flexvox_core.reconstruct.diffusion import DEFAULT_TIME, SOLVERS
 from flexvox_core.reconstruct.run import METHODS, Method
 
@@ -94,10 +95,14 @@ class MethodForm(QWidget):
         self.passes = QSpinBox()
         self.passes.setRange(1, 4)
         self.passes.setValue(settings.get_int("review/passes", 1))
+        self.slow_reach = _spin(0, 4, settings.get_float("review/slow_reach", SLOW_REACH), 0.25)
+        self.slow_reach.setToolTip("how far slowly moving voxels gather samples along their trajectory, in "
+                                   "sampling periods each way (0: off, faster where the whole picture drifts)")
         f.addRow("optical flow", self.flow)
         f.addRow("diffusion time n", self.ma_time)
         f.addRow("refinement time", self.refine)
         f.addRow("passes", self.passes)
+        f.addRow("slow-drift reach", self.slow_reach)
         self.stack.addWidget(ma)
 
         self.slider = QSlider(Qt.Orientation.Horizontal)
@@ -126,7 +131,8 @@ class MethodForm(QWidget):
                        (self.interpolate, "toggled"), (self.time, "valueChanged"),
                        (self.solver, "currentIndexChanged"), (self.iterations, "valueChanged"),
                        (self.flow, "currentIndexChanged"), (self.ma_time, "valueChanged"),
-                       (self.refine, "valueChanged"), (self.passes, "valueChanged")):
+                       (self.refine, "valueChanged"), (self.passes, "valueChanged"),
+                       (self.slow_reach, "valueChanged")):
             getattr(w, sig).connect(self._on_change)
         self._refresh()
 
@@ -160,8 +166,10 @@ class MethodForm(QWidget):
         if name == "gap-tv":
             return Method("gap-tv", iterations=self.iterations.value())
         if name == "motion-aware":
+            reach = self.slow_reach.value()
             return Method("motion-aware", flow=self.flow.currentText(), time=self.ma_time.value(),
-                          refine_time=self.refine.value(), passes=self.passes.value())
+                          refine_time=self.refine.value(), passes=self.passes.value(),
+                          slow_reach=None if reach == SLOW_REACH else reach)
         return Method("diffusion", tensor=continuum_tensor(self.position), time=self.time.value(),
                       solver=self.solver.currentText())
 
@@ -179,6 +187,7 @@ class MethodForm(QWidget):
         s.set("review/ma_time", self.ma_time.value())
         s.set("review/refine", self.refine.value())
         s.set("review/passes", self.passes.value())
+        s.set("review/slow_reach", self.slow_reach.value())
         self._refresh()
         self.changed.emit()
 

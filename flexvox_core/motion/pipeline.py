@@ -220,6 +220,7 @@ def motion_aware(
     flow_consistency: bool = False,
     slow_speed: float | None = SLOW_SPEED,
     slow_reach: float = SLOW_REACH,
+    value_range: tuple[float, float] | None = None,
 ) -> MotionAwareResult:
     """Motion-aware reconstruction of an identity-code capture.
 
@@ -254,6 +255,11 @@ def motion_aware(
         many sampling periods (K sub-frames) each way along their trajectory
         (:func:`~flexvox_core.motion.longreach.long_reach_nc`); 0: the short gather of the fast
         voxels. The accuracy knob that costs most time where the whole picture drifts slowly.
+    value_range : (lo, hi) or None
+        Range of the whole recording's samples: it scales the slow voxels' range weight and
+        bounds the result. None: this clip's own range. A run in time chunks passes the whole
+        recording's, so that the result does not depend on the chunking; it must contain
+        every value of ``frames``.
     """
     f = check_frames(frames)
     code = check_identity_code(code)
@@ -266,6 +272,16 @@ def motion_aware(
         raise ValueError(f"`slow_reach` must be a number >= 0 (sampling periods); got {slow_reach!r}")
     if not np.isfinite(refine_time) or refine_time < 0:
         raise ValueError(f"`refine_time` must be a finite number >= 0; got {refine_time!r}")
+    lo, hi = float(f.min()), float(f.max())
+    if value_range is not None:
+        try:
+            r_lo, r_hi = (float(v) for v in value_range)
+        except (TypeError, ValueError):
+            raise ValueError(f"`value_range` must be two numbers (lo, hi) or None; got {value_range!r}") from None
+        if not (np.isfinite(r_lo) and np.isfinite(r_hi) and r_lo <= lo and hi <= r_hi):
+            raise ValueError(f"`value_range` {value_range!r} must be finite and contain the frames' values "
+                             f"[{lo:g}, {hi:g}]")
+        lo, hi = r_lo, r_hi
     K = code.shape[2]
     if flow_scale is None:
         flow_scale = auto_flow_scale(*f.shape[1:])
@@ -277,7 +293,6 @@ def motion_aware(
     seconds["high_tr"] = _now() - t0
     sparse = sparse_volume(np.asarray(f, np.float32), code)
     mask = sample_mask(sparse.shape, code)
-    lo, hi = float(f.min()), float(f.max())
     current = high_tr
     field_ = None
     fixed = still_value = None

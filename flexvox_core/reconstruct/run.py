@@ -38,9 +38,11 @@ class Method:
         Diffusion tensor (cx, cy, ct), diffusion time n, solver (nc, explicit, steady).
     iterations, tv_weight, tv_iterations
         GAP-TV.
-    flow, passes, refine_time
-        Motion-aware: flow backend, passes, variable-tensor refinement time (its diffusion
-        time is ``time``; see :func:`flexvox_core.motion.motion_aware`).
+    flow, passes, refine_time, slow_reach
+        Motion-aware: flow backend, passes, variable-tensor refinement time, reach of the slow
+        voxels' gather in sampling periods (None: the pipeline's default,
+        :data:`flexvox_core.motion.pipeline.SLOW_REACH`; 0: no long gather). Its diffusion
+        time is ``time``; see :func:`flexvox_core.motion.motion_aware`.
     """
 
     name: str = "diffusion"
@@ -55,6 +57,7 @@ class Method:
     flow: str = "dis"
     passes: int = 1
     refine_time: float = 0.0
+    slow_reach: float | None = None
 
     def __post_init__(self):
         if self.name not in METHODS:
@@ -62,6 +65,16 @@ class Method:
         if self.solver not in SOLVERS:
             raise ValueError(f"`solver` must be one of {', '.join(SOLVERS)}; got {self.solver!r}")
         sigmas(self.tensor, self.time)  # validates both
+        r = self.slow_reach
+        if r is not None and (isinstance(r, bool) or not isinstance(r, int | float) or not math.isfinite(r) or r < 0):
+            raise ValueError(f"`slow_reach` must be a number >= 0 (sampling periods) or None; got {r!r}")
+
+    def motion_kwargs(self) -> dict:
+        """Keyword arguments of :func:`flexvox_core.motion.motion_aware` for this method."""
+        kw = {"flow": self.flow, "passes": self.passes, "time": self.time, "refine_time": self.refine_time}
+        if self.slow_reach is not None:
+            kw["slow_reach"] = float(self.slow_reach)
+        return kw
 
     def label(self) -> str:
         """Short human-readable description."""
@@ -72,7 +85,9 @@ class Method:
             return f"gap-tv {self.iterations} it"
         if self.name == "motion-aware":
             extra = f" +refine {self.refine_time:g}" if self.refine_time else ""
-            return f"motion-aware {self.flow} n={self.time:g}{extra}{f' x{self.passes}' if self.passes > 1 else ''}"
+            extra += f" x{self.passes}" if self.passes > 1 else ""
+            extra += f" slow-reach {self.slow_reach:g}" if self.slow_reach is not None else ""
+            return f"motion-aware {self.flow} n={self.time:g}{extra}"
         t = ",".join(f"{c:g}" for c in self.tensor)
         return f"diffusion {self.solver} ({t}) n={self.time:g}"
 
@@ -100,7 +115,9 @@ def overlap_frames(method: Method, K: int) -> int | None:
     if method.name == "rebin":
         return 1 if method.interpolate else 0
     if method.name == "motion-aware":
-        return 3  # high-TR nc, the K-average gates, flow smoothing; still voxels: 4 σ = 2 periods, slow: 1
+        # High-TR nc, the K-average gates, flow smoothing; still voxels: 4 σ = 2 periods; slow voxels:
+        # their reach in periods (the default 0.75 fits in 3) and the flow and guide it reads there.
+        return 3 if method.slow_reach is None else max(3, math.ceil(method.slow_reach) + 2)
     if method.solver == "steady":
         return None  # a global linear solve
     sig_t = sigmas(method.tensor, method.time)[2]
@@ -110,7 +127,7 @@ def overlap_frames(method: Method, K: int) -> int | None:
     return max(1, math.ceil(reach / K))
 
 
-def _run(frames: np.ndarray, code: np.ndarray, method: Method) -> np.ndarray:
+def _run(frames: np.ndarray, code: np.ndarray, method: Method, value_range=None) -> np.ndarray:
     if method.name == "rebin":
         block = method.block or default_block(code)
         return rebin(frames, code, block, interpolate=method.interpolate)
@@ -124,8 +141,7 @@ def _run(frames: np.ndarray, code: np.ndarray, method: Method) -> np.ndarray:
     if method.name == "motion-aware":
         from flexvox_core.motion import motion_aware
 
-        return motion_aware(frames, code, flow=method.flow, passes=method.passes, time=method.time,
-                            refine_time=method.refine_time).video
+        return motion_aware(frames, code, **method.motion_kwargs(), value_range=value_range).video
     return diffuse(frames, code, tensor=method.tensor, time=method.time, solver=method.solver)
 
 
@@ -165,10 +181,12 @@ def reconstruct(
             progress(F, F)
     else:
         out = np.empty((F * K, *f.shape[1:]), np.float32)
+        # Motion-aware scales a range weight by the samples' range: the whole recording's, in every chunk.
+        value_range = (float(np.min(f)), float(np.max(f))) if method.name == "motion-aware" else None
         for start in range(0, F, chunk_frames):
             stop = min(F, start + chunk_frames)
             lo, hi = max(0, start - ov), min(F, stop + ov)
-            part = _run(f[lo:hi], code, method)
+            part = _run(f[lo:hi], code, method, value_range)
             out[start * K: stop * K] = part[(start - lo) * K: (stop - lo) * K]
             if progress:
                 progress(stop, F)

@@ -103,3 +103,20 @@ def test_reconstruct_motion_aware_with_figures(recording, tmp_path, capsys):
 def test_figures_need_motion_aware(recording, tmp_path, capsys):
     assert main(["reconstruct", str(recording), "-o", str(tmp_path / "o.npy"), "--figures", str(tmp_path / "f")]) == 2
     assert "--figures goes with --method motion-aware" in capsys.readouterr().err
+
+
+def test_reconstruct_motion_aware_slow_reach(recording, tmp_path, capsys):
+    out = tmp_path / "ma.npy"
+    assert main(["reconstruct", str(recording), "--method", "motion-aware", "--flow", "farneback",
+                 "--slow-reach", "0", "-o", str(out)]) == 0
+    assert "motion-aware farneback n=5 slow-reach 0" in capsys.readouterr().out
+    assert np.load(out).shape == (48, 24, 32)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--slow-reach", "1"], "--slow-reach goes with --method motion-aware"),
+    (["--method", "motion-aware", "--slow-reach", "-1"], "`slow_reach` must be a number >= 0"),
+])
+def test_bad_slow_reach(recording, tmp_path, capsys, args, message):
+    assert main(["reconstruct", str(recording), *args, "-o", str(tmp_path / "o.npy")]) == 2
+    assert message in capsys.readouterr().err

@@ -57,10 +57,13 @@ def test_open_failure_is_said_in_words(qtbot, review, tmp_path):
     ("diffusion", {"position": 0.18}),  # the default tensor
     ("gap-tv", {"iterations": 20}),
     ("motion-aware", {}),
+    ("motion-aware", {"slow_reach": 0.0}),
 ])
 def test_reconstruct_each_method_beats_the_raw_frames(qtbot, opened, naive_psnr, method, knobs):
     r = reconstruct(qtbot, opened, method, **knobs)
     assert r.method.name == method
+    if "slow_reach" in knobs:
+        assert r.method.slow_reach == knobs["slow_reach"] and "slow-reach 0" in r.method.label()
     assert r.video.shape == (S, *SIZE) and r.video.dtype == np.float32
     assert 0 <= r.video.min() and r.video.max() <= 1
     assert r.psnr > naive_psnr + 0.8, (r.psnr, naive_psnr)

@@ -81,3 +81,33 @@ def test_motion_aware_chunking_matches_the_whole(rng):
     whole = reconstruct(frames, CODE, m, chunk_frames=None)
     chunked = reconstruct(frames, CODE, m, chunk_frames=4)
     assert np.allclose(whole, chunked, atol=1e-5)
+
+
+@pytest.mark.parametrize("slow_reach", [None, 4.0])
+def test_motion_aware_chunking_matches_the_whole_with_slow_voxels(slow_reach):
+    # A slow pan: the slow voxels' long gather runs. Its range weight is scaled by the samples'
+    # range, which must be the whole capture's in every chunk; and a reach of 4 periods needs
+    # more overlap than the default 3 frames.
+    from flexvox_core.simulate.scenes import render_scene
+
+    truth = render_scene("pan", 8 * 10, 24, 32)
+    frames = capture(truth, CODE)
+    m = Method("motion-aware", time=2.0, slow_reach=slow_reach)
+    whole = reconstruct(frames, CODE, m, chunk_frames=None)
+    chunked = reconstruct(frames, CODE, m, chunk_frames=3)
+    assert np.array_equal(whole, chunked)
+
+
+def test_slow_reach_knob():
+    m = Method("motion-aware", slow_reach=2)
+    assert m.label().endswith("slow-reach 2")
+    assert m.motion_kwargs()["slow_reach"] == 2.0
+    assert "slow_reach" not in Method("motion-aware").motion_kwargs()  # the pipeline's default
+    assert overlap_frames(Method("motion-aware"), 8) == 3
+    assert overlap_frames(Method("motion-aware", slow_reach=4), 8) == 6
+
+
+@pytest.mark.parametrize("bad", [-1.0, float("nan"), float("inf"), True, "2"])
+def test_bad_slow_reach(bad):
+    with pytest.raises(ValueError, match=r"`slow_reach` must be a number >= 0 \(sampling periods\) or None"):
+        Method("motion-aware", slow_reach=bad)

@@ -36,8 +36,7 @@ def write_figures(out_dir, frames, code, method, *, max_frames: int = 4) -> list
     out.mkdir(parents=True, exist_ok=True)
     f = np.asarray(frames, dtype=np.float32)[:max_frames]
     K = code.shape[2]
-    r = motion_aware(f, code, flow=method.flow, passes=method.passes, time=method.time,
-                     refine_time=method.refine_time)
+    r = motion_aware(f, code, **method.motion_kwargs())
     s = min(f.shape[0] * K - 2, f.shape[0] * K // 2 + K // 2)  # a sub-frame in the middle
     flow = r.flow.flow[s]
     written = []

@@ -52,25 +52,39 @@ def _chunks(F: int, chunk: int, ov: int) -> tuple[int, ...]:
     return tuple(sizes) or (0,)
 
 
-def _chunk_kernel(code, K: int, ov: int, F: int, method: Method, storage: dict, multiplexed):
+def _prepared(block: np.ndarray, code, storage: dict, multiplexed):
+    """Raw frames of one chunk normalised (and demultiplexed): the capture and its identity code."""
+    from flexvox_core.simulate.simulator import normalise_frames
+
+    frames = normalise_frames(np.asarray(block), storage)
+    if multiplexed is None:
+        return frames, code
+    from flexvox_core.reconstruct import prepare
+
+    return prepare(frames, multiplexed)
+
+
+def _sample_range(source, F: int, chunk_frames: int, code, storage: dict, multiplexed) -> tuple[float, float]:
+    """Smallest and largest prepared sample of the whole recording (one pass, a chunk at a time)."""
+    lo, hi = np.inf, -np.inf
+    for start in range(0, F, chunk_frames):
+        frames, _ = _prepared(source[start: min(F, start + chunk_frames)], code, storage, multiplexed)
+        lo, hi = min(lo, float(frames.min())), max(hi, float(frames.max()))
+    return lo, hi
+
+
+def _chunk_kernel(code, K: int, ov: int, F: int, method: Method, storage: dict, multiplexed, value_range=None):
     """The per-chunk function: normalise, demultiplex, reconstruct, trim to the chunk."""
 
     def kernel(block: np.ndarray, block_info=None) -> np.ndarray:
-        from flexvox_core.simulate.simulator import normalise_frames
-
         s0, s1 = block_info[None]["array-location"][0]
         start, stop = s0 // K, s1 // K
         left, right = min(ov, start), min(ov, F - stop)
         if block.shape[0] != stop - start + left + right:
             raise RuntimeError(f"chunk [{start}, {stop}) arrived with {block.shape[0]} frames, expected "
                                f"{stop - start + left + right}")
-        frames = normalise_frames(np.asarray(block), storage)
-        c = code
-        if multiplexed is not None:
-            from flexvox_core.reconstruct import prepare
-
-            frames, c = prepare(frames, multiplexed)
-        out = _run(frames, c, method)
+        frames, c = _prepared(block, code, storage, multiplexed)
+        out = _run(frames, c, method, value_range)
         return np.clip(out[left * K:(left + stop - start) * K], 0, 1).astype(np.float32, copy=False)
 
     return kernel
@@ -105,7 +119,10 @@ def batch_video(rec, method: Method | None = None, *, chunk_frames: int = 32):
         code = prepare(np.zeros((1, H, W), np.float32), multiplexed)[1]
     source = rec.group["frames"]
     frames = da.from_zarr(source, chunks=(chunk_frames, H, W))[:F].rechunk((_chunks(F, chunk_frames, ov), H, W))
-    kernel = _chunk_kernel(code, K, ov, F, method, rec.attrs["storage"], multiplexed)
+    # Motion-aware scales a range weight by the samples' range: the whole recording's, in every chunk.
+    value_range = (_sample_range(source, F, chunk_frames, code, rec.attrs["storage"], multiplexed)
+                   if method.name == "motion-aware" else None)
+    kernel = _chunk_kernel(code, K, ov, F, method, rec.attrs["storage"], multiplexed, value_range)
     out_chunks = (tuple(c * K for c in frames.chunks[0]), (H,), (W,))
     return da.map_overlap(kernel, frames, depth={0: ov, 1: 0, 2: 0}, boundary="none", trim=False,
                           dtype=np.float32, chunks=out_chunks, meta=np.empty((0, 0, 0), np.float32)), ov

@@ -33,6 +33,19 @@ def test_batch_equals_in_memory(rec_path, tmp_path, method):
     assert done[-1][0] == done[-1][1] >= 1 and [d for d, _ in done] == sorted(d for d, _ in done)
 
 
+def test_motion_aware_batch_equals_in_memory_with_slow_voxels(tmp_path):
+    # A slow pan: the slow voxels' gather weighs samples by a range scaled to the whole recording's.
+    from flexvox_core.simulate.scenes import render_scene
+
+    code = design_code((2, 4)).code
+    path = write_simulation(tmp_path / "pan.zarr", simulate_video(render_scene("pan", 10 * 8, 24, 32), code, seed=1))
+    rec = open_recording(path)
+    method = Method("motion-aware", time=2.0)
+    expected = reconstruct(rec.normalised_frames(), rec.code, method, chunk_frames=None)
+    reconstruct_batch(path, tmp_path / "o.zarr", method, chunk_frames=3)
+    np.testing.assert_array_equal(zarr.open_group(str(tmp_path / "o.zarr"), mode="r")["video"][:], expected)
+
+
 def test_batch_on_a_distributed_cluster(rec_path, tmp_path):
     from distributed import LocalCluster
 

@@ -28,7 +28,7 @@ def register(sub) -> None:
     p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT.zarr", help="Zarr store to write")
     p.add_argument("--scheduler", metavar="ADDRESS", help="dask.distributed scheduler, e.g. tcp://host:8786")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
-    add_method_options(p)
+    add_method_options(p, chunk=32)
     p.set_defaults(func=run)
 
 
@@ -48,7 +48,7 @@ def run(args) -> int:
             bar.total = total
             bar.update(done - bar.n)
         try:
-            result = reconstruct_batch(args.recording, args.output, method, chunk_frames=args.chunk or 32,
+            result = reconstruct_batch(args.recording, args.output, method, chunk_frames=args.chunk,
                                        scheduler=args.scheduler, overwrite=args.overwrite, progress=progress)
         except (ValueError, OSError, TimeoutError) as exc:
             raise CliError(str(exc)) from None

@@ -31,8 +31,9 @@ WHAT = ("frames", "ground-truth", "reconstruction")
 FORMATS = (".tif", ".tiff", ".npy", ".mp4", ".zarr", "(folder: PNG)")
 
 
-def add_method_options(p) -> None:
-    """The reconstruction options shared by ``export`` and ``batch``."""
+def add_method_options(p, *, chunk: int) -> None:
+    """The reconstruction options shared by ``export`` and ``batch`` (``chunk``: its default chunk)."""
+    from flexvox_core.motion.pipeline import SLOW_REACH
     from flexvox_core.reconstruct.diffusion import SOLVERS
     from flexvox_core.reconstruct.run import METHODS
 
@@ -43,8 +44,14 @@ def add_method_options(p) -> None:
     p.add_argument("--time", type=float, metavar="n", help="diffusion time")
     p.add_argument("--solver", choices=SOLVERS, default="nc", help="diffusion solver (default nc)")
     p.add_argument("--iterations", type=int, default=40, help="gap-tv iterations (default 40)")
-    p.add_argument("--chunk", type=int, default=None, metavar="F",
-                   help="camera frames per chunk (default 16 for export, 32 for batch)")
+    p.add_argument("--flow", choices=("dis", "deepflow", "farneback", "tvl1"), default="dis",
+                   help="motion-aware: optical-flow backend (default dis)")
+    p.add_argument("--passes", type=int, default=1, metavar="N", help="motion-aware: flow passes (default 1)")
+    p.add_argument("--refine", type=float, default=0.0, metavar="n",
+                   help="motion-aware: extra variable-tensor diffusion time (default 0)")
+    p.add_argument("--slow-reach", type=float, metavar="R",
+                   help=f"motion-aware: reach of the slow voxels' gather in sampling periods (default {SLOW_REACH:g})")
+    p.add_argument("--chunk", type=int, default=chunk, metavar="F", help=f"camera frames per chunk (default {chunk})")
 
 
 def method_from_args(args, tile):
@@ -56,8 +63,11 @@ def method_from_args(args, tile):
 
     block = parse_division(args.block.replace(",", "x"), tuple(tile)) if args.block else None
     n = args.time if args.time is not None else (MA_TIME if args.method == "motion-aware" else DEFAULT_TIME)
+    if args.method != "motion-aware" and (args.passes != 1 or args.refine or args.slow_reach is not None):
+        raise ValueError("--passes, --refine and --slow-reach go with --method motion-aware")
     return Method(args.method, block=block, interpolate=not args.no_interpolate,
-                  tensor=args.tensor or DEFAULT_TENSOR, time=n, solver=args.solver, iterations=args.iterations)
+                  tensor=args.tensor or DEFAULT_TENSOR, time=n, solver=args.solver, iterations=args.iterations,
+                  flow=args.flow, passes=args.passes, refine_time=args.refine, slow_reach=args.slow_reach)
 
 
 def register(sub) -> None:
@@ -77,7 +87,7 @@ def register(sub) -> None:
     p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT", help="output file or folder")
     p.add_argument("--fps", type=float, help="MP4 playback rate (default: the camera rate for frames, else 30)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
-    add_method_options(p)
+    add_method_options(p, chunk=16)
     p.set_defaults(func=run)
 
 
@@ -104,7 +114,7 @@ class _Source:
             _, frames, code = load_capture(rec.path)
             try:
                 method = method_from_args(args, rec.attrs["tile"])
-                self.array = reconstruct(frames, code, method, chunk_frames=args.chunk or 16)
+                self.array = reconstruct(frames, code, method, chunk_frames=args.chunk)
             except ValueError as exc:
                 raise CliError(str(exc)) from None
             self.dtype = np.dtype(np.float32)

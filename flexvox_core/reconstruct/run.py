@@ -16,6 +16,7 @@ import numpy as np
 
 from flexvox_core.codes import verify
 from flexvox_core.divisions import Division
+from flexvox_core.motion.pipeline import DEFAULT_TIME as MA_TIME
 from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, SOLVERS, diffuse, sigmas
 from flexvox_core.reconstruct.gaptv import gap_tv
 from flexvox_core.reconstruct.rebin import rebin
@@ -35,7 +36,8 @@ class Method:
     interpolate : bool
         Re-binning with interpolation between block centres.
     tensor, time, solver
-        Diffusion tensor (cx, cy, ct), diffusion time n, solver (nc, explicit, steady).
+        Diffusion tensor (cx, cy, ct), diffusion time n (None: the method's default, 1.5 for
+        diffusion, 5 for motion-aware), solver (nc, explicit, steady).
     iterations, tv_weight, tv_iterations
         GAP-TV.
     flow, passes, refine_time, slow_reach
@@ -49,7 +51,7 @@ class Method:
     block: Division | None = None
     interpolate: bool = True
     tensor: tuple[float, float, float] = DEFAULT_TENSOR
-    time: float = DEFAULT_TIME
+    time: float | None = None
     solver: str = "nc"
     iterations: int = 40
     tv_weight: float = 0.3
@@ -64,6 +66,8 @@ class Method:
             raise ValueError(f"`method` must be one of {', '.join(METHODS)}; got {self.name!r}")
         if self.solver not in SOLVERS:
             raise ValueError(f"`solver` must be one of {', '.join(SOLVERS)}; got {self.solver!r}")
+        if self.time is None:  # each method's own default diffusion time
+            object.__setattr__(self, "time", MA_TIME if self.name == "motion-aware" else DEFAULT_TIME)
         sigmas(self.tensor, self.time)  # validates both
         r = self.slow_reach
         if r is not None and (isinstance(r, bool) or not isinstance(r, int | float) or not math.isfinite(r) or r < 0):

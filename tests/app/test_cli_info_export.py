@@ -123,3 +123,21 @@ def test_batch_cli_equals_reconstruct(recording, tmp_path, capsys):
     np.testing.assert_allclose(zarr.open_group(str(tmp_path / "b.zarr"))["video"][:], expected, atol=1e-5)
     with pytest.raises(CliError, match=r"the batch output must be a .zarr store"):
         cli(["batch", str(recording), "-o", str(tmp_path / "b.npy")])
+
+
+def test_batch_cli_motion_aware_options(recording, tmp_path, capsys):
+    assert cli(["batch", str(recording), "-o", str(tmp_path / "m.zarr"), "--method", "motion-aware",
+                "--flow", "farneback", "--slow-reach", "0"]) == 0
+    rec = open_recording(recording)
+    method = Method("motion-aware", flow="farneback", slow_reach=0.0)
+    expected = reconstruct(rec.normalised_frames(), rec.code, method, chunk_frames=None)
+    np.testing.assert_array_equal(zarr.open_group(str(tmp_path / "m.zarr"))["video"][:], expected)
+    with pytest.raises(CliError, match=r"--passes, --refine and --slow-reach go with --method motion-aware"):
+        cli(["export", str(recording), "--what", "reconstruction", "--refine", "1", "-o", str(tmp_path / "e.npy")])
+
+
+@pytest.mark.parametrize("command, chunk", [("batch", 32), ("export", 16)])
+def test_chunk_help_names_each_default(command, chunk, capsys):
+    with pytest.raises(SystemExit):
+        cli([command, "--help"])
+    assert f"camera frames per chunk (default {chunk})" in " ".join(capsys.readouterr().out.split())

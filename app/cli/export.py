@@ -57,16 +57,14 @@ def add_method_options(p, *, chunk: int) -> None:
 def method_from_args(args, tile):
     """A :class:`~flexvox_core.reconstruct.run.Method` from the shared options."""
     from flexvox_core.divisions import parse_division
-    from flexvox_core.motion.pipeline import DEFAULT_TIME as MA_TIME
-    from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME
+    from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR
     from flexvox_core.reconstruct.run import Method
 
     block = parse_division(args.block.replace(",", "x"), tuple(tile)) if args.block else None
-    n = args.time if args.time is not None else (MA_TIME if args.method == "motion-aware" else DEFAULT_TIME)
     if args.method != "motion-aware" and (args.passes != 1 or args.refine or args.slow_reach is not None):
         raise ValueError("--passes, --refine and --slow-reach go with --method motion-aware")
     return Method(args.method, block=block, interpolate=not args.no_interpolate,
-                  tensor=args.tensor or DEFAULT_TENSOR, time=n, solver=args.solver, iterations=args.iterations,
+                  tensor=args.tensor or DEFAULT_TENSOR, time=args.time, solver=args.solver, iterations=args.iterations,
                   flow=args.flow, passes=args.passes, refine_time=args.refine, slow_reach=args.slow_reach)
 
 

@@ -104,9 +104,8 @@ def run(args) -> int:
         block = None
         if args.block:
             block = parse_division(args.block.replace(",", "x"), tuple(rec.attrs["tile"]))
-        n = args.time if args.time is not None else (MA_TIME if args.method == "motion-aware" else DEFAULT_TIME)
         method = Method(args.method, block=block, interpolate=not args.no_interpolate, tensor=args.tensor,
-                        time=n, solver=args.solver, iterations=args.iterations, flow=args.flow,
+                        time=args.time, solver=args.solver, iterations=args.iterations, flow=args.flow,
                         passes=args.passes, refine_time=args.refine, slow_reach=args.slow_reach)
         if args.slow_reach is not None and args.method != "motion-aware":
             raise ValueError("--slow-reach goes with --method motion-aware")

@@ -11,7 +11,7 @@ from app.cli.errors import EXIT_OK, CliError
 
 def register(sub) -> None:
     """Add the ``batch`` subcommand."""
-    from app.cli.export import add_method_options
+    from app.cli.method_options import add_method_options
 
     p = sub.add_parser(
         "batch",
@@ -34,7 +34,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     """Carry out ``flexvox batch``."""
-    from app.cli.export import method_from_args
+    from app.cli.method_options import method_from_args
     from flexvox_core.batch import reconstruct_batch
     from flexvox_core.recording import RecordingError, open_recording
 

@@ -23,49 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
-from app.cli.errors import EXIT_OK, CliError, arg_type
-from app.cli.reconstruct import parse_triple
+from app.cli.errors import EXIT_OK, CliError
+from app.cli.method_options import add_method_options, method_from_args
 from flexvox_core.recording import RecordingError, open_recording
 
 WHAT = ("frames", "ground-truth", "reconstruction")
 FORMATS = (".tif", ".tiff", ".npy", ".mp4", ".zarr", "(folder: PNG)")
-
-
-def add_method_options(p, *, chunk: int) -> None:
-    """The reconstruction options shared by ``export`` and ``batch`` (``chunk``: its default chunk)."""
-    from flexvox_core.motion.pipeline import SLOW_REACH
-    from flexvox_core.reconstruct.diffusion import SOLVERS
-    from flexvox_core.reconstruct.run import METHODS
-
-    p.add_argument("--method", choices=METHODS, default="diffusion", help="reconstruction (default diffusion)")
-    p.add_argument("--block", metavar="a,b,c", help="rebin: rows,columns,slots of the division")
-    p.add_argument("--no-interpolate", action="store_true", help="rebin: blocks without interpolation")
-    p.add_argument("--tensor", type=arg_type(parse_triple), metavar="cx,cy,ct", help="diffusion tensor")
-    p.add_argument("--time", type=float, metavar="n", help="diffusion time")
-    p.add_argument("--solver", choices=SOLVERS, default="nc", help="diffusion solver (default nc)")
-    p.add_argument("--iterations", type=int, default=40, help="gap-tv iterations (default 40)")
-    p.add_argument("--flow", choices=("dis", "deepflow", "farneback", "tvl1"), default="dis",
-                   help="motion-aware: optical-flow backend (default dis)")
-    p.add_argument("--passes", type=int, default=1, metavar="N", help="motion-aware: flow passes (default 1)")
-    p.add_argument("--refine", type=float, default=0.0, metavar="n",
-                   help="motion-aware: extra variable-tensor diffusion time (default 0)")
-    p.add_argument("--slow-reach", type=float, metavar="R",
-                   help=f"motion-aware: reach of the slow voxels' gather in sampling periods (default {SLOW_REACH:g})")
-    p.add_argument("--chunk", type=int, default=chunk, metavar="F", help=f"camera frames per chunk (default {chunk})")
-
-
-def method_from_args(args, tile):
-    """A :class:`~flexvox_core.reconstruct.run.Method` from the shared options."""
-    from flexvox_core.divisions import parse_division
-    from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR
-    from flexvox_core.reconstruct.run import Method
-
-    block = parse_division(args.block.replace(",", "x"), tuple(tile)) if args.block else None
-    if args.method != "motion-aware" and (args.passes != 1 or args.refine or args.slow_reach is not None):
-        raise ValueError("--passes, --refine and --slow-reach go with --method motion-aware")
-    return Method(args.method, block=block, interpolate=not args.no_interpolate,
-                  tensor=args.tensor or DEFAULT_TENSOR, time=args.time, solver=args.solver, iterations=args.iterations,
-                  flow=args.flow, passes=args.passes, refine_time=args.refine, slow_reach=args.slow_reach)
 
 
 def register(sub) -> None:

@@ -2,33 +2,19 @@
 
 from __future__ import annotations
 
-import re
 import time
 from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
 
-from app.cli.errors import EXIT_OK, CliError, arg_type
-from flexvox_core.divisions import parse_division
-from flexvox_core.motion.pipeline import DEFAULT_TIME as MA_TIME
-from flexvox_core.motion.pipeline import SLOW_REACH
+from app.cli.errors import EXIT_OK, CliError
+from app.cli.method_options import add_method_options, method_from_args
 from flexvox_core.multiplex import multiplexed_code
 from flexvox_core.reconstruct import prepare
-from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, SOLVERS
-from flexvox_core.reconstruct.run import METHODS, Method, reconstruct
+from flexvox_core.reconstruct.run import reconstruct
 from flexvox_core.recording import RecordingError, open_recording
 from flexvox_core.video_io import WRITABLE, write_video
-
-_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
-
-
-def parse_triple(text: str, what: str = "tensor"):
-    """Three numbers written ``a,b,c`` (or ``axbxc``), for ``--tensor`` and the like."""
-    parts = [p.strip() for p in re.split(r"[,xX]", text) if p.strip()]
-    if len(parts) == 3 and all(_NUMBER.fullmatch(p) for p in parts):
-        return tuple(float(p) for p in parts)
-    raise ValueError(f"--{what} must be three numbers separated by commas; got {text!r}")
 
 
 def register(sub) -> None:
@@ -45,32 +31,11 @@ def register(sub) -> None:
         ),
     )
     p.add_argument("recording", type=Path, metavar="REC", help="a flexvox recording (.zarr)")
-    p.add_argument("--method", choices=METHODS, default="diffusion", help="default: diffusion")
-    p.add_argument("--block", metavar="a,b,c", help="rebin: rows,columns,slots of the division "
-                   "(default: the one with TR closest to sqrt(K))")
-    p.add_argument("--no-interpolate", action="store_true", help="rebin: blocks without interpolation")
-    p.add_argument("--tensor", type=arg_type(parse_triple), default=DEFAULT_TENSOR,
-                   metavar="cx,cy,ct", help=f"diffusion tensor (default {','.join(f'{c:g}' for c in DEFAULT_TENSOR)})")
-    p.add_argument("--time", type=float, metavar="n",
-                   help=f"diffusion time, the accuracy knob (default {DEFAULT_TIME:g}; motion-aware "
-                        f"{MA_TIME:g})")
-    p.add_argument("--solver", choices=SOLVERS, default="nc", help="diffusion solver (default nc)")
-    p.add_argument("--iterations", type=int, default=40, help="gap-tv iterations (default 40)")
-    p.add_argument("--flow", choices=("dis", "deepflow", "farneback", "tvl1"), default="dis",
-                   help="motion-aware: optical-flow backend (default dis: DIS + variational refinement)")
-    p.add_argument("--passes", type=int, default=1, metavar="N",
-                   help="motion-aware: flow re-estimated from the previous pass N-1 times (default 1)")
-    p.add_argument("--refine", type=float, default=0.0, metavar="n",
-                   help="motion-aware: extra monotone variable-tensor diffusion time (default 0)")
-    p.add_argument("--slow-reach", type=float, metavar="R",
-                   help="motion-aware: how far the slowly moving voxels' gather reaches along their "
-                        f"trajectory, in sampling periods each way (default {SLOW_REACH:g}; 0: no long "
-                        "gather, faster where the whole picture drifts slowly)")
+    add_method_options(p, chunk=16)
     p.add_argument("--figures", type=Path, metavar="DIR",
                    help="motion-aware: write flow (colour wheel, quiver), resolution map and a panel "
                         "like the seed's Figs. 7-8 as PNGs")
     p.add_argument("--fps", type=float, default=30.0, help="playback rate of an .mp4 output (default 30)")
-    p.add_argument("--chunk", type=int, default=16, metavar="F", help="camera frames per chunk (default 16)")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT", help="output file")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output")
     p.set_defaults(func=run)
@@ -101,14 +66,7 @@ def run(args) -> int:
         if args.output.exists() and not args.overwrite:
             raise ValueError(f"{args.output} already exists (use --overwrite)")
         rec, frames, code = load_capture(args.recording)
-        block = None
-        if args.block:
-            block = parse_division(args.block.replace(",", "x"), tuple(rec.attrs["tile"]))
-        method = Method(args.method, block=block, interpolate=not args.no_interpolate, tensor=args.tensor,
-                        time=args.time, solver=args.solver, iterations=args.iterations, flow=args.flow,
-                        passes=args.passes, refine_time=args.refine, slow_reach=args.slow_reach)
-        if args.slow_reach is not None and args.method != "motion-aware":
-            raise ValueError("--slow-reach goes with --method motion-aware")
+        method = method_from_args(args, rec.attrs["tile"])
         if args.figures and args.method != "motion-aware":
             raise ValueError("--figures goes with --method motion-aware")
     except (ValueError, RecordingError) as exc:

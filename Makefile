@@ -20,6 +20,7 @@ demo: $(STAMP)
 	$(BIN)/flexvox demo
 
 test: $(STAMP)
+	$(BIN)/lint-imports --no-cache
 	QT_QPA_PLATFORM=offscreen $(BIN)/python -m pytest
 
 lint: $(STAMP)

@@ -1,4 +1,11 @@
-"""``flexvox app``: the Qt application (device panel; Calibrate, Capture and Review workspaces)."""
+"""The command line's one door into Qt: ``flexvox app`` and the projector screen.
+
+``flexvox app`` starts the Qt application (device panel; Calibrate, Capture and Review
+workspaces). ``flexvox calibrate|capture --projector-screen N`` show the projector's patterns on
+a screen (a DLPC350 takes them on its video input) through :mod:`app.gui.projector.display`.
+Both import :mod:`app.gui` lazily, here and nowhere else in :mod:`app.cli` (an import-linter
+contract in pyproject.toml holds every other CLI module to that).
+"""
 
 from __future__ import annotations
 
@@ -6,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.cli.errors import CliError
+from app.cli.errors import EXIT_OK, CliError, arg_type
 
 HELP = "start the Qt application (device panel; Calibrate, Capture, Review)"
 
@@ -49,3 +56,63 @@ def run(args) -> int:
     from app.gui.application import launch  # Qt is loaded only here
 
     return launch(rig, recording=args.recording)
+
+
+# --------------------------------------------------------------------------- the projector screen
+
+
+def screen_index(text: str) -> int:
+    """``--projector-screen``: a screen index, a whole number >= 0 (its range is checked against the desktop)."""
+    if not text.isdigit():
+        raise ValueError(f"--projector-screen must be a screen index, a whole number >= 0 (see --list-screens); "
+                         f"got {text!r}")
+    return int(text)
+
+
+def add_screen_options(p) -> None:
+    """``--projector-screen N`` and ``--list-screens`` (shared with ``flexvox capture``)."""
+    p.add_argument("--projector-screen", type=arg_type(screen_index), metavar="N",
+                   help="real rig: the screen that feeds the projector's video input (HDMI), by index; the "
+                        "patterns are shown on it full-screen and pixel-exact while the command runs "
+                        "(needs a desktop session; list the screens with --list-screens)")
+    p.add_argument("--list-screens", action="store_true",
+                   help="list the screens (index, name, size, position) and exit")
+
+
+def list_screens() -> int:
+    """Print the screens ``--projector-screen`` can name."""
+    from app.gui.projector.display import ScreenError, screen_lines
+
+    try:
+        lines = screen_lines()
+    except ScreenError as exc:
+        raise CliError(str(exc)) from None
+    print("\n".join(lines))
+    return EXIT_OK
+
+
+def needs_screen(spec) -> bool:
+    """True when the rig's projector takes its patterns on a video input (a DLPC350)."""
+    return not spec.simulated and spec.projector.kind == "dlpc350"
+
+
+def with_projector_screen(args, spec, work):
+    """Run ``work(display, interrupted)`` as the rig needs: directly (no display) or with the patterns on a screen.
+
+    The simulated rig takes no screen; a DLPC350 needs one (``--projector-screen``): a QApplication
+    runs the event loop while ``work`` runs on a worker thread with the window's display sink.
+    """
+    if spec.simulated or not needs_screen(spec):
+        if args.projector_screen is not None:
+            raise CliError("--projector-screen is for a projector driven through its video input (a DLPC350); "
+                           f"{'the simulated rig (--rig mock)' if spec.simulated else 'this rig'} needs none")
+        return work(None, None)
+    if args.projector_screen is None:
+        raise CliError("the DLP LightCrafter 4500 takes its patterns on its video input: give --projector-screen N, "
+                       "the screen its HDMI input is (list them with --list-screens)")
+    from app.gui.projector.display import ScreenError, run_with_projector_screen
+
+    try:
+        return run_with_projector_screen(args.projector_screen, work)
+    except ScreenError as exc:
+        raise CliError(str(exc)) from None

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.cli.calibrate import add_screen_options, list_screens, with_projector_screen
+from app.cli.app import add_screen_options, list_screens, with_projector_screen
 from app.cli.errors import EXIT_FAILED, EXIT_OK, CliError, OneLineParser, arg_type
 from flexvox_core.tiles import parse_tile
 

@@ -1,35 +1,23 @@
-"""Building and running the application (what ``flexvox app`` calls)."""
+"""Building and running the application (what ``flexvox app`` calls).
+
+``ensure_application`` and ``configure_pyqtgraph`` live in :mod:`app.gui.widgets.qapp` and are
+re-exported here for callers that build a window.
+"""
 
 from __future__ import annotations
 
 import logging
-import sys
 
-import pyqtgraph as pg
-from PySide6.QtWidgets import QApplication
-
-from app.gui.expected_quality import load_table
 from app.gui.main_window import MainWindow
-from app.gui.qt_jobs import JobRunner
-from app.gui.rig_service import RigService
-from app.gui.settings import AppSettings, default_settings
+from app.gui.models.expected_quality import load_table
+from app.gui.models.rig_service import RigService
+from app.gui.widgets.qapp import configure_pyqtgraph, ensure_application
+from app.gui.widgets.qt_jobs import JobRunner
+from app.gui.widgets.settings import AppSettings, default_settings
+
+__all__ = ["build_window", "configure_pyqtgraph", "ensure_application", "launch"]
 
 _logger = logging.getLogger(__name__)
-
-
-def configure_pyqtgraph() -> None:
-    """pyqtgraph options the app relies on: row-major images (numpy's (H, W) order), antialiasing."""
-    pg.setConfigOptions(imageAxisOrder="row-major", antialias=True)
-
-
-def ensure_application() -> QApplication:
-    """The running QApplication, or a new one named flexvox."""
-    app = QApplication.instance()
-    if app is None:
-        app = QApplication(sys.argv[:1])
-        app.setOrganizationName("flexvox")
-        app.setApplicationName("flexvox")
-    return app
 
 
 def build_window(rig, *, settings: AppSettings | None = None, recording=None, runner: JobRunner | None = None,

@@ -9,13 +9,13 @@ from PySide6.QtCore import Qt
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import QDockWidget, QMainWindow, QTabWidget
 
-from app.gui.calibrate_page import CalibrateWorkspace
-from app.gui.capture_workspace import CaptureWorkspace
-from app.gui.device_panel import DevicePanel
-from app.gui.qt_jobs import JobRunner
-from app.gui.review_workspace import ReviewWorkspace
-from app.gui.rig_service import RigService
-from app.gui.settings import AppSettings
+from app.gui.calibrate.workspace import CalibrateWorkspace
+from app.gui.capture.workspace import CaptureWorkspace
+from app.gui.models.rig_service import RigService
+from app.gui.review.workspace import ReviewWorkspace
+from app.gui.widgets.device_panel import DevicePanel
+from app.gui.widgets.qt_jobs import JobRunner
+from app.gui.widgets.settings import AppSettings
 
 _logger = logging.getLogger(__name__)
 

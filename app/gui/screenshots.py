@@ -56,7 +56,7 @@ def render(out_dir) -> list[Path]:
     from PySide6.QtCore import Qt
 
     from app.gui.application import build_window, ensure_application
-    from app.gui.settings import settings_at
+    from app.gui.widgets.settings import settings_at
     from rig_drivers.profile import open_rig
 
     out = Path(out_dir)

@@ -51,7 +51,7 @@ def naive_psnr(recording):
 @pytest.fixture
 def settings(tmp_path):
     """Settings in a temporary INI file."""
-    from app.gui.settings import settings_at
+    from app.gui.widgets.settings import settings_at
 
     return settings_at(tmp_path / "settings.ini")
 
@@ -60,7 +60,7 @@ def settings(tmp_path):
 def runner(qapp):
     """A job runner on its own thread pool, shut down after the test."""
     from app.gui.application import configure_pyqtgraph
-    from app.gui.qt_jobs import JobRunner
+    from app.gui.widgets.qt_jobs import JobRunner
 
     configure_pyqtgraph()
     r = JobRunner()
@@ -71,8 +71,8 @@ def runner(qapp):
 @pytest.fixture
 def review(qtbot, settings, runner):
     """A Review workspace with the shipped bench figures."""
-    from app.gui.expected_quality import load_table
-    from app.gui.review_workspace import ReviewWorkspace
+    from app.gui.models.expected_quality import load_table
+    from app.gui.review.workspace import ReviewWorkspace
 
     ws = ReviewWorkspace(settings, runner, load_table())
     qtbot.addWidget(ws)

@@ -5,14 +5,14 @@ import re
 import numpy as np
 import pytest
 
-from app.gui.calibrate_page import CalibrateWorkspace
-from app.gui.calibration_model import (
+from app.gui.calibrate.workspace import CalibrateWorkspace
+from app.gui.models.calibration_model import (
     CalibrationTarget,
     run_workspace_calibration,
     summary_rows,
     target_for,
 )
-from app.gui.rig_service import RigService
+from app.gui.models.rig_service import RigService
 from calibration.files import load_calibration
 from calibration.simulated_target import calibration_rig, hidden_timing
 from calibration.sync import load_sync_profile
@@ -169,7 +169,7 @@ def test_sync_wizard_end_to_end(qtbot, calibrate, tmp_path):
 
 
 def test_trigger_test_says_when_the_camera_is_not_triggered(qtbot, runner):
-    from app.gui.sync_wizard import SyncWizard
+    from app.gui.calibrate.sync_wizard import SyncWizard
     from calibration.session import RigSession
     from rig_drivers.interfaces import TriggerConfig, TriggerSource
 

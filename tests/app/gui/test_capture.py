@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from app.gui.capture_workspace import CaptureWorkspace
-from app.gui.rig_service import RigService
+from app.gui.capture.workspace import CaptureWorkspace
+from app.gui.models.rig_service import RigService
 from rig_drivers.interfaces import DeviceState, RunState
 
 from .conftest import small_rig

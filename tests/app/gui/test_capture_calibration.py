@@ -6,15 +6,15 @@ import re
 import numpy as np
 import pytest
 
-from app.gui.calibration_model import run_workspace_calibration, target_for
-from app.gui.capture_calibration import (
+from app.gui.capture.workspace import CaptureWorkspace
+from app.gui.models.calibration_model import run_workspace_calibration, target_for
+from app.gui.models.capture_calibration import (
     CalibrationRefused,
     capture_identity,
     from_outcome,
     load_for_capture,
 )
-from app.gui.capture_workspace import CaptureWorkspace
-from app.gui.rig_service import RigService
+from app.gui.models.rig_service import RigService
 from calibration.files import CALIBRATION_FORMAT, CALIBRATION_VERSION, write_versioned
 from calibration.simulated_target import calibration_rig
 from flexvox_core.recording import open_recording

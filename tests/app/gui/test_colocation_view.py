@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from app.gui.calibrate_page import CalibrateWorkspace
-from app.gui.colocation_view import ColocationView, apply_homography, projector_grid
-from app.gui.rig_service import RigService
+from app.gui.calibrate.colocation_view import ColocationView, apply_homography, projector_grid
+from app.gui.calibrate.workspace import CalibrateWorkspace
+from app.gui.models.rig_service import RigService
 
 from .conftest import small_rig
 

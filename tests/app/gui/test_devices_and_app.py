@@ -5,9 +5,9 @@ import argparse
 import pytest
 
 from app.cli.errors import CliError
-from app.gui.device_panel import DevicePanel
 from app.gui.main_window import WORKSPACES
-from app.gui.rig_service import RigService
+from app.gui.models.rig_service import RigService
+from app.gui.widgets.device_panel import DevicePanel
 from rig_drivers.errors import DevicePermissionError
 from rig_drivers.interfaces import DeviceState
 from rig_drivers.profile import MOCK_SPEC, Rig

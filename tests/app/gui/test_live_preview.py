@@ -6,9 +6,9 @@ import re
 import numpy as np
 import pytest
 
-from app.gui.capture_workspace import CaptureWorkspace
-from app.gui.live_preview import FrameBuffer, LivePreview, preview_stride, reconstruct_preview
-from app.gui.rig_service import RigService
+from app.gui.capture.live_preview import FrameBuffer, LivePreview, preview_stride, reconstruct_preview
+from app.gui.capture.workspace import CaptureWorkspace
+from app.gui.models.rig_service import RigService
 from flexvox_core.design import design_code
 from flexvox_core.forward import tiled_code
 from rig_drivers.interfaces import Frame

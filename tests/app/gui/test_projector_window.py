@@ -12,9 +12,9 @@ import pytest
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QGuiApplication, QImage
 
-from app.gui.capture_workspace import CaptureWorkspace
-from app.gui.projector_window import ProjectorWindow, packed_frames, screen_label
-from app.gui.rig_service import RigService
+from app.gui.capture.workspace import CaptureWorkspace
+from app.gui.models.rig_service import RigService
+from app.gui.projector.window import ProjectorWindow, packed_frames, screen_label
 from rig_drivers.dlpc350.bitplanes import pack_bitplanes, unpack_bitplanes
 
 from .conftest import small_rig
@@ -66,7 +66,7 @@ def test_the_pattern_stays_one_image_pixel_per_device_pixel_on_a_scaled_screen(s
         import numpy as np
         from PySide6.QtGui import QImage
         from PySide6.QtWidgets import QApplication
-        from app.gui.projector_window import ProjectorWindow
+        from app.gui.projector.window import ProjectorWindow
         from rig_drivers.dlpc350.bitplanes import pack_bitplanes
 
         app = QApplication([])

@@ -7,9 +7,9 @@ from functools import partial
 import pytest
 
 from app.capture.service import CaptureService
-from app.gui.capture_workspace import CaptureWorkspace
-from app.gui.recording import counters_text, result_text
-from app.gui.rig_service import RigService
+from app.gui.capture.workspace import CaptureWorkspace
+from app.gui.models.recording import counters_text, result_text
+from app.gui.models.rig_service import RigService
 from flexvox_core.recording import RecordingWriter, open_recording
 from rig_drivers.interfaces import DeviceState, RunState
 

@@ -5,7 +5,7 @@ import pytest
 import tifffile
 from PySide6.QtCore import QTimer
 
-from app.gui.review_workspace import ReviewWorkspace
+from app.gui.review.workspace import ReviewWorkspace
 
 from .conftest import FRAMES, SIZE
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from PySide6.QtWidgets import QComboBox, QFormLayout, QGridLayout, QWidget
 
-from app.gui.image_panel import ImagePanel
-from app.gui.jobs import ReconstructionResult
+from app.gui.models.jobs import ReconstructionResult
+from app.gui.widgets.image_panel import ImagePanel
 
 
 class CompareView(QWidget):

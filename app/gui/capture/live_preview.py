@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from PySide6.QtCore import QObject, QThreadPool, QTimer, Signal
 
-from app.gui.qt_jobs import JobRunner
+from app.gui.widgets.qt_jobs import JobRunner
 
 _logger = logging.getLogger(__name__)
 

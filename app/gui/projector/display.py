@@ -7,7 +7,7 @@ frames onto the screen that feeds the projector's HDMI. The driver does that thr
 ``(N, H, W, 3)`` uint8 frames, called inside ``load_sequence`` on whatever thread loads it.
 
 :class:`ProjectorDisplay` is that sink for the app. It owns a
-:class:`~app.gui.projector_window.ProjectorWindow` (the pixel-exact drawing: no scaling, one
+:class:`~app.gui.projector.window.ProjectorWindow` (the pixel-exact drawing: no scaling, one
 image pixel per device pixel) on the chosen screen and is called like a function:
 
 * from the GUI thread it shows the frames at once;
@@ -40,7 +40,7 @@ from collections.abc import Callable
 import numpy as np
 from PySide6.QtCore import QCoreApplication, QEventLoop, QObject, Qt, QThread, QTimer, Signal
 
-from app.gui.projector_window import CYCLE_MS, ProjectorWindow, check_frames, screen_label
+from app.gui.projector.window import CYCLE_MS, ProjectorWindow, check_frames, screen_label
 
 _logger = logging.getLogger(__name__)
 
@@ -225,7 +225,7 @@ def screens_or_error():
     """
     from PySide6.QtGui import QGuiApplication
 
-    from app.gui.application import ensure_application
+    from app.gui.widgets.qapp import ensure_application
 
     if QGuiApplication.instance() is None and sys.platform.startswith("linux") \
             and not os.environ.get("QT_QPA_PLATFORM") \

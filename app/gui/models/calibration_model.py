@@ -3,7 +3,7 @@
 :func:`run_workspace_calibration` is :func:`calibration.pipeline.run_calibration` (the call
 ``flexvox calibrate`` makes) with per-step progress and cancel: the pipeline asks
 ``progress(desc)`` for an update callable at the start of each step, and the callable this
-module returns raises :class:`~app.gui.jobs.Cancelled` when the token is set, so a cancel
+module returns raises :class:`~app.gui.models.jobs.Cancelled` when the token is set, so a cancel
 takes effect between steps and between the patterns of a step (the session's ``with`` block
 stops and closes the devices on the way out).
 
@@ -25,9 +25,9 @@ import math
 import time
 from dataclasses import dataclass, field
 
-from app.gui.jobs import CancelToken
-from app.gui.live_source import projector_size
-from app.gui.rig_service import RigService
+from app.gui.models.jobs import CancelToken
+from app.gui.models.live_source import projector_size
+from app.gui.models.rig_service import RigService
 
 _logger = logging.getLogger(__name__)
 
@@ -162,7 +162,7 @@ def run_workspace_calibration(target: CalibrationTarget, *, tile=(4, 4), cancel:
 
     Raises
     ------
-    app.gui.jobs.Cancelled
+    app.gui.models.jobs.Cancelled
         When ``cancel`` was set (between steps or patterns); the devices are stopped and closed.
     """
     from calibration.pipeline import run_calibration, truth_comparison

@@ -1,7 +1,7 @@
 """The Capture workspace: code, timing check, live view with histogram, saturation and counters, recording.
 
 Recording runs through :class:`app.capture.service.CaptureService` (built by
-:func:`app.gui.recording.make_capture`, or the ``capture_factory`` given to the constructor).
+:func:`app.gui.models.recording.make_capture`, or the ``capture_factory`` given to the constructor).
 
 Device ownership: a recording *owns* the devices. Record stops the live view first (its reader
 thread and the capture's must not both read the camera); the capture service sets up the
@@ -14,12 +14,12 @@ waits on them.
 
 Calibration: the "Calibration" box loads a calibration file (or takes the Calibrate
 workspace's result, :meth:`CaptureWorkspace.use_outcome`), refusing one made for another rig or
-resolution (:mod:`app.gui.capture_calibration`); recordings, the live view's patterns and the
+resolution (:mod:`app.gui.models.capture_calibration`); recordings, the live view's patterns and the
 projector output window then use its homography and sync phase.
 
-Beside the raw view, a motion-aware preview of the newest frames (:mod:`app.gui.live_preview`:
+Beside the raw view, a motion-aware preview of the newest frames (:mod:`app.gui.capture.live_preview`:
 its own worker thread, newest wins, a bounded duty cycle) says the resolution and rate it runs
-at. The projector output window (:mod:`app.gui.projector_window`) shows the packed patterns
+at. The projector output window (:mod:`app.gui.projector.window`) shows the packed patterns
 full-screen and pixel-exact on a chosen screen, for a projector driven through its video input.
 """
 
@@ -52,24 +52,24 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.capture_calibration import (
+from app.gui.capture.live_preview import LivePreview
+from app.gui.capture.live_view import LiveStream
+from app.gui.models.capture_calibration import (
     ActiveCalibration,
     CalibrationRefused,
     capture_identity,
     from_outcome,
     load_for_capture,
 )
-from app.gui.capture_plan import TILES, CapturePlan
-from app.gui.image_panel import ImagePanel
-from app.gui.live_preview import LivePreview
-from app.gui.live_source import LiveStartError, projector_size, start_live, stop_live
-from app.gui.live_stats import LiveStats, histogram, saturation_level, saturation_mask
-from app.gui.live_view import LiveStream
-from app.gui.projector_window import ProjectorWindow, ScreenPicker, packed_frames
-from app.gui.qt_jobs import JobRunner
-from app.gui.recording import counters_text, make_capture, result_text, resync_clock
-from app.gui.rig_service import RigService
-from app.gui.settings import AppSettings
+from app.gui.models.capture_plan import TILES, CapturePlan
+from app.gui.models.live_source import LiveStartError, projector_size, start_live, stop_live
+from app.gui.models.live_stats import LiveStats, histogram, saturation_level, saturation_mask
+from app.gui.models.recording import counters_text, make_capture, result_text, resync_clock
+from app.gui.models.rig_service import RigService
+from app.gui.projector.window import ProjectorWindow, ScreenPicker, packed_frames
+from app.gui.widgets.image_panel import ImagePanel
+from app.gui.widgets.qt_jobs import JobRunner
+from app.gui.widgets.settings import AppSettings
 
 _logger = logging.getLogger(__name__)
 
@@ -107,7 +107,7 @@ class CaptureWorkspace(QWidget):
     open_requested = Signal(object)
     """A recording's path the operator wants to review."""
     calibration_changed = Signal(object)
-    """The :class:`~app.gui.capture_calibration.ActiveCalibration` now used (None: identity, uncalibrated)."""
+    """The :class:`~app.gui.models.capture_calibration.ActiveCalibration` now used (None: identity, uncalibrated)."""
 
     def __init__(self, service: RigService, settings: AppSettings, runner: JobRunner | None = None, *,
                  capture_factory=None, rig_guard=None, parent: QWidget | None = None):
@@ -131,7 +131,7 @@ class CaptureWorkspace(QWidget):
         self.calibration: ActiveCalibration | None = None
         """The calibration recordings use (None: identity homography, phase 0)."""
         self.projector_window = None
-        """The open :class:`~app.gui.projector_window.ProjectorWindow`, or None."""
+        """The open :class:`~app.gui.projector.window.ProjectorWindow`, or None."""
         self._projector_job = None
         self._calibration_error = ""
         self.preview = LivePreview(self)

@@ -1,6 +1,6 @@
 """The Calibrate workspace: the whole calibration off the GUI thread, its results, save; live co-location numbers.
 
-Run calibration runs :func:`app.gui.calibration_model.run_workspace_calibration` (the pipeline
+Run calibration runs :func:`app.gui.models.calibration_model.run_workspace_calibration` (the pipeline
 ``flexvox calibrate`` runs) on the job runner, with the step and its pattern count on screen
 and Cancel taking effect between steps and patterns. The results: co-location numbers and the
 parallax verdict; homography RMS, coverage, inliers and the residual heat map; shutter slot
@@ -12,11 +12,11 @@ Save writes the calibration file (:func:`calibration.files.save_calibration`).
 over and over while the operator adjusts the beam splitter; each measurement is a job, the
 next one starts when the previous ended (never two at once, never during a calibration).
 
-The synchronisation wizard lives in :mod:`app.gui.sync_wizard`.
+The synchronisation wizard lives in :mod:`app.gui.calibrate.sync_wizard`.
 
 On a real rig whose projector takes its patterns on a video input (the DLPC350), the workspace
 chooses the projector's screen ("projector screen") and injects a
-:class:`~app.gui.projector_display.ProjectorDisplay` on it as the projector's display sink while a
+:class:`~app.gui.projector.display.ProjectorDisplay` on it as the projector's display sink while a
 calibration, the live numbers or the wizard use the rig: every pattern the session loads is shown
 full-screen, pixel-exact, and on screen before the sequence starts. The window closes and the sink
 is removed when they end.
@@ -50,7 +50,8 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.calibration_model import (
+from app.gui.calibrate.colocation_view import ColocationView
+from app.gui.models.calibration_model import (
     STEPS,
     CalibrationOutcome,
     StepTracker,
@@ -60,14 +61,13 @@ from app.gui.calibration_model import (
     target_for,
     verdict,
 )
-from app.gui.colocation_view import ColocationView
-from app.gui.image_panel import ImagePanel
-from app.gui.jobs import CancelToken
-from app.gui.projector_display import ProjectorDisplay
-from app.gui.projector_window import ScreenPicker
-from app.gui.qt_jobs import JobHandle, JobRunner
-from app.gui.rig_service import RigService
-from app.gui.settings import AppSettings
+from app.gui.models.jobs import CancelToken
+from app.gui.models.rig_service import RigService
+from app.gui.projector.display import ProjectorDisplay
+from app.gui.projector.window import ScreenPicker
+from app.gui.widgets.image_panel import ImagePanel
+from app.gui.widgets.qt_jobs import JobHandle, JobRunner
+from app.gui.widgets.settings import AppSettings
 
 _logger = logging.getLogger(__name__)
 
@@ -135,7 +135,7 @@ class CalibrateWorkspace(QWidget):
         self.alignment = None
         """The newest live co-location result."""
         self.colocation = None
-        """The newest :class:`~app.gui.calibration_model.LiveColocation` (numbers, image, projector size)."""
+        """The newest :class:`~app.gui.models.calibration_model.LiveColocation` (numbers, image, projector size)."""
         self.saved_path: Path | None = None
         """Where the current outcome was saved (None: not saved)."""
         self.tracker: StepTracker | None = None
@@ -672,7 +672,7 @@ class CalibrateWorkspace(QWidget):
     # ------------------------------------------------------------------ wizard
     def open_sync_wizard(self):
         """Open the synchronisation wizard (modeless); returns it."""
-        from app.gui.sync_wizard import SyncWizard
+        from app.gui.calibrate.sync_wizard import SyncWizard
 
         refused = self._claim_rig("wizard")
         if refused:

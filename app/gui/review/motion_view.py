@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from PySide6.QtWidgets import QButtonGroup, QHBoxLayout, QLabel, QRadioButton, QVBoxLayout, QWidget
 
-from app.gui.image_panel import ImagePanel
-from app.gui.jobs import ReconstructionResult
+from app.gui.models.jobs import ReconstructionResult
+from app.gui.widgets.image_panel import ImagePanel
 from flexvox_core.flow import flow_to_color, quiver_image
 
 NO_FLOW = "reconstruct with motion-aware (preview or full) to see the flow and the resolution map"

@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from app.gui.live_source import projector_size
-from app.gui.rig_service import RigService
+from app.gui.models.live_source import projector_size
+from app.gui.models.rig_service import RigService
 
 _logger = logging.getLogger(__name__)
 
@@ -134,7 +134,7 @@ def load_for_capture(path, identity) -> ActiveCalibration:
 
 
 def from_outcome(outcome, identity, *, path=None, now=None) -> ActiveCalibration:
-    """The Calibrate workspace's result (a :class:`~app.gui.calibration_model.CalibrationOutcome`) for capture.
+    """The Calibrate workspace's result (a :class:`~app.gui.models.calibration_model.CalibrationOutcome`) for capture.
 
     Raises
     ------

@@ -2,7 +2,7 @@
 
 ``flexvox bench`` writes ``docs/bench/results.csv`` (one row per scene × method × knob).
 :func:`build_table` condenses it into the small table shipped with the application,
-``app/gui/expected_quality.json`` (regenerate with ``python -m app.gui.expected_quality``):
+``app/gui/expected_quality.json`` (regenerate with ``python -m app.gui.models.expected_quality``):
 per K and method, the PSNR of the mean squared error over the built-in scenes (as the bench's
 summary does), mean SSIM, mean seconds and the throughput in voxels per second, plus the mean
 PSNR on the SCI clips (Runner, Drop) where the bench had them.
@@ -32,7 +32,7 @@ _logger = logging.getLogger(__name__)
 TABLE_PATH = Path(__file__).with_name("expected_quality.json")
 """The table shipped with the application."""
 
-BENCH_CSV = Path(__file__).resolve().parents[2] / "docs" / "bench" / "results.csv"
+BENCH_CSV = Path(__file__).resolve().parents[3] / "docs" / "bench" / "results.csv"
 """Where ``flexvox bench`` figures live in a checkout."""
 
 _LABEL = [

@@ -9,8 +9,8 @@ from __future__ import annotations
 
 import logging
 
-from app.gui.capture_plan import CapturePlan
-from app.gui.rig_service import RigService
+from app.gui.models.capture_plan import CapturePlan
+from app.gui.models.rig_service import RigService
 from rig_drivers.errors import DeviceError, SettingError
 from rig_drivers.interfaces import CameraSettings, RunState, TriggerConfig, TriggerSource
 

@@ -17,8 +17,8 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.continuum import continuum_division, continuum_tensor, describe
-from app.gui.settings import AppSettings
+from app.gui.models.continuum import continuum_division, continuum_tensor, describe
+from app.gui.widgets.settings import AppSettings
 from flexvox_core.flow import BACKENDS
 from flexvox_core.motion.pipeline import DEFAULT_TIME as MA_TIME
 from flexvox_core.motion.pipeline import SLOW_REACH

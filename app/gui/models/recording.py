@@ -2,7 +2,7 @@
 
 The Capture workspace records through :class:`app.capture.service.CaptureService`, the same
 service ``flexvox capture`` drives. :func:`make_capture` builds one from the workspace's plan
-and the :class:`~app.gui.rig_service.RigService`'s rig; :func:`counters_text` and
+and the :class:`~app.gui.models.rig_service.RigService`'s rig; :func:`counters_text` and
 :func:`result_text` are the lines the workspace shows while and after it records.
 
 Device ownership: while it records, the capture service owns the projector, camera and sync
@@ -18,9 +18,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 from app.capture.service import CaptureCalibration, CaptureResult, CaptureService, CaptureStats, SyncSetting
-from app.gui.capture_plan import CapturePlan
-from app.gui.live_source import projector_size
-from app.gui.rig_service import RigService
+from app.gui.models.capture_plan import CapturePlan
+from app.gui.models.live_source import projector_size
+from app.gui.models.rig_service import RigService
 
 _logger = logging.getLogger(__name__)
 

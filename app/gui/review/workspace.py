@@ -24,15 +24,15 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.compare_view import CompareView
-from app.gui.expected_quality import expected
-from app.gui.image_panel import ImagePanel
-from app.gui.jobs import ReconstructionResult, chunk_frames_for, preview_window, run_reconstruction
-from app.gui.method_form import MethodForm
-from app.gui.motion_view import MotionView
-from app.gui.qt_jobs import JobHandle, JobRunner
-from app.gui.review_session import ReviewSession
-from app.gui.settings import AppSettings
+from app.gui.models.expected_quality import expected
+from app.gui.models.jobs import ReconstructionResult, chunk_frames_for, preview_window, run_reconstruction
+from app.gui.models.review_session import ReviewSession
+from app.gui.review.compare_view import CompareView
+from app.gui.review.method_form import MethodForm
+from app.gui.review.motion_view import MotionView
+from app.gui.widgets.image_panel import ImagePanel
+from app.gui.widgets.qt_jobs import JobHandle, JobRunner
+from app.gui.widgets.settings import AppSettings
 from flexvox_core.video_io import write_video
 
 _logger = logging.getLogger(__name__)
@@ -51,7 +51,7 @@ class ReviewWorkspace(QWidget):
     runner : JobRunner
         Runs loading, reconstructions, previews and exports off the GUI thread.
     quality_table : dict or None
-        The shipped bench figures (:func:`app.gui.expected_quality.load_table`).
+        The shipped bench figures (:func:`app.gui.models.expected_quality.load_table`).
     """
 
     session_opened = Signal(object)

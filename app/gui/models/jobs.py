@@ -1,6 +1,6 @@
 """Reconstruction jobs that can be cancelled between chunks (Qt-free).
 
-A job runs on a worker thread (see :mod:`app.gui.qt_jobs`) and checks a :class:`CancelToken`
+A job runs on a worker thread (see :mod:`app.gui.widgets.qt_jobs`) and checks a :class:`CancelToken`
 after every chunk of camera frames: :func:`run_reconstruction` passes a progress callback to
 :func:`flexvox_core.reconstruct.run.reconstruct` that raises :class:`Cancelled` when the token
 is set. Motion-aware runs its own chunk loop (same overlap as ``reconstruct``) so that it also

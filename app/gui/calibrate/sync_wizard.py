@@ -30,9 +30,9 @@ from PySide6.QtWidgets import (
     QWizardPage,
 )
 
-from app.gui.calibration_model import CalibrationTarget
-from app.gui.jobs import CancelToken
-from app.gui.qt_jobs import JobHandle, JobRunner
+from app.gui.models.calibration_model import CalibrationTarget
+from app.gui.models.jobs import CancelToken
+from app.gui.widgets.qt_jobs import JobHandle, JobRunner
 
 _logger = logging.getLogger(__name__)
 

@@ -6,7 +6,7 @@ import html
 
 from PySide6.QtWidgets import QGridLayout, QGroupBox, QLabel, QPushButton, QVBoxLayout, QWidget
 
-from app.gui.rig_service import ROLES, RigService
+from app.gui.models.rig_service import ROLES, RigService
 from rig_drivers.interfaces import DeviceState
 
 _STATE_COLOUR = {DeviceState.CLOSED: "#7f8c8d", DeviceState.OPEN: "#b7950b", DeviceState.ENABLED: "#1e8449"}

@@ -1,0 +1,28 @@
+"""The one QApplication of the process and the pyqtgraph options the app relies on.
+
+Both the main window (:mod:`app.gui.application`) and the projector output that
+``flexvox calibrate|capture --projector-screen`` shows (:mod:`app.gui.projector.display`) need a
+QApplication; they get it here, so neither imports the other.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import pyqtgraph as pg
+from PySide6.QtWidgets import QApplication
+
+
+def configure_pyqtgraph() -> None:
+    """pyqtgraph options the app relies on: row-major images (numpy's (H, W) order), antialiasing."""
+    pg.setConfigOptions(imageAxisOrder="row-major", antialias=True)
+
+
+def ensure_application() -> QApplication:
+    """The running QApplication, or a new one named flexvox."""
+    app = QApplication.instance()
+    if app is None:
+        app = QApplication(sys.argv[:1])
+        app.setOrganizationName("flexvox")
+        app.setApplicationName("flexvox")
+    return app

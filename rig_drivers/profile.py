@@ -282,7 +282,7 @@ def open_rig(rig=MOCK, *, projector_display=None, **simulated_options) -> Rig:
     projector_display : callable, optional
         Real rigs: the projector's display sink, ``display(frames)`` with the packed
         ``(N, H, W, 3)`` uint8 frames of every sequence loaded (see
-        :mod:`rig_drivers.dlpc350.driver`; the app's is :mod:`app.gui.projector_display`).
+        :mod:`rig_drivers.dlpc350.driver`; the app's is :mod:`app.gui.projector.display`).
         Ignored by ``mock``, whose simulated projector needs no video input.
     **simulated_options
         Passed to :meth:`SimulatedRig.create` for ``mock`` (scene, sizes, seed, clock, ...).

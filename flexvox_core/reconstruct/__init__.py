@@ -8,15 +8,20 @@ first with :func:`prepare`.
 - :mod:`~flexvox_core.reconstruct.diffusion` — constant-tensor diffusion, solvers
   ``nc`` (normalized convolution), ``explicit`` and ``steady``;
 - :mod:`~flexvox_core.reconstruct.gaptv` — GAP-TV (Yuan 2016) for any 0/1 code.
+
+These are the algorithms. :mod:`flexvox_core.methods` wraps each as a method object (options,
+overlap, label) and runs any of them in time chunks; this package never imports it (nor
+:mod:`flexvox_core.motion`, which builds on it).
 """
 
 from flexvox_core.reconstruct._common import prepare
 from flexvox_core.reconstruct.diffusion import SOLVERS, diffuse, nc_naive, sigmas, stability_bound
 from flexvox_core.reconstruct.gaptv import gap_tv, gap_tv_masks, tv_denoise
-from flexvox_core.reconstruct.rebin import rebin, rebin_blocks, supported_divisions
+from flexvox_core.reconstruct.rebin import default_block, rebin, rebin_blocks, supported_divisions
 
 __all__ = [
     "SOLVERS",
+    "default_block",
     "diffuse",
     "gap_tv",
     "gap_tv_masks",

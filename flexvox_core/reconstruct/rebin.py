@@ -26,6 +26,7 @@ practice the one just inside the border). A block never holds more than one samp
 from __future__ import annotations
 
 import logging
+import math
 
 import numpy as np
 from scipy.ndimage import distance_transform_edt
@@ -37,7 +38,7 @@ from flexvox_core.reconstruct._common import check_dtype, check_frames, check_id
 
 _logger = logging.getLogger(__name__)
 
-__all__ = ["rebin", "rebin_blocks", "supported_divisions"]
+__all__ = ["default_block", "rebin", "rebin_blocks", "supported_divisions"]
 
 
 def _as_division(division, tile) -> Division:
@@ -59,6 +60,26 @@ def _as_division(division, tile) -> Division:
 def supported_divisions(code) -> list[Division]:
     """The divisions an identity ``code`` supports, sorted by TR (see :func:`~flexvox_core.codes.verify`)."""
     return verify(check_identity_code(code)).supported
+
+
+def default_block(code) -> Division:
+    """The supported division whose TR is closest to √K (a balanced space-time trade),
+    squarest block first among ties (2×2×4 rather than 1×4×4 for a 4×4 tile).
+
+    Parameters
+    ----------
+    code : ndarray (m, n, K) bool, identity code
+
+    Raises
+    ------
+    ValueError
+        When the code supports no division.
+    """
+    supported = verify(code).supported
+    if not supported:
+        raise ValueError("the code supports no division; re-binning is impossible")
+    K = code.shape[2]
+    return min(supported, key=lambda d: (round(abs(math.log(d.tr) - 0.5 * math.log(K)), 9), abs(d.a - d.b), -d.tr))
 
 
 def _validate(frames, code, division, dtype):

@@ -1,0 +1,214 @@
+"""The one reader from a recording to reconstruction input.
+
+A recording's raw frames become what every reconstruction takes, an identity-code capture
+``(F, H, W)`` float32 and its code ``(m, n, K)``, in three steps, all here:
+
+1. **validation** — the recording opens (:func:`~flexvox_core.recording.open_recording`), and
+   the **dropped-frame policy** holds: a recording with dropped frames is refused
+   (:class:`CaptureError` naming how many rows are dropped and the first of them), because
+   reconstructing across gaps is not supported yet;
+2. **normalisation** — counts to relative units with the recording's ``storage`` attributes
+   (:func:`flexvox_core.simulate.simulator.normalise_frames`);
+3. **demultiplexing** — an S-matrix recording (attributes ``multiplexed``, ``tile``,
+   ``placement_order``) is demultiplexed into the identity capture of its placement
+   (:func:`flexvox_core.reconstruct.prepare`).
+
+:class:`CaptureReader` serves the in-memory callers (:meth:`~CaptureReader.read`: the whole
+recording or a window of camera frames ``[start, stop)``) and the lazy chunked batch
+(:attr:`~CaptureReader.raw` and :attr:`~CaptureReader.preparation`, which normalises and
+demultiplexes one chunk of raw rows; :meth:`~CaptureReader.sample_range` reads the whole
+recording's range a chunk at a time). :func:`read_capture` is the one-call form.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from numbers import Integral
+
+import numpy as np
+
+from flexvox_core.codes import code_from_order
+from flexvox_core.multiplex import MultiplexedCode, multiplexed_code
+from flexvox_core.recording import Recording, RecordingError, open_recording
+
+_logger = logging.getLogger(__name__)
+
+
+class CaptureError(RecordingError):
+    """A recording that opens but cannot be reconstructed; the message says why."""
+
+
+@dataclass(frozen=True, eq=False)
+class Preparation:
+    """How raw rows become reconstruction input (small and picklable: dask workers carry it).
+
+    Attributes
+    ----------
+    storage : dict
+        The recording's ``storage`` attributes (float, or counts with gain and black level).
+    multiplexed : MultiplexedCode or None
+        The S-matrix code of a multiplexed recording.
+    """
+
+    storage: dict
+    multiplexed: MultiplexedCode | None = None
+
+    def normalise(self, raw) -> np.ndarray:
+        """Raw rows ``(n, H, W)`` as float32 relative units."""
+        from flexvox_core.simulate.simulator import normalise_frames
+
+        return normalise_frames(np.asarray(raw), self.storage)
+
+    def demultiplex(self, frames) -> np.ndarray:
+        """Normalised rows ``(n, H, W)`` as an identity-code capture (unchanged for an identity code)."""
+        if self.multiplexed is None:
+            return frames
+        from flexvox_core.reconstruct import prepare
+
+        return prepare(frames, self.multiplexed)[0]
+
+    def __call__(self, raw) -> np.ndarray:
+        """Raw rows ``(n, H, W)`` normalised and demultiplexed: ``(n, H, W)`` float32."""
+        return self.demultiplex(self.normalise(raw))
+
+
+class CaptureReader:
+    """A validated recording read as reconstruction input.
+
+    Parameters
+    ----------
+    recording : Recording
+        An opened recording (:func:`open_capture` opens a path).
+
+    Attributes
+    ----------
+    recording : Recording
+    code : ndarray (m, n, K) bool
+        The identity code reconstructions take (a multiplexed recording's placement).
+    preparation : Preparation
+        Normalisation and demultiplexing of raw rows.
+
+    Raises
+    ------
+    CaptureError
+        Dropped frames, or multiplexing attributes that name no S-matrix code.
+    """
+
+    def __init__(self, recording: Recording):
+        self.recording = recording
+        dropped = recording.per_frame("dropped")
+        if dropped.any():
+            rows = np.flatnonzero(dropped)[:5].tolist()
+            raise CaptureError(f"{recording.path} has {int(dropped.sum())} dropped frame(s) (first at rows {rows}); "
+                               "reconstructing across gaps is not supported yet")
+        attrs = recording.attrs
+        multiplexed = None
+        if attrs.get("multiplexed"):
+            try:
+                multiplexed = multiplexed_code(tuple(attrs["tile"]), placement=attrs.get("placement_order"))
+            except (KeyError, TypeError, ValueError) as exc:
+                raise CaptureError(f"{recording.path}: a multiplexed recording whose code cannot be rebuilt "
+                                   f"from its `tile` and `placement_order` attributes ({exc})") from None
+            self.code = code_from_order(multiplexed.placement)
+        else:
+            self.code = recording.code
+        self.preparation = Preparation(attrs["storage"], multiplexed)
+        _logger.debug("%s: %d frames, K=%d%s", recording.path, self.n_frames, self.K,
+                      ", multiplexed" if multiplexed is not None else "")
+
+    @property
+    def n_frames(self) -> int:
+        """Camera frames F."""
+        return int(self.recording.frames.shape[0])
+
+    @property
+    def K(self) -> int:  # noqa: N802 - the paper's name
+        """Slots per camera frame."""
+        return int(self.code.shape[2])
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """Frame size (H, W)."""
+        return tuple(int(v) for v in self.recording.frames.shape[1:])
+
+    @property
+    def raw(self):
+        """The stored frames array (a Zarr array; may hold rows past :attr:`n_frames` in an
+        interrupted capture), for lazy readers such as dask."""
+        return self.recording.group["frames"]
+
+    def read(self, start: int = 0, stop: int | None = None) -> np.ndarray:
+        """Camera frames ``[start, stop)`` as reconstruction input.
+
+        Parameters
+        ----------
+        start, stop : int
+            A window of camera frames, ``0 <= start <= stop <= F`` (stop None: F).
+
+        Returns
+        -------
+        ndarray (stop - start, H, W) float32
+            Normalised and demultiplexed.
+        """
+        F = self.n_frames
+        stop = F if stop is None else stop
+        for name, v in (("start", start), ("stop", stop)):
+            if isinstance(v, bool) or not isinstance(v, Integral):
+                raise ValueError(f"`{name}` must be a whole number; got {v!r}")
+        if not 0 <= start <= stop <= F:
+            raise ValueError(f"the window [start, stop) must lie in the recording's {F} frames "
+                             f"(0 <= start <= stop <= {F}); got [{start}, {stop})")
+        return self.preparation.demultiplex(self.recording.normalised_frames(int(start), int(stop)))
+
+    def sample_range(self, chunk_frames: int = 32) -> tuple[float, float]:
+        """Smallest and largest sample of the whole input, read ``chunk_frames`` frames at a time."""
+        if isinstance(chunk_frames, bool) or not isinstance(chunk_frames, Integral) or chunk_frames < 1:
+            raise ValueError(f"`chunk_frames` must be a whole number >= 1; got {chunk_frames!r}")
+        F, raw = self.n_frames, self.raw
+        lo, hi = np.inf, -np.inf
+        for start in range(0, F, chunk_frames):
+            frames = self.preparation(raw[start: min(F, start + chunk_frames)])
+            lo, hi = min(lo, float(frames.min())), max(hi, float(frames.max()))
+        return lo, hi
+
+
+def open_capture(recording) -> CaptureReader:
+    """A :class:`CaptureReader` of ``recording`` (a path, or an opened :class:`Recording`).
+
+    Raises
+    ------
+    RecordingError
+        The recording cannot be opened (its message says why).
+    CaptureError
+        It opens but cannot be reconstructed (dropped frames; a broken multiplexed code).
+    """
+    rec = recording if isinstance(recording, Recording) else open_recording(recording)
+    return CaptureReader(rec)
+
+
+def read_capture(recording, start: int = 0, stop: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Reconstruction input of a recording in one call: ``(frames, code)``.
+
+    Parameters
+    ----------
+    recording : str, Path or Recording
+    start, stop : int
+        Camera frames ``[start, stop)`` (default: all).
+
+    Returns
+    -------
+    frames : ndarray (stop - start, H, W) float32
+        Normalised, demultiplexed identity-code capture.
+    code : ndarray (m, n, K) bool
+        Its identity code.
+
+    Raises
+    ------
+    RecordingError
+        Cannot be opened; :class:`CaptureError` (a RecordingError): cannot be reconstructed.
+    ValueError
+        A window outside the recording.
+    """
+    reader = open_capture(recording)
+    return reader.read(start, stop), reader.code

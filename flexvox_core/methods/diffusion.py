@@ -1,0 +1,93 @@
+"""Constant-tensor diffusion as a method (:mod:`flexvox_core.reconstruct.diffusion`)."""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+
+from flexvox_core.methods.options import Option, choice, number
+from flexvox_core.methods.spec import MethodOutput, MethodSpec
+from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, SOLVERS, diffuse, sigmas
+
+_LABEL = re.compile(r"^diffusion (?P<solver>\w+) \((?P<tensor>[\d.,]+)\) n=(?P<time>[\d.]+)$")
+
+
+def _is_tensor(v) -> bool:
+    try:
+        sigmas(v, 1.0)
+    except ValueError:
+        return False
+    return True
+
+
+TENSOR = Option("tensor", DEFAULT_TENSOR, "three finite numbers >= 0 (cx, cy, ct), at least one of them > 0",
+                _is_tensor, kind="triple", label="diffusion tensor",
+                help="diffusion tensor (cx, cy, ct): large ct keeps spatial detail, large cx, cy temporal detail")
+"""The diffusion tensor option (the Review workspace's continuum slider sets it)."""
+
+
+def time_option(default: float, span) -> Option:
+    """The diffusion time n (the accuracy knob), with a method's own default."""
+    return number("time", default, strict=True, rule="a positive finite number", label="diffusion time n",
+                  help="diffusion time n, the accuracy knob (not a convergence tolerance)", span=span)
+
+
+class Diffusion(MethodSpec):
+    """Diffusion with one constant tensor: normalized convolution, explicit or steady solver."""
+
+    name = "diffusion"
+    title = "constant-tensor diffusion (nc: the fast normalized convolution; explicit; steady)"
+    trade = "one tensor (cx, cy, ct) for the whole video: large ct keeps spatial detail, large cx, cy temporal"
+    options = (
+        TENSOR,
+        time_option(DEFAULT_TIME, (0.05, 20.0, 0.25)),
+        choice("solver", "nc", SOLVERS, label="solver",
+               help="diffusion solver: nc (normalized convolution), explicit, steady (a global solve)"),
+    )
+    bench_axis = "time"
+
+    def validate(self, values: dict) -> None:
+        sigmas(values["tensor"], values["time"])  # the messages diffusion itself gives
+
+    def resolve(self, given: dict) -> dict:
+        values = super().resolve(given)
+        values["tensor"] = tuple(values["tensor"])
+        return values
+
+    def overlap(self, values: dict, K: int) -> int | None:
+        if values["solver"] == "steady":
+            return None  # a global linear solve
+        sig_t = sigmas(values["tensor"], values["time"])[2]
+        reach = 4 * sig_t + K  # the Gaussian's support, plus one frame for the nearest-sample fallback
+        if values["solver"] == "explicit":
+            reach *= 2  # the nc start, then diffusion of the same time
+        return max(1, math.ceil(reach / K))
+
+    def run(self, frames, code, values, *, value_range=None, extras=False) -> MethodOutput:
+        return MethodOutput(diffuse(frames, code, **self.kwargs(values)))
+
+    def kwargs(self, values: dict) -> dict:
+        return {"tensor": values["tensor"], "time": values["time"], "solver": values["solver"]}
+
+    def label(self, values: dict) -> str:
+        t = ",".join(f"{c:g}" for c in values["tensor"])
+        return f"diffusion {values['solver']} ({t}) n={values['time']:g}"
+
+    def parse_label(self, label: str) -> dict | None:
+        m = _LABEL.match(label.strip())
+        if not m:
+            return None
+        return {"name": self.name, "solver": m["solver"], "tensor": [float(c) for c in m["tensor"].split(",")],
+                "time": float(m["time"])}
+
+    def bench_rank(self, knobs: dict, values: dict, code) -> tuple[tuple, bool]:
+        other_solver = knobs["solver"] != values["solver"]
+        tensor = tuple(knobs["tensor"])
+        logs = np.log(np.asarray(tensor, float)) - np.log(np.asarray(values["tensor"], float))
+        distance = float(np.linalg.norm(logs))
+        return (other_solver, distance, tensor), not other_solver and distance <= 1e-6
+
+
+DIFFUSION = Diffusion()

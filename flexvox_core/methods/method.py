@@ -1,0 +1,113 @@
+"""The value users hold: a registered method and its checked option values.
+
+``Method("motion-aware", time=3)`` looks the method up in the registry, checks every given
+option against its rule (an unknown option or a bad value is a ``ValueError`` naming both),
+fills the defaults, and then reads like a frozen record: ``m.name``, ``m.time``, ``m.label()``,
+``m.as_dict()``. Two methods with the same name and values are equal (and hash alike).
+"""
+
+from __future__ import annotations
+
+from types import MappingProxyType
+
+from flexvox_core.methods.registry import DEFAULT, get
+from flexvox_core.methods.spec import MethodSpec
+
+
+def _rebuild(name: str, values: dict) -> Method:
+    return Method(name, **values)
+
+
+class Method:
+    """A reconstruction method and its knobs.
+
+    Parameters
+    ----------
+    name : str
+        A registered method (:func:`flexvox_core.methods.registry.names`); default
+        :data:`~flexvox_core.methods.registry.DEFAULT` (diffusion).
+    **options
+        Values of the method's options (:attr:`spec`\\ ``.options``); None or absent: the
+        option's default. For instance ``rebin``: ``block``, ``interpolate``; ``diffusion``:
+        ``tensor``, ``time``, ``solver``; ``gap-tv``: ``iterations``, ``tv_weight``,
+        ``tv_iterations``; ``motion-aware``: ``flow``, ``time``, ``passes``, ``refine_time``,
+        ``slow_reach``.
+
+    Raises
+    ------
+    ValueError
+        An unknown method or option, or a value that breaks its option's rule.
+    """
+
+    __slots__ = ("_spec", "_values")
+
+    def __init__(self, name: str = DEFAULT, **options):
+        spec = get(name)
+        object.__setattr__(self, "_spec", spec)
+        object.__setattr__(self, "_values", MappingProxyType(spec.resolve(options)))
+
+    # ------------------------------------------------------------------ record
+    @property
+    def name(self) -> str:
+        """The method's registered name."""
+        return self._spec.name
+
+    @property
+    def spec(self) -> MethodSpec:
+        """The method object: options, capabilities, run, overlap."""
+        return self._spec
+
+    @property
+    def values(self) -> MappingProxyType:
+        """Every option's value, read-only."""
+        return self._values
+
+    def __getattr__(self, key: str):
+        if key.startswith("_"):
+            raise AttributeError(key)
+        try:
+            return self._values[key]
+        except KeyError:
+            raise AttributeError(f"{self.name} has no option {key!r} (its options: "
+                                 f"{self._spec.option_list()})") from None
+
+    def __setattr__(self, key, value):
+        raise AttributeError(f"a Method is read-only; make a new one (Method({self.name!r}, {key}=...))")
+
+    def __eq__(self, other) -> bool:
+        if not isinstance(other, Method):
+            return NotImplemented
+        return self.name == other.name and dict(self._values) == dict(other._values)
+
+    def __hash__(self) -> int:
+        return hash((self.name, tuple(self._values.items())))
+
+    def __repr__(self) -> str:
+        knobs = ", ".join(f"{k}={v!r}" for k, v in self._values.items())
+        return f"Method({self.name!r}{', ' if knobs else ''}{knobs})"
+
+    def __reduce__(self):
+        return _rebuild, (self.name, dict(self._values))
+
+    # ------------------------------------------------------------------ what it says
+    def label(self) -> str:
+        """Short human-readable description."""
+        return self._spec.label(dict(self._values))
+
+    def as_dict(self) -> dict:
+        """Metadata form: ``name`` and every option's value."""
+        return self._spec.as_dict(dict(self._values))
+
+    def overlap(self, K: int) -> int | None:
+        """Camera frames of context each chunk needs on each side for a code of K slots
+        (None: it cannot run in chunks)."""
+        return self._spec.overlap(dict(self._values), K)
+
+    def algorithm_kwargs(self) -> dict:
+        """Keyword arguments of the method's algorithm function."""
+        return self._spec.kwargs(dict(self._values))
+
+    def motion_kwargs(self) -> dict:
+        """Keyword arguments of :func:`flexvox_core.motion.motion_aware` for a motion-aware method
+        (the same as :meth:`algorithm_kwargs`)."""
+        return self.algorithm_kwargs()

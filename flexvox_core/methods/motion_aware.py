@@ -1,0 +1,85 @@
+"""The motion-aware reconstruction as a method (:func:`flexvox_core.motion.motion_aware`).
+
+It needs the whole recording's sample range in every chunk (it scales the slow voxels' range
+weight and bounds the result), and it can return the flow that drove its tensors and the
+temporal resolution it chose per voxel (extras ``flow`` and ``tr``).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+from flexvox_core.flow import BACKENDS
+from flexvox_core.methods.diffusion import time_option
+from flexvox_core.methods.options import choice, integer, number
+from flexvox_core.methods.spec import MethodOutput, MethodSpec
+from flexvox_core.motion import motion_aware
+from flexvox_core.motion.pipeline import DEFAULT_TIME, SLOW_REACH
+
+_LABEL = re.compile(
+    r"^motion-aware (?P<flow>\w+) n=(?P<time>[\d.]+)(?: \+refine (?P<refine>[\d.]+))?(?: x(?P<passes>\d+))?$")
+
+
+class MotionAware(MethodSpec):
+    """Flow-driven diffusion tensors per voxel (the seed's Section 4)."""
+
+    name = "motion-aware"
+    title = "motion-aware: diffusion tensors oriented along optical flow (the seed's Section 4)"
+    trade = ("motion-aware chooses the trade per voxel from the flow: high SR where still, "
+             "high TR where moving")
+    options = (
+        choice("flow", "dis", tuple(BACKENDS), label="optical flow",
+               help="optical-flow backend (dis: DIS + variational refinement)"),
+        time_option(DEFAULT_TIME, (0.25, 20.0, 0.5)),
+        integer("passes", 1, label="passes", help="flow re-estimated from the previous pass N-1 times",
+                span=(1, 4, 1)),
+        number("refine_time", 0.0, label="refinement time",
+               help="extra monotone variable-tensor diffusion time (0: none)", span=(0.0, 10.0, 0.5)),
+        number("slow_reach", None, rule="a number >= 0 (sampling periods) or None", label="slow-drift reach",
+               help="how far the slowly moving voxels' gather reaches along their trajectory, in sampling "
+                    "periods each way (0: no long gather, faster where the whole picture drifts slowly)",
+               span=(0.0, 4.0, 0.25), shown_default=SLOW_REACH),
+    )
+    needs_sample_range = True
+    extras = ("flow", "tr")
+    bench_axis = "time"
+
+    def overlap(self, values: dict, K: int) -> int:
+        # High-TR nc, the K-average gates, flow smoothing; still voxels: 4 σ = 2 periods; slow voxels:
+        # their reach in periods (the default 0.75 fits in 3) and the flow and guide it reads there.
+        reach = values["slow_reach"]
+        return 3 if reach is None else max(3, math.ceil(reach) + 2)
+
+    def run(self, frames, code, values, *, value_range=None, extras=False) -> MethodOutput:
+        r = motion_aware(frames, code, **self.kwargs(values), value_range=value_range)
+        return MethodOutput(r.video, {"flow": r.flow.flow, "tr": r.tr} if extras else {})
+
+    def kwargs(self, values: dict) -> dict:
+        """Keyword arguments of :func:`flexvox_core.motion.motion_aware` (no ``slow_reach`` when
+        it is None: the pipeline's default)."""
+        kw = {"flow": values["flow"], "passes": values["passes"], "time": values["time"],
+              "refine_time": values["refine_time"]}
+        if values["slow_reach"] is not None:
+            kw["slow_reach"] = float(values["slow_reach"])
+        return kw
+
+    def label(self, values: dict) -> str:
+        extra = f" +refine {values['refine_time']:g}" if values["refine_time"] else ""
+        extra += f" x{values['passes']}" if values["passes"] > 1 else ""
+        extra += f" slow-reach {values['slow_reach']:g}" if values["slow_reach"] is not None else ""
+        return f"motion-aware {values['flow']} n={values['time']:g}{extra}"
+
+    def parse_label(self, label: str) -> dict | None:
+        m = _LABEL.match(label.strip())
+        if not m:
+            return None
+        return {"name": self.name, "flow": m["flow"], "time": float(m["time"]),
+                "refine_time": float(m["refine"] or 0), "passes": int(m["passes"] or 1)}
+
+    def bench_rank(self, knobs: dict, values: dict, code) -> tuple[tuple, bool]:
+        same = knobs["passes"] == values["passes"] and (knobs["refine_time"] > 0) == (values["refine_time"] > 0)
+        return (not same,), knobs["flow"] == values["flow"]
+
+
+MOTION_AWARE = MotionAware()

@@ -1,0 +1,115 @@
+"""Typed options of a reconstruction method: name, default, the rule a value must meet.
+
+An :class:`Option` checks a value (``None`` selects its default) and says, when it refuses one,
+the option's name, the rule and the value. ``kind`` tells a command line or a form how to offer
+it, without knowing which method it belongs to:
+
+=============  ===============================================  ==========================
+kind           values                                           offered as
+=============  ===============================================  ==========================
+``number``     a real number (``default`` may be None)          ``--name X``, a spin box
+``integer``    a whole number                                   ``--name N``, a spin box
+``choice``     one of ``choices``                               ``--name C``, a combo box
+``flag``       True / False                                     ``--[no-]name``, a check box
+``triple``     three numbers, e.g. a tensor (cx, cy, ct)        ``--name a,b,c``, a slider
+``division``   a :class:`~flexvox_core.divisions.Division`      ``--name a,b,c``, a slider
+=============  ===============================================  ==========================
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from numbers import Integral, Real
+
+KINDS = ("number", "integer", "choice", "flag", "triple", "division")
+
+
+@dataclass(frozen=True)
+class Option:
+    """One knob of a method.
+
+    Attributes
+    ----------
+    name : str
+        Keyword of :class:`~flexvox_core.methods.method.Method` (a Python identifier).
+    default : object
+        The value ``None`` stands for.
+    rule : str
+        What a value must be, in words ("a whole number >= 1"); errors read
+        "`name` must be <rule>; got <value>".
+    accepts : callable(value) -> bool
+        True when a (non-None) value meets the rule.
+    kind : str
+        One of :data:`KINDS`.
+    label : str
+        A few words for a form ("diffusion time n").
+    help : str
+        One sentence for ``--help`` and tool tips.
+    choices : tuple
+        The values of a ``choice``.
+    span : (low, high, step) or None
+        The range a form offers for a ``number`` or ``integer`` (validation is ``accepts``).
+    shown_default : float or None
+        What a form shows for a default of None (a number the method then uses).
+    """
+
+    name: str
+    default: object
+    rule: str
+    accepts: Callable[[object], bool] = field(repr=False, compare=False)
+    kind: str = "number"
+    label: str = ""
+    help: str = ""
+    choices: tuple = ()
+    span: tuple[float, float, float] | None = None
+    shown_default: float | None = None
+
+    def __post_init__(self):
+        if self.kind not in KINDS:
+            raise ValueError(f"`kind` of option {self.name!r} must be one of {', '.join(KINDS)}; got {self.kind!r}")
+        if not self.name.isidentifier():
+            raise ValueError(f"an option's `name` must be a Python identifier; got {self.name!r}")
+
+    def check(self, value):
+        """``value`` if it meets the rule (None: the default); ``ValueError`` naming both otherwise."""
+        if value is None:
+            return self.default
+        if not self.accepts(value):
+            raise ValueError(f"`{self.name}` must be {self.rule}; got {value!r}")
+        return value
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, Real) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def number(name: str, default, *, minimum: float = 0.0, strict: bool = False, label: str = "", help: str = "",
+           span=None, shown_default=None, rule: str | None = None) -> Option:
+    """A finite real option ``>= minimum`` (``> minimum`` when ``strict``)."""
+    def accepts(v) -> bool:
+        return _is_number(v) and (v > minimum if strict else v >= minimum)
+
+    words = rule or f"a finite number {'>' if strict else '>='} {minimum:g}"
+    return Option(name, default, words, accepts, "number", label, help, (), span, shown_default)
+
+
+def integer(name: str, default: int, *, minimum: int = 1, label: str = "", help: str = "", span=None) -> Option:
+    """A whole-number option ``>= minimum``."""
+    def accepts(v) -> bool:
+        return isinstance(v, Integral) and not isinstance(v, bool) and v >= minimum
+
+    return Option(name, default, f"a whole number >= {minimum}", accepts, "integer", label, help, (), span)
+
+
+def choice(name: str, default: str, choices, *, label: str = "", help: str = "") -> Option:
+    """One of ``choices``."""
+    choices = tuple(choices)
+    return Option(name, default, f"one of {', '.join(choices)}", lambda v: v in choices, "choice", label, help,
+                  choices)
+
+
+def flag(name: str, default: bool, *, label: str = "", help: str = "") -> Option:
+    """True or False."""
+    return Option(name, default, "True or False", lambda v: isinstance(v, bool), "flag", label, help)

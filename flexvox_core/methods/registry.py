@@ -1,0 +1,61 @@
+"""The reconstruction methods flexvox knows, by name.
+
+Adding a method is one module in :mod:`flexvox_core.methods` (a
+:class:`~flexvox_core.methods.spec.MethodSpec` subclass and its instance) and one entry in
+:data:`BUILTIN`. The command line (``--method``), the Review workspace's method form, the
+runner and the batch read this registry; nothing else lists methods.
+"""
+
+from __future__ import annotations
+
+from flexvox_core.methods.diffusion import DIFFUSION
+from flexvox_core.methods.gap_tv import GAP_TV
+from flexvox_core.methods.motion_aware import MOTION_AWARE
+from flexvox_core.methods.rebin import REBIN
+from flexvox_core.methods.spec import MethodSpec
+
+BUILTIN: tuple[MethodSpec, ...] = (REBIN, DIFFUSION, GAP_TV, MOTION_AWARE)
+"""The built-in methods, in the order menus show them."""
+
+DEFAULT = DIFFUSION.name
+"""The method used when none is named."""
+
+_BY_NAME: dict[str, MethodSpec] = {m.name: m for m in BUILTIN}
+
+
+def names() -> tuple[str, ...]:
+    """Names of the registered methods, in registration order."""
+    return tuple(_BY_NAME)
+
+
+def specs() -> tuple[MethodSpec, ...]:
+    """The registered methods, in registration order."""
+    return tuple(_BY_NAME.values())
+
+
+def get(name: str) -> MethodSpec:
+    """The method called ``name``; ``ValueError`` naming the known ones otherwise."""
+    try:
+        return _BY_NAME[name]
+    except (KeyError, TypeError):
+        raise ValueError(f"`method` must be one of {', '.join(_BY_NAME)}; got {name!r}") from None
+
+
+def register(spec: MethodSpec) -> MethodSpec:
+    """Add a method (after the built-in ones); ``ValueError`` when its name is taken or it is no MethodSpec."""
+    if not isinstance(spec, MethodSpec):
+        raise ValueError(f"`spec` must be a MethodSpec instance; got {spec!r}")
+    if not spec.name or spec.name in _BY_NAME:
+        raise ValueError(f"a method needs a name of its own; {spec.name!r} is "
+                         f"{'taken' if spec.name else 'empty'} (registered: {', '.join(_BY_NAME)})")
+    _BY_NAME[spec.name] = spec
+    return spec
+
+
+def unregister(name: str) -> None:
+    """Remove a method :func:`register` added; the built-in ones stay."""
+    if any(m.name == name for m in BUILTIN):
+        raise ValueError(f"{name!r} is a built-in method and cannot be removed")
+    if name not in _BY_NAME:
+        raise ValueError(f"no method {name!r} is registered (registered: {', '.join(_BY_NAME)})")
+    del _BY_NAME[name]

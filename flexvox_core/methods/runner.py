@@ -1,0 +1,164 @@
+"""The one chunked runner every reconstruction goes through.
+
+A capture ``(F, H, W)`` is cut into chunks of camera frames (:func:`chunk_plan`); each chunk is
+reconstructed with the overlap its method needs on each side (:meth:`Method.overlap
+<flexvox_core.methods.method.Method.overlap>`) and trimmed back to its own sub-frames by
+:func:`run_chunk`, the per-chunk function that ``flexvox reconstruct``, ``flexvox export``, the
+Review workspace's jobs and the dask batch (:mod:`flexvox_core.batch`) all call. Methods that
+need the sample range get the whole capture's in every chunk; so the result does not depend on
+the chunking. Progress is reported after every chunk (a callback that raises stops the run
+there: the Review workspace's cancel).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import NamedTuple
+
+import numpy as np
+
+from flexvox_core.methods.method import Method
+from flexvox_core.methods.spec import MethodOutput
+
+Progress = Callable[[int, int], None]
+
+
+class Chunk(NamedTuple):
+    """Camera frames ``[start, stop)`` of the result, reconstructed from frames ``[lo, hi)``."""
+
+    start: int
+    stop: int
+    lo: int
+    hi: int
+
+
+def chunk_plan(n_frames: int, chunk_frames: int | None, overlap: int | None) -> list[Chunk]:
+    """The chunks of a run over ``n_frames`` camera frames.
+
+    Parameters
+    ----------
+    n_frames : int
+    chunk_frames : int or None
+        Camera frames per chunk (None: one chunk).
+    overlap : int or None
+        Frames of context on each side (None: the method cannot be chunked, one chunk).
+
+    Returns
+    -------
+    list of Chunk
+        Consecutive ``[start, stop)`` covering ``[0, n_frames)``, each read from
+        ``[max(0, start - overlap), min(n_frames, stop + overlap))``.
+    """
+    if chunk_frames is None or overlap is None or n_frames <= chunk_frames:
+        return [Chunk(0, n_frames, 0, n_frames)]
+    return [Chunk(s, min(n_frames, s + chunk_frames), max(0, s - overlap), min(n_frames, s + chunk_frames + overlap))
+            for s in range(0, n_frames, chunk_frames)]
+
+
+def sample_range(frames) -> tuple[float, float]:
+    """Smallest and largest sample of ``frames`` (what :attr:`needs_sample_range` methods take)."""
+    return float(np.min(frames)), float(np.max(frames))
+
+
+def run_chunk(frames, code, method: Method, *, left: int = 0, count: int | None = None, value_range=None,
+              extras: bool = False) -> MethodOutput:
+    """Reconstruct one chunk with its context and keep the chunk's own sub-frames.
+
+    Parameters
+    ----------
+    frames : ndarray (F, H, W)
+        The chunk's camera frames with ``left`` frames of context before them and any after.
+    code : ndarray (m, n, K), identity code
+    method : Method
+    left : int
+        Frames of context before the chunk.
+    count : int or None
+        Camera frames of the chunk (None: all after ``left``).
+    value_range : (lo, hi) or None
+        The whole recording's sample range, for methods that need it.
+    extras : bool
+        Also return the method's extras (trimmed like the video).
+
+    Returns
+    -------
+    MethodOutput
+        ``video`` (count·K, H, W) float32 clipped to [0, 1], and the extras.
+    """
+    K = code.shape[2]
+    count = frames.shape[0] - left if count is None else count
+    out = method.spec.run(frames, code, dict(method.values), value_range=value_range, extras=extras)
+    a, b = left * K, (left + count) * K
+    video = np.clip(out.video[a:b], 0, 1).astype(np.float32, copy=False)
+    return MethodOutput(video, {k: v[a:b] for k, v in out.extras.items()})
+
+
+def run(frames, code, method: Method | None = None, *, chunk_frames: int | None = 16,
+        progress: Progress | None = None, extras: bool = False) -> MethodOutput:
+    """Reconstruct the full video ``(F·K, H, W)`` float32 in [0, 1] of an identity-code capture.
+
+    Parameters
+    ----------
+    frames : ndarray (F, H, W)
+    code : ndarray (m, n, K), identity code
+    method : Method, optional
+        Default ``Method()`` (diffusion, normalized convolution).
+    chunk_frames : int or None
+        Camera frames per chunk (None: all at once). Chunks overlap by the method's
+        :meth:`~flexvox_core.methods.method.Method.overlap`, so the result does not depend on it.
+    progress : callable(done_frames, total_frames), optional
+        Called after each chunk; an exception it raises stops the run.
+    extras : bool
+        Also return the method's extras (:attr:`~flexvox_core.methods.spec.MethodSpec.extras`),
+        e.g. motion-aware's flow and per-voxel TR, assembled like the video.
+
+    Returns
+    -------
+    MethodOutput
+    """
+    method = Method() if method is None else method
+    f = np.asarray(frames)
+    if f.ndim != 3:
+        raise ValueError(f"`frames` must have shape (F, H, W); got {f.ndim} dimensions {f.shape}")
+    if chunk_frames is not None and chunk_frames < 1:
+        raise ValueError(f"`chunk_frames` must be >= 1 or None; got {chunk_frames}")
+    code = np.asarray(code, dtype=bool)
+    K = code.shape[2]
+    F = f.shape[0]
+    value_range = sample_range(f) if method.spec.needs_sample_range and F else None
+    chunks = chunk_plan(F, chunk_frames, method.overlap(K))
+    if len(chunks) == 1:
+        out = run_chunk(f, code, method, value_range=value_range, extras=extras)
+        if progress:
+            progress(F, F)
+        return out
+    video = np.empty((F * K, *f.shape[1:]), np.float32)
+    arrays: dict[str, np.ndarray] = {}
+    for c in chunks:
+        part = run_chunk(f[c.lo:c.hi], code, method, left=c.start - c.lo, count=c.stop - c.start,
+                         value_range=value_range, extras=extras)
+        video[c.start * K: c.stop * K] = part.video
+        for name, v in part.extras.items():
+            if name not in arrays:
+                arrays[name] = np.empty((F * K, *v.shape[1:]), v.dtype)
+            arrays[name][c.start * K: c.stop * K] = v
+        if progress:
+            progress(c.stop, F)
+    return MethodOutput(video, arrays)
+
+
+def reconstruct(frames, code, method: Method | None = None, *, chunk_frames: int | None = 16,
+                progress: Progress | None = None) -> np.ndarray:
+    """The video of :func:`run` alone: ``(F·K, H, W)`` float32 in [0, 1].
+
+    Parameters
+    ----------
+    frames : ndarray (F, H, W), identity-code capture
+    code : ndarray (m, n, K), identity code
+    method : Method, optional
+        Default ``Method()``.
+    chunk_frames : int or None
+        Camera frames per chunk (None: all at once); the result does not depend on it.
+    progress : callable(done_frames, total_frames), optional
+        Called after each chunk.
+    """
+    return run(frames, code, method, chunk_frames=chunk_frames, progress=progress).video

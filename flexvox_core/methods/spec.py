@@ -1,0 +1,158 @@
+"""What a reconstruction method is, as an object: :class:`MethodSpec`, and what it returns.
+
+A method is one subclass of :class:`MethodSpec` in its own module of
+:mod:`flexvox_core.methods`, listed once in :mod:`~flexvox_core.methods.registry`. It says
+
+- its ``name``, a one-line ``title`` and how it trades spatial for temporal resolution (``trade``);
+- its typed :attr:`~MethodSpec.options` with defaults (:class:`~flexvox_core.methods.options.Option`);
+- :meth:`~MethodSpec.run`: the reconstruction of one identity-code capture;
+- :meth:`~MethodSpec.overlap`: the camera frames of context a time chunk needs on each side
+  (None: it cannot run in chunks);
+- its capabilities: :attr:`~MethodSpec.needs_sample_range` (every chunk gets the whole
+  recording's sample range) and :attr:`~MethodSpec.extras` (per-sub-frame arrays it can return
+  beside the video, trimmed to a chunk like the video);
+- :meth:`~MethodSpec.label` (a short description; the bench's row key) and its inverse
+  :meth:`~MethodSpec.parse_label`, and how near a bench row's knobs are to given values
+  (:attr:`~MethodSpec.bench_axis`, :meth:`~MethodSpec.bench_rank`).
+
+Callers never compare method names: they ask these attributes. Values of the options travel
+as a dict (``values``), checked by :meth:`MethodSpec.resolve`;
+:class:`~flexvox_core.methods.method.Method` is the value users hold.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from flexvox_core.methods.options import Option
+
+
+@dataclass
+class MethodOutput:
+    """A reconstruction and its extras.
+
+    Attributes
+    ----------
+    video : ndarray (S, H, W)
+        The video (a method's own :meth:`MethodSpec.run` may leave it outside [0, 1]; the
+        runner returns it clipped to [0, 1] as float32).
+    extras : dict of str to ndarray (S, ...)
+        Per-sub-frame arrays the method returned beside the video (time first), e.g.
+        motion-aware's ``flow`` (S, H, W, 2) and ``tr`` (S, H, W); empty unless asked for.
+    """
+
+    video: np.ndarray
+    extras: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+class MethodSpec:
+    """Base of every reconstruction method (see the module docstring).
+
+    Subclasses set the class attributes and implement :meth:`run`, :meth:`overlap` and
+    :meth:`label`; the rest have defaults.
+    """
+
+    name: str = ""
+    """What users type (``--method NAME``) and what metadata records."""
+    title: str = ""
+    """One line: what the method is."""
+    trade: str = ""
+    """How it trades spatial for temporal resolution, in one sentence."""
+    options: tuple[Option, ...] = ()
+    """Its knobs, in the order forms show them."""
+    needs_sample_range: bool = False
+    """True: :meth:`run` takes ``value_range``, the whole recording's (lo, hi) sample range,
+    so that a run in chunks equals the whole."""
+    extras: tuple[str, ...] = ()
+    """Names of the per-sub-frame arrays :meth:`run` returns when ``extras=True``."""
+    bench_axis: str | None = None
+    """The option the bench sweeps on a log scale (figures are interpolated along it), if any."""
+
+    # ------------------------------------------------------------------ options
+    def option(self, name: str) -> Option:
+        """The option called ``name``; ``ValueError`` naming this method's options otherwise."""
+        for o in self.options:
+            if o.name == name:
+                return o
+        raise ValueError(f"`{name}` is not an option of {self.name} (its options: {self.option_list()})")
+
+    def has_option(self, name: str) -> bool:
+        """True when the method has an option called ``name``."""
+        return any(o.name == name for o in self.options)
+
+    def option_list(self) -> str:
+        """The option names in words ("none" when there are none)."""
+        return ", ".join(o.name for o in self.options) or "none"
+
+    def resolve(self, given: dict) -> dict:
+        """Every option's value: ``given`` checked, the defaults for the rest (and for None).
+
+        Raises
+        ------
+        ValueError
+            An unknown option or a value that breaks its option's rule (naming both).
+        """
+        for name in given:
+            if not self.has_option(name):
+                raise ValueError(f"`{name}` is not an option of {self.name} (its options: {self.option_list()})")
+        values = {o.name: o.check(given.get(o.name)) for o in self.options}
+        self.validate(values)
+        return values
+
+    def validate(self, values: dict) -> None:
+        """Checks across options (``ValueError``); the default has none."""
+
+    # ------------------------------------------------------------------ running
+    def overlap(self, values: dict, K: int) -> int | None:
+        """Camera frames of context a chunk needs on each side (None: cannot run in chunks)."""
+        raise NotImplementedError
+
+    def run(self, frames: np.ndarray, code: np.ndarray, values: dict, *, value_range=None,
+            extras: bool = False) -> MethodOutput:
+        """Reconstruct an identity-code capture.
+
+        Parameters
+        ----------
+        frames : ndarray (F, H, W)
+        code : ndarray (m, n, K) bool, identity code
+        values : dict
+            Every option's value (:meth:`resolve`).
+        value_range : (lo, hi) or None
+            Methods with :attr:`needs_sample_range`: the whole recording's sample range.
+        extras : bool
+            Also return the arrays named in :attr:`extras`.
+
+        Returns
+        -------
+        MethodOutput
+            ``video`` (F·K, H, W), not yet clipped.
+        """
+        raise NotImplementedError
+
+    def kwargs(self, values: dict) -> dict:
+        """Keyword arguments of the method's algorithm function for ``values`` (default: the values)."""
+        return dict(values)
+
+    # ------------------------------------------------------------------ description
+    def label(self, values: dict) -> str:
+        """Short human-readable description (also the bench's method column)."""
+        raise NotImplementedError
+
+    def parse_label(self, label: str) -> dict | None:
+        """The knobs (``{"name": ..., option: value}``) of a :meth:`label` this method wrote, or None."""
+        return None
+
+    def as_dict(self, values: dict) -> dict:
+        """Metadata form: the name and every option's value (JSON-friendly)."""
+        return {"name": self.name, **values}
+
+    def bench_rank(self, knobs: dict, values: dict, code) -> tuple[tuple, bool]:
+        """How near a bench row's ``knobs`` (:meth:`parse_label`) are to ``values``, apart from
+        :attr:`bench_axis`: a sort key (smaller is nearer; rows with the smallest key form the
+        family figures are taken from) and whether the row matches exactly."""
+        return (), True
+
+    def __repr__(self) -> str:
+        return f"<method {self.name}>"

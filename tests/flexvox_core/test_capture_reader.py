@@ -1,0 +1,80 @@
+"""The one reader from a recording to reconstruction input."""
+
+import re
+
+import numpy as np
+import pytest
+
+from flexvox_core.capture_reader import CaptureError, CaptureReader, open_capture, read_capture
+from flexvox_core.design import design_code
+from flexvox_core.multiplex import multiplexed_code
+from flexvox_core.reconstruct import prepare
+from flexvox_core.recording import RecordingError, open_recording, write_simulation
+from flexvox_core.simulate.effects import parse_effects
+from flexvox_core.simulate.simulator import normalise_frames, simulate_video
+
+
+@pytest.fixture
+def counts_path(tmp_path, rng):
+    v = rng.random((7 * 8, 10, 12)).astype(np.float32)
+    eff = parse_effects({"photon_noise": {}, "adc": {"bits": 12, "gain": 0.5, "black_level": 32}})
+    return write_simulation(tmp_path / "c.zarr", simulate_video(v, design_code((2, 4)).code, effects=eff, seed=3))
+
+
+@pytest.fixture
+def mux_path(tmp_path, rng):
+    mc = multiplexed_code((1, 3))
+    result = simulate_video(rng.random((5 * 3, 9, 12)).astype(np.float32), mc.code, seed=4)
+    result.multiplexed, result.placement = True, mc.placement
+    return write_simulation(tmp_path / "m.zarr", result)
+
+
+def test_counts_are_normalised_and_windows_are_slices_of_the_whole(counts_path):
+    rec = open_recording(counts_path)
+    frames, code = read_capture(counts_path)
+    assert frames.dtype == np.float32 and frames.shape == (7, 10, 12)
+    np.testing.assert_array_equal(frames, normalise_frames(rec.frames[:], rec.attrs["storage"]))
+    np.testing.assert_array_equal(code, rec.code)
+    reader = open_capture(rec)
+    np.testing.assert_array_equal(reader.read(2, 5), frames[2:5])
+    assert reader.read(3, 3).shape == (0, 10, 12)
+    assert reader.sample_range(2) == (float(frames.min()), float(frames.max()))
+    np.testing.assert_array_equal(reader.preparation(reader.raw[4:7]), frames[4:7])
+
+
+def test_multiplexed_recordings_are_demultiplexed(mux_path):
+    rec = open_recording(mux_path)
+    reader = CaptureReader(rec)
+    expected, code = prepare(rec.normalised_frames(), multiplexed_code((1, 3), placement=rec.attrs["placement_order"]))
+    np.testing.assert_array_equal(reader.read(), expected)
+    np.testing.assert_array_equal(reader.code, code)
+    assert not np.array_equal(reader.code, rec.code)  # the placement's identity code, not the S-matrix code
+    # Chunk by chunk (the batch's way) equals the whole.
+    parts = [reader.preparation(reader.raw[a:b]) for a, b in ((0, 2), (2, 4), (4, 5))]
+    np.testing.assert_array_equal(np.concatenate(parts), expected)
+
+
+def test_dropped_frames_are_refused_naming_how_many_and_where(tmp_path, rng):
+    v = rng.random((12 * 4, 8, 8)).astype(np.float32)
+    eff = parse_effects({"dropped_frames": {"probability": 0.5}})
+    path = write_simulation(tmp_path / "d.zarr", simulate_video(v, design_code((2, 2)).code, effects=eff, seed=1))
+    dropped = open_recording(path).per_frame("dropped")
+    assert dropped.any()
+    first = np.flatnonzero(dropped)[:5].tolist()
+    message = f"has {int(dropped.sum())} dropped frame(s) (first at rows {first}); reconstructing across gaps"
+    with pytest.raises(CaptureError, match=re.escape(message)):
+        read_capture(path)
+    assert issubclass(CaptureError, RecordingError) and issubclass(CaptureError, ValueError)
+
+
+def test_refusals(counts_path, tmp_path):
+    with pytest.raises(RecordingError, match=r"none.zarr: no such recording"):
+        open_capture(tmp_path / "none.zarr")
+    reader = open_capture(counts_path)
+    with pytest.raises(ValueError, match=r"the window \[start, stop\) must lie in the recording's 7 frames "
+                                         r"\(0 <= start <= stop <= 7\); got \[5, 9\)"):
+        reader.read(5, 9)
+    with pytest.raises(ValueError, match=r"`start` must be a whole number; got 1.5"):
+        reader.read(1.5, 3)
+    with pytest.raises(ValueError, match=r"`chunk_frames` must be a whole number >= 1; got 0"):
+        reader.sample_range(0)

@@ -23,10 +23,10 @@ import numpy as np
 
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture
+from flexvox_core.methods import Method, reconstruct
 from flexvox_core.metrics import psnr, ssim
 from flexvox_core.motion.pipeline import DEFAULT_TIME as MA_TIME
 from flexvox_core.reconstruct.rebin import supported_divisions
-from flexvox_core.reconstruct.run import Method, reconstruct
 from flexvox_core.simulate.scenes import render_scene
 
 _logger = logging.getLogger(__name__)

@@ -1,5 +1,6 @@
-"""Pictures of a motion-aware reconstruction: flow (colour wheel, quiver), resolution map, and a
-panel like the seed's Figs. 7–8 (captured frame, high SR, high TR, flow magnitude, motion-aware)."""
+"""Pictures of a reconstruction that returns the flow (motion-aware): flow (colour wheel, quiver),
+resolution map, and a panel like the seed's Figs. 7–8 (captured frame, high SR, high TR, flow
+magnitude, motion-aware)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from flexvox_core.flow import flow_to_color, magnitude_image, quiver_image
-from flexvox_core.motion import motion_aware
+from flexvox_core.methods import run
 from flexvox_core.reconstruct.diffusion import diffuse
 
 HIGH_SR = (0.05, 0.05, 1.0)
@@ -22,10 +23,10 @@ def _save_rgb(path: Path, rgb: np.ndarray) -> None:
 
 
 def write_figures(out_dir, frames, code, method, *, max_frames: int = 4) -> list[Path]:
-    """Reconstruct the first ``max_frames`` camera frames motion-aware and write PNGs to ``out_dir``.
+    """Reconstruct the first ``max_frames`` camera frames with ``method`` and write PNGs to ``out_dir``.
 
-    Returns the paths written: ``flow_color.png``, ``flow_quiver.png``, ``resolution_map.png``,
-    ``panel.png``.
+    ``method`` must return the extras ``flow`` and ``tr`` (motion-aware does). Returns the paths
+    written: ``flow_color.png``, ``flow_quiver.png``, ``resolution_map.png``, ``panel.png``.
     """
     import matplotlib
 
@@ -36,20 +37,26 @@ def write_figures(out_dir, frames, code, method, *, max_frames: int = 4) -> list
     out.mkdir(parents=True, exist_ok=True)
     f = np.asarray(frames, dtype=np.float32)[:max_frames]
     K = code.shape[2]
-    r = motion_aware(f, code, **method.motion_kwargs())
+    missing = {"flow", "tr"} - set(method.spec.extras)
+    if missing:
+        raise ValueError(f"{method.label()} returns no {' and '.join(sorted(missing))}; figures need a method "
+                         "that does (motion-aware)")
+    r = run(f, code, method, chunk_frames=None, extras=True)
+    high_tr = diffuse(f, code, tensor=HIGH_TR, time=2.0)  # motion-aware's own step 1
     s = min(f.shape[0] * K - 2, f.shape[0] * K // 2 + K // 2)  # a sub-frame in the middle
-    flow = r.flow.flow[s]
+    flows, tr = r.extras["flow"], r.extras["tr"]
+    flow = flows[s]
     written = []
-    top = max(float(np.quantile(r.flow.magnitude, 0.995)), 0.25)
+    top = max(float(np.quantile(np.hypot(flows[..., 0], flows[..., 1]), 0.995)), 0.25)
     p = out / "flow_color.png"
     _save_rgb(p, flow_to_color(flow, max_magnitude=top))
     written.append(p)
     p = out / "flow_quiver.png"
-    _save_rgb(p, quiver_image(r.high_tr[s], flow, step=max(6, min(flow.shape[:2]) // 20)))
+    _save_rgb(p, quiver_image(high_tr[s], flow, step=max(6, min(flow.shape[:2]) // 20)))
     written.append(p)
 
     fig, ax = plt.subplots(figsize=(5, 4), dpi=100)
-    im = ax.imshow(r.tr[s], cmap="viridis", vmin=1, vmax=K)
+    im = ax.imshow(tr[s], cmap="viridis", vmin=1, vmax=K)
     ax.set_title("effective temporal resolution TR (SR = 1/TR)")
     ax.axis("off")
     fig.colorbar(im, ax=ax, fraction=0.046)
@@ -59,13 +66,12 @@ def write_figures(out_dir, frames, code, method, *, max_frames: int = 4) -> list
     written.append(p)
 
     high_sr = diffuse(f, code, tensor=HIGH_SR, time=3.0)
-    high_tr = diffuse(f, code, tensor=HIGH_TR, time=2.0)
     panels = [
         ("captured frame", f[s // K], "gray"),
         ("high SR (0.05, 0.05, 1)", high_sr[s], "gray"),
         ("high TR (1, 1, 0.05)", high_tr[s], "gray"),
         ("flow magnitude", magnitude_image(flow, max_magnitude=top), None),
-        ("motion-aware", r.video[s], "gray"),
+        (method.name, r.video[s], "gray"),
     ]
     fig, axes = plt.subplots(1, 5, figsize=(16, 3.6), dpi=100)
     for ax, (title, img, cmap) in zip(axes, panels, strict=True):

@@ -31,17 +31,17 @@ from flexvox_core.recording import RecordingWriter, recording_attrs  # noqa: E40
 CHILD = """
 import json, sys, time
 sys.path.insert(0, {root!r})
-from flexvox_core.reconstruct.run import Method
+from flexvox_core.methods import Method
 mode, rec, out, chunk = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
 t = time.perf_counter()
 if mode == "batch":
     from flexvox_core.batch import reconstruct_batch
     reconstruct_batch(rec, out, Method(), chunk_frames=chunk)
 else:
-    from flexvox_core.recording import open_recording
-    from flexvox_core.reconstruct.run import reconstruct
-    r = open_recording(rec)
-    video = reconstruct(r.normalised_frames(), r.code, Method(), chunk_frames=chunk)
+    from flexvox_core.capture_reader import read_capture
+    from flexvox_core.methods import reconstruct
+    frames, code = read_capture(rec)
+    video = reconstruct(frames, code, Method(), chunk_frames=chunk)
 print(json.dumps({{"seconds": time.perf_counter() - t}}))
 """
 

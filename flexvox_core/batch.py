@@ -1,14 +1,18 @@
 """Batch reconstruction of long recordings with dask: chunks in time, exact overlap, Zarr out.
 
-The recording's frames are a dask array chunked in time (``chunk_frames`` camera frames per
-chunk, read lazily from the Zarr store); :func:`dask.array.map_overlap` gives each chunk
-:func:`~flexvox_core.reconstruct.run.overlap_frames` frames of context on each side (none
-beyond the recording's ends), each chunk is reconstructed and trimmed to its own
-``chunk_frames · K`` sub-frames, and the result is stored chunk by chunk into a Zarr v3 group
-(array ``video``, one sub-frame per Zarr chunk, the same layout ``flexvox reconstruct``
-writes). The result equals the in-memory :func:`~flexvox_core.reconstruct.run.reconstruct`
-(the overlap is exact). Peak memory is a few chunks per worker thread, whatever the
-recording's length.
+The recording's raw frames are a dask array chunked in time (``chunk_frames`` camera frames per
+chunk, read lazily from the Zarr store); :func:`dask.array.map_overlap` gives each chunk the
+method's overlap (:meth:`Method.overlap <flexvox_core.methods.method.Method.overlap>`) of
+context on each side (none beyond the recording's ends). Each chunk is normalised and
+demultiplexed by the reader's :class:`~flexvox_core.capture_reader.Preparation` and
+reconstructed and trimmed to its own ``chunk_frames · K`` sub-frames by
+:func:`~flexvox_core.methods.runner.run_chunk`, the per-chunk function of the in-memory runner;
+the result is stored chunk by chunk into a Zarr v3 group (array ``video``, one sub-frame per
+Zarr chunk, the same layout ``flexvox reconstruct`` writes). Only the chunk planning is dask's
+own (:func:`_chunks`: a last chunk shorter than the overlap joins its neighbour, as
+``map_overlap`` needs). The result equals the in-memory :func:`~flexvox_core.methods.runner.run`
+(the overlap is exact; methods that need the sample range get the whole recording's, read in one
+pass first). Peak memory is a few chunks per worker thread, whatever the recording's length.
 
 Scheduling: dask's local threaded scheduler by default; a ``dask.distributed`` scheduler
 address (``tcp://host:8786``) runs the chunks on that cluster (the workers must see the
@@ -25,8 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
-from flexvox_core.reconstruct.run import Method, _run, overlap_frames
-from flexvox_core.recording import RecordingError, open_recording
+from flexvox_core.capture_reader import CaptureReader, Preparation
+from flexvox_core.methods.method import Method
+from flexvox_core.methods.runner import run_chunk
+from flexvox_core.recording import Recording, RecordingError, open_recording
 
 _logger = logging.getLogger(__name__)
 
@@ -52,29 +58,8 @@ def _chunks(F: int, chunk: int, ov: int) -> tuple[int, ...]:
     return tuple(sizes) or (0,)
 
 
-def _prepared(block: np.ndarray, code, storage: dict, multiplexed):
-    """Raw frames of one chunk normalised (and demultiplexed): the capture and its identity code."""
-    from flexvox_core.simulate.simulator import normalise_frames
-
-    frames = normalise_frames(np.asarray(block), storage)
-    if multiplexed is None:
-        return frames, code
-    from flexvox_core.reconstruct import prepare
-
-    return prepare(frames, multiplexed)
-
-
-def _sample_range(source, F: int, chunk_frames: int, code, storage: dict, multiplexed) -> tuple[float, float]:
-    """Smallest and largest prepared sample of the whole recording (one pass, a chunk at a time)."""
-    lo, hi = np.inf, -np.inf
-    for start in range(0, F, chunk_frames):
-        frames, _ = _prepared(source[start: min(F, start + chunk_frames)], code, storage, multiplexed)
-        lo, hi = min(lo, float(frames.min())), max(hi, float(frames.max()))
-    return lo, hi
-
-
-def _chunk_kernel(code, K: int, ov: int, F: int, method: Method, storage: dict, multiplexed, value_range=None):
-    """The per-chunk function: normalise, demultiplex, reconstruct, trim to the chunk."""
+def _chunk_kernel(code, K: int, ov: int, F: int, method: Method, preparation: Preparation, value_range=None):
+    """The dask kernel: one chunk of raw rows (with its context) prepared, then :func:`run_chunk`."""
 
     def kernel(block: np.ndarray, block_info=None) -> np.ndarray:
         s0, s1 = block_info[None]["array-location"][0]
@@ -83,46 +68,46 @@ def _chunk_kernel(code, K: int, ov: int, F: int, method: Method, storage: dict, 
         if block.shape[0] != stop - start + left + right:
             raise RuntimeError(f"chunk [{start}, {stop}) arrived with {block.shape[0]} frames, expected "
                                f"{stop - start + left + right}")
-        frames, c = _prepared(block, code, storage, multiplexed)
-        out = _run(frames, c, method, value_range)
-        return np.clip(out[left * K:(left + stop - start) * K], 0, 1).astype(np.float32, copy=False)
+        return run_chunk(preparation(block), code, method, left=left, count=stop - start,
+                         value_range=value_range).video
 
     return kernel
 
 
-def batch_video(rec, method: Method | None = None, *, chunk_frames: int = 32):
-    """The reconstruction of an opened recording as a lazy dask array ``(F·K, H, W)`` float32."""
+def batch_video(rec: Recording, method: Method | None = None, *, chunk_frames: int = 32):
+    """The reconstruction of an opened recording as a lazy dask array ``(F·K, H, W)`` float32.
+
+    Returns
+    -------
+    video : dask.array.Array (F·K, H, W) float32
+    overlap : int
+        Camera frames of context each chunk was given on each side.
+
+    Raises
+    ------
+    ValueError
+        A recording the reader refuses (:class:`~flexvox_core.capture_reader.CaptureError`), a bad
+        ``chunk_frames``, or a method that cannot run in chunks.
+    """
     import dask.array as da
 
     method = method or Method()
-    dropped = rec.per_frame("dropped")
-    if dropped.any():
-        raise ValueError(f"{rec.path} has {int(dropped.sum())} dropped frame(s) (first at rows "
-                         f"{np.flatnonzero(dropped)[:5].tolist()}); reconstructing across gaps is not supported yet")
+    reader = CaptureReader(rec)
     if isinstance(chunk_frames, bool) or not isinstance(chunk_frames, int) or chunk_frames < 1:
         raise ValueError(f"`chunk_frames` must be a whole number >= 1; got {chunk_frames!r}")
-    K = rec.K
-    F, H, W = rec.frames.shape
-    ov = overlap_frames(method, K)
+    K = reader.K
+    F = reader.n_frames
+    H, W = reader.shape
+    ov = method.overlap(K)
     if ov is None:
         raise ValueError(f"{method.label()} is a global solve and cannot run in chunks; choose another solver")
     if chunk_frames < ov:
         _logger.info("batch: chunks of %d frames raised to the method's overlap of %d", chunk_frames, ov)
         chunk_frames = ov  # dask's map_overlap needs chunks at least as long as the overlap
-    multiplexed = None
-    code = rec.code
-    if rec.attrs.get("multiplexed"):
-        from flexvox_core.multiplex import multiplexed_code
-        from flexvox_core.reconstruct import prepare
-
-        multiplexed = multiplexed_code(tuple(rec.attrs["tile"]), placement=rec.attrs.get("placement_order"))
-        code = prepare(np.zeros((1, H, W), np.float32), multiplexed)[1]
-    source = rec.group["frames"]
-    frames = da.from_zarr(source, chunks=(chunk_frames, H, W))[:F].rechunk((_chunks(F, chunk_frames, ov), H, W))
-    # Motion-aware scales a range weight by the samples' range: the whole recording's, in every chunk.
-    value_range = (_sample_range(source, F, chunk_frames, code, rec.attrs["storage"], multiplexed)
-                   if method.name == "motion-aware" else None)
-    kernel = _chunk_kernel(code, K, ov, F, method, rec.attrs["storage"], multiplexed, value_range)
+    frames = da.from_zarr(reader.raw, chunks=(chunk_frames, H, W))[:F].rechunk((_chunks(F, chunk_frames, ov), H, W))
+    # Methods that scale by the samples' range get the whole recording's in every chunk.
+    value_range = reader.sample_range(chunk_frames) if method.spec.needs_sample_range else None
+    kernel = _chunk_kernel(reader.code, K, ov, F, method, reader.preparation, value_range)
     out_chunks = (tuple(c * K for c in frames.chunks[0]), (H,), (W,))
     return da.map_overlap(kernel, frames, depth={0: ov, 1: 0, 2: 0}, boundary="none", trim=False,
                           dtype=np.float32, chunks=out_chunks, meta=np.empty((0, 0, 0), np.float32)), ov

@@ -69,14 +69,14 @@ class _Source:
             self.dtype = np.dtype(np.float32)
             self.rate = rec.attrs["rates"]["subframe_hz"]
         else:
-            from app.cli.reconstruct import load_capture
-            from flexvox_core.reconstruct.run import reconstruct
+            from flexvox_core.capture_reader import CaptureReader
+            from flexvox_core.methods import reconstruct
 
-            _, frames, code = load_capture(rec.path)
             try:
+                reader = CaptureReader(rec)
                 method = method_from_args(args, rec.attrs["tile"])
-                self.array = reconstruct(frames, code, method, chunk_frames=args.chunk)
-            except ValueError as exc:
+                self.array = reconstruct(reader.read(), reader.code, method, chunk_frames=args.chunk)
+            except ValueError as exc:  # RecordingError and CaptureError are ValueErrors
                 raise CliError(str(exc)) from None
             self.dtype = np.dtype(np.float32)
             self.rate = rec.attrs["rates"]["subframe_hz"]

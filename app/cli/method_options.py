@@ -1,5 +1,10 @@
 """The reconstruction options that ``reconstruct``, ``export`` and ``batch`` share, and the
-:class:`~flexvox_core.reconstruct.run.Method` they describe."""
+:class:`~flexvox_core.methods.Method` they describe.
+
+The options are the registered methods' own (:mod:`flexvox_core.methods.registry`): one flag per
+option name, typed by the option's kind, its help naming each method's default. A flag the
+chosen method has no option for is refused, naming the methods it goes with.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +13,8 @@ import re
 from app.cli.errors import arg_type
 
 _NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
-MOTION_ONLY = ("--passes", "--refine", "--slow-reach")
+_FLAG_NAMES = {"refine_time": "--refine"}
+"""Flags whose name is not the option's (``--refine`` is older than ``refine_time``)."""
 
 
 def parse_triple(text: str, what: str = "tensor"):
@@ -19,48 +25,109 @@ def parse_triple(text: str, what: str = "tensor"):
     raise ValueError(f"--{what} must be three numbers separated by commas; got {text!r}")
 
 
-def add_method_options(p, *, chunk: int) -> None:
-    """Add the method options and ``--chunk F`` (default ``chunk`` camera frames) to parser ``p``."""
-    from flexvox_core.motion.pipeline import DEFAULT_TIME as MA_TIME
-    from flexvox_core.motion.pipeline import SLOW_REACH
-    from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, SOLVERS
-    from flexvox_core.reconstruct.run import METHODS
+def _options():
+    """Every registered option name with the first option object and the methods that have it."""
+    from flexvox_core.methods import specs
 
-    p.add_argument("--method", choices=METHODS, default="diffusion", help="default: diffusion")
-    p.add_argument("--block", metavar="a,b,c", help="rebin: rows,columns,slots of the division "
-                   "(default: the one with TR closest to sqrt(K))")
-    p.add_argument("--no-interpolate", action="store_true", help="rebin: blocks without interpolation")
-    p.add_argument("--tensor", type=arg_type(parse_triple), default=DEFAULT_TENSOR,
-                   metavar="cx,cy,ct", help=f"diffusion tensor (default {','.join(f'{c:g}' for c in DEFAULT_TENSOR)})")
-    p.add_argument("--time", type=float, metavar="n",
-                   help=f"diffusion time, the accuracy knob (default {DEFAULT_TIME:g}; motion-aware {MA_TIME:g})")
-    p.add_argument("--solver", choices=SOLVERS, default="nc", help="diffusion solver (default nc)")
-    p.add_argument("--iterations", type=int, default=40, help="gap-tv iterations (default 40)")
-    p.add_argument("--flow", choices=("dis", "deepflow", "farneback", "tvl1"), default="dis",
-                   help="motion-aware: optical-flow backend (default dis: DIS + variational refinement)")
-    p.add_argument("--passes", type=int, default=1, metavar="N",
-                   help="motion-aware: flow re-estimated from the previous pass N-1 times (default 1)")
-    p.add_argument("--refine", type=float, default=0.0, metavar="n",
-                   help="motion-aware: extra monotone variable-tensor diffusion time (default 0)")
-    p.add_argument("--slow-reach", type=float, metavar="R",
-                   help="motion-aware: how far the slowly moving voxels' gather reaches along their "
-                        f"trajectory, in sampling periods each way (default {SLOW_REACH:g}; 0: no long "
-                        "gather, faster where the whole picture drifts slowly)")
+    table: dict[str, tuple] = {}
+    for spec in specs():
+        for o in spec.options:
+            first, owners = table.get(o.name, (o, []))
+            owners.append(spec)
+            table[o.name] = (first, owners)
+    return table
+
+
+def _flag(option) -> str:
+    if option.name in _FLAG_NAMES:
+        return _FLAG_NAMES[option.name]
+    dashed = option.name.replace("_", "-")
+    return f"--no-{dashed}" if option.kind == "flag" and option.default else f"--{dashed}"
+
+
+def _fmt(value) -> str:
+    if isinstance(value, tuple):
+        return ",".join(f"{v:g}" for v in value)
+    if isinstance(value, float):
+        return f"{value:g}"
+    return str(value)
+
+
+def _help(option, owners) -> str:
+    from flexvox_core.methods import specs
+
+    words = option.help or option.label or option.name
+    if option.kind == "flag":
+        words = f"{'no ' if option.default else ''}{option.label or option.name}"
+    if len(owners) < len(specs()):
+        words = f"{' and '.join(s.name for s in owners)}: {words}"
+    defaults = []
+    for s in owners:
+        o = s.option(option.name)
+        shown = o.shown_default if o.default is None else o.default
+        if shown is not None and option.kind not in ("flag", "division"):
+            defaults.append(_fmt(shown) + (f" for {s.name}" if len(owners) > 1 else ""))
+    return words + (f" (default {'; '.join(defaults)})" if defaults else "")
+
+
+def add_method_options(p, *, chunk: int) -> None:
+    """Add ``--method``, every registered method's options and ``--chunk F`` (default ``chunk``
+    camera frames) to parser ``p``."""
+    from flexvox_core.methods import DEFAULT, names
+
+    p.add_argument("--method", choices=names(), default=DEFAULT, help=f"default: {DEFAULT}")
+    for name, (o, owners) in _options().items():
+        kw = {"dest": name, "default": None, "help": _help(o, owners)}
+        if o.kind == "flag":
+            p.add_argument(_flag(o), action="store_const", const=not o.default, **kw)
+        elif o.kind == "choice":
+            p.add_argument(_flag(o), choices=o.choices, **kw)
+        elif o.kind == "triple":
+            p.add_argument(_flag(o), type=arg_type(lambda text, n=name: parse_triple(text, n)),
+                           metavar="a,b,c", **kw)
+        elif o.kind == "division":
+            p.add_argument(_flag(o), metavar="a,b,c", **kw)
+        else:
+            p.add_argument(_flag(o), type=int if o.kind == "integer" else float,
+                           metavar="N" if o.kind == "integer" else "X", **kw)
     p.add_argument("--chunk", type=int, default=chunk, metavar="F", help=f"camera frames per chunk (default {chunk})")
 
 
-def method_from_args(args, tile):
-    """The :class:`~flexvox_core.reconstruct.run.Method` the options describe (``ValueError`` if they clash)."""
-    from flexvox_core.divisions import parse_division
-    from flexvox_core.reconstruct.run import Method
+def _foreign(given: list[str], method: str) -> str:
+    """The refusal of flags ``given`` that ``method`` has no option for."""
+    table = _options()
+    groups: dict[tuple[str, ...], list[str]] = {}
+    for name in given:
+        groups.setdefault(tuple(s.name for s in table[name][1]), []).append(_flag(table[name][0]))
+    parts = []
+    for owners, flags in groups.items():
+        verb = "goes" if len(flags) == 1 else "go"
+        parts.append(f"{' and '.join(flags)} {verb} with --method {' or '.join(owners)}")
+    owners, _ = next(iter(groups.items()))
+    only = [_flag(o) for o, specs_ in table.values() if tuple(s.name for s in specs_) == owners]
+    listed = only[0] if len(only) == 1 else f"{', '.join(only[:-1])} and {only[-1]}"
+    return (f"{'; '.join(parts)}, not {method} ({listed} {'goes' if len(only) == 1 else 'go'} with "
+            f"--method {' or '.join(owners)} only)")
 
-    given = [opt for opt, on in zip(MOTION_ONLY, (args.passes != 1, bool(args.refine), args.slow_reach is not None),
-                                    strict=True) if on]
-    if args.method != "motion-aware" and given:
-        raise ValueError(f"{' and '.join(given)} {'goes' if len(given) == 1 else 'go'} with --method motion-aware, "
-                         f"not {args.method} ({', '.join(MOTION_ONLY[:-1])} and {MOTION_ONLY[-1]} go with "
-                         "--method motion-aware only)")
-    block = parse_division(args.block.replace(",", "x"), tuple(tile)) if args.block else None
-    return Method(args.method, block=block, interpolate=not args.no_interpolate, tensor=args.tensor,
-                  time=args.time, solver=args.solver, iterations=args.iterations, flow=args.flow,
-                  passes=args.passes, refine_time=args.refine, slow_reach=args.slow_reach)
+
+def method_from_args(args, tile):
+    """The :class:`~flexvox_core.methods.Method` the options describe.
+
+    Raises
+    ------
+    ValueError
+        A flag the method has no option for (naming the methods it goes with), or a bad value.
+    """
+    from flexvox_core.divisions import parse_division
+    from flexvox_core.methods import Method, get
+
+    spec = get(args.method)
+    table = _options()
+    given = {name: getattr(args, name) for name in table if getattr(args, name, None) is not None}
+    foreign = [name for name in given if not spec.has_option(name)]
+    if foreign:
+        raise ValueError(_foreign(foreign, spec.name))
+    for name, value in given.items():
+        if spec.option(name).kind == "division":
+            given[name] = parse_division(value.replace(",", "x"), tuple(tile))
+    return Method(spec.name, **given)

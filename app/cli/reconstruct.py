@@ -5,16 +5,17 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-import numpy as np
 from tqdm import tqdm
 
 from app.cli.errors import EXIT_OK, CliError
 from app.cli.method_options import add_method_options, method_from_args
-from flexvox_core.multiplex import multiplexed_code
-from flexvox_core.reconstruct import prepare
-from flexvox_core.reconstruct.run import reconstruct
-from flexvox_core.recording import RecordingError, open_recording
+from flexvox_core.capture_reader import open_capture
+from flexvox_core.methods import reconstruct, specs
+from flexvox_core.recording import RecordingError
 from flexvox_core.video_io import WRITABLE, write_video
+
+FIGURE_EXTRAS = ("flow", "tr")
+"""What ``--figures`` draws: a method must return these extras."""
 
 
 def register(sub) -> None:
@@ -41,23 +42,6 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def load_capture(path: Path):
-    """Normalised identity-code frames and their code from a recording (demultiplexed)."""
-    rec = open_recording(path)
-    dropped = rec.per_frame("dropped")
-    if dropped.any():
-        ids = np.flatnonzero(dropped)[:5].tolist()
-        raise CliError(f"{path} has {int(dropped.sum())} dropped frame(s) (first at rows {ids}); "
-                       "reconstructing across gaps is not supported yet")
-    frames = rec.normalised_frames()
-    if rec.attrs.get("multiplexed"):
-        mc = multiplexed_code(tuple(rec.attrs["tile"]), placement=rec.attrs.get("placement_order"))
-        frames, code = prepare(frames, mc)
-    else:
-        code = rec.code
-    return rec, frames, code
-
-
 def run(args) -> int:
     """Carry out ``flexvox reconstruct``."""
     try:
@@ -65,10 +49,13 @@ def run(args) -> int:
             raise ValueError(f"-o {args.output}: the output must end in {', '.join(WRITABLE)}")
         if args.output.exists() and not args.overwrite:
             raise ValueError(f"{args.output} already exists (use --overwrite)")
-        rec, frames, code = load_capture(args.recording)
+        reader = open_capture(args.recording)
+        rec = reader.recording
         method = method_from_args(args, rec.attrs["tile"])
-        if args.figures and args.method != "motion-aware":
-            raise ValueError("--figures goes with --method motion-aware")
+        if args.figures and not set(FIGURE_EXTRAS) <= set(method.spec.extras):
+            drawable = " or ".join(s.name for s in specs() if set(FIGURE_EXTRAS) <= set(s.extras))
+            raise ValueError(f"--figures goes with --method {drawable} (the methods that return the flow)")
+        frames, code = reader.read(), reader.code
     except (ValueError, RecordingError) as exc:
         raise CliError(str(exc)) from None
     F, H, W = frames.shape

@@ -10,7 +10,7 @@ import zarr
 
 from app.cli import batch, export, info
 from app.cli.errors import CliError, OneLineParser
-from flexvox_core.reconstruct.run import Method, reconstruct
+from flexvox_core.methods import Method, reconstruct
 from flexvox_core.recording import JOURNAL, RecordingWriter, open_recording, recording_attrs
 
 

@@ -120,3 +120,32 @@ def test_reconstruct_motion_aware_slow_reach(recording, tmp_path, capsys):
 def test_bad_slow_reach(recording, tmp_path, capsys, args, message):
     assert main(["reconstruct", str(recording), *args, "-o", str(tmp_path / "o.npy")]) == 2
     assert message in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--method", "rebin", "--time", "2"],
+     "--time goes with --method diffusion or motion-aware, not rebin"),
+    (["--iterations", "5", "--refine", "1"],
+     "--iterations goes with --method gap-tv; --refine goes with --method motion-aware, not diffusion"),
+    (["--method", "gap-tv", "--no-interpolate"], "--no-interpolate goes with --method rebin, not gap-tv"),
+])
+def test_an_option_of_another_method_is_refused_naming_its_methods(recording, tmp_path, capsys, args, message):
+    assert main(["reconstruct", str(recording), *args, "-o", str(tmp_path / "o.npy")]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_a_registered_method_is_on_the_command_line_with_its_options(recording, tmp_path, capsys):
+    from flexvox_core.capture_reader import read_capture
+    from flexvox_core.methods import Method, reconstruct
+    from tests.flexvox_core.methods.tiny_method import frame_mean_registered
+
+    with frame_mean_registered():
+        assert main(["reconstruct", str(recording), "--method", "frame-mean", "--radius", "2", "--chunk", "1",
+                     "-o", str(tmp_path / "t.npy")]) == 0
+        assert "frame-mean r=2" in capsys.readouterr().out
+        frames, code = read_capture(recording)
+        expected = reconstruct(frames, code, Method("frame-mean", radius=2), chunk_frames=None)
+    np.testing.assert_array_equal(np.load(tmp_path / "t.npy"), expected)
+    with pytest.raises(SystemExit):  # gone with its registration
+        main(["reconstruct", str(recording), "--radius", "2", "-o", str(tmp_path / "u.npy")])
+    assert "unrecognized arguments: --radius 2" in capsys.readouterr().err

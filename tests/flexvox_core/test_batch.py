@@ -6,7 +6,7 @@ import zarr
 
 from flexvox_core.batch import _chunks, batch_video, reconstruct_batch
 from flexvox_core.design import design_code
-from flexvox_core.reconstruct.run import Method, reconstruct
+from flexvox_core.methods import Method, reconstruct
 from flexvox_core.recording import open_recording, write_simulation
 from flexvox_core.simulate.simulator import simulate_video
 

@@ -4,7 +4,7 @@ import pytest
 from flexvox_core.design import design_code
 from flexvox_core.divisions import Division
 from flexvox_core.forward import capture
-from flexvox_core.reconstruct.run import Method, default_block, overlap_frames, reconstruct
+from flexvox_core.methods import Method, default_block, overlap_frames, reconstruct
 
 CODE = design_code((2, 4)).code
 

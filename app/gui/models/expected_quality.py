@@ -7,10 +7,12 @@ per K and method, the PSNR of the mean squared error over the built-in scenes (a
 summary does), mean SSIM, mean seconds and the throughput in voxels per second, plus the mean
 PSNR on the SCI clips (Runner, Drop) where the bench had them.
 
-:func:`expected` finds the bench figures nearest to a :class:`~flexvox_core.reconstruct.run.Method`
-(interpolating the diffusion time or iteration count on a log scale between measured values)
-and scales the time to the recording's size by the measured throughput. It says which
-bench rows it used, and whether it had to extrapolate.
+:func:`expected` finds the bench figures nearest to a :class:`~flexvox_core.methods.Method`
+(interpolating along the method's bench axis, e.g. the diffusion time or iteration count, on a
+log scale between measured values) and scales the time to the recording's size by the measured
+throughput. It says which bench rows it used, and whether it had to extrapolate. The method
+objects read their own labels back (``parse_label``) and rank bench rows (``bench_rank``); this
+module knows no method by name.
 """
 
 from __future__ import annotations
@@ -19,13 +21,12 @@ import csv
 import json
 import logging
 import math
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from flexvox_core.reconstruct.run import Method, default_block
+from flexvox_core.methods import Method, specs
 
 _logger = logging.getLogger(__name__)
 
@@ -35,32 +36,13 @@ TABLE_PATH = Path(__file__).with_name("expected_quality.json")
 BENCH_CSV = Path(__file__).resolve().parents[3] / "docs" / "bench" / "results.csv"
 """Where ``flexvox bench`` figures live in a checkout."""
 
-_LABEL = [
-    ("rebin", re.compile(r"^rebin (?P<block>\d+x\d+x\d+)(?P<interp> interp)?$")),
-    ("diffusion", re.compile(r"^diffusion (?P<solver>\w+) \((?P<tensor>[\d.,]+)\) n=(?P<time>[\d.]+)$")),
-    ("gap-tv", re.compile(r"^gap-tv (?P<iterations>\d+) it$")),
-    ("motion-aware", re.compile(
-        r"^motion-aware (?P<flow>\w+) n=(?P<time>[\d.]+)(?: \+refine (?P<refine>[\d.]+))?(?: x(?P<passes>\d+))?$")),
-]
-
-
 def parse_label(label: str) -> dict:
     """Knobs of a bench method label (``Method.label()``), e.g. ``"gap-tv 40 it"`` → ``{"name": "gap-tv",
-    "iterations": 40}``. Raises ValueError for a label it does not know."""
-    for name, rx in _LABEL:
-        m = rx.match(label.strip())
-        if not m:
-            continue
-        g = m.groupdict()
-        if name == "rebin":
-            return {"name": name, "block": g["block"], "interpolate": g["interp"] is not None}
-        if name == "diffusion":
-            return {"name": name, "solver": g["solver"], "tensor": [float(c) for c in g["tensor"].split(",")],
-                    "time": float(g["time"])}
-        if name == "gap-tv":
-            return {"name": name, "iterations": int(g["iterations"])}
-        return {"name": name, "flow": g["flow"], "time": float(g["time"]),
-                "refine_time": float(g["refine"] or 0), "passes": int(g["passes"] or 1)}
+    "iterations": 40}``. Raises ValueError for a label no registered method wrote."""
+    for spec in specs():
+        knobs = spec.parse_label(label)
+        if knobs is not None:
+            return knobs
     raise ValueError(f"unknown bench method label {label!r}")
 
 
@@ -184,10 +166,6 @@ def _interp(entries: list[dict], key: str, value: float) -> tuple[dict, bool, st
     return mix, True, f"interpolated between {lo['label']} and {hi['label']}"
 
 
-def _log_distance(a, b) -> float:
-    return float(np.linalg.norm(np.log(np.asarray(a, float)) - np.log(np.asarray(b, float))))
-
-
 def expected(table: dict | None, method: Method, code, *, voxels: int) -> Expectation | None:
     """Expected figures for reconstructing ``voxels`` voxels with ``method`` and ``code``
     (m, n, K), or None when the table has nothing for the method."""
@@ -201,32 +179,16 @@ def expected(table: dict | None, method: Method, code, *, voxels: int) -> Expect
     bench_k = ks[0]
     cands = [e for e in by_name if e["K"] == bench_k]
     approx = bench_k != K
-    if method.name == "rebin":
-        block = method.block or default_block(np.asarray(code, dtype=bool))
-        same = [e for e in cands if e["knobs"]["interpolate"] == method.interpolate] or cands
-        # Match the block's slot count c (TR = K / c), so a K=12 recording borrows the nearest K=16 division.
-        def tr_gap(e):
-            c = int(e["knobs"]["block"].split("x")[2])
-            return abs(math.log(block.c / c))
-        best = min(same, key=lambda e: (tr_gap(e), e["knobs"]["block"] != block.label))
-        fig, more, basis = best, best["knobs"]["block"] != block.label, best["label"]
-        approx = approx or more or best["knobs"]["interpolate"] != method.interpolate
-    elif method.name == "diffusion":
-        same = [e for e in cands if e["knobs"]["solver"] == method.solver] or cands
-        tensors = {tuple(e["knobs"]["tensor"]) for e in same}
-        tensor = min(tensors, key=lambda t: _log_distance(t, method.tensor))
-        fam = [e for e in same if tuple(e["knobs"]["tensor"]) == tensor]
-        fig, more, basis = _interp(fam, "time", method.time)
-        approx = approx or more or _log_distance(tensor, method.tensor) > 1e-6 or fam[0]["knobs"]["solver"] != \
-            method.solver
-    elif method.name == "gap-tv":
-        fig, more, basis = _interp(cands, "iterations", method.iterations)
-        approx = approx or more
+    spec, values = method.spec, dict(method.values)
+    ranked = [(spec.bench_rank(e["knobs"], values, code), e) for e in cands]
+    best = min(rank for (rank, _), _ in ranked)
+    fam = [e for (rank, _), e in ranked if rank == best]
+    exact = next(ok for (rank, ok), _ in ranked if rank == best)
+    if spec.bench_axis is None:
+        fig, more, basis = fam[0], False, fam[0]["label"]
     else:
-        same = [e for e in cands if e["knobs"]["passes"] == method.passes
-                and (e["knobs"]["refine_time"] > 0) == (method.refine_time > 0)] or cands
-        fig, more, basis = _interp(same, "time", method.time)
-        approx = approx or more or same[0]["knobs"]["flow"] != method.flow
+        fig, more, basis = _interp(fam, spec.bench_axis, values[spec.bench_axis])
+    approx = approx or more or not exact
     seconds = voxels / max(fig["mvoxels_per_s"] * 1e6, 1e-9)
     basis = f"bench K={bench_k}: {basis}"
     return Expectation(psnr=float(fig["psnr"]), ssim=float(fig["ssim"]), seconds=float(seconds), basis=basis,

@@ -1,14 +1,15 @@
 """Reconstruction jobs that can be cancelled between chunks (Qt-free).
 
 A job runs on a worker thread (see :mod:`app.gui.widgets.qt_jobs`) and checks a :class:`CancelToken`
-after every chunk of camera frames: :func:`run_reconstruction` passes a progress callback to
-:func:`flexvox_core.reconstruct.run.reconstruct` that raises :class:`Cancelled` when the token
-is set. Motion-aware runs its own chunk loop (same overlap as ``reconstruct``) so that it also
-returns the flow and the per-voxel [TR, SR] map for the Review workspace's overlays.
+after every chunk of camera frames: :func:`run_reconstruction` passes a progress callback to the
+one chunked runner, :func:`flexvox_core.methods.run`, that raises :class:`Cancelled` when the
+token is set. It asks the runner for the method's extras, so a method that returns the flow and
+the per-voxel TR (motion-aware) feeds the Review workspace's overlays.
 """
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -16,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from flexvox_core.reconstruct.run import Method, overlap_frames, reconstruct
+from flexvox_core.methods import Method, run
 
 Progress = Callable[[int, int], None]
 
@@ -80,34 +81,6 @@ class ReconstructionResult:
         return f"{self.method.label()} ({self.seconds:.2f} s{score})"
 
 
-def _chunks(F: int, chunk: int, overlap: int):
-    for start in range(0, F, chunk):
-        stop = min(F, start + chunk)
-        yield start, stop, max(0, start - overlap), min(F, stop + overlap)
-
-
-def _motion_aware(frames: np.ndarray, code: np.ndarray, method: Method, *, chunk_frames: int,
-                  cancel: CancelToken, progress: Progress | None):
-    from flexvox_core.motion import motion_aware
-
-    F, H, W = frames.shape
-    K = code.shape[2]
-    video = np.empty((F * K, H, W), np.float32)
-    flow = np.empty((F * K, H, W, 2), np.float32)
-    tr = np.empty((F * K, H, W), np.float32)
-    value_range = (float(np.min(frames)), float(np.max(frames)))  # the same in every chunk
-    for start, stop, lo, hi in _chunks(F, chunk_frames, overlap_frames(method, K)):
-        cancel.check()
-        r = motion_aware(frames[lo:hi], code, **method.motion_kwargs(), value_range=value_range)
-        a, b = (start - lo) * K, (stop - lo) * K
-        video[start * K: stop * K] = r.video[a:b]
-        flow[start * K: stop * K] = r.flow.flow[a:b]
-        tr[start * K: stop * K] = r.tr[a:b]
-        if progress:
-            progress(stop, F)
-    return np.clip(video, 0, 1), flow, tr
-
-
 def run_reconstruction(frames, code, method: Method, *, cancel: CancelToken | None = None,
                        progress: Progress | None = None, chunk_frames: int = 4, first_frame: int = 0,
                        truth: np.ndarray | None = None) -> ReconstructionResult:
@@ -138,18 +111,15 @@ def run_reconstruction(frames, code, method: Method, *, cancel: CancelToken | No
     if chunk_frames < 1:
         raise ValueError(f"`chunk_frames` must be >= 1; got {chunk_frames}")
     t0 = time.perf_counter()
-    flow = tr = None
     cancel.check()
-    if method.name == "motion-aware":
-        video, flow, tr = _motion_aware(f, code, method, chunk_frames=chunk_frames, cancel=cancel,
-                                        progress=progress)
-    else:
-        def checked(done: int, total: int) -> None:
-            if progress:
-                progress(done, total)
-            cancel.check()
 
-        video = reconstruct(f, code, method, chunk_frames=chunk_frames, progress=checked)
+    def checked(done: int, total: int) -> None:
+        if progress:
+            progress(done, total)
+        cancel.check()
+
+    out = run(f, code, method, chunk_frames=chunk_frames, progress=checked, extras=True)
+    video, flow, tr = out.video, out.extras.get("flow"), out.extras.get("tr")
     cancel.check()
     seconds = time.perf_counter() - t0
     score = None
@@ -160,20 +130,30 @@ def run_reconstruction(frames, code, method: Method, *, cancel: CancelToken | No
     return ReconstructionResult(video, method, seconds, first_frame=first_frame, flow=flow, tr=tr, psnr=score)
 
 
-def chunk_frames_for(method: Method, n_frames: int) -> int:
+def chunk_frames_for(method: Method, n_frames: int, K: int) -> int:
     """Camera frames per chunk for a full reconstruction: small enough to cancel within about a
     tenth of the run, large enough that the overlap each chunk recomputes stays cheap.
 
-    GAP-TV needs no overlap (one chunk per frame); motion-aware recomputes 3 frames on each side,
-    so its chunks are at least 8 frames.
+    A method without overlap (GAP-TV) runs one frame per chunk; otherwise a chunk is at least
+    4 frames and 8/3 of the overlap on each side (motion-aware's 3 frames: chunks of 8), so it
+    recomputes at most 75 % more frames than it keeps; a global solve runs in one chunk.
+
+    Parameters
+    ----------
+    method : Method
+    n_frames : int
+        Camera frames to reconstruct.
+    K : int
+        Slots of the code (the overlap depends on it).
     """
     if n_frames < 1:
         raise ValueError(f"`n_frames` must be >= 1; got {n_frames}")
-    if method.name == "gap-tv":
+    overlap = method.overlap(K)
+    if overlap is None:
+        return n_frames
+    if overlap == 0:
         return 1
-    if method.name == "motion-aware":
-        return max(8, -(-n_frames // 8))
-    return max(4, -(-n_frames // 10))
+    return max(4, math.ceil(8 * overlap / 3), -(-n_frames // 10))
 
 
 def preview_window(n_frames: int, centre: int, *, half_width: int = 1) -> tuple[int, int]:

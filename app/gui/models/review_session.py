@@ -1,8 +1,10 @@
 """An opened recording as the Review workspace sees it (Qt-free model).
 
 Holds the raw frames (normalised to relative units, for playback), the identity-code capture
-the reconstructions take (demultiplexed when the recording is multiplexed, via
-:func:`app.cli.reconstruct.load_capture`), its code, and the ground truth of simulated recordings.
+the reconstructions take (demultiplexed when the recording is multiplexed, by the one reader,
+:class:`flexvox_core.capture_reader.CaptureReader`), its code, and the ground truth of simulated
+recordings. A recording the reader refuses (dropped frames) opens for playback, with the reader's
+reason in :attr:`ReviewSession.blocked`.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.cli.errors import CliError
+from flexvox_core.capture_reader import CaptureError, CaptureReader
 from flexvox_core.divisions import Division
 from flexvox_core.reconstruct.rebin import supported_divisions
 from flexvox_core.recording import Recording, RecordingError, open_recording
@@ -48,17 +50,15 @@ class ReviewSession:
     @classmethod
     def open(cls, path) -> ReviewSession:
         """Open ``path``; :class:`~flexvox_core.recording.RecordingError` says what is wrong."""
-        from app.cli.reconstruct import load_capture
-
         path = Path(path)
         rec = open_recording(path)
         raw = rec.normalised_frames()
         if raw.shape[0] == 0:
             raise RecordingError(f"{path}: the recording holds no frames")
         try:
-            _, frames, code = load_capture(path)
-            blocked = ""
-        except CliError as exc:
+            reader = CaptureReader(rec)
+            frames, code, blocked = reader.read(), reader.code, ""
+        except CaptureError as exc:
             frames, code, blocked = None, rec.code, str(exc)
         _logger.info("opened %s: %d frames of %dx%d, K=%d", path, *raw.shape, rec.K)
         return cls(path, rec, raw.astype(np.float32, copy=False),

@@ -1,4 +1,10 @@
-"""The method picker with its knobs and the SR ↔ TR continuum slider; produces a :class:`Method`."""
+"""The method picker with its knobs and the SR ↔ TR continuum slider; produces a :class:`Method`.
+
+The form is built from the registered method objects (:mod:`flexvox_core.methods.registry`): one
+page per method with a widget per option, chosen by the option's kind (check box, combo box, spin
+box). Options of kind ``triple`` (the diffusion tensor) and ``division`` (re-binning's block) are
+set by the continuum slider instead, which is enabled exactly when the chosen method has one.
+"""
 
 from __future__ import annotations
 
@@ -19,11 +25,7 @@ from PySide6.QtWidgets import (
 
 from app.gui.models.continuum import continuum_division, continuum_tensor, describe
 from app.gui.widgets.settings import AppSettings
-from flexvox_core.flow import BACKENDS
-from flexvox_core.motion.pipeline import DEFAULT_TIME as MA_TIME
-from flexvox_core.motion.pipeline import SLOW_REACH
-from flexvox_core.reconstruct.diffusion import DEFAULT_TIME, SOLVERS
-from flexvox_core.reconstruct.run import METHODS, Method
+from flexvox_core.methods import DEFAULT, Method, Option, get, names, specs
 
 SLIDER_STEPS = 100
 DEFAULT_POSITION = 0.18
@@ -37,6 +39,60 @@ def _spin(lo: float, hi: float, value: float, step: float, decimals: int = 2) ->
     s.setSingleStep(step)
     s.setValue(value)
     return s
+
+
+SLIDER_KINDS = ("triple", "division")
+"""Option kinds the continuum slider sets (the diffusion tensor, re-binning's division)."""
+
+
+class _Knob:
+    """One option's widget on a method's page, and how it reads, shows and persists its value."""
+
+    def __init__(self, option: Option, settings: AppSettings, key: str):
+        self.option, self.settings, self.key = option, settings, key
+        o = option
+        if o.kind == "flag":
+            self.widget = QCheckBox(o.label or o.name)
+            self.widget.setChecked(settings.get_bool(key, bool(o.default)))
+            self.signal = self.widget.toggled
+        elif o.kind == "choice":
+            self.widget = QComboBox()
+            self.widget.addItems([str(c) for c in o.choices])
+            self.widget.setCurrentText(settings.get_str(key, str(o.default)))
+            self.signal = self.widget.currentIndexChanged
+        elif o.kind == "integer":
+            lo, hi, _ = o.span or (1, 1000, 1)
+            self.widget = QSpinBox()
+            self.widget.setRange(int(lo), int(hi))
+            self.widget.setValue(settings.get_int(key, int(o.default)))
+            self.signal = self.widget.valueChanged
+        else:
+            lo, hi, step = o.span or (0.0, 100.0, 0.1)
+            shown = o.shown_default if o.default is None else o.default
+            self.widget = _spin(lo, hi, settings.get_float(key, float(shown)), step)
+            self.signal = self.widget.valueChanged
+        self.widget.setToolTip(o.help)
+
+    def value(self):
+        """The option's value (a number equal to ``shown_default`` stands for a None default)."""
+        w, o = self.widget, self.option
+        if o.kind == "flag":
+            return w.isChecked()
+        if o.kind == "choice":
+            return w.currentText()
+        value = w.value()
+        if o.default is None and value == o.shown_default:
+            return None
+        return value
+
+    def save(self) -> None:
+        w, o = self.widget, self.option
+        if o.kind == "flag":
+            self.settings.set(self.key, w.isChecked())
+        elif o.kind == "choice":
+            self.settings.set(self.key, w.currentText())
+        else:
+            self.settings.set(self.key, w.value())
 
 
 class MethodForm(QWidget):
@@ -56,54 +112,25 @@ class MethodForm(QWidget):
         self.settings = settings
         self._divisions: list = []
         self.method_box = QComboBox()
-        self.method_box.addItems(METHODS)
+        self.method_box.addItems(names())
         self.stack = QStackedWidget()
-
-        rebin = QWidget()
-        f = QFormLayout(rebin)
-        self.interpolate = QCheckBox("interpolate between block centres")
-        self.interpolate.setChecked(settings.get_bool("review/interpolate", True))
-        f.addRow(self.interpolate)
-        self.stack.addWidget(rebin)
-
-        diff = QWidget()
-        f = QFormLayout(diff)
-        self.time = _spin(0.05, 20, settings.get_float("review/time", DEFAULT_TIME), 0.25)
-        self.time.setToolTip("diffusion time n: an accuracy knob, not a convergence tolerance")
-        self.solver = QComboBox()
-        self.solver.addItems(SOLVERS)
-        self.solver.setCurrentText(settings.get_str("review/solver", "nc"))
-        f.addRow("diffusion time n", self.time)
-        f.addRow("solver", self.solver)
-        self.stack.addWidget(diff)
-
-        gap = QWidget()
-        f = QFormLayout(gap)
-        self.iterations = QSpinBox()
-        self.iterations.setRange(1, 500)
-        self.iterations.setValue(settings.get_int("review/iterations", 40))
-        f.addRow("iterations", self.iterations)
-        self.stack.addWidget(gap)
-
-        ma = QWidget()
-        f = QFormLayout(ma)
-        self.flow = QComboBox()
-        self.flow.addItems(BACKENDS)
-        self.flow.setCurrentText(settings.get_str("review/flow", "dis"))
-        self.ma_time = _spin(0.25, 20, settings.get_float("review/ma_time", MA_TIME), 0.5)
-        self.refine = _spin(0, 10, settings.get_float("review/refine", 0.0), 0.5)
-        self.passes = QSpinBox()
-        self.passes.setRange(1, 4)
-        self.passes.setValue(settings.get_int("review/passes", 1))
-        self.slow_reach = _spin(0, 4, settings.get_float("review/slow_reach", SLOW_REACH), 0.25)
-        self.slow_reach.setToolTip("how far slowly moving voxels gather samples along their trajectory, in "
-                                   "sampling periods each way (0: off, faster where the whole picture drifts)")
-        f.addRow("optical flow", self.flow)
-        f.addRow("diffusion time n", self.ma_time)
-        f.addRow("refinement time", self.refine)
-        f.addRow("passes", self.passes)
-        f.addRow("slow-drift reach", self.slow_reach)
-        self.stack.addWidget(ma)
+        self._knobs: dict[str, dict[str, _Knob]] = {}
+        for spec in specs():
+            page = QWidget()
+            f = QFormLayout(page)
+            knobs = {}
+            for o in spec.options:
+                if o.kind in SLIDER_KINDS:
+                    continue
+                knob = knobs[o.name] = _Knob(o, settings, f"review/{spec.name}/{o.name}")
+                if o.kind == "flag":
+                    f.addRow(knob.widget)
+                else:
+                    f.addRow(o.label or o.name, knob.widget)
+            if not knobs:
+                f.addRow(QLabel("no knobs besides the slider"))
+            self._knobs[spec.name] = knobs
+            self.stack.addWidget(page)
 
         self.slider = QSlider(Qt.Orientation.Horizontal)
         self.slider.setRange(0, SLIDER_STEPS)
@@ -125,15 +152,13 @@ class MethodForm(QWidget):
         layout.addWidget(self.slider_text)
         layout.addWidget(self.stack)
 
-        self.method_box.setCurrentText(settings.get_str("review/method", "diffusion"))
+        self.method_box.setCurrentText(settings.get_str("review/method", DEFAULT))
         self.stack.setCurrentIndex(self.method_box.currentIndex())
-        for w, sig in ((self.method_box, "currentIndexChanged"), (self.slider, "valueChanged"),
-                       (self.interpolate, "toggled"), (self.time, "valueChanged"),
-                       (self.solver, "currentIndexChanged"), (self.iterations, "valueChanged"),
-                       (self.flow, "currentIndexChanged"), (self.ma_time, "valueChanged"),
-                       (self.refine, "valueChanged"), (self.passes, "valueChanged"),
-                       (self.slow_reach, "valueChanged")):
-            getattr(w, sig).connect(self._on_change)
+        self.method_box.currentIndexChanged.connect(self._on_change)
+        self.slider.valueChanged.connect(self._on_change)
+        for knobs in self._knobs.values():
+            for knob in knobs.values():
+                knob.signal.connect(self._on_change)
         self._refresh()
 
     # ------------------------------------------------------------------ state
@@ -148,8 +173,7 @@ class MethodForm(QWidget):
 
     def set_method_name(self, name: str) -> None:
         """Pick a method by name."""
-        if name not in METHODS:
-            raise ValueError(f"`name` must be one of {', '.join(METHODS)}; got {name!r}")
+        get(name)  # ValueError naming the registered methods
         self.method_box.setCurrentText(name)
 
     def set_divisions(self, divisions) -> None:
@@ -157,55 +181,50 @@ class MethodForm(QWidget):
         self._divisions = list(divisions)
         self._refresh()
 
+    def widget(self, option: str, method: str | None = None) -> QWidget:
+        """The widget of ``option`` on ``method``'s page (default: the chosen method's)."""
+        name = method or self.method_box.currentText()
+        knobs = self._knobs[get(name).name]
+        if option not in knobs:
+            raise ValueError(f"{name} has no widget for {option!r} (its widgets: {', '.join(knobs) or 'none'}; "
+                             "the slider sets the tensor or division)")
+        return knobs[option].widget
+
     def method(self) -> Method:
         """The :class:`Method` the form describes."""
-        name = self.method_box.currentText()
-        if name == "rebin":
-            block = continuum_division(self.position, self._divisions) if self._divisions else None
-            return Method("rebin", block=block, interpolate=self.interpolate.isChecked())
-        if name == "gap-tv":
-            return Method("gap-tv", iterations=self.iterations.value())
-        if name == "motion-aware":
-            reach = self.slow_reach.value()
-            return Method("motion-aware", flow=self.flow.currentText(), time=self.ma_time.value(),
-                          refine_time=self.refine.value(), passes=self.passes.value(),
-                          slow_reach=None if reach == SLOW_REACH else reach)
-        return Method("diffusion", tensor=continuum_tensor(self.position), time=self.time.value(),
-                      solver=self.solver.currentText())
+        spec = get(self.method_box.currentText())
+        values = {name: knob.value() for name, knob in self._knobs[spec.name].items()}
+        for o in spec.options:
+            if o.kind == "triple":
+                values[o.name] = continuum_tensor(self.position)
+            elif o.kind == "division":
+                values[o.name] = continuum_division(self.position, self._divisions) if self._divisions else None
+        return Method(spec.name, **values)
 
     # ------------------------------------------------------------------ reactions
     def _on_change(self, *_):
         self.stack.setCurrentIndex(self.method_box.currentIndex())
-        s = self.settings
-        s.set("review/method", self.method_box.currentText())
-        s.set("review/continuum", self.position)
-        s.set("review/interpolate", self.interpolate.isChecked())
-        s.set("review/time", self.time.value())
-        s.set("review/solver", self.solver.currentText())
-        s.set("review/iterations", self.iterations.value())
-        s.set("review/flow", self.flow.currentText())
-        s.set("review/ma_time", self.ma_time.value())
-        s.set("review/refine", self.refine.value())
-        s.set("review/passes", self.passes.value())
-        s.set("review/slow_reach", self.slow_reach.value())
+        self.settings.set("review/method", self.method_box.currentText())
+        self.settings.set("review/continuum", self.position)
+        for knobs in self._knobs.values():
+            for knob in knobs.values():
+                knob.save()
         self._refresh()
         self.changed.emit()
 
     def _refresh(self) -> None:
-        name = self.method_box.currentText()
-        slider_used = name in ("rebin", "diffusion")
-        self.slider.setEnabled(slider_used)
-        if name == "rebin":
+        spec = get(self.method_box.currentText())
+        kinds = {o.kind for o in spec.options}
+        self.slider.setEnabled(bool(kinds & set(SLIDER_KINDS)))
+        if "division" in kinds:
             if self._divisions:
                 d = continuum_division(self.position, self._divisions)
                 self.slider_text.setText(f"division {d.label}: TR ×{d.tr}, SR ×{d.sr} "
                                          f"({len(self._divisions)} supported divisions along the slider)")
             else:
                 self.slider_text.setText("open a recording to see its divisions")
-        elif name == "diffusion":
+        elif "triple" in kinds:
             self.slider_text.setText(describe(self.position))
-        elif name == "gap-tv":
-            self.slider_text.setText("GAP-TV has no space-time knob (the slider applies to rebin and diffusion)")
         else:
-            self.slider_text.setText("motion-aware chooses the trade per voxel from the flow: "
-                                     "high SR where still, high TR where moving")
+            users = [s.name for s in specs() if {o.kind for o in s.options} & set(SLIDER_KINDS)]
+            self.slider_text.setText(f"{spec.trade} (the slider applies to {' and '.join(users)})")

@@ -370,7 +370,7 @@ class ReviewWorkspace(QWidget):
         if s is None or s.frames is None or self.busy:
             return None
         method = self.form.method()
-        chunk = chunk_frames_for(method, s.n_frames)
+        chunk = chunk_frames_for(method, s.n_frames, s.K)
         frames, code, truth = s.frames, s.code, self._truth
 
         def work(token, progress):

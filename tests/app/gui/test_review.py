@@ -17,7 +17,7 @@ def reconstruct(qtbot, ws, method: str, position: float | None = None, **knobs):
     if position is not None:
         ws.form.set_position(position)
     for name, value in knobs.items():
-        getattr(ws.form, name).setValue(value)
+        ws.form.widget(name).setValue(value)
     n = len(ws.results)
     with qtbot.waitSignal(ws.result_added, timeout=30_000):
         ws.reconstruct_button.click()
@@ -83,7 +83,7 @@ def test_event_loop_runs_during_a_reconstruction_and_cancel_stops_it(qtbot, open
     timer.timeout.connect(lambda: ticks.append(1))
     timer.start(10)
     ws.form.set_method_name("gap-tv")
-    ws.form.iterations.setValue(500)  # about 0.1-0.2 s per camera frame: a slow job of 6 chunks
+    ws.form.widget("iterations").setValue(500)  # about 0.1-0.2 s per camera frame: a slow job of 6 chunks
     handle = ws.reconstruct()
     assert ws.cancel_button.isEnabled() and not ws.reconstruct_button.isEnabled()
     qtbot.waitUntil(lambda: ws.progress.value() >= 1, timeout=20_000)  # the first chunk is done
@@ -186,14 +186,14 @@ def test_settings_persist_between_sessions(qtbot, settings, runner, recording):
     first = ReviewWorkspace(settings, runner, None)
     qtbot.addWidget(first)
     first.form.set_method_name("gap-tv")
-    first.form.iterations.setValue(77)
+    first.form.widget("iterations").setValue(77)
     first.form.set_position(0.7)
     first.fps.setValue(33)
     first.preview_check.setChecked(False)
     settings.sync()
     second = ReviewWorkspace(settings, runner, None)
     qtbot.addWidget(second)
-    assert second.form.method_box.currentText() == "gap-tv" and second.form.iterations.value() == 77
+    assert second.form.method_box.currentText() == "gap-tv" and second.form.widget("iterations").value() == 77
     assert second.form.position == pytest.approx(0.7) and second.fps.value() == 33
     assert not second.preview_check.isChecked()
     assert "no bench figures" in second.expected_label.text() or "open a recording" in second.expected_label.text()

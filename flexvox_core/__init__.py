@@ -3,6 +3,12 @@
 Codes (the seed's integer program), the forward model, simulation, reconstruction,
 optical flow, metrics and recording I/O. This package never imports Qt.
 
+Reconstruction in three layers: the algorithms (:mod:`flexvox_core.reconstruct`,
+:mod:`flexvox_core.motion`); the methods as objects, their registry and the one chunked runner
+(:mod:`flexvox_core.methods`); and the one reader from a recording to reconstruction input
+(:mod:`flexvox_core.capture_reader`), which :mod:`flexvox_core.batch`, the command line and the
+application share.
+
 Array conventions (shared by every part of flexvox):
 
 =====================  =========================  =====================================

@@ -59,9 +59,9 @@ class ReconstructionResult:
     first_frame : int
         Camera frame the video starts at (0 for a full reconstruction; a preview covers a window).
     flow : ndarray (S, H, W, 2) float32 or None
-        Motion-aware only: the gated flow that drove the tensors.
+        Methods that return the flow (motion-aware): the gated flow that drove the tensors.
     tr : ndarray (S, H, W) float32 or None
-        Motion-aware only: effective temporal resolution per voxel (SR = 1 / TR).
+        Methods that return it (motion-aware): effective temporal resolution per voxel (SR = 1 / TR).
     psnr : float or None
         Mean PSNR against the recording's ground truth, when it has one.
     """

@@ -69,7 +69,7 @@ class _Knob:
         else:
             lo, hi, step = o.span or (0.0, 100.0, 0.1)
             shown = o.shown_default if o.default is None else o.default
-            self.widget = _spin(lo, hi, settings.get_float(key, float(shown)), step)
+            self.widget = _spin(lo, hi, settings.get_float(key, float(lo if shown is None else shown)), step)
             self.signal = self.widget.valueChanged
         self.widget.setToolTip(o.help)
 

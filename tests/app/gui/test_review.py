@@ -197,3 +197,46 @@ def test_settings_persist_between_sessions(qtbot, settings, runner, recording):
     assert second.form.position == pytest.approx(0.7) and second.fps.value() == 33
     assert not second.preview_check.isChecked()
     assert "no bench figures" in second.expected_label.text() or "open a recording" in second.expected_label.text()
+
+
+def test_a_recording_the_reader_refuses_opens_for_playback_with_the_reason(qtbot, review, tmp_path, rng):
+    from flexvox_core.design import design_code
+    from flexvox_core.recording import write_simulation
+    from flexvox_core.simulate.effects import parse_effects
+    from flexvox_core.simulate.simulator import simulate_video
+
+    video = rng.random((8 * 4, 16, 16)).astype(np.float32)
+    eff = parse_effects({"dropped_frames": {"probability": 0.5}})
+    path = write_simulation(tmp_path / "d.zarr", simulate_video(video, design_code((2, 2)).code, effects=eff, seed=1))
+    with qtbot.waitSignal(review.session_opened, timeout=10_000):
+        review.open_recording(path)
+    assert review.session.frames is None and "dropped frame(s)" in review.session.blocked
+    assert "cannot reconstruct" in review.summary_label.text() and "dropped frame(s)" in review.summary_label.text()
+    assert not review.reconstruct_button.isEnabled() and review.raw_panel.has_image()
+
+
+def test_the_method_form_is_built_from_the_registered_methods(qtbot, settings):
+    from app.gui.review.method_form import MethodForm
+    from flexvox_core.methods import Method
+    from tests.flexvox_core.methods.tiny_method import frame_mean_registered
+
+    with frame_mean_registered():
+        form = MethodForm(settings)
+        qtbot.addWidget(form)
+        form.set_method_name("frame-mean")
+        form.widget("radius").setValue(3)
+        assert form.method() == Method("frame-mean", radius=3)
+        assert not form.slider.isEnabled()  # no tensor or division option
+        assert "frame-mean keeps space and gives up time (the slider applies to rebin and diffusion)" in \
+            form.slider_text.text()
+    form.set_method_name("motion-aware")
+    form.widget("slow_reach").setValue(0.75)  # the pipeline's default is shown, and stands for None
+    assert form.method().slow_reach is None and not form.slider.isEnabled()
+    with pytest.raises(ValueError, match=r"motion-aware has no widget for 'tensor'"):
+        form.widget("tensor")
+    form.set_method_name("diffusion")
+    from app.gui.models.continuum import continuum_tensor
+
+    assert form.slider.isEnabled() and form.method().tensor == continuum_tensor(form.position)
+    with pytest.raises(ValueError, match=r"`method` must be one of rebin, diffusion, gap-tv, motion-aware; got 'x'"):
+        form.set_method_name("x")

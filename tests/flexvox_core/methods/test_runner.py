@@ -1,3 +1,5 @@
+"""The one chunked runner: the result does not depend on the chunking; the Method value API."""
+
 import numpy as np
 import pytest
 

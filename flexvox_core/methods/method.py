@@ -27,7 +27,7 @@ class Method:
         A registered method (:func:`flexvox_core.methods.registry.names`); default
         :data:`~flexvox_core.methods.registry.DEFAULT` (diffusion).
     **options
-        Values of the method's options (:attr:`spec`\\ ``.options``); None or absent: the
+        Values of the method's options (``Method(name).spec.options``); None or absent: the
         option's default. For instance ``rebin``: ``block``, ``interpolate``; ``diffusion``:
         ``tensor``, ``time``, ``solver``; ``gap-tv``: ``iterations``, ``tv_weight``,
         ``tv_iterations``; ``motion-aware``: ``flow``, ``time``, ``passes``, ``refine_time``,

@@ -18,8 +18,9 @@ class CalibrationRun:
     success : bool
     keep : dict
         The full results: ``homography`` (a HomographyResult, with its residual map), ``shutter``
-        (the verification, with its map of wrong pixels), ``parallax`` (simulated rig), ``sync``
-        (a SyncResult, with its leakage curve).
+        (the verification, with its map of wrong pixels), ``shutter_patterns`` (the
+        :class:`~calibration.shutter.ShutterPatterns` verified, phase 0), ``parallax`` (simulated
+        rig), ``sync`` (a SyncResult, with its leakage curve).
     """
 
     report: dict = field(default_factory=dict)
@@ -31,23 +32,34 @@ def _no_progress(desc: str):
     return lambda done, total: None
 
 
-def run_calibration(rig, session, *, tile=(4, 4), seed: int = 0, baseline=(0.0, 0.0, 0.0),
-                    progress=None) -> CalibrationRun:
+def run_calibration(rig, session, *, tile=(4, 4), progress=None) -> CalibrationRun:
     """Run every calibration step on an opened ``session`` of ``rig``; stop at the first failure.
 
     ``progress(desc)`` returns an ``update(done, total)`` callable for each step. On the
-    simulated rig the parallax test images a second target depth (``seed``/``baseline`` as the
-    rig was made); on a real rig it is skipped with a message (it needs the operator).
+    simulated rig the calibration target is put in view first (as an operator holds a board in
+    front of a real rig's camera) and the scene comes back at the end, and the parallax test moves
+    the target to a second depth; on a real rig the parallax test is skipped with a message (it
+    needs the operator to move the target).
     """
+    progress = progress or _no_progress
+    sim = rig.simulated
+    placed = sim is not None and sim.viewing != "target"
+    if placed:
+        sim.show_target()
+    try:
+        return _run_steps(rig, session, tile, progress)
+    finally:
+        if placed:
+            sim.show_scene()
+
+
+def _run_steps(rig, session, tile, progress) -> CalibrationRun:
     from calibration.colocation import capture_view, measure_alignment, parallax_test
     from calibration.homography import calibrate_homography
-    from calibration.session import RigSession
     from calibration.shutter import make_shutter_patterns, verify_shutter
-    from calibration.simulated_target import calibration_rig
     from calibration.sync import band_patterns, check_frames, measure_sync
     from flexvox_core.design import design_code
 
-    progress = progress or _no_progress
     run = CalibrationRun()
     report, keep = run.report, run.keep
     with session:
@@ -55,9 +67,11 @@ def run_calibration(rig, session, *, tile=(4, 4), seed: int = 0, baseline=(0.0, 
         report["colocation"] = {"alignment": align.summary()}
         if rig.simulated is not None:
             near = capture_view(session, progress=progress("parallax: near target"))
-            far_rig = calibration_rig(seed, baseline=baseline, depth=2.0)
-            with RigSession.from_rig(far_rig) as far_session:
-                far = capture_view(far_session, progress=progress("parallax: far target"))
+            rig.simulated.move_target(2.0)
+            try:
+                far = capture_view(session, progress=progress("parallax: far target"))
+            finally:
+                rig.simulated.move_target(1.0)
             par = parallax_test([near, far], session.projector_size)
             report["colocation"]["parallax"] = par.summary()
             keep["parallax"] = par
@@ -82,6 +96,7 @@ def run_calibration(rig, session, *, tile=(4, 4), seed: int = 0, baseline=(0.0, 
         ver = verify_shutter(session, shutter, progress=progress("shutter"))
         report["shutter"] = ver.summary() | {"addressable": shutter.addressable, "K": K}
         keep["shutter"] = ver
+        keep["shutter_patterns"] = shutter
         sync = measure_sync(session, hom.homography, K=K, progress=progress("sync"))
         report["sync"] = sync.summary()
         keep["sync"] = sync

@@ -59,7 +59,7 @@ class RigIdentity:
     Attributes
     ----------
     name : str
-        The rig's name (profile ``name``, or ``simulated rig (mock)``).
+        The rig's name (profile ``name``, or ``simulated rig (mock, seed S)``).
     camera : str
         The camera's name.
     projector : str

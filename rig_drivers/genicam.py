@@ -4,14 +4,17 @@ A GenTL producer (``.cti`` file, from the camera vendor) gives access to the cam
 `harvesters <https://github.com/genicam/harvesters>`_ package drives it. Both are
 imported only when a camera is opened, so flexvox runs without them.
 
-What :meth:`GenICamCamera.configure` writes (standard SFNC feature names; DESIGN.md §5):
+What :meth:`GenICamCamera.configure` writes (standard SFNC feature names; the
+trigger wiring is in docs/real-rig.md):
 
 =====================  ==================================================================
 ``TriggerSelector``    ``FrameStart``
 ``TriggerMode``        ``On`` for a line or software trigger, ``Off`` for free running
 ``TriggerSource``      ``Line0``..``Line3`` or ``Software``
 ``TriggerActivation``  ``RisingEdge`` / ``FallingEdge`` / ... (lines only)
-``TriggerDelay``       µs, when the trigger asks for a delay
+``TriggerDelay``       µs, whenever the camera has it (0 undoes an earlier delay); a delay
+                       asked of a camera without it is an error (capabilities say
+                       ``trigger_delay``; capture then asks the operator to set it)
 ``ExposureAuto``       ``Off`` (when present), then ``ExposureTime`` in µs
 ``GainAuto``           ``Off`` (when present), then ``Gain`` in dB
 ``AcquisitionFrameRate``  free running only, when present: ``1e6 / exposure_us`` clamped to
@@ -32,6 +35,7 @@ frame ids are counted in :attr:`GenICamCamera.dropped_frames`.
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import logging
 import time
@@ -200,7 +204,8 @@ class GenICamCamera(Camera):
         self._shape = (int(self._nodes.Height.value), int(self._nodes.Width.value))
         lines = self._symbolics("TriggerSource")
         self._caps = CameraCapabilities(
-            hardware_trigger=any(s.startswith("Line") for s in lines), frame_ids=True, device_timestamps=False)
+            hardware_trigger=any(s.startswith("Line") for s in lines), frame_ids=True, device_timestamps=False,
+            trigger_delay=self._node("TriggerDelay") is not None)
         self.dropped_frames = self.incomplete_buffers = self._pending_incomplete = 0
         self._last_id = None
         _logger.info("opened %s (%dx%d, trigger lines: %s)", self._describe(infos[index]), self._shape[1],
@@ -300,8 +305,8 @@ class GenICamCamera(Camera):
             self._write("TriggerSource", trig.source.value, required=True)
             if trig.is_hardware:
                 self._write("TriggerActivation", trig.activation.value, required=True)
-            if trig.delay_us:
-                self._write("TriggerDelay", float(trig.delay_us), required=True)
+            if trig.delay_us or self._node("TriggerDelay") is not None:  # 0 too: undo an earlier delay
+                self._write("TriggerDelay", float(trig.delay_us), required=bool(trig.delay_us))
         if self._node("ExposureAuto") is not None:
             self._write("ExposureAuto", "Off")
         self._write("ExposureTime", float(settings.exposure_us))
@@ -357,7 +362,7 @@ class GenICamCamera(Camera):
         try:
             frame_id = int(buffer.module.frame_id)
         except Exception:  # noqa: BLE001 - the producer has no frame id: count on the host
-            self._caps = CameraCapabilities(self._caps.hardware_trigger, False, self._caps.device_timestamps)
+            self._caps = dataclasses.replace(self._caps, frame_ids=False)
             self._host_ids += 1
             frame_id = self._host_ids
         try:
@@ -368,7 +373,7 @@ class GenICamCamera(Camera):
             device_ts = False
         if device_ts != self._caps.device_timestamps:
             _logger.info("%s: timestamps from the %s clock", self.name, "device" if device_ts else "host")
-            self._caps = CameraCapabilities(self._caps.hardware_trigger, self._caps.frame_ids, device_ts)
+            self._caps = dataclasses.replace(self._caps, device_timestamps=device_ts)
         if self._last_id is not None and frame_id > self._last_id + 1:
             gap = frame_id - self._last_id - 1
             # Incomplete buffers already counted make part of the gap.

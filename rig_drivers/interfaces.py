@@ -506,6 +506,10 @@ class CameraCapabilities:
     """Delivers a device frame counter (so dropped frames show as gaps)."""
     device_timestamps: bool
     """Timestamps come from the device clock (else host arrival time)."""
+    trigger_delay: bool = False
+    """Delays the exposure after its trigger (:attr:`TriggerConfig.delay_us`; GenICam ``TriggerDelay``).
+    Capture uses it to open the exposure on a slot boundary; a camera without it needs the delay set
+    another way (and capture asks the operator to confirm it)."""
 
 
 @dataclass(frozen=True, eq=False)

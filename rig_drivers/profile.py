@@ -278,7 +278,9 @@ def open_rig(rig=MOCK, *, projector_display=None, **simulated_options) -> Rig:
     Parameters
     ----------
     rig : "mock", str or Path, or RigSpec
-        ``mock`` (default) for the simulated rig, else a profile path or a parsed profile.
+        ``mock`` (default) for the simulated rig, else a profile path or a parsed profile. The
+        simulated rig is named for its seed (``simulated rig (mock, seed 0)``): rigs of other
+        seeds hide other homographies and timings, and their calibrations do not carry over.
     projector_display : callable, optional
         Real rigs: the projector's display sink, ``display(frames)`` with the packed
         ``(N, H, W, 3)`` uint8 frames of every sequence loaded (see
@@ -297,7 +299,9 @@ def open_rig(rig=MOCK, *, projector_display=None, **simulated_options) -> Rig:
         from rig_drivers.simulated_rig import SimulatedRig
 
         sim = SimulatedRig.create(**simulated_options)
-        return Rig(sim.projector, sim.camera, sim.sync, spec, simulated=sim)
+        # Its seed makes it another rig: a calibration made on seed 0 is refused on seed 1.
+        named = RigSpec(name=f"{spec.name[:-1]}, seed {sim.truth.seed})")
+        return Rig(sim.projector, sim.camera, sim.sync, named, simulated=sim)
     if simulated_options:
         raise SettingError(f"options {', '.join(sorted(simulated_options))} apply to the simulated rig only")
     return Rig(_projector(spec.projector, projector_display), _camera(spec.camera), _sync(spec.sync), spec)

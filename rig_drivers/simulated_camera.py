@@ -213,8 +213,8 @@ class SimulatedCamera(Camera):
     # ------------------------------------------------------------------ properties
     @property
     def capabilities(self) -> CameraCapabilities:
-        """A machine-vision camera: trigger line, frame counter, device clock."""
-        return CameraCapabilities(hardware_trigger=True, frame_ids=True, device_timestamps=True)
+        """A machine-vision camera: trigger line (with a delay), frame counter, device clock."""
+        return CameraCapabilities(hardware_trigger=True, frame_ids=True, device_timestamps=True, trigger_delay=True)
 
     @property
     def sensor_shape(self) -> tuple[int, int]:
@@ -225,6 +225,23 @@ class SimulatedCamera(Camera):
     def clock(self) -> SimClock:
         """The camera's clock."""
         return self._clock
+
+    def set_view(self, video, effects: list[Effect] | tuple = ()) -> None:
+        """Look at another scene ``(S, H, W)`` of the same size, met with ``effects`` (e.g. a calibration target).
+
+        Exposures go on counting (frame ids and noise streams continue); the new video starts
+        at its sub-frame ``(e·K) mod S`` like the old one.
+        """
+        video = np.asarray(video)
+        if video.ndim != 3 or video.shape[0] < 1 or tuple(video.shape[1:]) != self.sensor_shape:
+            raise SettingError(f"`video` must have shape (S, {self.sensor_shape[0]}, {self.sensor_shape[1]}); "
+                               f"got {video.shape}")
+        effects = list(effects)
+        for e in effects:
+            if not isinstance(e, Effect):
+                raise SettingError(f"`effects` must hold Effect objects; got {type(e).__name__}")
+        self._video = video if np.issubdtype(video.dtype, np.floating) else video.astype(np.float32)
+        self._effects = effects
 
     def subframes_of(self, frame_id: int, K: int) -> np.ndarray:
         """Scene sub-frame indices integrated by exposure ``frame_id`` with K slots."""

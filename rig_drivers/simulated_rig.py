@@ -33,6 +33,16 @@ clock and see whatever the projector shows then. The scene advances K sub-frames
 exposure and loops. All of it runs on one injectable clock
 (:class:`~rig_drivers.simulated_camera.VirtualClock` in tests: nothing sleeps).
 
+Built as a real rig
+-------------------
+By default (``--rig mock``, the app, the demo) the rig is what a lab builds: a projector twice
+as fine as the camera behind a hidden homography that is not the identity, and a trigger offset
+that is not a whole slot (:mod:`rig_drivers.simulated_target`). It looks at its scene, or at the
+calibration target once :meth:`SimulatedRig.show_target` puts it in view (as an operator holds a
+board in front of the camera). :meth:`SimulatedRig.create` with ``ideal=True`` builds the
+textbook rig instead (projector = camera, identity map, no offset): for tests of the capture
+path itself, never the default.
+
 The hidden values are in :attr:`SimulatedRig.truth` for tests; code under test (the
 calibration and sync wizards) must find them from frames.
 """
@@ -53,6 +63,14 @@ from rig_drivers.errors import SettingError
 from rig_drivers.interfaces import PatternSequence, RunState, TriggerSource, check_int
 from rig_drivers.simulated import SimulatedProjector, SimulatedSyncController
 from rig_drivers.simulated_camera import MonotonicClock, SimClock, SimulatedCamera
+from rig_drivers.simulated_target import (
+    PROJECTOR_SCALE,
+    TARGET_EFFECTS,
+    fine_homography,
+    hidden_timing,
+    plane_homography,
+    target_video,
+)
 
 _logger = logging.getLogger(__name__)
 
@@ -64,30 +82,6 @@ WIRINGS = ("projector", "syncbox")
 
 
 # --------------------------------------------------------------------------- geometry
-
-
-def default_homography(camera_size, projector_size, seed: int = 0) -> np.ndarray:
-    """A mild, realistic projector→camera homography drawn from ``seed``.
-
-    Scale 1.05–1.10 (projector pixels a little larger than camera pixels), rotation within
-    ±0.5°, the projector centre landing within ±1.5 px (at most 1 % of the smaller camera
-    side) of the camera centre, and a tiny perspective term (a beam splitter a hair off
-    45°). With equal sizes the projector still covers the whole camera.
-    """
-    H, W = camera_size
-    Hp, Wp = projector_size
-    rng = np.random.default_rng([int(seed), 0x486F6D])
-    s = rng.uniform(1.05, 1.10)
-    a = math.radians(rng.uniform(-0.5, 0.5))
-    shift = min(1.5, 0.01 * min(H, W))
-    dx, dy = rng.uniform(-shift, shift, 2)
-    px, py = rng.uniform(-2e-6, 2e-6, 2)
-    to_origin = np.array([[1, 0, -(Wp - 1) / 2], [0, 1, -(Hp - 1) / 2], [0, 0, 1]])
-    tilt = np.array([[1, 0, 0], [0, 1, 0], [px, py, 1]])
-    rot = np.array([[s * math.cos(a), -s * math.sin(a), 0], [s * math.sin(a), s * math.cos(a), 0], [0, 0, 1]])
-    to_camera = np.array([[1, 0, (W - 1) / 2 + dx], [0, 1, (H - 1) / 2 + dy], [0, 0, 1]])
-    h = to_camera @ rot @ tilt @ to_origin
-    return h / h[2, 2]
 
 
 def check_homography(h) -> np.ndarray:
@@ -131,7 +125,8 @@ class RigTruth:
     Attributes
     ----------
     homography : ndarray, shape (3, 3)
-        Projector pixel (x, y) → camera pixel (x, y), float64, ``h[2, 2] = 1``.
+        Projector pixel (x, y) → camera pixel (x, y) on the scene's plane (depth 1), float64,
+        ``h[2, 2] = 1``.
     phase_slots : int
         The projected pattern that lands in exposure slot 0 (hardware trigger, zero delay).
     delay_us : int
@@ -141,7 +136,10 @@ class RigTruth:
     video : ndarray, shape (S, H, W)
         The scene's ground truth (it loops; exposure e sees sub-frames (e·K + s) mod S).
     effects : dict
-        ``{name: params}`` of the declared effects.
+        ``{name: params}`` of the scene's declared effects.
+    baseline : (bx, by, bz)
+        The projector's offset from the camera's centre of projection, in units of the scene's
+        distance (0: co-located; see :func:`~rig_drivers.simulated_target.plane_homography`).
     """
 
     homography: np.ndarray
@@ -150,6 +148,18 @@ class RigTruth:
     seed: int
     video: np.ndarray
     effects: dict = field(default_factory=dict)
+    baseline: tuple = (0.0, 0.0, 0.0)
+
+    def homography_at(self, depth: float) -> np.ndarray:
+        """The projector→camera homography of a plane at ``depth`` (1: the scene's plane, :attr:`homography`).
+
+        The same as :attr:`homography` at every depth for a co-located rig (no baseline).
+        """
+        size = self.video.shape[1:]
+        at_1 = plane_homography(np.eye(3), size, baseline=self.baseline, depth=1.0)
+        at_z = plane_homography(np.eye(3), size, baseline=self.baseline, depth=depth)
+        h = at_z @ np.linalg.inv(at_1) @ self.homography
+        return h / h[2, 2]
 
     def projector_to_camera(self, xy) -> np.ndarray:
         """Map projector points ``(N, 2)`` (x, y) to camera points with the true homography."""
@@ -187,6 +197,7 @@ class ProjectorLightPath:
                  camera_line: TriggerSource, sync: SimulatedSyncController | None = None):
         self._projector = projector
         self._truth = truth
+        self._homography = truth.homography
         self._camera_size = camera_size
         self._line = camera_line
         self._sync = sync
@@ -195,6 +206,11 @@ class ProjectorLightPath:
 
     def _sequence(self) -> PatternSequence | None:
         return self._projector.sequence
+
+    def set_homography(self, homography) -> None:
+        """Where projector pixels land now (another plane in view)."""
+        self._homography = check_homography(homography)
+        self._warped_for = None
 
     def slots(self) -> int | None:
         """K of the loaded sequence."""
@@ -205,7 +221,7 @@ class ProjectorLightPath:
         """The loaded patterns in camera pixels (cached per sequence)."""
         seq = self._sequence()
         if self._warped_for is not seq:
-            self._warped = warp_patterns(seq.patterns, self._truth.homography, self._camera_size)
+            self._warped = warp_patterns(seq.patterns, self._homography, self._camera_size)
             self._warped_for = seq
         return self._warped
 
@@ -277,7 +293,7 @@ def _size(name: str, value) -> tuple[int, int]:
 
 
 class SimulatedRig:
-    """A simulated projector, camera and sync box coupled through a scene.
+    """A simulated projector, camera and sync box coupled through a scene (or the calibration target).
 
     Build one with :meth:`create`. The devices are not opened; open them as any others.
 
@@ -293,17 +309,23 @@ class SimulatedRig:
     """
 
     def __init__(self, projector: RigProjector, camera: SimulatedCamera, sync: SimulatedSyncController,
-                 clock: SimClock, truth: RigTruth):
+                 clock: SimClock, truth: RigTruth, *, light_path: ProjectorLightPath | None = None,
+                 scene_effects: list[Effect] | None = None, target_effects=None):
         self.projector = projector
         self.camera = camera
         self.sync = sync
         self.clock = clock
         self.truth = truth
+        self._light_path = light_path
+        self._scene_effects = list(scene_effects or [])
+        self._target_effects = TARGET_EFFECTS if target_effects is None else target_effects
+        self._viewing = "scene"
 
     @classmethod
     def create(cls, scene: str | SceneSpec | np.ndarray = "drummer", *, camera_size: tuple[int, int] | None = None,
                projector_size: tuple[int, int] | None = None, homography=None, seed: int | None = None,
-               effects=None, subframes: int | None = None, phase_slots: int = 0, delay_us: int = 0,
+               effects=None, subframes: int | None = None, phase_slots: int | None = None,
+               delay_us: int | None = None, ideal: bool = False, baseline=(0.0, 0.0, 0.0), target_effects=None,
                wiring: str = "projector", camera_line: TriggerSource = TriggerSource.LINE0,
                electrons_per_unit: float | None = None, clock: SimClock | None = None,
                buffer_frames: int = 16) -> SimulatedRig:
@@ -315,20 +337,34 @@ class SimulatedRig:
             A built-in scene name (``flexvox_core.simulate.scenes.SCENES``), a parsed scene
             file (its source, seed, ``electrons_per_unit`` and effects are used; a built-in
             source is rendered at ``camera_size``), or a video in [0, 1] to use as it is.
-        camera_size, projector_size : (H, W)
-            Default: the scene file's size, else (120, 160); the projector defaults to the
-            camera's size.
+        camera_size : (H, W)
+            Default: the scene file's size, else (120, 160).
+        projector_size : (H, W)
+            Default :data:`~rig_drivers.simulated_target.PROJECTOR_SCALE` × the camera's (a finer
+            projector, as per-pixel shuttering needs); the camera's with ``ideal``.
         homography : array (3, 3), optional
-            Projector→camera. Default :func:`default_homography` (mild, drawn from ``seed``).
+            Projector→camera on the scene's plane. Default
+            :func:`~rig_drivers.simulated_target.fine_homography` drawn from ``seed`` (the identity
+            with ``ideal``).
         seed : int, optional
-            Default: the scene file's seed, else 0.
+            Default: the scene file's seed, else 0. Seeds the hidden homography and timing, the
+            calibration target's texture and every effect's noise.
         effects : list of Effect or dict, optional
-            Declared effects (``{name: {param: value}}`` like a scene file's table). Default:
-            the scene file's, else none.
+            The scene's declared effects (``{name: {param: value}}`` like a scene file's table).
+            Default: the scene file's, else none.
         subframes : int, optional
             Scene length S (it loops). Default 256, or the scene file's frames × K.
-        phase_slots, delay_us : int
-            Hidden timing of the hardware trigger (see the module docstring).
+        phase_slots, delay_us : int, optional
+            Hidden timing of the hardware trigger (see the module docstring). Default
+            :func:`~rig_drivers.simulated_target.hidden_timing` of ``seed`` (0 and 0 with ``ideal``).
+        ideal : bool
+            The textbook rig: projector = camera, identity homography, no trigger offset (each
+            still overridable). For tests of the capture path; a real rig is never like this.
+        baseline : (bx, by, bz)
+            The projector's offset from the camera (parallax), in units of the scene's distance.
+        target_effects : dict, optional
+            The effects met with the calibration target in view; default
+            :data:`~rig_drivers.simulated_target.TARGET_EFFECTS`, ``{}`` for none.
         wiring : {"projector", "syncbox"}
             ``projector``: TRIG_OUT_2 drives the camera line. ``syncbox``: the sync box drives
             it, so frames also need the sync box running (the projector is assumed slaved).
@@ -351,11 +387,27 @@ class SimulatedRig:
         epu = electrons_per_unit or (spec.electrons_per_unit if spec is not None else 1000.0)
         video = cls._video(scene, spec, camera_size, subframes, seed)
         camera_size = video.shape[1:]
-        projector_size = camera_size if projector_size is None else _size("projector_size", projector_size)
-        h = default_homography(camera_size, projector_size, seed) if homography is None \
-            else check_homography(homography)
-        truth = RigTruth(h, check_int("phase_slots", phase_slots, 0, 1023), check_int("delay_us", delay_us, 0, 10**7),
-                         seed, video, {e.name: e.as_dict() for e in declared})
+        if projector_size is not None:
+            projector_size = _size("projector_size", projector_size)
+        elif ideal:
+            projector_size = tuple(camera_size)
+        else:
+            projector_size = (PROJECTOR_SCALE * camera_size[0], PROJECTOR_SCALE * camera_size[1])
+        if homography is not None:
+            h = check_homography(homography)
+        else:
+            h = np.eye(3) if ideal else fine_homography(camera_size, projector_size, seed)
+        hidden = (0, 0) if ideal else hidden_timing(seed)
+        phase = hidden[0] if phase_slots is None else phase_slots
+        delay = hidden[1] if delay_us is None else delay_us
+        try:
+            base = tuple(float(v) for v in baseline)
+        except (TypeError, ValueError):
+            base = ()
+        if len(base) != 3 or not all(math.isfinite(v) for v in base):
+            raise SettingError(f"`baseline` must be three finite numbers (bx, by, bz); got {baseline!r}")
+        truth = RigTruth(h, check_int("phase_slots", phase, 0, 1023), check_int("delay_us", delay, 0, 10**7),
+                         seed, video, {e.name: e.as_dict() for e in declared}, base)
         clock = clock or MonotonicClock()
         projector = RigProjector(projector_size, clock_us=clock.now_us)
         sync = SimulatedSyncController(clock_us=clock.now_us)
@@ -363,9 +415,57 @@ class SimulatedRig:
                                   sync=sync if wiring == "syncbox" else None)
         camera = SimulatedCamera(video, effects=declared, seed=seed, electrons_per_unit=epu, light_path=path,
                                  clock=clock, buffer_frames=buffer_frames)
-        _logger.info("simulated rig: camera %dx%d, projector %dx%d, effects: %s", camera_size[0], camera_size[1],
-                     projector_size[0], projector_size[1], ", ".join(truth.effects) or "none")
-        return cls(projector, camera, sync, clock, truth)
+        _logger.info("simulated rig: camera %dx%d, projector %dx%d, %s, effects: %s", camera_size[0], camera_size[1],
+                     projector_size[0], projector_size[1], "ideal" if ideal else "hidden homography and timing",
+                     ", ".join(truth.effects) or "none")
+        return cls(projector, camera, sync, clock, truth, light_path=path, scene_effects=declared,
+                   target_effects=target_effects)
+
+    # ------------------------------------------------------------------ what the camera looks at
+    @property
+    def viewing(self) -> str:
+        """``"scene"`` or ``"target"``: what is in front of the camera."""
+        return self._viewing
+
+    @property
+    def effects_in_view(self) -> dict:
+        """``{name: params}`` of the effects simulated now (the scene's, or the calibration target's)."""
+        effects = self._scene_effects if self._viewing == "scene" else _effects(self._target_effects)
+        return {e.name: e.as_dict() for e in effects}
+
+    def show_target(self, *, depth: float = 1.0, albedo=(0.35, 0.95), shadow: str | None = None,
+                    video=None) -> None:
+        """Put the calibration target in front of the camera, at ``depth`` (1: the scene's plane).
+
+        Parameters
+        ----------
+        depth : float
+            Distance in units of the scene's; another depth moves the projector's image when the
+            rig has a baseline (the parallax test). :meth:`move_target` changes only this.
+        albedo, shadow
+            The target's look (see :func:`~rig_drivers.simulated_target.target_video`).
+        video : ndarray (S, H, W), optional
+            Another target (e.g. a dark one).
+        """
+        H, W = self.camera.sensor_shape
+        target = target_video((H, W), self.truth.seed, albedo=albedo, shadow=shadow) if video is None else video
+        self.camera.set_view(target, _effects(self._target_effects))
+        self._viewing = "target"
+        self.move_target(depth)
+
+    def move_target(self, depth: float) -> None:
+        """Move the calibration target (in view) to ``depth``, as the parallax test asks the operator to."""
+        if self._viewing != "target":
+            raise SettingError("the calibration target is not in view: show_target() first")
+        self._light_path.set_homography(self.truth.homography_at(depth))
+        _logger.info("simulated rig: calibration target in view at depth %g", depth)
+
+    def show_scene(self) -> None:
+        """Put the scene back in front of the camera (after calibration)."""
+        self.camera.set_view(self.truth.video, self._scene_effects)
+        self._light_path.set_homography(self.truth.homography)
+        self._viewing = "scene"
+        _logger.info("simulated rig: the scene in view")
 
     @staticmethod
     def _video(scene, spec: SceneSpec | None, camera_size, subframes, seed) -> np.ndarray:

@@ -1,12 +1,13 @@
-"""Live capture: the rig set up for a code, frames streamed crash-safely to a recording.
+"""Live capture (Qt-free, shared by ``flexvox capture`` and the Capture workspace).
 
-Qt-free; see :mod:`app.capture.service` for the threads, the queue policy and failures, and
-:mod:`app.capture.patterns` for how a code becomes projector patterns.
+:mod:`app.capture.plan` holds what a capture records with (the code, the rate, the projector's
+patterns through calibration's one pattern function); :mod:`app.capture.service` sets the rig
+up for a plan and streams frames crash-safely to a recording (threads, queue policy, failures);
+:mod:`app.capture.pacing` paces the simulated rig's clock to the wall clock.
 """
 
-from app.capture.patterns import shutter_patterns
+from app.capture.plan import CapturePlan, TimingCheck, pattern_period_us
 from app.capture.service import (
-    CaptureCalibration,
     CaptureError,
     CaptureResult,
     CaptureService,
@@ -19,6 +20,6 @@ from app.capture.service import (
 )
 
 __all__ = [
-    "CaptureCalibration", "CaptureError", "CaptureResult", "CaptureService", "CaptureState", "CaptureStats",
-    "LatestFrame", "QueuePolicy", "SyncSetting", "default_storage", "shutter_patterns",
+    "CaptureError", "CapturePlan", "CaptureResult", "CaptureService", "CaptureState", "CaptureStats",
+    "LatestFrame", "QueuePolicy", "SyncSetting", "TimingCheck", "default_storage", "pattern_period_us",
 ]

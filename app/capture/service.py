@@ -1,4 +1,11 @@
-"""The capture service: the rig's devices set up for a code, frames streamed to a recording.
+"""The capture service: the rig's devices set up for a plan, frames streamed to a recording.
+
+A capture takes a :class:`~app.capture.plan.CapturePlan` (code, camera rate) and a
+:class:`~calibration.capture_setup.CaptureCalibration` (homography, phase, camera trigger delay),
+both built the same way by ``flexvox capture`` and the Capture workspace. The projector shows
+:meth:`CapturePlan.patterns` (the patterns calibration verifies), the camera's trigger is
+delayed by the calibration's delay where the camera can do it (else the operator confirms it was
+set another way), and the recording stores the phase and the delay in use.
 
 Qt-free (the Qt application drives it through :meth:`CaptureService.stats` and
 :meth:`CaptureService.latest`, polled on a timer). It sits above ``rig_drivers`` and
@@ -47,14 +54,15 @@ import threading
 import time
 from array import array
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
-from app.capture.patterns import check_homography, shutter_patterns
+from app.capture.plan import CapturePlan
+from calibration.capture_setup import CaptureCalibration
 from flexvox_core._version import __version__
-from flexvox_core.codes import validate_code
+from flexvox_core.multiplex import MultiplexedCode
 from flexvox_core.recording import RecordingError, RecordingWriter, open_recording, recording_attrs
 from rig_drivers.errors import DeviceError, DeviceTimeoutError
 from rig_drivers.interfaces import (
@@ -84,49 +92,20 @@ class CaptureError(RuntimeError):
 # --------------------------------------------------------------------------- settings
 
 
-@dataclass(frozen=True, eq=False)
-class CaptureCalibration:
-    """What capture needs from calibration: where projector pixels land, and the sync phase.
-
-    Parameters
-    ----------
-    homography : array (3, 3)
-        Projector pixel (x, y) → camera pixel (x, y). Default identity.
-    phase_slots : int
-        Exposure slot ``t`` sees projector pattern ``(t + phase_slots) mod K``. Default 0.
-    source : str
-        Where the values come from (stored in the recording).
-    """
-
-    homography: np.ndarray = field(default_factory=lambda: np.eye(3))
-    phase_slots: int = 0
-    source: str = "identity (uncalibrated)"
-
-    def __post_init__(self):
-        try:
-            object.__setattr__(self, "homography", check_homography(self.homography))
-        except ValueError as exc:
-            raise CaptureError(str(exc)) from None
-        if isinstance(self.phase_slots, bool) or not isinstance(self.phase_slots, int) or self.phase_slots < 0:
-            raise CaptureError(f"`phase_slots` must be a whole number >= 0; got {self.phase_slots!r}")
-
-    def as_dict(self) -> dict:
-        """Metadata form."""
-        return {"homography": self.homography.tolist(), "phase_slots": self.phase_slots, "source": self.source}
-
-
 @dataclass(frozen=True)
 class SyncSetting:
-    """Timing of a capture.
+    """Timing of a capture beyond the plan's rate.
 
     Parameters
     ----------
-    camera_hz : float
-        Camera frame rate; the projector period is ``floor(1e6 / (camera_hz · K))`` whole µs.
     exposure_margin_us : int
         The camera exposes ``K · period − margin`` µs (read-out time before the next trigger).
     use_sync_box : bool or None
         Drive projector and camera from the rig's sync box (None: when the rig has one).
+    delay_set_by_hand : bool
+        The operator has set the calibration's camera trigger delay on a camera that cannot be
+        told it (no trigger-delay feature), e.g. in the vendor's tool. Without it such a camera
+        refuses a calibration that needs a delay.
     read_slice_s : float
         Longest single wait for a frame (stop() is noticed within it).
     no_frame_timeout_s : float or None
@@ -134,23 +113,21 @@ class SyncSetting:
         (None: ``max(2 s, 10 frame periods)``).
     """
 
-    camera_hz: float = 15.0
     exposure_margin_us: int = 300
     use_sync_box: bool | None = None
+    delay_set_by_hand: bool = False
     read_slice_s: float = 0.2
     no_frame_timeout_s: float | None = None
 
     def __post_init__(self):
-        if not (isinstance(self.camera_hz, int | float) and 0 < self.camera_hz <= 10_000):
-            raise CaptureError(f"`camera_hz` must be > 0 and <= 10000 Hz; got {self.camera_hz!r}")
         if not 0 < self.read_slice_s <= 5:
             raise CaptureError(f"`read_slice_s` must be in (0, 5] s; got {self.read_slice_s!r}")
 
-    def no_frame_s(self) -> float:
-        """The no-frame timeout in seconds."""
+    def no_frame_s(self, camera_hz: float) -> float:
+        """The no-frame timeout in seconds for a camera at ``camera_hz``."""
         if self.no_frame_timeout_s is not None:
             return float(self.no_frame_timeout_s)
-        return max(2.0, 10.0 / self.camera_hz)
+        return max(2.0, 10.0 / camera_hz)
 
 
 @dataclass(frozen=True)
@@ -286,7 +263,7 @@ def default_storage(dtype) -> dict:
 
 
 class CaptureService:
-    """Capture N frames (or until stopped) of a rig shuttered by a code into a recording.
+    """Capture N frames (or until stopped) of a rig shuttered by a plan's code into a recording.
 
     Parameters
     ----------
@@ -295,19 +272,18 @@ class CaptureService:
         optionally ``trigger_line`` (default Line0): a :class:`rig_drivers.profile.Rig` or a
         :class:`rig_drivers.simulated_rig.SimulatedRig`. Closed devices are opened and
         closed again at the end; open ones are left open (stopped).
-    code : ndarray (m, n, K) bool
+    plan : CapturePlan
+        The code and the camera rate.
     path : str or Path
         The recording to create.
     frames : int or None
         Rows to record (frames + dropped rows); None: until :meth:`stop`.
     calibration : CaptureCalibration
+        Homography, phase and trigger delay (default: uncalibrated).
     sync : SyncSetting
     queue_policy : QueuePolicy
     projector_size : (H, W), optional
         Default: the projector's ``size`` attribute.
-    pattern_maker : callable, optional
-        ``(code, camera_size, projector_size, homography=, phase_slots=) -> (K, Hp, Wp)``;
-        default :func:`app.capture.patterns.shutter_patterns` (swap in calibration's).
     storage : dict, optional
         The recording's ``storage`` block (default :func:`default_storage` of the first frame).
     ground_truth : callable(frame_id) -> (K, H, W), optional
@@ -320,19 +296,24 @@ class CaptureService:
         Extra entries for the recording's ``rig`` attribute.
     """
 
-    def __init__(self, rig, code, path, *, frames: int | None = None,
+    def __init__(self, rig, plan: CapturePlan, path, *, frames: int | None = None,
                  calibration: CaptureCalibration | None = None, sync: SyncSetting | None = None,
-                 queue_policy: QueuePolicy | None = None, projector_size=None,
-                 pattern_maker: Callable | None = None, storage: dict | None = None,
+                 queue_policy: QueuePolicy | None = None, projector_size=None, storage: dict | None = None,
                  ground_truth: Callable[[int], np.ndarray] | None = None,
                  writer_factory: Callable | None = None, overwrite: bool = False, rig_info: dict | None = None):
+        if not isinstance(plan, CapturePlan):
+            raise CaptureError(f"`plan` must be a CapturePlan (app.capture.plan); got {type(plan).__name__}")
         try:
-            self.code = validate_code(code)
+            self.code = plan.code
         except ValueError as exc:
-            raise CaptureError(f"`code`: {exc}") from None
+            raise CaptureError(f"`plan`: {exc}") from None
         if frames is not None and (isinstance(frames, bool) or not isinstance(frames, int) or frames < 1):
             raise CaptureError(f"`frames` must be a whole number >= 1 or None; got {frames!r}")
+        if calibration is not None and not isinstance(calibration, CaptureCalibration):
+            raise CaptureError(f"`calibration` must be a CaptureCalibration (calibration.capture_setup); got "
+                               f"{type(calibration).__name__}")
         self.rig = rig
+        self.plan = plan
         self.path = Path(path)
         if self.path.exists() and not overwrite:
             raise CaptureError(f"{self.path} already exists; choose another path or allow overwriting")
@@ -343,10 +324,8 @@ class CaptureService:
         self.sync_setting = sync or SyncSetting()
         self.policy = queue_policy or QueuePolicy()
         self.K = int(self.code.shape[2])
-        if self.calibration.phase_slots >= self.K:
-            raise CaptureError(f"`phase_slots` must be below K = {self.K}; got {self.calibration.phase_slots}")
+        self.phase_slots, self.trigger_delay_us, self.warnings = self.calibration.for_plan(self.K, plan.period_us)
         self._projector_size = projector_size
-        self._pattern_maker = pattern_maker or shutter_patterns
         self._storage = storage
         self._ground_truth = ground_truth
         self._writer_factory = writer_factory or RecordingWriter
@@ -510,15 +489,14 @@ class CaptureService:
         projector_size = self._projector_size or getattr(projector, "size", None)
         if projector_size is None:
             raise CaptureError(f"the projector size of {projector.name} is unknown: pass projector_size=(H, W)")
-        patterns = self._pattern_maker(self.code, (H, W), tuple(projector_size),
-                                       homography=self.calibration.homography,
-                                       phase_slots=self.calibration.phase_slots)
+        patterns = self.plan.patterns((H, W), tuple(projector_size), self.calibration).patterns
         K = self.K
-        period = int(1e6 // (self.sync_setting.camera_hz * K))
+        period = self.plan.period_us
         if period < MIN_EXPOSURE_1BIT_US:
-            raise CaptureError(f"{self.sync_setting.camera_hz:g} Hz with K = {K} needs a {period} µs pattern "
+            raise CaptureError(f"{self.plan.camera_hz:g} Hz with K = {K} needs a {period} µs pattern "
                                f"period; the projector's shortest is {MIN_EXPOSURE_1BIT_US} µs "
                                f"(at most {1e6 / (MIN_EXPOSURE_1BIT_US * K):.1f} Hz)")
+        delay_by = self._delay_by(camera)
         self._period_us = period
         video_port = hasattr(projector, "video_sequence")  # a DLPC350 fed by its video input
         if use_sync and video_port:
@@ -546,8 +524,10 @@ class CaptureService:
             sync.configure(SyncSettings(period_us=period, pulses_per_frame=K))
         line = getattr(rig, "trigger_line", TriggerSource.LINE0)
         exposure_us = max(1.0, K * period - float(self.sync_setting.exposure_margin_us))
+        camera_delay = self.trigger_delay_us if delay_by == "camera" else 0.0
         camera.stop_acquisition()
-        camera.configure(CameraSettings(exposure_us=exposure_us, trigger=TriggerConfig(source=line)))
+        camera.configure(CameraSettings(exposure_us=exposure_us,
+                                        trigger=TriggerConfig(source=line, delay_us=camera_delay)))
         camera.start_acquisition()
         projector.start()
         if use_sync:
@@ -560,10 +540,31 @@ class CaptureService:
             "projector": projector.name, "camera": camera.name,
             "sync": sync.name if use_sync else "projector TRIG_OUT_2",
             "period_us": period, "camera_exposure_us": exposure_us, "trigger_line": line.value,
-            "projector_size": list(projector_size), **self._rig_info,
+            "projector_size": list(projector_size), "phase_slots": self.phase_slots,
+            "camera_trigger_delay_us": self.trigger_delay_us, "trigger_delay_set_by": delay_by,
+            **self._rig_info,
         }
+        for w in self.warnings:
+            _logger.warning("capture: %s", w)
         _logger.info("capture set up: K = %d, period %d µs (%.3f Hz), %s", K, period, 1e6 / (K * period),
                      "sync box" if use_sync else "projector trigger")
+
+    def _delay_by(self, camera) -> str:
+        """Who applies the calibration's trigger delay: ``"camera"``, ``"operator"`` or ``"none"`` (no delay).
+
+        Raises CaptureError for a camera that cannot delay its trigger when nobody confirmed the delay.
+        """
+        if self.trigger_delay_us <= 0:
+            return "none"
+        if camera.capabilities.trigger_delay:
+            return "camera"
+        if self.sync_setting.delay_set_by_hand:
+            return "operator"
+        raise CaptureError(
+            f"the calibration's phase {self.phase_slots} needs a {self.trigger_delay_us:.0f} µs camera trigger delay, "
+            f"and {camera.name} cannot be told one: set it on the camera (its vendor's tool), then confirm that it "
+            "is set (flexvox capture --delay-set-by-hand; in the Capture workspace, tick \"trigger delay set on the "
+            "camera\")")
 
     def _teardown(self) -> None:
         rig = self.rig
@@ -593,7 +594,7 @@ class CaptureService:
     def _read_loop(self) -> None:
         camera = self.rig.camera
         slice_s = self.sync_setting.read_slice_s
-        no_frame_s = self.sync_setting.no_frame_s()
+        no_frame_s = self.sync_setting.no_frame_s(self.plan.camera_hz)
         last_frame_t = time.perf_counter()
         try:
             while not self._stop.is_set():
@@ -701,8 +702,14 @@ class CaptureService:
         if frame is not None and np.issubdtype(dtype, np.integer) and dtype.itemsize > 2:
             raise RecordingError(f"camera frames of {dtype} cannot be stored (uint8/uint16 or float only)")
         storage = self._storage or default_storage(np.uint8 if dtype == np.uint8 else store)
+        shutter = self.plan.shutter_code
+        multiplexed = isinstance(shutter, MultiplexedCode)
+        calibration = self.calibration.as_dict() | {"phase_slots": self.phase_slots,
+                                                    "trigger_delay_us": self.trigger_delay_us,
+                                                    "warnings": list(self.warnings)}
         attrs = recording_attrs(self.code, rate_hz=1e6 / (self.K * self._period_us), kind="captured",
-                                storage=storage, calibration=self.calibration.as_dict(), rig=self._rig_attrs,
+                                storage=storage, calibration=calibration, rig=self._rig_attrs,
+                                multiplexed=multiplexed, placement=shutter.placement if multiplexed else None,
                                 source=f"flexvox {__version__} capture")
         self._writer = self._writer_factory(self.path, height=H, width=W, dtype=store, attrs=attrs,
                                             overwrite=self._overwrite)

@@ -99,11 +99,14 @@ class _Progress:
 
 def _open(args, spec, display=None):
     from calibration.session import RigSession
-    from calibration.simulated_target import calibration_rig
     from rig_drivers.profile import open_rig
+    from rig_drivers.simulated_camera import VirtualClock
 
     if spec.simulated:
-        rig = calibration_rig(args.seed, baseline=args.mock_baseline)
+        # The one simulated rig (as `flexvox capture --rig mock --seed S` opens it); the calibration puts
+        # its target in view. What is in front of it otherwise does not matter here: a still scene.
+        rig = open_rig("mock", scene="static", subframes=16, seed=args.seed, baseline=args.mock_baseline,
+                       clock=VirtualClock())
         return rig, RigSession.from_rig(rig)
     rig = open_rig(spec, projector_display=display)
     size = getattr(rig.projector, "size", None) or (DLPC350_SIZE if spec.projector.kind == "dlpc350" else None)
@@ -134,8 +137,7 @@ def _calibrate(args, spec, display=None, interrupted=None) -> int:
     try:
         rig, session = _open(args, spec, display)
         try:
-            outcome = run_calibration(rig, session, tile=tuple(args.tile), seed=args.seed,
-                                      baseline=args.mock_baseline, progress=progress)
+            outcome = run_calibration(rig, session, tile=tuple(args.tile), progress=progress)
             report, ok, keep = outcome.report, outcome.success, outcome.keep
         finally:
             rig.close()

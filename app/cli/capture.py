@@ -12,8 +12,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 from app.cli.app import add_screen_options, list_screens, with_projector_screen
 from app.cli.errors import EXIT_FAILED, EXIT_OK, CliError, OneLineParser, arg_type
 from flexvox_core.tiles import parse_tile
@@ -39,9 +37,14 @@ def register(sub) -> None:
             "Set up the projector's patterns for a code, the sync box and the camera, and record N "
             "frames (or until Ctrl-C) into a Zarr recording, printing progress and counters (frames, "
             "drops, queue depth, write rate). The recording is crash-safe: a capture killed at any "
-            "moment leaves every frame it wrote readable. --rig mock is the simulated rig (a scene, "
-            "an identity projector-to-camera map); --rig FILE.toml drives real devices "
-            "(see `flexvox devices`); a DLPC350 takes its patterns on its video input, shown on "
+            "moment leaves every frame it wrote readable. The code is a tile's designed code (--tile), "
+            "its S-matrix multiplexed code (--multiplexed) or a `flexvox design -o` file (--code). "
+            "--calibration CAL.json (from `flexvox calibrate -o`) gives the projector-camera homography, "
+            "the phase and the camera trigger delay that goes with it; without it the patterns assume an "
+            "identity map and phase 0, which a real rig (and the simulated one) does not have. "
+            "--rig mock is the simulated rig (a projector finer than the camera behind a hidden homography, "
+            "a trigger offset that is not a whole slot; calibrate it as a real one); --rig FILE.toml drives "
+            "real devices (see `flexvox devices`); a DLPC350 takes its patterns on its video input, shown on "
             "--projector-screen N while the capture runs. Exit 0 when the capture ends normally, 1 when it "
             "stopped on an error (a full disk, a camera unplugged: the recording still holds what was captured)."
         ),
@@ -49,24 +52,35 @@ def register(sub) -> None:
     p.add_argument("--rig", default="mock", metavar="mock|RIG.toml", help="the rig (default mock)")
     p.add_argument("--frames", type=int, metavar="N", help="frames to record (default: until Ctrl-C)")
     p.add_argument("-o", "--output", type=Path, metavar="REC.zarr", help="recording to write (required)")
-    p.add_argument("--tile", type=arg_type(parse_tile), default=(4, 4), metavar="MxN",
-                   help="tile of the designed code (default 4x4)")
+    code = p.add_mutually_exclusive_group()
+    code.add_argument("--tile", type=arg_type(parse_tile), metavar="MxN",
+                      help="tile of the designed code (default 4x4)")
+    code.add_argument("--code", type=Path, metavar="CODE.json",
+                      help="a code written by `flexvox design -o` (identity or multiplexed) instead of --tile's")
+    p.add_argument("--multiplexed", action="store_true",
+                   help="the tile's S-matrix multiplexed code (K = 3, 7, 15, ...: e.g. --tile 3x5)")
+    p.add_argument("--calibration", type=Path, metavar="CAL.json",
+                   help="a calibration from `flexvox calibrate -o` made on this rig: its homography, and the phase "
+                        "and camera trigger delay of its synchronisation, drive the capture (refused when made for "
+                        "another rig or resolution)")
+    p.add_argument("--sync-profile", type=Path, metavar="SYNC.json",
+                   help="a sync profile saved by the synchronisation wizard: its phase and trigger delay replace "
+                        "the calibration's")
+    p.add_argument("--delay-set-by-hand", action="store_true",
+                   help="the camera cannot be told a trigger delay, and you have set the calibration's delay on it "
+                        "another way (its vendor's tool)")
+    p.add_argument("--rate", type=float, default=15.0, metavar="HZ", help="camera frame rate (default 15)")
     p.add_argument("--scene", default="drummer", metavar="NAME",
                    help=f"mock rig: built-in scene ({', '.join(SCENES)}; default drummer)")
     p.add_argument("--size", type=arg_type(_size), default=(120, 160), metavar="HxW",
-                   help="mock rig: camera (and projector) size (default 120x160)")
+                   help="mock rig: camera size (default 120x160; the projector is twice as fine)")
+    p.add_argument("--seed", type=int, default=0, metavar="S",
+                   help="mock rig: seed of its hidden homography, timing and noise (default 0, as flexvox calibrate)")
     p.add_argument("--ground-truth", action="store_true",
                    help="mock rig: store the scene's high-speed video as the recording's ground truth")
     p.add_argument("--clock", choices=("real", "virtual"), default="real",
                    help="mock rig: real time at the camera rate (default; a paced simulated clock), or "
                         "virtual time that runs as fast as frames can be rendered (demos, tests)")
-    p.add_argument("--rate", type=float, default=15.0, metavar="HZ", help="camera frame rate (default 15)")
-    p.add_argument("--calibration", type=Path, metavar="CAL.json",
-                   help="a calibration from `flexvox calibrate -o` made on this rig: its homography and "
-                        "synchronised phase drive the shutter patterns (refused when made for another rig "
-                        "or resolution)")
-    p.add_argument("--phase", type=int, metavar="SLOTS",
-                   help="sync phase in slots (default: the calibration's, else 0)")
     p.add_argument("--projector-size", type=arg_type(_size), metavar="HxW",
                    help="projector resolution when the projector does not report it")
     p.add_argument("--queue", type=int, default=64, metavar="FRAMES",
@@ -79,65 +93,75 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+def _plan(args):
+    """The capture plan the code options describe."""
+    from app.capture import CapturePlan
+
+    if args.code is not None:
+        if args.multiplexed:
+            raise ValueError("--multiplexed goes with --tile; a --code file says itself whether it is multiplexed")
+        return CapturePlan.from_code_file(args.code, camera_hz=args.rate)
+    return CapturePlan(tile=tuple(args.tile or (4, 4)), multiplexed=args.multiplexed, camera_hz=args.rate)
+
+
 def _build(args, display=None):
-    from app.capture import CaptureCalibration, CaptureService, QueuePolicy, SyncSetting
+    from app.capture import CaptureService, QueuePolicy, SyncSetting
     from app.capture.pacing import PacedClock
-    from flexvox_core.design import design_code
     from rig_drivers.profile import open_rig
     from rig_drivers.simulated_camera import VirtualClock
 
     if args.frames is not None and args.frames < 1:
         raise ValueError(f"--frames must be >= 1; got {args.frames}")
-    code = design_code(args.tile).code
-    calibration = None
+    plan = _plan(args)
+    plan.code  # noqa: B018 - refuse an impossible code before any device is opened
     if args.rig == "mock":
-        rig = open_rig("mock", scene=args.scene, camera_size=args.size, homography=np.eye(3),
+        rig = open_rig("mock", scene=args.scene, camera_size=args.size, seed=args.seed,
                        clock=VirtualClock() if args.clock == "virtual" else PacedClock())
         truth = rig.simulated.truth
-        K = code.shape[2]
+        K = plan.K
         gt = (lambda fid: truth.video[truth.subframes(fid, K)]) if args.ground_truth else None
     else:
         if args.ground_truth:
             raise ValueError("--ground-truth goes with --rig mock (a real scene has no ground truth)")
         rig = open_rig(args.rig, projector_display=display)
         gt = None
-    projector_size = args.projector_size
-    if args.calibration is not None:
-        calibration, projector_size = _calibration(args, rig, projector_size)
-    elif args.phase:
-        calibration = CaptureCalibration(phase_slots=args.phase, source="identity, --phase")
+    calibration, projector_size = _calibration(args, rig)
     service = CaptureService(
-        rig, code, args.output, frames=args.frames, calibration=calibration,
-        sync=SyncSetting(camera_hz=args.rate), queue_policy=QueuePolicy(capacity=args.queue, block_s=args.block),
+        rig, plan, args.output, frames=args.frames, calibration=calibration,
+        sync=SyncSetting(delay_set_by_hand=args.delay_set_by_hand),
+        queue_policy=QueuePolicy(capacity=args.queue, block_s=args.block),
         projector_size=projector_size, ground_truth=gt, overwrite=args.overwrite,
         rig_info={"profile": args.rig})
     return service
 
 
-def _calibration(args, rig, projector_size):
-    """The capture calibration from ``--calibration``, checked against this rig's identity."""
-    from app.capture import CaptureCalibration
-    from calibration.files import load_calibration
+def _calibration(args, rig):
+    """The capture calibration from ``--calibration`` / ``--sync-profile`` (the one loader), and the projector size."""
+    from calibration.capture_setup import load_for_capture
     from calibration.session import RigSession
 
     # The projector's own size when it reports one (the simulated rig), else --projector-size, else the
-    # file's (a DLPC350 does not report its resolution).
-    size = getattr(rig.projector, "size", None) or projector_size or _file_projector_size(args.calibration)
-    identity = RigSession.from_rig(rig, projector_size=size).identity
-    data = load_calibration(args.calibration, identity)  # refuses another rig or resolution
-    sync = data.get("sync") or {}
-    phase = args.phase if args.phase is not None else int(sync.get("effective_phase_slots") or 0)
-    source = f"{args.calibration} ({data.get('created', 'undated')})"
-    return CaptureCalibration(homography=data["H"], phase_slots=phase, source=source), size
+    # calibration file's (a DLPC350 does not report its resolution).
+    size = getattr(rig.projector, "size", None) or args.projector_size or _file_projector_size(args.calibration)
+    calibration = None
+    if args.calibration is not None or args.sync_profile is not None:
+        identity = RigSession.from_rig(rig, projector_size=size).identity
+        if args.calibration is not None:
+            calibration = load_for_capture(args.calibration, identity)
+        if args.sync_profile is not None:
+            calibration = load_for_capture(args.sync_profile, identity, base=calibration)
+    return calibration, size
 
 
 def _file_projector_size(path):
     import json
 
+    if path is None:
+        return None
     try:
         return tuple(json.loads(Path(path).read_text())["rig"]["projector_size"])
     except (OSError, ValueError, KeyError, TypeError):
-        return None  # load_calibration will say what is wrong with the file
+        return None  # the loader will say what is wrong with the file
 
 
 def _counters(s) -> str:
@@ -176,6 +200,10 @@ def _capture(args, display=None, interrupted=None) -> int:
     print(f"capturing to {args.output} at {1 / service.frame_period_s:.3f} Hz"
           f"{'' if args.frames is None else f', {args.frames} frames'} (Ctrl-C stops and keeps what was captured)",
           flush=True)
+    print(f"{service.plan.code_summary()}; calibration: {service.calibration.describe()}; phase "
+          f"{service.phase_slots}, camera trigger delay {service.trigger_delay_us:.0f} µs", flush=True)
+    for warning in service.warnings:
+        print(f"warning: {warning}", file=sys.stderr, flush=True)
     interactive = sys.stderr.isatty()
     last = 0.0
     try:

@@ -9,7 +9,8 @@ from tqdm import tqdm
 from app.cli.errors import EXIT_OK, CliError
 
 HELP = "run the end-to-end demo on the simulated rig and write an HTML report"
-STEPS = ("design", "calibrate", "capture", "reconstruct", "figures", "videos", "accuracy vs time", "report")
+STEPS = ("design", "calibrate", "shutter check", "capture", "reconstruct", "figures", "videos", "accuracy vs time",
+         "report")
 
 
 def register(sub) -> None:
@@ -18,8 +19,11 @@ def register(sub) -> None:
         "demo",
         help=HELP,
         description=(
-            "Design a 4x4 code, capture a built-in scene with moving and still parts on the simulated rig "
-            "(the drummer-like scene by default), reconstruct it (re-binning, high-SR and high-TR diffusion, "
+            "Design a 4x4 code, calibrate the simulated rig (a projector finer than the camera behind a hidden "
+            "homography, a hidden trigger offset), check the shutter with a strobe (slot accuracy with the "
+            "calibration, with the raw phase, uncalibrated), capture a built-in scene with moving and still parts "
+            "through the calibration (the drummer-like scene by default), read it back and reconstruct it "
+            "(re-binning, high-SR and high-TR diffusion, "
             "GAP-TV, motion-aware) and write DIR/index.html with figures in the spirit of the seed's Figs. 1, "
             "3, 4, 5, 7-8, MP4s and the accuracy-vs-time table and plot."
         ),

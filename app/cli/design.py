@@ -78,22 +78,12 @@ def _write(path: Path | None, payload: dict) -> None:
 
 
 def _load_code(path: Path) -> np.ndarray:
+    from flexvox_core.code_file import CodeFileError, read_code
+
     try:
-        payload = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise CliError(f"{path}: no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CliError(f"{path}: cannot read: {exc}") from None
-    except json.JSONDecodeError as exc:
-        raise CliError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
-    if not isinstance(payload, dict) or ("code" not in payload and "order" not in payload):
-        raise CliError(f"{path}: a code file needs an `order` (m rows of slots) or a `code` (m x n x K 0/1)")
-    try:
-        if payload.get("code") is not None:
-            return np.asarray(payload["code"])
-        return code_from_order(payload["order"])
-    except ValueError as exc:
-        raise CliError(f"{path}: {exc}") from None
+        return read_code(path)
+    except CodeFileError as exc:
+        raise CliError(str(exc)) from None
 
 
 def run(args) -> int:

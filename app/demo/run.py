@@ -1,4 +1,14 @@
-"""The demo's story on the simulated rig: design, (calibrate), capture, reconstruct, report."""
+"""The demo's story on the simulated rig, as an operator walks it at a real one.
+
+Design a code; open the simulated rig (``--rig mock``: a projector finer than the camera behind a
+hidden homography, a trigger offset that is not a whole slot); calibrate it
+(:func:`calibration.pipeline.run_calibration`); hand the result to capture
+(:func:`calibration.capture_setup.from_run`, what "Use for capture" does); check the shutter with
+a strobe in front of the camera (every slot right with the calibration, and how it fails without
+it or with the raw phase); record the scene through the capture service; read the recording
+back with the one reader (:func:`flexvox_core.capture_reader.read_capture`) and reconstruct it;
+report.
+"""
 
 from __future__ import annotations
 
@@ -13,11 +23,11 @@ import numpy as np
 from app.demo import figures
 from flexvox_core.design import design_code
 from flexvox_core.divisions import Division
+from flexvox_core.methods import Method, reconstruct
 from flexvox_core.metrics import psnr
 from flexvox_core.motion import motion_aware
 from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, diffuse
 from flexvox_core.reconstruct.rebin import rebin
-from flexvox_core.reconstruct.run import Method, reconstruct
 from flexvox_core.video_io import write_video
 
 _logger = logging.getLogger(__name__)
@@ -51,22 +61,36 @@ class DemoResult:
     files: list[Path] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     calibration: dict = field(default_factory=dict)
+    shutter_check: list = field(default_factory=list)
     seconds: float = 0.0
 
 
-def _calibrate(cfg: DemoConfig) -> dict:
-    """Run the whole calibration on the simulated calibration rig; numbers beside its hidden truth."""
+STROBE_FRAMES = 17
+"""Frames of the shutter check: the strobe visits every slot of K = 16 in 17 frames."""
+
+
+def _rig(cfg: DemoConfig, scene: str, frames: int):
+    """The simulated rig of ``cfg.seed`` with ``scene`` in front of it (virtual clock: runs as fast as it renders)."""
+    from rig_drivers.profile import open_rig
+    from rig_drivers.simulated_camera import VirtualClock
+
+    _, H, W = cfg.size
+    K = cfg.tile[0] * cfg.tile[1]
+    return open_rig("mock", scene=scene, camera_size=(H, W), seed=cfg.seed, subframes=frames * K,
+                    clock=VirtualClock(), electrons_per_unit=2000.0,
+                    effects={"photon_noise": {}, "read_noise": {"sigma": 3.0}})
+
+
+def _calibrate(cfg: DemoConfig, rig) -> tuple[dict, object]:
+    """Calibrate the rig itself (its calibration target in view); its numbers beside the hidden truth, and the
+    :class:`~calibration.capture_setup.CaptureCalibration` capture uses."""
+    from calibration.capture_setup import from_run
     from calibration.pipeline import run_calibration, truth_comparison
     from calibration.session import RigSession
-    from calibration.simulated_target import calibration_rig
 
     t0 = time.perf_counter()
-    rig = calibration_rig(cfg.seed)
-    try:
-        session = RigSession.from_rig(rig)
-        outcome = run_calibration(rig, session, tile=cfg.tile, seed=cfg.seed)
-    finally:
-        rig.close()
+    session = RigSession.from_rig(rig)
+    outcome = run_calibration(rig, session, tile=cfg.tile)
     rep = outcome.report
     out = {
         "success": outcome.success,
@@ -79,34 +103,60 @@ def _calibrate(cfg: DemoConfig) -> dict:
     }
     out.update(truth_comparison(rig, outcome, session.camera_size))
     out["seconds"] = time.perf_counter() - t0
-    return out
+    if not outcome.success:
+        raise RuntimeError(f"the demo's calibration failed at its {rep.get('failed')} step")
+    calibration = from_run(outcome, session.identity, RigSession.from_rig(rig).identity)
+    return out, calibration
 
 
-def _capture(cfg: DemoConfig, path: Path):
-    """Record ``cfg.size[0]`` frames of the scene with the capture service on the simulated rig
-    (virtual clock, identity projector map); returns normalised frames, code, ground truth, counters."""
-    from app.capture import CaptureCalibration, CaptureService
-    from flexvox_core.recording import open_recording
-    from rig_drivers.profile import open_rig
-    from rig_drivers.simulated_camera import VirtualClock
+def _record(cfg: DemoConfig, rig, calibration, path: Path, frames: int):
+    """Record ``frames`` frames through the capture service (the one ``flexvox capture`` and the app use)."""
+    from app.capture import CapturePlan, CaptureService
 
-    F, H, W = cfg.size
-    code = design_code(cfg.tile).code
-    K = code.shape[2]
-    rig = open_rig("mock", scene=cfg.scene, camera_size=(H, W), homography=np.eye(3), seed=cfg.seed,
-                   subframes=F * K, clock=VirtualClock(), electrons_per_unit=2000.0,
-                   effects={"photon_noise": {}, "read_noise": {"sigma": 3.0}})
+    plan = CapturePlan(tile=cfg.tile)
     truth = rig.simulated.truth
-    service = CaptureService(rig, code, path, frames=F, overwrite=True,
-                             calibration=CaptureCalibration(source="identity (simulated co-located rig)"),
-                             ground_truth=lambda fid: truth.video[truth.subframes(fid, K)],
+    service = CaptureService(rig, plan, path, frames=frames, overwrite=True, calibration=calibration,
+                             ground_truth=lambda fid: truth.video[truth.subframes(fid, plan.K)],
                              rig_info={"profile": "mock", "demo": True})
     result = service.run(timeout_s=120.0)
     if not result.ok:
         raise RuntimeError(f"the demo capture failed: {result.message}")
+    return service
+
+
+def _shutter_check(cfg: DemoConfig, calibration, folder: Path) -> list[dict]:
+    """Record the strobe with the calibration, with the raw phase, and uncalibrated; the slot accuracy of each."""
+    from calibration.capture_setup import SyncTiming
+    from flexvox_core.recording import open_recording
+    from flexvox_core.slot_check import slot_accuracy
+
+    s = calibration.sync
+    raw = calibration.with_sync(SyncTiming(s.raw_phase_slots, s.trigger_delay_us, s.K, s.period_us,
+                                           s.raw_phase_slots))
+    rows = []
+    for name, cal in (("the calibration (phase and trigger delay together)", calibration),
+                      ("the raw phase with the delay (the old Capture workspace)", raw),
+                      ("no calibration", None)):
+        path = folder / f"strobe-{len(rows)}.zarr"
+        service = _record(cfg, _rig(cfg, "strobe", STROBE_FRAMES), cal, path, STROBE_FRAMES)
+        rec = open_recording(path)
+        check = slot_accuracy(rec.normalised_frames(), rec.ground_truth(), rec.code)
+        rows.append({"with": name, "phase": service.phase_slots, "delay_us": service.trigger_delay_us,
+                     "accuracy": check.accuracy, "decidable": check.decidable_fraction})
+    return rows
+
+
+def _capture(cfg: DemoConfig, rig, calibration, path: Path):
+    """Record ``cfg.size[0]`` frames of the scene; read them back with the one reader (normalised frames, code,
+    ground truth, counters)."""
+    from flexvox_core.capture_reader import read_capture
+    from flexvox_core.recording import open_recording
+
+    F = cfg.size[0]
+    _record(cfg, rig, calibration, path, F)
+    frames, code = read_capture(path)
     rec = open_recording(path)
-    return rec.normalised_frames(), rec.code, rec.ground_truth(), {"rows": rec.n_frames,
-                                                                 "drops": int(rec.per_frame("dropped").sum())}
+    return frames, code, rec.ground_truth(), {"rows": rec.n_frames, "drops": int(rec.per_frame("dropped").sum())}
 
 
 def _timed(fn, *args, **kwargs):
@@ -130,22 +180,33 @@ def run_demo(cfg: DemoConfig, *, step=None) -> DemoResult:
     res.notes.append(f"Designed a {cfg.tile[0]}x{cfg.tile[1]} code in {t:.2f} s: {design.message}.")
 
     step("calibrate")
-    res.calibration = _calibrate(cfg)
+    rig = _rig(cfg, cfg.scene, F)
+    res.calibration, calibration = _calibrate(cfg, rig)
     c = res.calibration
     res.notes.append(
-        f"Calibrated the simulated rig (noise, defocus, ambient light) in {c['seconds']:.1f} s: homography error "
-        f"{c.get('homography_error_px', float('nan')):.3f} px against the hidden truth (RMS {c['rms_px']:.3f} px, "
-        f"coverage {c['coverage']:.1%}), shutter slot accuracy {c['shutter_slot_accuracy']:.2%}, "
-        f"phase {c['phase_found']} (true {c['phase_true']})."
+        f"Calibrated the simulated rig (a projector twice as fine as the camera behind a hidden homography, a "
+        f"hidden trigger offset; noise, defocus, ambient light on the target) in {c['seconds']:.1f} s: homography "
+        f"error {c.get('homography_error_px', float('nan')):.3f} px against the hidden truth (RMS "
+        f"{c['rms_px']:.3f} px, coverage {c['coverage']:.1%}), shutter slot accuracy "
+        f"{c['shutter_slot_accuracy']:.2%}, phase {c['phase_found']} (true {c['phase_true']}); capture uses phase "
+        f"{calibration.phase_slots} with a {calibration.trigger_delay_us:.0f} µs camera trigger delay."
     )
+
+    step("shutter check")
+    checks_dir = out / "shutter-check"
+    checks_dir.mkdir(exist_ok=True)
+    res.shutter_check = _shutter_check(cfg, calibration, checks_dir)
+    good, raw, none = (r["accuracy"] for r in res.shutter_check)
+    res.notes.append(f"Recorded a strobe ({STROBE_FRAMES} frames) to check which slot every pixel samples: "
+                     f"{good:.1%} right with the calibration, {raw:.1%} with the raw phase, {none:.1%} uncalibrated.")
 
     step("capture")
     rec_path = out / "recording.zarr"
-    frames, code, truth, info = _capture(cfg, rec_path)
+    frames, code, truth, info = _capture(cfg, rig, calibration, rec_path)
     res.notes.append(
-        f"Captured the '{cfg.scene}' scene on the simulated rig through the capture service: {info['rows']} frames "
-        f"of {H}x{W} at 15 Hz, K = {K} ({F * K} sub-frames at {15 * K} Hz), photon and read noise, "
-        f"{info['drops']} dropped; recording: {rec_path.name}."
+        f"Captured the '{cfg.scene}' scene on the calibrated simulated rig through the capture service: "
+        f"{info['rows']} frames of {H}x{W} at 15 Hz, K = {K} ({F * K} sub-frames at {15 * K} Hz), photon and read "
+        f"noise, {info['drops']} dropped; recording: {rec_path.name}, read back with the one reader."
     )
 
     step("reconstruct")
@@ -228,6 +289,13 @@ def _calibration_table(c: dict) -> str:
     return _table(rows, [("", lambda r: r[0]), ("", lambda r: str(r[1]))])
 
 
+def _shutter_table(rows) -> str:
+    return _table(rows, [("recorded with", lambda r: r["with"]), ("phase", lambda r: str(r["phase"])),
+                         ("camera trigger delay", lambda r: f"{r['delay_us']:.0f} µs"),
+                         ("slot accuracy", lambda r: f"{r['accuracy']:.1%}"),
+                         ("pixels decided", lambda r: f"{r['decidable']:.0%}")])
+
+
 def _html(cfg: DemoConfig, res: DemoResult, bench_summary, front, design) -> str:
     order = "<br>".join(" ".join(f"{v:2d}" for v in row) for row in design.order)
     results = _table(sorted(res.rows, key=lambda r: -r["psnr"]),
@@ -250,6 +318,9 @@ K = {design.K} slots per exposure, so one camera frame holds samples from K inst
 per location, how to trade spatial for temporal resolution.</p>
 <h2>What the demo did</h2><ul>{notes}<li>Total {res.seconds:.1f} s.</li></ul>
 <h2>Calibration (simulated rig, against its hidden truth)</h2>{_calibration_table(res.calibration)}
+<h2>Shutter check: a strobe, recorded through the capture service</h2>
+<p>A strobe flashes once every 17 sub-frames, so 17 frames say which slot every camera pixel sampled.</p>
+{_shutter_table(res.shutter_check)}
 <h2>The code</h2><p>Firing order (slot of each tile pixel), supporting all {len(design.supported)} divisions:</p>
 <pre>{order}</pre>
 <h2>Results against the ground truth</h2>{results}

@@ -100,7 +100,7 @@ class MainWindow(QMainWindow):
 
     def _use_for_capture(self, outcome, path) -> None:
         """Hand the Calibrate workspace's result to Capture; say in the status bar whether it was taken."""
-        used = self.capture.use_outcome(outcome, path)
+        used = self.capture.use_outcome(outcome)
         self.statusBar().showMessage("Capture now records with this calibration" if used else
                                      "Capture refused the calibration: see its Calibration box", 8000)
         if used:

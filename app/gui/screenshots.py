@@ -121,21 +121,22 @@ def render(out_dir) -> list[Path]:
         window.show_workspace("Capture")
         capture = window.capture
         capture.start_live()
-        wait_until(app, lambda: capture.stats.received >= 8 and capture.preview.runs >= 3, timeout_s=30)
+        live = capture.live_panel
+        wait_until(app, lambda: live.stats.received >= 8 and live.preview.runs >= 3, timeout_s=30)
         time.sleep(0.1)
-        wait_until(app, lambda: capture._latest is None)
+        wait_until(app, lambda: capture.live_panel._latest is None)
         save("capture.png")
-        capture.path_edit.setText(str(Path(tmp) / "capture-demo.zarr"))
-        capture.frames_box.setValue(60)
+        capture.record_panel.path_edit.setText(str(Path(tmp) / "capture-demo.zarr"))
+        capture.record_panel.frames_box.setValue(60)
         capture.record()
         wait_until(app, lambda: not capture.recording, timeout_s=60)
-        capture.controls_scroll.ensureWidgetVisible(capture.recording_box)
+        capture.controls_scroll.ensureWidgetVisible(capture.record_panel.box)
         save("capture_recording.png")
-        capture.open_projector_window()
-        wait_until(app, lambda: capture.projector_window is not None, timeout_s=30)
-        capture.controls_scroll.ensureWidgetVisible(capture.projector_box)
+        capture.projector.open()
+        wait_until(app, lambda: capture.projector.window is not None, timeout_s=30)
+        capture.controls_scroll.ensureWidgetVisible(capture.projector)
         save("capture_projector.png")
-        projector = capture.projector_window
+        projector = capture.projector.window
         h, w = projector.frame_size
         p = out / "projector_window.png"  # the pattern corner of the full-screen window, magnified ×4 (no smoothing)
         corner = projector.grab().toImage().copy(0, 0, w + 16, h + 16)
@@ -143,7 +144,7 @@ def render(out_dir) -> list[Path]:
                              Qt.TransformationMode.FastTransformation).save(str(p)):
             raise OSError(f"cannot write {p}")
         written.append(p)
-        capture.close_projector_window()
+        capture.projector.close_window()
         window.close()
     return written
 

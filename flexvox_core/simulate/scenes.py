@@ -119,6 +119,19 @@ def _static(S, H, W, rng):
     return np.repeat(fine_texture(H, W, rng)[None], S, axis=0)
 
 
+STROBE_PERIOD = 17
+"""Sub-frames between the strobe's flashes: with K = 16 slots per frame, the flash lands one slot
+earlier in every frame, so 17 frames visit every slot."""
+
+
+def _strobe(S, H, W, rng):
+    """A still textured wall lit by a strobe: bright in one sub-frame of every 17, dark otherwise."""
+    wall = fine_texture(H, W, rng) * 0.7 + 0.3
+    out = np.zeros((S, H, W), np.float32)
+    out[::STROBE_PERIOD] = wall
+    return out
+
+
 SCENES: dict[str, BuiltinScene] = {
     s.name: s
     for s in (
@@ -127,6 +140,8 @@ SCENES: dict[str, BuiltinScene] = {
         BuiltinScene("drummer", "a slowly swaying body, fast sticks, drums that move only on impact", _drummer),
         BuiltinScene("pan", "a slowly panning texture with a small fast object", _pan),
         BuiltinScene("static", "a still textured wall (nothing moves)", _static),
+        BuiltinScene("strobe", "a still wall lit in one sub-frame of every 17: shows which slot each pixel "
+                     "samples (flexvox info --slots)", _strobe),
     )
 }
 

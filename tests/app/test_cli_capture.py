@@ -67,19 +67,21 @@ def test_capture_error_exits_1_with_the_count(tmp_path, capsys, monkeypatch):
     assert open_recording(tmp_path / "r.zarr").n_frames == 3
 
 
-def _calibration_file(path, *, camera_size=(24, 32), projector_size=(24, 32), phase=3):
-    """A calibration file for the mock capture rig of the given sizes (as `flexvox calibrate -o` writes)."""
+def _calibration_file(path, *, camera_size=(24, 32), phase=3):
+    """A calibration file for the mock capture rig of the given size (as `flexvox calibrate -o` writes)."""
     import numpy as np
 
     from calibration.files import CALIBRATION_FORMAT, CALIBRATION_VERSION, write_versioned
     from calibration.session import RigSession
     from rig_drivers.profile import open_rig
 
-    rig = open_rig("mock", camera_size=camera_size, homography=np.eye(3))
-    identity = RigSession.from_rig(rig, projector_size=projector_size).identity
+    rig = open_rig("mock", camera_size=camera_size)
+    identity = RigSession.from_rig(rig).identity
     h = np.array([[1.0, 0, 1.0], [0, 1.0, 0], [0, 0, 1.0]])
+    sync = {"status": "ok", "K": 16, "period_us": 4166, "phase_slots": phase - 1, "delay_us": 1000.0,
+            "recommended_camera_delay_us": 3166.0, "effective_phase_slots": phase}
     body = {"homography": {"projector_to_camera": h.tolist(), "camera_to_projector": np.linalg.inv(h).tolist()},
-            "quality": {}, "sync": {"effective_phase_slots": phase}}
+            "quality": {}, "sync": sync}
     return write_versioned(path, CALIBRATION_FORMAT, CALIBRATION_VERSION, identity, body)
 
 
@@ -91,6 +93,8 @@ def test_capture_uses_a_calibration_file(tmp_path, capsys):
     stored = open_recording(out).attrs["calibration"]
     assert stored["phase_slots"] == 3 and "cal.json" in stored["source"]
     assert stored["homography"][0][2] == 1.0
+    assert stored["trigger_delay_us"] == 3166.0
+    assert open_recording(out).attrs["rig"]["camera_trigger_delay_us"] == 3166.0
 
 
 def test_capture_refuses_a_calibration_for_another_resolution(tmp_path, capsys):
@@ -99,3 +103,25 @@ def test_capture_refuses_a_calibration_for_another_resolution(tmp_path, capsys):
         cli(["capture", "--frames", "2", "--size", "48x64", "--clock", "virtual", "--calibration", str(cal),
              "-o", str(tmp_path / "r.zarr")])
     assert not (tmp_path / "r.zarr").exists()
+
+
+def test_capture_takes_a_design_file(tmp_path, capsys):
+    import json
+
+    from flexvox_core.multiplex import multiplexed_code
+
+    code = tmp_path / "code.json"
+    code.write_text(json.dumps(multiplexed_code((1, 3)).as_dict()))
+    out = tmp_path / "r.zarr"
+    assert cli(["capture", "--frames", "2", "--size", "16x24", "--clock", "virtual", "--code", str(code),
+                "-o", str(out)]) == 0
+    rec = open_recording(out)
+    assert rec.K == 3 and rec.attrs["multiplexed"] and rec.attrs["placement_order"] is not None
+    assert "S-matrix multiplexed from code.json" in capsys.readouterr().out
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"code": [[[1, 1], [0, 0]]]}')
+    with pytest.raises(CliError, match=r"bad.json: not an identity code .* and not marked multiplexed"):
+        cli(["capture", "--frames", "1", "--clock", "virtual", "--code", str(bad), "-o", str(tmp_path / "b.zarr")])
+    with pytest.raises(CliError, match=r"--multiplexed goes with --tile"):
+        cli(["capture", "--frames", "1", "--clock", "virtual", "--code", str(code), "--multiplexed",
+             "-o", str(tmp_path / "c.zarr")])

@@ -70,7 +70,7 @@ def test_simulate_bad_input(capsys, tmp_path, monkeypatch, argv, message):
 def test_scenes_lists_scenes_and_effects(capsys):
     code, out, _ = run_cli(capsys, "scenes", "--json")
     payload = json.loads(out)
-    assert set(payload["scenes"]) == {"fan", "balls", "drummer", "pan", "static"}
+    assert set(payload["scenes"]) == {"fan", "balls", "drummer", "pan", "static", "strobe"}
     assert payload["effects"]["read_noise"]["params"]["sigma"]["unit"] == "e- rms"
     code, out, _ = run_cli(capsys, "scenes")
     assert code == 0 and "photon_noise" in out and "electrons_per_unit" in out

@@ -8,6 +8,9 @@ def test_quick_demo_writes_the_report(tmp_path, capsys):
     assert "motion-aware" in text and "GAP-TV" in text and "report:" in text
     assert "Calibrated the simulated rig" in text and "phase" in text
     assert "through the capture service" in text and "0 dropped" in text
+    # the operator's path: calibrate, check the shutter with a strobe, record through the calibration
+    assert "100.0% right with the calibration, 0.0% with the raw phase" in text
+    assert "Shutter check" in (out / "index.html").read_text()
     page = (out / "index.html").read_text()
     for name in ("fig1_sampling", "fig3_rebinning", "fig4_continuum", "fig5_flow", "fig7_panel"):
         assert (out / "figures" / f"{name}.png").stat().st_size > 5_000

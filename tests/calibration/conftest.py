@@ -4,7 +4,7 @@ import pytest
 
 from calibration.homography import calibrate_homography
 from calibration.session import RigSession
-from calibration.simulated_target import calibration_rig
+from tests.rig_drivers.mock_rigs import calibration_rig
 
 SEEDS = (0, 1, 2)
 

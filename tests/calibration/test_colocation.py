@@ -6,7 +6,7 @@ from calibration import geometry
 from calibration.colocation import capture_view, live_alignment, measure_alignment, parallax_test
 from calibration.errors import CalibrationError
 from calibration.session import RigSession
-from calibration.simulated_target import calibration_rig
+from tests.rig_drivers.mock_rigs import calibration_rig
 
 
 def _views(baseline, seed=0):

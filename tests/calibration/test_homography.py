@@ -11,8 +11,9 @@ from calibration.errors import CalibrationError, CalibrationFileError, Calibrati
 from calibration.files import load_calibration, save_calibration
 from calibration.homography import calibrate_homography
 from calibration.session import RigIdentity, RigSession
-from calibration.simulated_target import calibration_rig, fine_projector_homography
 from rig_drivers.interfaces import TriggerSource
+from rig_drivers.simulated_target import fine_homography
+from tests.rig_drivers.mock_rigs import calibration_rig
 
 from .conftest import SEEDS
 
@@ -20,7 +21,7 @@ from .conftest import SEEDS
 @pytest.mark.parametrize("seed", SEEDS)
 def test_targets_with_noise_defocus_and_ambient(calibrated, seed):
     rig, res = calibrated[seed]
-    assert set(rig.simulated.truth.effects) == {"photon_noise", "read_noise", "pattern_blur", "ambient"}
+    assert set(rig.simulated.effects_in_view) == {"photon_noise", "read_noise", "pattern_blur", "ambient"}
     assert res.status == "ok", res.message
     err = geometry.homography_error_px(res.homography, rig.simulated.truth.homography, (120, 160))
     assert err <= 0.1  # target 0.25 px, aim 0.1
@@ -64,7 +65,7 @@ def test_half_the_image_in_shadow_is_partial_and_names_the_half():
 
 
 def test_a_mirrored_rig_calibrates_and_says_so():
-    h0 = fine_projector_homography((120, 160), (240, 320), 3)
+    h0 = fine_homography((120, 160), (240, 320), 3)
     flip = np.array([[-1.0, 0, 319], [0, 1, 0], [0, 0, 1]])  # projector mirrored left-right
     rig, _, res = _run(homography=h0 @ flip)
     assert res.status == "ok", res.message
@@ -73,7 +74,7 @@ def test_a_mirrored_rig_calibrates_and_says_so():
 
 
 def test_a_nearly_singular_homography_is_degenerate():
-    h0 = fine_projector_homography((120, 160), (240, 320), 3)
+    h0 = fine_homography((120, 160), (240, 320), 3)
     squash = np.diag([1.0, 0.12, 1.0]) @ h0  # the projector's rows squashed into a strip
     squash[1, 2] += 50
     _, _, res = _run(homography=squash)

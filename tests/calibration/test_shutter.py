@@ -7,12 +7,12 @@ from calibration.errors import CalibrationError
 from calibration.homography import calibrate_homography
 from calibration.session import RigSession
 from calibration.shutter import make_shutter_patterns, verify_shutter
-from calibration.simulated_target import calibration_rig
 from flexvox_core.codes import code_from_order
 from flexvox_core.design import design_code
 from flexvox_core.forward import tiled_order
 from rig_drivers.dlpc350.bitplanes import unpack_bitplanes
-from rig_drivers.simulated_rig import default_homography
+from rig_drivers.simulated_target import coarse_homography
+from tests.rig_drivers.mock_rigs import calibration_rig
 
 from .conftest import SEEDS
 
@@ -54,7 +54,7 @@ def test_patterns_follow_the_homography_and_the_phase():
 
 def test_a_projector_coarser_than_the_camera_is_reported_and_fails_verification():
     # The simulator's default homography: projector pixels 1.05-1.10 camera pixels wide.
-    h = default_homography((120, 160), (120, 160), 1)
+    h = coarse_homography((120, 160), (120, 160), 1)
     rig = calibration_rig(1, projector_size=(120, 160), homography=h, effects={})
     with RigSession.from_rig(rig) as session:
         res = calibrate_homography(session)

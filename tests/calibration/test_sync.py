@@ -5,9 +5,9 @@ import pytest
 
 from calibration.errors import CalibrationError, CalibrationMismatchError
 from calibration.session import RigSession
-from calibration.simulated_target import calibration_rig
 from calibration.sync import band_patterns, check_frames, load_sync_profile, measure_sync, save_sync_profile
 from rig_drivers.interfaces import TriggerConfig, TriggerSource
+from tests.rig_drivers.mock_rigs import calibration_rig
 
 from .conftest import SEEDS
 

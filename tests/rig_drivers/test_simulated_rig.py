@@ -12,16 +12,19 @@ from flexvox_core.simulate.scene_file import scene_from_mapping
 from rig_drivers.errors import DeviceTimeoutError, IncompatibleStateError, SettingError
 from rig_drivers.interfaces import CameraSettings, PatternSequence, TriggerConfig, TriggerSource
 from rig_drivers.simulated_camera import VirtualClock
-from rig_drivers.simulated_rig import SimulatedRig, default_homography, warp_patterns
+from rig_drivers.simulated_rig import SimulatedRig, warp_patterns
+from rig_drivers.simulated_target import coarse_homography, fine_homography, hidden_timing
 
 PERIOD = 4166
 LINE0 = CameraSettings(exposure_us=16 * PERIOD - 300, trigger=TriggerConfig(source=TriggerSource.LINE0))
 
 
 def make_rig(**kw):
+    """The textbook rig by default (these tests look at the rig's physics with camera-sized patterns)."""
     kw.setdefault("camera_size", (24, 32))
     kw.setdefault("subframes", 48)
     kw.setdefault("clock", VirtualClock())
+    kw.setdefault("ideal", True)
     return SimulatedRig.create(kw.pop("scene", "drummer"), **kw)
 
 
@@ -50,16 +53,49 @@ def test_show_identity_rig_without_effects_matches_the_forward_model():
     assert [f.timestamp_s for f in frames] == pytest.approx([i * 16 * PERIOD / 1e6 for i in range(5)])
 
 
-def test_truth_record_and_default_homography_is_mild():
-    rig = make_rig(seed=5, phase_slots=3, delay_us=40)
+def test_truth_record_and_the_coarse_homography_is_mild():
+    rig = make_rig(seed=5, phase_slots=3, delay_us=40, homography=coarse_homography((24, 32), (24, 32), 5))
     t = rig.truth
     assert (t.phase_slots, t.delay_us, t.seed, t.video.shape) == (3, 40, 5, (48, 24, 32))
-    np.testing.assert_array_equal(t.homography, default_homography((24, 32), (24, 32), 5))
+    np.testing.assert_array_equal(t.homography, coarse_homography((24, 32), (24, 32), 5))
     a, b = t.homography[0, 0], t.homography[1, 0]
     assert 1.05 <= np.hypot(a, b) <= 1.10 and abs(np.degrees(np.arctan2(b, a))) <= 0.5
     corners = t.projector_to_camera([[0, 0], [31, 23]])
     assert np.all(corners[0] < 0) and np.all(corners[1] > [31, 23])  # covers the camera
-    assert not np.array_equal(t.homography, make_rig(seed=6).truth.homography)
+    assert not np.array_equal(t.homography, coarse_homography((24, 32), (24, 32), 6))
+
+
+def test_the_default_rig_is_built_as_a_real_one():
+    """A finer projector behind a hidden homography that is not the identity, a trigger offset that is not a
+    whole slot: what calibration must find (the same rig for `flexvox calibrate`, `capture` and the app)."""
+    rig = SimulatedRig.create("drummer", camera_size=(24, 32), subframes=48, seed=5, clock=VirtualClock())
+    t = rig.truth
+    assert rig.projector.size == (48, 64)
+    np.testing.assert_array_equal(t.homography, fine_homography((24, 32), (48, 64), 5))
+    a, b = t.homography[0, 0], t.homography[1, 0]
+    assert 0.55 <= np.hypot(a, b) <= 0.70 and not np.allclose(t.homography, np.eye(3))
+    assert (t.phase_slots, t.delay_us) == hidden_timing(5)
+    assert 0.15 * 4166 <= t.delay_us <= 0.85 * 4166
+    other = SimulatedRig.create("drummer", camera_size=(24, 32), subframes=48, seed=6, clock=VirtualClock()).truth
+    assert not np.array_equal(other.homography, t.homography)
+
+
+def test_the_calibration_target_comes_into_view_and_goes():
+    rig = SimulatedRig.create("drummer", camera_size=(24, 32), subframes=48, seed=2, clock=VirtualClock(),
+                              baseline=(0.3, 0.0, 0.0))
+    pats = np.ones((16, 48, 64), bool)
+    scene = grab(rig, pats, 1)[0].image
+    rig.show_target()
+    assert rig.viewing == "target"
+    target = rig.camera.read_frame(0.5).image
+    assert not np.allclose(scene, target)
+    rig.move_target(2.0)  # with a baseline the projector's image moves with the target's depth
+    np.testing.assert_allclose(rig.truth.homography_at(1.0), rig.truth.homography)
+    assert not np.allclose(rig.truth.homography_at(2.0), rig.truth.homography)
+    rig.show_scene()
+    assert rig.viewing == "scene"
+    with pytest.raises(SettingError, match=r"the calibration target is not in view: show_target\(\) first"):
+        rig.move_target(1.0)
 
 
 def test_same_seed_same_frames_other_seed_other_noise():
@@ -122,10 +158,11 @@ def test_effects_apply_only_when_declared():
     assert np.all(leaky >= plain - 1e-6)
     spec = scene_from_mapping({"source": {"builtin": "drummer", "height": 24, "width": 32},
                                "effects": {"adc": {"bits": 12}}})
-    counted = grab(SimulatedRig.create(spec, clock=VirtualClock(), homography=h, seed=1, subframes=48), pats, 1)
+    counted = grab(SimulatedRig.create(spec, clock=VirtualClock(), homography=h, seed=1, subframes=48, ideal=True),
+                   pats, 1)
     assert counted[0].image.dtype == np.uint16
     again = grab(SimulatedRig.create("drummer", camera_size=(24, 32), subframes=48, clock=VirtualClock(),
-                                     homography=h, seed=1, effects=parse_effects({})), pats, 1)[0].image
+                                     homography=h, seed=1, effects=parse_effects({}), ideal=True), pats, 1)[0].image
     np.testing.assert_array_equal(again, plain)
 
 
@@ -201,7 +238,7 @@ def test_warp_is_exact_for_the_identity_and_keeps_light_in_range():
     rng = np.random.default_rng(0)
     pats = rng.random((3, 10, 12)) < 0.5
     np.testing.assert_array_equal(warp_patterns(pats, np.eye(3), (10, 12)), pats.astype(np.float32))
-    h = default_homography((10, 12), (10, 12), 3)
+    h = coarse_homography((10, 12), (10, 12), 3)
     w = warp_patterns(pats, h, (10, 12))
     assert w.min() >= 0 and w.max() <= 1 and len(np.unique(w)) > 2  # grey where a pixel straddles mirrors
 

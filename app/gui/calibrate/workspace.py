@@ -43,7 +43,6 @@ from PySide6.QtWidgets import (
     QProgressBar,
     QPushButton,
     QScrollArea,
-    QSpinBox,
     QSplitter,
     QTabWidget,
     QVBoxLayout,
@@ -148,15 +147,13 @@ class CalibrateWorkspace(QWidget):
     # ------------------------------------------------------------------ layout
     def _build(self) -> None:
         run = QGroupBox("Calibration")
+        seed = self.service.rig.simulated.truth.seed if self.service.simulated else None
         self.rig_label = QLabel(
-            "simulated rig: calibration runs on its calibration target (a still textured wall, a projector "
-            "finer than the camera, a hidden phase and delay drawn from the seed) and is compared with the truth"
-            if self.service.simulated else f"rig profile {html.escape(self.service.name)}: its own devices")
+            f"simulated rig (seed {seed}, the rig Capture records with): calibration puts its calibration target "
+            "in view (a still textured wall) and finds the hidden homography, phase and delay; the result is "
+            "compared with the truth" if self.service.simulated
+            else f"rig profile {html.escape(self.service.name)}: its own devices")
         self.rig_label.setWordWrap(True)
-        self.seed_box = QSpinBox()
-        self.seed_box.setRange(0, 1_000_000)
-        self.seed_box.setValue(self.settings.get_int("calibrate/seed", 0))
-        self.seed_box.setVisible(self.service.simulated)
         self.tile_box = QComboBox()
         for m, n in TILES:
             self.tile_box.addItem(f"{m}×{n} (K = {m * n})", (m, n))
@@ -178,8 +175,6 @@ class CalibrateWorkspace(QWidget):
         self.steps_label.setTextFormat(Qt.TextFormat.RichText)
         f = QFormLayout(run)
         f.addRow(self.rig_label)
-        if self.service.simulated:
-            f.addRow("seed", self.seed_box)
         f.addRow("shutter code", self.tile_box)
         self.screen_box = ScreenPicker(self.settings.get_str("calibrate/screen", ""))
         self.display_label = QLabel("")
@@ -296,7 +291,6 @@ class CalibrateWorkspace(QWidget):
         self.save_browse.clicked.connect(self._browse)
         self.live_check.toggled.connect(self.set_live)
         self.wizard_button.clicked.connect(self.open_sync_wizard)
-        self.seed_box.valueChanged.connect(self._seed_changed)
         self.tile_box.currentIndexChanged.connect(
             lambda _: self.settings.set("calibrate/tile", self.tile_box.currentText().split(" ")[0]))
         self.save_path.textChanged.connect(lambda t: self.settings.set("calibrate/path", t))
@@ -321,9 +315,7 @@ class CalibrateWorkspace(QWidget):
         return self.job is not None and self.job.running
 
     def rig_busy_reason(self) -> str | None:
-        """Why the Capture workspace may not use the rig now (a calibration or live measurement on a real rig)."""
-        if self.service.simulated:
-            return None  # the simulated rig's calibration runs on its own calibration target
+        """Why the Capture workspace may not use the rig now (a calibration or a live measurement runs on it)."""
         if self.running:
             return "a calibration is running in the Calibrate workspace"
         if self.live_job is not None and self.live_job.running:
@@ -331,7 +323,8 @@ class CalibrateWorkspace(QWidget):
         return None
 
     def _guard(self) -> str | None:
-        if self.service.simulated or self.rig_guard is None:
+        # The simulated rig is the rig Capture uses too: the same rule holds for it.
+        if self.rig_guard is None:
             return None
         return self.rig_guard()
 
@@ -401,10 +394,6 @@ class CalibrateWorkspace(QWidget):
         """The shutter code's tile."""
         return tuple(self.tile_box.currentData())
 
-    def _seed_changed(self, seed: int) -> None:
-        self.settings.set("calibrate/seed", seed)
-        self._live_target = None
-
     # ------------------------------------------------------------------ the run
     def run_calibration(self) -> bool:
         """Start a calibration; False (with the reason shown) when it cannot start now."""
@@ -417,12 +406,12 @@ class CalibrateWorkspace(QWidget):
         token = CancelToken()
         tracker = StepTracker(token)
         self.tracker = tracker
-        seed, tile, service = self.seed_box.value(), self.tile(), self.service
+        tile, service = self.tile(), self.service
 
         def job(token_, progress):
             tracker.token = token_
             tracker.report = progress
-            return run_workspace_calibration(target_for(service, seed), tile=tile, cancel=token_, tracker=tracker)
+            return run_workspace_calibration(target_for(service), tile=tile, cancel=token_, tracker=tracker)
 
         self.outcome = None
         self.saved_path = None
@@ -629,7 +618,7 @@ class CalibrateWorkspace(QWidget):
         if not self.live or (self.live_job is not None and self.live_job.running):
             return
         if self._live_target is None:
-            self._live_target = target_for(self.service, self.seed_box.value())
+            self._live_target = target_for(self.service)
         target = self._live_target
         self.live_job = self.runner.submit(
             "co-location", lambda token, progress: measure_live_colocation(target, token),
@@ -680,7 +669,7 @@ class CalibrateWorkspace(QWidget):
             return None
         hom = self.outcome.homography.homography if self.outcome is not None and self.outcome.homography \
             is not None and self.outcome.homography.success else None
-        wizard = SyncWizard(target_for(self.service, self.seed_box.value()), self.runner, tile=self.tile(),
+        wizard = SyncWizard(target_for(self.service), self.runner, tile=self.tile(),
                             homography=hom, parent=self)
         wizard.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
         wizard.finished.connect(self._wizard_finished)

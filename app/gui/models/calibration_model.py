@@ -12,10 +12,12 @@ homography (with its residual map), the shutter verification (with its map of wr
 and the sync result (with its leakage curve and delay sweep). :func:`shutter_map` re-verifies
 the shutter only for a run from an older pipeline that kept just the summary.
 
-On the simulated rig (``--rig mock``) calibration runs, as in ``flexvox calibrate``, on
-:func:`calibration.simulated_target.calibration_rig` (a still textured target, a projector finer
-than the camera, a hidden phase and delay drawn from the seed), so the result can be compared
-with the hidden truth. On a real rig it runs on the rig's own devices.
+Calibration runs on the rig's own devices. On the simulated rig (``--rig mock``) that is the one
+rig Capture records with (a projector finer than the camera behind a hidden homography, a hidden
+phase and sub-slot delay drawn from its seed): its calibration target is put in view for every
+calibration step (as an operator holds a board in front of a real rig), the result is compared
+with the hidden truth, and "Use for capture" hands it to the Capture workspace, which accepts it
+because it describes the same rig.
 """
 
 from __future__ import annotations
@@ -73,30 +75,34 @@ class CalibrationTarget:
     ----------
     rig : rig_drivers.profile.Rig
     simulated : bool
-    seed : int
-        Simulated rig: seed of its hidden homography, timing and noise.
     """
 
     rig: object
     simulated: bool
-    seed: int = 0
+
+    @property
+    def seed(self) -> int | None:
+        """The simulated rig's seed (None on a real rig)."""
+        return int(self.rig.simulated.truth.seed) if self.simulated else None
 
     def session(self):
-        """A new (unopened) :class:`calibration.session.RigSession` on the rig."""
+        """A new (unopened) :class:`calibration.session.RigSession` on the rig.
+
+        On the simulated rig the calibration target is put in front of the camera first (the
+        Capture workspace puts the scene back when it starts the live view or a recording).
+        """
         from calibration.session import RigSession
 
         if self.simulated:
+            if self.rig.simulated.viewing != "target":
+                self.rig.simulated.show_target()
             return RigSession.from_rig(self.rig)
         return RigSession.from_rig(self.rig, projector_size=projector_size(self.rig.projector))
 
 
-def target_for(service: RigService, seed: int = 0) -> CalibrationTarget:
-    """The simulated calibration rig of ``seed`` (for ``--rig mock``), or the service's real rig."""
-    if service.simulated:
-        from calibration.simulated_target import calibration_rig
-
-        return CalibrationTarget(calibration_rig(int(seed)), True, int(seed))
-    return CalibrationTarget(service.rig, False, int(seed))
+def target_for(service: RigService) -> CalibrationTarget:
+    """The service's rig as a calibration target (the simulated rig is the same rig Capture uses)."""
+    return CalibrationTarget(service.rig, service.simulated)
 
 
 @dataclass
@@ -172,11 +178,7 @@ def run_workspace_calibration(target: CalibrationTarget, *, tile=(4, 4), cancel:
     t0 = time.perf_counter()
     session = target.session()
     identity, camera_size = session.identity, session.camera_size
-    try:
-        run = run_calibration(target.rig, session, tile=tuple(tile), seed=target.seed, progress=tracker)
-    finally:
-        if not target.simulated:
-            target.rig.close()
+    run = run_calibration(target.rig, session, tile=tuple(tile), progress=tracker)
     outcome = CalibrationOutcome(run, identity, camera_size)
     hom = outcome.homography
     if run.keep.get("shutter") is not None:

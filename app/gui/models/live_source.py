@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import logging
 
-from app.gui.models.capture_plan import CapturePlan
+from app.capture.plan import CapturePlan
 from app.gui.models.rig_service import RigService
 from rig_drivers.errors import DeviceError, SettingError
 from rig_drivers.interfaces import CameraSettings, RunState, TriggerConfig, TriggerSource
@@ -33,9 +33,10 @@ def projector_size(projector) -> tuple[int, int]:
 def start_live(service: RigService, plan: CapturePlan, calibration=None) -> str:
     """Connect the projector and camera, load and start the plan's sequence, start acquiring.
 
-    With a :class:`~app.capture.service.CaptureCalibration` the projector shows the capture
-    service's patterns (through its homography, phase compensated); without, the code tiled
-    over the projector.
+    The projector shows the capture service's patterns for the plan through ``calibration`` (a
+    :class:`~calibration.capture_setup.CaptureCalibration`; default uncalibrated), and the camera's
+    trigger is delayed by the calibration's delay where the camera can do it, so the live view
+    shutters the camera as a recording will.
 
     Returns a note for the UI ("" or e.g. "free-running: preview only").
 
@@ -52,6 +53,7 @@ def start_live(service: RigService, plan: CapturePlan, calibration=None) -> str:
         raise LiveStartError("cannot connect: " + "; ".join(errs))
     rig = service.rig
     note = ""
+    put_scene_in_view(service)
     try:
         proj = rig.projector
         if proj.run_state is not RunState.STOPPED:
@@ -63,7 +65,11 @@ def start_live(service: RigService, plan: CapturePlan, calibration=None) -> str:
         cam.stop_acquisition()
         exposure = plan.camera_exposure_us or timing.sequence_us
         if cam.capabilities.hardware_trigger:
-            cam.configure(CameraSettings(exposure_us=exposure, trigger=TriggerConfig(source=rig.trigger_line)))
+            delay = 0.0
+            if calibration is not None and cam.capabilities.trigger_delay:
+                delay = calibration.for_plan(plan.K, plan.period_us)[1]
+            cam.configure(CameraSettings(exposure_us=exposure,
+                                         trigger=TriggerConfig(source=rig.trigger_line, delay_us=delay)))
         else:
             cam.configure(CameraSettings(exposure_us=exposure, trigger=TriggerConfig(source=TriggerSource.FREE_RUN)))
             note = f"{cam.name} has no hardware trigger: free-running, preview and alignment only"
@@ -75,6 +81,13 @@ def start_live(service: RigService, plan: CapturePlan, calibration=None) -> str:
         service.notify(role)
     _logger.info("live view started: K=%d, %g Hz, period %d µs", plan.K, plan.camera_hz, timing.period_us)
     return note
+
+
+def put_scene_in_view(service: RigService) -> None:
+    """The simulated rig's stand-in for the operator taking the calibration target away before capture."""
+    sim = service.rig.simulated
+    if sim is not None and sim.viewing != "scene":
+        sim.show_scene()
 
 
 def stop_live(service: RigService) -> None:

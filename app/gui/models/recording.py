@@ -17,20 +17,21 @@ import logging
 from collections.abc import Callable
 from pathlib import Path
 
-from app.capture.service import CaptureCalibration, CaptureResult, CaptureService, CaptureStats, SyncSetting
-from app.gui.models.capture_plan import CapturePlan
-from app.gui.models.live_source import projector_size
+from app.capture.plan import CapturePlan
+from app.capture.service import CaptureResult, CaptureService, CaptureStats, SyncSetting
+from app.gui.models.live_source import projector_size, put_scene_in_view
 from app.gui.models.rig_service import RigService
+from calibration.capture_setup import CaptureCalibration
 
 _logger = logging.getLogger(__name__)
 
 CaptureFactory = Callable[..., CaptureService]
-"""``(rig, code, path, **options) -> CaptureService``: tests inject slow or failing writers through it."""
+"""``(rig, plan, path, **options) -> CaptureService``: tests inject slow or failing writers through it."""
 
 
 def make_capture(service: RigService, plan: CapturePlan, path, *, frames: int | None = None,
                  overwrite: bool = False, ground_truth: bool = False,
-                 calibration: CaptureCalibration | None = None,
+                 calibration: CaptureCalibration | None = None, delay_set_by_hand: bool = False,
                  factory: CaptureFactory = CaptureService) -> CaptureService:
     """A capture service for ``plan`` on the rig of ``service``, writing ``path``.
 
@@ -48,7 +49,9 @@ def make_capture(service: RigService, plan: CapturePlan, path, *, frames: int | 
     ground_truth : bool
         Simulated rig only: store the scene's high-speed video as the recording's ground truth.
     calibration : CaptureCalibration, optional
-        Default identity homography and phase 0 (uncalibrated).
+        Homography, phase and trigger delay (default uncalibrated).
+    delay_set_by_hand : bool
+        The operator confirmed the trigger delay is set on a camera that cannot be told it.
     factory : callable, optional
         Builds the service (default :class:`CaptureService`).
 
@@ -60,19 +63,19 @@ def make_capture(service: RigService, plan: CapturePlan, path, *, frames: int | 
         For a code the plan cannot make, or ground truth asked of a real rig.
     """
     path = Path(path)
-    code = plan.code
     gt = None
     if ground_truth:
         sim = service.rig.simulated
         if sim is None:
             raise ValueError("ground truth exists only on the simulated rig")
         truth = sim.truth
-        K = int(code.shape[2])
+        K = plan.K
         gt = lambda fid: truth.video[truth.subframes(fid, K)]  # noqa: E731 - a one-line adapter
     rig = service.rig
-    return factory(rig, code, path, frames=frames, calibration=calibration or CaptureCalibration(),
-                   sync=SyncSetting(camera_hz=plan.camera_hz), projector_size=projector_size(rig.projector),
-                   ground_truth=gt, overwrite=overwrite,
+    put_scene_in_view(service)
+    return factory(rig, plan, path, frames=frames, calibration=calibration or CaptureCalibration(),
+                   sync=SyncSetting(delay_set_by_hand=delay_set_by_hand),
+                   projector_size=projector_size(rig.projector), ground_truth=gt, overwrite=overwrite,
                    rig_info={"profile": "mock" if service.simulated else service.name, "source": "flexvox app"})
 
 

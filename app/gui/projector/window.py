@@ -3,9 +3,10 @@
 For a projector driven through its video input (the DLPC350 in video pattern mode): every
 24-bit input frame is shown as 24 one-bit patterns, so the K masks are packed into the
 bit-planes of ``ceil(K / 24)`` RGB frames by :func:`rig_drivers.dlpc350.bitplanes.pack_bitplanes`
-(green bits 0-7, red 8-15, blue 16-23). :func:`packed_frames` makes them from the same
-:func:`app.capture.patterns.shutter_patterns` the capture service loads into the projector
-(code tiled over the camera, through the calibration's homography, phase compensated).
+(green bits 0-7, red 8-15, blue 16-23). The capture service and this window show the same
+masks, :meth:`app.capture.plan.CapturePlan.patterns` (the code tiled over the camera, through the
+calibration's homography, phase compensated), packed as
+:attr:`calibration.shutter.ShutterPatterns.packed`.
 
 Pixel-exactness
 ---------------
@@ -46,19 +47,6 @@ _logger = logging.getLogger(__name__)
 
 CYCLE_MS = 1000 // 60
 """Frame interval when K > 24 (the video input's 60 Hz), best effort."""
-
-
-def packed_frames(code, camera_size, projector_size, *, homography=None, phase_slots: int = 0) -> np.ndarray:
-    """The projector's 24-bit video frames ``(ceil(K/24), Hp, Wp, 3)`` uint8 for ``code``.
-
-    The masks are :func:`app.capture.patterns.shutter_patterns` (what the capture service loads),
-    packed by :func:`rig_drivers.dlpc350.bitplanes.pack_bitplanes`.
-    """
-    from app.capture.patterns import shutter_patterns
-    from rig_drivers.dlpc350.bitplanes import pack_bitplanes
-
-    masks = shutter_patterns(code, camera_size, projector_size, homography=homography, phase_slots=phase_slots)
-    return pack_bitplanes(masks)
 
 
 def screen_label(screen) -> str:
@@ -155,7 +143,7 @@ class ProjectorWindow(QWidget):
     Parameters
     ----------
     frames : ndarray (F, H, W, 3) uint8
-        :func:`packed_frames`; with F > 1 they are cycled every ``cycle_ms``.
+        :attr:`calibration.shutter.ShutterPatterns.packed`; with F > 1 they are cycled every ``cycle_ms``.
     screen : QScreen, optional
         Where to show it (default the primary screen).
     cycle_ms : int

@@ -6,16 +6,10 @@ import shutil
 import numpy as np
 import pytest
 
-from app.capture import (
-    CaptureCalibration,
-    CaptureError,
-    CaptureService,
-    LatestFrame,
-    QueuePolicy,
-    SyncSetting,
-    shutter_patterns,
-)
+from app.capture import CaptureError, CapturePlan, CaptureService, LatestFrame, QueuePolicy, SyncSetting
 from app.capture.pacing import PacedClock
+from calibration.capture_setup import CalibrationRefused, CaptureCalibration, SyncTiming
+from calibration.shutter import make_shutter_patterns
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture, tiled_code
 from flexvox_core.recording import RecordingWriter, open_recording
@@ -25,14 +19,23 @@ from rig_drivers.simulated_camera import VirtualClock
 from rig_drivers.simulated_rig import SimulatedRig
 
 CODE = design_code((2, 2)).code  # K = 4: small and fast
+PLAN = CapturePlan.from_code(CODE)
+PERIOD = PLAN.period_us  # 16666 µs at 15 Hz
 
 
 def make_rig(**kw):
+    """The textbook rig (projector = camera, identity map, no trigger offset): these tests are about the capture
+    path's mechanics; tests/app/capture/test_one_chain.py captures through a calibration of the real one."""
     kw.setdefault("camera_size", (16, 24))
     kw.setdefault("subframes", 32)
-    kw.setdefault("homography", np.eye(3))
+    kw.setdefault("ideal", True)
     kw.setdefault("clock", VirtualClock())
     return SimulatedRig.create(kw.pop("scene", "balls"), **kw)
+
+
+def phase(p: int) -> CaptureCalibration:
+    """An identity-map calibration whose sync says phase ``p`` (no trigger delay)."""
+    return CaptureCalibration(sync=SyncTiming(p, 0.0, 4, PERIOD, p), calibrated=True)
 
 
 def gt_of(rig, K=4):
@@ -41,7 +44,7 @@ def gt_of(rig, K=4):
 
 def test_capture_matches_the_forward_model_with_the_phase_compensated(tmp_path):
     rig = make_rig(phase_slots=3)
-    svc = CaptureService(rig, CODE, tmp_path / "r.zarr", frames=12, calibration=CaptureCalibration(phase_slots=3),
+    svc = CaptureService(rig, PLAN, tmp_path / "r.zarr", frames=12, calibration=phase(3),
                          ground_truth=gt_of(rig))
     result = svc.run()
     assert result.ok and result.reason == "done" and result.frames_in_recording == 12
@@ -67,7 +70,7 @@ def test_latest_frame_is_the_newest(tmp_path):
     frame, seq = slot.get()
     assert frame.frame_id == 2 and seq == 3
     rig = make_rig()
-    svc = CaptureService(rig, CODE, tmp_path / "r.zarr", frames=5)
+    svc = CaptureService(rig, PLAN, tmp_path / "r.zarr", frames=5)
     svc.run()
     frame, seq = svc.latest()
     assert frame.frame_id == 4 and seq == 5
@@ -75,7 +78,7 @@ def test_latest_frame_is_the_newest(tmp_path):
 
 def test_frame_id_gaps_become_dropped_zero_rows(tmp_path):
     rig = make_rig(seed=3, effects={"dropped_frames": {"probability": 0.3}})
-    result = CaptureService(rig, CODE, tmp_path / "r.zarr", frames=20).run()
+    result = CaptureService(rig, PLAN, tmp_path / "r.zarr", frames=20).run()
     rec = open_recording(tmp_path / "r.zarr")
     dropped = rec.per_frame("dropped")
     assert rec.n_frames == 20 and rec.per_frame("frame_id").tolist() == list(range(20))
@@ -97,7 +100,7 @@ class SlowWriter(RecordingWriter):
 
 def test_slow_disk_discards_after_blocking_and_records_the_loss(tmp_path):
     rig = make_rig()
-    svc = CaptureService(rig, CODE, tmp_path / "r.zarr", frames=15, writer_factory=SlowWriter,
+    svc = CaptureService(rig, PLAN, tmp_path / "r.zarr", frames=15, writer_factory=SlowWriter,
                          queue_policy=QueuePolicy(capacity=2, block_s=0.001))
     result = svc.run()
     rec = open_recording(tmp_path / "r.zarr")
@@ -110,7 +113,7 @@ def test_slow_disk_discards_after_blocking_and_records_the_loss(tmp_path):
 
 def test_slow_disk_within_the_blocking_time_loses_nothing(tmp_path):
     rig = make_rig()
-    result = CaptureService(rig, CODE, tmp_path / "r.zarr", frames=10, writer_factory=SlowWriter,
+    result = CaptureService(rig, PLAN, tmp_path / "r.zarr", frames=10, writer_factory=SlowWriter,
                             queue_policy=QueuePolicy(capacity=2, block_s=10.0)).run()
     assert result.stats.drops == 0 and result.stats.rows_written == 10
 
@@ -126,7 +129,7 @@ class FullDiskWriter(RecordingWriter):
 
 def test_full_disk_stops_cleanly_with_a_valid_recording(tmp_path):
     rig = make_rig()
-    result = CaptureService(rig, CODE, tmp_path / "r.zarr", frames=50, writer_factory=FullDiskWriter).run()
+    result = CaptureService(rig, PLAN, tmp_path / "r.zarr", frames=50, writer_factory=FullDiskWriter).run()
     assert not result.ok and result.reason == "error" and result.frames_in_recording == 5
     assert result.message.startswith("capture stopped: cannot write")
     assert "the disk is full" in result.message and "holds 5 frame(s) and opens cleanly" in result.message
@@ -145,7 +148,7 @@ class VanishingWriter(RecordingWriter):
 
 
 def test_vanished_folder_stops_with_a_clear_message(tmp_path):
-    result = CaptureService(make_rig(), CODE, tmp_path / "r.zarr", frames=50, writer_factory=VanishingWriter).run()
+    result = CaptureService(make_rig(), PLAN, tmp_path / "r.zarr", frames=50, writer_factory=VanishingWriter).run()
     assert result.reason == "error" and result.frames_in_recording is None
     assert "the recording folder" in result.message and "vanished" in result.message
     assert "the recording cannot be opened" in result.message
@@ -163,7 +166,7 @@ def test_camera_unplugged_keeps_the_frames_received(tmp_path, monkeypatch):
         return real(timeout_s)
 
     monkeypatch.setattr(rig.camera, "_do_read_frame", flaky)
-    result = CaptureService(rig, CODE, tmp_path / "r.zarr", frames=50).run()
+    result = CaptureService(rig, PLAN, tmp_path / "r.zarr", frames=50).run()
     assert result.reason == "error" and result.frames_in_recording == 4
     assert "the camera failed (unplugged?): USB device disconnected" in result.message
     assert "holds 4 frame(s)" in result.message
@@ -176,13 +179,13 @@ def test_no_frame_timeout_and_prompt_stop(tmp_path, monkeypatch):
         raise DeviceTimeoutError("no frame")
 
     monkeypatch.setattr(rig.camera, "_do_read_frame", never)
-    svc = CaptureService(rig, CODE, tmp_path / "r.zarr", frames=5,
+    svc = CaptureService(rig, PLAN, tmp_path / "r.zarr", frames=5,
                          sync=SyncSetting(read_slice_s=0.01, no_frame_timeout_s=0.05))
     result = svc.run()
     assert result.reason == "error" and "no frame from the camera for 0.05 s" in result.message
     assert result.frames_in_recording == 0
     # Until stopped: stop() returns a result (its waits are bounded).
-    svc2 = CaptureService(make_rig(), CODE, tmp_path / "s.zarr", frames=None)
+    svc2 = CaptureService(make_rig(), PLAN, tmp_path / "s.zarr", frames=None)
     svc2.start()
     result2 = svc2.stop(timeout_s=10)
     assert result2 is not None and result2.reason == "stopped" and result2.frames_in_recording >= 0
@@ -193,34 +196,36 @@ def test_no_frame_timeout_and_prompt_stop(tmp_path, monkeypatch):
 def test_setup_errors_are_clear(tmp_path):
     with pytest.raises(CaptureError, match=r"already exists"):
         (tmp_path / "r.zarr").mkdir()
-        CaptureService(make_rig(), CODE, tmp_path / "r.zarr", frames=1)
+        CaptureService(make_rig(), PLAN, tmp_path / "r.zarr", frames=1)
     with pytest.raises(CaptureError, match=r"shortest is 235 µs"):
-        CaptureService(make_rig(), CODE, tmp_path / "a.zarr", frames=1, sync=SyncSetting(camera_hz=5000)).start()
-    with pytest.raises(CaptureError, match=r"`phase_slots` must be below K = 4; got 4"):
-        CaptureService(make_rig(), CODE, tmp_path / "b.zarr", calibration=CaptureCalibration(phase_slots=4))
+        CaptureService(make_rig(), CapturePlan.from_code(CODE, camera_hz=5000), tmp_path / "a.zarr",
+                       frames=1).start()
+    with pytest.raises(CalibrationRefused, match=r"`phase_slots` must be a whole number 0..3; got 4"):
+        phase(4)
     with pytest.raises(CaptureError, match=r"`frames` must be a whole number >= 1 or None; got 0"):
-        CaptureService(make_rig(), CODE, tmp_path / "c.zarr", frames=0)
-    with pytest.raises(CaptureError, match=r"`homography` must be a finite 3x3 matrix"):
+        CaptureService(make_rig(), PLAN, tmp_path / "c.zarr", frames=0)
+    with pytest.raises(CalibrationRefused, match=r"`homography` must be a finite 3x3 matrix"):
         CaptureCalibration(homography=np.eye(2))
     rig = make_rig()
     with pytest.raises(CaptureError, match=r"the sync setting asks for a sync box, but the rig has none"):
         rig.sync = None
-        CaptureService(rig, CODE, tmp_path / "d.zarr", frames=1, sync=SyncSetting(use_sync_box=True)).start()
+        CaptureService(rig, PLAN, tmp_path / "d.zarr", frames=1, sync=SyncSetting(use_sync_box=True)).start()
     assert rig.camera.state is DeviceState.CLOSED  # set-up failures close what they opened
 
 
 def test_patterns_identity_phase_and_shift():
     code = design_code((4, 4)).code
-    p = shutter_patterns(code, (8, 12), (8, 12))
+    p = make_shutter_patterns(code, np.eye(3), (8, 12), (8, 12)).patterns
     np.testing.assert_array_equal(p, tiled_code(code, 8, 12))
-    np.testing.assert_array_equal(shutter_patterns(code, (8, 12), (8, 12), phase_slots=5), np.roll(p, 5, axis=0))
+    np.testing.assert_array_equal(make_shutter_patterns(code, np.eye(3), (8, 12), (8, 12), phase_slots=5).patterns,
+                                  np.roll(p, 5, axis=0))
     # Projector pixel (x, y) lands on camera pixel (x + 2, y + 1).
     h = np.array([[1, 0, 2], [0, 1, 1], [0, 0, 1]], float)
-    q = shutter_patterns(code, (8, 12), (8, 12), homography=h)
+    q = make_shutter_patterns(code, h, (8, 12), (8, 12)).patterns
     np.testing.assert_array_equal(q[:, :7, :10], p[:, 1:, 2:])
     assert not q[:, 7:, :].any() and not q[:, :, 10:].any()  # lands outside the camera: dark
     with pytest.raises(ValueError, match=r"`phase_slots` must be a whole number 0..15; got 16"):
-        shutter_patterns(code, (8, 12), (8, 12), phase_slots=16)
+        make_shutter_patterns(code, np.eye(3), (8, 12), (8, 12), phase_slots=16)
 
 
 def test_paced_clock_only_moves_when_sleeping():
@@ -239,8 +244,6 @@ def test_paced_clock_only_moves_when_sleeping():
 
 def test_capture_on_a_dlpc350_uses_its_video_port(tmp_path):
     """The LightCrafter runs VSYNC-triggered sequences from its video input; capture must ask for one."""
-    from app.capture import CaptureService
-    from flexvox_core.design import design_code
     from flexvox_core.recording import open_recording
     from rig_drivers.interfaces import ProjectorTrigger
 
@@ -248,7 +251,7 @@ def test_capture_on_a_dlpc350_uses_its_video_port(tmp_path):
 
     screen = RecordingScreen()
     rig = display_rig(screen)
-    service = CaptureService(rig, design_code((2, 4)).code, tmp_path / "r.zarr", frames=3, projector_size=(48, 64))
+    service = CaptureService(rig, CapturePlan(tile=(2, 4)), tmp_path / "r.zarr", frames=3, projector_size=(48, 64))
     result = service.run(timeout_s=20.0)
     assert result.ok, result.message
     assert rig.projector.sequence.trigger is ProjectorTrigger.VSYNC
@@ -256,14 +259,12 @@ def test_capture_on_a_dlpc350_uses_its_video_port(tmp_path):
 
 
 def test_capture_refuses_a_sync_box_with_a_video_port_projector(tmp_path):
-    from app.capture import CaptureError, CaptureService
-    from flexvox_core.design import design_code
     from rig_drivers.simulated import SimulatedSyncController
 
     from ...rig_drivers.display_rig import RecordingScreen, display_rig
 
     rig = display_rig(RecordingScreen())
     rig = type(rig)(rig.projector, rig.camera, SimulatedSyncController(), rig.spec)
-    service = CaptureService(rig, design_code((2, 4)).code, tmp_path / "r.zarr", frames=2, projector_size=(48, 64))
+    service = CaptureService(rig, CapturePlan(tile=(2, 4)), tmp_path / "r.zarr", frames=2, projector_size=(48, 64))
     with pytest.raises(CaptureError, match=r"a sync box cannot clock it.*kind = \"projector-trigger\""):
         service.run(timeout_s=20.0)

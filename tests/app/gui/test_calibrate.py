@@ -14,8 +14,9 @@ from app.gui.models.calibration_model import (
 )
 from app.gui.models.rig_service import RigService
 from calibration.files import load_calibration
-from calibration.simulated_target import calibration_rig, hidden_timing
 from calibration.sync import load_sync_profile
+from rig_drivers.simulated_target import hidden_timing
+from tests.rig_drivers.mock_rigs import calibration_rig
 
 from .conftest import small_rig
 
@@ -24,7 +25,8 @@ SEED = 0
 
 @pytest.fixture
 def calibrate(qtbot, settings, runner):
-    ws = CalibrateWorkspace(RigService(small_rig()), settings, runner)
+    # The simulated rig of seed 0 at 120x160 on a virtual clock (calibration takes no real time).
+    ws = CalibrateWorkspace(RigService(calibration_rig(SEED)), settings, runner)
     qtbot.addWidget(ws)
     ws.resize(1300, 850)
     yield ws
@@ -95,7 +97,7 @@ def test_cancel_stops_between_steps_and_keeps_nothing(qtbot, calibrate):
 def test_a_rig_that_is_not_co_located_is_reported_and_not_saved(qtbot, calibrate):
     """The projector 30 % of the target distance off the camera's axis: the parallax test fails."""
     ws = calibrate
-    target = CalibrationTarget(calibration_rig(SEED, baseline=(0.3, 0.0, 0.0)), True, SEED)
+    target = CalibrationTarget(calibration_rig(SEED, baseline=(0.3, 0.0, 0.0)), True)
     outcome = run_workspace_calibration(target)
     assert not outcome.success and outcome.report["failed"] == "colocation"
     ws.show_outcome(outcome)
@@ -179,7 +181,7 @@ def test_trigger_test_says_when_the_camera_is_not_triggered(qtbot, runner):
         def session(self):
             return RigSession.from_rig(self.rig, trigger=TriggerConfig(source=TriggerSource.LINE0), timeout_s=0.3)
 
-    target = Miswired(calibration_rig(SEED, camera_line=TriggerSource.LINE2), True, SEED)
+    target = Miswired(calibration_rig(SEED, camera_line=TriggerSource.LINE2), True)
     wizard = SyncWizard(target, runner)
     qtbot.addWidget(wizard)
     wizard.trigger.start()
@@ -188,6 +190,10 @@ def test_trigger_test_says_when_the_camera_is_not_triggered(qtbot, runner):
     assert "the camera is not triggered by the projector" in wizard.trigger.verdict.text()
 
 
-def test_target_for_the_simulated_rig_is_the_calibration_target():
-    target = target_for(RigService(small_rig()), seed=3)
-    assert target.simulated and target.seed == 3 and target.rig.simulated.truth.phase_slots == hidden_timing(3)[0]
+def test_target_for_the_simulated_rig_is_the_rig_capture_uses():
+    service = RigService(small_rig(seed=3))
+    target = target_for(service)
+    assert target.simulated and target.rig is service.rig and target.seed == 3
+    assert target.rig.simulated.truth.phase_slots == hidden_timing(3)[0]
+    target.session()  # a calibration session puts the calibration target in view
+    assert service.rig.simulated.viewing == "target"

@@ -1,4 +1,5 @@
-"""Calibration in the Capture workspace: load a file, refuse another rig's, take the Calibrate workspace's result."""
+"""Calibration in the Capture workspace: load a file or a sync profile, refuse another rig's, take the Calibrate
+workspace's result (the simulated rig is one rig: its own calibration is accepted)."""
 
 import html
 import re
@@ -8,15 +9,10 @@ import pytest
 
 from app.gui.capture.workspace import CaptureWorkspace
 from app.gui.models.calibration_model import run_workspace_calibration, target_for
-from app.gui.models.capture_calibration import (
-    CalibrationRefused,
-    capture_identity,
-    from_outcome,
-    load_for_capture,
-)
+from app.gui.models.capture_calibration import capture_identity
 from app.gui.models.rig_service import RigService
+from calibration.capture_setup import CalibrationRefused, from_run, load_for_capture
 from calibration.files import CALIBRATION_FORMAT, CALIBRATION_VERSION, write_versioned
-from calibration.simulated_target import calibration_rig
 from flexvox_core.recording import open_recording
 
 from .conftest import small_rig
@@ -39,8 +35,8 @@ def capture(qtbot, settings, runner):
     service = RigService(small_rig())
     ws = CaptureWorkspace(service, settings, runner)
     qtbot.addWidget(ws)
-    ws.rate.setValue(60.0)  # K = 16 at 60 Hz: 1041 µs patterns
-    ws.preview_check.setChecked(False)
+    ws.code.rate.setValue(60.0)  # K = 16 at 60 Hz: 1041 µs patterns
+    ws.live_panel.preview_check.setChecked(False)
     yield ws
     ws.shutdown()
     service.close()
@@ -48,20 +44,22 @@ def capture(qtbot, settings, runner):
 
 def test_a_file_for_this_rig_is_used_by_recordings(qtbot, capture, tmp_path):
     ws = capture
-    assert "uncalibrated" in ws.calibration_label.text()
+    label = ws.calibration_panel.label
+    assert "uncalibrated" in label.text()
     path = _write(tmp_path / "cal.json", capture_identity(ws.service))
     with qtbot.waitSignal(ws.calibration_changed) as changed:
         assert ws.load_calibration(path)
     active = changed.args[0]
     np.testing.assert_allclose(active.homography, H_SHIFT)
-    text = ws.calibration_label.text()
+    text = label.text()
     assert str(path) in text and "2026-03-14T09:30:00+00:00" in text and "RMS 0.123 px" in text
-    assert "phase 3 (K = 16)" in text and "recordings use its homography and phase 3" in text
+    assert "phase 3 with a 0 µs camera trigger delay (measured at K = 16, 1041 µs patterns)" in text
+    assert "recordings use phase <b>3</b>, no camera trigger delay" in text
     cal = ws.capture_calibration()
     np.testing.assert_allclose(cal.homography, H_SHIFT)
-    assert cal.phase_slots == 3 and cal.source == f"{path} (2026-03-14T09:30:00+00:00)"
-    ws.path_edit.setText(str(tmp_path / "run.zarr"))
-    ws.frames_box.setValue(4)
+    assert cal.phase_slots == 3 and cal.source == str(path) and cal.created == "2026-03-14T09:30:00+00:00"
+    ws.record_panel.path_edit.setText(str(tmp_path / "run.zarr"))
+    ws.record_panel.frames_box.setValue(4)
     with qtbot.waitSignal(ws.recording_finished, timeout=20_000) as finished:
         assert ws.record()
     assert finished.args[0].ok
@@ -70,7 +68,7 @@ def test_a_file_for_this_rig_is_used_by_recordings(qtbot, capture, tmp_path):
     assert stored["phase_slots"] == 3 and stored["source"] == cal.source
     # another timing: the phase is only a guess, and the box says so
     ws.set_tile((2, 4))
-    assert "the sync phase was measured at K = 16, 1041 µs patterns; this plan is K = 8" in ws.calibration_label.text()
+    assert "the sync was measured at K = 16, 1041 µs patterns; this capture is K = 8" in label.text()
     ws.clear_calibration()
     assert ws.calibration is None and ws.capture_calibration().source == "identity (uncalibrated)"
 
@@ -82,52 +80,82 @@ def test_a_file_for_another_resolution_or_rig_is_refused_in_words(capture, tmp_p
     other = capture_identity(ws.service).as_dict() | {"camera_size": [120, 160]}
     path = _write(tmp_path / "other.json", other)
     assert not ws.load_calibration(path)
-    text = html.unescape(ws.calibration_label.text())
+    text = html.unescape(ws.calibration_panel.label.text())
     assert re.search(r"refused: .*other\.json was made for a camera resolution of 120x160, this rig's is 48x64: "
                      r"calibrate this rig", text)
     assert ws.calibration is not None and str(good) in text  # the previous calibration stays active
     renamed = capture_identity(ws.service).as_dict() | {"name": "lab rig 2"}
-    with pytest.raises(CalibrationRefused, match=r"was made for rig 'lab rig 2', not 'simulated rig \(mock\)'"):
+    with pytest.raises(CalibrationRefused, match=r"was made for rig 'lab rig 2', not 'simulated rig \(mock, seed 0\)'"):
         load_for_capture(_write(tmp_path / "rig2.json", renamed), capture_identity(ws.service))
     with pytest.raises(CalibrationRefused, match=r"missing\.json: no such file"):
         load_for_capture(tmp_path / "missing.json", capture_identity(ws.service))
 
 
-def test_the_calibrate_workspaces_result_hands_over_to_capture(qtbot, settings, runner, tmp_path):
-    """On a rig that calibrates itself, "Use for capture" makes Capture record with the fresh result."""
-    from app.gui.application import build_window
+def test_a_sync_profile_loads_into_capture_with_its_phase_and_delay(capture, tmp_path):
+    from calibration.sync import SYNC_FORMAT, SYNC_VERSION
 
-    window = build_window(calibration_rig(0), settings=settings, runner=runner)
+    ws = capture
+    identity = capture_identity(ws.service)
+    assert ws.load_calibration(_write(tmp_path / "cal.json", identity))
+    sync = {"status": "ok", "K": 16, "period_us": 1041, "phase_slots": 6, "delay_us": 600.0,
+            "recommended_camera_delay_us": 441.0, "effective_phase_slots": 7}
+    profile = write_versioned(tmp_path / "sync.json", SYNC_FORMAT, SYNC_VERSION, identity, {"sync": sync})
+    assert ws.load_sync_profile(profile)
+    cal = ws.capture_calibration()
+    np.testing.assert_allclose(cal.homography, H_SHIFT)  # the calibration's homography stays
+    assert (cal.phase_slots, cal.trigger_delay_us) == (7, 441.0)
+    text = ws.calibration_panel.label.text()
+    assert "recordings use phase <b>7</b> and a <b>441 µs</b> camera trigger delay (set by the camera)" in text
+    assert not ws.calibration_panel.delay_check.isVisibleTo(ws)  # the simulated camera sets it itself
+
+
+def test_the_calibrate_workspaces_result_hands_over_to_capture(qtbot, settings, runner, tmp_path):
+    """The simulated rig calibrates itself: "Use for capture" makes Capture record with the fresh result,
+    the phase that goes with the recommended trigger delay, and that delay."""
+    from app.gui.application import build_window
+    from rig_drivers.profile import open_rig
+    from rig_drivers.simulated_camera import VirtualClock
+
+    rig = open_rig("mock", scene="balls", subframes=64, clock=VirtualClock())
+    window = build_window(rig, settings=settings, runner=runner)
     qtbot.addWidget(window)
-    window.capture.preview_check.setChecked(False)
+    window.capture.live_panel.preview_check.setChecked(False)
     cal = window.calibrate
     assert not cal.use_button.isEnabled()
     cal.run_calibration()
     qtbot.waitUntil(lambda: not cal.running, timeout=30_000)
     assert cal.outcome.success and cal.use_button.isEnabled()
-    saved = cal.save(tmp_path / "fresh.json")
+    cal.save(tmp_path / "fresh.json")
     cal.use_button.click()
     capture = window.capture
     assert window.tabs.currentWidget() is capture
     active = capture.calibration
     np.testing.assert_allclose(active.homography, cal.outcome.homography.homography)
-    assert active.phase_slots == cal.outcome.sync.phase_slots and active.path == saved
-    assert f"RMS {cal.outcome.homography.rms_px:.3f} px" in capture.calibration_label.text()
+    sync = cal.outcome.sync
+    assert active.phase_slots == sync.effective_phase_slots != sync.phase_slots
+    assert active.trigger_delay_us == pytest.approx(sync.recommended_camera_delay_us)
+    assert f"RMS {cal.outcome.homography.rms_px:.3f} px" in capture.calibration_panel.label.text()
     window.close()
 
 
-def test_the_simulated_rigs_calibration_target_is_another_rig_and_is_refused(qtbot, settings, runner):
-    service = RigService(small_rig())
-    outcome = run_workspace_calibration(target_for(service, 0))
+def test_another_simulated_rigs_calibration_is_refused(qtbot, settings, runner):
+    from rig_drivers.profile import open_rig
+    from rig_drivers.simulated_camera import VirtualClock
+
+    other = RigService(open_rig("mock", scene="static", camera_size=(48, 64), subframes=16, seed=1,
+                                clock=VirtualClock()))
+    outcome = run_workspace_calibration(target_for(other))
     assert outcome.success
-    with pytest.raises(CalibrationRefused, match=r"made for a camera resolution of 120x160, this rig's is 48x64.*"
-                                                 r"calibration runs on its own calibration target"):
-        from_outcome(outcome, capture_identity(service))
+    service = RigService(small_rig())
+    with pytest.raises(CalibrationRefused, match=r"was made for rig 'simulated rig \(mock, seed 1\)', not "
+                                                 r"'simulated rig \(mock, seed 0\)'"):
+        from_run(outcome.run, outcome.identity, capture_identity(service))
     ws = CaptureWorkspace(service, settings, runner)
     qtbot.addWidget(ws)
     assert not ws.use_outcome(outcome)
-    assert ws.calibration_error.startswith("the Calibrate workspace's result was made for a camera resolution")
-    assert "refused: the Calibrate workspace's result was made for" in html.unescape(ws.calibration_label.text())
+    assert ws.calibration_error.startswith("the calibration just run was made for rig")
+    assert "refused: the calibration just run was made for" in html.unescape(ws.calibration_panel.label.text())
     assert ws.calibration is None
     ws.shutdown()
     service.close()
+    other.close()

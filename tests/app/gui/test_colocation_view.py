@@ -6,8 +6,7 @@ import pytest
 from app.gui.calibrate.colocation_view import ColocationView, apply_homography, projector_grid
 from app.gui.calibrate.workspace import CalibrateWorkspace
 from app.gui.models.rig_service import RigService
-
-from .conftest import small_rig
+from tests.rig_drivers.mock_rigs import calibration_rig
 
 # projector (x, y) -> camera: rotate 90°, scale 0.5, shift (40, 4)
 H_KNOWN = np.array([[0.0, -0.5, 40.0], [0.5, 0.0, 4.0], [0.0, 0.0, 1.0]])
@@ -43,7 +42,7 @@ def test_the_overlay_follows_a_known_homography(qtbot):
 
 
 def test_live_co_location_shows_the_camera_with_the_estimated_grid(qtbot, settings, runner):
-    ws = CalibrateWorkspace(RigService(small_rig()), settings, runner)
+    ws = CalibrateWorkspace(RigService(calibration_rig(0)), settings, runner)
     qtbot.addWidget(ws)
     ws.live_check.setChecked(True)
     assert ws.tabs.currentWidget() is ws.colocation_view

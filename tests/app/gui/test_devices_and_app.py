@@ -78,13 +78,13 @@ def test_a_recording_made_in_capture_opens_in_review(qtbot, settings, runner, tm
     window.show_workspace("Calibrate")
     assert window.calibrate.rig_busy_reason() is None  # the simulated rig calibrates its own target
     capture = window.capture
-    capture.rate.setValue(60.0)
-    capture.path_edit.setText(str(tmp_path / "made-here.zarr"))
-    capture.frames_box.setValue(6)
+    capture.code.rate.setValue(60.0)
+    capture.record_panel.path_edit.setText(str(tmp_path / "made-here.zarr"))
+    capture.record_panel.frames_box.setValue(6)
     with qtbot.waitSignal(capture.recording_finished, timeout=20_000):
         assert capture.record()
         assert window._capture_busy() == "a recording is running in the Capture workspace"
-    capture.review_button.click()
+    capture.record_panel.review_button.click()
     assert window.tabs.currentWidget() is window.review
     qtbot.waitUntil(lambda: window.review.session is not None, timeout=10_000)
     assert window.review.session.n_frames == 6

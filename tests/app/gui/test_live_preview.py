@@ -54,7 +54,7 @@ def capture(qtbot, settings, runner):
     ws = CaptureWorkspace(service, settings, runner)
     qtbot.addWidget(ws)
     ws.resize(1300, 800)
-    ws.rate.setValue(60.0)  # K = 16 at 60 Hz: a frame every 16.7 ms
+    ws.code.rate.setValue(60.0)  # K = 16 at 60 Hz: a frame every 16.7 ms
     yield ws
     ws.shutdown()
     service.close()
@@ -62,38 +62,39 @@ def capture(qtbot, settings, runner):
 
 def test_the_preview_updates_during_live_view_without_costing_frames(qtbot, capture):
     ws = capture
-    assert ws.preview_check.isChecked()
+    assert ws.live_panel.preview_check.isChecked()
     jobs_at_once = []
-    ws.stream.frame.connect(lambda _: jobs_at_once.append(ws.preview.runner.active))
+    ws.live_panel.stream.frame.connect(lambda _: jobs_at_once.append(ws.live_panel.preview.runner.active))
     assert ws.start_live()
-    qtbot.waitUntil(lambda: ws.preview.runs >= 3, timeout=20_000)
-    first = ws.preview.result
+    qtbot.waitUntil(lambda: ws.live_panel.preview.runs >= 3, timeout=20_000)
+    first = ws.live_panel.preview.result
     assert first.video.shape == (16, 48, 64)
-    qtbot.waitUntil(lambda: ws.preview.result is not first, timeout=10_000)  # keeps updating
-    assert ws.preview_panel.has_image() and ws.preview_panel.image.image.shape == (48, 64)
-    assert re.match(r"motion-aware preview: frame \d+, sub-frame \d+/16", ws.preview_panel.title.text())
+    qtbot.waitUntil(lambda: ws.live_panel.preview.result is not first, timeout=10_000)  # keeps updating
+    assert ws.live_panel.preview_panel.has_image() and ws.live_panel.preview_panel.image.image.shape == (48, 64)
+    assert re.match(r"motion-aware preview: frame \d+, sub-frame \d+/16", ws.live_panel.preview_panel.title.text())
     assert re.match(r"preview: 64×48 \(every pixel\), [123] frames?, \d+\.\d Hz, \d\.\d\d s per run · \d+ of \d+ "
-                    r"camera frames previewed \(newest wins\)", ws.preview_label.text())
-    assert ws.preview.rate_hz > 0
+                    r"camera frames previewed \(newest wins\)", ws.live_panel.preview_label.text())
+    assert ws.live_panel.preview.rate_hz > 0
     assert max(jobs_at_once) <= 1  # one reconstruction at a time, never a queue
-    assert ws.preview.offered > ws.preview.runs  # frames arrive faster than previews: the newest wins
-    assert ws.stats.received >= 20 and ws.stats.dropped == 0
+    preview = ws.live_panel.preview
+    assert preview.offered > preview.runs  # frames arrive faster than previews: the newest wins
+    assert ws.live_panel.stats.received >= 20 and ws.live_panel.stats.dropped == 0
     ws.stop_live()
-    assert not ws.preview.enabled and ws.preview_label.text().startswith("preview (stopped):")
+    assert not ws.live_panel.preview.enabled and ws.live_panel.preview_label.text().startswith("preview (stopped):")
 
 
 def test_a_recording_with_the_preview_on_drops_nothing(qtbot, capture, tmp_path):
     ws = capture
-    ws.path_edit.setText(str(tmp_path / "run.zarr"))
-    ws.frames_box.setValue(60)  # one second at 60 Hz
-    ws.truth_check.setChecked(False)
+    ws.record_panel.path_edit.setText(str(tmp_path / "run.zarr"))
+    ws.record_panel.frames_box.setValue(60)  # one second at 60 Hz
+    ws.record_panel.truth_check.setChecked(False)
     with qtbot.waitSignal(ws.recording_finished, timeout=30_000) as finished:
         assert ws.record()
     result = finished.args[0]
-    assert ws.preview.runs >= 1, "the preview ran during the recording"
+    assert ws.live_panel.preview.runs >= 1, "the preview ran during the recording"
     assert result.ok and result.frames_in_recording == 60
     assert result.stats.drops == 0 and result.stats.queue_drops == 0
-    assert not ws.preview.enabled
+    assert not ws.live_panel.preview.enabled
 
 
 def test_newest_wins_one_run_at_a_time(qtbot):
@@ -111,8 +112,8 @@ def test_newest_wins_one_run_at_a_time(qtbot):
 
 def test_the_preview_can_be_switched_off(qtbot, capture):
     ws = capture
-    ws.preview_check.setChecked(False)
+    ws.live_panel.preview_check.setChecked(False)
     assert ws.start_live()
-    qtbot.waitUntil(lambda: ws.stats.received >= 5, timeout=10_000)
-    assert ws.preview.runs == 0 and ws.preview_label.text() == "preview: off"
+    qtbot.waitUntil(lambda: ws.live_panel.stats.received >= 5, timeout=10_000)
+    assert ws.live_panel.preview.runs == 0 and ws.live_panel.preview_label.text() == "preview: off"
     assert not ws.settings.get_bool("capture/preview", True)

@@ -14,7 +14,7 @@ from PySide6.QtGui import QGuiApplication, QImage
 
 from app.gui.capture.workspace import CaptureWorkspace
 from app.gui.models.rig_service import RigService
-from app.gui.projector.window import ProjectorWindow, packed_frames, screen_label
+from app.gui.projector.window import ProjectorWindow, screen_label
 from rig_drivers.dlpc350.bitplanes import pack_bitplanes, unpack_bitplanes
 
 from .conftest import small_rig
@@ -122,7 +122,7 @@ def capture(qtbot, settings, runner):
     service = RigService(small_rig())
     ws = CaptureWorkspace(service, settings, runner)
     qtbot.addWidget(ws)
-    ws.rate.setValue(60.0)
+    ws.code.rate.setValue(60.0)
     yield ws
     ws.shutdown()
     service.close()
@@ -130,29 +130,30 @@ def capture(qtbot, settings, runner):
 
 def test_capture_lists_the_screens_with_their_geometry(capture):
     screens = QGuiApplication.screens()
-    assert capture.screen_box.count() == len(screens) >= 1
+    assert capture.projector.screen_box.count() == len(screens) >= 1
     for i, screen in enumerate(screens):
         g = screen.geometry()
-        text = capture.screen_box.itemText(i)
+        text = capture.projector.screen_box.itemText(i)
         assert text == screen_label(screen)
         assert f"{g.width()}×{g.height()} at ({g.x()}, {g.y()})" in text
-    assert capture.chosen_screen() in screens
+    assert capture.projector.chosen_screen() in screens
 
 
 def test_capture_shows_the_plans_patterns_full_screen_and_esc_closes(qtbot, capture):
     ws = capture
     ws.set_tile((2, 4))
-    ws.projector_button.click()
-    qtbot.waitUntil(lambda: ws.projector_window is not None, timeout=10_000)
-    win = ws.projector_window
+    ws.projector.button.click()
+    qtbot.waitUntil(lambda: ws.projector.window is not None, timeout=10_000)
+    win = ws.projector.window
     qtbot.waitExposed(win)
-    expected = packed_frames(ws.plan().code, (48, 64), (48, 64))  # the simulated rig: identity map
-    assert expected.shape == (1, 48, 64, 3)
-    np.testing.assert_array_equal(_grab(win)[:48, :64], expected[0])
-    assert win.screen() is ws.chosen_screen()
-    assert re.search(r"showing on .*: 64×48 pixels, 1 frame: K = 8 masks in its bit-planes; Esc closes",
-                     ws.projector_label.text())
-    assert ws.projector_button.isChecked() and ws.projector_button.text() == "Close projector window"
+    # what a recording loads into the projector (96x128: the simulated projector is twice as fine)
+    expected = ws.plan().patterns((48, 64), (96, 128), ws.capture_calibration()).packed
+    assert expected.shape == (1, 96, 128, 3)
+    np.testing.assert_array_equal(_grab(win)[:96, :128], expected[0])
+    assert win.screen() is ws.projector.chosen_screen()
+    assert re.search(r"showing on .*: 128×96 pixels, 1 frame: K = 8 masks in its bit-planes; Esc closes",
+                     ws.projector.label.text())
+    assert ws.projector.button.isChecked() and ws.projector.button.text() == "Close projector window"
     qtbot.keyClick(win, Qt.Key.Key_Escape)
-    qtbot.waitUntil(lambda: ws.projector_window is None, timeout=2000)
-    assert not ws.projector_button.isChecked() and ws.projector_label.text() == "closed (Esc)"
+    qtbot.waitUntil(lambda: ws.projector.window is None, timeout=2000)
+    assert not ws.projector.button.isChecked() and ws.projector.label.text() == "closed (Esc)"

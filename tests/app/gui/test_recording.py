@@ -22,7 +22,7 @@ def _workspace(qtbot, settings, runner, **kw):
     service = RigService(small_rig())
     ws = CaptureWorkspace(service, settings, runner, **kw)
     qtbot.addWidget(ws)
-    ws.rate.setValue(RATE_HZ)
+    ws.code.rate.setValue(RATE_HZ)
     return ws
 
 
@@ -42,75 +42,77 @@ def test_record_n_frames_then_the_recording_opens_with_n_frames(qtbot, capture, 
     ws = capture
     rig = ws.service.rig
     assert ws.start_live()  # a running live view gives the devices up to the recording
-    qtbot.waitUntil(lambda: ws.stats.received >= 1, timeout=10_000)
+    qtbot.waitUntil(lambda: ws.live_panel.stats.received >= 1, timeout=10_000)
     path = tmp_path / "run.zarr"
-    ws.path_edit.setText(str(path))
-    ws.frames_box.setValue(12)
+    ws.record_panel.path_edit.setText(str(path))
+    ws.record_panel.frames_box.setValue(12)
     with qtbot.waitSignal(ws.recording_finished, timeout=20_000) as finished:
-        ws.record_button.click()
+        ws.record_panel.record_button.click()
         assert ws.recording and not ws.live, "Record stops the live view: the capture service owns the camera"
-        assert not ws.record_button.isEnabled() and not ws.live_button.isEnabled()
-        assert not ws.path_edit.isEnabled() and not ws.tile_box.isEnabled()
+        assert not ws.record_panel.record_button.isEnabled() and not ws.live_panel.live_button.isEnabled()
+        assert not ws.record_panel.path_edit.isEnabled() and not ws.code.tile_box.isEnabled()
     result = finished.args[0]
     assert result.ok and result.reason == "done" and result.frames_in_recording == 12
     rec = open_recording(path)
     assert rec.n_frames == 12 and rec.K == 16
     assert rec.ground_truth().shape == (12 * 16, 48, 64)  # the simulated scene, kept as truth
-    text = ws.recording_label.text()
+    text = ws.record_panel.recording_label.text()
     assert "recording done: captured 12 frames: 0 dropped" in text and "holds 12 frame(s)" in text
-    assert re.search(r"12 of 12 frames written \(\d+ received\) · 0 dropped", ws.counters_label.text())
-    assert "write" in ws.counters_label.text() and "queue" in ws.counters_label.text()
-    assert ws.image_panel.has_image() and ws.image_panel.image.image.shape == (48, 64)
-    assert ws.record_button.isEnabled() and ws.live_button.isEnabled() and ws.review_button.isEnabled()
+    assert re.search(r"12 of 12 frames written \(\d+ received\) · 0 dropped", ws.record_panel.counters_label.text())
+    assert "write" in ws.record_panel.counters_label.text() and "queue" in ws.record_panel.counters_label.text()
+    assert ws.live_panel.image_panel.has_image() and ws.live_panel.image_panel.image.image.shape == (48, 64)
+    rec = ws.record_panel
+    assert rec.record_button.isEnabled() and ws.live_panel.live_button.isEnabled() and rec.review_button.isEnabled()
     assert not rig.camera.acquiring and rig.projector.run_state is RunState.STOPPED
     assert rig.camera.state is DeviceState.ENABLED  # the live view had connected it: left open, stopped
     with qtbot.waitSignal(ws.open_requested) as asked:
-        ws.review_button.click()
+        ws.record_panel.review_button.click()
     assert asked.args == [path]
 
 
 def test_stop_early_keeps_what_was_captured(qtbot, capture, tmp_path):
     ws = capture
     path = tmp_path / "until-stop.zarr"
-    ws.path_edit.setText(str(path))
-    ws.frames_box.setValue(0)
-    assert ws.frames_box.text() == "until Stop"
+    ws.record_panel.path_edit.setText(str(path))
+    ws.record_panel.frames_box.setValue(0)
+    assert ws.record_panel.frames_box.text() == "until Stop"
     assert ws.record()
     qtbot.waitUntil(lambda: ws.capture.stats().rows_written >= 4, timeout=10_000)
-    before = ws.counters_label.text()
-    qtbot.waitUntil(lambda: ws.counters_label.text() != before, timeout=5000)  # refreshed on its timer
-    assert ws.stop_button.isEnabled()
-    ws.stop_button.click()
-    assert not ws.stop_button.isEnabled()
+    before = ws.record_panel.counters_label.text()
+    qtbot.waitUntil(lambda: ws.record_panel.counters_label.text() != before, timeout=5000)  # refreshed on its timer
+    assert ws.record_panel.stop_button.isEnabled()
+    ws.record_panel.stop_button.click()
+    assert not ws.record_panel.stop_button.isEnabled()
     _wait_ended(qtbot, ws)
     result = ws.last_result
     assert result.ok and result.reason == "stopped" and result.frames_in_recording >= 4
     assert open_recording(path).n_frames == result.frames_in_recording
-    assert re.search(r"recording done: stopped after \d+ frames: 0 dropped", ws.recording_label.text())
+    assert re.search(r"recording done: stopped after \d+ frames: 0 dropped", ws.record_panel.recording_label.text())
     assert ws.service.rig.camera.state is DeviceState.CLOSED  # the service opened it, so it closed it
 
 
 def test_a_path_in_a_missing_folder_is_refused_in_words(qtbot, capture, tmp_path):
     ws = capture
-    ws.path_edit.setText("")
-    assert not ws.record() and "choose a recording path first" in ws.recording_label.text()
-    ws.path_edit.setText(str(tmp_path / "no-such-folder" / "run.zarr"))
+    ws.record_panel.path_edit.setText("")
+    assert not ws.record() and "choose a recording path first" in ws.record_panel.recording_label.text()
+    ws.record_panel.path_edit.setText(str(tmp_path / "no-such-folder" / "run.zarr"))
     assert not ws.record()
     assert re.search(r"cannot record: cannot write .*run\.zarr: the folder .*no-such-folder does not exist",
-                     ws.recording_label.text())
-    assert not ws.recording and ws.record_button.isEnabled() and ws.capture is None
+                     ws.record_panel.recording_label.text())
+    assert not ws.recording and ws.record_panel.record_button.isEnabled() and ws.capture is None
     existing = tmp_path / "taken.zarr"
     existing.mkdir()
-    ws.path_edit.setText(str(existing))
-    assert not ws.record() and "already exists; choose another path or allow overwriting" in ws.recording_label.text()
+    ws.record_panel.path_edit.setText(str(existing))
+    assert not ws.record()
+    assert "already exists; choose another path or allow overwriting" in ws.record_panel.recording_label.text()
 
 
 def test_a_timing_the_projector_refuses_cannot_record(capture, tmp_path):
     ws = capture
-    ws.path_edit.setText(str(tmp_path / "run.zarr"))
-    ws.rate.setValue(1000.0)
-    assert not ws.record_button.isEnabled()
-    assert not ws.record() and "cannot record: projector:" in ws.recording_label.text()
+    ws.record_panel.path_edit.setText(str(tmp_path / "run.zarr"))
+    ws.code.rate.setValue(1000.0)
+    assert not ws.record_panel.record_button.isEnabled()
+    assert not ws.record() and "cannot record: projector:" in ws.record_panel.recording_label.text()
 
 
 class _DiskFullWriter(RecordingWriter):
@@ -126,14 +128,14 @@ def test_a_disk_that_fills_up_ends_the_recording_with_the_reason(qtbot, settings
     factory = partial(CaptureService, writer_factory=_DiskFullWriter)
     ws = _workspace(qtbot, settings, runner, capture_factory=factory)
     try:
-        ws.path_edit.setText(str(tmp_path / "full.zarr"))
-        ws.frames_box.setValue(20)
-        ws.truth_check.setChecked(False)
+        ws.record_panel.path_edit.setText(str(tmp_path / "full.zarr"))
+        ws.record_panel.frames_box.setValue(20)
+        ws.record_panel.truth_check.setChecked(False)
         with qtbot.waitSignal(ws.recording_finished, timeout=20_000) as finished:
             assert ws.record()
         result = finished.args[0]
         assert not result.ok and result.frames_in_recording == 2
-        text = ws.recording_label.text()
+        text = ws.record_panel.recording_label.text()
         assert "recording failed: capture stopped: cannot write" in text and "the disk is full" in text
         assert "holds 2 frame(s)" in text and "#c0392b" in text
         assert open_recording(tmp_path / "full.zarr").n_frames == 2
@@ -152,8 +154,8 @@ def test_the_window_keeps_running_while_it_records(qtbot, capture, tmp_path):
     timer.setInterval(20)
     timer.timeout.connect(lambda: ticks.append(1))
     timer.start()
-    ws.path_edit.setText(str(tmp_path / "run.zarr"))
-    ws.frames_box.setValue(30)  # half a second at 60 Hz
+    ws.record_panel.path_edit.setText(str(tmp_path / "run.zarr"))
+    ws.record_panel.frames_box.setValue(30)  # half a second at 60 Hz
     with qtbot.waitSignal(ws.recording_finished, timeout=20_000):
         assert ws.record()
     timer.stop()

@@ -142,3 +142,12 @@ def test_unreadable_scene_files(tmp_path):
         load_scene(tmp_path / "bad.toml")
     with pytest.raises(ValueError, match=r"missing.toml: no such scene file"):
         load_scene(tmp_path / "missing.toml")
+
+
+def test_the_strobe_lights_one_sub_frame_in_17():
+    from flexvox_core.simulate.scenes import STROBE_PERIOD
+
+    v = render_scene("strobe", 40, 16, 16, seed=2)
+    lit = v.reshape(40, -1).max(axis=1) > 0
+    assert STROBE_PERIOD == 17 and np.flatnonzero(lit).tolist() == [0, 17, 34]
+    np.testing.assert_array_equal(v[17], v[0])  # the same wall every flash

@@ -1,0 +1,241 @@
+"""What a capture records with, and its checks: the code, the timing and the projector's patterns.
+
+A :class:`CapturePlan` is the operator's choice of code (a tile's designed identity code, its
+S-matrix multiplexed code, or a ``flexvox design -o`` file), camera rate and exposure, and
+projector pattern exposure. ``flexvox capture`` and the Capture workspace both build one.
+:meth:`CapturePlan.timing` checks it against the projector's rules
+(``rig_drivers.interfaces.check_pattern_timing``: exposure = period, or at most period − 230 µs;
+1-bit patterns ≥ 235 µs) and the camera's exposure window, and says how fast a free-running
+camera would drift (the projector counts whole µs). :meth:`CapturePlan.patterns` turns the code
+into the projector's patterns through :func:`calibration.shutter.make_shutter_patterns`, the one
+function calibration verifies with: what was verified is what is projected.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from calibration.capture_setup import CaptureCalibration
+from calibration.shutter import ShutterPatterns, make_shutter_patterns
+from flexvox_core.codes import code_from_order, verify
+from flexvox_core.design import design_code
+from flexvox_core.divisions import Division
+from flexvox_core.multiplex import MultiplexedCode, multiplexed_code
+from rig_drivers.errors import SettingError
+from rig_drivers.interfaces import (
+    MIN_DARK_US,
+    MIN_EXPOSURE_1BIT_US,
+    PatternSequence,
+    ProjectorTrigger,
+    check_pattern_timing,
+)
+
+TILES = ((2, 2), (2, 4), (4, 2), (3, 5), (4, 4), (1, 7), (1, 3), (5, 7))
+"""Tiles offered in the Capture workspace (multiplexed needs K ≡ 3 mod 4: 1×3, 1×7, 3×5, 5×7)."""
+
+
+def pattern_period_us(camera_hz: float, K: int) -> int:
+    """The projector's pattern period for ``K`` slots per camera frame at ``camera_hz``: whole µs, rounded down."""
+    return int(1e6 // (float(camera_hz) * int(K)))
+
+
+@dataclass(frozen=True)
+class TimingCheck:
+    """The projector/camera timing of a plan.
+
+    Attributes
+    ----------
+    period_us : int
+        Pattern period: floor(1e6 / (camera_hz · K)) whole µs.
+    projector_exposure_us : int
+    sequence_us : int
+        K · period: one camera frame's worth of patterns.
+    errors, notes : list of str
+        Errors make the plan unusable; notes are worth reading.
+    """
+
+    period_us: int
+    projector_exposure_us: int
+    sequence_us: int
+    errors: tuple[str, ...]
+    notes: tuple[str, ...]
+
+    @property
+    def ok(self) -> bool:
+        """No errors."""
+        return not self.errors
+
+
+@dataclass(frozen=True)
+class CapturePlan:
+    """What the operator chose for a capture.
+
+    Parameters
+    ----------
+    tile : (m, n)
+        The tile of the designed code (ignored with ``code_file``: the file's tile is used).
+    multiplexed : bool
+        An S-matrix code (K ≡ 3 mod 4) instead of the designed identity code.
+    camera_hz : float
+    camera_exposure_us : float or None
+        Camera exposure; default one sequence (K · period).
+    projector_exposure_us : int or None
+        Pattern exposure; default the period (what the video port needs).
+    code_file : Path, optional
+        A code written by ``flexvox design -o`` (identity or multiplexed) instead of the tile's.
+    """
+
+    tile: tuple[int, int] = (4, 4)
+    multiplexed: bool = False
+    camera_hz: float = 15.0
+    camera_exposure_us: float | None = None
+    projector_exposure_us: int | None = None
+    code_file: Path | None = None
+
+    def __post_init__(self):
+        hz = self.camera_hz
+        if isinstance(hz, bool) or not isinstance(hz, int | float) or not math.isfinite(hz) or not 0 < hz <= 10_000:
+            raise ValueError(f"`camera_hz` must be a rate above 0 and at most 10000 Hz; got {hz!r}")
+        try:
+            tile = tuple(int(v) for v in self.tile)
+        except (TypeError, ValueError):
+            tile = ()
+        if len(tile) != 2 or min(tile) < 1:
+            raise ValueError(f"`tile` must be two whole numbers (m, n) >= 1; got {self.tile!r}")
+        object.__setattr__(self, "tile", tile)
+
+    @classmethod
+    def from_code(cls, code, **options) -> CapturePlan:
+        """A plan with a given code: an identity code ``(m, n, K)`` or a :class:`MultiplexedCode`."""
+        from flexvox_core.codes import is_identity_code, validate_code
+
+        if isinstance(code, MultiplexedCode):
+            plan = cls(tile=code.tile, multiplexed=True, **options)
+        else:
+            code = validate_code(code)
+            if not is_identity_code(code):
+                raise ValueError("`code` must be an identity code (each pixel open in one slot, each slot once per "
+                                 "tile) or a MultiplexedCode")
+            plan = cls(tile=tuple(code.shape[:2]), **options)
+        plan.__dict__["shutter_code"] = code
+        return plan
+
+    @classmethod
+    def from_code_file(cls, path, **options) -> CapturePlan:
+        """A plan with the code of a ``flexvox design -o`` file (``CodeFileError`` when it cannot shutter)."""
+        from flexvox_core.code_file import load_shutter_code
+
+        path = Path(path)
+        shutter = load_shutter_code(path)
+        tile = shutter.tile if isinstance(shutter, MultiplexedCode) else tuple(int(v) for v in shutter.shape[:2])
+        plan = cls(tile=tile, multiplexed=isinstance(shutter, MultiplexedCode), code_file=path, **options)
+        plan.__dict__["shutter_code"] = shutter  # read once (cached_property's slot)
+        return plan
+
+    @property
+    def K(self) -> int:  # noqa: N802
+        """Slots per camera frame."""
+        return self.tile[0] * self.tile[1]
+
+    @cached_property
+    def shutter_code(self) -> np.ndarray | MultiplexedCode:
+        """The code as capture records it: an identity code, or the multiplexed code (which says how to
+        demultiplex). Raises ValueError for an impossible choice."""
+        if self.code_file is not None:
+            from flexvox_core.code_file import load_shutter_code
+
+            return load_shutter_code(self.code_file)
+        if self.multiplexed:
+            return multiplexed_code(self.tile)
+        result = design_code(self.tile)
+        if not result.success:
+            raise ValueError(f"no code for a {self.tile[0]}x{self.tile[1]} tile: {result.message}")
+        return result.code
+
+    @property
+    def code(self) -> np.ndarray:
+        """The shutter code (m, n, K) bool: which slots each tile pixel is open in."""
+        sc = self.shutter_code
+        return sc.code if isinstance(sc, MultiplexedCode) else sc
+
+    def resolutions(self) -> list[Division]:
+        """The [TR, SR] choices the code supports after capture (multiplexed: of its placement order)."""
+        sc = self.shutter_code
+        if isinstance(sc, MultiplexedCode):
+            return verify(code_from_order(sc.placement)).supported
+        return verify(sc).supported
+
+    def code_summary(self) -> str:
+        """One line about the code."""
+        sc = self.shutter_code
+        where = f" from {self.code_file.name}" if self.code_file is not None else ""
+        if isinstance(sc, MultiplexedCode):
+            return (f"S-matrix multiplexed{where}, K = {sc.K}: light throughput {sc.throughput:.0%} "
+                    f"(identity {1 / sc.K:.0%}); SNR ×{sc.snr_gain_read:.2f} read-noise-limited, "
+                    f"×{sc.snr_gain_photon:.2f} photon-limited")
+        return f"identity code{where}, K = {self.K}, each pixel open in 1 of {self.K} slots"
+
+    @property
+    def period_us(self) -> int:
+        """Pattern period in whole µs."""
+        return pattern_period_us(self.camera_hz, self.K)
+
+    def timing(self) -> TimingCheck:
+        """Check the plan against the projector's and camera's rules."""
+        errors, notes = [], []
+        period = self.period_us
+        proj = period if self.projector_exposure_us is None else int(self.projector_exposure_us)
+        seq = self.K * period
+        try:
+            check_pattern_timing(proj, period)
+        except SettingError as exc:
+            errors.append(f"projector: {exc}")
+        if period < MIN_EXPOSURE_1BIT_US:
+            errors.append(f"projector: {self.camera_hz:g} Hz × K = {self.K} needs {period} µs patterns; "
+                          f"the DLPC350 shows 1-bit patterns no shorter than {MIN_EXPOSURE_1BIT_US} µs "
+                          f"(at most {1e6 / (MIN_EXPOSURE_1BIT_US * self.K):.0f} Hz at this K)")
+        if proj != period:
+            notes.append(f"pattern exposure {proj} µs < period {period} µs (≥ {MIN_DARK_US} µs dark): "
+                         "fine from flash, but the video port needs exposure = period")
+        cam = seq if self.camera_exposure_us is None else float(self.camera_exposure_us)
+        frame_us = 1e6 / self.camera_hz
+        if cam > frame_us:
+            errors.append(f"camera: exposure {cam:.0f} µs is longer than the frame period {frame_us:.0f} µs")
+        elif cam > seq:
+            notes.append(f"camera: exposure {cam:.0f} µs is longer than the {self.K} patterns ({seq} µs): "
+                         "it also sees the next sequence's first slots")
+        elif cam < seq - period:
+            missed = math.ceil((seq - cam) / period) - 0
+            errors.append(f"camera: exposure {cam:.0f} µs misses the last {missed} of {self.K} slots "
+                          f"(one sequence is {seq} µs)")
+        drift = frame_us - seq
+        if drift > 1e-6:
+            notes.append(f"the projector counts whole µs: {self.K} × {period} µs = {seq / 1000:.3f} ms < "
+                         f"{frame_us / 1000:.3f} ms, so a free-running camera drifts one slot every "
+                         f"{period / drift / self.camera_hz:.0f} s: trigger it from TRIG_OUT_2 or the sync box")
+        return TimingCheck(period, proj, seq, tuple(errors), tuple(notes))
+
+    def patterns(self, camera_size: tuple[int, int], projector_size: tuple[int, int],
+                 calibration: CaptureCalibration | None = None) -> ShutterPatterns:
+        """The projector's patterns for this plan through ``calibration`` (default: uncalibrated).
+
+        :func:`calibration.shutter.make_shutter_patterns` with the calibration's homography and the
+        phase :meth:`calibration.capture_setup.CaptureCalibration.for_plan` gives at this plan's timing:
+        exactly the patterns calibration verifies, relabelled for the phase.
+        """
+        cal = calibration or CaptureCalibration()
+        phase, _delay, _warnings = cal.for_plan(self.K, self.period_us)
+        return make_shutter_patterns(self.code, cal.homography, camera_size, projector_size, phase_slots=phase)
+
+    def sequence(self, projector_size: tuple[int, int], *, camera_size: tuple[int, int],
+                 calibration: CaptureCalibration | None = None) -> PatternSequence:
+        """The pattern sequence of :meth:`patterns` (internally timed, one trigger out per frame), for live view."""
+        t = self.timing()
+        patterns = self.patterns(camera_size, projector_size, calibration).patterns
+        return PatternSequence(patterns, exposure_us=t.projector_exposure_us,
+                               period_us=t.period_us, trigger=ProjectorTrigger.INTERNAL)

@@ -1,0 +1,312 @@
+"""The Capture workspace's live view: the camera's frames, a histogram, saturation, and a motion-aware preview.
+
+:class:`LivePanel` owns the live view (:func:`app.gui.models.live_source.start_live` sets the rig
+up for the plan and its calibration, :class:`~app.gui.capture.live_view.LiveStream` reads the
+camera on a worker thread) and the display: the raw view redrawn at most :data:`DISPLAY_HZ`,
+the histogram with the saturation level, and the motion-aware preview of the newest frames
+(:mod:`app.gui.capture.live_preview`: its own worker, newest wins, a bounded duty cycle).
+
+While a recording runs the capture service owns the devices; the panel then shows
+``capture.latest()`` (the newest frame, a reference swap that never slows capture) through
+:meth:`LivePanel.follow_capture`.
+
+Its widgets sit in two places: :attr:`LivePanel.controls` (a box for the controls column) and
+:attr:`LivePanel.views` (the images, for the large area).
+"""
+
+from __future__ import annotations
+
+import html
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import QObject, Qt, QTimer
+from PySide6.QtWidgets import QCheckBox, QGroupBox, QLabel, QPushButton, QSplitter, QVBoxLayout, QWidget
+
+from app.gui.capture.live_preview import LivePreview
+from app.gui.capture.live_view import LiveStream
+from app.gui.models.live_source import LiveStartError, start_live, stop_live
+from app.gui.models.live_stats import LiveStats, histogram, saturation_level, saturation_mask
+from app.gui.models.rig_service import RigService
+from app.gui.widgets.image_panel import ImagePanel
+from app.gui.widgets.settings import AppSettings
+
+DISPLAY_HZ = 30
+"""The live image is redrawn at most this often, whatever the camera's rate."""
+SATURATION_RGBA = (255, 0, 0, 170)
+RED = "#c0392b"
+
+
+def _coloured(text: str, colour: str) -> str:
+    return f"<span style='color:{colour}'>{html.escape(text)}</span>"
+
+
+class LivePanel(QObject):
+    """The live view's controls, its images, and the logic that drives them.
+
+    Parameters
+    ----------
+    service : RigService
+    settings : AppSettings
+    plan, calibration : callable
+        ``() -> CapturePlan`` and ``() -> CaptureCalibration``: what the live view shows.
+    busy : callable
+        ``() -> str | None``: why the rig cannot be used now.
+    """
+
+    def __init__(self, service: RigService, settings: AppSettings, *, plan, calibration, busy, parent: QWidget):
+        super().__init__(parent)
+        self.service = service
+        self.settings = settings
+        self._plan = plan
+        self._calibration = calibration
+        self._busy = busy
+        self.stats = LiveStats()
+        self.stream = LiveStream(self)
+        self._latest = None
+        self._capture = None
+        self._shown_seq = 0
+        self.last_shown_id = None
+        self.preview = LivePreview(self)
+        self._preview_index = 0
+        self._build(parent)
+        self.preview.updated.connect(self._on_preview)
+        self.preview.failed.connect(lambda message: self.preview_label.setText(
+            _coloured(f"preview stopped: {message}", RED)))
+        self.stream.frame.connect(self._on_frame)
+        self.stream.failed.connect(self._on_failed)
+
+    def _build(self, parent) -> None:
+        live = QGroupBox("Live view", parent)
+        self.live_button = QPushButton("Start live view")
+        self.live_button.setCheckable(True)
+        self.saturation_check = QCheckBox("show saturated pixels in red")
+        self.saturation_check.setChecked(True)
+        self.preview_check = QCheckBox("motion-aware preview of the newest frames")
+        self.preview_check.setChecked(self.settings.get_bool("capture/preview", True))
+        self.live_label = QLabel("stopped")
+        self.live_label.setWordWrap(True)
+        v = QVBoxLayout(live)
+        v.addWidget(self.live_button)
+        v.addWidget(self.saturation_check)
+        v.addWidget(self.preview_check)
+        v.addWidget(self.live_label)
+        self.controls = live
+
+        self.image_panel = ImagePanel("camera: live view stopped")
+        self.image_panel.clear("press Start live view")
+        self.hist = pg.PlotWidget()
+        self.hist.setBackground("#202020")
+        self.hist.setLabel("bottom", "pixel value")
+        self.hist.setLabel("left", "pixels")
+        self.hist.setMaximumHeight(200)
+        self.hist_curve = self.hist.plot([0, 1], [0], stepMode="center", fillLevel=0, brush=(90, 160, 255, 120))
+        self.sat_line = pg.InfiniteLine(angle=90, pen=pg.mkPen((255, 60, 60), width=1, style=Qt.PenStyle.DashLine))
+        self.hist.addItem(self.sat_line)
+        self.preview_panel = ImagePanel("motion-aware preview")
+        self.preview_panel.clear("starts with the live view")
+        self.preview_label = QLabel("preview: off")
+        self.preview_label.setWordWrap(True)
+        self.preview_label.setTextFormat(Qt.TextFormat.RichText)
+        preview_box = QWidget()
+        pv = QVBoxLayout(preview_box)
+        pv.setContentsMargins(0, 0, 0, 0)
+        pv.addWidget(self.preview_panel, 1)
+        pv.addWidget(self.preview_label)
+        images = QSplitter()
+        images.addWidget(self.image_panel)
+        images.addWidget(preview_box)
+        images.setSizes([500, 500])
+        views = QWidget(parent)
+        rv = QVBoxLayout(views)
+        rv.addWidget(images, 1)
+        rv.addWidget(self.hist)
+        self.views = views
+
+        self.display_timer = QTimer(self)
+        self.display_timer.setInterval(int(1000 / DISPLAY_HZ))
+        self.display_timer.timeout.connect(self._redraw)
+        self.live_button.toggled.connect(self._on_live_toggled)
+        self.preview_check.toggled.connect(self._on_preview_toggled)
+
+    # ------------------------------------------------------------------ live view
+    @property
+    def running(self) -> bool:
+        """True while the live view runs."""
+        return self.stream.running
+
+    def _on_live_toggled(self, on: bool) -> None:
+        if on:
+            self.start()
+        else:
+            self.stop()
+
+    def start(self) -> bool:
+        """Start the live view; False (with the reason shown) when it cannot start."""
+        if self.stream.running:
+            return True
+        busy = self._busy()
+        if busy:
+            self.live_label.setText(_coloured(f"cannot start: {busy}", RED))
+            self.set_button(False)
+            return False
+        plan = self._plan()
+        try:
+            note = start_live(self.service, plan, self._calibration())
+        except LiveStartError as exc:
+            self.live_label.setText(_coloured(f"cannot start: {exc}", RED))
+            self.set_button(False)
+            return False
+        self.stats = LiveStats()
+        self._latest = None
+        self.stream.start(self.service.rig.camera, timeout_s=max(1.0, 3 / plan.camera_hz))
+        self.display_timer.start()
+        self.start_preview()
+        self.live_label.setText(note or "waiting for frames …")
+        self.image_panel.set_title("camera: live")
+        self.set_button(True)
+        return True
+
+    def stop(self) -> None:
+        """Stop the live view (devices stay connected)."""
+        self.display_timer.stop()
+        self.stop_preview()
+        stopped = self.stream.stop()
+        stop_live(self.service)
+        if stopped:
+            self.live_label.setText(f"stopped · {self.stats.text()}")
+        self.image_panel.set_title("camera: live view stopped")
+        self.set_button(False)
+
+    def restart(self) -> None:
+        """Show the patterns of a new plan or calibration (when the live view runs)."""
+        if self.stream.running:
+            self.stop()
+            self.start()
+
+    def set_button(self, on: bool) -> None:
+        """Put the button in the live view's state without acting on it."""
+        self.live_button.blockSignals(True)
+        self.live_button.setChecked(on)
+        self.live_button.setText("Stop live view" if on else "Start live view")
+        self.live_button.blockSignals(False)
+
+    def _on_frame(self, frame) -> None:
+        self.stats.update(frame)
+        self._latest = frame
+        self.preview.feed(frame)  # a list append; the reconstruction runs on the preview's own worker
+
+    def _on_failed(self, message: str) -> None:
+        self.service.record_error("camera", f"live view: {message}")
+        self.stop()
+        self.live_label.setText(_coloured(f"live view stopped: {message}", RED))
+
+    # ------------------------------------------------------------------ a recording's frames
+    def follow_capture(self, capture) -> None:
+        """Show the frames a recording delivers (``capture.latest()``), with the preview."""
+        self._capture = capture
+        self._shown_seq = 0
+        self.last_shown_id = None
+        self.image_panel.set_title("recording: waiting for the first frame")
+        self.start_preview()
+        self.display_timer.start()
+
+    def end_capture(self) -> None:
+        """The recording ended: show its last frame and stop following it."""
+        self._redraw()
+        self.display_timer.stop()
+        self.stop_preview()
+        self._capture = None
+        self.image_panel.set_title("recording ended" if self.last_shown_id is None
+                                   else f"recording ended · last frame shown: {self.last_shown_id}")
+
+    # ------------------------------------------------------------------ drawing
+    def _redraw(self) -> None:
+        self._advance_preview()
+        if self._capture is not None:
+            f, seq = self._capture.latest()
+            if f is None or seq == self._shown_seq:
+                return
+            self._shown_seq = seq
+            self.preview.feed(f)
+            self._show_frame(f, "recording")
+            return
+        f = self._latest
+        if f is None:
+            return
+        self._latest = None
+        self._show_frame(f, "camera")
+        self.live_label.setText(self.stats.text())
+
+    def _show_frame(self, f, what: str) -> None:
+        img = f.image
+        top = saturation_level(img)
+        self.image_panel.set_image(img, levels=(0, top))
+        if self.saturation_check.isChecked():
+            mask = saturation_mask(img, top)
+            rgba = np.zeros((*img.shape, 4), np.uint8)
+            rgba[mask] = SATURATION_RGBA
+            self.image_panel.set_overlay(rgba)
+        else:
+            self.image_panel.set_overlay(None)
+        counts, edges = histogram(img, top=top)
+        self.hist_curve.setData(edges, counts)
+        self.sat_line.setValue(top)
+        self.last_shown_id = f.frame_id
+        self.image_panel.set_title(f"{what}: frame {f.frame_id}")
+
+    # ------------------------------------------------------------------ preview
+    def _on_preview_toggled(self, on: bool) -> None:
+        self.settings.set("capture/preview", on)
+        if on and (self.stream.running or self._capture is not None):
+            self.start_preview()
+        elif not on:
+            self.stop_preview()
+
+    def start_preview(self) -> None:
+        """Start the motion-aware preview of the plan's code (when its box is ticked)."""
+        if not self.preview_check.isChecked():
+            self.preview_label.setText("preview: off")
+            return
+        plan = self._plan()
+        try:
+            code = plan.shutter_code
+        except ValueError as exc:
+            self.preview_label.setText(_coloured(f"preview: {exc}", RED))
+            return
+        self.preview.set_code(code, plan.tile)
+        self.preview.start()
+        self._preview_index = 0
+        self.preview_panel.clear("reconstructing the newest frames …")
+        self.preview_panel.set_title("motion-aware preview: waiting for frames")
+        self.preview_label.setText(self.preview.text())
+
+    def stop_preview(self) -> None:
+        """Stop the preview (its last picture stays)."""
+        was = self.preview.enabled
+        self.preview.stop()
+        if was:
+            self.preview_label.setText(self.preview.text().replace("preview:", "preview (stopped):", 1)
+                                       if self.preview.result is not None else "preview: off")
+
+    def _on_preview(self, result) -> None:
+        self._preview_index = 0
+        self.preview_label.setText(html.escape(self.preview.text()))
+        self._advance_preview()
+
+    def _advance_preview(self) -> None:
+        r = self.preview.result
+        if r is None:
+            return
+        K = r.video.shape[0]
+        k = self._preview_index % K
+        self._preview_index = k + 1
+        self.preview_panel.set_image(r.video[k], levels=r.levels)
+        self.preview_panel.set_title(f"motion-aware preview: frame {r.frame_id}, sub-frame {k + 1}/{K}")
+
+    def shutdown(self) -> bool:
+        """Stop everything; False when the preview's worker did not stop within 5 s."""
+        if self.stream.running:
+            self.stop()
+        self.display_timer.stop()
+        return self.preview.shutdown(5000)

@@ -1,0 +1,306 @@
+"""The Capture workspace's "Recording" box: where, how many frames, Record and Stop, counters, the end.
+
+Recording runs through :class:`app.capture.service.CaptureService` (built by
+:func:`app.gui.models.recording.make_capture`, or the ``capture_factory`` given), the service
+``flexvox capture`` drives, with the plan and calibration the workspace shows.
+
+Device ownership: a recording *owns* the devices. :meth:`RecordPanel.record` asks the workspace
+to stop its live view first (``before_record``: its reader thread and the capture's must not both
+read the camera); the capture service sets up the projector, sync box and camera, reads and
+writes on its own threads, and stops the devices at the end. Starting (a real projector's
+pattern upload takes seconds) and stopping (the writer drains its queue) run on the job runner,
+so the window never waits on them. The counters come from ``service.stats()``.
+"""
+
+from __future__ import annotations
+
+import html
+import logging
+import time
+from pathlib import Path
+
+from PySide6.QtCore import QObject, Qt, QTimer, Signal
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QFileDialog,
+    QFormLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QLineEdit,
+    QPushButton,
+    QSpinBox,
+    QVBoxLayout,
+    QWidget,
+)
+
+from app.gui.models.recording import counters_text, make_capture, result_text, resync_clock
+from app.gui.models.rig_service import RigService
+from app.gui.widgets.qt_jobs import JobRunner
+from app.gui.widgets.settings import AppSettings
+
+_logger = logging.getLogger(__name__)
+
+COUNTERS_MS = 200
+"""The recording counters are refreshed this often."""
+STOP_TIMEOUT_S = 30.0
+RED, GREEN = "#c0392b", "#1e8449"
+
+
+def _coloured(text: str, colour: str) -> str:
+    return f"<span style='color:{colour}'>{html.escape(text)}</span>"
+
+
+class RecordPanel(QObject):
+    """Record the plan through the calibration into a recording, and say how it went.
+
+    Parameters
+    ----------
+    service : RigService
+    settings : AppSettings
+    runner : JobRunner
+    plan, calibration, delay_set_by_hand : callable
+        ``() -> CapturePlan``, ``() -> CaptureCalibration``, ``() -> bool``: what a recording uses.
+    busy : callable
+        ``() -> str | None``: why the rig cannot be used now (a calibration).
+    before_record : callable
+        Called before the capture takes the devices (stops the live view).
+    capture_factory : callable, optional
+        Builds the capture service (tests inject slow or failing writers).
+    """
+
+    started = Signal(object)
+    """The running :class:`CaptureService` (its frames can now be shown)."""
+    finished = Signal(object)
+    """The :class:`~app.capture.service.CaptureResult` (None when the capture did not stop in time)."""
+    changed = Signal()
+    """Recording began or ended (buttons elsewhere follow)."""
+    open_requested = Signal(object)
+    """A recording's path the operator wants to review."""
+
+    def __init__(self, service: RigService, settings: AppSettings, runner: JobRunner, *, plan, calibration,
+                 delay_set_by_hand, busy, before_record, capture_factory=None, parent: QWidget):
+        super().__init__(parent)
+        self.service = service
+        self.settings = settings
+        self.runner = runner
+        self._plan = plan
+        self._calibration = calibration
+        self._delay_set_by_hand = delay_set_by_hand
+        self._busy = busy
+        self._before_record = before_record
+        self.capture_factory = capture_factory
+        self.capture = None
+        """The running (or last) :class:`CaptureService`, None before the first recording."""
+        self.last_result = None
+        self.recording = False
+        """True from Record until the capture has ended."""
+        self._stop_job = None
+        self._start_job = None
+        self._build(parent)
+
+    def _build(self, parent) -> None:
+        rec = QGroupBox("Recording", parent)
+        self.path_edit = QLineEdit(self.settings.get_str("capture/recording_path", ""))
+        self.path_edit.setPlaceholderText("folder/name.zarr")
+        self.browse_button = QPushButton("Browse…")
+        path_row = QHBoxLayout()
+        path_row.addWidget(self.path_edit, 1)
+        path_row.addWidget(self.browse_button)
+        self.frames_box = QSpinBox()
+        self.frames_box.setRange(0, 10_000_000)
+        self.frames_box.setSpecialValueText("until Stop")
+        self.frames_box.setValue(self.settings.get_int("capture/frames", 150))
+        self.overwrite_check = QCheckBox("replace an existing recording")
+        self.truth_check = QCheckBox("store the scene's ground truth (simulated rig)")
+        self.truth_check.setChecked(self.service.simulated)
+        self.truth_check.setVisible(self.service.simulated)
+        self.record_button = QPushButton("● Record")
+        self.stop_button = QPushButton("■ Stop")
+        self.stop_button.setEnabled(False)
+        buttons = QHBoxLayout()
+        buttons.addWidget(self.record_button)
+        buttons.addWidget(self.stop_button)
+        self.counters_label = QLabel("not recording")
+        self.counters_label.setWordWrap(True)
+        self.recording_label = QLabel("not recorded yet")
+        self.recording_label.setWordWrap(True)
+        self.recording_label.setTextFormat(Qt.TextFormat.RichText)
+        self.recording_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.review_button = QPushButton("Open in Review")
+        self.review_button.setEnabled(False)
+        f = QFormLayout()
+        f.addRow("path", path_row)
+        f.addRow("frames", self.frames_box)
+        rv = QVBoxLayout(rec)  # word-wrapped labels get their full height in a box layout, not a form
+        rv.addLayout(f)
+        for w in (self.overwrite_check, self.truth_check):
+            rv.addWidget(w)
+        rv.addLayout(buttons)
+        for w in (self.counters_label, self.recording_label, self.review_button):
+            rv.addWidget(w)
+        self.box = rec
+
+        self.counters_timer = QTimer(self)
+        self.counters_timer.setInterval(COUNTERS_MS)
+        self.counters_timer.timeout.connect(self._poll)
+        self.browse_button.clicked.connect(self._browse)
+        self.record_button.clicked.connect(self.record)
+        self.stop_button.clicked.connect(self.stop)
+        self.review_button.clicked.connect(self._ask_review)
+        self.path_edit.textChanged.connect(lambda text: self.settings.set("capture/recording_path", text))
+        self.frames_box.valueChanged.connect(lambda n: self.settings.set("capture/frames", n))
+
+    def update_buttons(self, plan_ok: bool) -> None:
+        """Enable what can be used now (``plan_ok``: the plan's timing is accepted)."""
+        self.record_button.setEnabled(plan_ok and not self.recording)
+        self.stop_button.setEnabled(self.recording and self._stop_job is None)
+        for w in (self.path_edit, self.browse_button, self.frames_box, self.overwrite_check, self.truth_check):
+            w.setEnabled(not self.recording)
+
+    def _browse(self) -> None:
+        start = self.path_edit.text() or str(Path.home() / "recording.zarr")
+        path, _ = QFileDialog.getSaveFileName(self.box, "Record to", start, "Zarr recordings (*.zarr)")
+        if path:
+            self.path_edit.setText(path if path.endswith(".zarr") else path + ".zarr")
+
+    def say(self, text: str, colour: str | None = None) -> None:
+        """Put ``text`` in the result line."""
+        self.recording_label.setText(_coloured(text, colour) if colour else html.escape(text))
+
+    # ------------------------------------------------------------------ recording
+    def record(self) -> bool:
+        """Start recording to the chosen path; False (with the reason shown) when it cannot start."""
+        from app.capture.service import CaptureError
+
+        if self.recording:
+            return False
+        text = self.path_edit.text().strip()
+        if not text:
+            self.say("choose a recording path first (folder/name.zarr)", RED)
+            return False
+        plan = self._plan()
+        if not plan.timing().ok:
+            self.say("cannot record: " + "; ".join(plan.timing().errors), RED)
+            return False
+        busy = self._busy()
+        if busy:
+            self.say(f"cannot record: {busy}", RED)
+            return False
+        self._before_record()
+        frames = self.frames_box.value() or None
+        options = {} if self.capture_factory is None else {"factory": self.capture_factory}
+        try:
+            capture = make_capture(self.service, plan, Path(text).expanduser(), frames=frames,
+                                   calibration=self._calibration(), delay_set_by_hand=self._delay_set_by_hand(),
+                                   overwrite=self.overwrite_check.isChecked(),
+                                   ground_truth=self.service.simulated and self.truth_check.isChecked(), **options)
+        except (CaptureError, ValueError) as exc:
+            self.say(f"cannot record: {exc}", RED)
+            return False
+        self.capture = capture
+        self.last_result = None
+        self.recording = True
+        self._stop_job = None
+        self.review_button.setEnabled(False)
+        self.changed.emit()
+        self.say(f"starting: setting up the rig for {capture.path.name} …")
+        self.counters_label.setText("starting …")
+        resync_clock(self.service)
+        self._start_job = self.runner.submit("capture start", lambda token, progress: capture.start(),
+                                             on_finished=lambda _: self._on_started(capture),
+                                             on_failed=lambda message: self._on_start_failed(capture, message))
+        return True
+
+    def _notify_devices(self) -> None:
+        for role in ("projector", "camera", "sync"):
+            self.service.notify(role)
+
+    def _on_started(self, capture) -> None:
+        if capture is not self.capture:
+            return
+        self._notify_devices()
+        target = f"{capture.n_target} frames" if capture.n_target else "until Stop"
+        self.say(f"recording to {capture.path} ({target}, {1 / capture.frame_period_s:.3f} Hz; calibration: "
+                 f"{capture.calibration.source}; phase {capture.phase_slots}, trigger delay "
+                 f"{capture.trigger_delay_us:.0f} µs)")
+        self.started.emit(capture)
+        self.counters_timer.start()
+        self._poll()
+
+    def _on_start_failed(self, capture, message: str) -> None:
+        if capture is not self.capture:
+            return
+        self.recording = False
+        self.counters_label.setText("not recording")
+        self.say(f"cannot record: {message}", RED)
+        self._notify_devices()
+        self.changed.emit()
+
+    def stop(self) -> None:
+        """Stop the recording early (it keeps every frame captured); the end is reported when it has stopped."""
+        capture, start = self.capture, self._start_job
+        if not self.recording or capture is None or self._stop_job is not None:
+            return
+        self.say("stopping: writing the frames still queued …")
+
+        def stop(token, progress):
+            while start is not None and start.outcome is None:  # still setting up: stop once it runs
+                token.check()
+                capture.wait(0.05)
+            if start is not None and start.outcome != "finished":
+                return None  # it never started; its failure is reported by the start job
+            return capture.stop(timeout_s=STOP_TIMEOUT_S)
+
+        def stopped(result) -> None:
+            if start is not None and start.outcome != "finished":
+                return
+            self._finish(capture, result)
+
+        self._stop_job = self.runner.submit("capture stop", stop, on_finished=stopped,
+                                            on_failed=lambda m: self._finish(capture, None, m))
+        self.changed.emit()
+
+    def _poll(self) -> None:
+        capture = self.capture
+        if capture is None:
+            return
+        self.counters_label.setText(counters_text(capture.stats(), capture.n_target))
+        if capture.result is not None and self._stop_job is None:
+            self._finish(capture, capture.result)
+
+    def _finish(self, capture, result, error: str | None = None) -> None:
+        if capture is not self.capture or not self.recording:
+            return
+        self.counters_timer.stop()
+        self.recording = False
+        self._stop_job = None
+        self.last_result = result
+        if result is not None:
+            self.counters_label.setText(counters_text(result.stats, capture.n_target))
+        if error is not None:
+            self.say(f"recording failed: {error}", RED)
+        else:
+            self.say(result_text(result, capture.path), GREEN if result is not None and result.ok else RED)
+        self.review_button.setEnabled(result is not None and result.frames_in_recording is not None
+                                      and result.frames_in_recording > 0)
+        self._notify_devices()
+        self.changed.emit()
+        self.finished.emit(result)
+
+    def _ask_review(self) -> None:
+        if self.capture is not None:
+            self.open_requested.emit(self.capture.path)
+
+    def shutdown(self) -> None:
+        """The window closes: stop a running recording (waits, bounded, for it to end)."""
+        capture, start = self.capture, self._start_job
+        if self.recording and capture is not None:
+            deadline = time.monotonic() + STOP_TIMEOUT_S
+            while start is not None and start.outcome is None and time.monotonic() < deadline:
+                time.sleep(0.02)  # the rig is being set up on a worker: let it finish, then stop it
+            if start is not None and start.outcome == "finished":
+                result = capture.stop(timeout_s=STOP_TIMEOUT_S)
+                _logger.info("recording stopped at shutdown: %s",
+                             "did not stop in time" if result is None else result.message)
+        self.counters_timer.stop()

@@ -1,0 +1,292 @@
+"""What capture needs from calibration, from one place: homography, phase, trigger delay, refusals.
+
+Both front ends (``flexvox capture --calibration/--sync-profile`` and the Capture workspace)
+turn a calibration into a :class:`CaptureCalibration` here and nowhere else:
+
+- :func:`load_for_capture` reads a calibration file (``flexvox calibrate -o``, the Calibrate
+  workspace's "Save") or a sync profile (the synchronisation wizard's "Save profile"), and
+  refuses, with :class:`CalibrationRefused` and a message that says why, a file that is missing,
+  damaged, failed, or made for another rig, camera or resolution;
+- :func:`from_run` takes a fresh calibration run (the Calibrate workspace's "Use for capture").
+
+The phase and the delay go together
+-----------------------------------
+The sync measurement finds that exposure slot 0 opens ``p + f`` slots after the projector's
+sequence starts (whole slots ``p``, fraction ``f``; see :mod:`calibration.sync`). An exposure
+that opens part-way into a slot mixes two patterns in every slot. So capture delays the camera's
+trigger by ``(1 − f)·period`` (:attr:`SyncTiming.trigger_delay_us`): the exposure then opens on a
+slot boundary, and exposure slot ``t`` sees pattern ``(t + p') mod K`` with ``p' = p + 1`` when
+``f > 0`` (:attr:`SyncTiming.phase_slots`, the phase the shutter patterns are built with). The raw
+``p`` belongs to a camera delay of 0 and is kept only for display: shutter patterns built with it
+while the recommended delay is set are one slot off.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import logging
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from calibration import geometry
+from calibration.errors import CalibrationError
+from calibration.files import CALIBRATION_FORMAT, check_identity, load_calibration
+from calibration.sync import SYNC_FORMAT, load_sync_profile
+
+_logger = logging.getLogger(__name__)
+
+
+class CalibrationRefused(CalibrationError):  # noqa: N818 - a verdict in words, shown to the operator
+    """A calibration cannot be used for this rig's capture; the message says why."""
+
+
+@dataclass(frozen=True)
+class SyncTiming:
+    """When the exposure opens against the projector's sequence, as capture uses it.
+
+    Attributes
+    ----------
+    phase_slots : int
+        The phase the shutter patterns use: exposure slot ``t`` sees pattern ``(t + phase_slots)
+        mod K`` once the camera's trigger is delayed by :attr:`trigger_delay_us`.
+    trigger_delay_us : float
+        Camera trigger delay that opens the exposure on a slot boundary (0 when it already does).
+    K, period_us : int
+        The code length and pattern period the timing was measured at.
+    raw_phase_slots : int
+        The phase at camera delay 0 (for display only).
+    offset_us : float
+        The sub-slot part of the exposure's opening at camera delay 0, µs.
+    """
+
+    phase_slots: int
+    trigger_delay_us: float
+    K: int
+    period_us: int
+    raw_phase_slots: int
+    offset_us: float = 0.0
+
+    def __post_init__(self):
+        for name in ("K", "period_us"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < 1:
+                raise CalibrationRefused(f"`{name}` must be a whole number >= 1; got {v!r}")
+        for name in ("phase_slots", "raw_phase_slots"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int | np.integer) or not 0 <= v < self.K:
+                raise CalibrationRefused(f"`{name}` must be a whole number 0..{self.K - 1}; got {v!r}")
+        d = self.trigger_delay_us
+        if isinstance(d, bool) or not isinstance(d, int | float) or not math.isfinite(d) or not 0 <= d < self.period_us:
+            raise CalibrationRefused(f"`trigger_delay_us` must be at least 0 and below the period "
+                                     f"{self.period_us} µs; got {d!r}")
+
+    @classmethod
+    def from_summary(cls, sync: dict | None) -> SyncTiming | None:
+        """From a sync measurement's summary (:meth:`calibration.sync.SyncResult.summary`); None when
+        there is none, or it failed."""
+        if not sync or sync.get("status") not in (None, "ok") or sync.get("phase_slots") is None:
+            return None
+        try:
+            K, period = int(sync["K"]), int(sync["period_us"])
+            raw = int(sync["phase_slots"])
+            eff = sync.get("effective_phase_slots")
+            delay = float(sync.get("recommended_camera_delay_us") or 0.0)
+            offset = float(sync.get("delay_us") or 0.0)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise CalibrationRefused(f"the sync measurement is incomplete or malformed ({exc})") from None
+        if eff is None:  # older files: derive it as the sync step does
+            eff = raw if delay < 1e-9 else (raw + 1) % K
+        try:
+            return cls(int(eff), delay, K, period, raw, offset)
+        except CalibrationRefused as exc:
+            raise CalibrationRefused(f"the sync measurement is out of range: {exc}") from None
+
+    def describe(self) -> str:
+        """One line: the phase and the delay in use."""
+        return (f"phase {self.phase_slots} with a {self.trigger_delay_us:.0f} µs camera trigger delay "
+                f"(measured at K = {self.K}, {self.period_us} µs patterns)")
+
+
+@dataclass(frozen=True, eq=False)
+class CaptureCalibration:
+    """What capture needs from calibration: where projector pixels land, the phase and the trigger delay.
+
+    Parameters
+    ----------
+    homography : array (3, 3)
+        Projector pixel (x, y) → camera pixel (x, y). Default identity (uncalibrated).
+    sync : SyncTiming, optional
+        The synchronisation; None: phase 0 and no delay (uncalibrated timing).
+    source : str
+        Where the values come from (shown, and stored in the recording).
+    rms_px : float, optional
+        The homography's RMS reprojection error.
+    created : str
+        When the calibration was made (ISO date), "" when unknown.
+    calibrated : bool
+        True when the homography was measured (False: the identity stand-in).
+    """
+
+    homography: np.ndarray = field(default_factory=lambda: np.eye(3))
+    sync: SyncTiming | None = None
+    source: str = "identity (uncalibrated)"
+    rms_px: float | None = None
+    created: str = ""
+    calibrated: bool = False
+
+    def __post_init__(self):
+        try:
+            h = geometry.check_matrix(self.homography)
+        except CalibrationError as exc:
+            raise CalibrationRefused(str(exc)) from None
+        if abs(np.linalg.det(h)) < 1e-12:
+            raise CalibrationRefused("`homography` must be invertible")
+        object.__setattr__(self, "homography", h / h[2, 2])
+        if self.sync is not None and not isinstance(self.sync, SyncTiming):
+            raise CalibrationRefused(f"`sync` must be a SyncTiming or None; got {type(self.sync).__name__}")
+
+    # ------------------------------------------------------------------ what capture uses
+    @property
+    def phase_slots(self) -> int:
+        """The phase the shutter patterns use (0 without a sync measurement)."""
+        return 0 if self.sync is None else self.sync.phase_slots
+
+    @property
+    def trigger_delay_us(self) -> float:
+        """The camera trigger delay that goes with :attr:`phase_slots` (0 without a sync measurement)."""
+        return 0.0 if self.sync is None else self.sync.trigger_delay_us
+
+    def for_plan(self, K: int, period_us: int) -> tuple[int, float, list[str]]:
+        """``(phase, trigger delay µs, warnings)`` for a code of ``K`` slots at ``period_us``.
+
+        The phase is a count of slots measured at one timing; at another it is only a guess
+        (reduced mod K), and a warning says to measure it again. Without a sync measurement:
+        phase 0, no delay, and a warning.
+        """
+        warnings = []
+        if not self.calibrated:
+            warnings.append("no calibration: the patterns assume the identity projector-to-camera map; calibrate "
+                            "the rig (flexvox calibrate -o CAL.json) and load the file")
+        if self.sync is None:
+            warnings.append("no sync measurement: phase 0 and no trigger delay (run the synchronisation step)")
+            return 0, 0.0, warnings
+        s = self.sync
+        if (s.K, s.period_us) != (int(K), int(period_us)):
+            warnings.append(f"the sync was measured at K = {s.K}, {s.period_us} µs patterns; this capture is K = {K}, "
+                            f"{period_us} µs: phase {s.phase_slots % K} is a guess, run the synchronisation at this "
+                            "timing")
+        delay = s.trigger_delay_us
+        if delay >= period_us:
+            delay = float(delay % period_us)
+        return s.phase_slots % int(K), delay, warnings
+
+    def with_sync(self, sync: SyncTiming | None, *, source: str | None = None) -> CaptureCalibration:
+        """The same homography with another synchronisation (a sync profile loaded on top)."""
+        src = self.source if source is None else f"{self.source}; sync from {source}"
+        return replace(self, sync=sync, source=src)
+
+    def as_dict(self) -> dict:
+        """The recording's ``calibration`` attribute."""
+        s = self.sync
+        return {"homography": self.homography.tolist(), "calibrated": self.calibrated,
+                "phase_slots": self.phase_slots, "trigger_delay_us": self.trigger_delay_us,
+                "sync": None if s is None else {"K": s.K, "period_us": s.period_us, "raw_phase_slots":
+                                                s.raw_phase_slots, "offset_us": s.offset_us},
+                "rms_px": self.rms_px, "created": self.created, "source": self.source}
+
+    def describe(self) -> str:
+        """One line: origin, date, RMS, phase and delay."""
+        rms = "—" if self.rms_px is None else f"{self.rms_px:.3f} px"
+        sync = "no sync" if self.sync is None else self.sync.describe()
+        when = f" · {self.created}" if self.created else ""
+        return f"{self.source}{when} · RMS {rms} · {sync}"
+
+
+def _format_of(path: Path) -> str | None:
+    import json
+
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError):
+        return None  # the loaders below say what is wrong
+    return data.get("format") if isinstance(data, dict) else None
+
+
+def load_for_capture(path, identity, *, base: CaptureCalibration | None = None) -> CaptureCalibration:
+    """Read a calibration file or a sync profile for capture on the rig of ``identity``.
+
+    Parameters
+    ----------
+    path : str or Path
+        A calibration file (homography and, when the sync step ran, its timing) or a sync profile
+        (timing only).
+    identity : calibration.session.RigIdentity
+        The capture rig's; a file made for another rig, camera or resolution is refused.
+    base : CaptureCalibration, optional
+        For a sync profile: the calibration whose timing it replaces (default uncalibrated).
+
+    Raises
+    ------
+    CalibrationRefused
+        For a missing, damaged or failed file, or one made for another rig; the message says which.
+    """
+    path = Path(path).expanduser()
+    kind = _format_of(path)
+    try:
+        if kind == SYNC_FORMAT:
+            data = load_sync_profile(path, identity)
+            sync = SyncTiming.from_summary(data.get("sync"))
+            if sync is None:
+                raise CalibrationRefused(f"{path}: the sync profile holds no successful measurement")
+            _logger.info("sync profile for capture: %s (%s)", path, sync.describe())
+            return (base or CaptureCalibration()).with_sync(sync, source=f"{path} ({data.get('created', 'undated')})")
+        data = load_calibration(path, identity)  # also says what is wrong with any other file
+    except CalibrationError as exc:
+        raise exc if isinstance(exc, CalibrationRefused) else CalibrationRefused(str(exc)) from exc
+    if data.get("format") != CALIBRATION_FORMAT:  # pragma: no cover - load_calibration checks it
+        raise CalibrationRefused(f"{path}: not a calibration file")
+    quality = data.get("quality") or {}
+    if quality.get("status") not in (None, "ok", "partial"):
+        raise CalibrationRefused(f"{path}: the calibration's homography step did not succeed "
+                                 f"({quality.get('status')}): calibrate again")
+    sync = SyncTiming.from_summary(data.get("sync"))
+    rms = quality.get("rms_px")
+    created = str(data.get("created", ""))
+    _logger.info("calibration for capture: %s", path)
+    source = f"{path}" + (" (a partial calibration)" if quality.get("status") == "partial" else "")
+    return CaptureCalibration(data["H"], sync, source, None if rms is None else float(rms), created, True)
+
+
+def from_run(run, run_identity, identity, *, now=None) -> CaptureCalibration:
+    """A fresh calibration run (:class:`calibration.pipeline.CalibrationRun`) for capture.
+
+    Parameters
+    ----------
+    run : CalibrationRun
+        Must have succeeded.
+    run_identity, identity : RigIdentity
+        The rig it ran on, and the capture rig's: they must be the same rig.
+
+    Raises
+    ------
+    CalibrationRefused
+        When the run did not succeed, or ran on another rig.
+    """
+    if run is None or not run.success:
+        raise CalibrationRefused("run a successful calibration first")
+    try:
+        check_identity({"rig": run_identity.as_dict()}, identity, "the calibration just run")
+    except CalibrationError as exc:
+        raise CalibrationRefused(str(exc)) from exc
+    hom = run.keep["homography"]
+    sync = run.keep.get("sync")
+    when = (now or _dt.datetime.now(_dt.UTC)).isoformat(timespec="seconds")
+    return CaptureCalibration(np.asarray(hom.homography, np.float64),
+                              SyncTiming.from_summary(None if sync is None else sync.summary()),
+                              "the calibration just run (not saved)", float(hom.rms_px), when, True)
+
+
+__all__ = ["CalibrationRefused", "CaptureCalibration", "SyncTiming", "from_run", "load_for_capture"]

@@ -9,14 +9,14 @@ import textwrap
 import numpy as np
 import pytest
 
-from app.gui.models.capture_plan import CapturePlan
+from app.capture.plan import CapturePlan
 from app.gui.models.continuum import continuum_division, continuum_tensor, describe, ordered_divisions, tensor_position
 from app.gui.models.expected_quality import BENCH_CSV, TABLE_PATH, build_table, expected, load_table, parse_label
 from app.gui.models.jobs import Cancelled, CancelToken, chunk_frames_for, preview_window, run_reconstruction
 from app.gui.models.live_stats import LiveStats, histogram, saturation_level
 from flexvox_core.design import design_code
+from flexvox_core.methods import Method
 from flexvox_core.reconstruct.rebin import supported_divisions
-from flexvox_core.reconstruct.run import Method
 from rig_drivers.interfaces import Frame
 
 # ---------------------------------------------------------------- continuum
@@ -177,9 +177,9 @@ def test_motion_aware_in_chunks_matches_one_run_with_slow_voxels():
 
 
 def test_chunk_sizes_and_preview_windows():
-    assert chunk_frames_for(Method("gap-tv"), 100) == 1
-    assert chunk_frames_for(Method("motion-aware"), 10) == 8
-    assert chunk_frames_for(Method("diffusion"), 200) == 20
+    assert chunk_frames_for(Method("gap-tv"), 100, 8) == 1
+    assert chunk_frames_for(Method("motion-aware"), 10, 8) == 8
+    assert chunk_frames_for(Method("diffusion"), 200, 8) == 20
     assert preview_window(10, 0) == (0, 3) and preview_window(10, 9) == (7, 10) and preview_window(10, 5) == (4, 7)
     assert preview_window(2, 1) == (0, 2)
     with pytest.raises(ValueError, match="`n_frames` must be >= 1"):
@@ -217,7 +217,7 @@ def test_capture_plan_codes_and_resolutions():
     assert "S-matrix" in mux.code_summary() and mux.code.shape == (3, 5, 15)
     with pytest.raises(ValueError, match=r"no S-matrix exists for K = 16"):
         CapturePlan((4, 4), multiplexed=True).code  # noqa: B018 - the property raises
-    seq = ident.sequence((20, 30))
+    seq = ident.sequence((20, 30), camera_size=(20, 30))  # uncalibrated: the identity map
     assert seq.patterns.shape == (16, 20, 30) and seq.period_us == 4166
     assert np.array_equal(seq.patterns.sum(axis=0), np.ones((20, 30)))  # identity: one slot per pixel
 

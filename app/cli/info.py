@@ -28,6 +28,9 @@ def register(sub) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--repair", action="store_true",
                    help="finalise an interrupted capture in place (exact array lengths, journal removed)")
+    p.add_argument("--slots", action="store_true",
+                   help="simulated recordings: read back which slot every pixel sampled (against the ground "
+                        "truth) and print the slot accuracy; record 17 frames of the strobe scene for a full answer")
     p.set_defaults(func=run)
 
 
@@ -89,7 +92,9 @@ def _text(s: dict) -> list[str]:
     ]
     cal = s["calibration"]
     if cal:
-        lines.append(f"calibration: {cal.get('source', '?')}, phase {cal.get('phase_slots', '?')} slot(s)")
+        delay = cal.get("trigger_delay_us")
+        lines.append(f"calibration: {cal.get('source', '?')}, phase {cal.get('phase_slots', '?')} slot(s)"
+                     + (f", camera trigger delay {delay:.0f} µs" if delay else ""))
     if s["rig"]:
         lines.append("rig: " + ", ".join(f"{k} {v}" for k, v in s["rig"].items() if not isinstance(v, dict | list)))
     if s["capture"]:
@@ -100,6 +105,23 @@ def _text(s: dict) -> list[str]:
         lines.append("interrupted: the capture did not finish (killed or power lost); every committed frame "
                      "is readable. `flexvox info --repair` finalises it.")
     return lines
+
+
+def _slots(rec) -> dict:
+    """The slot check of a recording with ground truth (:mod:`flexvox_core.slot_check`)."""
+    from flexvox_core.capture_reader import read_capture
+    from flexvox_core.slot_check import slot_accuracy
+
+    if not rec.has_ground_truth:
+        raise CliError(f"{rec.path} holds no ground truth: --slots needs a simulated recording "
+                       "(flexvox capture --rig mock --ground-truth, or flexvox simulate)")
+    try:
+        frames, code = read_capture(rec)
+    except RecordingError as exc:
+        raise CliError(f"--slots: {exc}") from None
+    check = slot_accuracy(frames, rec.ground_truth(), code)
+    return {"accuracy": check.accuracy, "decidable_fraction": check.decidable_fraction,
+            "message": check.describe()}
 
 
 def run(args) -> int:
@@ -119,10 +141,14 @@ def run(args) -> int:
             print(f"{args.recording}: DAMAGED: {exc}")
         return EXIT_FAILED
     summary, problems = check(rec)
+    if args.slots:
+        summary["slots"] = _slots(rec)
     if args.json:
         print(json.dumps(summary))
     else:
         print("\n".join(_text(summary)))
+        if args.slots:
+            print(summary["slots"]["message"])
         for p in problems:
             print(f"problem: {p}")
         print("DAMAGED" if problems else "OK")

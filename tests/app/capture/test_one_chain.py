@@ -65,6 +65,10 @@ def test_the_cli_records_through_its_calibration_and_every_slot_is_right(calibra
     check = slots(rec)
     assert check.decidable_fraction > 0.95 and check.accuracy == 1.0, check.describe()
     assert "phase" in capsys.readouterr().out
+    # `flexvox info --slots` says the same
+    assert cli_main.main(["info", str(out), "--slots"]) == 0
+    text = capsys.readouterr().out
+    assert "slot accuracy 100.0% of the 100% of pixels" in text and "camera trigger delay" in text
 
 
 def test_the_raw_phase_or_no_calibration_visibly_fail(calibration_file, tmp_path):
@@ -152,3 +156,15 @@ def test_a_sync_profile_replaces_the_calibrations_timing(calibration_file, tmp_p
     alone = load_for_capture(profile, identity)
     assert not alone.calibrated and alone.phase_slots == 4
     assert CaptureCalibration().for_plan(16, 4166)[:2] == (0, 0.0)
+
+
+def test_info_slots_needs_ground_truth(calibration_file, tmp_path):
+    from app.cli.errors import CliError
+
+    out = tmp_path / "r.zarr"
+    assert cli_main.main(["capture", "--rig", "mock", "--frames", "2", "--clock", "virtual", "--calibration",
+                          str(calibration_file), "-o", str(out)]) == 0
+    with pytest.raises(CliError, match=r"holds no ground truth: --slots needs a simulated recording"):
+        from app.cli import info
+
+        info.run(type("Args", (), {"recording": out, "repair": False, "slots": True, "json": False})())

@@ -23,7 +23,7 @@ from flexvox_core.forward import capture
 from flexvox_core.metrics import psnr, ssim
 from flexvox_core.reconstruct import gap_tv, gap_tv_masks
 
-REFERENCE = {  # DESIGN.md §4: accelerated GAP-TV, 40 iterations, TV weight 0.3, "5" TV iterations
+REFERENCE = {  # docs/benchmarks.md: accelerated GAP-TV, 40 iterations, TV weight 0.3, "5" TV iterations
     ("runner", "random"): 29.8,
     ("drop", "random"): 35.0,
     ("runner", "2x4"): 29.4,

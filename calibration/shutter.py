@@ -78,7 +78,7 @@ def make_shutter_patterns(code, homography, camera_size, projector_size, *, phas
     Parameters
     ----------
     code : ndarray (m, n, K) bool
-        Tiled over the camera from its top-left pixel (DESIGN §2).
+        Tiled over the camera from its top-left pixel (docs/architecture.md, "Conventions").
     homography : array (3, 3)
         Projector → camera.
     camera_size, projector_size : (H, W)

@@ -86,7 +86,7 @@ def batch_video(rec: Recording, method: Method | None = None, *, chunk_frames: i
     Raises
     ------
     ValueError
-        A recording the reader refuses (:class:`~flexvox_core.capture_reader.CaptureError`), a bad
+        A recording the reader refuses (:class:`~flexvox_core.capture_reader.NotReconstructableError`), a bad
         ``chunk_frames``, or a method that cannot run in chunks.
     """
     import dask.array as da

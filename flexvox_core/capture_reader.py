@@ -5,7 +5,7 @@ A recording's raw frames become what every reconstruction takes, an identity-cod
 
 1. **validation** — the recording opens (:func:`~flexvox_core.recording.open_recording`), and
    the **dropped-frame policy** holds: a recording with dropped frames is refused
-   (:class:`CaptureError` naming how many rows are dropped and the first of them), because
+   (:class:`NotReconstructableError` naming how many rows are dropped and the first of them), because
    reconstructing across gaps is not supported yet;
 2. **normalisation** — counts to relative units with the recording's ``storage`` attributes
    (:func:`flexvox_core.simulate.simulator.normalise_frames`);
@@ -35,7 +35,7 @@ from flexvox_core.recording import Recording, RecordingError, open_recording
 _logger = logging.getLogger(__name__)
 
 
-class CaptureError(RecordingError):
+class NotReconstructableError(RecordingError):
     """A recording that opens but cannot be reconstructed; the message says why."""
 
 
@@ -91,7 +91,7 @@ class CaptureReader:
 
     Raises
     ------
-    CaptureError
+    NotReconstructableError
         Dropped frames, or multiplexing attributes that name no S-matrix code.
     """
 
@@ -100,16 +100,17 @@ class CaptureReader:
         dropped = recording.per_frame("dropped")
         if dropped.any():
             rows = np.flatnonzero(dropped)[:5].tolist()
-            raise CaptureError(f"{recording.path} has {int(dropped.sum())} dropped frame(s) (first at rows {rows}); "
-                               "reconstructing across gaps is not supported yet")
+            raise NotReconstructableError(f"{recording.path} has {int(dropped.sum())} dropped frame(s) (first at rows "
+                                          f"{rows}); reconstructing across gaps is not supported yet")
         attrs = recording.attrs
         multiplexed = None
         if attrs.get("multiplexed"):
             try:
                 multiplexed = multiplexed_code(tuple(attrs["tile"]), placement=attrs.get("placement_order"))
             except (KeyError, TypeError, ValueError) as exc:
-                raise CaptureError(f"{recording.path}: a multiplexed recording whose code cannot be rebuilt "
-                                   f"from its `tile` and `placement_order` attributes ({exc})") from None
+                raise NotReconstructableError(f"{recording.path}: a multiplexed recording whose code cannot be "
+                                              f"rebuilt from its `tile` and `placement_order` attributes ({exc})"
+                                              ) from None
             self.code = code_from_order(multiplexed.placement)
         else:
             self.code = recording.code
@@ -180,7 +181,7 @@ def open_capture(recording) -> CaptureReader:
     ------
     RecordingError
         The recording cannot be opened (its message says why).
-    CaptureError
+    NotReconstructableError
         It opens but cannot be reconstructed (dropped frames; a broken multiplexed code).
     """
     rec = recording if isinstance(recording, Recording) else open_recording(recording)
@@ -206,7 +207,7 @@ def read_capture(recording, start: int = 0, stop: int | None = None) -> tuple[np
     Raises
     ------
     RecordingError
-        Cannot be opened; :class:`CaptureError` (a RecordingError): cannot be reconstructed.
+        Cannot be opened; :class:`NotReconstructableError` (a RecordingError): cannot be reconstructed.
     ValueError
         A window outside the recording.
     """

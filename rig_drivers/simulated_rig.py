@@ -2,7 +2,7 @@
 
 The camera sees the scene lit by the projector's *current* pattern sequence. Patterns are
 in projector pixels ``(Hp, Wp)``; they reach camera pixels ``(H, W)`` through a hidden
-projector→camera homography (a co-located rig has one for every depth, DESIGN.md §5).
+projector→camera homography (a co-located rig has one for every depth, docs/architecture.md).
 Camera pixels that no projector pixel reaches get no projected light, only what the
 scene's ``ambient`` effect declares. The scene's declared effects (ambient light, leakage,
 defocus, noise, sync offset, dropped frames, ...) are applied by

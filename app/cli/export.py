@@ -76,7 +76,7 @@ class _Source:
                 reader = CaptureReader(rec)
                 method = method_from_args(args, rec.attrs["tile"])
                 self.array = reconstruct(reader.read(), reader.code, method, chunk_frames=args.chunk)
-            except ValueError as exc:  # RecordingError and CaptureError are ValueErrors
+            except ValueError as exc:  # RecordingError and NotReconstructableError are ValueErrors
                 raise CliError(str(exc)) from None
             self.dtype = np.dtype(np.float32)
             self.rate = rec.attrs["rates"]["subframe_hz"]

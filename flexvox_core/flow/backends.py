@@ -86,7 +86,10 @@ class FarnebackFlow:
 
 @dataclass(frozen=True)
 class TvL1Flow:
-    """Dual TV-L1 (Zach et al. 2007). Fails on large motion with OpenCV's defaults (DESIGN.md §3)."""
+    """Dual TV-L1 (Zach et al. 2007). Fails on large motion with OpenCV's defaults.
+
+    See docs/architecture.md, "Facts the design rests on".
+    """
 
     name = "tvl1"
     tau: float = 0.25

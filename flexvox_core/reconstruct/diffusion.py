@@ -16,7 +16,8 @@ normalised: ``(cx, cy, ct)`` and ``time`` only enter as ``time · c_i``. Tensors
 
 The diffusion time ``n`` is an accuracy knob, not a convergence tolerance: too little
 leaves the sampling lattice visible, too much blurs (and the steady state, ``n → ∞``
-with the samples held fixed, is worse than stopping early — DESIGN.md §3).
+with the samples held fixed, is worse than stopping early — docs/architecture.md, "Facts the
+design rests on").
 
 Solvers (one interface, :func:`diffuse`):
 
@@ -36,7 +37,7 @@ Solvers (one interface, :func:`diffuse`):
     :math:`dt = n / \lceil n / dt_{max} \rceil`, :math:`dt_{max} = 1 / (2 \sum_i c_i)`.
     Under this bound every update is a convex combination of the old values, so the
     iteration obeys the discrete maximum principle at any anisotropy (unlike the
-    centred 19-point stencil for full tensors, DESIGN.md §3). Reflecting boundary
+    centred 19-point stencil for full tensors, docs/architecture.md). Reflecting boundary
     (ghost voxel = edge voxel). Started from ``nc`` with the same tensor and time
     (``init="nc"``, the default: nc followed by the same amount of data-consistent
     diffusion) or from the samples' mean (``init="mean"``).

@@ -31,7 +31,7 @@ default). With 5 updates Runner/Drop lose 1.5 / 4.7 dB with the random mask.
 
 **Intensity scale of the TV weight.** Chambolle's problem is scale-covariant:
 denoising ``s·f`` with weight ``s·λ`` gives ``s·u``. flexvox videos are in [0, 1], and
-``tv_weight`` is defined on that scale. The reference figures of DESIGN.md §4 (TV weight
+``tv_weight`` is defined on that scale. The reference figures of docs/benchmarks.md (TV weight
 0.3) are reproduced with the weight applied on the **0–1** scale (``tv_weight=0.3`` here,
 4 dual updates): Runner 29.8 / Drop 35.0 dB with the random mask, 29.4 / 33.8 dB with
 the 2×4 flexible-voxel code. Read on the 0–255 scale (``tv_weight=0.3/255`` here) the

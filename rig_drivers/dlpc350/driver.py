@@ -21,7 +21,7 @@ on stop (a stopped pattern sequence does not show the video input, and the next 
 the frames); without a sink (``display=None``) the frames must be shown some other way, as
 before (the Capture workspace's projector output window).
 
-Command order of a session (DLPU010G §4.2 Table 4-2, DESIGN.md §5)::
+Command order of a session (DLPU010G §4.2 Table 4-2; docs/real-rig.md)::
 
     0x1A24 = 0 (stop)  0x1A1B = 1 (pattern mode)  0x1A22 (source)  0x1A31 (LUT control)
     0x1A23 (trigger mode)  0x1A29 (exposure, period)  0x1A33 = 2, 0x1A32, 0x1A34..., 0x1A33 = 0

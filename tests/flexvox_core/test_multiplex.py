@@ -30,7 +30,7 @@ def test_no_s_matrix_unless_k_is_3_mod_4(K):
 def test_noise_gains_match_the_known_figures():
     read, photon = noise_gains(s_matrix(15))
     assert read == pytest.approx(16 / (2 * np.sqrt(15)))  # (K+1)/(2 sqrt K)
-    assert photon == pytest.approx(0.7303, abs=1e-4)  # a loss under photon noise (DESIGN.md §3)
+    assert photon == pytest.approx(0.7303, abs=1e-4)  # a loss under photon noise (docs/architecture.md)
 
 
 def test_multiplexed_tile_rejects_k_without_s_matrix():

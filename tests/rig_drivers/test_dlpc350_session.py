@@ -1,5 +1,5 @@
 """A LightCrafter pattern-mode session against the fake controller, checked byte for byte
-against DESIGN.md §5, and every error path of the driver."""
+against TI's DLPC350 Programmer's Guide (docs/real-rig.md), and every error path of the driver."""
 
 import numpy as np
 import pytest

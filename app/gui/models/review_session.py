@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from flexvox_core.capture_reader import CaptureError, CaptureReader
+from flexvox_core.capture_reader import CaptureReader, NotReconstructableError
 from flexvox_core.divisions import Division
 from flexvox_core.reconstruct.rebin import supported_divisions
 from flexvox_core.recording import Recording, RecordingError, open_recording
@@ -58,7 +58,7 @@ class ReviewSession:
         try:
             reader = CaptureReader(rec)
             frames, code, blocked = reader.read(), reader.code, ""
-        except CaptureError as exc:
+        except NotReconstructableError as exc:
             frames, code, blocked = None, rec.code, str(exc)
         _logger.info("opened %s: %d frames of %dx%d, K=%d", path, *raw.shape, rec.K)
         return cls(path, rec, raw.astype(np.float32, copy=False),

@@ -194,7 +194,7 @@ def test_capture_plan_timing_of_the_design_example():
     assert (t.period_us, t.projector_exposure_us, t.sequence_us) == (4166, 4166, 66656)
     assert t.ok
     drift = next(n for n in t.notes if "drifts one slot every" in n)
-    assert "every 26 s" in drift  # DESIGN.md §5
+    assert "every 26 s" in drift  # docs/architecture.md: 16 x 4166 µs = 66.656 ms at 15 Hz
 
 
 @pytest.mark.parametrize("plan, message", [

@@ -11,5 +11,6 @@ colocation         live alignment numbers and the parallax test
 shutter            shutter masks through the homography; verification on the rig
 sync               phase and sub-slot delay (single-shot band code + delay sweep), drops, drift
 files              versioned JSON calibration files tied to a rig's identity and resolution
-simulated_target   the simulated rig set up for calibration (and depth emulation)
+capture_setup      what capture needs from a calibration: homography, phase, trigger delay, refusals
+pipeline           every step in order (run_calibration), shared by the CLI, the GUI and the demo
 """

@@ -11,7 +11,7 @@ Parallax test
     A co-located rig (the projector's and the camera's centres of projection coincide
     through the beam splitter) has **one** homography for every depth. The operator
     captures a flat target at two or more depths (:func:`capture_view` each time; in
-    simulation see :mod:`calibration.simulated_target` for how depth is emulated), and
+    simulation see :mod:`rig_drivers.simulated_target` for how depth is emulated), and
     :func:`parallax_test` fits one homography to all of them and shows the residuals per
     view as heat maps. When they disagree, the shift between the nearest and the farthest
     view says where the projector's centre sits: a lateral offset ``b`` moves near points

@@ -2,12 +2,13 @@
 
 Two kinds of module live here, kept apart as napari keeps ``components`` and ``_qt``:
 
-- **Qt-free models and services** (importable on a machine without Qt; a test proves it):
-  :mod:`~app.gui.models.continuum`, :mod:`~app.gui.models.expected_quality`, :mod:`~app.gui.models.jobs`,
-  :mod:`~app.gui.models.review_session`, :mod:`~app.gui.models.rig_service`, :mod:`~app.gui.models.capture_plan`,
-  :mod:`~app.gui.models.live_stats`.
-- **Qt views** that take those models in their constructors: everything else
-  (``*_workspace``, ``*_panel``, ``main_window``, ``qt_jobs``, ``settings``, ...).
+- **Qt-free models and services** in :mod:`app.gui.models` (import-linter forbids Qt there, and a
+  test imports every one of them with Qt blocked);
+- **Qt views** that take those models in their constructors: shared widgets in
+  :mod:`app.gui.widgets`, one subpackage per workspace (:mod:`app.gui.calibrate`,
+  :mod:`app.gui.capture`, :mod:`app.gui.review`) and the projector output (:mod:`app.gui.projector`).
 
-This package file imports nothing, so ``import app.gui.models.continuum`` never loads Qt.
+What is shared with the command line lives below both (``app/capture``, ``calibration``,
+``flexvox_core``): see docs/architecture.md. This package file imports nothing, so
+``import app.gui.models.continuum`` never loads Qt.
 """

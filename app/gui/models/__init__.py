@@ -1,1 +1,1 @@
-"""."""
+"""Qt-free models and services the widgets take in their constructors (no Qt here: import-linter checks it)."""

@@ -1,6 +1,6 @@
 """Render each workspace to PNG offscreen: ``python -m app.gui.screenshots OUTDIR``.
 
-Runs the whole calibration on the simulated rig (``calibrate.png``: the results,
+Runs the whole calibration on the simulated rig and hands it to Capture (``calibrate.png``: the results,
 ``calibrate_residuals.png``: the homography's residual heat map, ``calibrate_sync.png``: the
 leakage curve and delay sweep), shows co-location live (``calibrate_colocation.png``: the camera
 with the projector grid through the homography estimate), makes a small simulated recording in
@@ -86,6 +86,8 @@ def render(out_dir) -> list[Path]:
             raise RuntimeError(f"the calibration failed: {calibrate.step_label.text()}")
         calibrate.save_path.setText(str(Path(tmp) / "rig-calibration.json"))
         calibrate.save_button.click()
+        calibrate.use_button.click()  # Capture records through this calibration (the operator's path)
+        window.show_workspace("Calibrate")
         for index, name in ((0, "calibrate.png"), (1, "calibrate_residuals.png"), (3, "calibrate_sync.png")):
             calibrate.tabs.setCurrentIndex(index)
             save(name)

@@ -35,6 +35,7 @@ from calibration import geometry
 from calibration.errors import CalibrationError
 from calibration.files import CALIBRATION_FORMAT, check_identity, load_calibration
 from calibration.sync import SYNC_FORMAT, load_sync_profile
+from flexvox_core.json_file import read_json
 
 _logger = logging.getLogger(__name__)
 
@@ -206,11 +207,9 @@ class CaptureCalibration:
 
 
 def _format_of(path: Path) -> str | None:
-    import json
-
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError):
+        data = read_json(path)
+    except ValueError:
         return None  # the loaders below say what is wrong
     return data.get("format") if isinstance(data, dict) else None
 

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from calibration.errors import CalibrationError, CalibrationFileError, CalibrationMismatchError
+from flexvox_core.json_file import read_json
 
 CALIBRATION_FORMAT = "flexvox-calibration"
 CALIBRATION_VERSION = 1
@@ -54,14 +55,7 @@ def write_versioned(path, fmt: str, version: int, identity, body: dict, *, now=N
 def read_versioned(path, fmt: str, version: int) -> dict:
     """Read a file written by :func:`write_versioned`, checking its format and version."""
     path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise CalibrationFileError(f"{path}: no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CalibrationFileError(f"{path}: cannot read: {exc}") from exc
-    except json.JSONDecodeError as exc:
-        raise CalibrationFileError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    data = read_json(path, CalibrationFileError)
     if not isinstance(data, dict) or data.get("format") != fmt:
         got = data.get("format") if isinstance(data, dict) else type(data).__name__
         raise CalibrationFileError(f"{path}: not a {fmt} file (format {got!r})")

@@ -12,12 +12,12 @@ has ``"multiplexed": true``, its ``tile`` and the ``placement_order`` its demult
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 
 from flexvox_core.codes import code_from_order, is_identity_code, validate_code
+from flexvox_core.json_file import read_json
 from flexvox_core.multiplex import MultiplexedCode, multiplexed_code
 
 
@@ -26,14 +26,7 @@ class CodeFileError(ValueError):
 
 
 def _payload(path: Path) -> dict:
-    try:
-        payload = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise CodeFileError(f"{path}: no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise CodeFileError(f"{path}: cannot read: {exc}") from None
-    except json.JSONDecodeError as exc:
-        raise CodeFileError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    payload = read_json(path, CodeFileError)
     if not isinstance(payload, dict) or (payload.get("code") is None and payload.get("order") is None):
         raise CodeFileError(f"{path}: a code file needs an `order` (m rows of slots) or a `code` (m x n x K 0/1)")
     return payload

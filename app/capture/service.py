@@ -253,6 +253,17 @@ Writer = RecordingWriter
 ``count``, ``write_ground_truth_frames(rows)``, ``close(attrs_update=)``."""
 
 
+def check_output(path, *, overwrite: bool = False) -> Path:
+    """The recording path a capture may create: refused when it exists (without ``overwrite``) or its folder does
+    not. Front ends call it before they open a rig, so the operator hears it at once."""
+    path = Path(path)
+    if path.exists() and not overwrite:
+        raise CaptureError(f"{path} already exists; choose another path or allow overwriting")
+    if not path.parent.is_dir():
+        raise CaptureError(f"cannot write {path}: the folder {path.parent} does not exist")
+    return path
+
+
 def default_storage(dtype) -> dict:
     """The ``storage`` block for frames of ``dtype``: float as is, integers as counts scaled
     so that normalised values span [0, 1] of the type's range."""
@@ -314,11 +325,7 @@ class CaptureService:
                                f"{type(calibration).__name__}")
         self.rig = rig
         self.plan = plan
-        self.path = Path(path)
-        if self.path.exists() and not overwrite:
-            raise CaptureError(f"{self.path} already exists; choose another path or allow overwriting")
-        if not self.path.parent.is_dir():
-            raise CaptureError(f"cannot write {self.path}: the folder {self.path.parent} does not exist")
+        self.path = check_output(path, overwrite=overwrite)
         self.n_target = frames
         self.calibration = calibration or CaptureCalibration()
         self.sync_setting = sync or SyncSetting()

@@ -107,11 +107,13 @@ def _plan(args):
 def _build(args, display=None):
     from app.capture import CaptureService, QueuePolicy, SyncSetting
     from app.capture.pacing import PacedClock
+    from app.capture.service import check_output
     from rig_drivers.profile import open_rig
     from rig_drivers.simulated_camera import VirtualClock
 
     if args.frames is not None and args.frames < 1:
         raise ValueError(f"--frames must be >= 1; got {args.frames}")
+    check_output(args.output, overwrite=args.overwrite)  # before the rig is built (a scene renders for seconds)
     plan = _plan(args)
     plan.code  # noqa: B018 - refuse an impossible code before any device is opened
     if args.rig == "mock":

@@ -6,8 +6,10 @@ emitted from the worker thread and delivered, queued, on the GUI thread.
 
 Callbacks are given to :meth:`JobRunner.submit` so they are connected *before* the job starts: a
 fast job may finish before the caller could connect to the handle it gets back (a queued signal
-reaches only the slots connected when it was emitted). ``handle.outcome`` ("finished", "failed",
-"cancelled") and ``handle.running`` (False once every callback ran) serve those who poll.
+reaches only the slots connected when it was emitted). Once :meth:`JobRunner.shutdown` ran (the
+window is closing), callbacks still queued are dropped: the widgets they would update are going.
+``handle.outcome`` ("finished", "failed", "cancelled") and ``handle.running`` (False once every
+callback ran) serve those who poll.
 """
 
 from __future__ import annotations
@@ -90,6 +92,7 @@ class JobRunner(QObject):
         super().__init__(parent)
         self.pool = pool or QThreadPool(self)
         self._live: dict[JobHandle, _Runnable] = {}
+        self._shut = False
 
     def submit(self, name: str, fn: Callable[[CancelToken, Callable[[int, int], None]], object], *,
                on_progress=None, on_finished=None, on_failed=None, on_cancelled=None, on_done=None) -> JobHandle:
@@ -102,14 +105,25 @@ class JobRunner(QObject):
         for signal, slot in ((handle.progress, on_progress), (handle.finished, on_finished),
                              (handle.failed, on_failed), (handle.cancelled, on_cancelled)):
             if slot is not None:
-                signal.connect(slot)
+                signal.connect(self._unless_shut(slot, name))
         handle.done.connect(lambda h=handle: self._forget(h))
         if on_done is not None:
-            handle.done.connect(on_done)
+            handle.done.connect(self._unless_shut(on_done, name))
         runnable = _Runnable(fn, handle)
         self._live[handle] = runnable
         self.pool.start(runnable)
         return handle
+
+    def _unless_shut(self, slot, name: str):
+        """``slot``, or nothing once the runner was shut down (its callers' widgets are being deleted)."""
+
+        def call(*args):
+            if self._shut:
+                _logger.debug("job %s ended after shutdown: its callback is dropped", name)
+                return
+            slot(*args)
+
+        return call
 
     def _forget(self, handle: JobHandle) -> None:
         handle.running = False
@@ -126,6 +140,10 @@ class JobRunner(QObject):
             h.cancel()
 
     def shutdown(self, timeout_ms: int = 5000) -> bool:
-        """Cancel every job and wait for the pool; False when a job did not stop in time."""
+        """Cancel every job and wait for the pool; False when a job did not stop in time.
+
+        Callbacks of jobs that end after this are dropped (see the module docstring).
+        """
+        self._shut = True
         self.cancel_all()
         return self.pool.waitForDone(timeout_ms)

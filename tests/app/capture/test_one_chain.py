@@ -162,8 +162,8 @@ def test_info_slots_needs_ground_truth(calibration_file, tmp_path):
     from app.cli.errors import CliError
 
     out = tmp_path / "r.zarr"
-    assert cli_main.main(["capture", "--rig", "mock", "--frames", "2", "--clock", "virtual", "--calibration",
-                          str(calibration_file), "-o", str(out)]) == 0
+    assert cli_main.main(["capture", "--rig", "mock", "--scene", "static", "--frames", "2", "--clock", "virtual",
+                          "--calibration", str(calibration_file), "-o", str(out)]) == 0
     with pytest.raises(CliError, match=r"holds no ground truth: --slots needs a simulated recording"):
         from app.cli import info
 

@@ -145,3 +145,20 @@ def test_flexvox_app_refuses_bad_arguments(tmp_path):
         cli_app.run(parser.parse_args(["app", str(tmp_path / "none.zarr")]))
     with pytest.raises(CliError, match="none.toml"):
         cli_app.run(parser.parse_args(["app", "--rig", str(tmp_path / "none.toml")]))
+
+
+def test_a_job_that_ends_after_shutdown_does_not_call_back(qtbot, runner):
+    """A closing window shuts its runner down; a result still queued must not reach its deleted widgets."""
+    import threading
+
+    release = threading.Event()
+    seen = []
+    handle = runner.submit("slow", lambda token, progress: release.wait(5) or "late",
+                           on_finished=seen.append, on_done=lambda: seen.append("done"))
+    quick = runner.submit("quick", lambda token, progress: "now", on_finished=seen.append)
+    qtbot.waitUntil(lambda: not quick.running, timeout=5000)
+    assert seen == ["now"]
+    release.set()
+    assert runner.shutdown(5000)
+    qtbot.waitUntil(lambda: not handle.running, timeout=5000)  # its signals were delivered ...
+    assert handle.outcome == "finished" and seen == ["now"]  # ... and its callbacks dropped

@@ -337,6 +337,26 @@ def test_genicam_writes_frame_start_trigger_on_a_line(cti):
     assert acquirer.destroyed
 
 
+def test_genicam_trigger_delay_is_a_capability_and_is_written_or_refused(cti):
+    nodes = trigger_nodes()
+    nodes.TriggerDelay = FakeNode(500.0, lo=0.0, hi=1e6)
+    module, _ = fake_harvesters(nodes, [])
+    line = dict(exposure_us=4000)
+    with GenICamCamera(cti, harvesters_module=module) as cam:
+        assert cam.capabilities.trigger_delay
+        cam.configure(CameraSettings(**line, trigger=TriggerConfig(source=TriggerSource.LINE0, delay_us=964.0)))
+        assert nodes.TriggerDelay.value == 964.0
+        cam.configure(CameraSettings(**line, trigger=TriggerConfig(source=TriggerSource.LINE0)))
+        assert nodes.TriggerDelay.value == 0.0  # no delay asked: an earlier one is undone
+    plain = trigger_nodes()
+    module, _ = fake_harvesters(plain, [])
+    with GenICamCamera(cti, harvesters_module=module) as cam:
+        assert not cam.capabilities.trigger_delay
+        cam.configure(CameraSettings(**line, trigger=TriggerConfig(source=TriggerSource.LINE0)))  # no delay: fine
+        with pytest.raises(SettingError, match=r"has no TriggerDelay feature: it cannot do this setting"):
+            cam.configure(CameraSettings(**line, trigger=TriggerConfig(source=TriggerSource.LINE0, delay_us=964.0)))
+
+
 def test_genicam_refuses_out_of_range_exposure_and_missing_lines(cti):
     nodes = trigger_nodes()
     module, _ = fake_harvesters(nodes, [])

@@ -19,9 +19,9 @@ $(STAMP): $(BIN)/python pyproject.toml
 demo: $(STAMP)
 	$(BIN)/flexvox demo
 
+# Two workers (pytest-xdist), whole test files kept together; tests/test_layering.py runs the import contracts.
 test: $(STAMP)
-	$(BIN)/lint-imports --no-cache
-	QT_QPA_PLATFORM=offscreen $(BIN)/python -m pytest
+	QT_QPA_PLATFORM=offscreen $(BIN)/python -m pytest -n 2 --dist loadfile
 
 lint: $(STAMP)
 	$(BIN)/python -m pip install --quiet ruff

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import html
 import logging
 
 from PySide6.QtCore import Qt
@@ -15,6 +14,7 @@ from app.gui.models.rig_service import RigService
 from app.gui.review.workspace import ReviewWorkspace
 from app.gui.widgets.device_panel import DevicePanel
 from app.gui.widgets.qt_jobs import JobRunner
+from app.gui.widgets.rich_text import RED, coloured
 from app.gui.widgets.settings import AppSettings
 
 _logger = logging.getLogger(__name__)
@@ -106,8 +106,7 @@ class MainWindow(QMainWindow):
         if used:
             self.show_workspace("Capture")
         else:
-            self.calibrate.save_label.setText("<span style='color:#c0392b'>not used for capture: "
-                                              f"{html.escape(self.capture.calibration_error)}</span>")
+            self.calibrate.save_label.setText(coloured(f"not used for capture: {self.capture.calibration_error}", RED))
 
     def _review_recording(self, path) -> None:
         self.show_workspace("Review")

@@ -33,10 +33,10 @@ from PySide6.QtWidgets import (
 from app.gui.models.calibration_model import CalibrationTarget
 from app.gui.models.jobs import CancelToken
 from app.gui.widgets.qt_jobs import JobHandle, JobRunner
+from app.gui.widgets.rich_text import GREEN, RED
 
 _logger = logging.getLogger(__name__)
 
-RED, GREEN = "#c0392b", "#1e8449"
 
 WIRING = (
     "the projector's TRIG_OUT_2 (or the sync box's frame output) is wired to the camera's trigger input",

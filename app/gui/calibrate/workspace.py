@@ -66,6 +66,7 @@ from app.gui.projector.display import ProjectorDisplay
 from app.gui.projector.window import ScreenPicker
 from app.gui.widgets.image_panel import ImagePanel
 from app.gui.widgets.qt_jobs import JobHandle, JobRunner
+from app.gui.widgets.rich_text import GREEN, GREY, RED
 from app.gui.widgets.settings import AppSettings
 
 _logger = logging.getLogger(__name__)
@@ -76,7 +77,6 @@ LIVE_INTERVAL_MS = 300
 UNDECODED_RGBA = (60, 60, 90, 255)
 WRONG_RGB = (230, 40, 40)
 RIGHT_RGB = (70, 110, 70)
-RED, GREEN, GREY = "#c0392b", "#1e8449", "#7f8c8d"
 
 
 def _colour(good: bool | None) -> str:

@@ -23,14 +23,9 @@ from PySide6.QtWidgets import QCheckBox, QFileDialog, QGroupBox, QHBoxLayout, QL
 from app.capture.plan import CapturePlan
 from app.gui.models.capture_calibration import capture_identity
 from app.gui.models.rig_service import RigService
+from app.gui.widgets.rich_text import AMBER, RED, coloured
 from app.gui.widgets.settings import AppSettings
 from calibration.capture_setup import CalibrationRefused, CaptureCalibration, from_run, load_for_capture
-
-RED, GREEN, AMBER = "#c0392b", "#1e8449", "#b7950b"
-
-
-def _coloured(text: str, colour: str) -> str:
-    return f"<span style='color:{colour}'>{html.escape(text)}</span>"
 
 
 class CalibrationPanel(QGroupBox):
@@ -188,8 +183,8 @@ class CalibrationPanel(QGroupBox):
                              f"({html.escape(how)})")
             else:
                 lines.append(f"recordings use phase <b>{phase}</b>, no camera trigger delay")
-            lines += [_coloured(f"• {w}", AMBER) for w in warnings if self.calibration is not None]
+            lines += [coloured(f"• {w}", AMBER) for w in warnings if self.calibration is not None]
         self.delay_check.setVisible(needs_hand)
         if self.error:
-            lines.append(_coloured(f"refused: {self.error}", RED))
+            lines.append(coloured(f"refused: {self.error}", RED))
         self.label.setText("<br>".join(lines))

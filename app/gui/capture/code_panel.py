@@ -28,9 +28,8 @@ from PySide6.QtWidgets import (
 )
 
 from app.capture.plan import TILES, CapturePlan
+from app.gui.widgets.rich_text import AMBER, GREEN, RED
 from app.gui.widgets.settings import AppSettings
-
-RED, GREEN, AMBER = "#c0392b", "#1e8449", "#b7950b"
 
 
 class CodePanel(QWidget):

@@ -29,16 +29,13 @@ from app.gui.models.live_source import LiveStartError, start_live, stop_live
 from app.gui.models.live_stats import LiveStats, histogram, saturation_level, saturation_mask
 from app.gui.models.rig_service import RigService
 from app.gui.widgets.image_panel import ImagePanel
+from app.gui.widgets.rich_text import RED, coloured
 from app.gui.widgets.settings import AppSettings
 
 DISPLAY_HZ = 30
 """The live image is redrawn at most this often, whatever the camera's rate."""
 SATURATION_RGBA = (255, 0, 0, 170)
-RED = "#c0392b"
 
-
-def _coloured(text: str, colour: str) -> str:
-    return f"<span style='color:{colour}'>{html.escape(text)}</span>"
 
 
 class LivePanel(QObject):
@@ -72,7 +69,7 @@ class LivePanel(QObject):
         self._build(parent)
         self.preview.updated.connect(self._on_preview)
         self.preview.failed.connect(lambda message: self.preview_label.setText(
-            _coloured(f"preview stopped: {message}", RED)))
+            coloured(f"preview stopped: {message}", RED)))
         self.stream.frame.connect(self._on_frame)
         self.stream.failed.connect(self._on_failed)
 
@@ -147,14 +144,14 @@ class LivePanel(QObject):
             return True
         busy = self._busy()
         if busy:
-            self.live_label.setText(_coloured(f"cannot start: {busy}", RED))
+            self.live_label.setText(coloured(f"cannot start: {busy}", RED))
             self.set_button(False)
             return False
         plan = self._plan()
         try:
             note = start_live(self.service, plan, self._calibration())
         except LiveStartError as exc:
-            self.live_label.setText(_coloured(f"cannot start: {exc}", RED))
+            self.live_label.setText(coloured(f"cannot start: {exc}", RED))
             self.set_button(False)
             return False
         self.stats = LiveStats()
@@ -199,7 +196,7 @@ class LivePanel(QObject):
     def _on_failed(self, message: str) -> None:
         self.service.record_error("camera", f"live view: {message}")
         self.stop()
-        self.live_label.setText(_coloured(f"live view stopped: {message}", RED))
+        self.live_label.setText(coloured(f"live view stopped: {message}", RED))
 
     # ------------------------------------------------------------------ a recording's frames
     def follow_capture(self, capture) -> None:
@@ -272,7 +269,7 @@ class LivePanel(QObject):
         try:
             code = plan.shutter_code
         except ValueError as exc:
-            self.preview_label.setText(_coloured(f"preview: {exc}", RED))
+            self.preview_label.setText(coloured(f"preview: {exc}", RED))
             return
         self.preview.set_code(code, plan.tile)
         self.preview.start()

@@ -17,12 +17,7 @@ from app.gui.models.live_source import projector_size
 from app.gui.models.rig_service import RigService
 from app.gui.projector.window import ProjectorWindow, ScreenPicker
 from app.gui.widgets.qt_jobs import JobRunner
-
-RED, AMBER = "#c0392b", "#b7950b"
-
-
-def _coloured(text: str, colour: str) -> str:
-    return f"<span style='color:{colour}'>{html.escape(text)}</span>"
+from app.gui.widgets.rich_text import AMBER, RED, coloured
 
 
 class ProjectorPanel(QGroupBox):
@@ -84,7 +79,7 @@ class ProjectorPanel(QGroupBox):
             return True
         screen = self.chosen_screen()
         if screen is None:
-            self.label.setText(_coloured("no screen to show the patterns on", RED))
+            self.label.setText(coloured("no screen to show the patterns on", RED))
             self._set_button(False)
             return False
         plan = self._plan()
@@ -92,7 +87,7 @@ class ProjectorPanel(QGroupBox):
             plan.code  # noqa: B018 - refuse an impossible code before packing
             camera_size = tuple(int(v) for v in self.service.rig.camera.sensor_shape)
         except (ValueError, OSError) as exc:
-            self.label.setText(_coloured(f"cannot make the patterns: {exc}", RED))
+            self.label.setText(coloured(f"cannot make the patterns: {exc}", RED))
             self._set_button(False)
             return False
         psize = projector_size(self.service.rig.projector)
@@ -105,7 +100,7 @@ class ProjectorPanel(QGroupBox):
 
         self._job = self.runner.submit(
             "projector patterns", job, on_finished=lambda frames: self._show(frames, screen, plan.K),
-            on_failed=lambda message: (self.label.setText(_coloured(f"cannot make the patterns: {message}", RED)),
+            on_failed=lambda message: (self.label.setText(coloured(f"cannot make the patterns: {message}", RED)),
                                        self._set_button(False)))
         return True
 
@@ -124,7 +119,7 @@ class ProjectorPanel(QGroupBox):
                 f"{cycle}; Esc closes"]
         warning = window.size_warning()
         if warning:
-            text.append(_coloured(f"• {warning}", AMBER))
+            text.append(coloured(f"• {warning}", AMBER))
         self.label.setText("<br>".join(text))
         self._set_button(True)
 
@@ -143,7 +138,7 @@ class ProjectorPanel(QGroupBox):
         """The plan or the calibration changed: an open window shows stale patterns, so close it and say so."""
         if self.window is not None:
             self.close_window()
-            self.label.setText(_coloured("closed: the patterns changed; show them again", AMBER))
+            self.label.setText(coloured("closed: the patterns changed; show them again", AMBER))
 
     def _on_closed(self) -> None:
         window, self.window = self.window, None

@@ -37,6 +37,7 @@ from PySide6.QtWidgets import (
 from app.gui.models.recording import counters_text, make_capture, result_text, resync_clock
 from app.gui.models.rig_service import RigService
 from app.gui.widgets.qt_jobs import JobRunner
+from app.gui.widgets.rich_text import GREEN, RED, coloured
 from app.gui.widgets.settings import AppSettings
 
 _logger = logging.getLogger(__name__)
@@ -44,11 +45,7 @@ _logger = logging.getLogger(__name__)
 COUNTERS_MS = 200
 """The recording counters are refreshed this often."""
 STOP_TIMEOUT_S = 30.0
-RED, GREEN = "#c0392b", "#1e8449"
 
-
-def _coloured(text: str, colour: str) -> str:
-    return f"<span style='color:{colour}'>{html.escape(text)}</span>"
 
 
 class RecordPanel(QObject):
@@ -166,7 +163,7 @@ class RecordPanel(QObject):
 
     def say(self, text: str, colour: str | None = None) -> None:
         """Put ``text`` in the result line."""
-        self.recording_label.setText(_coloured(text, colour) if colour else html.escape(text))
+        self.recording_label.setText(coloured(text, colour) if colour else html.escape(text))
 
     # ------------------------------------------------------------------ recording
     def record(self) -> bool:

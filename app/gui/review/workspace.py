@@ -32,6 +32,7 @@ from app.gui.review.method_form import MethodForm
 from app.gui.review.motion_view import MotionView
 from app.gui.widgets.image_panel import ImagePanel
 from app.gui.widgets.qt_jobs import JobHandle, JobRunner
+from app.gui.widgets.rich_text import RED, coloured
 from app.gui.widgets.settings import AppSettings
 from flexvox_core.video_io import write_video
 
@@ -208,7 +209,7 @@ class ReviewWorkspace(QWidget):
                                   on_finished=self._opened, on_failed=self._open_failed)
 
     def _open_failed(self, message: str) -> None:
-        self.path_label.setText(f"<span style='color:#c0392b'>cannot open: {html.escape(message)}</span>")
+        self.path_label.setText(coloured(f"cannot open: {message}", RED))
         self.status.emit(f"cannot open: {message}")
 
     def _opened(self, session: ReviewSession) -> None:
@@ -223,7 +224,7 @@ class ReviewWorkspace(QWidget):
         self.path_label.setText(str(session.path))
         text = session.summary()
         if session.blocked:
-            text += f"<br><span style='color:#c0392b'>cannot reconstruct: {html.escape(session.blocked)}</span>"
+            text += "<br>" + coloured(f"cannot reconstruct: {session.blocked}", RED)
         self.summary_label.setText(text)
         self.form.set_divisions(session.divisions())
         self._levels = session.raw_levels()
@@ -384,7 +385,7 @@ class ReviewWorkspace(QWidget):
             "reconstruct", work, on_progress=lambda done, total: self.progress.setValue(done),
             on_finished=self._reconstructed, on_cancelled=self._reconstruction_cancelled,
             on_failed=lambda msg: self.result_label.setText(
-                f"<span style='color:#c0392b'>reconstruction failed: {html.escape(msg)}</span>"),
+                coloured(f"reconstruction failed: {msg}", RED)),
             on_done=self._refresh_enabled)
         self._refresh_enabled()
         return self.job
@@ -452,7 +453,7 @@ class ReviewWorkspace(QWidget):
             "export", lambda token, progress: write_video(path, video, fps=fps, attrs=attrs, overwrite=overwrite),
             on_finished=lambda p: self.export_label.setText(f"wrote {p}"),
             on_failed=lambda msg: self.export_label.setText(
-                f"<span style='color:#c0392b'>export failed: {html.escape(msg)}</span>"))
+                coloured(f"export failed: {msg}", RED)))
 
     # ------------------------------------------------------------------ state
     def _refresh_expected(self) -> None:

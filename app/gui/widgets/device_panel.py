@@ -7,9 +7,10 @@ import html
 from PySide6.QtWidgets import QGridLayout, QGroupBox, QLabel, QPushButton, QVBoxLayout, QWidget
 
 from app.gui.models.rig_service import ROLES, RigService
+from app.gui.widgets.rich_text import AMBER, GREEN, GREY, RED
 from rig_drivers.interfaces import DeviceState
 
-_STATE_COLOUR = {DeviceState.CLOSED: "#7f8c8d", DeviceState.OPEN: "#b7950b", DeviceState.ENABLED: "#1e8449"}
+_STATE_COLOUR = {DeviceState.CLOSED: GREY, DeviceState.OPEN: AMBER, DeviceState.ENABLED: GREEN}
 
 
 def _detail(service: RigService, role: str) -> str:
@@ -42,7 +43,7 @@ class DevicePanel(QWidget):
             button = QPushButton()
             error = QLabel()
             error.setWordWrap(True)
-            error.setStyleSheet("color: #c0392b")
+            error.setStyleSheet(f"color: {RED}")
             grid.addWidget(QLabel(f"<b>{role}</b>"), 3 * i, 0)
             grid.addWidget(state, 3 * i, 1)
             grid.addWidget(button, 3 * i, 2)

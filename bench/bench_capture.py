@@ -1,5 +1,9 @@
 """Capture benchmark: N frames from the simulated rig at the rig's rate, streamed to a recording.
 
+The rig is the one ``--rig mock`` opens (a projector twice as fine as the camera behind a hidden
+homography, a sub-slot trigger offset), captured through a calibration made of its hidden truth,
+so the projector runs the same patterns and the camera the same trigger delay as after calibration.
+
 Prints frames, drops, the write rate reached against the camera rate, the queue's peak depth
 and the writer's capacity (rows per second of time spent writing). The simulated rig runs on
 a :class:`~app.capture.pacing.PacedClock` (real time at the set camera rate); ``--virtual``
@@ -15,13 +19,11 @@ import sys
 import tempfile
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app.capture import CaptureService, SyncSetting  # noqa: E402
+from app.capture import CapturePlan, CaptureService  # noqa: E402
 from app.capture.pacing import PacedClock  # noqa: E402
-from flexvox_core.design import design_code  # noqa: E402
+from calibration.capture_setup import CaptureCalibration, SyncTiming  # noqa: E402
 from flexvox_core.recording import open_recording  # noqa: E402
 from rig_drivers.simulated_camera import VirtualClock  # noqa: E402
 from rig_drivers.simulated_rig import SimulatedRig  # noqa: E402
@@ -37,12 +39,18 @@ def main() -> None:
     args = ap.parse_args()
     H, W = (int(v) for v in args.size.split("x"))
     m, n = (int(v) for v in args.tile.split("x"))
-    code = design_code((m, n)).code
+    plan = CapturePlan(tile=(m, n), camera_hz=args.rate)
+    code = plan.code
     clock = VirtualClock() if args.virtual else PacedClock()
-    rig = SimulatedRig.create("drummer", camera_size=(H, W), subframes=64, homography=np.eye(3), clock=clock)
+    rig = SimulatedRig.create("drummer", camera_size=(H, W), subframes=64, clock=clock)
+    t = rig.truth  # what calibration finds (see tests/app/capture/test_one_chain.py), in slots of this plan
+    offset = t.phase_slots + t.delay_us / plan.period_us
+    phase, frac = int(offset) % plan.K, offset - int(offset)
+    sync = SyncTiming((phase + 1) % plan.K, (1 - frac) * plan.period_us, plan.K, plan.period_us, phase)
+    calibration = CaptureCalibration(t.homography, sync, "the simulated rig's truth", calibrated=True)
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "bench.zarr"
-        svc = CaptureService(rig, code, path, frames=args.frames, sync=SyncSetting(camera_hz=args.rate))
+        svc = CaptureService(rig, plan, path, frames=args.frames, calibration=calibration)
         if not args.virtual:
             clock.resync()  # rendering the scene took wall time the camera must not count as overrun
         result = svc.run()

@@ -4,9 +4,10 @@ Both front ends (``flexvox capture --calibration/--sync-profile`` and the Captur
 turn a calibration into a :class:`CaptureCalibration` here and nowhere else:
 
 - :func:`load_for_capture` reads a calibration file (``flexvox calibrate -o``, the Calibrate
-  workspace's "Save") or a sync profile (the synchronisation wizard's "Save profile"), and
-  refuses, with :class:`CalibrationRefused` and a message that says why, a file that is missing,
-  damaged, failed, or made for another rig, camera or resolution;
+  workspace's "Save") and :func:`load_sync_for_capture` a sync profile (the synchronisation
+  wizard's "Save profile"; its phase and delay replace a calibration's); each refuses, with
+  :class:`CalibrationRefused` and a message that says why, a file that is missing, damaged,
+  failed, of the other kind, or made for another rig, camera or resolution;
 - :func:`from_run` takes a fresh calibration run (the Calibrate workspace's "Use for capture").
 
 The phase and the delay go together
@@ -34,7 +35,7 @@ import numpy as np
 from calibration import geometry
 from calibration.errors import CalibrationError
 from calibration.files import CALIBRATION_FORMAT, check_identity, load_calibration
-from calibration.sync import SYNC_FORMAT, load_sync_profile
+from calibration.sync import SYNC_FORMAT, boundary_phase, load_sync_profile
 from flexvox_core.json_file import read_json
 
 _logger = logging.getLogger(__name__)
@@ -99,7 +100,7 @@ class SyncTiming:
         except (KeyError, TypeError, ValueError) as exc:
             raise CalibrationRefused(f"the sync measurement is incomplete or malformed ({exc})") from None
         if eff is None:  # older files: derive it as the sync step does
-            eff = raw if delay < 1e-9 else (raw + 1) % K
+            eff = boundary_phase(raw, delay, K)
         try:
             return cls(int(eff), delay, K, period, raw, offset)
         except CalibrationRefused as exc:
@@ -214,39 +215,31 @@ def _format_of(path: Path) -> str | None:
     return data.get("format") if isinstance(data, dict) else None
 
 
-def load_for_capture(path, identity, *, base: CaptureCalibration | None = None) -> CaptureCalibration:
-    """Read a calibration file or a sync profile for capture on the rig of ``identity``.
+def load_for_capture(path, identity) -> CaptureCalibration:
+    """Read a calibration file for capture on the rig of ``identity``.
 
     Parameters
     ----------
     path : str or Path
-        A calibration file (homography and, when the sync step ran, its timing) or a sync profile
-        (timing only).
+        A calibration file: the homography and, when the sync step ran, its timing.
     identity : calibration.session.RigIdentity
         The capture rig's; a file made for another rig, camera or resolution is refused.
-    base : CaptureCalibration, optional
-        For a sync profile: the calibration whose timing it replaces (default uncalibrated).
 
     Raises
     ------
     CalibrationRefused
-        For a missing, damaged or failed file, or one made for another rig; the message says which.
+        For a missing, damaged or failed file, a sync profile (it has no homography: load it with
+        :func:`load_sync_for_capture`), or a file made for another rig; the message says which.
     """
     path = Path(path).expanduser()
-    kind = _format_of(path)
+    if _format_of(path) == SYNC_FORMAT:
+        raise CalibrationRefused(f"{path} is a sync profile (the synchronisation wizard's), not a calibration: it "
+                                 "has no homography. Give it as a sync profile (flexvox capture --sync-profile; "
+                                 "Capture: \"Load sync profile…\") and a calibration file as the calibration")
     try:
-        if kind == SYNC_FORMAT:
-            data = load_sync_profile(path, identity)
-            sync = SyncTiming.from_summary(data.get("sync"))
-            if sync is None:
-                raise CalibrationRefused(f"{path}: the sync profile holds no successful measurement")
-            _logger.info("sync profile for capture: %s (%s)", path, sync.describe())
-            return (base or CaptureCalibration()).with_sync(sync, source=f"{path} ({data.get('created', 'undated')})")
         data = load_calibration(path, identity)  # also says what is wrong with any other file
     except CalibrationError as exc:
-        raise exc if isinstance(exc, CalibrationRefused) else CalibrationRefused(str(exc)) from exc
-    if data.get("format") != CALIBRATION_FORMAT:  # pragma: no cover - load_calibration checks it
-        raise CalibrationRefused(f"{path}: not a calibration file")
+        raise CalibrationRefused(str(exc)) from exc
     quality = data.get("quality") or {}
     if quality.get("status") not in (None, "ok", "partial"):
         raise CalibrationRefused(f"{path}: the calibration's homography step did not succeed "
@@ -257,6 +250,30 @@ def load_for_capture(path, identity, *, base: CaptureCalibration | None = None) 
     _logger.info("calibration for capture: %s", path)
     source = f"{path}" + (" (a partial calibration)" if quality.get("status") == "partial" else "")
     return CaptureCalibration(data["H"], sync, source, None if rms is None else float(rms), created, True)
+
+
+def load_sync_for_capture(path, identity, *, base: CaptureCalibration | None = None) -> CaptureCalibration:
+    """``base`` (default uncalibrated) with the phase and trigger delay of a sync profile.
+
+    Raises
+    ------
+    CalibrationRefused
+        For a missing or damaged profile, one without a successful measurement, a calibration file
+        (load it with :func:`load_for_capture`), or one made for another rig; the message says which.
+    """
+    path = Path(path).expanduser()
+    if _format_of(path) == CALIBRATION_FORMAT:
+        raise CalibrationRefused(f"{path} is a calibration file, not a sync profile: give it as the calibration "
+                                 "(flexvox capture --calibration; Capture: \"Load calibration…\")")
+    try:
+        data = load_sync_profile(path, identity)
+    except CalibrationError as exc:
+        raise CalibrationRefused(str(exc)) from exc
+    sync = SyncTiming.from_summary(data.get("sync"))
+    if sync is None:
+        raise CalibrationRefused(f"{path}: the sync profile holds no successful measurement")
+    _logger.info("sync profile for capture: %s (%s)", path, sync.describe())
+    return (base or CaptureCalibration()).with_sync(sync, source=f"{path} ({data.get('created', 'undated')})")
 
 
 def from_run(run, run_identity, identity, *, now=None) -> CaptureCalibration:
@@ -288,4 +305,5 @@ def from_run(run, run_identity, identity, *, now=None) -> CaptureCalibration:
                               "the calibration just run (not saved)", float(hom.rms_px), when, True)
 
 
-__all__ = ["CalibrationRefused", "CaptureCalibration", "SyncTiming", "from_run", "load_for_capture"]
+__all__ = ["CalibrationRefused", "CaptureCalibration", "SyncTiming", "from_run", "load_for_capture",
+           "load_sync_for_capture"]

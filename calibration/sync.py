@@ -140,6 +140,15 @@ class SyncResult(StepResult):
                 "effective_phase_slots": self.effective_phase_slots, "residual_leakage": self.residual_leakage}
 
 
+def boundary_phase(phase_slots: int, camera_delay_us: float, K: int) -> int:
+    """The phase the shutter patterns use once the camera's trigger is delayed by ``camera_delay_us``.
+
+    A delay that moves the exposure's opening to the next slot boundary shifts every exposure slot one
+    pattern later: phase + 1 (mod K); no delay keeps the phase.
+    """
+    return int(phase_slots) % K if camera_delay_us <= 0 else (int(phase_slots) + 1) % K
+
+
 def _no_trigger_message(exc: Exception) -> str:
     return (f"the camera delivered no frame: it is not synchronised to the projector ({exc}). Wire the "
             "projector's TRIG_OUT_2 (or the sync box's frame output) to the camera's trigger line and set "
@@ -240,7 +249,7 @@ def measure_sync(session, homography, *, K: int = 16, sweep_steps: int = 8,
     frac = offset - math.floor(offset + 1e-9)
     delay = frac * period
     rec = 0.0 if frac < 1e-3 else (1 - frac) * period
-    eff = phase if frac < 1e-3 else (phase + 1) % K
+    eff = boundary_phase(phase, rec, K)
     warnings = []
     if min(frac, 1 - frac) < 0.05:
         warnings.append(f"the exposure opens within 5 % of a slot boundary ({frac:.2f} slot): the phase could be "
@@ -356,5 +365,5 @@ def load_sync_profile(path, identity=None) -> dict:
     return data
 
 
-__all__ = ["FrameCheck", "SyncResult", "band_patterns", "check_frames", "load_sync_profile",
+__all__ = ["FrameCheck", "SyncResult", "band_patterns", "boundary_phase", "check_frames", "load_sync_profile",
            "measure_sync", "save_sync_profile"]

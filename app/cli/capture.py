@@ -139,7 +139,7 @@ def _build(args, display=None):
 
 def _calibration(args, rig):
     """The capture calibration from ``--calibration`` / ``--sync-profile`` (the one loader), and the projector size."""
-    from calibration.capture_setup import load_for_capture
+    from calibration.capture_setup import load_for_capture, load_sync_for_capture
     from calibration.session import RigSession
 
     # The projector's own size when it reports one (the simulated rig), else --projector-size, else the
@@ -151,7 +151,7 @@ def _calibration(args, rig):
         if args.calibration is not None:
             calibration = load_for_capture(args.calibration, identity)
         if args.sync_profile is not None:
-            calibration = load_for_capture(args.sync_profile, identity, base=calibration)
+            calibration = load_sync_for_capture(args.sync_profile, identity, base=calibration)
     return calibration, size
 
 

@@ -25,7 +25,13 @@ from app.gui.models.capture_calibration import capture_identity
 from app.gui.models.rig_service import RigService
 from app.gui.widgets.rich_text import AMBER, RED, coloured
 from app.gui.widgets.settings import AppSettings
-from calibration.capture_setup import CalibrationRefused, CaptureCalibration, from_run, load_for_capture
+from calibration.capture_setup import (
+    CalibrationRefused,
+    CaptureCalibration,
+    from_run,
+    load_for_capture,
+    load_sync_for_capture,
+)
 
 
 class CalibrationPanel(QGroupBox):
@@ -114,12 +120,12 @@ class CalibrationPanel(QGroupBox):
         return True
 
     def load_calibration(self, path) -> bool:
-        """Use a calibration file (or a sync profile); False (reason shown, previous one kept) when refused."""
+        """Use a calibration file; False (reason shown, previous one kept) when refused."""
         return self._take(lambda: load_for_capture(path, self._identity()))
 
     def load_sync_profile(self, path) -> bool:
         """Use a sync profile's phase and trigger delay with the current homography; False when refused."""
-        return self._take(lambda: load_for_capture(path, self._identity(), base=self.calibration))
+        return self._take(lambda: load_sync_for_capture(path, self._identity(), base=self.calibration))
 
     def use_run(self, run, run_identity) -> bool:
         """Use a fresh calibration run (the Calibrate workspace's); False (with the reason) when refused."""

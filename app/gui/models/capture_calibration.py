@@ -2,7 +2,8 @@
 
 Calibration files, sync profiles and fresh calibration runs become a
 :class:`calibration.capture_setup.CaptureCalibration` through that module's one loader
-(:func:`~calibration.capture_setup.load_for_capture`, :func:`~calibration.capture_setup.from_run`),
+(:func:`~calibration.capture_setup.load_for_capture`, :func:`~calibration.capture_setup.load_sync_for_capture`,
+:func:`~calibration.capture_setup.from_run`),
 the same calls ``flexvox capture`` makes. What the Capture workspace adds is only *which rig*:
 the identity of the rig the :class:`~app.gui.models.rig_service.RigService` drives.
 """

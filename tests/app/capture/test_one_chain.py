@@ -11,7 +11,14 @@ import pytest
 
 from app.capture import CapturePlan, CaptureService
 from app.cli import main as cli_main
-from calibration.capture_setup import CaptureCalibration, SyncTiming, from_run, load_for_capture
+from calibration.capture_setup import (
+    CalibrationRefused,
+    CaptureCalibration,
+    SyncTiming,
+    from_run,
+    load_for_capture,
+    load_sync_for_capture,
+)
 from calibration.pipeline import run_calibration
 from calibration.session import RigSession
 from flexvox_core.recording import open_recording
@@ -150,11 +157,18 @@ def test_a_sync_profile_replaces_the_calibrations_timing(calibration_file, tmp_p
     sync = {"status": "ok", "K": 16, "period_us": 4166, "phase_slots": 3, "delay_us": 1000.0,
             "recommended_camera_delay_us": 3166.0, "effective_phase_slots": 4}
     profile = write_versioned(tmp_path / "sync.json", SYNC_FORMAT, SYNC_VERSION, identity, {"sync": sync})
-    both = load_for_capture(profile, identity, base=cal)
+    both = load_sync_for_capture(profile, identity, base=cal)
     np.testing.assert_array_equal(both.homography, cal.homography)
     assert (both.phase_slots, both.trigger_delay_us) == (4, 3166.0) and "sync.json" in both.source
-    alone = load_for_capture(profile, identity)
+    alone = load_sync_for_capture(profile, identity)
     assert not alone.calibrated and alone.phase_slots == 4
+    # each kind of file is refused where the other is expected (a calibration's homography must not slip in)
+    with pytest.raises(CalibrationRefused, match=r"sync.json is a sync profile .* not a calibration: it has no "
+                                                 r"homography\. Give it as a sync profile \(flexvox capture --sync"):
+        load_for_capture(profile, identity)
+    with pytest.raises(CalibrationRefused, match=r"cal.json is a calibration file, not a sync profile: give it as "
+                                                 r"the calibration \(flexvox capture --calibration"):
+        load_sync_for_capture(calibration_file, identity, base=cal)
     assert CaptureCalibration().for_plan(16, 4166)[:2] == (0, 0.0)
 
 

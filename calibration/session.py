@@ -130,7 +130,7 @@ class RigSession:
         size = projector_size if projector_size is not None else getattr(projector, "size", None)
         if size is None:
             raise CalibrationError("`projector_size` is needed: this projector driver does not report its "
-                                   "resolution (the DLP LightCrafter 4500 is (1140, 912) rows x columns)")
+                                   "resolution")
         self.projector_size = _size("projector_size", size)
         self.trigger = trigger or TriggerConfig(source=TriggerSource.LINE0)
         if not isinstance(self.trigger, TriggerConfig):

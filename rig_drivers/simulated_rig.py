@@ -170,6 +170,10 @@ class RigTruth:
         """Sub-frame indices of :attr:`video` integrated by the frame with ``frame_id``."""
         return (int(frame_id) * K + np.arange(K)) % self.video.shape[0]
 
+    def subframe_video(self, frame_id: int, K: int) -> np.ndarray:
+        """The scene's ``(K, H, W)`` sub-frames the frame with ``frame_id`` integrates (a recording's ground truth)."""
+        return self.video[self.subframes(frame_id, K)]
+
 
 # --------------------------------------------------------------------------- devices
 

@@ -1,9 +1,10 @@
 """Live capture (Qt-free, shared by ``flexvox capture`` and the Capture workspace).
 
 :mod:`app.capture.plan` holds what a capture records with (the code, the rate, the projector's
-patterns through calibration's one pattern function); :mod:`app.capture.service` sets the rig
-up for a plan and streams frames crash-safely to a recording (threads, queue policy, failures);
-:mod:`app.capture.pacing` paces the simulated rig's clock to the wall clock.
+patterns through calibration's one pattern function); :mod:`app.capture.rig_setup` sets the rig
+up for a plan (patterns, sync box, camera trigger and delay) for a recording and for the live
+view alike; :mod:`app.capture.service` streams frames crash-safely to a recording (threads, queue
+policy, failures); :mod:`app.capture.pacing` paces the simulated rig's clock to the wall clock.
 """
 
 from app.capture.plan import CapturePlan, TimingCheck, pattern_period_us

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from calibration.capture_setup import CaptureCalibration
+from calibration.session import EXPOSURE_MARGIN_US
 from calibration.shutter import ShutterPatterns, make_shutter_patterns
 from flexvox_core.codes import code_from_order, verify
 from flexvox_core.design import design_code
@@ -30,8 +31,6 @@ from rig_drivers.errors import SettingError
 from rig_drivers.interfaces import (
     MIN_DARK_US,
     MIN_EXPOSURE_1BIT_US,
-    PatternSequence,
-    ProjectorTrigger,
     check_pattern_timing,
 )
 
@@ -62,6 +61,7 @@ class TimingCheck:
     period_us: int
     projector_exposure_us: int
     sequence_us: int
+    camera_exposure_us: float
     errors: tuple[str, ...]
     notes: tuple[str, ...]
 
@@ -75,19 +75,28 @@ class TimingCheck:
 class CapturePlan:
     """What the operator chose for a capture.
 
+    The code is a tile's designed identity code (``tile``), its S-matrix code (``multiplexed``), or
+    one given explicitly (:meth:`from_code`, :meth:`from_code_file`), which is held in the fields
+    ``order`` or ``placement``: a plan compares, prints and copies (``dataclasses.replace``) with
+    its code.
+
     Parameters
     ----------
     tile : (m, n)
-        The tile of the designed code (ignored with ``code_file``: the file's tile is used).
     multiplexed : bool
-        An S-matrix code (K ≡ 3 mod 4) instead of the designed identity code.
+        An S-matrix code (K ≡ 3 mod 4) instead of an identity code.
     camera_hz : float
     camera_exposure_us : float or None
-        Camera exposure; default one sequence (K · period).
+        Camera exposure; default one sequence less :data:`~calibration.session.EXPOSURE_MARGIN_US`
+        of read-out before the next trigger.
     projector_exposure_us : int or None
         Pattern exposure; default the period (what the video port needs).
+    order : tuple of tuples, optional
+        An identity code's firing order (m rows of slot numbers); default the tile's designed one.
+    placement : tuple of tuples, optional
+        A multiplexed code's placement order (where its demultiplexed slots go); default the designed one.
     code_file : Path, optional
-        A code written by ``flexvox design -o`` (identity or multiplexed) instead of the tile's.
+        Where the code came from (a ``flexvox design -o`` file), for the record.
     """
 
     tile: tuple[int, int] = (4, 4)
@@ -95,6 +104,8 @@ class CapturePlan:
     camera_hz: float = 15.0
     camera_exposure_us: float | None = None
     projector_exposure_us: int | None = None
+    order: tuple | None = None
+    placement: tuple | None = None
     code_file: Path | None = None
 
     def __post_init__(self):
@@ -108,22 +119,30 @@ class CapturePlan:
         if len(tile) != 2 or min(tile) < 1:
             raise ValueError(f"`tile` must be two whole numbers (m, n) >= 1; got {self.tile!r}")
         object.__setattr__(self, "tile", tile)
+        for name in ("order", "placement"):
+            v = getattr(self, name)
+            if v is not None:
+                arr = np.asarray(v)
+                if arr.shape != tile:
+                    raise ValueError(f"`{name}` must have the tile's shape {tile}; got {arr.shape}")
+                object.__setattr__(self, name, tuple(tuple(int(x) for x in row) for row in arr))
+        if self.order is not None and self.multiplexed:
+            raise ValueError("`order` is an identity code's; a multiplexed plan takes a `placement`")
+        if self.placement is not None and not self.multiplexed:
+            raise ValueError("`placement` goes with a multiplexed plan")
 
     @classmethod
     def from_code(cls, code, **options) -> CapturePlan:
         """A plan with a given code: an identity code ``(m, n, K)`` or a :class:`MultiplexedCode`."""
-        from flexvox_core.codes import is_identity_code, validate_code
+        from flexvox_core.codes import is_identity_code, order_from_code, validate_code
 
         if isinstance(code, MultiplexedCode):
-            plan = cls(tile=code.tile, multiplexed=True, **options)
-        else:
-            code = validate_code(code)
-            if not is_identity_code(code):
-                raise ValueError("`code` must be an identity code (each pixel open in one slot, each slot once per "
-                                 "tile) or a MultiplexedCode")
-            plan = cls(tile=tuple(code.shape[:2]), **options)
-        plan.__dict__["shutter_code"] = code
-        return plan
+            return cls(tile=code.tile, multiplexed=True, placement=code.placement, **options)
+        code = validate_code(code)
+        if not is_identity_code(code):
+            raise ValueError("`code` must be an identity code (each pixel open in one slot, each slot once per "
+                             "tile) or a MultiplexedCode")
+        return cls(tile=tuple(code.shape[:2]), order=order_from_code(code), **options)
 
     @classmethod
     def from_code_file(cls, path, **options) -> CapturePlan:
@@ -131,11 +150,7 @@ class CapturePlan:
         from flexvox_core.code_file import load_shutter_code
 
         path = Path(path)
-        shutter = load_shutter_code(path)
-        tile = shutter.tile if isinstance(shutter, MultiplexedCode) else tuple(int(v) for v in shutter.shape[:2])
-        plan = cls(tile=tile, multiplexed=isinstance(shutter, MultiplexedCode), code_file=path, **options)
-        plan.__dict__["shutter_code"] = shutter  # read once (cached_property's slot)
-        return plan
+        return cls.from_code(load_shutter_code(path), code_file=path, **options)
 
     @property
     def K(self) -> int:  # noqa: N802
@@ -146,12 +161,10 @@ class CapturePlan:
     def shutter_code(self) -> np.ndarray | MultiplexedCode:
         """The code as capture records it: an identity code, or the multiplexed code (which says how to
         demultiplex). Raises ValueError for an impossible choice."""
-        if self.code_file is not None:
-            from flexvox_core.code_file import load_shutter_code
-
-            return load_shutter_code(self.code_file)
         if self.multiplexed:
-            return multiplexed_code(self.tile)
+            return multiplexed_code(self.tile, placement=self.placement)
+        if self.order is not None:
+            return code_from_order(self.order)
         result = design_code(self.tile)
         if not result.success:
             raise ValueError(f"no code for a {self.tile[0]}x{self.tile[1]} tile: {result.message}")
@@ -196,13 +209,14 @@ class CapturePlan:
         except SettingError as exc:
             errors.append(f"projector: {exc}")
         if period < MIN_EXPOSURE_1BIT_US:
-            errors.append(f"projector: {self.camera_hz:g} Hz × K = {self.K} needs {period} µs patterns; "
-                          f"the DLPC350 shows 1-bit patterns no shorter than {MIN_EXPOSURE_1BIT_US} µs "
-                          f"(at most {1e6 / (MIN_EXPOSURE_1BIT_US * self.K):.0f} Hz at this K)")
+            errors.append(f"projector: {self.camera_hz:g} Hz × K = {self.K} needs {period} µs patterns; the "
+                          f"projector's shortest is {MIN_EXPOSURE_1BIT_US} µs: a DLPC350 shows 1-bit patterns no "
+                          f"shorter than {MIN_EXPOSURE_1BIT_US} µs (at most "
+                          f"{1e6 / (MIN_EXPOSURE_1BIT_US * self.K):.0f} Hz at this K)")
         if proj != period:
             notes.append(f"pattern exposure {proj} µs < period {period} µs (≥ {MIN_DARK_US} µs dark): "
                          "fine from flash, but the video port needs exposure = period")
-        cam = seq if self.camera_exposure_us is None else float(self.camera_exposure_us)
+        cam = max(1.0, seq - EXPOSURE_MARGIN_US) if self.camera_exposure_us is None else float(self.camera_exposure_us)
         frame_us = 1e6 / self.camera_hz
         if cam > frame_us:
             errors.append(f"camera: exposure {cam:.0f} µs is longer than the frame period {frame_us:.0f} µs")
@@ -210,7 +224,7 @@ class CapturePlan:
             notes.append(f"camera: exposure {cam:.0f} µs is longer than the {self.K} patterns ({seq} µs): "
                          "it also sees the next sequence's first slots")
         elif cam < seq - period:
-            missed = math.ceil((seq - cam) / period) - 0
+            missed = math.ceil((seq - cam) / period)
             errors.append(f"camera: exposure {cam:.0f} µs misses the last {missed} of {self.K} slots "
                           f"(one sequence is {seq} µs)")
         drift = frame_us - seq
@@ -218,7 +232,7 @@ class CapturePlan:
             notes.append(f"the projector counts whole µs: {self.K} × {period} µs = {seq / 1000:.3f} ms < "
                          f"{frame_us / 1000:.3f} ms, so a free-running camera drifts one slot every "
                          f"{period / drift / self.camera_hz:.0f} s: trigger it from TRIG_OUT_2 or the sync box")
-        return TimingCheck(period, proj, seq, tuple(errors), tuple(notes))
+        return TimingCheck(period, proj, seq, cam, tuple(errors), tuple(notes))
 
     def patterns(self, camera_size: tuple[int, int], projector_size: tuple[int, int],
                  calibration: CaptureCalibration | None = None) -> ShutterPatterns:
@@ -231,11 +245,3 @@ class CapturePlan:
         cal = calibration or CaptureCalibration()
         phase, _delay, _warnings = cal.for_plan(self.K, self.period_us)
         return make_shutter_patterns(self.code, cal.homography, camera_size, projector_size, phase_slots=phase)
-
-    def sequence(self, projector_size: tuple[int, int], *, camera_size: tuple[int, int],
-                 calibration: CaptureCalibration | None = None) -> PatternSequence:
-        """The pattern sequence of :meth:`patterns` (internally timed, one trigger out per frame), for live view."""
-        t = self.timing()
-        patterns = self.patterns(camera_size, projector_size, calibration).patterns
-        return PatternSequence(patterns, exposure_us=t.projector_exposure_us,
-                               period_us=t.period_us, trigger=ProjectorTrigger.INTERNAL)

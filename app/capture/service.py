@@ -60,33 +60,18 @@ from pathlib import Path
 import numpy as np
 
 from app.capture.plan import CapturePlan
+from app.capture.rig_setup import CaptureError, RigSetup, set_up_rig, stop_rig
 from calibration.capture_setup import CaptureCalibration
 from flexvox_core._version import __version__
 from flexvox_core.multiplex import MultiplexedCode
 from flexvox_core.recording import RecordingError, RecordingWriter, open_recording, recording_attrs
 from rig_drivers.errors import DeviceError, DeviceTimeoutError
-from rig_drivers.interfaces import (
-    MIN_DARK_US,
-    MIN_EXPOSURE_1BIT_US,
-    CameraSettings,
-    DeviceState,
-    Frame,
-    PatternSequence,
-    ProjectorTrigger,
-    RunState,
-    SyncSettings,
-    TriggerConfig,
-    TriggerSource,
-)
+from rig_drivers.interfaces import DeviceState, Frame
 
 _logger = logging.getLogger(__name__)
 
 MAX_GAP_FRAMES = 100_000
 """A frame-id jump larger than this is a broken camera counter, not dropped frames: capture stops."""
-
-
-class CaptureError(RuntimeError):
-    """The capture cannot start (bad settings, a device refusing its setup); the message says why."""
 
 
 # --------------------------------------------------------------------------- settings
@@ -98,8 +83,6 @@ class SyncSetting:
 
     Parameters
     ----------
-    exposure_margin_us : int
-        The camera exposes ``K · period − margin`` µs (read-out time before the next trigger).
     use_sync_box : bool or None
         Drive projector and camera from the rig's sync box (None: when the rig has one).
     delay_set_by_hand : bool
@@ -113,7 +96,6 @@ class SyncSetting:
         (None: ``max(2 s, 10 frame periods)``).
     """
 
-    exposure_margin_us: int = 300
     use_sync_box: bool | None = None
     delay_set_by_hand: bool = False
     read_slice_s: float = 0.2
@@ -297,8 +279,9 @@ class CaptureService:
         Default: the projector's ``size`` attribute.
     storage : dict, optional
         The recording's ``storage`` block (default :func:`default_storage` of the first frame).
-    ground_truth : callable(frame_id) -> (K, H, W), optional
-        For simulated rigs: stored as ``ground_truth`` when the capture ends without error.
+    ground_truth : bool
+        Simulated rigs: store the scene's high-speed video of the frames recorded as ``ground_truth``
+        when the capture ends without error (refused on a real rig).
     writer_factory : callable, optional
         ``(path, height=, width=, dtype=, attrs=, overwrite=) -> writer`` (tests inject slow
         or failing writers). Default :class:`~flexvox_core.recording.RecordingWriter`.
@@ -310,7 +293,7 @@ class CaptureService:
     def __init__(self, rig, plan: CapturePlan, path, *, frames: int | None = None,
                  calibration: CaptureCalibration | None = None, sync: SyncSetting | None = None,
                  queue_policy: QueuePolicy | None = None, projector_size=None, storage: dict | None = None,
-                 ground_truth: Callable[[int], np.ndarray] | None = None,
+                 ground_truth: bool = False,
                  writer_factory: Callable | None = None, overwrite: bool = False, rig_info: dict | None = None):
         if not isinstance(plan, CapturePlan):
             raise CaptureError(f"`plan` must be a CapturePlan (app.capture.plan); got {type(plan).__name__}")
@@ -332,9 +315,11 @@ class CaptureService:
         self.policy = queue_policy or QueuePolicy()
         self.K = int(self.code.shape[2])
         self.phase_slots, self.trigger_delay_us, self.warnings = self.calibration.for_plan(self.K, plan.period_us)
+        self.setup: RigSetup | None = None
+        """How the rig was set up (after :meth:`start`)."""
         self._projector_size = projector_size
         self._storage = storage
-        self._ground_truth = ground_truth
+        self._ground_truth = self._truth_of(rig) if ground_truth else None
         self._writer_factory = writer_factory or RecordingWriter
         self._overwrite = overwrite
         self._rig_info = dict(rig_info or {})
@@ -415,8 +400,14 @@ class CaptureService:
         """
         if self._state is not CaptureState.IDLE:
             raise CaptureError(f"cannot start: the capture is {self._state.value} (a service captures once)")
+        clock = getattr(getattr(self.rig, "simulated", None), "clock", None)
+        if hasattr(clock, "resync"):  # a paced simulated clock: building the rig took wall time, not frames
+            clock.resync()
         try:
             self._setup()
+        except CaptureError:
+            self._teardown()
+            raise
         except (DeviceError, ValueError) as exc:
             self._teardown()
             raise CaptureError(f"cannot set up the rig: {exc}") from exc
@@ -478,116 +469,34 @@ class CaptureService:
         device.enable()
 
     def _setup(self) -> None:
-        rig = self.rig
-        projector, camera = rig.projector, rig.camera
-        sync = getattr(rig, "sync", None)
-        use_sync = self.sync_setting.use_sync_box
-        use_sync = (sync is not None) if use_sync is None else use_sync
-        if use_sync and sync is None:
-            raise CaptureError("the sync setting asks for a sync box, but the rig has none")
-        self._open(camera)
-        if not camera.capabilities.hardware_trigger:
-            raise CaptureError(f"{camera.name} has no hardware trigger: it cannot shutter in sync with the "
-                               "projector (preview and alignment only)")
-        self._open(projector)
-        if use_sync:
-            self._open(sync)
-        H, W = camera.sensor_shape
-        projector_size = self._projector_size or getattr(projector, "size", None)
-        if projector_size is None:
-            raise CaptureError(f"the projector size of {projector.name} is unknown: pass projector_size=(H, W)")
-        patterns = self.plan.patterns((H, W), tuple(projector_size), self.calibration).patterns
-        K = self.K
-        period = self.plan.period_us
-        if period < MIN_EXPOSURE_1BIT_US:
-            raise CaptureError(f"{self.plan.camera_hz:g} Hz with K = {K} needs a {period} µs pattern "
-                               f"period; the projector's shortest is {MIN_EXPOSURE_1BIT_US} µs "
-                               f"(at most {1e6 / (MIN_EXPOSURE_1BIT_US * K):.1f} Hz)")
-        delay_by = self._delay_by(camera)
-        self._period_us = period
-        video_port = hasattr(projector, "video_sequence")  # a DLPC350 fed by its video input
-        if use_sync and video_port:
-            raise CaptureError(
-                f"{projector.name} takes its patterns on the video port, paced by the video signal's VSYNC: "
-                "a sync box cannot clock it. Wire TRIG_OUT_2 to the camera and use [sync] kind = "
-                "\"projector-trigger\" in the rig profile")
-        if use_sync:
-            # The sync box pulses the projector once per pattern: each pattern is triggered,
-            # so it must end 230 µs before the next trigger (DLPC350 timing rule).
-            exposure = period - MIN_DARK_US if period - MIN_DARK_US >= MIN_EXPOSURE_1BIT_US else period
-            seq = PatternSequence(patterns, exposure, period, trigger=ProjectorTrigger.EXTERNAL_RISING,
-                                  patterns_per_trigger=1)
-        elif video_port:
-            # VSYNC-triggered, as many patterns per video frame as fit; TRIG_OUT_2 once per K.
-            seq = projector.video_sequence(patterns, period)
-        else:
-            seq = PatternSequence(patterns, period, period, trigger=ProjectorTrigger.INTERNAL)
-        if projector.run_state is not RunState.STOPPED:
-            projector.stop()
-        projector.load_sequence(seq)
-        if use_sync:
-            if sync.running:
-                sync.stop()
-            sync.configure(SyncSettings(period_us=period, pulses_per_frame=K))
-        line = getattr(rig, "trigger_line", TriggerSource.LINE0)
-        exposure_us = max(1.0, K * period - float(self.sync_setting.exposure_margin_us))
-        camera_delay = self.trigger_delay_us if delay_by == "camera" else 0.0
-        camera.stop_acquisition()
-        camera.configure(CameraSettings(exposure_us=exposure_us,
-                                        trigger=TriggerConfig(source=line, delay_us=camera_delay)))
-        camera.start_acquisition()
-        projector.start()
-        if use_sync:
-            sync.start()
-        self._use_sync = use_sync
-        self._camera_size = (H, W)
-        self._rig_attrs = {
-            "kind": "simulated" if getattr(rig, "simulated", None) is not None or hasattr(rig, "truth")
-            else "hardware",
-            "projector": projector.name, "camera": camera.name,
-            "sync": sync.name if use_sync else "projector TRIG_OUT_2",
-            "period_us": period, "camera_exposure_us": exposure_us, "trigger_line": line.value,
-            "projector_size": list(projector_size), "phase_slots": self.phase_slots,
-            "camera_trigger_delay_us": self.trigger_delay_us, "trigger_delay_set_by": delay_by,
-            **self._rig_info,
-        }
+        setup = set_up_rig(self.rig, self.plan, self.calibration, projector_size=self._projector_size,
+                           use_sync_box=self.sync_setting.use_sync_box,
+                           delay_set_by_hand=self.sync_setting.delay_set_by_hand, open_device=self._open)
+        self.setup = setup
+        self.warnings = list(setup.warnings)
+        self._period_us = setup.period_us
+        self._use_sync = setup.use_sync
+        self._camera_size = setup.camera_size
+        self._rig_attrs = setup.rig_attrs(self.rig) | self._rig_info
         for w in self.warnings:
-            _logger.warning("capture: %s", w)
-        _logger.info("capture set up: K = %d, period %d µs (%.3f Hz), %s", K, period, 1e6 / (K * period),
-                     "sync box" if use_sync else "projector trigger")
+            _logger.info("capture: %s", w)
 
-    def _delay_by(self, camera) -> str:
-        """Who applies the calibration's trigger delay: ``"camera"``, ``"operator"`` or ``"none"`` (no delay).
-
-        Raises CaptureError for a camera that cannot delay its trigger when nobody confirmed the delay.
-        """
-        if self.trigger_delay_us <= 0:
-            return "none"
-        if camera.capabilities.trigger_delay:
-            return "camera"
-        if self.sync_setting.delay_set_by_hand:
-            return "operator"
-        raise CaptureError(
-            f"the calibration's phase {self.phase_slots} needs a {self.trigger_delay_us:.0f} µs camera trigger delay, "
-            f"and {camera.name} cannot be told one: set it on the camera (its vendor's tool), then confirm that it "
-            "is set (flexvox capture --delay-set-by-hand; in the Capture workspace, tick \"trigger delay set on the "
-            "camera\")")
+    @staticmethod
+    def _truth_of(rig):
+        sim = getattr(rig, "simulated", None)
+        truth = getattr(sim, "truth", None) or getattr(rig, "truth", None)
+        if truth is None:
+            raise CaptureError("ground truth exists only on the simulated rig (a real scene has none)")
+        return truth.subframe_video
 
     def _teardown(self) -> None:
-        rig = self.rig
-        steps = [("stop the camera", lambda: rig.camera.stop_acquisition()
-                  if rig.camera.state is not DeviceState.CLOSED else None)]
-        sync = getattr(rig, "sync", None)
-        if sync is not None:
-            steps.append(("stop the sync box", lambda: sync.stop() if sync.state is not DeviceState.CLOSED else None))
-        steps.append(("stop the projector", lambda: rig.projector.stop()
-                      if rig.projector.state is not DeviceState.CLOSED else None))
-        steps += [(f"close {d.name}", d.close) for d in reversed(self._opened)]
-        for what, step in steps:
+        for message in stop_rig(self.rig):
+            _logger.error("capture teardown: %s", message)
+        for device in reversed(self._opened):
             try:
-                step()
+                device.close()
             except DeviceError as exc:
-                _logger.error("capture teardown: could not %s: %s", what, exc)
+                _logger.error("capture teardown: could not close %s: %s", device.name, exc)
         self._opened = []
 
     # ------------------------------------------------------------------ threads
@@ -763,7 +672,7 @@ class CaptureService:
         try:
             self._ensure_writer(None)
             if self._ground_truth is not None and reason != "error" and self._writer.count:
-                self._writer.write_ground_truth_frames(self._ground_truth(int(i)) for i in self._ids)
+                self._writer.write_ground_truth_frames(self._ground_truth(int(i), self.K) for i in self._ids)
             s = self.stats()
             self._writer.close(attrs_update={"capture": {
                 "reason": reason, "error": self._error, "frames_received": s.frames_received,

@@ -14,10 +14,6 @@ from app.cli.errors import EXIT_FAILED, EXIT_OK, CliError, arg_type
 
 HELP = "calibrate the rig: co-location, projector-camera homography, shutter masks, synchronisation"
 
-DLPC350_SIZE = (1140, 912)
-"""The LightCrafter 4500's DMD, rows x columns (its driver does not report it)."""
-
-
 def _tile(text: str):
     from flexvox_core.tiles import parse_tile
 
@@ -109,8 +105,7 @@ def _open(args, spec, display=None):
                        clock=VirtualClock())
         return rig, RigSession.from_rig(rig)
     rig = open_rig(spec, projector_display=display)
-    size = getattr(rig.projector, "size", None) or (DLPC350_SIZE if spec.projector.kind == "dlpc350" else None)
-    return rig, RigSession.from_rig(rig, projector_size=size)
+    return rig, RigSession.from_rig(rig)
 
 
 def run(args) -> int:

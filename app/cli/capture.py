@@ -82,7 +82,7 @@ def register(sub) -> None:
                    help="mock rig: real time at the camera rate (default; a paced simulated clock), or "
                         "virtual time that runs as fast as frames can be rendered (demos, tests)")
     p.add_argument("--projector-size", type=arg_type(_size), metavar="HxW",
-                   help="projector resolution when the projector does not report it")
+                   help="projector resolution, when it is not the one its driver reports (a DLPC350: 1140x912)")
     p.add_argument("--queue", type=int, default=64, metavar="FRAMES",
                    help="frames the camera-to-disk queue holds (default 64)")
     p.add_argument("--block", type=float, default=0.5, metavar="S",
@@ -119,51 +119,33 @@ def _build(args, display=None):
     if args.rig == "mock":
         rig = open_rig("mock", scene=args.scene, camera_size=args.size, seed=args.seed,
                        clock=VirtualClock() if args.clock == "virtual" else PacedClock())
-        truth = rig.simulated.truth
-        K = plan.K
-        gt = (lambda fid: truth.video[truth.subframes(fid, K)]) if args.ground_truth else None
     else:
         if args.ground_truth:
             raise ValueError("--ground-truth goes with --rig mock (a real scene has no ground truth)")
         rig = open_rig(args.rig, projector_display=display)
-        gt = None
-    calibration, projector_size = _calibration(args, rig)
     service = CaptureService(
-        rig, plan, args.output, frames=args.frames, calibration=calibration,
+        rig, plan, args.output, frames=args.frames, calibration=_calibration(args, rig),
         sync=SyncSetting(delay_set_by_hand=args.delay_set_by_hand),
         queue_policy=QueuePolicy(capacity=args.queue, block_s=args.block),
-        projector_size=projector_size, ground_truth=gt, overwrite=args.overwrite,
+        projector_size=args.projector_size, ground_truth=args.ground_truth, overwrite=args.overwrite,
         rig_info={"profile": args.rig})
     return service
 
 
 def _calibration(args, rig):
-    """The capture calibration from ``--calibration`` / ``--sync-profile`` (the one loader), and the projector size."""
+    """The capture calibration from ``--calibration`` / ``--sync-profile`` (the one loader)."""
     from calibration.capture_setup import load_for_capture, load_sync_for_capture
     from calibration.session import RigSession
 
-    # The projector's own size when it reports one (the simulated rig), else --projector-size, else the
-    # calibration file's (a DLPC350 does not report its resolution).
-    size = getattr(rig.projector, "size", None) or args.projector_size or _file_projector_size(args.calibration)
-    calibration = None
-    if args.calibration is not None or args.sync_profile is not None:
-        identity = RigSession.from_rig(rig, projector_size=size).identity
-        if args.calibration is not None:
-            calibration = load_for_capture(args.calibration, identity)
-        if args.sync_profile is not None:
-            calibration = load_sync_for_capture(args.sync_profile, identity, base=calibration)
-    return calibration, size
-
-
-def _file_projector_size(path):
-    import json
-
-    if path is None:
+    if args.calibration is None and args.sync_profile is None:
         return None
-    try:
-        return tuple(json.loads(Path(path).read_text())["rig"]["projector_size"])
-    except (OSError, ValueError, KeyError, TypeError):
-        return None  # the loader will say what is wrong with the file
+    identity = RigSession.from_rig(rig, projector_size=args.projector_size).identity
+    calibration = None
+    if args.calibration is not None:
+        calibration = load_for_capture(args.calibration, identity)
+    if args.sync_profile is not None:
+        calibration = load_sync_for_capture(args.sync_profile, identity, base=calibration)
+    return calibration
 
 
 def _counters(s) -> str:
@@ -193,17 +175,18 @@ def _capture(args, display=None, interrupted=None) -> int:
 
     try:
         service = _build(args, display)
-        clock = getattr(getattr(service.rig, "simulated", None), "clock", None)
-        if hasattr(clock, "resync"):
-            clock.resync()
         service.start()
     except (ValueError, CaptureError, DeviceError) as exc:
         raise CliError(str(exc)) from None
     print(f"capturing to {args.output} at {1 / service.frame_period_s:.3f} Hz"
           f"{'' if args.frames is None else f', {args.frames} frames'} (Ctrl-C stops and keeps what was captured)",
           flush=True)
-    print(f"{service.plan.code_summary()}; calibration: {service.calibration.describe()}; phase "
-          f"{service.phase_slots}, camera trigger delay {service.trigger_delay_us:.0f} µs", flush=True)
+    setup = service.setup
+    delay = (f"a {setup.trigger_delay_us:.0f} µs camera trigger delay (set by the {setup.delay_by})"
+             if setup.trigger_delay_us > 0 else "no camera trigger delay")
+    print(f"code: {service.plan.code_summary()}", flush=True)
+    print(f"calibration: {service.calibration.describe()}", flush=True)
+    print(f"recording with phase {setup.phase_slots} and {delay}", flush=True)
     for warning in service.warnings:
         print(f"warning: {warning}", file=sys.stderr, flush=True)
     interactive = sys.stderr.isatty()

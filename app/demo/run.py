@@ -114,9 +114,8 @@ def _record(cfg: DemoConfig, rig, calibration, path: Path, frames: int):
     from app.capture import CapturePlan, CaptureService
 
     plan = CapturePlan(tile=cfg.tile)
-    truth = rig.simulated.truth
     service = CaptureService(rig, plan, path, frames=frames, overwrite=True, calibration=calibration,
-                             ground_truth=lambda fid: truth.video[truth.subframes(fid, plan.K)],
+                             ground_truth=True,
                              rig_info={"profile": "mock", "demo": True})
     result = service.run(timeout_s=120.0)
     if not result.ok:
@@ -127,6 +126,7 @@ def _record(cfg: DemoConfig, rig, calibration, path: Path, frames: int):
 def _shutter_check(cfg: DemoConfig, calibration, folder: Path) -> list[dict]:
     """Record the strobe with the calibration, with the raw phase, and uncalibrated; the slot accuracy of each."""
     from calibration.capture_setup import SyncTiming
+    from flexvox_core.capture_reader import read_capture
     from flexvox_core.recording import open_recording
     from flexvox_core.slot_check import slot_accuracy
 
@@ -139,8 +139,8 @@ def _shutter_check(cfg: DemoConfig, calibration, folder: Path) -> list[dict]:
                       ("no calibration", None)):
         path = folder / f"strobe-{len(rows)}.zarr"
         service = _record(cfg, _rig(cfg, "strobe", STROBE_FRAMES), cal, path, STROBE_FRAMES)
-        rec = open_recording(path)
-        check = slot_accuracy(rec.normalised_frames(), rec.ground_truth(), rec.code)
+        frames, code = read_capture(path)
+        check = slot_accuracy(frames, open_recording(path).ground_truth(), code)
         rows.append({"with": name, "phase": service.phase_slots, "delay_us": service.trigger_delay_us,
                      "accuracy": check.accuracy, "decidable": check.decidable_fraction})
     return rows

@@ -76,6 +76,10 @@ def check_display(display) -> Display | None:
     return display
 
 
+DMD_SIZE = (1140, 912)
+"""The LightCrafter 4500's DMD as its video input addresses it: 1140 rows × 912 columns."""
+
+
 class DLPC350(Projector):
     """TI DLP LightCrafter 4500 over a :class:`~rig_drivers.dlpc350.transport.Transport`.
 
@@ -117,6 +121,9 @@ class DLPC350(Projector):
         self._seq = 0
         self._needs_reload = False
         self._display = check_display(display)
+
+    size = DMD_SIZE
+    """Pattern size (rows, columns), as every projector driver reports it."""
 
     @property
     def display(self) -> Display | None:

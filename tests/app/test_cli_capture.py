@@ -94,7 +94,7 @@ def test_capture_uses_a_calibration_file(tmp_path, capsys):
     assert stored["phase_slots"] == 3 and "cal.json" in stored["source"]
     assert stored["homography"][0][2] == 1.0
     assert stored["trigger_delay_us"] == 3166.0
-    assert open_recording(out).attrs["rig"]["camera_trigger_delay_us"] == 3166.0
+    assert open_recording(out).attrs["rig"]["trigger_delay_set_by"] == "camera"
 
 
 def test_capture_refuses_a_calibration_for_another_resolution(tmp_path, capsys):

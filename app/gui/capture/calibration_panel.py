@@ -21,6 +21,7 @@ from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import QCheckBox, QFileDialog, QGroupBox, QHBoxLayout, QLabel, QPushButton, QVBoxLayout
 
 from app.capture.plan import CapturePlan
+from app.capture.rig_setup import trigger_delay_by
 from app.gui.models.capture_calibration import capture_identity
 from app.gui.models.rig_service import RigService
 from app.gui.widgets.rich_text import AMBER, RED, coloured
@@ -157,10 +158,6 @@ class CalibrationPanel(QGroupBox):
         """The operator confirmed the trigger delay is set on a camera that cannot be told it."""
         return self.delay_check.isChecked()
 
-    def camera_sets_delay(self) -> bool:
-        """True when the rig's camera can delay its trigger itself."""
-        return bool(getattr(self.service.rig.camera.capabilities, "trigger_delay", False))
-
     def show_plan(self, plan: CapturePlan) -> None:
         """Say what a recording of ``plan`` uses (phase and delay at its timing)."""
         self._plan = plan
@@ -178,17 +175,15 @@ class CalibrationPanel(QGroupBox):
         needs_hand = False
         if self._plan is not None:
             phase, delay, warnings = cal.for_plan(self._plan.K, self._plan.period_us)
-            if delay > 0:
-                if self.camera_sets_delay():
-                    how = "set by the camera"
-                else:
-                    needs_hand = True
-                    how = ("set by you on the camera ✓" if self.delay_set_by_hand else
-                           "this camera cannot be told it: set it in the camera's own tool and tick the box below")
+            by = trigger_delay_by(self.service.rig.camera.capabilities, delay, self.delay_set_by_hand)
+            needs_hand = by in ("operator", None)
+            if by == "none":
+                lines.append(f"recordings use phase <b>{phase}</b>, no camera trigger delay")
+            else:
+                how = {"camera": "set by the camera", "operator": "set by you on the camera ✓"}.get(
+                    by, "this camera cannot be told it: set it in the camera's own tool and tick the box below")
                 lines.append(f"recordings use phase <b>{phase}</b> and a <b>{delay:.0f} µs</b> camera trigger delay "
                              f"({html.escape(how)})")
-            else:
-                lines.append(f"recordings use phase <b>{phase}</b>, no camera trigger delay")
             lines += [coloured(f"• {w}", AMBER) for w in warnings if self.calibration is not None]
         self.delay_check.setVisible(needs_hand)
         if self.error:

@@ -88,7 +88,7 @@ class CodePanel(QWidget):
         self.rate.setDecimals(2)
         self.rate.setSuffix(" Hz")
         self.rate.setValue(settings.get_float("capture/camera_hz", 15.0))
-        self.auto_exposure = QCheckBox("camera exposure = one sequence (K × period)")
+        self.auto_exposure = QCheckBox("camera exposure = one sequence (K × period) less 300 µs read-out")
         self.auto_exposure.setChecked(settings.get_bool("capture/auto_exposure", True))
         self.exposure = QDoubleSpinBox()
         self.exposure.setRange(10, 10_000_000)
@@ -211,7 +211,7 @@ class CodePanel(QWidget):
         t = plan.timing()
         if self.auto_exposure.isChecked():
             self.exposure.blockSignals(True)
-            self.exposure.setValue(t.sequence_us)
+            self.exposure.setValue(t.camera_exposure_us)
             self.exposure.blockSignals(False)
         lines = [f"pattern period {t.period_us} µs, exposure {t.projector_exposure_us} µs; "
                  f"{plan.K} patterns = {t.sequence_us / 1000:.3f} ms per camera frame"]

@@ -47,16 +47,20 @@ class LivePanel(QObject):
     settings : AppSettings
     plan, calibration : callable
         ``() -> CapturePlan`` and ``() -> CaptureCalibration``: what the live view shows.
+    delay_set_by_hand : callable
+        ``() -> bool``: the operator confirmed the trigger delay is set on the camera.
     busy : callable
         ``() -> str | None``: why the rig cannot be used now.
     """
 
-    def __init__(self, service: RigService, settings: AppSettings, *, plan, calibration, busy, parent: QWidget):
+    def __init__(self, service: RigService, settings: AppSettings, *, plan, calibration, busy,
+                 delay_set_by_hand=lambda: False, parent: QWidget):
         super().__init__(parent)
         self.service = service
         self.settings = settings
         self._plan = plan
         self._calibration = calibration
+        self._delay_set_by_hand = delay_set_by_hand
         self._busy = busy
         self.stats = LiveStats()
         self.stream = LiveStream(self)
@@ -149,7 +153,7 @@ class LivePanel(QObject):
             return False
         plan = self._plan()
         try:
-            note = start_live(self.service, plan, self._calibration())
+            note = start_live(self.service, plan, self._calibration(), delay_set_by_hand=self._delay_set_by_hand())
         except LiveStartError as exc:
             self.live_label.setText(coloured(f"cannot start: {exc}", RED))
             self.set_button(False)

@@ -34,7 +34,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.models.recording import counters_text, make_capture, result_text, resync_clock
+from app.gui.models.recording import counters_text, make_capture, result_text
 from app.gui.models.rig_service import RigService
 from app.gui.widgets.qt_jobs import JobRunner
 from app.gui.widgets.rich_text import GREEN, RED, coloured
@@ -203,7 +203,6 @@ class RecordPanel(QObject):
         self.changed.emit()
         self.say(f"starting: setting up the rig for {capture.path.name} …")
         self.counters_label.setText("starting …")
-        resync_clock(self.service)
         self._start_job = self.runner.submit("capture start", lambda token, progress: capture.start(),
                                              on_finished=lambda _: self._on_started(capture),
                                              on_failed=lambda message: self._on_start_failed(capture, message))

@@ -73,7 +73,8 @@ class CaptureWorkspace(QWidget):
         self.code = CodePanel(settings)
         self.calibration_panel = CalibrationPanel(service, settings)
         self.live_panel = LivePanel(service, settings, plan=self.plan, calibration=self.capture_calibration,
-                                    busy=self._busy_reason, parent=self)
+                                    busy=self._busy_reason,
+                                    delay_set_by_hand=lambda: self.calibration_panel.delay_set_by_hand, parent=self)
         self.record_panel = RecordPanel(service, settings, self.runner, plan=self.plan,
                                         calibration=self.capture_calibration,
                                         delay_set_by_hand=lambda: self.calibration_panel.delay_set_by_hand,

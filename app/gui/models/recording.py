@@ -19,7 +19,7 @@ from pathlib import Path
 
 from app.capture.plan import CapturePlan
 from app.capture.service import CaptureResult, CaptureService, CaptureStats, SyncSetting
-from app.gui.models.live_source import projector_size, put_scene_in_view
+from app.gui.models.live_source import put_scene_in_view
 from app.gui.models.rig_service import RigService
 from calibration.capture_setup import CaptureCalibration
 
@@ -63,27 +63,13 @@ def make_capture(service: RigService, plan: CapturePlan, path, *, frames: int | 
         For a code the plan cannot make, or ground truth asked of a real rig.
     """
     path = Path(path)
-    gt = None
-    if ground_truth:
-        sim = service.rig.simulated
-        if sim is None:
-            raise ValueError("ground truth exists only on the simulated rig")
-        truth = sim.truth
-        K = plan.K
-        gt = lambda fid: truth.video[truth.subframes(fid, K)]  # noqa: E731 - a one-line adapter
-    rig = service.rig
+    if ground_truth and service.rig.simulated is None:
+        raise ValueError("ground truth exists only on the simulated rig")
     put_scene_in_view(service)
-    return factory(rig, plan, path, frames=frames, calibration=calibration or CaptureCalibration(),
-                   sync=SyncSetting(delay_set_by_hand=delay_set_by_hand),
-                   projector_size=projector_size(rig.projector), ground_truth=gt, overwrite=overwrite,
+    return factory(service.rig, plan, path, frames=frames, calibration=calibration or CaptureCalibration(),
+                   sync=SyncSetting(delay_set_by_hand=delay_set_by_hand), ground_truth=ground_truth,
+                   overwrite=overwrite,
                    rig_info={"profile": "mock" if service.simulated else service.name, "source": "flexvox app"})
-
-
-def resync_clock(service: RigService) -> None:
-    """Bring a paced simulated clock up to the wall clock right before a capture (see ``PacedClock``)."""
-    clock = getattr(getattr(service.rig, "simulated", None), "clock", None)
-    if hasattr(clock, "resync"):
-        clock.resync()
 
 
 def counters_text(s: CaptureStats, target: int | None = None) -> str:

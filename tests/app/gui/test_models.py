@@ -217,9 +217,9 @@ def test_capture_plan_codes_and_resolutions():
     assert "S-matrix" in mux.code_summary() and mux.code.shape == (3, 5, 15)
     with pytest.raises(ValueError, match=r"no S-matrix exists for K = 16"):
         CapturePlan((4, 4), multiplexed=True).code  # noqa: B018 - the property raises
-    seq = ident.sequence((20, 30), camera_size=(20, 30))  # uncalibrated: the identity map
-    assert seq.patterns.shape == (16, 20, 30) and seq.period_us == 4166
-    assert np.array_equal(seq.patterns.sum(axis=0), np.ones((20, 30)))  # identity: one slot per pixel
+    pats = ident.patterns((20, 30), (20, 30)).patterns  # uncalibrated: the identity map
+    assert pats.shape == (16, 20, 30) and ident.period_us == 4166
+    assert np.array_equal(pats.sum(axis=0), np.ones((20, 30)))  # identity: one slot per pixel
 
 
 def test_live_stats_count_drops_fps_and_saturation():

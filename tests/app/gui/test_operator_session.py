@@ -60,7 +60,8 @@ def test_calibrate_use_for_capture_record_and_review(qtbot, window, tmp_path):
 
     rec, slots = record(qtbot, capture, tmp_path / "calibrated.zarr")
     assert rec.attrs["calibration"]["phase_slots"] == sync.effective_phase_slots
-    assert rec.attrs["rig"]["camera_trigger_delay_us"] == pytest.approx(sync.recommended_camera_delay_us)
+    assert rec.attrs["calibration"]["trigger_delay_us"] == pytest.approx(sync.recommended_camera_delay_us)
+    assert rec.attrs["rig"]["trigger_delay_set_by"] == "camera"
     assert slots.decidable_fraction > 0.95 and slots.accuracy == 1.0, slots.describe()
 
     click(qtbot, capture.record_panel.review_button)
@@ -99,7 +100,8 @@ def test_the_cli_and_the_workspace_record_the_same_phase_from_one_calibration_fi
     by_gui, slots = record(qtbot, capture, tmp_path / "gui.zarr")
     for key in ("phase_slots", "trigger_delay_us"):
         assert by_gui.attrs["calibration"][key] == by_cli.attrs["calibration"][key]
-    assert by_gui.attrs["rig"]["camera_trigger_delay_us"] == by_cli.attrs["rig"]["camera_trigger_delay_us"] > 0
+    assert by_gui.attrs["calibration"]["trigger_delay_us"] > 0
+    assert by_gui.attrs["rig"]["trigger_delay_set_by"] == by_cli.attrs["rig"]["trigger_delay_set_by"] == "camera"
     assert slots.accuracy == 1.0
     cli_slots = slot_accuracy(by_cli.normalised_frames(), by_cli.ground_truth(), by_cli.code)
     assert cli_slots.accuracy == 1.0

@@ -58,7 +58,8 @@ def read_versioned(path, fmt: str, version: int) -> dict:
     data = read_json(path, CalibrationFileError)
     if not isinstance(data, dict) or data.get("format") != fmt:
         got = data.get("format") if isinstance(data, dict) else type(data).__name__
-        raise CalibrationFileError(f"{path}: not a {fmt} file (format {got!r})")
+        what = "it names no `format`" if got is None else f"its format is {got!r}"
+        raise CalibrationFileError(f"{path}: not a {fmt} file ({what})")
     v = data.get("version")
     if not isinstance(v, int) or v < 1:
         raise CalibrationFileError(f"{path}: missing or bad `version` {v!r}")

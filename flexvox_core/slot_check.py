@@ -25,6 +25,9 @@ import numpy as np
 
 from flexvox_core.forward import check_video, tiled_order
 
+MIN_DECIDED = 0.1
+"""Below this fraction of decided pixels the accuracy says little about the recording."""
+
 
 @dataclass(frozen=True)
 class SlotCheck:
@@ -47,12 +50,22 @@ class SlotCheck:
     seen: np.ndarray
     expected: np.ndarray
 
+    @property
+    def decided(self) -> int:
+        """How many pixels could be decided."""
+        return int((self.seen >= 0).sum())
+
     def describe(self) -> str:
-        """One line."""
+        """One line, with a warning when too few pixels decide it (a scene that barely changes between slots)."""
+        total = self.seen.size
         if not np.isfinite(self.accuracy):
-            return "slot accuracy: no pixel moves enough to tell its slot"
-        return (f"slot accuracy {self.accuracy:.1%} of the {self.decidable_fraction:.0%} of pixels whose slot can be "
-                "told from the ground truth")
+            return "slot accuracy: no pixel changes enough between slots to tell its slot: record the strobe scene"
+        line = (f"slot accuracy {self.accuracy:.1%} of the {self.decided} of {total} pixels "
+                f"({self.decidable_fraction:.1%}) whose slot can be told from the ground truth")
+        if self.decidable_fraction < MIN_DECIDED:
+            line += (f"; too few pixels to judge the recording (under {MIN_DECIDED:.0%}): record 17 frames of the "
+                     "strobe scene")
+        return line
 
 
 def slot_accuracy(frames, truth, code, *, min_spread: float = 0.02, margin: float = 2.0) -> SlotCheck:

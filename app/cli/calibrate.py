@@ -114,6 +114,9 @@ def run(args) -> int:
 
     if args.list_screens:
         return list_screens()
+    if args.output is not None and not args.output.expanduser().parent.is_dir():
+        raise CliError(f"cannot write {args.output}: the folder {args.output.parent} does not exist (checked before "
+                       "calibrating, so the run is not lost)")
     try:
         spec = resolve_rig(args.rig)
     except ValueError as exc:

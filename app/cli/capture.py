@@ -97,6 +97,8 @@ def _plan(args):
     """The capture plan the code options describe."""
     from app.capture import CapturePlan
 
+    if not 0 < args.rate <= 10_000:
+        raise ValueError(f"--rate must be a camera rate above 0 and at most 10000 Hz; got {args.rate:g}")
     if args.code is not None:
         if args.multiplexed:
             raise ValueError("--multiplexed goes with --tile; a --code file says itself whether it is multiplexed")

@@ -96,7 +96,8 @@ def _text(s: dict) -> list[str]:
         lines.append(f"calibration: {cal.get('source', '?')}, phase {cal.get('phase_slots', '?')} slot(s)"
                      + (f", camera trigger delay {delay:.0f} µs" if delay else ""))
     if s["rig"]:
-        lines.append("rig: " + ", ".join(f"{k} {v}" for k, v in s["rig"].items() if not isinstance(v, dict | list)))
+        lines.append("rig: " + ", ".join(f"{k} {v:g}" if isinstance(v, float) else f"{k} {v}"
+                                         for k, v in s["rig"].items() if not isinstance(v, dict | list)))
     if s["capture"]:
         c = s["capture"]
         lines.append(f"capture: ended {c.get('reason')}" + (f" ({c['error']})" if c.get("error") else "")

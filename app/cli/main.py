@@ -47,6 +47,9 @@ def main(argv: list[str] | None = None) -> int:
     except CliError as exc:
         print(f"flexvox {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
+    except BrokenPipeError:  # `flexvox scenes | head`: the reader left; nothing is wrong
+        sys.stderr.close()
+        return 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -64,3 +64,11 @@ def test_a_missing_rig_profile_is_a_cli_error(tmp_path):
     args = parse("--rig", str(tmp_path / "nope.toml"))
     with pytest.raises(CliError, match=r"no rig profile .*nope.toml: give `--rig mock`"):
         args.func(args)
+
+
+def test_an_output_folder_that_does_not_exist_is_refused_before_calibrating(tmp_path, capsys):
+    from app.cli.main import main
+
+    assert main(["calibrate", "--rig", "mock", "-o", str(tmp_path / "nope" / "cal.json")]) == 2
+    err = capsys.readouterr().err
+    assert "the folder" in err and "does not exist (checked before calibrating" in err

@@ -125,3 +125,8 @@ def test_capture_takes_a_design_file(tmp_path, capsys):
     with pytest.raises(CliError, match=r"--multiplexed goes with --tile"):
         cli(["capture", "--frames", "1", "--clock", "virtual", "--code", str(code), "--multiplexed",
              "-o", str(tmp_path / "c.zarr")])
+
+
+def test_capture_refuses_a_rate_of_zero_in_its_own_words(tmp_path):
+    with pytest.raises(CliError, match=r"--rate must be a camera rate above 0 and at most 10000 Hz; got 0"):
+        cli(["capture", "--frames", "1", "--rate", "0", "--clock", "virtual", "-o", str(tmp_path / "r.zarr")])

@@ -33,6 +33,14 @@ def test_few_frames_use_the_single_slot_fit_and_still_pixels_are_undecidable():
     video[:, :, :4] = video[:1, :, :4]  # the left half does not move
     check = slot_accuracy(capture(video, CODE), video, CODE)
     assert check.accuracy == 1.0 and (check.seen[:, :4] == -1).all() and (check.seen[:, 4:] >= 0).all()
+    assert check.describe() == "slot accuracy 100.0% of the 32 of 64 pixels (50.0%) whose slot can be told from the " \
+                               "ground truth"
+    still = np.repeat(video[:1], 4 * 16, axis=0)
+    assert slot_accuracy(capture(still, CODE), still, CODE).describe().endswith("record the strobe scene")
+    few = np.repeat(video[:1], 4 * 16, axis=0)
+    few[:, :4, 7] = video[:, :4, 7]  # 4 pixels of 64 change
+    line = slot_accuracy(capture(few, CODE), few, CODE).describe()
+    assert "too few pixels to judge the recording (under 10%)" in line
 
 
 def test_bad_input_is_named():

@@ -9,8 +9,7 @@ stops and closes the devices on the way out).
 
 The pipeline's :class:`~calibration.pipeline.CalibrationRun` keeps the full results: the
 homography (with its residual map), the shutter verification (with its map of wrong pixels)
-and the sync result (with its leakage curve and delay sweep). :func:`shutter_map` re-verifies
-the shutter only for a run from an older pipeline that kept just the summary.
+and the sync result (with its leakage curve and delay sweep).
 
 Calibration runs on the rig's own devices. On the simulated rig (``--rig mock``) that is the one
 rig Capture records with (a projector finer than the camera behind a hidden homography, a hidden
@@ -151,17 +150,6 @@ class CalibrationOutcome:
         return self.run.keep.get("sync")
 
 
-def shutter_map(target: CalibrationTarget, homography, tile, progress=None):
-    """Verify the shutter of ``tile``'s code through ``homography`` again, for its map of wrong pixels."""
-    from calibration.shutter import make_shutter_patterns, verify_shutter
-    from flexvox_core.design import design_code
-
-    code = design_code(tuple(tile)).code
-    with target.session() as session:
-        shutter = make_shutter_patterns(code, homography, session.camera_size, session.projector_size)
-        return verify_shutter(session, shutter, progress=progress)
-
-
 def run_workspace_calibration(target: CalibrationTarget, *, tile=(4, 4), cancel: CancelToken | None = None,
                               tracker: StepTracker | None = None) -> CalibrationOutcome:
     """Run the whole calibration on ``target`` with per-step progress and cancel.
@@ -180,13 +168,7 @@ def run_workspace_calibration(target: CalibrationTarget, *, tile=(4, 4), cancel:
     identity, camera_size = session.identity, session.camera_size
     run = run_calibration(target.rig, session, tile=tuple(tile), progress=tracker)
     outcome = CalibrationOutcome(run, identity, camera_size)
-    hom = outcome.homography
-    if run.keep.get("shutter") is not None:
-        outcome.shutter = run.keep["shutter"]
-    elif "shutter" in run.report and hom is not None and hom.homography is not None:
-        outcome.shutter = shutter_map(target, hom.homography, tile, progress=tracker("shutter map"))
-        outcome.notes.append("the map of wrong pixels comes from a second shutter verification with the "
-                             "homography found (the pipeline kept only the first pass's figures)")
+    outcome.shutter = run.keep.get("shutter")
     if target.simulated:
         outcome.truth = truth_comparison(target.rig, run, camera_size)
     outcome.seconds = time.perf_counter() - t0

@@ -84,9 +84,12 @@ def check_identity(data: dict, identity, path) -> None:
                 "(flexvox calibrate) instead of reusing it")
     for key, what in (("name", "rig"), ("camera", "camera"), ("projector", "projector")):
         if have.get(key) != want[key]:
+            hint = ""
+            if key == "name" and all(str(n).startswith("simulated rig (mock") for n in (have.get(key), want[key])):
+                hint = " (or open the simulated rig with the seed it was made on: --seed)"
             raise CalibrationMismatchError(
                 f"{path} was made for {what} {have.get(key)!r}, not {want[key]!r}: calibrate this rig "
-                "(flexvox calibrate) instead of reusing it")
+                f"(flexvox calibrate) instead of reusing it{hint}")
 
 
 def save_calibration(path, result, identity, *, sync=None, allow_partial: bool = False, now=None) -> Path:

@@ -148,7 +148,8 @@ def test_another_simulated_rigs_calibration_is_refused(qtbot, settings, runner):
     assert outcome.success
     service = RigService(small_rig())
     with pytest.raises(CalibrationRefused, match=r"was made for rig 'simulated rig \(mock, seed 1\)', not "
-                                                 r"'simulated rig \(mock, seed 0\)'"):
+                                                 r"'simulated rig \(mock, seed 0\)'.*with the seed it was made on: "
+                                                 r"--seed\)"):
         from_run(outcome.run, outcome.identity, capture_identity(service))
     ws = CaptureWorkspace(service, settings, runner)
     qtbot.addWidget(ws)

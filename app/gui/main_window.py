@@ -98,7 +98,7 @@ class MainWindow(QMainWindow):
         """What keeps the Capture workspace off the rig: a calibration using the real rig's devices."""
         return self.calibrate.rig_busy_reason()
 
-    def _use_for_capture(self, outcome, path) -> None:
+    def _use_for_capture(self, outcome) -> None:
         """Hand the Calibrate workspace's result to Capture; say in the status bar whether it was taken."""
         used = self.capture.use_outcome(outcome)
         self.statusBar().showMessage("Capture now records with this calibration" if used else
@@ -106,7 +106,8 @@ class MainWindow(QMainWindow):
         if used:
             self.show_workspace("Capture")
         else:
-            self.calibrate.save_label.setText(coloured(f"not used for capture: {self.capture.calibration_error}", RED))
+            self.calibrate.save_panel.label.setText(coloured(f"not used for capture: {self.capture.calibration_error}",
+                                                             RED))
 
     def _review_recording(self, path) -> None:
         self.show_workspace("Review")

@@ -54,7 +54,7 @@ def test_calibration_runs_off_the_gui_thread_shows_its_figures_and_saves(qtbot, 
     truth_phase, truth_delay = hidden_timing(SEED)
     assert outcome.sync.phase_slots == truth_phase and abs(outcome.sync.delay_us - truth_delay) < 200
     assert outcome.truth["homography_error_px"] < 0.05
-    text = ws.results.text()
+    text = ws.results_view.results.text()
     for phrase in ("calibration succeeded", "Co-location", "co-located: one homography fits all 2 depths",
                    "RMS reprojection error", "coverage (decoded)", "inliers / decoded", "slot accuracy",
                    "Synchronisation", "Drops and drift", "no gaps", "hidden truth"):
@@ -62,19 +62,19 @@ def test_calibration_runs_off_the_gui_thread_shows_its_figures_and_saves(qtbot, 
     assert f"{truth_phase} / {truth_phase}" in text  # phase found / true
     assert "calibration succeeded" in ws.step_label.text() and ws.run_button.isEnabled()
     # residual heat map with a colour map, and the map of wrong pixels
-    assert ws.residuals.image.image.shape == (120, 160) and ws.residuals.colorbar is not None
-    assert re.search(r"RMS 0\.\d{3} px, 100\.0% decoded", ws.residuals.title.text())
-    assert ws.wrong_panel.image.image.shape == (120, 160, 3)
-    assert "0 camera pixels see another slot" in ws.wrong_panel.title.text()
-    x, h = ws.leakage_bars.opts["x"], ws.leakage_bars.opts["height"]
+    assert ws.results_view.residuals.image.image.shape == (120, 160) and ws.results_view.residuals.colorbar is not None
+    assert re.search(r"RMS 0\.\d{3} px, 100\.0% decoded", ws.results_view.residuals.title.text())
+    assert ws.results_view.wrong_panel.image.image.shape == (120, 160, 3)
+    assert "0 camera pixels see another slot" in ws.results_view.wrong_panel.title.text()
+    x, h = ws.results_view.leakage_bars.opts["x"], ws.results_view.leakage_bars.opts["height"]
     assert len(x) == 16 and h[truth_phase + 1] > 0.9 and h[max(truth_phase - 1, 0)] < 0.1
     # save
-    assert ws.save_button.isEnabled()
-    assert ws.save("") is None and "choose where to save" in ws.save_label.text()
+    assert ws.save_panel.save_button.isEnabled()
+    assert ws.save_panel.save("") is None and "choose where to save" in ws.save_panel.label.text()
     path = tmp_path / "cal.json"
-    ws.save_path.setText(str(path))
-    ws.save_button.click()
-    assert "saved" in ws.save_label.text()
+    ws.save_panel.path.setText(str(path))
+    ws.save_panel.save_button.click()
+    assert "saved" in ws.save_panel.label.text()
     data = load_calibration(path, outcome.identity)
     np.testing.assert_allclose(data["H"], outcome.homography.homography)
     assert data["sync"]["phase_slots"] == truth_phase
@@ -89,9 +89,9 @@ def test_cancel_stops_between_steps_and_keeps_nothing(qtbot, calibrate):
     qtbot.waitUntil(lambda: not ws.running, timeout=20_000)
     assert re.fullmatch(r"cancelled during (parallax: near target|parallax: far target|homography|shutter|sync)"
                         r"; the devices were stopped", ws.step_label.text())
-    assert ws.outcome is None and not ws.save_button.isEnabled() and ws.run_button.isEnabled()
-    assert "nothing to save (cancelled)" in ws.save_label.text()
-    assert ws.save("x.json") is None and "nothing to save" in ws.save_label.text()
+    assert ws.outcome is None and not ws.save_panel.save_button.isEnabled() and ws.run_button.isEnabled()
+    assert "nothing to save (cancelled)" in ws.save_panel.label.text()
+    assert ws.save_panel.save("x.json") is None and "nothing to save" in ws.save_panel.label.text()
 
 
 def test_a_rig_that_is_not_co_located_is_reported_and_not_saved(qtbot, calibrate):
@@ -101,26 +101,27 @@ def test_a_rig_that_is_not_co_located_is_reported_and_not_saved(qtbot, calibrate
     outcome = run_workspace_calibration(target)
     assert not outcome.success and outcome.report["failed"] == "colocation"
     ws.show_outcome(outcome)
-    text = ws.results.text()
+    text = ws.results_view.results.text()
     assert "✗ not co located" in text and "NOT co-located" in text and "move the projector" in text
-    assert not ws.save_button.isEnabled()
-    assert "not saved: the colocation step failed" in ws.save_label.text()
-    assert ws.wrong_panel.placeholder.textItem.toPlainText() == "the run stopped before the shutter step"
+    assert not ws.save_panel.save_button.isEnabled()
+    assert "not saved: the colocation step failed" in ws.save_panel.label.text()
+    assert ws.results_view.wrong_panel.placeholder.textItem.toPlainText() == "the run stopped before the shutter step"
     titles = [row[0] for row in summary_rows(outcome)]
     assert "Homography" not in titles and "Parallax (co-located?)" in titles
 
 
 def test_live_co_location_numbers_update_on_a_timer(qtbot, calibrate):
     ws = calibrate
-    ws.live_check.setChecked(True)
-    qtbot.waitUntil(lambda: ws.alignment is not None, timeout=20_000)
-    first = ws.alignment
-    qtbot.waitUntil(lambda: ws.alignment is not first, timeout=20_000)  # measured again
-    assert ws.alignment.success and "offset" in ws.live_label.text() and "rotation" in ws.live_label.text()
-    assert abs(ws.alignment.scale - 0.645) < 0.01
-    ws.live_check.setChecked(False)
-    qtbot.waitUntil(lambda: ws.live_job is None or not ws.live_job.running, timeout=10_000)
-    assert ws.live_label.text().startswith("stopped · last: offset")
+    ws.live_panel.check.setChecked(True)
+    qtbot.waitUntil(lambda: ws.live_panel.alignment is not None, timeout=20_000)
+    first = ws.live_panel.alignment
+    qtbot.waitUntil(lambda: ws.live_panel.alignment is not first, timeout=20_000)  # measured again
+    text = ws.live_panel.label.text()
+    assert ws.live_panel.alignment.success and "offset" in text and "rotation" in text
+    assert abs(ws.live_panel.alignment.scale - 0.645) < 0.01
+    ws.live_panel.check.setChecked(False)
+    qtbot.waitUntil(lambda: ws.live_panel.job is None or not ws.live_panel.job.running, timeout=10_000)
+    assert ws.live_panel.label.text().startswith("stopped · last: offset")
     assert ws.run_calibration()  # the live numbers are off: a calibration may start
     qtbot.waitUntil(lambda: not ws.running, timeout=30_000)
 

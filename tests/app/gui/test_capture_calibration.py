@@ -121,12 +121,12 @@ def test_the_calibrate_workspaces_result_hands_over_to_capture(qtbot, settings, 
     qtbot.addWidget(window)
     window.capture.live_panel.preview_check.setChecked(False)
     cal = window.calibrate
-    assert not cal.use_button.isEnabled()
+    assert not cal.save_panel.use_button.isEnabled()
     cal.run_calibration()
     qtbot.waitUntil(lambda: not cal.running, timeout=30_000)
-    assert cal.outcome.success and cal.use_button.isEnabled()
-    cal.save(tmp_path / "fresh.json")
-    cal.use_button.click()
+    assert cal.outcome.success and cal.save_panel.use_button.isEnabled()
+    cal.save_panel.save(tmp_path / "fresh.json")
+    cal.save_panel.use_button.click()
     capture = window.capture
     assert window.tabs.currentWidget() is capture
     active = capture.calibration

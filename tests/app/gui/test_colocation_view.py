@@ -44,14 +44,14 @@ def test_the_overlay_follows_a_known_homography(qtbot):
 def test_live_co_location_shows_the_camera_with_the_estimated_grid(qtbot, settings, runner):
     ws = CalibrateWorkspace(RigService(calibration_rig(0)), settings, runner)
     qtbot.addWidget(ws)
-    ws.live_check.setChecked(True)
-    assert ws.tabs.currentWidget() is ws.colocation_view
-    qtbot.waitUntil(lambda: ws.colocation is not None, timeout=20_000)
-    ws.set_live(False)
-    qtbot.waitUntil(lambda: ws.live_job is None or not ws.live_job.running, timeout=10_000)
-    live = ws.colocation
+    ws.live_panel.check.setChecked(True)
+    assert ws.results_view.currentWidget() is ws.results_view.colocation_view
+    qtbot.waitUntil(lambda: ws.live_panel.colocation is not None, timeout=20_000)
+    ws.live_panel.set_live(False)
+    qtbot.waitUntil(lambda: ws.live_panel.job is None or not ws.live_panel.job.running, timeout=10_000)
+    live = ws.live_panel.colocation
     assert live.alignment.success and live.image.shape == (120, 160) and live.projector_size == (240, 320)
-    view = ws.colocation_view
+    view = ws.results_view.colocation_view
     assert view.image.image.shape == (120, 160)
     x, y = view.curves["border"].getData()
     expected = projector_grid(live.projector_size, live.alignment.homography)["border"].reshape(-1, 2)

@@ -51,7 +51,7 @@ def test_calibrate_use_for_capture_record_and_review(qtbot, window, tmp_path):
     click(qtbot, calibrate.run_button)
     qtbot.waitUntil(lambda: not calibrate.running, timeout=60_000)
     assert calibrate.outcome.success, calibrate.step_label.text()
-    click(qtbot, calibrate.use_button)
+    click(qtbot, calibrate.save_panel.use_button)
     capture = window.capture
     assert window.tabs.currentWidget() is capture and capture.calibration is not None
     sync = calibrate.outcome.sync

@@ -114,7 +114,7 @@ class _WindowScreen:
 
     @property
     def current(self):
-        d = self.ws.projector_display
+        d = self.ws.screen.display
         return None if d is None or d.window is None else d.window.frames
 
 
@@ -126,14 +126,14 @@ def test_calibrate_injects_the_window_into_a_real_dlpc350_and_the_homography_is_
     ws = CalibrateWorkspace(service, settings, runner)
     qtbot.addWidget(ws)
     rig.camera = ScreenCamera(rig.projector, _WindowScreen(ws))
-    assert ws.needs_display and ws.screen_box.count() >= 1
+    assert ws.screen.needed and ws.screen.screen_box.count() >= 1
     ws.tile_box.setCurrentIndex(ws.tile_box.findText("2×2", Qt.MatchFlag.MatchStartsWith))  # K = 4: wide bands
     assert ws.tile() == (2, 2)
     shown = []
     with qtbot.waitSignal(ws.calibrated, timeout=30_000) as done:
         assert ws.run_calibration()
-        assert rig.projector.display is ws.projector_display
-        ws.projector_display.shown.connect(lambda n: shown.append(ws.projector_display.window.on_screen()))
+        assert rig.projector.display is ws.screen.display
+        ws.screen.display.shown.connect(lambda n: shown.append(ws.screen.display.window.on_screen()))
     outcome = done.args[0]
     hom = outcome.homography
     assert hom is not None and hom.success, outcome.report
@@ -141,8 +141,8 @@ def test_calibrate_injects_the_window_into_a_real_dlpc350_and_the_homography_is_
     assert homography_error_px(hom.homography, np.eye(3), (48, 64)) < 0.1
     assert len(shown) >= 40 and all(shown)  # every pattern painted in the window before the driver went on
     qtbot.waitUntil(lambda: not ws.running, timeout=5000)
-    assert ws.projector_display is None and rig.projector.display is None  # window closed, sink removed
-    assert ws.display_label.text() == "projector window closed"
+    assert ws.screen.display is None and rig.projector.display is None  # window closed, sink removed
+    assert ws.screen.label.text() == "projector window closed"
 
 
 def test_a_failing_display_is_a_device_error_in_the_calibration(qtbot, settings, runner):
@@ -150,12 +150,12 @@ def test_a_failing_display_is_a_device_error_in_the_calibration(qtbot, settings,
     service = RigService(rig)
     ws = CalibrateWorkspace(service, settings, runner)
     qtbot.addWidget(ws)
-    assert ws.attach_display("test") is None
-    ws.projector_display.closed_by_user = True  # as if the operator had pressed Esc
+    assert ws.screen.attach("test") is None
+    ws.screen.display.closed_by_user = True  # as if the operator had pressed Esc
     assert ws.run_calibration()
     qtbot.waitUntil(lambda: not ws.running, timeout=30_000)
     text = html.unescape(ws.step_label.text())
     assert "calibration failed: ProjectorDisplayError: could not show the 1 pattern frame(s) of 64x48 on the " \
            "projector's video input: RuntimeError: the projector output window was closed (Esc)" in text
-    ws.release_display("test")
-    assert ws.projector_display is None and rig.projector.display is None
+    ws.screen.release("test")
+    assert ws.screen.display is None and rig.projector.display is None

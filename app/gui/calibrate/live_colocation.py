@@ -1,0 +1,145 @@
+"""The Calibrate workspace's "Co-location live": alignment numbers re-measured while the operator adjusts.
+
+Each measurement (:func:`app.gui.models.calibration_model.measure_live_colocation`: the numbers
+and the camera's view under a white projector) is a job; the next one starts
+:data:`LIVE_INTERVAL_MS` after the previous ended, so there are never two at once. The view shows
+the camera with the projector's expected grid through the homography estimate.
+"""
+
+from __future__ import annotations
+
+import html
+
+from PySide6.QtCore import QObject, Qt, QTimer
+from PySide6.QtWidgets import QCheckBox, QGroupBox, QLabel, QVBoxLayout, QWidget
+
+from app.gui.calibrate.projector_screen import ProjectorScreen
+from app.gui.calibrate.results_view import ResultsView
+from app.gui.models.calibration_model import measure_live_colocation, target_for
+from app.gui.models.rig_service import RigService
+from app.gui.widgets.qt_jobs import JobHandle, JobRunner
+from app.gui.widgets.rich_text import RED, coloured
+
+LIVE_INTERVAL_MS = 300
+"""Pause between two live co-location measurements."""
+
+
+class LiveColocation(QObject):
+    """The live numbers' box (:attr:`box`) and the measuring loop.
+
+    Parameters
+    ----------
+    service : RigService
+    runner : JobRunner
+    screen : ProjectorScreen
+        Shows the patterns on a video-input projector while measuring.
+    view : ResultsView
+        Its "Co-location live" tab shows the camera and the grid.
+    guard : callable
+        ``() -> str | None``: why the rig cannot be used now.
+    """
+
+    def __init__(self, service: RigService, runner: JobRunner, screen: ProjectorScreen, view: ResultsView, *,
+                 guard, parent: QWidget):
+        super().__init__(parent)
+        self.service = service
+        self.runner = runner
+        self.screen = screen
+        self.view = view
+        self._guard = guard
+        self.job: JobHandle | None = None
+        self.alignment = None
+        """The newest co-location result."""
+        self.colocation = None
+        """The newest :class:`~app.gui.models.calibration_model.LiveColocation` (numbers, image, projector size)."""
+        self._target = None
+        box = QGroupBox("Co-location live", parent)
+        self.check = QCheckBox("measure continuously (while you adjust the beam splitter)")
+        self.label = QLabel("off")
+        self.label.setWordWrap(True)
+        self.label.setTextFormat(Qt.TextFormat.RichText)
+        v = QVBoxLayout(box)
+        v.addWidget(self.check)
+        v.addWidget(self.label)
+        self.box = box
+        self.timer = QTimer(self)
+        self.timer.setSingleShot(True)
+        self.timer.setInterval(LIVE_INTERVAL_MS)
+        self.timer.timeout.connect(self._measure)
+        self.check.toggled.connect(self.set_live)
+
+    @property
+    def live(self) -> bool:
+        """True while the live numbers are on."""
+        return self.check.isChecked()
+
+    @property
+    def measuring(self) -> bool:
+        """True while a measurement job runs."""
+        return self.job is not None and self.job.running
+
+    def set_live(self, on: bool, *, blocked: str | None = None) -> None:
+        """Start or stop the live numbers (``blocked``: a reason they may not start now)."""
+        if on:
+            busy = blocked or self._guard() or self.screen.attach("live")
+            if busy:
+                self.label.setText(coloured(f"cannot measure: {busy}", RED))
+                on = False
+        self.check.blockSignals(True)
+        self.check.setChecked(on)
+        self.check.blockSignals(False)
+        if on:
+            self.label.setText("measuring …")
+            self.view.setCurrentWidget(self.view.colocation_view)
+            self.view.colocation_view.set_title("co-location live: measuring …")
+            self._measure()
+        else:
+            self.timer.stop()
+            if self.measuring:
+                self.job.cancel()
+            else:
+                self.screen.release("live")
+            if not self.label.text().startswith("<span"):
+                self.label.setText("off" if self.alignment is None else
+                                   f"stopped · last: {html.escape(self.alignment.message)}")
+
+    def _measure(self) -> None:
+        if not self.live or self.measuring:
+            return
+        if self._target is None:
+            self._target = target_for(self.service)
+        target = self._target
+        self.job = self.runner.submit(
+            "co-location", lambda token, progress: measure_live_colocation(target, token),
+            on_finished=self._on_colocation, on_failed=self._on_failed, on_done=self._on_done)
+
+    def _on_colocation(self, live) -> None:
+        self.colocation = live
+        result = live.alignment
+        view = self.view.colocation_view
+        view.show_alignment(live.image, result.homography if result.success else None, live.projector_size)
+        if result.success:
+            view.set_title("co-location live: the camera with the projector's expected grid (dashed), border "
+                           "(yellow) and centre (red) through the current homography estimate; white ○: the "
+                           "camera's centre")
+        else:
+            view.set_title(f"co-location live: no homography estimate ({result.status})")
+        self.alignment = result
+        if result.success:
+            dx, dy = result.offset_px
+            text = (f"<b>offset</b> ({dx:+.2f}, {dy:+.2f}) px · <b>rotation</b> {result.rotation_deg:+.3f}° · "
+                    f"<b>scale</b> {result.scale:.4f} · <b>lit</b> {result.lit_fraction:.1%}"
+                    f"{' · <b>mirrored</b>' if result.mirrored else ''}<br>{html.escape(result.message)}")
+        else:
+            text = coloured(result.message, RED)
+        self.label.setText(text)
+
+    def _on_failed(self, message: str) -> None:
+        self.label.setText(coloured(f"live co-location stopped: {message}", RED))
+        self.set_live(False)
+
+    def _on_done(self) -> None:
+        if self.live:
+            self.timer.start()
+        else:
+            self.screen.release("live")

@@ -1,0 +1,105 @@
+"""The Calibrate workspace's "Save" box: write a successful calibration, or hand it to Capture."""
+
+from __future__ import annotations
+
+import html
+from pathlib import Path
+
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtWidgets import QFileDialog, QGroupBox, QHBoxLayout, QLabel, QLineEdit, QPushButton, QVBoxLayout
+
+from app.gui.models.calibration_model import CalibrationOutcome
+from app.gui.widgets.rich_text import GREEN, RED, coloured
+from app.gui.widgets.settings import AppSettings
+
+
+class SavePanel(QGroupBox):
+    """Save the calibration file (:func:`calibration.files.save_calibration`) or use it for capture.
+
+    A failed calibration is never written and never handed over.
+    """
+
+    saved = Signal(object)
+    """The path written."""
+    use_for_capture = Signal(object)
+    """The successful :class:`CalibrationOutcome` the operator hands to the Capture workspace."""
+
+    def __init__(self, settings: AppSettings, parent=None):
+        super().__init__("Save", parent)
+        self.settings = settings
+        self.outcome: CalibrationOutcome | None = None
+        self.saved_path: Path | None = None
+        """Where the current outcome was saved (None: not saved)."""
+        self.path = QLineEdit(settings.get_str("calibrate/path", ""))
+        self.path.setPlaceholderText("folder/rig-calibration.json")
+        self.browse = QPushButton("Browse…")
+        row = QHBoxLayout()
+        row.addWidget(self.path, 1)
+        row.addWidget(self.browse)
+        self.save_button = QPushButton("Save calibration")
+        self.save_button.setEnabled(False)
+        self.label = QLabel("run a calibration first")
+        self.label.setWordWrap(True)
+        self.label.setTextFormat(Qt.TextFormat.RichText)
+        self.use_button = QPushButton("Use for capture")
+        self.use_button.setToolTip("hand this homography, sync phase and trigger delay to the Capture workspace")
+        self.use_button.setEnabled(False)
+        buttons = QHBoxLayout()
+        buttons.addWidget(self.save_button)
+        buttons.addWidget(self.use_button)
+        v = QVBoxLayout(self)
+        v.addLayout(row)
+        v.addLayout(buttons)
+        v.addWidget(self.label)
+        self.save_button.clicked.connect(lambda: self.save(self.path.text().strip()))
+        self.use_button.clicked.connect(self._use_clicked)
+        self.browse.clicked.connect(self._browse)
+        self.path.textChanged.connect(lambda t: settings.set("calibrate/path", t))
+
+    def set_outcome(self, outcome: CalibrationOutcome | None, note: str = "") -> None:
+        """The run whose result may be saved (None: running, cancelled or failed; ``note`` says which)."""
+        if outcome is not self.outcome:
+            self.saved_path = None
+        self.outcome = outcome
+        ok = outcome is not None and outcome.success
+        self.save_button.setEnabled(ok)
+        self.use_button.setEnabled(ok)
+        if ok:
+            self.label.setText("ready to save (homography and sync)")
+        elif outcome is not None:
+            self.label.setText(coloured(f"not saved: the {outcome.report.get('failed')} step failed (a failed "
+                                        "calibration is never written)", RED))
+        else:
+            self.label.setText(html.escape(note))
+
+    def _browse(self) -> None:
+        start = self.path.text() or str(Path.home() / "rig-calibration.json")
+        path, _ = QFileDialog.getSaveFileName(self, "Save calibration", start, "Calibration (*.json)")
+        if path:
+            self.path.setText(path)
+
+    def save(self, path) -> Path | None:
+        """Write the calibration file; None (with the reason shown) when it cannot."""
+        from calibration.errors import CalibrationError
+        from calibration.files import save_calibration
+
+        if self.outcome is None or not self.outcome.success:
+            self.label.setText(coloured("nothing to save: run a successful calibration first", RED))
+            return None
+        if not str(path):
+            self.label.setText(coloured("choose where to save (folder/name.json)", RED))
+            return None
+        try:
+            written = save_calibration(Path(path).expanduser(), self.outcome.homography, self.outcome.identity,
+                                       sync=self.outcome.sync)
+        except CalibrationError as exc:
+            self.label.setText(coloured(f"not saved: {exc}", RED))
+            return None
+        self.saved_path = Path(written)
+        self.label.setText(coloured(f"saved {written}", GREEN))
+        self.saved.emit(written)
+        return written
+
+    def _use_clicked(self) -> None:
+        if self.outcome is not None and self.outcome.success:
+            self.use_for_capture.emit(self.outcome)

@@ -108,3 +108,38 @@ def test_capture_settings_persist(qtbot, settings):
     qtbot.addWidget(second)
     assert second.code.tile() == (2, 4) and second.code.rate.value() == 30.0
     service.close()
+
+
+def test_a_design_file_is_the_code_recordings_use(qtbot, settings, tmp_path):
+    import json
+
+    from flexvox_core.design import design_code
+    from flexvox_core.recording import open_recording
+
+    service = RigService(small_rig())
+    ws = CaptureWorkspace(service, settings)
+    qtbot.addWidget(ws)
+    ws.live_panel.preview_check.setChecked(False)
+    code = design_code((2, 4))
+    path = tmp_path / "code.json"
+    path.write_text(json.dumps(code.as_dict()))
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"code": [[[1, 1], [0, 0]]]}')
+    assert not ws.code.load_code_file(bad)
+    assert "refused: " in ws.code.code_label.text() and "not an identity code" in ws.code.code_label.text()
+    assert ws.code.load_code_file(path)
+    plan = ws.plan()
+    assert plan.K == 8 and plan.code_file == path and np.array_equal(plan.code, code.code)
+    assert "identity code from code.json, K = 8" in ws.code.code_label.text()
+    assert not ws.code.tile_box.isEnabled() and ws.code.tile_code_button.isEnabled()
+    ws.code.rate.setValue(60.0)
+    ws.record_panel.path_edit.setText(str(tmp_path / "r.zarr"))
+    ws.record_panel.frames_box.setValue(3)
+    with qtbot.waitSignal(ws.recording_finished, timeout=20_000) as finished:
+        assert ws.record()
+    assert finished.args[0].ok
+    assert open_recording(tmp_path / "r.zarr").attrs["order"] == code.order.tolist()
+    ws.code.use_tile_code()
+    assert ws.plan().code_file is None and ws.code.tile_box.isEnabled()
+    ws.shutdown()
+    service.close()

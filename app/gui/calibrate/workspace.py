@@ -33,9 +33,6 @@ from PySide6.QtWidgets import (
     QLabel,
     QProgressBar,
     QPushButton,
-    QScrollArea,
-    QSplitter,
-    QVBoxLayout,
     QWidget,
 )
 
@@ -55,6 +52,7 @@ from app.gui.models.rig_service import RigService
 from app.gui.widgets.qt_jobs import JobHandle, JobRunner
 from app.gui.widgets.rich_text import GREEN, GREY, RED, coloured
 from app.gui.widgets.settings import AppSettings
+from app.gui.widgets.workspace_layout import controls_beside_view
 
 _logger = logging.getLogger(__name__)
 
@@ -154,23 +152,8 @@ class CalibrateWorkspace(QWidget):
         f.addRow(self.steps_label)
 
         self.wizard_button = QPushButton("Synchronisation wizard…")
-        left = QWidget()
-        lv = QVBoxLayout(left)
-        for w in (run, self.save_panel, self.live_panel.box):
-            lv.addWidget(w)
-        lv.addWidget(self.wizard_button)
-        lv.addStretch(1)
-        scroll = QScrollArea()
-        scroll.setWidget(left)
-        scroll.setWidgetResizable(True)
-        scroll.setMinimumWidth(380)
-        scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
-        split = QSplitter()
-        split.addWidget(scroll)
-        split.addWidget(self.results_view)
-        split.setStretchFactor(1, 1)
-        split.setSizes([420, 880])
-        QHBoxLayout(self).addWidget(split)
+        controls_beside_view(self, (run, self.save_panel, self.live_panel.box, self.wizard_button), self.results_view,
+                             sizes=(420, 880))
 
         self.run_button.clicked.connect(self.run_calibration)
         self.cancel_button.clicked.connect(self.cancel)

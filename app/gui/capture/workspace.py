@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import logging
 
-from PySide6.QtCore import Qt, Signal
-from PySide6.QtWidgets import QHBoxLayout, QScrollArea, QSplitter, QVBoxLayout, QWidget
+from PySide6.QtCore import Signal
+from PySide6.QtWidgets import QWidget
 
 from app.capture.plan import CapturePlan
 from app.gui.capture.calibration_panel import CalibrationPanel
@@ -35,6 +35,7 @@ from app.gui.capture.record_panel import RecordPanel
 from app.gui.models.rig_service import RigService
 from app.gui.widgets.qt_jobs import JobRunner
 from app.gui.widgets.settings import AppSettings
+from app.gui.widgets.workspace_layout import controls_beside_view
 from calibration.capture_setup import CaptureCalibration
 
 _logger = logging.getLogger(__name__)
@@ -91,24 +92,9 @@ class CaptureWorkspace(QWidget):
         self._plan_changed()
 
     def _layout(self) -> None:
-        left = QWidget()
-        lv = QVBoxLayout(left)
-        for w in (self.code, self.calibration_panel, self.live_panel.controls, self.record_panel.box,
-                  self.projector):
-            lv.addWidget(w)
-        lv.addStretch(1)
-        scroll = QScrollArea()
-        self.controls_scroll = scroll
-        scroll.setWidget(left)
-        scroll.setWidgetResizable(True)
-        scroll.setMinimumWidth(380)
-        scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
-        split = QSplitter()
-        split.addWidget(scroll)
-        split.addWidget(self.live_panel.views)
-        split.setStretchFactor(1, 1)
-        split.setSizes([400, 900])
-        QHBoxLayout(self).addWidget(split)
+        self.controls_scroll = controls_beside_view(
+            self, (self.code, self.calibration_panel, self.live_panel.controls, self.record_panel.box, self.projector),
+            self.live_panel.views)
 
     # ------------------------------------------------------------------ what everything uses
     def plan(self) -> CapturePlan:

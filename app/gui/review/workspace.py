@@ -15,10 +15,8 @@ from PySide6.QtWidgets import (
     QLabel,
     QProgressBar,
     QPushButton,
-    QScrollArea,
     QSlider,
     QSpinBox,
-    QSplitter,
     QTabWidget,
     QVBoxLayout,
     QWidget,
@@ -34,6 +32,7 @@ from app.gui.widgets.image_panel import ImagePanel
 from app.gui.widgets.qt_jobs import JobHandle, JobRunner
 from app.gui.widgets.rich_text import RED, coloured
 from app.gui.widgets.settings import AppSettings
+from app.gui.widgets.workspace_layout import controls_beside_view
 from flexvox_core.video_io import write_video
 
 _logger = logging.getLogger(__name__)
@@ -123,18 +122,6 @@ class ReviewWorkspace(QWidget):
         v.addWidget(self.export_button)
         v.addWidget(self.export_label)
 
-        left = QWidget()
-        lv = QVBoxLayout(left)
-        lv.addWidget(rec)
-        lv.addWidget(box)
-        lv.addWidget(exp)
-        lv.addStretch(1)
-        scroll = QScrollArea()
-        scroll.setWidget(left)
-        scroll.setWidgetResizable(True)
-        scroll.setMinimumWidth(360)
-        scroll.setHorizontalScrollBarPolicy(Qt.ScrollBarPolicy.ScrollBarAlwaysOff)
-
         self.raw_panel = ImagePanel("raw camera frame")
         self.recon_panel = ImagePanel("reconstruction")
         frames = QWidget()
@@ -168,13 +155,7 @@ class ReviewWorkspace(QWidget):
         rv.addWidget(self.tabs, 1)
         rv.addLayout(player)
 
-        split = QSplitter()
-        split.addWidget(scroll)
-        split.addWidget(right)
-        split.setStretchFactor(1, 1)
-        split.setSizes([380, 1000])
-        outer = QVBoxLayout(self)
-        outer.addWidget(split)
+        controls_beside_view(self, (rec, box, exp), right, min_width=360, sizes=(380, 1000))
 
         self.timer = QTimer(self)
         self.timer.timeout.connect(self._tick)

@@ -22,6 +22,7 @@ as a dict (``values``), checked by :meth:`MethodSpec.resolve`;
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -47,7 +48,7 @@ class MethodOutput:
     extras: dict[str, np.ndarray] = field(default_factory=dict)
 
 
-class MethodSpec:
+class MethodSpec(ABC):
     """Base of every reconstruction method (see the module docstring).
 
     Subclasses set the class attributes and implement :meth:`run`, :meth:`overlap` and
@@ -101,14 +102,15 @@ class MethodSpec:
         self.validate(values)
         return values
 
-    def validate(self, values: dict) -> None:
+    def validate(self, values: dict) -> None:  # noqa: B027 - an optional hook: most methods have no such check
         """Checks across options (``ValueError``); the default has none."""
 
     # ------------------------------------------------------------------ running
+    @abstractmethod
     def overlap(self, values: dict, K: int) -> int | None:
         """Camera frames of context a chunk needs on each side (None: cannot run in chunks)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def run(self, frames: np.ndarray, code: np.ndarray, values: dict, *, value_range=None,
             extras: bool = False) -> MethodOutput:
         """Reconstruct an identity-code capture.
@@ -129,16 +131,15 @@ class MethodSpec:
         MethodOutput
             ``video`` (F·K, H, W), not yet clipped.
         """
-        raise NotImplementedError
 
     def kwargs(self, values: dict) -> dict:
         """Keyword arguments of the method's algorithm function for ``values`` (default: the values)."""
         return dict(values)
 
     # ------------------------------------------------------------------ description
+    @abstractmethod
     def label(self, values: dict) -> str:
         """Short human-readable description (also the bench's method column)."""
-        raise NotImplementedError
 
     def parse_label(self, label: str) -> dict | None:
         """The knobs (``{"name": ..., option: value}``) of a :meth:`label` this method wrote, or None."""

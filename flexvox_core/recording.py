@@ -1,6 +1,6 @@
 """Recordings: a Zarr v3 store (a directory) readable by anyone with zarr, dask or napari.
 
-Layout (schema version 1)::
+Layout (schema version 2)::
 
     REC.zarr/
       zarr.json            group attributes under "flexvox": schema_version, software_version,
@@ -12,7 +12,9 @@ Layout (schema version 1)::
       frame_id/            (F,) int64
       timestamp/           (F,) float64, seconds
       dropped/             (F,) bool; a dropped frame is a zero row with its flag set
+      frame_crc/           (F,) uint32: CRC-32 of each frame's values (schema 2; see Integrity)
       ground_truth/        (S, H, W) float32, S = F·K — simulated recordings only
+      ground_truth_crc/    (S,) uint32: CRC-32 of each ground-truth sub-frame (schema 2)
       frames/capture.journal   only while a capture writes (or after it was killed): see below
 
 Frames are written as they arrive (:class:`RecordingWriter`); every completed frame is a
@@ -42,10 +44,28 @@ shapes (what older readers and napari expect). A store that still has a journal 
 the journal (``Recording.interrupted`` is True, ``n_frames`` is the true count and
 ``frames`` shows exactly those rows), and :func:`recover_recording` finalises it in place.
 
+Integrity (schema 2)
+--------------------
+Every frame carries the CRC-32 of its values as stored (C order, little-endian bytes of the
+stored dtype; a dropped frame's zero row included), committed with the frame's journal record
+and kept in ``frame_crc``. Every read of frames goes through :class:`VerifiedRows`, which checks
+each row it returns against its CRC, so a deleted chunk (which zarr would read as zeros), a
+truncated one (a codec error) or a changed one raises :class:`DamagedRecordingError` naming the
+rows; nothing reads it as data. :meth:`Recording.verify` checks every row and reports all the
+damage. Schema-1 recordings (no CRCs) are still read: there, a row whose chunk file is missing
+is refused, and a chunk that decodes to changed values cannot be detected.
+
+One writer (:mod:`flexvox_core.writer_lock`)
+--------------------------------------------
+A writer holds an OS lock beside the recording for as long as it writes; a second writer, or a
+command that would replace the recording, is refused and told which process holds it.
+
 Zarr's own ``LocalStore`` writes every key through a temporary file and a rename (zarr
 3.1), so a kill never leaves a torn ``zarr.json`` or chunk; the journal does not depend on
 that beyond "a file is old or new". What survives a *power loss* depends on the OS flushing
-its page cache: pass ``fsync=True`` to flush the journal at every frame (slower).
+its page cache: pass ``fsync=True`` (``flexvox capture --durable``) to flush every frame's
+chunk, its folders and its journal record to the disk before the next frame (slower; see
+``bench/bench_durable.py``).
 """
 
 from __future__ import annotations
@@ -67,25 +87,50 @@ from flexvox_core.codes import is_identity_code, order_from_code, validate_code
 
 _logger = logging.getLogger(__name__)
 
-SCHEMA_VERSION = 1
-"""Bumped when the layout changes in a way older readers cannot follow."""
+SCHEMA_VERSION = 2
+"""Bumped when the layout changes in a way older readers cannot follow (2: per-frame CRCs)."""
 
 PER_FRAME = ("frame_id", "timestamp", "dropped")
-_PER_FRAME_DTYPES = {"frame_id": "int64", "timestamp": "float64", "dropped": "bool"}
+"""The per-frame arrays every schema has."""
+_PER_FRAME_DTYPES = {"frame_id": "int64", "timestamp": "float64", "dropped": "bool", "frame_crc": "uint32"}
+_WRITTEN_PER_FRAME = (*PER_FRAME, "frame_crc")
 _REQUIRED_ATTRS = ("schema_version", "tile", "K", "code", "rates", "storage")
 
 JOURNAL = "frames/capture.journal"
 """The per-frame journal of a capture being written (absent once the writer closed). It lives in
 the ``frames`` array's folder, where zarr never looks for members (a file in the group's own
 folder makes zarr warn when it lists the group)."""
-_JOURNAL_MAGIC = b"FLXVJRN1"
-_JOURNAL_HEADER = _JOURNAL_MAGIC + struct.pack("<II", 24, 0)  # magic, record size, reserved
-_RECORD = struct.Struct("<qd?3xI")  # frame id, timestamp, dropped, pad, CRC-32 of the first 17 bytes
+_JOURNAL_MAGIC_V1 = b"FLXVJRN1"
+_RECORD_V1 = struct.Struct("<qd?3xI")  # frame id, timestamp, dropped, pad, CRC-32 of the first 17 bytes
+_JOURNAL_MAGIC = b"FLXVJRN2"
+_RECORD = struct.Struct("<qd?3xII")  # ..., the frame's CRC-32, CRC-32 of the first 24 bytes
+_JOURNAL_HEADER_SIZE = len(_JOURNAL_MAGIC) + 8  # magic, record size, writer's process id
 DEFAULT_BLOCK_FRAMES = 64
 
 
 class RecordingError(ValueError):
     """A recording that cannot be read or is damaged; the message says what is wrong."""
+
+
+class DamagedRecordingError(RecordingError):
+    """Frames whose chunk is missing, cannot be decoded or fails its checksum.
+
+    Attributes
+    ----------
+    rows : list of int
+        The damaged rows found (the first few, for a read that stops at the first).
+    """
+
+    def __init__(self, message: str, rows=()):
+        super().__init__(message)
+        self.rows = list(rows)
+
+
+def values_crc(values: np.ndarray, dtype=None) -> int:
+    """CRC-32 of an array's values as stored: C order, little-endian bytes of ``dtype``."""
+    arr = np.asarray(values)
+    dt = np.dtype(dtype or arr.dtype).newbyteorder("<")
+    return zlib.crc32(np.ascontiguousarray(arr, dtype=dt).data) & 0xFFFFFFFF
 
 
 def _now() -> str:
@@ -123,10 +168,12 @@ def recording_attrs(code, *, rate_hz: float, kind: str, storage: dict, effects: 
 class RecordingWriter:
     """Append frames to a new recording as they arrive, crash-safely (see the module docstring).
 
-    Each :meth:`append` writes the frame's chunk, then commits it with a journal record, so a
-    recording interrupted at any point (an exception, SIGKILL, a full disk) holds every
-    completed frame and opens with :func:`open_recording`. Call :meth:`close` (or use the
-    writer as a context manager) to finalise: exact array shapes, journal removed.
+    Each :meth:`append` writes the frame's chunk, then commits it with a journal record that
+    carries the frame's CRC, so a recording interrupted at any point (an exception, SIGKILL, a
+    full disk) holds every completed frame and opens with :func:`open_recording`. Call
+    :meth:`close` (or use the writer as a context manager) to finalise: exact array shapes,
+    journal removed. The writer holds the recording's :class:`~flexvox_core.writer_lock.WriterLock`
+    from its creation until :meth:`close` or :meth:`discard`.
 
     Parameters
     ----------
@@ -139,45 +186,73 @@ class RecordingWriter:
     attrs : dict
         The ``flexvox`` attribute block (:func:`recording_attrs`).
     overwrite : bool
-        Replace an existing store.
+        Replace an existing store. The old store is moved aside (a hidden sibling) and deleted
+        only when this one closes with frames in it; a writer that ends with none puts it back.
     block_frames : int
         Rows allocated at a time (metadata writes per frame: 1 / block_frames).
     fsync : bool
-        Flush the journal to the device at every frame (power-loss safety; slower).
+        Durable writes: every frame's chunk, its folders and its journal record are flushed to
+        the disk before :meth:`append` returns (a power cut loses at most the frame in flight).
+    atomic : bool
+        Write the whole store in a hidden temporary sibling and move it into place at
+        :meth:`close` (recordings written at once, such as simulations): readers never see a
+        partial store, and a failed write (:meth:`discard`) leaves the old one untouched.
+        Default False: a capture writes in place, so that what it wrote is there if it is killed.
     """
 
     def __init__(self, path, *, height: int, width: int, dtype, attrs: dict, overwrite: bool = False,
-                 block_frames: int = DEFAULT_BLOCK_FRAMES, fsync: bool = False):
+                 block_frames: int = DEFAULT_BLOCK_FRAMES, fsync: bool = False, atomic: bool = False):
+        from flexvox_core.output_files import temporary_sibling
+        from flexvox_core.writer_lock import WriterLock
+
         self.path = Path(path)
-        if self.path.exists() and not overwrite:
-            raise RecordingError(f"{self.path} already exists; choose another path or allow overwriting")
         dtype = np.dtype(dtype)
         if dtype not in (np.dtype("float32"), np.dtype("uint16")):
             raise RecordingError(f"frames must be float32 or uint16; got {dtype}")
         if isinstance(block_frames, bool) or not isinstance(block_frames, int) or not 1 <= block_frames <= 65536:
             raise RecordingError(f"`block_frames` must be a whole number 1..65536; got {block_frames!r}")
-        self.group = zarr.open_group(str(self.path), mode="w", zarr_format=3)
-        self.group.attrs["flexvox"] = attrs
-        self.frames = self.group.create_array("frames", shape=(0, height, width), chunks=(1, height, width),
-                                              dtype=dtype, fill_value=0)
-        self.per_frame = {
-            name: self.group.create_array(name, shape=(0,), chunks=(4096,), dtype=_PER_FRAME_DTYPES[name],
-                                          fill_value=0)
-            for name in PER_FRAME
-        }
-        self.count = 0
-        self.capacity = 0
-        self.closed = False
-        self._block = block_frames
-        self._fsync = bool(fsync)
-        self._hw = (height, width)
-        self._dtype = dtype
-        self._flushed = 0
-        self._pending = {name: [] for name in PER_FRAME}
-        self._root_id = _identity(self.path)
-        self._journal_path = self.path / JOURNAL
-        self._fd = os.open(self._journal_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_APPEND, 0o644)
-        self._write_all(_JOURNAL_HEADER)
+        self._lock = WriterLock(self.path).acquire()  # OutputBusyError (a ValueError) names the holder
+        self._fd = None
+        self._replaced: Path | None = None
+        self._atomic = bool(atomic)
+        try:
+            if (self.path.exists() or self.path.is_symlink()) and not overwrite:
+                raise RecordingError(f"{self.path} already exists; choose another path or allow overwriting")
+            if self._atomic:
+                self.store = temporary_sibling(self.path)
+            else:
+                if self.path.exists() or self.path.is_symlink():
+                    self._replaced = temporary_sibling(self.path, "replaced")
+                    os.rename(self.path, self._replaced)
+                self.store = self.path
+            self.group = zarr.open_group(str(self.store), mode="w-", zarr_format=3)
+            self.group.attrs["flexvox"] = attrs
+            self.frames = self.group.create_array("frames", shape=(0, height, width), chunks=(1, height, width),
+                                                  dtype=dtype, fill_value=0)
+            self.per_frame = {
+                name: self.group.create_array(name, shape=(0,), chunks=(4096,), dtype=_PER_FRAME_DTYPES[name],
+                                              fill_value=0)
+                for name in _WRITTEN_PER_FRAME
+            }
+            self.count = 0
+            self.capacity = 0
+            self.closed = False
+            self._block = block_frames
+            self._fsync = bool(fsync)
+            self._hw = (height, width)
+            self._dtype = dtype
+            self._zero_crc = values_crc(np.zeros((height, width), dtype))
+            self._flushed = 0
+            self._pending = {name: [] for name in _WRITTEN_PER_FRAME}
+            self._root_id = _identity(self.store)
+            self._journal_path = self.store / JOURNAL
+            self._fd = os.open(self._journal_path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_APPEND, 0o644)
+            self._write_all(_JOURNAL_MAGIC + struct.pack("<II", _RECORD.size, os.getpid() & 0xFFFFFFFF))
+            if self._fsync:
+                self._sync_metadata()
+        except BaseException:
+            self._abandon()
+            raise
 
     # -- writing
     def _write_all(self, data: bytes) -> None:
@@ -187,16 +262,35 @@ class RecordingWriter:
         if self._fsync:
             os.fsync(self._fd)
 
+    def _sync_file(self, path: Path, folders: int = 1) -> None:
+        """Flush a file and the ``folders`` folders above it (their new entries) to the disk."""
+        from flexvox_core.output_files import fsync_folder
+
+        fd = os.open(path, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        for parent in list(path.parents)[:folders]:
+            fsync_folder(parent)
+
+    def _sync_metadata(self) -> None:
+        """Durable mode: flush every array's metadata (its shape) and the store's folders."""
+        self._sync_file(self.store / "zarr.json", folders=2)
+        for name in ("frames", *_WRITTEN_PER_FRAME):
+            self._sync_file(self.store / name / "zarr.json", folders=1)
+        self._sync_file(self._journal_path, folders=1)
+
     def _check_root(self) -> None:
-        if _identity(self.path) != self._root_id:
-            raise FileNotFoundError(errno.ENOENT, f"the recording folder {self.path} vanished (deleted, or its "
+        if _identity(self.store) != self._root_id:
+            raise FileNotFoundError(errno.ENOENT, f"the recording folder {self.store} vanished (deleted, or its "
                                                   "disk was unmounted)")
 
     def _flush_per_frame(self) -> None:
         """Copy pending per-frame values into the zarr arrays (rows ``[flushed, count)``)."""
         if self.count == self._flushed:
             return
-        for name in PER_FRAME:
+        for name in _WRITTEN_PER_FRAME:
             values = np.asarray(self._pending[name], dtype=_PER_FRAME_DTYPES[name])
             self.per_frame[name][self._flushed:self.count] = values
             self._pending[name] = []
@@ -208,9 +302,11 @@ class RecordingWriter:
         for arr in self.per_frame.values():
             arr.resize((rows,))
         self.capacity = rows
+        if self._fsync:
+            self._sync_metadata()
 
     def append(self, frame, *, frame_id: int, timestamp: float, dropped: bool = False) -> None:
-        """Write one camera frame ``(H, W)`` and commit it with its per-frame values.
+        """Write one camera frame ``(H, W)`` and commit it with its per-frame values and CRC.
 
         A dropped frame is a zero row: pass ``frame=None`` (nothing is written but its record).
 
@@ -232,46 +328,67 @@ class RecordingWriter:
         i = self.count
         if i >= self.capacity:
             self._grow(self.capacity + self._block)
+        crc = self._zero_crc
         if frame is not None and not (dropped and not frame.any()):
-            self.frames[i] = frame.astype(self._dtype, copy=False)
-        head = struct.pack("<qd?", int(frame_id), float(timestamp), bool(dropped))
-        self._write_all(_RECORD.pack(int(frame_id), float(timestamp), bool(dropped), zlib.crc32(head)))
+            stored = frame.astype(self._dtype, copy=False)
+            self.frames[i] = stored
+            crc = values_crc(stored)
+            if self._fsync and crc != self._zero_crc:  # zarr writes no chunk for an all-zero frame
+                self._sync_file(self.store / "frames" / self.frames.metadata.encode_chunk_key((i, 0, 0)), folders=3)
+        head = struct.pack("<qd?3xI", int(frame_id), float(timestamp), bool(dropped), crc)
+        self._write_all(head + struct.pack("<I", zlib.crc32(head)))
         self._pending["frame_id"].append(int(frame_id))
         self._pending["timestamp"].append(float(timestamp))
         self._pending["dropped"].append(bool(dropped))
+        self._pending["frame_crc"].append(crc)
         self.count = i + 1
 
     def write_ground_truth(self, video: np.ndarray) -> None:
-        """Store the simulated ground truth ``(S, H, W)`` float32."""
+        """Store the simulated ground truth ``(S, H, W)`` float32 (with a CRC per sub-frame)."""
         video = np.asarray(video, dtype=np.float32)
-        gt = self.group.create_array("ground_truth", shape=video.shape, chunks=(1, *video.shape[1:]),
-                                     dtype="float32", fill_value=0)
+        gt, crc = self._ground_truth_arrays(video.shape[0])
         gt[:] = video
+        crc[:] = np.asarray([values_crc(v) for v in video], np.uint32)
+
+    def _ground_truth_arrays(self, S: int):
+        shape = (S, *self._hw)
+        gt = self.group.create_array("ground_truth", shape=shape, chunks=(1, *self._hw), dtype="float32",
+                                     fill_value=0)
+        crc = self.group.create_array("ground_truth_crc", shape=(S,), chunks=(max(1, min(S, 65536)),),
+                                      dtype="uint32", fill_value=0)
+        return gt, crc
 
     def write_ground_truth_frames(self, rows) -> None:
         """Store the ground truth one camera frame at a time: ``rows`` yields ``(K, H, W)``
         blocks, one per recorded frame (so a long capture never holds it all in memory)."""
         K = int(dict(self.group.attrs)["flexvox"]["K"])
-        gt = self.group.create_array("ground_truth", shape=(self.count * K, *self._hw), chunks=(1, *self._hw),
-                                     dtype="float32", fill_value=0)
+        gt, crc = self._ground_truth_arrays(self.count * K)
         done = 0
+        crcs = []
         for block in rows:
             block = np.asarray(block, dtype=np.float32)
             if block.shape != (K, *self._hw):
                 raise RecordingError(f"ground-truth rows must have shape {(K, *self._hw)}; got {block.shape}")
             gt[done * K:(done + 1) * K] = block
+            crcs.extend(values_crc(v) for v in block)
             done += 1
         if done != self.count:
             raise RecordingError(f"ground truth for {done} frames; the recording holds {self.count}")
+        crc[:] = np.asarray(crcs, np.uint32)
 
     def close(self, *, attrs_update: dict | None = None) -> None:
         """Finalise: per-frame arrays written, arrays trimmed to the count, journal removed.
 
-        ``attrs_update`` is merged into the ``flexvox`` attributes first. No-op when closed.
-        On an error (a full disk) the journal stays and the recording remains valid.
+        ``attrs_update`` is merged into the ``flexvox`` attributes first. An atomic writer then
+        moves the store into place; an overwriting one deletes the store it replaced (or puts it
+        back when no frame was written). No-op when closed. On an error (a full disk) the journal
+        stays and the recording remains valid (an atomic writer's store is removed instead, and
+        the old one stays).
         """
         if self.closed:
             return
+        from flexvox_core.output_files import move_into_place, remove_path
+
         try:
             self._check_root()
             if attrs_update:
@@ -285,17 +402,59 @@ class RecordingWriter:
             os.close(self._fd)
             self._fd = None
             self._journal_path.unlink()
+            if self._fsync:
+                self._sync_file(self.store / "zarr.json", folders=2)
+            if self._atomic:
+                move_into_place(self.store, self.path)
+            elif self._replaced is not None:
+                if self.count:
+                    remove_path(self._replaced)
+                else:
+                    remove_path(self.store)
+                    os.rename(self._replaced, self.path)
+                self._replaced = None
+        except BaseException:
+            if self._atomic:
+                remove_path(self.store)
+            raise
         finally:
             if self._fd is not None:
                 os.close(self._fd)
                 self._fd = None
             self.closed = True
+            self._lock.release()
+
+    def discard(self) -> None:
+        """Give up an unfinished write: an atomic writer's store is removed and an overwritten
+        store is put back; a capture that replaced nothing keeps its store as it is (interrupted, readable)."""
+        if not self.closed:
+            self._abandon()
+
+    def _abandon(self) -> None:
+        from flexvox_core.output_files import remove_path
+
+        try:
+            if self._fd is not None:
+                os.close(self._fd)
+                self._fd = None
+            store = getattr(self, "store", None)
+            if store is not None and (self._atomic or self._replaced is not None):
+                remove_path(store)
+            if self._replaced is not None:
+                os.rename(self._replaced, self.path)
+                self._replaced = None
+        finally:
+            self.closed = True
+            self._lock.release()
 
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, exc_type, *exc) -> None:
+        if exc_type is not None and self._atomic:
+            self.discard()
+        else:
+            self.close()
 
 
 def _identity(path: Path) -> tuple[int, int] | None:
@@ -307,7 +466,8 @@ def _identity(path: Path) -> tuple[int, int] | None:
 
 
 def read_journal(path) -> dict:
-    """The committed records of a capture journal: ``frame_id``, ``timestamp``, ``dropped``.
+    """The committed records of a capture journal: ``frame_id``, ``timestamp``, ``dropped`` and
+    ``frame_crc`` (None in a schema-1 journal, which has no frame CRCs).
 
     Records after the first torn or corrupt one are ignored (a kill mid-write leaves at most
     one torn record, at the end).
@@ -319,52 +479,78 @@ def read_journal(path) -> dict:
     """
     path = Path(path)
     data = path.read_bytes()
-    if data[:len(_JOURNAL_MAGIC)] != _JOURNAL_MAGIC:
+    magic = data[:len(_JOURNAL_MAGIC)]
+    if magic == _JOURNAL_MAGIC:
+        record, checked, has_crc = _RECORD, 24, True
+    elif magic == _JOURNAL_MAGIC_V1:
+        record, checked, has_crc = _RECORD_V1, 17, False
+    else:
         raise RecordingError(f"{path}: not a flexvox capture journal")
-    body = memoryview(data)[len(_JOURNAL_HEADER):]
-    n_full = len(body) // _RECORD.size
-    ids, stamps, drops = [], [], []
+    body = memoryview(data)[_JOURNAL_HEADER_SIZE:]
+    n_full = len(body) // record.size
+    ids, stamps, drops, crcs = [], [], [], []
     for k in range(n_full):
-        fid, ts, dr, crc = _RECORD.unpack_from(body, k * _RECORD.size)
-        if zlib.crc32(bytes(body[k * _RECORD.size: k * _RECORD.size + 17])) != crc:
+        fields = record.unpack_from(body, k * record.size)
+        if zlib.crc32(bytes(body[k * record.size: k * record.size + checked])) != fields[-1]:
             _logger.warning("%s: record %d is corrupt; %d later record(s) ignored", path, k, n_full - k - 1)
             break
-        ids.append(fid)
-        stamps.append(ts)
-        drops.append(dr)
-    if len(body) % _RECORD.size:
-        _logger.info("%s: a torn last record (%d bytes) is ignored", path, len(body) % _RECORD.size)
+        ids.append(fields[0])
+        stamps.append(fields[1])
+        drops.append(fields[2])
+        if has_crc:
+            crcs.append(fields[3])
+    if len(body) % record.size:
+        _logger.info("%s: a torn last record (%d bytes) is ignored", path, len(body) % record.size)
     return {"frame_id": np.asarray(ids, np.int64), "timestamp": np.asarray(stamps, np.float64),
-            "dropped": np.asarray(drops, bool)}
+            "dropped": np.asarray(drops, bool), "frame_crc": np.asarray(crcs, np.uint32) if has_crc else None}
 
 
 def write_simulation(path, result, *, overwrite: bool = False) -> Path:
-    """Write a :class:`~flexvox_core.simulate.SimulationResult` as a recording."""
+    """Write a :class:`~flexvox_core.simulate.SimulationResult` as a recording, atomically: the
+    store appears at ``path`` complete, or not at all (an old one stays when the write fails)."""
     F, H, W = result.frames.shape
     attrs = recording_attrs(
         result.code, rate_hz=result.rate_hz, kind="simulated", storage=result.storage,
         effects=result.effects, seed=result.seed, source=result.source,
         multiplexed=result.multiplexed, placement=result.placement,
     )
-    writer = RecordingWriter(path, height=H, width=W, dtype=result.frames.dtype, attrs=attrs, overwrite=overwrite)
     period = 1.0 / result.rate_hz
-    for f in range(F):
-        writer.append(result.frames[f], frame_id=f, timestamp=f * period, dropped=bool(result.dropped[f]))
-    writer.write_ground_truth(result.ground_truth)
-    writer.close()
+    with RecordingWriter(path, height=H, width=W, dtype=result.frames.dtype, attrs=attrs, overwrite=overwrite,
+                         atomic=True) as writer:
+        for f in range(F):
+            writer.append(result.frames[f], frame_id=f, timestamp=f * period, dropped=bool(result.dropped[f]))
+        writer.write_ground_truth(result.ground_truth)
     return Path(path)
 
 
-class RowsView:
-    """The first ``n`` rows of a zarr array, read lazily (an interrupted capture's frames).
+def _read_rows(array, start: int, stop: int, label: str) -> np.ndarray:
+    """Rows ``[start, stop)`` of a zarr array; a codec or I/O error becomes a :class:`DamagedRecordingError`."""
+    try:
+        return np.asarray(array[start:stop])
+    except Exception as exc:  # noqa: BLE001 - zarr and its codecs raise many types for a damaged chunk
+        raise DamagedRecordingError(f"{label} rows {start}..{stop - 1} cannot be read ({type(exc).__name__}: "
+                                    f"{exc})", range(start, stop)) from None
 
-    Offers what readers use of a ``zarr.Array``: ``shape``, ``dtype``, ``ndim``,
-    ``chunks``, ``len`` and indexing (``[:]``, ``[i]``, ``[a:b]``, ``[a:b, y, x]``).
+
+class VerifiedRows:
+    """The first ``n`` rows of a recording's zarr array, read lazily and checked row by row.
+
+    Every row returned has been checked against its CRC (``crcs``); in a recording without CRCs
+    (schema 1), rows that must hold data (``required``) are checked for a chunk file instead.
+    A damaged row raises :class:`DamagedRecordingError` (never zeros). Offers what readers use
+    of a ``zarr.Array``: ``shape``, ``dtype``, ``ndim``, ``chunks``, ``len`` and indexing
+    (``[:]``, ``[i]``, ``[a:b]``, ``[a:b, y, x]``); dask reads it with ``da.from_array``.
     """
 
-    def __init__(self, array: zarr.Array, n: int):
+    def __init__(self, array: zarr.Array, n: int, *, crcs: np.ndarray | None, what: str,
+                 store: Path | None = None, required: np.ndarray | None = None):
         self.array = array
         self.n = int(n)
+        self.crcs = None if crcs is None else np.asarray(crcs, np.uint32)
+        self.what = what
+        self.label = f"{store}: {what}" if store is not None else what
+        self.store = store
+        self.required = required
 
     @property
     def shape(self) -> tuple[int, ...]:
@@ -389,6 +575,58 @@ class RowsView:
     def __len__(self) -> int:
         return self.n
 
+    def chunk_file(self, row: int) -> Path | None:
+        """The file that holds ``row`` in a local store (None when unknown)."""
+        if self.store is None:
+            return None
+        key = self.array.metadata.encode_chunk_key((row, *([0] * (self.array.ndim - 1))))
+        return self.store / self.array.basename / key
+
+    def problems(self, start: int, stop: int, rows: np.ndarray | None = None) -> list[tuple[int, str]]:
+        """``(row, what is wrong)`` for each damaged row of ``[start, stop)`` (``rows``: their values, if read)."""
+        if rows is None:
+            try:
+                rows = _read_rows(self.array, start, stop, self.label)
+            except DamagedRecordingError:
+                if stop - start == 1:
+                    return [(start, "its chunk cannot be decoded (truncated or garbled)")]
+                return [p for r in range(start, stop) for p in self.problems(r, r + 1)]
+        found = []
+        for k, row in enumerate(rows):
+            i = start + k
+            if self.crcs is not None:
+                if values_crc(row) != int(self.crcs[i]):
+                    f = self.chunk_file(i)
+                    found.append((i, "its chunk file is missing" if f is not None and not f.exists()
+                                  else "its checksum does not match (the chunk was changed or damaged)"))
+            elif self.required is not None and self.required[i]:
+                f = self.chunk_file(i)
+                if f is not None and not f.exists():
+                    found.append((i, "its chunk file is missing"))
+        return found
+
+    def _check(self, start: int, stop: int, rows: np.ndarray) -> None:
+        found = self.problems(start, stop, rows)
+        if found:
+            first, why = found[0]
+            more = f" (and {len(found) - 1} more row(s) in {start}..{stop - 1})" if len(found) > 1 else ""
+            raise DamagedRecordingError(f"{self.label} row {first} is damaged: {why}{more}; `flexvox info` lists "
+                                        "every damaged row", [r for r, _ in found])
+
+    def read(self, start: int, stop: int) -> np.ndarray:
+        """Rows ``[start, stop)``, checked."""
+        try:
+            rows = _read_rows(self.array, start, stop, self.label)
+        except DamagedRecordingError as exc:
+            found = self.problems(start, stop)
+            if not found:
+                raise
+            first, why = found[0]
+            raise DamagedRecordingError(f"{self.label} row {first} is damaged: {why}; `flexvox info` lists every "
+                                        "damaged row", [r for r, _ in found]) from exc
+        self._check(start, stop, rows)
+        return rows
+
     def __getitem__(self, key):
         rest = ()
         if isinstance(key, tuple):
@@ -397,17 +635,21 @@ class RowsView:
             key, rest = slice(None), (Ellipsis, *rest)
         if isinstance(key, slice):
             start, stop, step = key.indices(self.n)
-            if step != 1:
-                return np.asarray(self.array[(slice(start, stop), *rest)])[::step]
-            return self.array[(slice(start, max(start, stop)), *rest)]
+            rows = self.read(start, max(start, stop)) if step == 1 else self.read(0, self.n)[key]
+            return rows[(slice(None), *rest)] if rest else rows
         idx = int(key)
         if not -self.n <= idx < self.n:
-            raise IndexError(f"row {idx} is out of range for {self.n} frames")
-        return self.array[(idx % self.n, *rest)]
+            raise IndexError(f"row {idx} is out of range for {self.n} rows")
+        row = self.read(idx % self.n, idx % self.n + 1)[0]
+        return row[rest] if rest else row
 
     def __array__(self, dtype=None, copy=None):
-        out = np.asarray(self[:])
+        out = self.read(0, self.n)
         return out if dtype is None else out.astype(dtype)
+
+
+RowsView = VerifiedRows
+"""The name of :class:`VerifiedRows` before checksums."""
 
 
 @dataclass
@@ -429,16 +671,23 @@ class Recording:
         return self.journal is not None
 
     @property
-    def frames(self) -> zarr.Array | RowsView:
-        """The raw frames ``(F, H, W)`` as stored (float32 or uint16 counts).
+    def has_checksums(self) -> bool:
+        """True when every frame carries a CRC (schema 2 and later)."""
+        if self.journal is not None:
+            return self.journal.get("frame_crc") is not None
+        return "frame_crc" in self.group
 
-        A ``zarr.Array``; for an interrupted capture with rows allocated past the true count,
-        a :class:`RowsView` of exactly the committed rows.
+    @property
+    def frames(self) -> VerifiedRows:
+        """The raw frames ``(F, H, W)`` as stored (float32 or uint16 counts), checked as they are read.
+
+        Exactly the committed rows (an interrupted capture may have rows allocated past them).
         """
-        arr = self.group["frames"]
-        if self.journal is not None and arr.shape[0] != self.n_frames:
-            return RowsView(arr, self.n_frames)
-        return arr
+        crcs = None
+        if self.has_checksums:
+            crcs = self.journal["frame_crc"] if self.journal is not None else np.asarray(self.group["frame_crc"][:])
+        return VerifiedRows(self.group["frames"], self.n_frames, crcs=crcs, what="frames",
+                            store=self.path, required=None if crcs is not None else ~self.per_frame("dropped"))
 
     @property
     def code(self) -> np.ndarray:
@@ -463,18 +712,31 @@ class Recording:
         return "ground_truth" in self.group
 
     def per_frame(self, name: str) -> np.ndarray:
-        """``frame_id``, ``timestamp`` or ``dropped`` as a numpy array."""
-        if name not in PER_FRAME:
-            raise RecordingError(f"`name` must be one of {', '.join(PER_FRAME)}; got {name!r}")
+        """``frame_id``, ``timestamp``, ``dropped`` (or ``frame_crc``, schema 2) as a numpy array."""
+        if name not in _WRITTEN_PER_FRAME:
+            raise RecordingError(f"`name` must be one of {', '.join(_WRITTEN_PER_FRAME)}; got {name!r}")
         if self.journal is not None:
-            return self.journal[name][: self.n_frames].copy()
+            values = self.journal.get(name)
+            if values is None:
+                raise RecordingError(f"{self.path} has no `{name}` (schema 1)")
+            return values[: self.n_frames].copy()
+        if name not in self.group:
+            raise RecordingError(f"{self.path} has no `{name}` (schema {self.attrs.get('schema_version')})")
         return np.asarray(self.group[name][:])
 
-    def ground_truth(self) -> np.ndarray:
-        """The simulated high-speed video ``(S, H, W)`` float32."""
+    @property
+    def ground_truth_rows(self) -> VerifiedRows:
+        """The simulated high-speed video ``(S, H, W)`` float32, checked as it is read."""
         if not self.has_ground_truth:
             raise RecordingError(f"{self.path} holds no ground truth (a captured recording)")
-        return np.asarray(self.group["ground_truth"][:])
+        gt = self.group["ground_truth"]
+        crcs = np.asarray(self.group["ground_truth_crc"][:]) if "ground_truth_crc" in self.group else None
+        return VerifiedRows(gt, gt.shape[0], crcs=crcs, what="ground truth", store=self.path)
+
+    def ground_truth(self, start: int = 0, stop: int | None = None) -> np.ndarray:
+        """Sub-frames ``[start, stop)`` of the simulated high-speed video ``(S, H, W)`` float32."""
+        rows = self.ground_truth_rows
+        return rows.read(start, rows.n if stop is None else stop)
 
     def normalised_frames(self, start: int = 0, stop: int | None = None) -> np.ndarray:
         """Frames ``[start, stop)`` as float32 relative units (counts converted)."""
@@ -482,9 +744,34 @@ class Recording:
 
         return normalise_frames(np.asarray(self.frames[start:stop]), self.attrs["storage"])
 
+    def verify(self, progress=None, *, chunk_rows: int = 16) -> list[str]:
+        """Check every committed frame (and ground-truth sub-frame): each chunk exists, decodes and
+        matches its CRC. Returns one line per damaged row (empty when all are sound).
+
+        ``progress(done, total)`` is called as rows are checked (rows of frames and ground truth).
+        """
+        parts = [self.frames] + ([self.ground_truth_rows] if self.has_ground_truth else [])
+        total = sum(p.n for p in parts)
+        done = 0
+        found = []
+        for part in parts:
+            for start in range(0, part.n, chunk_rows):
+                stop = min(part.n, start + chunk_rows)
+                found += [f"{part.what} row {row}: {why}" for row, why in part.problems(start, stop)]
+                done += stop - start
+                if progress is not None:
+                    progress(done, total)
+        if not self.has_checksums:
+            found.append("no checksums (schema 1): missing chunks were checked, changed values cannot be")
+        return found
+
 
 def open_recording(path) -> Recording:
-    """Open and validate a recording; :class:`RecordingError` says what is wrong."""
+    """Open and validate a recording's structure; :class:`RecordingError` says what is wrong.
+
+    Frames are checked as they are read (:attr:`Recording.frames`); :meth:`Recording.verify`
+    checks them all.
+    """
     path = Path(path)
     if not path.exists():
         raise RecordingError(f"{path}: no such recording")
@@ -531,25 +818,33 @@ def validate_recording(rec: Recording) -> list[str]:
     if [m, n] != list(rec.attrs["tile"]) or K != rec.attrs["K"]:
         problems.append(f"code shape {code.shape} disagrees with tile {rec.attrs['tile']} and K {rec.attrs['K']}")
     names = set(rec.group.array_keys())
-    for name in ("frames", *PER_FRAME):
+    needed = ("frames", *PER_FRAME) + (("frame_crc",) if rec.attrs["schema_version"] >= 2 else ())
+    for name in needed:
         if name not in names:
             problems.append(f"array `{name}` is missing")
+    if "ground_truth" in names and rec.attrs["schema_version"] >= 2 and "ground_truth_crc" not in names:
+        problems.append("array `ground_truth_crc` is missing")
     if problems:
         return problems
     F = rec.n_frames
-    if rec.frames.ndim != 3:
-        problems.append(f"`frames` must be (F, H, W); got {rec.frames.shape}")
+    if rec.group["frames"].ndim != 3:
+        problems.append(f"`frames` must be (F, H, W); got {rec.group['frames'].shape}")
     if rec.journal is None:
-        for name in PER_FRAME:
+        for name in needed[1:]:
             if rec.group[name].shape != (F,):
                 problems.append(f"`{name}` has {rec.group[name].shape[0]} entries for {F} frames")
+    elif rec.attrs["schema_version"] >= 2 and rec.journal["frame_crc"] is None:
+        problems.append("the capture journal has no frame checksums (schema 1) in a schema-2 recording")
     kind = rec.attrs["storage"].get("kind")
     if kind not in ("float", "counts"):
         problems.append(f"unknown storage kind {kind!r}")
     if "ground_truth" in names:
         gt = rec.group["ground_truth"].shape
-        if gt != (F * K, *rec.frames.shape[1:]):
+        if gt != (F * K, *rec.group["frames"].shape[1:]):
             problems.append(f"`ground_truth` {gt} does not match {F} frames of K = {K}")
+        elif "ground_truth_crc" in names and rec.group["ground_truth_crc"].shape != (gt[0],):
+            problems.append(f"`ground_truth_crc` has {rec.group['ground_truth_crc'].shape[0]} entries for {gt[0]} "
+                            "sub-frames")
     return problems
 
 
@@ -564,21 +859,29 @@ def recover_recording(path) -> int:
     ------
     RecordingError
         When the store is not a readable recording.
+    OutputBusyError
+        When a writer still holds the recording (a capture that is running, not interrupted).
     """
-    rec = open_recording(path)
-    if not rec.interrupted:
-        return rec.n_frames
-    n = rec.n_frames
-    group = zarr.open_group(str(rec.path), mode="r+")
-    frames = group["frames"]
-    for name in PER_FRAME:
-        arr = group[name]
-        arr.resize((n,))
-        arr[:] = rec.journal[name][:n]
-    if frames.shape[0] != n:
-        frames.resize((n, *frames.shape[1:]))
-    attrs = dict(group.attrs)["flexvox"]
-    group.attrs["flexvox"] = {**attrs, "recovered_utc": _now()}
-    (rec.path / JOURNAL).unlink()
-    _logger.info("%s: recovered an interrupted capture of %d frames", rec.path, n)
-    return n
+    from flexvox_core.writer_lock import WriterLock
+
+    with WriterLock(path):
+        rec = open_recording(path)
+        if not rec.interrupted:
+            return rec.n_frames
+        n = rec.n_frames
+        group = zarr.open_group(str(rec.path), mode="r+")
+        frames = group["frames"]
+        for name in _WRITTEN_PER_FRAME:
+            values = rec.journal.get(name)
+            if values is None or name not in group:
+                continue
+            arr = group[name]
+            arr.resize((n,))
+            arr[:] = values[:n]
+        if frames.shape[0] != n:
+            frames.resize((n, *frames.shape[1:]))
+        attrs = dict(group.attrs)["flexvox"]
+        group.attrs["flexvox"] = {**attrs, "recovered_utc": _now()}
+        (rec.path / JOURNAL).unlink()
+        _logger.info("%s: recovered an interrupted capture of %d frames", rec.path, n)
+        return n

@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from app.cli.errors import EXIT_FAILED, EXIT_OK, CliError
+from flexvox_core.output_files import OutputError
 from flexvox_core.recording import RecordingError, open_recording, recover_recording
 
 
@@ -15,17 +16,21 @@ def register(sub) -> None:
     """Add the ``info`` subcommand."""
     p = sub.add_parser(
         "info",
-        help="summarise a recording and check it (schema, counts, gaps)",
+        help="summarise a recording and check it (schema, counts, gaps, every chunk's checksum)",
         description=(
             "Print what a recording holds (kind, code, rates, frames, dropped frames, ground truth, "
-            "calibration, rig) and check it: schema and attributes, array lengths, frame ids (every "
-            "gap must be a row flagged dropped), timestamps. Exit 0 when it is sound, 1 when it is "
+            "calibration, rig) and check it: schema and attributes, array lengths, frame ids (they must "
+            "increase, and every gap must be a row flagged dropped), timestamps, and every frame's chunk: "
+            "it must exist, decode and match the checksum written with it (a progress bar on long "
+            "recordings; --quick checks the metadata only). Exit 0 when it is sound, 1 when it is "
             "damaged, 2 when it cannot be found. A capture that was killed or lost power is "
             "'interrupted': sound, its journal gives the true count; --repair finalises it."
         ),
     )
     p.add_argument("recording", type=Path, metavar="REC", help="a flexvox recording (.zarr)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--quick", action="store_true",
+                   help="check the metadata only (schema, counts, frame ids), not every chunk's data")
     p.add_argument("--repair", action="store_true",
                    help="finalise an interrupted capture in place (exact array lengths, journal removed)")
     p.add_argument("--slots", action="store_true",
@@ -34,8 +39,12 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def check(rec) -> tuple[dict, list[str]]:
-    """Summary of an opened recording and the problems found beyond its structure."""
+def check(rec, *, quick: bool = False, progress=None) -> tuple[dict, list[str]]:
+    """Summary of an opened recording and the problems found beyond its structure.
+
+    Unless ``quick``, every frame and ground-truth chunk is read and checked against its checksum
+    (:meth:`~flexvox_core.recording.Recording.verify`; ``progress(done, total)`` follows it).
+    """
     problems = []
     ids = rec.per_frame("frame_id")
     dropped = rec.per_frame("dropped")
@@ -54,11 +63,10 @@ def check(rec) -> tuple[dict, list[str]]:
     if not np.all(np.isfinite(stamps)):
         problems.append("timestamps hold NaN or infinity")
     F, H, W = rec.frames.shape
-    if F:
-        try:
-            np.asarray(rec.frames[F - 1])
-        except Exception as exc:  # noqa: BLE001 - any codec or I/O error means a damaged chunk
-            problems.append(f"the last frame cannot be read ({type(exc).__name__}: {exc})")
+    notes = []
+    if not quick:
+        for line in rec.verify(progress):
+            (notes if line.startswith("no checksums") else problems).append(line)
     a = rec.attrs
     rates = a.get("rates", {})
     summary = {
@@ -73,7 +81,8 @@ def check(rec) -> tuple[dict, list[str]]:
         "duration_s": float(F / rates["camera_hz"]) if rates.get("camera_hz") else None,
         "ground_truth": rec.has_ground_truth, "interrupted": rec.interrupted,
         "calibration": a.get("calibration"), "rig": a.get("rig"), "capture": a.get("capture"),
-        "effects": a.get("effects"), "problems": problems,
+        "effects": a.get("effects"), "checked": "metadata" if quick else "metadata and every chunk",
+        "checksums": rec.has_checksums, "notes": notes, "problems": problems,
     }
     return summary, problems
 
@@ -102,6 +111,8 @@ def _text(s: dict) -> list[str]:
         c = s["capture"]
         lines.append(f"capture: ended {c.get('reason')}" + (f" ({c['error']})" if c.get("error") else "")
                      + f", {c.get('queue_drops', 0)} frame(s) discarded by the queue")
+    lines.append(f"checked: {s['checked']}" + ("" if s["checksums"] else " (no checksums: schema 1)"))
+    lines += [f"note: {n}" for n in s["notes"]]
     if s["interrupted"]:
         lines.append("interrupted: the capture did not finish (killed or power lost); every committed frame "
                      "is readable. `flexvox info --repair` finalises it.")
@@ -131,7 +142,10 @@ def run(args) -> int:
         raise CliError(f"{args.recording}: no such recording")
     try:
         if args.repair:
-            n = recover_recording(args.recording)
+            try:
+                n = recover_recording(args.recording)
+            except OutputError as exc:  # a capture still writes it
+                raise CliError(f"--repair: {exc}") from None
             print(f"{args.recording}: finalised, {n} frames")
         rec = open_recording(args.recording)
     except RecordingError as exc:
@@ -141,7 +155,14 @@ def run(args) -> int:
         else:
             print(f"{args.recording}: DAMAGED: {exc}")
         return EXIT_FAILED
-    summary, problems = check(rec)
+    from tqdm import tqdm
+
+    with tqdm(unit="frame", desc="checking", leave=False, disable=args.quick or rec.n_frames < 64 or None) as bar:
+        def progress(done, total):
+            bar.total = total
+            bar.update(done - bar.n)
+
+        summary, problems = check(rec, quick=args.quick, progress=progress)
     if args.slots:
         summary["slots"] = _slots(rec)
     if args.json:

@@ -12,6 +12,7 @@ from app.cli import batch, export, info
 from app.cli.errors import CliError, OneLineParser
 from flexvox_core.methods import Method, reconstruct
 from flexvox_core.recording import JOURNAL, RecordingWriter, open_recording, recording_attrs
+from tests.killed_writer import kill
 
 
 def cli(argv):
@@ -36,7 +37,8 @@ def recording(tmp_path, capsys):
 def test_info_summarises_a_sound_recording(recording, capsys):
     assert cli(["info", str(recording)]) == 0
     text = capsys.readouterr().out
-    assert "simulated recording, schema 1" in text and "tile 2x2, K = 4" in text
+    assert "simulated recording, schema 2" in text and "tile 2x2, K = 4" in text
+    assert "checked: metadata and every chunk" in text
     assert "frames: 5 of 16x24 float32 (float), ids 0..4" in text and text.strip().endswith("OK")
     assert cli(["info", str(recording), "--json"]) == 0
     s = json.loads(capsys.readouterr().out)
@@ -65,6 +67,9 @@ def test_info_reports_and_repairs_an_interrupted_capture(tmp_path, capsys):
         w.append(np.ones((8, 8), np.float32), frame_id=i, timestamp=i / 30)
     assert cli(["info", str(tmp_path / "i.zarr")]) == 0
     assert "interrupted: the capture did not finish" in capsys.readouterr().out
+    with pytest.raises(CliError, match=r"--repair: .*i.zarr is being written by process \d+"):
+        cli(["info", "--repair", str(tmp_path / "i.zarr")])  # never finalised under a running writer
+    kill(w)
     assert cli(["info", "--repair", str(tmp_path / "i.zarr")]) == 0
     assert "finalised, 3 frames" in capsys.readouterr().out
     assert not (tmp_path / "i.zarr" / JOURNAL).exists() and not open_recording(tmp_path / "i.zarr").interrupted

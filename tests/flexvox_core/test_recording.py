@@ -60,7 +60,7 @@ def _edit_attrs(path, fn):
 def test_schema_missing_or_newer(tmp_path, sim):
     path = write_simulation(tmp_path / "r.zarr", sim)
     _edit_attrs(path, lambda a: a.update(schema_version=SCHEMA_VERSION + 1))
-    with pytest.raises(RecordingError, match=r"schema version 2 is newer than this software reads \(1\)"):
+    with pytest.raises(RecordingError, match=r"schema version 3 is newer than this software reads \(2\)"):
         open_recording(path)
     _edit_attrs(path, lambda a: a.pop("schema_version"))
     with pytest.raises(RecordingError, match=r"has no schema_version"):
@@ -82,6 +82,7 @@ def test_damaged_recordings(tmp_path, sim):
 
 # --------------------------------------------------------------------------- crash safety
 
+from flexvox_core.output_errors import OutputBusyError  # noqa: E402
 from flexvox_core.recording import (  # noqa: E402
     JOURNAL,
     RecordingWriter,
@@ -90,6 +91,7 @@ from flexvox_core.recording import (  # noqa: E402
     recording_attrs,
     recover_recording,
 )
+from tests.killed_writer import kill as _kill  # noqa: E402
 
 
 def _writer(path, **kw):
@@ -112,7 +114,7 @@ def test_interrupted_writer_opens_with_the_true_count(tmp_path):
     assert isinstance(rec.frames, RowsView) and rec.frames.shape == (11, 4, 5) and len(rec.frames) == 11
     assert rec.frames[:].shape == (11, 4, 5) and rec.frames[-1][0, 0] == 11 and rec.frames[2:4, 0, 0].tolist() == [3, 4]
     assert np.asarray(rec.frames).shape == (11, 4, 5) and rec.normalised_frames(9).shape == (2, 4, 5)
-    with pytest.raises(IndexError, match=r"row 11 is out of range for 11 frames"):
+    with pytest.raises(IndexError, match=r"row 11 is out of range for 11 rows"):
         rec.frames[11]
     assert rec.per_frame("frame_id").tolist() == list(range(11))
     # The per-frame arrays lag a block behind (flushed when the arrays grew): the journal rules.
@@ -128,7 +130,7 @@ def test_torn_or_corrupt_journal_records_are_ignored(tmp_path):
         f.write(b"\x01" * 10)  # a record torn by the kill
     assert open_recording(path).n_frames == 5
     data = bytearray(journal.read_bytes())
-    data[16 + 3 * 24] ^= 0xFF  # corrupt record 3
+    data[16 + 3 * 28] ^= 0xFF  # corrupt record 3 (records of 28 bytes after a 16-byte header)
     journal.write_bytes(bytes(data))
     assert open_recording(path).n_frames == 3 and read_journal(journal)["frame_id"].tolist() == [0, 1, 2]
     journal.write_bytes(b"garbage")
@@ -160,6 +162,9 @@ def test_close_trims_and_recover_finalises(tmp_path):
         _fill(w, 1)
     w2 = _writer(tmp_path / "r.zarr", block_frames=8)
     _fill(w2, 10)
+    with pytest.raises(OutputBusyError, match=r"r.zarr is being written by process \d+"):
+        recover_recording(tmp_path / "r.zarr")  # a running capture is not finalised under its writer
+    _kill(w2)
     assert recover_recording(tmp_path / "r.zarr") == 10
     rec = open_recording(tmp_path / "r.zarr")
     assert not rec.interrupted and rec.frames.shape == (10, 4, 5) and "recovered_utc" in rec.attrs

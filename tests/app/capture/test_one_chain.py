@@ -182,4 +182,4 @@ def test_info_slots_needs_ground_truth(calibration_file, tmp_path):
     with pytest.raises(CliError, match=r"holds no ground truth: --slots needs a simulated recording"):
         from app.cli import info
 
-        info.run(type("Args", (), {"recording": out, "repair": False, "slots": True, "json": False})())
+        info.run(type("Args", (), {"recording": out, "repair": False, "slots": True, "json": False, "quick": False})())

@@ -1,0 +1,15 @@
+"""The errors of writing outputs (:mod:`flexvox_core.output_files`, :mod:`flexvox_core.writer_lock`)."""
+
+from __future__ import annotations
+
+
+class OutputError(ValueError):
+    """An output that may not be written; the message names the path and the rule."""
+
+
+class OutputBusyError(OutputError):
+    """Another process is writing this output; the message names it, :attr:`holder` too."""
+
+    def __init__(self, message: str, holder: str = "another process"):
+        super().__init__(message)
+        self.holder = holder

@@ -1,0 +1,211 @@
+"""Output files that never destroy inputs and never leave half-written results.
+
+Every command and every GUI save that writes a file or a store goes through here:
+
+* :func:`check_output` — before any work starts: the output must not be (or contain, or lie
+  inside) one of the inputs, whatever the flags; an existing output needs ``overwrite``; an
+  output another process is writing (:mod:`flexvox_core.writer_lock`) is refused; the folder
+  must exist and accept a new file (probed by creating one, so it also holds for root and for
+  read-only mounts).
+* :func:`atomic_output` — the write itself goes to a hidden temporary sibling that keeps the
+  output's suffix (``.NAME.partial-PID-XXXX.SUFFIX``: OpenCV and numpy choose the format by
+  suffix), and is moved into place only when the writer returned. A failed write removes the
+  sibling and leaves the old output as it was.
+* :func:`write_text_atomic` — small text files (calibration files, code files, sync profiles):
+  written, flushed to the disk, then renamed into place.
+
+Replacing a file is one ``os.replace`` (atomic on POSIX and Windows). Replacing a *folder*
+(a Zarr store, a folder of PNGs) takes two renames, because no portable call swaps two
+folders: the old one is first renamed to a hidden ``.NAME.replaced-PID-XXXX`` sibling, the new
+one takes its name, and only then is the old one deleted. A process killed between the two
+renames leaves both, under their hidden names; nothing is lost.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import secrets
+import shutil
+import tempfile
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+
+from flexvox_core.output_errors import OutputError
+from flexvox_core.writer_lock import lock_holder
+
+_logger = logging.getLogger(__name__)
+
+OVERWRITE_HINT = "use --overwrite to replace it"
+
+
+def _resolved(path) -> Path:
+    return Path(path).expanduser().resolve()
+
+
+def _within(inner: Path, outer: Path) -> bool:
+    return inner == outer or outer in inner.parents
+
+
+def refuse_output_onto_input(output, inputs: Iterable) -> None:
+    """Raise :class:`OutputError` when ``output`` is one of ``inputs``, holds one, or lies inside one.
+
+    Paths are compared after resolving symbolic links, ``..`` and ``~``, and by file identity
+    where both exist (hard links, case-insensitive file systems).
+    """
+    out = _resolved(output)
+    for source in inputs:
+        if source is None:
+            continue
+        src = _resolved(source)
+        identical = out == src
+        if not identical and out.exists() and src.exists():
+            with contextlib.suppress(OSError):
+                identical = os.path.samefile(out, src)
+        if identical:
+            how = "is the input"
+        elif _within(src, out):
+            how = "holds the input"
+        elif _within(out, src):
+            how = "lies inside the input"
+        else:
+            continue
+        raise OutputError(f"the output {output} {how} {source}: an output never replaces its input, "
+                          "whatever the flags; choose another path")
+
+
+def check_output(path, *, overwrite: bool = False, inputs: Iterable = (), hint: str = OVERWRITE_HINT) -> Path:
+    """Check, before any work, that ``path`` may be written; return it.
+
+    Parameters
+    ----------
+    path : str or Path
+        The output file or folder.
+    overwrite : bool
+        Whether an existing output may be replaced.
+    inputs : iterable of paths
+        The command's inputs: the output may not be, hold or lie inside any of them.
+    hint : str
+        How the user allows overwriting (a front end's own words).
+
+    Raises
+    ------
+    OutputError
+        Onto an input; an existing output without ``overwrite``; an output another process is
+        writing; a missing folder; a folder that refuses new files.
+    """
+    path = Path(path).expanduser()
+    refuse_output_onto_input(path, inputs)
+    if path.exists() or path.is_symlink():
+        if not overwrite:
+            raise OutputError(f"{path} already exists; {hint}")
+        holder = lock_holder(path)
+        if holder is not None:
+            raise OutputError(f"{path} is being written by {holder}; it cannot be replaced until that ends")
+    folder = path.parent
+    if not folder.is_dir():
+        raise OutputError(f"cannot write {path}: the folder {folder} does not exist")
+    check_writable(folder, path)
+    return path
+
+
+def check_writable(folder, path=None) -> None:
+    """Raise :class:`OutputError` unless a new file can be created in ``folder`` (a probe file is
+    created and removed: permissions, read-only mounts and quotas all answer)."""
+    folder = Path(folder)
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".flexvox-probe-", dir=folder)
+    except OSError as exc:
+        target = path if path is not None else folder
+        raise OutputError(f"cannot write {target}: the folder {folder} does not accept new files "
+                          f"({exc.strerror or exc})") from None
+    os.close(fd)
+    os.unlink(probe)
+
+
+def temporary_sibling(path, tag: str = "partial") -> Path:
+    """A hidden, unused name beside ``path`` that keeps its suffix: ``.STEM.TAG-PID-XXXX.SUFFIX``."""
+    path = Path(path)
+    return path.with_name(f".{path.stem}.{tag}-{os.getpid()}-{secrets.token_hex(3)}{path.suffix}")
+
+
+def remove_path(path) -> None:
+    """Delete a file, link or folder (no error when it is already gone)."""
+    path = Path(path)
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()
+
+
+def fsync_folder(folder) -> None:
+    """Flush a folder's entries (renames, new files) to the disk where the OS allows it."""
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:  # Windows cannot open folders
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def move_into_place(new, path) -> None:
+    """Move the finished ``new`` onto ``path``, replacing what is there (see the module docstring)."""
+    new, path = Path(new), Path(path)
+    old_is_folder = path.is_dir() and not path.is_symlink()
+    if not (new.is_dir() or old_is_folder):
+        os.replace(new, path)
+    else:
+        aside = None
+        if path.exists() or path.is_symlink():
+            aside = temporary_sibling(path, "replaced")
+            os.rename(path, aside)
+        try:
+            os.rename(new, path)
+        except OSError:
+            if aside is not None:
+                os.rename(aside, path)
+            raise
+        if aside is not None:
+            remove_path(aside)
+    fsync_folder(path.parent)
+
+
+@contextlib.contextmanager
+def atomic_output(path, *, overwrite: bool = False, hint: str = OVERWRITE_HINT) -> Iterator[Path]:
+    """Write an output through a temporary sibling: ``with atomic_output(p) as tmp: write(tmp)``.
+
+    ``tmp`` does not exist yet; the writer creates it (a file or a folder). When the block
+    ends normally, ``tmp`` replaces ``path``; when it raises, ``tmp`` is removed and ``path``
+    is untouched. ``overwrite`` is checked again here (another process may have created
+    ``path`` since :func:`check_output`).
+    """
+    path = Path(path).expanduser()
+    tmp = temporary_sibling(path)
+    try:
+        yield tmp
+        if not (tmp.exists() or tmp.is_symlink()):
+            raise OutputError(f"nothing was written for {path}")
+        if (path.exists() or path.is_symlink()) and not overwrite:
+            raise OutputError(f"{path} appeared while it was being written; {hint}")
+        move_into_place(tmp, path)
+    except BaseException:
+        remove_path(tmp)
+        raise
+    _logger.debug("wrote %s", path)
+
+
+def write_text_atomic(path, text: str, *, overwrite: bool = True, encoding: str = "utf-8") -> Path:
+    """Write a small text file atomically and durably (flushed to the disk before the rename)."""
+    path = Path(path).expanduser()
+    with atomic_output(path, overwrite=overwrite) as tmp:
+        with open(tmp, "w", encoding=encoding) as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+    return path

@@ -39,14 +39,24 @@ def _identity_dict(identity) -> dict:
     raise CalibrationError(f"`identity` must be a RigIdentity; got {type(identity).__name__}")
 
 
-def write_versioned(path, fmt: str, version: int, identity, body: dict, *, now=None) -> Path:
-    """Write ``body`` with the format header, the rig's identity and the date."""
+def write_versioned(path, fmt: str, version: int, identity, body: dict, *, overwrite: bool = False,
+                    now=None) -> Path:
+    """Write ``body`` with the format header, the rig's identity and the date.
+
+    Atomically (a temporary sibling, flushed, renamed into place): a failed write leaves an old
+    file as it was. ``overwrite=False`` refuses an existing file (the command line's default; GUI
+    file dialogs ask the operator themselves).
+    """
+    from flexvox_core.output_files import OutputError, write_text_atomic
+
     path = Path(path)
     when = now or _dt.datetime.now(_dt.UTC)
     payload = {"format": fmt, "version": version, "created": when.isoformat(timespec="seconds"),
                "software": _software(), "rig": _identity_dict(identity), **body}
     try:
-        path.write_text(json.dumps(payload, indent=1, allow_nan=True) + "\n", encoding="utf-8")
+        write_text_atomic(path, json.dumps(payload, indent=1, allow_nan=True) + "\n", overwrite=overwrite)
+    except OutputError as exc:
+        raise CalibrationFileError(str(exc)) from None
     except OSError as exc:
         raise CalibrationFileError(f"cannot write {path}: {exc.strerror or exc}") from exc
     return path
@@ -92,7 +102,8 @@ def check_identity(data: dict, identity, path) -> None:
                 f"(flexvox calibrate) instead of reusing it{hint}")
 
 
-def save_calibration(path, result, identity, *, sync=None, allow_partial: bool = False, now=None) -> Path:
+def save_calibration(path, result, identity, *, sync=None, allow_partial: bool = False, overwrite: bool = False,
+                     now=None) -> Path:
     """Write a homography calibration (and optionally its sync measurement).
 
     Parameters
@@ -103,13 +114,16 @@ def save_calibration(path, result, identity, *, sync=None, allow_partial: bool =
     identity : RigIdentity
     sync : SyncResult, optional
     allow_partial : bool
+    overwrite : bool
+        Replace an existing file (atomically); without it an existing file is refused.
     now : datetime, optional
         The date recorded (default: now, UTC).
 
     Raises
     ------
     CalibrationError
-        For a failed result: a bad calibration is never written.
+        For a failed result: a bad calibration is never written. :class:`CalibrationFileError`
+        for an existing file without ``overwrite`` or a write that failed (an old file stays).
     """
     from calibration.homography import HomographyResult
 
@@ -126,7 +140,8 @@ def save_calibration(path, result, identity, *, sync=None, allow_partial: bool =
                                                    / np.linalg.inv(result.homography)[2, 2]).tolist()},
             "quality": {k: v for k, v in result.summary().items() if k != "homography"},
             "sync": None if sync is None else sync.summary()}
-    return write_versioned(path, CALIBRATION_FORMAT, CALIBRATION_VERSION, identity, body, now=now)
+    return write_versioned(path, CALIBRATION_FORMAT, CALIBRATION_VERSION, identity, body, overwrite=overwrite,
+                           now=now)
 
 
 def load_calibration(path, identity=None) -> dict:

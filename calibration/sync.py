@@ -347,14 +347,16 @@ def check_frames(session, patterns, n: int = 30, *, max_drift_us_per_frame: floa
                       **base)
 
 
-def save_sync_profile(path, result: SyncResult, identity, *, frame_check: FrameCheck | None = None, now=None) -> Path:
-    """Write a sync profile (versioned JSON) for a successful :class:`SyncResult`."""
+def save_sync_profile(path, result: SyncResult, identity, *, frame_check: FrameCheck | None = None,
+                      overwrite: bool = False, now=None) -> Path:
+    """Write a sync profile (versioned JSON) for a successful :class:`SyncResult`, atomically;
+    an existing file only with ``overwrite``."""
     if not isinstance(result, SyncResult):
         raise CalibrationError(f"`result` must be a SyncResult; got {type(result).__name__}")
     if not result.success:
         raise CalibrationError(f"refusing to save a failed sync measurement ({result.status}): {result.message}")
     body = {"sync": result.summary(), "frame_check": None if frame_check is None else frame_check.summary()}
-    return write_versioned(path, SYNC_FORMAT, SYNC_VERSION, identity, body, now=now)
+    return write_versioned(path, SYNC_FORMAT, SYNC_VERSION, identity, body, overwrite=overwrite, now=now)
 
 
 def load_sync_profile(path, identity=None) -> dict:

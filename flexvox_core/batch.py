@@ -1,7 +1,8 @@
 """Batch reconstruction of long recordings with dask: chunks in time, exact overlap, Zarr out.
 
 The recording's raw frames are a dask array chunked in time (``chunk_frames`` camera frames per
-chunk, read lazily from the Zarr store); :func:`dask.array.map_overlap` gives each chunk the
+chunk, read lazily from the Zarr store, each row checked against its checksum);
+:func:`dask.array.map_overlap` gives each chunk the
 method's overlap (:meth:`Method.overlap <flexvox_core.methods.method.Method.overlap>`) of
 context on each side (none beyond the recording's ends). Each chunk is normalised and
 demultiplexed by the reader's :class:`~flexvox_core.capture_reader.Preparation` and
@@ -32,6 +33,7 @@ import numpy as np
 from flexvox_core.capture_reader import CaptureReader, Preparation
 from flexvox_core.methods.method import Method
 from flexvox_core.methods.runner import run_chunk
+from flexvox_core.output_files import atomic_output, check_output
 from flexvox_core.recording import Recording, RecordingError, open_recording
 
 _logger = logging.getLogger(__name__)
@@ -104,7 +106,9 @@ def batch_video(rec: Recording, method: Method | None = None, *, chunk_frames: i
     if chunk_frames < ov:
         _logger.info("batch: chunks of %d frames raised to the method's overlap of %d", chunk_frames, ov)
         chunk_frames = ov  # dask's map_overlap needs chunks at least as long as the overlap
-    frames = da.from_zarr(reader.raw, chunks=(chunk_frames, H, W))[:F].rechunk((_chunks(F, chunk_frames, ov), H, W))
+    # Read through the reader's checked rows: a missing or damaged chunk fails the run, never reads as zeros.
+    frames = da.from_array(reader.raw, chunks=(_chunks(F, chunk_frames, ov), H, W), asarray=True, lock=False,
+                           fancy=False)
     # Methods that scale by the samples' range get the whole recording's in every chunk.
     value_range = reader.sample_range(chunk_frames) if method.spec.needs_sample_range else None
     kernel = _chunk_kernel(reader.code, K, ov, F, method, reader.preparation, value_range)
@@ -139,25 +143,36 @@ def reconstruct_batch(recording, output, method: Method | None = None, *, chunk_
     Raises
     ------
     ValueError
-        Bad arguments, an existing output, or a recording that cannot be reconstructed.
+        Bad arguments, an output that may not be written (onto the input, existing without
+        ``overwrite``, a folder that refuses files), or a recording that cannot be reconstructed
+        (a damaged chunk found while reading included: the output is then not written).
     """
-    import dask
-    import dask.array as da
-    import zarr
-
     method = method or Method()
     output = Path(output)
     if output.suffix.lower() != ".zarr":
         raise ValueError(f"the batch output must be a .zarr store; got {output}")
-    if output.exists() and not overwrite:
-        raise ValueError(f"{output} already exists; choose another path or allow overwriting")
+    check_output(output, overwrite=overwrite, inputs=[recording], hint="choose another path or allow overwriting")
     try:
         rec = open_recording(recording)
     except RecordingError as exc:
         raise ValueError(str(exc)) from None
     video, ov = batch_video(rec, method, chunk_frames=chunk_frames)
     chunk_frames = max(chunk_frames, ov)
-    group = zarr.open_group(str(output), mode="w", zarr_format=3)
+    # Written beside the output and moved into place when every chunk is stored: a failed or
+    # cancelled run leaves an old output as it was, and never a store with chunks of zeros.
+    with atomic_output(output, overwrite=overwrite) as tmp:
+        seconds, used = _store(rec, video, ov, chunk_frames, method, tmp, scheduler, progress, connect_timeout_s)
+    _logger.info("batch: %s -> %s, %d sub-frames in %.2f s (%s)", rec.path, output, video.shape[0], seconds, used)
+    return BatchResult(output, tuple(int(v) for v in video.shape), chunk_frames, ov, seconds, used)
+
+
+def _store(rec, video, ov, chunk_frames, method, output, scheduler, progress, connect_timeout_s):
+    """Compute ``video`` into a new Zarr group at ``output``; return (seconds, scheduler used)."""
+    import dask
+    import dask.array as da
+    import zarr
+
+    group = zarr.open_group(str(output), mode="w-", zarr_format=3)
     group.attrs["flexvox"] = {"source": str(rec.path), "method": method.as_dict(), "chunk_frames": chunk_frames,
                               "overlap_frames": ov, "batch": True}
     target = group.create_array("video", shape=video.shape, chunks=(1, *video.shape[1:]), dtype="float32",
@@ -198,6 +213,4 @@ def reconstruct_batch(recording, output, method: Method | None = None, *, chunk_
         with Client(scheduler, timeout=connect_timeout_s) as client:
             client.compute(store, sync=True)
         used = scheduler
-    seconds = time.perf_counter() - t0
-    _logger.info("batch: %s -> %s, %d sub-frames in %.2f s (%s)", rec.path, output, video.shape[0], seconds, used)
-    return BatchResult(output, tuple(int(v) for v in video.shape), chunk_frames, ov, seconds, used)
+    return time.perf_counter() - t0, used

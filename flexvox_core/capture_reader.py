@@ -3,10 +3,13 @@
 A recording's raw frames become what every reconstruction takes, an identity-code capture
 ``(F, H, W)`` float32 and its code ``(m, n, K)``, in three steps, all here:
 
-1. **validation** — the recording opens (:func:`~flexvox_core.recording.open_recording`), and
-   the **dropped-frame policy** holds: a recording with dropped frames is refused
-   (:class:`NotReconstructableError` naming how many rows are dropped and the first of them), because
-   reconstructing across gaps is not supported yet;
+1. **validation** — the recording opens (:func:`~flexvox_core.recording.open_recording`); its
+   frame ids increase by one from row to row (a repeated, backward or skipped id is refused,
+   naming the row); and the **dropped-frame policy** holds: a recording with dropped frames is
+   refused (:class:`NotReconstructableError` naming how many rows are dropped and the first of
+   them), because reconstructing across gaps is not supported yet. Every frame is checked
+   against its checksum as it is read (:class:`~flexvox_core.recording.VerifiedRows`): a missing or
+   damaged chunk raises :class:`~flexvox_core.recording.DamagedRecordingError`, never zeros;
 2. **normalisation** — counts to relative units with the recording's ``storage`` attributes
    (:func:`flexvox_core.simulate.simulator.normalise_frames`);
 3. **demultiplexing** — an S-matrix recording (attributes ``multiplexed``, ``tile``,
@@ -92,11 +95,20 @@ class CaptureReader:
     Raises
     ------
     NotReconstructableError
-        Dropped frames, or multiplexing attributes that name no S-matrix code.
+        Frame ids that do not increase by one, dropped frames, or multiplexing attributes that
+        name no S-matrix code.
     """
 
     def __init__(self, recording: Recording):
         self.recording = recording
+        ids = recording.per_frame("frame_id")
+        steps = np.diff(ids)
+        if np.any(steps != 1):
+            k = int(np.flatnonzero(steps != 1)[0])
+            how = "do not increase" if steps[k] < 1 else f"skip {int(steps[k]) - 1} id(s) without a dropped row"
+            raise NotReconstructableError(f"{recording.path}: frame ids {how} at row {k + 1} ({ids[k]} then "
+                                          f"{ids[k + 1]}); frames must be in capture order, one id apart, to be "
+                                          "reconstructed (`flexvox info` lists the problems)")
         dropped = recording.per_frame("dropped")
         if dropped.any():
             rows = np.flatnonzero(dropped)[:5].tolist()
@@ -135,9 +147,9 @@ class CaptureReader:
 
     @property
     def raw(self):
-        """The stored frames array (a Zarr array; may hold rows past :attr:`n_frames` in an
-        interrupted capture), for lazy readers such as dask."""
-        return self.recording.group["frames"]
+        """The stored frames, exactly :attr:`n_frames` rows, read lazily and checked against their
+        checksums (:class:`~flexvox_core.recording.VerifiedRows`), for lazy readers such as dask."""
+        return self.recording.frames
 
     def read(self, start: int = 0, stop: int | None = None) -> np.ndarray:
         """Camera frames ``[start, stop)`` as reconstruction input.

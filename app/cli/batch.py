@@ -27,7 +27,9 @@ def register(sub) -> None:
     p.add_argument("recording", type=Path, metavar="REC", help="a flexvox recording (.zarr)")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT.zarr", help="Zarr store to write")
     p.add_argument("--scheduler", metavar="ADDRESS", help="dask.distributed scheduler, e.g. tcp://host:8786")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing output")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing output (never the input; the old output stays until every chunk of "
+                        "the new one is written)")
     add_method_options(p, chunk=32)
     p.set_defaults(func=run)
 

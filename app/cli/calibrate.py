@@ -62,6 +62,8 @@ def register(sub) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     p.add_argument("-o", "--output", type=Path, metavar="CAL.json",
                    help="write the calibration (homography + sync) when every step succeeds")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing CAL.json (the old file stays until the new one is complete)")
     add_screen_options(p)
     p.set_defaults(func=run)
 
@@ -114,9 +116,14 @@ def run(args) -> int:
 
     if args.list_screens:
         return list_screens()
-    if args.output is not None and not args.output.expanduser().parent.is_dir():
-        raise CliError(f"cannot write {args.output}: the folder {args.output.parent} does not exist (checked before "
-                       "calibrating, so the run is not lost)")
+    if args.output is not None:
+        from flexvox_core.output_files import OutputError, check_output
+
+        rig_file = None if args.rig == "mock" else Path(args.rig)
+        try:  # checked before calibrating, so the run is not lost
+            check_output(args.output, overwrite=args.overwrite, inputs=[rig_file])
+        except OutputError as exc:
+            raise CliError(f"{exc} (checked before calibrating, so no run is lost)") from None
     try:
         spec = resolve_rig(args.rig)
     except ValueError as exc:
@@ -140,7 +147,8 @@ def _calibrate(args, spec, display=None, interrupted=None) -> int:
         finally:
             rig.close()
         if ok and args.output is not None:
-            save_calibration(args.output, keep["homography"], session.identity, sync=keep.get("sync"))
+            save_calibration(args.output, keep["homography"], session.identity, sync=keep.get("sync"),
+                             overwrite=args.overwrite)
     except (CalibrationError, DeviceError, ValueError) as exc:
         raise CliError(str(exc).splitlines()[0]) from None
     elapsed = time.perf_counter() - t0

@@ -54,6 +54,7 @@ def register(sub) -> None:
                    help="an S-matrix multiplexed code instead (K must be 3 mod 4: 1x3, 1x7, 3x5, 5x7)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
     p.add_argument("-o", "--output", type=Path, metavar="CODE.json", help="also write the code as JSON")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing CODE.json")
     p.set_defaults(func=run)
 
 
@@ -68,13 +69,17 @@ def _resolution_table(divisions) -> str:
     return "\n".join(lines)
 
 
-def _write(path: Path | None, payload: dict) -> None:
+def _write(path: Path | None, payload: dict, overwrite: bool) -> None:
     if path is None:
         return
+    from flexvox_core.output_files import OutputError, write_text_atomic
+
     try:
-        path.write_text(json.dumps(payload, indent=1) + "\n")
+        write_text_atomic(path, json.dumps(payload, indent=1) + "\n", overwrite=overwrite)
+    except OutputError as exc:
+        raise CliError(str(exc)) from None
     except OSError as exc:
-        raise CliError(f"cannot write {path}: {exc.strerror}") from None
+        raise CliError(f"cannot write {path}: {exc.strerror or exc}") from None
 
 
 def _load_code(path: Path) -> np.ndarray:
@@ -88,6 +93,13 @@ def _load_code(path: Path) -> np.ndarray:
 
 def run(args) -> int:
     """Carry out ``flexvox design``."""
+    if args.output is not None:
+        from flexvox_core.output_files import OutputError, check_output
+
+        try:  # before the solve, which can take seconds
+            check_output(args.output, overwrite=args.overwrite, inputs=[args.verify])
+        except OutputError as exc:
+            raise CliError(str(exc)) from None
     if args.verify is not None:
         code = _load_code(args.verify)
         try:
@@ -115,7 +127,7 @@ def run(args) -> int:
             raise CliError(str(exc)) from None
         payload = mc.as_dict()
         payload["resolutions"] = [d.as_dict() for d in verify(code_from_order(mc.placement)).supported]
-        _write(args.output, payload)
+        _write(args.output, payload, args.overwrite)
         if args.json:
             print(json.dumps(payload))
             return EXIT_OK
@@ -138,7 +150,7 @@ def run(args) -> int:
     result = design_code((m, n), divisions=divisions, separation=args.separation)
     payload = result.as_dict()
     if result.success:
-        _write(args.output, payload)
+        _write(args.output, payload, args.overwrite)
     if args.json:
         print(json.dumps(payload))
         return EXIT_OK if result.success else EXIT_FAILED

@@ -39,6 +39,20 @@ def fail(prog: str, message: str) -> int:
     return EXIT_USAGE
 
 
+def positive_fps(text: str) -> float:
+    """``--fps``: a playback rate above 0 and at most 1000 frames per second."""
+    from flexvox_core.video_io import check_fps
+
+    try:
+        value = float(text)
+    except ValueError:
+        raise ValueError(f"--fps must be a number of frames per second; got {text!r}") from None
+    try:
+        return check_fps(value)
+    except ValueError:
+        raise ValueError(f"--fps must be above 0 and at most 1000 frames per second; got {text!r}") from None
+
+
 def arg_type(parse):
     """Wrap a ``ValueError``-raising parser as an argparse ``type=`` (message kept)."""
 

@@ -14,20 +14,27 @@ Formats, by the output's suffix:
     A Zarr v3 group with array ``video`` (float32 in [0, 1]), as ``flexvox reconstruct`` writes.
 no suffix
     A folder of 16-bit PNGs ``frame_00000.png`` ...: uint16 counts as they are, float
-    values in [0, 1] scaled to 0..65535.
+    values in [0, 1] scaled to 0..65535. ``--overwrite`` replaces only a folder that holds
+    nothing but an earlier export's PNGs.
+
+Every output is written to a hidden temporary sibling and moved into place when complete; an
+output that is (or holds, or lies inside) the input recording is refused, whatever the flags.
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
 
-from app.cli.errors import EXIT_OK, CliError
+from app.cli.errors import EXIT_OK, CliError, arg_type, positive_fps
 from app.cli.method_options import add_method_options, method_from_args
+from flexvox_core.output_files import OutputError, atomic_output, check_output
 from flexvox_core.recording import RecordingError, open_recording
 
 WHAT = ("frames", "ground-truth", "reconstruction")
+_PNG_NAME = re.compile(r"frame_\d{5,}\.png")
 FORMATS = (".tif", ".tiff", ".npy", ".mp4", ".zarr", "(folder: PNG)")
 
 
@@ -46,8 +53,11 @@ def register(sub) -> None:
     p.add_argument("recording", type=Path, metavar="REC", help="a flexvox recording (.zarr)")
     p.add_argument("--what", choices=WHAT, default="frames", help="what to export (default frames)")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT", help="output file or folder")
-    p.add_argument("--fps", type=float, help="MP4 playback rate (default: the camera rate for frames, else 30)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing output")
+    p.add_argument("--fps", type=arg_type(positive_fps),
+                   help="MP4 playback rate (default: the camera rate for frames, else 30)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing output (never the input; a folder only when it holds nothing but an "
+                        "earlier export's PNGs; the old output stays until the new one is complete)")
     add_method_options(p, chunk=16)
     p.set_defaults(func=run)
 
@@ -65,7 +75,7 @@ class _Source:
         elif what == "ground-truth":
             if not rec.has_ground_truth:
                 raise CliError(f"{rec.path} holds no ground truth (only simulated recordings have one)")
-            self.array = rec.group["ground_truth"]
+            self.array = rec.ground_truth_rows
             self.dtype = np.dtype(np.float32)
             self.rate = rec.attrs["rates"]["subframe_hz"]
         else:
@@ -108,26 +118,21 @@ def _write(out: Path, src: _Source, fps: float) -> None:
         arr.flush()
         del arr
     elif suffix == ".mp4":
-        import cv2
+        from flexvox_core.video_io import write_mp4
 
-        H, W = src.shape[1:]
-        writer = cv2.VideoWriter(str(out), cv2.VideoWriter_fourcc(*"mp4v"), float(fps), (W, H), False)
-        if not writer.isOpened():
-            raise CliError(f"cannot write {out}: OpenCV has no MP4 encoder here")
         try:
-            for i in range(n):
-                writer.write((src.unit(i) * 255 + 0.5).astype(np.uint8))
-        finally:
-            writer.release()
+            write_mp4(out, (src.unit(i) for i in range(n)), src.shape[1:], fps)
+        except ValueError as exc:
+            raise CliError(str(exc)) from None
     elif suffix == ".zarr":
         from flexvox_core.video_io import write_video
 
         write_video(out, np.stack([src.unit(i) for i in range(n)]) if n else np.zeros((0, *src.shape[1:])),
-                    attrs={"source": str(src.rec.path), "what": src.what}, overwrite=True)
+                    attrs={"source": str(src.rec.path), "what": src.what})
     else:
         import cv2
 
-        out.mkdir(parents=True, exist_ok=True)
+        out.mkdir()
         for i in range(n):
             row = src.row(i) if src.dtype == np.uint16 else (src.unit(i) * 65535 + 0.5).astype(np.uint16)
             if not cv2.imwrite(str(out / f"frame_{i:05d}.png"), row):
@@ -140,19 +145,27 @@ def run(args) -> int:
     suffix = out.suffix.lower()
     if suffix and suffix not in FORMATS:
         raise CliError(f"-o {out}: the output must end in .tif, .tiff, .npy, .mp4 or .zarr, or be a folder (PNG)")
-    if out.exists() and not args.overwrite:
-        raise CliError(f"{out} already exists (use --overwrite)")
-    if not out.parent.is_dir():
-        raise CliError(f"cannot write {out}: the folder {out.parent} does not exist")
     try:
+        check_output(out, overwrite=args.overwrite, inputs=[args.recording])
+        if suffix == "" and out.is_dir():
+            others = sorted(p.name for p in out.iterdir() if not _PNG_NAME.fullmatch(p.name))
+            if others:
+                raise OutputError(f"{out} holds other files than an earlier export's PNGs ({', '.join(others[:3])}"
+                                  f"{', ...' if len(others) > 3 else ''}); --overwrite replaces only such a folder: "
+                                  "choose a new folder")
         rec = open_recording(args.recording)
     except RecordingError as exc:
         raise CliError(str(exc)) from None
+    except OutputError as exc:
+        raise CliError(str(exc)) from None
     src = _Source(rec, args.what, args)
-    if out.exists() and args.overwrite and out.is_dir() and suffix == "":
-        for old in out.glob("frame_*.png"):
-            old.unlink()
     fps = args.fps or (src.rate if args.what == "frames" else 30.0)
-    _write(out, src, fps)
+    try:
+        with atomic_output(out, overwrite=args.overwrite) as tmp:
+            _write(tmp, src, fps)
+    except (RecordingError, OutputError) as exc:  # a damaged chunk found while writing: nothing was replaced
+        raise CliError(f"{exc}; {out} was not written") from None
+    except OSError as exc:
+        raise CliError(f"cannot write {out}: {exc.strerror or exc}; nothing was replaced") from None
     print(f"wrote {args.what} ({src.shape[0]} x {src.shape[1]}x{src.shape[2]} {src.dtype}) to {out}")
     return EXIT_OK

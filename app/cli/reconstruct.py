@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
+import sys
 import time
 from pathlib import Path
 
 from tqdm import tqdm
 
-from app.cli.errors import EXIT_OK, CliError
+from app.cli.errors import EXIT_OK, CliError, arg_type, positive_fps
 from app.cli.method_options import add_method_options, method_from_args
 from flexvox_core.capture_reader import open_capture
 from flexvox_core.methods import reconstruct, specs
+from flexvox_core.output_files import check_output, refuse_output_onto_input
 from flexvox_core.recording import RecordingError
 from flexvox_core.video_io import WRITABLE, write_video
 
@@ -36,9 +38,12 @@ def register(sub) -> None:
     p.add_argument("--figures", type=Path, metavar="DIR",
                    help="motion-aware: write flow (colour wheel, quiver), resolution map and a panel "
                         "like the seed's Figs. 7-8 as PNGs")
-    p.add_argument("--fps", type=float, default=30.0, help="playback rate of an .mp4 output (default 30)")
+    p.add_argument("--fps", type=arg_type(positive_fps), default=30.0,
+                   help="playback rate of an .mp4 output (default 30)")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT", help="output file")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing output")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing output (never the input recording; the old output stays until the "
+                        "new one is complete)")
     p.set_defaults(func=run)
 
 
@@ -47,8 +52,9 @@ def run(args) -> int:
     try:
         if args.output.suffix.lower() not in WRITABLE:
             raise ValueError(f"-o {args.output}: the output must end in {', '.join(WRITABLE)}")
-        if args.output.exists() and not args.overwrite:
-            raise ValueError(f"{args.output} already exists (use --overwrite)")
+        check_output(args.output, overwrite=args.overwrite, inputs=[args.recording])
+        if args.figures is not None:
+            refuse_output_onto_input(args.figures, [args.recording])
         reader = open_capture(args.recording)
         rec = reader.recording
         method = method_from_args(args, rec.attrs["tile"])
@@ -67,18 +73,26 @@ def run(args) -> int:
             video = reconstruct(frames, code, method, chunk_frames=args.chunk, progress=progress)
         except ValueError as exc:
             raise CliError(str(exc)) from None
+    truth = None
+    if rec.has_ground_truth:
+        try:
+            truth = rec.ground_truth()  # read (and checked) before anything is written
+        except RecordingError as exc:
+            print(f"warning: no PSNR: {exc}", file=sys.stderr)
     seconds = time.perf_counter() - t0
     attrs = {"source": str(args.recording), "method": method.as_dict(), "seconds": seconds}
     try:
         write_video(args.output, video, fps=args.fps, attrs=attrs, overwrite=args.overwrite)
     except ValueError as exc:
         raise CliError(str(exc)) from None
+    except OSError as exc:
+        raise CliError(f"cannot write {args.output}: {exc.strerror or exc}; nothing was replaced") from None
     line = f"{method.label()}: {video.shape[0]} sub-frames of {H}x{W} in {seconds:.2f} s"
     line += f" ({video.size / max(seconds, 1e-9) / 1e6:.0f} M voxels/s)"
-    if rec.has_ground_truth:
+    if truth is not None:
         from flexvox_core.metrics import psnr
 
-        line += f"; PSNR vs ground truth {psnr(rec.ground_truth(), video).mean:.2f} dB"
+        line += f"; PSNR vs ground truth {psnr(truth, video).mean:.2f} dB"
     print(line)
     print(f"wrote {args.output}")
     if args.figures:

@@ -110,7 +110,7 @@ def test_export_refuses_bad_requests(recording, tmp_path):
     with pytest.raises(CliError, match=r"the output must end in .tif, .tiff, .npy, .mp4 or .zarr"):
         cli(["export", str(recording), "-o", str(tmp_path / "x.gif")])
     (tmp_path / "x.npy").write_bytes(b"")
-    with pytest.raises(CliError, match=r"already exists \(use --overwrite\)"):
+    with pytest.raises(CliError, match=r"already exists; use --overwrite to replace it"):
         cli(["export", str(recording), "-o", str(tmp_path / "x.npy")])
     attrs = recording_attrs(np.eye(4, dtype=bool).reshape(2, 2, 4), rate_hz=30.0, kind="captured",
                             storage={"kind": "float"})

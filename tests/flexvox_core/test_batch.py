@@ -67,5 +67,8 @@ def test_chunks_and_refusals(rec_path, tmp_path):
     assert ov > 1 and video.chunks[0][0] >= ov * 4  # chunks raised to the overlap
     with pytest.raises(ValueError, match=r"`chunk_frames` must be a whole number >= 1; got 0"):
         batch_video(rec, Method(), chunk_frames=0)
-    with pytest.raises(ValueError, match=r"already exists"):
-        reconstruct_batch(rec_path, rec_path, Method())
+    with pytest.raises(ValueError, match=r"is the input .*: an output never replaces its input, whatever the flags"):
+        reconstruct_batch(rec_path, rec_path, Method(), overwrite=True)
+    (tmp_path / "old.zarr").mkdir()
+    with pytest.raises(ValueError, match=r"old.zarr already exists; choose another path or allow overwriting"):
+        reconstruct_batch(rec_path, tmp_path / "old.zarr", Method())

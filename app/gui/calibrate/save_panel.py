@@ -9,7 +9,7 @@ from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import QFileDialog, QGroupBox, QHBoxLayout, QLabel, QLineEdit, QPushButton, QVBoxLayout
 
 from app.gui.models.calibration_model import CalibrationOutcome
-from app.gui.widgets.rich_text import GREEN, RED, coloured
+from app.gui.widgets.rich_text import AMBER, GREEN, RED, coloured
 from app.gui.widgets.settings import AppSettings
 
 
@@ -30,6 +30,8 @@ class SavePanel(QGroupBox):
         self.outcome: CalibrationOutcome | None = None
         self.saved_path: Path | None = None
         """Where the current outcome was saved (None: not saved)."""
+        self._replace_ok: Path | None = None
+        """An existing file the operator agreed to replace (a second Save, or the file dialog's question)."""
         self.path = QLineEdit(settings.get_str("calibrate/path", ""))
         self.path.setPlaceholderText("folder/rig-calibration.json")
         self.browse = QPushButton("Browse…")
@@ -77,9 +79,14 @@ class SavePanel(QGroupBox):
         path, _ = QFileDialog.getSaveFileName(self, "Save calibration", start, "Calibration (*.json)")
         if path:
             self.path.setText(path)
+            self._replace_ok = Path(path).expanduser()  # the dialog asked before it returned an existing file
 
     def save(self, path) -> Path | None:
-        """Write the calibration file; None (with the reason shown) when it cannot."""
+        """Write the calibration file; None (with the reason shown) when it cannot.
+
+        An existing file is replaced only once the operator agreed: the first Save says it exists,
+        the second replaces it (atomically: the old file stays until the new one is complete).
+        """
         from calibration.errors import CalibrationError
         from calibration.files import save_calibration
 
@@ -89,9 +96,15 @@ class SavePanel(QGroupBox):
         if not str(path):
             self.label.setText(coloured("choose where to save (folder/name.json)", RED))
             return None
+        target = Path(path).expanduser()
+        if target.exists() and self._replace_ok != target:
+            self._replace_ok = target
+            self.label.setText(coloured(f"{target} exists: press Save again to replace it", AMBER))
+            return None
+        self._replace_ok = None
         try:
-            written = save_calibration(Path(path).expanduser(), self.outcome.homography, self.outcome.identity,
-                                       sync=self.outcome.sync)
+            written = save_calibration(target, self.outcome.homography, self.outcome.identity,
+                                       sync=self.outcome.sync, overwrite=True)
         except CalibrationError as exc:
             self.label.setText(coloured(f"not saved: {exc}", RED))
             return None

@@ -33,7 +33,7 @@ from PySide6.QtWidgets import (
 from app.gui.models.calibration_model import CalibrationTarget
 from app.gui.models.jobs import CancelToken
 from app.gui.widgets.qt_jobs import JobHandle, JobRunner
-from app.gui.widgets.rich_text import GREEN, RED
+from app.gui.widgets.rich_text import AMBER, GREEN, RED
 
 _logger = logging.getLogger(__name__)
 
@@ -278,9 +278,11 @@ class SavePage(QWizardPage):
         v.addStretch(1)
         self.button.clicked.connect(lambda: self.save(self.path.text().strip()))
         self.written: Path | None = None
+        self._replace_ok: Path | None = None
 
     def save(self, path) -> Path | None:
-        """Write the profile; None (with the reason shown) when it cannot."""
+        """Write the profile; None (with the reason shown) when it cannot. An existing file is
+        replaced only when Save is pressed a second time for it."""
         from calibration.errors import CalibrationError
         from calibration.sync import save_sync_profile
 
@@ -290,9 +292,15 @@ class SavePage(QWizardPage):
         if not str(path):
             _say(self.label, "choose where to save (folder/name.json)", RED)
             return None
+        target = Path(path).expanduser()
+        if target.exists() and self._replace_ok != target:
+            self._replace_ok = target
+            _say(self.label, f"{target} exists: press Save again to replace it", AMBER)
+            return None
+        self._replace_ok = None
         try:
-            written = save_sync_profile(Path(path).expanduser(), self.owner.sync, self.owner.identity,
-                                        frame_check=self.owner.frame_check)
+            written = save_sync_profile(target, self.owner.sync, self.owner.identity,
+                                        frame_check=self.owner.frame_check, overwrite=True)
         except CalibrationError as exc:
             _say(self.label, f"not saved: {exc}", RED)
             return None

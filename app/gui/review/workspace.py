@@ -33,6 +33,7 @@ from app.gui.widgets.qt_jobs import JobHandle, JobRunner
 from app.gui.widgets.rich_text import RED, coloured
 from app.gui.widgets.settings import AppSettings
 from app.gui.widgets.workspace_layout import controls_beside_view
+from flexvox_core.output_files import OutputError, check_output
 from flexvox_core.video_io import write_video
 
 _logger = logging.getLogger(__name__)
@@ -426,6 +427,11 @@ class ReviewWorkspace(QWidget):
             return None
         path = Path(path)
         self.settings.set("review/export_dir", str(path.parent))
+        try:  # never onto the recording under review; the folder must take the file
+            check_output(path, overwrite=overwrite, inputs=[self.session.path])
+        except OutputError as exc:
+            self.export_label.setText(coloured(f"not exported: {exc}", RED))
+            return None
         attrs = {"source": str(self.session.path), "method": r.method.as_dict(), "seconds": r.seconds}
         fps = float(self.fps.value())
         video = r.video

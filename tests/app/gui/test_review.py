@@ -139,10 +139,10 @@ def test_export_writes_the_reconstruction(qtbot, opened, tmp_path, suffix):
         np.testing.assert_array_equal(tifffile.imread(path), r.video)
     else:
         assert path.stat().st_size > 1000
-    again = opened.export(path)  # no silent overwrite
-    qtbot.waitUntil(lambda: not again.running, timeout=10_000)
-    assert again.outcome == "failed"
+    assert opened.export(path) is None  # no silent overwrite: refused before any work
     assert "already exists" in opened.export_label.text()
+    assert opened.export(opened.session.path) is None  # never onto the recording under review
+    assert "an output never replaces its input" in opened.export_label.text()
 
 
 def test_export_needs_a_full_reconstruction(opened):

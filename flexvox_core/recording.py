@@ -198,10 +198,14 @@ class RecordingWriter:
         :meth:`close` (recordings written at once, such as simulations): readers never see a
         partial store, and a failed write (:meth:`discard`) leaves the old one untouched.
         Default False: a capture writes in place, so that what it wrote is there if it is killed.
+    lock : WriterLock, optional
+        The recording's lock, already held by the caller (a capture takes it before it sets up
+        the devices); the caller keeps it and releases it. Default: the writer takes its own.
     """
 
     def __init__(self, path, *, height: int, width: int, dtype, attrs: dict, overwrite: bool = False,
-                 block_frames: int = DEFAULT_BLOCK_FRAMES, fsync: bool = False, atomic: bool = False):
+                 block_frames: int = DEFAULT_BLOCK_FRAMES, fsync: bool = False, atomic: bool = False,
+                 lock=None):
         from flexvox_core.output_files import temporary_sibling
         from flexvox_core.writer_lock import WriterLock
 
@@ -211,7 +215,12 @@ class RecordingWriter:
             raise RecordingError(f"frames must be float32 or uint16; got {dtype}")
         if isinstance(block_frames, bool) or not isinstance(block_frames, int) or not 1 <= block_frames <= 65536:
             raise RecordingError(f"`block_frames` must be a whole number 1..65536; got {block_frames!r}")
-        self._lock = WriterLock(self.path).acquire()  # OutputBusyError (a ValueError) names the holder
+        if lock is not None:
+            if not (lock.held and lock.path.resolve() == self.path.expanduser().resolve()):
+                raise RecordingError(f"`lock` must be the held lock of {self.path}")
+            self._lock, self._own_lock = lock, False
+        else:  # OutputBusyError (a ValueError) names the holder
+            self._lock, self._own_lock = WriterLock(self.path).acquire(), True
         self._fd = None
         self._replaced: Path | None = None
         self._atomic = bool(atomic)
@@ -422,7 +431,8 @@ class RecordingWriter:
                 os.close(self._fd)
                 self._fd = None
             self.closed = True
-            self._lock.release()
+            if self._own_lock:
+                self._lock.release()
 
     def discard(self) -> None:
         """Give up an unfinished write: an atomic writer's store is removed and an overwritten
@@ -445,7 +455,8 @@ class RecordingWriter:
                 self._replaced = None
         finally:
             self.closed = True
-            self._lock.release()
+            if self._own_lock:
+                self._lock.release()
 
     def __enter__(self):
         return self

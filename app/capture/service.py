@@ -62,9 +62,12 @@ import numpy as np
 from app.capture.plan import CapturePlan
 from app.capture.rig_setup import CaptureError, RigSetup, set_up_rig, stop_rig
 from calibration.capture_setup import CaptureCalibration
+from flexvox_core import output_files
 from flexvox_core._version import __version__
 from flexvox_core.multiplex import MultiplexedCode
+from flexvox_core.output_errors import OutputError
 from flexvox_core.recording import RecordingError, RecordingWriter, open_recording, recording_attrs
+from flexvox_core.writer_lock import WriterLock
 from rig_drivers.errors import DeviceError, DeviceTimeoutError
 from rig_drivers.interfaces import DeviceState, Frame
 
@@ -235,15 +238,16 @@ Writer = RecordingWriter
 ``count``, ``write_ground_truth_frames(rows)``, ``close(attrs_update=)``."""
 
 
-def check_output(path, *, overwrite: bool = False) -> Path:
-    """The recording path a capture may create: refused when it exists (without ``overwrite``) or its folder does
-    not. Front ends call it before they open a rig, so the operator hears it at once."""
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise CaptureError(f"{path} already exists; choose another path or allow overwriting")
-    if not path.parent.is_dir():
-        raise CaptureError(f"cannot write {path}: the folder {path.parent} does not exist")
-    return path
+def check_output(path, *, overwrite: bool = False, inputs=()) -> Path:
+    """The recording path a capture may create (:func:`flexvox_core.output_files.check_output`): refused
+    when it is one of ``inputs`` (a code, calibration or rig file), exists (without ``overwrite``), is
+    being written by another capture, or its folder does not exist or refuses files. Front ends call
+    it before they open a rig, so the operator hears it at once."""
+    try:
+        return output_files.check_output(path, overwrite=overwrite, inputs=inputs,
+                                         hint="choose another path or allow overwriting")
+    except OutputError as exc:
+        raise CaptureError(str(exc)) from None
 
 
 def default_storage(dtype) -> dict:
@@ -283,9 +287,15 @@ class CaptureService:
         Simulated rigs: store the scene's high-speed video of the frames recorded as ``ground_truth``
         when the capture ends without error (refused on a real rig).
     writer_factory : callable, optional
-        ``(path, height=, width=, dtype=, attrs=, overwrite=) -> writer`` (tests inject slow
-        or failing writers). Default :class:`~flexvox_core.recording.RecordingWriter`.
+        ``(path, height=, width=, dtype=, attrs=, overwrite=, fsync=, lock=) -> writer`` (tests
+        inject slow or failing writers). Default :class:`~flexvox_core.recording.RecordingWriter`.
     overwrite : bool
+        Replace an existing recording (never one another capture is writing: the recording's
+        :class:`~flexvox_core.writer_lock.WriterLock` is taken in :meth:`start`, before any device
+        is set up, and held until the recording is closed).
+    durable : bool
+        Flush every frame's chunk and journal record to the disk before the next frame (a power
+        cut loses at most the frame in flight; slower: ``bench/bench_durable.py``).
     rig_info : dict, optional
         Extra entries for the recording's ``rig`` attribute.
     """
@@ -294,7 +304,8 @@ class CaptureService:
                  calibration: CaptureCalibration | None = None, sync: SyncSetting | None = None,
                  queue_policy: QueuePolicy | None = None, projector_size=None, storage: dict | None = None,
                  ground_truth: bool = False,
-                 writer_factory: Callable | None = None, overwrite: bool = False, rig_info: dict | None = None):
+                 writer_factory: Callable | None = None, overwrite: bool = False, durable: bool = False,
+                 rig_info: dict | None = None):
         if not isinstance(plan, CapturePlan):
             raise CaptureError(f"`plan` must be a CapturePlan (app.capture.plan); got {type(plan).__name__}")
         try:
@@ -322,6 +333,8 @@ class CaptureService:
         self._ground_truth = self._truth_of(rig) if ground_truth else None
         self._writer_factory = writer_factory or RecordingWriter
         self._overwrite = overwrite
+        self._durable = bool(durable)
+        self._path_lock = WriterLock(self.path)
         self._rig_info = dict(rig_info or {})
 
         self._queue: queue.Queue = queue.Queue(maxsize=self.policy.capacity)
@@ -403,13 +416,22 @@ class CaptureService:
         clock = getattr(getattr(self.rig, "simulated", None), "clock", None)
         if hasattr(clock, "resync"):  # a paced simulated clock: building the rig took wall time, not frames
             clock.resync()
+        try:  # one writer per recording: refused here, before any device is touched
+            self._path_lock.acquire()
+            if self.path.exists() and not self._overwrite:  # it may have appeared since the service was made
+                raise CaptureError(f"{self.path} already exists; choose another path or allow overwriting")
+        except (OutputError, CaptureError) as exc:
+            self._path_lock.release()
+            raise CaptureError(str(exc)) from None
         try:
             self._setup()
         except CaptureError:
             self._teardown()
+            self._path_lock.release()
             raise
         except (DeviceError, ValueError) as exc:
             self._teardown()
+            self._path_lock.release()
             raise CaptureError(f"cannot set up the rig: {exc}") from exc
         self._t_start = time.perf_counter()
         self._state = CaptureState.RUNNING
@@ -628,7 +650,7 @@ class CaptureService:
                                 multiplexed=multiplexed, placement=shutter.placement if multiplexed else None,
                                 source=f"flexvox {__version__} capture")
         self._writer = self._writer_factory(self.path, height=H, width=W, dtype=store, attrs=attrs,
-                                            overwrite=self._overwrite)
+                                            overwrite=self._overwrite, fsync=self._durable, lock=self._path_lock)
 
     def _append(self, image, frame_id: int, timestamp: float, dropped: bool) -> None:
         t0 = time.perf_counter()
@@ -687,6 +709,7 @@ class CaptureService:
                     self._writer.close()
                 except (OSError, RecordingError) as exc2:
                     _logger.error("capture: closing %s failed again: %s", self.path, exc2)
+        self._path_lock.release()
         self._state = CaptureState.DONE
         held = None
         try:

@@ -88,7 +88,12 @@ def register(sub) -> None:
     p.add_argument("--block", type=float, default=0.5, metavar="S",
                    help="seconds the camera reader waits for queue room before it discards a frame "
                         "(recorded as dropped; default 0.5)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing recording")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing recording (never one another capture is writing; the old one is "
+                        "deleted once the new one closes with frames)")
+    p.add_argument("--durable", action="store_true",
+                   help="flush every frame's chunk and journal record to the disk before the next frame: a power "
+                        "cut loses at most the frame in flight (slower; see docs/recording-format.md)")
     add_screen_options(p)
     p.set_defaults(func=run)
 
@@ -115,7 +120,9 @@ def _build(args, display=None):
 
     if args.frames is not None and args.frames < 1:
         raise ValueError(f"--frames must be >= 1; got {args.frames}")
-    check_output(args.output, overwrite=args.overwrite)  # before the rig is built (a scene renders for seconds)
+    rig_file = None if args.rig == "mock" else Path(args.rig)
+    check_output(args.output, overwrite=args.overwrite,  # before the rig is built (a scene renders for seconds)
+                 inputs=[args.code, args.calibration, args.sync_profile, rig_file])
     plan = _plan(args)
     plan.code  # noqa: B018 - refuse an impossible code before any device is opened
     if args.rig == "mock":
@@ -130,6 +137,7 @@ def _build(args, display=None):
         sync=SyncSetting(delay_set_by_hand=args.delay_set_by_hand),
         queue_policy=QueuePolicy(capacity=args.queue, block_s=args.block),
         projector_size=args.projector_size, ground_truth=args.ground_truth, overwrite=args.overwrite,
+        durable=args.durable,
         rig_info={"profile": args.rig})
     return service
 

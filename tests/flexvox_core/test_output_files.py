@@ -1,0 +1,151 @@
+"""Outputs never destroy inputs: the checks before work, atomic replacement, one writer per path."""
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from flexvox_core.output_errors import OutputBusyError, OutputError
+from flexvox_core.output_files import (
+    atomic_output,
+    check_output,
+    check_writable,
+    refuse_output_onto_input,
+    write_text_atomic,
+)
+from flexvox_core.writer_lock import WriterLock, lock_holder, lock_path
+
+
+def test_an_output_is_never_its_input_whatever_the_spelling(tmp_path):
+    rec = tmp_path / "rec.zarr"
+    rec.mkdir()
+    (rec / "zarr.json").write_text("{}")
+    with pytest.raises(OutputError, match=r"is the input .*rec.zarr: an output never replaces its input"):
+        refuse_output_onto_input(tmp_path / "sub" / ".." / "rec.zarr", [rec])
+    os.symlink(rec, tmp_path / "link.zarr")
+    with pytest.raises(OutputError, match=r"is the input"):
+        check_output(tmp_path / "link.zarr", overwrite=True, inputs=[rec])
+    with pytest.raises(OutputError, match=r"holds the input"):
+        check_output(tmp_path, overwrite=True, inputs=[rec])
+    with pytest.raises(OutputError, match=r"lies inside the input"):
+        check_output(rec / "video.npy", overwrite=True, inputs=[rec])
+    os.link(rec / "zarr.json", tmp_path / "hard.json")
+    with pytest.raises(OutputError, match=r"is the input"):
+        refuse_output_onto_input(tmp_path / "hard.json", [rec / "zarr.json"])
+    refuse_output_onto_input(tmp_path / "rec2.zarr", [rec, None])  # a sibling is fine
+
+
+def test_check_output_rules(tmp_path):
+    (tmp_path / "old.npy").write_bytes(b"x")
+    with pytest.raises(OutputError, match=r"old.npy already exists; use --overwrite to replace it"):
+        check_output(tmp_path / "old.npy")
+    assert check_output(tmp_path / "old.npy", overwrite=True) == tmp_path / "old.npy"
+    with pytest.raises(OutputError, match=r"cannot write .*x.npy: the folder .*nowhere does not exist"):
+        check_output(tmp_path / "nowhere" / "x.npy")
+    (tmp_path / "afile").write_text("")
+    with pytest.raises(OutputError, match=r"the folder .*afile does not exist"):
+        check_output(tmp_path / "afile" / "x.npy")
+
+
+def _read_only_folder(tmp_path):
+    """A folder that refuses new files, for this user (root ignores permissions: then /proc/sys)."""
+    if os.geteuid() != 0:
+        folder = tmp_path / "ro"
+        folder.mkdir()
+        folder.chmod(0o555)
+        return folder
+    return "/proc/sys"
+
+
+def test_a_read_only_folder_is_refused_before_any_work(tmp_path):
+    folder = _read_only_folder(tmp_path)
+    with pytest.raises(OutputError, match=r"cannot write .*out.npy: the folder .* does not accept new files \("):
+        check_output(f"{folder}/out.npy")
+    with pytest.raises(OutputError, match=r"does not accept new files"):
+        check_writable(folder)
+    check_writable(tmp_path)
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".flexvox-probe")] == []
+
+
+def test_atomic_output_replaces_only_when_complete(tmp_path):
+    out = tmp_path / "v.npy"
+    out.write_bytes(b"old")
+    with pytest.raises(RuntimeError, match="disk full"), atomic_output(out, overwrite=True) as tmp:
+        assert tmp.suffix == ".npy" and tmp.name.startswith(".v.partial-") and tmp.parent == tmp_path
+        tmp.write_bytes(b"half")
+        raise RuntimeError("disk full")
+    assert out.read_bytes() == b"old" and sorted(p.name for p in tmp_path.iterdir()) == ["v.npy"]
+    with atomic_output(out, overwrite=True) as tmp:
+        tmp.write_bytes(b"new")
+    assert out.read_bytes() == b"new" and sorted(p.name for p in tmp_path.iterdir()) == ["v.npy"]
+    with pytest.raises(OutputError, match=r"nothing was written"), atomic_output(tmp_path / "none.npy"):
+        pass
+
+
+def test_atomic_output_replaces_a_folder_and_keeps_it_on_failure(tmp_path):
+    out = tmp_path / "store.zarr"
+    out.mkdir()
+    (out / "old").write_text("old")
+    with pytest.raises(OSError), atomic_output(out, overwrite=True) as tmp:
+        tmp.mkdir()
+        raise OSError(28, "No space left on device")
+    assert (out / "old").read_text() == "old"
+    with atomic_output(out, overwrite=True) as tmp:
+        tmp.mkdir()
+        (tmp / "new").write_text("new")
+    assert sorted(p.name for p in out.iterdir()) == ["new"] and sorted(p.name for p in tmp_path.iterdir()) == [
+        "store.zarr"]
+    with pytest.raises(OutputError, match=r"appeared while it was being written"), \
+            atomic_output(out, overwrite=False) as tmp:
+        tmp.mkdir()
+    assert (out / "new").exists()
+
+
+def test_write_text_atomic(tmp_path):
+    p = write_text_atomic(tmp_path / "c.json", "{}\n", overwrite=False)
+    assert p.read_text() == "{}\n"
+    with pytest.raises(OutputError, match=r"c.json appeared while it was being written"):
+        write_text_atomic(tmp_path / "c.json", "[]\n", overwrite=False)
+    assert p.read_text() == "{}\n"
+
+
+def test_one_writer_per_path_and_the_holder_is_named(tmp_path):
+    target = tmp_path / "rec.zarr"
+    assert lock_holder(target) is None
+    with WriterLock(target) as lock:
+        assert lock.held and lock_path(target).exists()
+        holder = lock_holder(target)
+        assert holder is not None and holder.startswith(f"process {os.getpid()}")
+        with pytest.raises(OutputBusyError, match=rf"rec.zarr is being written by process {os.getpid()}"):
+            WriterLock(target).acquire()
+        target.mkdir()
+        with pytest.raises(OutputError, match=r"is being written by process \d+"):
+            check_output(target, overwrite=True)
+    assert not lock_path(target).exists() and lock_holder(target) is None
+    check_output(target, overwrite=True)
+
+
+def test_a_killed_holder_leaves_no_stale_lock(tmp_path):
+    target = tmp_path / "rec.zarr"
+    script = textwrap.dedent(f"""
+        import os, sys
+        from flexvox_core.writer_lock import WriterLock
+        WriterLock({str(target)!r}).acquire()
+        print("held", flush=True)
+        sys.stdin.readline()
+        os._exit(0)
+    """)
+    with subprocess.Popen([sys.executable, "-c", script], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                          text=True) as child:
+        try:
+            assert child.stdout.readline().strip() == "held"
+            assert lock_holder(target).startswith(f"process {child.pid}")
+        finally:
+            child.kill()
+            child.wait(timeout=30)
+    assert lock_path(target).exists()  # the file stays ...
+    assert lock_holder(target) is None  # ... but the OS released the lock with the process
+    with WriterLock(target):
+        pass

@@ -45,7 +45,7 @@ def run(args) -> int:
         method = method_from_args(args, rec.attrs["tile"])
     except (ValueError, RecordingError) as exc:
         raise CliError(str(exc)) from None
-    with tqdm(unit="chunk", desc=method.label(), leave=False, disable=args.scheduler is not None) as bar:
+    with tqdm(unit="chunk", desc=method.label(), leave=False, disable=True if args.scheduler else None) as bar:
         def progress(done, total):
             bar.total = total
             bar.update(done - bar.n)

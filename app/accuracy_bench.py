@@ -11,6 +11,7 @@ Pareto plot ``pareto.png`` (mean PSNR against log time), and returns the rows.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import logging
 import math
@@ -26,6 +27,7 @@ from flexvox_core.forward import capture
 from flexvox_core.methods import Method, reconstruct
 from flexvox_core.metrics import psnr, ssim
 from flexvox_core.motion.pipeline import DEFAULT_TIME as MA_TIME
+from flexvox_core.output_files import write_text_atomic
 from flexvox_core.reconstruct.rebin import supported_divisions
 from flexvox_core.simulate.scenes import render_scene
 
@@ -162,12 +164,14 @@ def pareto(points: list[dict]) -> list[dict]:
 
 
 def _write(out_dir: Path, rows: list[dict]) -> None:
-    with open(out_dir / "results.csv", "w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
+    table = io.StringIO(newline="")
+    writer = csv.DictWriter(table, fieldnames=list(rows[0]))
+    writer.writeheader()
+    writer.writerows(rows)
+    write_text_atomic(out_dir / "results.csv", table.getvalue())
     summ = summary(rows)
-    (out_dir / "results.json").write_text(json.dumps({"rows": rows, "summary": summ, "pareto": pareto(summ)}, indent=1))
+    write_text_atomic(out_dir / "results.json", json.dumps({"rows": rows, "summary": summ, "pareto": pareto(summ)},
+                                                           indent=1))
     plot_pareto(summ, out_dir / "pareto.png")
 
 

@@ -26,6 +26,7 @@ from flexvox_core.divisions import Division
 from flexvox_core.methods import Method, reconstruct
 from flexvox_core.metrics import psnr
 from flexvox_core.motion import motion_aware
+from flexvox_core.output_files import write_text_atomic
 from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, diffuse
 from flexvox_core.reconstruct.rebin import rebin
 from flexvox_core.video_io import write_video
@@ -266,7 +267,7 @@ def run_demo(cfg: DemoConfig, *, step=None) -> DemoResult:
 
     step("report")
     res.seconds = time.perf_counter() - t_start
-    (out / "index.html").write_text(_html(cfg, res, bench_summary, front, design))
+    write_text_atomic(out / "index.html", _html(cfg, res, bench_summary, front, design))
     res.files.append(out / "index.html")
     return res
 

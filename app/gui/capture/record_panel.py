@@ -109,6 +109,11 @@ class RecordPanel(QObject):
         self.frames_box.setSpecialValueText("until Stop")
         self.frames_box.setValue(self.settings.get_int("capture/frames", 150))
         self.overwrite_check = QCheckBox("replace an existing recording")
+        self.durable_check = QCheckBox("flush every frame to disk (survives a power cut; slower)")
+        self.durable_check.setToolTip("flexvox capture --durable: each frame's chunk and journal record reach the "
+                                      "disk before the next frame, so a power cut loses at most the frame in "
+                                      "flight. Without it, a killed program still loses nothing.")
+        self.durable_check.setChecked(self.settings.get_bool("capture/durable", False))
         self.truth_check = QCheckBox("store the scene's ground truth (simulated rig)")
         self.truth_check.setChecked(self.service.simulated)
         self.truth_check.setVisible(self.service.simulated)
@@ -131,7 +136,7 @@ class RecordPanel(QObject):
         f.addRow("frames", self.frames_box)
         rv = QVBoxLayout(rec)  # word-wrapped labels get their full height in a box layout, not a form
         rv.addLayout(f)
-        for w in (self.overwrite_check, self.truth_check):
+        for w in (self.overwrite_check, self.durable_check, self.truth_check):
             rv.addWidget(w)
         rv.addLayout(buttons)
         for w in (self.counters_label, self.recording_label, self.review_button):
@@ -147,12 +152,14 @@ class RecordPanel(QObject):
         self.review_button.clicked.connect(self._ask_review)
         self.path_edit.textChanged.connect(lambda text: self.settings.set("capture/recording_path", text))
         self.frames_box.valueChanged.connect(lambda n: self.settings.set("capture/frames", n))
+        self.durable_check.toggled.connect(lambda on: self.settings.set("capture/durable", on))
 
     def update_buttons(self, plan_ok: bool) -> None:
         """Enable what can be used now (``plan_ok``: the plan's timing is accepted)."""
         self.record_button.setEnabled(plan_ok and not self.recording)
         self.stop_button.setEnabled(self.recording and self._stop_job is None)
-        for w in (self.path_edit, self.browse_button, self.frames_box, self.overwrite_check, self.truth_check):
+        for w in (self.path_edit, self.browse_button, self.frames_box, self.overwrite_check, self.durable_check,
+                  self.truth_check):
             w.setEnabled(not self.recording)
 
     def _browse(self) -> None:
@@ -191,6 +198,7 @@ class RecordPanel(QObject):
             capture = make_capture(self.service, plan, Path(text).expanduser(), frames=frames,
                                    calibration=self._calibration(), delay_set_by_hand=self._delay_set_by_hand(),
                                    overwrite=self.overwrite_check.isChecked(),
+                                   durable=self.durable_check.isChecked(),
                                    ground_truth=self.service.simulated and self.truth_check.isChecked(), **options)
         except (CaptureError, ValueError) as exc:
             self.say(f"cannot record: {exc}", RED)

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from flexvox_core.methods import Method, specs
+from flexvox_core.output_files import write_text_atomic
 
 _logger = logging.getLogger(__name__)
 
@@ -89,7 +90,7 @@ def build_table(csv_path=BENCH_CSV) -> dict:
 def write_table(csv_path=BENCH_CSV, out=TABLE_PATH) -> Path:
     """Write :func:`build_table` as JSON to ``out``."""
     out = Path(out)
-    out.write_text(json.dumps(build_table(csv_path), indent=1) + "\n")
+    write_text_atomic(out, json.dumps(build_table(csv_path), indent=1) + "\n")
     return out
 
 

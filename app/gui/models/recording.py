@@ -30,7 +30,7 @@ CaptureFactory = Callable[..., CaptureService]
 
 
 def make_capture(service: RigService, plan: CapturePlan, path, *, frames: int | None = None,
-                 overwrite: bool = False, ground_truth: bool = False,
+                 overwrite: bool = False, durable: bool = False, ground_truth: bool = False,
                  calibration: CaptureCalibration | None = None, delay_set_by_hand: bool = False,
                  factory: CaptureFactory = CaptureService) -> CaptureService:
     """A capture service for ``plan`` on the rig of ``service``, writing ``path``.
@@ -45,7 +45,9 @@ def make_capture(service: RigService, plan: CapturePlan, path, *, frames: int | 
     frames : int or None
         Frames to record; None records until stopped.
     overwrite : bool
-        Replace an existing recording.
+        Replace an existing recording (never one another capture is writing).
+    durable : bool
+        Flush every frame to the disk before the next (``flexvox capture --durable``).
     ground_truth : bool
         Simulated rig only: store the scene's high-speed video as the recording's ground truth.
     calibration : CaptureCalibration, optional
@@ -68,7 +70,7 @@ def make_capture(service: RigService, plan: CapturePlan, path, *, frames: int | 
     put_scene_in_view(service)
     return factory(service.rig, plan, path, frames=frames, calibration=calibration or CaptureCalibration(),
                    sync=SyncSetting(delay_set_by_hand=delay_set_by_hand), ground_truth=ground_truth,
-                   overwrite=overwrite,
+                   overwrite=overwrite, durable=durable,
                    rig_info={"profile": "mock" if service.simulated else service.name, "source": "flexvox app"})
 
 

@@ -171,3 +171,40 @@ def test_counter_and_result_lines():
     assert counters_text(s, 100) == ("9 of 100 frames written (10 received) · 1 dropped (1 by the queue) · queue 2/64 "
                                      "(max 5) · write 14.9 Hz · camera 15.0 Hz · 0.7 s")
     assert "did not stop within the time allowed" in result_text(None, "x.zarr")
+
+
+class _RecordingFsync(RecordingWriter):
+    """Remembers whether the capture asked for durable writes."""
+
+    seen: list = []
+
+    def __init__(self, *args, fsync=False, **kwargs):
+        _RecordingFsync.seen.append(fsync)
+        super().__init__(*args, fsync=fsync, **kwargs)
+
+
+def test_durable_and_a_second_writer_from_the_workspace(qtbot, settings, runner, tmp_path):
+    from flexvox_core.writer_lock import WriterLock
+
+    factory = partial(CaptureService, writer_factory=_RecordingFsync)
+    ws = _workspace(qtbot, settings, runner, capture_factory=factory)
+    try:
+        path = tmp_path / "d.zarr"
+        ws.record_panel.path_edit.setText(str(path))
+        ws.record_panel.frames_box.setValue(3)
+        ws.record_panel.truth_check.setChecked(False)
+        ws.record_panel.durable_check.setChecked(True)
+        assert settings.get_bool("capture/durable", False)
+        with qtbot.waitSignal(ws.recording_finished, timeout=20_000) as finished:
+            assert ws.record()
+        assert finished.args[0].ok and _RecordingFsync.seen[-1] is True
+        assert open_recording(path).verify() == []
+        ws.record_panel.overwrite_check.setChecked(True)
+        with WriterLock(path):  # another process writes it
+            assert not ws.record()
+        assert re.search(r"cannot record: .*d.zarr is being written by process \d+",
+                         ws.record_panel.recording_label.text())
+        assert open_recording(path).n_frames == 3  # untouched
+    finally:
+        ws.shutdown()
+        ws.service.close()

@@ -52,6 +52,18 @@ def test_open_failure_is_said_in_words(qtbot, review, tmp_path):
     assert review.session is None and not review.reconstruct_button.isEnabled()
 
 
+def test_a_damaged_recording_is_refused_never_shown_as_zeros(qtbot, review, recording, tmp_path):
+    import shutil
+
+    damaged = tmp_path / "damaged.zarr"
+    shutil.copytree(recording, damaged)
+    (damaged / "frames" / "c" / "4" / "0" / "0").unlink()
+    review.open_recording(damaged)
+    qtbot.waitUntil(lambda: "cannot open" in review.path_label.text(), timeout=5000)
+    assert "frames row 4 is damaged: its chunk file is missing" in review.path_label.text()
+    assert review.session is None
+
+
 @pytest.mark.parametrize("method, knobs", [
     ("rebin", {"position": 0.5}),  # the balanced division (2x1x4 / 1x2x4)
     ("diffusion", {"position": 0.18}),  # the default tensor

@@ -59,6 +59,21 @@ def test_info_exits_1_on_damage_and_2_when_missing(recording, tmp_path, capsys):
         cli(["info", str(tmp_path / "none.zarr")])
 
 
+def test_info_checks_every_chunk_unless_quick(recording, capsys):
+    (recording / "frames" / "c" / "3" / "0" / "0").unlink()
+    (recording / "ground_truth" / "c" / "7" / "0" / "0").unlink()
+    assert cli(["info", str(recording), "--quick"]) == 0  # metadata only: it cannot see the chunks
+    assert "checked: metadata\n" in capsys.readouterr().out
+    assert cli(["info", str(recording)]) == 1
+    out = capsys.readouterr().out
+    assert "problem: frames row 3: its chunk file is missing" in out
+    assert "problem: ground truth row 7: its chunk file is missing" in out and out.strip().endswith("DAMAGED")
+    assert cli(["info", str(recording), "--json"]) == 1
+    s = json.loads(capsys.readouterr().out)
+    assert s["checksums"] and s["problems"] == ["frames row 3: its chunk file is missing",
+                                                "ground truth row 7: its chunk file is missing"]
+
+
 def test_info_reports_and_repairs_an_interrupted_capture(tmp_path, capsys):
     attrs = recording_attrs(np.eye(4, dtype=bool).reshape(2, 2, 4), rate_hz=30.0, kind="captured",
                             storage={"kind": "float"})

@@ -8,6 +8,7 @@ import warnings
 from pathlib import Path
 
 from app.cli.errors import EXIT_OK, CliError, arg_type
+from flexvox_core.output_files import check_output
 from flexvox_core.recording import RecordingError, write_simulation
 from flexvox_core.simulate.effects import EFFECTS, parse_effects
 from flexvox_core.simulate.scene_file import SceneSpec, load_scene
@@ -75,7 +76,9 @@ def register(sub) -> None:
     p.add_argument("--frames", type=int, metavar="F", help="camera frames to simulate")
     p.add_argument("--size", type=arg_type(_size), metavar="HxW", help="size of a built-in scene")
     p.add_argument("--seed", type=int, metavar="S", help="random seed (scene texture and effect noise)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing recording")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing recording (never the scene's own file, nor a recording being written; "
+                        "the old one stays until the new one is complete)")
     p.set_defaults(func=run_simulate)
 
     q = sub.add_parser("scenes", help="list the built-in scenes and the effects with their parameters",
@@ -102,6 +105,8 @@ def run_simulate(args) -> int:
     """Carry out ``flexvox simulate``."""
     try:
         spec = _spec_from_argument(args.scene)
+        inputs = [Path(args.scene) if Path(args.scene).exists() else None, getattr(spec, "file", None)]
+        check_output(args.output, overwrite=args.overwrite, inputs=inputs)  # before the simulation runs
         if args.tile:
             spec.tile, spec.order = args.tile, None
         if args.size:
@@ -126,6 +131,9 @@ def run_simulate(args) -> int:
         write_simulation(args.output, result, overwrite=args.overwrite)
     except (ValueError, RecordingError) as exc:
         raise CliError(str(exc)) from None
+    except OSError as exc:  # the write failed (disk full, a file-size limit): written beside, nothing replaced
+        old = "the old recording is unchanged" if args.output.exists() else "nothing was written"
+        raise CliError(f"cannot write {args.output}: {exc.strerror or exc}; {old}") from None
     F, H, W = result.frames.shape
     effects = ", ".join(result.effects) or "none (ideal forward model)"
     print(f"simulated {result.source}: {F} frames of {H}x{W}, tile {spec.tile[0]}x{spec.tile[1]} "

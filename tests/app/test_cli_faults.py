@@ -1,0 +1,277 @@
+"""Every command's bad input and faults, through the real command line.
+
+Each case runs ``python -m app.cli.main ...`` in a subprocess, as a user would, and checks four
+things: the exit status, exactly one line on stderr that names the problem, no traceback, and the
+bytes of every input file unchanged. The cases are a table (``CASES``) so that a new fault is one
+row; the faults that need a second process or a resource limit are the tests after it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+ENV = {**os.environ, "QT_QPA_PLATFORM": "offscreen", "PYTHONPATH": str(ROOT)}
+
+
+def flexvox(*args, env=None, timeout=120, **kw) -> subprocess.CompletedProcess:
+    """Run the real command line; text stdout and stderr."""
+    return subprocess.run([sys.executable, "-m", "app.cli.main", *map(str, args)], cwd=ROOT, env=env or ENV,
+                          capture_output=True, text=True, timeout=timeout, **kw)
+
+
+def stderr_lines(proc) -> list[str]:
+    """Lines a user sees on stderr (a progress bar's carriage-return redraws collapsed)."""
+    return [line.split("\r")[-1] for line in proc.stderr.splitlines() if line.split("\r")[-1].strip()]
+
+
+def digest(path: Path) -> dict:
+    """Every file under ``path`` (or ``path`` itself) with the hash of its bytes."""
+    path = Path(path)
+    files = [path] if path.is_file() else sorted(p for p in path.rglob("*") if p.is_file())
+    return {str(p.relative_to(path.parent)): hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
+
+
+def assert_refused(proc, status: int, pattern: str) -> None:
+    assert "Traceback" not in proc.stderr, proc.stderr
+    lines = stderr_lines(proc)
+    assert proc.returncode == status, (proc.returncode, proc.stdout, proc.stderr)
+    assert len(lines) == 1, lines
+    assert re.search(pattern, lines[0]), lines[0]
+
+
+@pytest.fixture(scope="module")
+def base(tmp_path_factory):
+    """A small simulated recording (drummer, 2x2 tile, 6 frames of 24x32) and a code file."""
+    from app.cli.main import main
+
+    folder = tmp_path_factory.mktemp("faults")
+    rec = folder / "base.zarr"
+    assert main(["simulate", "drummer", "--size", "24x32", "--frames", "6", "--tile", "2x2", "-o", str(rec)]) == 0
+    assert main(["design", "--tile", "2x2", "-o", str(folder / "code.json")]) == 0
+    return folder
+
+
+def _delete_chunk(rec: Path) -> None:
+    (rec / "frames" / "c" / "2" / "0" / "0").unlink()
+
+
+def _garble_chunk(rec: Path) -> None:
+    chunk = rec / "frames" / "c" / "3" / "0" / "0"
+    data = bytearray(chunk.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    chunk.write_bytes(bytes(data))
+
+
+def _truncate_chunk(rec: Path) -> None:
+    chunk = rec / "frames" / "c" / "1" / "0" / "0"
+    chunk.write_bytes(chunk.read_bytes()[:20])
+
+
+def _ids_backwards(rec: Path) -> None:
+    import zarr
+
+    zarr.open_group(str(rec), mode="r+")["frame_id"][4] = 1
+
+
+def _video_file(rec: Path) -> None:
+    import numpy as np
+
+    np.save(rec.parent / "clip.npy", np.random.default_rng(0).random((16, 24, 32), dtype=np.float32))
+
+
+def _existing_outputs(folder: Path) -> None:
+    (folder / "cal.json").write_text('{"a real rig\'s calibration": true}\n')
+    (folder / "out.npy").write_bytes(b"an earlier result")
+
+
+@dataclass
+class Case:
+    """One command line: its arguments (``{rec}``, ``{dir}`` and ``{code}`` filled in), the expected exit
+    status and stderr line, and what to do to the recording copy first."""
+
+    args: str
+    status: int
+    stderr: str
+    prepare: object = None
+    inputs: tuple = ("rec",)
+    extra: dict = field(default_factory=dict)
+
+
+CASES = {
+    # integrity: a missing, truncated or garbled chunk is never read as zeros
+    "reconstruct-deleted-chunk": Case("reconstruct {rec} -o {dir}/v.npy", 2,
+                                      r"frames row 2 is damaged: its chunk file is missing", _delete_chunk),
+    "export-deleted-chunk": Case("export {rec} -o {dir}/f.tif", 2,
+                                 r"frames row 2 is damaged: its chunk file is missing; .*f.tif was not written",
+                                 _delete_chunk),
+    "export-reconstruction-deleted-chunk": Case("export {rec} --what reconstruction -o {dir}/r.npy", 2,
+                                                r"frames row 2 is damaged", _delete_chunk),
+    "batch-deleted-chunk": Case("batch {rec} -o {dir}/b.zarr", 2, r"frames row 2 is damaged", _delete_chunk),
+    "reconstruct-garbled-chunk": Case("reconstruct {rec} -o {dir}/v.npy", 2, r"frames row 3 is damaged: its ",
+                                      _garble_chunk),
+    "reconstruct-truncated-chunk": Case("reconstruct {rec} -o {dir}/v.npy", 2,
+                                        r"frames row 1 is damaged: its chunk cannot be decoded", _truncate_chunk),
+    "slots-deleted-chunk": Case("info {rec} --slots --quick", 2, r"--slots: .*row 2 is damaged", _delete_chunk),
+    "reconstruct-ids-backwards": Case("reconstruct {rec} -o {dir}/v.npy", 2,
+                                      r"frame ids do not increase at row 4 \(3 then 1\)", _ids_backwards),
+    # outputs never destroy inputs, whatever the flags
+    "reconstruct-onto-input": Case("reconstruct {rec} -o {rec} --overwrite", 2,
+                                   r"the output .*rec.zarr is the input .*: an output never replaces its input"),
+    "export-onto-input": Case("export {rec} -o {rec} --overwrite", 2, r"is the input"),
+    "batch-onto-input": Case("batch {rec} -o {rec} --overwrite", 2, r"is the input"),
+    "export-folder-holding-input": Case("export {rec} -o {dir} --overwrite", 2, r"holds the input"),
+    "reconstruct-inside-input": Case("reconstruct {rec} -o {rec}/v.npy", 2, r"lies inside the input"),
+    "capture-onto-code-file": Case("capture --code {code} -o {code} --overwrite --frames 2 --clock virtual", 2,
+                                   r"is the input .*code.json", inputs=("code",)),
+    "simulate-onto-its-video": Case("simulate {dir}/clip.npy -o {dir}/clip.npy --overwrite --tile 2x2", 2,
+                                    r"the output .*clip.npy is the input", _video_file, inputs=("clip",)),
+    "design-onto-verified-file": Case("design --verify {code} -o {code} --overwrite", 2, r"is the input",
+                                      inputs=("code",)),
+    # -o onto an existing file needs --overwrite, design and calibrate included
+    "design-existing-output": Case("design --tile 2x2 -o {dir}/cal.json", 2,
+                                   r"cal.json already exists; use --overwrite to replace it",
+                                   _existing_outputs, inputs=("cal",)),
+    "calibrate-existing-output": Case("calibrate --rig mock -o {dir}/cal.json", 2,
+                                      r"cal.json already exists; use --overwrite .*checked before calibrating",
+                                      _existing_outputs, inputs=("cal",)),
+    "reconstruct-existing-output": Case("reconstruct {rec} -o {dir}/out.npy", 2, r"out.npy already exists",
+                                        _existing_outputs, inputs=("rec", "out")),
+    # bad values are named with their rule
+    "reconstruct-fps-0": Case("reconstruct {rec} -o {dir}/v.mp4 --fps 0", 2,
+                              r"--fps must be above 0 and at most 1000 frames per second; got '0'"),
+    "export-fps-negative": Case("export {rec} -o {dir}/v.mp4 --fps -5", 2, r"--fps must be above 0"),
+    "reconstruct-folder-missing": Case("reconstruct {rec} -o {dir}/no/such/v.npy", 2,
+                                       r"the folder .*no/such does not exist"),
+    "repair-a-sound-recording-is-harmless": Case("info {rec} --repair --quick", 0, r"", inputs=()),
+}
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_fault(name, base, tmp_path):
+    case = CASES[name]
+    rec = tmp_path / "rec.zarr"
+    shutil.copytree(base / "base.zarr", rec)
+    shutil.copy(base / "code.json", tmp_path / "code.json")
+    if case.prepare is _existing_outputs:
+        _existing_outputs(tmp_path)
+    elif case.prepare is not None:
+        case.prepare(rec)
+    files = {"rec": rec, "code": tmp_path / "code.json", "cal": tmp_path / "cal.json", "out": tmp_path / "out.npy",
+             "clip": tmp_path / "clip.npy"}
+    before = {k: digest(files[k]) for k in case.inputs}
+    args = case.args.format(rec=rec, dir=tmp_path, code=tmp_path / "code.json").split()
+    proc = flexvox(*args)
+    if case.status == 0:
+        assert proc.returncode == 0 and "Traceback" not in proc.stderr, proc.stderr
+    else:
+        assert_refused(proc, case.status, case.stderr)
+    assert {k: digest(files[k]) for k in case.inputs} == before
+    assert not [p.name for p in tmp_path.iterdir() if ".partial-" in p.name or ".replaced-" in p.name]
+
+
+def test_info_lists_the_damage_and_exits_1(base, tmp_path):
+    rec = tmp_path / "rec.zarr"
+    shutil.copytree(base / "base.zarr", rec)
+    _delete_chunk(rec)
+    _garble_chunk(rec)
+    before = digest(rec)
+    proc = flexvox("info", rec)
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr and stderr_lines(proc) == []
+    assert "problem: frames row 2: its chunk file is missing" in proc.stdout
+    assert re.search(r"problem: frames row 3: its ", proc.stdout) and proc.stdout.strip().endswith("DAMAGED")
+    assert flexvox("info", rec, "--quick").returncode == 0  # the metadata alone is sound
+    assert digest(rec) == before
+
+
+def test_a_read_only_folder_is_refused_before_the_computation(base, tmp_path):
+    if os.geteuid() == 0:
+        folder = Path("/proc/sys")  # root ignores permissions; /proc/sys takes no new files
+    else:
+        folder = tmp_path / "ro"
+        folder.mkdir()
+        folder.chmod(0o555)
+    for command in (("reconstruct", base / "base.zarr", "-o", folder / "v.npy", "--method", "motion-aware"),
+                    ("batch", base / "base.zarr", "-o", folder / "v.zarr"),
+                    ("export", base / "base.zarr", "-o", folder / "f.tif")):
+        t0 = time.perf_counter()
+        proc = flexvox(*command)
+        assert_refused(proc, 2, r"cannot write .*: the folder .* does not accept new files \(")
+        assert time.perf_counter() - t0 < 60  # refused, not after a long computation (a bound, not a timing)
+
+
+def _wait_for_frames(path: Path, n: int, proc, seconds: float = 40.0) -> None:
+    from flexvox_core.recording import RecordingError, open_recording
+
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline and proc.poll() is None:
+        try:
+            if open_recording(path).n_frames >= n:
+                return
+        except RecordingError:
+            pass
+        time.sleep(0.05)
+    raise AssertionError(f"the first capture did not write {n} frames: {proc.stderr.read() if proc.stderr else ''}")
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGKILL"), reason="POSIX process control")
+def test_a_second_capture_to_a_recording_being_written_is_refused(tmp_path):
+    path = tmp_path / "run.zarr"
+    first = subprocess.Popen([sys.executable, "-m", "app.cli.main", "capture", "--frames", "100000", "-o", str(path),
+                              "--size", "24x32", "--tile", "2x2", "--rate", "100", "--scene", "balls"],
+                             cwd=ROOT, env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        _wait_for_frames(path, 10, first)
+        for extra in ((), ("--overwrite",)):
+            second = flexvox("capture", "--frames", "5", "-o", path, "--size", "24x32", "--tile", "2x2",
+                             "--clock", "virtual", *extra)
+            pattern = (rf"run.zarr is being written by process {first.pid} \(.*capture" if extra
+                       else r"run.zarr already exists")
+            assert_refused(second, 2, pattern)
+        proc = flexvox("simulate", "balls", "--size", "24x32", "--frames", "2", "-o", path, "--overwrite")
+        assert_refused(proc, 2, rf"being written by process {first.pid}")
+        proc = flexvox("info", path, "--repair")
+        assert_refused(proc, 2, rf"--repair: .*being written by process {first.pid}")
+        first.send_signal(signal.SIGINT)  # Ctrl-C: the first capture stops and keeps what it captured
+        assert first.wait(timeout=30) == 0, first.stderr.read()
+    finally:
+        if first.poll() is None:
+            first.kill()
+            first.wait(timeout=10)
+        first.stderr.close()
+    from flexvox_core.recording import open_recording
+
+    rec = open_recording(path)
+    assert not rec.interrupted and rec.n_frames >= 10 and rec.verify() == []
+    ids = rec.per_frame("frame_id")
+    assert (ids == ids[0] + range(len(ids))).all()  # one writer's frames, in order: no zero rows from another
+
+
+def test_a_failed_overwrite_leaves_the_old_recording(base, tmp_path):
+    """``simulate --overwrite`` under a file-size limit: the write fails, the old recording is as it was."""
+    import resource
+
+    rec = tmp_path / "rec.zarr"
+    shutil.copytree(base / "base.zarr", rec)
+    before = digest(rec)
+
+    def limit():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write past the limit fails (EFBIG) instead of killing
+        resource.setrlimit(resource.RLIMIT_FSIZE, (20_000, 20_000))
+
+    proc = flexvox("simulate", "drummer", "--size", "96x128", "--frames", "8", "-o", rec, "--overwrite",
+                   preexec_fn=limit)
+    assert_refused(proc, 2, r"cannot write .*rec.zarr: File too large; the old recording is unchanged")
+    assert digest(rec) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.zarr"]

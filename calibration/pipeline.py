@@ -60,6 +60,7 @@ def _run_steps(rig, session, tile, progress) -> CalibrationRun:
     from calibration.sync import band_patterns, check_frames, measure_sync
     from flexvox_core.design import design_code
 
+    code = design_code(tuple(tile)).require()  # an impossible tile is refused before any device moves
     run = CalibrationRun()
     report, keep = run.report, run.keep
     with session:
@@ -90,7 +91,6 @@ def _run_steps(rig, session, tile, progress) -> CalibrationRun:
         if not hom.success:
             report["failed"] = "homography"
             return run
-        code = design_code(tuple(tile)).code
         K = code.shape[2]
         shutter = make_shutter_patterns(code, hom.homography, session.camera_size, session.projector_size)
         ver = verify_shutter(session, shutter, progress=progress("shutter"))

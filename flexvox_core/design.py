@@ -117,6 +117,12 @@ class DesignResult:
         """Slots per frame."""
         return self.tile[0] * self.tile[1]
 
+    def require(self) -> np.ndarray:
+        """The code ``(m, n, K)`` bool; ``ValueError`` naming the tile and the reason when none was found."""
+        if not self.success or self.code is None:
+            raise ValueError(f"no code for a {self.tile[0]}x{self.tile[1]} tile: {self.message}")
+        return self.code
+
     def as_dict(self) -> dict:
         """JSON-ready form (``tile``, ``K``, ``order``, ``code``, ``resolutions``, ...)."""
         return {

@@ -165,10 +165,7 @@ class CapturePlan:
             return multiplexed_code(self.tile, placement=self.placement)
         if self.order is not None:
             return code_from_order(self.order)
-        result = design_code(self.tile)
-        if not result.success:
-            raise ValueError(f"no code for a {self.tile[0]}x{self.tile[1]} tile: {result.message}")
-        return result.code
+        return design_code(self.tile).require()
 
     @property
     def code(self) -> np.ndarray:

@@ -12,6 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from app.cli.errors import EXIT_OK, CliError, arg_type
+from app.qt_platform import display_problem
 
 HELP = "start the Qt application (device panel; Calibrate, Capture, Review)"
 
@@ -51,6 +52,9 @@ def run(args) -> int:
 
     if args.recording is not None and not args.recording.exists():
         raise CliError(f"{args.recording}: no such recording")
+    problem = display_problem()
+    if problem is not None:
+        raise CliError(problem)
     try:
         rig = open_rig("mock", scene=args.scene, seed=args.seed) if args.rig == "mock" else open_rig(args.rig)
     except SettingError as exc:

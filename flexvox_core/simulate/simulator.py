@@ -267,7 +267,7 @@ def code_for(spec: SceneSpec):
     if spec.multiplexed:
         mc = multiplexed_code(spec.tile)
         return mc.code, True, mc.placement
-    return design_code(spec.tile).code, False, None
+    return design_code(spec.tile).require(), False, None
 
 
 def simulate(spec: SceneSpec, *, video: np.ndarray | None = None) -> SimulationResult:

@@ -8,8 +8,10 @@ All load as float32 ``(S, H, W)`` in [0, 1]: uint8 / 255, uint16 / 65535, float 
 from __future__ import annotations
 
 import logging
+import os
 import warnings
 from pathlib import Path
+from struct import error as struct_error
 
 import numpy as np
 
@@ -61,13 +63,13 @@ def load_video(path) -> np.ndarray:
         raise ValueError(f"{path}: no such file")
     try:
         if suffix == ".npy":
+            with open(path, "rb") as fh:
+                if fh.read(6) != b"\x93NUMPY":
+                    raise ValueError(f"{path}: not a NumPy .npy file (no .npy header); it is damaged or another "
+                                     "format with the wrong suffix")
             arr = np.load(path, allow_pickle=False)
         elif suffix in (".tif", ".tiff"):
-            import tifffile
-
-            arr = tifffile.imread(path)
-            if arr.ndim == 2:
-                raise ValueError(f"{path}: a single-page TIFF is one image, not a video")
+            arr = _load_tiff(path)
         elif suffix == ".mat":
             arr = _load_mat(path)
         else:
@@ -82,6 +84,46 @@ def load_video(path) -> np.ndarray:
     if min(arr.shape) == 0:
         raise ValueError(f"{path}: the video is empty {arr.shape}")
     return np.ascontiguousarray(_to_unit_float(arr, path))
+
+
+class _Collect(logging.Handler):
+    """Keeps the messages a library logs while it reads (tifffile logs a damaged file and goes on)."""
+
+    def __init__(self):
+        super().__init__(logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record) -> None:
+        self.messages.append(record.getMessage())
+
+
+def _load_tiff(path: Path) -> np.ndarray:
+    """A multi-page TIFF as ``(S, H, W[, C])``; a damaged or truncated one is refused, not read in part."""
+    import tifffile
+
+    log = logging.getLogger("tifffile")
+    collect = _Collect()
+    log.addHandler(collect)
+    propagate, log.propagate = log.propagate, False
+    try:
+        try:
+            with tifffile.TiffFile(path) as tif:
+                arr = tif.asarray()
+                declared = (tif.imagej_metadata or {}).get("images")
+        except (tifffile.TiffFileError, ValueError, IndexError, KeyError, struct_error) as exc:
+            raise ValueError(f"{path}: not a readable TIFF ({exc}); it is damaged or another format") from None
+    finally:
+        log.removeHandler(collect)
+        log.propagate = propagate
+    if collect.messages:
+        raise ValueError(f"{path}: a damaged TIFF ({collect.messages[0].split('> ', 1)[-1]}); it may be truncated: "
+                         "copy or export it again")
+    if declared and (arr.ndim < 3 or arr.shape[0] != int(declared)):
+        raise ValueError(f"{path}: a damaged TIFF: it declares {declared} images but holds "
+                         f"{arr.shape[0] if arr.ndim >= 3 else 1}; it may be truncated")
+    if arr.ndim == 2:
+        raise ValueError(f"{path}: a single-page TIFF is one image, not a video")
+    return arr
 
 
 def _load_mat(path: Path) -> np.ndarray:
@@ -102,10 +144,18 @@ def _load_mat(path: Path) -> np.ndarray:
 def _load_opencv_video(path: Path) -> np.ndarray:
     import cv2
 
-    cap = cv2.VideoCapture(str(path))
+    quiet = os.environ.get("OPENCV_FFMPEG_LOGLEVEL")
+    os.environ["OPENCV_FFMPEG_LOGLEVEL"] = "-8"  # FFmpeg's own complaints would be a second, cryptic stderr line
+    try:
+        cap = cv2.VideoCapture(str(path))
+    finally:
+        if quiet is None:
+            del os.environ["OPENCV_FFMPEG_LOGLEVEL"]
+        else:
+            os.environ["OPENCV_FFMPEG_LOGLEVEL"] = quiet
     try:
         if not cap.isOpened():
-            raise ValueError(f"{path}: OpenCV cannot open this video")
+            raise ValueError(f"{path}: OpenCV cannot open this video (damaged, or a codec it lacks)")
         frames = []
         while True:
             ok, frame = cap.read()

@@ -91,6 +91,18 @@ def _video_file(rec: Path) -> None:
     np.save(rec.parent / "clip.npy", np.random.default_rng(0).random((16, 24, 32), dtype=np.float32))
 
 
+def _truncated_tiff(rec: Path) -> None:
+    import numpy as np
+    import tifffile
+
+    clip = rec.parent / "clip.tif"
+    tifffile.imwrite(clip, np.zeros((16, 24, 32), np.float32), imagej=True)
+    clip.write_bytes(clip.read_bytes()[: clip.stat().st_size // 3])
+
+
+NO_DISPLAY = {"DISPLAY": None, "WAYLAND_DISPLAY": None, "QT_QPA_PLATFORM": None}
+
+
 def _existing_outputs(folder: Path) -> None:
     (folder / "cal.json").write_text('{"a real rig\'s calibration": true}\n')
     (folder / "out.npy").write_bytes(b"an earlier result")
@@ -106,7 +118,8 @@ class Case:
     stderr: str
     prepare: object = None
     inputs: tuple = ("rec",)
-    extra: dict = field(default_factory=dict)
+    env: dict = field(default_factory=dict)
+    """Environment changes: a value of None removes the variable."""
 
 
 CASES = {
@@ -154,6 +167,16 @@ CASES = {
     "export-fps-negative": Case("export {rec} -o {dir}/v.mp4 --fps -5", 2, r"--fps must be above 0"),
     "reconstruct-folder-missing": Case("reconstruct {rec} -o {dir}/no/such/v.npy", 2,
                                        r"the folder .*no/such does not exist"),
+    # tracebacks and aborts become messages
+    "simulate-tile-without-a-code": Case("simulate drummer --tile 6x6 --frames 2 -o {dir}/s.zarr", 2,
+                                         r"no code for a 6x6 tile: no 6x6 code supports .*infeasible", inputs=()),
+    "simulate-truncated-tiff": Case("simulate {dir}/clip.tif --tile 2x2 -o {dir}/s.zarr", 2,
+                                    r"clip.tif: a damaged TIFF \(.*\); it may be truncated", _truncated_tiff,
+                                    inputs=("tif",)),
+    "app-without-a-display": Case("app", 2, r"no display to open the window on \(DISPLAY is not set\); .*"
+                                  r"QT_QPA_PLATFORM=offscreen", inputs=(), env=NO_DISPLAY),
+    "app-with-a-display-qt-cannot-use": Case("app", 2, r"Qt cannot start its platform plugin here \(.+\); ",
+                                             inputs=(), env={"DISPLAY": ":77", "QT_QPA_PLATFORM": "xcb"}),
     "repair-a-sound-recording-is-harmless": Case("info {rec} --repair --quick", 0, r"", inputs=()),
 }
 
@@ -169,10 +192,11 @@ def test_fault(name, base, tmp_path):
     elif case.prepare is not None:
         case.prepare(rec)
     files = {"rec": rec, "code": tmp_path / "code.json", "cal": tmp_path / "cal.json", "out": tmp_path / "out.npy",
-             "clip": tmp_path / "clip.npy"}
+             "clip": tmp_path / "clip.npy", "tif": tmp_path / "clip.tif"}
     before = {k: digest(files[k]) for k in case.inputs}
     args = case.args.format(rec=rec, dir=tmp_path, code=tmp_path / "code.json").split()
-    proc = flexvox(*args)
+    env = {k: v for k, v in {**ENV, **case.env}.items() if v is not None}
+    proc = flexvox(*args, env=env)
     if case.status == 0:
         assert proc.returncode == 0 and "Traceback" not in proc.stderr, proc.stderr
     else:

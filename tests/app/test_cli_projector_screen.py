@@ -109,7 +109,9 @@ def test_no_display_is_a_clear_error(rig_toml):
                           "--projector-screen", "0"], capture_output=True, text=True, env=env, cwd=root, timeout=60)
     assert out.returncode == 2
     assert out.stderr == ("flexvox calibrate: error: no display: --projector-screen needs a desktop session with the "
-                          "projector connected as a screen (DISPLAY and WAYLAND_DISPLAY are not set)\n")
+                          "projector connected as a screen; no display to open the window on (DISPLAY is not set); "
+                          "run it in a desktop session, under a virtual screen (`xvfb-run flexvox app`), or with "
+                          "QT_QPA_PLATFORM=offscreen (nothing is shown)\n")
 
 
 def test_no_screens_is_a_clear_error(capsys, monkeypatch, rig_toml):

@@ -105,3 +105,9 @@ def test_order_code_round_trip_and_errors():
         verify(np.zeros((2, 2, 3), dtype=bool))
     with pytest.raises(ValueError, match=r"values must be 0/1"):
         verify(np.full((1, 1, 1), 2))
+
+
+def test_require_names_the_tile_and_the_reason():
+    assert design_code((2, 2)).require().shape == (2, 2, 4)
+    with pytest.raises(ValueError, match=r"no code for a 2x2 tile: no 2x2 code has a 4-neighbour gap >= 5"):
+        design_code((2, 2), separation=5).require()

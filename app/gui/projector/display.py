@@ -30,9 +30,7 @@ a QApplication, the window on screen N, the work on a worker thread while the Qt
 from __future__ import annotations
 
 import logging
-import os
 import signal
-import sys
 import threading
 import time
 from collections.abc import Callable
@@ -220,18 +218,20 @@ def screens_or_error():
     Raises
     ------
     ScreenError
-        On Linux without a display (neither DISPLAY nor WAYLAND_DISPLAY, no QT_QPA_PLATFORM), or when
-        Qt reports no screen.
+        When Qt cannot open a window here (:func:`app.qt_platform.display_problem`: no display, a
+        platform plugin that cannot start), or when Qt reports no screen.
     """
     from PySide6.QtGui import QGuiApplication
 
     from app.gui.widgets.qapp import ensure_application
 
-    if QGuiApplication.instance() is None and sys.platform.startswith("linux") \
-            and not os.environ.get("QT_QPA_PLATFORM") \
-            and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
-        raise ScreenError("no display: --projector-screen needs a desktop session with the projector connected as "
-                          "a screen (DISPLAY and WAYLAND_DISPLAY are not set)")
+    if QGuiApplication.instance() is None:
+        from app.qt_platform import display_problem
+
+        problem = display_problem()
+        if problem is not None:
+            raise ScreenError(f"no display: --projector-screen needs a desktop session with the projector connected "
+                              f"as a screen; {problem}")
     ensure_application()
     screens = QGuiApplication.screens()
     if not screens:

@@ -59,12 +59,22 @@ def test_npy_is_never_unpickled(tmp_path):
         load_video(tmp_path / "obj.npy")
 
 
+def _truncated_tiff(folder):
+    import tifffile
+
+    tifffile.imwrite(folder / "x.tif", np.zeros((12, 16, 24), np.float32), imagej=True)
+    data = (folder / "x.tif").read_bytes()
+    (folder / "x.tif").write_bytes(data[: len(data) // 3])  # a copy that stopped a third of the way
+
+
 @pytest.mark.parametrize(
     "make, match",
     [
         (lambda p: np.save(p / "x.npy", np.zeros((4, 4))), r"must have 3 dimensions \(S, H, W\); got 2"),
         (lambda p: np.save(p / "x.npy", np.full((2, 4, 4), 2.0)), r"must lie in \[0, 1\]; found 2 .. 2"),
-        (lambda p: (p / "x.npy").write_bytes(b"garbage"), r"x.npy: cannot read"),
+        (lambda p: (p / "x.npy").write_bytes(b"garbage"), r"x.npy: not a NumPy .npy file \(no .npy header\)"),
+        (lambda p: (p / "x.tif").write_bytes(b"garbage" * 20), r"x.tif: not a readable TIFF \(not a TIFF file"),
+        (_truncated_tiff, r"x.tif: a damaged TIFF \(.*\); it may be truncated"),
         (lambda p: (p / "x.mp4").write_bytes(b"garbage"), r"x.mp4: OpenCV cannot open|holds no readable frame"),
         (lambda p: scipy.io.savemat(p / "x.mat", {"meas": np.zeros((4, 4, 2))}), r"no variable `orig`"),
         (lambda p: (p / "x.gif").write_bytes(b"x"), r"unknown video type '.gif'"),

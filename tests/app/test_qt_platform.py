@@ -1,0 +1,39 @@
+"""Asking whether Qt can open a window before Qt is loaded (Qt aborts the process otherwise)."""
+
+import sys
+
+import pytest
+
+from app.qt_platform import display_problem
+
+linux = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the DISPLAY rules are Linux's")
+
+
+@linux
+@pytest.mark.parametrize("env, expected", [
+    ({}, r"no display to open the window on \(DISPLAY is not set\)"),
+    ({"QT_QPA_PLATFORM": "xcb", "WAYLAND_DISPLAY": "wayland-0"}, r"DISPLAY is not set"),
+    ({"QT_QPA_PLATFORM": "wayland"}, r"QT_QPA_PLATFORM=wayland but WAYLAND_DISPLAY is not set"),
+])
+def test_a_missing_display_is_named(env, expected):
+    import re
+
+    problem = display_problem(env, probe=False)
+    assert problem is not None and re.search(expected, problem)
+    assert "QT_QPA_PLATFORM=offscreen" in problem and "xvfb-run" in problem
+
+
+def test_headless_platforms_and_a_display_pass_without_a_probe():
+    assert display_problem({"QT_QPA_PLATFORM": "offscreen"}) is None  # never probed
+    assert display_problem({"QT_QPA_PLATFORM": "minimal:foo=1"}) is None
+    assert display_problem({"DISPLAY": ":0"}, probe=False) is None
+    assert display_problem({"WAYLAND_DISPLAY": "wayland-0"}, probe=False) is None
+
+
+@linux
+def test_the_probe_reports_what_qt_says(monkeypatch):
+    import os
+
+    env = {**os.environ, "DISPLAY": ":77", "QT_QPA_PLATFORM": "xcb"}  # no X server there
+    problem = display_problem(env)
+    assert problem is not None and problem.startswith("Qt cannot start its platform plugin here (")

@@ -17,6 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from flexvox_core.memory_budget import check_fits, reconstruction_bytes
 from flexvox_core.methods.method import Method
 from flexvox_core.methods.spec import MethodOutput
 
@@ -124,6 +125,11 @@ def run(frames, code, method: Method | None = None, *, chunk_frames: int | None 
     code = np.asarray(code, dtype=bool)
     K = code.shape[2]
     F = f.shape[0]
+    H, W = f.shape[1:]
+    check_fits(reconstruction_bytes(F, K, H, W, chunk_frames, method.overlap(K)),
+               f"reconstructing {F} frames of {H}x{W} at K = {K} in memory ({F * K} sub-frames)",
+               "reconstruct it with `flexvox batch`, which writes chunk by chunk (its memory follows --chunk, "
+               "not the recording's length)")
     value_range = sample_range(f) if method.spec.needs_sample_range and F else None
     chunks = chunk_plan(F, chunk_frames, method.overlap(K))
     if len(chunks) == 1:

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from flexvox_core.memory_budget import check_fits, render_bytes
 from flexvox_core.simulate.textures import bar_coverage, disc_coverage, fine_texture, shift_image
 
 
@@ -153,5 +154,8 @@ def render_scene(name: str, subframes: int, height: int, width: int, *, seed: in
     for label, v, lo in (("subframes", subframes, 1), ("height", height, 8), ("width", width, 8)):
         if isinstance(v, bool) or not isinstance(v, int | np.integer) or v < lo:
             raise ValueError(f"`{label}` must be a whole number >= {lo}; got {v!r}")
+    check_fits(render_bytes(int(subframes), int(height), int(width)),
+               f"the {name} scene at {height}x{width} with {subframes} sub-frames",
+               "use a smaller size or fewer frames")
     video = SCENES[name].render(int(subframes), int(height), int(width), np.random.default_rng(seed))
     return np.clip(video, 0, 1, out=video).astype(np.float32, copy=False)

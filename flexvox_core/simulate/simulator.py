@@ -16,6 +16,7 @@ import numpy as np
 from flexvox_core.codes import code_from_order, is_identity_code, order_from_code, validate_code
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture, check_video, tiled_code
+from flexvox_core.memory_budget import check_fits, simulation_bytes
 from flexvox_core.multiplex import multiplexed_code
 from flexvox_core.simulate.effects import Adc, Effect, SyncPhase
 from flexvox_core.simulate.scene_file import SceneSpec
@@ -279,6 +280,9 @@ def simulate(spec: SceneSpec, *, video: np.ndarray | None = None) -> SimulationR
             video = load_video(spec.file)
         else:
             frames = spec.camera_frames() or 8
+            check_fits(simulation_bytes(frames, K, spec.height, spec.width),
+                       f"simulating {spec.height}x{spec.width} with {frames} frames of K = {K}",
+                       "use a smaller size (--size) or fewer frames (--frames)")
             video = render_scene(spec.builtin, frames * K, spec.height, spec.width, seed=spec.seed)
     video = trim_to_frames(video, K, frames=spec.camera_frames() if spec.file is not None else None,
                            source=spec.source_label())

@@ -173,6 +173,9 @@ CASES = {
     "simulate-truncated-tiff": Case("simulate {dir}/clip.tif --tile 2x2 -o {dir}/s.zarr", 2,
                                     r"clip.tif: a damaged TIFF \(.*\); it may be truncated", _truncated_tiff,
                                     inputs=("tif",)),
+    "simulate-huge-size": Case("simulate drummer --size 100000x100000 -o {dir}/s.zarr", 2,
+                               r"simulating 100000x100000 with 8 frames of K = 16 needs about \d+\.\d GiB of memory; "
+                               r"this machine has \d+\.\d GiB available", inputs=()),
     "app-without-a-display": Case("app", 2, r"no display to open the window on \(DISPLAY is not set\); .*"
                                   r"QT_QPA_PLATFORM=offscreen", inputs=(), env=NO_DISPLAY),
     "app-with-a-display-qt-cannot-use": Case("app", 2, r"Qt cannot start its platform plugin here \(.+\); ",

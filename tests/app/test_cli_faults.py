@@ -100,6 +100,13 @@ def _truncated_tiff(rec: Path) -> None:
     clip.write_bytes(clip.read_bytes()[: clip.stat().st_size // 3])
 
 
+def _png_folder(rec: Path) -> None:
+    folder = rec.parent / "pngs"
+    folder.mkdir()
+    (folder / "frame_00000.png").write_bytes(b"an earlier export")
+    (folder / "notes.txt").write_text("the operator's notes")
+
+
 NO_DISPLAY = {"DISPLAY": None, "WAYLAND_DISPLAY": None, "QT_QPA_PLATFORM": None}
 
 
@@ -145,6 +152,9 @@ CASES = {
     "export-onto-input": Case("export {rec} -o {rec} --overwrite", 2, r"is the input"),
     "batch-onto-input": Case("batch {rec} -o {rec} --overwrite", 2, r"is the input"),
     "export-folder-holding-input": Case("export {rec} -o {dir} --overwrite", 2, r"holds the input"),
+    "export-png-folder-with-other-files": Case("export {rec} -o {dir}/pngs --overwrite", 2,
+                                               r"pngs holds other files than an earlier export's PNGs \(notes.txt\)",
+                                               _png_folder, inputs=("pngs",)),
     "reconstruct-inside-input": Case("reconstruct {rec} -o {rec}/v.npy", 2, r"lies inside the input"),
     "capture-onto-code-file": Case("capture --code {code} -o {code} --overwrite --frames 2 --clock virtual", 2,
                                    r"is the input .*code.json", inputs=("code",)),
@@ -195,7 +205,7 @@ def test_fault(name, base, tmp_path):
     elif case.prepare is not None:
         case.prepare(rec)
     files = {"rec": rec, "code": tmp_path / "code.json", "cal": tmp_path / "cal.json", "out": tmp_path / "out.npy",
-             "clip": tmp_path / "clip.npy", "tif": tmp_path / "clip.tif"}
+             "clip": tmp_path / "clip.npy", "tif": tmp_path / "clip.tif", "pngs": tmp_path / "pngs"}
     before = {k: digest(files[k]) for k in case.inputs}
     args = case.args.format(rec=rec, dir=tmp_path, code=tmp_path / "code.json").split()
     env = {k: v for k, v in {**ENV, **case.env}.items() if v is not None}

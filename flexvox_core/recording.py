@@ -77,6 +77,7 @@ import os
 import struct
 import zlib
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -688,11 +689,12 @@ class Recording:
             return self.journal.get("frame_crc") is not None
         return "frame_crc" in self.group
 
-    @property
+    @cached_property
     def frames(self) -> VerifiedRows:
         """The raw frames ``(F, H, W)`` as stored (float32 or uint16 counts), checked as they are read.
 
-        Exactly the committed rows (an interrupted capture may have rows allocated past them).
+        Exactly the committed rows (an interrupted capture may have rows allocated past them), as
+        they were when the recording was opened.
         """
         crcs = None
         if self.has_checksums:

@@ -709,7 +709,8 @@ class CaptureService:
                     self._writer.close()
                 except (OSError, RecordingError) as exc2:
                     _logger.error("capture: closing %s failed again: %s", self.path, exc2)
-        self._path_lock.release()
+        finally:
+            self._path_lock.release()
         self._state = CaptureState.DONE
         held = None
         try:

@@ -38,7 +38,7 @@ import numpy as np
 
 from rig_drivers.dlpc350 import protocol as p
 from rig_drivers.dlpc350.bitplanes import PLANES_PER_FRAME, pack_bitplanes
-from rig_drivers.dlpc350.transport import Transport
+from rig_drivers.dlpc350.transport import Transport, receive_reply, send_message
 from rig_drivers.errors import (
     DeviceError,
     DeviceTimeoutError,
@@ -57,8 +57,6 @@ from rig_drivers.interfaces import (
 )
 
 _logger = logging.getLogger(__name__)
-
-MAX_ENTRIES_PER_PACKET = p.MAX_PAYLOAD // p.LUT_ENTRY_BYTES  # 19 entries fit one report
 
 Display = Callable[[np.ndarray], None]
 """A display sink: shows ``(N, H, W, 3)`` uint8 frames on the projector's video input, returns when shown."""
@@ -153,16 +151,20 @@ class DLPC350(Projector):
 
     # ------------------------------------------------------------------ transactions
     def _transact(self, command: int, payload: bytes = b"", *, read: bool = False) -> bytes:
-        seq = self._seq
-        self._seq = (self._seq + 1) & 0xFF
-        self._transport.write(p.build_packet(command, payload, read=read, seq=seq))
+        # TI API DLPC350_PrepWriteCmd / PrepReadCmd: writes count up, reads carry 0.
+        seq = 0 if read else self._seq
+        if not read:
+            self._seq = (self._seq + 1) & 0xFF
+        send_message(self._transport, command, payload, read=read, seq=seq)
         try:
-            reply = self._transport.read(self._reply_timeout_s)
+            reply = receive_reply(self._transport, self._reply_timeout_s)
         except DeviceTimeoutError as exc:
             raise DeviceTimeoutError(
                 f"no reply to {p.command_name(command)} within {self._reply_timeout_s:g} s: check the "
                 f"USB cable, close TI's LightCrafter GUI, and power-cycle the projector if it "
                 f"stays silent") from exc
+        except ProtocolError as exc:
+            raise ProtocolError(f"malformed reply to {p.command_name(command)}: {exc}") from None
         return p.parse_reply(reply, command=command, seq=seq)
 
     def write_command(self, command: int, payload: bytes) -> None:
@@ -196,6 +198,50 @@ class DLPC350(Projector):
         """Standby (True: DMD interface powered down) or normal operation, 0x0200."""
         self.write_command(p.Command.POWER_CONTROL, bytes([1 if standby else 0]))
 
+    def power_mode(self) -> str:
+        """"standby" or "normal" (0x0200 read back)."""
+        return "standby" if self._read_byte(p.Command.POWER_CONTROL) & 1 else "normal"
+
+    def errors(self) -> list[str]:
+        """The controller's error bits in words (hardware and system status); empty when none."""
+        return self.status().errors()
+
+    def set_led_currents(self, red: int, green: int, blue: int) -> None:
+        """LED currents as PWM values 0..255 (0xFF: the most the LED driver gives), 0x0B01.
+
+        They set how much light each open slot gets, and so the capture's signal-to-noise.
+        """
+        self.write_command(p.Command.LED_CURRENT, p.encode_led_currents(red, green, blue))
+
+    def led_currents(self) -> tuple[int, int, int]:
+        """(red, green, blue) PWM values read back."""
+        data = self.read_command(p.Command.LED_CURRENT)
+        if len(data) < 3:
+            raise ProtocolError(f"malformed reply to {p.command_name(p.Command.LED_CURRENT)}: {len(data)} bytes")
+        return data[0], data[1], data[2]
+
+    def set_led_enables(self, *, automatic: bool = True, red: bool = True, green: bool = True,
+                        blue: bool = True) -> None:
+        """Which LEDs light (0x1A07). ``automatic``: the pattern sequence drives them (each LUT
+        entry's LED select; the flags are then ignored), as a pattern-mode capture needs."""
+        self.write_command(p.Command.LED_ENABLE, p.encode_led_enables(automatic=automatic, red=red, green=green,
+                                                                      blue=blue))
+
+    def led_enables(self) -> dict[str, bool]:
+        """``automatic``, ``red``, ``green``, ``blue`` read back."""
+        return p.decode_led_enables(self._read_byte(p.Command.LED_ENABLE))
+
+    def set_input_source(self, source: p.InputSource, port_width: int = 24) -> None:
+        """Video-mode input (0x1A00): the parallel port (the HDMI receiver, 24 bits), the test
+        pattern generator, flash or FPD-link. Stop the sequence first."""
+        payload = p.encode_input_source(source, port_width)
+        self._require_stopped("select the input source")
+        self.write_command(p.Command.SOURCE_SELECT, payload)
+
+    def input_source(self) -> tuple[p.InputSource, int]:
+        """(source, parallel port width in bits) read back."""
+        return p.decode_input_source(self._read_byte(p.Command.SOURCE_SELECT))
+
     def set_display_mode(self, pattern: bool) -> None:
         """Pattern display mode (True) or video mode (False), 0x1A1B."""
         self.write_command(p.Command.DISPLAY_MODE, bytes([1 if pattern else 0]))
@@ -208,7 +254,8 @@ class DLPC350(Projector):
                                  falling_us: float = 0.0) -> None:
         """Polarity and edge delays of TRIG_OUT_1 or TRIG_OUT_2 (stop the sequence first).
 
-        Delays in µs relative to the pattern on the DMD, −20.05 .. +7.29 µs in 107.2 ns steps.
+        Delays in µs relative to the pattern on the DMD, −20.05 .. +2.787 µs in 107.2 ns steps
+        (codes 0x00..0xD5); invert = active low, sent in bit 0 as TI's API does.
         """
         command, payload = p.encode_trig_out(number, invert=invert, rising_us=rising_us,
                                              falling_us=falling_us)
@@ -308,17 +355,31 @@ class DLPC350(Projector):
         self._needs_reload = True
 
     def write_pattern_lut(self, entries: list[p.LutEntry]) -> None:
-        """Open the pattern mailbox, write the entries (19 per packet), close it."""
+        """Open the pattern mailbox, set offset 0, send every entry in one 0x1A34 message (it
+        continues over several reports when K > 19), close the mailbox: TI API ``DLPC350_SendPatLut``."""
         if not 1 <= len(entries) <= p.MAX_LUT_ENTRIES:
             raise SettingError(f"`entries` must hold 1..{p.MAX_LUT_ENTRIES} LUT entries; got {len(entries)}")
         self.write_command(p.Command.MAILBOX_CONTROL, bytes([p.Mailbox.PATTERN]))
         try:
-            for start in range(0, len(entries), MAX_ENTRIES_PER_PACKET):
-                chunk = entries[start:start + MAX_ENTRIES_PER_PACKET]
-                self.write_command(p.Command.MAILBOX_OFFSET, bytes([start]))
-                self.write_command(p.Command.MAILBOX_DATA, b"".join(e.encode() for e in chunk))
+            self.write_command(p.Command.MAILBOX_OFFSET, bytes([0]))
+            self.write_command(p.Command.MAILBOX_DATA, b"".join(e.encode() for e in entries))
         finally:
             self.write_command(p.Command.MAILBOX_CONTROL, bytes([p.Mailbox.CLOSED]))
+
+    def read_pattern_lut(self, entries: int) -> list[p.LutEntry]:
+        """Read ``entries`` pattern LUT entries back (mailbox open, offset 0, one long read, close;
+        TI API ``DLPC350_GetPatLut``)."""
+        if not 1 <= entries <= p.MAX_LUT_ENTRIES:
+            raise SettingError(f"`entries` must be 1..{p.MAX_LUT_ENTRIES}; got {entries!r}")
+        self.write_command(p.Command.MAILBOX_CONTROL, bytes([p.Mailbox.PATTERN]))
+        try:
+            self.write_command(p.Command.MAILBOX_OFFSET, bytes([0]))
+            data = self.read_command(p.Command.MAILBOX_DATA)
+        finally:
+            self.write_command(p.Command.MAILBOX_CONTROL, bytes([p.Mailbox.CLOSED]))
+        if len(data) < 3 * entries:
+            raise ProtocolError(f"the projector returned {len(data) // 3} LUT entries, expected {entries}")
+        return [p.LutEntry.decode(data[3 * i:3 * i + 3]) for i in range(entries)]
 
     def validate(self, timeout_s: float | None = None) -> p.ValidationResult:
         """Ask the controller to validate the set-up; poll bit 7 (busy) until it clears.

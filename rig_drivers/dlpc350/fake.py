@@ -1,12 +1,15 @@
 """A fake DLPC350 behind the :class:`~rig_drivers.dlpc350.transport.Transport` protocol.
 
-It parses every report the driver sends, keeps the controller's state (power, display mode,
-source, trigger mode, exposure/period, LUT control, pattern LUT, run state, validation) and
-answers as the controller does: acknowledgements, status bytes, the validation byte with
-its busy bit and failure bits, and a NAK (error flag, bit 5) for an unknown command, a bad
-payload length, a value out of range, a configuration change while the sequence runs, or a
-start without a passed validation. Every received report is kept in :attr:`received` so
-tests can compare packets byte for byte.
+It joins the reports of every message the driver sends as TI's API sends them (a message longer
+than one report continues over several; :class:`~rig_drivers.dlpc350.protocol.MessageAssembler`),
+keeps the controller's state (power, input source, LED currents and enables, display mode,
+pattern source, trigger mode, exposure/period, LUT control, pattern LUT, TRIG_OUT settings, run
+state, validation) and answers as the controller does: acknowledgements (after a message's last
+report), status bytes, long replies over several reports, the validation byte with its busy bit
+and failure bits, and a NAK (error flag, bit 5) for an unknown command, a bad payload length, a
+value out of range (a TRIG_OUT invert flag other than TI's bit 0, a TRIG_OUT delay code above
+0xD5), a configuration change while the sequence runs, or a start without a passed validation.
+Every received report is kept in :attr:`received` so tests can compare them byte for byte.
 
 Shipped in the package so the app can run a "LightCrafter" without hardware.
 """
@@ -26,7 +29,7 @@ _CONFIG_COMMANDS = {
     p.Command.DISPLAY_MODE, p.Command.PATTERN_SOURCE, p.Command.TRIGGER_MODE,
     p.Command.EXPOSURE_PERIOD, p.Command.LUT_CONTROL, p.Command.MAILBOX_CONTROL,
     p.Command.MAILBOX_OFFSET, p.Command.MAILBOX_DATA, p.Command.TRIG_OUT1, p.Command.TRIG_OUT2,
-    p.Command.TRIG_IN1, p.Command.TRIG_IN2,
+    p.Command.TRIG_IN1, p.Command.TRIG_IN2, p.Command.SOURCE_SELECT,
 }
 _MIN_EXPOSURE_1BIT_US = 235
 _MAX_PATTERN_NUMBER_1BIT = 25  # 24 = black, 25 = white fill (DLPU010G Table 2-69/2-70)
@@ -62,12 +65,16 @@ class FakeDLPC350Transport:
         self.is_open = False
         self._replies: deque[bytes] = deque()
         self._injected: deque[bytes] = deque()
+        self._assembler = p.MessageAssembler()
         self.reset()
 
     # ------------------------------------------------------------------ device state
     def reset(self) -> None:
         """Power-on state (DLPU010G reset values: flash source, trigger mode 1, video mode)."""
         self.standby = False
+        self.input_source = bytes([p.InputSource.PARALLEL | p.PORT_WIDTHS[24] << 3])
+        self.led_currents = bytes([0x68, 0x87, 0x82])  # the fake's power-on values
+        self.led_enable = p.LED_SEQUENCER | 0b111
         self.display_mode = 0
         self.source = p.PatternSource.FLASH
         self.trigger_mode = p.TriggerMode.INTERNAL_OR_EXTERNAL
@@ -100,9 +107,18 @@ class FakeDLPC350Transport:
         return [p.LutEntry.decode(self.pattern_lut[i]) for i in sorted(self.pattern_lut)]
 
     # ------------------------------------------------------------------ test helpers
+    def messages(self) -> list[bytes]:
+        """:attr:`received` joined into whole messages (continuation reports attached to their first)."""
+        assembler, out = p.MessageAssembler(), []
+        for report in self.received:
+            message = assembler.feed(report)
+            if message is not None:
+                out.append(message)
+        return out
+
     def requests(self) -> list[p.Request]:
-        """:attr:`received`, parsed."""
-        return [p.parse_request(r) for r in self.received]
+        """:attr:`received`, parsed message by message."""
+        return [p.parse_request(m) for m in self.messages()]
 
     def inject_reply(self, report: bytes) -> None:
         """Answer the next request with ``report`` instead of the computed reply."""
@@ -112,6 +128,7 @@ class FakeDLPC350Transport:
     def open(self) -> None:
         self.is_open = True
         self._replies.clear()
+        self._assembler = p.MessageAssembler()
 
     def close(self) -> None:
         self.is_open = False
@@ -123,11 +140,19 @@ class FakeDLPC350Transport:
         self.received.append(report)
         if self.silent:
             return
-        reply = self._handle(report)
+        try:
+            message = self._assembler.feed(report)
+        except Exception:  # noqa: BLE001 - a malformed report gets a NAK, as the controller does
+            self._assembler = p.MessageAssembler()
+            self._replies.extend(p.build_reply(report[1] if len(report) > 1 else 0, error=True))
+            return
+        if message is None:
+            return  # continuation reports follow; the controller answers after the last one
+        reply = self._handle(message)
         if self._injected:
-            reply = self._injected.popleft()
+            reply = [self._injected.popleft()]
         if reply is not None:
-            self._replies.append(reply)
+            self._replies.extend(reply)
 
     def read(self, timeout_s: float) -> bytes:
         if not self.is_open:
@@ -137,12 +162,12 @@ class FakeDLPC350Transport:
         return self._replies.popleft()
 
     # ------------------------------------------------------------------ protocol
-    def _handle(self, report: bytes) -> bytes | None:
+    def _handle(self, message: bytes) -> list[bytes] | None:
         try:
-            req = p.parse_request(report)
+            req = p.parse_request(message)
         except Exception as exc:  # a malformed request gets a NAK, as the controller does
             _logger.debug("fake DLPC350: malformed request (%s)", exc)
-            return p.build_reply(report[1] if len(report) > 1 else 0, error=True)
+            return p.build_reply(message[1] if len(message) > 1 else 0, error=True)
         if req.read:
             data = self._read(req.command)
             if data is None:
@@ -168,7 +193,10 @@ class FakeDLPC350Transport:
                 self._busy_left -= 1
                 return bytes([p.VALIDATE_BUSY])
             return bytes([self.validation_byte])
+        if command == C.LED_CURRENT:
+            return self.led_currents
         simple = {C.POWER_CONTROL: [int(self.standby)], C.DISPLAY_MODE: [self.display_mode],
+                  C.SOURCE_SELECT: list(self.input_source), C.LED_ENABLE: [self.led_enable],
                   C.PATTERN_SOURCE: [self.source], C.TRIGGER_MODE: [self.trigger_mode],
                   C.START_STOP: [self.run_state], C.MAILBOX_CONTROL: [self.mailbox],
                   C.MAILBOX_OFFSET: [self.mailbox_offset]}
@@ -183,7 +211,7 @@ class FakeDLPC350Transport:
         if command == C.TRIG_IN1:
             return self.trig_in1
         if command == C.MAILBOX_DATA and self.mailbox == p.Mailbox.PATTERN:
-            return b"".join(self.pattern_lut.get(i, bytes(3)) for i in range(self.lut_entries))[:60]
+            return b"".join(self.pattern_lut.get(i, bytes(3)) for i in range(self.mailbox_offset, self.lut_entries))
         return None
 
     def _write(self, command: int, payload: bytes) -> bool:
@@ -232,7 +260,8 @@ class FakeDLPC350Transport:
         elif command == C.MAILBOX_DATA:
             return self._mailbox_data(payload)
         elif command in (C.TRIG_OUT1, C.TRIG_OUT2):
-            if payload[0] & ~0b10:
+            # TI's API sends the invert flag as the whole byte (bit 0); the delay codes end at 0xD5.
+            if payload[0] not in (0, p.TRIG_OUT_INVERT) or any(code > p.TRIG_DELAY_MAX for code in payload[1:]):
                 return False
             self.trig_out[1 if command == C.TRIG_OUT1 else 2] = bytes(payload)
         elif command == C.TRIG_IN1:
@@ -241,6 +270,16 @@ class FakeDLPC350Transport:
             self.trig_in1 = bytes(payload)
         elif command == C.START_STOP:
             return self._start_stop(value)
+        elif command == C.LED_CURRENT:
+            self.led_currents = bytes(payload)
+        elif command == C.LED_ENABLE:
+            if value & ~0b1111:
+                return False
+            self.led_enable = value
+        elif command == C.SOURCE_SELECT:
+            if value & 0b111 > 3 or value >> 3 > 5:
+                return False
+            self.input_source = bytes(payload)
         elif command == C.VALIDATE:
             self.validation_byte = self._validate()
             self.validated = not self.validation_byte & p.VALIDATE_FAILURE_MASK

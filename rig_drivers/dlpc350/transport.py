@@ -1,5 +1,9 @@
-"""How 64-byte HID reports reach the DLPC350: the :class:`Transport` protocol and a pyusb
-implementation that turns every field problem into a typed error with a fix in its message.
+"""How messages reach the DLPC350: the :class:`Transport` protocol (whole 64-byte HID reports),
+a pyusb implementation that turns every field problem into a typed error with a fix in its
+message, and the one place where a message becomes reports and a reply is read back
+(:func:`send_message`, :func:`receive_reply`), as TI's API does it for every command: a message
+longer than one report continues over several, and so does a long reply
+(:mod:`rig_drivers.dlpc350.protocol`).
 """
 
 from __future__ import annotations
@@ -8,6 +12,7 @@ import errno
 import logging
 from typing import Protocol, runtime_checkable
 
+from rig_drivers.dlpc350.protocol import MessageAssembler, message_reports
 from rig_drivers.errors import (
     DLPC350_BUSY_HINT,
     DLPC350_PERMISSION_HINT,
@@ -52,6 +57,26 @@ class Transport(Protocol):
 
     def read(self, timeout_s: float) -> bytes:
         """Return one 64-byte report; raise DeviceTimeoutError after ``timeout_s``."""
+
+
+def send_message(transport: Transport, command: int, payload: bytes = b"", *, read: bool = False,
+                 seq: int = 0) -> int:
+    """Write one message as its reports (TI API ``DLPC350_SendMsg``); return how many reports went out."""
+    reports = message_reports(command, payload, read=read, seq=seq)
+    for report in reports:
+        transport.write(report)
+    return len(reports)
+
+
+def receive_reply(transport: Transport, timeout_s: float) -> bytes:
+    """Read one reply, joining continuation reports when it is longer than one (TI API
+    ``DLPC350_GetPatLut``); the result reads like a single report for
+    :func:`~rig_drivers.dlpc350.protocol.parse_reply`."""
+    assembler = MessageAssembler()
+    while True:
+        message = assembler.feed(transport.read(timeout_s))
+        if message is not None:
+            return message
 
 
 def map_usb_error(exc: Exception, action: str) -> DeviceError:

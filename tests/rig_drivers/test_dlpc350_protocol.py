@@ -35,8 +35,8 @@ def test_request_round_trip():
 
 def test_reply_error_flag_is_a_nak_naming_the_command():
     with pytest.raises(ProtocolError, match=r"refused TRIGGER_MODE \(0x1A23\) \(NAK"):
-        p.parse_reply(p.build_reply(4, error=True), command=0x1A23, seq=4)
-    assert p.parse_reply(p.build_reply(4, b"\x05", read=True), command=0x1A0C, seq=4) == b"\x05"
+        p.parse_reply(p.build_reply(4, error=True)[0], command=0x1A23, seq=4)
+    assert p.parse_reply(p.build_reply(4, b"\x05", read=True)[0], command=0x1A0C, seq=4) == b"\x05"
 
 
 def test_lut_control_sends_counts_minus_one():
@@ -82,8 +82,11 @@ def test_lut_entry_word_layout():
 def test_trig_out_delay_code_is_an_offset_count():
     assert p.trig_out_delay_code(0) == 0xBB
     assert p.trig_out_delay_code(-20.05) == 0x00
-    assert p.trig_out_delay_code(7.29) == 0xFF
-    assert p.encode_trig_out(2, invert=True)[1] == bytes([0b10, 0xBB])
+    assert p.trig_out_delay_code(2.787) == 0xD5  # the last TRIG_OUT code (TI API DLPC350_SetTrigOutConfig)
+    with pytest.raises(SettingError, match=r"a TRIG_OUT delay must be between -20.05 and \+2.787 µs \(codes "
+                                           r"0x00..0xD5, TI API DLPC350_SetTrigOutConfig\); got 2.9 µs"):
+        p.trig_out_delay_code(2.9)  # 0xD6: an LED strobe delay code, not a TRIG_OUT one
+    assert p.encode_trig_out(2, invert=True)[1] == bytes([0x01, 0xBB])  # TI API: the invert flag in bit 0
     with pytest.raises(SettingError, match=r"`number` must be 1 \(TRIG_OUT_1\) or 2 \(TRIG_OUT_2\); got 3"):
         p.encode_trig_out(3)
 

@@ -1,5 +1,6 @@
 """A LightCrafter pattern-mode session against the fake controller, checked byte for byte
-against TI's DLPC350 Programmer's Guide (docs/real-rig.md), and every error path of the driver."""
+against TI's DLPC350 Programmer's Guide and API (docs/real-rig.md; the golden test checks every
+command and the K = 8..32 sessions against TI's API), and every error path of the driver."""
 
 import numpy as np
 import pytest
@@ -75,12 +76,12 @@ def test_show_k16_session_packets_byte_for_byte(fake, rng):
         "40 09 32 00 34 1a " + lut,                      # 0x1A34: 16 x 3-byte LUT entries
         "40 0a 03 00 33 1a 00",                          # 0x1A33 = 0: close the mailbox
         "40 0b 03 00 1a 1a 00",                          # 0x1A1A: validate
-        "c0 0c 02 00 1a 1a",                             # read 0x1A1A: busy
-        "c0 0d 02 00 1a 1a",                             # read 0x1A1A: busy
-        "c0 0e 02 00 1a 1a",                             # read 0x1A1A: done, no failure bit
-        "40 0f 03 00 24 1a 02",                          # 0x1A24 = 2: start
-        "40 10 03 00 24 1a 00",                          # 0x1A24 = 0: stop
-        "40 11 03 00 00 02 01",                          # 0x0200 = 1: standby (close)
+        "c0 00 02 00 1a 1a",                             # read 0x1A1A: busy (reads carry sequence 0, as TI's)
+        "c0 00 02 00 1a 1a",                             # read 0x1A1A: busy
+        "c0 00 02 00 1a 1a",                             # read 0x1A1A: done, no failure bit
+        "40 0c 03 00 24 1a 02",                          # 0x1A24 = 2: start
+        "40 0d 03 00 24 1a 00",                          # 0x1A24 = 0: stop
+        "40 0e 03 00 00 02 01",                          # 0x0200 = 1: standby (close)
     ]
     assert [hexrow(r) for r in fake.received] == expected
     assert all(len(r) == 64 and not any(r[4 + (r[2] | r[3] << 8):]) for r in fake.received)
@@ -198,12 +199,12 @@ def test_silent_device_times_out_with_advice(fake, lcr):
 
 def test_malformed_and_mismatched_replies(fake, lcr):
     fake.inject_reply(b"\x40\x00")
-    with pytest.raises(ProtocolError, match=r"malformed reply to GET_VERSION \(0x0205\): 2 bytes"):
+    with pytest.raises(ProtocolError, match=r"malformed reply to GET_VERSION \(0x0205\): a report must be 64 bytes"):
         lcr.version()
-    fake.inject_reply(p.build_reply(200, bytes(16), read=True))
-    with pytest.raises(ProtocolError, match="carries sequence number 200, expected 2: another program"):
-        lcr.version()
-    fake.inject_reply(p.build_reply(3, b"\x01\x02", read=True))
+    fake.inject_reply(p.build_reply(200, bytes(16), read=True)[0])
+    with pytest.raises(ProtocolError, match="carries sequence number 200, expected 0: another program"):
+        lcr.version()  # reads carry sequence number 0, as TI's API sends them
+    fake.inject_reply(p.build_reply(0, b"\x01\x02", read=True)[0])
     with pytest.raises(ProtocolError, match=r"2 data bytes, expected 16"):
         lcr.version()
 
@@ -212,9 +213,14 @@ def test_trigger_outputs_encode_delays(fake, lcr):
     lcr.configure_trigger_output(2, rising_us=1.072)
     assert hexrow(fake.received[-1]) == "40 01 04 00 1e 1a 00 c5"  # 0xBB + 10 steps of 107.2 ns
     lcr.configure_trigger_output(1, invert=True, rising_us=-20.0, falling_us=0)
-    assert fake.received[-1][6:9] == bytes([0b10, 0x00, 0xBB])  # -20 µs -> -187 steps -> code 0x00
-    with pytest.raises(SettingError, match=r"`delay_us` must be between -20.05 and 7.29 µs; got 9"):
-        lcr.configure_trigger_output(2, rising_us=9)
+    assert fake.received[-1][6:9] == bytes([0x01, 0x00, 0xBB])  # invert in bit 0; -20 µs -> code 0x00
+    assert fake.trig_out[1] == bytes([0x01, 0x00, 0xBB])  # the fake took what TI sends
+    with pytest.raises(SettingError, match=r"a TRIG_OUT delay must be between -20.05 and \+2.787 µs"):
+        lcr.configure_trigger_output(2, rising_us=3)
+    with pytest.raises(ProtocolError, match=r"refused TRIG_OUT2 \(0x1A1E\) \(NAK"):
+        lcr.write_command(p.Command.TRIG_OUT2, bytes([0b10, 0xBB]))  # the programmer's guide's bit 1: refused
+    with pytest.raises(ProtocolError, match=r"refused TRIG_OUT2"):
+        lcr.write_command(p.Command.TRIG_OUT2, bytes([0, 0xD6]))  # an LED strobe delay code
     lcr.configure_trigger_input(delay_us=107.136)
     assert fake.received[-1][6:10] == (1000).to_bytes(4, "little")
 
@@ -241,11 +247,46 @@ def test_constructor_rejects_a_non_transport():
         DLPC350(object())
 
 
-def test_long_lut_is_written_in_chunks_of_19(fake, lcr, rng):
+def test_a_long_lut_is_one_message_over_several_reports(fake, lcr, rng):
     seq = PatternSequence(rng.random((24, 4, 4)) < 0.5, 4166, 4166, trigger=ProjectorTrigger.VSYNC,
                           patterns_per_trigger=4)
     lcr.load_sequence(seq)
     data = [r for r in fake.requests() if r.command == p.Command.MAILBOX_DATA]
     offsets = [r.payload[0] for r in fake.requests() if r.command == p.Command.MAILBOX_OFFSET]
-    assert [len(r.payload) for r in data] == [57, 15] and offsets == [0, 19]
+    assert [len(r.payload) for r in data] == [72] and offsets == [0]  # TI API DLPC350_SendPatLut
+    first = next(i for i, r in enumerate(fake.received) if r[4:6] == bytes([0x34, 0x1A]))
+    assert fake.received[first][2:4] == (74).to_bytes(2, "little")  # the length counts the whole message
+    assert fake.received[first + 1][:12] == data[0].payload[58:70]  # the continuation: no header
     assert [e.pattern_number for e in fake.pattern_entries()] == list(range(24))
+    back = lcr.read_pattern_lut(24)  # a long reply, over two reports
+    assert [e.pattern_number for e in back] == list(range(24))
+
+
+def test_led_source_power_and_error_controls(fake, lcr, rng):
+    lcr.set_led_currents(10, 200, 255)
+    assert fake.led_currents == bytes([10, 200, 255]) and lcr.led_currents() == (10, 200, 255)
+    with pytest.raises(SettingError, match=r"`green` must be between 0 and 255; got 256"):
+        lcr.set_led_currents(0, 256, 0)
+    lcr.set_led_enables(automatic=False, red=False, blue=False)
+    assert lcr.led_enables() == {"automatic": False, "red": False, "green": True, "blue": False}
+    lcr.set_led_enables()  # the sequence drives the LEDs
+    assert fake.led_enable == 0b1111 and lcr.led_enables()["automatic"]
+    lcr.set_input_source(p.InputSource.TEST_PATTERN, 24)
+    assert lcr.input_source() == (p.InputSource.TEST_PATTERN, 24)
+    with pytest.raises(SettingError, match=r"`port_width` must be one of 30, 24, 20, 16, 10, 8 bits; got 12"):
+        lcr.set_input_source(p.InputSource.PARALLEL, 12)
+    assert lcr.power_mode() == "normal" and lcr.errors() == []
+    lcr.load_sequence(k16_sequence(rng))
+    lcr.start()
+    with pytest.raises(IncompatibleStateError, match="cannot select the input source while the sequence is running"):
+        lcr.set_input_source(p.InputSource.PARALLEL)
+    lcr.set_led_currents(50, 50, 50)  # the light can change while it runs
+    assert fake.led_currents == bytes([50, 50, 50])
+    with pytest.raises(ProtocolError, match=r"refused LED_ENABLE"):
+        lcr.write_command(p.Command.LED_ENABLE, bytes([0x10]))  # a reserved bit
+
+
+def test_status_errors_in_words():
+    assert p.Status(0b1000_1001, 1, 0).errors() == [
+        "forced swap error (pattern timing does not match the video VSYNC)", "sequencer error"]
+    assert p.Status(0, 0, 0).errors() == ["internal initialisation FAILED", "internal memory test FAILED"]

@@ -55,7 +55,8 @@ _logger = logging.getLogger(__name__)
 MOCK = "mock"
 """The ``--rig`` value of the simulated rig (the default)."""
 
-PROJECTOR_KINDS = {"dlpc350": ({"kind"}, {"serial"})}
+PROJECTOR_KINDS = {"dlpc350": ({"kind"}, {"serial", "led_current", "led_enable"})}
+LED_COLOURS = ("red", "green", "blue")
 CAMERA_KINDS = {
     "genicam": ({"kind", "cti"}, {"serial", "model", "line", "activation"}),
     "uvc": ({"kind"}, {"index"}),
@@ -133,11 +134,34 @@ def _section(data: dict, section: str, where: str) -> DeviceSpec:
     lines = [s.value for s in TriggerSource if s.value.startswith("Line")]
     if "line" in options and options["line"] not in lines:
         raise SettingError(f"{where} [{section}] line must be one of {', '.join(lines)}; got {options['line']!r}")
+    if "led_current" in options:
+        options["led_current"] = _led_current(options["led_current"], f"{where} [{section}]")
+    if "led_enable" in options:
+        options["led_enable"] = _led_enable(options["led_enable"], f"{where} [{section}]")
     activations = [a.value for a in TriggerActivation]
     if "activation" in options and options["activation"] not in activations:
         raise SettingError(f"{where} [{section}] activation must be one of {', '.join(activations)}; "
                            f"got {options['activation']!r}")
     return DeviceSpec(kind, options)
+
+
+def _led_current(value, where: str) -> tuple[int, int, int]:
+    """``led_current``: one PWM value 0..255 for all three LEDs, or [red, green, blue]."""
+    values = [value] * 3 if not isinstance(value, list) else value
+    if len(values) != 3 or any(isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= 255 for v in values):
+        raise SettingError(f"{where} led_current must be a whole number 0..255 (the LED PWM value, 255 = the most "
+                           f"current) or [red, green, blue] of them; got {value!r}")
+    return tuple(values)
+
+
+def _led_enable(value, where: str) -> str | tuple[str, ...]:
+    """``led_enable``: "sequence" (the pattern sequence drives the LEDs) or a list of colours kept on."""
+    if value == "sequence":
+        return value
+    if isinstance(value, list) and value and all(v in LED_COLOURS for v in value) and len(set(value)) == len(value):
+        return tuple(value)
+    raise SettingError(f"{where} led_enable must be \"sequence\" (the pattern sequence drives the LEDs) or a list "
+                       f"of {', '.join(LED_COLOURS)} to keep on; got {value!r}")
 
 
 def parse_profile(data: dict, *, source: Path | None = None) -> RigSpec:
@@ -310,7 +334,8 @@ def open_rig(rig=MOCK, *, projector_display=None, **simulated_options) -> Rig:
 def _projector(d: DeviceSpec, display=None) -> Projector:
     from rig_drivers.dlpc350 import DLPC350, PyUsbHidTransport
 
-    return DLPC350(PyUsbHidTransport(serial_number=d.options.get("serial")), display=display)
+    return DLPC350(PyUsbHidTransport(serial_number=d.options.get("serial")), display=display,
+                   led_currents=d.options.get("led_current"), led_enable=d.options.get("led_enable"))
 
 
 def _camera(d: DeviceSpec) -> Camera:

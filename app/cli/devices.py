@@ -29,7 +29,25 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def _projectors(list_usb=None) -> dict:
+def _default_projector():
+    from rig_drivers.dlpc350 import DLPC350, PyUsbHidTransport
+
+    return DLPC350(PyUsbHidTransport())
+
+
+def projector_settings(make_projector) -> dict:
+    """Open a LightCrafter, read what an operator checks (firmware, power, input source, LED currents
+    and enables, errors) and close it; ``{"error": why}`` when it cannot be read."""
+    from rig_drivers.errors import DeviceError
+
+    try:
+        with make_projector() as lcr:
+            return lcr.summary()
+    except DeviceError as exc:
+        return {"error": str(exc)}
+
+
+def _projectors(list_usb=None, open_projector=None) -> dict:
     from rig_drivers.dlpc350.transport import list_dlpc350
     from rig_drivers.errors import DeviceError
 
@@ -40,6 +58,8 @@ def _projectors(list_usb=None) -> dict:
     if not found:
         return {"available": False, "devices": [],
                 "reason": "no DLP LightCrafter 4500 (USB 0451:6401) connected"}
+    if len(found) == 1:  # several: a rig profile's `serial` picks one (flexvox devices --rig FILE.toml)
+        found[0]["settings"] = projector_settings(open_projector or _default_projector)
     return {"available": True, "devices": found, "reason": None}
 
 
@@ -92,10 +112,10 @@ def _simulated(sim_producer=None) -> dict:
     return {"available": True, "reason": None, "devices": devices}
 
 
-def survey(*, list_usb=None, comports=None, environ=None, sim_producer=None) -> dict:
+def survey(*, list_usb=None, comports=None, environ=None, sim_producer=None, open_projector=None) -> dict:
     """What this machine can reach, as a JSON-ready dict (injectable probes for tests)."""
     found = {
-        "projectors": _projectors(list_usb),
+        "projectors": _projectors(list_usb, open_projector),
         "serial_ports": _serial_ports(comports),
         "gentl_producers": _gentl_producers(environ),
         "simulated": _simulated(sim_producer),
@@ -112,7 +132,19 @@ _TITLES = {"projectors": "DLP LightCrafter 4500 (USB)", "serial_ports": "serial 
 
 
 def _describe(entry: dict) -> str:
-    return ", ".join(f"{k} {v}" for k, v in entry.items() if v not in (None, ""))
+    return ", ".join(f"{k} {v}" for k, v in entry.items() if v not in (None, "") and k != "settings")
+
+
+def settings_lines(settings: dict) -> list[str]:
+    """A LightCrafter's settings (:func:`projector_settings`) as indented lines."""
+    if "error" in settings:
+        return [f"    cannot read its settings: {settings['error']}"]
+    cur, en = settings["led_current"], settings["led_enable"]
+    leds = "driven by the pattern sequence" if en["automatic"] else \
+        "on: " + (", ".join(c for c in ("red", "green", "blue") if en[c]) or "none")
+    return [f"    firmware {settings['firmware']}, {settings['power']}, input {settings['input_source']}",
+            f"    LED current (PWM 0..255): red {cur['red']}, green {cur['green']}, blue {cur['blue']}; LEDs {leds}",
+            "    errors: " + ("; ".join(settings["errors"]) or "none")]
 
 
 def run(args, *, probes: dict | None = None) -> int:
@@ -126,6 +158,8 @@ def run(args, *, probes: dict | None = None) -> int:
         print(f"{title}:")
         for entry in section["devices"]:
             print(f"  - {_describe(entry)}")
+            if "settings" in entry:
+                print("\n".join(settings_lines(entry["settings"])))
         if section["reason"]:
             print(f"  ({section['reason']})")
     if not found["hardware_found"]:

@@ -99,11 +99,17 @@ class DLPC350(Projector):
         The display sink ``display(frames)`` (module docstring): called with
         :meth:`frames_for` of every sequence loaded, after validation. None: nothing is shown
         by the driver.
+    led_currents : (red, green, blue), optional
+        LED PWM values 0..255 set whenever the projector is enabled (a rig profile's
+        ``led_current``); None leaves the projector's own.
+    led_enable : "sequence" or sequence of colours, optional
+        Set whenever the projector is enabled: "sequence" lets the pattern sequence drive the
+        LEDs; a list of colours keeps those on (a profile's ``led_enable``). None leaves them.
     """
 
     def __init__(self, transport: Transport, *, vsync_hz: float = 60.0, reply_timeout_s: float = 1.0,
                  validate_timeout_s: float = 2.0, poll_interval_s: float = 0.01, name: str | None = None,
-                 display: Display | None = None):
+                 display: Display | None = None, led_currents=None, led_enable=None):
         super().__init__(name=name or "DLP LightCrafter 4500")
         for method in ("open", "close", "write", "read"):
             if not callable(getattr(transport, method, None)):
@@ -119,6 +125,13 @@ class DLPC350(Projector):
         self._seq = 0
         self._needs_reload = False
         self._display = check_display(display)
+        if led_currents is not None:
+            p.encode_led_currents(*led_currents)  # checked now, not at enable
+        if led_enable is not None and led_enable != "sequence" and not set(led_enable) <= {"red", "green", "blue"}:
+            raise SettingError(f"`led_enable` must be \"sequence\" or colours among red, green, blue; "
+                               f"got {led_enable!r}")
+        self.led_settings = (None if led_currents is None else tuple(led_currents), led_enable)
+        """What :meth:`enable` sets: (LED currents or None, LED enable or None)."""
 
     size = DMD_SIZE
     """Pattern size (rows, columns), as every projector driver reports it."""
@@ -142,6 +155,22 @@ class DLPC350(Projector):
 
     def _do_enable(self) -> None:
         self.set_standby(False)
+        currents, enable = self.led_settings
+        if currents is not None:
+            self.set_led_currents(*currents)
+        if enable is not None:
+            if enable == "sequence":
+                self.set_led_enables(automatic=True)
+            else:
+                self.set_led_enables(automatic=False, **{c: c in enable for c in ("red", "green", "blue")})
+
+    def summary(self) -> dict:
+        """What an operator checks at the rig: firmware, power, input source, LEDs and errors (reads only)."""
+        source, width = self.input_source()
+        return {"firmware": self.version()["application"], "power": self.power_mode(),
+                "input_source": source.name.lower().replace("_", " ") + (f" ({width} bit)" if source == 0 else ""),
+                "led_current": dict(zip(("red", "green", "blue"), self.led_currents(), strict=True)),
+                "led_enable": self.led_enables(), "errors": self.errors()}
 
     def _do_disable(self) -> None:
         try:

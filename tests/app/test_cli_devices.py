@@ -50,11 +50,12 @@ def test_json_lists_what_is_found(capsys, tmp_path):
 
     port = SimpleNamespace(device="/dev/ttyACM0", description="Arduino Uno", vid=0x2341, pid=0x0043)
     probes = {"list_usb": lambda **kw: [Dev()], "comports": lambda: [port],
-              "environ": {"GENICAM_GENTL64_PATH": str(tmp_path)}}
+              "environ": {"GENICAM_GENTL64_PATH": str(tmp_path)}, "open_projector": _busy_projector}
     code = devices.run(parse("--json"), probes=probes)
     payload = json.loads(capsys.readouterr().out)
     assert code == 0 and payload["hardware_found"] is True
-    assert payload["projectors"]["devices"] == [{"bus": 3, "address": 9, "vid_pid": "0451:6401"}]
+    assert payload["projectors"]["devices"] == [{"bus": 3, "address": 9, "vid_pid": "0451:6401",
+                                                 "settings": {"error": "the projector is busy (TI's GUI?)"}}]
     assert payload["serial_ports"]["devices"][0] == {"port": "/dev/ttyACM0", "description": "Arduino Uno",
                                                      "vid_pid": "2341:0043"}
     assert payload["gentl_producers"]["devices"] == [{"producer": str(tmp_path / "viky.cti")}]
@@ -102,3 +103,32 @@ def test_simulated_rig_lists_the_camera_and_the_genicam_simulated_producer(capsy
     assert [d["name"] for d in payload["simulated"]["devices"]] == [
         "simulated projector", "simulated camera", "simulated sync box"]
     assert payload["hardware_found"] is False  # a simulated producer is not rig hardware
+
+
+def _busy_projector():
+    from rig_drivers.errors import DeviceBusyError
+
+    class Busy:
+        def __enter__(self):
+            raise DeviceBusyError("the projector is busy (TI's GUI?)")
+
+        def __exit__(self, *exc):
+            return False
+
+    return Busy()
+
+
+def test_a_found_lightcrafter_shows_its_leds_source_power_and_errors(capsys):
+    from rig_drivers.dlpc350 import DLPC350, FakeDLPC350Transport
+
+    class Dev:
+        bus, address = 1, 4
+
+    fake = FakeDLPC350Transport()
+    fake.led_currents = bytes([104, 135, 130])
+    probes = dict(NO_HARDWARE, list_usb=lambda **kw: [Dev()], open_projector=lambda: DLPC350(fake))
+    assert devices.run(parse(), probes=probes) == 0
+    out = capsys.readouterr().out
+    assert "  - bus 1, address 4, vid_pid 0451:6401\n    firmware 3.0.0, normal, input parallel (24 bit)" in out
+    assert "LED current (PWM 0..255): red 104, green 135, blue 130; LEDs driven by the pattern sequence" in out
+    assert "    errors: none" in out

@@ -114,3 +114,27 @@ def test_deferred_serial_port_opens_on_first_use_with_typed_errors():
 
     with pytest.raises(DeviceNotFoundError, match=r"no serial port /dev/ttyACM9: is the sync box plugged in"):
         SyncBox(DeferredSerialPort("/dev/ttyACM9", serial_factory=missing)).open()
+
+
+def test_led_settings_from_a_profile_reach_the_projector(tmp_path):
+    from rig_drivers.dlpc350 import DLPC350, FakeDLPC350Transport
+    from rig_drivers.profile import parse_profile
+
+    spec = parse_profile({"projector": {"kind": "dlpc350", "led_current": [90, 140, 120], "led_enable": ["green"]},
+                          "camera": {"kind": "uvc"}, "sync": {"kind": "projector-trigger"}})
+    options = spec.projector.options
+    assert options["led_current"] == (90, 140, 120) and options["led_enable"] == ("green",)
+    fake = FakeDLPC350Transport()
+    with DLPC350(fake, led_currents=options["led_current"], led_enable=options["led_enable"]) as lcr:
+        lcr.enable()
+        assert fake.led_currents == bytes([90, 140, 120]) and fake.led_enable == 0b010
+    spec = parse_profile({"projector": {"kind": "dlpc350", "led_current": 200, "led_enable": "sequence"},
+                          "camera": {"kind": "uvc"}, "sync": {"kind": "projector-trigger"}})
+    assert spec.projector.options["led_current"] == (200, 200, 200)
+    for bad, message in (({"led_current": 256}, r"led_current must be a whole number 0..255 .*; got 256"),
+                         ({"led_current": [1, 2]}, r"led_current must be .*; got \[1, 2\]"),
+                         ({"led_enable": "auto"}, r"led_enable must be \"sequence\" .*; got 'auto'"),
+                         ({"led_enable": ["white"]}, r"led_enable must be .*; got \['white'\]")):
+        with pytest.raises(SettingError, match=message):
+            parse_profile({"projector": {"kind": "dlpc350", **bad}, "camera": {"kind": "uvc"},
+                           "sync": {"kind": "projector-trigger"}})

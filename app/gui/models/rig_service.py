@@ -133,6 +133,33 @@ class RigService:
                 ok = self.connect(role) and ok
         return ok
 
+    @property
+    def has_led_control(self) -> bool:
+        """True when the projector takes LED currents (a LightCrafter 4500)."""
+        return callable(getattr(self.device("projector"), "set_led_currents", None))
+
+    def led_currents(self) -> tuple[int, int, int] | None:
+        """The projector's LED PWM values (read back when connected, else the profile's), or None."""
+        dev = self.device("projector")
+        if not self.has_led_control:
+            return None
+        if dev.state is not DeviceState.CLOSED:
+            try:
+                return dev.led_currents()
+            except DeviceError as exc:
+                self.record_error("projector", f"reading the LED currents failed: {exc}")
+        return getattr(dev, "led_settings", (None, None))[0]
+
+    def set_led_currents(self, red: int, green: int, blue: int) -> bool:
+        """Send LED PWM values 0..255 to a connected projector; False (with ``last_error``) when it fails."""
+        dev = self.device("projector")
+        if not self.has_led_control:
+            return False
+        if dev.state is DeviceState.CLOSED:
+            self.record_error("projector", "connect the projector first to set its LED currents")
+            return False
+        return self._attempt("projector", "setting the LED currents", lambda: dev.set_led_currents(red, green, blue))
+
     def record_error(self, role: str, message: str) -> None:
         """Keep an error another part of the app met with this device (e.g. during live view)."""
         self._errors[role] = message

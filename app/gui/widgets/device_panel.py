@@ -4,7 +4,16 @@ from __future__ import annotations
 
 import html
 
-from PySide6.QtWidgets import QGridLayout, QGroupBox, QLabel, QPushButton, QVBoxLayout, QWidget
+from PySide6.QtWidgets import (
+    QGridLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QPushButton,
+    QSpinBox,
+    QVBoxLayout,
+    QWidget,
+)
 
 from app.gui.models.rig_service import ROLES, RigService
 from app.gui.widgets.rich_text import AMBER, GREEN, GREY, RED
@@ -54,10 +63,47 @@ class DevicePanel(QWidget):
         layout = QVBoxLayout(self)
         layout.setContentsMargins(4, 4, 4, 4)
         layout.addWidget(box)
+        self.led_box = self._led_box()
+        layout.addWidget(self.led_box)
         layout.addStretch(1)
         service.subscribe(self._on_change)
         self.destroyed.connect(lambda *_: service.unsubscribe(self._on_change))
         self.refresh()
+
+    def _led_box(self) -> QGroupBox:
+        """LED currents of a LightCrafter: red, green, blue PWM 0..255 and Apply (hidden for other projectors)."""
+        box = QGroupBox("Projector LEDs")
+        box.setToolTip("LED current as the PWM value the LightCrafter's LED driver takes: 0 = off, 255 = the most "
+                       "current it gives. It sets the light in every open slot, and so the recording's "
+                       "signal-to-noise; a rig profile's [projector] led_current sets it at connect.")
+        row = QHBoxLayout()
+        self.led_spins = {}
+        for colour in ("red", "green", "blue"):
+            spin = QSpinBox()
+            spin.setRange(0, 255)
+            spin.setSuffix(" /255")
+            spin.setAccessibleName(f"{colour} LED current (PWM, 0..255)")
+            row.addWidget(QLabel(colour[0].upper()))
+            row.addWidget(spin)
+            self.led_spins[colour] = spin
+        self.led_apply = QPushButton("Apply")
+        self.led_apply.clicked.connect(self.apply_led_currents)
+        v = QVBoxLayout(box)
+        v.addLayout(row)
+        v.addWidget(self.led_apply)
+        box.setVisible(self.service.has_led_control)
+        self._load_led_currents()
+        return box
+
+    def _load_led_currents(self) -> None:
+        values = self.service.led_currents()
+        if values is not None:
+            for spin, value in zip(self.led_spins.values(), values, strict=True):
+                spin.setValue(int(value))
+
+    def apply_led_currents(self) -> bool:
+        """Send the three LED values to the projector (its row shows why when it cannot)."""
+        return self.service.set_led_currents(*(spin.value() for spin in self.led_spins.values()))
 
     def toggle(self, role: str) -> None:
         """Connect a closed device, disconnect an open one."""
@@ -65,7 +111,8 @@ class DevicePanel(QWidget):
         if dev is None:
             return
         if dev.state is DeviceState.CLOSED:
-            self.service.connect(role)
+            if self.service.connect(role) and role == "projector" and self.service.has_led_control:
+                self._load_led_currents()
         else:
             self.service.disconnect(role)
 

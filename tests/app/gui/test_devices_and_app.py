@@ -53,6 +53,32 @@ def test_device_panel_says_the_last_error_in_words(qtbot):
     service.close()
 
 
+def test_led_currents_of_a_lightcrafter_from_the_device_panel(qtbot):
+    from tests.rig_drivers.display_rig import display_rig
+
+    rig = display_rig()
+    fake = rig.projector._transport
+    service = RigService(rig)
+    panel = DevicePanel(service)
+    qtbot.addWidget(panel)
+    assert panel.led_box.isVisibleTo(panel) and panel.led_spins["red"].suffix() == " /255"
+    panel.led_spins["green"].setValue(200)
+    assert not panel.apply_led_currents()  # not connected yet: said in words
+    assert "connect the projector first" in panel.rows["projector"]["error"].text()
+    panel.rows["projector"]["button"].click()
+    assert rig.projector.state is DeviceState.ENABLED
+    assert [s.value() for s in panel.led_spins.values()] == list(fake.led_currents)  # read back at connect
+    for colour, value in zip(("red", "green", "blue"), (30, 220, 128), strict=True):
+        panel.led_spins[colour].setValue(value)
+    panel.led_apply.click()
+    assert fake.led_currents == bytes([30, 220, 128]) and not panel.rows["projector"]["error"].isVisibleTo(panel)
+    service.close()
+    simulated = DevicePanel(RigService(small_rig()))
+    qtbot.addWidget(simulated)
+    assert not simulated.led_box.isVisibleTo(simulated)  # the simulated projector has no LEDs to set
+    simulated.service.close()
+
+
 def test_main_window_has_the_three_workspaces_and_closes_cleanly(qtbot, settings, runner, recording):
     from app.gui.application import build_window
 

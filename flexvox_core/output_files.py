@@ -33,7 +33,7 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from flexvox_core.output_errors import OutputError
-from flexvox_core.writer_lock import lock_holder
+from flexvox_core.writer_lock import WriterLock, lock_holder
 
 _logger = logging.getLogger(__name__)
 
@@ -187,16 +187,19 @@ def atomic_output(path, *, overwrite: bool = False, hint: str = OVERWRITE_HINT) 
     """
     path = Path(path).expanduser()
     tmp = temporary_sibling(path)
-    try:
-        yield tmp
-        if not (tmp.exists() or tmp.is_symlink()):
-            raise OutputError(f"nothing was written for {path}")
-        if (path.exists() or path.is_symlink()) and not overwrite:
-            raise OutputError(f"{path} appeared while it was being written; {hint}")
-        move_into_place(tmp, path)
-    except BaseException:
-        remove_path(tmp)
-        raise
+    # One writer per output: a capture (or another command) cannot start on it while this one
+    # writes, and this one cannot replace what a capture is writing.
+    with WriterLock(path):
+        try:
+            yield tmp
+            if not (tmp.exists() or tmp.is_symlink()):
+                raise OutputError(f"nothing was written for {path}")
+            if (path.exists() or path.is_symlink()) and not overwrite:
+                raise OutputError(f"{path} appeared while it was being written; {hint}")
+            move_into_place(tmp, path)
+        except BaseException:
+            remove_path(tmp)
+            raise
     _logger.debug("wrote %s", path)
 
 

@@ -344,7 +344,8 @@ class RecordingWriter:
             self.frames[i] = stored
             crc = values_crc(stored)
             if self._fsync and crc != self._zero_crc:  # zarr writes no chunk for an all-zero frame
-                self._sync_file(self.store / "frames" / self.frames.metadata.encode_chunk_key((i, 0, 0)), folders=3)
+                # the chunk, and every folder that names it: c/i/0, c/i, c and frames
+                self._sync_file(self.store / "frames" / self.frames.metadata.encode_chunk_key((i, 0, 0)), folders=4)
         head = struct.pack("<qd?3xI", int(frame_id), float(timestamp), bool(dropped), crc)
         self._write_all(head + struct.pack("<I", zlib.crc32(head)))
         self._pending["frame_id"].append(int(frame_id))
@@ -481,13 +482,14 @@ def read_journal(path) -> dict:
     """The committed records of a capture journal: ``frame_id``, ``timestamp``, ``dropped`` and
     ``frame_crc`` (None in a schema-1 journal, which has no frame CRCs).
 
-    Records after the first torn or corrupt one are ignored (a kill mid-write leaves at most
-    one torn record, at the end).
+    A kill mid-write leaves at most one torn record, at the end: a partial record, or a last
+    complete record that fails its CRC. Both are ignored. A failing record with complete
+    records after it is damage, not a kill, and is refused.
 
     Raises
     ------
     RecordingError
-        When the file is not a flexvox journal.
+        When the file is not a flexvox journal, or a record before the last fails its CRC.
     """
     path = Path(path)
     data = path.read_bytes()
@@ -504,7 +506,12 @@ def read_journal(path) -> dict:
     for k in range(n_full):
         fields = record.unpack_from(body, k * record.size)
         if zlib.crc32(bytes(body[k * record.size: k * record.size + checked])) != fields[-1]:
-            _logger.warning("%s: record %d is corrupt; %d later record(s) ignored", path, k, n_full - k - 1)
+            if k < n_full - 1:
+                raise RecordingError(
+                    f"{path}: the capture journal is damaged: record {k} of {n_full} fails its checksum and "
+                    f"{n_full - k - 1} complete record(s) follow it (a kill can tear only the last one); nothing "
+                    "was changed: copy the recording before trying to recover it")
+            _logger.info("%s: the last record (%d) fails its checksum: torn by the kill, ignored", path, k)
             break
         ids.append(fields[0])
         stamps.append(fields[1])

@@ -52,8 +52,9 @@ except ImportError:  # pragma: no cover - Windows
 
 
 def lock_path(path) -> Path:
-    """The lock file that guards ``path``: ``.NAME.lock`` beside it."""
-    path = Path(path).expanduser()
+    """The lock file that guards ``path``: ``.NAME.lock`` beside it, after resolving links and ``..``
+    (a symbolic link to a recording shares the recording's lock)."""
+    path = Path(path).expanduser().resolve()
     return path.with_name(f".{path.name}.lock")
 
 
@@ -131,16 +132,20 @@ class WriterLock:
 
 
 def lock_holder(path) -> str | None:
-    """Who is writing ``path`` now ("process 123 (flexvox capture ...)"), or None when nobody is."""
+    """Who is writing ``path`` now ("process 123 (flexvox capture ...)"), or None when nobody is.
+
+    Only probes the lock: it never writes the lock file, so a writer starting meanwhile is not
+    told that the prober holds it.
+    """
     file = lock_path(path)
-    if not file.exists():
-        return None
-    probe = WriterLock(path)
     try:
-        probe.acquire()
-    except OutputBusyError as exc:
-        return exc.holder
-    except OutputError:
+        fd = os.open(file, os.O_RDONLY)
+    except OSError:
         return None
-    probe.release()
-    return None
+    try:
+        if _try_lock(fd):
+            _unlock(fd)
+            return None
+        return _describe(os.pread(fd, 4096, 0) if hasattr(os, "pread") else b"")
+    finally:
+        os.close(fd)

@@ -149,3 +149,34 @@ def test_a_killed_holder_leaves_no_stale_lock(tmp_path):
     assert lock_holder(target) is None  # ... but the OS released the lock with the process
     with WriterLock(target):
         pass
+
+
+def test_a_link_to_a_recording_shares_its_lock(tmp_path):
+    target = tmp_path / "live.zarr"
+    target.mkdir()
+    os.symlink(target, tmp_path / "link.zarr")
+    with WriterLock(target):
+        with pytest.raises(OutputBusyError, match=r"link.zarr is being written by process"):
+            WriterLock(tmp_path / "link.zarr").acquire()
+        assert lock_holder(tmp_path / "link.zarr") is not None
+
+
+def test_an_atomic_output_holds_the_lock_while_it_writes(tmp_path):
+    out = tmp_path / "race.zarr"
+    with atomic_output(out) as tmp:
+        tmp.mkdir()
+        with pytest.raises(OutputBusyError, match=r"race.zarr is being written by process"):
+            WriterLock(out).acquire()  # a capture starting now is refused
+    with WriterLock(out), pytest.raises(OutputBusyError), atomic_output(out, overwrite=True):
+        pass  # and a write cannot start on a path a capture holds
+    assert out.is_dir() and not [p for p in tmp_path.iterdir() if p.name.startswith(".race.partial")]
+
+
+def test_probing_the_lock_never_writes_it(tmp_path):
+    target = tmp_path / "rec.zarr"
+    with WriterLock(target):
+        before = lock_path(target).read_bytes()
+        assert lock_holder(target) is not None
+        assert lock_path(target).read_bytes() == before
+    (lock_path(target)).write_text("4242 someone else\n")  # a stale file from a killed writer
+    assert lock_holder(target) is None and lock_path(target).read_text() == "4242 someone else\n"

@@ -125,14 +125,24 @@ def test_torn_or_corrupt_journal_records_are_ignored(tmp_path):
     path = tmp_path / "t.zarr"
     w = _writer(path)
     _fill(w, 5)
+    _kill(w)
     journal = path / JOURNAL
     with open(journal, "ab") as f:
         f.write(b"\x01" * 10)  # a record torn by the kill
     assert open_recording(path).n_frames == 5
     data = bytearray(journal.read_bytes())
-    data[16 + 3 * 28] ^= 0xFF  # corrupt record 3 (records of 28 bytes after a 16-byte header)
+    last = bytearray(data)
+    last[16 + 4 * 28] ^= 0xFF  # the last complete record fails its CRC: torn by the kill, ignored
+    journal.write_bytes(bytes(last))
+    assert open_recording(path).n_frames == 4 and read_journal(journal)["frame_id"].tolist() == [0, 1, 2, 3]
+    data[16 + 2 * 28] ^= 0xFF  # record 2 fails with complete records after it: damage, refused
     journal.write_bytes(bytes(data))
-    assert open_recording(path).n_frames == 3 and read_journal(journal)["frame_id"].tolist() == [0, 1, 2]
+    with pytest.raises(RecordingError, match=r"the capture journal is damaged: record 2 of 5 fails its checksum "
+                                             r"and 2 complete record\(s\) follow it"):
+        open_recording(path)
+    with pytest.raises(RecordingError, match=r"journal is damaged"):
+        recover_recording(path)  # nothing is trimmed away
+    assert zarr.open_group(str(path), mode="r")["frames"].shape[0] >= 5
     journal.write_bytes(b"garbage")
     with pytest.raises(RecordingError, match=r"not a flexvox capture journal"):
         open_recording(path)

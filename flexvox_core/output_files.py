@@ -75,7 +75,17 @@ def refuse_output_onto_input(output, inputs: Iterable) -> None:
                           "whatever the flags; choose another path")
 
 
-def check_output(path, *, overwrite: bool = False, inputs: Iterable = (), hint: str = OVERWRITE_HINT) -> Path:
+def output_kind(path) -> str | None:
+    """What an output path will be: "store" (``.zarr``: a Zarr folder), "file" (any other suffix),
+    or None (no suffix: the command decides, e.g. a folder of PNGs)."""
+    suffix = Path(path).suffix.lower()
+    if not suffix:
+        return None
+    return "store" if suffix == ".zarr" else "file"
+
+
+def check_output(path, *, overwrite: bool = False, inputs: Iterable = (), hint: str = OVERWRITE_HINT,
+                 kind: str | None = "auto") -> Path:
     """Check, before any work, that ``path`` may be written; return it.
 
     Parameters
@@ -88,12 +98,16 @@ def check_output(path, *, overwrite: bool = False, inputs: Iterable = (), hint: 
         The command's inputs: the output may not be, hold or lie inside any of them.
     hint : str
         How the user allows overwriting (a front end's own words).
+    kind : "file", "store", "folder", None or "auto"
+        What will be written (default: :func:`output_kind` of the path). ``overwrite`` replaces only
+        the same kind: a file with a file, a Zarr store with a Zarr store (a folder holding
+        ``zarr.json``), never a folder of other things with a file or a store.
 
     Raises
     ------
     OutputError
-        Onto an input; an existing output without ``overwrite``; an output another process is
-        writing; a missing folder; a folder that refuses new files.
+        Onto an input; an existing output without ``overwrite``, or of another kind; an output
+        another process is writing; a missing folder; a folder that refuses new files.
     """
     path = Path(path).expanduser()
     refuse_output_onto_input(path, inputs)
@@ -103,11 +117,26 @@ def check_output(path, *, overwrite: bool = False, inputs: Iterable = (), hint: 
         holder = lock_holder(path)
         if holder is not None:
             raise OutputError(f"{path} is being written by {holder}; it cannot be replaced until that ends")
+        refuse_other_kind(path, output_kind(path) if kind == "auto" else kind)
     folder = path.parent
     if not folder.is_dir():
         raise OutputError(f"cannot write {path}: the folder {folder} does not exist")
     check_writable(folder, path)
     return path
+
+
+def refuse_other_kind(path: Path, kind: str | None) -> None:
+    """Refuse to replace a folder with a file, a file with a folder, or a non-store folder with a store."""
+    is_folder = path.is_dir()
+    if kind == "file" and is_folder:
+        raise OutputError(f"{path} is a folder; --overwrite replaces a file with a file, never a folder: choose "
+                          "another path")
+    if kind in ("store", "folder") and not is_folder:
+        raise OutputError(f"{path} is a file, not a folder; --overwrite never replaces a file with a folder: "
+                          "choose another path")
+    if kind == "store" and not (path / "zarr.json").is_file():
+        raise OutputError(f"{path} is a folder but not a Zarr store; --overwrite replaces only a Zarr store: "
+                          "choose another path")
 
 
 def check_writable(folder, path=None) -> None:

@@ -207,7 +207,7 @@ class RecordingWriter:
     def __init__(self, path, *, height: int, width: int, dtype, attrs: dict, overwrite: bool = False,
                  block_frames: int = DEFAULT_BLOCK_FRAMES, fsync: bool = False, atomic: bool = False,
                  lock=None):
-        from flexvox_core.output_files import temporary_sibling
+        from flexvox_core.output_files import refuse_other_kind, temporary_sibling
         from flexvox_core.writer_lock import WriterLock
 
         self.path = Path(path)
@@ -228,6 +228,8 @@ class RecordingWriter:
         try:
             if (self.path.exists() or self.path.is_symlink()) and not overwrite:
                 raise RecordingError(f"{self.path} already exists; choose another path or allow overwriting")
+            if self.path.exists():
+                refuse_other_kind(self.path, "store")  # never a file, or a folder that is not a Zarr store
             if self._atomic:
                 self.store = temporary_sibling(self.path)
             else:

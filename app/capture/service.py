@@ -244,7 +244,7 @@ def check_output(path, *, overwrite: bool = False, inputs=()) -> Path:
     being written by another capture, or its folder does not exist or refuses files. Front ends call
     it before they open a rig, so the operator hears it at once."""
     try:
-        return output_files.check_output(path, overwrite=overwrite, inputs=inputs,
+        return output_files.check_output(path, overwrite=overwrite, inputs=inputs, kind="store",
                                          hint="choose another path or allow overwriting")
     except OutputError as exc:
         raise CaptureError(str(exc)) from None

@@ -146,7 +146,7 @@ def run(args) -> int:
     if suffix and suffix not in FORMATS:
         raise CliError(f"-o {out}: the output must end in .tif, .tiff, .npy, .mp4 or .zarr, or be a folder (PNG)")
     try:
-        check_output(out, overwrite=args.overwrite, inputs=[args.recording])
+        check_output(out, overwrite=args.overwrite, inputs=[args.recording], kind="folder" if suffix == "" else "auto")
         if suffix == "" and out.is_dir():
             others = sorted(p.name for p in out.iterdir() if not _PNG_NAME.fullmatch(p.name))
             if others:

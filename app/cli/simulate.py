@@ -106,7 +106,7 @@ def run_simulate(args) -> int:
     try:
         spec = _spec_from_argument(args.scene)
         inputs = [Path(args.scene) if Path(args.scene).exists() else None, getattr(spec, "file", None)]
-        check_output(args.output, overwrite=args.overwrite, inputs=inputs)  # before the simulation runs
+        check_output(args.output, overwrite=args.overwrite, inputs=inputs, kind="store")  # before it runs
         if args.tile:
             spec.tile, spec.order = args.tile, None
         if args.size:

@@ -124,6 +124,7 @@ def test_one_writer_per_path_and_the_holder_is_named(tmp_path):
         with pytest.raises(OutputError, match=r"is being written by process \d+"):
             check_output(target, overwrite=True)
     assert not lock_path(target).exists() and lock_holder(target) is None
+    (target / "zarr.json").write_text("{}")
     check_output(target, overwrite=True)
 
 
@@ -180,3 +181,26 @@ def test_probing_the_lock_never_writes_it(tmp_path):
         assert lock_path(target).read_bytes() == before
     (lock_path(target)).write_text("4242 someone else\n")  # a stale file from a killed writer
     assert lock_holder(target) is None and lock_path(target).read_text() == "4242 someone else\n"
+
+
+def test_overwrite_replaces_only_the_same_kind(tmp_path):
+    thesis = tmp_path / "thesis.tif"
+    thesis.mkdir()
+    (thesis / "chapter1.txt").write_text("years of work")
+    with pytest.raises(OutputError, match=r"thesis.tif is a folder; --overwrite replaces a file with a file"):
+        check_output(thesis, overwrite=True)
+    notes = tmp_path / "proj.zarr"
+    notes.mkdir()
+    (notes / "notes.txt").write_text("x")
+    with pytest.raises(OutputError, match=r"proj.zarr is a folder but not a Zarr store"):
+        check_output(notes, overwrite=True)
+    (tmp_path / "plain").write_text("x")
+    with pytest.raises(OutputError, match=r"plain is a file, not a folder"):
+        check_output(tmp_path / "plain", overwrite=True, kind="folder")
+    (notes / "zarr.json").write_text("{}")
+    check_output(notes, overwrite=True)  # a Zarr store may replace a Zarr store
+    from flexvox_core.recording import RecordingWriter  # the writer checks it too
+
+    with pytest.raises(OutputError, match=r"thesis.tif is a folder"):
+        RecordingWriter(thesis, height=4, width=4, dtype="float32", attrs={}, overwrite=True)
+    assert (thesis / "chapter1.txt").read_text() == "years of work"

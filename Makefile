@@ -17,7 +17,7 @@ $(STAMP): $(BIN)/python pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/flexvox demo
+	$(BIN)/flexvox demo --overwrite
 
 # Two workers (pytest-xdist), whole test files kept together; tests/test_layering.py runs the import contracts.
 test: $(STAMP)
@@ -28,7 +28,7 @@ lint: $(STAMP)
 	$(BIN)/python -m ruff check .
 
 bench: $(STAMP)
-	$(BIN)/flexvox bench --quick
+	$(BIN)/flexvox bench --quick --overwrite
 
 screenshots: $(STAMP)
 	QT_QPA_PLATFORM=offscreen $(BIN)/python -m app.gui.screenshots docs/screenshots

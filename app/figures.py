@@ -16,6 +16,35 @@ HIGH_SR = (0.05, 0.05, 1.0)
 HIGH_TR = (1.0, 1.0, 0.05)
 
 
+FIGURES = ("flow_color.png", "flow_quiver.png", "resolution_map.png", "panel.png")
+"""The files :func:`write_figures` writes."""
+
+
+def check_figures_dir(out_dir, *, overwrite: bool = False, inputs=()) -> Path:
+    """Check, before the reconstruction, that the figures may be written into ``out_dir``: not onto an
+    input, not a file, no earlier figures there without ``overwrite``, a folder that takes files.
+
+    Raises
+    ------
+    flexvox_core.output_errors.OutputError
+    """
+    from flexvox_core.output_errors import OutputError
+    from flexvox_core.output_files import check_writable, refuse_output_onto_input
+
+    out = Path(out_dir).expanduser()
+    refuse_output_onto_input(out, inputs)
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"--figures {out} is a file; the figures go into a folder: choose another path")
+    old = [name for name in FIGURES if (out / name).exists()]
+    if old and not overwrite:
+        raise OutputError(f"--figures {out} already holds {', '.join(old)}; use --overwrite to replace them")
+    existing = out
+    while not existing.exists():
+        existing = existing.parent
+    check_writable(existing, out)
+    return out
+
+
 def _save_rgb(path: Path, rgb: np.ndarray) -> None:
     import cv2
 

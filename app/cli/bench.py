@@ -27,13 +27,29 @@ def register(sub) -> None:
     p.add_argument("--no-sci", action="store_true", help="skip the SCI benchmark data even if present")
     p.add_argument("-o", "--out", type=Path, default=Path("bench/results"), metavar="DIR",
                    help="where results go (default bench/results)")
+    p.add_argument("--overwrite", action="store_true", help="replace the results an earlier run left in DIR")
     p.set_defaults(func=run)
+
+OUTPUTS = ("results.csv", "results.json", "pareto.png")
 
 
 def run(args) -> int:
     """Carry out ``flexvox bench``."""
     from app.accuracy_bench import pareto, run_bench, summary
+    from app.cli.errors import CliError
+    from flexvox_core.output_files import OutputError, check_writable
 
+    old = [name for name in OUTPUTS if (args.out / name).exists()]
+    if old and not args.overwrite:
+        raise CliError(f"{args.out} already holds {', '.join(old)} from an earlier run; use --overwrite to replace "
+                       "them, or -o another folder")
+    try:  # before the runs, which take minutes
+        args.out.mkdir(parents=True, exist_ok=True)
+        check_writable(args.out)
+    except OSError as exc:
+        raise CliError(f"cannot write {args.out}: {exc.strerror or exc}") from None
+    except OutputError as exc:
+        raise CliError(str(exc)) from None
     t0 = time.perf_counter()
     with tqdm(desc="captures", unit="capture", leave=False) as bar:
         def progress(done, total):

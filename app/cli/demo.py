@@ -32,6 +32,8 @@ def register(sub) -> None:
                    help="where the report goes (default: flexvox-demo/)")
     p.add_argument("--quick", action="store_true", help="a smaller capture and fewer GAP-TV iterations")
     p.add_argument("--scene", default="drummer", help="built-in scene (default drummer)")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace the report an earlier run left in DIR (`make demo` passes it)")
     p.set_defaults(func=run)
 
 
@@ -42,6 +44,9 @@ def run(args) -> int:
 
     if args.scene not in SCENES:
         raise CliError(f"unknown scene {args.scene!r}; built-in scenes: {', '.join(SCENES)}")
+    if (args.out / "index.html").exists() and not args.overwrite:
+        raise CliError(f"{args.out} already holds a demo report; use --overwrite to replace it, or --out another "
+                       "folder")
     cfg = DemoConfig(out=args.out, quick=args.quick, scene=args.scene)
     with tqdm(total=len(STEPS), unit="step", leave=False) as bar:
         def step(name):

@@ -129,9 +129,10 @@ def _slots(rec) -> dict:
                        "(flexvox capture --rig mock --ground-truth, or flexvox simulate)")
     try:
         frames, code = read_capture(rec)
+        truth = rec.ground_truth()
     except RecordingError as exc:
         raise CliError(f"--slots: {exc}") from None
-    check = slot_accuracy(frames, rec.ground_truth(), code)
+    check = slot_accuracy(frames, truth, code)
     return {"accuracy": check.accuracy, "decidable_fraction": check.decidable_fraction,
             "message": check.describe()}
 
@@ -146,6 +147,9 @@ def run(args) -> int:
                 n = recover_recording(args.recording)
             except OutputError as exc:  # a capture still writes it
                 raise CliError(f"--repair: {exc}") from None
+            except OSError as exc:  # a read-only recording
+                raise CliError(f"--repair: cannot finalise {args.recording}: {exc.strerror or exc}; nothing was "
+                               "changed") from None
             print(f"{args.recording}: finalised, {n} frames")
         rec = open_recording(args.recording)
     except RecordingError as exc:

@@ -50,6 +50,9 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # `flexvox scenes | head`: the reader left; nothing is wrong
         sys.stderr.close()
         return 0
+    except KeyboardInterrupt:  # Ctrl-C: outputs are written beside and renamed only when complete
+        print(f"\nflexvox {args.command}: interrupted; no output was replaced", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":  # pragma: no cover

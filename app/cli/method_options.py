@@ -70,6 +70,13 @@ def _help(option, owners) -> str:
     return words + (f" (default {'; '.join(defaults)})" if defaults else "")
 
 
+def _chunk(text: str) -> int:
+    """``--chunk``: a whole number of camera frames, at least 1."""
+    if not text.strip().isdigit() or int(text) < 1:
+        raise ValueError(f"--chunk must be a whole number of camera frames >= 1; got {text!r}")
+    return int(text)
+
+
 def add_method_options(p, *, chunk: int) -> None:
     """Add ``--method``, every registered method's options and ``--chunk F`` (default ``chunk``
     camera frames) to parser ``p``."""
@@ -90,7 +97,8 @@ def add_method_options(p, *, chunk: int) -> None:
         else:
             p.add_argument(_flag(o), type=int if o.kind == "integer" else float,
                            metavar="N" if o.kind == "integer" else "X", **kw)
-    p.add_argument("--chunk", type=int, default=chunk, metavar="F", help=f"camera frames per chunk (default {chunk})")
+    p.add_argument("--chunk", type=arg_type(_chunk), default=chunk, metavar="F",
+                   help=f"camera frames per chunk (default {chunk})")
 
 
 def _foreign(given: list[str], method: str) -> str:

@@ -10,9 +10,10 @@ from tqdm import tqdm
 
 from app.cli.errors import EXIT_OK, CliError, arg_type, positive_fps
 from app.cli.method_options import add_method_options, method_from_args
+from app.figures import check_figures_dir
 from flexvox_core.capture_reader import open_capture
 from flexvox_core.methods import reconstruct, specs
-from flexvox_core.output_files import check_output, refuse_output_onto_input
+from flexvox_core.output_files import check_output
 from flexvox_core.recording import RecordingError
 from flexvox_core.video_io import WRITABLE, write_video
 
@@ -54,7 +55,7 @@ def run(args) -> int:
             raise ValueError(f"-o {args.output}: the output must end in {', '.join(WRITABLE)}")
         check_output(args.output, overwrite=args.overwrite, inputs=[args.recording])
         if args.figures is not None:
-            refuse_output_onto_input(args.figures, [args.recording])
+            check_figures_dir(args.figures, overwrite=args.overwrite, inputs=[args.recording])
         reader = open_capture(args.recording)
         rec = reader.recording
         method = method_from_args(args, rec.attrs["tile"])

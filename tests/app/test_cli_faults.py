@@ -190,6 +190,13 @@ CASES = {
                                   r"QT_QPA_PLATFORM=offscreen", inputs=(), env=NO_DISPLAY),
     "app-with-a-display-qt-cannot-use": Case("app", 2, r"Qt cannot start its platform plugin here \(.+\); ",
                                              inputs=(), env={"DISPLAY": ":77", "QT_QPA_PLATFORM": "xcb"}),
+    "figures-into-a-file": Case("reconstruct {rec} -o {dir}/v.npy --method motion-aware --figures {dir}/out.npy", 2,
+                                r"--figures .*out.npy is a file; the figures go into a folder", _existing_outputs,
+                                inputs=("rec", "out")),
+    "batch-chunk-0": Case("batch {rec} -o {dir}/b.zarr --chunk 0", 2,
+                          r"--chunk must be a whole number of camera frames >= 1; got '0'"),
+    "slots-deleted-ground-truth-chunk": Case("info {rec} --slots --quick", 2, r"--slots: .*ground truth row 3 is damaged",
+                                             lambda rec: (rec / "ground_truth" / "c" / "3" / "0" / "0").unlink()),
     "repair-a-sound-recording-is-harmless": Case("info {rec} --repair --quick", 0, r"", inputs=()),
 }
 

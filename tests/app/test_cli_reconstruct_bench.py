@@ -87,6 +87,11 @@ def test_bench_quick_writes_table_csv_json_and_plot(tmp_path, capsys):
     assert payload["pareto"] and all(np.isfinite(r["psnr"]) for r in payload["summary"])
     assert (tmp_path / "b" / "pareto.png").stat().st_size > 10_000
     assert (tmp_path / "b" / "results.csv").read_text().startswith("case,K,family,method,psnr")
+    before = (tmp_path / "b" / "results.csv").read_bytes()
+    assert main(["bench", "--quick", "--no-sci", "-o", str(tmp_path / "b")]) == 2  # never over an earlier run
+    assert "already holds results.csv, results.json, pareto.png from an earlier run; use --overwrite" in \
+        capsys.readouterr().err
+    assert (tmp_path / "b" / "results.csv").read_bytes() == before
 
 
 def test_reconstruct_motion_aware_with_figures(recording, tmp_path, capsys):

@@ -20,6 +20,9 @@ def test_quick_demo_writes_the_report(tmp_path, capsys):
     assert (out / "bench" / "pareto.png").exists() and "What accuracy costs in time" in page
     assert (out / "recording.zarr").is_dir()
     assert "homography error over the frame" in page and "shutter slot accuracy" in page
+    assert main(["demo", "--quick", "--out", str(out)]) == 2  # refused at once: an earlier report is there
+    assert "already holds a demo report; use --overwrite" in capsys.readouterr().err
+    assert (out / "index.html").read_text() == page
 
 
 def test_demo_rejects_unknown_scene(tmp_path, capsys):

@@ -10,6 +10,7 @@ import numpy as np
 from app.cli.errors import EXIT_FAILED, EXIT_OK, CliError
 from flexvox_core.output_files import OutputError
 from flexvox_core.recording import RecordingError, open_recording, recover_recording
+from flexvox_core.writer_lock import lock_holder
 
 
 def register(sub) -> None:
@@ -37,6 +38,13 @@ def register(sub) -> None:
                    help="simulated recordings: read back which slot every pixel sampled (against the ground "
                         "truth) and print the slot accuracy; record 17 frames of the strobe scene for a full answer")
     p.set_defaults(func=run)
+
+
+def leftovers(path) -> list[str]:
+    """Hidden siblings an unfinished write left beside ``path`` (``.NAME.partial-*``, ``.NAME.replaced-*``)."""
+    path = Path(path)
+    patterns = (f".{path.stem}.partial-*{path.suffix}", f".{path.stem}.replaced-*{path.suffix}")
+    return sorted(p.name for pattern in patterns for p in path.parent.glob(pattern))
 
 
 def check(rec, *, quick: bool = False, progress=None) -> tuple[dict, list[str]]:
@@ -81,7 +89,8 @@ def check(rec, *, quick: bool = False, progress=None) -> tuple[dict, list[str]]:
         "duration_s": float(F / rates["camera_hz"]) if rates.get("camera_hz") else None,
         "ground_truth": rec.has_ground_truth, "interrupted": rec.interrupted,
         "calibration": a.get("calibration"), "rig": a.get("rig"), "capture": a.get("capture"),
-        "effects": a.get("effects"), "checked": "metadata" if quick else "metadata and every chunk",
+        "effects": a.get("effects"), "writer": lock_holder(rec.path), "leftovers": leftovers(rec.path),
+        "checked": "metadata" if quick else "metadata and every chunk",
         "checksums": rec.has_checksums, "notes": notes, "problems": problems,
     }
     return summary, problems
@@ -113,9 +122,15 @@ def _text(s: dict) -> list[str]:
                      + f", {c.get('queue_drops', 0)} frame(s) discarded by the queue")
     lines.append(f"checked: {s['checked']}" + ("" if s["checksums"] else " (no checksums: schema 1)"))
     lines += [f"note: {n}" for n in s["notes"]]
-    if s["interrupted"]:
+    if s["interrupted"] and s["writer"]:
+        lines.append(f"being written now by {s['writer']}: the frames committed so far are readable")
+    elif s["interrupted"]:
         lines.append("interrupted: the capture did not finish (killed or power lost); every committed frame "
                      "is readable. `flexvox info --repair` finalises it.")
+    for name in s["leftovers"]:
+        kind = "the recording an overwriting capture moved aside" if ".replaced-" in name else "a partial write"
+        lines.append(f"note: {name} beside it is {kind}, left by a write that did not finish; delete it when you "
+                     "no longer need it")
     return lines
 
 

@@ -195,7 +195,8 @@ CASES = {
                                 inputs=("rec", "out")),
     "batch-chunk-0": Case("batch {rec} -o {dir}/b.zarr --chunk 0", 2,
                           r"--chunk must be a whole number of camera frames >= 1; got '0'"),
-    "slots-deleted-ground-truth-chunk": Case("info {rec} --slots --quick", 2, r"--slots: .*ground truth row 3 is damaged",
+    "slots-deleted-ground-truth-chunk": Case("info {rec} --slots --quick", 2,
+                                             r"--slots: .*ground truth row 3 is damaged",
                                              lambda rec: (rec / "ground_truth" / "c" / "3" / "0" / "0").unlink()),
     "repair-a-sound-recording-is-harmless": Case("info {rec} --repair --quick", 0, r"", inputs=()),
 }

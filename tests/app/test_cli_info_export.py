@@ -1,6 +1,7 @@
 """``flexvox info`` and ``flexvox export`` (parsers built with register())."""
 
 import json
+import re
 
 import cv2
 import numpy as np
@@ -81,10 +82,16 @@ def test_info_reports_and_repairs_an_interrupted_capture(tmp_path, capsys):
     for i in range(3):
         w.append(np.ones((8, 8), np.float32), frame_id=i, timestamp=i / 30)
     assert cli(["info", str(tmp_path / "i.zarr")]) == 0
-    assert "interrupted: the capture did not finish" in capsys.readouterr().out
+    assert re.search(r"being written now by process \d+ \(.*\): the frames committed so far are readable",
+                     capsys.readouterr().out)  # a capture in progress, not an interrupted one
     with pytest.raises(CliError, match=r"--repair: .*i.zarr is being written by process \d+"):
         cli(["info", "--repair", str(tmp_path / "i.zarr")])  # never finalised under a running writer
     kill(w)
+    (tmp_path / ".i.replaced-123-abcdef.zarr").mkdir()  # what a killed overwriting capture leaves beside it
+    assert cli(["info", str(tmp_path / "i.zarr")]) == 0
+    out = capsys.readouterr().out
+    assert "interrupted: the capture did not finish" in out
+    assert "note: .i.replaced-123-abcdef.zarr beside it is the recording an overwriting capture moved aside" in out
     assert cli(["info", "--repair", str(tmp_path / "i.zarr")]) == 0
     assert "finalised, 3 frames" in capsys.readouterr().out
     assert not (tmp_path / "i.zarr" / JOURNAL).exists() and not open_recording(tmp_path / "i.zarr").interrupted

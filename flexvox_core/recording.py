@@ -618,8 +618,13 @@ class VerifiedRows:
             if self.crcs is not None:
                 if values_crc(row) != int(self.crcs[i]):
                     f = self.chunk_file(i)
-                    found.append((i, "its chunk file is missing" if f is not None and not f.exists()
-                                  else "its checksum does not match (the chunk was changed or damaged)"))
+                    if f is not None and not f.exists():
+                        found.append((i, "its chunk file is missing"))
+                    elif int(self.crcs[i]) == 0:
+                        found.append((i, "its checksum does not match, or the checksum itself is missing (it reads "
+                                         "0: see the per-frame arrays)"))
+                    else:
+                        found.append((i, "its checksum does not match (the chunk was changed or damaged)"))
             elif self.required is not None and self.required[i]:
                 f = self.chunk_file(i)
                 if f is not None and not f.exists():
@@ -671,6 +676,13 @@ class VerifiedRows:
 
 RowsView = VerifiedRows
 """The name of :class:`VerifiedRows` before checksums."""
+
+
+def _chunk_files_missing(array: zarr.Array, store: Path) -> list[int]:
+    """Indexes of a 1-D array's chunks whose file is missing (zarr would read them as zeros)."""
+    n_chunks = -(-array.shape[0] // array.chunks[0]) if array.shape[0] else 0
+    return [j for j in range(n_chunks)
+            if not (store / array.basename / array.metadata.encode_chunk_key((j,))).exists()]
 
 
 @dataclass
@@ -766,6 +778,22 @@ class Recording:
 
         return normalise_frames(np.asarray(self.frames[start:stop]), self.attrs["storage"])
 
+    def _per_frame_gaps(self) -> list[str]:
+        """Checksum chunks whose file is missing (zarr reads them as zeros). Only ``frame_crc`` is checked:
+        zarr writes no chunk whose values all equal the fill value, which ``dropped`` (all False) and a
+        one-frame ``frame_id`` legitimately are, while a chunk of CRCs that are all 0 does not occur."""
+        if self.journal is not None:
+            return []  # an interrupted capture's per-frame values come from its journal
+        lines = []
+        for name in ("frame_crc",):
+            if name in self.group:
+                arr = self.group[name]
+                for j in _chunk_files_missing(arr, self.path):
+                    a, b = j * arr.chunks[0], min(arr.shape[0], (j + 1) * arr.chunks[0]) - 1
+                    lines.append(f"per-frame array `{name}` rows {a}..{b}: its chunk file is missing (it reads as "
+                                 "zeros)")
+        return lines
+
     def verify(self, progress=None, *, chunk_rows: int = 16) -> list[str]:
         """Check every committed frame (and ground-truth sub-frame): each chunk exists, decodes and
         matches its CRC. Returns one line per damaged row (empty when all are sound).
@@ -775,7 +803,7 @@ class Recording:
         parts = [self.frames] + ([self.ground_truth_rows] if self.has_ground_truth else [])
         total = sum(p.n for p in parts)
         done = 0
-        found = []
+        found = self._per_frame_gaps()
         for part in parts:
             for start in range(0, part.n, chunk_rows):
                 stop = min(part.n, start + chunk_rows)

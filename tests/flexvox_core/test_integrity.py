@@ -167,3 +167,10 @@ def test_durable_writes_flush_every_frame(tmp_path, monkeypatch):
     w.close()
     assert synced == []
     shutil.rmtree(tmp_path / "n.zarr")
+
+
+def test_a_missing_per_frame_chunk_is_named_not_blamed_on_the_frames(rec_path):
+    (rec_path / "frame_crc" / "c" / "0").unlink()
+    problems = open_recording(rec_path).verify()
+    assert problems[0] == "per-frame array `frame_crc` rows 0..5: its chunk file is missing (it reads as zeros)"
+    assert "or the checksum itself is missing (it reads 0" in problems[1]

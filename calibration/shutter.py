@@ -30,6 +30,7 @@ from calibration.errors import CalibrationError
 from calibration.results import StepResult
 from flexvox_core.codes import validate_code
 from flexvox_core.forward import tiled_code
+from flexvox_core.memory_budget import check_fits, shutter_pattern_bytes
 from rig_drivers.dlpc350.bitplanes import pack_bitplanes
 
 _logger = logging.getLogger(__name__)
@@ -89,6 +90,8 @@ def make_shutter_patterns(code, homography, camera_size, projector_size, *, phas
     ------
     CalibrationError
         For a bad code, homography or phase.
+    MemoryBudgetError
+        (a ValueError) For patterns that would not fit in memory (a mistyped projector size, say).
     """
     try:
         c = validate_code(code)
@@ -100,6 +103,9 @@ def make_shutter_patterns(code, homography, camera_size, projector_size, *, phas
     K = c.shape[2]
     if isinstance(phase_slots, bool) or not isinstance(phase_slots, int | np.integer) or not 0 <= phase_slots < K:
         raise CalibrationError(f"`phase_slots` must be a whole number 0..{K - 1}; got {phase_slots!r}")
+    check_fits(shutter_pattern_bytes(K, (Hp, Wp), (H, W)),
+               f"making shutter patterns for a {Hp}x{Wp} projector at K = {K}",
+               "check the projector size (capture --projector-size, or the rig profile's)")
     cam_code = tiled_code(c, H, W)  # (K, H, W)
     cam_xy = geometry.apply(h, geometry.pixel_grid((Hp, Wp)))
     with np.errstate(invalid="ignore"):

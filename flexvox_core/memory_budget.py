@@ -2,7 +2,8 @@
 
 A request for a 100000×100000 simulation used to start allocating 37 GiB and die in the middle.
 Each entry point that allocates in proportion to its request estimates what it will need
-(:func:`simulation_bytes`, :func:`reconstruction_bytes`, :func:`render_bytes`) and calls
+(:func:`simulation_bytes`, :func:`reconstruction_bytes`, :func:`render_bytes`, :func:`video_load_bytes`,
+:func:`shutter_pattern_bytes`) and calls
 :func:`check_fits`, which compares it with the memory available now and refuses with the GiB it
 would need and what to do instead. The estimates are deliberately rough (the arrays a job holds
 at its peak, times its working copies); they catch requests that are off by orders of magnitude,
@@ -50,13 +51,30 @@ def check_fits(needed: float, what: str, advice: str) -> None:
     _logger.debug("%s: needs about %.2f GiB; %s available", what, needed / GIB,
                   "unknown" if avail is None else f"{avail / GIB:.2f} GiB")
     if avail is not None and needed > avail:
-        raise MemoryBudgetError(f"{what} needs about {needed / GIB:.1f} GiB of memory; this machine has "
-                                f"{avail / GIB:.1f} GiB available: {advice}")
+        raise MemoryBudgetError(f"{what} needs about {_amount(needed)} of memory; this machine has "
+                                f"{_amount(avail)} available: {advice}")
+
+
+def _amount(nbytes: float) -> str:
+    """Bytes in GiB with one decimal (MiB below 0.1 GiB, where that would read 0.0)."""
+    return f"{nbytes / GIB:.1f} GiB" if nbytes >= 0.1 * GIB else f"{nbytes / 1024 ** 2:.0f} MiB"
 
 
 def render_bytes(subframes: int, height: int, width: int) -> float:
     """A rendered scene: the video and one working copy."""
     return 2.0 * subframes * height * width * FLOAT
+
+
+def video_load_bytes(stored_bytes: int, pixels: int, colour: bool) -> float:
+    """Reading a video file as float32: its samples as stored, the float32 video, and (colour) the RGB
+    float32 copy luminance is computed from (measured: 1.25 to 1.5 float videos grey, 4.75 colour)."""
+    return stored_bytes + (4.0 if colour else 1.25) * pixels * FLOAT
+
+
+def shutter_pattern_bytes(K: int, projector_size: tuple[int, int], camera_size: tuple[int, int]) -> float:
+    """Shutter patterns for a projector: per projector pixel its mapped coordinates (about 50 bytes) and two
+    copies of its K slots, plus the code tiled over the camera (measured: 49 + 2K bytes per projector pixel)."""
+    return (56.0 + 2.0 * K) * projector_size[0] * projector_size[1] + float(K) * camera_size[0] * camera_size[1]
 
 
 def simulation_bytes(frames: int, K: int, height: int, width: int) -> float:

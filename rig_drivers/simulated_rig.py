@@ -498,7 +498,7 @@ class SimulatedRig:
             subframes = (spec.camera_frames() or 16) * spec.K if spec is not None else 256
         S = check_int("subframes", subframes, 1, 1_000_000)
         name = spec.builtin if spec is not None else scene
-        return render_scene(name, S, H, W, seed=seed)
+        return render_scene(name, S, H, W, seed=seed, advice="use a smaller camera size (flexvox capture --size)")
 
     @property
     def devices(self) -> tuple:

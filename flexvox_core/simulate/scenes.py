@@ -147,8 +147,13 @@ SCENES: dict[str, BuiltinScene] = {
 }
 
 
-def render_scene(name: str, subframes: int, height: int, width: int, *, seed: int = 0) -> np.ndarray:
-    """Render built-in scene ``name`` as ``(subframes, height, width)`` float32 in [0, 1]."""
+def render_scene(name: str, subframes: int, height: int, width: int, *, seed: int = 0,
+                 advice: str = "use a smaller size or fewer frames") -> np.ndarray:
+    """Render built-in scene ``name`` as ``(subframes, height, width)`` float32 in [0, 1].
+
+    A video that would not fit in memory is refused first (:class:`~flexvox_core.memory_budget.MemoryBudgetError`,
+    ending with ``advice``: what the caller's user can change).
+    """
     if name not in SCENES:
         raise ValueError(f"unknown scene {name!r}; built-in scenes: {', '.join(SCENES)}")
     for label, v, lo in (("subframes", subframes, 1), ("height", height, 8), ("width", width, 8)):
@@ -156,6 +161,6 @@ def render_scene(name: str, subframes: int, height: int, width: int, *, seed: in
             raise ValueError(f"`{label}` must be a whole number >= {lo}; got {v!r}")
     check_fits(render_bytes(int(subframes), int(height), int(width)),
                f"the {name} scene at {height}x{width} with {subframes} sub-frames",
-               "use a smaller size or fewer frames")
+               advice)
     video = SCENES[name].render(int(subframes), int(height), int(width), np.random.default_rng(seed))
     return np.clip(video, 0, 1, out=video).astype(np.float32, copy=False)

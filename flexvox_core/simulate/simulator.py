@@ -16,12 +16,12 @@ import numpy as np
 from flexvox_core.codes import code_from_order, is_identity_code, order_from_code, validate_code
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture, check_video, tiled_code
-from flexvox_core.memory_budget import check_fits, simulation_bytes
+from flexvox_core.memory_budget import FLOAT, check_fits, simulation_bytes
 from flexvox_core.multiplex import multiplexed_code
 from flexvox_core.simulate.effects import Adc, Effect, SyncPhase
 from flexvox_core.simulate.scene_file import SceneSpec
 from flexvox_core.simulate.scenes import render_scene
-from flexvox_core.simulate.sources import load_video, trim_to_frames
+from flexvox_core.simulate.sources import load_video, trim_to_frames, video_shape
 
 _logger = logging.getLogger(__name__)
 
@@ -271,12 +271,36 @@ def code_for(spec: SceneSpec):
     return design_code(spec.tile).require(), False, None
 
 
+_FILE_ADVICE = "cut the video to fewer or smaller frames, or simulate fewer frames (--frames)"
+
+
+def _check_file_fits(spec: SceneSpec, K: int) -> None:
+    """Refuse a video file whose simulation would not fit in memory, from its header (before it is read)."""
+    shape = video_shape(spec.file)
+    if shape is None:
+        return
+    S, H, W = shape
+    frames = S // K if spec.camera_frames() is None else min(S // K, spec.camera_frames())
+    if frames < 1:
+        return  # trim_to_frames says it holds less than one camera frame
+    untrimmed = (S - frames * K) * H * W * FLOAT  # the loaded video is kept whole, the simulation uses its start
+    check_fits(simulation_bytes(frames, K, H, W) + untrimmed,
+               f"simulating {spec.source_label()} ({frames} frames of {H}x{W} at K = {K})", _FILE_ADVICE)
+
+
 def simulate(spec: SceneSpec, *, video: np.ndarray | None = None) -> SimulationResult:
-    """Simulate a scene file's scene (render or load its source, trim, design its code)."""
+    """Simulate a scene file's scene (render or load its source, trim, design its code).
+
+    What would not fit in memory is refused first (:mod:`flexvox_core.memory_budget`): a built-in
+    scene before it is rendered, a video file from its header before it is read, a ``video``
+    already read before the simulation's working copies are made.
+    """
     code, multiplexed, placement = code_for(spec)
     K = code.shape[2]
+    given = video is not None
     if video is None:
         if spec.file is not None:
+            _check_file_fits(spec, K)
             video = load_video(spec.file)
         else:
             frames = spec.camera_frames() or 8
@@ -286,6 +310,10 @@ def simulate(spec: SceneSpec, *, video: np.ndarray | None = None) -> SimulationR
             video = render_scene(spec.builtin, frames * K, spec.height, spec.width, seed=spec.seed)
     video = trim_to_frames(video, K, frames=spec.camera_frames() if spec.file is not None else None,
                            source=spec.source_label())
+    if given:  # already in memory (read by the caller): refuse the simulation's working copies that would not fit
+        F, H, W = video.shape[0] // K, video.shape[1], video.shape[2]
+        check_fits(simulation_bytes(F, K, H, W) - F * K * H * W * FLOAT,
+                   f"simulating {spec.source_label()} ({F} frames of {H}x{W} at K = {K})", _FILE_ADVICE)
     result = simulate_video(video, code, effects=spec.effects, seed=spec.seed, rate_hz=spec.rate_hz,
                             electrons_per_unit=spec.electrons_per_unit)
     result.multiplexed = multiplexed

@@ -3,6 +3,8 @@ and the video-SCI benchmark's ``.mat`` files (variable ``orig``, H×W×T uint8).
 
 All load as float32 ``(S, H, W)`` in [0, 1]: uint8 / 255, uint16 / 65535, float kept
 (and required to lie in [0, 1]). Colour is converted to luminance. Nothing is unpickled.
+A file is judged by its header first (:func:`video_shape`): a truncated ``.npy`` is named as
+such, and a video that would not fit in memory as float32 is refused before it is read.
 """
 
 from __future__ import annotations
@@ -14,6 +16,8 @@ from pathlib import Path
 from struct import error as struct_error
 
 import numpy as np
+
+from flexvox_core.memory_budget import check_fits, video_load_bytes
 
 _logger = logging.getLogger(__name__)
 
@@ -61,12 +65,16 @@ def load_video(path) -> np.ndarray:
         raise ValueError(f"{path}: unknown video type {suffix!r}; readable: {', '.join(SUFFIXES)}")
     if not path.exists():
         raise ValueError(f"{path}: no such file")
+    declared = _declared(path, suffix)
+    if declared is not None:
+        shape, dtype = declared
+        colour = len(shape) == 4 and shape[-1] in (3, 4)
+        pixels = _prod(shape[:3] if colour else shape)
+        check_fits(video_load_bytes(_prod(shape) * dtype.itemsize, pixels, colour),
+                   f"{path}: reading its {'x'.join(map(str, shape))} {dtype} samples as a float32 video",
+                   "cut it to fewer or smaller frames")
     try:
         if suffix == ".npy":
-            with open(path, "rb") as fh:
-                if fh.read(6) != b"\x93NUMPY":
-                    raise ValueError(f"{path}: not a NumPy .npy file (no .npy header); it is damaged or another "
-                                     "format with the wrong suffix")
             arr = np.load(path, allow_pickle=False)
         elif suffix in (".tif", ".tiff"):
             arr = _load_tiff(path)
@@ -84,6 +92,103 @@ def load_video(path) -> np.ndarray:
     if min(arr.shape) == 0:
         raise ValueError(f"{path}: the video is empty {arr.shape}")
     return np.ascontiguousarray(_to_unit_float(arr, path))
+
+
+def video_shape(path) -> tuple[int, int, int] | None:
+    """``(S, H, W)`` a video file declares in its header, without reading its pixels; None when unknown.
+
+    ``ValueError`` for a ``.npy`` whose header is missing or that holds less data than it declares
+    (truncated). A damaged TIFF or video gives None here; :func:`load_video` names its damage.
+    """
+    path = Path(path)
+    declared = _declared(path, path.suffix.lower()) if path.exists() else None
+    if declared is None or len(declared[0]) not in (3, 4):
+        return None
+    S, H, W = declared[0][:3]
+    return int(S), int(H), int(W)
+
+
+def _prod(shape) -> int:
+    n = 1
+    for d in shape:
+        n *= int(d)
+    return n
+
+
+def _declared(path: Path, suffix: str) -> tuple[tuple[int, ...], np.dtype] | None:
+    """The shape and sample type a file's header declares (nothing else is read); None when unknown."""
+    if suffix == ".npy":
+        return _npy_header(path)
+    try:
+        if suffix in (".tif", ".tiff"):
+            import tifffile
+
+            tiff_log = logging.getLogger("tifffile")
+            level = tiff_log.level
+            tiff_log.setLevel(logging.CRITICAL)  # the reader names a damaged file; the header peek stays quiet
+            try:
+                with tifffile.TiffFile(path) as tif:
+                    series = tif.series[0]
+                    return tuple(int(d) for d in series.shape), np.dtype(series.dtype)
+            finally:
+                tiff_log.setLevel(level)
+        if suffix in VIDEO_SUFFIXES:
+            import cv2
+
+            with _quiet_ffmpeg():
+                cap = cv2.VideoCapture(str(path))
+            try:
+                count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) if cap.isOpened() else 0
+                H, W = int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)), int(cap.get(cv2.CAP_PROP_FRAME_WIDTH))
+            finally:
+                cap.release()
+            return ((count, H, W), np.dtype(np.uint8)) if min(count, H, W) > 0 else None
+    except Exception:  # noqa: BLE001 - a header that cannot be read is the reader's to report
+        return None
+    return None
+
+
+def _npy_header(path: Path) -> tuple[tuple[int, ...], np.dtype] | None:
+    """A ``.npy`` header's shape and dtype; refuses a file without one, or with less data than it declares."""
+    from numpy.lib import format as npy_format
+
+    with open(path, "rb") as fh:
+        if fh.read(6) != b"\x93NUMPY":
+            raise ValueError(f"{path}: not a NumPy .npy file (no .npy header); it is damaged or another "
+                             "format with the wrong suffix")
+        fh.seek(0)
+        try:
+            version = npy_format.read_magic(fh)
+            if version == (1, 0):
+                shape, _, dtype = npy_format.read_array_header_1_0(fh)
+            elif version == (2, 0):
+                shape, _, dtype = npy_format.read_array_header_2_0(fh)
+            else:
+                return None
+        except ValueError:
+            return None  # a damaged header: np.load names it
+        offset = fh.tell()
+    if dtype.hasobject:
+        return None  # np.load refuses it (nothing is unpickled)
+    need, have = _prod(shape) * dtype.itemsize, path.stat().st_size - offset
+    if have < need:
+        raise ValueError(f"{path}: a damaged .npy: its header declares {'x'.join(map(str, shape))} {dtype} "
+                         f"({need} bytes) but the file holds {have} bytes after it; it may be truncated")
+    return tuple(int(d) for d in shape), dtype
+
+
+class _quiet_ffmpeg:
+    """FFmpeg's own complaints would be a second, cryptic stderr line: silence them while OpenCV opens a file."""
+
+    def __enter__(self):
+        self._saved = os.environ.get("OPENCV_FFMPEG_LOGLEVEL")
+        os.environ["OPENCV_FFMPEG_LOGLEVEL"] = "-8"
+
+    def __exit__(self, *exc):
+        if self._saved is None:
+            del os.environ["OPENCV_FFMPEG_LOGLEVEL"]
+        else:
+            os.environ["OPENCV_FFMPEG_LOGLEVEL"] = self._saved
 
 
 class _Collect(logging.Handler):
@@ -144,15 +249,8 @@ def _load_mat(path: Path) -> np.ndarray:
 def _load_opencv_video(path: Path) -> np.ndarray:
     import cv2
 
-    quiet = os.environ.get("OPENCV_FFMPEG_LOGLEVEL")
-    os.environ["OPENCV_FFMPEG_LOGLEVEL"] = "-8"  # FFmpeg's own complaints would be a second, cryptic stderr line
-    try:
+    with _quiet_ffmpeg():
         cap = cv2.VideoCapture(str(path))
-    finally:
-        if quiet is None:
-            del os.environ["OPENCV_FFMPEG_LOGLEVEL"]
-        else:
-            os.environ["OPENCV_FFMPEG_LOGLEVEL"] = quiet
     try:
         if not cap.isOpened():
             raise ValueError(f"{path}: OpenCV cannot open this video (damaged, or a codec it lacks)")

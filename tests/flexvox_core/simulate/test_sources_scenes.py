@@ -67,10 +67,20 @@ def _truncated_tiff(folder):
     (folder / "x.tif").write_bytes(data[: len(data) // 3])  # a copy that stopped a third of the way
 
 
+def _truncated_npy(folder):
+    np.save(folder / "x.npy", np.zeros((4, 4, 4)))
+    data = (folder / "x.npy").read_bytes()
+    (folder / "x.npy").write_bytes(data[:-100])  # a copy that stopped short
+
+
 @pytest.mark.parametrize(
     "make, match",
     [
         (lambda p: np.save(p / "x.npy", np.zeros((4, 4))), r"must have 3 dimensions \(S, H, W\); got 2"),
+        (_truncated_npy, r"x.npy: a damaged .npy: its header declares 4x4x4 float64 \(512 bytes\) but the file "
+                         r"holds 412 bytes after it; it may be truncated"),
+        (lambda p: (p / "x.tif").write_bytes(np.random.default_rng(0).bytes(3000)),
+         r"x.tif: not a readable TIFF \(not a TIFF file.*\); it is damaged or another format"),
         (lambda p: np.save(p / "x.npy", np.full((2, 4, 4), 2.0)), r"must lie in \[0, 1\]; found 2 .. 2"),
         (lambda p: (p / "x.npy").write_bytes(b"garbage"), r"x.npy: not a NumPy .npy file \(no .npy header\)"),
         (lambda p: (p / "x.tif").write_bytes(b"garbage" * 20), r"x.tif: not a readable TIFF \(not a TIFF file"),
@@ -85,6 +95,23 @@ def test_bad_sources(tmp_path, make, match):
     path = next(tmp_path.iterdir())
     with pytest.raises(ValueError, match=match):
         load_video(path)
+
+
+def test_video_shape_reads_the_header_only(tmp_path, rng, monkeypatch):
+    import tifffile
+
+    from flexvox_core.simulate.sources import video_shape
+
+    np.save(tmp_path / "v.npy", rng.random((6, 16, 24), dtype=np.float32))
+    np.save(tmp_path / "rgb.npy", np.zeros((5, 16, 24, 3), np.uint8))
+    tifffile.imwrite(tmp_path / "v.tif", np.zeros((7, 16, 24), np.uint16))
+    (tmp_path / "bad.tif").write_bytes(b"garbage" * 20)
+    monkeypatch.setattr(np, "load", lambda *a, **k: pytest.fail("video_shape read the pixels"))
+    assert video_shape(tmp_path / "v.npy") == (6, 16, 24)
+    assert video_shape(tmp_path / "rgb.npy") == (5, 16, 24)
+    assert video_shape(tmp_path / "v.tif") == (7, 16, 24)
+    assert video_shape(tmp_path / "bad.tif") is None  # load_video names the damage
+    assert video_shape(tmp_path / "missing.npy") is None
 
 
 def test_missing_file():

@@ -100,6 +100,29 @@ def _truncated_tiff(rec: Path) -> None:
     clip.write_bytes(clip.read_bytes()[: clip.stat().st_size // 3])
 
 
+def _random_bytes(name: str):
+    """3000 random bytes named ``name`` beside the recording (a download that went wrong)."""
+    import numpy as np
+
+    return lambda rec: (rec.parent / name).write_bytes(np.random.default_rng(18).bytes(3000))
+
+
+def _truncated_npy(rec: Path) -> None:
+    _video_file(rec)
+    clip = rec.parent / "clip.npy"
+    clip.write_bytes(clip.read_bytes()[:3000])
+
+
+def _huge_npy(rec: Path) -> None:
+    """A .npy declaring 4096x4096x4096 uint8 (64 GiB; 384 GiB to read as float32) whose data is a hole in the file:
+    no disk used, and nothing may read it (its bytes are not hashed: that would read 64 GiB of zeros)."""
+    from numpy.lib import format as npy_format
+
+    with open(rec.parent / "huge.npy", "wb") as fh:
+        npy_format.write_array_header_1_0(fh, {"descr": "|u1", "fortran_order": False, "shape": (4096, 4096, 4096)})
+        fh.truncate(fh.tell() + 4096 ** 3)
+
+
 def _png_folder(rec: Path) -> None:
     folder = rec.parent / "pngs"
     folder.mkdir()
@@ -127,6 +150,8 @@ class Case:
     inputs: tuple = ("rec",)
     env: dict = field(default_factory=dict)
     """Environment changes: a value of None removes the variable."""
+    needs_gib: float = 0.0
+    """A request refused for memory that some machine might have: skipped on one with this many GiB available."""
 
 
 CASES = {
@@ -186,6 +211,29 @@ CASES = {
     "simulate-huge-size": Case("simulate drummer --size 100000x100000 -o {dir}/s.zarr", 2,
                                r"simulating 100000x100000 with 8 frames of K = 16 needs about \d+\.\d GiB of memory; "
                                r"this machine has \d+\.\d GiB available", inputs=()),
+    "simulate-huge-frame-count": Case("simulate drummer --size 24x32 --frames 100000000 -o {dir}/s.zarr", 2,
+                                      r"simulating 24x32 with 100000000 frames of K = 16 needs about \d+\.\d GiB",
+                                      inputs=()),
+    "simulate-huge-video-file": Case("simulate {dir}/huge.npy --tile 2x2 -o {dir}/s.zarr", 2,
+                                     r"huge.npy: reading its 4096x4096x4096 uint8 samples as a float32 video needs "
+                                     r"about 384.0 GiB of memory; this machine has \d+\.\d GiB available",
+                                     _huge_npy, inputs=(), needs_gib=384),
+    "capture-huge-camera-size": Case("capture --size 8192x8192 --frames 2 -o {dir}/c.zarr --clock virtual", 2,
+                                     r"the drummer scene at 8192x8192 with 256 sub-frames needs about 128.0 GiB .*: "
+                                     r"use a smaller camera size \(flexvox capture --size\)", inputs=(), needs_gib=128),
+    "simulate-random-bytes-tiff": Case("simulate {dir}/clip.tif --tile 2x2 -o {dir}/s.zarr", 2,
+                                       r"clip.tif: not a readable TIFF \(not a TIFF file.*\); it is damaged or another "
+                                       r"format", _random_bytes("clip.tif"), inputs=("tif",)),
+    "simulate-truncated-npy": Case("simulate {dir}/clip.npy --tile 2x2 -o {dir}/s.zarr", 2,
+                                   r"clip.npy: a damaged .npy: its header declares 16x24x32 float32 \(49152 bytes\) "
+                                   r"but the file holds \d+ bytes after it; it may be truncated", _truncated_npy,
+                                   inputs=("clip",)),
+    "simulate-random-bytes-npy": Case("simulate {dir}/clip.npy --tile 2x2 -o {dir}/s.zarr", 2,
+                                      r"clip.npy: not a NumPy .npy file \(no .npy header\)", _random_bytes("clip.npy"),
+                                      inputs=("clip",)),
+    "simulate-unreadable-video": Case("simulate {dir}/clip.mp4 --tile 2x2 -o {dir}/s.zarr", 2,
+                                      r"clip.mp4: OpenCV cannot open this video \(damaged, or a codec it lacks\)",
+                                      _random_bytes("clip.mp4"), inputs=("mp4",)),
     "app-without-a-display": Case("app", 2, r"no display to open the window on \(DISPLAY is not set\); .*"
                                   r"QT_QPA_PLATFORM=offscreen", inputs=(), env=NO_DISPLAY),
     "app-with-a-display-qt-cannot-use": Case("app", 2, r"Qt cannot start its platform plugin here \(.+\); ",
@@ -205,6 +253,11 @@ CASES = {
 @pytest.mark.parametrize("name", list(CASES))
 def test_fault(name, base, tmp_path):
     case = CASES[name]
+    if case.needs_gib:
+        from flexvox_core.memory_budget import GIB, available_bytes
+
+        if (available_bytes() or 0) >= case.needs_gib * GIB:
+            pytest.skip(f"this machine has {case.needs_gib} GiB available: the request would be carried out")
     rec = tmp_path / "rec.zarr"
     shutil.copytree(base / "base.zarr", rec)
     shutil.copy(base / "code.json", tmp_path / "code.json")
@@ -213,7 +266,8 @@ def test_fault(name, base, tmp_path):
     elif case.prepare is not None:
         case.prepare(rec)
     files = {"rec": rec, "code": tmp_path / "code.json", "cal": tmp_path / "cal.json", "out": tmp_path / "out.npy",
-             "clip": tmp_path / "clip.npy", "tif": tmp_path / "clip.tif", "pngs": tmp_path / "pngs"}
+             "clip": tmp_path / "clip.npy", "tif": tmp_path / "clip.tif", "pngs": tmp_path / "pngs",
+             "mp4": tmp_path / "clip.mp4"}
     before = {k: digest(files[k]) for k in case.inputs}
     args = case.args.format(rec=rec, dir=tmp_path, code=tmp_path / "code.json").split()
     env = {k: v for k, v in {**ENV, **case.env}.items() if v is not None}

@@ -50,6 +50,7 @@ from calibration.structured_light import (
     unwrap,
 )
 from rig_drivers.errors import DeviceTimeoutError
+from rig_drivers.pixel_layout import mean_row_offset
 
 _logger = logging.getLogger(__name__)
 
@@ -210,7 +211,7 @@ def _uncovered_halves(decoded: np.ndarray, min_fraction: float) -> list[str]:
 
 def fit_homography(corr: Correspondences, projector_size, *, ransac_threshold_px: float = 1.0,
                    min_points: int = 200, min_coverage: float = 0.6, max_rms_px: float = 0.5,
-                   max_points: int = 40_000, seed: int = 0) -> HomographyResult:
+                   max_points: int = 40_000, seed: int = 0, layout: str = "square") -> HomographyResult:
     """Fit one projector→camera homography to decoded correspondences and judge it.
 
     Parameters
@@ -230,6 +231,10 @@ def fit_homography(corr: Correspondences, projector_size, *, ransac_threshold_px
         Points used by RANSAC (a seeded subsample; the refit uses every inlier).
     seed : int
         Seeds the subsample.
+    layout : "square" or "diamond"
+        How the projector's pixels sit: on a diamond DMD the decoded columns are moved into mirror
+        coordinates (:func:`rig_drivers.pixel_layout.mean_row_offset`) so that the homography maps
+        mirror coordinates, as the shutter patterns expect.
     """
     H, W = corr.camera_size
     nan_map = np.full((H, W), np.nan)
@@ -259,7 +264,7 @@ def fit_homography(corr: Correspondences, projector_size, *, ransac_threshold_px
                      "and the camera on the target."), **base)
     ys, xs = np.nonzero(corr.decoded)
     cam = np.stack([xs, ys], axis=1).astype(np.float64)
-    proj = corr.projector_xy[ys, xs]
+    proj = corr.projector_xy[ys, xs] + np.array([mean_row_offset(layout), 0.0])
     rng = np.random.default_rng(seed)
     pick = rng.choice(len(cam), max_points, replace=False) if len(cam) > max_points else np.arange(len(cam))
     h, mask = cv2.findHomography(proj[pick], cam[pick], cv2.RANSAC, ransacReprojThreshold=ransac_threshold_px,
@@ -324,6 +329,7 @@ def calibrate_homography(session, *, phase_period: int = 16, phase_steps: int = 
             homography=None, rms_px=float("nan"), inliers=0, decoded=0, coverage=0.0,
             residual_map=np.full((H, W), np.nan), geometry=None, camera_size=(H, W),
             projector_size=tuple(session.projector_size))
+    fit_options.setdefault("layout", getattr(session, "pixel_layout", "square"))
     result = fit_homography(corr, session.projector_size, **fit_options)
     result.details["correspondences"] = corr
     _logger.info("homography: %s", result.message)

@@ -92,7 +92,8 @@ def _run_steps(rig, session, tile, progress) -> CalibrationRun:
             report["failed"] = "homography"
             return run
         K = code.shape[2]
-        shutter = make_shutter_patterns(code, hom.homography, session.camera_size, session.projector_size)
+        shutter = make_shutter_patterns(code, hom.homography, session.camera_size, session.projector_size,
+                                        layout=session.pixel_layout)
         ver = verify_shutter(session, shutter, progress=progress("shutter"))
         report["shutter"] = ver.summary() | {"addressable": shutter.addressable, "K": K}
         keep["shutter"] = ver

@@ -39,6 +39,7 @@ from rig_drivers.interfaces import (
     TriggerConfig,
     TriggerSource,
 )
+from rig_drivers.pixel_layout import check_layout
 
 _logger = logging.getLogger(__name__)
 
@@ -132,6 +133,8 @@ class RigSession:
             raise CalibrationError("`projector_size` is needed: this projector driver does not report its "
                                    "resolution")
         self.projector_size = _size("projector_size", size)
+        self.pixel_layout = check_layout(getattr(projector, "pixel_layout", "square"))
+        """How the projector's pixels sit (:mod:`rig_drivers.pixel_layout`), as its driver says."""
         self.trigger = trigger or TriggerConfig(source=TriggerSource.LINE0)
         if not isinstance(self.trigger, TriggerConfig):
             raise CalibrationError(f"`trigger` must be a TriggerConfig; got {trigger!r}")

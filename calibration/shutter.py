@@ -32,6 +32,7 @@ from flexvox_core.codes import validate_code
 from flexvox_core.forward import tiled_code
 from flexvox_core.memory_budget import check_fits, shutter_pattern_bytes
 from rig_drivers.dlpc350.bitplanes import pack_bitplanes
+from rig_drivers.pixel_layout import mirror_centres
 
 _logger = logging.getLogger(__name__)
 
@@ -73,7 +74,8 @@ class ShutterPatterns:
         return int(self.patterns.shape[0])
 
 
-def make_shutter_patterns(code, homography, camera_size, projector_size, *, phase_slots: int = 0) -> ShutterPatterns:
+def make_shutter_patterns(code, homography, camera_size, projector_size, *, phase_slots: int = 0,
+                          layout: str = "square") -> ShutterPatterns:
     """The projector patterns that open each camera pixel in its code slot.
 
     Parameters
@@ -85,6 +87,10 @@ def make_shutter_patterns(code, homography, camera_size, projector_size, *, phas
     camera_size, projector_size : (H, W)
     phase_slots : int
         Sync phase to compensate (see the module docstring).
+    layout : "square" or "diamond"
+        How the projector's pixels sit (:mod:`rig_drivers.pixel_layout`): each pixel takes the
+        code of the camera pixel its mirror's centre lands on, odd rows of a diamond DMD half a
+        pixel along. The homography maps mirror coordinates.
 
     Raises
     ------
@@ -107,7 +113,7 @@ def make_shutter_patterns(code, homography, camera_size, projector_size, *, phas
                f"making shutter patterns for a {Hp}x{Wp} projector at K = {K}",
                "check the projector size (capture --projector-size, or the rig profile's)")
     cam_code = tiled_code(c, H, W)  # (K, H, W)
-    cam_xy = geometry.apply(h, geometry.pixel_grid((Hp, Wp)))
+    cam_xy = geometry.apply(h, mirror_centres((Hp, Wp), layout))
     with np.errstate(invalid="ignore"):
         xi = np.rint(cam_xy[..., 0])
         yi = np.rint(cam_xy[..., 1])

@@ -49,13 +49,14 @@ from pathlib import Path
 
 from rig_drivers.errors import SettingError
 from rig_drivers.interfaces import Camera, Projector, SyncController, TriggerActivation, TriggerSource
+from rig_drivers.pixel_layout import LAYOUTS
 
 _logger = logging.getLogger(__name__)
 
 MOCK = "mock"
 """The ``--rig`` value of the simulated rig (the default)."""
 
-PROJECTOR_KINDS = {"dlpc350": ({"kind"}, {"serial", "led_current", "led_enable"})}
+PROJECTOR_KINDS = {"dlpc350": ({"kind"}, {"serial", "led_current", "led_enable", "pixel_layout"})}
 LED_COLOURS = ("red", "green", "blue")
 CAMERA_KINDS = {
     "genicam": ({"kind", "cti"}, {"serial", "model", "line", "activation"}),
@@ -136,6 +137,9 @@ def _section(data: dict, section: str, where: str) -> DeviceSpec:
         raise SettingError(f"{where} [{section}] line must be one of {', '.join(lines)}; got {options['line']!r}")
     if "led_current" in options:
         options["led_current"] = _led_current(options["led_current"], f"{where} [{section}]")
+    if "pixel_layout" in options and options["pixel_layout"] not in LAYOUTS:
+        raise SettingError(f"{where} [{section}] pixel_layout must be one of {', '.join(LAYOUTS)} (\"diamond\": the "
+                           f"LightCrafter 4500's staggered rows); got {options['pixel_layout']!r}")
     if "led_enable" in options:
         options["led_enable"] = _led_enable(options["led_enable"], f"{where} [{section}]")
     activations = [a.value for a in TriggerActivation]
@@ -335,7 +339,8 @@ def _projector(d: DeviceSpec, display=None) -> Projector:
     from rig_drivers.dlpc350 import DLPC350, PyUsbHidTransport
 
     return DLPC350(PyUsbHidTransport(serial_number=d.options.get("serial")), display=display,
-                   led_currents=d.options.get("led_current"), led_enable=d.options.get("led_enable"))
+                   led_currents=d.options.get("led_current"), led_enable=d.options.get("led_enable"),
+                   pixel_layout=d.options.get("pixel_layout", "square"))
 
 
 def _camera(d: DeviceSpec) -> Camera:

@@ -61,6 +61,7 @@ from flexvox_core.simulate.scene_file import SceneSpec
 from flexvox_core.simulate.scenes import SCENES, render_scene
 from rig_drivers.errors import SettingError
 from rig_drivers.interfaces import PatternSequence, RunState, TriggerSource, check_int
+from rig_drivers.pixel_layout import check_layout, mirror_at
 from rig_drivers.simulated import SimulatedProjector, SimulatedSyncController
 from rig_drivers.simulated_camera import MonotonicClock, SimClock, SimulatedCamera
 from rig_drivers.simulated_target import (
@@ -94,14 +95,19 @@ def check_homography(h) -> np.ndarray:
     return arr / arr[2, 2]
 
 
-def warp_patterns(patterns, homography, camera_size, *, supersample: int = SUPERSAMPLE) -> np.ndarray:
+def warp_patterns(patterns, homography, camera_size, *, supersample: int = SUPERSAMPLE,
+                  layout: str = "square") -> np.ndarray:
     """Projector patterns ``(K, Hp, Wp)`` → light in camera pixels ``(K, H, W)`` float32.
 
     Area-correct (see the module docstring): nearest-neighbour warp at ``supersample``×
-    resolution, then area averaging. Outside the projector: 0.
+    resolution, then area averaging. Outside the projector: 0. ``layout`` is how the projector's
+    pixels sit (:mod:`rig_drivers.pixel_layout`): on a diamond DMD each sub-sample takes the
+    mirror of the staggered grid that covers it.
     """
     H, W = camera_size
     s = int(supersample)
+    if check_layout(layout) != "square":
+        return _warp_layout(np.asarray(patterns), check_homography(homography), (H, W), s, layout)
     up = np.array([[s, 0, (s - 1) / 2], [0, s, (s - 1) / 2], [0, 0, 1]], dtype=np.float64)
     m = up @ check_homography(homography)
     pats = np.asarray(patterns)
@@ -112,6 +118,28 @@ def warp_patterns(patterns, homography, camera_size, *, supersample: int = SUPER
         small = fine if s == 1 else cv2.resize(fine.astype(np.float32), (W, H), interpolation=cv2.INTER_AREA)
         out[k] = small
     out /= np.float32(255)
+    return out
+
+
+def _warp_layout(pats: np.ndarray, homography: np.ndarray, camera_size, s: int, layout: str,
+                 rows_per_block: int = 64) -> np.ndarray:
+    """:func:`warp_patterns` for a non-square layout: each sub-sample maps back into mirror
+    coordinates and takes the mirror that covers it there (``rows_per_block`` camera rows at a time)."""
+    H, W = camera_size
+    inv = np.linalg.inv(homography)
+    out = np.empty((pats.shape[0], H, W), np.float32)
+    bools = np.asarray(pats, bool)
+    for r0 in range(0, H, rows_per_block):
+        r1 = min(H, r0 + rows_per_block)
+        ys, xs = np.mgrid[r0 * s:r1 * s, 0:W * s].astype(np.float64)
+        cam = np.stack([(xs + 0.5) / s - 0.5, (ys + 0.5) / s - 0.5, np.ones_like(xs)], axis=-1)
+        proj = cam @ inv.T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u, v = proj[..., 0] / proj[..., 2], proj[..., 1] / proj[..., 2]
+        row, col, inside = mirror_at(u, v, pats.shape[1:], layout)
+        for k, p in enumerate(bools):
+            fine = (p[row, col] & inside).astype(np.float32)
+            out[k, r0:r1] = fine.reshape(r1 - r0, s, W, s).mean(axis=(1, 3))
     return out
 
 
@@ -182,9 +210,11 @@ class RigProjector(SimulatedProjector):
     """The rig's simulated projector: a fixed resolution, and its patterns are what the
     camera sees."""
 
-    def __init__(self, size: tuple[int, int], *, clock_us, name: str | None = None):
+    def __init__(self, size: tuple[int, int], *, clock_us, name: str | None = None, pixel_layout: str = "square"):
         super().__init__(clock_us=clock_us, name=name or "simulated projector")
         self.size = (int(size[0]), int(size[1]))
+        self.pixel_layout = check_layout(pixel_layout)
+        """How its pixels sit (:mod:`rig_drivers.pixel_layout`): "square", or "diamond" (staggered rows)."""
 
     def _do_load_sequence(self, sequence: PatternSequence) -> None:
         if sequence.patterns.shape[1:] != self.size:
@@ -225,7 +255,8 @@ class ProjectorLightPath:
         """The loaded patterns in camera pixels (cached per sequence)."""
         seq = self._sequence()
         if self._warped_for is not seq:
-            self._warped = warp_patterns(seq.patterns, self._homography, self._camera_size)
+            self._warped = warp_patterns(seq.patterns, self._homography, self._camera_size,
+                                         layout=self._projector.pixel_layout)
             self._warped_for = seq
         return self._warped
 
@@ -332,7 +363,7 @@ class SimulatedRig:
                delay_us: int | None = None, ideal: bool = False, baseline=(0.0, 0.0, 0.0), target_effects=None,
                wiring: str = "projector", camera_line: TriggerSource = TriggerSource.LINE0,
                electrons_per_unit: float | None = None, clock: SimClock | None = None,
-               buffer_frames: int = 16) -> SimulatedRig:
+               buffer_frames: int = 16, pixel_layout: str = "square") -> SimulatedRig:
         """Build a rig around a scene.
 
         Parameters
@@ -346,8 +377,11 @@ class SimulatedRig:
         projector_size : (H, W)
             Default :data:`~rig_drivers.simulated_target.PROJECTOR_SCALE` × the camera's (a finer
             projector, as per-pixel shuttering needs); the camera's with ``ideal``.
+        pixel_layout : "square" or "diamond"
+            How the projector's pixels sit (:mod:`rig_drivers.pixel_layout`): "diamond" staggers
+            every other row by half a pixel, as the LightCrafter 4500's DMD does. Default square.
         homography : array (3, 3), optional
-            Projector→camera on the scene's plane. Default
+            Projector→camera (in mirror coordinates) on the scene's plane. Default
             :func:`~rig_drivers.simulated_target.fine_homography` drawn from ``seed`` (the identity
             with ``ideal``).
         seed : int, optional
@@ -413,7 +447,7 @@ class SimulatedRig:
         truth = RigTruth(h, check_int("phase_slots", phase, 0, 1023), check_int("delay_us", delay, 0, 10**7),
                          seed, video, {e.name: e.as_dict() for e in declared}, base)
         clock = clock or MonotonicClock()
-        projector = RigProjector(projector_size, clock_us=clock.now_us)
+        projector = RigProjector(projector_size, clock_us=clock.now_us, pixel_layout=pixel_layout)
         sync = SimulatedSyncController(clock_us=clock.now_us)
         path = ProjectorLightPath(projector, truth, camera_size, camera_line=camera_line,
                                   sync=sync if wiring == "syncbox" else None)

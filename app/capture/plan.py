@@ -232,13 +232,15 @@ class CapturePlan:
         return TimingCheck(period, proj, seq, cam, tuple(errors), tuple(notes))
 
     def patterns(self, camera_size: tuple[int, int], projector_size: tuple[int, int],
-                 calibration: CaptureCalibration | None = None) -> ShutterPatterns:
+                 calibration: CaptureCalibration | None = None, *, layout: str = "square") -> ShutterPatterns:
         """The projector's patterns for this plan through ``calibration`` (default: uncalibrated).
 
         :func:`calibration.shutter.make_shutter_patterns` with the calibration's homography and the
         phase :meth:`calibration.capture_setup.CaptureCalibration.for_plan` gives at this plan's timing:
-        exactly the patterns calibration verifies, relabelled for the phase.
+        exactly the patterns calibration verifies, relabelled for the phase. ``layout`` is the
+        projector's pixel layout (its driver's ``pixel_layout``).
         """
         cal = calibration or CaptureCalibration()
         phase, _delay, _warnings = cal.for_plan(self.K, self.period_us)
-        return make_shutter_patterns(self.code, cal.homography, camera_size, projector_size, phase_slots=phase)
+        return make_shutter_patterns(self.code, cal.homography, camera_size, projector_size, phase_slots=phase,
+                                     layout=layout)

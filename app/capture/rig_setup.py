@@ -183,7 +183,7 @@ def set_up_rig(rig, plan: CapturePlan, calibration: CaptureCalibration | None = 
                         "slot of the live view mixes two patterns")
     elif delay_by == "camera" and delay_set_by_hand:
         notes.append(f"{camera.name} sets the {delay:.0f} µs trigger delay itself: setting it by hand is not needed")
-    patterns = plan.patterns((H, W), psize, cal).patterns
+    patterns = plan.patterns((H, W), psize, cal, layout=getattr(projector, "pixel_layout", "square")).patterns
     video_port = callable(getattr(projector, "video_sequence", None))  # a DLPC350 fed by its video input
     if use_sync and video_port:
         raise CaptureError(

@@ -55,6 +55,7 @@ from rig_drivers.interfaces import (
     check_positive_float,
     check_timeout,
 )
+from rig_drivers.pixel_layout import check_layout
 
 _logger = logging.getLogger(__name__)
 
@@ -102,6 +103,9 @@ class DLPC350(Projector):
     led_currents : (red, green, blue), optional
         LED PWM values 0..255 set whenever the projector is enabled (a rig profile's
         ``led_current``); None leaves the projector's own.
+    pixel_layout : "square" or "diamond"
+        How the DMD's pixels sit, for the shutter patterns and the calibration (a profile's
+        ``pixel_layout``); the LightCrafter 4500's is "diamond".
     led_enable : "sequence" or sequence of colours, optional
         Set whenever the projector is enabled: "sequence" lets the pattern sequence drive the
         LEDs; a list of colours keeps those on (a profile's ``led_enable``). None leaves them.
@@ -109,7 +113,7 @@ class DLPC350(Projector):
 
     def __init__(self, transport: Transport, *, vsync_hz: float = 60.0, reply_timeout_s: float = 1.0,
                  validate_timeout_s: float = 2.0, poll_interval_s: float = 0.01, name: str | None = None,
-                 display: Display | None = None, led_currents=None, led_enable=None):
+                 display: Display | None = None, led_currents=None, led_enable=None, pixel_layout: str = "square"):
         super().__init__(name=name or "DLP LightCrafter 4500")
         for method in ("open", "close", "write", "read"):
             if not callable(getattr(transport, method, None)):
@@ -131,6 +135,9 @@ class DLPC350(Projector):
             raise SettingError(f"`led_enable` must be \"sequence\" or colours among red, green, blue; "
                                f"got {led_enable!r}")
         self.led_settings = (None if led_currents is None else tuple(led_currents), led_enable)
+        self.pixel_layout = check_layout(pixel_layout)
+        """How the DMD's pixels sit, as the rig profile declares (:mod:`rig_drivers.pixel_layout`): the
+        DLP4500 staggers every other row by half a pixel ("diamond")."""
         """What :meth:`enable` sets: (LED currents or None, LED enable or None)."""
 
     size = DMD_SIZE

@@ -138,3 +138,18 @@ def test_led_settings_from_a_profile_reach_the_projector(tmp_path):
         with pytest.raises(SettingError, match=message):
             parse_profile({"projector": {"kind": "dlpc350", **bad}, "camera": {"kind": "uvc"},
                            "sync": {"kind": "projector-trigger"}})
+
+
+def test_a_profile_declares_the_diamond_dmd():
+    from rig_drivers.profile import parse_profile
+
+    spec = parse_profile({"projector": {"kind": "dlpc350", "pixel_layout": "diamond"}, "camera": {"kind": "uvc"},
+                          "sync": {"kind": "projector-trigger"}})
+    assert spec.projector.options["pixel_layout"] == "diamond"
+    with pytest.raises(SettingError, match=r"pixel_layout must be one of square, diamond .*; got 'hex'"):
+        parse_profile({"projector": {"kind": "dlpc350", "pixel_layout": "hex"}, "camera": {"kind": "uvc"},
+                       "sync": {"kind": "projector-trigger"}})
+    from rig_drivers.dlpc350 import FakeDLPC350Transport
+
+    assert DLPC350(FakeDLPC350Transport(), pixel_layout="diamond").pixel_layout == "diamond"
+    assert DLPC350(FakeDLPC350Transport()).pixel_layout == "square"  # only when the profile declares it

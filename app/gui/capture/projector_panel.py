@@ -91,12 +91,13 @@ class ProjectorPanel(QGroupBox):
             self._set_button(False)
             return False
         psize = projector_size(self.service.rig.projector)
+        layout = getattr(self.service.rig.projector, "pixel_layout", "square")
         calibration = self._calibration()
         self.label.setText(f"packing {plan.K} masks of {psize[1]}×{psize[0]} …")
         self._set_button(True)
 
         def job(token, progress):
-            return plan.patterns(camera_size, psize, calibration).packed
+            return plan.patterns(camera_size, psize, calibration, layout=layout).packed
 
         self._job = self.runner.submit(
             "projector patterns", job, on_finished=lambda frames: self._show(frames, screen, plan.K),

@@ -92,6 +92,12 @@ def check_identity(data: dict, identity, path) -> None:
             raise CalibrationMismatchError(
                 f"{path} was made for a {what} of {a}, this rig's is {b}: calibrate this rig "
                 "(flexvox calibrate) instead of reusing it")
+    layout_had, layout_want = have.get("pixel_layout", "square"), want.get("pixel_layout", "square")
+    if layout_had != layout_want:
+        raise CalibrationMismatchError(
+            f"{path} was made with the projector's pixel layout {layout_had!r}, this rig declares {layout_want!r} "
+            "(rig profile [projector] pixel_layout): its homography is in the other layout's coordinates; "
+            "calibrate again")
     for key, what in (("name", "rig"), ("camera", "camera"), ("projector", "projector")):
         if have.get(key) != want[key]:
             hint = ""

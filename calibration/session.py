@@ -67,6 +67,9 @@ class RigIdentity:
         The projector's name.
     camera_size, projector_size : (H, W)
         Resolutions in pixels.
+    pixel_layout : str
+        How the projector's pixels sit (:mod:`rig_drivers.pixel_layout`): a homography fitted in
+        one layout's mirror coordinates is wrong in another's.
     """
 
     name: str
@@ -74,11 +77,13 @@ class RigIdentity:
     projector: str
     camera_size: tuple[int, int]
     projector_size: tuple[int, int]
+    pixel_layout: str = "square"
 
     def as_dict(self) -> dict:
         """JSON-ready form."""
         return {"name": self.name, "camera": self.camera, "projector": self.projector,
-                "camera_size": list(self.camera_size), "projector_size": list(self.projector_size)}
+                "camera_size": list(self.camera_size), "projector_size": list(self.projector_size),
+                "pixel_layout": self.pixel_layout}
 
 
 def _size(name: str, value) -> tuple[int, int]:
@@ -176,7 +181,7 @@ class RigSession:
     def identity(self) -> RigIdentity:
         """What calibration files made with this session are tied to."""
         return RigIdentity(self.rig_name, self.camera.name, self.projector.name, self.camera_size,
-                           self.projector_size)
+                           self.projector_size, self.pixel_layout)
 
     # ------------------------------------------------------------------ lifecycle
     def open(self) -> None:

@@ -19,7 +19,11 @@ import numpy as np
 
 from rig_drivers.errors import SettingError
 
-LAYOUTS = ("square", "diamond")
+LAYOUTS = ("square", "diamond", "diamond-even")
+"""``diamond``: odd rows sit half a pixel along; ``diamond-even``: the even rows do (the stagger the
+other way round, up to a shift the homography takes). Which one a real DMD has, as its driver's
+image flips leave it, is not verified on hardware: if the shutter check reports crosstalk with one,
+calibrate with the other."""
 
 
 def check_layout(layout) -> str:
@@ -35,6 +39,8 @@ def row_offsets(rows: int, layout: str) -> np.ndarray:
     offsets = np.zeros(int(rows))
     if layout == "diamond":
         offsets[1::2] = 0.5
+    elif layout == "diamond-even":
+        offsets[0::2] = 0.5
     return offsets
 
 

@@ -131,7 +131,8 @@ class DLPC350(Projector):
         self._display = check_display(display)
         if led_currents is not None:
             p.encode_led_currents(*led_currents)  # checked now, not at enable
-        if led_enable is not None and led_enable != "sequence" and not set(led_enable) <= {"red", "green", "blue"}:
+        if led_enable is not None and led_enable != "sequence" and (
+                not led_enable or not set(led_enable) <= {"red", "green", "blue"}):
             raise SettingError(f"`led_enable` must be \"sequence\" or colours among red, green, blue; "
                                f"got {led_enable!r}")
         self.led_settings = (None if led_currents is None else tuple(led_currents), led_enable)
@@ -236,7 +237,7 @@ class DLPC350(Projector):
 
     def power_mode(self) -> str:
         """"standby" or "normal" (0x0200 read back)."""
-        return "standby" if self._read_byte(p.Command.POWER_CONTROL) & 1 else "normal"
+        return "standby" if self._read_byte(p.Command.POWER_CONTROL) & 0x03 else "normal"  # TI GetPowerMode: bits 1:0
 
     def errors(self) -> list[str]:
         """The controller's error bits in words (hardware and system status); empty when none."""

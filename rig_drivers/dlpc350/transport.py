@@ -12,7 +12,7 @@ import errno
 import logging
 from typing import Protocol, runtime_checkable
 
-from rig_drivers.dlpc350.protocol import MessageAssembler, message_reports
+from rig_drivers.dlpc350.protocol import FLAG_ERROR, MessageAssembler, message_reports
 from rig_drivers.errors import (
     DLPC350_BUSY_HINT,
     DLPC350_PERMISSION_HINT,
@@ -72,11 +72,14 @@ def receive_reply(transport: Transport, timeout_s: float) -> bytes:
     """Read one reply, joining continuation reports when it is longer than one (TI API
     ``DLPC350_GetPatLut``); the result reads like a single report for
     :func:`~rig_drivers.dlpc350.protocol.parse_reply`."""
+    first = transport.read(timeout_s)
+    if len(first) >= 1 and first[0] & FLAG_ERROR:
+        return first  # a NAK is answered in one report, whatever its length field says (TI API DLPC350_Write)
     assembler = MessageAssembler()
-    while True:
+    message = assembler.feed(first)
+    while message is None:
         message = assembler.feed(transport.read(timeout_s))
-        if message is not None:
-            return message
+    return message
 
 
 def map_usb_error(exc: Exception, action: str) -> DeviceError:

@@ -290,3 +290,12 @@ def test_status_errors_in_words():
     assert p.Status(0b1000_1001, 1, 0).errors() == [
         "forced swap error (pattern timing does not match the video VSYNC)", "sequencer error"]
     assert p.Status(0, 0, 0).errors() == ["internal initialisation FAILED", "internal memory test FAILED"]
+
+
+def test_a_nak_with_a_long_length_field_is_a_refusal_not_a_timeout(fake, lcr):
+    bad = bytearray(p.build_reply(0, error=True)[0])
+    bad[2:4] = (200).to_bytes(2, "little")  # says continuation reports follow; a NAK never has any
+    fake.inject_reply(bytes(bad))
+    with pytest.raises(ProtocolError, match=r"refused POWER_CONTROL \(0x0200\) \(NAK"):
+        lcr.set_standby(False)
+    assert lcr.power_mode() == "normal"  # the next command is answered as usual

@@ -19,7 +19,7 @@ def test_mirror_centres_and_lookup_agree():
     row, col, inside = mirror_at(np.array([3.1, -0.6, 0.2]), np.array([1.0, 0.0, 7.0]), (4, 3), "diamond")
     assert inside.tolist() == [False, False, False]  # past the staggered row's end; left of row 0; below
     assert mirror_centres((2, 2))[1, 1].tolist() == [1.0, 1.0]  # square: no offset
-    with pytest.raises(SettingError, match=r"`pixel_layout` must be one of square, diamond; got 'hex'"):
+    with pytest.raises(SettingError, match=r"`pixel_layout` must be one of square, diamond, diamond-even; got 'hex'"):
         mirror_centres((2, 2), "hex")
 
 
@@ -70,3 +70,26 @@ def test_a_simulated_rig_with_a_diamond_dmd():
     assert rig.projector.pixel_layout == "diamond"
     with pytest.raises(SettingError, match=r"`pixel_layout` must be one of square, diamond"):
         SimulatedRig.create("static", camera_size=(24, 32), pixel_layout="staggered")
+
+
+def test_the_other_stagger_is_the_same_up_to_a_shift():
+    even = mirror_centres((4, 3), "diamond-even")
+    odd = mirror_centres((4, 3), "diamond")
+    assert even[0, 0].tolist() == [0.5, 0.0] and even[1, 0].tolist() == [0.0, 1.0]
+    shift = np.broadcast_to(np.where(np.arange(4)[:, None] % 2, -0.5, 0.5), (4, 3))
+    np.testing.assert_allclose(even[..., 0] - odd[..., 0], shift)  # odd rows the other way, all shifted by ½
+
+
+def test_a_calibration_made_in_another_layout_is_refused(tmp_path):
+    from calibration.errors import CalibrationMismatchError
+    from calibration.files import check_identity
+    from calibration.session import RigIdentity
+
+    square = RigIdentity("lab rig", "cam", "LightCrafter", (480, 640), (1140, 912))
+    diamond = RigIdentity("lab rig", "cam", "LightCrafter", (480, 640), (1140, 912), "diamond")
+    with pytest.raises(CalibrationMismatchError, match=r"made with the projector's pixel layout 'square', this rig "
+                                                       r"declares 'diamond'.*calibrate again"):
+        check_identity({"rig": square.as_dict()}, diamond, tmp_path / "cal.json")
+    check_identity({"rig": diamond.as_dict()}, diamond, tmp_path / "cal.json")
+    old = {k: v for k, v in square.as_dict().items() if k != "pixel_layout"}  # files from before layouts: square
+    check_identity({"rig": old}, square, tmp_path / "cal.json")

@@ -146,7 +146,7 @@ def test_a_profile_declares_the_diamond_dmd():
     spec = parse_profile({"projector": {"kind": "dlpc350", "pixel_layout": "diamond"}, "camera": {"kind": "uvc"},
                           "sync": {"kind": "projector-trigger"}})
     assert spec.projector.options["pixel_layout"] == "diamond"
-    with pytest.raises(SettingError, match=r"pixel_layout must be one of square, diamond .*; got 'hex'"):
+    with pytest.raises(SettingError, match=r"pixel_layout must be one of square, diamond, diamond-even .*; got 'hex'"):
         parse_profile({"projector": {"kind": "dlpc350", "pixel_layout": "hex"}, "camera": {"kind": "uvc"},
                        "sync": {"kind": "projector-trigger"}})
     from rig_drivers.dlpc350 import FakeDLPC350Transport

@@ -14,7 +14,11 @@ Facts used (function names are TI's):
   command's data length from ``CmdList``. ``DLPC350_PrepReadCmd``: flags 0xC0, sequence 0,
   length 2. The command goes out as CMD3 then CMD2 (little-endian 0xCMD2CMD3).
 * ``DLPC350_SendMsg``: the first 64-byte report holds the 4-byte header and up to 60 bytes of
-  command + data; the rest follows in 64-byte reports with no header; zero padded.
+  command + data; the rest follows in 64-byte reports with no header. The padding after the
+  message is zeros here; TI sends whatever its buffer held there, which the device does not read.
+* ``DLPC350_StartPatLutValidate`` leaves LUT_VALID's one data byte unset; flexvox sends 0, and so
+  does this reference. The session's order of calls and its LUT are flexvox's choices, written
+  with TI's functions: the session tests check their encoding, not the choices.
 * ``CmdList`` lengths: SOURCE_SEL 0x1A00/1, LED_ENABLE 0x1A07/1, LED_CURRENT 0x0B01/3,
   POWER_CONTROL 0x0200/1, LUT_VALID 0x1A1A/1, DISP_MODE 0x1A1B/1, TRIG_OUT1_CTL 0x1A1D/3,
   TRIG_OUT2_CTL 0x1A1E/2, PAT_DISP_MODE 0x1A22/1, PAT_TRIG_MODE 0x1A23/1, PAT_START_STOP

@@ -10,7 +10,6 @@ from tqdm import tqdm
 
 from app.cli.errors import EXIT_OK, CliError, arg_type, positive_fps
 from app.cli.method_options import add_method_options, method_from_args
-from app.figures import check_figures_dir
 from flexvox_core.capture_reader import open_capture
 from flexvox_core.methods import reconstruct, specs
 from flexvox_core.output_files import check_output
@@ -55,6 +54,8 @@ def run(args) -> int:
             raise ValueError(f"-o {args.output}: the output must end in {', '.join(WRITABLE)}")
         check_output(args.output, overwrite=args.overwrite, inputs=[args.recording])
         if args.figures is not None:
+            from app.figures import check_figures_dir
+
             check_figures_dir(args.figures, overwrite=args.overwrite, inputs=[args.recording])
         reader = open_capture(args.recording)
         rec = reader.recording

@@ -126,6 +126,13 @@ def _build(args, display=None):
     plan = _plan(args)
     plan.code  # noqa: B018 - refuse an impossible code before any device is opened
     if args.rig == "mock":
+        from rig_drivers.simulated_target import PROJECTOR_SCALE
+
+        mock_projector = tuple(PROJECTOR_SCALE * v for v in args.size)
+        if args.projector_size is not None and tuple(args.projector_size) != mock_projector:
+            raise ValueError(f"--projector-size {args.projector_size[0]}x{args.projector_size[1]}: the simulated "
+                             f"rig's projector is {mock_projector[0]}x{mock_projector[1]} ({PROJECTOR_SCALE}x --size); "
+                             "--projector-size is for a real projector whose driver reports another size")
         rig = open_rig("mock", scene=args.scene, camera_size=args.size, seed=args.seed,
                        clock=VirtualClock() if args.clock == "virtual" else PacedClock())
     else:

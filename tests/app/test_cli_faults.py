@@ -234,6 +234,10 @@ CASES = {
     "simulate-unreadable-video": Case("simulate {dir}/clip.mp4 --tile 2x2 -o {dir}/s.zarr", 2,
                                       r"clip.mp4: OpenCV cannot open this video \(damaged, or a codec it lacks\)",
                                       _random_bytes("clip.mp4"), inputs=("mp4",)),
+    "capture-mock-projector-size": Case("capture --projector-size 8192x8192 --frames 2 --clock virtual "
+                                        "-o {dir}/c.zarr", 2,
+                                        r"--projector-size 8192x8192: the simulated rig's projector is 240x320",
+                                        inputs=()),
     "app-without-a-display": Case("app", 2, r"no display to open the window on \(DISPLAY is not set\); .*"
                                   r"QT_QPA_PLATFORM=offscreen", inputs=(), env=NO_DISPLAY),
     "app-with-a-display-qt-cannot-use": Case("app", 2, r"Qt cannot start its platform plugin here \(.+\); ",

@@ -6,6 +6,7 @@ Qt aborts the whole process (SIGABRT) when its platform plugin cannot start, so 
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import subprocess
 import sys
@@ -14,6 +15,31 @@ _HEADLESS = ("offscreen", "minimal")
 _PROBE = "import sys; from PySide6.QtGui import QGuiApplication; QGuiApplication(sys.argv[:1])"
 _HOW = ("run it in a desktop session, under a virtual screen (`xvfb-run flexvox app`), or with "
         "QT_QPA_PLATFORM=offscreen (nothing is shown)")
+
+
+GUI_PACKAGES = ("PySide6", "pyqtgraph")
+"""What the ``gui`` extra installs and the Qt application imports."""
+GUI_INSTALL = "pip install 'flexvox[gui]'"
+
+
+def missing_gui_extra() -> str | None:
+    """Why the Qt application cannot start in this environment (its extra is not installed), or None.
+
+    The core, the command line and batch install without Qt (``pip install flexvox``); the window
+    needs the ``gui`` extra. Asked without importing Qt: only whether its packages can be found.
+    """
+    missing = []
+    for name in GUI_PACKAGES:
+        try:
+            found = importlib.util.find_spec(name) is not None
+        except (ImportError, ValueError):  # a finder that refuses it, or a half-removed package
+            found = False
+        if not found:
+            missing.append(name)
+    if not missing:
+        return None
+    return (f"the Qt application needs the GUI extra ({', '.join(missing)} not installed here): "
+            f"{GUI_INSTALL}")
 
 
 def display_problem(env=None, *, probe: bool = True) -> str | None:

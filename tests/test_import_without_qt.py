@@ -1,4 +1,10 @@
-"""flexvox_core, rig_drivers and calibration must import on a machine without Qt."""
+"""The light install: the core, the command line and batch import and run on a machine without Qt.
+
+``pip install flexvox`` installs no Qt (PySide6 and pyqtgraph are the ``gui`` extra), so every module a
+batch worker or a headless reconstruction loads must import with Qt absent. Each test runs a child
+interpreter whose import system refuses PySide6, shiboken6, pyqtgraph (and PyQt, qtpy) — as if they were
+not installed — and checks that none of them was loaded.
+"""
 
 import subprocess
 import sys
@@ -17,24 +23,104 @@ BLOCK_QT = textwrap.dedent(
             return None
 
     sys.meta_path.insert(0, BlockQt())
+
+    def no_qt_loaded():
+        loaded = [m for m in sys.modules if m.split(".")[0] in BlockQt.BLOCKED]
+        assert not loaded, loaded
+    """
+)
+
+CORE = BLOCK_QT + textwrap.dedent(
+    """
     import flexvox_core, rig_drivers, calibration
     import flexvox_core.design, flexvox_core.forward, flexvox_core.multiplex
-    loaded = [m for m in sys.modules if m.split(".")[0] in BlockQt.BLOCKED]
-    assert not loaded, loaded
+    no_qt_loaded()
     print("ok")
     """
 )
 
+CLI = BLOCK_QT + textwrap.dedent(
+    """
+    import importlib, pkgutil
+    import app.cli, app.cli.main, flexvox_core.batch, flexvox_core.video_io, flexvox_core.methods
+    # every subcommand's module, and the parser that registers them all
+    for info in pkgutil.iter_modules(app.cli.__path__):
+        importlib.import_module(f"app.cli.{info.name}")
+    app.cli.main.build_parser()
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot
+    no_qt_loaded()
+    print("ok")
+    """
+)
+
+RUN = BLOCK_QT + textwrap.dedent(
+    """
+    import sys
+    from app.cli.main import main
+    out = sys.argv[1]
+    assert main(["simulate", "drummer", "--frames", "2", "--size", "32x32", "-o", f"{out}/rec.zarr"]) == 0
+    assert main(["reconstruct", f"{out}/rec.zarr", "-o", f"{out}/video.zarr"]) == 0
+    assert main(["batch", f"{out}/rec.zarr", "-o", f"{out}/batch.zarr", "--chunk", "1"]) == 0
+    assert main(["export", f"{out}/rec.zarr", "--what", "frames", "-o", f"{out}/frames.tif"]) == 0
+    no_qt_loaded()
+    print("ok")
+    """
+)
+
+APP = BLOCK_QT + textwrap.dedent(
+    """
+    import sys
+    from app.cli.main import main
+    sys.exit(main(sys.argv[1:]))
+    """
+)
+
+
+def _run(script: str, *args) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", script, *args], capture_output=True, text=True)
+
 
 def test_core_packages_import_with_qt_blocked():
-    out = subprocess.run([sys.executable, "-c", BLOCK_QT], capture_output=True, text=True)
+    out = _run(CORE)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "ok"
 
 
+def test_the_cli_every_subcommand_and_batch_import_with_qt_blocked():
+    out = _run(CLI)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "ok"
+
+
+def test_simulate_reconstruct_batch_and_export_run_with_qt_blocked(tmp_path):
+    out = _run(RUN, str(tmp_path))
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip().endswith("ok")
+    assert (tmp_path / "video.zarr" / "zarr.json").is_file() and (tmp_path / "batch.zarr" / "zarr.json").is_file()
+
+
+def test_flexvox_app_without_the_gui_extra_exits_2_naming_it():
+    out = _run(APP, "app")
+    assert out.returncode == 2
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1, out.stderr
+    assert "flexvox app: error: the Qt application needs the GUI extra" in lines[0]
+    assert "pip install 'flexvox[gui]'" in lines[0]
+
+
+def test_list_screens_without_the_gui_extra_exits_2_naming_it():
+    out = _run(APP, "calibrate", "--list-screens")
+    assert out.returncode == 2
+    assert out.stderr.strip().splitlines() == [
+        "flexvox calibrate: error: the Qt application needs the GUI extra (PySide6, pyqtgraph not installed "
+        "here): pip install 'flexvox[gui]'"]
+
+
 def test_the_blocker_really_blocks_qt():
-    # The guard above must fail if a core package did import Qt.
-    script = BLOCK_QT.replace("import flexvox_core, rig_drivers, calibration", "import PySide6")
-    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
+    # The guards above must fail if a module did import Qt.
+    script = CORE.replace("import flexvox_core, rig_drivers, calibration", "import PySide6")
+    out = _run(script)
     assert out.returncode != 0
     assert "Qt is blocked" in out.stderr

@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from app.cli.errors import EXIT_OK, CliError, arg_type
-from app.qt_platform import display_problem
+from app.qt_platform import display_problem, missing_gui_extra
 
 HELP = "start the Qt application (device panel; Calibrate, Capture, Review)"
 
@@ -52,7 +52,7 @@ def run(args) -> int:
 
     if args.recording is not None and not args.recording.exists():
         raise CliError(f"{args.recording}: no such recording")
-    problem = display_problem()
+    problem = missing_gui_extra() or display_problem()
     if problem is not None:
         raise CliError(problem)
     try:
@@ -87,6 +87,7 @@ def add_screen_options(p) -> None:
 
 def list_screens() -> int:
     """Print the screens ``--projector-screen`` can name."""
+    require_gui_extra()
     from app.gui.projector.display import ScreenError, screen_lines
 
     try:
@@ -95,6 +96,13 @@ def list_screens() -> int:
         raise CliError(str(exc)) from None
     print("\n".join(lines))
     return EXIT_OK
+
+
+def require_gui_extra() -> None:
+    """Refuse (exit 2, one line naming the extra) when Qt, which the window needs, is not installed."""
+    problem = missing_gui_extra()
+    if problem is not None:
+        raise CliError(problem)
 
 
 def needs_screen(spec) -> bool:
@@ -116,6 +124,7 @@ def with_projector_screen(args, spec, work):
     if args.projector_screen is None:
         raise CliError("the DLP LightCrafter 4500 takes its patterns on its video input: give --projector-screen N, "
                        "the screen its HDMI input is (list them with --list-screens)")
+    require_gui_extra()
     from app.gui.projector.display import ScreenError, run_with_projector_screen
 
     try:

@@ -20,6 +20,8 @@ from app.gui.widgets.settings import AppSettings
 _logger = logging.getLogger(__name__)
 
 WORKSPACES = ("Calibrate", "Capture", "Review")
+DEFAULT_SIZE = (1280, 800)
+"""The first window's size: every workspace's primary actions are in view at this size."""
 
 
 class MainWindow(QMainWindow):
@@ -81,8 +83,9 @@ class MainWindow(QMainWindow):
         if geometry is not None:
             self.restoreGeometry(geometry)
         else:
-            self.resize(1500, 900)
-        self.tabs.setCurrentIndex(min(max(settings.get_int("window/tab", 2), 0), len(WORKSPACES) - 1))
+            self.resize(*DEFAULT_SIZE)
+        # The first start opens where the operator's path starts (Calibrate), never on an empty Review.
+        self.tabs.setCurrentIndex(min(max(settings.get_int("window/tab", 0), 0), len(WORKSPACES) - 1))
         self.statusBar().showMessage("simulated rig: every device is a simulation" if service.simulated
                                      else f"rig profile: {service.name}")
 

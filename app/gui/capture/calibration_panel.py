@@ -18,7 +18,7 @@ import html
 from pathlib import Path
 
 from PySide6.QtCore import Qt, Signal
-from PySide6.QtWidgets import QCheckBox, QFileDialog, QGroupBox, QHBoxLayout, QLabel, QPushButton, QVBoxLayout
+from PySide6.QtWidgets import QCheckBox, QFileDialog, QGridLayout, QGroupBox, QLabel, QPushButton, QVBoxLayout
 
 from app.capture.plan import CapturePlan
 from app.capture.rig_setup import trigger_delay_by
@@ -61,17 +61,22 @@ class CalibrationPanel(QGroupBox):
         self.label.setWordWrap(True)
         self.label.setTextFormat(Qt.TextFormat.RichText)
         self.label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
+        self.status_label = QLabel()
+        """One line for the workspace's actions: calibrated or not, the phase and delay, or the next step."""
+        self.status_label.setWordWrap(True)
+        self.status_label.setTextFormat(Qt.TextFormat.RichText)
         self.load_button = QPushButton("Load calibration…")
         self.sync_button = QPushButton("Load sync profile…")
         self.sync_button.setToolTip("the synchronisation wizard's profile: its phase and camera trigger delay")
-        self.clear_button = QPushButton("Uncalibrated")
-        self.clear_button.setToolTip("record with the identity homography, phase 0 and no trigger delay")
+        self.clear_button = QPushButton("Record uncalibrated")
+        self.clear_button.setToolTip("forget the calibration: record with the identity homography, phase 0 and no "
+                                     "trigger delay")
         self.delay_check = QCheckBox("trigger delay set on the camera (it cannot be told one)")
         self.delay_check.setToolTip("this camera has no trigger-delay feature: set the delay shown above in its "
                                     "vendor's tool, then tick this")
-        row = QHBoxLayout()
-        for b in (self.load_button, self.sync_button, self.clear_button):
-            row.addWidget(b)
+        row = QGridLayout()  # two a line: the controls column is narrow
+        for i, b in enumerate((self.load_button, self.sync_button, self.clear_button)):
+            row.addWidget(b, i // 2, i % 2)
         v = QVBoxLayout(self)
         v.addWidget(self.label)
         v.addLayout(row)
@@ -166,6 +171,8 @@ class CalibrationPanel(QGroupBox):
     def _show(self) -> None:
         cal = self.capture_calibration()
         lines = []
+        short = (coloured("uncalibrated: run Calibrate and “Use for capture”, or load a calibration below", AMBER)
+                 if self.calibration is None else "<b>calibrated</b>")
         if self.calibration is None:
             lines.append("<b>uncalibrated</b>: identity homography, phase 0, no trigger delay — a real rig (and the "
                          "simulated one) needs its calibration: run it in Calibrate and “Use for capture”, or load "
@@ -185,7 +192,14 @@ class CalibrationPanel(QGroupBox):
                 lines.append(f"recordings use phase <b>{phase}</b> and a <b>{delay:.0f} µs</b> camera trigger delay "
                              f"({html.escape(how)})")
             lines += [coloured(f"• {w}", AMBER) for w in warnings if self.calibration is not None]
+            if self.calibration is not None:
+                short += f": phase {phase}" + (f", {delay:.0f} µs trigger delay" if by != "none" else "")
+                if needs_hand and not self.delay_set_by_hand:
+                    short += coloured(" — set the delay on the camera (Calibration below)", AMBER)
         self.delay_check.setVisible(needs_hand)
         if self.error:
             lines.append(coloured(f"refused: {self.error}", RED))
         self.label.setText("<br>".join(lines))
+        if self.error:
+            short += "<br>" + coloured(f"refused: {self.error}", RED)
+        self.status_label.setText(short)

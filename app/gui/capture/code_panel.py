@@ -28,6 +28,7 @@ from PySide6.QtWidgets import (
 )
 
 from app.capture.plan import TILES, CapturePlan
+from app.gui.widgets.collapsible import Collapsible
 from app.gui.widgets.rich_text import AMBER, GREEN, RED
 from app.gui.widgets.settings import AppSettings
 
@@ -80,7 +81,9 @@ class CodePanel(QWidget):
         f.addRow(self.multiplexed)
         f.addRow(file_row)
         f.addRow(self.code_label)
-        f.addRow(self.resolutions_label)
+        self.resolutions = Collapsible("[TR, SR] after capture", self.resolutions_label, settings=settings,
+                                       key="capture/show_resolutions")
+        f.addRow(self.resolutions)
 
         timing = QGroupBox("Camera and projector timing")
         self.rate = QDoubleSpinBox()
@@ -88,7 +91,8 @@ class CodePanel(QWidget):
         self.rate.setDecimals(2)
         self.rate.setSuffix(" Hz")
         self.rate.setValue(settings.get_float("capture/camera_hz", 15.0))
-        self.auto_exposure = QCheckBox("camera exposure = one sequence (K × period) less 300 µs read-out")
+        self.auto_exposure = QCheckBox("auto exposure: one sequence less read-out")
+        self.auto_exposure.setToolTip("camera exposure = one sequence (K × period) less 300 µs read-out")
         self.auto_exposure.setChecked(settings.get_bool("capture/auto_exposure", True))
         self.exposure = QDoubleSpinBox()
         self.exposure.setRange(10, 10_000_000)
@@ -200,7 +204,7 @@ class CodePanel(QWidget):
             rows = "".join(f"<tr><td>{d.label}</td><td align='right'>{d.tr}</td><td align='right'>{d.sr}</td></tr>"
                            for d in plan.resolutions())
             self.resolutions_label.setText(
-                "<b>[TR, SR] after capture</b><table cellspacing='6'><tr><th>block</th><th>TR</th><th>SR</th></tr>"
+                "<table cellspacing='6'><tr><th>block</th><th>TR</th><th>SR</th></tr>"
                 f"{rows}</table>")
         except ValueError as exc:
             lines.append(f"<span style='color:{RED}'>{html.escape(str(exc))}</span>")

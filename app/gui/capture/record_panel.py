@@ -36,6 +36,7 @@ from PySide6.QtWidgets import (
 
 from app.gui.models.recording import counters_text, make_capture, result_text
 from app.gui.models.rig_service import RigService
+from app.gui.widgets.collapsible import Collapsible
 from app.gui.widgets.qt_jobs import JobRunner
 from app.gui.widgets.rich_text import GREEN, RED, coloured
 from app.gui.widgets.settings import AppSettings
@@ -134,10 +135,15 @@ class RecordPanel(QObject):
         f = QFormLayout()
         f.addRow("path", path_row)
         f.addRow("frames", self.frames_box)
+        options = QWidget()
+        ov = QVBoxLayout(options)
+        ov.setContentsMargins(12, 0, 0, 0)
+        for w in (self.overwrite_check, self.durable_check, self.truth_check):
+            ov.addWidget(w)
+        self.options = Collapsible("options", options, settings=self.settings, key="capture/show_record_options")
         rv = QVBoxLayout(rec)  # word-wrapped labels get their full height in a box layout, not a form
         rv.addLayout(f)
-        for w in (self.overwrite_check, self.durable_check, self.truth_check):
-            rv.addWidget(w)
+        rv.addWidget(self.options)
         rv.addLayout(buttons)
         for w in (self.counters_label, self.recording_label, self.review_button):
             rv.addWidget(w)

@@ -92,9 +92,12 @@ class CaptureWorkspace(QWidget):
         self._plan_changed()
 
     def _layout(self) -> None:
+        # The actions (live view, Record, Stop, Open in Review) and the calibration's one line stay in view;
+        # the code, timing, calibration details and projector output scroll below them.
         self.controls_scroll = controls_beside_view(
-            self, (self.code, self.calibration_panel, self.live_panel.controls, self.record_panel.box, self.projector),
-            self.live_panel.views)
+            self, (self.code, self.calibration_panel, self.projector), self.live_panel.views,
+            actions=(self.calibration_panel.status_label, self.live_panel.controls, self.record_panel.box),
+            min_width=400, sizes=(420, 860))
 
     # ------------------------------------------------------------------ what everything uses
     def plan(self) -> CapturePlan:

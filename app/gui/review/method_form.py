@@ -24,6 +24,7 @@ from PySide6.QtWidgets import (
 )
 
 from app.gui.models.continuum import continuum_division, continuum_tensor, describe
+from app.gui.widgets.collapsible import Collapsible
 from app.gui.widgets.settings import AppSettings
 from flexvox_core.methods import DEFAULT, Method, Option, get, names, specs
 
@@ -150,7 +151,8 @@ class MethodForm(QWidget):
         layout.addLayout(top)
         layout.addLayout(ends)
         layout.addWidget(self.slider_text)
-        layout.addWidget(self.stack)
+        self.options = Collapsible("method options", self.stack, settings=settings, key="review/show_options")
+        """The chosen method's knobs, folded (the workspace places it below its actions)."""
 
         self.method_box.setCurrentText(settings.get_str("review/method", DEFAULT))
         self.stack.setCurrentIndex(self.method_box.currentIndex())

@@ -17,8 +17,10 @@ class MotionView(QWidget):
 
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
-        self.color = QRadioButton("colour wheel (hue = direction, saturation = speed)")
-        self.quiver = QRadioButton("quiver (arrows ×3 over the reconstruction)")
+        self.color = QRadioButton("colour wheel")
+        self.color.setToolTip("hue = direction, saturation = speed")
+        self.quiver = QRadioButton("quiver")
+        self.quiver.setToolTip("arrows ×3 over the reconstruction")
         self.color.setChecked(True)
         group = QButtonGroup(self)
         group.addButton(self.color)

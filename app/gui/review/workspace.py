@@ -106,22 +106,22 @@ class ReviewWorkspace(QWidget):
         buttons = QHBoxLayout()
         buttons.addWidget(self.reconstruct_button, 1)
         buttons.addWidget(self.cancel_button)
+        self.export_button = QPushButton("Export shown reconstruction…")
+        self.export_label = QLabel("")
+        self.export_label.setWordWrap(True)
         v = QVBoxLayout(box)
         v.addWidget(self.form)
-        v.addWidget(self.preview_check)
-        v.addWidget(QLabel("<b>Expected</b> (from the accuracy-vs-time benchmark):"))
         v.addWidget(self.expected_label)
         v.addLayout(buttons)
         v.addWidget(self.progress)
         v.addWidget(self.result_label)
-
-        exp = QGroupBox("Export")
-        self.export_button = QPushButton("Export shown reconstruction…")
-        self.export_label = QLabel("")
-        self.export_label.setWordWrap(True)
-        v = QVBoxLayout(exp)
         v.addWidget(self.export_button)
         v.addWidget(self.export_label)
+        details = QWidget()
+        dv = QVBoxLayout(details)
+        dv.setContentsMargins(0, 0, 0, 0)
+        dv.addWidget(self.preview_check)
+        dv.addWidget(self.form.options)
 
         self.raw_panel = ImagePanel("raw camera frame")
         self.recon_panel = ImagePanel("reconstruction")
@@ -156,7 +156,9 @@ class ReviewWorkspace(QWidget):
         rv.addWidget(self.tabs, 1)
         rv.addLayout(player)
 
-        controls_beside_view(self, (rec, box, exp), right, min_width=360, sizes=(380, 1000))
+        # Open, Reconstruct, Cancel and Export stay in view; the method's knobs fold below them.
+        self.controls_scroll = controls_beside_view(self, (details,), right, actions=(rec, box), min_width=360,
+                                                    sizes=(380, 1000))
 
         self.timer = QTimer(self)
         self.timer.timeout.connect(self._tick)
@@ -454,7 +456,7 @@ class ReviewWorkspace(QWidget):
             self.expected_label.setText("no bench figures for this method")
             self.expected_label.setToolTip("")
             return
-        self.expected_label.setText(f"{e.text()}<br><small>{e.basis}</small>")
+        self.expected_label.setText(f"<b>expected</b> {e.text()}<br><small>{e.basis}</small>")
         self.expected_label.setToolTip("time scaled to this recording's size from the bench's voxels/s; "
                                        "quality measured on the built-in scenes, not on this recording")
 

@@ -5,9 +5,9 @@ from __future__ import annotations
 import html
 
 from PySide6.QtWidgets import (
+    QFormLayout,
     QGridLayout,
     QGroupBox,
-    QHBoxLayout,
     QLabel,
     QPushButton,
     QSpinBox,
@@ -16,6 +16,7 @@ from PySide6.QtWidgets import (
 )
 
 from app.gui.models.rig_service import ROLES, RigService
+from app.gui.widgets.elided_label import ElidedLabel
 from app.gui.widgets.rich_text import AMBER, GREEN, GREY, RED
 from rig_drivers.interfaces import DeviceState
 
@@ -35,8 +36,15 @@ def _detail(service: RigService, role: str) -> str:
     return ""
 
 
+WIDTH = 240
+"""The panel's fixed width (px): a state text that grows elides instead of pushing the workspaces sideways."""
+
+
 class DevicePanel(QWidget):
-    """One row per device of the rig; subscribes to the :class:`RigService`."""
+    """One row per device of the rig; subscribes to the :class:`RigService`.
+
+    Its width is fixed (:data:`WIDTH`); the state texts elide (the full text is their tooltip).
+    """
 
     def __init__(self, service: RigService, parent: QWidget | None = None):
         super().__init__(parent)
@@ -48,18 +56,19 @@ class DevicePanel(QWidget):
         for i, role in enumerate(ROLES):
             name = QLabel()
             name.setWordWrap(True)
-            state = QLabel()
+            state = ElidedLabel()
             button = QPushButton()
             error = QLabel()
             error.setWordWrap(True)
             error.setStyleSheet(f"color: {RED}")
-            grid.addWidget(QLabel(f"<b>{role}</b>"), 3 * i, 0)
-            grid.addWidget(state, 3 * i, 1)
-            grid.addWidget(button, 3 * i, 2)
-            grid.addWidget(name, 3 * i + 1, 0, 1, 3)
-            grid.addWidget(error, 3 * i + 2, 0, 1, 3)
+            grid.addWidget(QLabel(f"<b>{role}</b>"), 4 * i, 0)
+            grid.addWidget(button, 4 * i, 1)
+            grid.addWidget(state, 4 * i + 1, 0, 1, 2)
+            grid.addWidget(name, 4 * i + 2, 0, 1, 2)
+            grid.addWidget(error, 4 * i + 3, 0, 1, 2)
             button.clicked.connect(lambda _=False, r=role: self.toggle(r))
             self.rows[role] = {"name": name, "state": state, "button": button, "error": error}
+        self.setFixedWidth(WIDTH)
         layout = QVBoxLayout(self)
         layout.setContentsMargins(4, 4, 4, 4)
         layout.addWidget(box)
@@ -76,15 +85,14 @@ class DevicePanel(QWidget):
         box.setToolTip("LED current as the PWM value the LightCrafter's LED driver takes: 0 = off, 255 = the most "
                        "current it gives. It sets the light in every open slot, and so the recording's "
                        "signal-to-noise; a rig profile's [projector] led_current sets it at connect.")
-        row = QHBoxLayout()
+        row = QFormLayout()  # one colour a line: the panel is narrow
         self.led_spins = {}
         for colour in ("red", "green", "blue"):
             spin = QSpinBox()
             spin.setRange(0, 255)
             spin.setSuffix(" /255")
             spin.setAccessibleName(f"{colour} LED current (PWM, 0..255)")
-            row.addWidget(QLabel(colour[0].upper()))
-            row.addWidget(spin)
+            row.addRow(colour, spin)
             self.led_spins[colour] = spin
         self.led_apply = QPushButton("Apply")
         self.led_apply.clicked.connect(self.apply_led_currents)
@@ -128,12 +136,14 @@ class DevicePanel(QWidget):
             row["name"].setText(f"{st.name} <i>({kind})</i>" if st.present else st.name)
             if not st.present:
                 row["state"].setText("—")
+                row["state"].setStyleSheet("")
                 row["button"].setEnabled(False)
                 row["button"].setText("Connect")
             else:
                 colour = _STATE_COLOUR[st.state]
                 state = f"{st.state.value}{_detail(self.service, r)}"
-                row["state"].setText(f"<span style='color:{colour}'>● {state}</span>")
+                row["state"].setText(f"● {state}")
+                row["state"].setStyleSheet(f"color: {colour}")
                 row["button"].setEnabled(True)
                 row["button"].setText("Connect" if st.state is DeviceState.CLOSED else "Disconnect")
             row["error"].setText(html.escape(st.last_error))

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import Qt
+from PySide6.QtCore import QEvent, Qt
 from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
 
@@ -38,8 +38,14 @@ class ImagePanel(QWidget):
             self.colorbar = pg.ColorBarItem(colorMap=cmap, interactive=False, width=14)
             self.colorbar.setImageItem(self.image)
             self.graphics.addItem(self.colorbar)
-        self.placeholder = pg.TextItem("", color="#bbbbbb", anchor=(0.5, 0.5))
-        self.view.addItem(self.placeholder)
+        # The message shown instead of an image: a word-wrapped label over the view (never clipped, unlike
+        # a text item in the scene, which keeps its one line whatever the panel's width).
+        self.placeholder = QLabel("", self.graphics)
+        self.placeholder.setWordWrap(True)
+        self.placeholder.setAlignment(Qt.AlignmentFlag.AlignCenter)
+        self.placeholder.setStyleSheet("color: #bbbbbb; background: transparent; padding: 12px")
+        self.placeholder.setAttribute(Qt.WidgetAttribute.WA_TransparentForMouseEvents)
+        self.graphics.installEventFilter(self)
         layout = QVBoxLayout(self)
         layout.setContentsMargins(2, 2, 2, 2)
         layout.addWidget(self.title)
@@ -54,6 +60,7 @@ class ImagePanel(QWidget):
         """Show ``img`` (H, W) or (H, W, 3) RGB uint8. ``levels`` (low, high) for grey images."""
         img = np.asarray(img)
         self.placeholder.setText("")
+        self.placeholder.hide()
         if img.ndim == 3:
             self.image.setImage(img, autoLevels=False, levels=(0, 255))
         else:
@@ -81,8 +88,19 @@ class ImagePanel(QWidget):
         self.overlay.clear()
         self._shape = None
         self.placeholder.setText(message)
-        self.placeholder.setPos(0, 0)
+        self.placeholder.setVisible(bool(message))
+        self.placeholder.setGeometry(self.graphics.rect())
         self.view.setRange(xRange=(-1, 1), yRange=(-1, 1), padding=0)
+
+    def eventFilter(self, watched, event) -> bool:  # noqa: N802 - Qt's name
+        """Keep the placeholder over the whole view when the view is resized."""
+        if watched is self.graphics and event.type() == QEvent.Type.Resize:
+            self.placeholder.setGeometry(self.graphics.rect())
+        return super().eventFilter(watched, event)
+
+    def placeholder_text(self) -> str:
+        """The message shown instead of an image ("" when an image is shown)."""
+        return self.placeholder.text() if self.placeholder.isVisible() or not self.has_image() else ""
 
     def has_image(self) -> bool:
         """True when an image is shown."""

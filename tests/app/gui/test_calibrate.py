@@ -105,7 +105,7 @@ def test_a_rig_that_is_not_co_located_is_reported_and_not_saved(qtbot, calibrate
     assert "✗ not co located" in text and "NOT co-located" in text and "move the projector" in text
     assert not ws.save_panel.save_button.isEnabled()
     assert "not saved: the colocation step failed" in ws.save_panel.label.text()
-    assert ws.results_view.wrong_panel.placeholder.textItem.toPlainText() == "the run stopped before the shutter step"
+    assert ws.results_view.wrong_panel.placeholder_text() == "the run stopped before the shutter step"
     titles = [row[0] for row in summary_rows(outcome)]
     assert "Homography" not in titles and "Parallax (co-located?)" in titles
 

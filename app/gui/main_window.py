@@ -131,7 +131,7 @@ class MainWindow(QMainWindow):
         self.settings.sync()
         self.capture.shutdown()
         self.calibrate.shutdown()
-        self.review.set_playing(False)
+        self.review.shutdown()  # before the runner: nothing may schedule a preview after it shut down
         if not self.runner.shutdown(5000):
             _logger.error("background jobs did not stop within 5 s")
         self.service.close()

@@ -3,7 +3,10 @@
 The form is built from the registered method objects (:mod:`flexvox_core.methods.registry`): one
 page per method with a widget per option, chosen by the option's kind (check box, combo box, spin
 box). Options of kind ``triple`` (the diffusion tensor) and ``division`` (re-binning's block) are
-set by the continuum slider instead, which is enabled exactly when the chosen method has one.
+set by the continuum slider instead. For a method without one (motion-aware chooses the trade per
+voxel, GAP-TV has none) the slider stays usable: moving it previews the fixed diffusion tensor at that
+position beside the chosen method (:meth:`MethodForm.preview_method`), for comparison, without
+switching method; Reconstruct still runs the chosen method.
 """
 
 from __future__ import annotations
@@ -112,6 +115,7 @@ class MethodForm(QWidget):
         super().__init__(parent)
         self.settings = settings
         self._divisions: list = []
+        self._comparing = False
         self.method_box = QComboBox()
         self.method_box.addItems(names())
         self.stack = QStackedWidget()
@@ -156,11 +160,11 @@ class MethodForm(QWidget):
 
         self.method_box.setCurrentText(settings.get_str("review/method", DEFAULT))
         self.stack.setCurrentIndex(self.method_box.currentIndex())
-        self.method_box.currentIndexChanged.connect(self._on_change)
-        self.slider.valueChanged.connect(self._on_change)
+        self.method_box.currentIndexChanged.connect(self._on_method)
+        self.slider.valueChanged.connect(self._on_slider)
         for knobs in self._knobs.values():
             for knob in knobs.values():
-                knob.signal.connect(self._on_change)
+                knob.signal.connect(self._on_knob)
         self._refresh()
 
     # ------------------------------------------------------------------ state
@@ -193,8 +197,22 @@ class MethodForm(QWidget):
         return knobs[option].widget
 
     def method(self) -> Method:
-        """The :class:`Method` the form describes."""
-        spec = get(self.method_box.currentText())
+        """The :class:`Method` the form describes (what Reconstruct runs)."""
+        return self._method_for(self.method_box.currentText())
+
+    @property
+    def comparing(self) -> bool:
+        """True when the slider was moved for a method without a tensor or division: the preview then shows
+        the fixed diffusion tensor at the slider's position (see :meth:`preview_method`)."""
+        return self._comparing
+
+    def preview_method(self) -> Method:
+        """What the live preview shows: the chosen method, or the fixed diffusion tensor at the slider's
+        position while :attr:`comparing`."""
+        return self._method_for("diffusion") if self._comparing else self.method()
+
+    def _method_for(self, name: str) -> Method:
+        spec = get(name)
         values = {name: knob.value() for name, knob in self._knobs[spec.name].items()}
         for o in spec.options:
             if o.kind == "triple":
@@ -204,6 +222,27 @@ class MethodForm(QWidget):
         return Method(spec.name, **values)
 
     # ------------------------------------------------------------------ reactions
+    def _has_slider(self) -> bool:
+        return bool({o.kind for o in get(self.method_box.currentText()).options} & set(SLIDER_KINDS))
+
+    def _on_method(self, *_):
+        self._comparing = False
+        self._on_change()
+
+    def _on_knob(self, *_):
+        self._comparing = False
+        self._on_change()
+
+    def _on_slider(self, *_):
+        self._comparing = not self._has_slider()
+        self._on_change()
+
+    def stop_comparing(self) -> None:
+        """Preview the chosen method again (after the slider previewed a fixed tensor)."""
+        if self._comparing:
+            self._comparing = False
+            self._on_change()
+
     def _on_change(self, *_):
         self.stack.setCurrentIndex(self.method_box.currentIndex())
         self.settings.set("review/method", self.method_box.currentText())
@@ -217,7 +256,6 @@ class MethodForm(QWidget):
     def _refresh(self) -> None:
         spec = get(self.method_box.currentText())
         kinds = {o.kind for o in spec.options}
-        self.slider.setEnabled(bool(kinds & set(SLIDER_KINDS)))
         if "division" in kinds:
             if self._divisions:
                 d = continuum_division(self.position, self._divisions)
@@ -227,6 +265,8 @@ class MethodForm(QWidget):
                 self.slider_text.setText("open a recording to see its divisions")
         elif "triple" in kinds:
             self.slider_text.setText(describe(self.position))
+        elif self._comparing:
+            self.slider_text.setText(f"previewing diffusion, {describe(self.position)}, beside {spec.name} "
+                                     f"for comparison; Reconstruct runs {spec.name}")
         else:
-            users = [s.name for s in specs() if {o.kind for o in s.options} & set(SLIDER_KINDS)]
-            self.slider_text.setText(f"{spec.trade} (the slider applies to {' and '.join(users)})")
+            self.slider_text.setText(f"{spec.trade}; the slider previews a fixed tensor for comparison")

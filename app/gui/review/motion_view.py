@@ -9,7 +9,7 @@ from app.gui.models.jobs import ReconstructionResult
 from app.gui.widgets.image_panel import ImagePanel
 from flexvox_core.flow import flow_to_color, quiver_image
 
-NO_FLOW = "reconstruct with motion-aware (preview or full) to see the flow and the resolution map"
+NO_FLOW = "no flow yet: reconstruct with motion-aware (or preview it) to see the flow and the resolution map"
 
 
 class MotionView(QWidget):
@@ -41,6 +41,8 @@ class MotionView(QWidget):
         layout.addWidget(self.note)
         layout.addLayout(panels, 1)
         self._result: ReconstructionResult | None = None
+        self._shown: ReconstructionResult | None = None
+        self._n_subframes = 0
         self._top = 1.0
         self._K = 1
         self._s = 0
@@ -48,9 +50,12 @@ class MotionView(QWidget):
         self.flow_panel.clear(NO_FLOW)
         self.map_panel.clear("")
 
-    def set_result(self, result: ReconstructionResult | None, K: int) -> None:
-        """Show ``result`` (its flow, if it has one) for a code with K slots."""
+    def set_result(self, result: ReconstructionResult | None, K: int, *, shown: ReconstructionResult | None = None
+                   ) -> None:
+        """Show ``result`` (its flow, if it has one) for a code with K slots; ``shown`` is what the reconstruction
+        panel shows (when it is another result, the note says so)."""
         self._result = result if result is not None and result.flow is not None else None
+        self._shown = shown
         self._K = K
         if self._result is not None:
             mag = np.hypot(self._result.flow[..., 0], self._result.flow[..., 1])
@@ -62,6 +67,10 @@ class MotionView(QWidget):
         """"color" or "quiver"."""
         return "color" if self.color.isChecked() else "quiver"
 
+    def set_length(self, n_subframes: int) -> None:
+        """The recording's sub-frame count (the note says "sub-frame s/N", as the player does)."""
+        self._n_subframes = int(n_subframes)
+
     def show_subframe(self, s: int) -> None:
         """Draw sub-frame ``s`` of the recording (if the result covers it)."""
         self._s = s
@@ -72,15 +81,22 @@ class MotionView(QWidget):
             self.map_panel.clear("")
             return
         i = s - r.first_frame * self._K
+        kind = "preview" if r.extra.get("preview") else "full result"
         if not 0 <= i < r.video.shape[0]:
-            self.note.setText(f"sub-frame {s} is outside this result (frames {r.first_frame}–"
-                              f"{r.first_frame + r.video.shape[0] // self._K - 1})")
+            first = r.first_frame + 1
+            self.note.setText(f"sub-frame {s + 1} is outside this {kind} (frames {first}–"
+                              f"{first + r.video.shape[0] // self._K - 1}): pause to preview it here")
             self.flow_panel.clear("outside the result")
             self.map_panel.clear("")
             return
         flow = r.flow[i]
-        self.note.setText(f"{r.method.label()} · sub-frame {s} · "
-                          f"colour scale saturates at {self._top:.2f} px/sub-frame")
+        total = f"/{self._n_subframes}" if self._n_subframes else ""
+        note = f"{r.method.label()} ({kind}) · sub-frame {s + 1}{total}"
+        if self.mode == "color":
+            note += f" · colour saturates at {self._top:.2f} px/sub-frame"
+        if self._shown is not None and self._shown is not r:
+            note += f" · the Frames tab shows {self._shown.method.label()}"
+        self.note.setText(note)
         if self.mode == "color":
             self.flow_panel.set_image(flow_to_color(flow, max_magnitude=self._top))
             self.flow_panel.set_title("optical flow: colour wheel")

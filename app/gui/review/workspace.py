@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import html
 import logging
+import re
 from pathlib import Path
 
 from PySide6.QtCore import Qt, QTimer, Signal
@@ -38,6 +39,11 @@ from flexvox_core.video_io import write_video
 
 _logger = logging.getLogger(__name__)
 
+def export_slug(method) -> str:
+    """A file-name fragment naming the method and its options, e.g. ``diffusion-tensor-0.05-0.05-1-n-5``."""
+    return re.sub(r"[^A-Za-z0-9.+-]+", "-", method.label()).strip("-")
+
+
 EXPORT_FILTER = "TIFF stack (*.tif);;MP4 video, 8-bit (*.mp4);;NumPy array (*.npy);;Zarr store (*.zarr)"
 PREVIEW_DELAY_MS = 250
 """Knob changes within this time make one preview, not many."""
@@ -68,10 +74,13 @@ class ReviewWorkspace(QWidget):
         self.session: ReviewSession | None = None
         self.results: list[ReconstructionResult] = []
         self.shown: ReconstructionResult | None = None
+        self.exported: tuple[Path, ReconstructionResult] | None = None
+        """The last export: its path and the full result written."""
         self.job: JobHandle | None = None
         self.preview_job: JobHandle | None = None
         self._preview_generation = 0
         self._truth = None
+        self._closed = False
         self._build()
         self.form.changed.connect(self._on_form_changed)
         self._refresh_enabled()
@@ -217,6 +226,7 @@ class ReviewWorkspace(QWidget):
         self.frame_slider.setValue(0)
         self.frame_slider.blockSignals(False)
         self.recon_panel.clear("")
+        self.motion_view.set_length(session.n_subframes)
         self.motion_view.set_result(None, session.K)
         self.compare_view.set_results([], session.K, self._truth)
         self._show(0)
@@ -305,23 +315,25 @@ class ReviewWorkspace(QWidget):
 
     def _on_form_changed(self) -> None:
         self._refresh_expected()
+        self._refresh_enabled()
         self._schedule_preview()
 
     def _schedule_preview(self) -> None:
-        if self.session is not None and self.session.frames is not None and self.preview_check.isChecked():
+        s = self.session
+        if not self._closed and s is not None and s.frames is not None and self.preview_check.isChecked():
             self.preview_timer.start()
 
     def request_preview(self) -> JobHandle | None:
         """Recompute the current settings on a small window of frames around the current one."""
         s = self.session
-        if s is None or s.frames is None:
+        if s is None or s.frames is None or self._closed:
             return None
         if self.preview_job is not None and self.preview_job.running:
             self.preview_job.cancel()
         self._preview_generation += 1
         gen = self._preview_generation
         a, b = preview_window(s.n_frames, self.subframe // s.K, half_width=1)
-        method = self.form.method()
+        method = self.form.preview_method()
         frames, code, truth = s.frames[a:b], s.code, s.truth(a, b)
 
         def work(token, progress):
@@ -341,12 +353,20 @@ class ReviewWorkspace(QWidget):
         self.set_shown(result)
 
     def set_shown(self, result: ReconstructionResult | None) -> None:
-        """Show ``result`` in the reconstruction and motion panels."""
+        """Show ``result`` in the reconstruction panel; the motion panel shows the flow of the result that has
+        one (the shown one, else the newest full motion-aware result)."""
         self.shown = result
         if self.session is not None:
-            self.motion_view.set_result(result, self.session.K)
+            self.motion_view.set_result(self.flow_result(), self.session.K, shown=result)
             self._show(self.subframe)
         self._refresh_enabled()
+
+    def flow_result(self) -> ReconstructionResult | None:
+        """The result whose flow and TR map the Motion tab shows: the shown one when it has a flow, else the
+        newest full result with one (a preview of another method never hides a full motion-aware result)."""
+        if self.shown is not None and self.shown.flow is not None:
+            return self.shown
+        return next((r for r in reversed(self.results) if r.flow is not None), None)
 
     # ------------------------------------------------------------------ full reconstruction
     def reconstruct(self) -> JobHandle | None:
@@ -380,7 +400,10 @@ class ReviewWorkspace(QWidget):
         return self.job is not None and self.job.outcome is None
 
     def cancel(self) -> None:
-        """Cancel a running reconstruction (the preview is cancelled too)."""
+        """Cancel a running reconstruction (the preview is cancelled too); it stops after its current chunk."""
+        if self.busy and not self.job.token.cancelled:
+            self.result_label.setText("cancelling … (the current chunk of frames finishes first)")
+            self.cancel_button.setEnabled(False)
         for h in (self.job, self.preview_job):
             if h is not None and h.running:
                 h.cancel()
@@ -410,41 +433,102 @@ class ReviewWorkspace(QWidget):
         if r is None:
             return
         start = self.settings.get_str("review/export_dir", str(Path.cwd()))
-        name = str(Path(start) / f"{self.session.path.stem}-{r.method.name}.tif")
+        name = str(Path(start) / f"{self.session.path.stem}-{export_slug(r.method)}.tif")
         path, _ = QFileDialog.getSaveFileName(self, "Export the reconstruction", name, EXPORT_FILTER)
         if path:
             self.export(path, overwrite=True)
 
     def export_candidate(self) -> ReconstructionResult | None:
-        """The full reconstruction export writes: the shown one, else the newest."""
-        if self.shown is not None and not self.shown.extra.get("preview"):
+        """What the reconstruction panel shows (a full result or a preview), else the newest full result."""
+        if self.shown is not None:
             return self.shown
         return self.results[-1] if self.results else None
 
+    def full_result_of(self, method) -> ReconstructionResult | None:
+        """The newest full reconstruction made with exactly ``method`` (None: none yet)."""
+        return next((r for r in reversed(self.results) if r.method == method), None)
+
     def export(self, path, *, overwrite: bool = False) -> JobHandle | None:
-        """Write the export candidate to ``path`` (.tif, .mp4, .npy, .zarr) off the GUI thread."""
+        """Write what the panel shows, over every frame, to ``path`` (.tif, .mp4, .npy, .zarr) off the GUI thread.
+
+        A full reconstruction is written as it is. A preview is written as the full reconstruction with the same
+        method and options: an existing one, or one made now (with progress and Cancel) and then kept in the
+        results. A .zarr export carries the method, its options and the source in its ``flexvox`` attributes;
+        the message names the method and its options whatever the format.
+        """
         r = self.export_candidate()
-        if r is None:
-            self.export_label.setText("reconstruct all frames first (previews are not exported)")
+        s = self.session
+        if r is None or s is None:
+            self.export_label.setText("nothing to export: reconstruct, or preview, first")
+            return None
+        if r.extra.get("preview") and (s.frames is None or self.busy):
+            self.export_label.setText(coloured("not exported: wait for the running reconstruction to end", RED)
+                                      if s.frames is not None else "not exported: this recording cannot be "
+                                      "reconstructed")
             return None
         path = Path(path)
         self.settings.set("review/export_dir", str(path.parent))
         try:  # never onto the recording under review; the folder must take the file
-            check_output(path, overwrite=overwrite, inputs=[self.session.path])
+            check_output(path, overwrite=overwrite, inputs=[s.path])
         except OutputError as exc:
             self.export_label.setText(coloured(f"not exported: {exc}", RED))
             return None
-        attrs = {"source": str(self.session.path), "method": r.method.as_dict(), "seconds": r.seconds}
+        method = r.method
+        full = r if not r.extra.get("preview") else self.full_result_of(method)
         fps = float(self.fps.value())
-        video = r.video
-        self.export_label.setText(f"writing {path.name} …")
-        return self.runner.submit(
-            "export", lambda token, progress: write_video(path, video, fps=fps, attrs=attrs, overwrite=overwrite),
-            on_finished=lambda p: self.export_label.setText(f"wrote {p}"),
-            on_failed=lambda msg: self.export_label.setText(
-                coloured(f"export failed: {msg}", RED)))
+        frames, code, truth = s.frames, s.code, self._truth
+        chunk = chunk_frames_for(method, s.n_frames, s.K)
+        source = str(s.path)
+
+        def work(token, progress):
+            result = full
+            if result is None:
+                result = run_reconstruction(frames, code, method, cancel=token, progress=progress, chunk_frames=chunk,
+                                            truth=truth)
+                token.check()
+            attrs = {"source": source, "method": method.as_dict(), "method_label": method.label(),
+                     "seconds": result.seconds, "subframes": int(result.video.shape[0])}
+            write_video(path, result.video, fps=fps, attrs=attrs, overwrite=overwrite)
+            return result, path
+
+        what = f"{method.label()} ({s.n_frames} frames, {s.n_subframes} sub-frames)"
+        if full is None:
+            self.export_label.setText(f"reconstructing all frames with {what} to export what is shown …")
+            self.progress.setRange(0, s.n_frames)
+            self.progress.setValue(0)
+        else:
+            self.export_label.setText(f"writing {path.name}: {what} …")
+        handle = self.runner.submit(
+            "export", work, on_progress=lambda done, total: self.progress.setValue(done),
+            on_finished=lambda out: self._exported(out, full is None, what),
+            on_cancelled=lambda: self.export_label.setText("export cancelled; nothing was written"),
+            on_failed=lambda msg: self.export_label.setText(coloured(f"export failed: {msg}", RED)),
+            on_done=self._refresh_enabled)
+        if full is None:
+            self.job = handle  # Cancel stops it; Reconstruct waits for it
+            self._refresh_enabled()
+        return handle
+
+    def _exported(self, out, reconstructed: bool, what: str) -> None:
+        result, path = out
+        if reconstructed:
+            self._reconstructed(result)
+        self.exported = (path, result)
+        self.export_label.setText(f"wrote {path}: {what}")
+        self.status.emit(f"exported {path.name}: {what}")
 
     # ------------------------------------------------------------------ state
+    def shutdown(self) -> None:
+        """The window closes: stop playback and the preview timer for good, and cancel the jobs.
+
+        After this no timer restarts and no job is submitted (the job runner shuts down next)."""
+        self._closed = True
+        self.timer.stop()
+        self.preview_timer.stop()
+        self.set_playing(False)
+        self.preview_timer.stop()
+        self.cancel()
+
     def _refresh_expected(self) -> None:
         s = self.session
         if s is None:
@@ -463,6 +547,7 @@ class ReviewWorkspace(QWidget):
     def _refresh_enabled(self) -> None:
         can = self.session is not None and self.session.frames is not None
         self.reconstruct_button.setEnabled(can and not self.busy)
+        self.reconstruct_button.setText(f"Reconstruct all frames: {self.form.method().name}")
         self.cancel_button.setEnabled(self.busy)
         self.export_button.setEnabled(self.export_candidate() is not None)
         self.play_button.setEnabled(self.session is not None)

@@ -70,6 +70,7 @@ class ImagePanel(QWidget):
             self.image.setImage(img, autoLevels=False, levels=levels)
             if self.colorbar is not None:
                 self.colorbar.setLevels(levels)
+                self.colorbar.show()
         shape = img.shape[:2]
         if shape != self._shape:
             self._shape = shape
@@ -89,6 +90,8 @@ class ImagePanel(QWidget):
         self._shape = None
         self.placeholder.setText(message)
         self.placeholder.setVisible(bool(message))
+        if self.colorbar is not None:  # no image, no scale: an empty colour bar says nothing
+            self.colorbar.hide()
         self.placeholder.setGeometry(self.graphics.rect())
         self.view.setRange(xRange=(-1, 1), yRange=(-1, 1), padding=0)
 

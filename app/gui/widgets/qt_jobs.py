@@ -7,7 +7,8 @@ emitted from the worker thread and delivered, queued, on the GUI thread.
 Callbacks are given to :meth:`JobRunner.submit` so they are connected *before* the job starts: a
 fast job may finish before the caller could connect to the handle it gets back (a queued signal
 reaches only the slots connected when it was emitted). Once :meth:`JobRunner.shutdown` ran (the
-window is closing), callbacks still queued are dropped: the widgets they would update are going.
+window is closing), callbacks still queued are dropped: the widgets they would update are going, and a
+job submitted after it is refused (its handle says "cancelled"; nothing runs).
 ``handle.outcome`` ("finished", "failed", "cancelled") and ``handle.running`` (False once every
 callback ran) serve those who poll.
 """
@@ -102,6 +103,11 @@ class JobRunner(QObject):
         ``on_failed(message)``, ``on_cancelled()``, then ``on_done()`` whatever happened.
         """
         handle = JobHandle(name, CancelToken())
+        if self._shut:  # the window is closing: its thread pool takes no new work
+            _logger.warning("job %s refused: the job runner was shut down", name)
+            handle.running, handle.outcome, handle.message = False, "cancelled", "the job runner was shut down"
+            handle.token.cancel()
+            return handle
         for signal, slot in ((handle.progress, on_progress), (handle.finished, on_finished),
                              (handle.failed, on_failed), (handle.cancelled, on_cancelled)):
             if slot is not None:

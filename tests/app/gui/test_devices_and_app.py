@@ -188,3 +188,25 @@ def test_a_job_that_ends_after_shutdown_does_not_call_back(qtbot, runner):
     assert runner.shutdown(5000)
     qtbot.waitUntil(lambda: not handle.running, timeout=5000)  # its signals were delivered ...
     assert handle.outcome == "finished" and seen == ["now"]  # ... and its callbacks dropped
+
+
+def test_closing_the_window_while_review_plays_starts_no_preview_after_the_runner_shut_down(qtbot, settings, runner,
+                                                                                           recording):
+    """Issue #21: closing during playback stopped playback, which scheduled a preview after the runner had shut down."""
+    from app.gui.application import build_window
+
+    window = build_window(small_rig(), settings=settings, runner=runner, recording=recording)
+    qtbot.addWidget(window)
+    window.show()
+    review = window.review
+    qtbot.waitUntil(lambda: review.session is not None, timeout=10_000)
+    assert review.preview_check.isChecked()
+    review.play_button.click()
+    assert review.playing
+    qtbot.waitUntil(lambda: review.subframe > 0, timeout=5000)  # it plays
+    window.close()
+    assert not review.playing and not review.preview_timer.isActive() and not review.timer.isActive()
+    assert review.request_preview() is None  # a late caller gets nothing scheduled
+    refused = runner.submit("late", lambda token, progress: "ran")
+    assert refused.outcome == "cancelled" and not refused.running and runner.active == 0
+    assert runner.pool.activeThreadCount() == 0

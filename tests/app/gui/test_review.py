@@ -134,7 +134,25 @@ def test_continuum_slider_changes_the_method_and_recomputes_the_preview(qtbot, o
     ws.form.set_position(1.0)
     assert ws.form.method().block.label == "2x4x1" and "TR ×8" in ws.form.slider_text.text()
     ws.form.set_method_name("gap-tv")
-    assert not ws.form.slider.isEnabled()
+    assert ws.form.slider.isEnabled() and not ws.form.comparing
+
+
+def test_the_slider_previews_a_fixed_tensor_beside_motion_aware_without_switching_method(qtbot, opened):
+    from app.gui.models.continuum import continuum_tensor
+
+    ws = opened
+    ws.preview_check.setChecked(True)
+    ws.form.set_method_name("motion-aware")
+    assert ws.form.slider.isEnabled() and ws.form.preview_method().name == "motion-aware"
+    ws.form.set_position(0.9)
+    assert ws.form.comparing and ws.form.method_box.currentText() == "motion-aware"
+    assert ws.form.preview_method().tensor == continuum_tensor(0.9)
+    assert "for comparison; Reconstruct runs motion-aware" in ws.form.slider_text.text()
+    qtbot.waitUntil(lambda: ws.shown is not None and ws.shown.method.name == "diffusion", timeout=10_000)
+    assert ws.shown.method.tensor == continuum_tensor(0.9)
+    assert ws.reconstruct_button.text() == "Reconstruct all frames: motion-aware"
+    ws.form.widget("time").setValue(3.0)  # a knob of the chosen method: back to previewing it
+    assert not ws.form.comparing and ws.form.preview_method().name == "motion-aware"
 
 
 @pytest.mark.parametrize("suffix", [".npy", ".tif", ".mp4"])
@@ -157,9 +175,41 @@ def test_export_writes_the_reconstruction(qtbot, opened, tmp_path, suffix):
     assert "an output never replaces its input" in opened.export_label.text()
 
 
-def test_export_needs_a_full_reconstruction(opened):
+def test_export_needs_something_shown(opened):
     assert opened.export("/nonexistent/x.npy") is None
-    assert "reconstruct all frames first" in opened.export_label.text()
+    assert "nothing to export: reconstruct, or preview, first" in opened.export_label.text()
+
+
+def test_export_writes_the_shown_preview_s_method_over_every_frame(qtbot, opened, tmp_path):
+    import zarr
+
+    from app.gui.models.continuum import continuum_tensor
+    from flexvox_core.methods import Method
+
+    ws = opened
+    motion = reconstruct(qtbot, ws, "motion-aware")
+    ws.preview_check.setChecked(True)
+    ws.form.set_method_name("diffusion")
+    ws.form.set_position(0.8)
+    qtbot.waitUntil(lambda: ws.shown is not None and bool(ws.shown.extra.get("preview"))
+                    and ws.shown.method == ws.form.method(), timeout=10_000)
+    assert ws.shown.method.tensor == continuum_tensor(0.8)
+    shown = ws.shown
+    assert ws.export_candidate() is shown
+    path = tmp_path / "shown.zarr"
+    handle = ws.export(path)
+    assert "to export what is shown" in ws.export_label.text()
+    qtbot.waitUntil(lambda: not handle.running, timeout=20_000)
+    assert handle.outcome == "finished", handle.message
+    written, result = ws.exported
+    assert result.method == shown.method and result is not motion and not result.extra.get("preview")
+    g = zarr.open_group(str(path), mode="r")
+    np.testing.assert_array_equal(g["video"][:], result.video)
+    attrs = g.attrs["flexvox"]
+    assert Method(**attrs["method"]) == shown.method and attrs["method_label"] == shown.method.label()
+    assert f"wrote {path}: {shown.method.label()} (6 frames, 48 sub-frames)" in ws.export_label.text()
+    # The full result is kept: a second export of the same settings writes it without reconstructing again.
+    assert ws.full_result_of(shown.method) is result and ws.results[-1] is result
 
 
 def test_compare_shows_two_reconstructions_side_by_side(qtbot, opened):
@@ -189,9 +239,18 @@ def test_motion_tab_shows_flow_and_resolution_map(qtbot, opened):
     assert mv.map_panel.image.levels.tolist() == [1, 8]
     mv.quiver.setChecked(True)
     assert mv.mode == "quiver" and not np.array_equal(mv.flow_panel.image.image, colour)
+    assert "sub-frame 22/48" in mv.note.text() and "colour saturates" not in mv.note.text()
     opened.form.set_method_name("diffusion")
-    reconstruct(qtbot, opened, "diffusion")
-    assert not mv.flow_panel.has_image() and "motion-aware" in mv.note.text()
+    reconstruct(qtbot, opened, "diffusion")  # another method shown: the Motion tab keeps the motion-aware result
+    np.testing.assert_array_equal(mv.map_panel.image.image, r.tr[21])
+    assert "motion-aware" in mv.note.text() and "the Frames tab shows diffusion" in mv.note.text()
+    assert mv.map_panel.colorbar.isVisible() or not mv.isVisible()
+
+
+def test_the_motion_tab_says_what_to_do_before_a_flow_exists(opened):
+    mv = opened.motion_view
+    assert "no flow yet: reconstruct with motion-aware" in mv.flow_panel.placeholder_text()
+    assert not mv.map_panel.colorbar.isVisible()
 
 
 def test_settings_persist_between_sessions(qtbot, settings, runner, recording):
@@ -238,12 +297,12 @@ def test_the_method_form_is_built_from_the_registered_methods(qtbot, settings):
         form.set_method_name("frame-mean")
         form.widget("radius").setValue(3)
         assert form.method() == Method("frame-mean", radius=3)
-        assert not form.slider.isEnabled()  # no tensor or division option
-        assert "frame-mean keeps space and gives up time (the slider applies to rebin and diffusion)" in \
+        assert form.slider.isEnabled() and not form.comparing  # no tensor or division option: it compares
+        assert "frame-mean keeps space and gives up time; the slider previews a fixed tensor for comparison" in \
             form.slider_text.text()
     form.set_method_name("motion-aware")
     form.widget("slow_reach").setValue(0.75)  # the pipeline's default is shown, and stands for None
-    assert form.method().slow_reach is None and not form.slider.isEnabled()
+    assert form.method().slow_reach is None and form.slider.isEnabled()
     with pytest.raises(ValueError, match=r"motion-aware has no widget for 'tensor'"):
         form.widget("tensor")
     form.set_method_name("diffusion")

@@ -8,8 +8,9 @@ context on each side (none beyond the recording's ends). Each chunk is normalise
 demultiplexed by the reader's :class:`~flexvox_core.capture_reader.Preparation` and
 reconstructed and trimmed to its own ``chunk_frames · K`` sub-frames by
 :func:`~flexvox_core.methods.runner.run_chunk`, the per-chunk function of the in-memory runner;
-the result is stored chunk by chunk into a Zarr v3 group (array ``video``, one sub-frame per
-Zarr chunk, the same layout ``flexvox reconstruct`` writes). Only the chunk planning is dask's
+the result is stored chunk by chunk into an OME-Zarr image (NGFF 0.5 on Zarr v3, :mod:`flexvox_core.ngff`:
+array ``video``, one sub-frame per Zarr chunk, the sub-frame period as its t scale, optional pyramid
+levels; the same layout ``flexvox reconstruct`` writes). Only the chunk planning is dask's
 own (:func:`_chunks`: a last chunk shorter than the overlap joins its neighbour, as
 ``map_overlap`` needs). The result equals the in-memory :func:`~flexvox_core.methods.runner.run`
 (the overlap is exact; methods that need the sample range get the whole recording's, read in one
@@ -30,11 +31,13 @@ from pathlib import Path
 
 import numpy as np
 
+from flexvox_core import ngff
 from flexvox_core.capture_reader import CaptureReader, Preparation
 from flexvox_core.methods.method import Method
 from flexvox_core.methods.runner import run_chunk
 from flexvox_core.output_files import atomic_output, check_output
 from flexvox_core.recording import Recording, RecordingError, open_recording
+from flexvox_core.video_io import VIDEO, provenance
 
 _logger = logging.getLogger(__name__)
 
@@ -120,8 +123,8 @@ def batch_video(rec: Recording, method: Method | None = None, *, chunk_frames: i
 def reconstruct_batch(recording, output, method: Method | None = None, *, chunk_frames: int = 32,
                       scheduler: str | None = None, overwrite: bool = False,
                       progress: Callable[[int, int], None] | None = None,
-                      connect_timeout_s: float = 10.0) -> BatchResult:
-    """Reconstruct a recording chunk by chunk into a Zarr v3 group (array ``video``).
+                      connect_timeout_s: float = 10.0, pyramid: int = 0) -> BatchResult:
+    """Reconstruct a recording chunk by chunk into an OME-Zarr image (array ``video``, as ``reconstruct`` writes).
 
     Parameters
     ----------
@@ -139,6 +142,9 @@ def reconstruct_batch(recording, output, method: Method | None = None, *, chunk_
         Local scheduler only: called as chunks finish.
     connect_timeout_s : float
         How long to wait for the distributed scheduler.
+    pyramid : int
+        Pyramid levels of 2×2 means below full resolution (:mod:`flexvox_core.ngff`; default none),
+        computed from the same chunks as they are reconstructed.
 
     Raises
     ------
@@ -157,28 +163,33 @@ def reconstruct_batch(recording, output, method: Method | None = None, *, chunk_
     except RecordingError as exc:
         raise ValueError(str(exc)) from None
     video, ov = batch_video(rec, method, chunk_frames=chunk_frames)
+    pyramid = ngff.check_levels(pyramid, video.shape)
     chunk_frames = max(chunk_frames, ov)
     # Written beside the output and moved into place when every chunk is stored: a failed or
     # cancelled run leaves an old output as it was, and never a store with chunks of zeros.
     with atomic_output(output, overwrite=overwrite) as tmp:
-        seconds, used = _store(rec, video, ov, chunk_frames, method, tmp, scheduler, progress, connect_timeout_s)
+        seconds, used = _store(rec, video, ov, chunk_frames, method, tmp, scheduler, progress, connect_timeout_s,
+                               pyramid)
     _logger.info("batch: %s -> %s, %d sub-frames in %.2f s (%s)", rec.path, output, video.shape[0], seconds, used)
     return BatchResult(output, tuple(int(v) for v in video.shape), chunk_frames, ov, seconds, used)
 
 
-def _store(rec, video, ov, chunk_frames, method, output, scheduler, progress, connect_timeout_s):
-    """Compute ``video`` into a new Zarr group at ``output``; return (seconds, scheduler used)."""
+def _store(rec, video, ov, chunk_frames, method, output, scheduler, progress, connect_timeout_s, pyramid=0):
+    """Compute ``video`` into a new OME-Zarr image at ``output``; return (seconds, scheduler used)."""
     import dask
     import dask.array as da
     import zarr
 
     group = zarr.open_group(str(output), mode="w-", zarr_format=3)
-    group.attrs["flexvox"] = {"source": str(rec.path), "method": method.as_dict(), "chunk_frames": chunk_frames,
-                              "overlap_frames": ov, "batch": True}
-    target = group.create_array("video", shape=video.shape, chunks=(1, *video.shape[1:]), dtype="float32",
-                                fill_value=0)
+    step = 1.0 / float(rec.attrs["rates"]["subframe_hz"])
+    group.attrs["flexvox"] = provenance({"source": str(rec.path), "method": method.as_dict(),
+                                         "chunk_frames": chunk_frames, "overlap_frames": ov, "batch": True}, step)
+    targets = ngff.create_image(group, VIDEO, video.shape, time_step=step, levels=pyramid)
+    sources = [video]
+    for _ in targets[1:]:  # each level from the chunks of the one above, in the same pass
+        sources.append(ngff.downsample(sources[-1]))
     # Each dask chunk covers whole Zarr chunks (one sub-frame each): parallel writes never share one.
-    store = da.store(video, target, lock=False, compute=False)
+    store = da.store(sources, targets, lock=False, compute=False)
     t0 = time.perf_counter()
     if scheduler is None:
         from dask.callbacks import Callback

@@ -7,8 +7,12 @@ Layout (schema version 2)::
                            created_utc, kind (simulated | captured), tile, K, code (m×n×K 0/1),
                            order (identity codes), multiplexed, placement_order, rates
                            {camera_hz, subframe_hz}, effects {name: params}, seed, source,
-                           storage {kind: float | counts, ...}, calibration, rig
-      frames/              (F, H, W) float32 (relative units) or uint16 counts; one frame per chunk
+                           storage {kind: float | counts, ...}, calibration, rig;
+                           and under "ome" an OME-Zarr (NGFF 0.5) image description of `frames`
+                           (axes t, y, x; t scale = one camera frame in seconds), so generic
+                           OME-Zarr readers open the raw frames (flexvox reads only "flexvox")
+      frames/              (F, H, W) float32 (relative units) or uint16 counts; one frame per chunk;
+                           dimension_names ("t", "y", "x")
       frame_id/            (F,) int64
       timestamp/           (F,) float64, seconds
       dropped/             (F,) bool; a dropped frame is a zero row with its flag set
@@ -166,6 +170,18 @@ def recording_attrs(code, *, rate_hz: float, kind: str, storage: dict, effects: 
     }
 
 
+FRAME_AXES = ("t", "y", "x")
+"""The ``dimension_names`` of ``frames`` (NGFF's axes; recordings written before they were added have none)."""
+
+
+def frames_ngff(attrs: dict) -> dict:
+    """The group's ``ome`` attribute: ``frames`` as an OME-Zarr image whose t step is one camera frame."""
+    from flexvox_core import ngff
+
+    rate = (attrs.get("rates") or {}).get("camera_hz")
+    return ngff.image_attrs("frames", time_step=1.0 / float(rate) if rate else None, name="frames")
+
+
 class RecordingWriter:
     """Append frames to a new recording as they arrive, crash-safely (see the module docstring).
 
@@ -237,10 +253,12 @@ class RecordingWriter:
                     self._replaced = temporary_sibling(self.path, "replaced")
                     os.rename(self.path, self._replaced)
                 self.store = self.path
-            self.group = zarr.open_group(str(self.store), mode="w-", zarr_format=3)
-            self.group.attrs["flexvox"] = attrs
+            # The frames are also an OME-Zarr image (NGFF 0.5: axes t, y, x; t = one camera frame), so
+            # generic OME-Zarr readers open the raw coded frames; flexvox's own block stays under "flexvox".
+            self.group = zarr.open_group(str(self.store), mode="w-", zarr_format=3,
+                                         attributes={"flexvox": attrs, "ome": frames_ngff(attrs)})
             self.frames = self.group.create_array("frames", shape=(0, height, width), chunks=(1, height, width),
-                                                  dtype=dtype, fill_value=0)
+                                                  dtype=dtype, fill_value=0, dimension_names=FRAME_AXES)
             self.per_frame = {
                 name: self.group.create_array(name, shape=(0,), chunks=(4096,), dtype=_PER_FRAME_DTYPES[name],
                                               fill_value=0)

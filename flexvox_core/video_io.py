@@ -1,7 +1,9 @@
-"""Writing videos ``(S, H, W)`` in [0, 1] to files: ``.npy``, ``.tif`` (Fiji), ``.mp4``, ``.zarr``."""
+"""Writing videos ``(S, H, W)`` in [0, 1] to files: ``.npy``, ``.tif`` (Fiji), ``.mp4``, ``.zarr`` (OME-Zarr);
+opening a ``.zarr`` video again."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -11,16 +13,25 @@ from flexvox_core.output_files import atomic_output, check_output
 WRITABLE = (".npy", ".tif", ".tiff", ".mp4", ".zarr")
 
 
-def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, overwrite: bool = False) -> Path:
+def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, overwrite: bool = False,
+                time_step: float | None = None, pyramid: int = 0) -> Path:
     """Write ``video`` (float, values in [0, 1]) by the path's suffix.
 
     ``.npy`` and ``.tif`` keep float32 (a TIFF stack with one page per sub-frame, which Fiji
-    opens as a stack); ``.mp4`` is 8-bit grey at ``fps``; ``.zarr`` is a Zarr v3 group with
-    array ``video`` (one sub-frame per chunk) and ``attrs`` under ``flexvox``.
+    opens as a stack; with ``time_step`` its ImageJ metadata gives the frame interval in seconds,
+    ``finterval`` and ``tunit``); ``.mp4`` is 8-bit grey at ``fps``; ``.zarr`` is an OME-Zarr image
+    (NGFF 0.5 on Zarr v3, :mod:`flexvox_core.ngff`): array ``video`` (one sub-frame per chunk, axes
+    t, y, x) with ``time_step`` as its t scale, ``pyramid`` levels of 2×2 means (default none) and
+    ``attrs`` under ``flexvox``.
+
+    ``time_step`` is the seconds between two of the video's frames (a reconstruction's sub-frame
+    period, 1/(fps·K)); None where it is not known (the t axis then has no unit).
 
     The file is written to a hidden temporary sibling and moved into place when complete
     (:func:`~flexvox_core.output_files.atomic_output`): a failed write leaves an old ``path`` as it was.
     """
+    from flexvox_core import ngff
+
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in WRITABLE:
@@ -30,6 +41,10 @@ def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, ov
         raise ValueError(f"`video` must have shape (S, H, W); got {v.shape}")
     if suffix == ".mp4":
         check_fps(fps)
+    time_step = ngff.check_time_step(time_step)
+    if pyramid and suffix != ".zarr":
+        raise ValueError(f"a pyramid is written only into a .zarr store; got {path} with pyramid={pyramid!r}")
+    pyramid = ngff.check_levels(pyramid, v.shape)
     check_output(path, overwrite=overwrite, hint="choose another path or allow overwriting")
     with atomic_output(path, overwrite=overwrite) as tmp:
         if suffix == ".npy":
@@ -37,17 +52,99 @@ def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, ov
         elif suffix in (".tif", ".tiff"):
             import tifffile
 
-            tifffile.imwrite(tmp, v, imagej=True, metadata={"axes": "TYX"})
+            tifffile.imwrite(tmp, v, imagej=True, metadata=imagej_metadata(time_step))
         elif suffix == ".mp4":
             write_mp4(tmp, v, v.shape[1:], fps)
         else:
             import zarr
 
             g = zarr.open_group(str(tmp), mode="w-", zarr_format=3)
-            arr = g.create_array("video", shape=v.shape, chunks=(1, *v.shape[1:]), dtype="float32")
-            arr[:] = v
-            g.attrs["flexvox"] = attrs or {}
+            g.attrs["flexvox"] = provenance(attrs, time_step)
+            ngff.write_pyramid(ngff.create_image(g, VIDEO, v.shape, time_step=time_step, levels=pyramid), v)
     return path
+
+
+VIDEO = "video"
+"""The array of a reconstruction store (NGFF's full-resolution dataset; its pyramid levels are ``video_1`` ...)."""
+
+
+def imagej_metadata(time_step: float | None) -> dict:
+    """ImageJ metadata of a TYX stack: Fiji shows time in seconds when the frame interval is known."""
+    meta = {"axes": "TYX", "unit": "pixel"}
+    if time_step is not None:
+        meta.update(finterval=float(time_step), tunit="sec")
+    return meta
+
+
+def provenance(attrs: dict | None, time_step: float | None) -> dict:
+    """The ``flexvox`` attribute block of a written video: the caller's ``attrs`` (method, source ...)
+    plus the software version, the time of writing and the time step."""
+    import datetime
+
+    from flexvox_core._version import __version__
+
+    now = datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+    return {"software_version": __version__, "created_utc": now, "time_step_s": time_step, **(attrs or {})}
+
+
+@dataclass(frozen=True)
+class VideoStore:
+    """A video store opened by :func:`open_video_store`: the (S, H, W) array (lazy, zarr), its
+    ``flexvox`` attributes, its time step in seconds (None: not known) and its pyramid levels."""
+
+    path: Path
+    array: object
+    attrs: dict
+    time_step: float | None
+    levels: tuple
+
+
+def open_video_store(path) -> VideoStore:
+    """Open a reconstruction store (``reconstruct``/``export``/``batch -o OUT.zarr``) for reading.
+
+    Reads the OME-Zarr image flexvox writes now and the plain group (array ``video``, no ``ome``
+    attribute) it wrote before; the time step then comes from the recording it names, when that is
+    still there, else it is None.
+
+    Raises
+    ------
+    ValueError
+        Not a Zarr store, or no ``video`` array in it.
+    """
+    import zarr
+
+    from flexvox_core import ngff
+
+    path = Path(path)
+    try:
+        group = zarr.open_group(str(path), mode="r")
+    except (FileNotFoundError, ValueError, zarr.errors.NodeTypeValidationError) as exc:
+        raise ValueError(f"{path}: not a Zarr store ({exc})") from None
+    if VIDEO not in group:
+        raise ValueError(f"{path}: no `{VIDEO}` array: not a flexvox reconstruction")
+    attrs = dict(group.attrs)
+    meta = dict(attrs.get("flexvox") or {})
+    step = ngff.time_step(attrs, VIDEO)
+    paths = []
+    for multiscale in (attrs.get("ome") or {}).get("multiscales", [])[:1]:
+        paths = [d["path"] for d in multiscale.get("datasets", []) if d.get("path") in group]
+    if step is None:
+        step = _source_time_step(meta.get("source"))
+    levels = tuple(group[p] for p in paths) or (group[VIDEO],)
+    return VideoStore(path, group[VIDEO], meta, step, levels)
+
+
+def _source_time_step(source) -> float | None:
+    """An older store's sub-frame period, from the recording it was made from (when it is still there)."""
+    if not source:
+        return None
+    try:
+        import zarr
+
+        rates = dict(zarr.open_group(str(source), mode="r").attrs)["flexvox"]["rates"]
+        return 1.0 / float(rates["subframe_hz"])
+    except Exception:  # noqa: BLE001 - gone, moved or not a recording: the step is simply unknown
+        return None
 
 
 def check_fps(fps) -> float:

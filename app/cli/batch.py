@@ -11,6 +11,7 @@ from app.cli.errors import EXIT_OK, CliError
 
 def register(sub) -> None:
     """Add the ``batch`` subcommand."""
+    from app.cli.export import add_pyramid_option
     from app.cli.method_options import add_method_options
 
     p = sub.add_parser(
@@ -18,18 +19,21 @@ def register(sub) -> None:
         help="reconstruct a long recording chunk by chunk with dask (local or a dask.distributed cluster)",
         description=(
             "Reconstruct a recording in time chunks with the overlap the method needs "
-            "(dask.array.map_overlap), writing the (F*K, H, W) float32 video to a Zarr store chunk by "
-            "chunk (array `video`): memory depends on --chunk, not on the recording's length, and the "
+            "(dask.array.map_overlap), writing the (F*K, H, W) float32 video to an OME-Zarr image chunk by "
+            "chunk (array `video`, the sub-frame period as its time step): memory depends on --chunk, not on "
+            "the recording's length, and the "
             "result equals `flexvox reconstruct`'s. Runs on dask's local threads, or on a "
             "dask.distributed cluster with --scheduler (its workers must see REC and OUT)."
         ),
     )
     p.add_argument("recording", type=Path, metavar="REC", help="a flexvox recording (.zarr)")
-    p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT.zarr", help="Zarr store to write")
+    p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT.zarr",
+                   help="OME-Zarr store (NGFF 0.5) to write")
     p.add_argument("--scheduler", metavar="ADDRESS", help="dask.distributed scheduler, e.g. tcp://host:8786")
     p.add_argument("--overwrite", action="store_true",
                    help="replace an existing output (never the input; the old output stays until every chunk of "
                         "the new one is written)")
+    add_pyramid_option(p)
     add_method_options(p, chunk=32)
     p.set_defaults(func=run)
 
@@ -51,7 +55,8 @@ def run(args) -> int:
             bar.update(done - bar.n)
         try:
             result = reconstruct_batch(args.recording, args.output, method, chunk_frames=args.chunk,
-                                       scheduler=args.scheduler, overwrite=args.overwrite, progress=progress)
+                                       scheduler=args.scheduler, overwrite=args.overwrite, progress=progress,
+                                       pyramid=args.pyramid)
         except (ValueError, OSError, TimeoutError) as exc:
             raise CliError(str(exc)) from None
     S, H, W = result.shape

@@ -3,15 +3,17 @@
 Formats, by the output's suffix:
 
 ``.tif`` / ``.tiff``
-    One ImageJ hyperstack (tifffile, axes TYX, frame interval set) that Fiji opens as a
-    stack: raw frames keep their type (uint16 counts or float32); ground truth and
+    One ImageJ hyperstack (tifffile, axes TYX) that Fiji opens as a stack with time in seconds
+    (``finterval``: one camera frame, or one sub-frame for ground truth and reconstructions;
+    ``tunit`` sec): raw frames keep their type (uint16 counts or float32); ground truth and
     reconstructions are float32 in [0, 1].
 ``.npy``
     The same array (written row by row into a memory-mapped file).
 ``.mp4``
     8-bit grey (OpenCV), values in [0, 1] (counts normalised first) at ``--fps``.
 ``.zarr``
-    A Zarr v3 group with array ``video`` (float32 in [0, 1]), as ``flexvox reconstruct`` writes.
+    An OME-Zarr image (NGFF 0.5 on Zarr v3) with array ``video`` (float32 in [0, 1]) and the time
+    step as its t scale, as ``flexvox reconstruct`` writes; ``--pyramid N`` adds N levels of 2×2 means.
 no suffix
     A folder of 16-bit PNGs ``frame_00000.png`` ...: uint16 counts as they are, float
     values in [0, 1] scaled to 0..65535. ``--overwrite`` replaces only a folder that holds
@@ -30,6 +32,7 @@ import numpy as np
 
 from app.cli.errors import EXIT_OK, CliError, arg_type, positive_fps
 from app.cli.method_options import add_method_options, method_from_args
+from flexvox_core.ngff import check_levels
 from flexvox_core.output_files import OutputError, atomic_output, check_output
 from flexvox_core.recording import RecordingError, open_recording
 
@@ -46,7 +49,8 @@ def register(sub) -> None:
         description=(
             "Write a recording's camera frames, its ground truth (simulated recordings) or its "
             "reconstruction to OUT, by OUT's suffix: .tif/.tiff (an ImageJ hyperstack Fiji opens), "
-            ".npy, .mp4 (8-bit), .zarr, or no suffix for a folder of 16-bit PNGs. Long recordings: "
+            ".npy, .mp4 (8-bit), .zarr (an OME-Zarr image), or no suffix for a folder of 16-bit PNGs. The TIFF "
+            "and the OME-Zarr image carry the time step in seconds. Long recordings: "
             "`flexvox batch` reconstructs chunk by chunk with dask."
         ),
     )
@@ -58,8 +62,23 @@ def register(sub) -> None:
     p.add_argument("--overwrite", action="store_true",
                    help="replace an existing output (never the input; a folder only when it holds nothing but an "
                         "earlier export's PNGs; the old output stays until the new one is complete)")
+    add_pyramid_option(p)
     add_method_options(p, chunk=16)
     p.set_defaults(func=run)
+
+
+def pyramid_levels(text: str) -> int:
+    """``--pyramid``: a whole number of levels >= 0 (checked against the image size when it is known)."""
+    if not text.isdigit():
+        raise ValueError(f"--pyramid must be a whole number of levels >= 0; got {text!r}")
+    return int(text)
+
+
+def add_pyramid_option(p) -> None:
+    """``--pyramid N`` (shared with ``flexvox batch``)."""
+    p.add_argument("--pyramid", type=arg_type(pyramid_levels), default=0, metavar="N",
+                   help=".zarr output: N pyramid levels below full resolution, each the 2x2 mean of the one above "
+                        "(OME-Zarr multiscales, for viewers that zoom out; default 0: none)")
 
 
 class _Source:
@@ -103,14 +122,16 @@ class _Source:
         return np.clip(self.row(i), 0, 1).astype(np.float32, copy=False)
 
 
-def _write(out: Path, src: _Source, fps: float) -> None:
+def _write(out: Path, src: _Source, fps: float, pyramid: int = 0) -> None:
     n = src.shape[0]
     suffix = out.suffix.lower()
     if suffix in (".tif", ".tiff"):
         import tifffile
 
+        from flexvox_core.video_io import imagej_metadata
+
         tifffile.imwrite(out, (src.row(i) for i in range(n)), shape=src.shape, dtype=src.dtype, imagej=True,
-                         metadata={"axes": "TYX", "finterval": 1.0 / src.rate, "unit": "pixel"})
+                         metadata=imagej_metadata(1.0 / src.rate))
     elif suffix == ".npy":
         arr = np.lib.format.open_memmap(out, mode="w+", dtype=src.dtype, shape=src.shape)
         for i in range(n):
@@ -128,7 +149,8 @@ def _write(out: Path, src: _Source, fps: float) -> None:
         from flexvox_core.video_io import write_video
 
         write_video(out, np.stack([src.unit(i) for i in range(n)]) if n else np.zeros((0, *src.shape[1:])),
-                    attrs={"source": str(src.rec.path), "what": src.what})
+                    attrs={"source": str(src.rec.path), "what": src.what}, time_step=1.0 / src.rate,
+                    pyramid=pyramid)
     else:
         import cv2
 
@@ -145,6 +167,8 @@ def run(args) -> int:
     suffix = out.suffix.lower()
     if suffix and suffix not in FORMATS:
         raise CliError(f"-o {out}: the output must end in .tif, .tiff, .npy, .mp4 or .zarr, or be a folder (PNG)")
+    if args.pyramid and suffix != ".zarr":
+        raise CliError(f"--pyramid goes with a .zarr output (an OME-Zarr image); got -o {out}")
     try:
         check_output(out, overwrite=args.overwrite, inputs=[args.recording], kind="folder" if suffix == "" else "auto")
         if suffix == "" and out.is_dir():
@@ -159,10 +183,14 @@ def run(args) -> int:
     except OutputError as exc:
         raise CliError(str(exc)) from None
     src = _Source(rec, args.what, args)
+    try:
+        check_levels(args.pyramid, src.shape)
+    except ValueError as exc:
+        raise CliError(f"--pyramid: {exc}") from None
     fps = args.fps or (src.rate if args.what == "frames" else 30.0)
     try:
         with atomic_output(out, overwrite=args.overwrite) as tmp:
-            _write(tmp, src, fps)
+            _write(tmp, src, fps, args.pyramid)
     except (RecordingError, OutputError) as exc:  # a damaged chunk found while writing: nothing was replaced
         raise CliError(f"{exc}; {out} was not written") from None
     except OSError as exc:

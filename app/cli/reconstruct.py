@@ -84,7 +84,8 @@ def run(args) -> int:
     seconds = time.perf_counter() - t0
     attrs = {"source": str(args.recording), "method": method.as_dict(), "seconds": seconds}
     try:
-        write_video(args.output, video, fps=args.fps, attrs=attrs, overwrite=args.overwrite)
+        write_video(args.output, video, fps=args.fps, attrs=attrs, overwrite=args.overwrite,
+                    time_step=1.0 / rec.attrs["rates"]["subframe_hz"])
     except ValueError as exc:
         raise CliError(str(exc)) from None
     except OSError as exc:

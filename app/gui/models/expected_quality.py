@@ -134,12 +134,16 @@ class Expectation:
 
     def text(self) -> str:
         """One line for the UI."""
+        return (f"{'≈ ' if self.approximate else ''}{format_seconds(self.seconds)}, {self.quality_text()}")
+
+    def quality_text(self) -> str:
+        """The quality part of :meth:`text`."""
         sci = f", SCI clips {self.sci_psnr:.1f} dB" if self.sci_psnr is not None else ""
-        return (f"{'≈ ' if self.approximate else ''}{_fmt_seconds(self.seconds)}, "
-                f"{self.psnr:.1f} dB PSNR / SSIM {self.ssim:.2f} on the built-in scenes{sci}")
+        return f"{self.psnr:.1f} dB PSNR / SSIM {self.ssim:.2f} on the built-in scenes{sci}"
 
 
-def _fmt_seconds(s: float) -> str:
+def format_seconds(s: float) -> str:
+    """Seconds in words: "107 ms", "4.2 s", "3.1 min"."""
     if s < 1:
         return f"{s * 1000:.0f} ms"
     if s < 120:

@@ -23,8 +23,9 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.models.expected_quality import expected
+from app.gui.models.expected_quality import expected, format_seconds
 from app.gui.models.jobs import ReconstructionResult, chunk_frames_for, preview_window, run_reconstruction
+from app.gui.models.machine_speed import SpeedModel, calibrate, estimate_seconds, is_current, settings_key
 from app.gui.models.review_session import ReviewSession
 from app.gui.review.compare_view import CompareView
 from app.gui.review.method_form import MethodForm
@@ -80,7 +81,9 @@ class ReviewWorkspace(QWidget):
         self.preview_job: JobHandle | None = None
         self._preview_generation = 0
         self._truth = None
+        self._expected_for_job: float | None = None
         self._closed = False
+        self._speed_jobs: dict[str, JobHandle] = {}
         self._build()
         self.form.changed.connect(self._on_form_changed)
         self._refresh_enabled()
@@ -384,6 +387,7 @@ class ReviewWorkspace(QWidget):
 
         self.progress.setRange(0, s.n_frames)
         self.progress.setValue(0)
+        self._expected_for_job = self.expected_seconds()
         self.result_label.setText(f"reconstructing with {method.label()} …")
         self.job = self.runner.submit(
             "reconstruct", work, on_progress=lambda done, total: self.progress.setValue(done),
@@ -421,6 +425,13 @@ class ReviewWorkspace(QWidget):
                f"({vox:.0f} M voxels/s)"
         if result.psnr is not None:
             text += f"; PSNR vs ground truth {result.psnr:.2f} dB"
+        expected_s, self._expected_for_job = self._expected_for_job, None
+        if expected_s is not None:
+            text += f" (expected ≈ {format_seconds(expected_s)})"
+        H, W = result.video.shape[1:]
+        _logger.info("reconstruction %s of %d sub-frames of %dx%d: measured %.3f s, expected %s", result.method.label(),
+                     result.video.shape[0], W, H, result.seconds,
+                     "unknown (not timed yet)" if expected_s is None else f"{expected_s:.3f} s")
         self.result_label.setText(text)
         self.set_shown(result)
         self.compare_view.set_results(self.results, self.session.K, self._truth)
@@ -529,6 +540,39 @@ class ReviewWorkspace(QWidget):
         self.preview_timer.stop()
         self.cancel()
 
+    def speed_model(self, name: str, K: int) -> SpeedModel | None:
+        """This machine's calibrated speed of method ``name`` at K slots (None: not measured by this version)."""
+        model = SpeedModel.from_json(self.settings.get_str(settings_key(name, K), ""))
+        return model if is_current(model) else None
+
+    def expected_seconds(self) -> float | None:
+        """Expected seconds of a full reconstruction with the form's method on this machine (None: not known yet)."""
+        s = self.session
+        if s is None:
+            return None
+        method = self.form.method()
+        model = self.speed_model(method.name, s.K)
+        if model is None:
+            return None
+        H, W = s.shape
+        return estimate_seconds(model, self.table, method, s.code, n_frames=s.n_frames, H=H, W=W)
+
+    def _calibrate_speed(self, name: str, code) -> None:
+        """Time method ``name`` on this machine (off the GUI thread, once per method and K; kept in the settings)."""
+        K = int(code.shape[2])
+        key = settings_key(name, K)
+        job = self._speed_jobs.get(key)
+        if self._closed or (job is not None and job.outcome in (None, "finished")):
+            return
+
+        def done(model: SpeedModel) -> None:
+            self.settings.set(key, model.to_json())
+            self._refresh_expected()
+
+        self._speed_jobs[key] = self.runner.submit(
+            "machine speed", lambda token, progress: calibrate(name, code, cancel=token), on_finished=done,
+            on_failed=lambda msg: _logger.warning("timing %s on this machine failed: %s", name, msg))
+
     def _refresh_expected(self) -> None:
         s = self.session
         if s is None:
@@ -536,13 +580,20 @@ class ReviewWorkspace(QWidget):
             return
         method = self.form.method()
         e = expected(self.table, method, s.code, voxels=s.n_subframes * s.shape[0] * s.shape[1])
+        seconds = self.expected_seconds()
+        if seconds is None:
+            self._calibrate_speed(method.name, s.code)
+            time_text = "timing this machine …"
+        else:
+            time_text = f"≈ {format_seconds(seconds)} on this machine"
         if e is None:
-            self.expected_label.setText("no bench figures for this method")
+            self.expected_label.setText(f"<b>expected</b> {time_text}; no bench figures for the quality")
             self.expected_label.setToolTip("")
             return
-        self.expected_label.setText(f"<b>expected</b> {e.text()}<br><small>{e.basis}</small>")
-        self.expected_label.setToolTip("time scaled to this recording's size from the bench's voxels/s; "
-                                       "quality measured on the built-in scenes, not on this recording")
+        self.expected_label.setText(f"<b>expected</b> {time_text}, {e.quality_text()}<br><small>{e.basis}</small>")
+        self.expected_label.setToolTip("time: this recording's size on this machine, from a calibration run of the "
+                                       "method here (cached in the settings); quality: measured by the bench on the "
+                                       "built-in scenes, not on this recording")
 
     def _refresh_enabled(self) -> None:
         can = self.session is not None and self.session.frames is not None

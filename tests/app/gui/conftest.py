@@ -72,8 +72,12 @@ def runner(qapp):
 def review(qtbot, settings, runner):
     """A Review workspace with the shipped bench figures."""
     from app.gui.models.expected_quality import load_table
+    from app.gui.models.machine_speed import SpeedModel, _version, settings_key
     from app.gui.review.workspace import ReviewWorkspace
 
+    # Motion-aware's calibration run takes seconds: tests that do not time this machine take a made-up model.
+    settings.set(settings_key("motion-aware", 8), SpeedModel("motion-aware", 8, c=1e-6, p=1.0, points=(),
+                                                             version=_version()).to_json())
     ws = ReviewWorkspace(settings, runner, load_table())
     qtbot.addWidget(ws)
     ws.resize(1200, 800)

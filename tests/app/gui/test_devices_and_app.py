@@ -208,5 +208,6 @@ def test_closing_the_window_while_review_plays_starts_no_preview_after_the_runne
     assert not review.playing and not review.preview_timer.isActive() and not review.timer.isActive()
     assert review.request_preview() is None  # a late caller gets nothing scheduled
     refused = runner.submit("late", lambda token, progress: "ran")
-    assert refused.outcome == "cancelled" and not refused.running and runner.active == 0
-    assert runner.pool.activeThreadCount() == 0
+    assert refused.outcome == "cancelled" and not refused.running
+    assert runner.pool.activeThreadCount() == 0  # no job thread still runs
+    qtbot.waitUntil(lambda: runner.active == 0, timeout=5000)  # the jobs' last queued signals were delivered

@@ -275,3 +275,49 @@ def test_models_and_services_import_with_qt_blocked():
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "ok"
 
+
+
+def test_processed_voxels_count_the_overlap_each_chunk_recomputes():
+    from app.gui.models.machine_speed import processed_voxels
+    from flexvox_core.methods import Method
+
+    m = Method("motion-aware")  # overlap 3 frames each side
+    assert processed_voxels(m, 8, 16, 10, 20, chunk_frames=8) == 8 * 16 * 200  # one chunk: nothing recomputed
+    # 16 frames in chunks of 8: [0, 11) and [5, 16): 22 frames processed
+    assert processed_voxels(m, 16, 16, 10, 20, chunk_frames=8) == 22 * 16 * 200
+
+
+def test_the_speed_model_scales_with_the_recording_and_the_options_and_survives_the_settings():
+    from app.gui.models.expected_quality import load_table
+    from app.gui.models.machine_speed import SpeedModel, _version, estimate_seconds, is_current, processed_voxels
+    from flexvox_core.design import design_code
+    from flexvox_core.methods import Method
+
+    model = SpeedModel("diffusion", 16, c=2e-8, p=1.0, points=((1, 2, 3),), version=_version())
+    again = SpeedModel.from_json(model.to_json())
+    assert again == model and is_current(again)
+    assert not is_current(SpeedModel("diffusion", 16, c=1, p=1, points=(), version="0.0.0-old"))
+    assert SpeedModel.from_json("") is None and SpeedModel.from_json('{"method": "x"}') is None
+    code, table = design_code((4, 4)).code, load_table()
+    base = Method("diffusion")
+    t8 = estimate_seconds(model, table, base, code, n_frames=8, H=120, W=160)
+    assert t8 == pytest.approx(2e-8 * processed_voxels(base, 8, 16, 120, 160)) and t8 >= 2e-8 * 8 * 16 * 120 * 160
+    assert estimate_seconds(model, table, base, code, n_frames=16, H=120, W=160) > 1.9 * t8
+    slow = Method("diffusion", time=8.0)  # the bench's throughput falls with the diffusion time
+    assert estimate_seconds(model, table, slow, code, n_frames=8, H=120, W=160) > 1.2 * t8
+
+
+def test_calibrate_times_a_method_on_two_clip_sizes():
+    from app.gui.models.jobs import Cancelled, CancelToken
+    from app.gui.models.machine_speed import P_RANGE, SIZES, calibrate
+    from flexvox_core.design import design_code
+
+    code = design_code((2, 2)).code
+    model = calibrate("rebin", code)
+    assert model.method == "rebin" and model.K == 4 and len(model.points) == 2
+    assert [n for _, n, _ in model.points] == [h * w for h, w in SIZES]
+    assert model.c > 0 and P_RANGE[0] <= model.p <= P_RANGE[1]
+    token = CancelToken()
+    token.cancel()
+    with pytest.raises(Cancelled, match="cancelled"):
+        calibrate("rebin", code, cancel=token)

@@ -311,3 +311,23 @@ def test_the_method_form_is_built_from_the_registered_methods(qtbot, settings):
     assert form.slider.isEnabled() and form.method().tensor == continuum_tensor(form.position)
     with pytest.raises(ValueError, match=r"`method` must be one of rebin, diffusion, gap-tv, motion-aware; got 'x'"):
         form.set_method_name("x")
+
+
+def test_the_expected_time_comes_from_timing_this_machine_and_is_logged_against_the_measured(qtbot, opened, caplog):
+    import logging
+
+    from app.gui.models.machine_speed import SpeedModel, settings_key
+
+    ws = opened
+    ws.form.set_method_name("diffusion")
+    key = settings_key("diffusion", 8)
+    # The first use times the method here (off the GUI thread) and keeps the model in the settings.
+    qtbot.waitUntil(lambda: ws.speed_model("diffusion", 8) is not None, timeout=20_000)
+    assert SpeedModel.from_json(ws.settings.get_str(key)) == ws.speed_model("diffusion", 8)
+    assert "on this machine" in ws.expected_label.text() and "timing this machine" not in ws.expected_label.text()
+    expected_s = ws.expected_seconds()
+    assert expected_s > 0
+    with caplog.at_level(logging.INFO, logger="app.gui.review.workspace"):
+        r = reconstruct(qtbot, ws, "diffusion")
+    assert "(expected ≈" in ws.result_label.text()
+    assert any(f"measured {r.seconds:.3f} s, expected {expected_s:.3f} s" in m for m in caplog.messages)

@@ -127,9 +127,12 @@ class LiveColocation(QObject):
         self.alignment = result
         if result.success:
             dx, dy = result.offset_px
+            # The message repeats the numbers before its "; ": show the numbers once, then only its advice.
+            advice = result.message.split("; ", 1)[1] if "; " in result.message else ""
             text = (f"<b>offset</b> ({dx:+.2f}, {dy:+.2f}) px · <b>rotation</b> {result.rotation_deg:+.3f}° · "
-                    f"<b>scale</b> {result.scale:.4f} · <b>lit</b> {result.lit_fraction:.1%}"
-                    f"{' · <b>mirrored</b>' if result.mirrored else ''}<br>{html.escape(result.message)}")
+                    f"<b>scale</b> {result.scale:.4f} camera px per projector px · <b>lit</b> "
+                    f"{result.lit_fraction:.1%}{' · <b>mirrored</b>' if result.mirrored else ''}"
+                    + (f"<br>{html.escape(advice)}" if advice else ""))
         else:
             text = coloured(result.message, RED)
         self.label.setText(text)

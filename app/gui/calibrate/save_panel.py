@@ -75,9 +75,10 @@ class SavePanel(QGroupBox):
             self.label.setText(html.escape(note))
 
     def _browse(self) -> None:
-        start = self.path.text() or str(Path.home() / "rig-calibration.json")
+        start = self.path.text() or str(Path(self.settings.last_folder()) / "rig-calibration.json")
         path, _ = QFileDialog.getSaveFileName(self, "Save calibration", start, "Calibration (*.json)")
         if path:
+            self.settings.remember_folder(path)
             self.path.setText(path)
             self._replace_ok = Path(path).expanduser()  # the dialog asked before it returned an existing file
 
@@ -109,6 +110,7 @@ class SavePanel(QGroupBox):
             self.label.setText(coloured(f"not saved: {exc}", RED))
             return None
         self.saved_path = Path(written)
+        self.settings.remember_folder(written)
         self.label.setText(coloured(f"saved {written}", GREEN))
         self.saved.emit(written)
         return written

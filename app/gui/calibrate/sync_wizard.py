@@ -164,8 +164,9 @@ class TriggerPage(_JobPage):
                 return False, (f"no frame within {session.timeout_s:g} s of showing the pattern: the camera is "
                                f"not triggered by the projector ({exc}). Check the wiring and the trigger line.")
             mean = float(np.mean([f.image.mean() for f in frames]))
-            return True, (f"3 triggered frames (ids {frames[0].frame_id}–{frames[-1].frame_id}), mean level "
-                          f"{mean:.3g}: the camera follows the projector")
+            ids = ", ".join(str(f.frame_id) for f in frames)
+            return True, (f"{len(frames)} triggered frames (camera frame ids {ids}), mean level {mean:.3g}: the "
+                          "camera follows the projector")
 
     def show_result(self, result) -> bool:
         ok, message = result
@@ -180,13 +181,16 @@ class PhasePage(_JobPage):
         super().__init__(wizard, "Phase sweep",
                          "Plays a band code once per camera delay and measures how much of each slot's light "
                          "reaches the exposure (the leakage curve): phase and sub-slot delay.", "Run the phase sweep")
-        self.leakage = pg.PlotWidget(title="leakage at delay 0: fraction of each slot's light")
+        self.leakage = pg.PlotWidget(title="leakage at delay 0")
         self.leakage.setBackground("#202020")
         self.leakage.setLabel("bottom", "projected slot")
+        self.leakage.setLabel("left", "fraction of the slot's light")
         self.bars = pg.BarGraphItem(x=[], height=[], width=0.8, brush=(90, 160, 255, 200))
         self.leakage.addItem(self.bars)
-        self.sweep = pg.PlotWidget(title="slots of light lost against the camera delay (µs)")
+        self.sweep = pg.PlotWidget(title="delay sweep")
         self.sweep.setBackground("#202020")
+        self.sweep.setLabel("bottom", "camera trigger delay (µs)")
+        self.sweep.setLabel("left", "slots of light lost")
         self.points = self.sweep.plot([], [], pen=None, symbol="o", symbolBrush=(255, 200, 80))
         plots = QHBoxLayout()
         plots.addWidget(self.leakage)
@@ -228,6 +232,12 @@ class PhasePage(_JobPage):
         if sync.sweep:
             self.points.setData([p[0] for p in sync.sweep], [p[1] for p in sync.sweep])
         text = sync.message + "".join(f" Warning: {w}" for w in sync.warnings)
+        ref = self.owner.reference
+        if sync.success and ref is not None and ref.success:
+            text += (f" (The Calibrate run measured {ref.recommended_camera_delay_us:.0f} µs and phase "
+                     f"{ref.effective_phase_slots}: each sweep is a new measurement, so the sub-slot delay differs "
+                     "by its noise, a few µs. Capture uses whichever you hand it: this profile once saved and "
+                     "loaded, or the Calibrate run.)")
         _say(self.verdict, ("✓ " if sync.success else "✗ ") + text, GREEN if sync.success else RED)
         return sync.success
 
@@ -321,11 +331,14 @@ class SyncWizard(QWizard):
         The shutter code's tile (K = m·n slots).
     homography : array (3, 3), optional
         From the Calibrate workspace's last run; measured on the phase page when None.
+    reference : SyncResult, optional
+        The Calibrate workspace's last sync measurement: the phase page says how its own compares.
     """
 
     def __init__(self, target: CalibrationTarget, runner: JobRunner, *, tile=(4, 4), homography=None,
-                 parent: QWidget | None = None):
+                 reference=None, parent: QWidget | None = None):
         super().__init__(parent)
+        self.reference = reference
         self.target = target
         self.runner = runner
         self.tile = tuple(tile)

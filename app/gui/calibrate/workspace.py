@@ -295,7 +295,9 @@ class CalibrateWorkspace(QWidget):
             return None
         hom = self.outcome.homography.homography if self.outcome is not None and self.outcome.homography \
             is not None and self.outcome.homography.success else None
-        wizard = SyncWizard(target_for(self.service), self.runner, tile=self.tile(), homography=hom, parent=self)
+        reference = self.outcome.sync if self.outcome is not None else None
+        wizard = SyncWizard(target_for(self.service), self.runner, tile=self.tile(), homography=hom,
+                            reference=reference, parent=self)
         wizard.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
         wizard.finished.connect(self._wizard_finished)
         wizard.show()

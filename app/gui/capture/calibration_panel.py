@@ -15,7 +15,6 @@ on the camera".
 from __future__ import annotations
 
 import html
-from pathlib import Path
 
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import QCheckBox, QFileDialog, QGridLayout, QGroupBox, QLabel, QPushButton, QVBoxLayout
@@ -97,10 +96,10 @@ class CalibrationPanel(QGroupBox):
             raise CalibrationRefused(f"cannot read this rig's camera and projector sizes: {exc}") from exc
 
     def _ask(self, title: str, key: str) -> str:
-        start = self.settings.get_str(key, str(Path.home()))
+        start = self.settings.last_folder(key)
         path, _ = QFileDialog.getOpenFileName(self, title, start, "flexvox calibration (*.json)")
         if path:
-            self.settings.set(key, str(Path(path).parent))
+            self.settings.remember_folder(path, key)
         return path
 
     def _ask_calibration(self) -> None:

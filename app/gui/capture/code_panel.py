@@ -161,7 +161,7 @@ class CodePanel(QWidget):
             self._on_changed()
             return False
         self.code_file, self._file_code, self.file_error = path, code, ""
-        self.settings.set("capture/code_dir", str(path.parent))
+        self.settings.remember_folder(path, "capture/code_dir")
         self._on_changed()
         return True
 
@@ -171,7 +171,7 @@ class CodePanel(QWidget):
         self._on_changed()
 
     def _ask_code_file(self) -> None:
-        start = self.settings.get_str("capture/code_dir", str(Path.home()))
+        start = self.settings.last_folder("capture/code_dir")
         path, _ = QFileDialog.getOpenFileName(self, "Code from file", start, "flexvox codes (*.json)")
         if path:
             self.load_code_file(path)

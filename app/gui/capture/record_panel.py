@@ -169,9 +169,10 @@ class RecordPanel(QObject):
             w.setEnabled(not self.recording)
 
     def _browse(self) -> None:
-        start = self.path_edit.text() or str(Path.home() / "recording.zarr")
+        start = self.path_edit.text() or str(Path(self.settings.last_folder()) / "recording.zarr")
         path, _ = QFileDialog.getSaveFileName(self.box, "Record to", start, "Zarr recordings (*.zarr)")
         if path:
+            self.settings.remember_folder(path)
             self.path_edit.setText(path if path.endswith(".zarr") else path + ".zarr")
 
     def say(self, text: str, colour: str | None = None) -> None:
@@ -210,6 +211,7 @@ class RecordPanel(QObject):
             self.say(f"cannot record: {exc}", RED)
             return False
         self.capture = capture
+        self.settings.remember_folder(capture.path)
         self.last_result = None
         self.recording = True
         self._stop_job = None

@@ -3,8 +3,9 @@
 Holds the raw frames (normalised to relative units, for playback), the identity-code capture
 the reconstructions take (demultiplexed when the recording is multiplexed, by the one reader,
 :class:`flexvox_core.capture_reader.CaptureReader`), its code, and the ground truth of simulated
-recordings. A recording the reader refuses (dropped frames) opens for playback, with the reader's
-reason in :attr:`ReviewSession.blocked`.
+recordings. A recording the reader refuses opens for playback, with the reader's reason in
+:attr:`ReviewSession.blocked`; so, for now, does one with dropped frames, which ``flexvox
+reconstruct`` bridges but the Review workspace's jobs do not yet.
 """
 
 from __future__ import annotations
@@ -58,6 +59,10 @@ class ReviewSession:
         try:
             reader = CaptureReader(rec)
             frames, code, blocked = reader.read(), reader.code, ""
+            if reader.missing is not None:
+                rows = np.flatnonzero(reader.missing)[:5].tolist()
+                frames, blocked = None, (f"{path} has {int(reader.missing.sum())} dropped frame(s) (first at rows "
+                                         f"{rows}); Review does not bridge them yet: `flexvox reconstruct` does")
         except NotReconstructableError as exc:
             frames, code, blocked = None, rec.code, str(exc)
         _logger.info("opened %s: %d frames of %dx%d, K=%d", path, *raw.shape, rec.K)

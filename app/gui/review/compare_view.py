@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QComboBox, QFormLayout, QGridLayout, QWidget
 
 from app.gui.models.jobs import ReconstructionResult
@@ -19,12 +20,13 @@ class CompareView(QWidget):
         self.panel_b = ImagePanel("B")
         self.panel_b.view.setXLink(self.panel_a.view)
         self.panel_b.view.setYLink(self.panel_a.view)
+        for box in (self.box_a, self.box_b):  # a result's label is long: each box takes the whole width
+            box.setSizeAdjustPolicy(QComboBox.SizeAdjustPolicy.AdjustToMinimumContentsLengthWithIcon)
         grid = QGridLayout(self)
-        fa, fb = QFormLayout(), QFormLayout()
-        fa.addRow("A", self.box_a)
-        fb.addRow("B", self.box_b)
-        grid.addLayout(fa, 0, 0)
-        grid.addLayout(fb, 0, 1)
+        picks = QFormLayout()
+        picks.addRow("A (left)", self.box_a)
+        picks.addRow("B (right)", self.box_b)
+        grid.addLayout(picks, 0, 0, 1, 2)
         grid.addWidget(self.panel_a, 1, 0)
         grid.addWidget(self.panel_b, 1, 1)
         grid.setRowStretch(1, 1)
@@ -45,6 +47,8 @@ class CompareView(QWidget):
             box.blockSignals(True)
             box.clear()
             box.addItems([f"{i + 1}. {r.label()}" for i, r in enumerate(self._results)])
+            for i, r in enumerate(self._results):
+                box.setItemData(i, r.label(), Qt.ItemDataRole.ToolTipRole)
             box.blockSignals(False)
         n = len(self._results)
         if n:

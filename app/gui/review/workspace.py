@@ -192,7 +192,7 @@ class ReviewWorkspace(QWidget):
 
     # ------------------------------------------------------------------ opening
     def _ask_open(self) -> None:
-        start = self.settings.get_str("review/last_dir", str(Path.cwd()))
+        start = self.settings.last_folder("review/last_dir")
         path = QFileDialog.getExistingDirectory(self, "Open a recording (.zarr folder)", start)
         if path:
             self.open_recording(path)
@@ -215,7 +215,7 @@ class ReviewWorkspace(QWidget):
         self.results = []
         self.shown = None
         self._truth = session.truth() if session.has_ground_truth else None
-        self.settings.set("review/last_dir", str(session.path.parent))
+        self.settings.remember_folder(session.path, "review/last_dir")
         self.settings.set("review/last_recording", str(session.path))
         self.path_label.setText(str(session.path))
         text = session.summary()
@@ -443,7 +443,7 @@ class ReviewWorkspace(QWidget):
         r = self.export_candidate()
         if r is None:
             return
-        start = self.settings.get_str("review/export_dir", str(Path.cwd()))
+        start = self.settings.last_folder("review/export_dir")
         name = str(Path(start) / f"{self.session.path.stem}-{export_slug(r.method)}.tif")
         path, _ = QFileDialog.getSaveFileName(self, "Export the reconstruction", name, EXPORT_FILTER)
         if path:
@@ -478,7 +478,7 @@ class ReviewWorkspace(QWidget):
                                       "reconstructed")
             return None
         path = Path(path)
-        self.settings.set("review/export_dir", str(path.parent))
+        self.settings.remember_folder(path, "review/export_dir")
         try:  # never onto the recording under review; the folder must take the file
             check_output(path, overwrite=overwrite, inputs=[s.path])
         except OutputError as exc:

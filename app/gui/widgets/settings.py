@@ -12,6 +12,8 @@ from PySide6.QtCore import QByteArray, QSettings
 
 ORGANISATION = "flexvox"
 APPLICATION = "flexvox"
+LAST_FOLDER = "files/last_folder"
+"""The folder the last file dialog used (every dialog starts there when its own is not known)."""
 
 
 def settings_at(path) -> AppSettings:
@@ -65,6 +67,23 @@ class AppSettings:
         """A byte array (window geometry), or None."""
         value = self.qsettings.value(key)
         return value if isinstance(value, QByteArray) else None
+
+    def last_folder(self, key: str = "") -> str:
+        """Where a file dialog starts: the folder last used for ``key`` (e.g. exports), else the folder last
+        used by any dialog, else the working folder."""
+        for k in (key, LAST_FOLDER):
+            if k:
+                folder = self.get_str(k, "")
+                if folder and Path(folder).is_dir():
+                    return folder
+        return str(Path.cwd())
+
+    def remember_folder(self, path, key: str = "") -> None:
+        """Remember the folder of ``path`` (a file's or a store's parent) for ``key`` and for every dialog."""
+        folder = str(Path(path).expanduser().parent)
+        if key:
+            self.set(key, folder)
+        self.set(LAST_FOLDER, folder)
 
     def set(self, key: str, value) -> None:
         """Store ``value``."""

@@ -118,6 +118,7 @@ def test_live_co_location_numbers_update_on_a_timer(qtbot, calibrate):
     qtbot.waitUntil(lambda: ws.live_panel.alignment is not first, timeout=20_000)  # measured again
     text = ws.live_panel.label.text()
     assert ws.live_panel.alignment.success and "offset" in text and "rotation" in text
+    assert text.count("offset") == 1 and text.count("rotation") == 1 and text.count("scale") == 1  # said once
     assert abs(ws.live_panel.alignment.scale - 0.645) < 0.01
     ws.live_panel.check.setChecked(False)
     qtbot.waitUntil(lambda: ws.live_panel.job is None or not ws.live_panel.job.running, timeout=10_000)
@@ -143,7 +144,8 @@ def test_sync_wizard_end_to_end(qtbot, calibrate, tmp_path):
     assert wizard.currentPage() is wizard.trigger and not next_button.isEnabled()
     wizard.trigger.button.click()
     qtbot.waitUntil(wizard.trigger.isComplete, timeout=10_000)
-    assert "3 triggered frames" in wizard.trigger.verdict.text()
+    verdict = wizard.trigger.verdict.text()
+    assert "3 triggered frames (camera frame ids " in verdict and "–" not in verdict  # the ids, not a range
     wizard.next()
     # 3. phase sweep (no homography from the workspace yet: the page measures one first)
     assert wizard.homography is None
@@ -152,6 +154,12 @@ def test_sync_wizard_end_to_end(qtbot, calibrate, tmp_path):
     assert wizard.sync.phase_slots == truth_phase and f"sees projected slot {truth_phase}" in \
         wizard.phase.verdict.text()
     assert len(wizard.phase.bars.opts["height"]) == 16 and len(wizard.phase.points.getData()[0]) == 8
+    for plot, bottom, left in ((wizard.phase.leakage, "projected slot", "fraction of the slot's light"),
+                               (wizard.phase.sweep, "camera trigger delay (µs)", "slots of light lost")):
+        item = plot.getPlotItem()
+        assert item.getAxis("bottom").labelText == bottom and item.getAxis("left").labelText == left
+        title = item.titleLabel
+        assert title.item.boundingRect().width() <= plot.width()  # the title fits its plot
     wizard.next()
     # 4. drops and drift
     wizard.drift.button.click()

@@ -23,6 +23,8 @@ def capture(qtbot, settings):
 
 def test_live_view_starts_delivers_frames_and_stops(qtbot, capture):
     ws = capture
+    axis = ws.live_panel.hist.getAxis("left")  # an empty histogram: no negative counts, no "pixels (×0.001)"
+    assert "×" not in axis.labelString() and ws.live_panel.hist.getViewBox().viewRange()[1][0] >= 0
     rig = ws.service.rig
     ws.live_panel.live_button.click()
     assert ws.live and ws.live_panel.live_button.text() == "Stop live view"

@@ -321,3 +321,16 @@ def test_calibrate_times_a_method_on_two_clip_sizes():
     token.cancel()
     with pytest.raises(Cancelled, match="cancelled"):
         calibrate("rebin", code, cancel=token)
+
+
+def test_file_dialogs_start_in_the_last_folder_used(settings, tmp_path):
+    from pathlib import Path
+
+    assert settings.last_folder("review/export_dir") == str(Path.cwd())
+    (tmp_path / "runs").mkdir()
+    settings.remember_folder(tmp_path / "runs" / "run1.zarr")  # e.g. a recording made in Capture
+    assert settings.last_folder("review/export_dir") == str(tmp_path / "runs")  # another dialog starts there
+    settings.remember_folder(tmp_path / "x.tif", "review/export_dir")
+    settings.remember_folder(tmp_path / "runs" / "cal.json")
+    assert settings.last_folder("review/export_dir") == str(tmp_path)  # its own folder first
+    assert settings.last_folder() == str(tmp_path / "runs")

@@ -33,11 +33,12 @@ import numpy as np
 
 from flexvox_core import ngff
 from flexvox_core.capture_reader import CaptureReader, Preparation
+from flexvox_core.gaps import check_reach, context, interpolated_subframes
 from flexvox_core.methods.method import Method
 from flexvox_core.methods.runner import run_chunk
 from flexvox_core.output_files import atomic_output, check_output
 from flexvox_core.recording import Recording, RecordingError, open_recording
-from flexvox_core.video_io import VIDEO, provenance
+from flexvox_core.video_io import INTERPOLATED, VIDEO, provenance
 
 _logger = logging.getLogger(__name__)
 
@@ -63,8 +64,10 @@ def _chunks(F: int, chunk: int, ov: int) -> tuple[int, ...]:
     return tuple(sizes) or (0,)
 
 
-def _chunk_kernel(code, K: int, ov: int, F: int, method: Method, preparation: Preparation, value_range=None):
-    """The dask kernel: one chunk of raw rows (with its context) prepared, then :func:`run_chunk`."""
+def _chunk_kernel(code, K: int, ov: int, F: int, method: Method, preparation: Preparation, value_range=None,
+                  missing=None):
+    """The dask kernel: one chunk of raw rows (with its context) prepared, then :func:`run_chunk`
+    (``missing``: the recording's dropped frames, or None)."""
 
     def kernel(block: np.ndarray, block_info=None) -> np.ndarray:
         s0, s1 = block_info[None]["array-location"][0]
@@ -73,8 +76,9 @@ def _chunk_kernel(code, K: int, ov: int, F: int, method: Method, preparation: Pr
         if block.shape[0] != stop - start + left + right:
             raise RuntimeError(f"chunk [{start}, {stop}) arrived with {block.shape[0]} frames, expected "
                                f"{stop - start + left + right}")
+        lost = None if missing is None else missing[start - left: stop + right]
         return run_chunk(preparation(block), code, method, left=left, count=stop - start,
-                         value_range=value_range).video
+                         value_range=value_range, missing=lost).video
 
     return kernel
 
@@ -86,13 +90,15 @@ def batch_video(rec: Recording, method: Method | None = None, *, chunk_frames: i
     -------
     video : dask.array.Array (F·K, H, W) float32
     overlap : int
-        Camera frames of context each chunk was given on each side.
+        Camera frames of context each chunk was given on each side (with dropped frames: the
+        method's overlap, the longest gap and one more, :func:`flexvox_core.gaps.context`).
 
     Raises
     ------
     ValueError
         A recording the reader refuses (:class:`~flexvox_core.capture_reader.NotReconstructableError`), a bad
-        ``chunk_frames``, or a method that cannot run in chunks.
+        ``chunk_frames``, a method that cannot run in chunks, or a run of dropped frames longer than
+        the method bridges (:class:`~flexvox_core.gaps.GapTooLongError`).
     """
     import dask.array as da
 
@@ -106,6 +112,8 @@ def batch_video(rec: Recording, method: Method | None = None, *, chunk_frames: i
     ov = method.overlap(K)
     if ov is None:
         raise ValueError(f"{method.label()} is a global solve and cannot run in chunks; choose another solver")
+    check_reach(reader.missing, method.max_gap(K), method.name, K)
+    ov = context(ov, reader.missing)
     if chunk_frames < ov:
         _logger.info("batch: chunks of %d frames raised to the method's overlap of %d", chunk_frames, ov)
         chunk_frames = ov  # dask's map_overlap needs chunks at least as long as the overlap
@@ -114,7 +122,7 @@ def batch_video(rec: Recording, method: Method | None = None, *, chunk_frames: i
                            fancy=False)
     # Methods that scale by the samples' range get the whole recording's in every chunk.
     value_range = reader.sample_range(chunk_frames) if method.spec.needs_sample_range else None
-    kernel = _chunk_kernel(reader.code, K, ov, F, method, reader.preparation, value_range)
+    kernel = _chunk_kernel(reader.code, K, ov, F, method, reader.preparation, value_range, reader.missing)
     out_chunks = (tuple(c * K for c in frames.chunks[0]), (H,), (W,))
     return da.map_overlap(kernel, frames, depth={0: ov, 1: 0, 2: 0}, boundary="none", trim=False,
                           dtype=np.float32, chunks=out_chunks, meta=np.empty((0, 0, 0), np.float32)), ov
@@ -184,6 +192,11 @@ def _store(rec, video, ov, chunk_frames, method, output, scheduler, progress, co
     step = 1.0 / float(rec.attrs["rates"]["subframe_hz"])
     group.attrs["flexvox"] = provenance({"source": str(rec.path), "method": method.as_dict(),
                                          "chunk_frames": chunk_frames, "overlap_frames": ov, "batch": True}, step)
+    dropped = np.asarray(rec.per_frame("dropped"), bool)
+    if dropped.any():  # which sub-frames were bridged across dropped frames, as `reconstruct` writes it
+        flags = interpolated_subframes(dropped, video.shape[0] // len(dropped))
+        group.create_array(INTERPOLATED, data=flags, chunks=(max(1, min(len(flags), 65536)),))
+        group.attrs["flexvox"] = {**group.attrs["flexvox"], "interpolated_subframes": int(flags.sum())}
     targets = ngff.create_image(group, VIDEO, video.shape, time_step=step, levels=pyramid)
     sources = [video]
     for _ in targets[1:]:  # each level from the chunks of the one above, in the same pass

@@ -5,9 +5,9 @@ A recording's raw frames become what every reconstruction takes, an identity-cod
 
 1. **validation** — the recording opens (:func:`~flexvox_core.recording.open_recording`); its
    frame ids increase by one from row to row (a repeated, backward or skipped id is refused,
-   naming the row); and the **dropped-frame policy** holds: a recording with dropped frames is
-   refused (:class:`NotReconstructableError` naming how many rows are dropped and the first of
-   them), because reconstructing across gaps is not supported yet. Every frame is checked
+   naming the row). Dropped frames keep their (zero) rows: :attr:`CaptureReader.missing` says
+   which, and every reconstruction bridges them or refuses a gap longer than its reach
+   (:mod:`flexvox_core.gaps`); a recording whose frames were all dropped is refused. Every frame is checked
    against its checksum as it is read (:class:`~flexvox_core.recording.VerifiedRows`): a missing or
    damaged chunk raises :class:`~flexvox_core.recording.DamagedRecordingError`, never zeros;
 2. **normalisation** — counts to relative units with the recording's ``storage`` attributes
@@ -32,6 +32,7 @@ from numbers import Integral
 import numpy as np
 
 from flexvox_core.codes import code_from_order
+from flexvox_core.gaps import find_gaps
 from flexvox_core.multiplex import MultiplexedCode, multiplexed_code
 from flexvox_core.recording import Recording, RecordingError, open_recording
 
@@ -95,8 +96,8 @@ class CaptureReader:
     Raises
     ------
     NotReconstructableError
-        Frame ids that do not increase by one, dropped frames, or multiplexing attributes that
-        name no S-matrix code.
+        Frame ids that do not increase by one, every frame dropped, or multiplexing attributes
+        that name no S-matrix code.
     """
 
     def __init__(self, recording: Recording):
@@ -109,11 +110,12 @@ class CaptureReader:
             raise NotReconstructableError(f"{recording.path}: frame ids {how} at row {k + 1} ({ids[k]} then "
                                           f"{ids[k + 1]}); frames must be in capture order, one id apart, to be "
                                           "reconstructed (`flexvox info` lists the problems)")
-        dropped = recording.per_frame("dropped")
-        if dropped.any():
-            rows = np.flatnonzero(dropped)[:5].tolist()
-            raise NotReconstructableError(f"{recording.path} has {int(dropped.sum())} dropped frame(s) (first at rows "
-                                          f"{rows}); reconstructing across gaps is not supported yet")
+        dropped = np.asarray(recording.per_frame("dropped"), bool)
+        if len(dropped) and dropped.all():
+            raise NotReconstructableError(f"{recording.path}: all {len(dropped)} frames were dropped; there is "
+                                          "nothing to reconstruct")
+        self.missing = dropped if dropped.any() else None
+        """Bool (F,): the frames the camera dropped (zero rows), or None when none was."""
         attrs = recording.attrs
         multiplexed = None
         if attrs.get("multiplexed"):
@@ -174,14 +176,24 @@ class CaptureReader:
                              f"(0 <= start <= stop <= {F}); got [{start}, {stop})")
         return self.preparation.demultiplex(self.recording.normalised_frames(int(start), int(stop)))
 
+    def gaps(self) -> list:
+        """The runs of dropped frames (:class:`~flexvox_core.gaps.Gap`), in order."""
+        return [] if self.missing is None else find_gaps(self.missing)
+
     def sample_range(self, chunk_frames: int = 32) -> tuple[float, float]:
-        """Smallest and largest sample of the whole input, read ``chunk_frames`` frames at a time."""
+        """Smallest and largest sample of the whole input (dropped frames' zero rows left out),
+        read ``chunk_frames`` frames at a time."""
         if isinstance(chunk_frames, bool) or not isinstance(chunk_frames, Integral) or chunk_frames < 1:
             raise ValueError(f"`chunk_frames` must be a whole number >= 1; got {chunk_frames!r}")
         F, raw = self.n_frames, self.raw
         lo, hi = np.inf, -np.inf
         for start in range(0, F, chunk_frames):
-            frames = self.preparation(raw[start: min(F, start + chunk_frames)])
+            stop = min(F, start + chunk_frames)
+            frames = self.preparation(raw[start:stop])
+            if self.missing is not None:
+                frames = frames[~self.missing[start:stop]]
+                if not len(frames):
+                    continue
             lo, hi = min(lo, float(frames.min())), max(hi, float(frames.max()))
         return lo, hi
 
@@ -194,7 +206,7 @@ def open_capture(recording) -> CaptureReader:
     RecordingError
         The recording cannot be opened (its message says why).
     NotReconstructableError
-        It opens but cannot be reconstructed (dropped frames; a broken multiplexed code).
+        It opens but cannot be reconstructed (every frame dropped; a broken multiplexed code).
     """
     rec = recording if isinstance(recording, Recording) else open_recording(recording)
     return CaptureReader(rec)

@@ -14,7 +14,7 @@ WRITABLE = (".npy", ".tif", ".tiff", ".mp4", ".zarr")
 
 
 def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, overwrite: bool = False,
-                time_step: float | None = None, pyramid: int = 0) -> Path:
+                time_step: float | None = None, pyramid: int = 0, interpolated=None) -> Path:
     """Write ``video`` (float, values in [0, 1]) by the path's suffix.
 
     ``.npy`` and ``.tif`` keep float32 (a TIFF stack with one page per sub-frame, which Fiji
@@ -26,6 +26,10 @@ def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, ov
 
     ``time_step`` is the seconds between two of the video's frames (a reconstruction's sub-frame
     period, 1/(fps·K)); None where it is not known (the t axis then has no unit).
+
+    ``interpolated`` (S,) bool: the sub-frames filled across dropped camera frames
+    (:mod:`flexvox_core.gaps`); a ``.zarr`` output keeps it as the array ``interpolated`` beside
+    the video (and its count in the attributes), the other formats have no place for it.
 
     The file is written to a hidden temporary sibling and moved into place when complete
     (:func:`~flexvox_core.output_files.atomic_output`): a failed write leaves an old ``path`` as it was.
@@ -45,6 +49,11 @@ def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, ov
     if pyramid and suffix != ".zarr":
         raise ValueError(f"a pyramid is written only into a .zarr store; got {path} with pyramid={pyramid!r}")
     pyramid = ngff.check_levels(pyramid, v.shape)
+    if interpolated is not None:
+        interpolated = np.asarray(interpolated, bool)
+        if interpolated.shape != (v.shape[0],):
+            raise ValueError(f"`interpolated` must hold one flag per sub-frame ({v.shape[0]}); "
+                             f"got {interpolated.shape}")
     check_output(path, overwrite=overwrite, hint="choose another path or allow overwriting")
     with atomic_output(path, overwrite=overwrite) as tmp:
         if suffix == ".npy":
@@ -59,13 +68,19 @@ def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, ov
             import zarr
 
             g = zarr.open_group(str(tmp), mode="w-", zarr_format=3)
-            g.attrs["flexvox"] = provenance(attrs, time_step)
+            meta = provenance(attrs, time_step)
+            if interpolated is not None:
+                meta["interpolated_subframes"] = int(interpolated.sum())
+                g.create_array(INTERPOLATED, data=interpolated, chunks=(max(1, min(len(interpolated), 65536)),))
+            g.attrs["flexvox"] = meta
             ngff.write_pyramid(ngff.create_image(g, VIDEO, v.shape, time_step=time_step, levels=pyramid), v)
     return path
 
 
 VIDEO = "video"
 """The array of a reconstruction store (NGFF's full-resolution dataset; its pyramid levels are ``video_1`` ...)."""
+INTERPOLATED = "interpolated"
+"""The (S,) bool array of a reconstruction store: sub-frames filled across dropped camera frames."""
 
 
 def imagej_metadata(time_step: float | None) -> dict:

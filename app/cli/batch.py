@@ -62,5 +62,11 @@ def run(args) -> int:
     S, H, W = result.shape
     print(f"{method.label()}: {S} sub-frames of {H}x{W} in {result.seconds:.2f} s on {result.scheduler} "
           f"(chunks of {result.chunk_frames} frames, overlap {result.overlap_frames})")
+    dropped = rec.per_frame("dropped")
+    if dropped.any():
+        from app.cli.reconstruct import interpolated_line
+        from flexvox_core.gaps import find_gaps
+
+        print(interpolated_line(find_gaps(dropped), S // len(dropped)))
     print(f"wrote {args.output}")
     return EXIT_OK

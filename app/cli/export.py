@@ -104,7 +104,8 @@ class _Source:
             try:
                 reader = CaptureReader(rec)
                 method = method_from_args(args, rec.attrs["tile"])
-                self.array = reconstruct(reader.read(), reader.code, method, chunk_frames=args.chunk)
+                self.array = reconstruct(reader.read(), reader.code, method, chunk_frames=args.chunk,
+                                         missing=reader.missing)
             except ValueError as exc:  # RecordingError and NotReconstructableError are ValueErrors
                 raise CliError(str(exc)) from None
             self.dtype = np.dtype(np.float32)

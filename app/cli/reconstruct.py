@@ -11,7 +11,8 @@ from tqdm import tqdm
 from app.cli.errors import EXIT_OK, CliError, arg_type, positive_fps
 from app.cli.method_options import add_method_options, method_from_args
 from flexvox_core.capture_reader import open_capture
-from flexvox_core.methods import reconstruct, specs
+from flexvox_core.methods import run as run_method
+from flexvox_core.methods import specs
 from flexvox_core.output_files import check_output
 from flexvox_core.recording import RecordingError
 from flexvox_core.video_io import WRITABLE, write_video
@@ -30,7 +31,9 @@ def register(sub) -> None:
             f"write it to OUT ({', '.join(WRITABLE)}). Methods: rebin (re-binning at a division), "
             "diffusion (constant tensor; the default nc solver is the fast normalized convolution), "
             "gap-tv (the classical peer), motion-aware (the seed's Section 4: diffusion tensors oriented "
-            "along optical flow). Multiplexed recordings are demultiplexed first."
+            "along optical flow). Multiplexed recordings are demultiplexed first. Dropped camera frames are "
+            "bridged from both sides (a line says which sub-frames; a .zarr output keeps them as the array "
+            "`interpolated`); a run of them longer than the method's reach is refused, naming it."
         ),
     )
     p.add_argument("recording", type=Path, metavar="REC", help="a flexvox recording (.zarr)")
@@ -45,6 +48,12 @@ def register(sub) -> None:
                    help="replace an existing output (never the input recording; the old output stays until the "
                         "new one is complete)")
     p.set_defaults(func=run)
+
+
+def interpolated_line(gaps, K: int) -> str:
+    """The line that says which sub-frames were filled across dropped frames."""
+    n = sum(g.frames for g in gaps) * K
+    return f"interpolated {n} sub-frames across dropped frames: " + ", ".join(g.describe(K) for g in gaps)
 
 
 def run(args) -> int:
@@ -72,9 +81,11 @@ def run(args) -> int:
         def progress(done, total):
             bar.update(done - bar.n)
         try:
-            video = reconstruct(frames, code, method, chunk_frames=args.chunk, progress=progress)
+            out = run_method(frames, code, method, chunk_frames=args.chunk, progress=progress,
+                             missing=reader.missing)
         except ValueError as exc:
             raise CliError(str(exc)) from None
+    video = out.video
     truth = None
     if rec.has_ground_truth:
         try:
@@ -85,7 +96,7 @@ def run(args) -> int:
     attrs = {"source": str(args.recording), "method": method.as_dict(), "seconds": seconds}
     try:
         write_video(args.output, video, fps=args.fps, attrs=attrs, overwrite=args.overwrite,
-                    time_step=1.0 / rec.attrs["rates"]["subframe_hz"])
+                    time_step=1.0 / rec.attrs["rates"]["subframe_hz"], interpolated=out.interpolated)
     except ValueError as exc:
         raise CliError(str(exc)) from None
     except OSError as exc:
@@ -97,6 +108,8 @@ def run(args) -> int:
 
         line += f"; PSNR vs ground truth {psnr(truth, video).mean:.2f} dB"
     print(line)
+    if reader.missing is not None:
+        print(interpolated_line(reader.gaps(), reader.K))
     print(f"wrote {args.output}")
     if args.figures:
         from app.figures import write_figures

@@ -7,6 +7,7 @@ import re
 
 import numpy as np
 
+from flexvox_core.gaps import bridge
 from flexvox_core.methods.options import Option, choice, number
 from flexvox_core.methods.spec import MethodOutput, MethodSpec
 from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, SOLVERS, diffuse, sigmas
@@ -65,8 +66,13 @@ class Diffusion(MethodSpec):
             reach *= 2  # the nc start, then diffusion of the same time
         return max(1, math.ceil(reach / K))
 
-    def run(self, frames, code, values, *, value_range=None, extras=False) -> MethodOutput:
-        return MethodOutput(diffuse(frames, code, **self.kwargs(values)))
+    takes_missing = True
+
+    def run(self, frames, code, values, *, value_range=None, extras=False, missing=None) -> MethodOutput:
+        video = diffuse(frames, code, **self.kwargs(values), missing=missing)
+        if missing is not None:
+            bridge(video, missing, code.shape[2])
+        return MethodOutput(video)
 
     def kwargs(self, values: dict) -> dict:
         return {"tensor": values["tensor"], "time": values["time"], "solver": values["solver"]}

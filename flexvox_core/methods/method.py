@@ -103,6 +103,10 @@ class Method:
         (None: it cannot run in chunks)."""
         return self._spec.overlap(dict(self._values), K)
 
+    def max_gap(self, K: int) -> int:
+        """The longest run of dropped camera frames it bridges for a code of K slots."""
+        return self._spec.max_gap(dict(self._values), K)
+
     def algorithm_kwargs(self) -> dict:
         """Keyword arguments of the method's algorithm function."""
         return self._spec.kwargs(dict(self._values))

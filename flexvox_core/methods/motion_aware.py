@@ -51,8 +51,10 @@ class MotionAware(MethodSpec):
         reach = values["slow_reach"]
         return 3 if reach is None else max(3, math.ceil(reach) + 2)
 
-    def run(self, frames, code, values, *, value_range=None, extras=False) -> MethodOutput:
-        r = motion_aware(frames, code, **self.kwargs(values), value_range=value_range)
+    takes_missing = True
+
+    def run(self, frames, code, values, *, value_range=None, extras=False, missing=None) -> MethodOutput:
+        r = motion_aware(frames, code, **self.kwargs(values), value_range=value_range, missing=missing)
         return MethodOutput(r.video, {"flow": r.flow.flow, "tr": r.tr} if extras else {})
 
     def kwargs(self, values: dict) -> dict:

@@ -8,6 +8,13 @@ Review workspace's jobs and the dask batch (:mod:`flexvox_core.batch`) all call.
 need the sample range get the whole capture's in every chunk; so the result does not depend on
 the chunking. Progress is reported after every chunk (a callback that raises stops the run
 there: the Review workspace's cancel).
+
+Dropped camera frames (``missing``) are handled here for every method (:mod:`flexvox_core.gaps`):
+a gap longer than the method bridges is refused before any work; chunks read the longest gap and
+one frame more of context on each side; a method that takes ``missing`` leaves the dropped frames
+out of its samples and fills them itself, and any other gets them interpolated from their
+neighbours and its result's gap sub-frames bridged from both sides. The result says which
+sub-frames were interpolated (:attr:`MethodOutput.interpolated`).
 """
 
 from __future__ import annotations
@@ -17,6 +24,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from flexvox_core.gaps import as_missing, bridge, check_reach, context, fill_frames, interpolated_subframes
 from flexvox_core.memory_budget import check_fits, reconstruction_bytes
 from flexvox_core.methods.method import Method
 from flexvox_core.methods.spec import MethodOutput
@@ -56,13 +64,17 @@ def chunk_plan(n_frames: int, chunk_frames: int | None, overlap: int | None) -> 
             for s in range(0, n_frames, chunk_frames)]
 
 
-def sample_range(frames) -> tuple[float, float]:
-    """Smallest and largest sample of ``frames`` (what :attr:`needs_sample_range` methods take)."""
-    return float(np.min(frames)), float(np.max(frames))
+def sample_range(frames, missing=None) -> tuple[float, float]:
+    """Smallest and largest sample of ``frames`` (what :attr:`needs_sample_range` methods take),
+    leaving out the ``missing`` (dropped) frames' zero rows."""
+    f = np.asarray(frames)
+    if missing is not None:
+        f = f[~np.asarray(missing, bool)]
+    return float(np.min(f)), float(np.max(f))
 
 
 def run_chunk(frames, code, method: Method, *, left: int = 0, count: int | None = None, value_range=None,
-              extras: bool = False) -> MethodOutput:
+              extras: bool = False, missing=None) -> MethodOutput:
     """Reconstruct one chunk with its context and keep the chunk's own sub-frames.
 
     Parameters
@@ -79,22 +91,34 @@ def run_chunk(frames, code, method: Method, *, left: int = 0, count: int | None 
         The whole recording's sample range, for methods that need it.
     extras : bool
         Also return the method's extras (trimmed like the video).
+    missing : ndarray (F,) bool or None
+        The chunk's dropped frames (context included); they must not be all of its frames.
 
     Returns
     -------
     MethodOutput
-        ``video`` (count·K, H, W) float32 clipped to [0, 1], and the extras.
+        ``video`` (count·K, H, W) float32 clipped to [0, 1], the extras, and which sub-frames
+        were interpolated across dropped frames.
     """
     K = code.shape[2]
     count = frames.shape[0] - left if count is None else count
-    out = method.spec.run(frames, code, dict(method.values), value_range=value_range, extras=extras)
+    m = as_missing(missing, frames.shape[0])
+    spec, values = method.spec, dict(method.values)
+    if m is None:
+        out = spec.run(frames, code, values, value_range=value_range, extras=extras)
+    elif spec.takes_missing:
+        out = spec.run(frames, code, values, value_range=value_range, extras=extras, missing=m)
+    else:
+        out = spec.run(fill_frames(frames, m), code, values, value_range=value_range, extras=extras)
+        bridge(out.video, m, K)
     a, b = left * K, (left + count) * K
     video = np.clip(out.video[a:b], 0, 1).astype(np.float32, copy=False)
-    return MethodOutput(video, {k: v[a:b] for k, v in out.extras.items()})
+    interpolated = None if m is None else interpolated_subframes(m, K)[a:b]
+    return MethodOutput(video, {k: v[a:b] for k, v in out.extras.items()}, interpolated)
 
 
 def run(frames, code, method: Method | None = None, *, chunk_frames: int | None = 16,
-        progress: Progress | None = None, extras: bool = False) -> MethodOutput:
+        progress: Progress | None = None, extras: bool = False, missing=None) -> MethodOutput:
     """Reconstruct the full video ``(F·K, H, W)`` float32 in [0, 1] of an identity-code capture.
 
     Parameters
@@ -111,6 +135,10 @@ def run(frames, code, method: Method | None = None, *, chunk_frames: int | None 
     extras : bool
         Also return the method's extras (:attr:`~flexvox_core.methods.spec.MethodSpec.extras`),
         e.g. motion-aware's flow and per-voxel TR, assembled like the video.
+    missing : ndarray (F,) bool, optional
+        Frames the camera dropped (zero rows): bridged from both sides, or refused
+        (:class:`~flexvox_core.gaps.GapTooLongError`) when a gap is longer than the method's
+        :meth:`~flexvox_core.methods.method.Method.max_gap`.
 
     Returns
     -------
@@ -130,10 +158,12 @@ def run(frames, code, method: Method | None = None, *, chunk_frames: int | None 
                f"reconstructing {F} frames of {H}x{W} at K = {K} in memory ({F * K} sub-frames)",
                "reconstruct it with `flexvox batch`, which writes chunk by chunk (its memory follows --chunk, "
                "not the recording's length)")
-    value_range = sample_range(f) if method.spec.needs_sample_range and F else None
-    chunks = chunk_plan(F, chunk_frames, method.overlap(K))
+    missing = as_missing(missing, F)
+    check_reach(missing, method.max_gap(K), method.name, K)
+    value_range = sample_range(f, missing) if method.spec.needs_sample_range and F else None
+    chunks = chunk_plan(F, chunk_frames, context(method.overlap(K), missing))
     if len(chunks) == 1:
-        out = run_chunk(f, code, method, value_range=value_range, extras=extras)
+        out = run_chunk(f, code, method, value_range=value_range, extras=extras, missing=missing)
         if progress:
             progress(F, F)
         return out
@@ -141,7 +171,8 @@ def run(frames, code, method: Method | None = None, *, chunk_frames: int | None 
     arrays: dict[str, np.ndarray] = {}
     for c in chunks:
         part = run_chunk(f[c.lo:c.hi], code, method, left=c.start - c.lo, count=c.stop - c.start,
-                         value_range=value_range, extras=extras)
+                         value_range=value_range, extras=extras,
+                         missing=None if missing is None else missing[c.lo:c.hi])
         video[c.start * K: c.stop * K] = part.video
         for name, v in part.extras.items():
             if name not in arrays:
@@ -149,11 +180,11 @@ def run(frames, code, method: Method | None = None, *, chunk_frames: int | None 
             arrays[name][c.start * K: c.stop * K] = v
         if progress:
             progress(c.stop, F)
-    return MethodOutput(video, arrays)
+    return MethodOutput(video, arrays, None if missing is None else interpolated_subframes(missing, K))
 
 
 def reconstruct(frames, code, method: Method | None = None, *, chunk_frames: int | None = 16,
-                progress: Progress | None = None) -> np.ndarray:
+                progress: Progress | None = None, missing=None) -> np.ndarray:
     """The video of :func:`run` alone: ``(F·K, H, W)`` float32 in [0, 1].
 
     Parameters
@@ -166,5 +197,7 @@ def reconstruct(frames, code, method: Method | None = None, *, chunk_frames: int
         Camera frames per chunk (None: all at once); the result does not depend on it.
     progress : callable(done_frames, total_frames), optional
         Called after each chunk.
+    missing : ndarray (F,) bool, optional
+        Frames the camera dropped (see :func:`run`).
     """
-    return run(frames, code, method, chunk_frames=chunk_frames, progress=progress).video
+    return run(frames, code, method, chunk_frames=chunk_frames, progress=progress, missing=missing).video

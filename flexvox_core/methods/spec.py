@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from flexvox_core.gaps import max_gap
 from flexvox_core.methods.options import Option
 
 
@@ -42,10 +43,14 @@ class MethodOutput:
     extras : dict of str to ndarray (S, ...)
         Per-sub-frame arrays the method returned beside the video (time first), e.g.
         motion-aware's ``flow`` (S, H, W, 2) and ``tr`` (S, H, W); empty unless asked for.
+    interpolated : ndarray (S,) bool or None
+        Sub-frames of dropped camera frames, filled from both sides (:mod:`flexvox_core.gaps`);
+        None when no frame was missing.
     """
 
     video: np.ndarray
     extras: dict[str, np.ndarray] = field(default_factory=dict)
+    interpolated: np.ndarray | None = None
 
 
 class MethodSpec(ABC):
@@ -70,6 +75,10 @@ class MethodSpec(ABC):
     """Names of the per-sub-frame arrays :meth:`run` returns when ``extras=True``."""
     bench_axis: str | None = None
     """The option the bench sweeps on a log scale (figures are interpolated along it), if any."""
+    takes_missing: bool = False
+    """True: :meth:`run` takes ``missing`` (dropped frames) itself, leaves them out of its samples
+    and fills their sub-frames from both sides (:mod:`flexvox_core.gaps`). False: the runner gives
+    it the dropped frames interpolated from their neighbours and bridges their sub-frames after."""
 
     # ------------------------------------------------------------------ options
     def option(self, name: str) -> Option:
@@ -110,9 +119,13 @@ class MethodSpec(ABC):
     def overlap(self, values: dict, K: int) -> int | None:
         """Camera frames of context a chunk needs on each side (None: cannot run in chunks)."""
 
+    def max_gap(self, values: dict, K: int) -> int:
+        """The longest run of dropped frames it bridges (:func:`flexvox_core.gaps.max_gap`)."""
+        return max_gap(self.overlap(values, K))
+
     @abstractmethod
     def run(self, frames: np.ndarray, code: np.ndarray, values: dict, *, value_range=None,
-            extras: bool = False) -> MethodOutput:
+            extras: bool = False, missing=None) -> MethodOutput:
         """Reconstruct an identity-code capture.
 
         Parameters
@@ -125,6 +138,8 @@ class MethodSpec(ABC):
             Methods with :attr:`needs_sample_range`: the whole recording's sample range.
         extras : bool
             Also return the arrays named in :attr:`extras`.
+        missing : ndarray (F,) bool or None
+            Methods with :attr:`takes_missing`: the frames the camera dropped.
 
         Returns
         -------

@@ -35,6 +35,7 @@ from flexvox_core.flow.backends import backend_params, make_backend
 from flexvox_core.flow.baseline import default_stride, kaverage, kaverage_flow
 from flexvox_core.flow.estimate import check_video, downscale, successive_flow, to_full_size, upsample_flow
 from flexvox_core.forward import sample_mask, sparse_volume
+from flexvox_core.gaps import as_missing, bridge, bridge_flow, interpolated_subframes
 from flexvox_core.motion.longreach import long_reach_nc
 from flexvox_core.motion.mcnc import motion_compensated_nc
 from flexvox_core.motion.tensors import DEFAULT_C, check_c, resolution_map
@@ -221,6 +222,7 @@ def motion_aware(
     slow_speed: float | None = SLOW_SPEED,
     slow_reach: float = SLOW_REACH,
     value_range: tuple[float, float] | None = None,
+    missing=None,
 ) -> MotionAwareResult:
     """Motion-aware reconstruction of an identity-code capture.
 
@@ -259,7 +261,12 @@ def motion_aware(
         Range of the whole recording's samples: it scales the slow voxels' range weight and
         bounds the result. None: this clip's own range. A run in time chunks passes the whole
         recording's, so that the result does not depend on the chunking; it must contain
-        every value of ``frames``.
+        every value of ``frames`` (of the frames not missing).
+    missing : ndarray (F,) bool, optional
+        Frames the camera dropped (:mod:`flexvox_core.gaps`): they hold no samples. The flow is
+        bridged linearly across each gap (and half a sampling period on each side, whose flow
+        was measured across it), and the gap's sub-frames are filled from both sides along it
+        (:func:`~flexvox_core.gaps.bridge`).
     """
     f = check_frames(frames)
     code = check_identity_code(code)
@@ -272,7 +279,9 @@ def motion_aware(
         raise ValueError(f"`slow_reach` must be a number >= 0 (sampling periods); got {slow_reach!r}")
     if not np.isfinite(refine_time) or refine_time < 0:
         raise ValueError(f"`refine_time` must be a finite number >= 0; got {refine_time!r}")
-    lo, hi = float(f.min()), float(f.max())
+    missing = as_missing(missing, f.shape[0])
+    captured = f if missing is None else f[~missing]
+    lo, hi = float(captured.min()), float(captured.max())
     if value_range is not None:
         try:
             r_lo, r_hi = (float(v) for v in value_range)
@@ -289,10 +298,14 @@ def motion_aware(
         raise ValueError(f"`flow_scale` must be in (0, 1] or None; got {flow_scale!r}")
     seconds = {"high_tr": 0.0, "flow": 0.0, "diffusion": 0.0}
     t0 = _now()
-    high_tr = diffuse(f, code, tensor=STEP1_TENSOR, time=STEP1_TIME)
+    high_tr = diffuse(f, code, tensor=STEP1_TENSOR, time=STEP1_TIME, missing=missing)
     seconds["high_tr"] = _now() - t0
     sparse = sparse_volume(np.asarray(f, np.float32), code)
     mask = sample_mask(sparse.shape, code)
+    if missing is not None:  # a dropped frame's sub-frames hold no samples
+        gap = interpolated_subframes(missing, K)
+        mask[gap] = False
+        sparse[gap] = 0
     current = high_tr
     field_ = None
     fixed = still_value = None
@@ -300,18 +313,20 @@ def motion_aware(
         t0 = _now()
         field_ = gated_flow(current, K, backend=flow, gate=gate, scale=flow_scale, consistency=flow_consistency,
                             slow_speed=slow_speed)
+        if missing is not None:
+            bridge_flow(field_.flow, missing, K, margin=K // 2)
         seconds["flow"] += _now() - t0
         t0 = _now()
         still, slow = _speed_classes(field_.flow, still_speed,
                                      slow_speed if slow_reach > 0 and f.shape[0] > 1 else None)
         if fixed is None:  # the fixed-tensor result: the guide of the slow voxels, and where not still
-            fixed = diffuse(f, code, tensor=(c[2], c[1], c[0]), time=time)
+            fixed = diffuse(f, code, tensor=(c[2], c[1], c[0]), time=time, missing=missing)
         base = fixed
         if still.any():
             # Still voxels: Eq. 4's tensor in the limit c -> (0, 0, 1), the pixel's own samples
             # averaged in time (a Gaussian of half a sampling period: noise averages out).
             if still_value is None:
-                still_value = diffuse(f, code, tensor=(0.0, 0.0, 1.0), time=K * K / 8)
+                still_value = diffuse(f, code, tensor=(0.0, 0.0, 1.0), time=K * K / 8, missing=missing)
             base = fixed.copy() if passes > 1 else fixed  # `fixed` serves every pass
             np.copyto(base, still_value, where=still)
         video = motion_compensated_nc(sparse, mask, field_.flow, c=c, time=time, fallback=high_tr,
@@ -324,6 +339,8 @@ def motion_aware(
             np.copyto(video, sparse, where=mask)
         if refine_time > 0:
             video = variable_tensor_diffusion(video, mask, field_.flow, c=c, time=refine_time)
+        if missing is not None:
+            bridge(video, missing, K, flow=field_.flow)
         current = np.clip(video, lo, hi, out=video)
         seconds["diffusion"] += _now() - t0
     _logger.info("motion-aware: high-TR %.2f s, flow %.2f s, diffusion %.2f s",

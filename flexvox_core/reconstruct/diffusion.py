@@ -68,6 +68,7 @@ from scipy.sparse import coo_matrix, diags
 from scipy.sparse.linalg import cg
 
 from flexvox_core.forward import tiled_order
+from flexvox_core.gaps import as_missing
 from flexvox_core.reconstruct._common import check_dtype, check_frames, check_identity_code
 
 _logger = logging.getLogger(__name__)
@@ -234,11 +235,14 @@ def _sample_mask(order: np.ndarray, F: int, K: int) -> np.ndarray:
     return np.tile(np.arange(K)[:, None, None] == order[None], (F, 1, 1))
 
 
-def _nc_kernel(frames, code, sig, keep_samples: bool, dtype) -> np.ndarray:
+def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None) -> np.ndarray:
+    """Normalized convolution; ``present`` (F,) bool or None: frames without samples are left out."""
     F, H, W = frames.shape
     K = code.shape[2]
     S = F * K
     gx, gy, gt = (_kernel(s, dtype) for s in sig)
+    if present is not None:  # a dropped frame's row holds no samples: nothing of it enters the sums
+        frames = np.where(present[:, None, None], frames, 0).astype(frames.dtype, copy=False)
     num, order = _sample_volume(frames, code, dtype)
     # Numerator: spatial blur of every sub-frame, then time.
     for s in range(S):
@@ -249,7 +253,7 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype) -> np.ndarray:
     den_k = np.empty((K, H, W), dtype=dtype)
     for k in range(K):
         _blur_plane((order == k).astype(dtype), gy, gx, den_k[k])
-    den = _PeriodicDenominator(den_k, F, gt)
+    den = _PeriodicDenominator(den_k, F, gt) if present is None else _gapped_denominator(den_k, present, gt)
     peak = 1.0
     for g in (gx, gy, gt):
         if g is not None:
@@ -266,14 +270,31 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype) -> np.ndarray:
         else:
             np.divide(num[s], d, out=num[s])
     samples = frames.astype(dtype, copy=False)
+    captured = samples if present is None else samples[present]
     if low is not None:
         _logger.debug("nc: %d voxels without a sample in reach take the nearest sample", int(low.sum()))
-        _put_samples(num, samples, order)
-        _nearest_fill(num, _sample_mask(order, F, K), low, sig)
-    np.clip(num, samples.min(), samples.max(), out=num)
+        _put_samples(num, samples, order, present)
+        mask = _sample_mask(order, F, K)
+        if present is not None:
+            mask &= np.repeat(present, K)[:, None, None]
+        _nearest_fill(num, mask, low, sig)
+    np.clip(num, captured.min(), captured.max(), out=num)
     if keep_samples:
-        _put_samples(num, samples, order)
+        _put_samples(num, samples, order, present)
     return num
+
+
+def _gapped_denominator(den_k: np.ndarray, present: np.ndarray, gt: np.ndarray | None) -> np.ndarray:
+    """The blurred sample mask ``(F·K, H, W)`` when some frames have no samples (not periodic:
+    built whole, one more volume)."""
+    K, H, W = den_k.shape
+    F = len(present)
+    den = np.zeros((F * K, H, W), den_k.dtype)
+    for f in np.flatnonzero(present):
+        den[f * K: (f + 1) * K] = den_k
+    flat = den.reshape(F * K, H * W)
+    _blur_rows(flat, gt, flat)
+    return den
 
 
 class _PeriodicDenominator:
@@ -324,12 +345,14 @@ class _PeriodicDenominator:
         return self.period[s % self.K]
 
 
-def _put_samples(volume: np.ndarray, samples: np.ndarray, order: np.ndarray) -> None:
-    """Write the captured values back at their voxels of ``volume`` (S, H, W), in place."""
+def _put_samples(volume: np.ndarray, samples: np.ndarray, order: np.ndarray, present=None) -> None:
+    """Write the captured values back at their voxels of ``volume`` (S, H, W), in place
+    (``present``: only those frames' values)."""
     F, H, W = samples.shape
     K = volume.shape[0] // F
     slots = np.arange(K)[:, None, None] == order[None]
-    np.copyto(volume.reshape(F, K, H, W), samples[:, None], where=slots[None])
+    where = slots[None] if present is None else slots[None] & present[:, None, None, None]
+    np.copyto(volume.reshape(F, K, H, W), samples[:, None], where=where)
 
 
 # --------------------------------------------------------------------------- explicit
@@ -428,6 +451,7 @@ def diffuse(
     keep_samples: bool = True,
     init: str = "nc",
     dtype=np.float32,
+    missing=None,
 ) -> np.ndarray:
     r"""Fill the missing voxels by diffusion with a constant tensor ``diag(cx, cy, ct)``.
 
@@ -450,11 +474,14 @@ def diffuse(
         Starting volume of ``explicit`` (and ``steady``).
     dtype : float32 or float64, keyword-only
         Working and output precision.
+    missing : ndarray (F,) bool, keyword-only, optional
+        Frames the camera dropped: their rows hold no samples and are left out of the mask
+        (their sub-frames are filled like any unsampled voxel; :mod:`flexvox_core.gaps`).
 
     Returns
     -------
     video : ndarray, shape (F·K, H, W), ``dtype``
-        Within ``[min(frames), max(frames)]``.
+        Within ``[min(frames), max(frames)]`` (of the frames not missing).
 
     Examples
     --------
@@ -476,6 +503,8 @@ def diffuse(
         raise ValueError(f"`init` must be 'nc' or 'mean'; got {init!r}")
     dt = check_dtype(dtype)
     sig = sigmas(tens, t)
+    missing = as_missing(missing, f.shape[0])
+    present = None if missing is None else ~missing
     if solver == "explicit" and math.ceil(t * 2.0 * sum(tens) - 1e-9) > MAX_EXPLICIT_STEPS:
         raise ValueError(
             f"`time` {t:g} with `tensor` {tensor!r} needs {math.ceil(t * 2.0 * sum(tens))} explicit "
@@ -483,17 +512,20 @@ def diffuse(
             "time · c matters) or use solver='nc'"
         )
     if solver == "nc":
-        return _nc_kernel(f, c, sig, bool(keep_samples), dt)
+        return _nc_kernel(f, c, sig, bool(keep_samples), dt, present)
     F, H, W = f.shape
     K = c.shape[2]
     samples = f.astype(dt, copy=False)
     if init == "nc":
-        start = _nc_kernel(f, c, sig, True, dt)
+        start = _nc_kernel(f, c, sig, True, dt, present)
         mask = _sample_mask(tiled_order(c, H, W), F, K)
     else:
         start, order = _sample_volume(f, c, dt)
         mask = _sample_mask(order, F, K)
-        start[~mask] = samples.mean(dtype=np.float64)
+    if present is not None:
+        mask &= np.repeat(present, K)[:, None, None]
+    if init != "nc":
+        start[~mask] = (samples if present is None else samples[present]).mean(dtype=np.float64)
     if solver == "explicit":
         return _explicit_kernel(start, mask, tens, t)
     return _steady_kernel(start, mask, tens)

@@ -61,13 +61,46 @@ def test_reconstruct_refuses_bad_outputs_and_recordings(recording, tmp_path, cap
     assert "no such recording" in capsys.readouterr().err
 
 
-def test_reconstruct_refuses_dropped_frames(tmp_path, capsys):
+def test_reconstruct_bridges_dropped_frames_and_says_which(tmp_path, capsys):
+    import zarr
+
+    from flexvox_core.gaps import find_gaps
+    from flexvox_core.recording import open_recording
+
     path = tmp_path / "d.zarr"
-    main(["simulate", "static", "--size", "16x16", "--frames", "8", "--effects", "dropped_frames.probability=0.5",
+    main(["simulate", "static", "--size", "16x16", "--frames", "8", "--effects", "dropped_frames.probability=0.3",
           "-o", str(path)])
+    dropped = open_recording(path).per_frame("dropped")
+    assert dropped.any() and not dropped.all()
     capsys.readouterr()
+    assert main(["reconstruct", str(path), "-o", str(tmp_path / "o.zarr")]) == 0
+    out = capsys.readouterr().out
+    K = 16
+    described = ", ".join(g.describe(K) for g in find_gaps(dropped))
+    assert f"interpolated {int(dropped.sum()) * K} sub-frames across dropped frames: {described}" in out
+    store = zarr.open_group(str(tmp_path / "o.zarr"), mode="r")
+    np.testing.assert_array_equal(store["interpolated"][:], np.repeat(dropped, K))
+    assert np.isfinite(store["video"][:]).all()
+    assert main(["batch", str(path), "-o", str(tmp_path / "b.zarr"), "--chunk", "2"]) == 0
+    assert described in capsys.readouterr().out
+    np.testing.assert_array_equal(zarr.open_group(str(tmp_path / "b.zarr"))["video"][:], store["video"][:])
+
+
+def test_reconstruct_refuses_a_gap_longer_than_the_method_bridges(tmp_path, capsys):
+    from flexvox_core.design import design_code
+    from flexvox_core.recording import write_simulation
+    from flexvox_core.simulate.simulator import simulate_video
+
+    result = simulate_video(np.full((10 * 16, 8, 8), 0.5, np.float32), design_code((4, 4)).code)
+    result.frames[2:7] = 0
+    result.dropped[2:7] = True
+    path = write_simulation(tmp_path / "d.zarr", result)
     assert main(["reconstruct", str(path), "-o", str(tmp_path / "o.npy")]) == 2
-    assert "dropped frame(s)" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "frames 2-6 (5 frames; sub-frames 32-111) were dropped in a row; diffusion bridges gaps of at most 4" in err
+    assert not (tmp_path / "o.npy").exists()
+    assert main(["reconstruct", str(path), "--method", "motion-aware", "-o", str(tmp_path / "o.npy")]) == 0
+    assert "interpolated 80 sub-frames" in capsys.readouterr().out
 
 
 def test_reconstruct_multiplexed_recording(tmp_path, capsys):

@@ -1,6 +1,5 @@
 """The one reader from a recording to reconstruction input."""
 
-import re
 
 import numpy as np
 import pytest
@@ -54,15 +53,26 @@ def test_multiplexed_recordings_are_demultiplexed(mux_path):
     np.testing.assert_array_equal(np.concatenate(parts), expected)
 
 
-def test_dropped_frames_are_refused_naming_how_many_and_where(tmp_path, rng):
-    v = rng.random((12 * 4, 8, 8)).astype(np.float32)
+def test_dropped_frames_are_read_as_missing_and_left_out_of_the_sample_range(tmp_path, rng):
+    v = rng.uniform(0.2, 0.8, (12 * 4, 8, 8)).astype(np.float32)
     eff = parse_effects({"dropped_frames": {"probability": 0.5}})
     path = write_simulation(tmp_path / "d.zarr", simulate_video(v, design_code((2, 2)).code, effects=eff, seed=1))
     dropped = open_recording(path).per_frame("dropped")
-    assert dropped.any()
-    first = np.flatnonzero(dropped)[:5].tolist()
-    message = f"has {int(dropped.sum())} dropped frame(s) (first at rows {first}); reconstructing across gaps"
-    with pytest.raises(NotReconstructableError, match=re.escape(message)):
+    assert dropped.any() and not dropped.all()
+    reader = open_capture(path)
+    np.testing.assert_array_equal(reader.missing, dropped)
+    frames = reader.read()
+    assert (frames[dropped] == 0).all()
+    lo, hi = reader.sample_range(2)
+    assert lo == float(frames[~dropped].min()) > 0 and hi == float(frames[~dropped].max())
+    assert sum(g.frames for g in reader.gaps()) == int(dropped.sum())
+
+
+def test_a_recording_whose_frames_were_all_dropped_is_refused(tmp_path, rng):
+    v = rng.random((3 * 4, 8, 8)).astype(np.float32)
+    eff = parse_effects({"dropped_frames": {"probability": 1.0}})
+    path = write_simulation(tmp_path / "d.zarr", simulate_video(v, design_code((2, 2)).code, effects=eff, seed=1))
+    with pytest.raises(NotReconstructableError, match=r"d.zarr: all 3 frames were dropped; there is nothing"):
         read_capture(path)
     assert issubclass(NotReconstructableError, RecordingError) and issubclass(NotReconstructableError, ValueError)
 

@@ -53,7 +53,8 @@ class FrameScores(NamedTuple):
     mean: float
 
 
-def _check_pair(ref, x, data_range) -> tuple[np.ndarray, np.ndarray, float]:
+def _check_pair(ref, x, data_range, *, convert: bool = True, check_finite: bool = True
+                ) -> tuple[np.ndarray, np.ndarray, float]:
     r = np.asarray(ref)
     v = np.asarray(x)
     if r.ndim == 2:
@@ -67,18 +68,23 @@ def _check_pair(ref, x, data_range) -> tuple[np.ndarray, np.ndarray, float]:
     for name, a in (("ref", r), ("x", v)):
         if not (np.issubdtype(a.dtype, np.number) or a.dtype == bool):
             raise ValueError(f"`{name}` must hold numbers; got dtype {a.dtype}")
-        finite = np.isfinite(a).all(axis=(1, 2))
-        if not finite.all():
-            raise ValueError(
-                f"`{name}` frame {int(np.flatnonzero(~finite)[0])} holds NaN or infinite values"
-            )
+        if check_finite:
+            _check_finite(name, a)
     try:
         L = float(data_range)
     except (TypeError, ValueError):
         raise ValueError(f"`data_range` must be a positive number; got {data_range!r}") from None
     if not (np.isfinite(L) and L > 0):
         raise ValueError(f"`data_range` must be a positive finite number; got {data_range!r}")
+    if not convert:
+        return r, v, L
     return r.astype(np.float64), v.astype(np.float64), L
+
+
+def _check_finite(name: str, a: np.ndarray) -> None:
+    finite = np.isfinite(a).all(axis=(1, 2))
+    if not finite.all():
+        raise ValueError(f"`{name}` frame {int(np.flatnonzero(~finite)[0])} holds NaN or infinite values")
 
 
 def psnr(ref, x, *, data_range: float = 1.0) -> FrameScores:
@@ -106,8 +112,18 @@ def psnr(ref, x, *, data_range: float = 1.0) -> FrameScores:
     >>> psnr(ref, x).per_frame.round(6).tolist()
     [20.0, 20.0]
     """
-    r, v, L = _check_pair(ref, x, data_range)
-    mse = np.mean((r - v) ** 2, axis=(1, 2))
+    r, v, L = _check_pair(ref, x, data_range, convert=False, check_finite=False)
+    # A frame at a time in float64: no float64 copies of whole volumes (two 295 MB copies for a
+    # 1-s VGA clip at K = 16 took 3.4 s of a 7.5-s `flexvox reconstruct`).
+    mse = np.empty(len(r))
+    for i in range(len(r)):
+        d = r[i].astype(np.float64) - v[i]
+        d = d.ravel()
+        mse[i] = np.dot(d, d) / max(d.size, 1)
+        if not np.isfinite(mse[i]):
+            for name, a in (("ref", r), ("x", v)):
+                if not np.isfinite(a[i]).all():
+                    raise ValueError(f"`{name}` frame {i} holds NaN or infinite values")
     per = np.full(mse.shape, np.inf)
     ok = mse > 0
     per[ok] = 10.0 * np.log10(L * L / mse[ok])

@@ -67,3 +67,11 @@ def test_nan_names_the_frame():
     x[2, 1, 1] = np.nan
     with pytest.raises(ValueError, match=r"`x` frame 2 holds NaN"):
         psnr(np.zeros((3, 4, 4)), x)
+
+
+def test_psnr_of_float32_volumes_is_the_float64_figure(rng):
+    # Computed a frame at a time (no float64 copies of the volumes): the same figures.
+    ref = rng.random((5, 31, 17)).astype(np.float32)
+    x = (ref + rng.normal(0, 0.05, ref.shape)).astype(np.float32)
+    expected = 10 * np.log10(1 / np.mean((ref.astype(np.float64) - x.astype(np.float64)) ** 2, axis=(1, 2)))
+    np.testing.assert_allclose(psnr(ref, x).per_frame, expected, rtol=1e-12)

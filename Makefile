@@ -5,10 +5,10 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
-# Every extra: the Qt application (gui), GenICam cameras, and the tests. `pip install flexvox` alone has no Qt.
-EXTRAS := test,gui,genicam
+# Every extra: the Qt application (gui), the napari plugin, GenICam cameras, the tests. `pip install flexvox` alone has no Qt.
+EXTRAS := test,gui,genicam,napari
 
-.PHONY: demo test lint bench screenshots clean
+.PHONY: demo test lint bench screenshots napari-screenshot clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -34,6 +34,10 @@ bench: $(STAMP)
 
 screenshots: $(STAMP)
 	QT_QPA_PLATFORM=offscreen $(BIN)/python -m app.gui.screenshots docs/screenshots
+
+# napari draws with OpenGL, which Qt's offscreen platform lacks: a virtual X server (xvfb) and Mesa's software GL.
+napari-screenshot: $(STAMP)
+	xvfb-run -a -s "-screen 0 1600x1000x24" env QT_QPA_PLATFORM=xcb $(BIN)/python -m app.napari_plugin.screenshot docs/screenshots/napari.png
 
 clean:
 	rm -rf $(VENV) build *.egg-info .pytest_cache .hypothesis

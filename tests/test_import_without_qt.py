@@ -60,7 +60,7 @@ RUN = BLOCK_QT + textwrap.dedent(
     import sys
     from app.cli.main import main
     out = sys.argv[1]
-    assert main(["simulate", "drummer", "--frames", "2", "--size", "32x32", "-o", f"{out}/rec.zarr"]) == 0
+    assert main(["simulate", "drummer", "--frames", "8", "--size", "32x32", "-o", f"{out}/rec.zarr"]) == 0
     assert main(["reconstruct", f"{out}/rec.zarr", "-o", f"{out}/video.zarr"]) == 0
     assert main(["batch", f"{out}/rec.zarr", "-o", f"{out}/batch.zarr", "--chunk", "1"]) == 0
     assert main(["export", f"{out}/rec.zarr", "--what", "frames", "-o", f"{out}/frames.tif"]) == 0

@@ -43,7 +43,7 @@ def results_html(outcome: CalibrationOutcome) -> str:
 
 
 class ResultsView(QTabWidget):
-    """Tabs: Results, Homography residuals, Shutter: wrong pixels, Sync leakage, Co-location live."""
+    """Tabs: Results, (homography) Residuals, Shutter (wrong pixels), Sync (leakage, delay sweep), Co-location live."""
 
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
@@ -78,9 +78,9 @@ class ResultsView(QTabWidget):
         sv.addWidget(self.sweep_plot)
         self.colocation_view = ColocationView()
         self.addTab(results_scroll, "Results")
-        self.addTab(self.residuals, "Homography residuals")
-        self.addTab(self.wrong_panel, "Shutter: wrong pixels")
-        self.addTab(sync_page, "Sync leakage")
+        self.addTab(self.residuals, "Residuals")
+        self.addTab(self.wrong_panel, "Shutter")
+        self.addTab(sync_page, "Sync")
         self.addTab(self.colocation_view, "Co-location live")
 
     def show_outcome(self, outcome: CalibrationOutcome) -> None:

@@ -102,7 +102,6 @@ class LivePanel(QObject):
         self.hist.setLabel("left", "pixels")
         self.hist.getAxis("left").enableAutoSIPrefix(False)  # counts, never "pixels (×0.001)"
         self.hist.setLimits(yMin=0)
-        self.hist.setYRange(0, 1)
         self.hist.setMaximumHeight(200)
         self.hist_curve = self.hist.plot([0, 1], [0], stepMode="center", fillLevel=0, brush=(90, 160, 255, 120))
         self.sat_line = pg.InfiniteLine(angle=90, pen=pg.mkPen((255, 60, 60), width=1, style=Qt.PenStyle.DashLine))

@@ -305,7 +305,8 @@ class LivePreview(QObject):
         w, h = r.size
         every = "every pixel" if r.stride == 1 else f"every {r.stride}th pixel"
         frames = f"{r.n_frames} frame{'s' if r.n_frames != 1 else ''}"
-        return (f"preview: {w}×{h} ({every}), {frames}, {self.rate_hz:.1f} Hz, {r.seconds:.2f} s per run · "
+        rate = f"{self.rate_hz:.1f} Hz" if self.runs > 1 else "rate after the next run"  # one run has no rate
+        return (f"preview: {w}×{h} ({every}), {frames}, {rate}, {r.seconds:.2f} s per run · "
                 f"{self.runs} of {self.offered} camera frames previewed (newest wins)")
 
     def shutdown(self, timeout_ms: int = 5000) -> bool:

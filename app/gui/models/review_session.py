@@ -120,7 +120,7 @@ class ReviewSession:
         rate = a.get("rates", {}).get("camera_hz")
         bits = [f"{self.n_frames} frames of {W}×{H}", f"tile {m}×{n}, K = {self.K}"]
         if rate:
-            bits.append(f"{rate:g} Hz camera → {rate * self.K:g} sub-frames/s")
+            bits.append(f"{rate:.4g} Hz camera → {rate * self.K:.4g} sub-frames/s")
         bits.append("multiplexed (demultiplexed for reconstruction)" if a.get("multiplexed") else "identity code")
         bits.append("simulated, with ground truth" if self.has_ground_truth else a.get("kind", "captured"))
         return "; ".join(bits)

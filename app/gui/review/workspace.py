@@ -422,7 +422,7 @@ class ReviewWorkspace(QWidget):
         self.progress.setValue(self.progress.maximum())
         vox = result.video.size / max(result.seconds, 1e-9) / 1e6
         text = f"{result.method.label()}: {result.video.shape[0]} sub-frames in {result.seconds:.2f} s " \
-               f"({vox:.0f} M voxels/s)"
+               f"({vox:.2g} M voxels/s)"
         if result.psnr is not None:
             text += f"; PSNR vs ground truth {result.psnr:.2f} dB"
         expected_s, self._expected_for_job = self._expected_for_job, None

@@ -105,3 +105,104 @@ def test_the_cli_and_the_workspace_record_the_same_phase_from_one_calibration_fi
     assert slots.accuracy == 1.0
     cli_slots = slot_accuracy(by_cli.normalised_frames(), by_cli.ground_truth(), by_cli.code)
     assert cli_slots.accuracy == 1.0
+
+
+SESSION_FRAMES = 10
+
+
+def test_the_operator_s_whole_session_through_the_buttons_at_1280x800(qtbot, settings, runner, tmp_path):
+    """Issue #21: connect, calibrate, the sync wizard, save, use for capture, code, live view with preview,
+    record, open in Review, diffusion, motion-aware, the slider, the motion overlay, compare, export, cancel,
+    quit — checking what the operator checks: the actions in view at 1280×800, no clipped text, a layout that
+    does not move, the export equal to what is shown, and nothing left running."""
+    import zarr
+
+    from app.gui.operator_session import SIZE, OperatorSession, clipped, flexvox_threads, outside_view
+    from flexvox_core.methods import Method
+
+    rig = open_rig("mock", scene="drummer", camera_size=(60, 80), subframes=4 * SESSION_FRAMES * 16, seed=0,
+                   clock=VirtualClock())
+    window = build_window(rig, settings=settings, runner=runner)
+    qtbot.addWidget(window)
+    assert window.tabs.currentWidget() is window.calibrate  # a first start opens where the path starts
+    window.resize(*SIZE)
+    window.show()
+    qtbot.waitExposed(window)
+    s = OperatorSession(window, tmp_path)
+    cal, capture, review = window.calibrate, window.capture, window.review
+    layout = []  # where the workspaces start: the Devices dock must not push them sideways
+
+    def check(actions, labels):
+        s.settle()
+        assert window.size().toTuple() == SIZE
+        layout.append((window.devices.width(), window.tabs.mapTo(window, window.tabs.rect().topLeft()).x()))
+        assert outside_view(window, actions) == []
+        assert clipped(labels) == []
+
+    s.connect_devices()
+    assert all("enabled" in window.devices.state_text(r) for r in ("projector", "camera", "sync"))
+    s.calibrate()
+    check([cal.run_button, cal.save_panel.save_button, cal.save_panel.use_button, cal.wizard_button],
+          [cal.step_label, cal.save_panel.label])
+    verdicts = s.sync_wizard()
+    assert "3 triggered frames (camera frame ids" in verdicts["Trigger test"]
+    assert "The Calibrate run measured" in verdicts["Phase sweep"]  # and why the two delays differ
+    assert "saved" in verdicts["Save"]
+    s.save_calibration()
+    s.use_for_capture()
+    assert window.tabs.currentWidget() is capture
+    assert "calibrated" in capture.calibration_panel.status_label.text()
+    s.choose_code((4, 4))
+    s.live_view(frames=6, previews=1)
+    panel = capture.record_panel
+    check([capture.live_panel.live_button, panel.record_button, panel.stop_button, panel.review_button],
+          [capture.calibration_panel.status_label, capture.live_panel.live_label, panel.counters_label,
+           panel.recording_label])
+    assert "fps" in capture.live_panel.live_label.text() and "dropped" in capture.live_panel.live_label.text()
+    s.record(SESSION_FRAMES)
+    check([panel.record_button, panel.review_button], [panel.counters_label, panel.recording_label])
+    assert panel.review_button.isEnabled()
+
+    s.open_in_review()
+    assert window.tabs.currentWidget() is review
+    diffusion = s.reconstruct("diffusion", position=0.18)
+    motion = s.reconstruct("motion-aware")
+    assert motion.flow is not None and diffusion.video.shape == motion.video.shape == (SESSION_FRAMES * 16, 60, 80)
+    check([review.open_button, review.reconstruct_button, review.cancel_button, review.export_button],
+          [review.path_label, review.summary_label, review.expected_label, review.result_label, review.frame_label])
+    # timed here (off the GUI thread, first use only), not read off the bench table
+    qtbot.waitUntil(lambda: "on this machine" in review.expected_label.text(), timeout=30_000)
+    # The slider, without leaving motion-aware: a fixed tensor's preview beside it.
+    s.go_to(4 * 16 + 5)
+    shown = s.slide(0.8)
+    assert review.form.method_box.currentText() == "motion-aware" and review.form.comparing
+    assert shown.extra["preview"] and shown.method.name == "diffusion"
+    # The Motion tab keeps the full motion-aware result while the diffusion preview shows.
+    s.motion_overlay("color")
+    mv = review.motion_view
+    assert review.flow_result() is motion and mv.flow_panel.has_image() and mv.map_panel.colorbar.isVisible()
+    assert "sub-frame 70/160" in mv.note.text() and review.frame_label.text().endswith("sub-frame 70/160")
+    s.motion_overlay("quiver")
+    assert "colour saturates" not in mv.note.text()
+    check([review.export_button], [mv.note])
+    s.compare()
+    check([review.export_button], [review.compare_view.box_a, review.compare_view.box_b])
+    # Export what is shown: the diffusion preview's method and options, over every frame.
+    path, written = s.export("shown.zarr")
+    assert written.method == shown.method and written.video.shape == motion.video.shape
+    store = zarr.open_group(str(path), mode="r")
+    np.testing.assert_array_equal(store["video"][:], written.video)
+    assert Method(**store.attrs["flexvox"]["method"]) == shown.method
+    assert shown.method.label() in review.export_label.text()
+    check([review.export_button], [review.export_label])
+    # Cancel says so at once, then goes idle with nothing kept.
+    n = len(review.results)
+    job = s.cancel("motion-aware")
+    assert job.outcome == "cancelled" and "cancelling" in s.cancelling_text and len(review.results) == n
+    assert "cancelled" in review.result_label.text() and review.reconstruct_button.isEnabled()
+    assert len(set(layout)) == 1, layout  # the dock's width and the workspaces' place never moved
+    s.quit()
+    assert not window.isVisible() and not capture.live and not capture.recording
+    assert runner.pool.activeThreadCount() == 0 and capture.live_panel.preview.runner.pool.activeThreadCount() == 0
+    assert flexvox_threads() == []
+    assert all(window.service.status(r).state.value == "closed" for r in ("projector", "camera", "sync"))

@@ -113,7 +113,8 @@ def batch_video(rec: Recording, method: Method | None = None, *, chunk_frames: i
     if ov is None:
         raise ValueError(f"{method.label()} is a global solve and cannot run in chunks; choose another solver")
     check_reach(reader.missing, method.max_gap(K), method.name, K)
-    ov = context(ov, reader.missing)
+    # A recording shorter than the context needs none beyond itself (dask refuses a depth above the array).
+    ov = min(context(ov, reader.missing), max(0, F - 1))
     if chunk_frames < ov:
         _logger.info("batch: chunks of %d frames raised to the method's overlap of %d", chunk_frames, ov)
         chunk_frames = ov  # dask's map_overlap needs chunks at least as long as the overlap

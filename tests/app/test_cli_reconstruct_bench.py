@@ -95,11 +95,11 @@ def test_reconstruct_refuses_a_gap_longer_than_the_method_bridges(tmp_path, caps
     result.frames[2:7] = 0
     result.dropped[2:7] = True
     path = write_simulation(tmp_path / "d.zarr", result)
-    assert main(["reconstruct", str(path), "-o", str(tmp_path / "o.npy")]) == 2
+    assert main(["reconstruct", str(path), "--method", "diffusion", "-o", str(tmp_path / "o.npy")]) == 2
     err = capsys.readouterr().err
     assert "frames 2-6 (5 frames; sub-frames 32-111) were dropped in a row; diffusion bridges gaps of at most 4" in err
     assert not (tmp_path / "o.npy").exists()
-    assert main(["reconstruct", str(path), "--method", "motion-aware", "-o", str(tmp_path / "o.npy")]) == 0
+    assert main(["reconstruct", str(path), "-o", str(tmp_path / "o.npy")]) == 0  # the default, motion-aware
     assert "interpolated 80 sub-frames" in capsys.readouterr().out
 
 
@@ -139,7 +139,8 @@ def test_reconstruct_motion_aware_with_figures(recording, tmp_path, capsys):
 
 
 def test_figures_need_motion_aware(recording, tmp_path, capsys):
-    assert main(["reconstruct", str(recording), "-o", str(tmp_path / "o.npy"), "--figures", str(tmp_path / "f")]) == 2
+    assert main(["reconstruct", str(recording), "--method", "diffusion", "-o", str(tmp_path / "o.npy"),
+                 "--figures", str(tmp_path / "f")]) == 2
     assert "--figures goes with --method motion-aware" in capsys.readouterr().err
 
 
@@ -152,7 +153,7 @@ def test_reconstruct_motion_aware_slow_reach(recording, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--slow-reach", "1"], "--slow-reach goes with --method motion-aware"),
+    (["--method", "diffusion", "--slow-reach", "1"], "--slow-reach goes with --method motion-aware"),
     (["--method", "motion-aware", "--slow-reach", "-1"], "`slow_reach` must be a number >= 0"),
 ])
 def test_bad_slow_reach(recording, tmp_path, capsys, args, message):
@@ -163,7 +164,7 @@ def test_bad_slow_reach(recording, tmp_path, capsys, args, message):
 @pytest.mark.parametrize("args, message", [
     (["--method", "rebin", "--time", "2"],
      "--time goes with --method diffusion or motion-aware, not rebin"),
-    (["--iterations", "5", "--refine", "1"],
+    (["--method", "diffusion", "--iterations", "5", "--refine", "1"],
      "--iterations goes with --method gap-tv; --refine goes with --method motion-aware, not diffusion"),
     (["--method", "gap-tv", "--no-interpolate"], "--no-interpolate goes with --method rebin, not gap-tv"),
 ])

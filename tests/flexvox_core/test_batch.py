@@ -17,7 +17,7 @@ def rec_path(tmp_path, rng):
     return write_simulation(tmp_path / "r.zarr", simulate_video(v, design_code((2, 2)).code, seed=1))
 
 
-METHODS = [Method(), Method("rebin"), Method(solver="explicit"), Method("gap-tv", iterations=5)]
+METHODS = [Method(), Method("rebin"), Method("diffusion", solver="explicit"), Method("gap-tv", iterations=5)]
 
 
 @pytest.mark.parametrize("method", METHODS, ids=lambda m: m.label())
@@ -62,8 +62,8 @@ def test_chunks_and_refusals(rec_path, tmp_path):
     assert _chunks(10, 4, 1) == (4, 4, 2) and _chunks(9, 4, 2) == (4, 5) and _chunks(3, 8, 1) == (3,)
     rec = open_recording(rec_path)
     with pytest.raises(ValueError, match=r"global solve and cannot run in chunks"):
-        batch_video(rec, Method(solver="steady"))
-    video, ov = batch_video(rec, Method(solver="explicit"), chunk_frames=1)
+        batch_video(rec, Method("diffusion", solver="steady"))
+    video, ov = batch_video(rec, Method("diffusion", solver="explicit"), chunk_frames=1)
     assert ov > 1 and video.chunks[0][0] >= ov * 4  # chunks raised to the overlap
     with pytest.raises(ValueError, match=r"`chunk_frames` must be a whole number >= 1; got 0"):
         batch_video(rec, Method(), chunk_frames=0)

@@ -86,7 +86,8 @@ def test_method_values_read_like_a_frozen_record():
     assert m != Method("motion-aware") and (m.name, m.time, m.passes, m.slow_reach) == ("motion-aware", 3.0, 1, None)
     assert m.as_dict() == {"name": "motion-aware", "flow": "dis", "time": 3.0, "passes": 1, "refine_time": 0.0,
                            "slow_reach": None}
-    assert Method().time == 1.5 and Method("motion-aware").time == 5.0  # each method's own default
+    assert Method("diffusion").time == 1.5 and Method().time == 5.0  # each method's own default
+    assert Method() == Method("motion-aware")  # the default method
     with pytest.raises(AttributeError, match=r"gap-tv has no option 'tensor' \(its options: iterations, tv_weight, "
                                              r"tv_iterations\)"):
         Method("gap-tv").tensor  # noqa: B018 - the attribute raises
@@ -102,7 +103,8 @@ def test_bench_labels_read_back():
 
     cases = [
         (Method("rebin", block=Division(2, 1, 4), interpolate=False), {"block": "2x1x4", "interpolate": False}),
-        (Method(tensor=(0.05, 0.05, 1), time=8), {"solver": "nc", "tensor": [0.05, 0.05, 1.0], "time": 8.0}),
+        (Method("diffusion", tensor=(0.05, 0.05, 1), time=8),
+         {"solver": "nc", "tensor": [0.05, 0.05, 1.0], "time": 8.0}),
         (Method("gap-tv"), {"iterations": 40}),
         (Method("motion-aware", refine_time=1.0, passes=2), {"flow": "dis", "time": 5.0, "refine_time": 1.0,
                                                              "passes": 2}),

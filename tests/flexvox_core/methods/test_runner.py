@@ -60,8 +60,9 @@ def test_overlap_rules():
     "kwargs, match",
     [
         ({"name": "magic"}, r"`method` must be one of rebin, diffusion, gap-tv, motion-aware; got .magic."),
-        ({"solver": "exact"}, r"`solver` must be one of nc, explicit, steady"),
-        ({"tensor": (-1, 1, 1)}, r"tensor"),
+        ({"name": "diffusion", "solver": "exact"}, r"`solver` must be one of nc, explicit, steady"),
+        ({"name": "diffusion", "tensor": (-1, 1, 1)}, r"tensor"),
+        ({"solver": "nc"}, r"`solver` is not an option of motion-aware \(its options: flow, time"),
     ],
 )
 def test_bad_methods(kwargs, match):

@@ -83,7 +83,7 @@ class ReconstructionResult:
 
 def run_reconstruction(frames, code, method: Method, *, cancel: CancelToken | None = None,
                        progress: Progress | None = None, chunk_frames: int = 4, first_frame: int = 0,
-                       truth: np.ndarray | None = None) -> ReconstructionResult:
+                       truth: np.ndarray | None = None, missing=None) -> ReconstructionResult:
     """Reconstruct ``frames`` (F, H, W) with ``method``, checking ``cancel`` between chunks.
 
     Parameters
@@ -99,6 +99,9 @@ def run_reconstruction(frames, code, method: Method, *, cancel: CancelToken | No
         Where ``frames`` start in the recording (kept in the result).
     truth : ndarray (F·K, H, W), optional
         Ground truth of these frames; the result then carries the mean PSNR.
+    missing : ndarray (F,) bool, optional
+        Which of these frames the camera dropped: bridged (:mod:`flexvox_core.gaps`); the result's
+        ``extra["interpolated"]`` says which sub-frames.
 
     Raises
     ------
@@ -118,7 +121,7 @@ def run_reconstruction(frames, code, method: Method, *, cancel: CancelToken | No
             progress(done, total)
         cancel.check()
 
-    out = run(f, code, method, chunk_frames=chunk_frames, progress=checked, extras=True)
+    out = run(f, code, method, chunk_frames=chunk_frames, progress=checked, extras=True, missing=missing)
     video, flow, tr = out.video, out.extras.get("flow"), out.extras.get("tr")
     cancel.check()
     seconds = time.perf_counter() - t0
@@ -127,7 +130,10 @@ def run_reconstruction(frames, code, method: Method, *, cancel: CancelToken | No
         from flexvox_core.metrics import psnr
 
         score = float(psnr(truth, video).mean)
-    return ReconstructionResult(video, method, seconds, first_frame=first_frame, flow=flow, tr=tr, psnr=score)
+    result = ReconstructionResult(video, method, seconds, first_frame=first_frame, flow=flow, tr=tr, psnr=score)
+    if out.interpolated is not None:
+        result.extra["interpolated"] = out.interpolated
+    return result
 
 
 def chunk_frames_for(method: Method, n_frames: int, K: int) -> int:

@@ -4,8 +4,8 @@ Holds the raw frames (normalised to relative units, for playback), the identity-
 the reconstructions take (demultiplexed when the recording is multiplexed, by the one reader,
 :class:`flexvox_core.capture_reader.CaptureReader`), its code, and the ground truth of simulated
 recordings. A recording the reader refuses opens for playback, with the reader's reason in
-:attr:`ReviewSession.blocked`; so, for now, does one with dropped frames, which ``flexvox
-reconstruct`` bridges but the Review workspace's jobs do not yet.
+:attr:`ReviewSession.blocked`. Dropped frames are in :attr:`ReviewSession.missing`: reconstructions
+bridge them (:mod:`flexvox_core.gaps`).
 """
 
 from __future__ import annotations
@@ -39,6 +39,8 @@ class ReviewSession:
     code : ndarray (m, n, K) bool
     blocked : str
         Why the recording cannot be reconstructed ("" when it can).
+    missing : ndarray (F,) bool or None
+        The frames the camera dropped (zero rows), None when none was.
     """
 
     path: Path
@@ -47,6 +49,7 @@ class ReviewSession:
     frames: np.ndarray | None
     code: np.ndarray
     blocked: str = ""
+    missing: np.ndarray | None = None
 
     @classmethod
     def open(cls, path) -> ReviewSession:
@@ -56,18 +59,16 @@ class ReviewSession:
         raw = rec.normalised_frames()
         if raw.shape[0] == 0:
             raise RecordingError(f"{path}: the recording holds no frames")
+        missing = None
         try:
             reader = CaptureReader(rec)
-            frames, code, blocked = reader.read(), reader.code, ""
-            if reader.missing is not None:
-                rows = np.flatnonzero(reader.missing)[:5].tolist()
-                frames, blocked = None, (f"{path} has {int(reader.missing.sum())} dropped frame(s) (first at rows "
-                                         f"{rows}); Review does not bridge them yet: `flexvox reconstruct` does")
+            frames, code, blocked, missing = reader.read(), reader.code, "", reader.missing
         except NotReconstructableError as exc:
             frames, code, blocked = None, rec.code, str(exc)
         _logger.info("opened %s: %d frames of %dx%d, K=%d", path, *raw.shape, rec.K)
         return cls(path, rec, raw.astype(np.float32, copy=False),
-                   None if frames is None else np.asarray(frames, np.float32), np.asarray(code, bool), blocked)
+                   None if frames is None else np.asarray(frames, np.float32), np.asarray(code, bool), blocked,
+                   missing)
 
     @property
     def K(self) -> int:  # noqa: N802 - the paper's name
@@ -123,4 +124,6 @@ class ReviewSession:
             bits.append(f"{rate:.4g} Hz camera → {rate * self.K:.4g} sub-frames/s")
         bits.append("multiplexed (demultiplexed for reconstruction)" if a.get("multiplexed") else "identity code")
         bits.append("simulated, with ground truth" if self.has_ground_truth else a.get("kind", "captured"))
+        if self.missing is not None:
+            bits.append(f"{int(self.missing.sum())} dropped frame(s), bridged from both sides")
         return "; ".join(bits)

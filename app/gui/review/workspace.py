@@ -338,10 +338,11 @@ class ReviewWorkspace(QWidget):
         a, b = preview_window(s.n_frames, self.subframe // s.K, half_width=1)
         method = self.form.preview_method()
         frames, code, truth = s.frames[a:b], s.code, s.truth(a, b)
+        missing = None if s.missing is None else s.missing[a:b]
 
         def work(token, progress):
             r = run_reconstruction(frames, code, method, cancel=token, progress=progress, chunk_frames=b - a,
-                                   first_frame=a, truth=truth)
+                                   first_frame=a, truth=truth, missing=missing)
             r.extra["preview"] = True
             return r
 
@@ -379,11 +380,11 @@ class ReviewWorkspace(QWidget):
             return None
         method = self.form.method()
         chunk = chunk_frames_for(method, s.n_frames, s.K)
-        frames, code, truth = s.frames, s.code, self._truth
+        frames, code, truth, missing = s.frames, s.code, self._truth, s.missing
 
         def work(token, progress):
             return run_reconstruction(frames, code, method, cancel=token, progress=progress, chunk_frames=chunk,
-                                      truth=truth)
+                                      truth=truth, missing=missing)
 
         self.progress.setRange(0, s.n_frames)
         self.progress.setValue(0)
@@ -487,19 +488,22 @@ class ReviewWorkspace(QWidget):
         method = r.method
         full = r if not r.extra.get("preview") else self.full_result_of(method)
         fps = float(self.fps.value())
-        frames, code, truth = s.frames, s.code, self._truth
+        frames, code, truth, missing = s.frames, s.code, self._truth, s.missing
         chunk = chunk_frames_for(method, s.n_frames, s.K)
         source = str(s.path)
+        rate = s.recording.attrs.get("rates", {}).get("subframe_hz")
+        time_step = 1.0 / float(rate) if rate else None  # Fiji and OME-Zarr readers then show seconds
 
         def work(token, progress):
             result = full
             if result is None:
                 result = run_reconstruction(frames, code, method, cancel=token, progress=progress, chunk_frames=chunk,
-                                            truth=truth)
+                                            truth=truth, missing=missing)
                 token.check()
             attrs = {"source": source, "method": method.as_dict(), "method_label": method.label(),
                      "seconds": result.seconds, "subframes": int(result.video.shape[0])}
-            write_video(path, result.video, fps=fps, attrs=attrs, overwrite=overwrite)
+            write_video(path, result.video, fps=fps, attrs=attrs, overwrite=overwrite, time_step=time_step,
+                        interpolated=result.extra.get("interpolated"))
             return result, path
 
         what = f"{method.label()} ({s.n_frames} frames, {s.n_subframes} sub-frames)"

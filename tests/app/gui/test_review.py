@@ -167,6 +167,9 @@ def test_export_writes_the_reconstruction(qtbot, opened, tmp_path, suffix):
         np.testing.assert_array_equal(np.load(path), r.video)
     elif suffix == ".tif":
         np.testing.assert_array_equal(tifffile.imread(path), r.video)
+        with tifffile.TiffFile(path) as tif:  # Fiji shows seconds: one sub-frame period per frame
+            rate = opened.session.recording.attrs["rates"]["subframe_hz"]
+            assert tif.imagej_metadata["finterval"] == pytest.approx(1 / rate)
     else:
         assert path.stat().st_size > 1000
     assert opened.export(path) is None  # no silent overwrite: refused before any work
@@ -273,17 +276,37 @@ def test_settings_persist_between_sessions(qtbot, settings, runner, recording):
 def test_a_recording_the_reader_refuses_opens_for_playback_with_the_reason(qtbot, review, tmp_path, rng):
     from flexvox_core.design import design_code
     from flexvox_core.recording import write_simulation
-    from flexvox_core.simulate.effects import parse_effects
     from flexvox_core.simulate.simulator import simulate_video
 
-    video = rng.random((8 * 4, 16, 16)).astype(np.float32)
-    eff = parse_effects({"dropped_frames": {"probability": 0.5}})
-    path = write_simulation(tmp_path / "d.zarr", simulate_video(video, design_code((2, 2)).code, effects=eff, seed=1))
+    result = simulate_video(rng.random((4 * 4, 16, 16)).astype(np.float32), design_code((2, 2)).code)
+    result.frames[:] = 0
+    result.dropped[:] = True  # every frame dropped: nothing to reconstruct
+    path = write_simulation(tmp_path / "d.zarr", result)
     with qtbot.waitSignal(review.session_opened, timeout=10_000):
         review.open_recording(path)
-    assert review.session.frames is None and "dropped frame(s)" in review.session.blocked
-    assert "cannot reconstruct" in review.summary_label.text() and "dropped frame(s)" in review.summary_label.text()
+    assert review.session.frames is None and "all 4 frames were dropped" in review.session.blocked
+    assert "cannot reconstruct" in review.summary_label.text() and "all 4 frames were dropped" in \
+        review.summary_label.text()
     assert not review.reconstruct_button.isEnabled() and review.raw_panel.has_image()
+
+
+def test_dropped_frames_are_bridged_and_said(qtbot, review, tmp_path, rng):
+    from flexvox_core.design import design_code
+    from flexvox_core.recording import write_simulation
+    from flexvox_core.simulate.scenes import render_scene
+    from flexvox_core.simulate.simulator import simulate_video
+
+    result = simulate_video(render_scene("balls", 6 * 4, 24, 32), design_code((2, 2)).code)
+    result.frames[2] = 0
+    result.dropped[2] = True
+    path = write_simulation(tmp_path / "d.zarr", result)
+    with qtbot.waitSignal(review.session_opened, timeout=10_000):
+        review.open_recording(path)
+    assert review.session.blocked == "" and review.session.missing.tolist() == [0, 0, 1, 0, 0, 0]
+    assert "1 dropped frame(s), bridged from both sides" in review.summary_label.text()
+    r = reconstruct(qtbot, review, "diffusion")
+    np.testing.assert_array_equal(r.extra["interpolated"], np.repeat([0, 0, 1, 0, 0, 0], 4).astype(bool))
+    assert np.isfinite(r.video).all() and r.video[8:12].mean() > 0.05  # the gap is filled, not black
 
 
 def test_the_method_form_is_built_from_the_registered_methods(qtbot, settings):

@@ -4,7 +4,8 @@
 up for the plan and its calibration, :class:`~app.gui.capture.live_view.LiveStream` reads the
 camera on a worker thread) and the display: the raw view redrawn at most :data:`DISPLAY_HZ`,
 the histogram with the saturation level, and the motion-aware preview of the newest frames
-(:mod:`app.gui.capture.live_preview`: its own worker, newest wins, a bounded duty cycle).
+(:mod:`app.gui.capture.live_preview`: its own worker, newest wins, a bounded duty cycle, full resolution
+over the whole frame or a region the operator drags on the live view).
 
 While a recording runs the capture service owns the devices; the panel then shows
 ``capture.latest()`` (the newest frame, a reference swap that never slows capture) through
@@ -20,7 +21,7 @@ import html
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import QObject, Qt, QTimer
+from PySide6.QtCore import QObject, QRectF, Qt, QTimer
 from PySide6.QtWidgets import QCheckBox, QGroupBox, QLabel, QPushButton, QSplitter, QVBoxLayout, QWidget
 
 from app.gui.capture.live_preview import LivePreview
@@ -96,6 +97,14 @@ class LivePanel(QObject):
 
         self.image_panel = ImagePanel("camera: live view stopped")
         self.image_panel.clear("press Start live view")
+        # The preview's region, when the whole frame does not fit its time budget: drag it to move it.
+        self.region_roi = pg.ROI((0, 0), (1, 1), movable=True, resizable=False, rotatable=False, removable=False,
+                                 pen=pg.mkPen((255, 200, 0), width=2))
+        self.region_roi.setZValue(20)
+        self.region_roi.setVisible(False)
+        self.region_roi.setToolTip("the region the motion-aware preview reconstructs at full resolution: drag it")
+        self.image_panel.view.addItem(self.region_roi)
+        self.region_roi.sigRegionChangeFinished.connect(self._on_region_moved)
         self.hist = pg.PlotWidget()
         self.hist.setBackground("#202020")
         self.hist.setLabel("bottom", "pixel value")
@@ -288,6 +297,7 @@ class LivePanel(QObject):
         """Stop the preview (its last picture stays)."""
         was = self.preview.enabled
         self.preview.stop()
+        self.region_roi.setVisible(False)
         if was:
             self.preview_label.setText(self.preview.text().replace("preview:", "preview (stopped):", 1)
                                        if self.preview.result is not None else "preview: off")
@@ -295,7 +305,26 @@ class LivePanel(QObject):
     def _on_preview(self, result) -> None:
         self._preview_index = 0
         self.preview_label.setText(html.escape(self.preview.text()))
+        self._show_region(result)
         self._advance_preview()
+
+    def _show_region(self, result) -> None:
+        """Draw the preview's region on the live view (hidden when it is the whole frame)."""
+        if result.whole_frame:
+            self.region_roi.setVisible(False)
+            return
+        r = result.region
+        self.region_roi.blockSignals(True)  # placing it is not the operator moving it
+        self.region_roi.setPos((r.x0, r.y0), update=False)
+        self.region_roi.setSize((r.x1 - r.x0, r.y1 - r.y0))
+        self.region_roi.blockSignals(False)
+        self.region_roi.maxBounds = QRectF(0, 0, result.frame_shape[1], result.frame_shape[0])
+        self.region_roi.setVisible(True)
+
+    def _on_region_moved(self) -> None:
+        """The operator dragged the region: the next preview run takes it on there."""
+        pos, size = self.region_roi.pos(), self.region_roi.size()
+        self.preview.set_centre(pos.y() + size.y() / 2, pos.x() + size.x() / 2)
 
     def _advance_preview(self) -> None:
         r = self.preview.result
@@ -305,7 +334,8 @@ class LivePanel(QObject):
         k = self._preview_index % K
         self._preview_index = k + 1
         self.preview_panel.set_image(r.video[k], levels=r.levels)
-        self.preview_panel.set_title(f"motion-aware preview: frame {r.frame_id}, sub-frame {k + 1}/{K}")
+        where = "" if r.whole_frame else f" · region at ({r.region.x0}, {r.region.y0})"
+        self.preview_panel.set_title(f"motion-aware preview: frame {r.frame_id}, sub-frame {k + 1}/{K}{where}")
 
     def shutdown(self) -> bool:
         """Stop everything; False when the preview's worker did not stop within 5 s."""

@@ -12,155 +12,47 @@ How it stays out of capture's way:
   counted (``offered`` against ``runs``), not waited for.
 * **Duty cycle.** After a run of ``t`` seconds the next starts no sooner than
   ``rest_fraction · t`` later, so the preview uses at most ``1 / (1 + rest_fraction)`` of one core.
-* **Resolution.** Frames are subsampled with a stride ``s ≡ 1 (mod lcm(m, n))`` (:func:`preview_stride`),
-  which keeps the code's layout: pixel ``(y·s, x·s)`` opens in the slots of ``code[y mod m, x mod n]``,
-  so the subsampled frames are a capture of the *same* code, over the whole field of view
-  (aliased, for a preview). The stride starts where the frame has at most ``max_pixels``, grows
-  when a run takes longer than ``budget_s``, and shrinks again only when the finer run (time ∝
-  pixels) is predicted to take under half the budget.
+* **Full resolution, a region when it must.** A run takes on the whole frame when the measured
+  cost of a pixel says it fits in ``budget_s``; otherwise a region of the frame at full resolution
+  (:func:`app.capture.live_preview.preview_region`), which the operator drags on the live view
+  (:meth:`LivePreview.set_centre`). Never a subsampled, aliased frame. The region follows the
+  measured cost, so it grows back as soon as the machine is less busy.
 
-What is on screen says the resolution and rate it achieves ("preview: 160×120 (every pixel),
-3 frames, 2.4 Hz"). Multiplexed captures are demultiplexed first (:func:`flexvox_core.reconstruct.prepare`).
+What is on screen says the resolution, rate and latency it achieves ("preview: 640×480 (the whole
+frame), 3 frames, 1.4 Hz, 0.35 s per run, 0.5 s behind the camera"). Multiplexed captures are
+demultiplexed first (:func:`flexvox_core.reconstruct.prepare`).
 """
 
 from __future__ import annotations
 
 import logging
-import math
 import time
-from collections import deque
-from dataclasses import dataclass
+from collections import OrderedDict, deque
 
-import numpy as np
 from PySide6.QtCore import QObject, QThreadPool, QTimer, Signal
 
+from app.capture.live_preview import (
+    PREVIEW_FRAMES,
+    START_PIXELS,
+    FrameBuffer,
+    PixelCost,
+    PreviewResult,
+    Region,
+    preview_region,
+    reconstruct_preview,
+)
 from app.gui.widgets.qt_jobs import JobRunner
 
 _logger = logging.getLogger(__name__)
 
-PREVIEW_FRAMES = 3
-"""Camera frames reconstructed together (the newest one is shown)."""
-MAX_PIXELS = 160 * 120
-"""Pixels of a preview frame to start with."""
 BUDGET_S = 0.6
-"""A run longer than this makes the next one coarser."""
+"""A run should last about this long: it sizes the region (the whole frame when it fits)."""
 REST_FRACTION = 1.0
 """Idle time after a run, as a fraction of its duration (1: at most half a core)."""
+HYSTERESIS = 0.25
+"""The region changes size only when the budget asks for 25 % more or fewer pixels (no jitter)."""
 
-
-def preview_stride(shape: tuple[int, int], tile: tuple[int, int], max_pixels: int = MAX_PIXELS) -> int:
-    """The smallest stride ``s ≡ 1 (mod lcm(m, n))`` with at most ``max_pixels`` subsampled pixels.
-
-    Examples
-    --------
-    >>> preview_stride((120, 160), (4, 4))
-    1
-    >>> preview_stride((1200, 1920), (4, 4))
-    13
-    """
-    H, W = (int(v) for v in shape)
-    if max_pixels < 1:
-        raise ValueError(f"`max_pixels` must be >= 1; got {max_pixels}")
-    step = math.lcm(int(tile[0]), int(tile[1]))
-    s = 1
-    while -(-H // s) * -(-W // s) > max_pixels and s < max(H, W):
-        s += step
-    return s
-
-
-def normalise(image: np.ndarray) -> np.ndarray:
-    """A camera image in relative units (float32): float frames as they are, counts over the type's range."""
-    img = np.asarray(image)
-    if np.issubdtype(img.dtype, np.integer):
-        return img.astype(np.float32) / float(np.iinfo(img.dtype).max)
-    return img.astype(np.float32, copy=False)
-
-
-class FrameBuffer:
-    """The newest run of consecutive camera frames, at most ``size`` of them (a gap starts a new run)."""
-
-    def __init__(self, size: int = PREVIEW_FRAMES):
-        if size < 1:
-            raise ValueError(f"`size` must be >= 1; got {size}")
-        self._frames: deque = deque(maxlen=size)
-        self.version = 0
-        """Increases with every frame pushed."""
-
-    def push(self, frame) -> None:
-        """Add ``frame`` (a :class:`rig_drivers.interfaces.Frame`); older or repeated ids are ignored."""
-        last = self._frames[-1].frame_id if self._frames else None
-        if last is not None and frame.frame_id <= last:
-            return
-        if last is not None and frame.frame_id != last + 1:
-            self._frames.clear()
-        self._frames.append(frame)
-        self.version += 1
-
-    def clear(self) -> None:
-        """Forget every frame."""
-        self._frames.clear()
-
-    def snapshot(self) -> list:
-        """The frames, oldest first (a copy of the list; the frames themselves are shared, read-only)."""
-        return list(self._frames)
-
-    def __len__(self) -> int:
-        return len(self._frames)
-
-
-@dataclass(frozen=True)
-class PreviewResult:
-    """One preview: the newest frame's sub-frames.
-
-    Attributes
-    ----------
-    video : ndarray (K, h, w) float32
-    frame_id : int
-        Camera frame shown.
-    n_frames : int
-        Camera frames reconstructed together.
-    stride : int
-    seconds : float
-        Time of the reconstruction.
-    levels : (low, high)
-    """
-
-    video: np.ndarray
-    frame_id: int
-    n_frames: int
-    stride: int
-    seconds: float
-    levels: tuple[float, float]
-
-    @property
-    def size(self) -> tuple[int, int]:
-        """(w, h) of the preview."""
-        return int(self.video.shape[2]), int(self.video.shape[1])
-
-
-def reconstruct_preview(frames: list, code, *, stride: int = 1) -> PreviewResult:
-    """Motion-aware reconstruction of ``frames`` (consecutive Frames), the newest frame's K sub-frames.
-
-    ``code`` is the capture's identity code (m, n, K) or its :class:`~flexvox_core.multiplex.MultiplexedCode`.
-    """
-    from flexvox_core.motion import motion_aware
-    from flexvox_core.reconstruct import prepare
-
-    if not frames:
-        raise ValueError("`frames` must hold at least one frame")
-    t0 = time.perf_counter()
-    stack = np.stack([normalise(f.image) for f in frames])
-    if not isinstance(code, np.ndarray) and stride > 1:
-        stack, identity = prepare(stack, code)  # demultiplex at full resolution, then subsample
-        stack = stack[:, ::stride, ::stride]
-    else:
-        stack, identity = prepare(stack[:, ::stride, ::stride] if stride > 1 else stack, code)
-    K = identity.shape[2]
-    result = motion_aware(np.ascontiguousarray(stack, np.float32), identity)
-    video = np.clip(result.video[-K:], 0.0, 1.0).astype(np.float32, copy=False)
-    hi = float(np.percentile(video, 99.5)) if video.size else 1.0
-    return PreviewResult(video, int(frames[-1].frame_id), len(frames), int(stride), time.perf_counter() - t0,
-                         (0.0, hi if hi > 0 else 1.0))
+__all__ = ["BUDGET_S", "LivePreview", "PreviewResult", "REST_FRACTION"]
 
 
 class LivePreview(QObject):
@@ -171,9 +63,9 @@ class LivePreview(QObject):
     n_frames : int
         Camera frames per reconstruction (the newest consecutive ones available, at least 1).
     max_pixels : int
-        Starting resolution (see :func:`preview_stride`).
+        Pixels of the first run's region, before any run has been timed.
     budget_s : float
-        Runs longer than this make the next coarser; much shorter ones make it finer.
+        How long a run should last; with the measured cost of a pixel it sizes the region.
     rest_fraction : float
         Idle time after each run, relative to its duration.
     """
@@ -183,7 +75,7 @@ class LivePreview(QObject):
     failed = Signal(str)
     """The preview stopped on an error (in words)."""
 
-    def __init__(self, parent: QObject | None = None, *, n_frames: int = PREVIEW_FRAMES, max_pixels: int = MAX_PIXELS,
+    def __init__(self, parent: QObject | None = None, *, n_frames: int = PREVIEW_FRAMES, max_pixels: int = START_PIXELS,
                  budget_s: float = BUDGET_S, rest_fraction: float = REST_FRACTION):
         super().__init__(parent)
         if rest_fraction < 0:
@@ -197,7 +89,14 @@ class LivePreview(QObject):
         self.rest_fraction = float(rest_fraction)
         self.code = None
         self.tile = (1, 1)
-        self.stride: int | None = None
+        self.cost = PixelCost()
+        self.region: Region | None = None
+        """The region of the last run started."""
+        self.centre: tuple[float, float] | None = None
+        """Where the operator put the region (y, x); None: the frame's centre."""
+        self.latency_s: float | None = None
+        """Seconds from the newest frame's arrival to its preview on screen, for the last preview."""
+        self._fed_at: OrderedDict[int, float] = OrderedDict()
         self.enabled = False
         self.result: PreviewResult | None = None
         self.runs = 0
@@ -213,11 +112,17 @@ class LivePreview(QObject):
 
     # ------------------------------------------------------------------ control
     def set_code(self, code, tile) -> None:
-        """The capture's code (identity array or MultiplexedCode) and tile; resets the buffer and stride."""
+        """The capture's code (identity array or MultiplexedCode) and tile; resets the buffer and region."""
         self.code = code
         self.tile = tuple(int(v) for v in tile)
-        self.stride = None
+        self.region = None
+        self.cost.clear()
         self.buffer.clear()
+
+    def set_centre(self, y: float, x: float) -> None:
+        """Put the region's centre at (y, x) of the frame (the next run takes it on)."""
+        self.centre = (float(y), float(x))
+        self.region = None  # placed afresh at the next run
 
     def start(self) -> None:
         """Accept frames and preview them."""
@@ -225,6 +130,8 @@ class LivePreview(QObject):
         self.error = ""
         self.result = None
         self.runs = self.offered = 0
+        self.latency_s = None
+        self._fed_at.clear()
         self._finish_times.clear()
         self.buffer.clear()
         self._done_version = self.buffer.version
@@ -245,6 +152,9 @@ class LivePreview(QObject):
         if not self.enabled or self.code is None:
             return
         self.offered += 1
+        self._fed_at[int(frame.frame_id)] = time.monotonic()
+        while len(self._fed_at) > 64:
+            self._fed_at.popitem(last=False)
         self.buffer.push(frame)
         self._maybe_start()
 
@@ -254,31 +164,36 @@ class LivePreview(QObject):
         if self.buffer.version == self._done_version:
             return  # nothing new since the last run
         frames = self.buffer.snapshot()
-        if self.stride is None:  # first run: from the frame size
-            self.stride = preview_stride(frames[-1].image.shape, self.tile, self.max_pixels)
-        code, stride, version = self.code, self.stride, self.buffer.version
+        self.region = self._next_region(frames[-1].image.shape)
+        code, region, version = self.code, self.region, self.buffer.version
         self._done_version = version
         self._job = self.runner.submit("live preview", lambda token, progress: reconstruct_preview(
-            frames, code, stride=stride), on_finished=self._on_result, on_failed=self._on_failed)
+            frames, code, region), on_finished=self._on_result, on_failed=self._on_failed)
+
+    def _next_region(self, shape) -> Region:
+        """The whole frame when the measured cost of a pixel says it fits in the budget, else a region."""
+        pixels = self.cost.pixels_for(self.budget_s, default=self.max_pixels)
+        new = preview_region(shape, self.tile, pixels, self.centre)
+        old = self.region
+        if old is not None and abs(new.pixels / old.pixels - 1) < HYSTERESIS:
+            return old
+        if old is not None:
+            _logger.info("live preview: region %dx%d -> %dx%d (%.0f pixels fit in %.2f s)",
+                         old.shape[1], old.shape[0], new.shape[1], new.shape[0], pixels, self.budget_s)
+        return new
 
     def _on_result(self, result: PreviewResult) -> None:
         self.runs += 1
-        self._finish_times.append(time.monotonic())
-        self._adapt(result)
+        now = time.monotonic()
+        self._finish_times.append(now)
+        self.cost.add(result.seconds, result.region.pixels)
         if not self.enabled:
             return
+        fed = self._fed_at.get(result.frame_id)
+        self.latency_s = None if fed is None else now - fed
         self.result = result
         self.updated.emit(result)
         self._rest.start(max(1, int(1000 * self.rest_fraction * result.seconds)))
-
-    def _adapt(self, result: PreviewResult) -> None:
-        step = math.lcm(*self.tile)
-        if result.seconds > self.budget_s:
-            self.stride = result.stride + step
-        elif result.stride > 1:  # finer only when the finer run is predicted to stay well inside the budget
-            finer = max(1, result.stride - step)
-            if result.seconds * (result.stride / finer) ** 2 < self.budget_s / 2:
-                self.stride = finer
 
     def _on_failed(self, message: str) -> None:
         _logger.warning("live preview stopped: %s", message)
@@ -296,17 +211,20 @@ class LivePreview(QObject):
         return (len(t) - 1) / (t[-1] - t[0])
 
     def text(self) -> str:
-        """What the preview achieves: "preview: 160×120 (every pixel), 3 frames, 2.4 Hz, …"."""
+        """What the preview achieves: "preview: 640×480 (the whole frame), 3 frames, 1.4 Hz, …"."""
         if self.error:
             return f"preview stopped: {self.error}"
         r = self.result
         if r is None:
             return "preview: waiting for frames …" if self.enabled else "preview: off"
         w, h = r.size
-        every = "every pixel" if r.stride == 1 else f"every {r.stride}th pixel"
+        H, W = r.frame_shape
+        where = ("the whole frame" if r.whole_frame
+                 else f"a region of {W}×{H} at full resolution: drag it on the live view")
         frames = f"{r.n_frames} frame{'s' if r.n_frames != 1 else ''}"
         rate = f"{self.rate_hz:.1f} Hz" if self.runs > 1 else "rate after the next run"  # one run has no rate
-        return (f"preview: {w}×{h} ({every}), {frames}, {rate}, {r.seconds:.2f} s per run · "
+        behind = f", {self.latency_s:.2f} s behind the camera" if self.latency_s is not None else ""
+        return (f"preview: {w}×{h} ({where}), {frames}, {rate}, {r.seconds:.2f} s per run{behind} · "
                 f"{self.runs} of {self.offered} camera frames previewed (newest wins)")
 
     def shutdown(self, timeout_ms: int = 5000) -> bool:

@@ -6,7 +6,8 @@ import re
 import numpy as np
 import pytest
 
-from app.gui.capture.live_preview import FrameBuffer, LivePreview, preview_stride, reconstruct_preview
+from app.capture.live_preview import FrameBuffer, PixelCost, Region, preview_region, reconstruct_preview
+from app.gui.capture.live_preview import LivePreview
 from app.gui.capture.workspace import CaptureWorkspace
 from app.gui.models.rig_service import RigService
 from flexvox_core.design import design_code
@@ -20,15 +21,49 @@ def _frame(i, shape=(48, 64), value=0.5):
     return Frame(np.full(shape, value, np.float32), frame_id=i, timestamp_s=i / 60)
 
 
-def test_the_stride_keeps_the_codes_layout():
-    assert preview_stride((48, 64), (4, 4)) == 1
-    s = preview_stride((1200, 1920), (3, 5), max_pixels=160 * 120)
-    assert s % 15 == 1 and -(-1200 // s) * -(-1920 // s) <= 160 * 120
+def test_the_region_is_the_whole_frame_when_it_fits_else_whole_tiles_at_full_resolution():
+    assert preview_region((48, 64), (4, 4), 48 * 64) == Region(0, 48, 0, 64)
+    r = preview_region((480, 640), (3, 5), 160 * 120)
+    assert r.y0 % 3 == 0 and r.x0 % 5 == 0 and r.pixels <= 160 * 120 and r.shape[0] % 3 == 0
+    assert abs(r.centre[0] - 240) <= 3 and abs(r.centre[1] - 320) <= 5  # the frame's centre by default
+    corner = preview_region((480, 640), (4, 4), 100 * 100, centre=(0, 1000))  # clamped inside the frame
+    assert corner.y0 == 0 and corner.x1 == 640
+    tiny = preview_region((480, 640), (4, 4), 10)
+    assert tiny.shape == (32, 32)  # never below MIN_SIDE
+    # The crop is a capture of the same code: its pixel (y, x) opens as the code's (y mod m, x mod n).
     code = design_code((3, 5)).code
-    full = tiled_code(code, 120, 150)  # (K, H, W): the slots each pixel opens in
-    np.testing.assert_array_equal(full[:, ::16, ::16], tiled_code(code, 8, 10))
-    with pytest.raises(ValueError, match=r"`max_pixels` must be >= 1; got 0"):
-        preview_stride((10, 10), (2, 2), 0)
+    full = tiled_code(code, 480, 640)
+    np.testing.assert_array_equal(r.crop(full), tiled_code(code, *r.shape))
+    with pytest.raises(ValueError, match=r"`max_pixels` must be > 0; got 0"):
+        preview_region((10, 10), (2, 2), 0)
+
+
+def test_the_region_follows_the_measured_cost_of_a_pixel():
+    cost = PixelCost(runs=3)
+    assert cost.pixels_for(0.6, default=19200) == 19200  # before any run
+    cost.add(0.3, 64 * 48)  # 0.3 s for 3072 pixels: 6144 fit in 0.6 s
+    assert cost.pixels_for(0.6, default=1) == pytest.approx(6144)
+    for _ in range(3):
+        cost.add(3.0, 64 * 48)  # a busy machine: the region shrinks ...
+    assert cost.pixels_for(0.6, default=1) == pytest.approx(614.4)
+    for _ in range(2):
+        cost.add(0.15, 32 * 32)  # ... and grows back with the next quick runs (the median of the last 3)
+    assert cost.pixels_for(0.6, default=1) == pytest.approx(4096)
+
+
+def test_a_busy_machine_previews_a_region_never_a_subsampled_frame(qtbot):
+    preview = LivePreview(rest_fraction=0.0, budget_s=0.6)
+    preview.set_code(design_code((2, 4)).code, (2, 4))
+    preview.cost.add(6.0, 64 * 48)  # as if the last run had taken 6 s for the whole frame
+    preview.start()
+    preview.set_centre(40, 60)
+    preview.feed(_frame(0))
+    qtbot.waitUntil(lambda: preview.result is not None, timeout=10_000)
+    r = preview.result
+    assert not r.whole_frame and r.region.pixels < 64 * 48 and r.video.shape[1:] == r.region.shape
+    assert r.region.y1 == 48 and r.region.x1 == 64  # around the operator's point, inside the frame
+    assert "a region of 64×48 at full resolution: drag it on the live view" in preview.text()
+    assert preview.shutdown(5000)
 
 
 def test_the_buffer_keeps_the_newest_consecutive_frames():
@@ -44,7 +79,7 @@ def test_the_buffer_keeps_the_newest_consecutive_frames():
 def test_a_preview_of_a_still_grey_scene_is_that_grey():
     code = design_code((2, 4)).code
     r = reconstruct_preview([_frame(i) for i in range(3)], code)
-    assert r.video.shape == (8, 48, 64) and r.frame_id == 2 and r.n_frames == 3 and r.stride == 1
+    assert r.video.shape == (8, 48, 64) and r.frame_id == 2 and r.n_frames == 3 and r.whole_frame
     np.testing.assert_allclose(r.video, 0.5, atol=0.02)
 
 
@@ -55,6 +90,7 @@ def capture(qtbot, settings, runner):
     qtbot.addWidget(ws)
     ws.resize(1300, 800)
     ws.code.rate.setValue(60.0)  # K = 16 at 60 Hz: a frame every 16.7 ms
+    ws.live_panel.preview.budget_s = 1e3  # the whole frame, however busy the machine (sizing: tested apart)
     yield ws
     ws.shutdown()
     service.close()
@@ -72,8 +108,10 @@ def test_the_preview_updates_during_live_view_without_costing_frames(qtbot, capt
     qtbot.waitUntil(lambda: ws.live_panel.preview.result is not first, timeout=10_000)  # keeps updating
     assert ws.live_panel.preview_panel.has_image() and ws.live_panel.preview_panel.image.image.shape == (48, 64)
     assert re.match(r"motion-aware preview: frame \d+, sub-frame \d+/16", ws.live_panel.preview_panel.title.text())
-    assert re.match(r"preview: 64×48 \(every pixel\), [123] frames?, \d+\.\d Hz, \d\.\d\d s per run · \d+ of \d+ "
-                    r"camera frames previewed \(newest wins\)", ws.live_panel.preview_label.text())
+    assert re.match(r"preview: 64×48 \(the whole frame\), [123] frames?, \d+\.\d Hz, \d+\.\d\d s per run, "
+                    r"\d+\.\d\d s behind the camera · \d+ of \d+ camera frames previewed \(newest wins\)",
+                    ws.live_panel.preview_label.text())
+    assert not ws.live_panel.region_roi.isVisible()  # the whole frame: no region drawn
     assert ws.live_panel.preview.rate_hz > 0
     assert max(jobs_at_once) <= 1  # one reconstruction at a time, never a queue
     preview = ws.live_panel.preview

@@ -1,0 +1,235 @@
+"""What the live preview reconstructs, and how big a region it takes on (Qt-free).
+
+The Capture workspace previews the newest camera frames reconstructed by motion-aware
+(:mod:`app.gui.capture.live_preview` runs it beside capture). This module holds the parts that
+need no Qt, so that a benchmark and the tests can run them alone:
+
+* :class:`FrameBuffer` — the newest run of consecutive frames (a gap starts a new run).
+* :func:`preview_region` — the part of the frame a run takes on. **Always at full resolution**:
+  when the whole frame would take longer than the budget, a region of it (whole tiles, placed on
+  the tile grid, so the crop is a capture of the same code), centred where the operator put it.
+  Never a subsampled frame: subsampling aliases fine motion and focus away.
+* :class:`PixelCost` — seconds per pixel of the last runs, which sizes the next region. A slow run
+  (a busy machine) shrinks the region; the next quick one grows it back, because the prediction
+  is the measured cost of a pixel, not an extrapolation from a smaller run.
+* :func:`reconstruct_preview` — motion-aware of a region of the newest frames: the newest frame's K
+  sub-frames.
+
+The order in which the preview gives way when the machine cannot keep up is the one the issue
+asks for: first frames are skipped (the newest wins, always), then the region shrinks.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+_logger = logging.getLogger(__name__)
+
+PREVIEW_FRAMES = 3
+"""Camera frames reconstructed together (the newest one is shown)."""
+START_PIXELS = 160 * 120
+"""Pixels of the first run's region (before any run has been timed)."""
+MIN_SIDE = 32
+"""The region is never smaller than this many pixels a side (nor than one tile), nor than the frame."""
+
+
+@dataclass(frozen=True)
+class Region:
+    """Rows ``[y0, y1)`` and columns ``[x0, x1)`` of the frame."""
+
+    y0: int
+    y1: int
+    x0: int
+    x1: int
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(h, w)."""
+        return self.y1 - self.y0, self.x1 - self.x0
+
+    @property
+    def pixels(self) -> int:
+        h, w = self.shape
+        return h * w
+
+    @property
+    def centre(self) -> tuple[float, float]:
+        """(y, x) of its centre."""
+        return (self.y0 + self.y1) / 2, (self.x0 + self.x1) / 2
+
+    def covers(self, shape: tuple[int, int]) -> bool:
+        """True when it is the whole frame of ``shape``."""
+        return (self.y0, self.x0) == (0, 0) and (self.y1, self.x1) == tuple(shape)
+
+    def crop(self, images: np.ndarray) -> np.ndarray:
+        """``images[..., y0:y1, x0:x1]``."""
+        return images[..., self.y0:self.y1, self.x0:self.x1]
+
+
+def preview_region(shape: tuple[int, int], tile: tuple[int, int], max_pixels: float,
+                   centre: tuple[float, float] | None = None) -> Region:
+    """The region of a ``shape`` frame a preview run takes on: the whole frame when it has at most
+    ``max_pixels``, else a region of about that many pixels with the frame's aspect ratio, whole
+    tiles on the tile grid, around ``centre`` (y, x; default the frame's centre) and inside the frame.
+
+    Examples
+    --------
+    >>> preview_region((120, 160), (4, 4), 160 * 120)
+    Region(y0=0, y1=120, x0=0, x1=160)
+    >>> preview_region((480, 640), (4, 4), 160 * 120)
+    Region(y0=180, y1=300, x0=240, x1=400)
+    """
+    H, W = (int(v) for v in shape)
+    m, n = (int(v) for v in tile)
+    if not max_pixels > 0:
+        raise ValueError(f"`max_pixels` must be > 0; got {max_pixels}")
+    if H * W <= max_pixels:
+        return Region(0, H, 0, W)
+    scale = math.sqrt(max_pixels / (H * W))
+    floor_h, floor_w = min(H, max(m, MIN_SIDE)), min(W, max(n, MIN_SIDE))
+    h = min(H, max(floor_h, int(H * scale) // m * m))
+    w = min(W, max(floor_w, int(W * scale) // n * n))
+    cy, cx = (H / 2, W / 2) if centre is None else (float(centre[0]), float(centre[1]))
+    # Corners on the tile grid (multiples of m and n): the crop opens its pixels as the code says.
+    y0 = int(min(max(0, cy - h / 2), H - h)) // m * m
+    x0 = int(min(max(0, cx - w / 2), W - w)) // n * n
+    return Region(y0, min(H, y0 + h), x0, min(W, x0 + w))
+
+
+class PixelCost:
+    """Seconds per reconstructed pixel, the median of the last ``runs`` runs."""
+
+    def __init__(self, runs: int = 3):
+        self._per_pixel: deque[float] = deque(maxlen=runs)
+
+    def add(self, seconds: float, pixels: int) -> None:
+        """Record a run of ``seconds`` over ``pixels``."""
+        if pixels > 0 and seconds > 0:
+            self._per_pixel.append(seconds / pixels)
+
+    def pixels_for(self, budget_s: float, default: float) -> float:
+        """Pixels a run may take on to last about ``budget_s``; ``default`` before any run."""
+        if not self._per_pixel:
+            return default
+        return budget_s / float(np.median(self._per_pixel))
+
+    def clear(self) -> None:
+        self._per_pixel.clear()
+
+
+def normalise(image: np.ndarray) -> np.ndarray:
+    """A camera image in relative units (float32): float frames as they are, counts over the type's range."""
+    img = np.asarray(image)
+    if np.issubdtype(img.dtype, np.integer):
+        return img.astype(np.float32) / float(np.iinfo(img.dtype).max)
+    return img.astype(np.float32, copy=False)
+
+
+class FrameBuffer:
+    """The newest run of consecutive camera frames, at most ``size`` of them (a gap starts a new run)."""
+
+    def __init__(self, size: int = PREVIEW_FRAMES):
+        if size < 1:
+            raise ValueError(f"`size` must be >= 1; got {size}")
+        self._frames: deque = deque(maxlen=size)
+        self.version = 0
+        """Increases with every frame pushed."""
+
+    def push(self, frame) -> None:
+        """Add ``frame`` (a :class:`rig_drivers.interfaces.Frame`); older or repeated ids are ignored."""
+        last = self._frames[-1].frame_id if self._frames else None
+        if last is not None and frame.frame_id <= last:
+            return
+        if last is not None and frame.frame_id != last + 1:
+            self._frames.clear()
+        self._frames.append(frame)
+        self.version += 1
+
+    def clear(self) -> None:
+        """Forget every frame."""
+        self._frames.clear()
+
+    def snapshot(self) -> list:
+        """The frames, oldest first (a copy of the list; the frames themselves are shared, read-only)."""
+        return list(self._frames)
+
+    def __len__(self) -> int:
+        return len(self._frames)
+
+
+@dataclass(frozen=True)
+class PreviewResult:
+    """One preview: the newest frame's sub-frames over a region of the frame, at full resolution.
+
+    Attributes
+    ----------
+    video : ndarray (K, h, w) float32
+    frame_id : int
+        Camera frame shown.
+    n_frames : int
+        Camera frames reconstructed together.
+    region : Region
+        Where ``video`` lies in the frame.
+    frame_shape : (H, W)
+        The camera frame's size.
+    seconds : float
+        Time of the reconstruction.
+    levels : (low, high)
+    """
+
+    video: np.ndarray
+    frame_id: int
+    n_frames: int
+    region: Region
+    frame_shape: tuple[int, int]
+    seconds: float
+    levels: tuple[float, float]
+
+    @property
+    def size(self) -> tuple[int, int]:
+        """(w, h) of the preview."""
+        return int(self.video.shape[2]), int(self.video.shape[1])
+
+    @property
+    def whole_frame(self) -> bool:
+        """True when the preview covers the whole camera frame."""
+        return self.region.covers(self.frame_shape)
+
+
+def reconstruct_preview(frames: list, code, region: Region | None = None) -> PreviewResult:
+    """Motion-aware reconstruction of ``region`` (default: all) of ``frames`` (consecutive Frames):
+    the newest frame's K sub-frames, at full resolution.
+
+    ``code`` is the capture's identity code (m, n, K) or its :class:`~flexvox_core.multiplex.MultiplexedCode`
+    (demultiplexed over the whole frame first, then cropped). A region's corner must lie on the tile
+    grid (:func:`preview_region` places it so): the crop is then a capture of the same code.
+    """
+    from flexvox_core.motion import motion_aware
+    from flexvox_core.reconstruct import prepare
+
+    if not frames:
+        raise ValueError("`frames` must hold at least one frame")
+    t0 = time.perf_counter()
+    stack = np.stack([normalise(f.image) for f in frames])
+    H, W = stack.shape[1:]
+    region = Region(0, H, 0, W) if region is None else region
+    if isinstance(code, np.ndarray):
+        m, n = code.shape[:2]
+        if region.y0 % m or region.x0 % n:
+            raise ValueError(f"a preview region must start on the tile grid ({m}x{n}); got {region}")
+        stack, identity = prepare(region.crop(stack), code)
+    else:
+        stack, identity = prepare(stack, code)  # demultiplex whole tiles, then crop
+        stack = region.crop(stack)
+    K = identity.shape[2]
+    result = motion_aware(np.ascontiguousarray(stack, np.float32), identity)
+    video = np.clip(result.video[-K:], 0.0, 1.0).astype(np.float32, copy=False)
+    hi = float(np.percentile(video, 99.5)) if video.size else 1.0
+    return PreviewResult(video, int(frames[-1].frame_id), len(frames), region, (int(H), int(W)),
+                         time.perf_counter() - t0, (0.0, hi if hi > 0 else 1.0))

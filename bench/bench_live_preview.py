@@ -1,0 +1,150 @@
+"""The live preview at the camera's pace: refresh rate, latency, resolution and CPU share, old against new.
+
+A simulated camera delivers coded frames of the built-in ``balls`` scene (K = 16, 4×4 code) at 15 Hz
+from its own thread; the preview loop takes the newest frames whenever it is free (newest wins),
+reconstructs them with motion-aware, then rests as long as the run took (half a core at most), as the
+Capture workspace's preview does. Two strategies in the same run, each for ``--seconds``:
+
+* ``stride`` — the preview before this change: the frame subsampled with a stride that grows when a
+  run exceeds the 0.6-s budget and shrinks only when the finer run (time ∝ pixels) is predicted under
+  half of it (an aliased picture of the whole field);
+* ``region`` — now: full resolution, the whole frame when the measured cost of a pixel says it fits the
+  budget, else a region of it (``app.capture.live_preview``).
+
+Printed per size and strategy: previews per second, the pixels each preview covers (at which
+sampling), the time from a frame's arrival to its preview being ready (median and 90th percentile),
+and the CPU share (the process's CPU time over the wall time, in cores: the camera thread is nearly
+idle). Capture drops are not measured here: the GUI tests record with the preview on and check that none is dropped.
+
+Figures only, never pass/fail. Usage: ``python bench/bench_live_preview.py [--seconds S] [--sizes 160x120,640x480]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import threading
+import time
+
+import numpy as np
+
+from app.capture.live_preview import PixelCost, preview_region, reconstruct_preview
+from flexvox_core.design import design_code
+from flexvox_core.forward import capture
+from flexvox_core.simulate.scenes import render_scene
+from rig_drivers.interfaces import Frame
+
+RATE_HZ = 15.0
+BUDGET_S = 0.6
+N_FRAMES = 3
+
+
+class Camera(threading.Thread):
+    """Coded frames at RATE_HZ, the newest kept with its arrival time."""
+
+    def __init__(self, frames: np.ndarray):
+        super().__init__(daemon=True)
+        self.frames, self.stop = frames, threading.Event()
+        self.lock, self.recent, self.arrived = threading.Lock(), [], {}
+
+    def run(self) -> None:
+        t0, i = time.monotonic(), 0
+        while not self.stop.is_set():
+            f = Frame(self.frames[i % len(self.frames)], frame_id=i, timestamp_s=i / RATE_HZ)
+            with self.lock:
+                self.recent = (self.recent + [f])[-N_FRAMES:]
+                self.arrived[i] = time.monotonic()
+            i += 1
+            time.sleep(max(0.0, t0 + i / RATE_HZ - time.monotonic()))
+
+    def newest(self):
+        with self.lock:
+            return list(self.recent)
+
+
+def _stride_run(frames, code, tile, stride):
+    """The old preview: a subsampled capture of the same code (stride ≡ 1 mod lcm(m, n))."""
+    from flexvox_core.motion import motion_aware
+
+    t0 = time.perf_counter()
+    stack = np.stack([f.image for f in frames])[:, ::stride, ::stride]
+    motion_aware(np.ascontiguousarray(stack, np.float32), code)
+    return time.perf_counter() - t0, stack.shape[1] * stack.shape[2]
+
+
+def run_strategy(name: str, cam: Camera, code, tile, shape, seconds: float) -> dict:
+    step = math.lcm(*tile)
+    stride, cost = None, PixelCost()
+    rates, latencies, pixels = [], [], []
+    cpu0, t_end = time.process_time(), time.monotonic() + seconds
+    wall0 = time.monotonic()
+    last_id = -1
+    while time.monotonic() < t_end:
+        frames = cam.newest()
+        if not frames or frames[-1].frame_id == last_id:
+            time.sleep(0.005)
+            continue
+        last_id = frames[-1].frame_id
+        if name == "stride":
+            if stride is None:
+                stride = 1
+                while -(-shape[0] // stride) * -(-shape[1] // stride) > 160 * 120:
+                    stride += step
+            secs, px = _stride_run(frames, code, tile, stride)
+            if secs > BUDGET_S:
+                stride += step
+            elif stride > 1:
+                finer = max(1, stride - step)
+                if secs * (stride / finer) ** 2 < BUDGET_S / 2:
+                    stride = finer
+            label = f"every {stride}th pixel" if stride > 1 else "every pixel"
+        else:
+            region = preview_region(shape, tile, cost.pixels_for(BUDGET_S, 160 * 120))
+            r = reconstruct_preview(frames, code, region)
+            secs, px = r.seconds, region.pixels
+            cost.add(secs, px)
+            label = "whole frame" if r.whole_frame else "region, full resolution"
+        done = time.monotonic()
+        latencies.append(done - cam.arrived[last_id])
+        rates.append(done)
+        pixels.append((px, label))
+        time.sleep(secs)  # rest as long as the run took: at most half a core
+    wall = time.monotonic() - wall0
+    cpu = time.process_time() - cpu0
+    hz = (len(rates) - 1) / (rates[-1] - rates[0]) if len(rates) > 1 else 0.0
+    px, label = pixels[-1] if pixels else (0, "-")
+    return {"hz": hz, "lat50": float(np.median(latencies)) if latencies else float("nan"),
+            "lat90": float(np.percentile(latencies, 90)) if latencies else float("nan"),
+            "px": px, "label": label, "cpu": cpu / wall, "runs": len(rates)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seconds", type=float, default=20.0)
+    ap.add_argument("--sizes", default="160x120,640x480")
+    args = ap.parse_args()
+    tile = (4, 4)
+    code = design_code(tile).code
+    print(f"15 Hz camera, K = 16, motion-aware preview of {N_FRAMES} frames, budget {BUDGET_S} s, "
+          f"{args.seconds:g} s per row")
+    print("| size | preview | previews/s | pixels per preview (last) | arrival to ready, median / p90 s "
+          "| CPU | runs |")
+    print("|---|---|---|---|---|---|---|")
+    for size in args.sizes.split(","):
+        w, h = (int(v) for v in size.split("x"))
+        truth = render_scene("balls", 8 * 16, h, w, seed=0)
+        frames = capture(truth, code).astype(np.float32)
+        for name in ("stride", "region"):
+            cam = Camera(frames)
+            cam.start()
+            try:
+                r = run_strategy(name, cam, code, tile, (h, w), args.seconds)
+            finally:
+                cam.stop.set()
+                cam.join()
+            print(f"| {w}x{h} | {name} | {r['hz']:.2f} | {r['px']} ({r['label']}) | {r['lat50']:.2f} / "
+                  f"{r['lat90']:.2f} | {r['cpu']:.2f} cores | {r['runs']} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -4,8 +4,9 @@ The recording's raw frames are a dask array chunked in time (``chunk_frames`` ca
 chunk, read lazily from the Zarr store, each row checked against its checksum);
 :func:`dask.array.map_overlap` gives each chunk the
 method's overlap (:meth:`Method.overlap <flexvox_core.methods.method.Method.overlap>`) of
-context on each side (none beyond the recording's ends). Each chunk is normalised and
-demultiplexed by the reader's :class:`~flexvox_core.capture_reader.Preparation` and
+context on each side (none beyond the recording's ends). Each chunk is normalised (and, for a
+method that does not take multiplexed captures, demultiplexed) by the reader's
+:class:`~flexvox_core.capture_reader.Preparation` for the method and
 reconstructed and trimmed to its own ``chunk_frames · K`` sub-frames by
 :func:`~flexvox_core.methods.runner.run_chunk`, the per-chunk function of the in-memory runner;
 the result is stored chunk by chunk into an OME-Zarr image (NGFF 0.5 on Zarr v3, :mod:`flexvox_core.ngff`:
@@ -123,7 +124,8 @@ def batch_video(rec: Recording, method: Method | None = None, *, chunk_frames: i
                            fancy=False)
     # Methods that scale by the samples' range get the whole recording's in every chunk.
     value_range = reader.sample_range(chunk_frames) if method.spec.needs_sample_range else None
-    kernel = _chunk_kernel(reader.code, K, ov, F, method, reader.preparation, value_range, reader.missing)
+    kernel = _chunk_kernel(reader.code_for(method), K, ov, F, method, reader.preparation_for(method), value_range,
+                           reader.missing)
     out_chunks = (tuple(c * K for c in frames.chunks[0]), (H,), (W,))
     return da.map_overlap(kernel, frames, depth={0: ov, 1: 0, 2: 0}, boundary="none", trim=False,
                           dtype=np.float32, chunks=out_chunks, meta=np.empty((0, 0, 0), np.float32)), ov

@@ -14,7 +14,12 @@ A recording's raw frames become what every reconstruction takes, an identity-cod
    (:func:`flexvox_core.simulate.simulator.normalise_frames`);
 3. **demultiplexing** — an S-matrix recording (attributes ``multiplexed``, ``tile``,
    ``placement_order``) is demultiplexed into the identity capture of its placement
-   (:func:`flexvox_core.reconstruct.prepare`).
+   (:func:`flexvox_core.reconstruct.prepare`), *unless* the method reconstructs multiplexed
+   captures from their own forward model
+   (:meth:`Method.takes_multiplexed <flexvox_core.methods.method.Method.takes_multiplexed>`): then
+   :meth:`CaptureReader.input` hands it the normalised multiplexed frames and the S-matrix code
+   (:meth:`~CaptureReader.code_for`, :meth:`~CaptureReader.preparation_for` for the lazy batch).
+   Per-tile demultiplexing, which assumes the scene constant over a tile, is the fallback.
 
 :class:`CaptureReader` serves the in-memory callers (:meth:`~CaptureReader.read`: the whole
 recording or a window of camera frames ``[start, stop)``) and the lazy chunked batch
@@ -75,6 +80,10 @@ class Preparation:
     def __call__(self, raw) -> np.ndarray:
         """Raw rows ``(n, H, W)`` normalised and demultiplexed: ``(n, H, W)`` float32."""
         return self.demultiplex(self.normalise(raw))
+
+    def without_demultiplexing(self) -> Preparation:
+        """The same normalisation, the multiplexed frames kept as they are."""
+        return Preparation(self.storage)
 
 
 class CaptureReader:
@@ -166,6 +175,9 @@ class CaptureReader:
         ndarray (stop - start, H, W) float32
             Normalised and demultiplexed.
         """
+        return self.preparation.demultiplex(self._normalised(start, stop))
+
+    def _normalised(self, start: int, stop: int | None) -> np.ndarray:
         F = self.n_frames
         stop = F if stop is None else stop
         for name, v in (("start", start), ("stop", stop)):
@@ -174,7 +186,34 @@ class CaptureReader:
         if not 0 <= start <= stop <= F:
             raise ValueError(f"the window [start, stop) must lie in the recording's {F} frames "
                              f"(0 <= start <= stop <= {F}); got [{start}, {stop})")
-        return self.preparation.demultiplex(self.recording.normalised_frames(int(start), int(stop)))
+        return self.recording.normalised_frames(int(start), int(stop))
+
+    @property
+    def multiplexed(self) -> MultiplexedCode | None:
+        """The S-matrix code of a multiplexed recording (None: an identity code)."""
+        return self.preparation.multiplexed
+
+    def takes_raw(self, method) -> bool:
+        """True when ``method`` gets this recording's multiplexed frames as they are (a multiplexed
+        recording and a method that :meth:`~flexvox_core.methods.method.Method.takes_multiplexed`)."""
+        return self.multiplexed is not None and method.takes_multiplexed()
+
+    def code_for(self, method) -> np.ndarray:
+        """The code ``method``'s input is captured with: the S-matrix code (m, n, K) when it
+        :meth:`takes_raw`, else :attr:`code`."""
+        return self.multiplexed.code if self.takes_raw(method) else self.code
+
+    def preparation_for(self, method) -> Preparation:
+        """How raw rows become ``method``'s input (no demultiplexing when it :meth:`takes_raw`)."""
+        return self.preparation.without_demultiplexing() if self.takes_raw(method) else self.preparation
+
+    def input(self, method, start: int = 0, stop: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """``method``'s input for camera frames ``[start, stop)``: ``(frames, code)``.
+
+        The normalised multiplexed frames and the S-matrix code for a method that reconstructs them from
+        their own forward model; otherwise :meth:`read` (demultiplexed per tile) and :attr:`code`.
+        """
+        return self.preparation_for(method).demultiplex(self._normalised(start, stop)), self.code_for(method)
 
     def gaps(self) -> list:
         """The runs of dropped frames (:class:`~flexvox_core.gaps.Gap`), in order."""

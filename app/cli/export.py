@@ -104,7 +104,7 @@ class _Source:
             try:
                 reader = CaptureReader(rec)
                 method = method_from_args(args, rec.attrs["tile"])
-                self.array = reconstruct(reader.read(), reader.code, method, chunk_frames=args.chunk,
+                self.array = reconstruct(*reader.input(method), method, chunk_frames=args.chunk,
                                          missing=reader.missing)
             except ValueError as exc:  # RecordingError and NotReconstructableError are ValueErrors
                 raise CliError(str(exc)) from None

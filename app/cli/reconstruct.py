@@ -72,7 +72,7 @@ def run(args) -> int:
         if args.figures and not set(FIGURE_EXTRAS) <= set(method.spec.extras):
             drawable = " or ".join(s.name for s in specs() if set(FIGURE_EXTRAS) <= set(s.extras))
             raise ValueError(f"--figures goes with --method {drawable} (the methods that return the flow)")
-        frames, code = reader.read(), reader.code
+        frames, code = reader.input(method)
     except (ValueError, RecordingError) as exc:
         raise CliError(str(exc)) from None
     F, H, W = frames.shape

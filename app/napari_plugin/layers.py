@@ -182,7 +182,7 @@ def reconstruction_steps(path, method, *, chunk_frames: int = 16, extras: bool =
 
     cancel = cancel or threading.Event()
     reader = open_capture(path)
-    frames, code = reader.read(), reader.code
+    frames, code = reader.input(method)
     steps: queue.Queue = queue.Queue()
     resume = threading.Semaphore(0)
     box: dict = {}

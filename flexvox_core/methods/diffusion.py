@@ -7,10 +7,12 @@ import re
 
 import numpy as np
 
+from flexvox_core.codes import is_identity_code
 from flexvox_core.gaps import bridge
 from flexvox_core.methods.options import Option, choice, number
 from flexvox_core.methods.spec import MethodOutput, MethodSpec
 from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, SOLVERS, diffuse, sigmas
+from flexvox_core.reconstruct.multiplexed import TIME_FRACTION, gap_gaussian
 
 _LABEL = re.compile(r"^diffusion (?P<solver>\w+) \((?P<tensor>[\d.,]+)\) n=(?P<time>[\d.]+)$")
 
@@ -67,8 +69,15 @@ class Diffusion(MethodSpec):
         return max(1, math.ceil(reach / K))
 
     takes_missing = True
+    takes_multiplexed = True
+
+    def accepts_multiplexed(self, values: dict) -> bool:
+        return values["solver"] == "nc"  # GAP's denoiser is the Gaussian of Eq. 3, nc's one-pass form
 
     def run(self, frames, code, values, *, value_range=None, extras=False, missing=None) -> MethodOutput:
+        if not is_identity_code(code):  # a multiplexed capture: GAP with this tensor's Gaussian as denoiser
+            return MethodOutput(gap_gaussian(frames, code, tensor=values["tensor"],
+                                             time=values["time"] * TIME_FRACTION))
         video = diffuse(frames, code, **self.kwargs(values), missing=missing)
         if missing is not None:
             bridge(video, missing, code.shape[2])

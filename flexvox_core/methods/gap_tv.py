@@ -28,6 +28,8 @@ class GapTv(MethodSpec):
     )
     bench_axis = "iterations"
 
+    takes_multiplexed = True  # GAP-TV takes any 0/1 code
+
     def overlap(self, values: dict, K: int) -> int:
         return 0  # each measurement is reconstructed on its own
 

@@ -103,6 +103,12 @@ class Method:
         (None: it cannot run in chunks)."""
         return self._spec.overlap(dict(self._values), K)
 
+    def takes_multiplexed(self) -> bool:
+        """True when it reconstructs a multiplexed capture from its own forward model with these values
+        (:meth:`MethodSpec.accepts_multiplexed <flexvox_core.methods.spec.MethodSpec.accepts_multiplexed>`);
+        False: a multiplexed recording is demultiplexed per tile for it."""
+        return self._spec.accepts_multiplexed(dict(self._values))
+
     def max_gap(self, K: int) -> int:
         """The longest run of dropped camera frames it bridges for a code of K slots."""
         return self._spec.max_gap(dict(self._values), K)

@@ -10,12 +10,16 @@ from __future__ import annotations
 import math
 import re
 
+import numpy as np
+
+from flexvox_core.codes import is_identity_code
 from flexvox_core.flow import BACKENDS
 from flexvox_core.methods.diffusion import time_option
 from flexvox_core.methods.options import choice, integer, number
 from flexvox_core.methods.spec import MethodOutput, MethodSpec
-from flexvox_core.motion import motion_aware
-from flexvox_core.motion.pipeline import DEFAULT_TIME, SLOW_REACH
+from flexvox_core.motion import motion_aware, resolution_map
+from flexvox_core.motion.multiplexed import TIME_FRACTION, motion_aware_multiplexed
+from flexvox_core.motion.pipeline import DEFAULT_TIME, SLOW_REACH, auto_flow_scale, gated_flow
 
 _LABEL = re.compile(
     r"^motion-aware (?P<flow>\w+) n=(?P<time>[\d.]+)(?: \+refine (?P<refine>[\d.]+))?(?: x(?P<passes>\d+))?$")
@@ -52,10 +56,24 @@ class MotionAware(MethodSpec):
         return 3 if reach is None else max(3, math.ceil(reach) + 2)
 
     takes_missing = True
+    takes_multiplexed = True
 
     def run(self, frames, code, values, *, value_range=None, extras=False, missing=None) -> MethodOutput:
+        if not is_identity_code(code):
+            return self._run_multiplexed(frames, code, values, extras)
         r = motion_aware(frames, code, **self.kwargs(values), value_range=value_range, missing=missing)
         return MethodOutput(r.video, {"flow": r.flow.flow, "tr": r.tr} if extras else {})
+
+    def _run_multiplexed(self, frames, code, values, extras) -> MethodOutput:
+        """GAP with the motion-compensated Gaussian (time n · TIME_FRACTION per iteration); the extras are the
+        gated flow of the result and the TR it implies (refinement and slow reach do not apply)."""
+        video = motion_aware_multiplexed(frames, code, flow=values["flow"], passes=values["passes"],
+                                         time=values["time"] * TIME_FRACTION)
+        if not extras:
+            return MethodOutput(video)
+        K = code.shape[2]
+        flow = gated_flow(np.clip(video, 0, 1), K, backend=values["flow"], scale=auto_flow_scale(*video.shape[1:])).flow
+        return MethodOutput(video, {"flow": flow, "tr": resolution_map(flow, K)[0]})
 
     def kwargs(self, values: dict) -> dict:
         """Keyword arguments of :func:`flexvox_core.motion.motion_aware` (no ``slow_reach`` when

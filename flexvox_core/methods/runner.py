@@ -12,8 +12,12 @@ there: the Review workspace's cancel).
 Dropped camera frames (``missing``) are handled here for every method (:mod:`flexvox_core.gaps`):
 a gap longer than the method bridges is refused before any work; chunks read the longest gap and
 one frame more of context on each side; a method that takes ``missing`` leaves the dropped frames
-out of its samples and fills them itself, and any other gets them interpolated from their
-neighbours and its result's gap sub-frames bridged from both sides. The result says which
+out of its samples and fills them itself, and any other (and every multiplexed capture) gets them
+interpolated from their neighbours and its result's gap sub-frames bridged from both sides.
+
+A multiplexed capture (a non-identity code) goes only to methods that take it
+(:attr:`~flexvox_core.methods.spec.MethodSpec.takes_multiplexed`); the reader demultiplexes per tile
+for the others (:meth:`flexvox_core.capture_reader.CaptureReader.input`). The result says which
 sub-frames were interpolated (:attr:`MethodOutput.interpolated`).
 """
 
@@ -24,6 +28,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from flexvox_core.codes import is_identity_code
 from flexvox_core.gaps import as_missing, bridge, check_reach, context, fill_frames, interpolated_subframes
 from flexvox_core.memory_budget import check_fits, reconstruction_bytes
 from flexvox_core.methods.method import Method
@@ -73,6 +78,18 @@ def sample_range(frames, missing=None) -> tuple[float, float]:
     return float(np.min(f)), float(np.max(f))
 
 
+def check_code_for(code, method: Method) -> bool:
+    """True for a multiplexed (non-identity) ``code``, which ``method`` must take
+    (:meth:`Method.takes_multiplexed <flexvox_core.methods.method.Method.takes_multiplexed>`); ``ValueError``
+    otherwise, saying to demultiplex."""
+    if is_identity_code(code):
+        return False
+    if not method.takes_multiplexed():
+        raise ValueError(f"{method.label()} takes identity-code captures only; demultiplex this multiplexed capture "
+                         "first (flexvox_core.reconstruct.prepare; CaptureReader.input does it for such methods)")
+    return True
+
+
 def run_chunk(frames, code, method: Method, *, left: int = 0, count: int | None = None, value_range=None,
               extras: bool = False, missing=None) -> MethodOutput:
     """Reconstruct one chunk with its context and keep the chunk's own sub-frames.
@@ -81,7 +98,8 @@ def run_chunk(frames, code, method: Method, *, left: int = 0, count: int | None 
     ----------
     frames : ndarray (F, H, W)
         The chunk's camera frames with ``left`` frames of context before them and any after.
-    code : ndarray (m, n, K), identity code
+    code : ndarray (m, n, K), identity code, or a multiplexed one for a method that takes it
+        (:func:`check_code_for`)
     method : Method
     left : int
         Frames of context before the chunk.
@@ -104,9 +122,10 @@ def run_chunk(frames, code, method: Method, *, left: int = 0, count: int | None 
     count = frames.shape[0] - left if count is None else count
     m = as_missing(missing, frames.shape[0])
     spec, values = method.spec, dict(method.values)
+    multiplexed = check_code_for(code, method)
     if m is None:
         out = spec.run(frames, code, values, value_range=value_range, extras=extras)
-    elif spec.takes_missing:
+    elif spec.takes_missing and not multiplexed:
         out = spec.run(frames, code, values, value_range=value_range, extras=extras, missing=m)
     else:
         out = spec.run(fill_frames(frames, m), code, values, value_range=value_range, extras=extras)
@@ -124,9 +143,10 @@ def run(frames, code, method: Method | None = None, *, chunk_frames: int | None 
     Parameters
     ----------
     frames : ndarray (F, H, W)
-    code : ndarray (m, n, K), identity code
+    code : ndarray (m, n, K), identity code, or a multiplexed one (the frames then multiplexed, each value a
+        sum of its open slots) for a method that :meth:`~flexvox_core.methods.method.Method.takes_multiplexed`
     method : Method, optional
-        Default ``Method()`` (diffusion, normalized convolution).
+        Default ``Method()`` (motion-aware).
     chunk_frames : int or None
         Camera frames per chunk (None: all at once). Chunks overlap by the method's
         :meth:`~flexvox_core.methods.method.Method.overlap`, so the result does not depend on it.
@@ -151,6 +171,7 @@ def run(frames, code, method: Method | None = None, *, chunk_frames: int | None 
     if chunk_frames is not None and chunk_frames < 1:
         raise ValueError(f"`chunk_frames` must be >= 1 or None; got {chunk_frames}")
     code = np.asarray(code, dtype=bool)
+    check_code_for(code, method)
     K = code.shape[2]
     F = f.shape[0]
     H, W = f.shape[1:]

@@ -9,8 +9,10 @@ A method is one subclass of :class:`MethodSpec` in its own module of
 - :meth:`~MethodSpec.overlap`: the camera frames of context a time chunk needs on each side
   (None: it cannot run in chunks);
 - its capabilities: :attr:`~MethodSpec.needs_sample_range` (every chunk gets the whole
-  recording's sample range) and :attr:`~MethodSpec.extras` (per-sub-frame arrays it can return
-  beside the video, trimmed to a chunk like the video);
+  recording's sample range), :attr:`~MethodSpec.takes_missing` (dropped frames),
+  :attr:`~MethodSpec.takes_multiplexed` (multiplexed captures from their own forward model)
+  and :attr:`~MethodSpec.extras` (per-sub-frame arrays it can return beside the video, trimmed to a
+  chunk like the video);
 - :meth:`~MethodSpec.label` (a short description; the bench's row key) and its inverse
   :meth:`~MethodSpec.parse_label`, and how near a bench row's knobs are to given values
   (:attr:`~MethodSpec.bench_axis`, :meth:`~MethodSpec.bench_rank`).
@@ -79,6 +81,12 @@ class MethodSpec(ABC):
     """True: :meth:`run` takes ``missing`` (dropped frames) itself, leaves them out of its samples
     and fills their sub-frames from both sides (:mod:`flexvox_core.gaps`). False: the runner gives
     it the dropped frames interpolated from their neighbours and bridges their sub-frames after."""
+    takes_multiplexed: bool = False
+    """True: :meth:`run` also takes a multiplexed capture (the normalised camera frames, each a sum of
+    its open slots, and their 0/1 code) and reconstructs it from that forward model
+    (:mod:`flexvox_core.reconstruct.multiplexed`); see :meth:`accepts_multiplexed`. False: the reader
+    demultiplexes a multiplexed recording per tile for it (the fallback, which assumes the scene constant
+    over a tile). Dropped frames of a multiplexed capture are always interpolated by the runner."""
 
     # ------------------------------------------------------------------ options
     def option(self, name: str) -> Option:
@@ -119,6 +127,10 @@ class MethodSpec(ABC):
     def overlap(self, values: dict, K: int) -> int | None:
         """Camera frames of context a chunk needs on each side (None: cannot run in chunks)."""
 
+    def accepts_multiplexed(self, values: dict) -> bool:
+        """Whether :meth:`run` takes a multiplexed capture with these values (default: :attr:`takes_multiplexed`)."""
+        return self.takes_multiplexed
+
     def max_gap(self, values: dict, K: int) -> int:
         """The longest run of dropped frames it bridges (:func:`flexvox_core.gaps.max_gap`)."""
         return max_gap(self.overlap(values, K))
@@ -126,12 +138,12 @@ class MethodSpec(ABC):
     @abstractmethod
     def run(self, frames: np.ndarray, code: np.ndarray, values: dict, *, value_range=None,
             extras: bool = False, missing=None) -> MethodOutput:
-        """Reconstruct an identity-code capture.
+        """Reconstruct an identity-code capture (or, when :meth:`accepts_multiplexed`, a multiplexed one).
 
         Parameters
         ----------
         frames : ndarray (F, H, W)
-        code : ndarray (m, n, K) bool, identity code
+        code : ndarray (m, n, K) bool, identity code (or any 0/1 code, see :attr:`takes_multiplexed`)
         values : dict
             Every option's value (:meth:`resolve`).
         value_range : (lo, hi) or None

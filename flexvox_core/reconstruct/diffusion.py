@@ -73,7 +73,7 @@ from flexvox_core.reconstruct._common import check_dtype, check_frames, check_id
 
 _logger = logging.getLogger(__name__)
 
-__all__ = ["NC_MIN_WEIGHT", "SOLVERS", "diffuse", "nc_naive", "sigmas", "stability_bound"]
+__all__ = ["NC_MIN_WEIGHT", "SOLVERS", "diffuse", "gaussian", "nc_naive", "sigmas", "stability_bound"]
 
 SOLVERS = ("nc", "explicit", "steady")
 
@@ -208,6 +208,29 @@ def _blur_plane(img: np.ndarray, gy: np.ndarray | None, gx: np.ndarray | None, o
         return
     cv2.sepFilter2D(img, -1, one if gx is None else gx, one if gy is None else gy, dst=out,
                     borderType=cv2.BORDER_REFLECT)
+
+
+def gaussian(volume, tensor, time) -> np.ndarray:
+    """Eq. 3 on a full volume ``(S, H, W)``: the Gaussian of covariance ``2·time·diag(cx, cy, ct)``.
+
+    What :func:`diffuse`'s ``nc`` is when every voxel is sampled (the same separable kernels,
+    truncated at :data:`TRUNCATE` σ, reflecting borders), e.g. the denoiser of
+    :mod:`flexvox_core.reconstruct.multiplexed`. Returns a new array of the input's float dtype
+    (float32 for other numbers); a constant volume comes back unchanged.
+    """
+    v = np.asarray(volume)
+    if v.ndim != 3:
+        raise ValueError(f"`volume` must have shape (S, H, W); got {v.shape}")
+    dt = v.dtype.type if v.dtype in (np.float32, np.float64) else np.float32
+    out = np.array(v, dtype=dt, copy=True)
+    gx, gy, gt = (_kernel(s, dt) for s in sigmas(tensor, time))
+    S, H, W = out.shape
+    if gx is not None or gy is not None:
+        for s in range(S):
+            _blur_plane(out[s], gy, gx, out[s])
+    flat = out.reshape(S, H * W)
+    _blur_rows(flat, gt, flat)
+    return out
 
 
 def _nearest_fill(values: np.ndarray, mask: np.ndarray, where: np.ndarray, sig) -> None:

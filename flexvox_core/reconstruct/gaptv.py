@@ -59,7 +59,7 @@ from flexvox_core.reconstruct._common import check_dtype, check_frames
 
 _logger = logging.getLogger(__name__)
 
-__all__ = ["gap_tv", "gap_tv_masks", "tv_denoise"]
+__all__ = ["gap", "gap_tv", "gap_tv_masks", "tv_denoise"]
 
 TV_STEP = 0.25
 
@@ -157,9 +157,29 @@ def tv_denoise(f, *, weight: float = 0.1, iterations: int = 4, dtype=np.float32)
     return _tv_kernel(planes, w, it).reshape(arr.shape)
 
 
-def _gap_kernel(y: np.ndarray, masks: np.ndarray, iterations: int, weight: float,
-                tv_iterations: int, accelerate: bool) -> np.ndarray:
-    """GAP-TV for measurements ``y`` (F, H, W) and masks (K, H, W); returns (F, K, H, W)."""
+def gap(y: np.ndarray, masks: np.ndarray, denoise, iterations: int, *, accelerate: bool = True,
+        start: np.ndarray | None = None) -> np.ndarray:
+    """Generalized alternating projection with any ``denoise`` (the loop of the module notes).
+
+    Parameters
+    ----------
+    y : ndarray (F, H, W)
+        Measurements, float32 or float64 (the working precision).
+    masks : ndarray (K, H, W)
+        Per-slot masks.
+    denoise : callable
+        ``(F·K, H, W) -> (F·K, H, W)``: the prior (TV here; a Gaussian or a motion-compensated
+        one in :mod:`flexvox_core.reconstruct.multiplexed`).
+    iterations : int
+    accelerate : bool
+        Feed the residual back.
+    start : ndarray (F, K, H, W), optional
+        θ⁽⁰⁾ (default ``Φᵀ R⁻¹ y``).
+
+    Returns
+    -------
+    theta : ndarray (F, K, H, W)
+    """
     dt = y.dtype.type
     phi = masks.astype(y.dtype)[None]  # (1, K, H, W)
     R = phi[0].sum(axis=0)
@@ -167,7 +187,7 @@ def _gap_kernel(y: np.ndarray, masks: np.ndarray, iterations: int, weight: float
     np.divide(dt(1), R, out=r_inv, where=R > 0)
     F = y.shape[0]
     K, H, W = masks.shape
-    theta = phi * (y * r_inv)[:, None]
+    theta = phi * (y * r_inv)[:, None] if start is None else start.astype(y.dtype)
     y_acc = y.copy()
     for _ in range(iterations):
         resid = y - (phi * theta).sum(axis=1)  # y − Φθ
@@ -175,8 +195,14 @@ def _gap_kernel(y: np.ndarray, masks: np.ndarray, iterations: int, weight: float
             y_acc += resid
             resid = y_acc - (y - resid)  # y^(t) − Φθ
         x = theta + phi * (resid * r_inv)[:, None]
-        theta = _tv_kernel(x.reshape(F * K, H, W), weight, tv_iterations).reshape(F, K, H, W)
+        theta = denoise(x.reshape(F * K, H, W)).reshape(F, K, H, W)
     return theta
+
+
+def _gap_kernel(y: np.ndarray, masks: np.ndarray, iterations: int, weight: float,
+                tv_iterations: int, accelerate: bool) -> np.ndarray:
+    """GAP-TV for measurements ``y`` (F, H, W) and masks (K, H, W); returns (F, K, H, W)."""
+    return gap(y, masks, lambda v: _tv_kernel(v, weight, tv_iterations), iterations, accelerate=accelerate)
 
 
 def gap_tv_masks(frames, masks, *, iterations: int = 40, tv_weight: float = 0.3,

@@ -3,9 +3,10 @@
 Holds the raw frames (normalised to relative units, for playback), the identity-code capture
 the reconstructions take (demultiplexed when the recording is multiplexed, by the one reader,
 :class:`flexvox_core.capture_reader.CaptureReader`), its code, and the ground truth of simulated
-recordings. A recording the reader refuses opens for playback, with the reader's reason in
-:attr:`ReviewSession.blocked`. Dropped frames are in :attr:`ReviewSession.missing`: reconstructions
-bridge them (:mod:`flexvox_core.gaps`).
+recordings. A multiplexed recording goes as it was captured to the methods that reconstruct it from
+its own forward model (:meth:`ReviewSession.input`), demultiplexed to the others. A recording the
+reader refuses opens for playback, with the reader's reason in :attr:`ReviewSession.blocked`.
+Dropped frames are in :attr:`ReviewSession.missing`: reconstructions bridge them (:mod:`flexvox_core.gaps`).
 """
 
 from __future__ import annotations
@@ -41,6 +42,8 @@ class ReviewSession:
         Why the recording cannot be reconstructed ("" when it can).
     missing : ndarray (F,) bool or None
         The frames the camera dropped (zero rows), None when none was.
+    multiplexed_code : ndarray (m, n, K) bool or None
+        A multiplexed recording's S-matrix code (``raw`` was captured with it); None for an identity code.
     """
 
     path: Path
@@ -50,6 +53,7 @@ class ReviewSession:
     code: np.ndarray
     blocked: str = ""
     missing: np.ndarray | None = None
+    multiplexed_code: np.ndarray | None = None
 
     @classmethod
     def open(cls, path) -> ReviewSession:
@@ -59,16 +63,24 @@ class ReviewSession:
         raw = rec.normalised_frames()
         if raw.shape[0] == 0:
             raise RecordingError(f"{path}: the recording holds no frames")
-        missing = None
+        missing = mx = None
         try:
             reader = CaptureReader(rec)
             frames, code, blocked, missing = reader.read(), reader.code, "", reader.missing
+            mx = None if reader.multiplexed is None else reader.multiplexed.code
         except NotReconstructableError as exc:
             frames, code, blocked = None, rec.code, str(exc)
         _logger.info("opened %s: %d frames of %dx%d, K=%d", path, *raw.shape, rec.K)
         return cls(path, rec, raw.astype(np.float32, copy=False),
                    None if frames is None else np.asarray(frames, np.float32), np.asarray(code, bool), blocked,
-                   missing)
+                   missing, mx)
+
+    def input(self, method) -> tuple[np.ndarray | None, np.ndarray]:
+        """``method``'s input ``(frames, code)``: the multiplexed frames and their code for a method that
+        :meth:`~flexvox_core.methods.method.Method.takes_multiplexed`, else :attr:`frames` and :attr:`code`."""
+        if self.multiplexed_code is not None and self.frames is not None and method.takes_multiplexed():
+            return self.raw, self.multiplexed_code
+        return self.frames, self.code
 
     @property
     def K(self) -> int:  # noqa: N802 - the paper's name

@@ -337,7 +337,8 @@ class ReviewWorkspace(QWidget):
         gen = self._preview_generation
         a, b = preview_window(s.n_frames, self.subframe // s.K, half_width=1)
         method = self.form.preview_method()
-        frames, code, truth = s.frames[a:b], s.code, s.truth(a, b)
+        frames, code = s.input(method)
+        frames, truth = frames[a:b], s.truth(a, b)
         missing = None if s.missing is None else s.missing[a:b]
 
         def work(token, progress):
@@ -380,7 +381,7 @@ class ReviewWorkspace(QWidget):
             return None
         method = self.form.method()
         chunk = chunk_frames_for(method, s.n_frames, s.K)
-        frames, code, truth, missing = s.frames, s.code, self._truth, s.missing
+        (frames, code), truth, missing = s.input(method), self._truth, s.missing
 
         def work(token, progress):
             return run_reconstruction(frames, code, method, cancel=token, progress=progress, chunk_frames=chunk,
@@ -488,7 +489,7 @@ class ReviewWorkspace(QWidget):
         method = r.method
         full = r if not r.extra.get("preview") else self.full_result_of(method)
         fps = float(self.fps.value())
-        frames, code, truth, missing = s.frames, s.code, self._truth, s.missing
+        (frames, code), truth, missing = s.input(method), self._truth, s.missing
         chunk = chunk_frames_for(method, s.n_frames, s.K)
         source = str(s.path)
         rate = s.recording.attrs.get("rates", {}).get("subframe_hz")

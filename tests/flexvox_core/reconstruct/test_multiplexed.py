@@ -147,3 +147,12 @@ def test_the_reader_hands_multiplexed_frames_to_methods_that_take_them(mux_path)
     np.testing.assert_array_equal(code, reader.code)
     np.testing.assert_array_equal(reader.preparation_for(Method("diffusion"))(reader.raw[0:2]),
                                   rec.normalised_frames(0, 2))
+
+
+def test_batch_equals_the_in_memory_run_on_a_multiplexed_recording(mux_path):
+    from flexvox_core.batch import batch_video
+
+    rec = open_recording(mux_path)
+    m = Method("diffusion")
+    video, _ = batch_video(rec, m, chunk_frames=2)
+    np.testing.assert_array_equal(video.compute(scheduler="synchronous"), reconstruct(*CaptureReader(rec).input(m), m))

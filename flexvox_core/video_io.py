@@ -19,7 +19,8 @@ def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, ov
 
     ``.npy`` and ``.tif`` keep float32 (a TIFF stack with one page per sub-frame, which Fiji
     opens as a stack; with ``time_step`` its ImageJ metadata gives the frame interval in seconds,
-    ``finterval`` and ``tunit``); ``.mp4`` is 8-bit grey at ``fps``; ``.zarr`` is an OME-Zarr image
+    ``finterval`` and ``tunit``, and ``attrs`` its Info); ``.mp4`` is 8-bit grey at ``fps``; ``.zarr`` is an
+    OME-Zarr image
     (NGFF 0.5 on Zarr v3, :mod:`flexvox_core.ngff`): array ``video`` (one sub-frame per chunk, axes
     t, y, x) with ``time_step`` as its t scale, ``pyramid`` levels of 2×2 means (default none) and
     ``attrs`` under ``flexvox``.
@@ -61,7 +62,7 @@ def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, ov
         elif suffix in (".tif", ".tiff"):
             import tifffile
 
-            tifffile.imwrite(tmp, v, imagej=True, metadata=imagej_metadata(time_step))
+            tifffile.imwrite(tmp, v, imagej=True, metadata=imagej_metadata(time_step, attrs))
         elif suffix == ".mp4":
             write_mp4(tmp, v, v.shape[1:], fps)
         else:
@@ -83,11 +84,16 @@ INTERPOLATED = "interpolated"
 """The (S,) bool array of a reconstruction store: sub-frames filled across dropped camera frames."""
 
 
-def imagej_metadata(time_step: float | None) -> dict:
-    """ImageJ metadata of a TYX stack: Fiji shows time in seconds when the frame interval is known."""
+def imagej_metadata(time_step: float | None, attrs: dict | None = None) -> dict:
+    """ImageJ metadata of a TYX stack: Fiji shows time in seconds when the frame interval is known,
+    and ``attrs`` (the method and its options, the source) as the image's Info (Image > Show Info)."""
+    import json
+
     meta = {"axes": "TYX", "unit": "pixel"}
     if time_step is not None:
         meta.update(finterval=float(time_step), tunit="sec")
+    if attrs:
+        meta["Info"] = "flexvox: " + json.dumps(attrs, sort_keys=True, default=str)
     return meta
 
 

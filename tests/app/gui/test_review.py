@@ -170,6 +170,7 @@ def test_export_writes_the_reconstruction(qtbot, opened, tmp_path, suffix):
         with tifffile.TiffFile(path) as tif:  # Fiji shows seconds: one sub-frame period per frame
             rate = opened.session.recording.attrs["rates"]["subframe_hz"]
             assert tif.imagej_metadata["finterval"] == pytest.approx(1 / rate)
+            assert r.method.label() in tif.imagej_metadata["Info"]  # the file names what it holds
     else:
         assert path.stat().st_size > 1000
     assert opened.export(path) is None  # no silent overwrite: refused before any work

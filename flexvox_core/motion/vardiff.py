@@ -22,18 +22,31 @@ from __future__ import annotations
 
 import math
 
-import cv2
 import numpy as np
+from scipy.ndimage import map_coordinates
 
 from flexvox_core.motion.tensors import DEFAULT_C, check_c
 
 
-def _grid(H: int, W: int):
-    return np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))
-
-
-def _sample(img: np.ndarray, gx, gy, dx, dy) -> np.ndarray:
-    return cv2.remap(img, gx + dx, gy + dy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+def _check(init, mask, flow, time, c):
+    c1, c2, c3 = check_c(c)
+    vol = np.array(init, dtype=np.float32)
+    if vol.ndim != 3:
+        raise ValueError(f"`init` must have shape (S, H, W); got {vol.shape}")
+    S, H, W = vol.shape
+    m = np.asarray(mask, dtype=bool)
+    f = np.asarray(flow, dtype=np.float32)
+    if m.shape != vol.shape or f.shape != (S, H, W, 2):
+        raise ValueError(
+            f"`mask` {m.shape} and `flow` {f.shape} must match `init` {vol.shape} (flow with a last axis of 2)"
+        )
+    if not np.isfinite(vol).all():
+        raise ValueError("`init` holds NaN or infinite values")
+    if not math.isfinite(time) or time < 0:
+        raise ValueError(f"`time` must be a finite number >= 0; got {time!r}")
+    dt_max = 1.0 / (2 * (c1 + c2 + c3))
+    steps = math.ceil(time / dt_max)
+    return (c1, c2, c3), vol, m, f, steps, (time / steps if steps else 0.0)
 
 
 def variable_tensor_diffusion(
@@ -63,47 +76,55 @@ def variable_tensor_diffusion(
     Returns
     -------
     ndarray, shape (S, H, W), float32
+
+    Each step is one compiled pass (:func:`~flexvox_core.motion.vardiff_kernel.vardiff_step`);
+    :func:`variable_tensor_diffusion_reference` is the same in plain numpy.
     """
-    c1, c2, c3 = check_c(c)
-    vol = np.array(init, dtype=np.float32)
-    if vol.ndim != 3:
-        raise ValueError(f"`init` must have shape (S, H, W); got {vol.shape}")
+    from flexvox_core.motion.vardiff_kernel import vardiff_step
+
+    (c1, c2, c3), vol, m, f, steps, dt = _check(init, mask, flow, time, c)
+    m = np.ascontiguousarray(m)
+    f = np.ascontiguousarray(f)
+    new = np.empty_like(vol)
+    for _ in range(steps):
+        vardiff_step(vol, new, f, m, bool(keep_samples), c1, c2, c3, dt)
+        vol, new = new, vol
+    return vol
+
+
+def _sample(img: np.ndarray, gy, gx) -> np.ndarray:
+    """Exact bilinear reads at (gy, gx), clamped at the border."""
+    H, W = img.shape
+    return map_coordinates(img.astype(np.float64), [np.clip(gy, 0, H - 1), np.clip(gx, 0, W - 1)], order=1,
+                           mode="nearest")
+
+
+def variable_tensor_diffusion_reference(init, mask, flow, *, c=DEFAULT_C, time: float = 1.0,
+                                        keep_samples: bool = True) -> np.ndarray:
+    """:func:`variable_tensor_diffusion` in plain numpy and scipy, float64 (slow; the tests' reference)."""
+    (c1, c2, c3), vol, m, f, steps, dt = _check(init, mask, flow, time, c)
+    vol = vol.astype(np.float64)
     S, H, W = vol.shape
-    m = np.asarray(mask, dtype=bool)
-    f = np.asarray(flow, dtype=np.float32)
-    if m.shape != vol.shape or f.shape != (S, H, W, 2):
-        raise ValueError(
-            f"`mask` {m.shape} and `flow` {f.shape} must match `init` {vol.shape} (flow with a last axis of 2)"
-        )
-    if not np.isfinite(vol).all():
-        raise ValueError("`init` holds NaN or infinite values")
-    if not math.isfinite(time) or time < 0:
-        raise ValueError(f"`time` must be a finite number >= 0; got {time!r}")
-    if time == 0:
-        return vol
-    f = np.where(np.isfinite(f), f, 0).astype(np.float32)
-    dt_max = 1.0 / (2 * (c1 + c2 + c3))
-    steps = math.ceil(time / dt_max)
-    dt = time / steps
-    gx, gy = _grid(H, W)
+    f = np.where(np.isfinite(f), f, 0).astype(np.float64)
+    gx, gy = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
     speed2 = f[..., 0] ** 2 + f[..., 1] ** 2
-    a = ((c1 - c3) / (1 + speed2)).astype(np.float32)  # weight of each λ neighbour
-    b = np.float32(c2 - c3)
+    a = (c1 - c3) / (1 + speed2)
+    b = c2 - c3
     speed = np.sqrt(speed2)
     moving = speed > 1e-6
-    psx = np.where(moving, f[..., 1] / np.maximum(speed, 1e-6), 0).astype(np.float32)
-    psy = np.where(moving, -f[..., 0] / np.maximum(speed, 1e-6), -1).astype(np.float32)
+    psx = np.where(moving, f[..., 1] / np.maximum(speed, 1e-6), 0)
+    psy = np.where(moving, -f[..., 0] / np.maximum(speed, 1e-6), -1)
     free = ~m if keep_samples else np.ones_like(m)
     new = np.empty_like(vol)
     for _ in range(steps):
         for t in range(S):
             cur = vol[t]
             u, v = f[t, ..., 0], f[t, ..., 1]
-            nxt = _sample(vol[t + 1], gx, gy, u, v) if t + 1 < S else cur
-            prv = _sample(vol[t - 1], gx, gy, -u, -v) if t > 0 else cur
+            nxt = _sample(vol[t + 1], gy + v, gx + u) if t + 1 < S else cur
+            prv = _sample(vol[t - 1], gy - v, gx - u) if t > 0 else cur
             acc = a[t] * (nxt + prv - 2 * cur)
             if b > 0:
-                acc += b * (_sample(cur, gx, gy, psx[t], psy[t]) + _sample(cur, gx, gy, -psx[t], -psy[t]) - 2 * cur)
+                acc += b * (_sample(cur, gy + psy[t], gx + psx[t]) + _sample(cur, gy - psy[t], gx - psx[t]) - 2 * cur)
             if c3 > 0:
                 up = vol[t + 1] if t + 1 < S else cur
                 dn = vol[t - 1] if t > 0 else cur

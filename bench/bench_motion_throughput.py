@@ -7,7 +7,7 @@ PSNR; and, as the baseline timed in the same run, the fixed-tensor normalized co
 The goal of the motion-aware issue is ≥ 5 M voxels/s (≤ 15 s for the clip).
 
 Figures only, never pass/fail. Usage:
-``python bench/bench_motion_throughput.py [SCENES] [--frames F] [--flow-scale S] [--slow-reach R]``
+``python bench/bench_motion_throughput.py [SCENES] [--frames F] [--flow-scale S] [--slow-reach R] [--refine n]``
 (default: balls,drummer; F = 15; S: automatic, a third at 640×480; R: motion_aware's default).
 """
 
@@ -29,6 +29,8 @@ def main() -> None:
     ap.add_argument("scenes", nargs="?", default="balls,drummer")
     ap.add_argument("--frames", type=int, default=15)
     ap.add_argument("--flow-scale", type=float, default=None, help="default: auto (shorter side 160 px)")
+    ap.add_argument("--refine", type=float, default=None,
+                    help="refinement time (default: motion_aware's, K/16; 0: none, as before it was the default)")
     ap.add_argument("--slow-reach", type=float, default=None,
                     help="slow voxels' reach in sampling periods (default: motion_aware's, 0.75; 0: short gather)")
     args = ap.parse_args()
@@ -48,6 +50,8 @@ def main() -> None:
         t_fixed = time.perf_counter() - t0
         t0 = time.perf_counter()
         extra = {} if args.slow_reach is None else {"slow_reach": args.slow_reach}
+        if args.refine is not None:
+            extra["refine_time"] = args.refine
         result = motion_aware(frames, code, flow_scale=args.flow_scale, **extra)
         t_ma = time.perf_counter() - t0
         sec = result.seconds

@@ -228,7 +228,8 @@ def reconstruct_preview(frames: list, code, region: Region | None = None) -> Pre
         stack, identity = prepare(stack, code)  # demultiplex whole tiles, then crop
         stack = region.crop(stack)
     K = identity.shape[2]
-    result = motion_aware(np.ascontiguousarray(stack, np.float32), identity)
+    # Without the refinement: a third less time per run, so a larger region (it adds 0.4-0.7 dB offline).
+    result = motion_aware(np.ascontiguousarray(stack, np.float32), identity, refine_time=0.0)
     video = np.clip(result.video[-K:], 0.0, 1.0).astype(np.float32, copy=False)
     hi = float(np.percentile(video, 99.5)) if video.size else 1.0
     return PreviewResult(video, int(frames[-1].frame_id), len(frames), region, (int(H), int(W)),

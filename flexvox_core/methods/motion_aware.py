@@ -19,7 +19,10 @@ from flexvox_core.methods.options import choice, integer, number
 from flexvox_core.methods.spec import MethodOutput, MethodSpec
 from flexvox_core.motion import motion_aware, resolution_map
 from flexvox_core.motion.multiplexed import TIME_FRACTION, motion_aware_multiplexed
-from flexvox_core.motion.pipeline import DEFAULT_TIME, SLOW_REACH, auto_flow_scale, gated_flow
+from flexvox_core.motion.pipeline import DEFAULT_TIME, REFINE_C, SLOW_REACH, auto_flow_scale, gated_flow
+
+REFINE_SHOWN = 1.0
+"""What forms show for the default refinement time (K/16: 1 at K = 16, the usual code)."""
 
 _LABEL = re.compile(
     r"^motion-aware (?P<flow>\w+) n=(?P<time>[\d.]+)(?: \+refine (?P<refine>[\d.]+))?(?: x(?P<passes>\d+))?$")
@@ -38,8 +41,9 @@ class MotionAware(MethodSpec):
         time_option(DEFAULT_TIME, (0.25, 20.0, 0.5)),
         integer("passes", 1, label="passes", help="flow re-estimated from the previous pass N-1 times",
                 span=(1, 4, 1)),
-        number("refine_time", 0.0, label="refinement time",
-               help="extra monotone variable-tensor diffusion time (0: none)", span=(0.0, 10.0, 0.5)),
+        number("refine_time", None, rule="a number >= 0 or None (K/16)", label="refinement time",
+               help="time of the monotone diffusion along the trajectories after the gather (default K/16: "
+                    "1 at K = 16, 0.5 at K = 8; 0: none)", span=(0.0, 10.0, 0.5), shown_default=REFINE_SHOWN),
         number("slow_reach", None, rule="a number >= 0 (sampling periods) or None", label="slow-drift reach",
                help="how far the slowly moving voxels' gather reaches along their trajectory, in sampling "
                     "periods each way (0: no long gather, faster where the whole picture drifts slowly)",
@@ -53,7 +57,11 @@ class MotionAware(MethodSpec):
         # High-TR nc, the K-average gates, flow smoothing; still voxels: 4 σ = 2 periods; slow voxels:
         # their reach in periods (the default 0.75 fits in 3) and the flow and guide it reads there.
         reach = values["slow_reach"]
-        return 3 if reach is None else max(3, math.ceil(reach) + 2)
+        frames = 3 if reach is None else max(3, math.ceil(reach) + 2)
+        # The refinement's explicit steps reach one sub-frame each (2·Σc steps per unit of time).
+        refine = K / 16 if values["refine_time"] is None else values["refine_time"]
+        steps = math.ceil(refine * 2 * sum(REFINE_C) - 1e-9)
+        return frames + math.ceil(steps / K)
 
     takes_missing = True
     takes_multiplexed = True
@@ -85,7 +93,7 @@ class MotionAware(MethodSpec):
         return kw
 
     def label(self, values: dict) -> str:
-        extra = f" +refine {values['refine_time']:g}" if values["refine_time"] else ""
+        extra = f" +refine {values['refine_time']:g}" if values["refine_time"] is not None else ""
         extra += f" x{values['passes']}" if values["passes"] > 1 else ""
         extra += f" slow-reach {values['slow_reach']:g}" if values["slow_reach"] is not None else ""
         return f"motion-aware {values['flow']} n={values['time']:g}{extra}"
@@ -95,10 +103,13 @@ class MotionAware(MethodSpec):
         if not m:
             return None
         return {"name": self.name, "flow": m["flow"], "time": float(m["time"]),
-                "refine_time": float(m["refine"] or 0), "passes": int(m["passes"] or 1)}
+                "refine_time": None if m["refine"] is None else float(m["refine"]), "passes": int(m["passes"] or 1)}
 
     def bench_rank(self, knobs: dict, values: dict, code) -> tuple[tuple, bool]:
-        same = knobs["passes"] == values["passes"] and (knobs["refine_time"] > 0) == (values["refine_time"] > 0)
+        def refines(r):  # None: the default refinement (K/16)
+            return r is None or r > 0
+
+        same = knobs["passes"] == values["passes"] and refines(knobs["refine_time"]) == refines(values["refine_time"])
         return (not same,), knobs["flow"] == values["flow"]
 
 

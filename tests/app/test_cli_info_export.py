@@ -144,7 +144,7 @@ def test_export_refuses_bad_requests(recording, tmp_path):
 
 def test_batch_cli_equals_reconstruct(recording, tmp_path, capsys):
     assert cli(["batch", str(recording), "-o", str(tmp_path / "b.zarr"), "--chunk", "2"]) == 0
-    assert "on local threads (chunks of 3 frames, overlap 3)" in capsys.readouterr().out
+    assert "on local threads (chunks of 4 frames, overlap 4)" in capsys.readouterr().out  # raised to the overlap
     rec = open_recording(recording)
     expected = reconstruct(rec.normalised_frames(), rec.code, Method(), chunk_frames=None)
     np.testing.assert_allclose(zarr.open_group(str(tmp_path / "b.zarr"))["video"][:], expected, atol=1e-5)

@@ -85,7 +85,7 @@ def test_build_table_takes_psnr_of_the_mean_mse_and_separates_sci(tmp_path):
     ("rebin 2x1x4 interp", {"name": "rebin", "block": "2x1x4", "interpolate": True}),
     ("diffusion nc (0.15,0.15,1) n=0.5", {"name": "diffusion", "solver": "nc", "tensor": [0.15, 0.15, 1.0],
                                           "time": 0.5}),
-    ("motion-aware dis n=4 x2", {"name": "motion-aware", "flow": "dis", "time": 4.0, "refine_time": 0.0,
+    ("motion-aware dis n=4 x2", {"name": "motion-aware", "flow": "dis", "time": 4.0, "refine_time": None,
                                  "passes": 2}),
 ])
 def test_parse_label_reads_method_labels(label, knobs):
@@ -178,7 +178,7 @@ def test_motion_aware_in_chunks_matches_one_run_with_slow_voxels():
 
 def test_chunk_sizes_and_preview_windows():
     assert chunk_frames_for(Method("gap-tv"), 100, 8) == 1
-    assert chunk_frames_for(Method("motion-aware"), 10, 8) == 8
+    assert chunk_frames_for(Method("motion-aware", refine_time=0.0), 10, 8) == 8
     assert chunk_frames_for(Method("diffusion"), 200, 8) == 20
     assert preview_window(10, 0) == (0, 3) and preview_window(10, 9) == (7, 10) and preview_window(10, 5) == (4, 7)
     assert preview_window(2, 1) == (0, 2)
@@ -281,7 +281,7 @@ def test_processed_voxels_count_the_overlap_each_chunk_recomputes():
     from app.gui.models.machine_speed import processed_voxels
     from flexvox_core.methods import Method
 
-    m = Method("motion-aware")  # overlap 3 frames each side
+    m = Method("motion-aware", refine_time=0.0)  # overlap 3 frames each side
     assert processed_voxels(m, 8, 16, 10, 20, chunk_frames=8) == 8 * 16 * 200  # one chunk: nothing recomputed
     # 16 frames in chunks of 8: [0, 11) and [5, 16): 22 frames processed
     assert processed_voxels(m, 16, 16, 10, 20, chunk_frames=8) == 22 * 16 * 200

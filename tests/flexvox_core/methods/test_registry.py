@@ -64,7 +64,7 @@ def test_register_refusals(frame_mean):
     ("rebin", {"block": "2x2x1"}, r"`block` must be a Division .* or None \(the default division\); got '2x2x1'"),
     ("motion-aware", {"flow": "lucas"}, r"`flow` must be one of dis, deepflow, farneback, tvl1; got 'lucas'"),
     ("motion-aware", {"passes": 0}, r"`passes` must be a whole number >= 1; got 0"),
-    ("motion-aware", {"refine_time": -1.0}, r"`refine_time` must be a finite number >= 0; got -1.0"),
+    ("motion-aware", {"refine_time": -1.0}, r"`refine_time` must be a number >= 0 or None \(K/16\); got -1.0"),
     ("diffusion", {"time": 0}, r"`time` must be a positive finite number; got 0"),
 ])
 def test_options_are_checked_naming_the_value_and_the_rule(frame_mean, name, kwargs, match):
@@ -84,7 +84,7 @@ def test_method_values_read_like_a_frozen_record():
     m = Method("motion-aware", time=3.0)
     assert m == Method("motion-aware", time=3.0) and hash(m) == hash(Method("motion-aware", time=3.0))
     assert m != Method("motion-aware") and (m.name, m.time, m.passes, m.slow_reach) == ("motion-aware", 3.0, 1, None)
-    assert m.as_dict() == {"name": "motion-aware", "flow": "dis", "time": 3.0, "passes": 1, "refine_time": 0.0,
+    assert m.as_dict() == {"name": "motion-aware", "flow": "dis", "time": 3.0, "passes": 1, "refine_time": None,
                            "slow_reach": None}
     assert Method("diffusion").time == 1.5 and Method().time == 5.0  # each method's own default
     assert Method() == Method("motion-aware")  # the default method

@@ -86,10 +86,15 @@ def test_bad_arguments(kwargs, match):
 def test_motion_aware_reconstructs_a_still_scene_exactly_away_from_the_ends():
     # Still voxels take their own samples averaged in time: exact for a still scene. (In the first
     # and last frame the motion detector sees a little false motion: 2 % of the voxels here.)
+    # The refinement diffuses along the trajectories only (in time alone where still), so it keeps
+    # that; it spreads the ends' few false-motion errors over a few sub-frames there.
     truth = render_scene("static", 8 * 4, 48, 64)
-    video = motion_aware(capture(truth, CODE), CODE).video
+    frames = capture(truth, CODE)
+    video = motion_aware(frames, CODE).video
     assert np.abs(video - truth)[8:-8].max() < 1e-4
-    assert np.mean(np.abs(video - truth) < 1e-4) > 0.95
+    assert np.abs(video - truth)[:8].mean() < 0.005 and np.mean(np.abs(video - truth) < 1e-2) > 0.97
+    unrefined = motion_aware(frames, CODE, refine_time=0.0).video
+    assert np.mean(np.abs(unrefined - truth) < 1e-4) > 0.95
 
 
 def test_long_reach_pays_on_a_slow_pan():

@@ -51,9 +51,10 @@ def _save_rgb(path: Path, rgb: np.ndarray) -> None:
     cv2.imwrite(str(path), cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGR))
 
 
-def write_figures(out_dir, frames, code, method, *, max_frames: int = 4) -> list[Path]:
+def write_figures(out_dir, frames, code, method, *, max_frames: int = 4, missing=None) -> list[Path]:
     """Reconstruct the first ``max_frames`` camera frames with ``method`` and write PNGs to ``out_dir``.
 
+    ``missing`` (F,) bool: the recording's dropped frames (:mod:`flexvox_core.gaps`).
     ``method`` must return the extras ``flow`` and ``tr`` (motion-aware does). Returns the paths
     written: ``flow_color.png``, ``flow_quiver.png``, ``resolution_map.png``, ``panel.png``.
     """
@@ -66,12 +67,13 @@ def write_figures(out_dir, frames, code, method, *, max_frames: int = 4) -> list
     out.mkdir(parents=True, exist_ok=True)
     f = np.asarray(frames, dtype=np.float32)[:max_frames]
     K = code.shape[2]
-    missing = {"flow", "tr"} - set(method.spec.extras)
-    if missing:
-        raise ValueError(f"{method.label()} returns no {' and '.join(sorted(missing))}; figures need a method "
+    lost = None if missing is None else np.asarray(missing, bool)[:max_frames]
+    absent = {"flow", "tr"} - set(method.spec.extras)
+    if absent:
+        raise ValueError(f"{method.label()} returns no {' and '.join(sorted(absent))}; figures need a method "
                          "that does (motion-aware)")
-    r = run(f, code, method, chunk_frames=None, extras=True)
-    high_tr = diffuse(f, code, tensor=HIGH_TR, time=2.0)  # motion-aware's own step 1
+    r = run(f, code, method, chunk_frames=None, extras=True, missing=lost)
+    high_tr = diffuse(f, code, tensor=HIGH_TR, time=2.0, missing=lost)  # motion-aware's own step 1
     s = min(f.shape[0] * K - 2, f.shape[0] * K // 2 + K // 2)  # a sub-frame in the middle
     flows, tr = r.extras["flow"], r.extras["tr"]
     flow = flows[s]

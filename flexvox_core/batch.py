@@ -34,9 +34,9 @@ import numpy as np
 
 from flexvox_core import ngff
 from flexvox_core.capture_reader import CaptureReader, Preparation
-from flexvox_core.gaps import check_reach, context, interpolated_subframes
+from flexvox_core.gaps import context, interpolated_subframes
 from flexvox_core.methods.method import Method
-from flexvox_core.methods.runner import run_chunk
+from flexvox_core.methods.runner import check_method_reach, run_chunk
 from flexvox_core.output_files import atomic_output, check_output
 from flexvox_core.recording import Recording, RecordingError, open_recording
 from flexvox_core.video_io import INTERPOLATED, VIDEO, provenance
@@ -113,7 +113,7 @@ def batch_video(rec: Recording, method: Method | None = None, *, chunk_frames: i
     ov = method.overlap(K)
     if ov is None:
         raise ValueError(f"{method.label()} is a global solve and cannot run in chunks; choose another solver")
-    check_reach(reader.missing, method.max_gap(K), method.name, K)
+    check_method_reach(reader.missing, method, K)
     # A recording shorter than the context needs none beyond itself (dask refuses a depth above the array).
     ov = min(context(ov, reader.missing), max(0, F - 1))
     if chunk_frames < ov:

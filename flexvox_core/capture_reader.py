@@ -215,6 +215,16 @@ class CaptureReader:
         """
         return self.preparation_for(method).demultiplex(self._normalised(start, stop)), self.code_for(method)
 
+    def run(self, method, *, chunk_frames: int | None = 16, progress=None, extras: bool = False):
+        """Reconstruct the whole recording with ``method``: its :meth:`input` and its dropped frames
+        (:attr:`missing`) through the one runner (:func:`flexvox_core.methods.runner.run`). Every front
+        end that reconstructs a recording in memory calls this, so none forgets the dropped frames."""
+        from flexvox_core.methods import run
+
+        frames, code = self.input(method)
+        return run(frames, code, method, chunk_frames=chunk_frames, progress=progress, extras=extras,
+                   missing=self.missing)
+
     def gaps(self) -> list:
         """The runs of dropped frames (:class:`~flexvox_core.gaps.Gap`), in order."""
         return [] if self.missing is None else find_gaps(self.missing)

@@ -104,14 +104,13 @@ def context(overlap: int | None, missing) -> int | None:
     return overlap + (max(g.frames for g in gaps) + 1 if gaps else 0)
 
 
-def check_reach(missing, reach: int, what: str, K: int | None = None) -> None:
-    """Refuse the first gap longer than ``reach`` frames (:class:`GapTooLongError` naming it)."""
+def check_reach(missing, reach: int, what: str, K: int | None = None, advice: str = "") -> None:
+    """Refuse the first gap longer than ``reach`` frames (:class:`GapTooLongError` naming it and
+    ending with ``advice``)."""
     for g in find_gaps(missing) if missing is not None else []:
         if g.frames > reach:
-            raise GapTooLongError(
-                f"{g.describe(K)} were dropped in a row; {what} bridges gaps of at most {reach} frame(s). "
-                "Reconstruct the parts on either side separately (`--frames`), or use a method with a longer "
-                "reach (motion-aware bridges the most)")
+            raise GapTooLongError(f"{g.describe(K)} were dropped in a row; {what} bridges gaps of at most {reach} "
+                                  f"frame(s){'. ' + advice if advice else ''}")
 
 
 def interpolated_subframes(missing, K: int) -> np.ndarray:

@@ -99,13 +99,11 @@ class _Source:
             self.rate = rec.attrs["rates"]["subframe_hz"]
         else:
             from flexvox_core.capture_reader import CaptureReader
-            from flexvox_core.methods import reconstruct
 
             try:
                 reader = CaptureReader(rec)
                 method = method_from_args(args, rec.attrs["tile"])
-                self.array = reconstruct(*reader.input(method), method, chunk_frames=args.chunk,
-                                         missing=reader.missing)
+                self.array = reader.run(method, chunk_frames=args.chunk).video
             except ValueError as exc:  # RecordingError and NotReconstructableError are ValueErrors
                 raise CliError(str(exc)) from None
             self.dtype = np.dtype(np.float32)

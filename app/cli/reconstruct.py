@@ -11,7 +11,6 @@ from tqdm import tqdm
 from app.cli.errors import EXIT_OK, CliError, arg_type, positive_fps
 from app.cli.method_options import add_method_options, method_from_args
 from flexvox_core.capture_reader import open_capture
-from flexvox_core.methods import run as run_method
 from flexvox_core.methods import specs
 from flexvox_core.output_files import check_output
 from flexvox_core.recording import RecordingError
@@ -72,18 +71,16 @@ def run(args) -> int:
         if args.figures and not set(FIGURE_EXTRAS) <= set(method.spec.extras):
             drawable = " or ".join(s.name for s in specs() if set(FIGURE_EXTRAS) <= set(s.extras))
             raise ValueError(f"--figures goes with --method {drawable} (the methods that return the flow)")
-        frames, code = reader.input(method)
     except (ValueError, RecordingError) as exc:
         raise CliError(str(exc)) from None
-    F, H, W = frames.shape
+    F, (H, W) = reader.n_frames, reader.shape
     t0 = time.perf_counter()
     with tqdm(total=F, unit="frame", desc=method.label(), disable=F <= args.chunk, leave=False) as bar:
         def progress(done, total):
             bar.update(done - bar.n)
         try:
-            out = run_method(frames, code, method, chunk_frames=args.chunk, progress=progress,
-                             missing=reader.missing)
-        except ValueError as exc:
+            out = reader.run(method, chunk_frames=args.chunk, progress=progress)
+        except (ValueError, RecordingError) as exc:
             raise CliError(str(exc)) from None
     video = out.video
     seconds = time.perf_counter() - t0  # the reconstruction itself (reading the ground truth is not)
@@ -114,6 +111,6 @@ def run(args) -> int:
     if args.figures:
         from app.figures import write_figures
 
-        written = write_figures(args.figures, frames, code, method)
+        written = write_figures(args.figures, *reader.input(method), method, missing=reader.missing)
         print(f"wrote {len(written)} figures to {args.figures}")
     return EXIT_OK

@@ -178,11 +178,9 @@ def reconstruction_steps(path, method, *, chunk_frames: int = 16, extras: bool =
         ``cancel`` was set.
     """
     from flexvox_core.capture_reader import open_capture
-    from flexvox_core.methods import run
 
     cancel = cancel or threading.Event()
     reader = open_capture(path)
-    frames, code = reader.input(method)
     steps: queue.Queue = queue.Queue()
     resume = threading.Semaphore(0)
     box: dict = {}
@@ -197,7 +195,7 @@ def reconstruction_steps(path, method, *, chunk_frames: int = 16, extras: bool =
 
     def work() -> None:
         try:
-            box["out"] = run(frames, code, method, chunk_frames=chunk_frames, progress=progress, extras=extras)
+            box["out"] = reader.run(method, chunk_frames=chunk_frames, progress=progress, extras=extras)
         except BaseException as exc:  # noqa: BLE001 - handed to the generator, which raises it
             box["error"] = exc
         finally:
@@ -228,6 +226,8 @@ def result_layers(output, *, method, recording: str, subframe_hz: float, K: int)
     stem = Path(recording).name.removesuffix(".zarr")
     step = (1.0 / float(subframe_hz), 1.0, 1.0)
     meta = {"recording": str(recording), "method": method.as_dict(), "time_step_s": step[0]}
+    if getattr(output, "interpolated", None) is not None:  # sub-frames bridged across dropped frames
+        meta["interpolated_subframes"] = np.flatnonzero(output.interpolated).tolist()
     layers = [(output.video, {"name": f"{stem}: {method.label()}", "scale": step, "contrast_limits": (0.0, 1.0),
                               "colormap": "gray", "metadata": {"flexvox": {"kind": RECONSTRUCTION, **meta}}},
                "image")]

@@ -20,6 +20,7 @@ from flexvox_core.methods.spec import MethodOutput, MethodSpec
 from flexvox_core.motion import motion_aware, resolution_map
 from flexvox_core.motion.multiplexed import TIME_FRACTION, motion_aware_multiplexed
 from flexvox_core.motion.pipeline import DEFAULT_TIME, REFINE_C, SLOW_REACH, auto_flow_scale, gated_flow
+from flexvox_core.motion.vardiff import explicit_steps
 
 REFINE_SHOWN = 1.0
 """What forms show for the default refinement time (K/16: 1 at K = 16, the usual code)."""
@@ -60,7 +61,7 @@ class MotionAware(MethodSpec):
         frames = 3 if reach is None else max(3, math.ceil(reach) + 2)
         # The refinement's explicit steps reach one sub-frame each (2·Σc steps per unit of time).
         refine = K / 16 if values["refine_time"] is None else values["refine_time"]
-        steps = math.ceil(refine * 2 * sum(REFINE_C) - 1e-9)
+        steps = explicit_steps(refine, REFINE_C)
         return frames + math.ceil(steps / K)
 
     takes_missing = True

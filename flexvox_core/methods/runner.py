@@ -69,6 +69,19 @@ def chunk_plan(n_frames: int, chunk_frames: int | None, overlap: int | None) -> 
             for s in range(0, n_frames, chunk_frames)]
 
 
+def check_method_reach(missing, method: Method, K: int) -> None:
+    """Refuse a run of dropped frames longer than ``method`` bridges, naming the registered method
+    whose default options reach furthest when one does reach it (:func:`flexvox_core.gaps.check_reach`)."""
+    from flexvox_core.methods.registry import names
+
+    reach = method.max_gap(K)
+    best, name = max((Method(n).max_gap(K), n) for n in names())
+    advice = (f"At its defaults {name} bridges {best} (a method's reach is twice the context it reads on each "
+              "side; more diffusion or refinement time reaches further)" if best > reach else
+              "No method bridges it at its defaults: reconstruct with longer diffusion or refinement times")
+    check_reach(missing, reach, method.name, K, advice)
+
+
 def sample_range(frames, missing=None) -> tuple[float, float]:
     """Smallest and largest sample of ``frames`` (what :attr:`needs_sample_range` methods take),
     leaving out the ``missing`` (dropped) frames' zero rows."""
@@ -180,7 +193,7 @@ def run(frames, code, method: Method | None = None, *, chunk_frames: int | None 
                "reconstruct it with `flexvox batch`, which writes chunk by chunk (its memory follows --chunk, "
                "not the recording's length)")
     missing = as_missing(missing, F)
-    check_reach(missing, method.max_gap(K), method.name, K)
+    check_method_reach(missing, method, K)
     value_range = sample_range(f, missing) if method.spec.needs_sample_range and F else None
     chunks = chunk_plan(F, chunk_frames, context(method.overlap(K), missing))
     if len(chunks) == 1:

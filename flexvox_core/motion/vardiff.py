@@ -21,11 +21,24 @@ monotone, stable at any anisotropy, and the result stays within the range of the
 from __future__ import annotations
 
 import math
+import threading
 
 import numpy as np
 from scipy.ndimage import map_coordinates
 
 from flexvox_core.motion.tensors import DEFAULT_C, check_c
+
+_KERNEL_LOCK = threading.Lock()
+"""One call of the parallel kernel at a time: numba's fallback threading layer (``workqueue``, where
+neither OpenMP nor TBB is installed) aborts the process when two threads enter a parallel region at
+once (the dask batch, napari's worker and Review's jobs may). Each call uses every core anyway."""
+
+
+def explicit_steps(time: float, c) -> int:
+    """Explicit steps of :func:`variable_tensor_diffusion` for diffusion ``time`` with eigenvalues ``c``:
+    ``ceil(time / dt_max)``, dt_max = 1 / (2 Σc). Each step reaches one sub-frame further in time."""
+    c1, c2, c3 = check_c(c)
+    return math.ceil(time / (1.0 / (2 * (c1 + c2 + c3))))
 
 
 def _check(init, mask, flow, time, c):
@@ -44,8 +57,7 @@ def _check(init, mask, flow, time, c):
         raise ValueError("`init` holds NaN or infinite values")
     if not math.isfinite(time) or time < 0:
         raise ValueError(f"`time` must be a finite number >= 0; got {time!r}")
-    dt_max = 1.0 / (2 * (c1 + c2 + c3))
-    steps = math.ceil(time / dt_max)
+    steps = explicit_steps(time, (c1, c2, c3))
     return (c1, c2, c3), vol, m, f, steps, (time / steps if steps else 0.0)
 
 
@@ -86,9 +98,10 @@ def variable_tensor_diffusion(
     m = np.ascontiguousarray(m)
     f = np.ascontiguousarray(f)
     new = np.empty_like(vol)
-    for _ in range(steps):
-        vardiff_step(vol, new, f, m, bool(keep_samples), c1, c2, c3, dt)
-        vol, new = new, vol
+    with _KERNEL_LOCK:
+        for _ in range(steps):
+            vardiff_step(vol, new, f, m, bool(keep_samples), c1, c2, c3, dt)
+            vol, new = new, vol
     return vol
 
 

@@ -98,6 +98,7 @@ def test_reconstruct_refuses_a_gap_longer_than_the_method_bridges(tmp_path, caps
     assert main(["reconstruct", str(path), "--method", "diffusion", "-o", str(tmp_path / "o.npy")]) == 2
     err = capsys.readouterr().err
     assert "frames 2-6 (5 frames; sub-frames 32-111) were dropped in a row; diffusion bridges gaps of at most 4" in err
+    assert "At its defaults motion-aware bridges 8" in err
     assert not (tmp_path / "o.npy").exists()
     assert main(["reconstruct", str(path), "-o", str(tmp_path / "o.npy")]) == 0  # the default, motion-aware
     assert "interpolated 80 sub-frames" in capsys.readouterr().out

@@ -175,8 +175,8 @@ class LivePreview(QObject):
         pixels = self.cost.pixels_for(self.budget_s, default=self.max_pixels)
         new = preview_region(shape, self.tile, pixels, self.centre)
         old = self.region
-        if old is not None and abs(new.pixels / old.pixels - 1) < HYSTERESIS:
-            return old
+        if old is not None and not new.covers(shape) and abs(new.pixels / old.pixels - 1) < HYSTERESIS:
+            return old  # a region of about the same size: keep it still (the whole frame is always taken)
         if old is not None:
             _logger.info("live preview: region %dx%d -> %dx%d (%.0f pixels fit in %.2f s)",
                          old.shape[1], old.shape[0], new.shape[1], new.shape[0], pixels, self.budget_s)

@@ -162,15 +162,24 @@ def chunk_frames_for(method: Method, n_frames: int, K: int) -> int:
     return max(4, math.ceil(8 * overlap / 3), -(-n_frames // 10))
 
 
-def preview_window(n_frames: int, centre: int, *, half_width: int = 1) -> tuple[int, int]:
+def preview_window(n_frames: int, centre: int, *, half_width: int = 1, missing=None) -> tuple[int, int]:
     """Camera frames ``[start, stop)`` of a small preview window around frame ``centre``.
 
     The window holds ``2 * half_width + 1`` frames where the recording has them (fewer at its ends
-    is not needed: it slides inwards), so a preview costs the same anywhere in the recording.
+    is not needed: it slides inwards), so a preview costs the same anywhere in the recording. With
+    ``missing`` (the dropped frames), an end that lands in a gap is moved out of it to the captured
+    frame beyond, so the preview bridges the gap from both sides as the full reconstruction does.
     """
     if n_frames < 1:
         raise ValueError(f"`n_frames` must be >= 1; got {n_frames}")
     centre = min(max(int(centre), 0), n_frames - 1)
     width = min(n_frames, 2 * half_width + 1)
     start = min(max(0, centre - half_width), n_frames - width)
-    return start, start + width
+    stop = start + width
+    if missing is not None:
+        m = np.asarray(missing, bool)
+        while start > 0 and m[start]:
+            start -= 1
+        while stop < n_frames and m[stop - 1]:
+            stop += 1
+    return start, stop

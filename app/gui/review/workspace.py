@@ -335,7 +335,7 @@ class ReviewWorkspace(QWidget):
             self.preview_job.cancel()
         self._preview_generation += 1
         gen = self._preview_generation
-        a, b = preview_window(s.n_frames, self.subframe // s.K, half_width=1)
+        a, b = preview_window(s.n_frames, self.subframe // s.K, half_width=1, missing=s.missing)
         method = self.form.preview_method()
         frames, code = s.input(method)
         frames, truth = frames[a:b], s.truth(a, b)

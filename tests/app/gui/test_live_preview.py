@@ -51,6 +51,19 @@ def test_the_region_follows_the_measured_cost_of_a_pixel():
     assert cost.pixels_for(0.6, default=1) == pytest.approx(4096)
 
 
+def test_the_whole_frame_comes_back_once_it_fits_again():
+    preview = LivePreview(budget_s=0.6)
+    preview.set_code(design_code((4, 4)).code, (4, 4))
+    preview.region = preview_region((480, 640), (4, 4), 0.85 * 480 * 640)  # a region left by a busy spell
+    preview.cost.add(0.01, 100 * 100)  # quick runs now: millions of pixels fit in the budget
+    assert preview._next_region((480, 640)).covers((480, 640))
+    preview.region = preview_region((480, 640), (4, 4), 100 * 100)
+    preview.cost.clear()
+    preview.cost.add(0.6, 110 * 110)  # about the same size fits: the region stays where it is
+    assert preview._next_region((480, 640)) == preview.region
+    assert preview.shutdown(5000)
+
+
 def test_a_busy_machine_previews_a_region_never_a_subsampled_frame(qtbot):
     preview = LivePreview(rest_fraction=0.0, budget_s=0.6)
     preview.set_code(design_code((2, 4)).code, (2, 4))

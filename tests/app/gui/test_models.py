@@ -182,6 +182,11 @@ def test_chunk_sizes_and_preview_windows():
     assert chunk_frames_for(Method("diffusion"), 200, 8) == 20
     assert preview_window(10, 0) == (0, 3) and preview_window(10, 9) == (7, 10) and preview_window(10, 5) == (4, 7)
     assert preview_window(2, 1) == (0, 2)
+    # An end in a gap of dropped frames moves to the captured frame beyond it: bridged from both sides.
+    gap = np.zeros(10, bool)
+    gap[3:7] = True
+    assert preview_window(10, 5, missing=gap) == (2, 8)
+    assert preview_window(10, 1, missing=gap) == (0, 3) and preview_window(10, 8, missing=gap) == (7, 10)
     with pytest.raises(ValueError, match="`n_frames` must be >= 1"):
         preview_window(0, 0)
 

@@ -114,6 +114,23 @@ def test_closing_the_steps_stops_the_runner(recording):
     assert not any(t.is_alive() for t in before)
 
 
+def test_dropped_frames_are_bridged_not_read_as_black(tmp_path):
+    # The plugin reconstructs through the reader, which hands the runner the recording's dropped frames.
+    from flexvox_core.design import design_code
+    from flexvox_core.recording import write_simulation
+    from flexvox_core.simulate.simulator import simulate_video
+
+    result = simulate_video(np.full((6 * 4, 12, 16), 0.5, np.float32), design_code((2, 2)).code)
+    result.frames[3] = 0
+    result.dropped[3] = True
+    path = write_simulation(tmp_path / "d.zarr", result)
+    method = Method("diffusion")
+    _, out = _drain(fl.reconstruction_steps(str(path), method, chunk_frames=2))
+    np.testing.assert_allclose(out.video, 0.5, atol=1e-5)  # the zero row is no sample: the gap is bridged
+    video = fl.result_layers(out, method=method, recording=str(path), subframe_hz=60.0, K=4)[0]
+    assert video[1]["metadata"]["flexvox"]["interpolated_subframes"] == [12, 13, 14, 15]
+
+
 def test_a_recording_that_cannot_be_reconstructed_says_why(tmp_path):
     with pytest.raises(ValueError, match="missing.zarr"):
         next(fl.reconstruction_steps(str(tmp_path / "missing.zarr"), Method()))

@@ -37,7 +37,7 @@ from numbers import Integral
 import numpy as np
 
 from flexvox_core.codes import code_from_order
-from flexvox_core.gaps import find_gaps
+from flexvox_core.gaps import captured, find_gaps
 from flexvox_core.multiplex import MultiplexedCode, multiplexed_code
 from flexvox_core.recording import Recording, RecordingError, open_recording
 
@@ -239,10 +239,9 @@ class CaptureReader:
         for start in range(0, F, chunk_frames):
             stop = min(F, start + chunk_frames)
             frames = self.preparation(raw[start:stop])
-            if self.missing is not None:
-                frames = frames[~self.missing[start:stop]]
-                if not len(frames):
-                    continue
+            frames = captured(frames, None if self.missing is None else self.missing[start:stop])
+            if not len(frames):
+                continue
             lo, hi = min(lo, float(frames.min())), max(hi, float(frames.max()))
         return lo, hi
 

@@ -81,6 +81,12 @@ def as_missing(missing, n_frames: int) -> np.ndarray | None:
     return m
 
 
+def captured(frames: np.ndarray, missing) -> np.ndarray:
+    """The rows of ``frames`` that were captured (all of them when ``missing`` is None): what a sample
+    range, a clip or a mean is taken over, never a dropped frame's zero row."""
+    return frames if missing is None else frames[~np.asarray(missing, bool)]
+
+
 def find_gaps(missing) -> list[Gap]:
     """The runs of consecutive missing frames, in order."""
     m = np.asarray(missing, bool)

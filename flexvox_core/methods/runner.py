@@ -29,7 +29,15 @@ from typing import NamedTuple
 import numpy as np
 
 from flexvox_core.codes import is_identity_code
-from flexvox_core.gaps import as_missing, bridge, check_reach, context, fill_frames, interpolated_subframes
+from flexvox_core.gaps import (
+    as_missing,
+    bridge,
+    captured,
+    check_reach,
+    context,
+    fill_frames,
+    interpolated_subframes,
+)
 from flexvox_core.memory_budget import check_fits, reconstruction_bytes
 from flexvox_core.methods.method import Method
 from flexvox_core.methods.spec import MethodOutput
@@ -85,9 +93,7 @@ def check_method_reach(missing, method: Method, K: int) -> None:
 def sample_range(frames, missing=None) -> tuple[float, float]:
     """Smallest and largest sample of ``frames`` (what :attr:`needs_sample_range` methods take),
     leaving out the ``missing`` (dropped) frames' zero rows."""
-    f = np.asarray(frames)
-    if missing is not None:
-        f = f[~np.asarray(missing, bool)]
+    f = captured(np.asarray(frames), missing)
     return float(np.min(f)), float(np.max(f))
 
 

@@ -35,7 +35,7 @@ from flexvox_core.flow.backends import backend_params, make_backend
 from flexvox_core.flow.baseline import default_stride, kaverage, kaverage_flow
 from flexvox_core.flow.estimate import check_video, downscale, successive_flow, to_full_size, upsample_flow
 from flexvox_core.forward import sample_mask, sparse_volume
-from flexvox_core.gaps import as_missing, bridge, bridge_flow, interpolated_subframes
+from flexvox_core.gaps import as_missing, bridge, bridge_flow, captured, interpolated_subframes
 from flexvox_core.motion.longreach import long_reach_nc
 from flexvox_core.motion.mcnc import motion_compensated_nc
 from flexvox_core.motion.tensors import DEFAULT_C, check_c, resolution_map
@@ -290,8 +290,8 @@ def motion_aware(
     if isinstance(refine_time, bool) or not np.isfinite(refine_time) or refine_time < 0:
         raise ValueError(f"`refine_time` must be a finite number >= 0; got {refine_time!r}")
     missing = as_missing(missing, f.shape[0])
-    captured = f if missing is None else f[~missing]
-    lo, hi = float(captured.min()), float(captured.max())
+    samples = captured(f, missing)
+    lo, hi = float(samples.min()), float(samples.max())
     if value_range is not None:
         try:
             r_lo, r_hi = (float(v) for v in value_range)

@@ -68,7 +68,7 @@ from scipy.sparse import coo_matrix, diags
 from scipy.sparse.linalg import cg
 
 from flexvox_core.forward import tiled_order
-from flexvox_core.gaps import as_missing
+from flexvox_core.gaps import as_missing, captured
 from flexvox_core.reconstruct._common import check_dtype, check_frames, check_identity_code
 
 _logger = logging.getLogger(__name__)
@@ -293,7 +293,7 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None) -> np
         else:
             np.divide(num[s], d, out=num[s])
     samples = frames.astype(dtype, copy=False)
-    captured = samples if present is None else samples[present]
+    kept = captured(samples, None if present is None else ~present)
     if low is not None:
         _logger.debug("nc: %d voxels without a sample in reach take the nearest sample", int(low.sum()))
         _put_samples(num, samples, order, present)
@@ -301,7 +301,7 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None) -> np
         if present is not None:
             mask &= np.repeat(present, K)[:, None, None]
         _nearest_fill(num, mask, low, sig)
-    np.clip(num, captured.min(), captured.max(), out=num)
+    np.clip(num, kept.min(), kept.max(), out=num)
     if keep_samples:
         _put_samples(num, samples, order, present)
     return num
@@ -548,7 +548,7 @@ def diffuse(
     if present is not None:
         mask &= np.repeat(present, K)[:, None, None]
     if init != "nc":
-        start[~mask] = (samples if present is None else samples[present]).mean(dtype=np.float64)
+        start[~mask] = captured(samples, missing).mean(dtype=np.float64)
     if solver == "explicit":
         return _explicit_kernel(start, mask, tens, t)
     return _steady_kernel(start, mask, tens)

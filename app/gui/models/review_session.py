@@ -42,8 +42,9 @@ class ReviewSession:
         Why the recording cannot be reconstructed ("" when it can).
     missing : ndarray (F,) bool or None
         The frames the camera dropped (zero rows), None when none was.
-    multiplexed_code : ndarray (m, n, K) bool or None
-        A multiplexed recording's S-matrix code (``raw`` was captured with it); None for an identity code.
+    reader : CaptureReader or None
+        The one reader's view of it (None when it refused the recording): which input each method
+        takes is its rule (:meth:`~flexvox_core.capture_reader.CaptureReader.takes_raw`).
     """
 
     path: Path
@@ -53,7 +54,7 @@ class ReviewSession:
     code: np.ndarray
     blocked: str = ""
     missing: np.ndarray | None = None
-    multiplexed_code: np.ndarray | None = None
+    reader: CaptureReader | None = None
 
     @classmethod
     def open(cls, path) -> ReviewSession:
@@ -63,23 +64,22 @@ class ReviewSession:
         raw = rec.normalised_frames()
         if raw.shape[0] == 0:
             raise RecordingError(f"{path}: the recording holds no frames")
-        missing = mx = None
+        missing = reader = None
         try:
             reader = CaptureReader(rec)
             frames, code, blocked, missing = reader.read(), reader.code, "", reader.missing
-            mx = None if reader.multiplexed is None else reader.multiplexed.code
         except NotReconstructableError as exc:
             frames, code, blocked = None, rec.code, str(exc)
         _logger.info("opened %s: %d frames of %dx%d, K=%d", path, *raw.shape, rec.K)
         return cls(path, rec, raw.astype(np.float32, copy=False),
                    None if frames is None else np.asarray(frames, np.float32), np.asarray(code, bool), blocked,
-                   missing, mx)
+                   missing, reader)
 
     def input(self, method) -> tuple[np.ndarray | None, np.ndarray]:
         """``method``'s input ``(frames, code)``: the multiplexed frames and their code for a method that
         :meth:`~flexvox_core.methods.method.Method.takes_multiplexed`, else :attr:`frames` and :attr:`code`."""
-        if self.multiplexed_code is not None and self.frames is not None and method.takes_multiplexed():
-            return self.raw, self.multiplexed_code
+        if self.reader is not None and self.frames is not None and self.reader.takes_raw(method):
+            return self.raw, self.reader.code_for(method)
         return self.frames, self.code
 
     @property

@@ -9,7 +9,9 @@ Capture workspace's preview does. Two strategies in the same run, each for ``--s
   run exceeds the 0.6-s budget and shrinks only when the finer run (time ∝ pixels) is predicted under
   half of it (an aliased picture of the whole field);
 * ``region`` — now: full resolution, the whole frame when the measured cost of a pixel says it fits the
-  budget, else a region of it (``app.capture.live_preview``).
+  budget, else a region of it (``app.capture.live_preview``);
+* ``nc`` — the fast preview the operator may choose instead: constant-tensor ``nc`` over the same
+  regions rule (in practice the whole frame).
 
 Printed per size and strategy: previews per second, the pixels each preview covers (at which
 sampling), the time from a frame's arrival to its preview being ready (median and 90th percentile),
@@ -100,7 +102,7 @@ def run_strategy(name: str, cam: Camera, code, tile, shape, seconds: float) -> d
             label = f"every {stride}th pixel" if stride > 1 else "every pixel"
         else:
             region = preview_region(shape, tile, cost.pixels_for(BUDGET_S, 160 * 120))
-            r = reconstruct_preview(frames, code, region)
+            r = reconstruct_preview(frames, code, region, "nc" if name == "nc" else "motion-aware")
             secs, px = r.seconds, region.pixels
             cost.add(secs, px)
             label = "whole frame" if r.whole_frame else "region, full resolution"
@@ -134,7 +136,7 @@ def main() -> None:
         w, h = (int(v) for v in size.split("x"))
         truth = render_scene("balls", 8 * 16, h, w, seed=0)
         frames = capture(truth, code).astype(np.float32)
-        for name in ("stride", "region"):
+        for name in ("stride", "region", "nc"):
             cam = Camera(frames)
             cam.start()
             try:

@@ -12,8 +12,9 @@ need no Qt, so that a benchmark and the tests can run them alone:
 * :class:`PixelCost` — seconds per pixel of the last runs, which sizes the next region. A slow run
   (a busy machine) shrinks the region; the next quick one grows it back, because the prediction
   is the measured cost of a pixel, not an extrapolation from a smaller run.
-* :func:`reconstruct_preview` — motion-aware of a region of the newest frames: the newest frame's K
-  sub-frames.
+* :func:`reconstruct_preview` — motion-aware (or the fast constant-tensor ``nc``, the preview's
+  fallback: the whole VGA frame in about a tenth of a second) of a region of the newest frames: the
+  newest frame's K sub-frames.
 
 The order in which the preview gives way when the machine cannot keep up is the one the issue
 asks for: first frames are skipped (the newest wins, always), then the region shrinks.
@@ -35,6 +36,10 @@ PREVIEW_FRAMES = 3
 """Camera frames reconstructed together (the newest one is shown)."""
 START_PIXELS = 160 * 120
 """Pixels of the first run's region (before any run has been timed)."""
+PREVIEW_METHODS = ("motion-aware", "nc")
+"""What the preview reconstructs with: motion-aware (a region when the whole frame does not fit), or
+constant-tensor diffusion's normalized convolution (diffusion's default tensor), fast enough for the
+whole frame at a few hertz."""
 MIN_SIDE = 32
 """The region is never smaller than this many pixels a side (nor than one tile), nor than the frame."""
 
@@ -181,6 +186,8 @@ class PreviewResult:
     seconds : float
         Time of the reconstruction.
     levels : (low, high)
+    method : str
+        One of :data:`PREVIEW_METHODS`.
     """
 
     video: np.ndarray
@@ -190,6 +197,7 @@ class PreviewResult:
     frame_shape: tuple[int, int]
     seconds: float
     levels: tuple[float, float]
+    method: str = "motion-aware"
 
     @property
     def size(self) -> tuple[int, int]:
@@ -202,17 +210,20 @@ class PreviewResult:
         return self.region.covers(self.frame_shape)
 
 
-def reconstruct_preview(frames: list, code, region: Region | None = None) -> PreviewResult:
-    """Motion-aware reconstruction of ``region`` (default: all) of ``frames`` (consecutive Frames):
-    the newest frame's K sub-frames, at full resolution.
+def reconstruct_preview(frames: list, code, region: Region | None = None, method: str = "motion-aware"
+                        ) -> PreviewResult:
+    """The reconstruction (``method``: one of :data:`PREVIEW_METHODS`) of ``region`` (default: all) of
+    ``frames`` (consecutive Frames): the newest frame's K sub-frames, at full resolution.
 
     ``code`` is the capture's identity code (m, n, K) or its :class:`~flexvox_core.multiplex.MultiplexedCode`
     (demultiplexed over the whole frame first, then cropped). A region's corner must lie on the tile
     grid (:func:`preview_region` places it so): the crop is then a capture of the same code.
     """
     from flexvox_core.motion import motion_aware
-    from flexvox_core.reconstruct import prepare
+    from flexvox_core.reconstruct import diffuse, prepare
 
+    if method not in PREVIEW_METHODS:
+        raise ValueError(f"`method` must be one of {', '.join(PREVIEW_METHODS)}; got {method!r}")
     if not frames:
         raise ValueError("`frames` must hold at least one frame")
     t0 = time.perf_counter()
@@ -228,9 +239,13 @@ def reconstruct_preview(frames: list, code, region: Region | None = None) -> Pre
         stack, identity = prepare(stack, code)  # demultiplex whole tiles, then crop
         stack = region.crop(stack)
     K = identity.shape[2]
-    # Without the refinement: a third less time per run, so a larger region (it adds 0.4-0.7 dB offline).
-    result = motion_aware(np.ascontiguousarray(stack, np.float32), identity, refine_time=0.0)
-    video = np.clip(result.video[-K:], 0.0, 1.0).astype(np.float32, copy=False)
+    stack = np.ascontiguousarray(stack, np.float32)
+    if method == "nc":
+        full = diffuse(stack, identity)
+    else:
+        # Without the refinement: a sixth less time per run, so a larger region (it adds ~0.4 dB offline).
+        full = motion_aware(stack, identity, refine_time=0.0).video
+    video = np.clip(full[-K:], 0.0, 1.0).astype(np.float32, copy=False)
     hi = float(np.percentile(video, 99.5)) if video.size else 1.0
     return PreviewResult(video, int(frames[-1].frame_id), len(frames), region, (int(H), int(W)),
-                         time.perf_counter() - t0, (0.0, hi if hi > 0 else 1.0))
+                         time.perf_counter() - t0, (0.0, hi if hi > 0 else 1.0), method)

@@ -22,7 +22,7 @@ import html
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import QObject, QRectF, Qt, QTimer
-from PySide6.QtWidgets import QCheckBox, QGroupBox, QLabel, QPushButton, QSplitter, QVBoxLayout, QWidget
+from PySide6.QtWidgets import QCheckBox, QComboBox, QGroupBox, QLabel, QPushButton, QSplitter, QVBoxLayout, QWidget
 
 from app.gui.capture.live_preview import LivePreview
 from app.gui.capture.live_view import LiveStream
@@ -84,14 +84,24 @@ class LivePanel(QObject):
         self.live_button.setCheckable(True)
         self.saturation_check = QCheckBox("show saturated pixels in red")
         self.saturation_check.setChecked(True)
-        self.preview_check = QCheckBox("motion-aware preview of the newest frames")
+        self.preview_check = QCheckBox("preview the newest frames, reconstructed with")
         self.preview_check.setChecked(self.settings.get_bool("capture/preview", True))
+        self.preview_method = QComboBox()
+        for name, text in (("motion-aware", "motion-aware (a region when the frame does not fit)"),
+                           ("nc", "nc (fast: the whole frame)")):
+            self.preview_method.addItem(text, name)
+        self.preview_method.setToolTip("motion-aware shows motion best but takes about a second per run at "
+                                       "640×480, so it previews a region you drag; nc (constant-tensor "
+                                       "diffusion) previews the whole frame several times a second")
+        self.preview_method.setCurrentIndex(max(0, self.preview_method.findData(
+            self.settings.get_str("capture/preview_method", "motion-aware"))))
         self.live_label = QLabel("stopped")
         self.live_label.setWordWrap(True)
         v = QVBoxLayout(live)
         v.addWidget(self.live_button)
         v.addWidget(self.saturation_check)
         v.addWidget(self.preview_check)
+        v.addWidget(self.preview_method)
         v.addWidget(self.live_label)
         self.controls = live
 
@@ -140,6 +150,8 @@ class LivePanel(QObject):
         self.display_timer.timeout.connect(self._redraw)
         self.live_button.toggled.connect(self._on_live_toggled)
         self.preview_check.toggled.connect(self._on_preview_toggled)
+        self.preview_method.currentIndexChanged.connect(self._on_preview_method)
+        self.preview.set_method(self.preview_method.currentData())
 
     # ------------------------------------------------------------------ live view
     @property
@@ -275,6 +287,12 @@ class LivePanel(QObject):
         elif not on:
             self.stop_preview()
 
+    def _on_preview_method(self, _index: int) -> None:
+        method = self.preview_method.currentData()
+        self.settings.set("capture/preview_method", method)
+        self.preview.set_method(method)
+        self.region_roi.setVisible(False)  # the next run places its own region (or takes the whole frame)
+
     def start_preview(self) -> None:
         """Start the motion-aware preview of the plan's code (when its box is ticked)."""
         if not self.preview_check.isChecked():
@@ -290,7 +308,7 @@ class LivePanel(QObject):
         self.preview.start()
         self._preview_index = 0
         self.preview_panel.clear("reconstructing the newest frames …")
-        self.preview_panel.set_title("motion-aware preview: waiting for frames")
+        self.preview_panel.set_title(f"{self.preview.method} preview: waiting for frames")
         self.preview_label.setText(self.preview.text())
 
     def stop_preview(self) -> None:
@@ -335,7 +353,7 @@ class LivePanel(QObject):
         self._preview_index = k + 1
         self.preview_panel.set_image(r.video[k], levels=r.levels)
         where = "" if r.whole_frame else f" · region at ({r.region.x0}, {r.region.y0})"
-        self.preview_panel.set_title(f"motion-aware preview: frame {r.frame_id}, sub-frame {k + 1}/{K}{where}")
+        self.preview_panel.set_title(f"{r.method} preview: frame {r.frame_id}, sub-frame {k + 1}/{K}{where}")
 
     def shutdown(self) -> bool:
         """Stop everything; False when the preview's worker did not stop within 5 s."""

@@ -33,6 +33,7 @@ from PySide6.QtCore import QObject, QThreadPool, QTimer, Signal
 
 from app.capture.live_preview import (
     PREVIEW_FRAMES,
+    PREVIEW_METHODS,
     START_PIXELS,
     FrameBuffer,
     PixelCost,
@@ -94,6 +95,8 @@ class LivePreview(QObject):
         """The region of the last run started."""
         self.centre: tuple[float, float] | None = None
         """Where the operator put the region (y, x); None: the frame's centre."""
+        self.method = PREVIEW_METHODS[0]
+        """What runs reconstruct with (:data:`app.capture.live_preview.PREVIEW_METHODS`)."""
         self.latency_s: float | None = None
         """Seconds from the newest frame's arrival to its preview on screen, for the last preview."""
         self._fed_at: OrderedDict[int, float] = OrderedDict()
@@ -118,6 +121,15 @@ class LivePreview(QObject):
         self.region = None
         self.cost.clear()
         self.buffer.clear()
+
+    def set_method(self, method: str) -> None:
+        """Reconstruct with ``method`` from the next run on (its own cost per pixel sizes the region)."""
+        if method not in PREVIEW_METHODS:
+            raise ValueError(f"`method` must be one of {', '.join(PREVIEW_METHODS)}; got {method!r}")
+        if method != self.method:
+            self.method = method
+            self.cost.clear()
+            self.region = None
 
     def set_centre(self, y: float, x: float) -> None:
         """Put the region's centre at (y, x) of the frame (the next run takes it on)."""
@@ -165,10 +177,10 @@ class LivePreview(QObject):
             return  # nothing new since the last run
         frames = self.buffer.snapshot()
         self.region = self._next_region(frames[-1].image.shape)
-        code, region, version = self.code, self.region, self.buffer.version
+        code, region, version, method = self.code, self.region, self.buffer.version, self.method
         self._done_version = version
         self._job = self.runner.submit("live preview", lambda token, progress: reconstruct_preview(
-            frames, code, region), on_finished=self._on_result, on_failed=self._on_failed)
+            frames, code, region, method), on_finished=self._on_result, on_failed=self._on_failed)
 
     def _next_region(self, shape) -> Region:
         """The whole frame when the measured cost of a pixel says it fits in the budget, else a region."""
@@ -186,7 +198,8 @@ class LivePreview(QObject):
         self.runs += 1
         now = time.monotonic()
         self._finish_times.append(now)
-        self.cost.add(result.seconds, result.region.pixels)
+        if result.method == self.method:  # a run of the method before a switch says nothing of this one's cost
+            self.cost.add(result.seconds, result.region.pixels)
         if not self.enabled:
             return
         fed = self._fed_at.get(result.frame_id)
@@ -224,7 +237,7 @@ class LivePreview(QObject):
         frames = f"{r.n_frames} frame{'s' if r.n_frames != 1 else ''}"
         rate = f"{self.rate_hz:.1f} Hz" if self.runs > 1 else "rate after the next run"  # one run has no rate
         behind = f", {self.latency_s:.2f} s behind the camera" if self.latency_s is not None else ""
-        return (f"preview: {w}×{h} ({where}), {frames}, {rate}, {r.seconds:.2f} s per run{behind} · "
+        return (f"{r.method} preview: {w}×{h} ({where}), {frames}, {rate}, {r.seconds:.2f} s per run{behind} · "
                 f"{self.runs} of {self.offered} camera frames previewed (newest wins)")
 
     def shutdown(self, timeout_ms: int = 5000) -> bool:

@@ -51,6 +51,30 @@ def test_the_region_follows_the_measured_cost_of_a_pixel():
     assert cost.pixels_for(0.6, default=1) == pytest.approx(4096)
 
 
+def test_the_fast_preview_reconstructs_the_whole_frame_with_nc():
+    code = design_code((2, 4)).code
+    r = reconstruct_preview([_frame(i) for i in range(3)], code, method="nc")
+    assert r.method == "nc" and r.whole_frame and r.video.shape == (8, 48, 64)
+    np.testing.assert_allclose(r.video, 0.5, atol=1e-5)
+    with pytest.raises(ValueError, match=r"`method` must be one of motion-aware, nc; got 'gap-tv'"):
+        reconstruct_preview([_frame(0)], code, method="gap-tv")
+
+
+def test_the_preview_method_is_chosen_in_the_panel_and_kept(qtbot, capture):
+    ws = capture
+    panel = ws.live_panel
+    panel.preview_method.setCurrentIndex(panel.preview_method.findData("nc"))
+    assert panel.preview.method == "nc" and ws.settings.get_str("capture/preview_method") == "nc"
+    assert ws.start_live()
+    qtbot.waitUntil(lambda: panel.preview.result is not None, timeout=20_000)
+    assert panel.preview.result.method == "nc" and panel.preview.result.whole_frame
+    assert panel.preview_label.text().startswith("nc preview: 64×48 (the whole frame)")
+    assert panel.preview_panel.title.text().startswith("nc preview: frame")
+    ws.stop_live()
+    with pytest.raises(ValueError, match=r"`method` must be one of motion-aware, nc; got 'rebin'"):
+        panel.preview.set_method("rebin")
+
+
 def test_the_whole_frame_comes_back_once_it_fits_again():
     preview = LivePreview(budget_s=0.6)
     preview.set_code(design_code((4, 4)).code, (4, 4))
@@ -121,7 +145,7 @@ def test_the_preview_updates_during_live_view_without_costing_frames(qtbot, capt
     qtbot.waitUntil(lambda: ws.live_panel.preview.result is not first, timeout=10_000)  # keeps updating
     assert ws.live_panel.preview_panel.has_image() and ws.live_panel.preview_panel.image.image.shape == (48, 64)
     assert re.match(r"motion-aware preview: frame \d+, sub-frame \d+/16", ws.live_panel.preview_panel.title.text())
-    assert re.match(r"preview: 64×48 \(the whole frame\), [123] frames?, \d+\.\d Hz, \d+\.\d\d s per run, "
+    assert re.match(r"motion-aware preview: 64×48 \(the whole frame\), [123] frames?, \d+\.\d Hz, \d+\.\d\d s per run, "
                     r"\d+\.\d\d s behind the camera · \d+ of \d+ camera frames previewed \(newest wins\)",
                     ws.live_panel.preview_label.text())
     assert not ws.live_panel.region_roi.isVisible()  # the whole frame: no region drawn
@@ -131,7 +155,8 @@ def test_the_preview_updates_during_live_view_without_costing_frames(qtbot, capt
     assert preview.offered > preview.runs  # frames arrive faster than previews: the newest wins
     assert ws.live_panel.stats.received >= 20 and ws.live_panel.stats.dropped == 0
     ws.stop_live()
-    assert not ws.live_panel.preview.enabled and ws.live_panel.preview_label.text().startswith("preview (stopped):")
+    assert not ws.live_panel.preview.enabled
+    assert ws.live_panel.preview_label.text().startswith("motion-aware preview (stopped):")
 
 
 def test_a_recording_with_the_preview_on_drops_nothing(qtbot, capture, tmp_path):

@@ -123,7 +123,7 @@ def batch_video(rec: Recording, method: Method | None = None, *, chunk_frames: i
     frames = da.from_array(reader.raw, chunks=(_chunks(F, chunk_frames, ov), H, W), asarray=True, lock=False,
                            fancy=False)
     # Methods that scale by the samples' range get the whole recording's in every chunk.
-    value_range = reader.sample_range(chunk_frames) if method.spec.needs_sample_range else None
+    value_range = reader.sample_range(chunk_frames, method) if method.spec.needs_sample_range else None
     kernel = _chunk_kernel(reader.code_for(method), K, ov, F, method, reader.preparation_for(method), value_range,
                            reader.missing)
     out_chunks = (tuple(c * K for c in frames.chunks[0]), (H,), (W,))

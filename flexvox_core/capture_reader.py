@@ -229,16 +229,18 @@ class CaptureReader:
         """The runs of dropped frames (:class:`~flexvox_core.gaps.Gap`), in order."""
         return [] if self.missing is None else find_gaps(self.missing)
 
-    def sample_range(self, chunk_frames: int = 32) -> tuple[float, float]:
+    def sample_range(self, chunk_frames: int = 32, method=None) -> tuple[float, float]:
         """Smallest and largest sample of the whole input (dropped frames' zero rows left out),
-        read ``chunk_frames`` frames at a time."""
+        read ``chunk_frames`` frames at a time: ``method``'s input (:meth:`input`; the multiplexed
+        frames for a method that takes them), or the demultiplexed capture when None."""
         if isinstance(chunk_frames, bool) or not isinstance(chunk_frames, Integral) or chunk_frames < 1:
             raise ValueError(f"`chunk_frames` must be a whole number >= 1; got {chunk_frames!r}")
         F, raw = self.n_frames, self.raw
+        prep = self.preparation if method is None else self.preparation_for(method)
         lo, hi = np.inf, -np.inf
         for start in range(0, F, chunk_frames):
             stop = min(F, start + chunk_frames)
-            frames = self.preparation(raw[start:stop])
+            frames = prep(raw[start:stop])
             frames = captured(frames, None if self.missing is None else self.missing[start:stop])
             if not len(frames):
                 continue

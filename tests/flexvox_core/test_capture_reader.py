@@ -88,3 +88,17 @@ def test_refusals(counts_path, tmp_path):
         reader.read(1.5, 3)
     with pytest.raises(ValueError, match=r"`chunk_frames` must be a whole number >= 1; got 0"):
         reader.sample_range(0)
+
+
+def test_the_sample_range_is_taken_on_the_input_the_method_gets(mux_path):
+    # A method that reconstructs multiplexed frames from their forward model gets them as captured: the
+    # range it scales by (and the batch hands every chunk) is theirs, not the demultiplexed capture's.
+    from flexvox_core.methods import Method
+
+    reader = open_capture(mux_path)
+    method = Method("diffusion")
+    assert reader.takes_raw(method)
+    frames, _ = reader.input(method)
+    assert reader.sample_range(2, method) == (float(frames.min()), float(frames.max()))
+    demux = reader.read()
+    assert reader.sample_range(2) == (float(demux.min()), float(demux.max()))

@@ -108,6 +108,8 @@ class LivePreview(QObject):
         self.error = ""
         self._job = None
         self._done_version = 0
+        self._generation = 0
+        """Bumped by every change of code, method or start: a run started before says nothing of now."""
         self._finish_times: deque[float] = deque(maxlen=6)
         self._rest = QTimer(self)
         self._rest.setSingleShot(True)
@@ -121,6 +123,7 @@ class LivePreview(QObject):
         self.region = None
         self.cost.clear()
         self.buffer.clear()
+        self._generation += 1
 
     def set_method(self, method: str) -> None:
         """Reconstruct with ``method`` from the next run on (its own cost per pixel sizes the region)."""
@@ -130,6 +133,7 @@ class LivePreview(QObject):
             self.method = method
             self.cost.clear()
             self.region = None
+            self._generation += 1
 
     def set_centre(self, y: float, x: float) -> None:
         """Put the region's centre at (y, x) of the frame (the next run takes it on)."""
@@ -147,6 +151,7 @@ class LivePreview(QObject):
         self._finish_times.clear()
         self.buffer.clear()
         self._done_version = self.buffer.version
+        self._generation += 1
 
     def stop(self) -> None:
         """Stop previewing (a run in progress finishes and is ignored)."""
@@ -179,8 +184,10 @@ class LivePreview(QObject):
         self.region = self._next_region(frames[-1].image.shape)
         code, region, version, method = self.code, self.region, self.buffer.version, self.method
         self._done_version = version
+        generation = self._generation
         self._job = self.runner.submit("live preview", lambda token, progress: reconstruct_preview(
-            frames, code, region, method), on_finished=self._on_result, on_failed=self._on_failed)
+            frames, code, region, method), on_finished=lambda r: self._on_result(r, generation),
+            on_failed=self._on_failed)
 
     def _next_region(self, shape) -> Region:
         """The whole frame when the measured cost of a pixel says it fits in the budget, else a region."""
@@ -194,12 +201,13 @@ class LivePreview(QObject):
                          old.shape[1], old.shape[0], new.shape[1], new.shape[0], pixels, self.budget_s)
         return new
 
-    def _on_result(self, result: PreviewResult) -> None:
+    def _on_result(self, result: PreviewResult, generation: int | None = None) -> None:
+        if generation is not None and generation != self._generation:
+            return  # started before the code, the method or the session changed: neither its cost nor its picture
         self.runs += 1
         now = time.monotonic()
         self._finish_times.append(now)
-        if result.method == self.method:  # a run of the method before a switch says nothing of this one's cost
-            self.cost.add(result.seconds, result.region.pixels)
+        self.cost.add(result.seconds, result.region.pixels)
         if not self.enabled:
             return
         fed = self._fed_at.get(result.frame_id)

@@ -75,6 +75,20 @@ def test_the_preview_method_is_chosen_in_the_panel_and_kept(qtbot, capture):
         panel.preview.set_method("rebin")
 
 
+def test_a_run_started_before_a_change_neither_costs_nor_shows():
+    preview = LivePreview()
+    preview.set_code(design_code((2, 4)).code, (2, 4))
+    preview.start()
+    stale = reconstruct_preview([_frame(0)], design_code((2, 4)).code)
+    before = preview._generation
+    preview.set_method("nc")  # the operator switched while a motion-aware run was going
+    preview._on_result(stale, before)
+    assert preview.result is None and preview.runs == 0 and preview.cost.pixels_for(0.6, default=-1) == -1
+    preview._on_result(stale, preview._generation)  # a run of the current generation counts
+    assert preview.result is stale and preview.runs == 1
+    assert preview.shutdown(5000)
+
+
 def test_the_whole_frame_comes_back_once_it_fits_again():
     preview = LivePreview(budget_s=0.6)
     preview.set_code(design_code((4, 4)).code, (4, 4))

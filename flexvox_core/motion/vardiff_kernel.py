@@ -25,8 +25,8 @@ def _clamped_bilinear(plane, y, x):
     H, W = plane.shape
     y = min(max(y, 0.0), H - 1.0)
     x = min(max(x, 0.0), W - 1.0)
-    y0 = int(math.floor(y))
-    x0 = int(math.floor(x))
+    y0 = int(y)  # y, x >= 0 here: truncation is the floor
+    x0 = int(x)
     y1 = min(y0 + 1, H - 1)
     x1 = min(x0 + 1, W - 1)
     ay = y - y0

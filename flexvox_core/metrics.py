@@ -30,6 +30,8 @@ from typing import NamedTuple
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
+from flexvox_core.numbers import positive_number
+
 _logger = logging.getLogger(__name__)
 
 __all__ = ["FrameScores", "psnr", "ssim"]
@@ -70,12 +72,7 @@ def _check_pair(ref, x, data_range, *, convert: bool = True, check_finite: bool 
             raise ValueError(f"`{name}` must hold numbers; got dtype {a.dtype}")
         if check_finite:
             _check_finite(name, a)
-    try:
-        L = float(data_range)
-    except (TypeError, ValueError):
-        raise ValueError(f"`data_range` must be a positive number; got {data_range!r}") from None
-    if not (np.isfinite(L) and L > 0):
-        raise ValueError(f"`data_range` must be a positive finite number; got {data_range!r}")
+    L = positive_number("`data_range`", data_range)
     if not convert:
         return r, v, L
     return r.astype(np.float64), v.astype(np.float64), L

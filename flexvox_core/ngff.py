@@ -27,6 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
+from flexvox_core.numbers import positive_number
+
 NGFF_VERSION = "0.5"
 AXES = ("t", "y", "x")
 """The axes of every image flexvox writes, in array order (its Zarr ``dimension_names``)."""
@@ -36,13 +38,7 @@ def check_time_step(time_step) -> float | None:
     """A time step in seconds: a finite number above 0, or None (unknown: the t axis then has no unit)."""
     if time_step is None:
         return None
-    try:
-        value = float(time_step)
-    except (TypeError, ValueError):
-        raise ValueError(f"the time step must be a number of seconds above 0; got {time_step!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise ValueError(f"the time step must be a number of seconds above 0; got {time_step!r}")
-    return value
+    return positive_number("the time step", time_step, unit="seconds")
 
 
 def max_levels(shape) -> int:

@@ -69,6 +69,7 @@ from scipy.sparse.linalg import cg
 
 from flexvox_core.forward import tiled_order
 from flexvox_core.gaps import as_missing, captured
+from flexvox_core.numbers import positive_number
 from flexvox_core.reconstruct._common import check_dtype, check_frames, check_identity_code
 from flexvox_core.threads import for_each
 
@@ -112,13 +113,7 @@ def _check_tensor(tensor) -> tuple[float, float, float]:
 
 
 def _check_time(time) -> float:
-    try:
-        t = float(time)
-    except (TypeError, ValueError):
-        raise ValueError(f"`time` must be a positive number; got {time!r}") from None
-    if not (math.isfinite(t) and t > 0):
-        raise ValueError(f"`time` must be a positive finite number; got {time!r}")
-    return t
+    return positive_number("`time`", time)
 
 
 def sigmas(tensor, time) -> tuple[float, float, float]:

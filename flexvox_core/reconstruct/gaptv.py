@@ -49,12 +49,12 @@ J. Math. Imaging Vis. 20, 2004.
 from __future__ import annotations
 
 import logging
-import math
 
 import numpy as np
 
 from flexvox_core.codes import validate_code
 from flexvox_core.forward import tiled_code
+from flexvox_core.numbers import positive_number
 from flexvox_core.reconstruct._common import check_dtype, check_frames
 
 _logger = logging.getLogger(__name__)
@@ -71,13 +71,7 @@ def _check_pos_int(name: str, value, minimum: int) -> int:
 
 
 def _check_weight(value) -> float:
-    try:
-        w = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"`tv_weight` must be a positive number; got {value!r}") from None
-    if not (math.isfinite(w) and w > 0):
-        raise ValueError(f"`tv_weight` must be a positive finite number; got {value!r}")
-    return w
+    return positive_number("`tv_weight`", value)
 
 
 def _tv_kernel(f: np.ndarray, weight: float, iterations: int) -> np.ndarray:

@@ -75,3 +75,12 @@ def test_psnr_of_float32_volumes_is_the_float64_figure(rng):
     x = (ref + rng.normal(0, 0.05, ref.shape)).astype(np.float32)
     expected = 10 * np.log10(1 / np.mean((ref.astype(np.float64) - x.astype(np.float64)) ** 2, axis=(1, 2)))
     np.testing.assert_allclose(psnr(ref, x).per_frame, expected, rtol=1e-12)
+
+
+@pytest.mark.parametrize("value", [0, -1.0, float("nan"), float("inf"), "two", None])
+def test_one_check_for_positive_numbers(value):
+    from flexvox_core.numbers import positive_number
+
+    with pytest.raises(ValueError, match=r"^`data_range` must be a positive finite number; got "):
+        positive_number("`data_range`", value)
+    assert positive_number("x", "2.5") == 2.5

@@ -73,8 +73,8 @@ def test_a_pyramid_is_valid_and_each_level_is_the_2x2_mean(tmp_path, rng):
 @pytest.mark.parametrize("kwargs, match", [
     ({"pyramid": 4}, r"pyramid levels must be a whole number from 0 to 3 \(each level halves the 9x13 image"),
     ({"pyramid": -1}, r"from 0 to 3 .*got -1"),
-    ({"time_step": 0.0}, r"time step must be a number of seconds above 0; got 0.0"),
-    ({"time_step": float("nan")}, r"time step must be a number of seconds above 0; got nan"),
+    ({"time_step": 0.0}, r"the time step must be a positive finite number of seconds; got 0.0"),
+    ({"time_step": float("nan")}, r"the time step must be a positive finite number of seconds; got nan"),
 ])
 def test_bad_pyramid_or_time_step_is_refused_before_writing(tmp_path, kwargs, match):
     with pytest.raises(ValueError, match=match):

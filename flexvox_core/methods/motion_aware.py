@@ -44,7 +44,7 @@ class MotionAware(MethodSpec):
                 span=(1, 4, 1)),
         number("refine_time", None, rule="a number >= 0 or None (K/16)", label="refinement time",
                help="time of the monotone diffusion along the trajectories after the gather (default K/16: "
-                    "1 at K = 16, 0.5 at K = 8; 0: none)", span=(0.0, 10.0, 0.5), shown_default=REFINE_SHOWN),
+                    "1 at K = 16, 0.5 at K = 8; 0 for none)", span=(0.0, 10.0, 0.5), shown_default=REFINE_SHOWN),
         number("slow_reach", None, rule="a number >= 0 (sampling periods) or None", label="slow-drift reach",
                help="how far the slowly moving voxels' gather reaches along their trajectory, in sampling "
                     "periods each way (0: no long gather, faster where the whole picture drifts slowly)",

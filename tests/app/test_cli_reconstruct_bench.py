@@ -189,3 +189,11 @@ def test_a_registered_method_is_on_the_command_line_with_its_options(recording, 
     with pytest.raises(SystemExit):  # gone with its registration
         main(["reconstruct", str(recording), "--radius", "2", "-o", str(tmp_path / "u.npy")])
     assert "unrecognized arguments: --radius 2" in capsys.readouterr().err
+
+
+def test_the_refinement_help_says_its_default_in_words(capsys):
+    with pytest.raises(SystemExit):
+        main(["reconstruct", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "(default K/16: 1 at K = 16, 0.5 at K = 8; 0 for none)" in text
+    assert "0 for none) (default" not in text  # not a second, K-blind default after it

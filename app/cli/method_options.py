@@ -8,21 +8,11 @@ chosen method has no option for is refused, naming the methods it goes with.
 
 from __future__ import annotations
 
-import re
-
 from app.cli.errors import arg_type
+from flexvox_core.methods.options import parse_triple
 
-_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 _FLAG_NAMES = {"refine_time": "--refine"}
 """Flags whose name is not the option's (``--refine`` is older than ``refine_time``)."""
-
-
-def parse_triple(text: str, what: str = "tensor"):
-    """Three numbers written ``a,b,c`` (or ``axbxc``), for ``--tensor`` and the like."""
-    parts = [p.strip() for p in re.split(r"[,xX]", text) if p.strip()]
-    if len(parts) == 3 and all(_NUMBER.fullmatch(p) for p in parts):
-        return tuple(float(p) for p in parts)
-    raise ValueError(f"--{what} must be three numbers separated by commas; got {text!r}")
 
 
 def _options():

@@ -95,8 +95,8 @@ class OptionsForm(QWidget):
         ValueError
             A field whose text is not what its option's kind needs, naming the option and the rule.
         """
-        from app.cli.method_options import parse_triple
         from flexvox_core.divisions import parse_division
+        from flexvox_core.methods.options import parse_triple
 
         out = {}
         for o in self.spec.options:

@@ -19,6 +19,7 @@ kind           values                                           offered as
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from numbers import Integral, Real
@@ -113,3 +114,15 @@ def choice(name: str, default: str, choices, *, label: str = "", help: str = "")
 def flag(name: str, default: bool, *, label: str = "", help: str = "") -> Option:
     """True or False."""
     return Option(name, default, "True or False", lambda v: isinstance(v, bool), "flag", label, help)
+
+
+_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+
+
+def parse_triple(text: str, what: str = "tensor"):
+    """Three numbers written ``a,b,c`` (or ``axbxc``): how a ``triple`` option is typed, on the command
+    line (``--tensor``) and in a form's text box (the napari plugin's)."""
+    parts = [p.strip() for p in re.split(r"[,xX]", text) if p.strip()]
+    if len(parts) == 3 and all(_NUMBER.fullmatch(p) for p in parts):
+        return tuple(float(p) for p in parts)
+    raise ValueError(f"--{what} must be three numbers separated by commas; got {text!r}")

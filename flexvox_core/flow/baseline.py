@@ -69,10 +69,12 @@ def kaverage(video: np.ndarray, K: int) -> np.ndarray:
     return uniform_filter1d(video, K, axis=0, mode="nearest") if K > 1 else video
 
 
-def kaverage_flow(small: np.ndarray, K: int, flow_fn, stride: int, *, average: np.ndarray | None = None):
+def kaverage_flow(small: np.ndarray, K: int, flow_fn, stride: int, *, average: np.ndarray | None = None,
+                  memo=None):
     """Velocity ``(S, h, w, 2)`` of the :func:`~flexvox_core.flow.estimate.downscale` d video
     ``small``, in its pixels, and the baseline used (sub-frames). ``average``: its
-    :func:`kaverage`, when the caller has it already."""
+    :func:`kaverage`, when the caller has it already; ``memo``: as
+    :func:`~flexvox_core.flow.estimate.run_pairs`."""
     S, h, w = small.shape
     span = max(1, min(K, S - 1))
     average = kaverage(small, K) if average is None else average
@@ -82,7 +84,7 @@ def kaverage_flow(small: np.ndarray, K: int, flow_fn, stride: int, *, average: n
     u8 = to_uint8(average)
     disp = np.empty((len(starts), h, w, 2), np.float32)
     conf = np.ones((len(starts), h, w), np.float32)
-    run_pairs(flow_fn, u8, [(a, a + span) for a in starts], disp, conf, consistency=False)
+    run_pairs(flow_fn, u8, [(a, a + span) for a in starts], disp, conf, consistency=False, memo=memo)
     disp /= span
     centres = np.asarray(starts, np.float64) + span / 2
     vel = np.empty((S, h, w, 2), np.float32)

@@ -122,10 +122,14 @@ def downscale(v: np.ndarray, scale: float) -> np.ndarray:
     return out
 
 
-def run_pairs(flow_fn, u8: np.ndarray, pairs, out: np.ndarray, conf: np.ndarray, *, consistency: bool) -> None:
+def run_pairs(flow_fn, u8: np.ndarray, pairs, out: np.ndarray, conf: np.ndarray, *, consistency: bool,
+              memo=None) -> None:
     """Flow ``u8[a] → u8[b]`` for each (a, b) in ``pairs`` into ``out[i]`` (confidence into ``conf[i]``),
-    the pairs spread over the cores (OpenCV releases the GIL; each pair writes its own slice)."""
+    the pairs spread over the cores (OpenCV releases the GIL; each pair writes its own slice).
+    ``memo`` (a :class:`~flexvox_core.flow.memo.FlowMemo`): pairs found there are not computed again,
+    and the new ones are stored."""
     _, h, w = u8.shape
+    tag = repr(sorted(backend_params(flow_fn).items())) if memo is not None else ""
     pad_y, pad_x = max(0, MIN_FLOW_SIDE - h), max(0, MIN_FLOW_SIDE - w)
 
     def pair(a, b):  # backends need a minimum size (DIS: 12 px): mirror-pad small images
@@ -136,11 +140,18 @@ def run_pairs(flow_fn, u8: np.ndarray, pairs, out: np.ndarray, conf: np.ndarray,
 
     def one(i):
         a, b = pairs[i]
+        key = memo.key(tag, u8[a], u8[b], consistency) if memo is not None else None
+        found = memo.get(key) if key is not None else None
+        if found is not None:
+            out[i], conf[i] = found
+            return
         f_ab, c = pair(u8[a], u8[b])
         if consistency:
             bwd, cb = pair(u8[b], u8[a])
             c = c * consistency_confidence(f_ab, bwd) * np.minimum(cb, 1)
         out[i], conf[i] = f_ab, c
+        if key is not None:
+            memo.put(key, out[i], conf[i])
 
     for_each(one, len(pairs))
 
@@ -174,15 +185,16 @@ def check_video(video) -> np.ndarray:
     return v
 
 
-def successive_flow(small: np.ndarray, flow_fn, *, consistency: bool, temporal_window: int):
+def successive_flow(small: np.ndarray, flow_fn, *, consistency: bool, temporal_window: int, memo=None):
     """Velocity ``(S, h, w, 2)`` and confidence ``(S, h, w)`` of the :func:`downscale` d video
     ``small``, in its pixels: flow between successive sub-frames, averaged over
-    ``temporal_window`` by confidence."""
+    ``temporal_window`` by confidence. ``memo``: as :func:`run_pairs`."""
     S, h, w = small.shape
     u8 = to_uint8(small)
     fwd = np.empty((S - 1, h, w, 2), np.float32)
     conf = np.ones((S - 1, h, w), np.float32)
-    run_pairs(flow_fn, u8, list(zip(range(S - 1), range(1, S), strict=True)), fwd, conf, consistency=consistency)
+    run_pairs(flow_fn, u8, list(zip(range(S - 1), range(1, S), strict=True)), fwd, conf, consistency=consistency,
+              memo=memo)
     # Velocity at sub-frame s: confidence-weighted mean of forward flows s-w .. s+w (clamped to
     # the pairs; the last sub-frame takes the last pair's), one shifted slice per offset.
     wts = conf + np.float32(1e-3)

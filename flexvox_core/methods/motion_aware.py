@@ -7,7 +7,6 @@ temporal resolution it chose per voxel (extras ``flow`` and ``tr``).
 
 from __future__ import annotations
 
-import math
 import re
 
 import numpy as np
@@ -19,8 +18,7 @@ from flexvox_core.methods.options import choice, integer, number
 from flexvox_core.methods.spec import MethodOutput, MethodSpec
 from flexvox_core.motion import motion_aware, resolution_map
 from flexvox_core.motion.multiplexed import TIME_FRACTION, motion_aware_multiplexed
-from flexvox_core.motion.pipeline import DEFAULT_TIME, REFINE_C, SLOW_REACH, auto_flow_scale, gated_flow
-from flexvox_core.motion.vardiff import explicit_steps
+from flexvox_core.motion.pipeline import DEFAULT_TIME, SLOW_REACH, MotionOptions, auto_flow_scale, gated_flow
 
 REFINE_SHOWN = 1.0
 """What forms show for the default refinement time (K/16: 1 at K = 16, the usual code)."""
@@ -55,14 +53,7 @@ class MotionAware(MethodSpec):
     bench_axis = "time"
 
     def overlap(self, values: dict, K: int) -> int:
-        # High-TR nc, the K-average gates, flow smoothing; still voxels: 4 σ = 2 periods; slow voxels:
-        # their reach in periods (the default 0.75 fits in 3) and the flow and guide it reads there.
-        reach = values["slow_reach"]
-        frames = 3 if reach is None else max(3, math.ceil(reach) + 2)
-        # The refinement's explicit steps reach one sub-frame each (2·Σc steps per unit of time).
-        refine = K / 16 if values["refine_time"] is None else values["refine_time"]
-        steps = explicit_steps(refine, REFINE_C)
-        return frames + math.ceil(steps / K)
+        return MotionOptions(**self.kwargs(values)).overlap(K)
 
     takes_missing = True
     takes_multiplexed = True

@@ -22,6 +22,7 @@
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass, field
 from functools import cached_property
 from time import perf_counter as _now
@@ -39,7 +40,7 @@ from flexvox_core.gaps import as_missing, bridge, bridge_flow, captured, interpo
 from flexvox_core.motion.longreach import long_reach_nc
 from flexvox_core.motion.mcnc import motion_compensated_nc
 from flexvox_core.motion.tensors import DEFAULT_C, check_c, resolution_map
-from flexvox_core.motion.vardiff import variable_tensor_diffusion
+from flexvox_core.motion.vardiff import explicit_steps, variable_tensor_diffusion
 from flexvox_core.reconstruct._common import check_frames, check_identity_code
 from flexvox_core.reconstruct.diffusion import diffuse
 
@@ -128,7 +129,7 @@ def auto_flow_scale(height: int, width: int) -> float:
 
 def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, scale: float = 0.5,
                consistency: bool = False, slow_speed: float | None = SLOW_SPEED,
-               period_gate=PERIOD_GATE) -> FlowField:
+               period_gate=PERIOD_GATE, memo=None) -> FlowField:
     """Flow of ``video`` with still regions set to zero and slow motion measured over a long baseline.
 
     The motion detector looks only at the K-average, which holds every sampling phase once and
@@ -147,6 +148,9 @@ def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, sc
     1 px per sub-frame at K = 16), which that average cancels (0.1 px median on the still scene,
     0.54 px at the 99th percentile) while steady motion remains (1.5 px median on the fan's blades).
     None: no second gate.
+
+    ``memo`` (a :class:`~flexvox_core.flow.memo.FlowMemo`): flow of pairs of images met before is
+    taken from it (a streaming run meets each pair in several windows); it never changes the result.
     """
     lo, hi = gate
     if not 0 <= lo < hi:
@@ -161,13 +165,13 @@ def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, sc
     t0 = _now()
     # Everything at the flow's own (small) resolution; resized once at the end.
     small = downscale(video, scale)
-    vel, conf = successive_flow(small, flow_fn, consistency=consistency, temporal_window=1)
+    vel, conf = successive_flow(small, flow_fn, consistency=consistency, temporal_window=1, memo=memo)
     successive = vel
     px = video.shape[2] / vel.shape[2]  # full-size pixels per flow pixel: thresholds are in full-size ones
     params = {**backend_params(flow_fn), "scale": scale, "consistency": consistency, "temporal_window": 1}
     if K > 1 and video.shape[0] > 1:
         average = kaverage(small, K)
-        slow, span = kaverage_flow(small, K, flow_fn, default_stride(K), average=average)
+        slow, span = kaverage_flow(small, K, flow_fn, default_stride(K), average=average, memo=memo)
         speed = np.hypot(slow[..., 0], slow[..., 1]) * np.float32(px)
         if slow_speed is not None and span == K:  # shorter: the averages overlap, too blurred
             use_slow = (speed < slow_speed) & (np.hypot(vel[..., 0], vel[..., 1]) * np.float32(px) < 2 * slow_speed)
@@ -175,7 +179,8 @@ def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, sc
             params["slow_speed"] = slow_speed
         # Fast motion is smeared in the K-average and can escape a flow across K of its
         # sub-frames: the detector also takes flow between its successive sub-frames (at half size).
-        steps, _ = successive_flow(downscale(average, 0.5), make_backend("dis"), consistency=False, temporal_window=1)
+        steps, _ = successive_flow(downscale(average, 0.5), make_backend("dis"), consistency=False, temporal_window=1,
+                                   memo=memo)
         steps = upsample_flow(steps, small.shape[1:])
         speed = np.maximum(speed, np.hypot(steps[..., 0], steps[..., 1]) * np.float32(px))
         ramp = np.clip((speed - lo) / (hi - lo), 0, 1).astype(np.float32)
@@ -278,34 +283,119 @@ def motion_aware(
     """
     f = check_frames(frames)
     code = check_identity_code(code)
-    c = check_c(c)
-    if isinstance(passes, bool) or not isinstance(passes, int) or passes < 1:
-        raise ValueError(f"`passes` must be a whole number >= 1; got {passes!r}")
-    if not np.isfinite(time) or time <= 0:
-        raise ValueError(f"`time` must be a finite number > 0; got {time!r}")
-    if isinstance(slow_reach, bool) or not np.isfinite(slow_reach) or slow_reach < 0:
-        raise ValueError(f"`slow_reach` must be a number >= 0 (sampling periods); got {slow_reach!r}")
-    if refine_time is None:
-        refine_time = code.shape[2] / 16
-    if isinstance(refine_time, bool) or not np.isfinite(refine_time) or refine_time < 0:
-        raise ValueError(f"`refine_time` must be a finite number >= 0; got {refine_time!r}")
+    options = MotionOptions(flow=flow, passes=passes, time=time, c=c, refine_time=refine_time, gate=gate,
+                            flow_scale=flow_scale, still_speed=still_speed, flow_consistency=flow_consistency,
+                            slow_speed=slow_speed, slow_reach=slow_reach)
     missing = as_missing(missing, f.shape[0])
-    samples = captured(f, missing)
+    lo, hi = sample_bounds(f, missing, value_range)
+    return run_window(f, code, options, (lo, hi), missing=missing)
+
+
+@dataclass(frozen=True)
+class MotionOptions:
+    """The options of :func:`motion_aware` (see there), checked once."""
+
+    flow: str = "dis"
+    passes: int = 1
+    time: float = DEFAULT_TIME
+    c: tuple = DEFAULT_C
+    refine_time: float | None = None
+    gate: tuple = DEFAULT_GATE
+    flow_scale: float | None = None
+    still_speed: float | None = STILL_SPEED
+    flow_consistency: bool = False
+    slow_speed: float | None = SLOW_SPEED
+    slow_reach: float = SLOW_REACH
+
+    def __post_init__(self):
+        object.__setattr__(self, "c", check_c(self.c))
+        passes, time, slow_reach = self.passes, self.time, self.slow_reach
+        if isinstance(passes, bool) or not isinstance(passes, int) or passes < 1:
+            raise ValueError(f"`passes` must be a whole number >= 1; got {passes!r}")
+        if not np.isfinite(time) or time <= 0:
+            raise ValueError(f"`time` must be a finite number > 0; got {time!r}")
+        if isinstance(slow_reach, bool) or not np.isfinite(slow_reach) or slow_reach < 0:
+            raise ValueError(f"`slow_reach` must be a number >= 0 (sampling periods); got {slow_reach!r}")
+        r = self.refine_time
+        if r is not None and (isinstance(r, bool) or not np.isfinite(r) or r < 0):
+            raise ValueError(f"`refine_time` must be a finite number >= 0; got {r!r}")
+        if self.flow_scale is not None and not 0 < self.flow_scale <= 1:
+            raise ValueError(f"`flow_scale` must be in (0, 1] or None; got {self.flow_scale!r}")
+
+    def refine(self, K: int) -> float:
+        """The refinement time at K slots (None: K/16)."""
+        return K / 16 if self.refine_time is None else float(self.refine_time)
+
+    def refine_reach(self, K: int) -> int:
+        """Sub-frames the refinement reaches each way (one per explicit step)."""
+        t = self.refine(K)
+        return explicit_steps(t, REFINE_C) if t > 0 else 0
+
+    def overlap(self, K: int) -> int:
+        """Camera frames of context on each side after which a result no longer depends on more
+        (a chunked run with this overlap equals the whole one)."""
+        # High-TR nc, the K-average gates, flow smoothing; still voxels: 4 σ = 2 periods; slow voxels:
+        # their reach in periods (the default 0.75 fits in 3) and the flow and guide it reads there.
+        frames = max(3, math.ceil(self.slow_reach) + 2)
+        # The refinement's explicit steps reach one sub-frame each.
+        return frames + math.ceil(self.refine_reach(K) / K)
+
+
+def sample_bounds(frames: np.ndarray, missing, value_range) -> tuple[float, float]:
+    """The samples' range: ``value_range`` checked to contain the captured frames' values, or theirs."""
+    samples = captured(frames, missing)
     lo, hi = float(samples.min()), float(samples.max())
-    if value_range is not None:
-        try:
-            r_lo, r_hi = (float(v) for v in value_range)
-        except (TypeError, ValueError):
-            raise ValueError(f"`value_range` must be two numbers (lo, hi) or None; got {value_range!r}") from None
-        if not (np.isfinite(r_lo) and np.isfinite(r_hi) and r_lo <= lo and hi <= r_hi):
-            raise ValueError(f"`value_range` {value_range!r} must be finite and contain the frames' values "
-                             f"[{lo:g}, {hi:g}]")
-        lo, hi = r_lo, r_hi
+    if value_range is None:
+        return lo, hi
+    try:
+        r_lo, r_hi = (float(v) for v in value_range)
+    except (TypeError, ValueError):
+        raise ValueError(f"`value_range` must be two numbers (lo, hi) or None; got {value_range!r}") from None
+    if not (np.isfinite(r_lo) and np.isfinite(r_hi) and r_lo <= lo and hi <= r_hi):
+        raise ValueError(f"`value_range` {value_range!r} must be finite and contain the frames' values "
+                         f"[{lo:g}, {hi:g}]")
+    return r_lo, r_hi
+
+
+def _guide(f, code, tensor, time, missing, rows) -> np.ndarray:
+    """The fixed-tensor normalized convolution of the whole window; with ``rows`` (s0, s1) only
+    those sub-frames are computed (the rest of the volume is 0: nothing reads it)."""
+    if rows is None:
+        return diffuse(f, code, tensor=tensor, time=time, missing=missing)
+    out = np.zeros((f.shape[0] * code.shape[2], *f.shape[1:]), np.float32)
+    out[rows[0]:rows[1]] = diffuse(f, code, tensor=tensor, time=time, missing=missing, subframes=rows)
+    return out
+
+
+def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: tuple[float, float], *,
+               missing=None, keep: tuple[int, int] | None = None, memo=None) -> MotionAwareResult:
+    """The motion-aware pipeline on checked ``frames`` (F, H, W) float32 and identity ``code``.
+
+    ``bounds``: the samples' range (:func:`sample_bounds`). ``keep`` = (s0, s1): only these
+    sub-frames are wanted (a streaming run's window, :mod:`~flexvox_core.motion.streaming`): the
+    trajectory gathers and the refinement run over them (and the refinement's reach around them)
+    alone, and the result's ``video`` holds them alone — the same values as the whole run's (with
+    a second pass, or dropped frames in the window, everything is gathered and then cut). Everything
+    else (high-TR, flow, the fixed-tensor guides) is computed over the whole window.
+    ``memo``: a :class:`~flexvox_core.flow.memo.FlowMemo` for the flow.
+    """
+    lo, hi = bounds
     K = code.shape[2]
-    if flow_scale is None:
-        flow_scale = auto_flow_scale(*f.shape[1:])
-    elif not 0 < flow_scale <= 1:
-        raise ValueError(f"`flow_scale` must be in (0, 1] or None; got {flow_scale!r}")
+    S = f.shape[0] * K
+    o = options
+    c = o.c
+    refine_time = o.refine(K)
+    s0, s1 = (0, S) if keep is None else (max(0, int(keep[0])), min(S, int(keep[1])))
+    if not s0 < s1:
+        raise ValueError(f"`keep` must be a non-empty range of the window's {S} sub-frames; got {keep!r}")
+    # The gathers run over the kept sub-frames and as far around them as the refinement reads.
+    g0, g1 = max(0, s0 - o.refine_reach(K)), min(S, s1 + o.refine_reach(K))
+    skip = None
+    # A second pass's flow, and the bridging of a dropped frame, read the whole window's result.
+    if (g0, g1) != (0, S) and o.passes == 1 and missing is None:
+        skip = np.ones(S, bool)
+        skip[g0:g1] = False
+    flow_scale = auto_flow_scale(*f.shape[1:]) if o.flow_scale is None else o.flow_scale
     seconds = {"high_tr": 0.0, "flow": 0.0, "diffusion": 0.0}
     t0 = _now()
     high_tr = diffuse(f, code, tensor=STEP1_TENSOR, time=STEP1_TIME, missing=missing)
@@ -319,41 +409,50 @@ def motion_aware(
     current = high_tr
     field_ = None
     fixed = still_value = None
-    for _ in range(passes):
+    for _ in range(o.passes):
         t0 = _now()
-        field_ = gated_flow(current, K, backend=flow, gate=gate, scale=flow_scale, consistency=flow_consistency,
-                            slow_speed=slow_speed)
+        field_ = gated_flow(current, K, backend=o.flow, gate=o.gate, scale=flow_scale,
+                            consistency=o.flow_consistency, slow_speed=o.slow_speed, memo=memo)
         if missing is not None:
             bridge_flow(field_.flow, missing, K, margin=K // 2)
         seconds["flow"] += _now() - t0
         t0 = _now()
-        still, slow = _speed_classes(field_.flow, still_speed,
-                                     slow_speed if slow_reach > 0 and f.shape[0] > 1 else None)
+        still, slow = _speed_classes(field_.flow, o.still_speed,
+                                     o.slow_speed if o.slow_reach > 0 and f.shape[0] > 1 else None)
+        if skip is not None:  # outside the kept range nothing is gathered
+            slow[skip] = False
         if fixed is None:  # the fixed-tensor result: the guide of the slow voxels, and where not still
-            fixed = diffuse(f, code, tensor=(c[2], c[1], c[0]), time=time, missing=missing)
+            fixed = _guide(f, code, (c[2], c[1], c[0]), o.time, missing, None if skip is None else (g0, g1))
         base = fixed
         if still.any():
             # Still voxels: Eq. 4's tensor in the limit c -> (0, 0, 1), the pixel's own samples
             # averaged in time (a Gaussian of half a sampling period: noise averages out).
             if still_value is None:
-                still_value = diffuse(f, code, tensor=(0.0, 0.0, 1.0), time=K * K / 8, missing=missing)
-            base = fixed.copy() if passes > 1 else fixed  # `fixed` serves every pass
+                still_value = _guide(f, code, (0.0, 0.0, 1.0), K * K / 8, missing,
+                                     None if skip is None else (g0, g1))
+            base = fixed.copy() if o.passes > 1 else fixed  # `fixed` serves every pass
             np.copyto(base, still_value, where=still)
-        video = motion_compensated_nc(sparse, mask, field_.flow, c=c, time=time, fallback=high_tr,
-                                      still=still | slow, still_value=base)
-        del base
+        not_gathered = still | slow
+        if skip is not None:
+            not_gathered[skip] = True
+        video = motion_compensated_nc(sparse, mask, field_.flow, c=c, time=o.time, fallback=high_tr,
+                                      still=not_gathered, still_value=base)
+        del base, not_gathered
         if slow.any():
-            reach = max(1, round(slow_reach * K))
+            reach = max(1, round(o.slow_reach * K))
             long_reach_nc(sparse, mask, field_.flow, video, slow, reach=reach, sigma_t=reach,
                           sigma_s=LONG_REACH_SIGMA_S, h=LONG_REACH_RANGE * max(hi - lo, 1e-12), out=video)
             np.copyto(video, sparse, where=mask)
         if refine_time > 0:
-            video = variable_tensor_diffusion(video, mask, field_.flow, c=REFINE_C, time=refine_time)
+            video[g0:g1] = variable_tensor_diffusion(video[g0:g1], mask[g0:g1], field_.flow[g0:g1], c=REFINE_C,
+                                                     time=refine_time)
         if missing is not None:
             bridge(video, missing, K, flow=field_.flow)
         current = np.clip(video, lo, hi, out=video)
         seconds["diffusion"] += _now() - t0
     _logger.info("motion-aware: high-TR %.2f s, flow %.2f s, diffusion %.2f s",
                  seconds["high_tr"], seconds["flow"], seconds["diffusion"])
-    return MotionAwareResult(current.astype(np.float32, copy=False), high_tr, field_, K, c, seconds)
-
+    video = current.astype(np.float32, copy=False)
+    if (s0, s1) != (0, S):
+        video = np.ascontiguousarray(video[s0:s1])
+    return MotionAwareResult(video, high_tr, field_, K, c, seconds)

@@ -153,17 +153,20 @@ def _kernel(sigma: float, dtype) -> np.ndarray | None:
     return (g / g.sum()).astype(dtype)
 
 
-def _fold_matrix(g: np.ndarray, length: int) -> np.ndarray:
-    """The ``length × length`` matrix of a 1-D blur with kernel ``g`` and reflecting ends.
+def _fold_matrix(g: np.ndarray, length: int, rows: tuple[int, int] | None = None) -> np.ndarray:
+    """The ``length × length`` matrix of a 1-D blur with kernel ``g`` and reflecting ends (only
+    its ``rows`` [r0, r1) when given).
 
-    Used when the kernel is longer than the axis (the reflection then wraps many times).
+    Used when the kernel is longer than the axis (the reflection then wraps many times), and
+    for a few output rows (:func:`diffuse`'s ``subframes``).
     """
     r = g.size // 2
+    r0, r1 = (0, length) if rows is None else rows
     period = 2 * length
-    idx = (np.arange(length)[:, None] + np.arange(-r, r + 1)[None, :]) % period
+    idx = (np.arange(r0, r1)[:, None] + np.arange(-r, r + 1)[None, :]) % period
     idx = np.where(idx >= length, period - 1 - idx, idx)  # reflect: ... 1 0 | 0 1 ... L-1 | L-1 ...
-    mat = np.zeros((length, length), dtype=np.float64)
-    np.add.at(mat, (np.repeat(np.arange(length), g.size), idx.ravel()), np.tile(g.astype(np.float64), length))
+    mat = np.zeros((r1 - r0, length), dtype=np.float64)
+    np.add.at(mat, (np.repeat(np.arange(r1 - r0), g.size), idx.ravel()), np.tile(g.astype(np.float64), r1 - r0))
     return mat.astype(g.dtype)
 
 
@@ -303,6 +306,58 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None) -> np
     if keep_samples:
         _put_samples(num, samples, order, present)
     return num
+
+
+def _nc_rows(frames, code, sig, keep_samples: bool, dtype, present, rows: tuple[int, int]) -> np.ndarray:
+    """Sub-frames [r0, r1) of :func:`_nc_kernel`'s result, computed alone: the spatial blur of the
+    sub-frames the time kernel reaches from them, and the time blur as a small matrix product
+    (the rows of the reflecting blur's matrix). The same values up to float rounding; where a
+    voxel has no sample in reach, the whole kernel runs and is cut."""
+    F, H, W = frames.shape
+    K = code.shape[2]
+    S = F * K
+    r0, r1 = rows
+    gx, gy, gt = (_kernel(s, dtype) for s in sig)
+    mat = np.eye(S, dtype=dtype)[r0:r1] if gt is None else _fold_matrix(gt, S, rows=(r0, r1))
+    reached = np.flatnonzero(mat.any(axis=0))
+    c0, c1 = int(reached[0]), int(reached[-1]) + 1
+    mat = mat[:, c0:c1]
+    order = tiled_order(code, H, W)
+    if present is not None:  # a dropped frame's row holds no samples: nothing of it enters the sums
+        mat = mat * np.repeat(present, K)[c0:c1][None, :].astype(dtype)
+    samples = frames.astype(dtype, copy=False)
+    num = np.empty((c1 - c0, H, W), dtype)
+
+    def one(i):
+        s = c0 + i
+        plane = np.where(order == s % K, samples[s // K], 0).astype(dtype)
+        _blur_plane(plane, gy, gx, num[i])
+
+    for_each(one, c1 - c0)
+    out = (mat @ num.reshape(c1 - c0, H * W)).reshape(r1 - r0, H, W)
+    del num
+    # Denominator: the mask has K distinct sub-frames; the matrix's columns summed per phase weigh them.
+    den_k = np.empty((K, H, W), dtype=dtype)
+    for k in range(K):
+        _blur_plane((order == k).astype(dtype), gy, gx, den_k[k])
+    per_phase = np.zeros((r1 - r0, K), dtype)
+    for j in range(c1 - c0):
+        per_phase[:, (c0 + j) % K] += mat[:, j]
+    den = (per_phase @ den_k.reshape(K, H * W)).reshape(r1 - r0, H, W)
+    peak = 1.0
+    for g in (gx, gy, gt):
+        if g is not None:
+            peak *= float(g.max())
+    if (den <= NC_MIN_WEIGHT * peak).any():  # a voxel needs its nearest sample: the whole kernel's way
+        return _nc_kernel(frames, code, sig, keep_samples, dtype, present)[r0:r1]
+    np.divide(out, den, out=out)
+    kept = captured(samples, None if present is None else ~present)
+    np.clip(out, kept.min(), kept.max(), out=out)
+    if keep_samples:
+        for s in range(r0, r1):
+            if present is None or present[s // K]:
+                np.copyto(out[s - r0], samples[s // K], where=order == s % K)
+    return out
 
 
 def _gapped_denominator(den_k: np.ndarray, present: np.ndarray, gt: np.ndarray | None) -> np.ndarray:
@@ -473,6 +528,7 @@ def diffuse(
     init: str = "nc",
     dtype=np.float32,
     missing=None,
+    subframes: tuple[int, int] | None = None,
 ) -> np.ndarray:
     r"""Fill the missing voxels by diffusion with a constant tensor ``diag(cx, cy, ct)``.
 
@@ -498,10 +554,14 @@ def diffuse(
     missing : ndarray (F,) bool, keyword-only, optional
         Frames the camera dropped: their rows hold no samples and are left out of the mask
         (their sub-frames are filled like any unsampled voxel; :mod:`flexvox_core.gaps`).
+    subframes : (s0, s1), keyword-only, optional
+        Compute only sub-frames [s0, s1) (``nc`` only): the same values up to float rounding,
+        at the cost of those sub-frames and the ones the time kernel reaches from them (a
+        streaming run wants one frame of a short window, :mod:`flexvox_core.motion.streaming`).
 
     Returns
     -------
-    video : ndarray, shape (F·K, H, W), ``dtype``
+    video : ndarray, shape (F·K, H, W), ``dtype`` (``(s1 - s0, H, W)`` with ``subframes``)
         Within ``[min(frames), max(frames)]`` (of the frames not missing).
 
     Examples
@@ -532,6 +592,17 @@ def diffuse(
             f"steps (time · 2·Σc), more than {MAX_EXPLICIT_STEPS}; scale the tensor down (only "
             "time · c matters) or use solver='nc'"
         )
+    if subframes is not None:
+        S = f.shape[0] * c.shape[2]
+        try:
+            s0, s1 = (int(v) for v in subframes)
+        except (TypeError, ValueError):
+            raise ValueError(f"`subframes` must be two whole numbers (s0, s1) or None; got {subframes!r}") from None
+        if not 0 <= s0 < s1 <= S:
+            raise ValueError(f"`subframes` must satisfy 0 <= s0 < s1 <= {S} (the clip's sub-frames); got {subframes!r}")
+        if solver != "nc":
+            raise ValueError(f"`subframes` needs solver='nc'; got solver={solver!r}")
+        return _nc_rows(f, c, sig, bool(keep_samples), dt, present, (s0, s1))
     if solver == "nc":
         return _nc_kernel(f, c, sig, bool(keep_samples), dt, present)
     F, H, W = f.shape

@@ -8,15 +8,20 @@ Capture workspace's preview does. Two strategies in the same run, each for ``--s
 * ``stride`` — the preview before this change: the frame subsampled with a stride that grows when a
   run exceeds the 0.6-s budget and shrinks only when the finer run (time ∝ pixels) is predicted under
   half of it (an aliased picture of the whole field);
-* ``region`` — now: full resolution, the whole frame when the measured cost of a pixel says it fits the
-  budget, else a region of it (``app.capture.live_preview``);
+* ``region`` — the preview of the last session: full resolution, the whole frame when the measured cost of
+  a pixel says it fits the budget, else a region of it (``app.capture.live_preview``), each run from scratch
+  over the newest 3 frames, showing the newest;
+* ``stream`` — now: the same regions rule, motion-aware by the streaming reconstructor (the frame before
+  the newest over the same 3-frame window, the frames and flow pairs kept between runs);
 * ``nc`` — the fast preview the operator may choose instead: constant-tensor ``nc`` over the same
   regions rule (in practice the whole frame).
 
 Printed per size and strategy: previews per second, the pixels each preview covers (at which
 sampling), the time from a frame's arrival to its preview being ready (median and 90th percentile),
-and the CPU share (the process's CPU time over the wall time, in cores: the camera thread is nearly
-idle). Capture drops are not measured here: the GUI tests record with the preview on and check that none is dropped.
+the CPU share (the process's CPU time over the wall time, in cores: the camera thread is nearly
+idle), and the camera thread's late frames: frames it delivered more than one period after their time,
+which a real camera with one buffer would have dropped (the GUI tests record with the preview on and
+check that the simulated rig drops none).
 
 Figures only, never pass/fail. Usage: ``python bench/bench_live_preview.py [--seconds S] [--sizes 160x120,640x480]``.
 """
@@ -30,7 +35,7 @@ import time
 
 import numpy as np
 
-from app.capture.live_preview import PixelCost, preview_region, reconstruct_preview
+from app.capture.live_preview import PixelCost, PreviewReconstructor, preview_region, reconstruct_preview
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture
 from flexvox_core.simulate.scenes import render_scene
@@ -48,10 +53,13 @@ class Camera(threading.Thread):
         super().__init__(daemon=True)
         self.frames, self.stop = frames, threading.Event()
         self.lock, self.recent, self.arrived = threading.Lock(), [], {}
+        self.late = 0
 
     def run(self) -> None:
         t0, i = time.monotonic(), 0
         while not self.stop.is_set():
+            if time.monotonic() - (t0 + i / RATE_HZ) > 1 / RATE_HZ:
+                self.late += 1
             f = Frame(self.frames[i % len(self.frames)], frame_id=i, timestamp_s=i / RATE_HZ)
             with self.lock:
                 self.recent = (self.recent + [f])[-N_FRAMES:]
@@ -74,9 +82,21 @@ def _stride_run(frames, code, tile, stride):
     return time.perf_counter() - t0, stack.shape[1] * stack.shape[2]
 
 
+def _from_scratch(frames, code, region):
+    """The last session's motion-aware preview: the newest frames from scratch, the newest shown."""
+    from app.capture.live_preview import PreviewResult, normalise
+    from flexvox_core.motion import motion_aware
+
+    t0 = time.perf_counter()
+    stack = np.ascontiguousarray(region.crop(np.stack([normalise(f.image) for f in frames])))
+    video = motion_aware(stack, code, refine_time=0.0).video[-code.shape[2]:]
+    return PreviewResult(video, int(frames[-1].frame_id), len(frames), region, frames[-1].image.shape,
+                         time.perf_counter() - t0, (0.0, 1.0))
+
+
 def run_strategy(name: str, cam: Camera, code, tile, shape, seconds: float) -> dict:
     step = math.lcm(*tile)
-    stride, cost = None, PixelCost()
+    stride, cost, stream = None, PixelCost(), PreviewReconstructor()
     rates, latencies, pixels = [], [], []
     cpu0, t_end = time.process_time(), time.monotonic() + seconds
     wall0 = time.monotonic()
@@ -102,12 +122,18 @@ def run_strategy(name: str, cam: Camera, code, tile, shape, seconds: float) -> d
             label = f"every {stride}th pixel" if stride > 1 else "every pixel"
         else:
             region = preview_region(shape, tile, cost.pixels_for(BUDGET_S, 160 * 120))
-            r = reconstruct_preview(frames, code, region, "nc" if name == "nc" else "motion-aware")
+            method = "nc" if name == "nc" else "motion-aware"
+            if name == "stream":
+                r = stream.run(frames, code, region, method)
+            elif name == "nc":
+                r = reconstruct_preview(frames, code, region, method)
+            else:
+                r = _from_scratch(frames, code, region)
             secs, px = r.seconds, region.pixels
             cost.add(secs, px)
             label = "whole frame" if r.whole_frame else "region, full resolution"
         done = time.monotonic()
-        latencies.append(done - cam.arrived[last_id])
+        latencies.append(done - cam.arrived[r.frame_id if name != "stride" else last_id])
         rates.append(done)
         pixels.append((px, label))
         time.sleep(secs)  # rest as long as the run took: at most half a core
@@ -117,7 +143,7 @@ def run_strategy(name: str, cam: Camera, code, tile, shape, seconds: float) -> d
     px, label = pixels[-1] if pixels else (0, "-")
     return {"hz": hz, "lat50": float(np.median(latencies)) if latencies else float("nan"),
             "lat90": float(np.percentile(latencies, 90)) if latencies else float("nan"),
-            "px": px, "label": label, "cpu": cpu / wall, "runs": len(rates)}
+            "px": px, "label": label, "cpu": cpu / wall, "runs": len(rates), "late": cam.late}
 
 
 def main() -> None:
@@ -130,13 +156,13 @@ def main() -> None:
     print(f"15 Hz camera, K = 16, motion-aware preview of {N_FRAMES} frames, budget {BUDGET_S} s, "
           f"{args.seconds:g} s per row")
     print("| size | preview | previews/s | pixels per preview (last) | arrival to ready, median / p90 s "
-          "| CPU | runs |")
-    print("|---|---|---|---|---|---|---|")
+          "| CPU | runs | camera late |")
+    print("|---|---|---|---|---|---|---|---|")
     for size in args.sizes.split(","):
         w, h = (int(v) for v in size.split("x"))
         truth = render_scene("balls", 8 * 16, h, w, seed=0)
         frames = capture(truth, code).astype(np.float32)
-        for name in ("stride", "region", "nc"):
+        for name in ("stride", "region", "stream", "nc"):
             cam = Camera(frames)
             cam.start()
             try:
@@ -145,7 +171,7 @@ def main() -> None:
                 cam.stop.set()
                 cam.join()
             print(f"| {w}x{h} | {name} | {r['hz']:.2f} | {r['px']} ({r['label']}) | {r['lat50']:.2f} / "
-                  f"{r['lat90']:.2f} | {r['cpu']:.2f} cores | {r['runs']} |", flush=True)
+                  f"{r['lat90']:.2f} | {r['cpu']:.2f} cores | {r['runs']} | {r['late']} |", flush=True)
 
 
 if __name__ == "__main__":

@@ -12,9 +12,10 @@ need no Qt, so that a benchmark and the tests can run them alone:
 * :class:`PixelCost` — seconds per pixel of the last runs, which sizes the next region. A slow run
   (a busy machine) shrinks the region; the next quick one grows it back, because the prediction
   is the measured cost of a pixel, not an extrapolation from a smaller run.
-* :func:`reconstruct_preview` — motion-aware (or the fast constant-tensor ``nc``, the preview's
-  fallback: the whole VGA frame in about a tenth of a second) of a region of the newest frames: the
-  newest frame's K sub-frames.
+* :class:`PreviewReconstructor` — motion-aware by the streaming reconstructor
+  (:mod:`flexvox_core.motion.streaming`: the frame before the newest, its flow pairs and frames kept
+  between runs), or the fast constant-tensor ``nc`` (the preview's fallback: the whole VGA frame in
+  about a tenth of a second, the newest frame), of a region of the newest frames: K sub-frames.
 
 The order in which the preview gives way when the machine cannot keep up is the one the issue
 asks for: first frames are skipped (the newest wins, always), then the region shrinks.
@@ -33,7 +34,7 @@ import numpy as np
 _logger = logging.getLogger(__name__)
 
 PREVIEW_FRAMES = 3
-"""Camera frames reconstructed together (the newest one is shown)."""
+"""Camera frames reconstructed together: motion-aware shows the middle one (one frame of latency), nc the newest."""
 START_PIXELS = 160 * 120
 """Pixels of the first run's region (before any run has been timed)."""
 PREVIEW_METHODS = ("motion-aware", "nc")
@@ -210,42 +211,91 @@ class PreviewResult:
         return self.region.covers(self.frame_shape)
 
 
+class PreviewReconstructor:
+    """Reconstructs preview runs, keeping motion-aware's stream between them.
+
+    Motion-aware runs through :class:`~flexvox_core.motion.streaming.StreamingMotionAware`: a run shows
+    the frame *before* the newest (one frame of latency, so its trajectories reach both ways, where a
+    run that showed the newest frame would see only its past), over the window of the newest
+    consecutive frames. Between runs the stream keeps the frames and the flow of every pair of
+    sub-frames it measured: when the preview keeps up with the camera, each run pushes one new frame
+    and reuses the rest. A change of code or region, a gap in the frames, or a run that fell behind by
+    more than the window starts a new stream. ``nc`` keeps no state and shows the newest frame.
+    The runs of one reconstructor must not overlap (the live preview runs one at a time).
+    """
+
+    def __init__(self):
+        self._stream = None
+        self._key = None
+        self._first_id = 0
+        """Camera frame id of the stream's frame 0."""
+
+    def run(self, frames: list, code, region: Region | None = None, method: str = "motion-aware") -> PreviewResult:
+        """The reconstruction (``method``: one of :data:`PREVIEW_METHODS`) of ``region`` (default: all) of
+        ``frames`` (consecutive Frames, oldest first) at full resolution.
+
+        ``code`` is the capture's identity code (m, n, K) or its :class:`~flexvox_core.multiplex.MultiplexedCode`
+        (demultiplexed over the whole frame first, then cropped, and clipped to [0, 1]). A region's corner must
+        lie on the tile grid (:func:`preview_region` places it so): the crop is then a capture of the same code.
+        """
+        from flexvox_core.reconstruct import diffuse, prepare
+
+        if method not in PREVIEW_METHODS:
+            raise ValueError(f"`method` must be one of {', '.join(PREVIEW_METHODS)}; got {method!r}")
+        if not frames:
+            raise ValueError("`frames` must hold at least one frame")
+        t0 = time.perf_counter()
+        stack = np.stack([normalise(f.image) for f in frames])
+        H, W = stack.shape[1:]
+        region = Region(0, H, 0, W) if region is None else region
+        if isinstance(code, np.ndarray):
+            m, n = code.shape[:2]
+            if region.y0 % m or region.x0 % n:
+                raise ValueError(f"a preview region must start on the tile grid ({m}x{n}); got {region}")
+            stack, identity = prepare(region.crop(stack), code)
+        else:
+            stack, identity = prepare(stack, code)  # demultiplex whole tiles, then crop
+            stack = np.clip(region.crop(stack), 0.0, 1.0)  # a noisy demultiplex leaves [0, 1] a little
+        K = identity.shape[2]
+        stack = np.ascontiguousarray(stack, np.float32)
+        ids = [int(f.frame_id) for f in frames]
+        if method == "nc":
+            video, shown, n_frames = diffuse(stack, identity)[-K:], ids[-1], len(frames)
+        else:
+            video, shown, n_frames = self._motion_aware(stack, identity, ids, (id(code), region, (H, W)))
+        video = np.clip(video, 0.0, 1.0).astype(np.float32, copy=False)
+        hi = float(np.percentile(video, 99.5)) if video.size else 1.0
+        return PreviewResult(video, shown, n_frames, region, (int(H), int(W)), time.perf_counter() - t0,
+                             (0.0, hi if hi > 0 else 1.0), method)
+
+    def _motion_aware(self, stack: np.ndarray, identity: np.ndarray, ids: list[int], key):
+        """(K sub-frames, the frame id shown, frames in its window) by the stream."""
+        from flexvox_core.motion.streaming import StreamingMotionAware
+
+        stream = self._stream
+        pushed_to = None if stream is None else self._first_id + stream.pushed - 1  # newest id in the stream
+        if (stream is None or key != self._key or ids != list(range(ids[0], ids[0] + len(ids)))
+                or ids[0] > pushed_to + 1 or ids[-1] <= pushed_to):
+            # Without the refinement: a sixth less time per run, so a larger region (it adds ~0.4 dB offline).
+            stream = self._stream = StreamingMotionAware(identity, refine_time=0.0)
+            self._key, self._first_id, pushed_to = key, ids[0], ids[0] - 1
+        if len(ids) == 1:  # the first frame of a run: nothing after it yet, shown alone
+            self._stream = None
+            from flexvox_core.motion import motion_aware
+
+            return motion_aware(stack, identity, refine_time=0.0, value_range=(0.0, 1.0)).video, ids[0], 1
+        target = ids[-1] - 1 - self._first_id  # the frame before the newest, as the stream counts
+        out = []
+        for fid, image in zip(ids, stack, strict=True):
+            if fid > pushed_to:
+                stream.skip_to(min(stream.pushed, target))  # the newest wins: older frames are not reconstructed
+                out += stream.push(image)
+        shown = out[-1]
+        a, b = shown.window
+        return shown.video, self._first_id + shown.index, b - a
+
+
 def reconstruct_preview(frames: list, code, region: Region | None = None, method: str = "motion-aware"
                         ) -> PreviewResult:
-    """The reconstruction (``method``: one of :data:`PREVIEW_METHODS`) of ``region`` (default: all) of
-    ``frames`` (consecutive Frames): the newest frame's K sub-frames, at full resolution.
-
-    ``code`` is the capture's identity code (m, n, K) or its :class:`~flexvox_core.multiplex.MultiplexedCode`
-    (demultiplexed over the whole frame first, then cropped). A region's corner must lie on the tile
-    grid (:func:`preview_region` places it so): the crop is then a capture of the same code.
-    """
-    from flexvox_core.motion import motion_aware
-    from flexvox_core.reconstruct import diffuse, prepare
-
-    if method not in PREVIEW_METHODS:
-        raise ValueError(f"`method` must be one of {', '.join(PREVIEW_METHODS)}; got {method!r}")
-    if not frames:
-        raise ValueError("`frames` must hold at least one frame")
-    t0 = time.perf_counter()
-    stack = np.stack([normalise(f.image) for f in frames])
-    H, W = stack.shape[1:]
-    region = Region(0, H, 0, W) if region is None else region
-    if isinstance(code, np.ndarray):
-        m, n = code.shape[:2]
-        if region.y0 % m or region.x0 % n:
-            raise ValueError(f"a preview region must start on the tile grid ({m}x{n}); got {region}")
-        stack, identity = prepare(region.crop(stack), code)
-    else:
-        stack, identity = prepare(stack, code)  # demultiplex whole tiles, then crop
-        stack = region.crop(stack)
-    K = identity.shape[2]
-    stack = np.ascontiguousarray(stack, np.float32)
-    if method == "nc":
-        full = diffuse(stack, identity)
-    else:
-        # Without the refinement: a sixth less time per run, so a larger region (it adds ~0.4 dB offline).
-        full = motion_aware(stack, identity, refine_time=0.0).video
-    video = np.clip(full[-K:], 0.0, 1.0).astype(np.float32, copy=False)
-    hi = float(np.percentile(video, 99.5)) if video.size else 1.0
-    return PreviewResult(video, int(frames[-1].frame_id), len(frames), region, (int(H), int(W)),
-                         time.perf_counter() - t0, (0.0, hi if hi > 0 else 1.0), method)
+    """One preview run without state (:meth:`PreviewReconstructor.run` of a new reconstructor)."""
+    return PreviewReconstructor().run(frames, code, region, method)

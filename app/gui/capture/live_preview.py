@@ -1,7 +1,8 @@
 """A live preview of the motion-aware reconstruction of the newest camera frames, never slowing capture.
 
-Beside the raw live view (and during a recording) the Capture workspace shows the newest
-camera frame reconstructed by :func:`flexvox_core.motion.motion_aware`, its K sub-frames cycling.
+Beside the raw live view (and during a recording) the Capture workspace shows a recent camera frame
+reconstructed by the streaming motion-aware (:mod:`flexvox_core.motion.streaming`: the frame before
+the newest, so that its trajectories reach both ways), its K sub-frames cycling.
 How it stays out of capture's way:
 
 * **Its own worker.** Reconstructions run on a private ``QThreadPool`` of one thread (not the
@@ -37,10 +38,10 @@ from app.capture.live_preview import (
     START_PIXELS,
     FrameBuffer,
     PixelCost,
+    PreviewReconstructor,
     PreviewResult,
     Region,
     preview_region,
-    reconstruct_preview,
 )
 from app.gui.widgets.qt_jobs import JobRunner
 
@@ -57,7 +58,8 @@ __all__ = ["BUDGET_S", "LivePreview", "PreviewResult", "REST_FRACTION"]
 
 
 class LivePreview(QObject):
-    """Runs :func:`reconstruct_preview` on the newest frames, newest-wins, on a worker of its own.
+    """Runs a :class:`~app.capture.live_preview.PreviewReconstructor` on the newest frames, newest-wins, on a
+    worker of its own (motion-aware streams: the frame before the newest, state kept between runs).
 
     Parameters
     ----------
@@ -90,6 +92,7 @@ class LivePreview(QObject):
         self.rest_fraction = float(rest_fraction)
         self.code = None
         self.tile = (1, 1)
+        self.reconstructor = PreviewReconstructor()
         self.cost = PixelCost()
         self.region: Region | None = None
         """The region of the last run started."""
@@ -120,6 +123,7 @@ class LivePreview(QObject):
         """The capture's code (identity array or MultiplexedCode) and tile; resets the buffer and region."""
         self.code = code
         self.tile = tuple(int(v) for v in tile)
+        self.reconstructor = PreviewReconstructor()  # a run still going keeps the old one
         self.region = None
         self.cost.clear()
         self.buffer.clear()
@@ -184,8 +188,8 @@ class LivePreview(QObject):
         self.region = self._next_region(frames[-1].image.shape)
         code, region, version, method = self.code, self.region, self.buffer.version, self.method
         self._done_version = version
-        generation = self._generation
-        self._job = self.runner.submit("live preview", lambda token, progress: reconstruct_preview(
+        generation, reconstructor = self._generation, self.reconstructor
+        self._job = self.runner.submit("live preview", lambda token, progress: reconstructor.run(
             frames, code, region, method), on_finished=lambda r: self._on_result(r, generation),
             on_failed=self._on_failed)
 

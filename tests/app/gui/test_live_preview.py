@@ -6,12 +6,21 @@ import re
 import numpy as np
 import pytest
 
-from app.capture.live_preview import FrameBuffer, PixelCost, Region, preview_region, reconstruct_preview
+from app.capture.live_preview import (
+    FrameBuffer,
+    PixelCost,
+    PreviewReconstructor,
+    Region,
+    preview_region,
+    reconstruct_preview,
+)
 from app.gui.capture.live_preview import LivePreview
 from app.gui.capture.workspace import CaptureWorkspace
 from app.gui.models.rig_service import RigService
 from flexvox_core.design import design_code
+from flexvox_core.forward import capture as capture_frames
 from flexvox_core.forward import tiled_code
+from flexvox_core.simulate.scenes import render_scene
 from rig_drivers.interfaces import Frame
 
 from .conftest import small_rig
@@ -130,8 +139,35 @@ def test_the_buffer_keeps_the_newest_consecutive_frames():
 def test_a_preview_of_a_still_grey_scene_is_that_grey():
     code = design_code((2, 4)).code
     r = reconstruct_preview([_frame(i) for i in range(3)], code)
-    assert r.video.shape == (8, 48, 64) and r.frame_id == 2 and r.n_frames == 3 and r.whole_frame
+    # The frame before the newest, over the window of all three.
+    assert r.video.shape == (8, 48, 64) and r.frame_id == 1 and r.n_frames == 3 and r.whole_frame
     np.testing.assert_allclose(r.video, 0.5, atol=0.02)
+    alone = reconstruct_preview([_frame(0)], code)  # a single frame: shown alone
+    assert alone.frame_id == 0 and alone.n_frames == 1
+    np.testing.assert_allclose(alone.video, 0.5, atol=0.02)
+
+
+def _moving(i, shape=(48, 64)):
+    truth = render_scene("balls", 8 * (i + 1), *shape)[8 * i: 8 * (i + 1)]
+    return Frame(capture_frames(truth, design_code((2, 4)).code)[0], frame_id=i, timestamp_s=i / 15)
+
+
+def test_a_preview_that_keeps_up_pushes_one_new_frame_and_reuses_the_rest():
+    code = design_code((2, 4)).code
+    frames = [_moving(i) for i in range(5)]
+    rec = PreviewReconstructor()
+    first = rec.run(frames[0:3], code)
+    stream = rec._stream
+    assert first.frame_id == 1 and stream.pushed == 3
+    hits = stream.memo.hits
+    second = rec.run(frames[1:4], code)  # the next camera frame arrived: one push, one frame reconstructed
+    assert rec._stream is stream and stream.pushed == 4 and second.frame_id == 2
+    assert stream.memo.hits > hits  # flow pairs of the earlier window found again
+    fresh = reconstruct_preview(frames[1:4], code)  # the same picture as a run from scratch
+    np.testing.assert_allclose(second.video, fresh.video, rtol=0, atol=1e-5)
+    # Behind by more than the window, or another region: a new stream.
+    rec.run(frames[2:5], code, Region(0, 24, 0, 32))
+    assert rec._stream is not stream and rec._stream.pushed == 3
 
 
 @pytest.fixture
@@ -195,7 +231,8 @@ def test_newest_wins_one_run_at_a_time(qtbot):
         preview.feed(_frame(i))
         assert preview.runner.active <= 1
     qtbot.waitUntil(lambda: not preview.busy and preview.runs >= 1, timeout=10_000)
-    qtbot.waitUntil(lambda: preview.result is not None and preview.result.frame_id == 29, timeout=10_000)
+    # Motion-aware shows the frame before the newest (its trajectories reach both ways).
+    qtbot.waitUntil(lambda: preview.result is not None and preview.result.frame_id == 28, timeout=10_000)
     assert preview.runs < 30 and preview.offered == 30
     assert preview.shutdown(5000)
 

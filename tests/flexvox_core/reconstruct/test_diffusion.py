@@ -291,3 +291,36 @@ def test_nan_input_names_the_frame(code22):
         diffuse(frames, code22)
     with pytest.raises(ValueError, match=r"`frames` must have shape \(F, H, W\)"):
         diffuse(np.zeros((4, 4)), code22)
+
+
+@given(
+    tensor=st.sampled_from([(1.0, 1.0, 0.05), (0.05, 0.05, 0.95), (0.0, 0.0, 1.0), (0.3, 0.1, 0.0)]),
+    time=st.floats(0.5, 40.0),
+    s0=st.integers(0, 23),
+    length=st.integers(1, 24),
+    dropped=st.sampled_from([None, 0, 1, 2]),
+    seed=st.integers(0, 2**16),
+)
+def test_subframes_are_the_whole_runs_rows(tensor, time, s0, length, dropped, seed):
+    # A streaming run asks for one frame of a short window: the same values, computed alone.
+    code = code_from_order([[0, 5, 7, 2], [6, 3, 1, 4]])  # K = 8
+    frames = np.random.default_rng(seed).uniform(0.1, 0.9, (3, 6, 8)).astype(np.float32)
+    missing = None if dropped is None else np.arange(3) == dropped
+    s1 = min(24, s0 + length)
+    whole = diffuse(frames, code, tensor=tensor, time=time, missing=missing)
+    part = diffuse(frames, code, tensor=tensor, time=time, missing=missing, subframes=(s0, s1))
+    assert part.shape == (s1 - s0, 6, 8) and np.isfinite(part).all()
+    np.testing.assert_allclose(part, whole[s0:s1], rtol=0, atol=2e-6)
+
+
+@pytest.mark.parametrize(("subframes", "kw", "message"), [
+    ((4, 4), {}, r"`subframes` must satisfy 0 <= s0 < s1 <= 16 \(the clip's sub-frames\); got \(4, 4\)"),
+    ((0, 17), {}, r"must satisfy 0 <= s0 < s1 <= 16 .*; got \(0, 17\)"),
+    ("ab", {}, r"`subframes` must be two whole numbers \(s0, s1\) or None; got 'ab'"),
+    ((0, 8), {"solver": "explicit"}, r"`subframes` needs solver='nc'; got solver='explicit'"),
+])
+def test_bad_subframes_are_refused_by_name(subframes, kw, message):
+    code = code_from_order([[0, 5, 7, 2], [6, 3, 1, 4]])
+    frames = np.full((2, 4, 8), 0.5, np.float32)
+    with pytest.raises(ValueError, match=message):
+        diffuse(frames, code, subframes=subframes, **kw)

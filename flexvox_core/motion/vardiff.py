@@ -43,7 +43,7 @@ def explicit_steps(time: float, c) -> int:
 
 def _check(init, mask, flow, time, c):
     c1, c2, c3 = check_c(c)
-    vol = np.array(init, dtype=np.float32)
+    vol = np.asarray(init, dtype=np.float32)  # read only: the steps write to new volumes
     if vol.ndim != 3:
         raise ValueError(f"`init` must have shape (S, H, W); got {vol.shape}")
     S, H, W = vol.shape
@@ -53,7 +53,7 @@ def _check(init, mask, flow, time, c):
         raise ValueError(
             f"`mask` {m.shape} and `flow` {f.shape} must match `init` {vol.shape} (flow with a last axis of 2)"
         )
-    if not np.isfinite(vol).all():
+    if not np.isfinite(vol.sum(dtype=np.float64)):  # one pass, no boolean volume
         raise ValueError("`init` holds NaN or infinite values")
     if not math.isfinite(time) or time < 0:
         raise ValueError(f"`time` must be a finite number >= 0; got {time!r}")
@@ -95,14 +95,24 @@ def variable_tensor_diffusion(
     from flexvox_core.motion.vardiff_kernel import vardiff_step
 
     (c1, c2, c3), vol, m, f, steps, dt = _check(init, mask, flow, time, c)
+    vol = np.ascontiguousarray(vol)
     m = np.ascontiguousarray(m)
     f = np.ascontiguousarray(f)
-    new = np.empty_like(vol)
+    if not steps:
+        return vol.copy()
+    # The first step reads ``init`` itself (no copy of it), later ones alternate between two volumes.
+    out, spare = np.empty_like(vol), None
+    src = vol
     with _KERNEL_LOCK:
         for _ in range(steps):
-            vardiff_step(vol, new, f, m, bool(keep_samples), c1, c2, c3, dt)
-            vol, new = new, vol
-    return vol
+            if src is out:
+                spare = np.empty_like(vol) if spare is None else spare
+                dst = spare
+            else:
+                dst = out
+            vardiff_step(src, dst, f, m, bool(keep_samples), c1, c2, c3, dt)
+            src = dst
+    return src
 
 
 def _sample(img: np.ndarray, gy, gx) -> np.ndarray:

@@ -43,22 +43,33 @@ def vardiff_step(vol, new, flow, mask, keep_samples, c1, c2, c3, dt):
     S, H, W = vol.shape
     b = c2 - c3
     for t in numba.prange(S):
+        here = vol[t]  # the planes read, taken once per sub-frame
+        after = vol[min(t + 1, S - 1)]
+        before = vol[max(t - 1, 0)]
+        vel = flow[t]
+        fixed = mask[t]
+        dst = new[t]
         for y in range(H):
             for x in range(W):
-                cur = float(vol[t, y, x])
-                if keep_samples and mask[t, y, x]:
-                    new[t, y, x] = vol[t, y, x]
+                cur = float(here[y, x])
+                if keep_samples and fixed[y, x]:
+                    dst[y, x] = here[y, x]
                     continue
-                u = float(flow[t, y, x, 0])
-                v = float(flow[t, y, x, 1])
+                u = float(vel[y, x, 0])
+                v = float(vel[y, x, 1])
                 if not math.isfinite(u):  # no flow measured there: still
                     u = 0.0
                 if not math.isfinite(v):
                     v = 0.0
                 speed2 = u * u + v * v
-                # Along λ: the neighbouring sub-frames, read at x ± (u, v).
-                nxt = _clamped_bilinear(vol[t + 1], y + v, x + u) if t + 1 < S else cur
-                prv = _clamped_bilinear(vol[t - 1], y - v, x - u) if t > 0 else cur
+                # Along λ: the neighbouring sub-frames, read at x ± (u, v); at zero flow (most
+                # voxels: the gated flow of still regions) the bilinear read is the pixel itself.
+                if u == 0.0 and v == 0.0:
+                    nxt = float(after[y, x]) if t + 1 < S else cur
+                    prv = float(before[y, x]) if t > 0 else cur
+                else:
+                    nxt = _clamped_bilinear(after, y + v, x + u) if t + 1 < S else cur
+                    prv = _clamped_bilinear(before, y - v, x - u) if t > 0 else cur
                 acc = (c1 - c3) / (1.0 + speed2) * (nxt + prv - 2.0 * cur)
                 if b > 0:
                     # Along ψ, within the sub-frame: ψ = (v, −u)/|(u, v)|, or (0, −1) where still.
@@ -69,22 +80,22 @@ def vardiff_step(vol, new, flow, mask, keep_samples, c1, c2, c3, dt):
                     else:
                         px = 0.0
                         py = -1.0
-                    acc += b * (_clamped_bilinear(vol[t], y + py, x + px)
-                                + _clamped_bilinear(vol[t], y - py, x - px) - 2.0 * cur)
+                    acc += b * (_clamped_bilinear(here, y + py, x + px)
+                                + _clamped_bilinear(here, y - py, x - px) - 2.0 * cur)
                 if c3 > 0:
-                    up = float(vol[t + 1, y, x]) if t + 1 < S else cur
-                    dn = float(vol[t - 1, y, x]) if t > 0 else cur
+                    up = float(after[y, x]) if t + 1 < S else cur
+                    dn = float(before[y, x]) if t > 0 else cur
                     lap = up + dn - 2.0 * cur
                     if x + 1 < W:
-                        lap += float(vol[t, y, x + 1]) - cur
+                        lap += float(here[y, x + 1]) - cur
                     if x > 0:
-                        lap += float(vol[t, y, x - 1]) - cur
+                        lap += float(here[y, x - 1]) - cur
                     if y + 1 < H:
-                        lap += float(vol[t, y + 1, x]) - cur
+                        lap += float(here[y + 1, x]) - cur
                     if y > 0:
-                        lap += float(vol[t, y - 1, x]) - cur
+                        lap += float(here[y - 1, x]) - cur
                     acc += c3 * lap
-                new[t, y, x] = cur + dt * acc
+                dst[y, x] = cur + dt * acc
 
 
 def warm_up() -> None:

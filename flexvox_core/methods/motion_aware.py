@@ -20,8 +20,8 @@ from flexvox_core.motion import motion_aware, resolution_map
 from flexvox_core.motion.multiplexed import TIME_FRACTION, motion_aware_multiplexed
 from flexvox_core.motion.pipeline import DEFAULT_TIME, SLOW_REACH, MotionOptions, auto_flow_scale, gated_flow
 
-REFINE_SHOWN = 1.0
-"""What forms show for the default refinement time (K/16: 1 at K = 16, the usual code)."""
+REFINE_SHOWN = "K/16"
+"""What forms show for the default refinement time: it depends on the code (1 at K = 16, 0.5 at K = 8)."""
 
 _LABEL = re.compile(
     r"^motion-aware (?P<flow>\w+) n=(?P<time>[\d.]+)(?: \+refine (?P<refine>[\d.]+))?(?: x(?P<passes>\d+))?$")

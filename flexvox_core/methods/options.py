@@ -52,8 +52,9 @@ class Option:
         The values of a ``choice``.
     span : (low, high, step) or None
         The range a form offers for a ``number`` or ``integer`` (validation is ``accepts``).
-    shown_default : float or None
-        What a form shows for a default of None (a number the method then uses).
+    shown_default : float, str or None
+        What a form shows for a default of None: a number the method then uses, or words for a
+        default that depends on the capture ("K/16"), which a form offers as its own choice.
     """
 
     name: str
@@ -65,7 +66,7 @@ class Option:
     help: str = ""
     choices: tuple = ()
     span: tuple[float, float, float] | None = None
-    shown_default: float | None = None
+    shown_default: float | str | None = None
 
     def __post_init__(self):
         if self.kind not in KINDS:

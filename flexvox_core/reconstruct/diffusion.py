@@ -335,7 +335,6 @@ def _nc_rows(frames, code, sig, keep_samples: bool, dtype, present, rows: tuple[
 
     for_each(one, c1 - c0)
     out = (mat @ num.reshape(c1 - c0, H * W)).reshape(r1 - r0, H, W)
-    del num
     # Denominator: the mask has K distinct sub-frames; the matrix's columns summed per phase weigh them.
     den_k = np.empty((K, H, W), dtype=dtype)
     for k in range(K):

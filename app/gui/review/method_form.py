@@ -70,6 +70,13 @@ class _Knob:
             self.widget.setRange(int(lo), int(hi))
             self.widget.setValue(settings.get_int(key, int(o.default)))
             self.signal = self.widget.valueChanged
+        elif isinstance(o.shown_default, str) and o.default is None:
+            # A default that depends on the capture (motion-aware's refinement: K/16) is a choice of
+            # its own, one step below the range, shown in words; every number in the range means itself.
+            lo, hi, step = o.span or (0.0, 100.0, 0.1)
+            self.widget = _spin(lo - step, hi, settings.get_float(key, lo - step), step)
+            self.widget.setSpecialValueText(f"default ({o.shown_default})")
+            self.signal = self.widget.valueChanged
         else:
             lo, hi, step = o.span or (0.0, 100.0, 0.1)
             shown = o.shown_default if o.default is None else o.default
@@ -78,14 +85,16 @@ class _Knob:
         self.widget.setToolTip(o.help)
 
     def value(self):
-        """The option's value (a number equal to ``shown_default`` stands for a None default)."""
+        """The option's value (a number equal to ``shown_default``, or the "default (…)" choice below the
+        range, stands for a None default)."""
         w, o = self.widget, self.option
         if o.kind == "flag":
             return w.isChecked()
         if o.kind == "choice":
             return w.currentText()
         value = w.value()
-        if o.default is None and value == o.shown_default:
+        if o.default is None and (value == o.shown_default
+                                  or isinstance(o.shown_default, str) and value == w.minimum()):
             return None
         return value
 

@@ -327,6 +327,15 @@ def test_the_method_form_is_built_from_the_registered_methods(qtbot, settings):
     form.set_method_name("motion-aware")
     form.widget("slow_reach").setValue(0.75)  # the pipeline's default is shown, and stands for None
     assert form.method().slow_reach is None and form.slider.isEnabled()
+    # The refinement's default depends on the code (K/16): a choice of its own, shown in words, below 0.
+    refine = form.widget("refine_time")
+    assert refine.text() == "default (K/16)" and form.method().refine_time is None
+    refine.setValue(1.0)  # every number means itself, 1.0 included (0.5 would be the default at K = 8)
+    assert form.method().refine_time == 1.0
+    refine.setValue(0.0)
+    assert form.method().refine_time == 0.0
+    refine.setValue(refine.minimum())
+    assert form.method().refine_time is None
     with pytest.raises(ValueError, match=r"motion-aware has no widget for 'tensor'"):
         form.widget("tensor")
     form.set_method_name("diffusion")

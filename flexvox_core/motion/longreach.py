@@ -113,21 +113,27 @@ def long_reach_nc(sparse, mask, flow, guide, select, *, reach: int, sigma_t: flo
             keep = sel[t][box] & (den > MIN_WEIGHT)
             out[t][box][keep] = num[keep] / den[keep]
             return
-        # Sparse: only the selected voxels (and, for the blur, their neighbours), as a list.
-        ys, xs = np.nonzero(act)
-        grids = [_as_grid(a) for a in (xs, ys, f[t, ys, xs, 0], f[t, ys, xs, 1], g_all[t, ys, xs], value[t][ys, xs],
-                                       weight[t][ys, xs])]
+        # Sparse: only the selected voxels (and, for the blur, their neighbours), as a list, read
+        # and written through flat indices (one index array, not two).
+        ys, xs = np.nonzero(act[y0:y1, x0:x1])
+        at = ys * (x1 - x0) + xs  # in the box
+        ys += y0
+        xs += x0
+        flat = ys * W + xs  # in the sub-frame
+        uv = f[t].reshape(-1, 2)[flat]
+        grids = [_as_grid(a) for a in (xs, ys, uv[:, 0], uv[:, 1], g_all[t].reshape(-1)[flat],
+                                       value[t].reshape(-1)[flat], weight[t].reshape(-1)[flat])]
         num, den = (a.reshape(-1)[: len(ys)] for a in _gather_grid(t, value, weight, *grids, reach, sigma_t, scale))
         if radius:
-            planes = np.zeros((2, y1 - y0, x1 - x0), np.float32)
-            planes[0, ys - y0, xs - x0], planes[1, ys - y0, xs - x0] = num, den
-            for plane in planes:  # neighbours outside `act` are zero: beyond the kernel's reach of `sel`
+            planes = np.zeros((2, (y1 - y0) * (x1 - x0)), np.float32)
+            planes[0, at], planes[1, at] = num, den
+            for plane in planes.reshape(2, y1 - y0, x1 - x0):  # outside `act` zero: beyond the kernel's reach of `sel`
                 cv2.GaussianBlur(plane, (2 * radius + 1,) * 2, sigma_s, dst=plane, borderType=cv2.BORDER_CONSTANT)
-            keep = sel[t, ys, xs]
-            ys, xs = ys[keep], xs[keep]
-            num, den = planes[0, ys - y0, xs - x0], planes[1, ys - y0, xs - x0]
+            keep = sel[t].reshape(-1)[flat]
+            flat, at = flat[keep], at[keep]
+            num, den = planes[0, at], planes[1, at]
         ok = den > MIN_WEIGHT
-        out[t, ys[ok], xs[ok]] = num[ok] / den[ok]
+        out[t].put(flat[ok], num[ok] / den[ok])  # flat indices into any layout
 
     for_each(one, S)
     return out

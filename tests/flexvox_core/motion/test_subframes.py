@@ -31,6 +31,20 @@ def test_values_off_sample_are_cleaned_and_an_irregular_mask_gets_its_own_planes
     assert not np.shares_memory(values[0], sparse)
 
 
+
+def test_a_periodic_mask_with_dirt_off_its_samples_is_cleaned_plane_by_plane(rng):
+    code = design_code((2, 2)).code  # K = 4
+    truth = rng.random((4 * 3, 6, 8)).astype(np.float32)
+    sparse = sparse_volume(capture(truth, code), code)
+    mask = sample_mask(truth.shape, code)
+    sparse[5, ~mask[5]] = -0.0  # equal to 0, other bits: cleaned (the same values)
+    sparse[7][~mask[7]] = np.where(rng.random((~mask[7]).sum()) < 0.5, np.nan, 3.0).astype(np.float32)
+    values, weights = sample_planes(sparse, mask)
+    for t in range(12):
+        np.testing.assert_array_equal(values[t], np.where(mask[t], sparse[t], 0))
+        assert np.shares_memory(values[t], sparse) == (t not in (5, 7))
+    assert not np.signbit(values[5]).any()
+
 def test_selected_boxes_cover_every_selected_pixel():
     select = np.zeros((100, 60), bool)
     select[5, 7] = select[40:45, 10:50] = select[99, 0] = True

@@ -93,17 +93,21 @@ def sanitize_flow(flow: np.ndarray, confidence: np.ndarray | None = None, *, max
     if flow.ndim < 3 or flow.shape[-1] != 2:
         raise ValueError(f"`flow` must have shape (..., H, W, 2); got {flow.shape}")
     conf = np.ones(flow.shape[:-1], np.float32) if confidence is None else np.array(confidence, np.float32)
-    bad = ~np.isfinite(flow).all(axis=-1)
-    if bad.any():
+    # Each check first in one pass that usually settles it (no temporaries): every value finite
+    # (a float64 sum of float32 values cannot overflow), no component beyond max_magnitude / √2.
+    if not np.isfinite(flow.sum(dtype=np.float64)):
+        bad = ~np.isfinite(flow).all(axis=-1)
         flow = flow.copy()
         flow[bad] = 0
         conf[bad] = 0
-    if max_magnitude is not None:
+    if max_magnitude is not None and flow.size and max(flow.max(), -flow.min()) * np.sqrt(2) > max_magnitude:
         mag = np.hypot(flow[..., 0], flow[..., 1])
         over = mag > max_magnitude
         if over.any():
             flow = flow * np.where(over, max_magnitude / np.maximum(mag, 1e-12), 1)[..., None]
-    return flow.astype(np.float32, copy=False), np.clip(conf, 0, 1)
+    if conf.size and not (conf.min() >= 0 and conf.max() <= 1):  # NaN fails both: clipped (stays NaN)
+        conf = np.clip(conf, 0, 1)
+    return flow.astype(np.float32, copy=False), conf
 
 
 def downscale(v: np.ndarray, scale: float) -> np.ndarray:
@@ -197,15 +201,18 @@ def successive_flow(small: np.ndarray, flow_fn, *, consistency: bool, temporal_w
               memo=memo)
     # Velocity at sub-frame s: confidence-weighted mean of forward flows s-w .. s+w (clamped to
     # the pairs; the last sub-frame takes the last pair's), one shifted slice per offset.
+    # The sums are made in place in volumes of S sub-frames (fresh memory is dear: np.zeros
+    # gets it zeroed by the system, and no concatenated copies are made).
     wts = conf + np.float32(1e-3)
     weighted = fwd * wts[..., None]
-    num, den = np.zeros_like(fwd), np.zeros_like(wts)
     P = S - 1
+    num, den = np.zeros((S, h, w, 2), np.float32), np.zeros((S, h, w), np.float32)
     for o in range(-min(temporal_window, P - 1), min(temporal_window, P - 1) + 1):
         a, b = max(0, -o), P - max(0, o)  # centres c in [a, b) read pair c + o
         num[a:b] += weighted[a + o: b + o]
         den[a:b] += wts[a + o: b + o]
-    vel = np.concatenate([num, num[-1:]]) / np.concatenate([den, den[-1:]])[..., None]
+    num[P], den[P] = num[P - 1], den[P - 1]
+    vel = np.divide(num, den[..., None], out=num)
     vconf = np.concatenate([conf, conf[-1:]])
     return vel, vconf
 

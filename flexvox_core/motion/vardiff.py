@@ -69,6 +69,7 @@ def variable_tensor_diffusion(
     c=DEFAULT_C,
     time: float = 1.0,
     keep_samples: bool = True,
+    out: np.ndarray | None = None,
 ) -> np.ndarray:
     """Diffuse ``init`` for diffusion time ``time`` with the motion tensor field of ``flow``.
 
@@ -84,10 +85,13 @@ def variable_tensor_diffusion(
         Eigenvalues along λ, ψ, γ, with c1 ≥ c2 ≥ c3 ≥ 0.
     time : float
         Diffusion time n ≥ 0 (the accuracy knob). Steps: ``ceil(n / dt_max)``, dt_max = 1/(2 trace T).
+    out : ndarray (S, H, W) float32 C-contiguous, optional
+        Where the result goes; may be ``init`` itself (a step never writes the volume it reads:
+        with ``out`` = ``init`` one new volume is made instead of two — fresh memory is dear).
 
     Returns
     -------
-    ndarray, shape (S, H, W), float32
+    ndarray, shape (S, H, W), float32 (``out`` when given)
 
     Each step is one compiled pass (:func:`~flexvox_core.motion.vardiff_kernel.vardiff_step`);
     :func:`variable_tensor_diffusion_reference` is the same in plain numpy.
@@ -98,20 +102,33 @@ def variable_tensor_diffusion(
     vol = np.ascontiguousarray(vol)
     m = np.ascontiguousarray(m)
     f = np.ascontiguousarray(f)
+    if out is not None and (not isinstance(out, np.ndarray) or out.shape != vol.shape or out.dtype != np.float32
+                            or not out.flags.c_contiguous or not out.flags.writeable):
+        raise ValueError(f"`out` must be a writable C-contiguous float32 array of shape {vol.shape}")
     if not steps:
-        return vol.copy()
-    # The first step reads ``init`` itself (no copy of it), later ones alternate between two volumes.
-    out, spare = np.empty_like(vol), None
+        if out is None:
+            return vol.copy()
+        np.copyto(out, vol)
+        return out
+    # Steps alternate between two volumes X and Y, the first reading ``init`` itself (no copy of
+    # it) and the last writing X; step k writes X when steps - 1 - k is even. ``out`` is X when it
+    # is not ``init``; when it is (or overlaps it), it can be written from the second step on: X
+    # for an even count of steps, else Y (X then copied into it).
+    overlaps = out is not None and np.may_share_memory(out, vol)
+    if out is None or not overlaps or steps % 2 == 0:
+        x = out if out is not None else np.empty_like(vol)
+        y = np.empty_like(vol) if steps > 1 else None
+    else:
+        x, y = np.empty_like(vol), out if steps > 1 else None
     src = vol
     with _KERNEL_LOCK:
-        for _ in range(steps):
-            if src is out:
-                spare = np.empty_like(vol) if spare is None else spare
-                dst = spare
-            else:
-                dst = out
+        for k in range(steps):
+            dst = x if (steps - 1 - k) % 2 == 0 else y
             vardiff_step(src, dst, f, m, bool(keep_samples), c1, c2, c3, dt)
             src = dst
+    if out is not None and src is not out:
+        np.copyto(out, src)
+        return out
     return src
 
 

@@ -107,6 +107,7 @@ def methods_for(case: Case, *, quick: bool) -> list[tuple[str, Method]]:
     if not quick:
         rows.append(("motion-aware", Method("motion-aware", time=MA_TIME, refine_time=0.0)))  # no refinement
         rows.append(("motion-aware", Method("motion-aware", time=MA_TIME, passes=2)))
+        rows.append(("motion-aware", Method("motion-aware", time=MA_TIME, local_choice=False)))  # gather alone
     return rows
 
 

@@ -14,7 +14,7 @@ import numpy as np
 from flexvox_core.codes import is_identity_code
 from flexvox_core.flow import BACKENDS
 from flexvox_core.methods.diffusion import time_option
-from flexvox_core.methods.options import choice, integer, number
+from flexvox_core.methods.options import choice, flag, integer, number
 from flexvox_core.methods.spec import MethodOutput, MethodSpec
 from flexvox_core.motion import motion_aware, resolution_map
 from flexvox_core.motion.multiplexed import TIME_FRACTION, motion_aware_multiplexed
@@ -24,7 +24,8 @@ REFINE_SHOWN = "K/16"
 """What forms show for the default refinement time: it depends on the code (1 at K = 16, 0.5 at K = 8)."""
 
 _LABEL = re.compile(
-    r"^motion-aware (?P<flow>\w+) n=(?P<time>[\d.]+)(?: \+refine (?P<refine>[\d.]+))?(?: x(?P<passes>\d+))?$")
+    r"^motion-aware (?P<flow>\w+) n=(?P<time>[\d.]+)(?: \+refine (?P<refine>[\d.]+))?(?: x(?P<passes>\d+))?"
+    r"(?P<gather> gather-only)?$")
 
 
 class MotionAware(MethodSpec):
@@ -47,6 +48,9 @@ class MotionAware(MethodSpec):
                help="how far the slowly moving voxels' gather reaches along their trajectory, in sampling "
                     "periods each way (0: no long gather, faster where the whole picture drifts slowly)",
                span=(0.0, 4.0, 0.25), shown_default=SLOW_REACH),
+        flag("local_choice", True, label="local choice (leave-one-out)",
+             help="blend in isotropic nc wherever it predicts left-out samples better than the trajectory gather "
+                  "(off: the gather alone)"),
     )
     needs_sample_range = True
     extras = ("flow", "tr")
@@ -82,12 +86,15 @@ class MotionAware(MethodSpec):
               "refine_time": values["refine_time"]}
         if values["slow_reach"] is not None:
             kw["slow_reach"] = float(values["slow_reach"])
+        if not values["local_choice"]:
+            kw["local_choice"] = False
         return kw
 
     def label(self, values: dict) -> str:
         extra = f" +refine {values['refine_time']:g}" if values["refine_time"] is not None else ""
         extra += f" x{values['passes']}" if values["passes"] > 1 else ""
         extra += f" slow-reach {values['slow_reach']:g}" if values["slow_reach"] is not None else ""
+        extra += " gather-only" if not values["local_choice"] else ""
         return f"motion-aware {values['flow']} n={values['time']:g}{extra}"
 
     def parse_label(self, label: str) -> dict | None:
@@ -95,13 +102,15 @@ class MotionAware(MethodSpec):
         if not m:
             return None
         return {"name": self.name, "flow": m["flow"], "time": float(m["time"]),
-                "refine_time": None if m["refine"] is None else float(m["refine"]), "passes": int(m["passes"] or 1)}
+                "refine_time": None if m["refine"] is None else float(m["refine"]), "passes": int(m["passes"] or 1),
+                "local_choice": m["gather"] is None}
 
     def bench_rank(self, knobs: dict, values: dict, code) -> tuple[tuple, bool]:
         def refines(r):  # None: the default refinement (K/16)
             return r is None or r > 0
 
-        same = knobs["passes"] == values["passes"] and refines(knobs["refine_time"]) == refines(values["refine_time"])
+        same = (knobs["passes"] == values["passes"] and refines(knobs["refine_time"]) == refines(values["refine_time"])
+                and knobs.get("local_choice", True) == values["local_choice"])
         return (not same,), knobs["flow"] == values["flow"]
 
 

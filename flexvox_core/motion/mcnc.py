@@ -23,6 +23,7 @@ import numpy as np
 
 from flexvox_core.motion.subframes import sample_planes, sampling_period
 from flexvox_core.motion.tensors import DEFAULT_C, check_c
+from flexvox_core.reconstruct.diffusion import self_weights
 from flexvox_core.threads import for_each
 
 MIN_WEIGHT = 1e-6
@@ -47,6 +48,7 @@ def motion_compensated_nc(
     max_reach: int | None = None,
     still=None,
     still_value=None,
+    loo: np.ndarray | None = None,
 ) -> np.ndarray:
     """Reconstruct a video from samples along the flow's trajectories.
 
@@ -72,6 +74,13 @@ def motion_compensated_nc(
         its still and slow voxels' own values). The trajectory gather then runs only over the
         other voxels and their neighbours within the spatial blur's reach, as a list — that is
         where the time goes (a still scene costs almost nothing).
+    loo : ndarray (F, H, W) float32, optional
+        Filled, at every sample the gather reaches (its voxel not in ``still``), with the sample's
+        **leave-one-out** estimate: the gather's value there from all the *other* samples,
+        (N − c·y) / (D − c), c the weight the sample gives itself (1 along the trajectory times the
+        spatial blur's centre). F = S / K frames of K sub-frames; a sub-frame's samples go to its
+        frame's plane (each pixel is sampled once a frame). Other pixels are left as they are.
+        :mod:`~flexvox_core.motion.local_choice` compares it with isotropic nc's.
     """
     c1, c2, _ = check_c(c)
     vals = np.asarray(sparse, dtype=np.float32)
@@ -103,6 +112,9 @@ def motion_compensated_nc(
         still_value = np.asarray(still_value, dtype=np.float32)
         if still.shape != vals.shape or still_value.shape != vals.shape:
             raise ValueError(f"`still` and `still_value` must have shape {vals.shape}")
+    if loo is not None and (loo.ndim != 3 or loo.shape[1:] != (H, W) or not len(loo) or S % len(loo)):
+        raise ValueError(f"`loo` must be (F, H, W) with F dividing the {S} sub-frames; got {loo.shape}")
+    per_frame = S // len(loo) if loo is not None else 0
     out = np.empty((S, H, W), np.float32)
     # The spatial blur mixes in trajectories up to `pad` away: those are gathered in full too.
     pad = int(math.ceil(sig_space * 4)) + 1
@@ -132,6 +144,8 @@ def motion_compensated_nc(
         if sig_space > 0.05:  # neighbours outside `near` are beyond the blur's reach of `moving`
             for plane in planes:
                 cv2.GaussianBlur(plane, (0, 0), sig_space, dst=plane, borderType=cv2.BORDER_REFLECT)
+        if loo is not None:
+            _leave_one_out(loo[t // per_frame][box], planes, inside & m[t][box], vals[t][box], sig_space)
         ok = planes[1] > MIN_WEIGHT
         est = np.divide(planes[0], planes[1], out=np.zeros_like(planes[0]), where=ok)
         region = np.float32(0) if fallback is None else np.asarray(fallback[t][box], np.float32)
@@ -141,6 +155,23 @@ def motion_compensated_nc(
     if keep_samples:
         np.copyto(out, vals, where=m)
     return out
+
+
+def _leave_one_out(dst: np.ndarray, planes: np.ndarray, sampled: np.ndarray, y: np.ndarray, sig_space: float) -> None:
+    """Write (N − c·y) / (D − c) at the ``sampled`` voxels of a box into ``dst`` (NaN where no other sample is
+    in reach); ``planes`` = (N, D) after the spatial blur, whose reflecting border gives a voxel more of itself
+    there (:func:`~flexvox_core.reconstruct.diffusion.self_weights`)."""
+    if not sampled.any():
+        return
+    h, w = sampled.shape
+    if sig_space > 0.05:  # cv2.GaussianBlur's kernel for a float image and this sigma
+        g = cv2.getGaussianKernel(int(round(sig_space * 8 + 1)) | 1, sig_space, cv2.CV_64F).ravel()
+        own = (self_weights(g, h)[:, None] * self_weights(g, w)[None, :])[sampled]
+    else:
+        own = np.ones(int(sampled.sum()))
+    rest = planes[1][sampled] - own
+    est = (planes[0][sampled] - own * y[sampled]) / np.where(rest > MIN_WEIGHT, rest, 1.0)
+    dst[sampled] = np.where(rest > MIN_WEIGHT, est, np.nan)
 
 
 LIST_WIDTH = 4096

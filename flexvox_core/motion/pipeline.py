@@ -37,12 +37,13 @@ from flexvox_core.flow.baseline import default_stride, kaverage, kaverage_flow
 from flexvox_core.flow.estimate import check_video, downscale, successive_flow, to_full_size, upsample_flow
 from flexvox_core.forward import sample_mask, sparse_volume
 from flexvox_core.gaps import as_missing, bridge, bridge_flow, captured, interpolated_subframes
+from flexvox_core.motion import local_choice as lc
 from flexvox_core.motion.longreach import long_reach_nc
 from flexvox_core.motion.mcnc import motion_compensated_nc
 from flexvox_core.motion.tensors import DEFAULT_C, check_c, resolution_map
 from flexvox_core.motion.vardiff import explicit_steps, variable_tensor_diffusion
 from flexvox_core.reconstruct._common import check_frames, check_identity_code
-from flexvox_core.reconstruct.diffusion import diffuse
+from flexvox_core.reconstruct.diffusion import diffuse, nc_leave_one_out
 
 _logger = logging.getLogger(__name__)
 
@@ -232,6 +233,7 @@ def motion_aware(
     slow_reach: float = SLOW_REACH,
     value_range: tuple[float, float] | None = None,
     missing=None,
+    local_choice: bool = True,
 ) -> MotionAwareResult:
     """Motion-aware reconstruction of an identity-code capture.
 
@@ -280,12 +282,16 @@ def motion_aware(
         bridged linearly across each gap (and half a sampling period on each side, whose flow
         was measured across it), and the gap's sub-frames are filled from both sides along it
         (:func:`~flexvox_core.gaps.bridge`).
+    local_choice : bool
+        Where isotropic normalized convolution predicts the samples better than the trajectory gather
+        (each sample estimated from the others, :mod:`~flexvox_core.motion.local_choice`), blend it in at
+        the gathered voxels. On by default: Drop +1.4 dB, no capture of ``flexvox bench`` worse.
     """
     f = check_frames(frames)
     code = check_identity_code(code)
     options = MotionOptions(flow=flow, passes=passes, time=time, c=c, refine_time=refine_time, gate=gate,
                             flow_scale=flow_scale, still_speed=still_speed, flow_consistency=flow_consistency,
-                            slow_speed=slow_speed, slow_reach=slow_reach)
+                            slow_speed=slow_speed, slow_reach=slow_reach, local_choice=local_choice)
     missing = as_missing(missing, f.shape[0])
     lo, hi = sample_bounds(f, missing, value_range)
     return run_window(f, code, options, (lo, hi), missing=missing)
@@ -306,9 +312,12 @@ class MotionOptions:
     flow_consistency: bool = False
     slow_speed: float | None = SLOW_SPEED
     slow_reach: float = SLOW_REACH
+    local_choice: bool = True
 
     def __post_init__(self):
         object.__setattr__(self, "c", check_c(self.c))
+        if not isinstance(self.local_choice, bool | np.bool_):
+            raise ValueError(f"`local_choice` must be True or False; got {self.local_choice!r}")
         passes, time, slow_reach = self.passes, self.time, self.slow_reach
         if isinstance(passes, bool) or not isinstance(passes, int) or passes < 1:
             raise ValueError(f"`passes` must be a whole number >= 1; got {passes!r}")
@@ -409,7 +418,7 @@ def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: 
     current = high_tr
     field_ = None
     fixed = still_value = None
-    for _ in range(o.passes):
+    for pass_ in range(o.passes):
         t0 = _now()
         field_ = gated_flow(current, K, backend=o.flow, gate=o.gate, scale=flow_scale,
                             consistency=o.flow_consistency, slow_speed=o.slow_speed, memo=memo)
@@ -435,17 +444,29 @@ def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: 
         not_gathered = still | slow
         if skip is not None:
             not_gathered[skip] = True
+        last = pass_ + 1 == o.passes
+        # The trajectory gather's leave-one-out estimate of every sample it reaches, for the local choice.
+        loo = np.full(f.shape, np.nan, np.float32) if o.local_choice and last else None
         video = motion_compensated_nc(sparse, mask, field_.flow, c=c, time=o.time, fallback=high_tr,
-                                      still=not_gathered, still_value=base)
+                                      still=not_gathered, still_value=base, loo=loo)
+        gathered = ~not_gathered if loo is not None else None
         del base, not_gathered
+        if last:
+            fixed = still_value = None  # not needed again: free them before the local choice's volume
         if slow.any():
             reach = max(1, round(o.slow_reach * K))
             long_reach_nc(sparse, mask, field_.flow, video, slow, reach=reach, sigma_t=reach,
                           sigma_s=LONG_REACH_SIGMA_S, h=LONG_REACH_RANGE * max(hi - lo, 1e-12), out=video)
             np.copyto(video, sparse, where=mask)
         if refine_time > 0:
-            video[g0:g1] = variable_tensor_diffusion(video[g0:g1], mask[g0:g1], field_.flow[g0:g1], c=REFINE_C,
-                                                     time=refine_time)
+            variable_tensor_diffusion(video[g0:g1], mask[g0:g1], field_.flow[g0:g1], c=REFINE_C, time=refine_time,
+                                      out=video[g0:g1])
+        if loo is not None and np.isfinite(loo).any():
+            # Where isotropic nc predicts the samples better than the gather, it takes over (local_choice).
+            other, other_loo = nc_leave_one_out(f, code, tensor=lc.TENSOR, time=lc.TIME,
+                                                missing=missing)
+            lc.blend(video, other, lc.local_weights(loo, other_loo, f), gathered, K)
+            del other, other_loo, gathered
         if missing is not None:
             bridge(video, missing, K, flow=field_.flow)
         current = np.clip(video, lo, hi, out=video)

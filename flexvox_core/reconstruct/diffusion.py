@@ -259,8 +259,24 @@ def _sample_mask(order: np.ndarray, F: int, K: int) -> np.ndarray:
     return np.tile(np.arange(K)[:, None, None] == order[None], (F, 1, 1))
 
 
-def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None) -> np.ndarray:
-    """Normalized convolution; ``present`` (F,) bool or None: frames without samples are left out."""
+def self_weights(g: np.ndarray | None, length: int) -> np.ndarray:
+    """Weight (float64, ``length``) each position gives itself in a 1-D blur with kernel ``g`` and reflecting
+    ends (edge duplicated, as every blur here): the kernel's centre, more near an end where the kernel
+    folds back onto the position. 1 without a blur (None)."""
+    if g is None:
+        return np.ones(length)
+    r = g.size // 2
+    period = 2 * length
+    pos = np.arange(length)
+    idx = (pos[:, None] + np.arange(-r, r + 1)[None, :]) % period
+    idx = np.where(idx >= length, period - 1 - idx, idx)
+    return ((idx == pos[:, None]) * g.astype(np.float64)[None, :]).sum(axis=1)
+
+
+def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=None) -> np.ndarray:
+    """Normalized convolution; ``present`` (F,) bool or None: frames without samples are left out.
+    ``loo`` (F, H, W) float32, optional: filled with each sample's leave-one-out estimate (NaN where no
+    other sample is in reach, or the frame is missing)."""
     F, H, W = frames.shape
     K = code.shape[2]
     S = F * K
@@ -283,8 +299,20 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None) -> np
         if g is not None:
             peak *= float(g.max())
     low = None
+    if loo is not None:
+        loo[...] = np.nan
+        own_t = self_weights(gt, S)
+        own_yx = (self_weights(gy, H)[:, None] * self_weights(gx, W)[None, :]).astype(dtype)
+        slot_of = [order == k for k in range(K)]
     for s in range(S):
         d = den[s]
+        if loo is not None and (present is None or present[s // K]):
+            # A linear smoother's leave-one-out: the sum without the sample's own term, over the weights without it.
+            at = slot_of[s % K]
+            y, c = frames[s // K][at].astype(dtype), own_yx[at] * dtype(own_t[s])
+            rest = d[at] - c
+            loo[s // K][at] = np.where(rest > NC_MIN_WEIGHT * peak, (num[s][at] - c * y) / np.maximum(rest, 1e-30),
+                                       np.nan)
         low_s = d <= NC_MIN_WEIGHT * peak
         if low_s.any():
             if low is None:
@@ -620,6 +648,32 @@ def diffuse(
     if solver == "explicit":
         return _explicit_kernel(start, mask, tens, t)
     return _steady_kernel(start, mask, tens)
+
+
+def nc_leave_one_out(frames, code, *, tensor=DEFAULT_TENSOR, time: float = DEFAULT_TIME, missing=None
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`diffuse`'s ``nc`` and, for every sample, its **leave-one-out** estimate: the value the
+    normalized convolution gives the sample's voxel from all the *other* samples, ``(N − c·y) / (D − c)``
+    with N and D the blurred samples and mask there, y the sample and c the weight it gives itself (the
+    kernel's centre, more at a reflecting border). How well a method predicts samples it did not see
+    measures how well it fills the voxels it has no sample for (motion-aware's local choice,
+    :mod:`flexvox_core.motion.local_choice`).
+
+    Returns
+    -------
+    video : ndarray (F·K, H, W) float32
+        As ``diffuse(frames, code, tensor=tensor, time=time, missing=missing)``.
+    loo : ndarray (F, H, W) float32
+        The leave-one-out estimate of each pixel's sample in each frame (an identity code samples each
+        pixel once a frame); NaN where no other sample is in reach, and in missing frames.
+    """
+    f = check_frames(frames)
+    c = check_identity_code(code)
+    sig = sigmas(_check_tensor(tensor), _check_time(time))
+    missing = as_missing(missing, f.shape[0])
+    loo = np.empty(f.shape, np.float32)
+    video = _nc_kernel(f, c, sig, True, np.float32, None if missing is None else ~missing, loo=loo)
+    return video, loo
 
 
 def nc_naive(frames, code, *, tensor=DEFAULT_TENSOR, time: float = DEFAULT_TIME,

@@ -229,14 +229,18 @@ class PreviewReconstructor:
         self._key = None
         self._first_id = 0
         """Camera frame id of the stream's frame 0."""
+        self._scale = 1.0
+        """What the stream's frames are divided by (:func:`_full_scale`)."""
 
     def run(self, frames: list, code, region: Region | None = None, method: str = "motion-aware") -> PreviewResult:
         """The reconstruction (``method``: one of :data:`PREVIEW_METHODS`) of ``region`` (default: all) of
         ``frames`` (consecutive Frames, oldest first) at full resolution.
 
         ``code`` is the capture's identity code (m, n, K) or its :class:`~flexvox_core.multiplex.MultiplexedCode`
-        (demultiplexed over the whole frame first, then cropped, and clipped to [0, 1]). A region's corner must
-        lie on the tile grid (:func:`preview_region` places it so): the crop is then a capture of the same code.
+        (demultiplexed over the whole frame first, then cropped). A region's corner must lie on the tile grid
+        (:func:`preview_region` places it so): the crop is then a capture of the same code. Frames are taken
+        to [0, 1] (:func:`normalise`; float frames above 1, a camera's counts, by :func:`_full_scale`) and
+        clipped there (a noisy demultiplex leaves it a little): a preview never stops on its input's range.
         """
         from flexvox_core.reconstruct import diffuse, prepare
 
@@ -255,14 +259,18 @@ class PreviewReconstructor:
             stack, identity = prepare(region.crop(stack), code)
         else:
             stack, identity = prepare(stack, code)  # demultiplex whole tiles, then crop
-            stack = np.clip(region.crop(stack), 0.0, 1.0)  # a noisy demultiplex leaves [0, 1] a little
+            stack = region.crop(stack)
         K = identity.shape[2]
-        stack = np.ascontiguousarray(stack, np.float32)
         ids = [int(f.frame_id) for f in frames]
+        key = (identity.tobytes(), identity.shape, region, (H, W))
         if method == "nc":
+            stack = np.ascontiguousarray(stack / _full_scale(stack), np.float32)
             video, shown, n_frames = diffuse(stack, identity)[-K:], ids[-1], len(frames)
         else:
-            video, shown, n_frames = self._motion_aware(stack, identity, ids, (id(code), region, (H, W)))
+            if self._stream is None or key != self._key:
+                self._scale = _full_scale(stack)  # one scale for the stream's life: its samples' range is fixed
+            stack = np.ascontiguousarray(np.clip(stack / self._scale, 0.0, 1.0), np.float32)
+            video, shown, n_frames = self._motion_aware(stack, identity, ids, key)
         video = np.clip(video, 0.0, 1.0).astype(np.float32, copy=False)
         hi = float(np.percentile(video, 99.5)) if video.size else 1.0
         return PreviewResult(video, shown, n_frames, region, (int(H), int(W)), time.perf_counter() - t0,
@@ -293,6 +301,13 @@ class PreviewReconstructor:
         shown = out[-1]
         a, b = shown.window
         return shown.video, self._first_id + shown.index, b - a
+
+
+def _full_scale(stack: np.ndarray) -> float:
+    """1 for frames in [0, 1]; else the smallest power of two above their largest value (a float camera's
+    counts: 255 -> 256, 4095 -> 4096, 128 -> 256), so that they fall in [0, 1]."""
+    top = float(np.max(stack)) if stack.size else 0.0
+    return 1.0 if not top > 1.0 else float(2.0 ** (math.floor(math.log2(top)) + 1))
 
 
 def reconstruct_preview(frames: list, code, region: Region | None = None, method: str = "motion-aware"

@@ -318,18 +318,26 @@ class MotionOptions:
         object.__setattr__(self, "c", check_c(self.c))
         if not isinstance(self.local_choice, bool | np.bool_):
             raise ValueError(f"`local_choice` must be True or False; got {self.local_choice!r}")
-        passes, time, slow_reach = self.passes, self.time, self.slow_reach
+        if not isinstance(self.flow_consistency, bool | np.bool_):
+            raise ValueError(f"`flow_consistency` must be True or False; got {self.flow_consistency!r}")
+        make_backend(self.flow)  # an unknown backend is refused here, naming the backends
+        passes = self.passes
         if isinstance(passes, bool) or not isinstance(passes, int) or passes < 1:
             raise ValueError(f"`passes` must be a whole number >= 1; got {passes!r}")
-        if not np.isfinite(time) or time <= 0:
-            raise ValueError(f"`time` must be a finite number > 0; got {time!r}")
-        if isinstance(slow_reach, bool) or not np.isfinite(slow_reach) or slow_reach < 0:
-            raise ValueError(f"`slow_reach` must be a number >= 0 (sampling periods); got {slow_reach!r}")
-        r = self.refine_time
-        if r is not None and (isinstance(r, bool) or not np.isfinite(r) or r < 0):
-            raise ValueError(f"`refine_time` must be a finite number >= 0; got {r!r}")
-        if self.flow_scale is not None and not 0 < self.flow_scale <= 1:
-            raise ValueError(f"`flow_scale` must be in (0, 1] or None; got {self.flow_scale!r}")
+        _number("time", self.time, "a finite number > 0", lambda v: v > 0)
+        _number("slow_reach", self.slow_reach, "a number >= 0 (sampling periods)", lambda v: v >= 0)
+        for name, rule, ok in (("refine_time", "a finite number >= 0", lambda v: v >= 0),
+                               ("flow_scale", "in (0, 1] or None", lambda v: 0 < v <= 1),
+                               ("still_speed", "a number >= 0 (px per sub-frame) or None", lambda v: v >= 0),
+                               ("slow_speed", "a number >= 0 (px per sub-frame) or None", lambda v: v >= 0)):
+            if getattr(self, name) is not None:
+                _number(name, getattr(self, name), rule, ok)
+        try:
+            lo, hi = (float(v) for v in self.gate)
+        except (TypeError, ValueError):
+            lo, hi = math.nan, math.nan
+        if not 0 <= lo < hi:
+            raise ValueError(f"`gate` must be two thresholds 0 <= low < high (px per sub-frame); got {self.gate!r}")
 
     def refine(self, K: int) -> float:
         """The refinement time at K slots (None: K/16)."""
@@ -348,6 +356,13 @@ class MotionOptions:
         frames = max(3, math.ceil(self.slow_reach) + 2)
         # The refinement's explicit steps reach one sub-frame each.
         return frames + math.ceil(self.refine_reach(K) / K)
+
+
+def _number(name: str, value, rule: str, ok) -> None:
+    """Refuse ``value`` unless it is a finite real number (not a bool) for which ``ok`` holds, naming the rule."""
+    if (isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating)
+            or not math.isfinite(value) or not ok(value)):
+        raise ValueError(f"`{name}` must be {rule}; got {value!r}")
 
 
 def sample_bounds(frames: np.ndarray, missing, value_range) -> tuple[float, float]:

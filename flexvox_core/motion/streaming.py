@@ -8,10 +8,12 @@ it — ``back`` frames before it, ``ahead`` after — with two things kept betwe
 
 * the **flow of every pair of sub-frames already measured** (:class:`~flexvox_core.flow.memo.FlowMemo`):
   the successive-sub-frame flow, the K-average's long-baseline flow and the motion detector's,
-  found again by the images' content, so each pair is computed about once;
+  found again by the images' content. Sub-frames near a window's ends differ from the next window's
+  (the K-average and the high-TR blur see the window's end), so their pairs are computed again:
+  about 1.5× the pairs of the offline run in all;
 * the **frames the next windows need** (``back + ahead + 1`` of them, more across dropped ones).
 
-Only the frame's own sub-frames (and the refinement's reach around them) are gathered along the
+Only the frame's own sub-frames (and the refinement's reach around them: 2 sub-frames at K = 16) are gathered along the
 trajectories, the costly step; the high-TR and fixed-tensor guides are recomputed over the window.
 
 How close it comes to the offline run over the whole clip: the window holds ``back + ahead + 1``
@@ -19,8 +21,9 @@ frames where the offline run sees every frame. ``bench/bench_streaming.py`` meas
 both on every built-in moving scene, and the time per frame.
 
 A frame the camera dropped is pushed as None: it is bridged from both sides as offline
-(:mod:`flexvox_core.gaps`), the window growing until it holds a captured frame on each side; a
-run of dropped frames longer than the method bridges is refused when it grows past that.
+(:mod:`flexvox_core.gaps`), the window growing until it holds a captured frame on each side (at the
+stream's end, from the side there is); a run of dropped frames longer than the method bridges is
+refused when it grows past that, and the stream stops (its frames would no longer be the camera's).
 """
 
 from __future__ import annotations
@@ -116,6 +119,7 @@ class StreamingMotionAware:
         self._pushed = 0
         self._next = 0
         self._finished = False
+        self._failed = ""  # why the stream stopped (a gap too long), or empty
         self._run = 0  # dropped frames in a row at the end of the stream
 
     @property
@@ -131,13 +135,17 @@ class StreamingMotionAware:
     def push(self, frame) -> list[StreamFrame]:
         """Add the next camera frame (H, W), or None for a frame the camera dropped; returns the
         frames now reconstructed (usually one, none at the start, more after dropped frames)."""
+        if self._failed:
+            raise RuntimeError(f"the stream stopped ({self._failed}); start a new StreamingMotionAware")
         if self._finished:
             raise RuntimeError("the stream is finished; start a new StreamingMotionAware")
         if frame is None:
             self._run += 1
             if self._run > self.max_gap:
-                raise GapTooLongError(f"frames {self._pushed - self._run + 1}-{self._pushed} were dropped in a row; "
-                                      f"the streaming motion-aware bridges gaps of at most {self.max_gap} frame(s)")
+                # The stream cannot go on: its frames would no longer be counted as the camera's.
+                self._failed = (f"frames {self._pushed - self._run + 1}-{self._pushed} were dropped in a row; "
+                                f"the streaming motion-aware bridges gaps of at most {self.max_gap} frame(s)")
+                raise GapTooLongError(self._failed)
             self._frames[self._pushed] = None
         else:
             self._frames[self._pushed] = self._check(frame)
@@ -189,13 +197,20 @@ class StreamingMotionAware:
                              f"value_range [{lo:g}, {hi:g}]")
         return img
 
+    def _left(self, f: int) -> int:
+        """The first frame of frame ``f``'s window: ``back`` frames before it, and further back past
+        dropped frames (past ``f`` itself when it was dropped) to a captured one. A frame not pushed
+        yet counts as captured (it is coming)."""
+        a = max(0, f - self.back)
+        while a > 0 and all(self._frames.get(i, 0) is None for i in range(a, max(f, a + 1))):
+            a -= 1
+        return a
+
     def _window(self, f: int) -> tuple[int, int] | None:
         """Frames [a, b) of frame ``f``'s window, or None while it waits for more frames."""
         if f >= self._pushed:
             return None
-        a = max(0, f - self.back)
-        while a > 0 and all(self._frames[i] is None for i in range(a, f)):
-            a -= 1  # a dropped frame before: reach back to a captured one
+        a = self._left(f)
         b = f + self.ahead + 1
         while b <= self._pushed and all(self._frames[i] is None for i in range(f + 1, b)):
             b += 1  # dropped frames after: wait for a captured one
@@ -215,9 +230,7 @@ class StreamingMotionAware:
 
     def _forget(self) -> None:
         # Keep what the next window can reach back to (across dropped frames too).
-        keep_from = max(0, self._next - self.back)
-        while keep_from > 0 and all(self._frames.get(i) is None for i in range(keep_from, self._next)):
-            keep_from -= 1
+        keep_from = self._left(self._next)
         for i in [i for i in self._frames if i < keep_from]:
             del self._frames[i]
 

@@ -101,7 +101,8 @@ class LivePreview(QObject):
         self.method = PREVIEW_METHODS[0]
         """What runs reconstruct with (:data:`app.capture.live_preview.PREVIEW_METHODS`)."""
         self.latency_s: float | None = None
-        """Seconds from the newest frame's arrival to its preview on screen, for the last preview."""
+        """Seconds from the shown frame's arrival to its preview on screen, for the last preview (motion-aware
+        shows the frame before the newest, so this includes the wait for the next frame)."""
         self._fed_at: OrderedDict[int, float] = OrderedDict()
         self.enabled = False
         self.result: PreviewResult | None = None
@@ -151,6 +152,7 @@ class LivePreview(QObject):
         self.result = None
         self.runs = self.offered = 0
         self.latency_s = None
+        self.reconstructor = PreviewReconstructor()  # a new session starts a new stream
         self._fed_at.clear()
         self._finish_times.clear()
         self.buffer.clear()

@@ -73,7 +73,11 @@ class _Knob:
         elif isinstance(o.shown_default, str) and o.default is None:
             # A default that depends on the capture (motion-aware's refinement: K/16) is a choice of
             # its own, one step below the range, shown in words; every number in the range means itself.
+            # Its own settings key: a value stored before (where the number shown stood for the default)
+            # must not come back as that number.
             lo, hi, step = o.span or (0.0, 100.0, 0.1)
+            self.key = key = f"{key}-or-default"
+            self.floor = lo
             self.widget = _spin(lo - step, hi, settings.get_float(key, lo - step), step)
             self.widget.setSpecialValueText(f"default ({o.shown_default})")
             self.signal = self.widget.valueChanged
@@ -86,7 +90,7 @@ class _Knob:
 
     def value(self):
         """The option's value (a number equal to ``shown_default``, or the "default (…)" choice below the
-        range, stands for a None default)."""
+        range, or any number typed below the range, stands for a None default)."""
         w, o = self.widget, self.option
         if o.kind == "flag":
             return w.isChecked()
@@ -94,8 +98,8 @@ class _Knob:
             return w.currentText()
         value = w.value()
         if o.default is None and (value == o.shown_default
-                                  or isinstance(o.shown_default, str) and value == w.minimum()):
-            return None
+                                  or isinstance(o.shown_default, str) and value < self.floor):
+            return None  # the default, or a number typed below the range: the default too
         return value
 
     def save(self) -> None:

@@ -165,9 +165,26 @@ def test_a_preview_that_keeps_up_pushes_one_new_frame_and_reuses_the_rest():
     assert stream.memo.hits > hits  # flow pairs of the earlier window found again
     fresh = reconstruct_preview(frames[1:4], code)  # the same picture as a run from scratch
     np.testing.assert_allclose(second.video, fresh.video, rtol=0, atol=1e-5)
-    # Behind by more than the window, or another region: a new stream.
+    # Another region: a new stream.
     rec.run(frames[2:5], code, Region(0, 24, 0, 32))
     assert rec._stream is not stream and rec._stream.pushed == 3
+    # Fallen behind by more than the window (frames 0-2, then 5-7): a new stream, the newest but one shown.
+    rec = PreviewReconstructor()
+    rec.run([_moving(i) for i in range(3)], code)
+    first = rec._stream
+    later = rec.run([_moving(i) for i in range(5, 8)], code)
+    assert rec._stream is not first and later.frame_id == 6 and later.n_frames == 3
+
+
+def test_a_float_camera_in_counts_is_previewed_not_refused():
+    # A colour GenICam camera gives float32 counts 0-255: the preview scales them, it does not stop.
+    code = design_code((2, 4)).code
+    frames = [Frame(np.full((32, 32), 128.0, np.float32), frame_id=i, timestamp_s=i / 15) for i in range(3)]
+    for method in ("motion-aware", "nc"):
+        r = reconstruct_preview(frames, code, method=method)
+        np.testing.assert_allclose(r.video, 0.5, atol=0.02)  # 128 of 256
+    alone = reconstruct_preview(frames[:1], code)
+    np.testing.assert_allclose(alone.video, 0.5, atol=0.02)
 
 
 @pytest.fixture

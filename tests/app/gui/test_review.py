@@ -336,6 +336,18 @@ def test_the_method_form_is_built_from_the_registered_methods(qtbot, settings):
     assert form.method().refine_time == 0.0
     refine.setValue(refine.minimum())
     assert form.method().refine_time is None
+    refine.setValue(-0.25)  # typed below the range: the default, not a value Reconstruct would refuse
+    assert form.method().refine_time is None
+
+
+def test_a_refinement_stored_before_the_default_was_in_words_does_not_come_back_as_a_number(qtbot, settings):
+    from app.gui.review.method_form import MethodForm
+
+    settings.set("review/motion-aware/refine_time", 1.0)  # where 1.0 used to stand for the default
+    form = MethodForm(settings)
+    qtbot.addWidget(form)
+    form.set_method_name("motion-aware")
+    assert form.widget("refine_time").text() == "default (K/16)" and form.method().refine_time is None
     with pytest.raises(ValueError, match=r"motion-aware has no widget for 'tensor'"):
         form.widget("tensor")
     form.set_method_name("diffusion")

@@ -88,6 +88,28 @@ def test_a_gap_longer_than_the_reach_is_refused():
         stream.push(None)
 
 
+def test_a_stream_stops_after_a_gap_too_long():
+    stream = StreamingMotionAware(CODE, refine_time=0.0)
+    stream.push(np.zeros((16, 16), np.float32))
+    for _ in range(6):
+        stream.push(None)
+    with pytest.raises(GapTooLongError):
+        stream.push(None)
+    # Going on would count the next frame as the dropped one: the stream refuses, saying why.
+    with pytest.raises(RuntimeError, match=r"the stream stopped \(frames 1-7 were dropped in a row; .*\); start a new"):
+        stream.push(np.zeros((16, 16), np.float32))
+
+
+def test_back_zero_reaches_back_only_across_a_dropped_frame(balls):
+    _, frames = balls
+    stream = StreamingMotionAware(CODE, back=0)
+    out = []
+    for i, frame in enumerate(frames):
+        out += stream.push(None if i == 2 else frame)
+    out += stream.finish()
+    assert [o.window for o in out] == [(0, 2), (1, 4), (1, 4), (3, 5), (4, 5)]
+
+
 def test_a_stream_of_dropped_frames_only_is_refused():
     stream = StreamingMotionAware(CODE)
     stream.push(None)
@@ -115,6 +137,10 @@ def test_skip_to_gives_up_older_frames(balls):
     ({"value_range": (1, 0)}, r"`value_range` must be two finite numbers lo < hi; got \(1, 0\)"),
     ({"time": -1.0}, r"`time` must be a finite number > 0; got -1.0"),
     ({"flow_scale": 2.0}, r"`flow_scale` must be in \(0, 1\] or None; got 2.0"),
+    ({"flow": "dsi"}, r"unknown flow backend 'dsi'; backends: dis, deepflow, farneback, tvl1"),
+    ({"gate": (0.2, 0.1)}, r"`gate` must be two thresholds 0 <= low < high \(px per sub-frame\); got \(0.2, 0.1\)"),
+    ({"time": "5"}, r"`time` must be a finite number > 0; got '5'"),
+    ({"still_speed": -1}, r"`still_speed` must be a number >= 0 \(px per sub-frame\) or None; got -1"),
 ])
 def test_bad_options_are_refused_by_name(kw, message):
     with pytest.raises(ValueError, match=message):

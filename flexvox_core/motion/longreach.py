@@ -28,7 +28,7 @@ import math
 import cv2
 import numpy as np
 
-from flexvox_core.motion.subframes import sample_planes
+from flexvox_core.motion.subframes import flow_at, sample_planes
 from flexvox_core.threads import for_each
 
 MIN_WEIGHT = 1e-6
@@ -120,8 +120,8 @@ def long_reach_nc(sparse, mask, flow, guide, select, *, reach: int, sigma_t: flo
         ys += y0
         xs += x0
         flat = ys * W + xs  # in the sub-frame
-        uv = f[t].reshape(-1, 2)[flat]
-        grids = [_as_grid(a) for a in (xs, ys, uv[:, 0], uv[:, 1], g_all[t].reshape(-1)[flat],
+        u, v = flow_at(f[t], flat)
+        grids = [_as_grid(a) for a in (xs, ys, u, v, g_all[t].reshape(-1)[flat],
                                        value[t].reshape(-1)[flat], weight[t].reshape(-1)[flat])]
         num, den = (a.reshape(-1)[: len(ys)] for a in _gather_grid(t, value, weight, *grids, reach, sigma_t, scale))
         if radius:

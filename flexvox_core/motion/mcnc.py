@@ -21,7 +21,7 @@ import math
 import cv2
 import numpy as np
 
-from flexvox_core.motion.subframes import sample_planes, sampling_period
+from flexvox_core.motion.subframes import flow_at, sample_planes, sampling_period
 from flexvox_core.motion.tensors import DEFAULT_C, check_c
 from flexvox_core.reconstruct.diffusion import self_weights
 from flexvox_core.threads import for_each
@@ -206,8 +206,7 @@ def _gather_list(t, ys, xs, value, weight, f, reach, time, c1):
     S = len(value)
     W = value[t].shape[1]
     flat = ys * W + xs
-    uv = np.asarray(f[t]).reshape(-1, 2)[flat]
-    u, v = np.ascontiguousarray(uv[:, 0]), np.ascontiguousarray(uv[:, 1])
+    u, v = flow_at(f[t], flat)
     # w_d = e^(d²) with e = exp(-(1 + u² + v²) / (4 n c1)): built by multiplication, since
     # d² is the sum of the first d odd numbers (no exp per offset).
     e = np.exp(-(1 + u * u + v * v) / np.float32(4 * time * c1)).astype(np.float32)

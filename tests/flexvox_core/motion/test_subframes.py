@@ -53,3 +53,16 @@ def test_selected_boxes_cover_every_selected_pixel():
         assert y0 <= k0 < k1 <= y1
         covered[k0:k1, x0:x1] = True
     assert covered[select].all()
+
+
+def test_flow_at_reads_the_vectors_at_flat_indices(rng):
+    from flexvox_core.motion.subframes import flow_at
+
+    flow = rng.standard_normal((6, 7, 2)).astype(np.float32)
+    flat = np.array([0, 5, 13, 41])
+    u, v = flow_at(flow, flat)
+    np.testing.assert_array_equal(u, flow.reshape(-1, 2)[flat, 0])
+    np.testing.assert_array_equal(v, flow.reshape(-1, 2)[flat, 1])
+    assert u.flags.c_contiguous and v.flags.c_contiguous and u.dtype == np.float32
+    strided = np.asfortranarray(flow)  # any layout
+    np.testing.assert_array_equal(flow_at(strided, flat)[1], v)

@@ -7,7 +7,8 @@ PSNR; and, as the baseline timed in the same run, the fixed-tensor normalized co
 The goal of the motion-aware issue is ≥ 5 M voxels/s (≤ 15 s for the clip).
 
 Figures only, never pass/fail. Usage:
-``python bench/bench_motion_throughput.py [SCENES] [--frames F] [--flow-scale S] [--slow-reach R] [--refine n]``
+``python bench/bench_motion_throughput.py [SCENES] [--frames F] [--flow-scale S] [--slow-reach R] [--refine n]
+[--no-local-choice]``
 (default: balls,drummer; F = 15; S: automatic, a third at 640×480; R: motion_aware's default).
 """
 
@@ -31,6 +32,8 @@ def main() -> None:
     ap.add_argument("--flow-scale", type=float, default=None, help="default: auto (shorter side 160 px)")
     ap.add_argument("--refine", type=float, default=None,
                     help="refinement time (default: motion_aware's, K/16; 0: none, as before it was the default)")
+    ap.add_argument("--no-local-choice", action="store_true",
+                    help="the trajectory gather alone, without blending in isotropic nc (motion_aware's local_choice)")
     ap.add_argument("--slow-reach", type=float, default=None,
                     help="slow voxels' reach in sampling periods (default: motion_aware's, 0.75; 0: short gather)")
     args = ap.parse_args()
@@ -38,7 +41,7 @@ def main() -> None:
     scale = args.flow_scale or 'auto'
     reach = "default" if args.slow_reach is None else args.slow_reach
     print(f"640x480, K = 16, {args.frames} frames ({args.frames * 16} sub-frames), flow scale {scale}, "
-          f"slow reach {reach}")
+          f"slow reach {reach}{', no local choice' if args.no_local_choice else ''}")
     print("| scene | motion-aware s | high-TR / flow / diffusion s | M voxels/s | PSNR dB "
           "| fixed nc s | fixed PSNR dB | time ratio |")
     print("|---|---|---|---|---|---|---|---|")
@@ -52,6 +55,8 @@ def main() -> None:
         extra = {} if args.slow_reach is None else {"slow_reach": args.slow_reach}
         if args.refine is not None:
             extra["refine_time"] = args.refine
+        if args.no_local_choice:
+            extra["local_choice"] = False
         result = motion_aware(frames, code, flow_scale=args.flow_scale, **extra)
         t_ma = time.perf_counter() - t0
         sec = result.seconds

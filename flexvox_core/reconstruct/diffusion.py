@@ -300,19 +300,9 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
             peak *= float(g.max())
     low = None
     if loo is not None:
-        loo[...] = np.nan
-        own_t = self_weights(gt, S)
-        own_yx = (self_weights(gy, H)[:, None] * self_weights(gx, W)[None, :]).astype(dtype)
-        slot_of = [order == k for k in range(K)]
+        _leave_one_out(loo, num, den, frames, order, (gx, gy, gt), NC_MIN_WEIGHT * peak, present)
     for s in range(S):
         d = den[s]
-        if loo is not None and (present is None or present[s // K]):
-            # A linear smoother's leave-one-out: the sum without the sample's own term, over the weights without it.
-            at = slot_of[s % K]
-            y, c = frames[s // K][at].astype(dtype), own_yx[at] * dtype(own_t[s])
-            rest = d[at] - c
-            loo[s // K][at] = np.where(rest > NC_MIN_WEIGHT * peak, (num[s][at] - c * y) / np.maximum(rest, 1e-30),
-                                       np.nan)
         low_s = d <= NC_MIN_WEIGHT * peak
         if low_s.any():
             if low is None:
@@ -334,6 +324,29 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
     if keep_samples:
         _put_samples(num, samples, order, present)
     return num
+
+
+def _leave_one_out(loo, num, den, frames, order, kernels, floor, present) -> None:
+    """Fill ``loo`` (F, H, W) with each sample's leave-one-out estimate (N − c·y)/(D − c) from the blurred
+    samples ``num`` (S, H, W, before the division) and mask ``den`` (indexable by sub-frame), a frame at a
+    time: its pixels' own sub-frames taken at once (NaN where D − c <= ``floor``, and in missing frames)."""
+    F, H, W = frames.shape
+    K = len(num) // F
+    gx, gy, gt = kernels
+    own_t = self_weights(gt, len(num))
+    own_yx = self_weights(gy, H)[:, None] * self_weights(gx, W)[None, :]
+    pick = order[None].astype(np.intp)
+    loo[...] = np.nan
+    for f in range(F):
+        if present is not None and not present[f]:
+            continue
+        span = slice(f * K, (f + 1) * K)
+        n_at = np.take_along_axis(num[span], pick, axis=0)[0]
+        d_at = np.take_along_axis(np.stack([den[s] for s in range(f * K, (f + 1) * K)]), pick, axis=0)[0]
+        c = (own_yx * own_t[f * K + order]).astype(num.dtype)
+        rest = d_at - c
+        ok = rest > floor
+        loo[f] = np.where(ok, (n_at - c * frames[f].astype(num.dtype)) / np.where(ok, rest, 1), np.nan)
 
 
 def _nc_rows(frames, code, sig, keep_samples: bool, dtype, present, rows: tuple[int, int]) -> np.ndarray:

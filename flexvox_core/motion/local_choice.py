@@ -15,9 +15,9 @@ shorter side (:func:`pooling_sigma`), weigh the two per pixel:
 
 applied to the voxels the short trajectory gather estimated (the *fast* voxels; still and slow voxels
 keep their own estimates, whose leave-one-out is not the gather's). A convex blend of two results within
-the samples' range stays within it, and both keep the samples. Measured before it was adopted (96×128,
-``flexvox bench``'s captures): Drop +1.40 dB, Runner +0.16, fan +0.18 / +0.49 at K = 16 / 8, balls +0.10 /
-+0.39, no capture worse by more than 0.02 dB; the figures after are in ``docs/benchmarks.md``.
+the samples' range stays within it, and both keep the samples. On ``flexvox bench`` (docs/benchmarks.md):
+Drop +1.15 dB, Runner +0.13, the built-in scenes +0.09 (K = 16) and +0.27 dB (K = 8), no capture worse by
+more than 0.01 dB; about 1 s more on a 1-s VGA clip.
 """
 
 from __future__ import annotations

@@ -42,6 +42,7 @@ from flexvox_core.motion.longreach import long_reach_nc
 from flexvox_core.motion.mcnc import motion_compensated_nc
 from flexvox_core.motion.tensors import DEFAULT_C, check_c, resolution_map
 from flexvox_core.motion.vardiff import explicit_steps, variable_tensor_diffusion
+from flexvox_core.numbers import checked_number, number_pair
 from flexvox_core.reconstruct._common import check_frames, check_identity_code
 from flexvox_core.reconstruct.diffusion import diffuse, nc_leave_one_out
 
@@ -324,14 +325,14 @@ class MotionOptions:
         passes = self.passes
         if isinstance(passes, bool) or not isinstance(passes, int) or passes < 1:
             raise ValueError(f"`passes` must be a whole number >= 1; got {passes!r}")
-        _number("time", self.time, "a finite number > 0", lambda v: v > 0)
-        _number("slow_reach", self.slow_reach, "a number >= 0 (sampling periods)", lambda v: v >= 0)
+        checked_number("time", self.time, "a finite number > 0", lambda v: v > 0)
+        checked_number("slow_reach", self.slow_reach, "a number >= 0 (sampling periods)", lambda v: v >= 0)
         for name, rule, ok in (("refine_time", "a finite number >= 0", lambda v: v >= 0),
                                ("flow_scale", "in (0, 1] or None", lambda v: 0 < v <= 1),
                                ("still_speed", "a number >= 0 (px per sub-frame) or None", lambda v: v >= 0),
                                ("slow_speed", "a number >= 0 (px per sub-frame) or None", lambda v: v >= 0)):
             if getattr(self, name) is not None:
-                _number(name, getattr(self, name), rule, ok)
+                checked_number(name, getattr(self, name), rule, ok)
         try:
             lo, hi = (float(v) for v in self.gate)
         except (TypeError, ValueError):
@@ -358,23 +359,13 @@ class MotionOptions:
         return frames + math.ceil(self.refine_reach(K) / K)
 
 
-def _number(name: str, value, rule: str, ok) -> None:
-    """Refuse ``value`` unless it is a finite real number (not a bool) for which ``ok`` holds, naming the rule."""
-    if (isinstance(value, bool) or not isinstance(value, int | float | np.integer | np.floating)
-            or not math.isfinite(value) or not ok(value)):
-        raise ValueError(f"`{name}` must be {rule}; got {value!r}")
-
-
 def sample_bounds(frames: np.ndarray, missing, value_range) -> tuple[float, float]:
     """The samples' range: ``value_range`` checked to contain the captured frames' values, or theirs."""
     samples = captured(frames, missing)
     lo, hi = float(samples.min()), float(samples.max())
     if value_range is None:
         return lo, hi
-    try:
-        r_lo, r_hi = (float(v) for v in value_range)
-    except (TypeError, ValueError):
-        raise ValueError(f"`value_range` must be two numbers (lo, hi) or None; got {value_range!r}") from None
+    r_lo, r_hi = number_pair("value_range", value_range, "two numbers (lo, hi) or None")
     if not (np.isfinite(r_lo) and np.isfinite(r_hi) and r_lo <= lo and hi <= r_hi):
         raise ValueError(f"`value_range` {value_range!r} must be finite and contain the frames' values "
                          f"[{lo:g}, {hi:g}]")

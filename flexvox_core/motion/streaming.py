@@ -37,6 +37,7 @@ import numpy as np
 from flexvox_core.flow.memo import FlowMemo
 from flexvox_core.gaps import GapTooLongError, max_gap
 from flexvox_core.motion.pipeline import MotionOptions, run_window
+from flexvox_core.numbers import number_pair
 from flexvox_core.reconstruct._common import check_identity_code
 
 _logger = logging.getLogger(__name__)
@@ -104,10 +105,7 @@ class StreamingMotionAware:
                 raise ValueError(f"`{name}` must be a whole number >= {least} (frames); got {value!r}")
         self.back, self.ahead = back, ahead
         self.options = MotionOptions(**options)
-        try:
-            lo, hi = (float(v) for v in value_range)
-        except (TypeError, ValueError):
-            raise ValueError(f"`value_range` must be two numbers (lo, hi); got {value_range!r}") from None
+        lo, hi = number_pair("value_range", value_range)
         if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
             raise ValueError(f"`value_range` must be two finite numbers lo < hi; got {value_range!r}")
         self.value_range = (lo, hi)
@@ -121,6 +119,7 @@ class StreamingMotionAware:
         self._finished = False
         self._failed = ""  # why the stream stopped (a gap too long), or empty
         self._run = 0  # dropped frames in a row at the end of the stream
+        self._captured = 0  # frames pushed that the camera did not drop
 
     @property
     def pushed(self) -> int:
@@ -149,6 +148,7 @@ class StreamingMotionAware:
             self._frames[self._pushed] = None
         else:
             self._frames[self._pushed] = self._check(frame)
+            self._captured += 1
             self._run = 0
         self._pushed += 1
         return self._drain()
@@ -156,8 +156,7 @@ class StreamingMotionAware:
     def finish(self) -> list[StreamFrame]:
         """The frames still held back (the last ``ahead``), reconstructed with the context there is."""
         self._finished = True
-        if self._pushed and all(self._frames.get(i) is None for i in range(self._next, self._pushed)) \
-                and self._next < self._pushed and not any(v is not None for v in self._frames.values()):
+        if self._pushed and not self._captured:
             raise GapTooLongError("every frame of the stream was dropped: there is nothing to reconstruct")
         return self._drain()
 

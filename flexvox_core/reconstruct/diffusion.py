@@ -273,6 +273,24 @@ def self_weights(g: np.ndarray | None, length: int) -> np.ndarray:
     return ((idx == pos[:, None]) * g.astype(np.float64)[None, :]).sum(axis=1)
 
 
+def _mask_planes(order: np.ndarray, K: int, gy, gx, dtype) -> np.ndarray:
+    """The sample mask's K distinct sub-frames (slot k open where ``order`` is k), each blurred in space."""
+    H, W = order.shape
+    den_k = np.empty((K, H, W), dtype=dtype)
+    for k in range(K):
+        _blur_plane((order == k).astype(dtype), gy, gx, den_k[k])
+    return den_k
+
+
+def _peak(kernels) -> float:
+    """The largest weight of the separable kernel made of ``kernels`` (None: no blur on that axis)."""
+    peak = 1.0
+    for g in kernels:
+        if g is not None:
+            peak *= float(g.max())
+    return peak
+
+
 def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=None) -> np.ndarray:
     """Normalized convolution; ``present`` (F,) bool or None: frames without samples are left out.
     ``loo`` (F, H, W) float32, optional: filled with each sample's leave-one-out estimate (NaN where no
@@ -290,14 +308,9 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
     flat = num.reshape(S, H * W)
     _blur_rows(flat, gt, flat)
     # Denominator: the mask has only K distinct sub-frames; blur those in space, then time.
-    den_k = np.empty((K, H, W), dtype=dtype)
-    for k in range(K):
-        _blur_plane((order == k).astype(dtype), gy, gx, den_k[k])
+    den_k = _mask_planes(order, K, gy, gx, dtype)
     den = _PeriodicDenominator(den_k, F, gt) if present is None else _gapped_denominator(den_k, present, gt)
-    peak = 1.0
-    for g in (gx, gy, gt):
-        if g is not None:
-            peak *= float(g.max())
+    peak = _peak((gx, gy, gt))
     low = None
     if loo is not None:
         _leave_one_out(loo, num, den, frames, order, (gx, gy, gt), NC_MIN_WEIGHT * peak, present)
@@ -377,17 +390,12 @@ def _nc_rows(frames, code, sig, keep_samples: bool, dtype, present, rows: tuple[
     for_each(one, c1 - c0)
     out = (mat @ num.reshape(c1 - c0, H * W)).reshape(r1 - r0, H, W)
     # Denominator: the mask has K distinct sub-frames; the matrix's columns summed per phase weigh them.
-    den_k = np.empty((K, H, W), dtype=dtype)
-    for k in range(K):
-        _blur_plane((order == k).astype(dtype), gy, gx, den_k[k])
+    den_k = _mask_planes(order, K, gy, gx, dtype)
     per_phase = np.zeros((r1 - r0, K), dtype)
     for j in range(c1 - c0):
         per_phase[:, (c0 + j) % K] += mat[:, j]
     den = (per_phase @ den_k.reshape(K, H * W)).reshape(r1 - r0, H, W)
-    peak = 1.0
-    for g in (gx, gy, gt):
-        if g is not None:
-            peak *= float(g.max())
+    peak = _peak((gx, gy, gt))
     if (den <= NC_MIN_WEIGHT * peak).any():  # a voxel needs its nearest sample: the whole kernel's way
         return _nc_kernel(frames, code, sig, keep_samples, dtype, present)[r0:r1]
     np.divide(out, den, out=out)
@@ -708,11 +716,7 @@ def nc_naive(frames, code, *, tensor=DEFAULT_TENSOR, time: float = DEFAULT_TIME,
     sigma = (sig[2], sig[1], sig[0])
     num = gaussian_filter(vals, sigma, mode="reflect", truncate=TRUNCATE)
     den = gaussian_filter(mask.astype(np.float64), sigma, mode="reflect", truncate=TRUNCATE)
-    peak = 1.0
-    for s in sig:
-        g = _kernel(s, np.float64)
-        if g is not None:
-            peak *= float(g.max())
+    peak = _peak(_kernel(s, np.float64) for s in sig)
     low = den <= NC_MIN_WEIGHT * peak
     out = np.divide(num, den, out=np.zeros_like(num), where=~low)
     samples = f.astype(np.float64)

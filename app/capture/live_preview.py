@@ -285,14 +285,16 @@ class PreviewReconstructor:
         if (stream is None or key != self._key or ids != list(range(ids[0], ids[0] + len(ids)))
                 or ids[0] > pushed_to + 1 or ids[-1] <= pushed_to):
             # Without the refinement (a sixth less time per run, so a larger region; it adds ~0.4 dB offline) and
-            # without the local choice (about 8 % of a VGA run for a few hundredths of a dB there).
-            stream = self._stream = StreamingMotionAware(identity, refine_time=0.0, local_choice=False)
+            # without the local choice (about 8 % of a VGA run for a few hundredths of a dB there) or the
+            # noise-aware smoothing (a wider blur, more voxels gathered).
+            stream = self._stream = StreamingMotionAware(identity, refine_time=0.0, local_choice=False,
+                                                         noise_aware=False)
             self._key, self._first_id, pushed_to = key, ids[0], ids[0] - 1
         if len(ids) == 1:  # the first frame of a run: nothing after it yet, shown alone
             self._stream = None
             from flexvox_core.motion import motion_aware
 
-            return motion_aware(stack, identity, refine_time=0.0, local_choice=False,
+            return motion_aware(stack, identity, refine_time=0.0, local_choice=False, noise_aware=False,
                                 value_range=(0.0, 1.0)).video, ids[0], 1
         target = ids[-1] - 1 - self._first_id  # the frame before the newest, as the stream counts
         out = []

@@ -25,7 +25,7 @@ REFINE_SHOWN = "K/16"
 
 _LABEL = re.compile(
     r"^motion-aware (?P<flow>\w+) n=(?P<time>[\d.]+)(?: \+refine (?P<refine>[\d.]+))?(?: x(?P<passes>\d+))?"
-    r"(?P<gather> gather-only)?$")
+    r"(?P<gather> gather-only)?(?P<blind> noise-blind)?$")
 
 
 class MotionAware(MethodSpec):
@@ -51,6 +51,9 @@ class MotionAware(MethodSpec):
         flag("local_choice", True, label="local choice (leave-one-out)",
              help="blend in isotropic nc wherever it predicts left-out samples better than the trajectory gather "
                   "(off: the gather alone)"),
+        flag("noise_aware", True, label="noise-aware smoothing",
+             help="estimate the noise from still pixels' successive samples and smooth across space where the "
+                  "picture is flatter than it (off: Eq. 3's narrow spatial blur everywhere)"),
     )
     needs_sample_range = True
     extras = ("flow", "tr")
@@ -86,8 +89,9 @@ class MotionAware(MethodSpec):
               "refine_time": values["refine_time"]}
         if values["slow_reach"] is not None:
             kw["slow_reach"] = float(values["slow_reach"])
-        if not values["local_choice"]:
-            kw["local_choice"] = False
+        for name in ("local_choice", "noise_aware"):
+            if not values[name]:
+                kw[name] = False
         return kw
 
     def label(self, values: dict) -> str:
@@ -95,6 +99,7 @@ class MotionAware(MethodSpec):
         extra += f" x{values['passes']}" if values["passes"] > 1 else ""
         extra += f" slow-reach {values['slow_reach']:g}" if values["slow_reach"] is not None else ""
         extra += " gather-only" if not values["local_choice"] else ""
+        extra += " noise-blind" if not values["noise_aware"] else ""
         return f"motion-aware {values['flow']} n={values['time']:g}{extra}"
 
     def parse_label(self, label: str) -> dict | None:
@@ -103,14 +108,15 @@ class MotionAware(MethodSpec):
             return None
         return {"name": self.name, "flow": m["flow"], "time": float(m["time"]),
                 "refine_time": None if m["refine"] is None else float(m["refine"]), "passes": int(m["passes"] or 1),
-                "local_choice": m["gather"] is None}
+                "local_choice": m["gather"] is None, "noise_aware": m["blind"] is None}
 
     def bench_rank(self, knobs: dict, values: dict, code) -> tuple[tuple, bool]:
         def refines(r):  # None: the default refinement (K/16)
             return r is None or r > 0
 
         same = (knobs["passes"] == values["passes"] and refines(knobs["refine_time"]) == refines(values["refine_time"])
-                and knobs.get("local_choice", True) == values["local_choice"])
+                and knobs.get("local_choice", True) == values["local_choice"]
+                and knobs.get("noise_aware", True) == values["noise_aware"])
         return (not same,), knobs["flow"] == values["flow"]
 
 

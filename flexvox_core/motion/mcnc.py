@@ -49,6 +49,8 @@ def motion_compensated_nc(
     still=None,
     still_value=None,
     loo: np.ndarray | None = None,
+    wide=None,
+    wide_sigma: float = 0.0,
 ) -> np.ndarray:
     """Reconstruct a video from samples along the flow's trajectories.
 
@@ -81,6 +83,10 @@ def motion_compensated_nc(
         spatial blur's centre). F = S / K frames of K sub-frames; a sub-frame's samples go to its
         frame's plane (each pixel is sampled once a frame). Other pixels are left as they are.
         :mod:`~flexvox_core.motion.local_choice` compares it with isotropic nc's.
+    wide, wide_sigma : sequence of (H, W) weights or None per sub-frame, float
+        Noise-aware smoothing (:mod:`~flexvox_core.motion.noise_aware`): the spatial blur at a voxel is
+        the mixture (1 − g)·Gaussian(σ) + g·Gaussian(``wide_sigma``), g = ``wide[t]`` (None: g = 0),
+        for the numerator and the weights alike (a normalized convolution still).
     """
     c1, c2, _ = check_c(c)
     vals = np.asarray(sparse, dtype=np.float32)
@@ -116,8 +122,11 @@ def motion_compensated_nc(
         raise ValueError(f"`loo` must be (F, H, W) with F dividing the {S} sub-frames; got {loo.shape}")
     per_frame = S // len(loo) if loo is not None else 0
     out = np.empty((S, H, W), np.float32)
+    if wide is not None and (len(wide) != S or not (math.isfinite(wide_sigma) and wide_sigma > 0)):
+        raise ValueError(f"`wide` must give a weight plane or None for each of the {S} sub-frames, and "
+                         f"`wide_sigma` must be > 0; got {len(wide)} and {wide_sigma!r}")
     # The spatial blur mixes in trajectories up to `pad` away: those are gathered in full too.
-    pad = int(math.ceil(sig_space * 4)) + 1
+    pad = int(math.ceil(max(sig_space, wide_sigma if wide is not None else 0.0) * 4)) + 1
     kernel = np.ones((2 * pad + 1,) * 2, np.uint8)
     everything = np.ones((H, W), bool)
 
@@ -141,11 +150,20 @@ def motion_compensated_nc(
         planes = np.zeros((2, y1 - y0, x1 - x0), np.float32)
         planes[0, ys - y0, xs - x0] = num
         planes[1, ys - y0, xs - x0] = den
+        g = wide[t] if wide is not None else None
+        if g is not None:
+            g = g[box]
+            broad = np.empty_like(planes)
+            for plane, dst in zip(planes, broad, strict=True):
+                cv2.GaussianBlur(plane, (0, 0), wide_sigma, dst=dst, borderType=cv2.BORDER_REFLECT)
         if sig_space > 0.05:  # neighbours outside `near` are beyond the blur's reach of `moving`
             for plane in planes:
                 cv2.GaussianBlur(plane, (0, 0), sig_space, dst=plane, borderType=cv2.BORDER_REFLECT)
+        if g is not None:  # the mixture of the two kernels, per voxel
+            planes += g * (broad - planes)
         if loo is not None:
-            _leave_one_out(loo[t // per_frame][box], planes, inside & m[t][box], vals[t][box], sig_space)
+            _leave_one_out(loo[t // per_frame][box], planes, inside & m[t][box], vals[t][box], sig_space,
+                           g, wide_sigma)
         ok = planes[1] > MIN_WEIGHT
         est = np.divide(planes[0], planes[1], out=np.zeros_like(planes[0]), where=ok)
         region = np.float32(0) if fallback is None else np.asarray(fallback[t][box], np.float32)
@@ -157,21 +175,31 @@ def motion_compensated_nc(
     return out
 
 
-def _leave_one_out(dst: np.ndarray, planes: np.ndarray, sampled: np.ndarray, y: np.ndarray, sig_space: float) -> None:
+def _leave_one_out(dst: np.ndarray, planes: np.ndarray, sampled: np.ndarray, y: np.ndarray, sig_space: float,
+                   wide=None, wide_sigma: float = 0.0) -> None:
     """Write (N − c·y) / (D − c) at the ``sampled`` voxels of a box into ``dst`` (NaN where no other sample is
     in reach); ``planes`` = (N, D) after the spatial blur, whose reflecting border gives a voxel more of itself
-    there (:func:`~flexvox_core.reconstruct.diffusion.self_weights`)."""
+    there (:func:`~flexvox_core.reconstruct.diffusion.self_weights`); with ``wide`` (weights g of the box) the
+    blur is the mixture with a Gaussian of ``wide_sigma``, and so is c."""
     if not sampled.any():
         return
     h, w = sampled.shape
-    if sig_space > 0.05:  # cv2.GaussianBlur's kernel for a float image and this sigma
-        g = cv2.getGaussianKernel(int(round(sig_space * 8 + 1)) | 1, sig_space, cv2.CV_64F).ravel()
-        own = (self_weights(g, h)[:, None] * self_weights(g, w)[None, :])[sampled]
-    else:
-        own = np.ones(int(sampled.sum()))
+    own = _own_weights(sig_space, h, w)
+    if wide is not None:
+        own = own + wide.astype(np.float64) * (_own_weights(wide_sigma, h, w) - own)
+    own = own[sampled]
     rest = planes[1][sampled] - own
     est = (planes[0][sampled] - own * y[sampled]) / np.where(rest > MIN_WEIGHT, rest, 1.0)
     dst[sampled] = np.where(rest > MIN_WEIGHT, est, np.nan)
+
+
+def _own_weights(sigma: float, h: int, w: int) -> np.ndarray:
+    """Weight (h, w) float64 each pixel of a box gives itself in cv2.GaussianBlur with ``sigma`` (px) and
+    reflecting borders; 1 without a blur (σ <= 0.05, as the gather skips it)."""
+    if sigma <= 0.05:
+        return np.ones((h, w))
+    g = cv2.getGaussianKernel(int(round(sigma * 8 + 1)) | 1, sigma, cv2.CV_64F).ravel()
+    return self_weights(g, h)[:, None] * self_weights(g, w)[None, :]
 
 
 LIST_WIDTH = 4096

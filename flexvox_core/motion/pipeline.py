@@ -38,6 +38,7 @@ from flexvox_core.flow.estimate import check_video, downscale, successive_flow, 
 from flexvox_core.forward import sample_mask, sparse_volume
 from flexvox_core.gaps import as_missing, bridge, bridge_flow, captured, interpolated_subframes
 from flexvox_core.motion import local_choice as lc
+from flexvox_core.motion import noise_aware as na
 from flexvox_core.motion.longreach import long_reach_nc
 from flexvox_core.motion.mcnc import motion_compensated_nc
 from flexvox_core.motion.tensors import DEFAULT_C, check_c, resolution_map
@@ -235,6 +236,7 @@ def motion_aware(
     value_range: tuple[float, float] | None = None,
     missing=None,
     local_choice: bool = True,
+    noise_aware: bool = True,
 ) -> MotionAwareResult:
     """Motion-aware reconstruction of an identity-code capture.
 
@@ -287,12 +289,18 @@ def motion_aware(
         Where isotropic normalized convolution predicts the samples better than the trajectory gather
         (each sample estimated from the others, :mod:`~flexvox_core.motion.local_choice`), blend it in at
         the gathered voxels. On by default: Drop +1.4 dB, no capture of ``flexvox bench`` worse.
+    noise_aware : bool
+        Estimate the capture's noise from its still pixels' successive samples and let the gather smooth
+        across space where the picture is flat compared with it (:mod:`~flexvox_core.motion.noise_aware`).
+        A noiseless or single-frame capture is unchanged. On by default: +0.12 dB on the noisy built-in
+        moving scenes at K = 16.
     """
     f = check_frames(frames)
     code = check_identity_code(code)
     options = MotionOptions(flow=flow, passes=passes, time=time, c=c, refine_time=refine_time, gate=gate,
                             flow_scale=flow_scale, still_speed=still_speed, flow_consistency=flow_consistency,
-                            slow_speed=slow_speed, slow_reach=slow_reach, local_choice=local_choice)
+                            slow_speed=slow_speed, slow_reach=slow_reach, local_choice=local_choice,
+                            noise_aware=noise_aware)
     missing = as_missing(missing, f.shape[0])
     lo, hi = sample_bounds(f, missing, value_range)
     return run_window(f, code, options, (lo, hi), missing=missing)
@@ -314,11 +322,13 @@ class MotionOptions:
     slow_speed: float | None = SLOW_SPEED
     slow_reach: float = SLOW_REACH
     local_choice: bool = True
+    noise_aware: bool = True
 
     def __post_init__(self):
         object.__setattr__(self, "c", check_c(self.c))
-        if not isinstance(self.local_choice, bool | np.bool_):
-            raise ValueError(f"`local_choice` must be True or False; got {self.local_choice!r}")
+        for name in ("local_choice", "noise_aware"):
+            if not isinstance(getattr(self, name), bool | np.bool_):
+                raise ValueError(f"`{name}` must be True or False; got {getattr(self, name)!r}")
         if not isinstance(self.flow_consistency, bool | np.bool_):
             raise ValueError(f"`flow_consistency` must be True or False; got {self.flow_consistency!r}")
         make_backend(self.flow)  # an unknown backend is refused here, naming the backends
@@ -451,10 +461,18 @@ def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: 
         if skip is not None:
             not_gathered[skip] = True
         last = pass_ + 1 == o.passes
+        wide = None
+        if o.noise_aware and f.shape[0] > 1:
+            noise = na.frame_noise(f, still, mask, K)
+            if noise.any():
+                wide = na.SmoothWeights(current, np.repeat(noise, K))
+                _logger.info("motion-aware: noise %.4g (median of the frames'), smoothing where flatter",
+                             float(np.median(noise)))
         # The trajectory gather's leave-one-out estimate of every sample it reaches, for the local choice.
         loo = np.full(f.shape, np.nan, np.float32) if o.local_choice and last else None
         video = motion_compensated_nc(sparse, mask, field_.flow, c=c, time=o.time, fallback=high_tr,
-                                      still=not_gathered, still_value=base, loo=loo)
+                                      still=not_gathered, still_value=base, loo=loo, wide=wide,
+                                      wide_sigma=na.wide_sigma(K))
         gathered = ~not_gathered if loo is not None else None
         del base, not_gathered
         if last:

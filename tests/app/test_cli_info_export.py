@@ -159,8 +159,8 @@ def test_batch_cli_motion_aware_options(recording, tmp_path, capsys):
     method = Method("motion-aware", flow="farneback", slow_reach=0.0)
     expected = reconstruct(rec.normalised_frames(), rec.code, method, chunk_frames=None)
     np.testing.assert_array_equal(zarr.open_group(str(tmp_path / "m.zarr"))["video"][:], expected)
-    with pytest.raises(CliError, match=r"--passes, --refine, --slow-reach and --no-local-choice go with "
-                                       r"--method motion-aware"):
+    with pytest.raises(CliError, match=r"--passes, --refine, --slow-reach, --no-local-choice and --no-noise-aware "
+                                       r"go with --method motion-aware"):
         cli(["export", str(recording), "--what", "reconstruction", "--method", "diffusion", "--refine", "1",
              "-o", str(tmp_path / "e.npy")])
 

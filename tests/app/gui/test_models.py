@@ -86,7 +86,7 @@ def test_build_table_takes_psnr_of_the_mean_mse_and_separates_sci(tmp_path):
     ("diffusion nc (0.15,0.15,1) n=0.5", {"name": "diffusion", "solver": "nc", "tensor": [0.15, 0.15, 1.0],
                                           "time": 0.5}),
     ("motion-aware dis n=4 x2", {"name": "motion-aware", "flow": "dis", "time": 4.0, "refine_time": None,
-                                 "passes": 2, "local_choice": True}),
+                                 "passes": 2, "local_choice": True, "noise_aware": True}),
 ])
 def test_parse_label_reads_method_labels(label, knobs):
     assert parse_label(label) == knobs

@@ -85,7 +85,7 @@ def test_method_values_read_like_a_frozen_record():
     assert m == Method("motion-aware", time=3.0) and hash(m) == hash(Method("motion-aware", time=3.0))
     assert m != Method("motion-aware") and (m.name, m.time, m.passes, m.slow_reach) == ("motion-aware", 3.0, 1, None)
     assert m.as_dict() == {"name": "motion-aware", "flow": "dis", "time": 3.0, "passes": 1, "refine_time": None,
-                           "slow_reach": None, "local_choice": True}
+                           "slow_reach": None, "local_choice": True, "noise_aware": True}
     assert Method("diffusion").time == 1.5 and Method().time == 5.0  # each method's own default
     assert Method() == Method("motion-aware")  # the default method
     with pytest.raises(AttributeError, match=r"gap-tv has no option 'tensor' \(its options: iterations, tv_weight, "
@@ -107,9 +107,14 @@ def test_bench_labels_read_back():
          {"solver": "nc", "tensor": [0.05, 0.05, 1.0], "time": 8.0}),
         (Method("gap-tv"), {"iterations": 40}),
         (Method("motion-aware", refine_time=1.0, passes=2), {"flow": "dis", "time": 5.0, "refine_time": 1.0,
-                                                             "passes": 2, "local_choice": True}),
+                                                             "passes": 2, "local_choice": True,
+                                                             "noise_aware": True}),
         (Method("motion-aware", local_choice=False), {"flow": "dis", "time": 5.0, "refine_time": None,
-                                                      "passes": 1, "local_choice": False}),
+                                                      "passes": 1, "local_choice": False, "noise_aware": True}),
+        (Method("motion-aware", noise_aware=False), {"flow": "dis", "time": 5.0, "refine_time": None,
+                                                     "passes": 1, "local_choice": True, "noise_aware": False}),
+        (Method("motion-aware", local_choice=False, noise_aware=False),
+         {"flow": "dis", "time": 5.0, "refine_time": None, "passes": 1, "local_choice": False, "noise_aware": False}),
     ]
     for m, knobs in cases:
         assert m.spec.parse_label(m.label()) == {"name": m.name, **knobs}

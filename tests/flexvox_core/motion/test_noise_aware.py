@@ -8,13 +8,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from flexvox_core.design import design_code
-from flexvox_core.forward import capture, sample_mask, sparse_volume, tiled_order
+from flexvox_core.forward import capture, sample_mask, sparse_volume
 from flexvox_core.metrics import psnr
 from flexvox_core.motion import motion_aware, motion_compensated_nc
 from flexvox_core.motion.noise_aware import MIN_PIXELS, SmoothWeights, frame_noise, wide_sigma
 from flexvox_core.simulate.effects import parse_effects
 from flexvox_core.simulate.scenes import render_scene
 from flexvox_core.simulate.simulator import simulate_video
+
+from .loo_reference import gather_loo_errors
 
 CODE8 = design_code((2, 4)).code
 
@@ -88,19 +90,7 @@ def test_the_mixed_gathers_leave_one_out_is_the_gather_without_the_sample():
     loo = np.full((F, H, W), np.nan, np.float32)
     kw = dict(time=5.0, still=still, still_value=base, wide=wide, wide_sigma=wide_sigma(K))
     motion_compensated_nc(sparse, mask, flow, loo=loo, **kw)
-    order = tiled_order(CODE8, H, W)
-    errors = []
-    for f in range(F):
-        for y in range(H):
-            for x in range(W):
-                s = f * K + order[y, x]
-                if still[s, y, x]:
-                    continue
-                without, kept = sparse.copy(), mask.copy()
-                without[s, y, x], kept[s, y, x] = 0, False
-                ref = motion_compensated_nc(without, kept, flow, keep_samples=False,
-                                            fallback=np.full_like(sparse, np.nan), **kw)[s, y, x]
-                errors.append(abs(ref - loo[f, y, x]))
+    errors = gather_loo_errors(sparse, mask, flow, CODE8, loo, **kw)
     assert len(errors) > 100
     assert np.median(errors) < 1e-6 and max(errors) < 1e-3
     with pytest.raises(ValueError, match=r"`wide` must give a weight plane or None for each of the 16 sub-frames"):

@@ -301,12 +301,25 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
     gx, gy, gt = (_kernel(s, dtype) for s in sig)
     if present is not None:  # a dropped frame's row holds no samples: nothing of it enters the sums
         frames = np.where(present[:, None, None], frames, 0).astype(frames.dtype, copy=False)
-    num, order = _sample_volume(frames, code, dtype)
-    # Numerator: spatial blur of every sub-frame (two at a time: OpenCV releases the GIL), then time.
-    if gx is not None or gy is not None:
-        for_each(lambda s: _blur_plane(num[s], gy, gx, num[s]), S)
-    flat = num.reshape(S, H * W)
-    _blur_rows(flat, gt, flat)
+    if gx is None and gy is None and gt is not None and loo is None:
+        fast = _nc_time_only(frames, code, sig[2], keep_samples, dtype, present)
+        if fast is not None:
+            return fast
+    if gt is not None:
+        # Numerator: each pixel's samples blurred in time (a few per sub-frame: compiled, no volume of
+        # mostly-zero sub-frames blurred), then every sub-frame in space (two at a time: OpenCV releases
+        # the GIL). The blurs commute: the same sums up to float rounding (and the same with ``loo``, so
+        # that nc_leave_one_out's video stays diffuse's, bit for bit).
+        num, order = _time_blurred_samples(frames, code, sig[2], dtype, present)
+        if gx is not None or gy is not None:
+            for_each(lambda s: _blur_plane(num[s], gy, gx, num[s]), S)
+    else:
+        num, order = _sample_volume(frames, code, dtype)
+        # Numerator: spatial blur of every sub-frame (two at a time: OpenCV releases the GIL), then time.
+        if gx is not None or gy is not None:
+            for_each(lambda s: _blur_plane(num[s], gy, gx, num[s]), S)
+        flat = num.reshape(S, H * W)
+        _blur_rows(flat, gt, flat)
     # Denominator: the mask has only K distinct sub-frames; blur those in space, then time.
     den_k = _mask_planes(order, K, gy, gx, dtype)
     den = _PeriodicDenominator(den_k, F, gt) if present is None else _gapped_denominator(den_k, present, gt)
@@ -337,6 +350,69 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
     if keep_samples:
         _put_samples(num, samples, order, present)
     return num
+
+
+def _time_weights(g: np.ndarray, K: int, F: int, present) -> tuple[np.ndarray, np.ndarray]:
+    """The time blur ``g`` (reflecting ends) of an ``F·K``-sub-frame clip as weights on each pixel's samples:
+    ``weight[s, k, b]`` (float64) that sub-frame s gives the sample of frame ``first[s] + b`` of a pixel of
+    slot k (0 for frames not ``present``)."""
+    S = F * K
+    r = g.size // 2
+    period = 2 * S
+    j = (np.arange(S)[:, None] + np.arange(-r, r + 1)[None, :]) % period
+    j = np.where(j >= S, period - 1 - j, j)  # reflect, as _fold_matrix
+    f, k = j // K, j % K
+    first, last = f.min(axis=1), f.max(axis=1)
+    span = int((last - first).max()) + 1
+    first = np.minimum(first, F - span)
+    weight = np.zeros((S, K, span), np.float64)
+    s_idx = np.broadcast_to(np.arange(S)[:, None], j.shape)
+    np.add.at(weight, (s_idx, k, f - first[:, None]), np.broadcast_to(g.astype(np.float64)[None, :], j.shape))
+    if present is not None:
+        weight *= np.asarray(present, bool)[first[:, None, None] + np.arange(span)[None, None, :]]
+    return weight, first
+
+
+def _time_pass(samples, code, weight, first, lo: float, hi: float, dtype) -> np.ndarray:
+    """``out[s, y, x]`` = Σ_b weight[s, order[y, x], b] · samples[first[s] + b, y, x], clipped to [lo, hi]
+    (:mod:`~flexvox_core.reconstruct.nc_time_kernel`, bands of rows spread over the cores)."""
+    from flexvox_core.reconstruct.nc_time_kernel import time_only_rows
+
+    F, H, W = samples.shape
+    m, _, K = code.shape
+    order = tiled_order(code, min(H, m), W).astype(np.int64)  # repeats every m rows
+    out = np.empty((F * K, H, W), dtype)
+    band = 32
+    for_each(lambda i: time_only_rows(samples, order, weight, first, lo, hi, out, i * band, min(H, (i + 1) * band)),
+             -(-H // band))
+    return out
+
+
+def _time_blurred_samples(frames, code, sigma_t: float, dtype, present) -> tuple[np.ndarray, np.ndarray]:
+    """The sparse sample volume blurred in time, and the slot of every pixel (:func:`_sample_volume`
+    followed by the time blur, the same up to float rounding)."""
+    F, H, W = frames.shape
+    weight, first = _time_weights(_kernel(sigma_t, np.float64), code.shape[2], F, present)
+    samples = np.ascontiguousarray(frames, dtype=dtype)
+    return _time_pass(samples, code, weight, first, -math.inf, math.inf, dtype), tiled_order(code, H, W)
+
+
+def _nc_time_only(frames, code, sigma_t: float, keep_samples: bool, dtype, present) -> np.ndarray | None:
+    """:func:`_nc_kernel` for a tensor without spatial blur: each pixel's own samples weighed in time
+    (:mod:`~flexvox_core.reconstruct.nc_time_kernel`), the same values up to float rounding. None where a
+    voxel has no sample in reach (the general path then gives it its nearest sample)."""
+    F, H, W = frames.shape
+    weight, first = _time_weights(_kernel(sigma_t, np.float64), code.shape[2], F, present)
+    den = weight.sum(axis=2)
+    if (den <= NC_MIN_WEIGHT * float(_kernel(sigma_t, dtype).max())).any():
+        return None
+    weight /= den[:, :, None]
+    samples = np.ascontiguousarray(frames, dtype=dtype)
+    kept = captured(samples, None if present is None else ~present)
+    out = _time_pass(samples, code, weight, first, float(kept.min()), float(kept.max()), dtype)
+    if keep_samples:
+        _put_samples(out, samples, tiled_order(code, H, W), present)
+    return out
 
 
 def _leave_one_out(loo, num, den, frames, order, kernels, floor, present) -> None:

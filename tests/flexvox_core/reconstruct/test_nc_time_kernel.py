@@ -1,0 +1,100 @@
+"""nc's compiled time pass (flexvox_core/reconstruct/nc_time_kernel.py) against the plain numpy path it replaces."""
+
+import numpy as np
+import pytest
+
+import flexvox_core.reconstruct.diffusion as D
+from flexvox_core.design import design_code
+from flexvox_core.forward import capture
+from flexvox_core.reconstruct import diffuse, nc_naive
+
+from .conftest import smooth_video
+
+
+def _plain_time_blur(frames, code, sigma_t, dtype, present):
+    """The reference: the sparse sample volume, blurred along time with OpenCV (the general path)."""
+    num, order = D._sample_volume(frames, code, dtype)
+    flat = num.reshape(len(num), -1)
+    D._blur_rows(flat, D._kernel(sigma_t, dtype), flat)
+    return num, order
+
+
+def _reference(monkeypatch, *args, **kwargs):
+    """``diffuse`` with the time pass in plain numpy/OpenCV (the code before the compiled pass)."""
+    with monkeypatch.context() as m:
+        m.setattr(D, "_nc_time_only", lambda *a: None)
+        m.setattr(D, "_time_blurred_samples", _plain_time_blur)
+        return diffuse(*args, **kwargs)
+
+
+CASES = [
+    ((0, 0, 1), 32.0, (2, 4), (5, 20, 24)),  # still voxels' guide at K = 8: a long kernel
+    ((0, 0, 1), 2.0, (4, 4), (4, 9, 13)),  # odd sizes, partial tiles
+    ((0, 0, 1), 500.0, (2, 4), (2, 6, 8)),  # kernel longer than the clip: folded many times
+    ((0, 0, 0.3), 1.0, (2, 2), (3, 8, 8)),
+    ((0.05, 0.05, 0.95), 5.0, (4, 4), (4, 18, 22)),  # the fixed-tensor guide
+    ((1, 1, 0.05), 2.0, (2, 4), (3, 10, 12)),  # the high-TR reconstruction
+    ((1, 1, 1), 500.0, (2, 2), (1, 5, 7)),  # every kernel longer than its axis
+]
+
+
+@pytest.mark.parametrize(("tensor", "time", "tile", "shape"), CASES)
+@pytest.mark.parametrize("dropped", [False, True])
+def test_compiled_time_pass_matches_the_plain_one(monkeypatch, rng, tensor, time, tile, shape, dropped):
+    code = design_code(tile).code
+    F, H, W = shape
+    truth = smooth_video(rng, F * code.shape[2], H, W)
+    frames = capture(truth, code)
+    missing = None
+    if dropped and F > 2:
+        missing = np.zeros(F, bool)
+        missing[1] = True
+    for dtype, tol in ((np.float32, 1e-6), (np.float64, 1e-12)):
+        for keep in (True, False):
+            kw = dict(tensor=tensor, time=time, missing=missing, dtype=dtype, keep_samples=keep)
+            got = diffuse(frames, code, **kw)
+            want = _reference(monkeypatch, frames, code, **kw)
+            assert got.dtype == want.dtype == dtype
+            np.testing.assert_allclose(got, want, atol=tol, rtol=0)
+
+
+def test_time_only_matches_the_scipy_baseline_in_float64(rng):
+    code = design_code((2, 4)).code
+    frames = capture(rng.random((8 * 6, 9, 11)), code)
+    fast = diffuse(frames, code, tensor=(0, 0, 1), time=20.0, dtype=np.float64)
+    np.testing.assert_allclose(fast, nc_naive(frames, code, tensor=(0, 0, 1), time=20.0), atol=1e-12, rtol=0)
+
+
+def test_no_sample_in_reach_takes_the_nearest_sample_as_before(monkeypatch, rng):
+    # A short time kernel at K = 16 reaches no sample from most sub-frames: the nearest sample fills them.
+    code = design_code((4, 4)).code
+    frames = capture(rng.random((16 * 3, 8, 8)).astype(np.float32), code)
+    got = diffuse(frames, code, tensor=(0, 0, 1), time=0.5)
+    want = _reference(monkeypatch, frames, code, tensor=(0, 0, 1), time=0.5)
+    np.testing.assert_allclose(got, want, atol=1e-6, rtol=0)
+    assert np.isfinite(got).all()
+
+
+def test_same_bits_on_one_thread_and_on_several(monkeypatch, rng):
+    import flexvox_core.threads as threads
+
+    code = design_code((4, 4)).code
+    frames = capture(rng.random((16 * 3, 70, 40)).astype(np.float32), code)
+    runs = []
+    for n in (1, 2, 3):
+        monkeypatch.setattr(threads, "workers", lambda n=n: n)
+        runs.append([diffuse(frames, code, tensor=t, time=n_) for t, n_ in (((0, 0, 1), 32.0), ((1, 1, 0.05), 2.0))])
+    for other in runs[1:]:
+        for a, b in zip(runs[0], other, strict=True):
+            np.testing.assert_array_equal(a, b)
+
+
+def test_time_weights_sum_to_the_blurred_mask():
+    # Each sub-frame's weights on a slot's samples add up to the time-blurred mask of that slot.
+    g = D._kernel(3.0, np.float64)
+    K, F = 4, 5
+    weight, first = D._time_weights(g, K, F, None)
+    S = F * K
+    blurred = D._fold_matrix(g, S) @ (np.arange(S)[:, None] % K == np.arange(K)[None, :]).astype(float)
+    np.testing.assert_allclose(weight.sum(axis=2), blurred, atol=1e-14)
+    assert (first >= 0).all() and (first + weight.shape[2] <= F).all()

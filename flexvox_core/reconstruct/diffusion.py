@@ -23,8 +23,9 @@ Solvers (one interface, :func:`diffuse`):
 
 ``"nc"`` — normalized convolution (Knutsson & Westin 1993), the one-pass form of Eq. 3
     with missing data: :math:`\hat I = (G * (M \cdot I_0)) / (G * M)` with ``M`` the
-    sample mask. Separable float32 Gaussians (OpenCV for the spatial axes and, on a
-    ``(S, H·W)`` view, for time). Kernels are sampled Gaussians truncated at 4 σ (as
+    sample mask. Separable Gaussians: along time over each pixel's own samples (a few per
+    sub-frame; compiled, :mod:`~flexvox_core.reconstruct.nc_time_kernel`), then OpenCV float32
+    blurs for the spatial axes. Kernels are sampled Gaussians truncated at 4 σ (as
     ``scipy.ndimage.gaussian_filter``); an axis with ``c_i = 0`` is not blurred.
     Boundaries reflect (``BORDER_REFLECT``, edge duplicated). Where ``G * M`` is zero or
     tiny (below :data:`NC_MIN_WEIGHT`: no sample within the truncated kernel, e.g.

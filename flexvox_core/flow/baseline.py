@@ -75,24 +75,43 @@ def kaverage_flow(small: np.ndarray, K: int, flow_fn, stride: int, *, average: n
     ``small``, in its pixels, and the baseline used (sub-frames). ``average``: its
     :func:`kaverage`, when the caller has it already; ``memo``: as
     :func:`~flexvox_core.flow.estimate.run_pairs`."""
+    measured = KAverageFlow(small, K, flow_fn, stride, average=average, memo=memo)
     S, h, w = small.shape
-    span = max(1, min(K, S - 1))
-    average = kaverage(small, K) if average is None else average
-    starts = list(range(0, S - span, stride))
-    if not starts or starts[-1] != S - 1 - span:
-        starts.append(S - 1 - span)
-    u8 = to_uint8(average)
-    disp = np.empty((len(starts), h, w, 2), np.float32)
-    conf = np.ones((len(starts), h, w), np.float32)
-    run_pairs(flow_fn, u8, [(a, a + span) for a in starts], disp, conf, consistency=False, memo=memo)
-    disp /= span
-    centres = np.asarray(starts, np.float64) + span / 2
     vel = np.empty((S, h, w, 2), np.float32)
-    for s in range(S):  # linear in time between measurements, constant beyond the first and last
+    for s in range(S):
+        measured.at(s, vel[s])
+    return vel, measured.span
+
+
+class KAverageFlow:
+    """The K-average's flow measured across ``span`` sub-frames every ``stride`` sub-frames, and the
+    velocity of any sub-frame from it (:meth:`at`, a sub-frame at a time: no volume is made).
+    Arguments as :func:`kaverage_flow`, which gives every sub-frame's."""
+
+    def __init__(self, small: np.ndarray, K: int, flow_fn, stride: int, *, average: np.ndarray | None = None,
+                 memo=None):
+        S, h, w = small.shape
+        self.span = span = max(1, min(K, S - 1))
+        average = kaverage(small, K) if average is None else average
+        starts = list(range(0, S - span, stride))
+        if not starts or starts[-1] != S - 1 - span:
+            starts.append(S - 1 - span)
+        u8 = to_uint8(average)
+        disp = np.empty((len(starts), h, w, 2), np.float32)
+        conf = np.ones((len(starts), h, w), np.float32)
+        run_pairs(flow_fn, u8, [(a, a + span) for a in starts], disp, conf, consistency=False, memo=memo)
+        disp /= span
+        self.disp = disp
+        self.centres = np.asarray(starts, np.float64) + span / 2
+
+    def at(self, s: int, out: np.ndarray) -> np.ndarray:
+        """Velocity ``(h, w, 2)`` of sub-frame ``s`` into ``out``: linear in time between measurements,
+        constant beyond the first and last."""
+        disp, centres = self.disp, self.centres
         j = int(np.searchsorted(centres, s))
         if j == 0 or j == len(centres):
-            vel[s] = disp[min(j, len(centres) - 1)]
+            out[...] = disp[min(j, len(centres) - 1)]
         else:
             a = (s - centres[j - 1]) / (centres[j] - centres[j - 1])
-            vel[s] = (1 - a) * disp[j - 1] + a * disp[j]
-    return vel, span
+            out[...] = (1 - a) * disp[j - 1] + a * disp[j]
+        return out

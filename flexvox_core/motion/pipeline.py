@@ -33,8 +33,8 @@ from scipy.ndimage import uniform_filter1d
 
 from flexvox_core.flow import FlowField
 from flexvox_core.flow.backends import backend_params, make_backend
-from flexvox_core.flow.baseline import default_stride, kaverage, kaverage_flow
-from flexvox_core.flow.estimate import check_video, downscale, successive_flow, to_full_size, upsample_flow
+from flexvox_core.flow.baseline import KAverageFlow, default_stride, kaverage
+from flexvox_core.flow.estimate import check_video, downscale, sanitize_flow, successive_flow, to_full_size
 from flexvox_core.forward import sample_mask, sparse_volume
 from flexvox_core.gaps import as_missing, bridge, bridge_flow, captured, interpolated_subframes
 from flexvox_core.motion import local_choice as lc
@@ -46,6 +46,7 @@ from flexvox_core.motion.vardiff import explicit_steps, variable_tensor_diffusio
 from flexvox_core.numbers import checked_number, number_pair
 from flexvox_core.reconstruct._common import check_frames, check_identity_code
 from flexvox_core.reconstruct.diffusion import diffuse, nc_leave_one_out
+from flexvox_core.threads import for_each
 
 _logger = logging.getLogger(__name__)
 
@@ -169,37 +170,96 @@ def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, sc
     # Everything at the flow's own (small) resolution; resized once at the end.
     small = downscale(video, scale)
     vel, conf = successive_flow(small, flow_fn, consistency=consistency, temporal_window=1, memo=memo)
-    successive = vel
     px = video.shape[2] / vel.shape[2]  # full-size pixels per flow pixel: thresholds are in full-size ones
     params = {**backend_params(flow_fn), "scale": scale, "consistency": consistency, "temporal_window": 1}
-    if K > 1 and video.shape[0] > 1:
-        average = kaverage(small, K)
-        slow, span = kaverage_flow(small, K, flow_fn, default_stride(K), average=average, memo=memo)
-        speed = np.hypot(slow[..., 0], slow[..., 1]) * np.float32(px)
-        if slow_speed is not None and span == K:  # shorter: the averages overlap, too blurred
-            use_slow = (speed < slow_speed) & (np.hypot(vel[..., 0], vel[..., 1]) * np.float32(px) < 2 * slow_speed)
-            vel = np.where(use_slow[..., None], slow, vel)
-            params["slow_speed"] = slow_speed
-        # Fast motion is smeared in the K-average and can escape a flow across K of its
-        # sub-frames: the detector also takes flow between its successive sub-frames (at half size).
-        steps, _ = successive_flow(downscale(average, 0.5), make_backend("dis"), consistency=False, temporal_window=1,
-                                   memo=memo)
-        steps = upsample_flow(steps, small.shape[1:])
-        speed = np.maximum(speed, np.hypot(steps[..., 0], steps[..., 1]) * np.float32(px))
+    if not (K > 1 and video.shape[0] > 1):
+        vel, conf = to_full_size(vel, conf, video.shape[1:])
+        return FlowField(vel, conf, params, _now() - t0)
+    average = kaverage(small, K)
+    slow = KAverageFlow(small, K, flow_fn, default_stride(K), average=average, memo=memo)
+    use_slow = slow_speed is not None and slow.span == K  # shorter: the averages overlap, too blurred
+    if use_slow:
+        params["slow_speed"] = slow_speed
+    # Fast motion is smeared in the K-average and can escape a flow across K of its
+    # sub-frames: the detector also takes flow between its successive sub-frames (at half size).
+    steps, _ = successive_flow(downscale(average, 0.5), make_backend("dis"), consistency=False, temporal_window=1,
+                               memo=memo)
+    mean = None
+    if period_gate is not None:
+        # Motion aliased in the K-average (a fan whose blades pass once per K sub-frames leaves
+        # it exactly still): the successive-sub-frame flow averaged over one sampling period.
+        # The high-TR video swims with the code's period (about 1 px per sub-frame at K = 16),
+        # which that average cancels; steady motion stays.
+        mean = uniform_filter1d(vel, K, axis=0, mode="nearest")
+        params["period_gate"] = tuple(period_gate)
+    params["gate"] = (lo, hi)
+    out = _GatedFlow(vel, conf, slow, use_slow, slow_speed, steps, mean, (lo, hi), period_gate, px,
+                     video.shape[1:])
+    for_each(out.one, len(vel))
+    return FlowField(out.flow, out.full_confidence(), params, _now() - t0)
+
+
+class _GatedFlow:
+    """:func:`gated_flow`'s gate and resize, a sub-frame at a time (:meth:`one`): every step
+    element-wise on small planes that stay in cache, each sub-frame's gated velocity resized
+    straight into the full-size flow. The same operations, in the same order, as on whole
+    volumes (the same values), without the dozen volumes at flow size those made (fresh
+    memory is dear: 0.8-1.4 s of the 640x480 clip's flow went to them)."""
+
+    def __init__(self, successive, conf, slow, use_slow, slow_speed, steps, mean, gate, period_gate, px, size):
+        self.successive, self.conf, self.slow = successive, conf, slow
+        self.use_slow, self.slow_speed, self.steps, self.mean = use_slow, slow_speed, steps, mean
+        self.gate, self.period_gate, self.px = gate, period_gate, np.float32(px)
+        S, h, w = conf.shape
+        H, W = size
+        self.size = size
+        self.flow = np.empty((S, H, W, 2), np.float32)
+        self.max_magnitude = 0.5 * max(h, w)
+        self.ratio = np.array([W / w, H / h], np.float32)
+        self.step_ratio = np.array([w / steps.shape[2], h / steps.shape[1]], np.float32)
+
+    def one(self, t: int) -> None:
+        lo, hi = self.gate
+        px = self.px
+        vel = self.successive[t]
+        slow = self.slow.at(t, np.empty_like(vel))
+        speed = np.hypot(slow[..., 0], slow[..., 1]) * px
+        if self.use_slow:
+            slow_speed = self.slow_speed
+            use = (speed < slow_speed) & (np.hypot(vel[..., 0], vel[..., 1]) * px < 2 * slow_speed)
+            vel = np.where(use[..., None], slow, vel)
+        else:
+            vel = vel.copy()
+        h, w = vel.shape[:2]
+        steps = cv2.resize(self.steps[t] * self.step_ratio, (w, h), interpolation=cv2.INTER_LINEAR)
+        speed = np.maximum(speed, np.hypot(steps[..., 0], steps[..., 1]) * px)
         ramp = np.clip((speed - lo) / (hi - lo), 0, 1).astype(np.float32)
-        if period_gate is not None:
-            # Motion aliased in the K-average (a fan whose blades pass once per K sub-frames leaves
-            # it exactly still): the successive-sub-frame flow averaged over one sampling period.
-            # The high-TR video's swimming repeats every K sub-frames and averages out; steady motion stays.
-            plo, phi = period_gate
-            mean = uniform_filter1d(successive, K, axis=0, mode="nearest")
-            mean_speed = np.hypot(mean[..., 0], mean[..., 1]) * np.float32(px)
+        if self.mean is not None:
+            plo, phi = self.period_gate
+            mean = self.mean[t]
+            mean_speed = np.hypot(mean[..., 0], mean[..., 1]) * px
             ramp = np.maximum(ramp, np.clip((mean_speed - plo) / (phi - plo), 0, 1))
-            params["period_gate"] = (plo, phi)
         vel *= ramp[..., None]
-        params["gate"] = (lo, hi)
-    vel, conf = to_full_size(vel, conf, video.shape[1:])
-    return FlowField(vel, conf, params, _now() - t0)
+        # to_full_size's sanitising (element-wise, so the same a plane at a time), then its resize.
+        vel, self.conf[t] = sanitize_flow(vel, self.conf[t], max_magnitude=self.max_magnitude)
+        if (h, w) == self.size:
+            self.flow[t] = vel
+        else:
+            cv2.resize(vel * self.ratio, self.size[::-1], dst=self.flow[t], interpolation=cv2.INTER_LINEAR)
+
+    def full_confidence(self) -> np.ndarray:
+        """The confidence resized as :func:`~flexvox_core.flow.estimate.to_full_size` does."""
+        conf = self.conf
+        S, h, w = conf.shape
+        H, W = self.size
+        if (h, w) == (H, W):
+            return conf
+        if conf.min() == 1:  # the usual case without a round-trip check: a read-only view of 1
+            return np.broadcast_to(np.float32(1), (S, H, W))
+        full = np.empty((S, H, W), np.float32)
+        for i, c in enumerate(conf):
+            cv2.resize(c, (W, H), dst=full[i], interpolation=cv2.INTER_LINEAR)
+        return full
 
 
 def _speed_classes(flow: np.ndarray, still_speed: float | None, slow_speed: float | None):

@@ -51,6 +51,7 @@ def motion_compensated_nc(
     loo: np.ndarray | None = None,
     wide=None,
     wide_sigma: float = 0.0,
+    out: np.ndarray | None = None,
 ) -> np.ndarray:
     """Reconstruct a video from samples along the flow's trajectories.
 
@@ -87,6 +88,10 @@ def motion_compensated_nc(
         Noise-aware smoothing (:mod:`~flexvox_core.motion.noise_aware`): the spatial blur at a voxel is
         the mixture (1 − g)·Gaussian(σ) + g·Gaussian(``wide_sigma``), g = ``wide[t]`` (None: g = 0),
         for the numerator and the weights alike (a normalized convolution still).
+    out : ndarray (S, H, W) float32, optional
+        Where the result goes (returned); may be ``still_value`` itself, each of whose sub-frames is read
+        before that sub-frame is written (``motion_aware`` passes its still voxels' volume when it needs it
+        no more: one volume less, and fresh memory is dear).
     """
     c1, c2, _ = check_c(c)
     vals = np.asarray(sparse, dtype=np.float32)
@@ -121,7 +126,12 @@ def motion_compensated_nc(
     if loo is not None and (loo.ndim != 3 or loo.shape[1:] != (H, W) or not len(loo) or S % len(loo)):
         raise ValueError(f"`loo` must be (F, H, W) with F dividing the {S} sub-frames; got {loo.shape}")
     per_frame = S // len(loo) if loo is not None else 0
-    out = np.empty((S, H, W), np.float32)
+    if out is None:
+        out = np.empty((S, H, W), np.float32)
+    elif not isinstance(out, np.ndarray) or out.shape != vals.shape or out.dtype != np.float32:
+        raise ValueError(f"`out` must be a float32 array of shape {vals.shape}")
+    elif np.may_share_memory(out, vals) or (fallback is not None and np.may_share_memory(out, fallback)):
+        raise ValueError("`out` must not share memory with `sparse` or `fallback`")
     if wide is not None and (len(wide) != S or not (math.isfinite(wide_sigma) and wide_sigma > 0)):
         raise ValueError(f"`wide` must give a weight plane or None for each of the {S} sub-frames, and "
                          f"`wide_sigma` must be > 0; got {len(wide)} and {wide_sigma!r}")
@@ -132,7 +142,7 @@ def motion_compensated_nc(
 
     def one(t):
         moving = everything if still is None else ~still[t]
-        if still is not None:
+        if still is not None and out is not still_value:
             out[t] = still_value[t]
         rows = np.flatnonzero(moving.any(axis=1))
         if not len(rows):

@@ -45,7 +45,7 @@ from flexvox_core.motion.tensors import DEFAULT_C, check_c, resolution_map
 from flexvox_core.motion.vardiff import explicit_steps, variable_tensor_diffusion
 from flexvox_core.numbers import checked_number, number_pair
 from flexvox_core.reconstruct._common import check_frames, check_identity_code
-from flexvox_core.reconstruct.diffusion import diffuse, nc_leave_one_out
+from flexvox_core.reconstruct.diffusion import diffuse, diffuse_where, nc_leave_one_out
 from flexvox_core.threads import for_each
 
 _logger = logging.getLogger(__name__)
@@ -55,6 +55,8 @@ STEP1_TIME = 2.0
 DEFAULT_TIME = 5.0
 FLOW_SIDE = 160
 """Flow runs with the shorter image side at about this many pixels (:func:`auto_flow_scale`)."""
+STILL_TENSOR = (0.0, 0.0, 1.0)
+"""Tensor of the still voxels' normalized convolution (with time K²/8: a Gaussian of K/2 sub-frames)."""
 STILL_SPEED = 0.02
 """Below this gated speed (px per sub-frame) a voxel is still: it takes its own pixel's samples
 averaged in time (a Gaussian of standard deviation K/2 sub-frames: Eq. 4's tensor in the limit
@@ -512,11 +514,14 @@ def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: 
         if still.any():
             # Still voxels: Eq. 4's tensor in the limit c -> (0, 0, 1), the pixel's own samples
             # averaged in time (a Gaussian of half a sampling period: noise averages out).
-            if still_value is None:
-                still_value = _guide(f, code, (0.0, 0.0, 1.0), K * K / 8, missing,
-                                     None if skip is None else (g0, g1))
-            base = fixed.copy() if o.passes > 1 else fixed  # `fixed` serves every pass
-            np.copyto(base, still_value, where=still)
+            if o.passes == 1 and skip is None:
+                # `fixed` serves this pass alone: the still voxels' values go straight into it (no volume of them).
+                diffuse_where(f, code, base, still, tensor=STILL_TENSOR, time=K * K / 8, missing=missing)
+            else:
+                if still_value is None:
+                    still_value = _guide(f, code, STILL_TENSOR, K * K / 8, missing, None if skip is None else (g0, g1))
+                base = fixed.copy() if o.passes > 1 else fixed  # `fixed` serves every pass
+                np.copyto(base, still_value, where=still)
         not_gathered = still | slow
         if skip is not None:
             not_gathered[skip] = True
@@ -530,9 +535,12 @@ def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: 
                              float(np.median(noise)))
         # The trajectory gather's leave-one-out estimate of every sample it reaches, for the local choice.
         loo = np.full(f.shape, np.nan, np.float32) if o.local_choice and last else None
+        # The gather writes into `base` when no later pass reads it (one volume less).
+        into = base if o.passes == 1 or base is not fixed else None
         video = motion_compensated_nc(sparse, mask, field_.flow, c=c, time=o.time, fallback=high_tr,
                                       still=not_gathered, still_value=base, loo=loo, wide=wide,
-                                      wide_sigma=na.wide_sigma(K))
+                                      wide_sigma=na.wide_sigma(K), out=into)
+        into = None
         gathered = ~not_gathered if loo is not None else None
         del base, not_gathered
         if last:

@@ -76,7 +76,7 @@ from flexvox_core.threads import for_each
 
 _logger = logging.getLogger(__name__)
 
-__all__ = ["NC_MIN_WEIGHT", "SOLVERS", "diffuse", "gaussian", "nc_naive", "sigmas", "stability_bound"]
+__all__ = ["NC_MIN_WEIGHT", "SOLVERS", "diffuse", "diffuse_where", "gaussian", "nc_naive", "sigmas", "stability_bound"]
 
 SOLVERS = ("nc", "explicit", "steady")
 
@@ -374,18 +374,22 @@ def _time_weights(g: np.ndarray, K: int, F: int, present) -> tuple[np.ndarray, n
     return weight, first
 
 
-def _time_pass(samples, code, weight, first, lo: float, hi: float, dtype) -> np.ndarray:
+def _time_pass(samples, code, weight, first, lo: float, hi: float, dtype, *, keep=None, out=None,
+               select=None) -> np.ndarray:
     """``out[s, y, x]`` = Σ_b weight[s, order[y, x], b] · samples[first[s] + b, y, x], clipped to [lo, hi]
-    (:mod:`~flexvox_core.reconstruct.nc_time_kernel`, bands of rows spread over the cores)."""
+    (:mod:`~flexvox_core.reconstruct.nc_time_kernel`, bands of rows spread over the cores). ``keep`` (F,)
+    bool: those frames' samples are written at their voxels instead (``keep_samples``). ``out``: written
+    in place (a new volume when None); ``select`` (S, H, W) bool: only those voxels of it."""
     from flexvox_core.reconstruct.nc_time_kernel import time_only_rows
 
     F, H, W = samples.shape
     m, _, K = code.shape
     order = tiled_order(code, min(H, m), W).astype(np.int64)  # repeats every m rows
-    out = np.empty((F * K, H, W), dtype)
+    if out is None:
+        out = np.empty((F * K, H, W), dtype)
     band = 32
-    for_each(lambda i: time_only_rows(samples, order, weight, first, lo, hi, out, i * band, min(H, (i + 1) * band)),
-             -(-H // band))
+    for_each(lambda i: time_only_rows(samples, order, weight, first, lo, hi, out, i * band, min(H, (i + 1) * band),
+                                      keep, select), -(-H // band))
     return out
 
 
@@ -398,10 +402,12 @@ def _time_blurred_samples(frames, code, sigma_t: float, dtype, present) -> tuple
     return _time_pass(samples, code, weight, first, -math.inf, math.inf, dtype), tiled_order(code, H, W)
 
 
-def _nc_time_only(frames, code, sigma_t: float, keep_samples: bool, dtype, present) -> np.ndarray | None:
+def _nc_time_only(frames, code, sigma_t: float, keep_samples: bool, dtype, present, *, out=None,
+                  select=None) -> np.ndarray | None:
     """:func:`_nc_kernel` for a tensor without spatial blur: each pixel's own samples weighed in time
     (:mod:`~flexvox_core.reconstruct.nc_time_kernel`), the same values up to float rounding. None where a
-    voxel has no sample in reach (the general path then gives it its nearest sample)."""
+    voxel has no sample in reach (the general path then gives it its nearest sample). ``out``, ``select``:
+    the result written into ``out`` at the voxels ``select`` alone (as :func:`_time_pass`)."""
     F, H, W = frames.shape
     weight, first = _time_weights(_kernel(sigma_t, np.float64), code.shape[2], F, present)
     den = weight.sum(axis=2)
@@ -410,10 +416,9 @@ def _nc_time_only(frames, code, sigma_t: float, keep_samples: bool, dtype, prese
     weight /= den[:, :, None]
     samples = np.ascontiguousarray(frames, dtype=dtype)
     kept = captured(samples, None if present is None else ~present)
-    out = _time_pass(samples, code, weight, first, float(kept.min()), float(kept.max()), dtype)
-    if keep_samples:
-        _put_samples(out, samples, tiled_order(code, H, W), present)
-    return out
+    keep = (np.ones(F, bool) if present is None else np.asarray(present, bool)) if keep_samples else None
+    return _time_pass(samples, code, weight, first, float(kept.min()), float(kept.max()), dtype, keep=keep,
+                      out=out, select=select)
 
 
 def _leave_one_out(loo, num, den, frames, order, kernels, floor, present) -> None:
@@ -746,6 +751,38 @@ def diffuse(
     if solver == "explicit":
         return _explicit_kernel(start, mask, tens, t)
     return _steady_kernel(start, mask, tens)
+
+
+def diffuse_where(frames, code, out: np.ndarray, where, *, tensor=DEFAULT_TENSOR, time: float = DEFAULT_TIME,
+                  missing=None) -> np.ndarray:
+    """``out[where] = diffuse(frames, code, tensor=tensor, time=time, missing=missing)[where]``, in place
+    (``nc``, float32, samples kept), and ``out`` returned.
+
+    A tensor without spatial blur, (0, 0, ct), is computed at those voxels alone: the compiled time pass
+    (:mod:`~flexvox_core.reconstruct.nc_time_kernel`) writes them into ``out`` and skips rows without one,
+    so no volume is made (motion-aware's still voxels, :mod:`flexvox_core.motion.pipeline`; fresh memory
+    is dear: a 640×480 × 240 volume costs 0.1–0.5 s of page faults). Any other tensor, or a voxel with no
+    sample in reach, computes the whole volume and copies from it.
+    """
+    f = check_frames(frames)
+    c = check_identity_code(code)
+    sig = sigmas(_check_tensor(tensor), _check_time(time))
+    missing = as_missing(missing, f.shape[0])
+    present = None if missing is None else ~missing
+    shape = (f.shape[0] * c.shape[2], *f.shape[1:])
+    if (not isinstance(out, np.ndarray) or out.shape != shape or out.dtype != np.float32
+            or not out.flags.c_contiguous or not out.flags.writeable):
+        raise ValueError(f"`out` must be a writable C-contiguous float32 array of shape {shape}")
+    select = np.ascontiguousarray(where, dtype=bool)
+    if select.shape != shape:
+        raise ValueError(f"`where` must have shape {shape}; got {select.shape}")
+    gx, gy, gt = (_kernel(v, np.float32) for v in sig)
+    if gx is None and gy is None and gt is not None:
+        samples = f if present is None else np.where(present[:, None, None], f, 0).astype(f.dtype, copy=False)
+        if _nc_time_only(samples, c, sig[2], True, np.float32, present, out=out, select=select) is not None:
+            return out
+    np.copyto(out, _nc_kernel(f, c, sig, True, np.float32, present), where=select)
+    return out
 
 
 def nc_leave_one_out(frames, code, *, tensor=DEFAULT_TENSOR, time: float = DEFAULT_TIME, missing=None

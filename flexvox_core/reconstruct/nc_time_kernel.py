@@ -17,23 +17,39 @@ import numpy as np
 
 
 @numba.njit(nogil=True, cache=True)
-def time_only_rows(frames, order, weight, first, lo, hi, out, y0, y1):
+def time_only_rows(frames, order, weight, first, lo, hi, out, y0, y1, present, select):
     """Rows [y0, y1) of every sub-frame of ``out`` (S, H, W): Σ_b weight[s, k, b] · frames[first[s] + b]
     (k = order[y, x], the weights normalised to sum 1), clipped to [lo, hi]. ``order`` repeats every
-    m rows (a tiled code: m = its first axis)."""
+    m rows (a tiled code: m = its first axis).
+
+    ``present`` (F,) bool or None: with it, each voxel of a present frame's sub-frame at its pixel's
+    slot takes the sample itself (nc's ``keep_samples``). ``select`` (S, H, W) bool or None: with it,
+    only those voxels are written (the rest of ``out`` is left as it is; rows without one are skipped)."""
     S = out.shape[0]
     W = out.shape[2]
     B = weight.shape[2]
     m = order.shape[0]
+    K = S // frames.shape[0]
     row_w = np.empty((m, B, W), np.float64)  # a sub-frame's weights along each row of the tile
     acc = np.empty(W, np.float64)
     for s in range(S):
         f0 = first[s]
+        k = s % K
+        keep = present is not None and present[s // K]
         for ym in range(m):
             for b in range(B):
                 for x in range(W):
                     row_w[ym, b, x] = weight[s, order[ym, x], b]
         for y in range(y0, y1):
+            if select is not None:
+                chosen = select[s, y]
+                anything = False
+                for x in range(W):
+                    if chosen[x]:
+                        anything = True
+                        break
+                if not anything:
+                    continue
             w = row_w[y % m]
             for x in range(W):
                 acc[x] = 0.0
@@ -43,11 +59,24 @@ def time_only_rows(frames, order, weight, first, lo, hi, out, y0, y1):
                 for x in range(W):
                     acc[x] += wb[x] * src[x]
             dst = out[s, y]
+            if select is None and not keep:
+                for x in range(W):
+                    dst[x] = min(max(acc[x], lo), hi)
+                continue
+            own = frames[s // K, y]
+            slot = order[y % m]
             for x in range(W):
-                dst[x] = min(max(acc[x], lo), hi)
+                if select is None or select[s, y, x]:
+                    if keep and slot[x] == k:
+                        dst[x] = own[x]
+                    else:
+                        dst[x] = min(max(acc[x], lo), hi)
 
 
 def warm_up() -> None:
     """Compile (or load from the cache) the kernel for float32 output."""
-    time_only_rows(np.zeros((1, 1, 1), np.float32), np.zeros((1, 1), np.int64), np.ones((1, 1, 1)),
-                   np.zeros(1, np.int64), 0.0, 1.0, np.empty((1, 1, 1), np.float32), 0, 1)
+    args = (np.zeros((1, 1, 1), np.float32), np.zeros((1, 1), np.int64), np.ones((1, 1, 1)),
+            np.zeros(1, np.int64), 0.0, 1.0, np.empty((1, 1, 1), np.float32), 0, 1)
+    time_only_rows(*args, None, None)
+    time_only_rows(*args, np.ones(1, np.bool_), None)
+    time_only_rows(*args, np.ones(1, np.bool_), np.ones((1, 1, 1), np.bool_))

@@ -207,3 +207,41 @@ def test_the_compiled_variable_diffusion_gives_the_same_bits_on_any_thread_count
         assert np.array_equal(variable_tensor_diffusion(init, mask, flow, time=1.0), one)
     finally:
         numba.set_num_threads(saved)
+
+
+def test_the_gather_may_write_into_its_still_values(capture_case):
+    truth, frames, sparse, mask = capture_case
+    flow = np.zeros((*sparse.shape, 2), np.float32)
+    flow[:, 3:8, 4:10] = [1.5, -0.5]
+    still = np.hypot(flow[..., 0], flow[..., 1]) < 0.1
+    still_value = diffuse(frames, CODE, tensor=(0.05, 0.05, 0.95), time=2.0)
+    want = motion_compensated_nc(sparse, mask, flow, time=2.0, still=still, still_value=still_value)
+    into = still_value.copy()
+    got = motion_compensated_nc(sparse, mask, flow, time=2.0, still=still, still_value=into, out=into)
+    assert got is into
+    np.testing.assert_array_equal(got, want)
+    with pytest.raises(ValueError, match="`out` must not share memory"):
+        motion_compensated_nc(sparse, mask, flow, time=2.0, out=sparse)
+
+
+@pytest.mark.parametrize("passes", [1, 2])
+def test_still_values_written_in_place_give_the_volumes_result(monkeypatch, passes):
+    # motion_aware writes the still voxels' values into the fixed-tensor guide, and the gather into that,
+    # instead of two more volumes: the same bits as with them.
+    import flexvox_core.motion.pipeline as P
+
+    code = design_code((4, 4)).code
+    truth = render_scene("balls", 16 * 4, 40, 52)
+    frames = capture(truth, code)
+    got = motion_aware(frames, code, passes=passes).video
+
+    def volume_then_copy(frames, code, out, where, *, tensor, time, missing):
+        np.copyto(out, diffuse(frames, code, tensor=tensor, time=time, missing=missing), where=where)
+        return out
+
+    def fresh_out(*args, out=None, **kwargs):
+        return motion_compensated_nc(*args, **kwargs)
+
+    monkeypatch.setattr(P, "diffuse_where", volume_then_copy)
+    monkeypatch.setattr(P, "motion_compensated_nc", fresh_out)
+    np.testing.assert_array_equal(got, motion_aware(frames, code, passes=passes).video)

@@ -98,3 +98,35 @@ def test_time_weights_sum_to_the_blurred_mask():
     blurred = D._fold_matrix(g, S) @ (np.arange(S)[:, None] % K == np.arange(K)[None, :]).astype(float)
     np.testing.assert_allclose(weight.sum(axis=2), blurred, atol=1e-14)
     assert (first >= 0).all() and (first + weight.shape[2] <= F).all()
+
+
+@pytest.mark.parametrize(("tensor", "time"), [((0, 0, 1), 8.0), ((0, 0, 0.3), 1.0), ((0.05, 0.05, 0.95), 5.0)])
+@pytest.mark.parametrize("dropped", [False, True])
+def test_diffuse_where_writes_diffuse_at_the_chosen_voxels_alone(rng, tensor, time, dropped):
+    from flexvox_core.reconstruct.diffusion import diffuse_where
+
+    code = design_code((2, 4)).code
+    F, H, W = 4, 40, 12
+    frames = capture(smooth_video(rng, F * 8, H, W), code)
+    missing = np.array([False, True, False, False]) if dropped else None
+    where = rng.random((F * 8, H, W)) < 0.3
+    where[:, 5:37] = False  # whole rows without a chosen voxel (the kernel skips them)
+    before = rng.random(where.shape).astype(np.float32)
+    out = before.copy()
+    assert diffuse_where(frames, code, out, where, tensor=tensor, time=time, missing=missing) is out
+    full = diffuse(frames, code, tensor=tensor, time=time, missing=missing)
+    np.testing.assert_array_equal(out[where], full[where])  # the same bits: the same pass, samples kept
+    np.testing.assert_array_equal(out[~where], before[~where])
+
+
+def test_diffuse_where_refuses_a_wrong_volume(rng):
+    from flexvox_core.reconstruct.diffusion import diffuse_where
+
+    code = design_code((2, 2)).code
+    frames = capture(rng.random((8, 4, 4)).astype(np.float32), code)
+    where = np.ones((8, 4, 4), bool)
+    for out in (np.zeros((8, 4, 4)), np.zeros((4, 4, 4), np.float32), np.zeros((8, 4, 4), np.float32)[:, :, ::-1]):
+        with pytest.raises(ValueError, match="`out` must be a writable C-contiguous float32 array"):
+            diffuse_where(frames, code, out, where, tensor=(0, 0, 1), time=1.0)
+    with pytest.raises(ValueError, match="`where` must have shape"):
+        diffuse_where(frames, code, np.zeros((8, 4, 4), np.float32), where[:4], tensor=(0, 0, 1), time=1.0)

@@ -328,6 +328,12 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
     low = None
     if loo is not None:
         _leave_one_out(loo, num, den, frames, order, (gx, gy, gt), NC_MIN_WEIGHT * peak, present)
+    samples = frames.astype(dtype, copy=False)
+    kept = captured(samples, None if present is None else ~present)
+    lo, hi = kept.min(), kept.max()
+    slots = [order == k for k in range(K)]
+    # Each sub-frame divided, clipped to the samples' range and given its samples back while it is in
+    # cache (not two more passes over the volume).
     for s in range(S):
         d = den[s]
         low_s = d <= NC_MIN_WEIGHT * peak
@@ -338,18 +344,18 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
             np.divide(num[s], d, out=num[s], where=~low_s)
         else:
             np.divide(num[s], d, out=num[s])
-    samples = frames.astype(dtype, copy=False)
-    kept = captured(samples, None if present is None else ~present)
+        np.clip(num[s], lo, hi, out=num[s])
+        if keep_samples and (present is None or present[s // K]):
+            np.copyto(num[s], samples[s // K], where=slots[s % K])
     if low is not None:
+        # A sample's blurred mask holds at least its own weight: no sample is among these voxels, and the
+        # nearest sample's value needs no clipping.
         _logger.debug("nc: %d voxels without a sample in reach take the nearest sample", int(low.sum()))
         _put_samples(num, samples, order, present)
         mask = _sample_mask(order, F, K)
         if present is not None:
             mask &= np.repeat(present, K)[:, None, None]
         _nearest_fill(num, mask, low, sig)
-    np.clip(num, kept.min(), kept.max(), out=num)
-    if keep_samples:
-        _put_samples(num, samples, order, present)
     return num
 
 
@@ -431,13 +437,16 @@ def _leave_one_out(loo, num, den, frames, order, kernels, floor, present) -> Non
     own_t = self_weights(gt, len(num))
     own_yx = self_weights(gy, H)[:, None] * self_weights(gx, W)[None, :]
     pick = order[None].astype(np.intp)
+    slots = [order == k for k in range(K)]
+    d_at = np.empty((H, W), num.dtype)
     loo[...] = np.nan
     for f in range(F):
         if present is not None and not present[f]:
             continue
         span = slice(f * K, (f + 1) * K)
         n_at = np.take_along_axis(num[span], pick, axis=0)[0]
-        d_at = np.take_along_axis(np.stack([den[s] for s in range(f * K, (f + 1) * K)]), pick, axis=0)[0]
+        for k in range(K):  # each pixel's own sub-frame of the blurred mask (no stack of K planes: fresh memory)
+            np.copyto(d_at, den[f * K + k], where=slots[k])
         c = (own_yx * own_t[f * K + order]).astype(num.dtype)
         rest = d_at - c
         ok = rest > floor

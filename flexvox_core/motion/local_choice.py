@@ -1,13 +1,15 @@
-r"""Motion-aware's local choice: where its gather predicts the samples worse than isotropic ``nc``, take ``nc``.
+r"""Motion-aware's local choice: where its gather predicts the samples worse than oriented ``nc``, take ``nc``.
 
 Eq. 4's tensor smooths only along the motion. Where the picture itself is smooth, or the flow is
-wrong, isotropic normalized convolution (tensor (1, 1, 1), n = 0.25, the issue's comparison) fills the
-voxels better: on the SCI clip Drop it scores 37.16 dB against motion-aware's 35.98, and choosing per
-pixel with the ground truth would give 38.15. The choice here is made without the truth, by
-**leave-one-out**: every sample is estimated by each method from all the *other* samples (for a
-normalized convolution, :math:`(N - c\,y)/(D - c)`, c the weight the sample gives itself), and the
-squared errors, smoothed in space within each frame by a Gaussian of a sixteenth of the picture's
-shorter side (:func:`pooling_sigma`), weigh the two per pixel:
+wrong, a normalized convolution that reaches across space fills the voxels better: on the SCI clip Drop
+isotropic ``nc`` (tensor (1, 1, 1), n = 0.25, the issue's comparison) scores 37.16 dB against
+motion-aware's 35.98, and choosing per pixel with the ground truth would give 38.15. The candidate is
+**oriented nc** (:mod:`~flexvox_core.reconstruct.oriented_nc`): that isotropic ``nc`` with its spatial kernel
+stretched along the edges of the high-TR reconstruction and squeezed across them, which alone scores
+37.64 on Drop. The choice is made without the truth, by **leave-one-out**: every sample is estimated by
+each method from all the *other* samples (for a normalized convolution, :math:`(N - c\,y)/(D - c)`, c the
+weight the sample gives itself), and the squared errors, smoothed in space within each frame by a
+Gaussian of a sixteenth of the picture's shorter side (:func:`pooling_sigma`), weigh the two per pixel:
 
 .. math::
 
@@ -15,9 +17,15 @@ shorter side (:func:`pooling_sigma`), weigh the two per pixel:
 
 applied to the voxels the short trajectory gather estimated (the *fast* voxels; still and slow voxels
 keep their own estimates, whose leave-one-out is not the gather's). A convex blend of two results within
-the samples' range stays within it, and both keep the samples. On ``flexvox bench`` (docs/benchmarks.md):
-Drop +1.15 dB, Runner +0.13, the built-in scenes +0.09 (K = 16) and +0.27 dB (K = 8), no capture worse by
-more than 0.01 dB; about 1 s more on a 1-s VGA clip.
+the samples' range stays within it, and both keep the samples. On ``flexvox bench`` (docs/benchmarks.md),
+against the gather alone, with isotropic ``nc`` as the candidate: Drop +1.15 dB, Runner +0.13, the built-in
+scenes +0.09 (K = 16) and +0.27 dB (K = 8); with oriented ``nc``: Drop +2.0 dB and Runner +0.3 (above the
+learned PnP-FFDNet on both), the built-in scenes +0.01 dB more.
+
+A known bias: a sample's leave-one-out leaves its pixel without its own sample, which the gather leans on
+most where a pixel is still and sampled once within the gather's reach (a single-frame capture of a still
+scene): there the gather's error is overestimated and the candidate takes too much (a still bright square
+in one frame: the gather alone 30.9 dB, with isotropic ``nc`` 30.2, with oriented ``nc`` 29.8).
 """
 
 from __future__ import annotations
@@ -25,10 +33,6 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-TENSOR = (1.0, 1.0, 1.0)
-"""The other method's tensor: isotropic normalized convolution."""
-TIME = 0.25
-"""Its diffusion time (Gaussian σ = 0.7 px and sub-frames)."""
 SIGMA_SHARE = 1 / 16
 """Spatial standard deviation over which the leave-one-out errors are pooled, as a share of the picture's
 shorter side: the same part of the scene at any resolution. Measured on the 1-s VGA clips: a fixed 5 px

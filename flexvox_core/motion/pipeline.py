@@ -45,7 +45,8 @@ from flexvox_core.motion.tensors import DEFAULT_C, check_c, resolution_map
 from flexvox_core.motion.vardiff import explicit_steps, variable_tensor_diffusion
 from flexvox_core.numbers import checked_number, number_pair
 from flexvox_core.reconstruct._common import check_frames, check_identity_code
-from flexvox_core.reconstruct.diffusion import diffuse, diffuse_where, nc_leave_one_out
+from flexvox_core.reconstruct.diffusion import diffuse, diffuse_where
+from flexvox_core.reconstruct.oriented_nc import oriented_nc
 from flexvox_core.threads import for_each
 
 _logger = logging.getLogger(__name__)
@@ -554,9 +555,9 @@ def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: 
             variable_tensor_diffusion(video[g0:g1], mask[g0:g1], field_.flow[g0:g1], c=REFINE_C, time=refine_time,
                                       out=video[g0:g1])
         if loo is not None and np.isfinite(loo).any():
-            # Where isotropic nc predicts the samples better than the gather, it takes over (local_choice).
-            other, other_loo = nc_leave_one_out(f, code, tensor=lc.TENSOR, time=lc.TIME,
-                                                missing=missing)
+            # Where nc with edge-following kernels predicts the samples better than the gather, it takes
+            # over (local_choice); oriented by the high-TR reconstruction, at the gathered voxels alone.
+            other, other_loo = oriented_nc(f, code, high_tr, where=gathered, fallback=video, missing=missing)
             lc.blend(video, other, lc.local_weights(loo, other_loo, f), gathered, K)
             del other, other_loo, gathered
         if missing is not None:

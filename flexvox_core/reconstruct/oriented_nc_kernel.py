@@ -158,11 +158,3 @@ def oriented_plane(frames, order, weight, first, slot, frame, present, j, select
             elif den > floor:
                 out[y, x] = num / den
 
-
-def warm_up() -> None:
-    """Compile (or load from the cache) the kernel for float32 frames."""
-    offsets, weights, counts = tap_lists(np.ones((1, 1, 1), np.float32))
-    oriented_plane(np.zeros((1, 1, 1), np.float32), np.zeros((1, 1), np.int64), np.ones((1, 1)), 0, 0, 0, True,
-                   np.zeros((3, 1, 1), np.float32), np.ones((1, 1), bool), offsets, weights, counts, 0, 0.0,
-                   0, 1, np.empty((1, 1)), np.empty((1, 1)), np.empty((1, 1), np.float32),
-                   np.empty((1, 1, 1), np.float32))

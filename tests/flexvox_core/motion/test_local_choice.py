@@ -110,3 +110,41 @@ def test_the_fan_at_k8_gains_where_isotropic_nc_predicts_better():
     np.testing.assert_array_equal(chosen[mask], sparse_volume(frames, code)[mask])  # samples kept exactly
     with pytest.raises(ValueError, match=r"`local_choice` must be True or False; got 'yes'"):
         motion_aware(frames, code, local_choice="yes")
+
+
+def _moving_square(S, H, W, speed, angle=0.5):
+    """A bright square turned by ``angle`` (radians) crossing a soft background at ``speed`` px per sub-frame."""
+    y, x = np.mgrid[0:H, 0:W].astype(np.float64)
+    out = np.empty((S, H, W), np.float32)
+    for s in range(S):
+        u = (x - speed * s - W / 2) * np.cos(angle) + (y - H / 2) * np.sin(angle)
+        v = -(x - speed * s - W / 2) * np.sin(angle) + (y - H / 2) * np.cos(angle)
+        out[s] = 0.25 + 0.5 * ((np.abs(u) < 14) & (np.abs(v) < 10)) + 0.1 * np.sin(y / 9.0)
+    return out
+
+
+def test_the_candidate_follows_the_high_tr_edges(monkeypatch):
+    """The local choice's candidate is nc oriented by the high-TR reconstruction, at the gathered voxels:
+    on a turned square moving 1 px per sub-frame its edges come out better than with isotropic nc (the same
+    kernel with a guide without edges). Measured: +0.18 dB (K = 8, one frame)."""
+    import flexvox_core.motion.pipeline as pipeline
+    from flexvox_core.reconstruct.oriented_nc import oriented_nc
+
+    code = design_code((2, 4)).code
+    truth = _moving_square(8, 48, 64, 1.0)
+    frames = capture(truth, code)
+    calls = []
+
+    def spy(f, c, guide, **kw):
+        calls.append((guide, kw["where"]))
+        return oriented_nc(f, c, guide, **kw)
+
+    monkeypatch.setattr(pipeline, "oriented_nc", spy)
+    result = motion_aware(frames, code)
+    oriented = psnr(truth, result.video).mean
+    guide, where = calls[0]
+    np.testing.assert_array_equal(guide, result.high_tr)
+    assert where.dtype == bool and 0 < where.mean() <= 1
+    monkeypatch.setattr(pipeline, "oriented_nc", lambda f, c, g, **kw: oriented_nc(f, c, np.zeros_like(g), **kw))
+    isotropic = psnr(truth, motion_aware(frames, code).video).mean
+    assert oriented > isotropic + 0.1

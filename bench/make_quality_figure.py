@@ -1,17 +1,18 @@
 """The README's quality figure: one row per clip, ground truth beside four reconstructions.
 
-Clips: the SCI benchmark's Runner and Drop (frames 0–7, flexvox's 2×4 identity code: one camera frame,
-K = 8; skipped with a printed line when the data is absent — ``$FLEXVOX_DATA/sci_benchmark`` or
+Clips: the SCI benchmark's Runner and Drop (frames 0–7, flexvox's 2×4 identity code: one camera frame, K = 8;
+skipped with a printed line when the data is absent — ``$FLEXVOX_DATA/sci_benchmark`` or
 ``../shared/data/sci_benchmark`` next to the checkout) and the built-in moving scenes ``balls`` and
-``drummer`` (96×128, 6 camera frames through a 4×4 identity code, K = 16; no noise, as in ``flexvox
-bench``). Columns: the ground truth, GAP-TV (``Method("gap-tv")``), constant-tensor ``nc``
-(``Method("diffusion")``; isotropic ``tensor=(1, 1, 1), time=0.25`` on the SCI clips, its default tensor
-on the built-in scenes, as docs/reconstruction.md advises per scene type), motion-aware without its
-refinement (``refine_time=0``: the default before Reconstruction II) and motion-aware as it is now, the
-default. Each capture is reconstructed whole (``chunk_frames=None``), timed with ``time.perf_counter``
-(the best of ``--repeats`` runs, default 3) after a warm-up of every method on a small capture (so the
-compiled kernels' first-call compilation is not counted), and scored by ``flexvox_core.metrics.psnr``
-(mean over the clip's sub-frames). Every panel shows the same sub-frame, the middle one of the clip.
+``drummer`` (96×128, 6 camera frames through a 4×4 identity code, K = 16; no noise, as in ``flexvox bench``).
+Columns: the ground truth, GAP-TV (``Method("gap-tv")``), constant-tensor ``nc`` (``Method("diffusion")``;
+isotropic ``tensor=(1, 1, 1), time=0.25`` on the SCI clips, its default tensor on the built-in scenes, as
+docs/reconstruction.md advises per scene type), motion-aware as it was when Reconstruction II was filed
+(``refine_time=0, local_choice=False, noise_aware=False``: no refinement, no local choice, no noise-aware
+smoothing) and motion-aware as it is now, the default. Each capture is reconstructed whole
+(``chunk_frames=None``), timed with ``time.perf_counter`` (the best of ``--repeats`` runs, default 3) after a
+warm-up of every method on a small capture (so the compiled kernels' first-call compilation is not counted),
+and scored by ``flexvox_core.metrics.psnr`` (mean over the clip's sub-frames). Every panel shows the same
+sub-frame, the middle one of the clip.
 
 Draws the PNG (matplotlib, Agg; default ``docs/motion/quality.png``) and prints the table of PSNR and
 seconds (clip × method) as Markdown. Figures only, never pass/fail.
@@ -67,7 +68,7 @@ def columns(clip: Clip) -> list[tuple[str, Method]]:
     return [
         ("GAP-TV", Method("gap-tv")),
         nc,
-        ("motion-aware, before (unrefined)", Method("motion-aware", refine_time=0.0)),
+        ("motion-aware, before", Method("motion-aware", refine_time=0.0, local_choice=False, noise_aware=False)),
         ("motion-aware, the new default", Method("motion-aware")),
     ]
 
@@ -160,7 +161,7 @@ def draw(clips: list[Clip], results: list[list], out: Path, *, overwrite: bool, 
             ax.set_yticks([])
     shown = ", ".join(f"{c.name} {t}" for c, t in zip(clips, subs, strict=True))
     fig.suptitle(f"PSNR over the whole clip; seconds per reconstruction, best of {repeats}, on {cores()} CPU cores. "
-                 f"\"before\" = motion-aware without its refinement.\n"
+                 f"\"before\": motion-aware when Reconstruction II was filed.\n"
                  f"Shown: the middle sub-frame, counted from 0 ({shown})", fontsize=10)
     fig.canvas.draw()
     # Everything drawn is grey: an 8-bit grey PNG holds it exactly, at a third of RGBA's size.
@@ -173,7 +174,7 @@ def draw(clips: list[Clip], results: list[list], out: Path, *, overwrite: bool, 
 
 def table(clips: list[Clip], results: list[list]) -> str:
     """The Markdown table: one row per clip, PSNR (dB) and seconds per method."""
-    heads = ["GAP-TV", "nc", "motion-aware before (unrefined)", "motion-aware, the new default"]
+    heads = ["GAP-TV", "nc", "motion-aware before", "motion-aware, the new default"]
     lines = ["| clip | " + " | ".join(heads) + " |", "|---" * (1 + len(heads)) + "|"]
     for clip, res in zip(clips, results, strict=True):
         cells = [f"{p:.2f} dB, {seconds_text(sec)}" for _, _, p, sec in res]

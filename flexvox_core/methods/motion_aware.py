@@ -49,8 +49,8 @@ class MotionAware(MethodSpec):
                     "periods each way (0: no long gather, faster where the whole picture drifts slowly)",
                span=(0.0, 4.0, 0.25), shown_default=SLOW_REACH),
         flag("local_choice", True, label="local choice (leave-one-out)",
-             help="blend in isotropic nc wherever it predicts left-out samples better than the trajectory gather "
-                  "(off: the gather alone)"),
+             help="blend in nc (its kernel following the edges of the high-TR reconstruction) wherever it predicts "
+                  "left-out samples better than the trajectory gather (off: the gather alone)"),
         flag("noise_aware", True, label="noise-aware smoothing",
              help="estimate the noise from still pixels' successive samples and smooth across space where the "
                   "picture is flatter than it (off: Eq. 3's narrow spatial blur everywhere)"),

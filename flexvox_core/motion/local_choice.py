@@ -1,15 +1,16 @@
 r"""Motion-aware's local choice: where its gather predicts the samples worse than oriented ``nc``, take ``nc``.
 
-Eq. 4's tensor smooths only along the motion. Where the picture itself is smooth, or the flow is
-wrong, a normalized convolution that reaches across space fills the voxels better: on the SCI clip Drop
-isotropic ``nc`` (tensor (1, 1, 1), n = 0.25, the issue's comparison) scores 37.16 dB against
-motion-aware's 35.98, and choosing per pixel with the ground truth would give 38.15. The candidate is
-**oriented nc** (:mod:`~flexvox_core.reconstruct.oriented_nc`): that isotropic ``nc`` with its spatial kernel
-stretched along the edges of the high-TR reconstruction and squeezed across them, which alone scores
-37.64 on Drop. The choice is made without the truth, by **leave-one-out**: every sample is estimated by
-each method from all the *other* samples (for a normalized convolution, :math:`(N - c\,y)/(D - c)`, c the
-weight the sample gives itself), and the squared errors, smoothed in space within each frame by a
-Gaussian of a sixteenth of the picture's shorter side (:func:`pooling_sigma`), weigh the two per pixel:
+Eq. 4's tensor smooths only along the motion. Where the picture itself is smooth, or the flow is wrong, a
+normalized convolution that reaches across space fills the voxels better: on the SCI clip Drop isotropic
+``nc`` (tensor (1, 1, 1), n = 0.25, the issue's comparison) scores 37.16 dB against motion-aware's 35.98,
+and choosing per pixel with the ground truth would give 38.15. The candidate is **oriented nc**
+(:mod:`~flexvox_core.reconstruct.oriented_nc`): that isotropic ``nc`` with its spatial kernel stretched
+along the edges of the high-TR reconstruction and squeezed across them, which alone scores 37.92 on Drop
+(31.77 on Runner, where isotropic ``nc`` scores 31.31). The choice is made without the truth, by
+**leave-one-out**: every sample is estimated by each method from all the *other* samples (for a normalized
+convolution, :math:`(N - c\,y)/(D - c)`, c the weight the sample gives itself), and the squared errors,
+smoothed in space within each frame by a Gaussian of a sixteenth of the picture's shorter side
+(:func:`pooling_sigma`), weigh the two per pixel:
 
 .. math::
 
@@ -24,8 +25,9 @@ learned PnP-FFDNet on both), the built-in scenes +0.01 dB more.
 
 A known bias: a sample's leave-one-out leaves its pixel without its own sample, which the gather leans on
 most where a pixel is still and sampled once within the gather's reach (a single-frame capture of a still
-scene): there the gather's error is overestimated and the candidate takes too much (a still bright square
-in one frame: the gather alone 30.9 dB, with isotropic ``nc`` 30.2, with oriented ``nc`` 29.8).
+subject): there the gather's error is overestimated and the candidate takes too much.
+``bench/bench_choice_bias.py`` measures it (at K = 8 the gather alone was the best on every still
+single-frame capture it tried, by 0.4–1.4 dB; at K = 16 on three of five).
 """
 
 from __future__ import annotations

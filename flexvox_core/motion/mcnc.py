@@ -83,7 +83,7 @@ def motion_compensated_nc(
         (N − c·y) / (D − c), c the weight the sample gives itself (1 along the trajectory times the
         spatial blur's centre). F = S / K frames of K sub-frames; a sub-frame's samples go to its
         frame's plane (each pixel is sampled once a frame). Other pixels are left as they are.
-        :mod:`~flexvox_core.motion.local_choice` compares it with isotropic nc's.
+        :mod:`~flexvox_core.motion.local_choice` compares it with oriented nc's.
     wide, wide_sigma : sequence of (H, W) weights or None per sub-frame, float
         Noise-aware smoothing (:mod:`~flexvox_core.motion.noise_aware`): the spatial blur at a voxel is
         the mixture (1 − g)·Gaussian(σ) + g·Gaussian(``wide_sigma``), g = ``wide[t]`` (None: g = 0),

@@ -38,6 +38,8 @@ import math
 import cv2
 import numpy as np
 
+from flexvox_core.slopes import slopes
+
 KAPPA = 2.0
 """The smoothed gradient (per px) is compared with this many noise standard deviations."""
 GRADIENT_SIGMA = 1.0
@@ -118,10 +120,6 @@ class SmoothWeights:
         lam = KAPPA * self.noise[t]
         if lam <= 0:
             return None
-        picture = cv2.GaussianBlur(np.asarray(self.guide[t], np.float32), (0, 0), GRADIENT_SIGMA,
-                                   borderType=cv2.BORDER_REFLECT)
-        # Sobel's 3×3 derivative is 8 times the per-pixel slope.
-        gx = cv2.Sobel(picture, cv2.CV_32F, 1, 0, ksize=3, scale=0.125, borderType=cv2.BORDER_REFLECT)
-        gy = cv2.Sobel(picture, cv2.CV_32F, 0, 1, ksize=3, scale=0.125, borderType=cv2.BORDER_REFLECT)
+        gx, gy = slopes(self.guide[t], GRADIENT_SIGMA)
         energy = cv2.GaussianBlur(gx * gx + gy * gy, (0, 0), RHO, borderType=cv2.BORDER_REFLECT)
         return np.exp(energy * np.float32(-1.0 / (lam * lam))).astype(np.float32, copy=False)

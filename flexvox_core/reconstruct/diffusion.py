@@ -144,7 +144,7 @@ def stability_bound(tensor) -> float:
 # --------------------------------------------------------------------------- nc kernels
 
 
-def _kernel(sigma: float, dtype) -> np.ndarray | None:
+def gaussian_kernel(sigma: float, dtype) -> np.ndarray | None:
     """Sampled Gaussian, truncated at TRUNCATE σ and normalised; None when no blur."""
     radius = int(TRUNCATE * sigma + 0.5)
     if sigma <= 0 or radius == 0:
@@ -225,7 +225,7 @@ def gaussian(volume, tensor, time) -> np.ndarray:
         raise ValueError(f"`volume` must have shape (S, H, W); got {v.shape}")
     dt = v.dtype.type if v.dtype in (np.float32, np.float64) else np.float32
     out = np.array(v, dtype=dt, copy=True)
-    gx, gy, gt = (_kernel(s, dt) for s in sigmas(tensor, time))
+    gx, gy, gt = (gaussian_kernel(s, dt) for s in sigmas(tensor, time))
     S, H, W = out.shape
     if gx is not None or gy is not None:
         for s in range(S):
@@ -299,7 +299,7 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
     F, H, W = frames.shape
     K = code.shape[2]
     S = F * K
-    gx, gy, gt = (_kernel(s, dtype) for s in sig)
+    gx, gy, gt = (gaussian_kernel(s, dtype) for s in sig)
     if present is not None:  # a dropped frame's row holds no samples: nothing of it enters the sums
         frames = np.where(present[:, None, None], frames, 0).astype(frames.dtype, copy=False)
     if gx is None and gy is None and gt is not None and loo is None:
@@ -359,7 +359,7 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
     return num
 
 
-def _time_weights(g: np.ndarray, K: int, F: int, present) -> tuple[np.ndarray, np.ndarray]:
+def time_weights(g: np.ndarray, K: int, F: int, present) -> tuple[np.ndarray, np.ndarray]:
     """The time blur ``g`` (reflecting ends) of an ``F·K``-sub-frame clip as weights on each pixel's samples:
     ``weight[s, k, b]`` (float64) that sub-frame s gives the sample of frame ``first[s] + b`` of a pixel of
     slot k (0 for frames not ``present``)."""
@@ -403,7 +403,7 @@ def _time_blurred_samples(frames, code, sigma_t: float, dtype, present) -> tuple
     """The sparse sample volume blurred in time, and the slot of every pixel (:func:`_sample_volume`
     followed by the time blur, the same up to float rounding)."""
     F, H, W = frames.shape
-    weight, first = _time_weights(_kernel(sigma_t, np.float64), code.shape[2], F, present)
+    weight, first = time_weights(gaussian_kernel(sigma_t, np.float64), code.shape[2], F, present)
     samples = np.ascontiguousarray(frames, dtype=dtype)
     return _time_pass(samples, code, weight, first, -math.inf, math.inf, dtype), tiled_order(code, H, W)
 
@@ -415,9 +415,9 @@ def _nc_time_only(frames, code, sigma_t: float, keep_samples: bool, dtype, prese
     voxel has no sample in reach (the general path then gives it its nearest sample). ``out``, ``select``:
     the result written into ``out`` at the voxels ``select`` alone (as :func:`_time_pass`)."""
     F, H, W = frames.shape
-    weight, first = _time_weights(_kernel(sigma_t, np.float64), code.shape[2], F, present)
+    weight, first = time_weights(gaussian_kernel(sigma_t, np.float64), code.shape[2], F, present)
     den = weight.sum(axis=2)
-    if (den <= NC_MIN_WEIGHT * float(_kernel(sigma_t, dtype).max())).any():
+    if (den <= NC_MIN_WEIGHT * float(gaussian_kernel(sigma_t, dtype).max())).any():
         return None
     weight /= den[:, :, None]
     samples = np.ascontiguousarray(frames, dtype=dtype)
@@ -462,7 +462,7 @@ def _nc_rows(frames, code, sig, keep_samples: bool, dtype, present, rows: tuple[
     K = code.shape[2]
     S = F * K
     r0, r1 = rows
-    gx, gy, gt = (_kernel(s, dtype) for s in sig)
+    gx, gy, gt = (gaussian_kernel(s, dtype) for s in sig)
     mat = np.eye(S, dtype=dtype)[r0:r1] if gt is None else _fold_matrix(gt, S, rows=(r0, r1))
     reached = np.flatnonzero(mat.any(axis=0))
     c0, c1 = int(reached[0]), int(reached[-1]) + 1
@@ -785,7 +785,7 @@ def diffuse_where(frames, code, out: np.ndarray, where, *, tensor=DEFAULT_TENSOR
     select = np.ascontiguousarray(where, dtype=bool)
     if select.shape != shape:
         raise ValueError(f"`where` must have shape {shape}; got {select.shape}")
-    gx, gy, gt = (_kernel(v, np.float32) for v in sig)
+    gx, gy, gt = (gaussian_kernel(v, np.float32) for v in sig)
     if gx is None and gy is None and gt is not None:
         samples = f if present is None else np.where(present[:, None, None], f, 0).astype(f.dtype, copy=False)
         if _nc_time_only(samples, c, sig[2], True, np.float32, present, out=out, select=select) is not None:
@@ -801,7 +801,8 @@ def nc_leave_one_out(frames, code, *, tensor=DEFAULT_TENSOR, time: float = DEFAU
     with N and D the blurred samples and mask there, y the sample and c the weight it gives itself (the
     kernel's centre, more at a reflecting border). How well a method predicts samples it did not see
     measures how well it fills the voxels it has no sample for (motion-aware's local choice,
-    :mod:`flexvox_core.motion.local_choice`).
+    :mod:`flexvox_core.motion.local_choice`, uses oriented nc's, :mod:`flexvox_core.reconstruct.oriented_nc`,
+    which equals this one for a guide without edges).
 
     Returns
     -------
@@ -839,7 +840,7 @@ def nc_naive(frames, code, *, tensor=DEFAULT_TENSOR, time: float = DEFAULT_TIME,
     sigma = (sig[2], sig[1], sig[0])
     num = gaussian_filter(vals, sigma, mode="reflect", truncate=TRUNCATE)
     den = gaussian_filter(mask.astype(np.float64), sigma, mode="reflect", truncate=TRUNCATE)
-    peak = _peak(_kernel(s, np.float64) for s in sig)
+    peak = _peak(gaussian_kernel(s, np.float64) for s in sig)
     low = den <= NC_MIN_WEIGHT * peak
     out = np.divide(num, den, out=np.zeros_like(num), where=~low)
     samples = f.astype(np.float64)

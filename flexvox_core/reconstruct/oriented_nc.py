@@ -13,18 +13,21 @@ voxel is stretched along the local edge and squeezed across it:
 u the direction of the gradient, v along the edge, A = (λ₁ − λ₂)/(λ₁ + λ₂) ∈ [0, 1] the anisotropy of the
 structure tensor J = G_ρ * (∇(G_σp * I) ∇(G_σp * I)ᵀ) of a **guide** picture I (motion-aware passes its
 high-TR reconstruction: a first estimate, sharp in time), α = 2. Where the guide has no dominant
-direction (A ≈ 0) this is isotropic ``nc`` exactly. The time Gaussian is nc's, with reflecting ends.
+direction (A ≈ 0) the kernel is isotropic ``nc``'s (the same weights up to a constant factor); the time
+Gaussian is nc's, with reflecting ends. Unlike :func:`~flexvox_core.reconstruct.diffusion.diffuse`, a voxel
+with no sample in reach keeps the ``fallback`` (nc gives it the nearest sample), and nothing is clipped (a
+normalized convolution of the samples stays within their range anyway).
 
-The kernels come from a bank: A is rounded to 0, ½ or 1 and the direction to one of 8 (22.5° apart),
-17 kernels cut at 4 σ. Measured as motion-aware's local-choice candidate in place of isotropic ``nc``
-(docs/reconstruction.md, "The local choice"): Drop 37.13 → 37.99 dB, Runner 33.05 → 33.22, the built-in
-scenes +0.01 at K = 8 and K = 16, no capture worse by more than 0.05 dB. The guide sets the direction
-only; it is not averaged in: the estimate is a normalized convolution of the samples, within their range,
-and keeps them.
+The kernels come from a bank: A is rounded to 0, ½ or 1 and the direction to one of 8 (22.5° apart), 17
+kernels cut at 4 σ along their own axes (9×9 px). Measured as motion-aware's local-choice candidate in place
+of isotropic ``nc`` (docs/reconstruction.md, "The local choice"): Drop 37.13 → 37.99 dB, Runner 33.05 →
+33.22, the built-in scenes +0.01 at K = 8 and K = 16, no capture worse by more than 0.05 dB. The guide sets
+the direction only; it is not averaged in: the estimate is a normalized convolution of the samples, within
+their range, and keeps them.
 
 The sums run in a compiled kernel (:mod:`~flexvox_core.reconstruct.oriented_nc_kernel`), one sub-frame
-per call, at the voxels asked for; :func:`oriented_nc_reference` is the plain numpy form the tests
-compare it against.
+per call, at the voxels asked for; the tests compare it with a plain numpy form that computes each kernel
+weight from the formula above (``tests/flexvox_core/reconstruct/oriented_reference.py``).
 """
 
 from __future__ import annotations
@@ -38,7 +41,8 @@ import numpy as np
 from flexvox_core.forward import tiled_order
 from flexvox_core.gaps import as_missing
 from flexvox_core.reconstruct._common import check_frames, check_identity_code
-from flexvox_core.reconstruct.diffusion import NC_MIN_WEIGHT, TRUNCATE, _kernel, _time_weights
+from flexvox_core.reconstruct.diffusion import NC_MIN_WEIGHT, TRUNCATE, gaussian_kernel, time_weights
+from flexvox_core.slopes import cv_radius, slopes
 from flexvox_core.threads import for_each
 
 SIGMA = math.sqrt(0.5)
@@ -50,13 +54,18 @@ on the still scene at K = 8; α = 3 gained less everywhere (Drop +0.68)."""
 LEVELS = (0.0, 0.5, 1.0)
 """Anisotropy levels of the kernel bank (A is rounded to the nearest)."""
 ANGLES = 8
-"""Directions of the kernel bank, over 180°."""
+"""Directions of the kernel bank, over 180° (the compiled kernel's sector comparisons are written for 8)."""
 PRE_SIGMA = 0.7
 """The guide is blurred by this (px) before its gradient is taken."""
 RHO = 1.0
 """The gradient products are averaged over this (px): the structure tensor's scale."""
-_PAD = 10
-"""Rows of guide around the wanted ones that the structure tensor reads (3 + 1 + 4 px, rounded up)."""
+_PAD = cv_radius(PRE_SIGMA) + 1 + cv_radius(RHO) + 2
+"""Rows of guide around the wanted ones that the structure tensor reads (the blur, Sobel's row and the
+averaging), and 2 to spare: the wanted rows' tensor is the whole picture's."""
+_LOW, _HIGH = (LEVELS[0] + LEVELS[1]) / 2, (LEVELS[1] + LEVELS[2]) / 2
+"""Where the anisotropy rounds up to the next level."""
+_TAN = math.tan(math.pi / ANGLES)
+"""The doubled angle's sector edges are at ±22.5°, ±67.5°, … from the axes: this is their slope."""
 
 
 def kernel_bank(sigma: float = SIGMA, alpha: float = ALPHA) -> np.ndarray:
@@ -66,34 +75,37 @@ def kernel_bank(sigma: float = SIGMA, alpha: float = ALPHA) -> np.ndarray:
     radius): the isotropic one is nc's spatial kernel up to a constant factor."""
     big = int(math.ceil(TRUNCATE * sigma * (alpha + LEVELS[-1]) / alpha)) + 2
     y, x = np.mgrid[-big:big + 1, -big:big + 1].astype(np.float64)
-    out = []
-    for level in LEVELS:
-        su, sv = sigma * alpha / (alpha + level), sigma * (alpha + level) / alpha
-        for k in range(ANGLES if level > 0 else 1):
-            theta = k * math.pi / ANGLES
-            u = x * math.cos(theta) + y * math.sin(theta)
-            v = -x * math.sin(theta) + y * math.cos(theta)
-            g = np.exp(-0.5 * ((u / su) ** 2 + (v / sv) ** 2))
-            eps = 1e-9  # a tap on the box's edge stays in, whatever the rounding of the rotation
-            g[(np.abs(u) > int(TRUNCATE * su + 0.5) + eps) | (np.abs(v) > int(TRUNCATE * sv + 0.5) + eps)] = 0
-            out.append(g)
+    out = [kernel_weights(x, y, sigma, alpha, level, k * math.pi / ANGLES)
+           for level in LEVELS for k in range(ANGLES if level > 0 else 1)]
     bank = np.asarray(out)
     used = np.flatnonzero(bank.any(axis=(0, 1)))
     half = int(max(abs(used[0] - big), abs(used[-1] - big)))
     return np.ascontiguousarray(bank[:, big - half:big + half + 1, big - half:big + half + 1], np.float32)
 
 
+def kernel_weights(dx, dy, sigma: float, alpha: float, level: float, theta: float):
+    """The weight of offsets (dx, dy) px (arrays or numbers) in the kernel of anisotropy ``level`` whose
+    gradient direction is ``theta`` (radians from x): a Gaussian of σ·α/(α + A) along the gradient and
+    σ·(α + A)/α along the edge, 0 beyond ``TRUNCATE`` standard deviations on either axis."""
+    su, sv = sigma * alpha / (alpha + level), sigma * (alpha + level) / alpha
+    u = np.asarray(dx, np.float64) * math.cos(theta) + np.asarray(dy, np.float64) * math.sin(theta)
+    v = -np.asarray(dx, np.float64) * math.sin(theta) + np.asarray(dy, np.float64) * math.cos(theta)
+    g = np.exp(-0.5 * ((u / su) ** 2 + (v / sv) ** 2))
+    eps = 1e-9  # a tap on the box's edge stays in, whatever the rounding of the rotation
+    return np.where((np.abs(u) > int(TRUNCATE * su + 0.5) + eps) | (np.abs(v) > int(TRUNCATE * sv + 0.5) + eps),
+                    0.0, g)
+
+
 def structure(guide: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """The structure tensor's entries (3, H, W) float32 — J_xx, J_xy, J_yy — of one guide picture (H, W),
     into ``out`` if given."""
-    p = cv2.GaussianBlur(np.asarray(guide, np.float32), (0, 0), PRE_SIGMA, borderType=cv2.BORDER_REFLECT)
-    gx = cv2.Sobel(p, cv2.CV_32F, 1, 0, ksize=3, scale=0.125, borderType=cv2.BORDER_REFLECT)
-    gy = cv2.Sobel(p, cv2.CV_32F, 0, 1, ksize=3, scale=0.125, borderType=cv2.BORDER_REFLECT)
+    gx, gy = slopes(guide, PRE_SIGMA)
     if out is None:
-        out = np.empty((3, *p.shape), np.float32)
+        out = np.empty((3, *gx.shape), np.float32)
+    product = np.empty_like(gx)
     for i, (a, b) in enumerate(((gx, gx), (gx, gy), (gy, gy))):
-        cv2.multiply(a, b, dst=p)
-        cv2.GaussianBlur(p, (0, 0), RHO, dst=out[i], borderType=cv2.BORDER_REFLECT)
+        cv2.multiply(a, b, dst=product)
+        cv2.GaussianBlur(product, (0, 0), RHO, dst=out[i], borderType=cv2.BORDER_REFLECT)
     return out
 
 
@@ -101,24 +113,24 @@ def bank_index(jxx, jxy, jyy) -> np.ndarray:
     """The kernel (index into :func:`kernel_bank`) for structure-tensor entries (arrays of one shape).
 
     The anisotropy A = √((J_xx − J_yy)² + 4 J_xy²) / (J_xx + J_yy) rounds to the nearest of :data:`LEVELS`
-    (0 at no gradient); the gradient's direction θ = ½ atan2(2 J_xy, J_xx − J_yy) to the nearest multiple of
-    22.5°, found by comparing the doubled angle with the sectors' edges (no arctangent: the compiled kernel
-    makes the same comparisons)."""
+    (0 at no gradient, or where the entries are not finite); the gradient's direction
+    θ = ½ atan2(2 J_xy, J_xx − J_yy) to the nearest multiple of 22.5°, found by comparing the doubled angle
+    with the sectors' edges (the compiled kernel makes the same comparisons)."""
     jxx, jxy, jyy = (np.asarray(v, np.float64) for v in (jxx, jxy, jyy))
-    a, b, trace = jxx - jyy, 2 * jxy, jxx + jyy
-    spread2 = a * a + b * b
-    low, high = (LEVELS[0] + LEVELS[1]) / 2, (LEVELS[1] + LEVELS[2]) / 2
-    level = np.where(spread2 <= (high * trace) ** 2, 1, 2)
-    level = np.where(~(trace > 0) | (spread2 <= (low * trace) ** 2), 0, level)
-    tan1 = math.tan(math.pi / 8)
-    ax, by = np.abs(a), np.abs(b)
-    angle = np.select([by <= tan1 * ax, ax <= tan1 * by, a > 0],
-                      [np.where(a >= 0, 0, 4), np.where(b > 0, 2, 6), np.where(b > 0, 1, 7)],
-                      np.where(b > 0, 3, 5))
+    with np.errstate(invalid="ignore", over="ignore"):  # inf − inf and the like: NaN, then level 0
+        a, b, trace = jxx - jyy, 2 * jxy, jxx + jyy
+        spread2 = a * a + b * b
+        level = np.where(spread2 <= (_HIGH * trace) ** 2, 1, 2)
+        level = np.where(~(trace > 0) | ~(spread2 > (_LOW * trace) ** 2), 0, level)
+        ax, by = np.abs(a), np.abs(b)
+        angle = np.select([by <= _TAN * ax, ax <= _TAN * by, a > 0],
+                          [np.where(a >= 0, 0, 4), np.where(b > 0, 2, 6), np.where(b > 0, 1, 7)],
+                          np.where(b > 0, 3, 5))
     return np.where(level == 0, 0, 1 + (level - 1) * ANGLES + angle)
 
 
-def _checked(frames, code, guide, where, fallback, missing):
+def check_inputs(frames, code, guide, where, fallback, missing):
+    """The checked (frames, code, guide, where, missing) of :func:`oriented_nc` (see there)."""
     f = check_frames(frames)
     c = check_identity_code(code)
     F, H, W = f.shape
@@ -127,10 +139,14 @@ def _checked(frames, code, guide, where, fallback, missing):
     if g.shape != (S, H, W):
         raise ValueError(f"`guide` must be the (S, H, W) = {(S, H, W)} video whose edges orient the kernel; "
                          f"got {g.shape}")
+    if not np.isfinite(g.sum(dtype=np.float64)):  # one pass, no boolean volume
+        bad = next(s for s in range(S) if not np.isfinite(g[s]).all())
+        raise ValueError(f"`guide` sub-frame {bad} holds NaN or infinite values")
     if where is not None:
-        where = np.asarray(where, bool)
-        if where.shape != (S, H, W):
-            raise ValueError(f"`where` must be a bool (S, H, W) = {(S, H, W)} array; got {where.shape}")
+        where = np.asarray(where)
+        if where.shape != (S, H, W) or where.dtype != bool:
+            raise ValueError(f"`where` must be a bool (S, H, W) = {(S, H, W)} array; got {where.dtype} "
+                             f"{where.shape}")
     if fallback is not None and np.shape(fallback) != (S, H, W):
         raise ValueError(f"`fallback` must be an (S, H, W) = {(S, H, W)} array; got {np.shape(fallback)}")
     return f, c, g, where, as_missing(missing, F)
@@ -144,7 +160,7 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None)
     frames : ndarray (F, H, W)
     code : ndarray (m, n, K), identity code
     guide : ndarray (F·K, H, W)
-        The picture whose structure orients the kernel at each voxel.
+        The picture whose structure orients the kernel at each voxel (finite values).
     where : ndarray (F·K, H, W) bool, optional
         The voxels to estimate (default: all); elsewhere the result is ``fallback``.
     fallback : ndarray (F·K, H, W), optional
@@ -163,13 +179,13 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None)
     """
     from flexvox_core.reconstruct.oriented_nc_kernel import oriented_plane, tap_lists
 
-    f, c, g, where, missing = _checked(frames, code, guide, where, fallback, missing)
+    f, c, g, where, missing = check_inputs(frames, code, guide, where, fallback, missing)
     F, H, W = f.shape
     K = c.shape[2]
     S = F * K
     present = None if missing is None else ~missing
-    gt = _kernel(SIGMA, np.float64)
-    weight, first = _time_weights(gt, K, F, present)
+    gt = gaussian_kernel(SIGMA, np.float64)
+    weight, first = time_weights(gt, K, F, present)
     floor = NC_MIN_WEIGHT * float(gt.max())
     bank = kernel_bank()
     offsets, weights, counts = tap_lists(bank)
@@ -196,83 +212,7 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None)
         structure(g[s, b0:b1], out=scratch.j[:, b0:b1])
         oriented_plane(samples, order, weight[s], int(first[s]), s % K, s // K, bool(present_f[s // K]),
                        scratch.j, wanted, offsets, weights, counts, bank.shape[1] // 2, floor, y0, y1,
-                       scratch.vt, scratch.mt, video[s], loo)
+                       scratch.vt, scratch.mt, video[s], loo, _LOW, _HIGH, _TAN)
 
     for_each(one, S)
     return video, loo
-
-
-def oriented_nc_reference(frames, code, guide, *, where=None, fallback=None, missing=None
-                          ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`oriented_nc` in plain numpy, float64, a voxel at a time (small inputs: the tests' reference)."""
-    f, c, g, where, missing = _checked(frames, code, guide, where, fallback, missing)
-    F, H, W = f.shape
-    K = c.shape[2]
-    S = F * K
-    order = tiled_order(c, H, W)
-    present = np.ones(F, bool) if missing is None else ~missing
-    # The sparse volume and its mask, blurred along time with reflecting ends (scipy's "reflect").
-    vals = np.zeros((S, H, W))
-    mask = np.zeros((S, H, W))
-    for fr in range(F):
-        if present[fr]:
-            for k in range(K):
-                sel = order == k
-                vals[fr * K + k][sel] = f[fr][sel]
-                mask[fr * K + k][sel] = 1.0
-    gt = _kernel(SIGMA, np.float64)
-    r = gt.size // 2
-    vt = np.zeros_like(vals)
-    mt = np.zeros_like(mask)
-    for s in range(S):
-        for d in range(-r, r + 1):
-            t = s + d
-            t = -t - 1 if t < 0 else (2 * S - t - 1 if t >= S else t)
-            vt[s] += gt[d + r] * vals[t]
-            mt[s] += gt[d + r] * mask[t]
-    bank = kernel_bank().astype(np.float64)
-    h = bank.shape[1] // 2
-    floor = NC_MIN_WEIGHT * float(gt.max())
-    video = np.full((S, H, W), np.nan) if fallback is None else np.array(fallback, np.float64)
-    loo = np.full((F, H, W), np.nan)
-    ys = np.arange(-h, h + 1)
-
-    def reflect(i, n):
-        i = np.where(i < 0, -i - 1, i)
-        return np.where(i >= n, 2 * n - i - 1, i)
-
-    for s in range(S):
-        jxx, jxy, jyy = structure(g[s])
-        idx = bank_index(jxx, jxy, jyy)
-        fr = s // K
-        for y in range(H):
-            for x in range(W):
-                if where is not None and not where[s, y, x]:
-                    continue
-                ker = bank[idx[y, x]]
-                rows, cols = reflect(y + ys, H), reflect(x + ys, W)
-                num = float((ker * vt[s][np.ix_(rows, cols)]).sum())
-                den = float((ker * mt[s][np.ix_(rows, cols)]).sum())
-                if order[y, x] == s % K and present[fr]:  # a sample: kept, and estimated from the others
-                    video[s, y, x] = f[fr, y, x]
-                    # The weight it gives itself: every tap that lands on it (more than the centre at a border).
-                    own_space = float((ker * np.logical_and.outer(rows == y, cols == x)).sum())
-                    c_own = own_space * _own_time_weight(gt, s, S)
-                    rest = den - c_own
-                    if rest > floor:
-                        loo[fr, y, x] = (num - c_own * f[fr, y, x]) / rest
-                elif den > floor:
-                    video[s, y, x] = num / den
-    return video.astype(np.float32), loo.astype(np.float32)
-
-
-def _own_time_weight(gt: np.ndarray, s: int, S: int) -> float:
-    """Weight sub-frame s gives itself in the reflecting time blur ``gt`` (more near an end)."""
-    r = gt.size // 2
-    total = 0.0
-    for d in range(-r, r + 1):
-        t = s + d
-        t = -t - 1 if t < 0 else (2 * S - t - 1 if t >= S else t)
-        if t == s:
-            total += gt[d + r]
-    return total

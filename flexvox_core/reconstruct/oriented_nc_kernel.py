@@ -2,7 +2,7 @@
 
 For sub-frame s the samples are first blurred along time — each pixel's own samples weighed by
 ``weight[k, b]`` (its slot k, frame ``first`` + b), the table of
-:func:`~flexvox_core.reconstruct.diffusion._time_weights` — into two planes, values and weights; then
+:func:`~flexvox_core.reconstruct.diffusion.time_weights` — into two planes, values and weights; then
 each wanted voxel sums them under its kernel of the bank, chosen from the structure tensor there, with
 reflecting borders. Each voxel is written once from float64 sums in a fixed order, so the bits do not
 depend on how sub-frames are spread over threads.
@@ -10,40 +10,38 @@ depend on how sub-frames are spread over threads.
 
 from __future__ import annotations
 
-import math
-
 import numba
 import numpy as np
 
-_ANGLES = 8
-_LOW, _HIGH = 0.25, 0.75  # anisotropy rounded to 0, ½ or 1
-_TAN1 = math.tan(math.pi / 8)  # the doubled angle's sector edges: ±22.5°, ±67.5°
+_ANGLES = 8  # the sectors below are written for 8 directions (oriented_nc.ANGLES)
 
 
 @numba.njit(inline="always", nogil=True, cache=True)
 def _reflect(i, n):
-    if i < 0:
-        i = -i - 1
+    """Index i folded into [0, n) as a reflecting border repeats the picture (edge pixel doubled), however
+    far outside it lies (a kernel wider than the picture folds more than once)."""
+    i %= 2 * n
     if i >= n:
-        i = 2 * n - i - 1
+        i = 2 * n - 1 - i
     return i
 
 
 @numba.njit(inline="always", nogil=True, cache=True)
-def _bank_index(jxx, jxy, jyy):
-    """As :func:`~flexvox_core.reconstruct.oriented_nc.bank_index` (the same comparisons), for one voxel."""
+def _bank_index(jxx, jxy, jyy, low, high, tan1):
+    """As :func:`~flexvox_core.reconstruct.oriented_nc.bank_index` (the same comparisons), for one voxel;
+    ``low``, ``high``: where the anisotropy rounds up to the next level; ``tan1``: the sectors' edge slope."""
     a = jxx - jyy
     b = 2.0 * jxy
     trace = jxx + jyy
     spread2 = a * a + b * b  # (λ1 − λ2)², so A² = spread2 / trace²
-    if not trace > 0.0 or spread2 <= (_LOW * trace) ** 2:
+    if not trace > 0.0 or not spread2 > (low * trace) ** 2:
         return 0
-    level = 1 if spread2 <= (_HIGH * trace) ** 2 else 2
+    level = 1 if spread2 <= (high * trace) ** 2 else 2
     ax = abs(a)
     by = abs(b)
-    if by <= _TAN1 * ax:
+    if by <= tan1 * ax:
         angle = 0 if a >= 0 else 4
-    elif ax <= _TAN1 * by:
+    elif ax <= tan1 * by:
         angle = 2 if b > 0 else 6
     elif a > 0:
         angle = 1 if b > 0 else 7
@@ -71,13 +69,14 @@ def tap_lists(bank: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 @numba.njit(nogil=True, cache=True)
 def oriented_plane(frames, order, weight, first, slot, frame, present, j, select, offsets, weights, counts, h,
-                   floor, y0, y1, vt, mt, out, loo):
+                   floor, y0, y1, vt, mt, out, loo, low, high, tan1):
     """Rows [y0, y1) of sub-frame s (its ``slot`` = s mod K, ``frame`` = s div K): at each ``select``ed voxel,
     the kernel-weighted mean of the time-blurred samples into ``out`` (H, W) — the sample itself at the
     pixels of this slot in a ``present`` frame, whose leave-one-out estimate goes to ``loo[frame]`` —, left
     as it is where the weights sum to at most ``floor``. ``order`` (m, W) repeats every m rows. The kernels
     are given as tap lists (:func:`tap_lists`) reaching ``h`` px; ``vt`` and ``mt`` (H, W) float64 are
-    scratch planes for the time-blurred values and weights."""
+    scratch planes for the time-blurred values and weights; ``low``, ``high``, ``tan1``: the bank's rounding
+    (:func:`_bank_index`)."""
     F, H, W = frames.shape
     m = order.shape[0]
     B = weight.shape[1]
@@ -105,7 +104,7 @@ def oriented_plane(frames, order, weight, first, slot, frame, present, j, select
         for x in range(W):
             if not select[y, x]:
                 continue
-            kb = _bank_index(float(j[0, y, x]), float(j[1, y, x]), float(j[2, y, x]))
+            kb = _bank_index(float(j[0, y, x]), float(j[1, y, x]), float(j[2, y, x]), low, high, tan1)
             num = 0.0
             den = 0.0
             self_w = 0.0  # the weight of the taps that land on the voxel itself (the centre, more at a border)

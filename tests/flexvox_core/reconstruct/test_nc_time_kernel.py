@@ -15,7 +15,7 @@ def _plain_time_blur(frames, code, sigma_t, dtype, present):
     """The reference: the sparse sample volume, blurred along time with OpenCV (the general path)."""
     num, order = D._sample_volume(frames, code, dtype)
     flat = num.reshape(len(num), -1)
-    D._blur_rows(flat, D._kernel(sigma_t, dtype), flat)
+    D._blur_rows(flat, D.gaussian_kernel(sigma_t, dtype), flat)
     return num, order
 
 
@@ -91,9 +91,9 @@ def test_same_bits_on_one_thread_and_on_several(monkeypatch, rng):
 
 def test_time_weights_sum_to_the_blurred_mask():
     # Each sub-frame's weights on a slot's samples add up to the time-blurred mask of that slot.
-    g = D._kernel(3.0, np.float64)
+    g = D.gaussian_kernel(3.0, np.float64)
     K, F = 4, 5
-    weight, first = D._time_weights(g, K, F, None)
+    weight, first = D.time_weights(g, K, F, None)
     S = F * K
     blurred = D._fold_matrix(g, S) @ (np.arange(S)[:, None] % K == np.arange(K)[None, :]).astype(float)
     np.testing.assert_allclose(weight.sum(axis=2), blurred, atol=1e-14)

@@ -11,9 +11,10 @@ from hypothesis import strategies as st
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture, sample_mask
 from flexvox_core.reconstruct.diffusion import nc_leave_one_out
-from flexvox_core.reconstruct.oriented_nc import ANGLES, bank_index, kernel_bank, oriented_nc, oriented_nc_reference
+from flexvox_core.reconstruct.oriented_nc import ANGLES, bank_index, kernel_bank, oriented_nc
 
 from .conftest import smooth_video
+from .oriented_reference import oriented_nc_reference
 
 
 def _edge_video(S, H, W, *, angle=0.0, lo=0.2, hi=0.8):
@@ -74,8 +75,9 @@ def test_at_an_edge_the_kernel_follows_it(angle):
     near[:, :, :6] = near[:, :, -6:] = False
     err_o = float(np.mean((oriented - truth)[near] ** 2))
     err_i = float(np.mean((iso - truth)[near] ** 2))
-    # Measured: 0.31 of nc's error along an axis, 0.73 at 115°, 0.87 on the diagonal (a staircase on this grid).
-    assert err_o < 0.9 * err_i
+    # Measured: 0.31 of nc's error for a vertical edge, 0.44 for a horizontal one, 0.73 at 115°, 0.87 on the
+    # diagonal (a staircase on this grid).
+    assert err_o < 0.95 * err_i
 
 
 def test_bank_index_reads_direction_and_strength():
@@ -94,7 +96,7 @@ def test_bank_index_reads_direction_and_strength():
 
 @settings(max_examples=15, deadline=None)
 @given(seed=st.integers(0, 2**31 - 1), tile=st.sampled_from([(2, 2), (2, 4), (4, 4)]),
-       H=st.integers(5, 14), W=st.integers(5, 14))
+       H=st.integers(1, 14), W=st.integers(1, 14))
 def test_estimates_stay_within_the_samples_and_keep_them(seed, tile, H, W):
     rng = np.random.default_rng(seed)
     code = design_code(tile).code
@@ -102,10 +104,13 @@ def test_estimates_stay_within_the_samples_and_keep_them(seed, tile, H, W):
     truth = rng.random((2 * K, H, W)).astype(np.float32)
     frames = capture(truth, code)
     guide = rng.random(truth.shape).astype(np.float32)
-    video, loo = oriented_nc(frames, code, guide, fallback=np.full(truth.shape, 0.5, np.float32))
-    assert np.isfinite(video).all()
+    video, loo = oriented_nc(frames, code, guide)
+    # NaN only where no sample is within the time kernel's reach (a picture smaller than the tile).
+    assert np.isfinite(video).all() or min(H, W) < 4
+    assert not np.isinf(video).any()
+    est = video[np.isfinite(video)]
     lo, hi = float(frames.min()), float(frames.max())
-    assert video.min() >= lo - 1e-6 and video.max() <= hi + 1e-6
+    assert est.min() >= lo - 1e-6 and est.max() <= hi + 1e-6
     mask = sample_mask(truth.shape, code)
     np.testing.assert_array_equal(video[mask], truth[mask])
     finite = np.isfinite(loo)
@@ -116,7 +121,121 @@ def test_bad_shapes_are_refused(code24):
     frames = np.zeros((2, 8, 8), np.float32)
     with pytest.raises(ValueError, match=r"`guide` must be the \(S, H, W\) = \(16, 8, 8\) video"):
         oriented_nc(frames, code24, np.zeros((8, 8, 8)))
-    with pytest.raises(ValueError, match=r"`where` must be a bool \(S, H, W\) = \(16, 8, 8\) array"):
+    with pytest.raises(ValueError, match=r"`where` must be a bool \(S, H, W\) = \(16, 8, 8\) array; got float64"):
         oriented_nc(frames, code24, np.zeros((16, 8, 8)), where=np.ones((16, 8)))
+    guide = np.zeros((16, 8, 8))
+    guide[5, 2, 3] = np.nan
+    with pytest.raises(ValueError, match=r"`guide` sub-frame 5 holds NaN or infinite values"):
+        oriented_nc(frames, code24, guide)
     with pytest.raises(ValueError, match=r"`fallback` must be an \(S, H, W\) = \(16, 8, 8\) array"):
         oriented_nc(frames, code24, np.zeros((16, 8, 8)), fallback=np.ones((2, 8, 8)))
+
+
+@pytest.mark.parametrize(("H", "W"), [(1, 1), (1, 7), (2, 3), (3, 24), (4, 2)])
+def test_pictures_smaller_than_the_kernel(rng, code24, H, W):
+    """The 9×9 kernels fold back more than once on a picture this small: the same as the reference (whose
+    folding the brute-force leave-one-out test checks), and for a guide without edges nc's estimates."""
+    truth = smooth_video(rng, 16, H, W)
+    frames = capture(truth, code24)
+    guide = smooth_video(rng, 16, H, W) + _edge_video(16, H, W, angle=1.1)
+    got_v, got_l = oriented_nc(frames, code24, guide)
+    want_v, want_l = oriented_nc_reference(frames, code24, guide)
+    np.testing.assert_allclose(got_v, want_v, atol=1e-6, rtol=0)
+    assert np.array_equal(np.isnan(got_l), np.isnan(want_l))
+    np.testing.assert_allclose(got_l, want_l, atol=1e-6, rtol=0)
+    flat_v, flat_l = oriented_nc(frames, code24, np.zeros_like(truth))
+    nc, nc_loo = nc_leave_one_out(frames, code24, tensor=(1, 1, 1), time=0.25)
+    reached = np.isfinite(flat_v)  # elsewhere nc takes the nearest sample, oriented nc its fallback
+    assert reached.mean() > 0.5
+    np.testing.assert_allclose(flat_v[reached], nc[reached], atol=1e-5, rtol=0)
+    # (nc's own leave-one-out is off by up to 0.009 on pictures 1–3 px across, against brute force: not compared.)
+    assert np.array_equal(np.isnan(flat_l), np.isnan(nc_loo))
+
+
+def test_leave_one_out_is_the_estimate_without_the_sample(rng, code22):
+    """Brute force: every other sample weighed by the folded kernels in time and space (a border pixel meets
+    its own reflections, which the leave-one-out must take away too)."""
+    from flexvox_core.forward import sample_mask as mask_of
+    from flexvox_core.forward import sparse_volume
+    from flexvox_core.reconstruct.diffusion import gaussian_kernel
+    from flexvox_core.reconstruct.oriented_nc import ALPHA, SIGMA, bank_index, kernel_weights, structure
+
+    F, H, W, K = 3, 5, 6, 4
+    truth = smooth_video(rng, F * K, H, W)
+    frames = capture(truth, code22)
+    guide = truth + _edge_video(F * K, H, W, angle=0.3)
+    _, loo = oriented_nc(frames, code22, guide, missing=[False, False, True])
+    vals, mask = sparse_volume(frames, code22).astype(np.float64), mask_of((F * K, H, W), code22)
+    mask[2 * K:] = False  # the dropped frame
+    gt = gaussian_kernel(SIGMA, np.float64)
+    r = gt.size // 2
+
+    def fold(i, n):
+        i %= 2 * n
+        return 2 * n - 1 - i if i >= n else i
+
+    checked = 0
+    for s in range(2 * K):
+        j = structure(guide[s]).astype(np.float64)
+        for y in range(H):
+            for x in range(W):
+                if not mask[s, y, x]:
+                    continue
+                b = int(bank_index(j[0, y, x], j[1, y, x], j[2, y, x]))
+                level = 0.0 if b == 0 else (0.5 if b <= ANGLES else 1.0)
+                theta = 0.0 if b == 0 else ((b - 1) % ANGLES) * np.pi / ANGLES
+                num = den = 0.0
+                for d in range(-r, r + 1):
+                    t = fold(s + d, F * K)
+                    for dy in range(-4, 5):
+                        for dx in range(-4, 5):
+                            yy, xx = fold(y + dy, H), fold(x + dx, W)
+                            if (t, yy, xx) == (s, y, x) or not mask[t, yy, xx]:
+                                continue
+                            w = gt[d + r] * float(kernel_weights(dx, dy, SIGMA, ALPHA, level, theta))
+                            num += w * vals[t, yy, xx]
+                            den += w
+                assert loo[s // K, y, x] == pytest.approx(num / den, abs=1e-5)
+                checked += 1
+    assert checked == 2 * H * W and np.isnan(loo[2]).all()
+
+
+def test_compiled_and_numpy_bank_indices_agree_at_ties_and_odd_values():
+    from itertools import product
+
+    from flexvox_core.reconstruct.oriented_nc import _HIGH, _LOW, _TAN
+    from flexvox_core.reconstruct.oriented_nc_kernel import _bank_index
+
+    t = float(np.tan(np.pi / 8))
+    values = [0.0, -0.0, 1.0, -1.0, 0.5, t, -t, 2.0, 1e-45, np.inf, -np.inf, np.nan, 0.25, 0.75]
+    rng = np.random.default_rng(4)
+    triples = list(product(values, repeat=3)) + [tuple(v) for v in rng.normal(size=(2000, 3))]
+    # Exact sector edges and level thresholds: J_xx − J_yy = a, 2 J_xy = b.
+    triples += [(1 + a / 2, b / 2, 1 - a / 2) for a, b in ((t, 1.0), (1.0, t), (0.25 * 2, 0.0), (0.75 * 2, 0.0))]
+    for jxx, jxy, jyy in triples:
+        assert _bank_index(jxx, jxy, jyy, _LOW, _HIGH, _TAN) == int(bank_index(jxx, jxy, jyy)), (jxx, jxy, jyy)
+
+
+def test_voxels_out_of_reach_keep_the_fallback(code24):
+    """Frames 0 and 2 dropped: the first sub-frames of frame 0 are beyond the time kernel's reach of frame 1's
+    samples and keep the fallback, as in the reference."""
+    truth = np.full((24, 6, 8), 0.5, np.float32)
+    frames = capture(truth, code24)
+    fallback = np.full(truth.shape, 7.0, np.float32)
+    missing = [True, False, True]
+    got, _ = oriented_nc(frames, code24, truth, fallback=fallback, missing=missing)
+    want, _ = oriented_nc_reference(frames, code24, truth, fallback=fallback, missing=missing)
+    np.testing.assert_array_equal(got, want)
+    assert (got[:4] == 7).all() and (got[8:16] == 0.5).all()
+
+
+def test_the_same_bits_on_one_thread_and_on_two(monkeypatch, rng, code24):
+    import flexvox_core.threads as threads
+
+    truth = smooth_video(rng, 24, 20, 30)
+    frames = capture(truth, code24)
+    two = oriented_nc(frames, code24, truth)
+    monkeypatch.setattr(threads, "workers", lambda: 1)
+    one = oriented_nc(frames, code24, truth)
+    for a, b in zip(one, two, strict=True):
+        assert np.array_equal(a, b, equal_nan=True)

@@ -197,3 +197,15 @@ def test_the_refinement_help_says_its_default_in_words(capsys):
     text = " ".join(capsys.readouterr().out.split())
     assert "(default K/16: 1 at K = 16, 0.5 at K = 8; 0 for none)" in text
     assert "0 for none) (default" not in text  # not a second, K-blind default after it
+
+
+def test_a_damaged_ground_truth_costs_only_the_psnr(recording, tmp_path, capsys):
+    """The truth is read a few sub-frames at a time after the video is written: a missing chunk gives a
+    warning and no PSNR, and the reconstruction is still written."""
+    chunks = sorted(p for p in (recording / "ground_truth").rglob("*") if p.is_file() and p.name != "zarr.json")
+    chunks[-1].unlink()
+    out = tmp_path / "out.npy"
+    assert main(["reconstruct", str(recording), "-o", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert "warning: no PSNR" in captured.err and "PSNR vs ground truth" not in captured.out
+    assert np.load(out).shape == (48, 24, 32)

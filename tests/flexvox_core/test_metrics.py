@@ -84,3 +84,24 @@ def test_one_check_for_positive_numbers(value):
     with pytest.raises(ValueError, match=r"^`data_range` must be a positive finite number; got "):
         positive_number("`data_range`", value)
     assert positive_number("x", "2.5") == 2.5
+
+
+def test_psnr_of_rows_reads_the_reference_a_few_frames_at_a_time(rng):
+    from flexvox_core.metrics import psnr_of_rows
+
+    ref = rng.random((37, 6, 5)).astype(np.float32)
+    x = ref + rng.normal(0, 0.05, ref.shape).astype(np.float32)
+    x[7] = ref[7]  # an exact frame: inf, and so is the mean
+    calls = []
+
+    def read(a, b):
+        calls.append((a, b))
+        return ref[a:b]
+
+    got = psnr_of_rows(read, x, rows=16)
+    want = psnr(ref, x)
+    np.testing.assert_array_equal(got.per_frame, want.per_frame)
+    assert got.mean == want.mean == np.inf
+    assert calls == [(0, 16), (16, 32), (32, 37)]
+    with pytest.raises(ValueError, match=r"`rows` must be a whole number >= 1; got 0"):
+        psnr_of_rows(read, x, rows=0)

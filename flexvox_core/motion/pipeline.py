@@ -554,13 +554,17 @@ def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: 
             long_reach_nc(sparse, mask, field_.flow, video, slow, reach=reach, sigma_t=reach,
                           sigma_s=LONG_REACH_SIGMA_S, h=LONG_REACH_RANGE * max(hi - lo, 1e-12), out=video)
             np.copyto(video, sparse, where=mask)
+        # After the last pass's gathers the sample volume is dead: the refinement and the local choice
+        # write their working volumes into it instead of fresh memory (0.3-0.7 s per 295 MB here).
+        spare = sparse if last else None
         if refine_time > 0:
             variable_tensor_diffusion(video[g0:g1], mask[g0:g1], field_.flow[g0:g1], c=REFINE_C, time=refine_time,
-                                      out=video[g0:g1])
+                                      out=video[g0:g1], scratch=None if spare is None else spare[g0:g1])
         if loo is not None and np.isfinite(loo).any():
             # Where nc with edge-following kernels predicts the samples better than the gather, it takes
             # over (local_choice); oriented by the high-TR reconstruction, at the gathered voxels alone.
-            other, other_loo = oriented_nc(f, code, high_tr, where=gathered, fallback=video, missing=missing)
+            other, other_loo = oriented_nc(f, code, high_tr, where=gathered, fallback=video, missing=missing,
+                                           out=spare)
             lc.blend(video, other, lc.local_weights(loo, other_loo, f), gathered, K)
             del other, other_loo, gathered
         if missing is not None:

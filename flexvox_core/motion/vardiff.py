@@ -70,6 +70,7 @@ def variable_tensor_diffusion(
     time: float = 1.0,
     keep_samples: bool = True,
     out: np.ndarray | None = None,
+    scratch: np.ndarray | None = None,
 ) -> np.ndarray:
     """Diffuse ``init`` for diffusion time ``time`` with the motion tensor field of ``flow``.
 
@@ -88,6 +89,9 @@ def variable_tensor_diffusion(
     out : ndarray (S, H, W) float32 C-contiguous, optional
         Where the result goes; may be ``init`` itself (a step never writes the volume it reads:
         with ``out`` = ``init`` one new volume is made instead of two — fresh memory is dear).
+    scratch : ndarray (S, H, W) float32 C-contiguous, optional
+        A volume the caller no longer needs (its values are overwritten), used instead of the new one:
+        no fresh memory at all. It must not share memory with ``init``, ``out``, ``mask`` or ``flow``.
 
     Returns
     -------
@@ -105,6 +109,12 @@ def variable_tensor_diffusion(
     if out is not None and (not isinstance(out, np.ndarray) or out.shape != vol.shape or out.dtype != np.float32
                             or not out.flags.c_contiguous or not out.flags.writeable):
         raise ValueError(f"`out` must be a writable C-contiguous float32 array of shape {vol.shape}")
+    others = [vol, m, f] + ([out] if out is not None else [])
+    if scratch is not None and (not isinstance(scratch, np.ndarray) or scratch.shape != vol.shape
+                                or scratch.dtype != np.float32 or not scratch.flags.c_contiguous
+                                or not scratch.flags.writeable or any(np.may_share_memory(scratch, a) for a in others)):
+        raise ValueError(f"`scratch` must be a writable C-contiguous float32 array of shape {vol.shape} that shares "
+                         "no memory with `init`, `out`, `mask` or `flow`")
     if not steps:
         if out is None:
             return vol.copy()
@@ -114,12 +124,17 @@ def variable_tensor_diffusion(
     # it) and the last writing X; step k writes X when steps - 1 - k is even. ``out`` is X when it
     # is not ``init``; when it is (or overlaps it), it can be written from the second step on: X
     # for an even count of steps, else Y (X then copied into it).
+    spare = [scratch] if scratch is not None else []
+
+    def new_volume():
+        return spare.pop() if spare else np.empty_like(vol)
+
     overlaps = out is not None and np.may_share_memory(out, vol)
     if out is None or not overlaps or steps % 2 == 0:
-        x = out if out is not None else np.empty_like(vol)
-        y = np.empty_like(vol) if steps > 1 else None
+        x = out if out is not None else new_volume()
+        y = new_volume() if steps > 1 else None
     else:
-        x, y = np.empty_like(vol), out if steps > 1 else None
+        x, y = new_volume(), out if steps > 1 else None
     src = vol
     with _KERNEL_LOCK:
         for k in range(steps):

@@ -152,7 +152,8 @@ def check_inputs(frames, code, guide, where, fallback, missing):
     return f, c, g, where, as_missing(missing, F)
 
 
-def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None) -> tuple[np.ndarray, np.ndarray]:
+def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None, out=None
+                ) -> tuple[np.ndarray, np.ndarray]:
     """The oriented normalized convolution of an identity-code capture, and each sample's leave-one-out estimate.
 
     Parameters
@@ -167,10 +168,13 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None)
         The values outside ``where`` and where no sample is in reach (default: NaN).
     missing : ndarray (F,) bool, optional
         Dropped frames: they hold no samples.
+    out : ndarray (F·K, H, W) float32 C-contiguous, optional
+        Where the video goes (a volume the caller no longer needs: no fresh memory); it must not share
+        memory with the other inputs.
 
     Returns
     -------
-    video : ndarray (F·K, H, W) float32
+    video : ndarray (F·K, H, W) float32 (``out`` when given)
         Samples kept exactly; each estimate is a weighted mean of samples, so within their range.
     loo : ndarray (F, H, W) float32
         At each sample whose voxel is in ``where``, its leave-one-out estimate (N − c·y)/(D − c), c the weight
@@ -192,7 +196,19 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None)
     m = c.shape[0]
     order = tiled_order(c, min(H, m), W).astype(np.int64)  # repeats every m rows
     samples = np.ascontiguousarray(f, dtype=np.float32)
-    video = np.full((S, H, W), np.nan, np.float32) if fallback is None else np.array(fallback, np.float32)
+    if out is not None:
+        if (not isinstance(out, np.ndarray) or out.shape != (S, H, W) or out.dtype != np.float32
+                or not out.flags.c_contiguous or not out.flags.writeable
+                or any(np.may_share_memory(out, a) for a in (frames, guide, where, fallback) if a is not None)):
+            raise ValueError(f"`out` must be a writable C-contiguous float32 array of shape {(S, H, W)} that shares "
+                             "no memory with the other inputs")
+        video = out
+        if fallback is None:
+            video.fill(np.nan)
+        else:
+            np.copyto(video, fallback, casting="unsafe")
+    else:
+        video = np.full((S, H, W), np.nan, np.float32) if fallback is None else np.array(fallback, np.float32)
     loo = np.full((F, H, W), np.nan, np.float32)
     present_f = np.ones(F, bool) if present is None else present
     everywhere = np.ones((H, W), bool)

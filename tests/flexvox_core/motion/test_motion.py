@@ -190,6 +190,15 @@ def test_the_variable_diffusion_may_write_into_its_own_input(time):
     same = init.copy()
     variable_tensor_diffusion(same, mask, flow, time=time, out=same)  # what motion_aware does
     np.testing.assert_array_equal(same, expected)
+    # With a dead volume as scratch (motion_aware passes its sample volume): the same bits, no new volume.
+    same, scratch = init.copy(), np.full_like(init, -5.0)
+    variable_tensor_diffusion(same, mask, flow, time=time, out=same, scratch=scratch)
+    np.testing.assert_array_equal(same, expected)
+    if time >= 0.5:  # at least two steps: the scratch was a working volume
+        assert not (scratch == -5.0).all()
+    with pytest.raises(ValueError, match=r"`scratch` must be a writable C-contiguous float32 array of shape "
+                                         r"\(6, 9, 11\) that shares no memory"):
+        variable_tensor_diffusion(same, mask, flow, time=time, out=same, scratch=same)
 
 
 def test_the_compiled_variable_diffusion_gives_the_same_bits_on_any_thread_count():

@@ -239,3 +239,19 @@ def test_the_same_bits_on_one_thread_and_on_two(monkeypatch, rng, code24):
     one = oriented_nc(frames, code24, truth)
     for a, b in zip(one, two, strict=True):
         assert np.array_equal(a, b, equal_nan=True)
+
+
+def test_the_video_can_go_into_a_dead_volume(rng, code24):
+    truth = smooth_video(rng, 16, 10, 12)
+    frames = capture(truth, code24)
+    where = rng.random(truth.shape) < 0.5
+    fallback = np.full(truth.shape, 0.25, np.float32)
+    want, want_loo = oriented_nc(frames, code24, truth, where=where, fallback=fallback)
+    dead = np.full(truth.shape, -1.0, np.float32)
+    got, got_loo = oriented_nc(frames, code24, truth, where=where, fallback=fallback, out=dead)
+    assert got is dead
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(got_loo, want_loo)
+    with pytest.raises(ValueError, match=r"`out` must be a writable C-contiguous float32 array of shape "
+                                         r"\(16, 10, 12\) that shares no memory with the other inputs"):
+        oriented_nc(frames, code24, truth, fallback=fallback, out=fallback)

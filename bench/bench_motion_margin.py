@@ -38,7 +38,7 @@ def main() -> None:
     ap.add_argument("--electrons", type=float, default=1000.0, help="e- per unit of intensity (default 1000)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--refine", type=float, default=None, metavar="n",
-                    help="motion-aware's refinement time (default: its own, K/16)")
+                    help="motion-aware's refinement time (default: its own, (K/16)²)")
     ap.add_argument("--no-noise-aware", action="store_true",
                     help="motion-aware without its noise-aware smoothing (noise_aware=False)")
     args = ap.parse_args()

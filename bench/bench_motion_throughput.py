@@ -31,7 +31,7 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=15)
     ap.add_argument("--flow-scale", type=float, default=None, help="default: auto (shorter side 160 px)")
     ap.add_argument("--refine", type=float, default=None,
-                    help="refinement time (default: motion_aware's, K/16; 0: none, as before it was the default)")
+                    help="refinement time (default: motion_aware's, (K/16)²; 0: none, as before it was the default)")
     ap.add_argument("--no-local-choice", action="store_true",
                     help="the trajectory gather alone, without blending in isotropic nc (motion_aware's local_choice)")
     ap.add_argument("--slow-reach", type=float, default=None,

@@ -56,7 +56,7 @@ def _help(option, owners) -> str:
         o = s.option(option.name)
         shown = o.shown_default if o.default is None else o.default
         if "(default" in (o.help or ""):
-            continue  # its help says the default in words (motion-aware's refinement: K/16)
+            continue  # its help says the default in words (motion-aware's refinement: (K/16)²)
         if shown is not None and option.kind not in ("flag", "division"):
             defaults.append(_fmt(shown) + (f" for {s.name}" if len(owners) > 1 else ""))
     return words + (f" (default {'; '.join(defaults)})" if defaults else "")

@@ -20,7 +20,7 @@ from flexvox_core.motion import motion_aware, resolution_map
 from flexvox_core.motion.multiplexed import TIME_FRACTION, motion_aware_multiplexed
 from flexvox_core.motion.pipeline import DEFAULT_TIME, SLOW_REACH, MotionOptions, auto_flow_scale, gated_flow
 
-REFINE_SHOWN = "K/16"
+REFINE_SHOWN = "(K/16)²"
 """What forms show for the default refinement time: it depends on the code (1 at K = 16, 0.5 at K = 8)."""
 
 _LABEL = re.compile(
@@ -41,9 +41,9 @@ class MotionAware(MethodSpec):
         time_option(DEFAULT_TIME, (0.25, 20.0, 0.5)),
         integer("passes", 1, label="passes", help="flow re-estimated from the previous pass N-1 times",
                 span=(1, 4, 1)),
-        number("refine_time", None, rule="a number >= 0 or None (K/16)", label="refinement time",
-               help="time of the monotone diffusion along the trajectories after the gather (default K/16: "
-                    "1 at K = 16, 0.5 at K = 8; 0 for none)", span=(0.0, 10.0, 0.5), shown_default=REFINE_SHOWN),
+        number("refine_time", None, rule="a number >= 0 or None ((K/16)²)", label="refinement time",
+               help="time of the monotone diffusion along the trajectories after the gather (default (K/16)²: "
+                    "1 at K = 16, 0.25 at K = 8; 0 for none)", span=(0.0, 10.0, 0.5), shown_default=REFINE_SHOWN),
         number("slow_reach", None, rule="a number >= 0 (sampling periods) or None", label="slow-drift reach",
                help="how far the slowly moving voxels' gather reaches along their trajectory, in sampling "
                     "periods each way (0: no long gather, faster where the whole picture drifts slowly)",
@@ -111,7 +111,7 @@ class MotionAware(MethodSpec):
                 "local_choice": m["gather"] is None, "noise_aware": m["blind"] is None}
 
     def bench_rank(self, knobs: dict, values: dict, code) -> tuple[tuple, bool]:
-        def refines(r):  # None: the default refinement (K/16)
+        def refines(r):  # None: the default refinement ((K/16)²)
             return r is None or r > 0
 
         same = (knobs["passes"] == values["passes"] and refines(knobs["refine_time"]) == refines(values["refine_time"])

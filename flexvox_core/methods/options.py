@@ -54,7 +54,7 @@ class Option:
         The range a form offers for a ``number`` or ``integer`` (validation is ``accepts``).
     shown_default : float, str or None
         What a form shows for a default of None: a number the method then uses, or words for a
-        default that depends on the capture ("K/16"), which a form offers as its own choice.
+        default that depends on the capture ("(K/16)²"), which a form offers as its own choice.
     """
 
     name: str

@@ -195,7 +195,7 @@ def test_the_refinement_help_says_its_default_in_words(capsys):
     with pytest.raises(SystemExit):
         main(["reconstruct", "--help"])
     text = " ".join(capsys.readouterr().out.split())
-    assert "(default K/16: 1 at K = 16, 0.5 at K = 8; 0 for none)" in text
+    assert "(default (K/16)²: 1 at K = 16, 0.25 at K = 8; 0 for none)" in text
     assert "0 for none) (default" not in text  # not a second, K-blind default after it
 
 

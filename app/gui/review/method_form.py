@@ -71,7 +71,7 @@ class _Knob:
             self.widget.setValue(settings.get_int(key, int(o.default)))
             self.signal = self.widget.valueChanged
         elif isinstance(o.shown_default, str) and o.default is None:
-            # A default that depends on the capture (motion-aware's refinement: K/16) is a choice of
+            # A default that depends on the capture (motion-aware's refinement: (K/16)²) is a choice of
             # its own, one step below the range, shown in words; every number in the range means itself.
             # Its own settings key: a value stored before (where the number shown stood for the default)
             # must not come back as that number.

@@ -327,9 +327,9 @@ def test_the_method_form_is_built_from_the_registered_methods(qtbot, settings):
     form.set_method_name("motion-aware")
     form.widget("slow_reach").setValue(0.75)  # the pipeline's default is shown, and stands for None
     assert form.method().slow_reach is None and form.slider.isEnabled()
-    # The refinement's default depends on the code (K/16): a choice of its own, shown in words, below 0.
+    # The refinement's default depends on the code ((K/16)²): a choice of its own, shown in words, below 0.
     refine = form.widget("refine_time")
-    assert refine.text() == "default (K/16)" and form.method().refine_time is None
+    assert refine.text() == "default ((K/16)²)" and form.method().refine_time is None
     refine.setValue(1.0)  # every number means itself, 1.0 included (0.5 would be the default at K = 8)
     assert form.method().refine_time == 1.0
     refine.setValue(0.0)
@@ -347,7 +347,7 @@ def test_a_refinement_stored_before_the_default_was_in_words_does_not_come_back_
     form = MethodForm(settings)
     qtbot.addWidget(form)
     form.set_method_name("motion-aware")
-    assert form.widget("refine_time").text() == "default (K/16)" and form.method().refine_time is None
+    assert form.widget("refine_time").text() == "default ((K/16)²)" and form.method().refine_time is None
     with pytest.raises(ValueError, match=r"motion-aware has no widget for 'tensor'"):
         form.widget("tensor")
     form.set_method_name("diffusion")

@@ -67,7 +67,7 @@ def test_the_widget_offers_every_registered_method_with_its_options(viewer, qtbo
     assert widget.pages.currentWidget() is widget.forms["diffusion"]
     # A default that depends on the code is said in words, not as the number it is at K = 16.
     refine = widget.forms["motion-aware"].widgets["refine_time"]
-    assert refine.placeholderText() == "empty: K/16" and refine.text() == ""
+    assert refine.placeholderText() == "empty: (K/16)²" and refine.text() == ""
 
 
 def test_a_bad_option_is_named_and_nothing_starts(viewer, qtbot, recording):

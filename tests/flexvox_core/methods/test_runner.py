@@ -107,7 +107,7 @@ def test_slow_reach_knob():
     assert m.motion_kwargs()["slow_reach"] == 2.0
     assert "slow_reach" not in Method("motion-aware").motion_kwargs()  # the pipeline's default
     assert overlap_frames(Method("motion-aware", refine_time=0.0), 8) == 3
-    # The default refinement (K/16: 2 explicit steps at K = 8, 3 at K = 16) reads one frame further.
+    # The default refinement ((K/16)²: 1 explicit step at K = 8, 2 at K = 16) reads one frame further.
     assert overlap_frames(Method("motion-aware"), 8) == 4 and overlap_frames(Method("motion-aware"), 16) == 4
     assert overlap_frames(Method("motion-aware", slow_reach=4), 8) == 7  # 6, and one for the refinement
 

@@ -116,3 +116,59 @@ def test_slow_reach_knob():
 def test_bad_slow_reach(bad):
     with pytest.raises(ValueError, match=r"`slow_reach` must be a number >= 0 \(sampling periods\) or None"):
         Method("motion-aware", slow_reach=bad)
+
+
+class _Echo:
+    """A stand-in spec whose result is chosen by the test: ``make(frames, K)`` -> (video, extras)."""
+
+    def __init__(self, make):
+        from flexvox_core.methods.spec import MethodSpec
+
+        class Spec(MethodSpec):
+            name = "echo"
+            title = "test"
+            extras = ("same",)
+
+            def overlap(self, values, K):
+                return 0
+
+            def run(self, frames, code, values, *, value_range=None, extras=False, missing=None):
+                from flexvox_core.methods import MethodOutput
+
+                video, extra = make(frames, code.shape[2])
+                return MethodOutput(video, extra)
+
+            def label(self, values):
+                return "echo"
+
+        self.spec = Spec()
+        self.values = {}
+
+    def takes_multiplexed(self):
+        return False
+
+    def label(self):
+        return "echo"
+
+
+def test_run_chunk_clips_its_own_result_in_place_and_never_an_input_or_an_extra(rng):
+    from flexvox_core.methods.runner import run_chunk
+
+    frames = (rng.random((2, 4, 8)) * 3 - 1).astype(np.float32)  # values outside [0, 1]
+    before = frames.copy()
+    own = np.repeat(frames, 8, axis=0)  # the method's own memory: clipped where it lies
+    got = run_chunk(frames, CODE, _Echo(lambda f, K: (own, {})))
+    assert got.video is own or np.shares_memory(got.video, own)
+    assert got.video.min() == 0 and got.video.max() == 1
+    # A result that is (a view of) the input: the input stays as it was.
+    def view(f, K):  # every sub-frame is frame 0 itself: a writeable view of the input
+        return np.lib.stride_tricks.as_strided(f, (2 * K, *f.shape[1:]), (0, *f.strides[1:]), writeable=True), {}
+
+    got = run_chunk(frames, CODE, _Echo(view))
+    np.testing.assert_array_equal(frames, before)
+    np.testing.assert_array_equal(got.video, np.clip(np.broadcast_to(before[0], (16, 4, 8)), 0, 1))
+    # A result that is also an extra: the extra keeps its values.
+    shared = np.repeat(frames, 8, axis=0)
+    got = run_chunk(frames, CODE, _Echo(lambda f, K: (shared, {"same": shared})), extras=True)
+    np.testing.assert_array_equal(shared, np.repeat(before, 8, axis=0))
+    assert got.video.min() == 0 and got.video.max() == 1

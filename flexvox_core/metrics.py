@@ -84,6 +84,12 @@ def _check_finite(name: str, a: np.ndarray) -> None:
         raise ValueError(f"`{name}` frame {int(np.flatnonzero(~finite)[0])} holds NaN or infinite values")
 
 
+def _exact_in_float32(dtype) -> bool:
+    """Whether every value of ``dtype`` is a float32 (float32 and narrower floats, bool, 8- and 16-bit integers)."""
+    dtype = np.dtype(dtype)
+    return dtype.kind == "b" or (dtype.kind in "iuf" and dtype.itemsize <= (4 if dtype.kind == "f" else 2))
+
+
 def psnr(ref, x, *, data_range: float = 1.0) -> FrameScores:
     """Peak signal-to-noise ratio of every frame, in dB, and their mean.
 
@@ -110,13 +116,17 @@ def psnr(ref, x, *, data_range: float = 1.0) -> FrameScores:
     [20.0, 20.0]
     """
     r, v, L = _check_pair(ref, x, data_range, convert=False, check_finite=False)
-    # A frame at a time in float64: no float64 copies of whole volumes (two 295 MB copies for a
-    # 1-s VGA clip at K = 16 took 3.4 s of a 7.5-s `flexvox reconstruct`).
+    # A frame at a time into one reused buffer: no copies of whole volumes (two float64 copies of 295 MB for
+    # a 1-s VGA clip at K = 16 took 3.4 s of a 7.5-s `flexvox reconstruct`), and no fresh memory per frame.
+    # Volumes that float32 holds exactly take the difference and its square in float32 (each rounded once:
+    # the MSE within about 1e-7 of itself, the PSNR within 1e-6 dB) and the sum in float64; 3-5x faster.
+    work = np.float32 if all(_exact_in_float32(a.dtype) for a in (r, v)) else np.float64
+    buf = np.empty(r.shape[1:], work)
     mse = np.empty(len(r))
     for i in range(len(r)):
-        d = r[i].astype(np.float64) - v[i]
-        d = d.ravel()
-        mse[i] = np.dot(d, d) / max(d.size, 1)
+        np.subtract(r[i], v[i], out=buf, dtype=work)
+        np.square(buf, out=buf)
+        mse[i] = buf.sum(dtype=np.float64) / max(buf.size, 1)
         if not np.isfinite(mse[i]):
             for name, a in (("ref", r), ("x", v)):
                 if not np.isfinite(a[i]).all():

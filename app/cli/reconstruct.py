@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from tqdm import tqdm
@@ -85,20 +86,27 @@ def run(args) -> int:
     video = out.video
     seconds = time.perf_counter() - t0  # the reconstruction itself (reading the ground truth is not)
     attrs = {"source": str(args.recording), "method": method.as_dict(), "seconds": seconds}
-    try:
-        write_video(args.output, video, fps=args.fps, attrs=attrs, overwrite=args.overwrite,
-                    time_step=1.0 / rec.attrs["rates"]["subframe_hz"], interpolated=out.interpolated)
-    except ValueError as exc:
-        raise CliError(str(exc)) from None
-    except OSError as exc:
-        raise CliError(f"cannot write {args.output}: {exc.strerror or exc}; nothing was replaced") from None
+    score = None
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        if rec.has_ground_truth:
+            from flexvox_core.metrics import psnr_of_rows
+
+            # While the output is written (compression and files on one core, the truth's decompression, checks
+            # and the PSNR on the other), a few sub-frames at a time, each checked as it is read: the truth is
+            # never held whole.
+            score = pool.submit(psnr_of_rows, rec.ground_truth, video)
+        try:
+            write_video(args.output, video, fps=args.fps, attrs=attrs, overwrite=args.overwrite,
+                        time_step=1.0 / rec.attrs["rates"]["subframe_hz"], interpolated=out.interpolated)
+        except ValueError as exc:
+            raise CliError(str(exc)) from None
+        except OSError as exc:
+            raise CliError(f"cannot write {args.output}: {exc.strerror or exc}; nothing was replaced") from None
     line = f"{method.label()}: {video.shape[0]} sub-frames of {H}x{W} in {seconds:.2f} s"
     line += f" ({video.size / max(seconds, 1e-9) / 1e6:.0f} M voxels/s)"
-    if rec.has_ground_truth:
-        from flexvox_core.metrics import psnr_of_rows
-
-        try:  # a few sub-frames at a time, each checked as it is read: the truth is never held whole
-            line += f"; PSNR vs ground truth {psnr_of_rows(rec.ground_truth, video).mean:.2f} dB"
+    if score is not None:
+        try:
+            line += f"; PSNR vs ground truth {score.result().mean:.2f} dB"
         except RecordingError as exc:
             print(f"warning: no PSNR: {exc}", file=sys.stderr)
     print(line)

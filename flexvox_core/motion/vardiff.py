@@ -71,6 +71,7 @@ def variable_tensor_diffusion(
     keep_samples: bool = True,
     out: np.ndarray | None = None,
     scratch: np.ndarray | None = None,
+    sharp: np.ndarray | None = None,
 ) -> np.ndarray:
     """Diffuse ``init`` for diffusion time ``time`` with the motion tensor field of ``flow``.
 
@@ -92,6 +93,12 @@ def variable_tensor_diffusion(
     scratch : ndarray (S, H, W) float32 C-contiguous, optional
         A volume the caller no longer needs (its values are overwritten), used instead of the new one:
         no fresh memory at all. It must not share memory with ``init``, ``out``, ``mask`` or ``flow``.
+    sharp : ndarray of bool, shape (S, H, W), optional
+        Voxels that read their neighbours along the trajectory by Catmull-Rom bicubic interpolation,
+        clipped to the range of the four pixels the bilinear read would take (still a convex
+        combination of them: the result stays within the data's range), instead of bilinear. A
+        bilinear read at a fractional offset is a blur: along a slow trajectory (a fraction of a
+        pixel per sub-frame) every step blurs the texture a long-reach gather has kept.
 
     Returns
     -------
@@ -103,6 +110,7 @@ def variable_tensor_diffusion(
     from flexvox_core.motion.vardiff_kernel import vardiff_step
 
     (c1, c2, c3), vol, m, f, steps, dt = _check(init, mask, flow, time, c)
+    sh = _check_sharp(sharp, vol.shape)
     vol = np.ascontiguousarray(vol)
     m = np.ascontiguousarray(m)
     f = np.ascontiguousarray(f)
@@ -139,12 +147,22 @@ def variable_tensor_diffusion(
     with _KERNEL_LOCK:
         for k in range(steps):
             dst = x if (steps - 1 - k) % 2 == 0 else y
-            vardiff_step(src, dst, f, m, bool(keep_samples), c1, c2, c3, dt)
+            vardiff_step(src, dst, f, m, bool(keep_samples), c1, c2, c3, dt, sh, sharp is not None)
             src = dst
     if out is not None and src is not out:
         np.copyto(out, src)
         return out
     return src
+
+
+def _check_sharp(sharp, shape) -> np.ndarray:
+    """``sharp`` as a C-contiguous bool volume of ``shape`` (None: a 1x1x1 placeholder the kernel never reads)."""
+    if sharp is None:
+        return np.zeros((1, 1, 1), bool)
+    sh = np.ascontiguousarray(sharp, dtype=bool)
+    if sh.shape != shape:
+        raise ValueError(f"`sharp` {sh.shape} must match `init` {shape}")
+    return sh
 
 
 def _sample(img: np.ndarray, gy, gx) -> np.ndarray:
@@ -154,10 +172,30 @@ def _sample(img: np.ndarray, gy, gx) -> np.ndarray:
                            mode="nearest")
 
 
+def _sample_sharp(img: np.ndarray, gy, gx) -> np.ndarray:
+    """Catmull-Rom reads at (gy, gx), clamped at the border, clipped to the range of the four nearest pixels."""
+    H, W = img.shape
+    img = img.astype(np.float64)
+    y, x = np.clip(gy, 0, H - 1), np.clip(gx, 0, W - 1)
+    y0, x0 = np.floor(y).astype(int), np.floor(x).astype(int)
+
+    def weights(t):
+        return (-0.5 * t**3 + t**2 - 0.5 * t, 1.5 * t**3 - 2.5 * t**2 + 1, -1.5 * t**3 + 2 * t**2 + 0.5 * t,
+                0.5 * t**3 - 0.5 * t**2)
+
+    wx, wy = weights(x - x0), weights(y - y0)
+    ys = [np.clip(y0 + k - 1, 0, H - 1) for k in range(4)]
+    xs = [np.clip(x0 + k - 1, 0, W - 1) for k in range(4)]
+    value = sum(wy[j] * sum(wx[i] * img[ys[j], xs[i]] for i in range(4)) for j in range(4))
+    four = [img[ys[1], xs[1]], img[ys[1], xs[2]], img[ys[2], xs[1]], img[ys[2], xs[2]]]
+    return np.clip(value, np.minimum.reduce(four), np.maximum.reduce(four))
+
+
 def variable_tensor_diffusion_reference(init, mask, flow, *, c=DEFAULT_C, time: float = 1.0,
-                                        keep_samples: bool = True) -> np.ndarray:
+                                        keep_samples: bool = True, sharp=None) -> np.ndarray:
     """:func:`variable_tensor_diffusion` in plain numpy and scipy, float64 (slow; the tests' reference)."""
     (c1, c2, c3), vol, m, f, steps, dt = _check(init, mask, flow, time, c)
+    sh = None if sharp is None else _check_sharp(sharp, vol.shape)
     vol = vol.astype(np.float64)
     S, H, W = vol.shape
     f = np.where(np.isfinite(f), f, 0).astype(np.float64)
@@ -177,6 +215,11 @@ def variable_tensor_diffusion_reference(init, mask, flow, *, c=DEFAULT_C, time: 
             u, v = f[t, ..., 0], f[t, ..., 1]
             nxt = _sample(vol[t + 1], gy + v, gx + u) if t + 1 < S else cur
             prv = _sample(vol[t - 1], gy - v, gx - u) if t > 0 else cur
+            if sh is not None and sh[t].any():
+                if t + 1 < S:
+                    nxt = np.where(sh[t], _sample_sharp(vol[t + 1], gy + v, gx + u), nxt)
+                if t > 0:
+                    prv = np.where(sh[t], _sample_sharp(vol[t - 1], gy - v, gx - u), prv)
             acc = a[t] * (nxt + prv - 2 * cur)
             if b > 0:
                 acc += b * (_sample(cur, gy + psy[t], gx + psx[t]) + _sample(cur, gy - psy[t], gx - psx[t]) - 2 * cur)

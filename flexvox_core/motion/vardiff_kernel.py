@@ -36,10 +36,41 @@ def _clamped_bilinear(plane, y, x):
     return top * (1.0 - ay) + bottom * ay
 
 
+@numba.njit(inline="always", nogil=True, cache=True)
+def _catmull_rom(t):
+    """Weights of the pixels at offsets -1, 0, 1, 2 for the fraction t (Keys' cubic, a = -1/2)."""
+    t2 = t * t
+    t3 = t2 * t
+    return -0.5 * t3 + t2 - 0.5 * t, 1.5 * t3 - 2.5 * t2 + 1.0, -1.5 * t3 + 2.0 * t2 + 0.5 * t, 0.5 * t3 - 0.5 * t2
+
+
+@numba.njit(inline="always", nogil=True, cache=True)
+def _clamped_bicubic(plane, y, x):
+    """Catmull-Rom read at (y, x), clamped at the border as :func:`_clamped_bilinear`, and clipped to the
+    range of the four pixels that read takes: still a convex combination of them."""
+    H, W = plane.shape
+    y = min(max(y, 0.0), H - 1.0)
+    x = min(max(x, 0.0), W - 1.0)
+    y0 = int(y)
+    x0 = int(x)
+    wx0, wx1, wx2, wx3 = _catmull_rom(x - x0)
+    wy0, wy1, wy2, wy3 = _catmull_rom(y - y0)
+    xa, xb, xc, xd = max(x0 - 1, 0), x0, min(x0 + 1, W - 1), min(x0 + 2, W - 1)
+    ya, yb, yc, yd = max(y0 - 1, 0), y0, min(y0 + 1, H - 1), min(y0 + 2, H - 1)
+    value = 0.0
+    for yy, wy in ((ya, wy0), (yb, wy1), (yc, wy2), (yd, wy3)):
+        value += wy * (wx0 * plane[yy, xa] + wx1 * plane[yy, xb] + wx2 * plane[yy, xc] + wx3 * plane[yy, xd])
+    p00, p01, p10, p11 = float(plane[yb, xb]), float(plane[yb, xc]), float(plane[yc, xb]), float(plane[yc, xc])
+    lo = min(min(p00, p01), min(p10, p11))
+    hi = max(max(p00, p01), max(p10, p11))
+    return min(max(value, lo), hi)
+
+
 @numba.njit(parallel=True, nogil=True, cache=True)
-def vardiff_step(vol, new, flow, mask, keep_samples, c1, c2, c3, dt):
+def vardiff_step(vol, new, flow, mask, keep_samples, c1, c2, c3, dt, sharp, use_sharp):
     """``new`` = one explicit step of ``vol`` (S, H, W) float32 under the Eq. 4 tensors of ``flow``
-    (S, H, W, 2); voxels in ``mask`` stay as they are when ``keep_samples``."""
+    (S, H, W, 2); voxels in ``mask`` stay as they are when ``keep_samples``. With ``use_sharp``, the
+    voxels in ``sharp`` (S, H, W) read their trajectory neighbours by :func:`_clamped_bicubic`."""
     S, H, W = vol.shape
     b = c2 - c3
     for t in numba.prange(S):
@@ -67,6 +98,9 @@ def vardiff_step(vol, new, flow, mask, keep_samples, c1, c2, c3, dt):
                 if u == 0.0 and v == 0.0:
                     nxt = float(after[y, x]) if t + 1 < S else cur
                     prv = float(before[y, x]) if t > 0 else cur
+                elif use_sharp and sharp[t, y, x]:
+                    nxt = _clamped_bicubic(after, y + v, x + u) if t + 1 < S else cur
+                    prv = _clamped_bicubic(before, y - v, x - u) if t > 0 else cur
                 else:
                     nxt = _clamped_bilinear(after, y + v, x + u) if t + 1 < S else cur
                     prv = _clamped_bilinear(before, y - v, x - u) if t > 0 else cur
@@ -102,4 +136,4 @@ def warm_up() -> None:
     """Compile (or load from the cache) the kernel on a tiny volume."""
     vol = np.zeros((2, 2, 2), np.float32)
     vardiff_step(vol, np.empty_like(vol), np.zeros((2, 2, 2, 2), np.float32), np.zeros((2, 2, 2), bool), True,
-                 0.95, 0.05, 0.05, 0.1)
+                 0.95, 0.05, 0.05, 0.1, np.zeros((2, 2, 2), bool), True)

@@ -159,8 +159,8 @@ def test_automatic_flow_scale_puts_the_shorter_side_near_160_px():
 @settings(max_examples=20, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), speed=st.floats(0, 4), time=st.floats(0, 2),
        c=st.sampled_from([(0.95, 0.05, 0.05), (0.95, 0.3, 0.0), (1.0, 0.0, 0.0), (0.5, 0.5, 0.5)]),
-       keep=st.booleans())
-def test_the_compiled_variable_diffusion_is_the_numpy_reference(seed, speed, time, c, keep):
+       keep=st.booleans(), sharp=st.sampled_from([None, 0.5, 1.0]))
+def test_the_compiled_variable_diffusion_is_the_numpy_reference(seed, speed, time, c, keep, sharp):
     from flexvox_core.motion.vardiff import variable_tensor_diffusion_reference
 
     rng = np.random.default_rng(seed)
@@ -168,8 +168,10 @@ def test_the_compiled_variable_diffusion_is_the_numpy_reference(seed, speed, tim
     mask = rng.random(init.shape) < 0.2
     flow = rng.normal(0, speed + 1e-3, (*init.shape, 2)).astype(np.float32)
     flow[0, 0, 0, 1] = np.nan  # an unmeasured vector counts as no motion
-    got = variable_tensor_diffusion(init, mask, flow, c=c, time=time, keep_samples=keep)
-    expected = variable_tensor_diffusion_reference(init, mask, flow, c=c, time=time, keep_samples=keep)
+    if sharp is not None:  # these voxels read their trajectory neighbours by clipped Catmull-Rom
+        sharp = rng.random(init.shape) < sharp
+    got = variable_tensor_diffusion(init, mask, flow, c=c, time=time, keep_samples=keep, sharp=sharp)
+    expected = variable_tensor_diffusion_reference(init, mask, flow, c=c, time=time, keep_samples=keep, sharp=sharp)
     np.testing.assert_allclose(got, expected, atol=2e-6)
     # Monotone: every value stays within the starting range (maximum principle).
     assert got.min() >= init.min() - 1e-6 and got.max() <= init.max() + 1e-6
@@ -199,6 +201,57 @@ def test_the_variable_diffusion_may_write_into_its_own_input(time):
     with pytest.raises(ValueError, match=r"`scratch` must be a writable C-contiguous float32 array of shape "
                                          r"\(6, 9, 11\) that shares no memory"):
         variable_tensor_diffusion(same, mask, flow, time=time, out=same, scratch=same)
+
+
+def test_sharp_reads_keep_a_slowly_drifting_texture():
+    # Texture drifting 0.3 px per sub-frame, its true flow, the truth as the start: each bilinear read a
+    # fraction of a pixel off blurs it; the clipped Catmull-Rom reads (`sharp`) keep it.
+    from scipy.ndimage import gaussian_filter, map_coordinates
+
+    rng = np.random.default_rng(0)
+    S, H, W = 32, 24, 40
+    texture = gaussian_filter(rng.random((H, 4 * W)), 0.8)
+    rows, cols = np.meshgrid(np.arange(H), np.arange(W), indexing="ij")
+    truth = np.stack([map_coordinates(texture, [rows, cols + 0.3 * t + 20], order=3) for t in range(S)])
+    truth = truth.astype(np.float32)
+    mask = sample_mask(truth.shape, design_code((4, 4)).code)
+    flow = np.zeros((S, H, W, 2), np.float32)
+    flow[..., 0] = -0.3
+
+    def error(sharp):
+        out = variable_tensor_diffusion(truth, mask, flow, c=(0.95, 0.0, 0.0), time=1.0, sharp=sharp)
+        assert truth.min() <= out.min() and out.max() <= truth.max()  # still within the data's range
+        return float(((out - truth)[:, 4:-4, 4:-4] ** 2).mean())
+
+    assert error(np.ones(truth.shape, bool)) < 0.5 * error(None)
+    with pytest.raises(ValueError, match=r"`sharp` \(2, 24, 40\) must match `init` \(32, 24, 40\)"):
+        variable_tensor_diffusion(truth, mask, flow, time=1.0, sharp=np.ones((2, H, W), bool))
+
+
+def test_motion_aware_refines_its_slow_voxels_with_sharp_reads(monkeypatch):
+    # The voxels of the long-reach gather (slow, not still) are the refinement's `sharp` ones.
+    import flexvox_core.motion.pipeline as pipeline
+
+    seen = {}
+    real = pipeline.variable_tensor_diffusion
+    real_classes = pipeline._speed_classes
+
+    def spy_classes(*args):
+        seen["classes"] = real_classes(*args)
+        return seen["classes"]
+
+    def spy(*args, **kwargs):
+        seen["sharp"] = kwargs["sharp"]
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "_speed_classes", spy_classes)
+    monkeypatch.setattr(pipeline, "variable_tensor_diffusion", spy)
+    truth = render_scene("pan", 6 * 16, 48, 64, seed=0)
+    code = design_code((4, 4)).code
+    motion_aware(capture(truth, code), code)
+    still, slow = seen["classes"]
+    assert slow.any()
+    np.testing.assert_array_equal(seen["sharp"], slow)
 
 
 def test_the_compiled_variable_diffusion_gives_the_same_bits_on_any_thread_count():

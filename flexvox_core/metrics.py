@@ -68,8 +68,8 @@ def _check_pair(ref, x, data_range, *, convert: bool = True, check_finite: bool 
     if r.shape != v.shape:
         raise ValueError(f"`x` must have the shape of `ref` {r.shape}; got {v.shape}")
     for name, a in (("ref", r), ("x", v)):
-        if not (np.issubdtype(a.dtype, np.number) or a.dtype == bool):
-            raise ValueError(f"`{name}` must hold numbers; got dtype {a.dtype}")
+        if not (np.issubdtype(a.dtype, np.number) or a.dtype == bool) or np.issubdtype(a.dtype, np.complexfloating):
+            raise ValueError(f"`{name}` must hold real numbers; got dtype {a.dtype}")
         if check_finite:
             _check_finite(name, a)
     L = positive_number("`data_range`", data_range)
@@ -82,6 +82,12 @@ def _check_finite(name: str, a: np.ndarray) -> None:
     finite = np.isfinite(a).all(axis=(1, 2))
     if not finite.all():
         raise ValueError(f"`{name}` frame {int(np.flatnonzero(~finite)[0])} holds NaN or infinite values")
+
+
+FLOAT32_SAFE_MSE = (1e-30, 1e30)
+"""Mean squared errors from float32 squares inside this range are kept; outside it (squares that may have
+underflowed below float32's normal range, about 1.2e-38, or overflowed past its largest, 3.4e38) the frame is
+taken again in float64."""
 
 
 def _exact_in_float32(dtype) -> bool:
@@ -116,17 +122,26 @@ def psnr(ref, x, *, data_range: float = 1.0) -> FrameScores:
     [20.0, 20.0]
     """
     r, v, L = _check_pair(ref, x, data_range, convert=False, check_finite=False)
-    # A frame at a time into one reused buffer: no copies of whole volumes (two float64 copies of 295 MB for
-    # a 1-s VGA clip at K = 16 took 3.4 s of a 7.5-s `flexvox reconstruct`), and no fresh memory per frame.
+    # A frame at a time into one reused buffer: no copies of whole volumes (two float64 copies of a 1-s VGA
+    # clip at K = 16, 590 MB each, took 3.4 s of a 7.5-s `flexvox reconstruct`), and no fresh memory per frame.
     # Volumes that float32 holds exactly take the difference and its square in float32 (each rounded once:
-    # the MSE within about 1e-7 of itself, the PSNR within 1e-6 dB) and the sum in float64; 3-5x faster.
+    # the MSE within about 1e-7 of itself, the PSNR within 1e-6 dB) and the sum in float64; 3-5x faster. A
+    # frame whose float32 squares could have overflowed or fallen below float32's normal range (MSE outside
+    # FLOAT32_SAFE_MSE; an exact frame, MSE 0, too) is taken again in float64.
     work = np.float32 if all(_exact_in_float32(a.dtype) for a in (r, v)) else np.float64
     buf = np.empty(r.shape[1:], work)
+    wide = None
     mse = np.empty(len(r))
     for i in range(len(r)):
-        np.subtract(r[i], v[i], out=buf, dtype=work)
-        np.square(buf, out=buf)
-        mse[i] = buf.sum(dtype=np.float64) / max(buf.size, 1)
+        with np.errstate(over="ignore", under="ignore"):  # such a frame is taken again below
+            np.subtract(r[i], v[i], out=buf, dtype=work)
+            np.square(buf, out=buf)
+            mse[i] = buf.sum(dtype=np.float64) / max(buf.size, 1)
+        if work is np.float32 and not FLOAT32_SAFE_MSE[0] < mse[i] < FLOAT32_SAFE_MSE[1]:
+            wide = np.empty(r.shape[1:]) if wide is None else wide
+            np.subtract(r[i], v[i], out=wide, dtype=np.float64)
+            flat = wide.reshape(-1)
+            mse[i] = np.dot(flat, flat) / max(flat.size, 1)
         if not np.isfinite(mse[i]):
             for name, a in (("ref", r), ("x", v)):
                 if not np.isfinite(a[i]).all():
@@ -148,8 +163,14 @@ def psnr_of_rows(read_ref, x, *, rows: int = 16, data_range: float = 1.0) -> Fra
     if isinstance(rows, bool) or not isinstance(rows, int) or rows < 1:
         raise ValueError(f"`rows` must be a whole number >= 1; got {rows!r}")
     S = v.shape[0]
-    per = np.concatenate([psnr(read_ref(a, min(S, a + rows)), v[a:a + rows], data_range=data_range).per_frame
-                          for a in range(0, S, rows)]) if S else np.zeros(0)
+    per = []
+    for a in range(0, S, rows):
+        b = min(S, a + rows)
+        try:
+            per.append(psnr(read_ref(a, b), v[a:b], data_range=data_range).per_frame)
+        except ValueError as exc:  # its frame numbers count from `a`: say which sub-frames
+            raise ValueError(f"sub-frames {a}..{b - 1}: {exc}") from None
+    per = np.concatenate(per) if S else np.zeros(0)
     return FrameScores(per, float(np.mean(per)) if S else float("nan"))
 
 

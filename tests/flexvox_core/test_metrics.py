@@ -118,3 +118,30 @@ def test_psnr_of_rows_reads_the_reference_a_few_frames_at_a_time(rng):
     assert calls == [(0, 16), (16, 32), (32, 37)]
     with pytest.raises(ValueError, match=r"`rows` must be a whole number >= 1; got 0"):
         psnr_of_rows(read, x, rows=0)
+
+
+@pytest.mark.parametrize("scale", [1e21, 1e-20, 1e-25])
+def test_psnr_of_float32_frames_at_extreme_scales_is_the_float64_figure(rng, scale):
+    # Float32 squares would overflow (1e21) or fall below float32's normal range (1e-20, 1e-25): such frames are
+    # taken again in float64.
+    ref = (rng.random((2, 9, 7)) * scale).astype(np.float32)
+    x = (ref + rng.normal(0, 0.1 * scale, ref.shape)).astype(np.float32)
+    d = ref.astype(np.float64) - x.astype(np.float64)
+    expected = 10 * np.log10(scale**2 / (d * d).mean(axis=(1, 2)))
+    got = psnr(ref, x, data_range=scale).per_frame
+    assert np.isfinite(got).all()
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-6)
+
+
+def test_psnr_refuses_complex_frames():
+    with pytest.raises(ValueError, match=r"`x` must hold real numbers; got dtype complex64"):
+        psnr(np.zeros((1, 2, 2)), np.zeros((1, 2, 2), np.complex64))
+
+
+def test_psnr_of_rows_names_the_sub_frames_of_a_bad_block(rng):
+    from flexvox_core.metrics import psnr_of_rows
+
+    ref = rng.random((40, 3, 4)).astype(np.float32)
+    ref[21, 1, 1] = np.nan
+    with pytest.raises(ValueError, match=r"^sub-frames 16\.\.31: `ref` frame 5 holds NaN"):
+        psnr_of_rows(lambda a, b: ref[a:b], ref.copy(), rows=16)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -19,6 +20,10 @@ from flexvox_core.video_io import WRITABLE, write_video
 
 FIGURE_EXTRAS = ("flow", "tr")
 """What ``--figures`` draws: a method must return these extras."""
+
+
+class _Abandoned(Exception):
+    """The PSNR's reader gives up: the output's write failed or was interrupted."""
 
 
 def register(sub) -> None:
@@ -87,14 +92,21 @@ def run(args) -> int:
     seconds = time.perf_counter() - t0  # the reconstruction itself (reading the ground truth is not)
     attrs = {"source": str(args.recording), "method": method.as_dict(), "seconds": seconds}
     score = None
-    with ThreadPoolExecutor(max_workers=1) as pool:
+    stop = threading.Event()  # set when the write fails or is interrupted: the PSNR gives up at its next block
+    pool = ThreadPoolExecutor(max_workers=1)
+    try:
         if rec.has_ground_truth:
             from flexvox_core.metrics import psnr_of_rows
+
+            def truth(a, b):
+                if stop.is_set():
+                    raise _Abandoned
+                return rec.ground_truth(a, b)
 
             # While the output is written (compression and files on one core, the truth's decompression, checks
             # and the PSNR on the other), a few sub-frames at a time, each checked as it is read: the truth is
             # never held whole.
-            score = pool.submit(psnr_of_rows, rec.ground_truth, video)
+            score = pool.submit(psnr_of_rows, truth, video)
         try:
             write_video(args.output, video, fps=args.fps, attrs=attrs, overwrite=args.overwrite,
                         time_step=1.0 / rec.attrs["rates"]["subframe_hz"], interpolated=out.interpolated)
@@ -102,12 +114,17 @@ def run(args) -> int:
             raise CliError(str(exc)) from None
         except OSError as exc:
             raise CliError(f"cannot write {args.output}: {exc.strerror or exc}; nothing was replaced") from None
+    except BaseException:
+        stop.set()
+        raise
+    finally:
+        pool.shutdown(wait=True)
     line = f"{method.label()}: {video.shape[0]} sub-frames of {H}x{W} in {seconds:.2f} s"
     line += f" ({video.size / max(seconds, 1e-9) / 1e6:.0f} M voxels/s)"
     if score is not None:
         try:
             line += f"; PSNR vs ground truth {score.result().mean:.2f} dB"
-        except RecordingError as exc:
+        except (RecordingError, ValueError) as exc:  # the video is written: a bad truth costs only its PSNR
             print(f"warning: no PSNR: {exc}", file=sys.stderr)
     print(line)
     if reader.missing is not None:

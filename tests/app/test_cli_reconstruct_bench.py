@@ -209,3 +209,52 @@ def test_a_damaged_ground_truth_costs_only_the_psnr(recording, tmp_path, capsys)
     captured = capsys.readouterr()
     assert "warning: no PSNR" in captured.err and "PSNR vs ground truth" not in captured.out
     assert np.load(out).shape == (48, 24, 32)
+
+
+def test_a_ground_truth_with_nan_costs_only_the_psnr(recording, tmp_path, capsys, monkeypatch):
+    # A truth that reads but holds a NaN: a warning naming the sub-frames, the video written, "wrote" printed.
+    from flexvox_core.recording import Recording
+
+    real = Recording.ground_truth
+
+    def with_nan(self, start=0, stop=None):
+        rows = real(self, start, stop).copy()
+        if start <= 20 < start + len(rows):
+            rows[20 - start, 0, 0] = np.nan
+        return rows
+
+    monkeypatch.setattr(Recording, "ground_truth", with_nan)
+    out = tmp_path / "out.npy"
+    assert main(["reconstruct", str(recording), "-o", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert "warning: no PSNR: sub-frames 16..31: `ref` frame 4 holds NaN" in captured.err
+    assert f"wrote {out}" in captured.out and np.load(out).shape == (48, 24, 32)
+
+
+def test_a_failed_write_stops_the_psnr_at_its_next_block(recording, tmp_path, capsys, monkeypatch):
+    # The PSNR runs beside the write; when the write fails the truth is read no further (3 blocks of 16 here).
+    import threading
+
+    import app.cli.reconstruct as cli
+    from flexvox_core.recording import Recording
+
+    real = Recording.ground_truth
+    reads, written = [], threading.Event()
+
+    def counted(self, start=0, stop=None):
+        reads.append(start)
+        written.wait(10)  # the first block is read while the write fails
+        return real(self, start, stop)
+
+    def failing_write(*args, **kwargs):
+        try:
+            raise OSError(28, "No space left on device")
+        finally:
+            threading.Timer(0.05, written.set).start()
+
+    monkeypatch.setattr(Recording, "ground_truth", counted)
+    monkeypatch.setattr(cli, "write_video", failing_write)
+    out = tmp_path / "out.npy"
+    assert main(["reconstruct", str(recording), "-o", str(out)]) != 0
+    assert "cannot write" in capsys.readouterr().err
+    assert len(reads) <= 1 and not out.exists()

@@ -150,14 +150,16 @@ def run_chunk(frames, code, method: Method, *, left: int = 0, count: int | None 
         out = spec.run(fill_frames(frames, m), code, values, value_range=value_range, extras=extras)
         bridge(out.video, m, K)
     a, b = left * K, (left + count) * K
-    video = out.video[a:b]
-    if (isinstance(video, np.ndarray) and video.dtype == np.float32 and video.flags.writeable
-            and not any(np.may_share_memory(video, a) for a in (frames, *out.extras.values()))):
-        # The method's own float32 result: clipped in place (a fresh copy of a 1-s VGA clip cost 0.3-0.5 s of
-        # page faults); never an input's or an extra's memory.
-        video = np.clip(video, 0, 1, out=video)
+    whole = out.video
+    if (isinstance(whole, np.ndarray) and whole.dtype == np.float32 and whole.flags.writeable
+            and (a, b) == (0, len(whole))
+            and not any(np.may_share_memory(whole, other) for other in (frames, *out.extras.values()))):
+        # The method's own float32 result, all of it kept (one chunk): clipped in place (a fresh copy of a 1-s
+        # VGA clip cost 0.3-0.5 s of page faults); never an input's or an extra's memory. A chunk with context
+        # is copied, so that the context's sub-frames are not held while the chunk waits to be stored.
+        video = np.clip(whole, 0, 1, out=whole)
     else:
-        video = np.clip(video, 0, 1).astype(np.float32, copy=False)
+        video = np.clip(whole[a:b], 0, 1).astype(np.float32, copy=False)
     interpolated = None if m is None else interpolated_subframes(m, K)[a:b]
     return MethodOutput(video, {k: v[a:b] for k, v in out.extras.items()}, interpolated)
 

@@ -156,7 +156,9 @@ class MethodSpec(ABC):
         Returns
         -------
         MethodOutput
-            ``video`` (F·K, H, W), not yet clipped.
+            ``video`` (F·K, H, W), not yet clipped. The runner clips a writable float32 ``video`` in place
+            (unless it shares memory with ``frames`` or an extra): return memory the method owns, or a
+            read-only array.
         """
 
     def kwargs(self, values: dict) -> dict:

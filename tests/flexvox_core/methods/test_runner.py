@@ -172,3 +172,15 @@ def test_run_chunk_clips_its_own_result_in_place_and_never_an_input_or_an_extra(
     got = run_chunk(frames, CODE, _Echo(lambda f, K: (shared, {"same": shared})), extras=True)
     np.testing.assert_array_equal(shared, np.repeat(before, 8, axis=0))
     assert got.video.min() == 0 and got.video.max() == 1
+
+
+def test_run_chunk_copies_a_chunk_cut_from_its_context(rng):
+    # With context around the chunk, the kept sub-frames are a copy: the context is not held while the chunk
+    # waits to be stored.
+    from flexvox_core.methods.runner import run_chunk
+
+    frames = (rng.random((3, 4, 8)) * 3 - 1).astype(np.float32)
+    own = np.repeat(frames, 8, axis=0)
+    got = run_chunk(frames, CODE, _Echo(lambda f, K: (own, {})), left=1, count=1)
+    assert got.video.shape == (8, 4, 8) and not np.shares_memory(got.video, own)
+    np.testing.assert_array_equal(got.video, np.clip(own[8:16], 0, 1))

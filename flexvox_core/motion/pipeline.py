@@ -562,7 +562,8 @@ def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: 
         if refine_time > 0:
             # The slow voxels read their trajectory neighbours by clipped Catmull-Rom: a bilinear read a fraction
             # of a pixel off is a blur, which took the texture their long-reach gather kept (the pan at K = 16
-            # lost 0.40 dB to the refinement with bilinear reads, 0.06 with these; the static scene +0.5 dB).
+            # lost 0.40 dB against the unrefined result with bilinear reads, 0.05 with these, by MSE on
+            # `flexvox bench`; the static scene gains 0.5 dB).
             variable_tensor_diffusion(video[g0:g1], mask[g0:g1], field_.flow[g0:g1], c=REFINE_C, time=refine_time,
                                       out=video[g0:g1], scratch=None if spare is None else spare[g0:g1],
                                       sharp=slow[g0:g1])

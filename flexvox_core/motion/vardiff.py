@@ -16,6 +16,12 @@ bilinear interpolation is needed — ``D²_ψ`` likewise within the sub-frame, a
 7-point stencil. Every neighbour weight is ≥ 0 and they add up to at most 2·trace T, so
 an explicit step with ``dt ≤ 1 / (2 trace T)`` is a convex combination of neighbour values:
 monotone, stable at any anisotropy, and the result stays within the range of the data.
+
+Voxels given as ``sharp`` read their two neighbours along λ by Catmull-Rom bicubic interpolation
+clipped to the range of the four pixels the bilinear read would take. Such a read is not monotone
+in the pixels (raising a pixel two taps away can lower it), but it stays within the range of those
+four, so each step remains a convex combination of values within the data's range: the maximum
+principle holds, and stability with it.
 """
 
 from __future__ import annotations

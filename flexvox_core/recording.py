@@ -885,12 +885,13 @@ def validate_recording(rec: Recording) -> list[str]:
     m, n, K = code.shape
     if [m, n] != list(rec.attrs["tile"]) or K != rec.attrs["K"]:
         problems.append(f"code shape {code.shape} disagrees with tile {rec.attrs['tile']} and K {rec.attrs['K']}")
-    names = set(rec.group.array_keys())
+    # Each array looked up by name, never by listing the folder: a capture writing beside this reader renames
+    # zarr's temporary metadata files into place, and a listing that meets one as it vanishes fails.
     needed = ("frames", *PER_FRAME) + (("frame_crc",) if rec.attrs["schema_version"] >= 2 else ())
     for name in needed:
-        if name not in names:
+        if name not in rec.group:
             problems.append(f"array `{name}` is missing")
-    if "ground_truth" in names and rec.attrs["schema_version"] >= 2 and "ground_truth_crc" not in names:
+    if "ground_truth" in rec.group and rec.attrs["schema_version"] >= 2 and "ground_truth_crc" not in rec.group:
         problems.append("array `ground_truth_crc` is missing")
     if problems:
         return problems
@@ -906,11 +907,11 @@ def validate_recording(rec: Recording) -> list[str]:
     kind = rec.attrs["storage"].get("kind")
     if kind not in ("float", "counts"):
         problems.append(f"unknown storage kind {kind!r}")
-    if "ground_truth" in names:
+    if "ground_truth" in rec.group:
         gt = rec.group["ground_truth"].shape
         if gt != (F * K, *rec.group["frames"].shape[1:]):
             problems.append(f"`ground_truth` {gt} does not match {F} frames of K = {K}")
-        elif "ground_truth_crc" in names and rec.group["ground_truth_crc"].shape != (gt[0],):
+        elif "ground_truth_crc" in rec.group and rec.group["ground_truth_crc"].shape != (gt[0],):
             problems.append(f"`ground_truth_crc` has {rec.group['ground_truth_crc'].shape[0]} entries for {gt[0]} "
                             "sub-frames")
     return problems

@@ -207,3 +207,14 @@ def test_full_disk_and_vanished_folder_raise_oserror(tmp_path, monkeypatch):
         v.close()
     with pytest.raises(RecordingError, match=r"`block_frames` must be a whole number 1..65536; got 0"):
         _writer(tmp_path / "b.zarr", block_frames=0)
+
+
+def test_opening_never_lists_the_folder(tmp_path, sim):
+    # A capture writing beside a reader renames zarr's temporary metadata files into place (and one killed at
+    # that moment leaves one behind): a reader that listed the folder met them (a warning, or a failure when
+    # one vanished under it). Each array is looked up by name instead.
+    path = write_simulation(tmp_path / "r.zarr", sim)
+    (path / "zarr.0123456789abcdef.partial").write_text("{")
+    (path / "frames" / "zarr.fedcba9876543210.partial").write_text("{")
+    rec = open_recording(path)  # warnings are errors under pytest here
+    assert rec.n_frames == 3 and rec.has_ground_truth

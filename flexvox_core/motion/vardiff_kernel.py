@@ -17,7 +17,6 @@ from __future__ import annotations
 import math
 
 import numba
-import numpy as np
 
 
 @numba.njit(inline="always", nogil=True, cache=True)
@@ -131,9 +130,3 @@ def vardiff_step(vol, new, flow, mask, keep_samples, c1, c2, c3, dt, sharp, use_
                     acc += c3 * lap
                 dst[y, x] = cur + dt * acc
 
-
-def warm_up() -> None:
-    """Compile (or load from the cache) the kernel on a tiny volume."""
-    vol = np.zeros((2, 2, 2), np.float32)
-    vardiff_step(vol, np.empty_like(vol), np.zeros((2, 2, 2, 2), np.float32), np.zeros((2, 2, 2), bool), True,
-                 0.95, 0.05, 0.05, 0.1, np.zeros((2, 2, 2), bool), True)

@@ -72,11 +72,3 @@ def time_only_rows(frames, order, weight, first, lo, hi, out, y0, y1, present, s
                     else:
                         dst[x] = min(max(acc[x], lo), hi)
 
-
-def warm_up() -> None:
-    """Compile (or load from the cache) the kernel for float32 output."""
-    args = (np.zeros((1, 1, 1), np.float32), np.zeros((1, 1), np.int64), np.ones((1, 1, 1)),
-            np.zeros(1, np.int64), 0.0, 1.0, np.empty((1, 1, 1), np.float32), 0, 1)
-    time_only_rows(*args, None, None)
-    time_only_rows(*args, np.ones(1, np.bool_), None)
-    time_only_rows(*args, np.ones(1, np.bool_), np.ones((1, 1, 1), np.bool_))

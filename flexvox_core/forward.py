@@ -124,8 +124,15 @@ def sparse_volume(frames, code, *, fill: float = 0.0) -> np.ndarray:
         raise ValueError(f"`frames` must have shape (F, H, W); got {f.ndim} dimensions {f.shape}")
     if not np.issubdtype(f.dtype, np.floating):
         f = f.astype(np.float32)
+    from flexvox_core.threads import for_each  # (OpenCV: not imported with the package)
+
     F, H, W = f.shape
     slots = np.arange(K)[:, None, None] == tiled_order(c, H, W)[None]  # (K, H, W); refuses non-identity codes
-    vol = np.full((F, K, H, W), fill, dtype=f.dtype)
-    np.copyto(vol, f[:, None], where=slots[None])
+    vol = np.empty((F, K, H, W), dtype=f.dtype)
+
+    def one(i):  # a frame at a time, on every core: the fresh volume's pages are faulted in on both
+        vol[i] = fill
+        np.copyto(vol[i], f[i][None], where=slots)
+
+    for_each(one, F)
     return vol.reshape(F * K, H, W)

@@ -271,13 +271,16 @@ def _speed_classes(flow: np.ndarray, still_speed: float | None, slow_speed: floa
     S, H, W = flow.shape[:3]
     still = np.zeros((S, H, W), bool)
     slow = np.zeros((S, H, W), bool)
-    for t in range(S):
+
+    def one(t):  # a sub-frame at a time, on every core
         speed = cv2.magnitude(flow[t, ..., 0], flow[t, ..., 1])
         if still_speed is not None:
             np.less(speed, still_speed, out=still[t])
         if slow_speed is not None:
             np.less(speed, slow_speed, out=slow[t])
             slow[t] &= ~still[t]
+
+    for_each(one, S)
     return still, slow
 
 

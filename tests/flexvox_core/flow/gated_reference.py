@@ -9,6 +9,7 @@ from flexvox_core.flow import FlowField
 from flexvox_core.flow.backends import backend_params, make_backend
 from flexvox_core.flow.baseline import default_stride, kaverage, kaverage_flow
 from flexvox_core.flow.estimate import check_video, downscale, run_pairs, to_full_size, to_uint8, upsample_flow
+from flexvox_core.motion.pipeline import DIS_PARAMS
 
 
 def successive_flow_reference(small, flow_fn, *, consistency, temporal_window, memo=None):
@@ -34,7 +35,7 @@ def gated_flow_reference(video, K, *, backend, gate=(0.03, 0.15), scale=0.5, con
                          period_gate=(0.9, 1.5)):
     lo, hi = gate
     video = check_video(video)
-    flow_fn = make_backend(backend)
+    flow_fn = make_backend(backend, **(DIS_PARAMS if backend == "dis" else {}))  # as gated_flow measures
     small = downscale(video, scale)
     vel, conf = successive_flow_reference(small, flow_fn, consistency=consistency, temporal_window=1)
     successive = vel
@@ -48,8 +49,8 @@ def gated_flow_reference(video, K, *, backend, gate=(0.03, 0.15), scale=0.5, con
             use_slow = (speed < slow_speed) & (np.hypot(vel[..., 0], vel[..., 1]) * np.float32(px) < 2 * slow_speed)
             vel = np.where(use_slow[..., None], slow, vel)
             params["slow_speed"] = slow_speed
-        steps, _ = successive_flow_reference(downscale(average, 0.5), make_backend("dis"), consistency=False,
-                                             temporal_window=1)
+        steps, _ = successive_flow_reference(downscale(average, 0.5), make_backend("dis", **DIS_PARAMS),
+                                             consistency=False, temporal_window=1)
         steps = upsample_flow(steps, small.shape[1:])
         speed = np.maximum(speed, np.hypot(steps[..., 0], steps[..., 1]) * np.float32(px))
         ramp = np.clip((speed - lo) / (hi - lo), 0, 1).astype(np.float32)

@@ -307,3 +307,24 @@ def test_still_values_written_in_place_give_the_volumes_result(monkeypatch, pass
     monkeypatch.setattr(P, "diffuse_where", volume_then_copy)
     monkeypatch.setattr(P, "motion_compensated_nc", fresh_out)
     np.testing.assert_array_equal(got, motion_aware(frames, code, passes=passes).video)
+
+
+def test_motion_aware_measures_its_flow_with_two_variational_iterations(monkeypatch):
+    # Every DIS pair of motion-aware's flow (successive sub-frames, K-averages, their steps) refines with
+    # DIS_PARAMS, and the result's flow parameters say so.
+    import flexvox_core.motion.pipeline as pipeline
+
+    built = []
+    real = pipeline.make_backend
+
+    def spy(name="dis", **params):
+        built.append((name, params))
+        return real(name, **params)
+
+    monkeypatch.setattr(pipeline, "make_backend", spy)
+    truth = render_scene("balls", 3 * 16, 32, 48, seed=0)
+    code = design_code((4, 4)).code
+    result = motion_aware(capture(truth, code), code)
+    measuring = [params for name, params in built if name == "dis" and params]
+    assert len(measuring) == 2 and all(p == {"variational_iterations": 2} for p in measuring)
+    assert result.flow.params["variational_iterations"] == 2

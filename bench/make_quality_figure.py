@@ -7,8 +7,8 @@ skipped with a printed line when the data is absent — ``$FLEXVOX_DATA/sci_benc
 Columns: the ground truth, GAP-TV (``Method("gap-tv")``), constant-tensor ``nc`` (``Method("diffusion")``;
 isotropic ``tensor=(1, 1, 1), time=0.25`` on the SCI clips, its default tensor on the built-in scenes, as
 docs/reconstruction.md advises per scene type), motion-aware as it was when Reconstruction II was filed
-(``refine_time=0, local_choice=False, noise_aware=False``: no refinement, no local choice, no noise-aware
-smoothing) and motion-aware as it is now, the default. Each capture is reconstructed whole
+(``refine_time=0, local_choice=False, noise_aware=False`` and DIS's own 5 variational iterations: no refinement,
+no local choice, no noise-aware smoothing) and motion-aware as it is now, the default. Each capture is reconstructed whole
 (``chunk_frames=None``), timed with ``time.perf_counter`` (the best of ``--repeats`` runs, default 3) after a
 warm-up of every method on a small capture (so the compiled kernels' first-call compilation is not counted),
 and scored by ``flexvox_core.metrics.psnr`` (mean over the clip's sub-frames). Every panel shows the same
@@ -24,6 +24,7 @@ Usage: ``python bench/make_quality_figure.py [-o PNG] [--overwrite] [--clips run
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 import time
@@ -109,6 +110,20 @@ def warm_up() -> None:
             reconstruct(frames, code, method, chunk_frames=None)
 
 
+@contextlib.contextmanager
+def as_filed():
+    """Motion-aware's flow as when Reconstruction II was filed: DIS with OpenCV's own variational refinement
+    (5 iterations; ``flexvox_core.motion.pipeline.DIS_PARAMS`` since)."""
+    import flexvox_core.motion.pipeline as pipeline
+
+    saved = pipeline.DIS_PARAMS
+    pipeline.DIS_PARAMS = {}
+    try:
+        yield
+    finally:
+        pipeline.DIS_PARAMS = saved
+
+
 def measure(clip: Clip, repeats: int) -> list[tuple[str, np.ndarray, float, float]]:
     """(title, video, PSNR dB, seconds: the best of ``repeats`` runs) per column of ``clip``."""
     rows = []
@@ -116,7 +131,8 @@ def measure(clip: Clip, repeats: int) -> list[tuple[str, np.ndarray, float, floa
         times = []
         for _ in range(repeats):
             t0 = time.perf_counter()
-            video = reconstruct(clip.frames, clip.code, method, chunk_frames=None)
+            with as_filed() if title == "motion-aware, before" else contextlib.nullcontext():
+                video = reconstruct(clip.frames, clip.code, method, chunk_frames=None)
             times.append(time.perf_counter() - t0)
         rows.append((title, video, float(psnr(clip.truth, video).mean), min(times)))
     return rows

@@ -47,6 +47,10 @@ shapes (what older readers and napari expect). A store that still has a journal 
 *interrupted* capture: :func:`open_recording` takes the count and the per-frame values from
 the journal (``Recording.interrupted`` is True, ``n_frames`` is the true count and
 ``frames`` shows exactly those rows), and :func:`recover_recording` finalises it in place.
+A reader beside a running capture looks at the frames' rows before and after looking for the
+journal, so a capture starting or finishing meanwhile is never seen as a finished recording whose
+capacity rows are frames; each array is looked up by name, never by listing the folders, where
+zarr's temporary files come and go.
 
 Integrity (schema 2)
 --------------------
@@ -715,6 +719,8 @@ class Recording:
     group: zarr.Group
     attrs: dict
     journal: dict | None = field(default=None, repr=False)
+    rows: int | None = field(default=None, repr=False)
+    """The frames' rows when it was opened (a finished recording's count); None: read them now."""
 
     @property
     def interrupted(self) -> bool:
@@ -756,6 +762,8 @@ class Recording:
         """Camera frames stored (committed frames of an interrupted capture)."""
         if self.journal is not None:
             return min(len(self.journal["frame_id"]), int(self.group["frames"].shape[0]))
+        if self.rows is not None:  # as seen when opened: a capture starting since cannot add rows to it
+            return self.rows
         return int(self.group["frames"].shape[0])
 
     @property
@@ -858,18 +866,48 @@ def open_recording(path) -> Recording:
             f"{path}: schema version {version!r} is newer than this software reads ({SCHEMA_VERSION}); "
             "update flexvox"
         )
-    journal = None
-    if (path / JOURNAL).exists():
-        try:
-            journal = read_journal(path / JOURNAL)
-        except OSError as exc:
-            raise RecordingError(f"{path}: cannot read the capture journal ({exc})") from exc
+    journal, rows = _journal_snapshot(path, group)
+    if journal is not None:
         _logger.info("%s: an interrupted capture; %d committed frames", path, len(journal["frame_id"]))
-    rec = Recording(path, group, attrs, journal)
+    rec = Recording(path, group, attrs, journal, rows)
     problems = validate_recording(rec)
     if problems:
         raise RecordingError(f"{path}: " + "; ".join(problems))
     return rec
+
+
+SNAPSHOT_TRIES = 5
+"""Times :func:`open_recording` looks again at a recording whose frames changed while it looked."""
+
+
+def _journal_snapshot(path: Path, group):
+    """(journal, rows): the capture journal's committed records and None, or None and the frames' rows of a
+    finished recording, seen consistently with each other.
+
+    A writer creates the journal before it first grows the frames and removes it after trimming them to the
+    count. So the frames' rows are read before and after looking for the journal: with a journal, the rows were
+    read while it existed; without one, equal rows mean a finished recording (a capture starting between the
+    two reads would show its first block of empty rows as frames, one finishing its capacity).
+    """
+    def rows():
+        try:
+            return group["frames"].shape[0]
+        except KeyError:  # no frames array (yet): validate_recording says so
+            return None
+
+    for _ in range(SNAPSHOT_TRIES):
+        before = rows()
+        if (path / JOURNAL).exists():
+            try:
+                return read_journal(path / JOURNAL), None
+            except FileNotFoundError:  # the capture finished meanwhile: look again
+                continue
+            except OSError as exc:
+                raise RecordingError(f"{path}: cannot read the capture journal ({exc})") from exc
+        if rows() == before:
+            return None, before
+    raise RecordingError(f"{path}: the recording changed while it was opened {SNAPSHOT_TRIES} times (a capture "
+                         "starting or finishing in it); open it again")
 
 
 def validate_recording(rec: Recording) -> list[str]:

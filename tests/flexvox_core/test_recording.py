@@ -218,3 +218,73 @@ def test_opening_never_lists_the_folder(tmp_path, sim):
     (path / "frames" / "zarr.fedcba9876543210.partial").write_text("{")
     rec = open_recording(path)  # warnings are errors under pytest here
     assert rec.n_frames == 3 and rec.has_ground_truth
+
+
+class _LookingGroup:
+    """A recording's group as a reader sees it while ``moves`` happen between its looks: call k of
+    ``group["frames"]`` first runs ``moves[k]`` (if any)."""
+
+    def __init__(self, group, moves):
+        self.group, self.moves, self.looks = group, moves, 0
+
+    def __getitem__(self, name):
+        move = self.moves.get(self.looks)
+        self.looks += 1
+        if move:
+            move()
+        return self.group[name]
+
+
+def test_a_capture_starting_while_it_is_opened_is_seen_with_its_journal(tmp_path):
+    # The reader looked for the journal before the writer made it, and at the frames after their first block
+    # was added: that block's empty rows must not pass for frames of a finished recording.
+    from flexvox_core.recording import _journal_snapshot
+
+    path = tmp_path / "r.zarr"
+    w = _writer(path)
+    for i in range(3):
+        w.append(np.full((4, 5), 0.5, np.float32), frame_id=i, timestamp=i / 30)
+    hidden = tmp_path / "journal.hidden"
+    (path / JOURNAL).rename(hidden)  # not made yet when the reader first looks
+    group = zarr.open_group(str(path), mode="r")
+    shrunk = zarr.open_array(str(path / "frames"), mode="r+")
+    shrunk.resize((0, 4, 5))  # nor the first block
+
+    def writer_starts():
+        shrunk.resize((64, 4, 5))
+        hidden.rename(path / JOURNAL)
+
+    journal, rows = _journal_snapshot(path, _LookingGroup(group, {1: writer_starts}))
+    assert journal is not None and len(journal["frame_id"]) == 3 and rows is None
+    assert open_recording(path).n_frames == 3
+    w.close()
+
+
+def test_a_recording_that_keeps_changing_while_it_is_opened_is_refused(tmp_path, sim):
+    from flexvox_core.recording import SNAPSHOT_TRIES, _journal_snapshot
+
+    path = write_simulation(tmp_path / "r.zarr", sim)
+    group = zarr.open_group(str(path), mode="r")
+    grown = zarr.open_array(str(path / "frames"), mode="r+")
+
+    def grow():
+        grown.resize((grown.shape[0] + 1, *grown.shape[1:]))
+
+    moves = {k: grow for k in range(1, 2 * SNAPSHOT_TRIES, 2)}
+    with pytest.raises(RecordingError, match=r"the recording changed while it was opened 5 times \(a capture "
+                                              r"starting or finishing in it\); open it again"):
+        _journal_snapshot(path, _LookingGroup(group, moves))
+
+
+def test_a_recording_opened_before_its_capture_grows_keeps_the_rows_it_was_opened_with(tmp_path):
+    # Opened between the writer making its arrays and its journal: no frames. Rows added after the opening
+    # (the first block of a capture starting) are not frames of that finished-looking recording.
+    path = tmp_path / "r.zarr"
+    w = _writer(path)
+    (path / JOURNAL).rename(tmp_path / "journal.hidden")
+    rec = open_recording(path)
+    assert not rec.interrupted and rec.n_frames == 0
+    zarr.open_array(str(path / "frames"), mode="r+").resize((64, 4, 5))
+    assert rec.n_frames == 0 and rec.frames.shape == (0, 4, 5)
+    (tmp_path / "journal.hidden").rename(path / JOURNAL)
+    w.close()

@@ -8,8 +8,8 @@ Columns: the ground truth, GAP-TV (``Method("gap-tv")``), constant-tensor ``nc``
 isotropic ``tensor=(1, 1, 1), time=0.25`` on the SCI clips, its default tensor on the built-in scenes, as
 docs/reconstruction.md advises per scene type), motion-aware as it was when Reconstruction II was filed
 (``refine_time=0, local_choice=False, noise_aware=False`` and DIS's own 5 variational iterations: no refinement,
-no local choice, no noise-aware smoothing) and motion-aware as it is now, the default. Each capture is reconstructed whole
-(``chunk_frames=None``), timed with ``time.perf_counter`` (the best of ``--repeats`` runs, default 3) after a
+no local choice, no noise-aware smoothing) and motion-aware as it is now, the default. Each capture is
+reconstructed whole (``chunk_frames=None``), timed with ``time.perf_counter`` (the best of ``--repeats`` runs, default 3) after a
 warm-up of every method on a small capture (so the compiled kernels' first-call compilation is not counted),
 and scored by ``flexvox_core.metrics.psnr`` (mean over the clip's sub-frames). Every panel shows the same
 sub-frame, the middle one of the clip.

@@ -4,15 +4,15 @@ Clips: the SCI benchmark's Runner and Drop (frames 0–7, flexvox's 2×4 identit
 skipped with a printed line when the data is absent — ``$FLEXVOX_DATA/sci_benchmark`` or
 ``../shared/data/sci_benchmark`` next to the checkout) and the built-in moving scenes ``balls`` and
 ``drummer`` (96×128, 6 camera frames through a 4×4 identity code, K = 16; no noise, as in ``flexvox bench``).
-Columns: the ground truth, GAP-TV (``Method("gap-tv")``), constant-tensor ``nc`` (``Method("diffusion")``;
-isotropic ``tensor=(1, 1, 1), time=0.25`` on the SCI clips, its default tensor on the built-in scenes, as
+Columns: the ground truth, GAP-TV (``Method("gap-tv")``), constant-tensor ``nc`` (``Method("diffusion")``; isotropic
+``tensor=(1, 1, 1), time=0.25`` on the SCI clips, its default tensor on the built-in scenes, as
 docs/reconstruction.md advises per scene type), motion-aware as it was when Reconstruction II was filed
-(``refine_time=0, local_choice=False, noise_aware=False`` and DIS's own 5 variational iterations: no refinement,
-no local choice, no noise-aware smoothing) and motion-aware as it is now, the default. Each capture is
-reconstructed whole (``chunk_frames=None``), timed with ``time.perf_counter`` (the best of ``--repeats`` runs, default 3) after a
-warm-up of every method on a small capture (so the compiled kernels' first-call compilation is not counted),
-and scored by ``flexvox_core.metrics.psnr`` (mean over the clip's sub-frames). Every panel shows the same
-sub-frame, the middle one of the clip.
+(``refine_time=0, local_choice=False, noise_aware=False`` and DIS's own 5 variational iterations: no refinement, no
+local choice, no noise-aware smoothing) and motion-aware as it is now, the default. Each capture is reconstructed
+whole (``chunk_frames=None``), timed with ``time.perf_counter`` (the best of ``--repeats`` runs, default 3) after a
+warm-up of every method on a small capture (so the compiled kernels' first-call compilation is not counted), and
+scored by ``flexvox_core.metrics.psnr`` (mean over the clip's sub-frames). Every panel shows the same sub-frame, the
+middle one of the clip.
 
 Draws the PNG (matplotlib, Agg; default ``docs/motion/quality.png``) and prints the table of PSNR and
 seconds (clip × method) as Markdown. Figures only, never pass/fail.

@@ -866,13 +866,18 @@ def open_recording(path) -> Recording:
             f"{path}: schema version {version!r} is newer than this software reads ({SCHEMA_VERSION}); "
             "update flexvox"
         )
-    journal, rows = _journal_snapshot(path, group)
-    if journal is not None:
-        _logger.info("%s: an interrupted capture; %d committed frames", path, len(journal["frame_id"]))
-    rec = Recording(path, group, attrs, journal, rows)
-    problems = validate_recording(rec)
+    for _ in range(SNAPSHOT_TRIES):
+        journal, rows = _journal_snapshot(path, group)
+        rec = Recording(path, group, attrs, journal, rows)
+        problems = validate_recording(rec)
+        # Seen without a journal, and one there now: a capture started while this looked (its per-frame arrays may
+        # already have grown past the rows seen). Look again rather than call it damaged.
+        if not (problems and journal is None and (path / JOURNAL).exists()):
+            break
     if problems:
         raise RecordingError(f"{path}: " + "; ".join(problems))
+    if journal is not None:
+        _logger.info("%s: an interrupted capture; %d committed frames", path, len(journal["frame_id"]))
     return rec
 
 

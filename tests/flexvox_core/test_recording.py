@@ -288,3 +288,31 @@ def test_a_recording_opened_before_its_capture_grows_keeps_the_rows_it_was_opene
     assert rec.n_frames == 0 and rec.frames.shape == (0, 4, 5)
     (tmp_path / "journal.hidden").rename(path / JOURNAL)
     w.close()
+
+
+def test_a_capture_starting_between_the_snapshot_and_the_checks_is_looked_at_again(tmp_path, monkeypatch):
+    # Seen without a journal and with no rows; by the time the per-frame arrays are checked the capture has
+    # started (its journal made, its arrays grown): the recording is looked at again, not called damaged.
+    import flexvox_core.recording as recording
+
+    path = tmp_path / "r.zarr"
+    w = _writer(path)
+    w.append(np.full((4, 5), 0.5, np.float32), frame_id=0, timestamp=0.0)
+    w._flush_per_frame()
+    hidden = tmp_path / "journal.hidden"
+    (path / JOURNAL).rename(hidden)
+    real = recording._journal_snapshot
+    calls = []
+
+    def snapshot(p, group):
+        calls.append(1)
+        if len(calls) == 1:
+            got = (None, 0)  # as seen before the capture grew anything
+            hidden.rename(path / JOURNAL)  # ... which it does right after
+            return got
+        return real(p, group)
+
+    monkeypatch.setattr(recording, "_journal_snapshot", snapshot)
+    rec = open_recording(path)
+    assert len(calls) == 2 and rec.interrupted and rec.n_frames == 1
+    w.close()

@@ -934,7 +934,8 @@ def validate_recording(rec: Recording) -> list[str]:
     for name in needed:
         if name not in rec.group:
             problems.append(f"array `{name}` is missing")
-    if "ground_truth" in rec.group and rec.attrs["schema_version"] >= 2 and "ground_truth_crc" not in rec.group:
+    has_gt, has_gt_crc = ("ground_truth" in rec.group), ("ground_truth_crc" in rec.group)  # each a read: once
+    if has_gt and rec.attrs["schema_version"] >= 2 and not has_gt_crc:
         problems.append("array `ground_truth_crc` is missing")
     if problems:
         return problems
@@ -950,11 +951,11 @@ def validate_recording(rec: Recording) -> list[str]:
     kind = rec.attrs["storage"].get("kind")
     if kind not in ("float", "counts"):
         problems.append(f"unknown storage kind {kind!r}")
-    if "ground_truth" in rec.group:
+    if has_gt:
         gt = rec.group["ground_truth"].shape
         if gt != (F * K, *rec.group["frames"].shape[1:]):
             problems.append(f"`ground_truth` {gt} does not match {F} frames of K = {K}")
-        elif "ground_truth_crc" in rec.group and rec.group["ground_truth_crc"].shape != (gt[0],):
+        elif has_gt_crc and rec.group["ground_truth_crc"].shape != (gt[0],):
             problems.append(f"`ground_truth_crc` has {rec.group['ground_truth_crc'].shape[0]} entries for {gt[0]} "
                             "sub-frames")
     return problems

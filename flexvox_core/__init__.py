@@ -24,20 +24,35 @@ Pixel ``(y, x)`` uses ``code[y % m, x % n]``.
 """
 
 from flexvox_core._version import __version__
-from flexvox_core.codes import (
-    code_from_order,
-    is_identity_code,
-    neighbour_separation,
-    order_from_code,
-    sequential_order,
-    validate_code,
-    verify,
-)
-from flexvox_core.design import DesignResult, design_code
-from flexvox_core.divisions import Division, enumerate_divisions, parse_division
-from flexvox_core.forward import capture, sample_mask, sparse_volume, tiled_code
-from flexvox_core.multiplex import MultiplexedCode, multiplexed_code, s_matrix
-from flexvox_core.tiles import MAX_TILE_SIDE, parse_tile, validate_tile
+
+# The package's names, imported when first asked for (PEP 562): `import flexvox_core` (which every
+# command line run does) then costs no scipy.optimize (the code design's solver, 0.26 s to import).
+_EXPORTS = {
+    "flexvox_core.codes": ("code_from_order", "is_identity_code", "neighbour_separation", "order_from_code",
+                           "sequential_order", "validate_code", "verify"),
+    "flexvox_core.design": ("DesignResult", "design_code"),
+    "flexvox_core.divisions": ("Division", "enumerate_divisions", "parse_division"),
+    "flexvox_core.forward": ("capture", "sample_mask", "sparse_volume", "tiled_code"),
+    "flexvox_core.multiplex": ("MultiplexedCode", "multiplexed_code", "s_matrix"),
+    "flexvox_core.tiles": ("MAX_TILE_SIDE", "parse_tile", "validate_tile"),
+}
+_WHERE = {name: module for module, names in _EXPORTS.items() for name in names}
+
+
+def __getattr__(name: str):
+    module = _WHERE.get(name)
+    if module is None:
+        raise AttributeError(f"module 'flexvox_core' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value  # once found, an ordinary attribute
+    return value
+
+
+def __dir__():
+    return sorted([*globals(), *_WHERE])
+
 
 __all__ = [
     "__version__",

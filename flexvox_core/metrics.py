@@ -28,7 +28,6 @@ import logging
 from typing import NamedTuple
 
 import numpy as np
-from scipy.ndimage import gaussian_filter
 
 from flexvox_core.numbers import positive_number
 
@@ -175,6 +174,8 @@ def psnr_of_rows(read_ref, x, *, rows: int = 16, data_range: float = 1.0) -> Fra
 
 
 def _ssim_frame(a: np.ndarray, b: np.ndarray, L: float) -> float:
+    from scipy.ndimage import gaussian_filter
+
     filt = {"sigma": _SSIM_SIGMA, "truncate": _SSIM_TRUNCATE, "mode": "reflect"}
     mu_a = gaussian_filter(a, **filt)
     mu_b = gaussian_filter(b, **filt)

@@ -118,6 +118,50 @@ def test_list_screens_without_the_gui_extra_exits_2_naming_it():
         "here): pip install 'flexvox[gui]'"]
 
 
+LEAN = textwrap.dedent(
+    """
+    import sys
+    import app.cli.main
+    app.cli.main.build_parser()
+    heavy = sorted({m.split(".")[0] for m in sys.modules} & {"scipy", "numba", "dask", "matplotlib", "tifffile"})
+    print(",".join(heavy) or "none")
+    """
+)
+
+
+def test_the_command_line_starts_without_scipy_numba_or_dask():
+    # Every `flexvox` run imports the parser and every subcommand's module: what they pull in at import time
+    # is paid by each command (scipy.optimize, which only `flexvox design` needs, was 0.26 s of it). A module
+    # that needs one of these imports it where it is used.
+    out = _run(LEAN)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "none"
+
+
+def test_the_package_names_resolve_when_asked_for():
+    script = textwrap.dedent(
+        """
+        import sys
+        import flexvox_core
+        assert "flexvox_core.design" not in sys.modules and "scipy" not in sys.modules
+        from flexvox_core import design_code, MAX_TILE_SIDE, verify
+        import flexvox_core.design
+        assert design_code is flexvox_core.design.design_code and MAX_TILE_SIDE == 8
+        assert {"design_code", "s_matrix", "capture"} <= set(dir(flexvox_core)) and "s_matrix" in flexvox_core.__all__
+        try:
+            flexvox_core.no_such_name
+        except AttributeError as exc:
+            assert "no_such_name" in str(exc)
+        else:
+            raise SystemExit("an unknown name resolved")
+        print("ok")
+        """
+    )
+    out = _run(script)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "ok"
+
+
 def test_the_blocker_really_blocks_qt():
     # The guards above must fail if a module did import Qt.
     script = CORE.replace("import flexvox_core, rig_drivers, calibration", "import PySide6")

@@ -10,7 +10,6 @@ import numpy as np
 
 from app.cli.errors import EXIT_FAILED, EXIT_OK, CliError, arg_type
 from flexvox_core.codes import code_from_order, verify
-from flexvox_core.design import design_code
 from flexvox_core.divisions import enumerate_divisions, parse_division
 from flexvox_core.multiplex import multiplexed_code
 from flexvox_core.tiles import MAX_TILE_SIDE, parse_tile
@@ -147,6 +146,8 @@ def run(args) -> int:
             divisions = [parse_division(t, (m, n)) for t in args.divisions.split(",") if t.strip()]
         except ValueError as exc:
             raise CliError(str(exc)) from None
+    from flexvox_core.design import design_code  # the solver's scipy.optimize: imported by this command alone
+
     result = design_code((m, n), divisions=divisions, separation=args.separation)
     payload = result.as_dict()
     if result.success:

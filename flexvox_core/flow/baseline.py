@@ -19,7 +19,6 @@ import logging
 import time
 
 import numpy as np
-from scipy.ndimage import uniform_filter1d
 
 from flexvox_core.flow.backends import backend_params, make_backend
 from flexvox_core.flow.estimate import FlowField, check_video, downscale, run_pairs, to_full_size, to_uint8
@@ -66,6 +65,8 @@ def default_stride(K: int) -> int:
 
 def kaverage(video: np.ndarray, K: int) -> np.ndarray:
     """Moving average over K sub-frames (every sampling phase once), edges held."""
+    from scipy.ndimage import uniform_filter1d
+
     return uniform_filter1d(video, K, axis=0, mode="nearest") if K > 1 else video
 
 

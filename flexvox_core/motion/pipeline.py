@@ -29,7 +29,6 @@ from time import perf_counter as _now
 
 import cv2
 import numpy as np
-from scipy.ndimage import uniform_filter1d
 
 from flexvox_core.flow import FlowField
 from flexvox_core.flow.backends import backend_params, make_backend
@@ -201,6 +200,8 @@ def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, sc
         # it exactly still): the successive-sub-frame flow averaged over one sampling period.
         # The high-TR video swims with the code's period (about 1 px per sub-frame at K = 16),
         # which that average cancels; steady motion stays.
+        from scipy.ndimage import uniform_filter1d
+
         mean = uniform_filter1d(vel, K, axis=0, mode="nearest")
         params["period_gate"] = tuple(period_gate)
     params["gate"] = (lo, hi)

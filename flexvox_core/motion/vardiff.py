@@ -30,7 +30,6 @@ import math
 import threading
 
 import numpy as np
-from scipy.ndimage import map_coordinates
 
 from flexvox_core.motion.tensors import DEFAULT_C, check_c
 
@@ -173,6 +172,8 @@ def _check_sharp(sharp, shape) -> np.ndarray:
 
 def _sample(img: np.ndarray, gy, gx) -> np.ndarray:
     """Exact bilinear reads at (gy, gx), clamped at the border."""
+    from scipy.ndimage import map_coordinates
+
     H, W = img.shape
     return map_coordinates(img.astype(np.float64), [np.clip(gy, 0, H - 1), np.clip(gx, 0, W - 1)], order=1,
                            mode="nearest")

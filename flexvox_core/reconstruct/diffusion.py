@@ -64,9 +64,6 @@ import math
 
 import cv2
 import numpy as np
-from scipy.ndimage import distance_transform_edt, gaussian_filter
-from scipy.sparse import coo_matrix, diags
-from scipy.sparse.linalg import cg
 
 from flexvox_core.forward import tiled_order
 from flexvox_core.gaps import as_missing, captured
@@ -237,6 +234,8 @@ def gaussian(volume, tensor, time) -> np.ndarray:
 
 def _nearest_fill(values: np.ndarray, mask: np.ndarray, where: np.ndarray, sig) -> None:
     """Give the voxels ``where`` the value of their nearest sample (tensor metric), in place."""
+    from scipy.ndimage import distance_transform_edt  # scipy where it is needed: not a cost of every import
+
     pos = [s for s in sig if s > 0]
     smallest = min(pos)
     sampling = [1.0 / (s if s > 0 else 1e-3 * smallest) for s in (sig[2], sig[1], sig[0])]
@@ -609,6 +608,9 @@ def _explicit_kernel(init: np.ndarray, mask: np.ndarray, tensor, time: float) ->
 
 
 def _steady_kernel(init: np.ndarray, mask: np.ndarray, tensor) -> np.ndarray:
+    from scipy.sparse import coo_matrix, diags
+    from scipy.sparse.linalg import cg
+
     S, H, W = init.shape
     N = S * H * W
     index = np.arange(N).reshape(S, H, W)
@@ -832,6 +834,8 @@ def nc_naive(frames, code, *, tensor=DEFAULT_TENSOR, time: float = DEFAULT_TIME,
     -------
     video : ndarray, shape (F·K, H, W), float64
     """
+    from scipy.ndimage import gaussian_filter
+
     f = check_frames(frames)
     c = check_identity_code(code)
     sig = sigmas(tensor, time)

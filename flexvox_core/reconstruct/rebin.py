@@ -29,7 +29,6 @@ import logging
 import math
 
 import numpy as np
-from scipy.ndimage import distance_transform_edt
 
 from flexvox_core.codes import verify
 from flexvox_core.divisions import Division, check_division, parse_division
@@ -115,6 +114,8 @@ def _blocks_kernel(frames: np.ndarray, code: np.ndarray, d: Division, dtype) -> 
     out[t_idx, yy, xx] = frames
     filled[t_idx, yy, xx] = True
     if not filled.all():  # border blocks whose sample fell outside the sensor
+        from scipy.ndimage import distance_transform_edt
+
         idx = distance_transform_edt(~filled, return_distances=False, return_indices=True)
         out = out[tuple(idx)]
         _logger.debug("re-binning %s: %d empty border blocks filled from neighbours",

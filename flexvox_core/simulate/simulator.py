@@ -14,7 +14,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from flexvox_core.codes import code_from_order, is_identity_code, order_from_code, validate_code
-from flexvox_core.design import design_code
 from flexvox_core.forward import capture, check_video, tiled_code
 from flexvox_core.memory_budget import FLOAT, check_fits, simulation_bytes
 from flexvox_core.multiplex import multiplexed_code
@@ -268,6 +267,8 @@ def code_for(spec: SceneSpec):
     if spec.multiplexed:
         mc = multiplexed_code(spec.tile)
         return mc.code, True, mc.placement
+    from flexvox_core.design import design_code  # its solver's scipy.optimize: only when a code is designed
+
     return design_code(spec.tile).require(), False, None
 
 

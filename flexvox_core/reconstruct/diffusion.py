@@ -331,21 +331,27 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
     kept = captured(samples, None if present is None else ~present)
     lo, hi = kept.min(), kept.max()
     slots = [order == k for k in range(K)]
-    # Each sub-frame divided, clipped to the samples' range and given its samples back while it is in
-    # cache (not two more passes over the volume).
-    for s in range(S):
+    lows: dict[int, np.ndarray] = {}  # sub-frame -> its voxels without a sample in reach (rare)
+
+    def finish(s):
+        # A sub-frame divided, clipped to the samples' range and given its samples back while it is in cache
+        # (not two more passes over the volume); on every core (numpy releases the GIL).
         d = den[s]
         low_s = d <= NC_MIN_WEIGHT * peak
         if low_s.any():
-            if low is None:
-                low = np.zeros((S, H, W), bool)
-            low[s] = low_s
+            lows[s] = low_s
             np.divide(num[s], d, out=num[s], where=~low_s)
         else:
             np.divide(num[s], d, out=num[s])
         np.clip(num[s], lo, hi, out=num[s])
         if keep_samples and (present is None or present[s // K]):
             np.copyto(num[s], samples[s // K], where=slots[s % K])
+
+    for_each(finish, S)
+    if lows:
+        low = np.zeros((S, H, W), bool)
+        for s, low_s in lows.items():
+            low[s] = low_s
     if low is not None:
         # A sample's blurred mask holds at least its own weight: no sample is among these voxels, and the
         # nearest sample's value needs no clipping.
@@ -532,8 +538,14 @@ class _PeriodicDenominator:
             self.head = self.tail = None
             return
         # An end's blur is exact wherever its window does not reach the short clip's other end.
-        self.head = self._blurred(den_k, 0, length, gt)
-        self.tail = self.head if length == self.S else self._blurred(den_k, self.S - length, length, gt)
+        starts = [0] if length == self.S else [0, self.S - length]
+        ends = [None] * len(starts)
+
+        def end(i):  # the two ends side by side, one per core
+            ends[i] = self._blurred(den_k, starts[i], length, gt)
+
+        for_each(end, len(starts))
+        self.head, self.tail = ends[0], ends[-1]
         if length < self.S:  # one period of the interior, phases r .. r + K - 1 (head[s] exact for s < r + K)
             interior = self.head[self.r: self.r + K]
             self.period = np.empty_like(den_k)

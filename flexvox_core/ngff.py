@@ -110,11 +110,11 @@ def create_image(group, dataset: str, shape, *, time_step: float | None, levels:
 
 
 def image_compressor():
-    """Blosc LZ4 with byte shuffle, for every float32 video flexvox stores (reconstructions, and the ground
-    truth of simulated recordings): on a 1-s 640×480 K = 16 reconstruction (295 MB of float32) it wrote
-    in 0.69 s and read in 0.29 s, against 1.17 and 0.90 s for zarr's default Zstd, at the same size
-    (234 against 238 MB). Every reader of Zarr v3 (zarr-python, napari, Fiji's N5/Zarr readers via
-    Blosc) decodes it."""
+    """Blosc LZ4 with byte shuffle, for reconstructions and the ground truth of simulated recordings (a
+    recording's ``frames`` keep zarr's default Zstd): on a 1-s 640×480 K = 16 reconstruction (295 MB of
+    float32) it wrote in 0.69 s and read in 0.29 s, against 1.17 and 0.90 s for zarr's default Zstd, at
+    the same size (234 against 238 MB). Every reader of Zarr v3 (zarr-python, napari, Fiji's N5/Zarr
+    readers via Blosc) decodes it."""
     from zarr.codecs import BloscCodec
 
     return BloscCodec(cname="lz4", clevel=5, shuffle="shuffle")

@@ -147,7 +147,10 @@ def test_the_package_names_resolve_when_asked_for():
         from flexvox_core import design_code, MAX_TILE_SIDE, verify
         import flexvox_core.design
         assert design_code is flexvox_core.design.design_code and MAX_TILE_SIDE == 8
-        assert {"design_code", "s_matrix", "capture"} <= set(dir(flexvox_core)) and "s_matrix" in flexvox_core.__all__
+        assert {"design_code", "s_matrix", "capture", "forward"} <= set(dir(flexvox_core))
+        assert set(flexvox_core.__all__) == set(flexvox_core._WHERE) | {"__version__"}
+        # the submodules `import flexvox_core` used to load are still its attributes
+        assert flexvox_core.forward.capture is flexvox_core.capture and hasattr(flexvox_core, "divisions")
         try:
             flexvox_core.no_such_name
         except AttributeError as exc:

@@ -27,13 +27,19 @@ A known bias: a sample's leave-one-out leaves its pixel without its own sample, 
 most where a pixel is still and sampled once within the gather's reach (a single-frame capture of a still
 subject): there the gather's error is overestimated and the candidate takes too much.
 ``bench/bench_choice_bias.py`` measures it (at K = 8 the gather alone was the best on every still
-single-frame capture it tried, by 0.4–1.4 dB; at K = 16 on three of five).
+single-frame capture it tried, by 0.4–2.4 dB; at K = 16 on three of five).
+:func:`still_voxel_loo` corrects it where the flow calls a voxel still: there the pixel's own sample *is*
+the truth at its other voxels, and the gather is scored on its error at them (see there). The gather's
+leave-one-out is kept everywhere else, and oriented nc's everywhere: its time Gaussian (σ = 0.71
+sub-frames) reaches a pixel's own sample only one sub-frame away, so leaving it out costs nc little.
 """
 
 from __future__ import annotations
 
 import cv2
 import numpy as np
+
+from flexvox_core.motion.subframes import flow_at
 
 SIGMA_SHARE = 1 / 16
 """Spatial standard deviation over which the leave-one-out errors are pooled, as a share of the picture's
@@ -87,6 +93,73 @@ def local_weights(loo_a: np.ndarray, loo_b: np.ndarray, samples: np.ndarray, *, 
         ok = total > 1e-30
         out[f] = np.where(ok, eb / np.where(ok, total, 1.0), 1.0)
     return out
+
+
+STILL_VOXEL_SPEED = 0.15
+"""Below this flow speed (px per sub-frame; the motion gate's "trusted as moving" threshold) a gathered voxel
+is scored by :func:`still_voxel_loo` against its pixel's own sample. Measured on `flexvox bench`'s captures
+and ``bench/bench_choice_bias.py`` (prototype): 0.1–0.25 within 0.15 dB of each other and nowhere more than
+0.02 dB below the uncorrected choice; 0.3 and more lost on the still captures at K = 16 (Runner held still
+−0.03 dB at 0.3, −0.09 at 0.6)."""
+
+
+def still_voxel_loo(loo: np.ndarray, video: np.ndarray, samples: np.ndarray, gathered: np.ndarray,
+                    mask: np.ndarray, flow: np.ndarray, K: int, *, speed: float = STILL_VOXEL_SPEED) -> None:
+    r"""Correct the gather's leave-one-out ``loo`` (F, H, W), in place, for the pixels it leans on.
+
+    The choice needs each method's error at a pixel's gathered voxels, and a sample's leave-one-out takes
+    away the sample the gather leans on most there when the pixel is still: at zero flow its trajectory
+    runs through the pixel, and the refinement diffuses the kept sample along it. Where the flow at a
+    gathered voxel is below ``speed`` the pixel is taken as still, so its sample y is the truth there and
+    the gather's error is observed, not estimated: (v − y)², v the gather's value. Per frame and pixel,
+    the error is the mean over its gathered voxels without a sample, (v − y)² at those slower than
+    ``speed`` and the leave-one-out's (ℓ − y)² at the others; ``loo`` becomes y + √error, whose squared
+    distance to the sample is that error (:func:`local_weights` is unchanged). Pixels without such a slow
+    voxel keep their leave-one-out exactly.
+
+    Where the pixel is in fact still the observed error is exact (noise included it is
+    (1 − s)²(E_rest + σ²), s the sample's share of v, against the truth's s²σ² + (1 − s)²E_rest:
+    conservative while s < ½). Where it moves and the flow misses it, v − y misses the change; the
+    threshold keeps that to the voxels the motion gate would not trust as moving anyway.
+
+    Parameters
+    ----------
+    loo : ndarray (F, H, W) float32
+        The gather's leave-one-out (NaN: none), corrected in place.
+    video : ndarray (F·K, H, W)
+        The gather's result (after the refinement), samples kept.
+    samples : ndarray (F, H, W)
+        The camera frames of the identity code.
+    gathered, mask : ndarray (F·K, H, W) bool
+        The voxels the gather estimated, and the sample voxels.
+    flow : ndarray (F·K, H, W, 2)
+        The flow the gather followed.
+    K : int
+        Sub-frames per frame.
+    """
+    F, H, W = loo.shape
+    limit = np.float32(speed) ** 2
+    count = np.zeros((F, H * W), np.float32)  # gathered voxels without a sample, per frame and pixel
+    slow = np.zeros((F, H * W), np.float32)  # of them slower than `speed`
+    seen = np.zeros((F, H * W), np.float32)  # their summed (v - y)²
+    for t in range(F * K):
+        idx = np.flatnonzero(gathered[t] & ~mask[t])
+        if not len(idx):
+            continue
+        f = t // K
+        count[f, idx] += 1
+        u, v = flow_at(flow[t], idx)
+        idx = idx[u * u + v * v < limit]
+        if len(idx):
+            slow[f, idx] += 1
+            seen[f, idx] += (video[t].reshape(-1)[idx] - samples[f].reshape(-1)[idx]) ** 2
+    flat = loo.reshape(F, -1)
+    y = np.asarray(samples, np.float32).reshape(F, -1)
+    use = (slow > 0) & np.isfinite(flat)
+    if not use.any():
+        return
+    err = (seen + (count - slow) * (flat - y) ** 2) / np.maximum(count, 1)
+    np.copyto(flat, y + np.sqrt(err, dtype=np.float32), where=use)
 
 
 COARSE_SIGMA = 8.0

@@ -522,8 +522,8 @@ def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: 
             bridge_flow(field_.flow, missing, K, margin=K // 2)
         seconds["flow"] += _now() - t0
         t0 = _now()
-        still, slow = _speed_classes(field_.flow, o.still_speed,
-                                     o.slow_speed if o.slow_reach > 0 and f.shape[0] > 1 else None)
+        slow_class = o.slow_reach > 0 and f.shape[0] > 1
+        still, slow = _speed_classes(field_.flow, o.still_speed, o.slow_speed if slow_class else None)
         if skip is not None:  # outside the kept range nothing is gathered
             slow[skip] = False
         if fixed is None:  # the fixed-tensor result: the guide of the slow voxels, and where not still
@@ -582,6 +582,10 @@ def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: 
         if loo is not None and np.isfinite(loo).any():
             # Where nc with edge-following kernels predicts the samples better than the gather, it takes
             # over (local_choice); oriented by the high-TR reconstruction, at the gathered voxels alone.
+            if not (o.slow_speed is not None and o.slow_speed >= lc.STILL_VOXEL_SPEED and slow_class):
+                # Gathered voxels slower than that exist (with the slow class on, every gathered voxel is faster than
+                # `slow_speed`): at them the pixel's own sample scores the gather (local_choice.still_voxel_loo).
+                lc.still_voxel_loo(loo, video, f, gathered, mask, field_.flow, K)
             other, other_loo = oriented_nc(f, code, high_tr, where=gathered, fallback=video, missing=missing,
                                            out=spare)
             lc.blend(video, other, lc.local_weights(loo, other_loo, f), gathered, K)

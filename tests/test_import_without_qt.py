@@ -165,6 +165,20 @@ def test_the_package_names_resolve_when_asked_for():
     assert out.stdout.strip() == "ok"
 
 
+def test_the_names_type_checkers_see_are_the_lazy_ones():
+    # flexvox_core lists its names three times (the lazy table, __all__ for linters, a TYPE_CHECKING block for
+    # editors): the block must import exactly the table's names from the table's modules.
+    import ast
+    from pathlib import Path
+
+    import flexvox_core
+
+    tree = ast.parse(Path(flexvox_core.__file__).read_text())
+    (block,) = [n for n in tree.body if isinstance(n, ast.If) and ast.unparse(n.test) == "TYPE_CHECKING"]
+    seen = {a.name: node.module for node in block.body for a in node.names}
+    assert seen == flexvox_core._WHERE
+
+
 def test_the_blocker_really_blocks_qt():
     # The guards above must fail if a module did import Qt.
     script = CORE.replace("import flexvox_core, rig_drivers, calibration", "import PySide6")

@@ -3,6 +3,8 @@ with axes t, y, x and the right time step; older stores and recordings still rea
 the frame interval."""
 
 import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -32,6 +34,48 @@ def _scales(multiscale):
 
 def _axes(multiscale):
     return [(a.name, a.type, a.unit) for a in multiscale.axes]
+
+
+def _attrs_through_the_models(dataset, *, time_step, levels=0, name=None):
+    """The ``ome`` block built through ome-zarr-models' pydantic models, which refuse what NGFF does not allow."""
+    from ome_zarr_models.v05.axes import Axis
+    from ome_zarr_models.v05.image import ImageAttrs
+    from ome_zarr_models.v05.multiscales import Dataset, Multiscale
+
+    axes = [Axis(name="t", type="time", unit="second" if time_step is not None else None),
+            Axis(name="y", type="space"), Axis(name="x", type="space")]
+    datasets = [Dataset.build(path=ngff.level_path(dataset, i), scale=[time_step or 1.0, 2.0 ** i, 2.0 ** i],
+                              translation=[0.0, (2 ** i - 1) / 2, (2 ** i - 1) / 2] if i else None)
+                for i in range(levels + 1)]
+    multiscale = Multiscale(axes=axes, datasets=datasets, name=name or dataset, type="local_mean" if levels else None)
+    return ImageAttrs(version=ngff.NGFF_VERSION, multiscales=[multiscale]).model_dump(mode="json", exclude_none=True)
+
+
+@pytest.mark.parametrize("dataset, time_step, levels, name", [
+    ("video", 1 / 240, 0, None), ("video", 1 / 240, 3, None), ("video", None, 0, None), ("video", None, 2, "v"),
+    ("frames", 1 / 15, 0, "frames"), ("frames", None, 0, "frames"), ("video", 0.5, np.int64(1), None)])
+def test_the_ome_block_equals_what_ome_zarr_models_builds(dataset, time_step, levels, name):
+    """Writing builds the block as a plain dict (no pydantic at run time): it must be the models' own, every form."""
+    ours = ngff.image_attrs(dataset, time_step=time_step, levels=levels, name=name)
+    assert ours == _attrs_through_the_models(dataset, time_step=time_step, levels=int(levels), name=name)
+    assert json.loads(json.dumps(ours)) == ours  # plain JSON types only
+
+
+@pytest.mark.parametrize("levels", [-1, True, 1.5, "2"])
+def test_the_ome_block_refuses_bad_levels(levels):
+    with pytest.raises(ValueError, match=r"the pyramid levels must be a whole number >= 0; got"):
+        ngff.image_attrs("video", time_step=None, levels=levels)
+
+
+def test_writing_an_image_does_not_import_pydantic(tmp_path):
+    """The models are for checking (the tests, ``validate_image``); a writer never loads them."""
+    code = ("import sys, numpy as np\n"
+            "from flexvox_core.video_io import write_video\n"
+            f"write_video({str(tmp_path / 'v.zarr')!r}, np.zeros((2, 4, 4), np.float32), time_step=0.01, pyramid=1)\n"
+            "print(sorted(m for m in sys.modules if m.split('.')[0] in ('pydantic', 'ome_zarr_models')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+    ngff.validate_image(tmp_path / "v.zarr")
 
 
 @pytest.fixture

@@ -152,16 +152,24 @@ def validate_image(store):
     """Check the OME-Zarr image at ``store`` (a path or a zarr group) against NGFF 0.5; return its model.
 
     Uses ome-zarr-models' ``Image.from_zarr`` (axes, coordinate transformations, datasets that exist
-    with matching dimensions and ``dimension_names``).
+    with matching dimensions and ``dimension_names``): a checking tool, installed with the ``test`` extra
+    (writing an image does not need it).
 
     Raises
     ------
     ValueError
         Naming the store and what NGFF refuses in it.
+    ImportError
+        ome-zarr-models is not installed (with what to install).
     """
-    import pydantic
     import zarr
-    from ome_zarr_models.v05.image import Image
+
+    try:
+        import pydantic
+        from ome_zarr_models.v05.image import Image
+    except ImportError as exc:
+        raise ImportError(f"checking an OME-Zarr image needs ome-zarr-models ({exc}); install it with "
+                          "`pip install ome-zarr-models` or the test extra, `pip install 'flexvox[test]'`") from None
 
     group = zarr.open_group(str(store), mode="r") if isinstance(store, str | Path) else store
     try:

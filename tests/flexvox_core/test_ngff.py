@@ -67,6 +67,13 @@ def test_the_ome_block_refuses_bad_levels(levels):
         ngff.image_attrs("video", time_step=None, levels=levels)
 
 
+def test_the_validator_without_ome_zarr_models_says_what_to_install(tmp_path, monkeypatch):
+    write_video(tmp_path / "v.zarr", np.zeros((2, 4, 4), np.float32))
+    monkeypatch.setitem(sys.modules, "ome_zarr_models.v05.image", None)  # as if it were not installed
+    with pytest.raises(ImportError, match=r"needs ome-zarr-models .*pip install 'flexvox\[test\]'"):
+        ngff.validate_image(tmp_path / "v.zarr")
+
+
 def test_writing_an_image_does_not_import_pydantic(tmp_path):
     """The models are for checking (the tests, ``validate_image``); a writer never loads them."""
     code = ("import sys, numpy as np\n"

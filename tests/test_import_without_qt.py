@@ -3,7 +3,8 @@
 ``pip install flexvox`` installs no Qt (PySide6 and pyqtgraph are the ``gui`` extra), so every module a
 batch worker or a headless reconstruction loads must import with Qt absent. Each test runs a child
 interpreter whose import system refuses PySide6, shiboken6, pyqtgraph (and PyQt, qtpy) — as if they were
-not installed — and checks that none of them was loaded.
+not installed — and checks that none of them was loaded. ome-zarr-models and its pydantic are the ``test``
+extra's (they check the NGFF metadata in the tests): they are refused in the same way.
 """
 
 import subprocess
@@ -16,16 +17,19 @@ BLOCK_QT = textwrap.dedent(
 
     class BlockQt(importlib.abc.MetaPathFinder):
         BLOCKED = ("PySide6", "PyQt5", "PyQt6", "shiboken6", "pyqtgraph", "qtpy")
+        TEST_EXTRA = ("pydantic", "pydantic_core", "pydantic_zarr", "ome_zarr_models")
 
         def find_spec(self, name, path=None, target=None):
             if name.split(".")[0] in self.BLOCKED:
                 raise ImportError(f"Qt is blocked in this test: {name}")
+            if name.split(".")[0] in self.TEST_EXTRA:
+                raise ImportError(f"the test extra is blocked in this test: {name}")
             return None
 
     sys.meta_path.insert(0, BlockQt())
 
     def no_qt_loaded():
-        loaded = [m for m in sys.modules if m.split(".")[0] in BlockQt.BLOCKED]
+        loaded = [m for m in sys.modules if m.split(".")[0] in BlockQt.BLOCKED + BlockQt.TEST_EXTRA]
         assert not loaded, loaded
     """
 )

@@ -58,16 +58,19 @@ def main(argv: list[str] | None = None) -> int:
 def console() -> int:
     """The ``flexvox`` console script: :func:`main`, then a quick exit.
 
-    When the command has finished (its outputs written and closed, its threads joined) the objects it
-    made are handed to the garbage collector's permanent generation (``gc.freeze``). The interpreter's
-    exit then skips collecting them one by one — 0.14 s of every reconstruction's exit went to tracing the
-    objects numba, zarr and their kind leave behind — and the operating system takes the memory back with
-    the process. Standard streams are still flushed and ``atexit`` handlers still run. Only the console
-    script does this: :func:`main` called in a process that goes on (the tests) leaves the collector alone.
+    When the command has finished (its outputs written and closed), one collection frees what it left
+    unreachable (so every finalizer runs as it would at exit), and what is still alive is handed to the
+    garbage collector's permanent generation (``gc.freeze``). The interpreter's exit then does not trace
+    those objects one by one — 0.11–0.14 s of every reconstruction's exit went to tracing what numba, zarr
+    and their kind leave behind; the collection costs about 0.03 s — and the operating system takes the
+    memory back with the process. Standard streams are still flushed and ``atexit`` handlers (and
+    ``weakref.finalize`` callbacks) still run. Only the console script does this: :func:`main` called in a
+    process that goes on (the tests) leaves the collector alone.
     """
     import gc
 
     status = main()
+    gc.collect()
     gc.freeze()
     return status
 

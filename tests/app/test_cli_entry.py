@@ -17,12 +17,13 @@ import app.cli.main as cli_main
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def test_the_console_script_freezes_the_collector_only_after_the_command(monkeypatch):
+def test_the_console_script_collects_then_freezes_only_after_the_command(monkeypatch):
     calls = []
     monkeypatch.setattr(cli_main, "main", lambda: calls.append("main") or 3)
+    monkeypatch.setattr(gc, "collect", lambda: calls.append("collect"))
     monkeypatch.setattr(gc, "freeze", lambda: calls.append("freeze"))
     assert cli_main.console() == 3
-    assert calls == ["main", "freeze"]
+    assert calls == ["main", "collect", "freeze"]
 
 
 def test_main_itself_leaves_the_collector_alone(capsys):
@@ -39,7 +40,7 @@ def test_the_installed_script_is_the_console_entry():
 
 def test_a_reconstruction_through_the_console_entry_is_complete(tmp_path):
     """Simulate and reconstruct in real processes (``python -m app.cli.main``: the console entry): every line
-    is printed, the output is whole, and an atexit handler still runs."""
+    is printed and the output is whole; and what the quick exit must keep, it keeps."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     rec, out = tmp_path / "r.zarr", tmp_path / "o.zarr"
 
@@ -54,8 +55,17 @@ def test_a_reconstruction_through_the_console_entry_is_complete(tmp_path):
     assert "PSNR vs ground truth" in proc.stdout
     video = zarr.open_group(str(out), mode="r")["video"][:]
     assert video.shape == (48, 24, 32) and np.isfinite(video).all()
-    code = ("import atexit, sys\nimport app.cli.main as m\n"
-            f"atexit.register(lambda: open({str(tmp_path / 'atexit')!r}, 'w').write('ran'))\n"
-            "sys.argv = ['flexvox', 'scenes']\nsys.exit(m.console())")
+    # In a real process: the collector is frozen at exit, atexit handlers still run, and an object the command
+    # left in a reference cycle is still finalized (its __del__ writes a file).
+    code = ("import atexit, gc, sys\nimport app.cli.main as m\n"
+            "class Canary:\n"
+            f"    def __del__(self): open({str(tmp_path / 'finalized')!r}, 'w').write('yes')\n"
+            "def command():\n"
+            "    c = Canary(); c.me = c\n"  # a cycle: only a collection frees it
+            "    return 0\n"
+            "m.main = command\n"
+            f"atexit.register(lambda: open({str(tmp_path / 'atexit')!r}, 'w').write(str(gc.get_freeze_count())))\n"
+            "sys.exit(m.console())")
     assert subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True).returncode == 0
-    assert (tmp_path / "atexit").read_text() == "ran"
+    assert int((tmp_path / "atexit").read_text()) > 0
+    assert (tmp_path / "finalized").read_text() == "yes"

@@ -56,8 +56,12 @@ def _attrs_through_the_models(dataset, *, time_step, levels=0, name=None):
     ("frames", 1 / 15, 0, "frames"), ("frames", None, 0, "frames"), ("video", 0.5, np.int64(1), None)])
 def test_the_ome_block_equals_what_ome_zarr_models_builds(dataset, time_step, levels, name):
     """Writing builds the block as a plain dict (no pydantic at run time): it must be the models' own, every form."""
+    from ome_zarr_models.v05.image import ImageAttrs
+
     ours = ngff.image_attrs(dataset, time_step=time_step, levels=levels, name=name)
     assert ours == _attrs_through_the_models(dataset, time_step=time_step, levels=int(levels), name=name)
+    # and on its own terms: the models take the dict as it is and give it back unchanged
+    assert ImageAttrs.model_validate(ours).model_dump(mode="json", exclude_none=True) == ours
     assert json.loads(json.dumps(ours)) == ours  # plain JSON types only
 
 

@@ -74,7 +74,7 @@ def image_attrs(dataset: str, *, time_step: float | None, levels: int = 0, name:
     A plain dict, in the form ome-zarr-models' pydantic models (``Axis``, ``Dataset``, ``Multiscale``,
     ``ImageAttrs``) dump: the tests build the same block through those models for every form this
     function writes and check the two are equal, and validate every image flexvox writes. Building it
-    through the models at run time cost every writer 0.15 s of importing pydantic and 0.05 s more at exit.
+    through the models at run time cost every writer 0.15 s of importing pydantic.
     """
     step = check_time_step(time_step)
     if isinstance(levels, bool) or not isinstance(levels, int | np.integer) or levels < 0:

@@ -40,6 +40,7 @@ import cv2
 import numpy as np
 
 from flexvox_core.motion.subframes import flow_at
+from flexvox_core.threads import for_each
 
 SIGMA_SHARE = 1 / 16
 """Spatial standard deviation over which the leave-one-out errors are pooled, as a share of the picture's
@@ -142,17 +143,20 @@ def still_voxel_loo(loo: np.ndarray, video: np.ndarray, samples: np.ndarray, gat
     count = np.zeros((F, H * W), np.float32)  # gathered voxels without a sample, per frame and pixel
     slow = np.zeros((F, H * W), np.float32)  # of them slower than `speed`
     seen = np.zeros((F, H * W), np.float32)  # their summed (v - y)²
-    for t in range(F * K):
-        idx = np.flatnonzero(gathered[t] & ~mask[t])
-        if not len(idx):
-            continue
-        f = t // K
-        count[f, idx] += 1
-        u, v = flow_at(flow[t], idx)
-        idx = idx[u * u + v * v < limit]
-        if len(idx):
-            slow[f, idx] += 1
-            seen[f, idx] += (video[t].reshape(-1)[idx] - samples[f].reshape(-1)[idx]) ** 2
+
+    def frame(f):  # a frame's sub-frames add into its own rows alone: the frames run side by side, the same sums
+        for t in range(f * K, (f + 1) * K):
+            idx = np.flatnonzero(gathered[t] & ~mask[t])
+            if not len(idx):
+                continue
+            count[f, idx] += 1
+            u, v = flow_at(flow[t], idx)
+            idx = idx[u * u + v * v < limit]
+            if len(idx):
+                slow[f, idx] += 1
+                seen[f, idx] += (video[t].reshape(-1)[idx] - samples[f].reshape(-1)[idx]) ** 2
+
+    for_each(frame, F)
     flat = loo.reshape(F, -1)
     y = np.asarray(samples, np.float32).reshape(F, -1)
     use = (slow > 0) & np.isfinite(flat)

@@ -124,6 +124,47 @@ def test_a_still_voxel_scores_the_gather_against_its_own_sample():
         np.testing.assert_allclose((loo[0, r, c] - y[r, c]) ** 2, expected, rtol=1e-5)
 
 
+def _still_voxel_loo_serial(loo, video, samples, gathered, mask, flow, K, speed=0.15):
+    """still_voxel_loo as one loop over the sub-frames in order (the form it had before its frames ran side by side)."""
+    F, H, W = loo.shape
+    count, slow, seen = (np.zeros((F, H * W), np.float32) for _ in range(3))
+    for t in range(F * K):
+        idx = np.flatnonzero(gathered[t] & ~mask[t])
+        f = t // K
+        count[f, idx] += 1
+        u, v = flow[t].reshape(-1, 2)[idx].T
+        idx = idx[u * u + v * v < np.float32(speed) ** 2]
+        slow[f, idx] += 1
+        seen[f, idx] += (video[t].reshape(-1)[idx] - samples[f].reshape(-1)[idx]) ** 2
+    flat, y = loo.reshape(F, -1), samples.reshape(F, -1)
+    use = (slow > 0) & np.isfinite(flat)
+    err = (seen + (count - slow) * (flat - y) ** 2) / np.maximum(count, 1)
+    np.copyto(flat, y + np.sqrt(err, dtype=np.float32), where=use)
+
+
+@pytest.mark.parametrize("threads", [1, 2, 8])
+def test_still_voxel_loo_gives_the_serial_loops_bits_on_any_number_of_threads(monkeypatch, threads):
+    import flexvox_core.threads
+
+    monkeypatch.setattr(flexvox_core.threads, "workers", lambda: threads)
+    rng = np.random.default_rng(11)
+    K, F, H, W = 8, 5, 12, 16
+    frames = rng.uniform(0.1, 0.9, (F, H, W)).astype(np.float32)
+    mask = sample_mask((F * K, H, W), CODE)
+    video = np.where(mask, sparse_volume(frames, CODE), rng.uniform(0.1, 0.9, mask.shape)).astype(np.float32)
+    gathered = rng.random(mask.shape) < 0.7
+    flow = rng.normal(0, 0.2, (*mask.shape, 2)).astype(np.float32)  # every frame: some voxels below 0.15 px
+    loo = rng.uniform(0.1, 0.9, frames.shape).astype(np.float32)
+    loo[rng.random(loo.shape) < 0.1] = np.nan
+    expected, got = loo.copy(), loo.copy()
+    _still_voxel_loo_serial(expected, video, frames, gathered, mask, flow, K)
+    still_voxel_loo(got, video, frames, gathered, mask, flow, K)
+    assert not np.array_equal(expected, loo, equal_nan=True)  # the correction changed something
+    for f in range(F):  # in every frame
+        assert not np.array_equal(expected[f], loo[f], equal_nan=True)
+    np.testing.assert_array_equal(got.view(np.uint32), expected.view(np.uint32))
+
+
 def test_the_fan_at_k8_gains_where_isotropic_nc_predicts_better():
     from flexvox_core.simulate.scenes import render_scene
 

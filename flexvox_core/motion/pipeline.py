@@ -496,10 +496,13 @@ def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: 
     # The gathers run over the kept sub-frames and as far around them as the refinement reads.
     g0, g1 = max(0, s0 - o.refine_reach(K)), min(S, s1 + o.refine_reach(K))
     skip = None
-    # A second pass's flow, and the bridging of a dropped frame, read the whole window's result.
+    # A second pass's flow, and the bridging of a dropped frame, read the whole window's result: then the whole
+    # window is gathered and refined, and cut at the end.
     if (g0, g1) != (0, S) and o.passes == 1 and missing is None:
         skip = np.ones(S, bool)
         skip[g0:g1] = False
+    else:
+        g0, g1 = 0, S
     flow_scale = auto_flow_scale(*f.shape[1:]) if o.flow_scale is None else o.flow_scale
     seconds = {"high_tr": 0.0, "flow": 0.0, "diffusion": 0.0}
     t0 = _now()

@@ -230,6 +230,12 @@ class StreamingMotionAware:
     def _forget(self) -> None:
         # Keep what the next window can reach back to (across dropped frames too).
         keep_from = self._left(self._next)
+        if self._next >= self._pushed:
+            # The next frame is still coming (`skip_to` the newest): if the camera drops it, its window reaches
+            # back past it to the newest captured frame, which `_left` (counting it as captured) would not keep.
+            captured = [i for i, r in self._frames.items() if i < self._next and r is not None]
+            if captured:
+                keep_from = min(keep_from, max(captured))
         for i in [i for i in self._frames if i < keep_from]:
             del self._frames[i]
 

@@ -10,7 +10,7 @@ from flexvox_core.forward import capture
 from flexvox_core.gaps import GapTooLongError
 from flexvox_core.metrics import psnr
 from flexvox_core.motion import motion_aware
-from flexvox_core.motion.pipeline import MotionOptions, gated_flow
+from flexvox_core.motion.pipeline import MotionOptions, gated_flow, run_window
 from flexvox_core.motion.streaming import StreamingMotionAware
 from flexvox_core.simulate.scenes import render_scene
 
@@ -108,6 +108,33 @@ def test_back_zero_reaches_back_only_across_a_dropped_frame(balls):
         out += stream.push(None if i == 2 else frame)
     out += stream.finish()
     assert [o.window for o in out] == [(0, 2), (1, 4), (1, 4), (3, 5), (4, 5)]
+
+
+def test_back_zero_skip_to_the_newest_keeps_what_a_dropped_frame_reaches_back_to(balls):
+    # A preview that fell behind skips to the newest frame; when the camera then drops it, its window reaches
+    # back past it to the last captured frame, which the skip must not have forgotten.
+    _, frames = balls
+    stream = StreamingMotionAware(CODE, back=0)
+    stream.push(frames[0])
+    stream.skip_to(1)
+    assert stream.push(None) == []
+    out = stream.push(frames[2])
+    assert [(o.index, o.window, o.interpolated) for o in out] == [(1, (0, 3), True)]
+    assert np.isfinite(out[0].video).all()
+
+
+@pytest.mark.parametrize("case", ["a second pass", "a dropped frame"])
+def test_a_kept_range_is_the_whole_windows_run_with_a_second_pass_or_a_dropped_frame(balls, case):
+    # Then everything is gathered and refined, and cut at the end: the same values as the whole run's.
+    _, frames = balls
+    f = np.asarray(frames[1:4], np.float32).copy()
+    options = MotionOptions(passes=2) if case == "a second pass" else MotionOptions()
+    missing = None if case == "a second pass" else np.array([False, True, False])
+    if missing is not None:
+        f[missing] = 0
+    whole = run_window(f, CODE, options, (0.0, 1.0), missing=missing).video[K:2 * K]
+    kept = run_window(f, CODE, options, (0.0, 1.0), missing=missing, keep=(K, 2 * K)).video
+    np.testing.assert_allclose(kept, whole, rtol=0, atol=1e-5)
 
 
 def test_a_stream_of_dropped_frames_only_is_refused():

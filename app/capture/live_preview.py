@@ -219,9 +219,10 @@ class PreviewReconstructor:
     run that showed the newest frame would see only its past), over the window of the newest
     consecutive frames. Between runs the stream keeps the frames and the flow of every pair of
     sub-frames it measured: when the preview keeps up with the camera, each run pushes one new frame
-    and reuses the rest. A change of code or region, a gap in the frames, or a run that fell behind by
-    more than the window starts a new stream. ``nc`` keeps no state and shows the newest frame.
-    The runs of one reconstructor must not overlap (the live preview runs one at a time).
+    and reuses the rest. A change of code or region, a gap in the frames, a run that fell behind by
+    more than the window, or frames brighter than the stream's scale (:func:`_full_scale`) starts a new
+    stream. ``nc`` keeps no state and shows the newest frame. The runs of one reconstructor must not
+    overlap (the live preview runs one at a time).
     """
 
     def __init__(self):
@@ -237,10 +238,11 @@ class PreviewReconstructor:
         ``frames`` (consecutive Frames, oldest first) at full resolution.
 
         ``code`` is the capture's identity code (m, n, K) or its :class:`~flexvox_core.multiplex.MultiplexedCode`
-        (demultiplexed over the whole frame first, then cropped). A region's corner must lie on the tile grid
-        (:func:`preview_region` places it so): the crop is then a capture of the same code. Frames are taken
-        to [0, 1] (:func:`normalise`; float frames above 1, a camera's counts, by :func:`_full_scale`) and
-        clipped there (a noisy demultiplex leaves it a little): a preview never stops on its input's range.
+        (demultiplexed over the whole frame first, then cropped). A region must be a non-empty part of the
+        frame and its corner must lie on the tile grid (:func:`preview_region` places it so): the crop is then
+        a capture of the same code. Frames are taken to [0, 1] (:func:`normalise`; float frames above 1, a
+        camera's counts, by :func:`_full_scale`) and clipped there (a noisy demultiplex leaves it a little): a
+        preview never stops on its input's range.
         """
         from flexvox_core.reconstruct import diffuse, prepare
 
@@ -252,6 +254,9 @@ class PreviewReconstructor:
         stack = np.stack([normalise(f.image) for f in frames])
         H, W = stack.shape[1:]
         region = Region(0, H, 0, W) if region is None else region
+        if not (0 <= region.y0 < region.y1 <= H and 0 <= region.x0 < region.x1 <= W):
+            raise ValueError(f"a preview region must be a non-empty part of the {H}x{W} frame "
+                             f"(0 <= y0 < y1 <= {H}, 0 <= x0 < x1 <= {W}); got {region}")
         if isinstance(code, np.ndarray):
             m, n = code.shape[:2]
             if region.y0 % m or region.x0 % n:
@@ -267,8 +272,11 @@ class PreviewReconstructor:
             stack = np.ascontiguousarray(stack / _full_scale(stack), np.float32)
             video, shown, n_frames = diffuse(stack, identity)[-K:], ids[-1], len(frames)
         else:
-            if self._stream is None or key != self._key:
-                self._scale = _full_scale(stack)  # one scale for the stream's life: its samples' range is fixed
+            scale = _full_scale(stack)
+            if self._stream is None or key != self._key or scale > self._scale:
+                # One scale for the stream's life (its samples' range is fixed): brighter frames than the stream
+                # began with (a float camera's counts rising past its first power of two) start a new one.
+                self._scale, self._stream = scale, None
             stack = np.ascontiguousarray(np.clip(stack / self._scale, 0.0, 1.0), np.float32)
             video, shown, n_frames = self._motion_aware(stack, identity, ids, key)
         video = np.clip(video, 0.0, 1.0).astype(np.float32, copy=False)

@@ -27,6 +27,7 @@ demultiplexed first (:func:`flexvox_core.reconstruct.prepare`).
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections import OrderedDict, deque
 
@@ -44,6 +45,7 @@ from app.capture.live_preview import (
     preview_region,
 )
 from app.gui.widgets.qt_jobs import JobRunner
+from flexvox_core.numbers import positive_number
 
 _logger = logging.getLogger(__name__)
 
@@ -81,8 +83,11 @@ class LivePreview(QObject):
     def __init__(self, parent: QObject | None = None, *, n_frames: int = PREVIEW_FRAMES, max_pixels: int = START_PIXELS,
                  budget_s: float = BUDGET_S, rest_fraction: float = REST_FRACTION):
         super().__init__(parent)
-        if rest_fraction < 0:
-            raise ValueError(f"`rest_fraction` must be >= 0; got {rest_fraction}")
+        if not (isinstance(rest_fraction, int | float) and math.isfinite(rest_fraction) and rest_fraction >= 0):
+            raise ValueError(f"`rest_fraction` must be a finite number >= 0; got {rest_fraction!r}")
+        budget_s = positive_number("`budget_s`", budget_s, unit="seconds")
+        if not positive_number("`max_pixels`", max_pixels) >= 1:
+            raise ValueError(f"`max_pixels` must be at least 1; got {max_pixels!r}")
         pool = QThreadPool(self)
         pool.setMaxThreadCount(1)
         self.runner = JobRunner(pool, parent=self)

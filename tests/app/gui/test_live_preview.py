@@ -187,6 +187,40 @@ def test_a_float_camera_in_counts_is_previewed_not_refused():
     np.testing.assert_allclose(alone.video, 0.5, atol=0.02)
 
 
+def test_a_float_camera_brightening_past_its_first_scale_is_not_clipped_white():
+    # The stream's scale is fixed by its first frames (100 counts -> 128); frames of 200 counts later start a
+    # new stream at 256, as a fresh run would show them, instead of saturating at 1 for the stream's life.
+    code = design_code((2, 4)).code
+    counts = [100.0] * 3 + [200.0] * 6
+    frames = [Frame(np.full((32, 32), c, np.float32), frame_id=i, timestamp_s=i / 15) for i, c in enumerate(counts)]
+    rec = PreviewReconstructor()
+    for k in range(len(frames) - 2):
+        run = frames[k:k + 3]
+        got = rec.run(run, code)
+        np.testing.assert_allclose(got.video.mean(), reconstruct_preview(run, code).video.mean(), atol=0.02)
+    np.testing.assert_allclose(got.video, 200 / 256, atol=0.02)
+
+
+@pytest.mark.parametrize("region", [Region(0, 100, 0, 100), Region(-4, 44, 0, 64), Region(8, 8, 0, 64),
+                                    Region(16, 8, 0, 64)])
+def test_a_region_outside_the_frame_is_refused_naming_it(region):
+    with pytest.raises(ValueError, match=r"a preview region must be a non-empty part of the 48x64 frame "
+                                         r"\(0 <= y0 < y1 <= 48, 0 <= x0 < x1 <= 64\); got Region\("):
+        reconstruct_preview([_frame(i) for i in range(3)], design_code((2, 4)).code, region)
+
+
+@pytest.mark.parametrize(("kw", "message"), [
+    ({"budget_s": 0.0}, r"`budget_s` must be a positive finite number of seconds; got 0.0"),
+    ({"budget_s": float("nan")}, r"`budget_s` must be a positive finite number of seconds; got nan"),
+    ({"max_pixels": 0}, r"`max_pixels` must be a positive finite number; got 0"),
+    ({"max_pixels": 0.5}, r"`max_pixels` must be at least 1; got 0.5"),
+    ({"rest_fraction": -1.0}, r"`rest_fraction` must be a finite number >= 0; got -1.0"),
+])
+def test_bad_preview_settings_are_refused_when_made(qtbot, kw, message):
+    with pytest.raises(ValueError, match=message):
+        LivePreview(**kw)
+
+
 @pytest.fixture
 def capture(qtbot, settings, runner):
     service = RigService(small_rig())

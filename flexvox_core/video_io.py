@@ -58,7 +58,8 @@ def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, ov
     check_output(path, overwrite=overwrite, hint="choose another path or allow overwriting")
     with atomic_output(path, overwrite=overwrite) as tmp:
         if suffix == ".npy":
-            np.save(tmp, v)
+            with open(tmp, "wb") as fh:  # a file, not a name: np.save would add ".npy" to "OUT.NPY"'s temporary
+                np.save(fh, v)
         elif suffix in (".tif", ".tiff"):
             import tifffile
 

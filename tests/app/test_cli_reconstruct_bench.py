@@ -18,12 +18,14 @@ def recording(tmp_path, capsys):
     return path
 
 
-@pytest.mark.parametrize("suffix", [".npy", ".tif", ".mp4", ".zarr"])
+@pytest.mark.parametrize("suffix", [".npy", ".tif", ".mp4", ".zarr", ".NPY", ".TIF", ".ZARR"])
 def test_reconstruct_writes_every_format(recording, tmp_path, capsys, suffix):
     out = tmp_path / f"out{suffix}"
-    assert main(["reconstruct", str(recording), "-o", str(out)]) == 0
+    assert main(["reconstruct", str(recording), "--method", "diffusion", "-o", str(out)]) == 0
     text = capsys.readouterr().out
     assert "PSNR vs ground truth" in text and out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(["r.zarr", out.name])  # no temporary left behind
+    suffix = suffix.lower()
     if suffix == ".npy":
         video = np.load(out)
     elif suffix == ".tif":

@@ -87,6 +87,10 @@ class _Source:
     def __init__(self, rec, what: str, args):
         self.rec = rec
         self.what = what
+        self.interpolated = None
+        """(S,) bool for a reconstruction: the sub-frames filled across dropped frames."""
+        self.attrs = {"source": str(rec.path), "what": what}
+        self.gaps_line = ""
         if what == "frames":
             self.array = rec.frames
             self.dtype = np.dtype(rec.frames.dtype)
@@ -103,9 +107,17 @@ class _Source:
             try:
                 reader = CaptureReader(rec)
                 method = method_from_args(args, rec.attrs["tile"])
-                self.array = reader.run(method, chunk_frames=args.chunk).video
+                result = reader.run(method, chunk_frames=args.chunk)
             except ValueError as exc:  # RecordingError and NotReconstructableError are ValueErrors
                 raise CliError(str(exc)) from None
+            self.array = result.video
+            # As `flexvox reconstruct` records them: the method and the sub-frames filled across dropped frames.
+            self.interpolated = result.interpolated
+            self.attrs["method"] = method.as_dict()
+            if reader.missing is not None:
+                from app.cli.reconstruct import interpolated_line
+
+                self.gaps_line = interpolated_line(reader.gaps(), reader.K)
             self.dtype = np.dtype(np.float32)
             self.rate = rec.attrs["rates"]["subframe_hz"]
         self.shape = tuple(self.array.shape)
@@ -148,8 +160,7 @@ def _write(out: Path, src: _Source, fps: float, pyramid: int = 0) -> None:
         from flexvox_core.video_io import write_video
 
         write_video(out, np.stack([src.unit(i) for i in range(n)]) if n else np.zeros((0, *src.shape[1:])),
-                    attrs={"source": str(src.rec.path), "what": src.what}, time_step=1.0 / src.rate,
-                    pyramid=pyramid)
+                    attrs=src.attrs, time_step=1.0 / src.rate, pyramid=pyramid, interpolated=src.interpolated)
     else:
         import cv2
 
@@ -194,5 +205,7 @@ def run(args) -> int:
         raise CliError(f"{exc}; {out} was not written") from None
     except OSError as exc:
         raise CliError(f"cannot write {out}: {exc.strerror or exc}; nothing was replaced") from None
+    if src.gaps_line:
+        print(src.gaps_line)
     print(f"wrote {args.what} ({src.shape[0]} x {src.shape[1]}x{src.shape[2]} {src.dtype}) to {out}")
     return EXIT_OK

@@ -86,6 +86,14 @@ def test_reconstruct_bridges_dropped_frames_and_says_which(tmp_path, capsys):
     assert main(["batch", str(path), "-o", str(tmp_path / "b.zarr"), "--chunk", "2"]) == 0
     assert described in capsys.readouterr().out
     np.testing.assert_array_equal(zarr.open_group(str(tmp_path / "b.zarr"))["video"][:], store["video"][:])
+    # export keeps the same record: the line, the flags and the method
+    assert main(["export", str(path), "--what", "reconstruction", "-o", str(tmp_path / "e.zarr")]) == 0
+    assert described in capsys.readouterr().out
+    exported = zarr.open_group(str(tmp_path / "e.zarr"), mode="r")
+    np.testing.assert_array_equal(exported["interpolated"][:], np.repeat(dropped, K))
+    assert exported.attrs["flexvox"]["interpolated_subframes"] == int(dropped.sum()) * K
+    assert exported.attrs["flexvox"]["method"] == store.attrs["flexvox"]["method"]
+    np.testing.assert_array_equal(exported["video"][:], store["video"][:])
 
 
 def test_reconstruct_refuses_a_gap_longer_than_the_method_bridges(tmp_path, capsys):

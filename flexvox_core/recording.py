@@ -81,6 +81,7 @@ from __future__ import annotations
 import datetime as _dt
 import errno
 import logging
+import math
 import os
 import struct
 import zlib
@@ -864,7 +865,10 @@ def open_recording(path) -> Recording:
     version = attrs.get("schema_version")
     if version is None:
         raise RecordingError(f"{path}: the recording has no schema_version; it was not written by flexvox")
-    if not isinstance(version, int) or version > SCHEMA_VERSION:
+    if isinstance(version, bool) or not isinstance(version, int) or version < 1:
+        raise RecordingError(f"{path}: schema version {version!r} is not a whole number >= 1; the recording's "
+                             "metadata is damaged")
+    if version > SCHEMA_VERSION:
         raise RecordingError(
             f"{path}: schema version {version!r} is newer than this software reads ({SCHEMA_VERSION}); "
             "update flexvox"
@@ -931,6 +935,7 @@ def validate_recording(rec: Recording) -> list[str]:
     m, n, K = code.shape
     if [m, n] != list(rec.attrs["tile"]) or K != rec.attrs["K"]:
         problems.append(f"code shape {code.shape} disagrees with tile {rec.attrs['tile']} and K {rec.attrs['K']}")
+    problems += _rate_problems(rec.attrs["rates"], K)
     # Each array looked up by name, never by listing the folder: a capture writing beside this reader renames
     # zarr's temporary metadata files into place, and a listing that meets one as it vanishes fails.
     needed = ("frames", *PER_FRAME) + (("frame_crc",) if rec.attrs["schema_version"] >= 2 else ())
@@ -961,6 +966,25 @@ def validate_recording(rec: Recording) -> list[str]:
         elif has_gt_crc and rec.group["ground_truth_crc"].shape != (gt[0],):
             problems.append(f"`ground_truth_crc` has {rec.group['ground_truth_crc'].shape[0]} entries for {gt[0]} "
                             "sub-frames")
+    return problems
+
+
+def _rate_problems(rates, K: int) -> list[str]:
+    """What is wrong with a recording's ``rates`` attribute: both rates finite numbers above 0, the sub-frame
+    rate K times the camera's (every time step and frame interval is read from them)."""
+    if not isinstance(rates, dict):
+        return [f"the `rates` attribute must be a mapping of camera_hz and subframe_hz; got {rates!r}"]
+    problems = []
+    values = {}
+    for name in ("camera_hz", "subframe_hz"):
+        value = rates.get(name)
+        if isinstance(value, bool) or not isinstance(value, int | float) or not (math.isfinite(value) and value > 0):
+            problems.append(f"rate `{name}` must be a finite number of Hz above 0; got {value!r}")
+        else:
+            values[name] = float(value)
+    if not problems and not math.isclose(values["subframe_hz"], values["camera_hz"] * K, rel_tol=1e-9):
+        problems.append(f"rate `subframe_hz` {values['subframe_hz']:g} is not K = {K} times `camera_hz` "
+                        f"{values['camera_hz']:g}")
     return problems
 
 

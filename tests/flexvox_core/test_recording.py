@@ -1,4 +1,5 @@
 import json
+import re
 
 import numpy as np
 import pytest
@@ -82,6 +83,30 @@ def test_schema_missing_or_newer(tmp_path, sim):
         open_recording(path)
     _edit_attrs(path, lambda a: a.pop("schema_version"))
     with pytest.raises(RecordingError, match=r"has no schema_version"):
+        open_recording(path)
+
+
+@pytest.mark.parametrize("version", ["2", 0, 1.5, True])
+def test_a_schema_version_that_is_no_whole_number_is_damage_not_the_future(tmp_path, sim, version):
+    path = write_simulation(tmp_path / "r.zarr", sim)
+    _edit_attrs(path, lambda a: a.update(schema_version=version))
+    with pytest.raises(RecordingError, match=rf"schema version {re.escape(repr(version))} is not a whole number >= 1"):
+        open_recording(path)
+
+
+@pytest.mark.parametrize(("rates", "message"), [
+    ({}, r"rate `camera_hz` must be a finite number of Hz above 0; got None; rate `subframe_hz` must be"),
+    ({"camera_hz": 0, "subframe_hz": 240.0}, r"rate `camera_hz` must be a finite number of Hz above 0; got 0"),
+    ({"camera_hz": -15.0, "subframe_hz": 240.0}, r"rate `camera_hz` must be a finite number of Hz above 0; got -15.0"),
+    ({"camera_hz": 15.0, "subframe_hz": "240"}, r"rate `subframe_hz` must be a finite number of Hz above 0; got '240'"),
+    ({"camera_hz": 15.0, "subframe_hz": 200.0}, r"rate `subframe_hz` 200 is not K = 16 times `camera_hz` 15"),
+    ([15.0, 60.0], r"the `rates` attribute must be a mapping of camera_hz and subframe_hz; got \[15.0, 60.0\]"),
+])
+def test_rates_that_no_time_step_can_come_from_are_damage(tmp_path, sim, rates, message):
+    # Every time step (a reconstruction's, a TIFF's frame interval) is read from them: refused when opened.
+    path = write_simulation(tmp_path / "r.zarr", sim)
+    _edit_attrs(path, lambda a: a.update(rates=rates))
+    with pytest.raises(RecordingError, match=message):
         open_recording(path)
 
 

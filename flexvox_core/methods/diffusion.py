@@ -11,7 +11,7 @@ from flexvox_core.codes import is_identity_code
 from flexvox_core.gaps import bridge
 from flexvox_core.methods.options import Option, choice, number
 from flexvox_core.methods.spec import MethodOutput, MethodSpec
-from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, SOLVERS, diffuse, sigmas
+from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, SOLVERS, check_tensor, diffuse, sigmas
 from flexvox_core.reconstruct.multiplexed import TIME_FRACTION, gap_gaussian
 
 _LABEL = re.compile(r"^diffusion (?P<solver>\w+) \((?P<tensor>[\d.,]+)\) n=(?P<time>[\d.]+)$")
@@ -19,7 +19,7 @@ _LABEL = re.compile(r"^diffusion (?P<solver>\w+) \((?P<tensor>[\d.,]+)\) n=(?P<t
 
 def _is_tensor(v) -> bool:
     try:
-        sigmas(v, 1.0)
+        check_tensor(v)  # the tensor alone: its blur with the time is `validate`'s
     except ValueError:
         return False
     return True

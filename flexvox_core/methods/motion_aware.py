@@ -18,7 +18,15 @@ from flexvox_core.methods.options import choice, flag, integer, number
 from flexvox_core.methods.spec import MethodOutput, MethodSpec
 from flexvox_core.motion import motion_aware, resolution_map
 from flexvox_core.motion.multiplexed import TIME_FRACTION, motion_aware_multiplexed
-from flexvox_core.motion.pipeline import DEFAULT_TIME, SLOW_REACH, MotionOptions, auto_flow_scale, gated_flow
+from flexvox_core.motion.pipeline import (
+    DEFAULT_TIME,
+    MAX_REFINE_TIME,
+    MAX_SLOW_REACH,
+    SLOW_REACH,
+    MotionOptions,
+    auto_flow_scale,
+    gated_flow,
+)
 
 REFINE_SHOWN = "(K/16)²"
 """What forms show for the default refinement time: it depends on the code (1 at K = 16, 0.5 at K = 8)."""
@@ -41,10 +49,12 @@ class MotionAware(MethodSpec):
         time_option(DEFAULT_TIME, (0.25, 20.0, 0.5)),
         integer("passes", 1, label="passes", help="flow re-estimated from the previous pass N-1 times",
                 span=(1, 4, 1)),
-        number("refine_time", None, rule="a number >= 0 or None ((K/16)²)", label="refinement time",
+        number("refine_time", None, maximum=MAX_REFINE_TIME,
+               rule=f"a number from 0 to {MAX_REFINE_TIME:.0f} or None ((K/16)²)", label="refinement time",
                help="time of the monotone diffusion along the trajectories after the gather (default (K/16)²: "
                     "1 at K = 16, 0.25 at K = 8; 0 for none)", span=(0.0, 10.0, 0.5), shown_default=REFINE_SHOWN),
-        number("slow_reach", None, rule="a number >= 0 (sampling periods) or None", label="slow-drift reach",
+        number("slow_reach", None, maximum=MAX_SLOW_REACH,
+               rule=f"a number from 0 to {MAX_SLOW_REACH:g} (sampling periods) or None", label="slow-drift reach",
                help="how far the slowly moving voxels' gather reaches along their trajectory, in sampling "
                     "periods each way (0: no long gather, faster where the whole picture drifts slowly)",
                span=(0.0, 4.0, 0.25), shown_default=SLOW_REACH),

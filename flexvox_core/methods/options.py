@@ -87,11 +87,11 @@ def _is_number(v) -> bool:
     return isinstance(v, Real) and not isinstance(v, bool) and math.isfinite(v)
 
 
-def number(name: str, default, *, minimum: float = 0.0, strict: bool = False, label: str = "", help: str = "",
-           span=None, shown_default=None, rule: str | None = None) -> Option:
-    """A finite real option ``>= minimum`` (``> minimum`` when ``strict``)."""
+def number(name: str, default, *, minimum: float = 0.0, strict: bool = False, maximum: float = math.inf,
+           label: str = "", help: str = "", span=None, shown_default=None, rule: str | None = None) -> Option:
+    """A finite real option ``>= minimum`` (``> minimum`` when ``strict``) and ``<= maximum``."""
     def accepts(v) -> bool:
-        return _is_number(v) and (v > minimum if strict else v >= minimum)
+        return _is_number(v) and (v > minimum if strict else v >= minimum) and v <= maximum
 
     words = rule or f"a finite number {'>' if strict else '>='} {minimum:g}"
     return Option(name, default, words, accepts, "number", label, help, (), span, shown_default)

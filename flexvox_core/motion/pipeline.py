@@ -44,7 +44,7 @@ from flexvox_core.motion.tensors import DEFAULT_C, check_c, resolution_map
 from flexvox_core.motion.vardiff import explicit_steps, variable_tensor_diffusion
 from flexvox_core.numbers import checked_number, number_pair
 from flexvox_core.reconstruct._common import check_frames, check_identity_code
-from flexvox_core.reconstruct.diffusion import diffuse, diffuse_where
+from flexvox_core.reconstruct.diffusion import MAX_EXPLICIT_STEPS, diffuse, diffuse_where, sigmas
 from flexvox_core.reconstruct.oriented_nc import oriented_nc
 from flexvox_core.threads import for_each
 
@@ -82,6 +82,11 @@ REFINE_C = (0.95, 0.0, 0.0)
 """Tensor eigenvalues of the refinement: along each voxel's trajectory only. A still voxel then
 diffuses in time alone, so a still scene stays exact; measured on `flexvox bench`'s groups against
 Eq. 4's (0.95, 0.05, 0.05): 25.03 against 25.07 dB at K = 16, the same elsewhere."""
+MAX_REFINE_TIME = MAX_EXPLICIT_STEPS / (2 * sum(REFINE_C))
+"""The longest refinement: the explicit solver's step limit (``time · 2·Σc`` steps)."""
+MAX_SLOW_REACH = 1000.0
+"""The slow voxels' longest reach, in sampling periods (1000 camera frames each way: longer than any clip
+previews or batches hold, and short of integer overflow)."""
 DEFAULT_GATE = (0.03, 0.15)
 PERIOD_GATE = (0.9, 1.5)
 """Second gate ramp (px per sub-frame) on the successive-sub-frame flow averaged over K sub-frames."""
@@ -416,13 +421,18 @@ class MotionOptions:
         if isinstance(passes, bool) or not isinstance(passes, int) or passes < 1:
             raise ValueError(f"`passes` must be a whole number >= 1; got {passes!r}")
         checked_number("time", self.time, "a finite number > 0", lambda v: v > 0)
-        checked_number("slow_reach", self.slow_reach, "a number >= 0 (sampling periods)", lambda v: v >= 0)
+        sigmas((self.c[2], self.c[1], self.c[0]), self.time)  # the guides' blur: within MAX_SIGMA
+        checked_number("slow_reach", self.slow_reach, f"a number from 0 to {MAX_SLOW_REACH:g} (sampling periods)",
+                       lambda v: 0 <= v <= MAX_SLOW_REACH)
         for name, rule, ok in (("refine_time", "a finite number >= 0", lambda v: v >= 0),
                                ("flow_scale", "in (0, 1] or None", lambda v: 0 < v <= 1),
                                ("still_speed", "a number >= 0 (px per sub-frame) or None", lambda v: v >= 0),
                                ("slow_speed", "a number >= 0 (px per sub-frame) or None", lambda v: v >= 0)):
             if getattr(self, name) is not None:
                 checked_number(name, getattr(self, name), rule, ok)
+        if self.refine_time is not None and float(self.refine_time) > MAX_REFINE_TIME:
+            raise ValueError(f"`refine_time` {self.refine_time!r} takes more than {MAX_EXPLICIT_STEPS} explicit steps "
+                             f"(time · 2·Σc, Σc = {sum(REFINE_C):g}); take a time of at most {MAX_REFINE_TIME:.0f}")
         try:
             lo, hi = (float(v) for v in self.gate)
         except (TypeError, ValueError):

@@ -88,6 +88,10 @@ _CHUNK = 16384  # columns per cv2 call for the time axis (a wide thin image filt
 PARALLEL_ENDS_TAPS = 49
 """Time kernels shorter than this blur the two ends of :class:`_PeriodicDenominator` on two threads."""
 
+MAX_SIGMA = 10000.0
+"""The largest blur (σ, pixels or sub-frames) a tensor and time may ask for: far beyond any recording's extent
+(the blur is then flat), and short of kernels that would not fit in memory (4 σ taps each side)."""
+
 MAX_EXPLICIT_STEPS = 20000
 """``explicit`` refuses runs longer than this many steps (``time · 2·Σc`` of them)."""
 
@@ -98,7 +102,7 @@ STEADY_MAXITER = 5000
 # --------------------------------------------------------------------------- validation
 
 
-def _check_tensor(tensor) -> tuple[float, float, float]:
+def check_tensor(tensor) -> tuple[float, float, float]:
     try:
         vals = tuple(float(v) for v in tensor)
     except (TypeError, ValueError):
@@ -124,9 +128,14 @@ def sigmas(tensor, time) -> tuple[float, float, float]:
     >>> sigmas((1, 1, 0), 2.0)
     (2.0, 2.0, 0.0)
     """
-    c = _check_tensor(tensor)
+    c = check_tensor(tensor)
     t = _check_time(time)
-    return tuple(math.sqrt(2.0 * t * ci) for ci in c)  # type: ignore[return-value]
+    sig = tuple(math.sqrt(2.0 * t * ci) for ci in c)
+    if not all(s <= MAX_SIGMA for s in sig):  # inf and NaN too (time · c overflows)
+        raise ValueError(f"time {time!r} with tensor {tuple(c)} asks for a blur of σ = sqrt(2·time·c) = "
+                         f"({', '.join(f'{s:.3g}' for s in sig)}); at most {MAX_SIGMA:g} (pixels or sub-frames) each: "
+                         "take a smaller time or tensor")
+    return sig  # type: ignore[return-value]
 
 
 def stability_bound(tensor) -> float:
@@ -137,7 +146,7 @@ def stability_bound(tensor) -> float:
     >>> stability_bound((1, 1, 1))
     0.16666666666666666
     """
-    return 1.0 / (2.0 * sum(_check_tensor(tensor)))
+    return 1.0 / (2.0 * sum(check_tensor(tensor)))
 
 
 # --------------------------------------------------------------------------- nc kernels
@@ -735,7 +744,7 @@ def diffuse(
     """
     f = check_frames(frames)
     c = check_identity_code(code)
-    tens = _check_tensor(tensor)
+    tens = check_tensor(tensor)
     t = _check_time(time)
     if solver not in SOLVERS:
         raise ValueError(f"`solver` must be one of {', '.join(SOLVERS)}; got {solver!r}")
@@ -795,7 +804,7 @@ def diffuse_where(frames, code, out: np.ndarray, where, *, tensor=DEFAULT_TENSOR
     """
     f = check_frames(frames)
     c = check_identity_code(code)
-    sig = sigmas(_check_tensor(tensor), _check_time(time))
+    sig = sigmas(check_tensor(tensor), _check_time(time))
     missing = as_missing(missing, f.shape[0])
     present = None if missing is None else ~missing
     shape = (f.shape[0] * c.shape[2], *f.shape[1:])
@@ -834,7 +843,7 @@ def nc_leave_one_out(frames, code, *, tensor=DEFAULT_TENSOR, time: float = DEFAU
     """
     f = check_frames(frames)
     c = check_identity_code(code)
-    sig = sigmas(_check_tensor(tensor), _check_time(time))
+    sig = sigmas(check_tensor(tensor), _check_time(time))
     missing = as_missing(missing, f.shape[0])
     loo = np.empty(f.shape, np.float32)
     video = _nc_kernel(f, c, sig, True, np.float32, None if missing is None else ~missing, loo=loo)

@@ -165,7 +165,7 @@ def test_reconstruct_motion_aware_slow_reach(recording, tmp_path, capsys):
 
 @pytest.mark.parametrize("args, message", [
     (["--method", "diffusion", "--slow-reach", "1"], "--slow-reach goes with --method motion-aware"),
-    (["--method", "motion-aware", "--slow-reach", "-1"], "`slow_reach` must be a number >= 0"),
+    (["--method", "motion-aware", "--slow-reach", "-1"], "`slow_reach` must be a number from 0 to 1000"),
 ])
 def test_bad_slow_reach(recording, tmp_path, capsys, args, message):
     assert main(["reconstruct", str(recording), *args, "-o", str(tmp_path / "o.npy")]) == 2

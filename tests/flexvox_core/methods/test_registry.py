@@ -64,7 +64,12 @@ def test_register_refusals(frame_mean):
     ("rebin", {"block": "2x2x1"}, r"`block` must be a Division .* or None \(the default division\); got '2x2x1'"),
     ("motion-aware", {"flow": "lucas"}, r"`flow` must be one of dis, deepflow, farneback, tvl1; got 'lucas'"),
     ("motion-aware", {"passes": 0}, r"`passes` must be a whole number >= 1; got 0"),
-    ("motion-aware", {"refine_time": -1.0}, r"`refine_time` must be a number >= 0 or None \(\(K/16\)²\); got -1.0"),
+    ("motion-aware", {"refine_time": -1.0},
+     r"`refine_time` must be a number from 0 to 10526 or None \(\(K/16\)²\); got -1.0"),
+    ("motion-aware", {"refine_time": 1e6},
+     r"`refine_time` must be a number from 0 to 10526 or None \(\(K/16\)²\); got 1000000.0"),
+    ("motion-aware", {"slow_reach": 1e308},
+     r"`slow_reach` must be a number from 0 to 1000 \(sampling periods\) or None; got 1e\+308"),
     ("diffusion", {"time": 0}, r"`time` must be a positive finite number; got 0"),
 ])
 def test_options_are_checked_naming_the_value_and_the_rule(frame_mean, name, kwargs, match):

@@ -114,7 +114,7 @@ def test_slow_reach_knob():
 
 @pytest.mark.parametrize("bad", [-1.0, float("nan"), float("inf"), True, "2"])
 def test_bad_slow_reach(bad):
-    with pytest.raises(ValueError, match=r"`slow_reach` must be a number >= 0 \(sampling periods\) or None"):
+    with pytest.raises(ValueError, match=r"`slow_reach` must be a number from 0 to 1000 \(sampling periods\) or None"):
         Method("motion-aware", slow_reach=bad)
 
 

@@ -277,6 +277,11 @@ def test_no_nan_and_maximum_principle_for_drawn_tensors_and_shapes(case):
         ({"init": "zeros"}, r"`init` must be 'nc' or 'mean'"),
         ({"dtype": np.float16}, r"`dtype` must be float32 or float64"),
         ({"solver": "explicit", "tensor": (1e6, 1e6, 1e6), "time": 1.0}, r"more than 20000"),
+        # a blur no recording is long enough for, whose kernel would not fit in memory: refused by its σ
+        ({"time": 1e12}, r"time 1000000000000.0 with tensor \(0.15, 0.15, 1.0\) asks for a blur of "
+                         r"σ = sqrt\(2·time·c\) = \(5.48e\+05, 5.48e\+05, 1.41e\+06\); at most 10000"),
+        ({"time": 1e308}, r"asks for a blur of σ = sqrt\(2·time·c\) = \(inf, inf, inf\); at most 10000"),
+        ({"tensor": (1e308, 1e308, 1)}, r"asks for a blur of σ = sqrt\(2·time·c\) = \(inf, inf, 1.73\)"),
     ],
 )
 def test_misuse_is_refused(code22, kw, match):

@@ -655,6 +655,9 @@ class VerifiedRows:
                 f = self.chunk_file(i)
                 if f is not None and not f.exists():
                     found.append((i, "its chunk file is missing"))
+            if row.dtype.kind == "f" and not np.isfinite(row.sum(dtype=np.float64)):  # one pass: a sum of finite
+                # float32 values cannot overflow float64; NaN or inf in the row makes it NaN or inf
+                found.append((i, "it holds NaN or infinite values (no reconstruction can use them)"))
         return found
 
     def _check(self, start: int, stop: int, rows: np.ndarray) -> None:

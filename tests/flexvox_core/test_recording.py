@@ -110,6 +110,27 @@ def test_rates_that_no_time_step_can_come_from_are_damage(tmp_path, sim, rates, 
         open_recording(path)
 
 
+def test_a_frame_holding_nan_is_named_by_its_row_when_checked_and_when_read(tmp_path, rng, capsys):
+    # Stored as written (its checksum matches): info lists the row, and a chunked reconstruction names the
+    # same row, not its place within a chunk.
+    from app.cli.main import main
+    from flexvox_core.recording import values_crc
+
+    v = rng.random((8 * 4, 8, 12)).astype(np.float32)
+    path = write_simulation(tmp_path / "r.zarr", simulate_video(v, design_code((2, 2)).code, seed=1))
+    g = zarr.open_group(str(path), mode="r+")
+    frame = g["frames"][7]
+    frame[3, 4] = np.nan
+    g["frames"][7] = frame
+    g["frame_crc"][7] = values_crc(frame)
+    lines = open_recording(path).verify()
+    assert lines == ["frames row 7: it holds NaN or infinite values (no reconstruction can use them)"]
+    assert main(["reconstruct", str(path), "--method", "diffusion", "--chunk", "3",
+                 "-o", str(tmp_path / "o.npy")]) == 2
+    assert "frames row 7 is damaged: it holds NaN or infinite values" in capsys.readouterr().err
+    assert not (tmp_path / "o.npy").exists()
+
+
 def test_damaged_recordings(tmp_path, sim):
     path = write_simulation(tmp_path / "r.zarr", sim)
     g = zarr.open_group(str(path), mode="r+")

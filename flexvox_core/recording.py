@@ -828,8 +828,8 @@ class Recording:
         return lines
 
     def verify(self, progress=None, *, chunk_rows: int = 16) -> list[str]:
-        """Check every committed frame (and ground-truth sub-frame): each chunk exists, decodes and
-        matches its CRC. Returns one line per damaged row (empty when all are sound).
+        """Check every committed frame (and ground-truth sub-frame): each chunk exists, decodes, matches its
+        CRC and holds no NaN or inf. Returns one line per damaged row (empty when all are sound).
 
         ``progress(done, total)`` is called as rows are checked (rows of frames and ground truth).
         """

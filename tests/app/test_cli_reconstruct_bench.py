@@ -268,3 +268,14 @@ def test_a_failed_write_stops_the_psnr_at_its_next_block(recording, tmp_path, ca
     assert main(["reconstruct", str(recording), "-o", str(out)]) != 0
     assert "cannot write" in capsys.readouterr().err
     assert len(reads) <= 1 and not out.exists()
+
+
+@pytest.mark.parametrize(("per_frame", "words"), [
+    ([20.0, 22.0], "21.00 dB"),
+    ([np.inf, 20.0, 22.0], "exact on 1 of 3 sub-frames, 21.00 dB over the rest"),
+    ([np.inf, np.inf], "exact on all 2 sub-frames"),
+])
+def test_the_psnr_line_counts_exact_sub_frames_apart_instead_of_saying_inf(per_frame, words):
+    from app.cli.reconstruct import psnr_words
+
+    assert psnr_words(np.array(per_frame)) == words

@@ -129,5 +129,9 @@ def method_from_args(args, tile):
         raise ValueError(_foreign(foreign, spec.name))
     for name, value in given.items():
         if spec.option(name).kind == "division":
-            given[name] = parse_division(value.replace(",", "x"), tuple(tile))
+            parts = [p.strip() for p in str(value).replace("x", ",").split(",")]  # a,b,c (or AxBxC)
+            if len(parts) != 3 or not all(p.isdigit() for p in parts):
+                raise ValueError(f"--{name.replace('_', '-')} must be three whole numbers a,b,c (rows, columns, "
+                                 f"slots of the division), e.g. 2,2,4; got {value!r}")
+            given[name] = parse_division("x".join(parts), tuple(tile))
     return Method(spec.name, **given)

@@ -43,6 +43,8 @@ def test_reconstruct_writes_every_format(recording, tmp_path, capsys, suffix):
     "argv, message",
     [
         (["--method", "rebin", "--block", "3,1,5"], "division 3x1x5 does not divide a 4x4 tile"),
+        (["--method", "rebin", "--block", "2,2"], "--block must be three whole numbers a,b,c (rows, columns, slots "
+                                                  "of the division), e.g. 2,2,4; got '2,2'"),
         (["--tensor", "1,1"], "--tensor must be three numbers"),
         (["--time", "-1"], "time"),
     ],

@@ -939,6 +939,9 @@ def validate_recording(rec: Recording) -> list[str]:
     if [m, n] != list(rec.attrs["tile"]) or K != rec.attrs["K"]:
         problems.append(f"code shape {code.shape} disagrees with tile {rec.attrs['tile']} and K {rec.attrs['K']}")
     problems += _rate_problems(rec.attrs["rates"], K)
+    if not rec.attrs.get("multiplexed") and not is_identity_code(code):
+        problems.append("the code opens pixels in more than one slot (or slots for more than one pixel), but the "
+                        "recording is not marked `multiplexed`: no reconstruction can tell what its frames hold")
     # Each array looked up by name, never by listing the folder: a capture writing beside this reader renames
     # zarr's temporary metadata files into place, and a listing that meets one as it vanishes fails.
     needed = ("frames", *PER_FRAME) + (("frame_crc",) if rec.attrs["schema_version"] >= 2 else ())

@@ -131,6 +131,17 @@ def test_a_frame_holding_nan_is_named_by_its_row_when_checked_and_when_read(tmp_
     assert not (tmp_path / "o.npy").exists()
 
 
+def test_a_code_that_is_no_identity_code_in_a_recording_not_marked_multiplexed_is_damage(tmp_path, sim):
+    path = write_simulation(tmp_path / "r.zarr", sim)
+
+    def two_slots(a):
+        a["code"][0][0] = [1] * 8 + [0] * 8  # pixel (0, 0) open in eight slots
+
+    _edit_attrs(path, two_slots)
+    with pytest.raises(RecordingError, match=r"the code opens pixels in more than one slot .*not marked `multiplexed`"):
+        open_recording(path)
+
+
 def test_damaged_recordings(tmp_path, sim):
     path = write_simulation(tmp_path / "r.zarr", sim)
     g = zarr.open_group(str(path), mode="r+")

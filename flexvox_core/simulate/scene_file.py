@@ -36,6 +36,12 @@ _TOP = {"seed", "name", "source", "camera", "code", "effects"}
 _SOURCE = {"builtin", "file", "height", "width", "frames", "duration_s"}
 _CAMERA = {"rate_hz", "electrons_per_unit"}
 _CODE = {"tile", "multiplexed", "order"}
+MAX_RATE_HZ = 10_000.0
+"""A simulated camera's fastest frame rate (the capture planner's limit too)."""
+MAX_DURATION_S = 86_400.0
+"""The longest clip a scene may ask for (a day: the memory check refuses far shorter ones)."""
+MAX_ELECTRONS_PER_UNIT = 1e9
+"""The brightest light level (photo-electrons per unit of scene value): far above any sensor's full well."""
 
 
 @dataclass
@@ -81,11 +87,21 @@ def _check_keys(table: dict, allowed: set, where: str) -> None:
         raise ValueError(f"{where}: unknown key {unknown[0]!r}; allowed: {', '.join(sorted(allowed))}")
 
 
-def _number(value, where: str, *, minimum: float, integer: bool = False):
+def _table(data: dict, key: str, where: str) -> dict:
+    """The sub-table ``[key]`` (empty when absent); anything else under that name is refused."""
+    value = data.get(key, {})
+    if not isinstance(value, dict):
+        raise ValueError(f"{where}: `{key}` must be a table ([{key}] with its keys); got {value!r}")
+    return value
+
+
+def _number(value, where: str, *, minimum: float, integer: bool = False, maximum: float = math.inf):
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise ValueError(f"{where} must be a number; got {value!r}")
     if not math.isfinite(value) or value < minimum:
         raise ValueError(f"{where} must be >= {minimum:g}; got {value!r}")
+    if value > maximum:
+        raise ValueError(f"{where} must be at most {maximum:g}; got {value!r}")
     if integer and value != int(value):
         raise ValueError(f"{where} must be a whole number; got {value!r}")
     return int(value) if integer else float(value)
@@ -97,10 +113,13 @@ def scene_from_mapping(data: dict, *, base_dir: Path | None = None, where: str =
     spec = SceneSpec()
     spec.name = str(data.get("name", ""))
     spec.seed = _number(data.get("seed", 0), f"{where}: seed", minimum=0, integer=True)
-    src = data.get("source", {})
+    src = _table(data, "source", where)
     _check_keys(src, _SOURCE, f"{where} [source]")
     if "builtin" in src and "file" in src:
         raise ValueError(f"{where} [source]: give either `builtin` or `file`, not both")
+    for key in ("builtin", "file"):
+        if key in src and not isinstance(src[key], str):
+            raise ValueError(f"{where} [source] {key} must be a string; got {src[key]!r}")
     if "file" in src:
         spec.builtin = None
         f = Path(src["file"])
@@ -120,28 +139,41 @@ def scene_from_mapping(data: dict, *, base_dir: Path | None = None, where: str =
         spec.frames = _number(src["frames"], f"{where} [source] frames", minimum=1, integer=True)
     elif "duration_s" in src:
         spec.frames = None
-        spec.duration_s = _number(src["duration_s"], f"{where} [source] duration_s", minimum=1e-6)
+        spec.duration_s = _number(src["duration_s"], f"{where} [source] duration_s", minimum=1e-6,
+                                  maximum=MAX_DURATION_S)
     elif spec.file is not None:
         spec.frames = None  # the whole file
-    cam = data.get("camera", {})
+    cam = _table(data, "camera", where)
     _check_keys(cam, _CAMERA, f"{where} [camera]")
     if "rate_hz" in cam:
-        spec.rate_hz = _number(cam["rate_hz"], f"{where} [camera] rate_hz", minimum=1e-3)
+        spec.rate_hz = _number(cam["rate_hz"], f"{where} [camera] rate_hz", minimum=1e-3, maximum=MAX_RATE_HZ)
     if "electrons_per_unit" in cam:
         spec.electrons_per_unit = _number(cam["electrons_per_unit"], f"{where} [camera] electrons_per_unit",
-                                          minimum=1e-3)
-    code = data.get("code", {})
+                                          minimum=1e-3, maximum=MAX_ELECTRONS_PER_UNIT)
+    code = _table(data, "code", where)
     _check_keys(code, _CODE, f"{where} [code]")
     if "tile" in code:
         try:
             spec.tile = parse_tile(code["tile"])
         except ValueError as exc:
             raise ValueError(f"{where} [code]: {exc}") from None
-    spec.multiplexed = bool(code.get("multiplexed", False))
+    multiplexed = code.get("multiplexed", False)
+    if not isinstance(multiplexed, bool):
+        raise ValueError(f"{where} [code] multiplexed must be true or false; got {multiplexed!r}")
+    spec.multiplexed = multiplexed
     if "order" in code:
-        order = np.asarray(code["order"])
+        if multiplexed:
+            raise ValueError(f"{where} [code]: `order` places an identity code's slots; a multiplexed code has none "
+                             "(give one or the other)")
+        try:
+            order = np.asarray(code["order"])
+        except ValueError:  # ragged rows
+            order = np.empty(0)
         if order.ndim != 2:
-            raise ValueError(f"{where} [code] order must be m rows of slot numbers")
+            raise ValueError(f"{where} [code] order must be m rows of n slot numbers each; got {code['order']!r}")
+        if "tile" in code and tuple(order.shape) != spec.tile:
+            raise ValueError(f"{where} [code]: `order` has {order.shape[0]}x{order.shape[1]} slots but `tile` is "
+                             f"{spec.tile[0]}x{spec.tile[1]}")
         spec.order = order.tolist()
         spec.tile = (order.shape[0], order.shape[1])
     try:

@@ -166,6 +166,21 @@ sigma = 1.5
         ({"effects": {"sparkle": {}}}, r"\[effects\]: unknown effect 'sparkle'"),
         ({"effects": {"read_noise": {"sigma": -3}}}, r"read_noise.sigma must be between 0 and"),
         ({"seed": -1}, r"seed must be >= 0; got -1"),
+        # tables of the wrong type, strings that are not, booleans that are strings, conflicting code keys, and
+        # numbers too large to be a camera's (each was a traceback, or silently something else)
+        ({"source": 5}, r"scene: `source` must be a table \(\[source\] with its keys\); got 5"),
+        ({"source": "fan"}, r"scene: `source` must be a table \(\[source\] with its keys\); got 'fan'"),
+        ({"camera": 1}, r"scene: `camera` must be a table"),
+        ({"code": [1, 2]}, r"scene: `code` must be a table"),
+        ({"source": {"builtin": ["fan"]}}, r"\[source\] builtin must be a string; got \['fan'\]"),
+        ({"source": {"file": 5}}, r"\[source\] file must be a string; got 5"),
+        ({"code": {"multiplexed": "false"}}, r"\[code\] multiplexed must be true or false; got 'false'"),
+        ({"code": {"multiplexed": True, "order": [[0, 1], [2, 3]]}}, r"`order` places an identity code's slots"),
+        ({"code": {"tile": "4x4", "order": [[0, 1], [2, 3]]}}, r"`order` has 2x2 slots but `tile` is 4x4"),
+        ({"code": {"order": [[0, 1], [2]]}}, r"order must be m rows of n slot numbers each; got \[\[0, 1\], \[2\]\]"),
+        ({"camera": {"rate_hz": 1e308}}, r"rate_hz must be at most 10000; got 1e\+308"),
+        ({"source": {"duration_s": 1e308}}, r"duration_s must be at most 86400; got 1e\+308"),
+        ({"camera": {"electrons_per_unit": 1e20}}, r"electrons_per_unit must be at most 1e\+09; got 1e\+20"),
     ],
 )
 def test_bad_scene_files(data, match):

@@ -77,6 +77,10 @@ class Effect:
                     raise ValueError(f"{self.name}.{p.name} must be a whole number; got {v:g}")
                 v = int(v)
             self.values[p.name] = v
+        self._check_together()
+
+    def _check_together(self) -> None:
+        """Rules between parameters (each one alone is checked above); raise ``ValueError`` naming them."""
 
     def __getattr__(self, item):
         try:
@@ -263,6 +267,12 @@ class Adc(Effect):
         Param("gain", "DN/e-", 0.25, 1e-6, 1e3, "conversion gain"),
         Param("black_level", "DN", 64, 0, 65535, "offset added before quantisation"),
     )
+
+    def _check_together(self) -> None:
+        top = 2 ** self.bits - 1
+        if self.black_level >= top:
+            raise ValueError(f"adc.black_level must be below the {self.bits}-bit ADC's largest count {top}; got "
+                             f"{self.black_level:g} (every pixel would read {top})")
 
     def apply(self, electrons: np.ndarray, *, exposure_s: float, rng=None) -> np.ndarray:
         dn = np.rint(electrons * self.gain + self.black_level)

@@ -185,6 +185,8 @@ def test_multiplexed_code_through_the_simulator(rng):
         ({"read_noise": {"sgima": 1}}, r"effect 'read_noise' has no parameter 'sgima'; its parameters: sigma"),
         ({"leakage": {"alpha": 2}}, r"leakage.alpha must be between 0 and 1 fraction; got 2"),
         ({"adc": {"bits": 12.5}}, r"adc.bits must be a whole number; got 12.5"),
+        ({"adc": {"bits": 8, "black_level": 300}},
+         r"adc.black_level must be below the 8-bit ADC's largest count 255; got 300 \(every pixel would read 255\)"),
         ({"ambient": {"level": "lots"}}, r"ambient.level must be a number"),
         ({"leakage": 3}, r"effect 'leakage' needs a table of parameters"),
     ],

@@ -152,7 +152,11 @@ def _npy_header(path: Path) -> tuple[tuple[int, ...], np.dtype] | None:
     """A ``.npy`` header's shape and dtype; refuses a file without one, or with less data than it declares."""
     from numpy.lib import format as npy_format
 
-    with open(path, "rb") as fh:
+    try:
+        fh = open(path, "rb")  # noqa: SIM115 - closed by the with below; opened apart to name a read failure
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    with fh:
         if fh.read(6) != b"\x93NUMPY":
             raise ValueError(f"{path}: not a NumPy .npy file (no .npy header); it is damaged or another "
                              "format with the wrong suffix")
@@ -238,6 +242,11 @@ def _load_mat(path: Path) -> np.ndarray:
         data = scipy.io.loadmat(path, variable_names=["orig"])
     except NotImplementedError:
         raise ValueError(f"{path}: MATLAB v7.3 (HDF5) files are not supported; save with -v7") from None
+    except (scipy.io.matlab.MatReadError, ValueError, TypeError, EOFError) as exc:
+        raise ValueError(f"{path}: cannot read it as a MATLAB file ({exc}); it is empty, damaged or not a "
+                         ".mat file") from None
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read: {exc.strerror or exc}") from None
     if "orig" not in data:
         raise ValueError(f"{path}: no variable `orig` (the SCI benchmark's ground-truth frames)")
     orig = np.asarray(data["orig"])

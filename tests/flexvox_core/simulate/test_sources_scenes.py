@@ -88,6 +88,8 @@ def _truncated_npy(folder):
         (lambda p: (p / "x.mp4").write_bytes(b"garbage"), r"x.mp4: OpenCV cannot open|holds no readable frame"),
         (lambda p: scipy.io.savemat(p / "x.mat", {"meas": np.zeros((4, 4, 2))}), r"no variable `orig`"),
         (lambda p: (p / "x.gif").write_bytes(b"x"), r"unknown video type '.gif'"),
+        (lambda p: (p / "x.mat").write_bytes(b""), r"x.mat: cannot read it as a MATLAB file \(.*\); it is empty"),
+        (lambda p: (p / "x.npy").mkdir(), r"x.npy: cannot read: Is a directory"),
     ],
 )
 def test_bad_sources(tmp_path, make, match):

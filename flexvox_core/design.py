@@ -267,6 +267,9 @@ def design_code(
     elif isinstance(separation, int | np.integer) and not isinstance(separation, bool):
         if separation < 0:
             raise ValueError(f"`separation` must be 'auto' or a whole number >= 0; got {separation}")
+        if separation > K // 2:
+            raise ValueError(f"`separation` {separation} is more than any {m}x{n} code can have: two of its K = {K} "
+                             f"slots are at most {K // 2} apart (cyclically); ask for at most {K // 2}")
         target = max(int(separation), 1)
     else:
         raise ValueError(f"`separation` must be 'auto' or a whole number >= 0; got {separation!r}")

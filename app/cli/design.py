@@ -146,9 +146,14 @@ def run(args) -> int:
             divisions = [parse_division(t, (m, n)) for t in args.divisions.split(",") if t.strip()]
         except ValueError as exc:
             raise CliError(str(exc)) from None
+        if not divisions:
+            raise CliError(f"--divisions must name at least one division AxBxC (e.g. 2x2x4); got {args.divisions!r}")
     from flexvox_core.design import design_code  # the solver's scipy.optimize: imported by this command alone
 
-    result = design_code((m, n), divisions=divisions, separation=args.separation)
+    try:
+        result = design_code((m, n), divisions=divisions, separation=args.separation)
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
     payload = result.as_dict()
     if result.success:
         _write(args.output, payload, args.overwrite)

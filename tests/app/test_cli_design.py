@@ -125,8 +125,15 @@ def test_divisions_option(capsys):
 def test_separation_option_validation(capsys):
     code, _, err = run_cli(capsys, "design", "--tile", "4x4", "--separation", "lots")
     assert code == 2 and "--separation must be 'auto' or a whole number" in err
-    code, out, err = run_cli(capsys, "design", "--tile", "4x4", "--separation", "9", "--json")
-    assert code == 1 and json.loads(out)["status"] == 2
+    code, out, err = run_cli(capsys, "design", "--tile", "4x4", "--separation", "8", "--json")
+    assert code == 1 and json.loads(out)["status"] == 2  # possible in principle, infeasible here
+    # beyond any code (two of 16 slots are at most 8 apart): refused before the solver, which tried to build a
+    # constraint matrix for it (10^21: a traceback; 2*10^7 on 2x2: more than 2 GB)
+    code, _, err = run_cli(capsys, "design", "--tile", "4x4", "--separation", "1000000000000000000000")
+    assert code == 2 and "`separation` 1000000000000000000000 is more than any 4x4 code can have" in err
+    assert "ask for at most 8" in err
+    code, _, err = run_cli(capsys, "design", "--tile", "2x2", "--divisions", ",")
+    assert code == 2 and "--divisions must name at least one division AxBxC" in err
 
 
 def test_no_command_prints_help_and_exits_2(capsys):

@@ -109,5 +109,7 @@ def test_order_code_round_trip_and_errors():
 
 def test_require_names_the_tile_and_the_reason():
     assert design_code((2, 2)).require().shape == (2, 2, 4)
-    with pytest.raises(ValueError, match=r"no code for a 2x2 tile: no 2x2 code has a 4-neighbour gap >= 5"):
-        design_code((2, 2), separation=5).require()
+    with pytest.raises(ValueError, match=r"no code for a 2x2 tile: no 2x2 code has a 4-neighbour gap >= 2"):
+        design_code((2, 2), separation=2).require()
+    with pytest.raises(ValueError, match=r"`separation` 5 is more than any 2x2 code can have: .* at most 2 apart"):
+        design_code((2, 2), separation=5)

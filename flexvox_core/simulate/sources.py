@@ -2,7 +2,8 @@
 and the video-SCI benchmark's ``.mat`` files (variable ``orig``, H×W×T uint8).
 
 All load as float32 ``(S, H, W)`` in [0, 1]: uint8 / 255, uint16 / 65535, float kept
-(and required to lie in [0, 1]). Colour is converted to luminance. Nothing is unpickled.
+(and required to lie in [0, 1]). Colour is converted to luminance (Rec. 601) on the same scales. Nothing
+is unpickled.
 A file is judged by its header first (:func:`video_shape`): a truncated ``.npy`` is named as
 such, and a video that would not fit in memory as float32 is refused before it is read.
 """
@@ -48,10 +49,15 @@ def _to_unit_float(arr: np.ndarray, path: Path) -> np.ndarray:
 
 def _gray(arr: np.ndarray, path: Path) -> np.ndarray:
     if arr.ndim == 4 and arr.shape[-1] in (3, 4):
+        # Luminance (Rec. 601) on the type's own scale: 8- and 16-bit counts by their full scale, floats as they
+        # are (in [0, 1], checked next) — never by a guess from the values.
+        full = {np.dtype(np.uint8): 255.0, np.dtype(np.uint16): 65535.0}.get(arr.dtype)
+        if full is None and not np.issubdtype(arr.dtype, np.floating):
+            raise ValueError(f"{path}: unsupported pixel type {arr.dtype} (use uint8, uint16 or float in [0, 1])")
         weights = np.array([0.299, 0.587, 0.114], np.float32)
-        arr = (arr[..., :3].astype(np.float32) @ weights).astype(arr.dtype if arr.dtype != np.uint8 else np.float32)
-        if np.issubdtype(arr.dtype, np.floating) and arr.max() > 1:
-            arr = arr / 255
+        arr = arr[..., :3].astype(np.float32) @ weights
+        if full is not None:
+            arr = np.minimum(arr / np.float32(full), np.float32(1.0))  # the weights' float sum may pass 1 by an ulp
     if arr.ndim != 3:
         raise ValueError(f"{path}: a video must have 3 dimensions (S, H, W); got {arr.ndim} {arr.shape}")
     return arr

@@ -53,6 +53,26 @@ def test_npy_tiff_video_and_mat_sources(tmp_path, rng):
     assert got.shape == (6, 16, 24)
 
 
+@pytest.mark.parametrize(("dtype", "value", "expected"), [
+    (np.uint8, 1, 1 / 255), (np.uint8, 255, 1.0), (np.uint16, 65535, 1.0), (np.uint16, 257, 257 / 65535),
+    (np.float32, 0.25, 0.25),
+])
+def test_colour_videos_are_grey_on_their_types_own_scale(tmp_path, dtype, value, expected):
+    # A dark 8-bit colour video stays dark (it was not divided by 255 when its values were small), and floats
+    # are never rescaled by a guess.
+    np.save(tmp_path / "c.npy", np.full((4, 6, 8, 3), value, dtype))
+    got = load_video(tmp_path / "c.npy")
+    assert got.shape == (4, 6, 8) and got.dtype == np.float32
+    np.testing.assert_allclose(got, expected, rtol=1e-5)
+    assert got.max() <= 1.0
+
+
+def test_a_colour_float_video_beyond_one_is_refused_as_a_grey_one_is(tmp_path):
+    np.save(tmp_path / "c.npy", np.full((4, 6, 8, 3), 1.05, np.float32))
+    with pytest.raises(ValueError, match=r"c.npy: float video values must lie in \[0, 1\]; found 1.05"):
+        load_video(tmp_path / "c.npy")
+
+
 def test_npy_is_never_unpickled(tmp_path):
     np.save(tmp_path / "obj.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
     with pytest.raises(ValueError, match=r"obj.npy: cannot read: .*allow_pickle"):

@@ -70,6 +70,9 @@ def load_shutter_code(path) -> np.ndarray | MultiplexedCode:
             raise CodeFileError(f"{path}: its `code` is not the S-matrix code of its tile (write it again with "
                                 "flexvox design --multiplexed)")
         return mc
+    tile = payload.get("tile")
+    if tile is not None and (not isinstance(tile, list | tuple) or list(tile) != list(code.shape[:2])):
+        raise CodeFileError(f"{path}: its `tile` {tile!r} disagrees with its code's {code.shape[0]}x{code.shape[1]}")
     if not is_identity_code(code):
         raise CodeFileError(f"{path}: not an identity code (each pixel open in exactly one slot, each slot once per "
                             "tile) and not marked multiplexed: capture cannot shutter with it (check it with "

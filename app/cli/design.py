@@ -35,7 +35,8 @@ def register(sub) -> None:
             "(every a x b x c block holds exactly one sample), choosing among the solutions "
             "the one whose 4-neighbours fire furthest apart in time. Prints the firing order "
             "as a grid and every supported [TR, SR]. With --verify, reports which divisions "
-            "a saved code supports (exit 1 if it misses any)."
+            "a saved code supports and whether `capture --code` can shutter with it (exit 1 if "
+            "it misses any, or if capture cannot use it)."
         ),
     )
     what = p.add_mutually_exclusive_group(required=True)
@@ -90,6 +91,45 @@ def _load_code(path: Path) -> np.ndarray:
         raise CliError(str(exc)) from None
 
 
+def _verify(args) -> int:
+    """``flexvox design --verify``: the divisions a code file supports, and whether a capture can shutter with it
+    (the same rules as ``capture --code``: an identity code whose order, code and tile agree, or the S-matrix code
+    of ``design --multiplexed``, whose demultiplexed slots are then the ones verified)."""
+    from flexvox_core.code_file import CodeFileError, load_shutter_code
+    from flexvox_core.multiplex import MultiplexedCode
+
+    code = _load_code(args.verify)
+    try:
+        usable, problem = load_shutter_code(args.verify), None
+    except CodeFileError as exc:
+        usable, problem = None, str(exc)
+    multiplexed = isinstance(usable, MultiplexedCode)
+    try:
+        result = verify(code_from_order(usable.placement) if multiplexed else code)
+    except ValueError as exc:
+        raise CliError(f"{args.verify}: {exc}") from None
+    ok = problem is None and result.supports_all and (result.identity or multiplexed)
+    if args.json:
+        print(json.dumps({**result.as_dict(), "multiplexed": multiplexed, "capture_ready": problem is None,
+                          "problem": problem}))
+        return EXIT_OK if ok else EXIT_FAILED
+    m, n = result.tile
+    if multiplexed:
+        print(f"{args.verify}: {m}x{n} tile, K = {m * n}; an S-matrix multiplexed code (each pixel open in "
+              f"{(m * n + 1) // 2} of {m * n} slots); its demultiplexed slots: {result.message}")
+    else:
+        print(f"{args.verify}: {m}x{n} tile, K = {m * n}; {result.message}")
+    if result.supported:
+        print("supported:\n" + _resolution_table(result.supported))
+    if result.unsupported:
+        print("NOT supported (blocks without exactly one sample):")
+        for d in result.unsupported:
+            print(f"  {d.label:<9} TR {d.tr:>3}  SR {d.sr}  ({result.failing_blocks[d.label]} bad blocks)")
+    if problem is not None:
+        print(f"capture cannot use it: {problem}")
+    return EXIT_OK if ok else EXIT_FAILED
+
+
 def run(args) -> int:
     """Carry out ``flexvox design``."""
     if args.output is not None:
@@ -100,23 +140,7 @@ def run(args) -> int:
         except OutputError as exc:
             raise CliError(str(exc)) from None
     if args.verify is not None:
-        code = _load_code(args.verify)
-        try:
-            result = verify(code)
-        except ValueError as exc:
-            raise CliError(f"{args.verify}: {exc}") from None
-        if args.json:
-            print(json.dumps(result.as_dict()))
-        else:
-            m, n = result.tile
-            print(f"{args.verify}: {m}x{n} tile, K = {m * n}; {result.message}")
-            if result.supported:
-                print("supported:\n" + _resolution_table(result.supported))
-            if result.unsupported:
-                print("NOT supported (blocks without exactly one sample):")
-                for d in result.unsupported:
-                    print(f"  {d.label:<9} TR {d.tr:>3}  SR {d.sr}  ({result.failing_blocks[d.label]} bad blocks)")
-        return EXIT_OK if result.supports_all and result.identity else EXIT_FAILED
+        return _verify(args)
 
     m, n = args.tile
     if args.multiplexed:

@@ -99,6 +99,28 @@ def test_verify_rejects_bad_files(capsys, tmp_path, content, message):
     assert code == 2 and message in err and len(err.strip().splitlines()) == 1
 
 
+def test_verify_says_what_capture_says_of_a_code_file(capsys, tmp_path):
+    # A multiplexed file from design is verified through its demultiplexed slots and passes, as capture uses it;
+    # an order and a code that disagree, or a tile that is not the code's, fail, as capture refuses them.
+    mux = tmp_path / "m13.json"
+    assert run_cli(capsys, "design", "--tile", "1x3", "--multiplexed", "-o", str(mux))[0] == 0
+    code, out, _ = run_cli(capsys, "design", "--verify", str(mux))
+    assert code == 0 and "an S-matrix multiplexed code" in out and "supports all 2 divisions" in out
+    order = [[0, 2], [3, 1]]
+    other = code_from_order([[1, 2], [3, 0]]).astype(int).tolist()
+    for name, payload, why in [
+        ("disagree.json", {"order": order, "code": other}, "its `order` and its `code` disagree"),
+        ("tile.json", {"order": order, "tile": [4, 4]}, "its `tile` [4, 4] disagrees with its code's 2x2"),
+    ]:
+        path = tmp_path / name
+        path.write_text(json.dumps(payload))
+        code, out, _ = run_cli(capsys, "design", "--verify", str(path))
+        assert code == 1 and f"capture cannot use it: {path}: {why}" in out
+        code, out, _ = run_cli(capsys, "design", "--verify", str(path), "--json")
+        result = json.loads(out)
+        assert code == 1 and result["capture_ready"] is False and why in result["problem"]
+
+
 def test_verify_missing_file(capsys, tmp_path):
     code, _, err = run_cli(capsys, "design", "--verify", str(tmp_path / "nope.json"))
     assert code == 2 and "no such file" in err

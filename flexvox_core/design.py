@@ -322,7 +322,8 @@ def design_code(
     sep = neighbour_separation(order)
     msg = (
         f"{m}x{n} code supporting {len(check.supported)} of "
-        f"{len(enumerate_divisions((m, n)))} divisions; neighbour gap {sep} slot(s)"
+        f"{len(enumerate_divisions((m, n)))} divisions; "
+        + ("no neighbours (a 1x1 tile)" if sep is None else f"neighbour gap {sep} slot(s)")
     )
     if separation == "auto" and sep is not None and sep < target:
         msg += f" (the search tried {target})"

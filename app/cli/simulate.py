@@ -110,6 +110,9 @@ def run_simulate(args) -> int:
         if args.tile:
             spec.tile, spec.order = args.tile, None
         if args.size:
+            if spec.file is not None:
+                raise ValueError(f"--size sets the size of a built-in scene; {spec.file} is a video of its own size "
+                                 "(crop or resize it before simulating)")
             spec.height, spec.width = args.size
         if args.frames is not None:
             if args.frames < 1:

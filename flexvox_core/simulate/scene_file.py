@@ -131,6 +131,9 @@ def scene_from_mapping(data: dict, *, base_dir: Path | None = None, where: str =
             )
         spec.builtin = src["builtin"]
     for key in ("height", "width"):
+        if key in src and spec.file is not None:
+            raise ValueError(f"{where} [source]: `{key}` sets the size of a built-in scene; a `file` is a video of "
+                             "its own size")
         if key in src:
             setattr(spec, key, _number(src[key], f"{where} [source] {key}", minimum=8, integer=True))
     if "frames" in src and "duration_s" in src:

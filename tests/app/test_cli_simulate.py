@@ -67,6 +67,20 @@ def test_simulate_bad_input(capsys, tmp_path, monkeypatch, argv, message):
     assert not (tmp_path / "x.zarr").exists()
 
 
+def test_size_with_a_video_file_is_refused_not_ignored(capsys, tmp_path):
+    np.save(tmp_path / "v.npy", np.zeros((8, 16, 16), np.float32))
+    code = main(["simulate", str(tmp_path / "v.npy"), "--tile", "2x2", "--size", "32x32",
+                 "-o", str(tmp_path / "x.zarr")])
+    err = capsys.readouterr().err
+    assert code == 2 and "--size sets the size of a built-in scene; " in err and "is a video of its own size" in err
+    assert not (tmp_path / "x.zarr").exists()
+
+
+def test_a_1x1_tile_has_no_neighbour_gap_to_report(capsys):
+    code, out, _ = run_cli(capsys, "design", "--tile", "1x1")
+    assert code == 0 and "no neighbours (a 1x1 tile)" in out and "None" not in out
+
+
 def test_scenes_lists_scenes_and_effects(capsys):
     code, out, _ = run_cli(capsys, "scenes", "--json")
     payload = json.loads(out)

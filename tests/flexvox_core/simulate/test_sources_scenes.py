@@ -203,6 +203,7 @@ sigma = 1.5
         ({"camera": {"rate_hz": 1e308}}, r"rate_hz must be at most 10000; got 1e\+308"),
         ({"source": {"duration_s": 1e308}}, r"duration_s must be at most 86400; got 1e\+308"),
         ({"camera": {"electrons_per_unit": 1e20}}, r"electrons_per_unit must be at most 1e\+09; got 1e\+20"),
+        ({"source": {"file": "v.npy", "height": 32}}, r"`height` sets the size of a built-in scene; a `file` is"),
     ],
 )
 def test_bad_scene_files(data, match):

@@ -300,6 +300,6 @@ def trim_to_frames(video: np.ndarray, K: int, *, frames: int | None = None, sour
             f"{source}: {S} sub-frames is not a multiple of K = {K}; "
             f"using the first {whole * K} ({whole} camera frames), dropping {S - whole * K}"
         )
-        _logger.warning(message)
+        _logger.info(message)  # the warning below is what callers see (the CLI prints it once)
         warnings.warn(message, TrimWarning, stacklevel=2)
     return video[: whole * K]

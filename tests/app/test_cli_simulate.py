@@ -43,6 +43,15 @@ def test_simulate_warns_when_trimming(capsys, tmp_path, rng):
     np.save(tmp_path / "w.npy", rng.random((19, 8, 8)).astype(np.float32))
     code, out, _ = run_cli(capsys, "simulate", str(tmp_path / "w.npy"), "--tile", "2x2", "-o", str(tmp_path / "w.zarr"))
     assert code == 0 and "19 sub-frames is not a multiple of K = 4" in out
+    # In a real process (where logging reaches stderr) it is said once, not logged as well
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    proc = subprocess.run([sys.executable, "-m", "app.cli.main", "simulate", str(tmp_path / "w.npy"), "--tile", "2x2",
+                           "-o", str(tmp_path / "w2.zarr")], cwd=root, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0 and (proc.stdout + proc.stderr).count("19 sub-frames is not a multiple") == 1
 
 
 @pytest.mark.parametrize(

@@ -31,6 +31,8 @@ class TrimWarning(UserWarning):
 
 
 def _to_unit_float(arr: np.ndarray, path: Path) -> np.ndarray:
+    if not arr.dtype.isnative:  # big-endian counts or floats (a .npy or TIFF from another machine): the same values
+        arr = arr.astype(arr.dtype.newbyteorder("="))
     if arr.dtype == np.uint8:
         return arr.astype(np.float32) / np.float32(255)
     if arr.dtype == np.uint16:

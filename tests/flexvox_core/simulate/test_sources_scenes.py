@@ -67,6 +67,14 @@ def test_colour_videos_are_grey_on_their_types_own_scale(tmp_path, dtype, value,
     assert got.max() <= 1.0
 
 
+@pytest.mark.parametrize("dtype", [">u2", ">f4", ">f8"])
+def test_big_endian_videos_read_as_their_values(tmp_path, dtype):
+    values, scale = (np.array([0, 257, 65535]), 65535) if dtype == ">u2" else (np.array([0, 0.5, 1.0]), 1)
+    np.save(tmp_path / "b.npy", np.resize(values, (4, 6, 8)).astype(dtype))
+    got = load_video(tmp_path / "b.npy")
+    np.testing.assert_allclose(got, np.resize(values / scale, (4, 6, 8)), atol=1e-6)
+
+
 def test_a_colour_float_video_beyond_one_is_refused_as_a_grey_one_is(tmp_path):
     np.save(tmp_path / "c.npy", np.full((4, 6, 8, 3), 1.05, np.float32))
     with pytest.raises(ValueError, match=r"c.npy: float video values must lie in \[0, 1\]; found 1.05"):

@@ -91,18 +91,21 @@ class SyncTiming:
         there is none, or it failed."""
         if not sync or sync.get("status") not in (None, "ok") or sync.get("phase_slots") is None:
             return None
+        # The values as written, never rounded into range: a phase of 2.5 is a damaged file, not phase 2.
+        missing = [k for k in ("K", "period_us", "phase_slots", "recommended_camera_delay_us") if sync.get(k) is None]
+        if missing:
+            raise CalibrationRefused(f"the sync measurement is incomplete: no {', '.join(f'`{k}`' for k in missing)} "
+                                     "(the phase and the camera trigger delay go together; measure it again)")
+        K, period, raw = sync["K"], sync["period_us"], sync["phase_slots"]
+        eff, delay = sync.get("effective_phase_slots"), sync["recommended_camera_delay_us"]
+        offset = sync.get("delay_us")
+        offset = 0.0 if not isinstance(offset, int | float) or isinstance(offset, bool) or not math.isfinite(offset) \
+            else float(offset)  # for display only
         try:
-            K, period = int(sync["K"]), int(sync["period_us"])
-            raw = int(sync["phase_slots"])
-            eff = sync.get("effective_phase_slots")
-            delay = float(sync.get("recommended_camera_delay_us") or 0.0)
-            offset = float(sync.get("delay_us") or 0.0)
-        except (KeyError, TypeError, ValueError) as exc:
-            raise CalibrationRefused(f"the sync measurement is incomplete or malformed ({exc})") from None
-        if eff is None:  # older files: derive it as the sync step does
-            eff = boundary_phase(raw, delay, K)
-        try:
-            return cls(int(eff), delay, K, period, raw, offset)
+            if eff is None:  # older files: derive it as the sync step does, from checked values
+                cls(0, delay, K, period, raw, offset)
+                eff = boundary_phase(raw, delay, K)
+            return cls(eff, delay, K, period, raw, offset)
         except CalibrationRefused as exc:
             raise CalibrationRefused(f"the sync measurement is out of range: {exc}") from None
 

@@ -78,7 +78,11 @@ def load_shutter_code(path) -> np.ndarray | MultiplexedCode:
                             "tile) and not marked multiplexed: capture cannot shutter with it (check it with "
                             "flexvox design --verify)")
     if payload.get("order") is not None and payload.get("code") is not None:
-        if not np.array_equal(code_from_order(payload["order"]), code):
+        try:
+            from_order = code_from_order(payload["order"])
+        except ValueError as exc:
+            raise CodeFileError(f"{path}: its `order`: {exc}") from None
+        if not np.array_equal(from_order, code):
             raise CodeFileError(f"{path}: its `order` and its `code` disagree")
     return code
 

@@ -111,6 +111,8 @@ def test_verify_says_what_capture_says_of_a_code_file(capsys, tmp_path):
     for name, payload, why in [
         ("disagree.json", {"order": order, "code": other}, "its `order` and its `code` disagree"),
         ("tile.json", {"order": order, "tile": [4, 4]}, "its `tile` [4, 4] disagrees with its code's 2x2"),
+        ("order.json", {"order": [[0, 2], [2, 1]], "code": code_from_order(order).astype(int).tolist()},
+         "its `order`: `order` of a 2x2 tile must hold each slot 0..3 exactly once"),
     ]:
         path = tmp_path / name
         path.write_text(json.dumps(payload))

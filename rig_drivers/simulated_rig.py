@@ -95,6 +95,10 @@ def check_homography(h) -> np.ndarray:
     return arr / arr[2, 2]
 
 
+DEFAULT_CAMERA_SIZE = (120, 160)
+"""The simulated camera's size (H, W) when neither the caller nor a scene file gives one."""
+
+
 def warp_patterns(patterns, homography, camera_size, *, supersample: int = SUPERSAMPLE,
                   layout: str = "square") -> np.ndarray:
     """Projector patterns ``(K, Hp, Wp)`` → light in camera pixels ``(K, H, W)`` float32.
@@ -373,7 +377,7 @@ class SimulatedRig:
             file (its source, seed, ``electrons_per_unit`` and effects are used; a built-in
             source is rendered at ``camera_size``), or a video in [0, 1] to use as it is.
         camera_size : (H, W)
-            Default: the scene file's size, else (120, 160).
+            Default: the scene file's size, else :data:`DEFAULT_CAMERA_SIZE`.
         projector_size : (H, W)
             Default :data:`~rig_drivers.simulated_target.PROJECTOR_SCALE` × the camera's (a finer
             projector, as per-pixel shuttering needs); the camera's with ``ideal``.
@@ -526,7 +530,7 @@ class SimulatedRig:
                                    f"{video.shape[1]}x{video.shape[2]}")
             return video
         if camera_size is None:
-            camera_size = (spec.height, spec.width) if spec is not None else (120, 160)
+            camera_size = (spec.height, spec.width) if spec is not None else DEFAULT_CAMERA_SIZE
         H, W = _size("camera_size", camera_size)
         if subframes is None:
             subframes = (spec.camera_frames() or 16) * spec.K if spec is not None else 256

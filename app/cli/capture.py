@@ -72,7 +72,7 @@ def register(sub) -> None:
     p.add_argument("--rate", type=float, default=15.0, metavar="HZ", help="camera frame rate (default 15)")
     p.add_argument("--scene", default="drummer", metavar="NAME",
                    help=f"mock rig: built-in scene ({', '.join(SCENES)}; default drummer)")
-    p.add_argument("--size", type=arg_type(_size), default=(120, 160), metavar="HxW",
+    p.add_argument("--size", type=arg_type(_size), metavar="HxW",
                    help="mock rig: camera size (default 120x160; the projector is twice as fine)")
     p.add_argument("--seed", type=int, default=0, metavar="S",
                    help="mock rig: seed of its hidden homography, timing and noise (default 0, as flexvox calibrate)")
@@ -126,8 +126,10 @@ def _build(args, display=None):
     plan = _plan(args)
     plan.code  # noqa: B018 - refuse an impossible code before any device is opened
     if args.rig == "mock":
+        from rig_drivers.simulated_rig import DEFAULT_CAMERA_SIZE
         from rig_drivers.simulated_target import PROJECTOR_SCALE
 
+        args.size = tuple(args.size or DEFAULT_CAMERA_SIZE)
         mock_projector = tuple(PROJECTOR_SCALE * v for v in args.size)
         if args.projector_size is not None and tuple(args.projector_size) != mock_projector:
             raise ValueError(f"--projector-size {args.projector_size[0]}x{args.projector_size[1]}: the simulated "
@@ -159,7 +161,18 @@ def _calibration(args, rig):
     identity = RigSession.from_rig(rig, projector_size=args.projector_size).identity
     calibration = None
     if args.calibration is not None:
-        calibration = load_for_capture(args.calibration, identity)
+        try:
+            calibration = load_for_capture(args.calibration, identity)
+        except ValueError as exc:
+            from rig_drivers.simulated_rig import DEFAULT_CAMERA_SIZE
+
+            if args.rig == "mock" and tuple(args.size) != DEFAULT_CAMERA_SIZE and "camera resolution" in str(exc):
+                # neither `flexvox calibrate` nor `flexvox app` sizes the simulated rig: say how to go on instead
+                h, w = DEFAULT_CAMERA_SIZE
+                raise type(exc)(f"{exc}; the simulated rig is calibrated at its default {h}x{w} camera only (flexvox "
+                                f"calibrate and flexvox app have no --size): capture at {h}x{w}, or leave out "
+                                "--calibration") from None
+            raise
     if args.sync_profile is not None:
         calibration = load_sync_for_capture(args.sync_profile, identity, base=calibration)
     return calibration

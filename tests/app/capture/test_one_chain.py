@@ -78,6 +78,16 @@ def test_the_cli_records_through_its_calibration_and_every_slot_is_right(calibra
     assert "slot accuracy 100.0% of the 19200 of 19200 pixels (100.0%)" in text and "camera trigger delay" in text
 
 
+def test_a_mock_capture_at_another_size_says_how_to_go_on(calibration_file, tmp_path, capsys):
+    # `flexvox calibrate` cannot size the simulated rig, so "calibrate this rig" alone could not be followed
+    code = cli_main.main(["capture", "--rig", "mock", "--size", "64x80", "--calibration", str(calibration_file),
+                          "--frames", "2", "-o", str(tmp_path / "r.zarr")])
+    err = capsys.readouterr().err
+    assert code == 2 and "made for a camera resolution of 120x160, this rig's is 64x80" in err
+    assert "the simulated rig is calibrated at its default 120x160 camera only" in err
+    assert "capture at 120x160, or leave out --calibration" in err and not (tmp_path / "r.zarr").exists()
+
+
 def test_the_raw_phase_or_no_calibration_visibly_fail(calibration_file, tmp_path):
     rig = mock_rig()
     good = load_for_capture(calibration_file, RigSession.from_rig(rig).identity)

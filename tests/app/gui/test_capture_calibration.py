@@ -23,7 +23,8 @@ H_SHIFT = np.array([[1.0, 0.0, 0.5], [0.0, 1.0, -0.25], [0.0, 0.0, 1.0]])
 def _write(path, identity, *, h=H_SHIFT, phase=3, K=16, period_us=1041, rms=0.123):
     body = {"homography": {"projector_to_camera": h.tolist(), "camera_to_projector": np.linalg.inv(h).tolist()},
             "quality": {"status": "ok", "rms_px": rms},
-            "sync": {"status": "ok", "phase_slots": phase, "K": K, "period_us": period_us}}
+            "sync": {"status": "ok", "phase_slots": phase, "K": K, "period_us": period_us,
+                     "recommended_camera_delay_us": 0.0}}
     import datetime as dt
 
     return write_versioned(path, CALIBRATION_FORMAT, CALIBRATION_VERSION, identity, body,

@@ -5,22 +5,37 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+MAX_BYTES = 64 * 2**20
+"""The largest JSON file read (a code or a calibration is a few kB; a device like /dev/zero never ends)."""
+
 
 def read_json(path, error: type[Exception] = ValueError):
-    """The parsed content of the JSON file ``path``.
+    """The parsed content of the JSON file ``path`` (at most :data:`MAX_BYTES`).
 
     Raises
     ------
     error
-        ``"{path}: no such file"``, ``"{path}: cannot read: ..."`` or ``"{path}: not valid JSON (... at line N)"``
-        (``error`` is the caller's exception class, e.g. a ``ValueError`` subclass).
+        ``"{path}: no such file"``, ``"{path}: cannot read: ..."``, ``"{path}: not valid JSON (... at line N)"`` or
+        ``"{path}: ... too large / too deeply nested"`` (``error`` is the caller's exception class, e.g. a
+        ``ValueError`` subclass).
     """
     path = Path(path)
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        with open(path, "rb") as fh:
+            raw = fh.read(MAX_BYTES + 1)
     except FileNotFoundError:
         raise error(f"{path}: no such file") from None
-    except (OSError, UnicodeDecodeError) as exc:
+    except OSError as exc:
+        raise error(f"{path}: cannot read: {exc}") from exc
+    if len(raw) > MAX_BYTES:
+        raise error(f"{path}: more than {MAX_BYTES // 2**20} MiB; not a code or calibration file")
+    try:
+        return json.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError as exc:
         raise error(f"{path}: cannot read: {exc}") from exc
     except json.JSONDecodeError as exc:
         raise error(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
+    except RecursionError:
+        raise error(f"{path}: not a code or calibration file (its JSON is nested too deeply to read)") from None
+    except ValueError as exc:  # e.g. an integer of thousands of digits
+        raise error(f"{path}: not valid JSON ({exc})") from None

@@ -90,6 +90,8 @@ def test_verify_sequential_code_fails_with_exit_1(capsys, tmp_path):
         ("{not json", "not valid JSON"),
         ('{"tile": [2, 2]}', "a code file needs an `order`"),
         ('{"order": [[0, 0], [1, 2]]}', "each slot 0..3 exactly once"),
+        ("[" * 100000 + "]" * 100000, "its JSON is nested too deeply to read"),  # was a RecursionError traceback
+        ('{"order": ' + "9" * 5000 + "}", "not valid JSON (Exceeds the limit"),
     ],
 )
 def test_verify_rejects_bad_files(capsys, tmp_path, content, message):
@@ -121,6 +123,16 @@ def test_verify_says_what_capture_says_of_a_code_file(capsys, tmp_path):
         code, out, _ = run_cli(capsys, "design", "--verify", str(path), "--json")
         result = json.loads(out)
         assert code == 1 and result["capture_ready"] is False and why in result["problem"]
+
+
+def test_a_file_too_large_for_a_code_is_refused_before_it_is_parsed(capsys, tmp_path, monkeypatch):
+    import flexvox_core.json_file
+
+    monkeypatch.setattr(flexvox_core.json_file, "MAX_BYTES", 100)  # /dev/zero would never end
+    path = tmp_path / "big.json"
+    path.write_text(json.dumps({"order": [[0, 1], [2, 3]], "pad": "x" * 200}))
+    code, _, err = run_cli(capsys, "design", "--verify", str(path))
+    assert code == 2 and f"{path}: more than 0 MiB; not a code or calibration file" in err
 
 
 def test_verify_missing_file(capsys, tmp_path):

@@ -19,6 +19,16 @@ from flexvox_core.tiles import parse_tile
 _SIZE_RE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
 
 
+GROUND_TRUTH_RATE = 500.0
+"""Sub-frames per second the simulated ground truth is written at, at least (about 1330 at 120x160 here)."""
+
+
+def stop_timeout(rows: int, K: int, ground_truth: bool) -> float:
+    """Seconds a stopped capture may take to finish: 30 for the writer, and with ``--ground-truth`` the time to
+    write the truth of its ``rows`` frames (K sub-frames each), which the capture writes whole as it finishes."""
+    return 30.0 + (rows * K / GROUND_TRUTH_RATE if ground_truth else 0.0)
+
+
 def _size(text: str) -> tuple[int, int]:
     match = _SIZE_RE.match(text)
     if match is None or min(int(match.group(1)), int(match.group(2))) < 8:
@@ -235,12 +245,17 @@ def _capture(args, display=None, interrupted=None) -> int:
                     print(line, file=sys.stderr, flush=True)
     except KeyboardInterrupt:
         print("\nstopping...", file=sys.stderr, flush=True)
-    result = service.stop(timeout_s=30.0)
+    rows = service.stats().rows_written
+    timeout = stop_timeout(rows, service.K, args.ground_truth)
+    if args.ground_truth and not service.wait(0):
+        print(f"writing the simulated ground truth of {rows} frame(s) (up to {timeout:.0f} s)...", file=sys.stderr,
+              flush=True)
+    result = service.stop(timeout_s=timeout)
     if interactive:
         print(file=sys.stderr)
     if result is None:
-        print(f"flexvox capture: error: the capture did not stop within 30 s; {args.output} keeps what was "
-              "written (check it with `flexvox info`)", file=sys.stderr)
+        print(f"flexvox capture: error: the capture did not stop within {timeout:.0f} s; {args.output} keeps what "
+              "was written (check it with `flexvox info`)", file=sys.stderr)
         return EXIT_FAILED
     print(_counters(result.stats))
     if not result.ok:

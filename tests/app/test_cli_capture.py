@@ -130,3 +130,13 @@ def test_capture_takes_a_design_file(tmp_path, capsys):
 def test_capture_refuses_a_rate_of_zero_in_its_own_words(tmp_path):
     with pytest.raises(CliError, match=r"--rate must be a camera rate above 0 and at most 10000 Hz; got 0"):
         cli(["capture", "--frames", "1", "--rate", "0", "--clock", "virtual", "-o", str(tmp_path / "r.zarr")])
+
+
+def test_a_stopped_ground_truth_capture_is_given_the_time_its_truth_takes():
+    # Ctrl-C after 3,675 frames with --ground-truth: 30 s were not enough to write its 58,800 truth sub-frames
+    # (about 1,330 a second here), and the recording was left damaged. The wait now grows with the truth.
+    from app.cli.capture import GROUND_TRUTH_RATE, stop_timeout
+
+    assert stop_timeout(3675, 16, ground_truth=False) == 30.0
+    assert stop_timeout(3675, 16, ground_truth=True) == 30.0 + 3675 * 16 / GROUND_TRUTH_RATE
+    assert stop_timeout(3675, 16, ground_truth=True) > 3675 * 16 / 1330 * 2  # twice the measured rate's need

@@ -81,7 +81,6 @@ from __future__ import annotations
 import datetime as _dt
 import errno
 import logging
-import math
 import os
 import struct
 import zlib
@@ -95,6 +94,7 @@ import zarr
 from flexvox_core._version import __version__
 from flexvox_core.codes import is_identity_code, order_from_code, validate_code
 from flexvox_core.ngff import image_compressor
+from flexvox_core.rates import rate_problems
 
 _logger = logging.getLogger(__name__)
 
@@ -938,7 +938,7 @@ def validate_recording(rec: Recording) -> list[str]:
     m, n, K = code.shape
     if [m, n] != list(rec.attrs["tile"]) or K != rec.attrs["K"]:
         problems.append(f"code shape {code.shape} disagrees with tile {rec.attrs['tile']} and K {rec.attrs['K']}")
-    problems += _rate_problems(rec.attrs["rates"], K)
+    problems += rate_problems(rec.attrs["rates"], K)
     if not rec.attrs.get("multiplexed") and not is_identity_code(code):
         problems.append("the code opens pixels in more than one slot (or slots for more than one pixel), but the "
                         "recording is not marked `multiplexed`: no reconstruction can tell what its frames hold")
@@ -972,25 +972,6 @@ def validate_recording(rec: Recording) -> list[str]:
         elif has_gt_crc and rec.group["ground_truth_crc"].shape != (gt[0],):
             problems.append(f"`ground_truth_crc` has {rec.group['ground_truth_crc'].shape[0]} entries for {gt[0]} "
                             "sub-frames")
-    return problems
-
-
-def _rate_problems(rates, K: int) -> list[str]:
-    """What is wrong with a recording's ``rates`` attribute: both rates finite numbers above 0, the sub-frame
-    rate K times the camera's (every time step and frame interval is read from them)."""
-    if not isinstance(rates, dict):
-        return [f"the `rates` attribute must be a mapping of camera_hz and subframe_hz; got {rates!r}"]
-    problems = []
-    values = {}
-    for name in ("camera_hz", "subframe_hz"):
-        value = rates.get(name)
-        if isinstance(value, bool) or not isinstance(value, int | float) or not (math.isfinite(value) and value > 0):
-            problems.append(f"rate `{name}` must be a finite number of Hz above 0; got {value!r}")
-        else:
-            values[name] = float(value)
-    if not problems and not math.isclose(values["subframe_hz"], values["camera_hz"] * K, rel_tol=1e-9):
-        problems.append(f"rate `subframe_hz` {values['subframe_hz']:g} is not K = {K} times `camera_hz` "
-                        f"{values['camera_hz']:g}")
     return problems
 
 

@@ -27,6 +27,7 @@ from flexvox_core.codes import code_from_order, verify
 from flexvox_core.design import design_code
 from flexvox_core.divisions import Division
 from flexvox_core.multiplex import MultiplexedCode, multiplexed_code
+from flexvox_core.rates import MAX_CAMERA_HZ
 from rig_drivers.errors import SettingError
 from rig_drivers.interfaces import (
     MIN_DARK_US,
@@ -110,8 +111,9 @@ class CapturePlan:
 
     def __post_init__(self):
         hz = self.camera_hz
-        if isinstance(hz, bool) or not isinstance(hz, int | float) or not math.isfinite(hz) or not 0 < hz <= 10_000:
-            raise ValueError(f"`camera_hz` must be a rate above 0 and at most 10000 Hz; got {hz!r}")
+        if (isinstance(hz, bool) or not isinstance(hz, int | float) or not math.isfinite(hz)
+                or not 0 < hz <= MAX_CAMERA_HZ):
+            raise ValueError(f"`camera_hz` must be a rate above 0 and at most {MAX_CAMERA_HZ:g} Hz; got {hz!r}")
         try:
             tile = tuple(int(v) for v in self.tile)
         except (TypeError, ValueError):

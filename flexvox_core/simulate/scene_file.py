@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from flexvox_core.rates import MAX_CAMERA_HZ
 from flexvox_core.simulate.effects import Effect, parse_effects
 from flexvox_core.simulate.scenes import SCENES
 from flexvox_core.tiles import parse_tile
@@ -36,8 +37,6 @@ _TOP = {"seed", "name", "source", "camera", "code", "effects"}
 _SOURCE = {"builtin", "file", "height", "width", "frames", "duration_s"}
 _CAMERA = {"rate_hz", "electrons_per_unit"}
 _CODE = {"tile", "multiplexed", "order"}
-MAX_RATE_HZ = 10_000.0
-"""A simulated camera's fastest frame rate (the capture planner's limit too)."""
 MAX_DURATION_S = 86_400.0
 """The longest clip a scene may ask for (a day: the memory check refuses far shorter ones)."""
 MAX_ELECTRONS_PER_UNIT = 1e9
@@ -149,7 +148,7 @@ def scene_from_mapping(data: dict, *, base_dir: Path | None = None, where: str =
     cam = _table(data, "camera", where)
     _check_keys(cam, _CAMERA, f"{where} [camera]")
     if "rate_hz" in cam:
-        spec.rate_hz = _number(cam["rate_hz"], f"{where} [camera] rate_hz", minimum=1e-3, maximum=MAX_RATE_HZ)
+        spec.rate_hz = _number(cam["rate_hz"], f"{where} [camera] rate_hz", minimum=1e-3, maximum=MAX_CAMERA_HZ)
     if "electrons_per_unit" in cam:
         spec.electrons_per_unit = _number(cam["electrons_per_unit"], f"{where} [camera] electrons_per_unit",
                                           minimum=1e-3, maximum=MAX_ELECTRONS_PER_UNIT)

@@ -174,9 +174,11 @@ def _calibration(args, rig):
         try:
             calibration = load_for_capture(args.calibration, identity)
         except ValueError as exc:
+            from calibration.errors import CalibrationMismatchError
             from rig_drivers.simulated_rig import DEFAULT_CAMERA_SIZE
 
-            if args.rig == "mock" and tuple(args.size) != DEFAULT_CAMERA_SIZE and "camera resolution" in str(exc):
+            mismatch = isinstance(exc, CalibrationMismatchError) or isinstance(exc.__cause__, CalibrationMismatchError)
+            if args.rig == "mock" and tuple(args.size) != DEFAULT_CAMERA_SIZE and mismatch:
                 # neither `flexvox calibrate` nor `flexvox app` sizes the simulated rig: say how to go on instead
                 h, w = DEFAULT_CAMERA_SIZE
                 raise type(exc)(f"{exc}; the simulated rig is calibrated at its default {h}x{w} camera only (flexvox "

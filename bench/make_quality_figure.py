@@ -113,15 +113,15 @@ def warm_up() -> None:
 @contextlib.contextmanager
 def as_filed():
     """Motion-aware's flow as when Reconstruction II was filed: DIS with OpenCV's own variational refinement
-    (5 iterations; ``flexvox_core.motion.pipeline.DIS_PARAMS`` since)."""
-    import flexvox_core.motion.pipeline as pipeline
+    (5 iterations; ``flexvox_core.motion.gated_flow.DIS_PARAMS`` since)."""
+    import flexvox_core.motion.gated_flow as gating
 
-    saved = pipeline.DIS_PARAMS
-    pipeline.DIS_PARAMS = {}
+    saved = gating.DIS_PARAMS
+    gating.DIS_PARAMS = {}
     try:
         yield
     finally:
-        pipeline.DIS_PARAMS = saved
+        gating.DIS_PARAMS = saved
 
 
 def measure(clip: Clip, repeats: int) -> list[tuple[str, np.ndarray, float, float]]:

@@ -230,11 +230,11 @@ def test_sharp_reads_keep_a_slowly_drifting_texture():
 
 def test_motion_aware_refines_its_slow_voxels_with_sharp_reads(monkeypatch):
     # The voxels of the long-reach gather (slow, not still) are the refinement's `sharp` ones.
-    import flexvox_core.motion.pipeline as pipeline
+    import flexvox_core.motion.stages as stages
 
     seen = {}
-    real = pipeline.variable_tensor_diffusion
-    real_classes = pipeline._speed_classes
+    real = stages.variable_tensor_diffusion
+    real_classes = stages.speed_classes
 
     def spy_classes(*args):
         seen["classes"] = real_classes(*args)
@@ -244,8 +244,8 @@ def test_motion_aware_refines_its_slow_voxels_with_sharp_reads(monkeypatch):
         seen["sharp"] = kwargs["sharp"]
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(pipeline, "_speed_classes", spy_classes)
-    monkeypatch.setattr(pipeline, "variable_tensor_diffusion", spy)
+    monkeypatch.setattr(stages, "speed_classes", spy_classes)
+    monkeypatch.setattr(stages, "variable_tensor_diffusion", spy)
     truth = render_scene("pan", 6 * 16, 48, 64, seed=0)
     code = design_code((4, 4)).code
     motion_aware(capture(truth, code), code)

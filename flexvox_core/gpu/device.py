@@ -1,0 +1,101 @@
+"""Which device runs a reconstruction: ``cpu``, ``cuda`` (an NVIDIA GPU through numba-cuda) or ``auto``.
+
+``auto`` takes the GPU when one is usable (numba-cuda installed, a driver and a card it can talk to) and the
+CPU otherwise. ``cuda`` asked for and not usable raises :class:`DeviceUnavailable` with one line naming what is
+missing. numba-cuda's simulator (``NUMBA_ENABLE_CUDASIM=1``) counts as a GPU only when ``cuda`` is asked for
+by name (the tests run the GPU path on it); ``auto`` never picks it.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import logging
+import os
+from dataclasses import dataclass
+
+_logger = logging.getLogger(__name__)
+
+DEVICES = ("auto", "cpu", "cuda")
+"""The values of every ``--device`` option."""
+
+INSTALL_HINT = "pip install 'flexvox[gpu]'"
+
+
+class DeviceUnavailable(RuntimeError):
+    """``--device cuda`` was asked for and no usable GPU is there (the message says what is missing)."""
+
+
+@dataclass(frozen=True)
+class GpuInfo:
+    """One GPU as the driver describes it."""
+
+    index: int
+    name: str
+    compute_capability: tuple[int, int]
+    memory_total: int
+    memory_free: int
+    driver: str
+
+    def line(self) -> str:
+        cc = ".".join(map(str, self.compute_capability))
+        return (f"GPU {self.index}: {self.name}, compute capability {cc}, {self.memory_total / 2**30:.1f} GiB "
+                f"({self.memory_free / 2**30:.1f} free), driver {self.driver}")
+
+
+def simulator() -> bool:
+    """Whether numba-cuda's simulator stands in for the GPU in this process."""
+    return os.environ.get("NUMBA_ENABLE_CUDASIM", "0") not in ("", "0")
+
+
+def cuda_status() -> tuple[bool, str]:
+    """(usable, reason): whether kernels can run on a GPU here, and if not, the one thing that is missing.
+    With the simulator on, (True, "numba-cuda's simulator (NUMBA_ENABLE_CUDASIM=1)")."""
+    if importlib.util.find_spec("numba_cuda") is None:
+        return False, f"numba-cuda is not installed ({INSTALL_HINT})"
+    if simulator():
+        return True, "numba-cuda's simulator (NUMBA_ENABLE_CUDASIM=1)"
+    try:
+        from numba import cuda
+
+        if not cuda.is_available():
+            return False, "no NVIDIA driver or GPU found (numba-cuda: CUDA is not available)"
+        cuda.get_current_device()
+    except Exception as exc:  # the driver's own words: library not found, no device, wrong version
+        return False, f"the CUDA driver cannot be used: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
+    return True, "CUDA"
+
+
+def describe_gpus() -> list[GpuInfo]:
+    """Every GPU the driver lists ([] when none is usable or under the simulator)."""
+    ok, _ = cuda_status()
+    if not ok or simulator():
+        return []
+    from numba import cuda
+
+    driver = cuda.cudadrv.driver.driver.get_version()
+    out = []
+    for gpu in cuda.gpus:
+        with gpu:
+            dev = cuda.get_current_device()
+            free, total = cuda.current_context().get_memory_info()
+            name = dev.name.decode() if isinstance(dev.name, bytes) else str(dev.name)
+            out.append(GpuInfo(int(dev.id), name, tuple(dev.compute_capability), int(total), int(free),
+                               ".".join(map(str, driver))))
+    return out
+
+
+def resolve_device(requested: str = "auto") -> str:
+    """``cpu`` or ``cuda`` for a ``--device`` value; ``cuda`` unusable raises :class:`DeviceUnavailable`."""
+    if requested not in DEVICES:
+        raise ValueError(f"`device` must be one of {', '.join(DEVICES)}; got {requested!r}")
+    if requested == "cpu":
+        return "cpu"
+    ok, reason = cuda_status()
+    if requested == "cuda":
+        if not ok:
+            raise DeviceUnavailable(f"--device cuda: {reason}")
+        return "cuda"
+    if ok and not simulator():
+        return "cuda"
+    _logger.info("device auto: the CPU (%s)", reason if not ok else "the simulator is not picked by auto")
+    return "cpu"

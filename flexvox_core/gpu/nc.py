@@ -1,0 +1,156 @@
+r"""Normalized convolution with a constant tensor on the GPU: :func:`~flexvox_core.reconstruct.diffuse`'s
+``nc`` solver (the paper's Eq. 3 in one pass with missing voxels, Knutsson & Westin 1993).
+
+.. math::
+
+    \hat I = \frac{G * (M \cdot I_0)}{G * M}
+
+with G the separable Gaussian of covariance 2·n·diag(cx, cy, ct), cut at 4 σ, reflecting ends (the edge
+repeated, as OpenCV's ``BORDER_REFLECT``), applied along time first (each pixel's own samples, with the
+weights :func:`~flexvox_core.reconstruct.diffusion.time_weights` computes on the host), then rows, then
+columns. The result is clipped to the samples' range and keeps the samples. Voxels whose blurred mask is
+at or below :data:`~flexvox_core.reconstruct.diffusion.NC_MIN_WEIGHT` of the kernel's peak (no sample in
+reach: rare, and only with tiny kernels) are counted; the caller then computes the volume on the CPU, which
+gives them their nearest sample.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import cuda
+
+from flexvox_core.gpu.launch import device, kernel, launch
+from flexvox_core.reconstruct.diffusion import NC_MIN_WEIGHT, _peak, gaussian_kernel, sigmas, time_weights
+
+
+@device
+def fold(i, n):
+    """Index ``i`` reflected into [0, n) with the edge repeated (… 1 0 | 0 1 … n-1 | n-1 …), any distance."""
+    period = 2 * n
+    j = i % period
+    if j < 0:
+        j += period
+    if j >= n:
+        j = period - 1 - j
+    return j
+
+
+@kernel("void(float32[:, :, ::1], int32[:, ::1], float32[:, :, ::1], int32[::1], float32[:, :, ::1], "
+        "float32[:, :, ::1])")
+def _time_pass(frames, order, weight, first, num, den):
+    i = cuda.grid(1)
+    S, H, W = num.shape
+    if i >= S * H * W:
+        return
+    s = i // (H * W)
+    p = i - s * (H * W)
+    y = p // W
+    x = p - y * W
+    k = order[y, x]
+    f0 = first[s]
+    acc = np.float32(0)
+    d = np.float32(0)
+    for b in range(weight.shape[2]):
+        w = weight[s, k, b]
+        if w != 0:
+            acc += w * frames[f0 + b, y, x]
+            d += w
+    num[s, y, x] = acc
+    den[s, y, x] = d
+
+
+@kernel("void(float32[:, :, ::1], float32[:, :, ::1], float32[:, :, ::1], float32[:, :, ::1], float32[::1], "
+        "int32)")
+def _blur_axis(num, den, num_out, den_out, taps, axis):
+    """One separable pass along rows (axis 1) or columns (axis 2) of two volumes, reflecting ends."""
+    i = cuda.grid(1)
+    S, H, W = num.shape
+    if i >= S * H * W:
+        return
+    s = i // (H * W)
+    p = i - s * (H * W)
+    y = p // W
+    x = p - y * W
+    r = taps.shape[0] // 2
+    a = np.float32(0)
+    b = np.float32(0)
+    if axis == 1:
+        for t in range(-r, r + 1):
+            yy = fold(y + t, H)
+            w = taps[t + r]
+            a += w * num[s, yy, x]
+            b += w * den[s, yy, x]
+    else:
+        for t in range(-r, r + 1):
+            xx = fold(x + t, W)
+            w = taps[t + r]
+            a += w * num[s, y, xx]
+            b += w * den[s, y, xx]
+    num_out[s, y, x] = a
+    den_out[s, y, x] = b
+
+
+@kernel("void(float32[:, :, ::1], float32[:, :, ::1], float32[:, :, ::1], int32[:, ::1], uint8[::1], float32, "
+        "float32, float32, uint8, float32[:, :, ::1], int32[::1])")
+def _finish(num, den, frames, order, present, floor, lo, hi, keep, out, low):
+    i = cuda.grid(1)
+    S, H, W = num.shape
+    if i >= S * H * W:
+        return
+    s = i // (H * W)
+    p = i - s * (H * W)
+    y = p // W
+    x = p - y * W
+    K = S // frames.shape[0]
+    f = s // K
+    d = den[s, y, x]
+    if keep and present[f] and order[y, x] == s - f * K:
+        out[s, y, x] = frames[f, y, x]
+    elif d <= floor:
+        out[s, y, x] = np.float32(math.nan)
+        cuda.atomic.add(low, 0, 1)
+    else:
+        out[s, y, x] = min(max(num[s, y, x] / d, lo), hi)
+
+
+class NcPlan:
+    """The host-side part of one normalized convolution: kernels, time weights and the weight floor."""
+
+    def __init__(self, F: int, K: int, tensor, time: float, present: np.ndarray | None):
+        sx, sy, st = sigmas(tensor, time)
+        self.gx, self.gy = gaussian_kernel(sx, np.float32), gaussian_kernel(sy, np.float32)
+        gt = gaussian_kernel(st, np.float32)
+        self.floor = float(NC_MIN_WEIGHT * _peak((self.gx, self.gy, gt)))
+        g64 = np.ones(1) if gt is None else gaussian_kernel(st, np.float64)
+        weight, first = time_weights(g64, K, F, present)
+        self.weight = np.ascontiguousarray(weight, np.float32)
+        self.first = np.ascontiguousarray(first, np.int32)
+
+
+def nc(ws, frames_d, order_d, present_d, plan: NcPlan, lo: float, hi: float, out, *, keep_samples: bool = True,
+       tag: str = "nc") -> int:
+    """Normalized convolution of the capture ``frames_d`` (F, H, W) into ``out`` (S, H, W) float32 (device
+    arrays). ``order_d`` (H, W) int32: each pixel's slot; ``present_d`` (F,) uint8: frames holding samples.
+    Returns the count of voxels without a sample in reach (NaN in ``out``; 0 almost always)."""
+    S, H, W = out.shape
+    n = S * H * W
+    num = ws.get(f"{tag}.num", (S, H, W))
+    den = ws.get(f"{tag}.den", (S, H, W))
+    weight = ws.put(f"{tag}.weight", plan.weight)
+    first = ws.put(f"{tag}.first", plan.first)
+    launch(_time_pass, n, frames_d, order_d, weight, first, num, den)
+    for axis, taps in ((1, plan.gy), (2, plan.gx)):
+        if taps is None:
+            continue
+        num2 = ws.get(f"{tag}.num2", (S, H, W))
+        den2 = ws.get(f"{tag}.den2", (S, H, W))
+        launch(_blur_axis, n, num, den, num2, den2, ws.put(f"{tag}.taps{axis}", taps), np.int32(axis))
+        ws._buffers[f"{tag}.num"], ws._buffers[f"{tag}.num2"] = num2, num
+        ws._buffers[f"{tag}.den"], ws._buffers[f"{tag}.den2"] = den2, den
+        num, den = num2, den2
+    low = ws.put(f"{tag}.low", np.zeros(1, np.int32))
+    launch(_finish, n, num, den, frames_d, order_d, present_d, np.float32(plan.floor), np.float32(lo),
+           np.float32(hi), np.uint8(keep_samples), out, low)
+    return int(low.copy_to_host()[0])

@@ -1,0 +1,157 @@
+"""The gated flow: motion-aware's velocity of every voxel (the flow stage of :mod:`flexvox_core.motion.stages`)."""
+
+from __future__ import annotations
+
+from time import perf_counter
+
+import cv2
+import numpy as np
+
+from flexvox_core.flow import FlowField
+from flexvox_core.flow.backends import backend_params, make_backend
+from flexvox_core.flow.baseline import KAverageFlow, default_stride, kaverage
+from flexvox_core.flow.estimate import check_video, downscale, sanitize_flow, successive_flow, to_full_size
+from flexvox_core.motion.options import DEFAULT_GATE, PERIOD_GATE, SLOW_SPEED
+from flexvox_core.threads import for_each
+
+DIS_PARAMS = {"variational_iterations": 2}
+"""Motion-aware's DIS flow (every pair it measures): 2 iterations of the variational refinement instead of
+OpenCV's 5. The refinement smooths the flow across the high-TR video's motion edges; measured on
+`flexvox bench`'s captures (96×128, seed 0): the built-in scenes at K = 16 25.21 → 25.36 dB (fan +0.17, drummer
++0.38, balls −0.04, pan −0.04, the still scene 43.3 → 42.3), K = 8 +0.01, Runner +0.01, Drop +0.02; the margin
+over the best fixed tensor on fan, balls and drummer +2.01 → +2.21 dB (+2.01 → +2.23 with noise; seed 1: +2.12 →
++2.33); 1 iteration +2.32 but K = 8 −0.05 and the still scenes −1.4. At 640×480 balls −0.18, drummer +0.12, fan
++0.18, pan −0.06 dB, and each pair's flow about a fifth faster."""
+
+
+def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, scale: float = 0.5,
+               consistency: bool = False, slow_speed: float | None = SLOW_SPEED,
+               period_gate=PERIOD_GATE, memo=None) -> FlowField:
+    """Flow of ``video`` with still regions set to zero and slow motion measured over a long baseline.
+
+    The motion detector looks only at the K-average, which holds every sampling phase once and
+    so cannot swim (a still region is exactly still): its flow across K sub-frames
+    (:func:`~flexvox_core.flow.baseline.kaverage_flow`) and, for fast motion smeared in the
+    average, its flow between successive sub-frames; the larger speed opens the ``gate`` ramp.
+    Where the long-baseline flow is slower than ``slow_speed`` (and the successive-sub-frame flow
+    of ``video`` not much faster) it is the velocity — 20x more accurate there; elsewhere the
+    successive-sub-frame flow of ``video`` is. None, or a clip of at most K sub-frames (whose
+    averages overlap): successive-sub-frame flow everywhere.
+
+    Motion that the K-average cannot see — aliased at the sampling period, like the built-in fan
+    (3 blades, a turn every 48 sub-frames: at K = 16 every pixel sees the same blade phase in
+    every frame) — opens the ``period_gate`` ramp instead: the speed of the successive-sub-frame
+    flow averaged over K sub-frames. The high-TR video swims with the code's period (about
+    1 px per sub-frame at K = 16), which that average cancels (0.1 px median on the still scene,
+    0.54 px at the 99th percentile) while steady motion remains (1.5 px median on the fan's blades).
+    None: no second gate.
+
+    ``memo`` (a :class:`~flexvox_core.flow.memo.FlowMemo`): flow of pairs of images met before is
+    taken from it (a streaming run meets each pair in several windows); it never changes the result.
+    """
+    lo, hi = gate
+    if not 0 <= lo < hi:
+        raise ValueError(f"`gate` must be two thresholds 0 <= low < high (px per sub-frame); got {gate!r}")
+    if period_gate is not None and not 0 <= period_gate[0] < period_gate[1]:
+        raise ValueError(f"`period_gate` must be two thresholds 0 <= low < high (px per sub-frame) or None; "
+                         f"got {period_gate!r}")
+    if slow_speed is not None and not slow_speed >= 0:
+        raise ValueError(f"`slow_speed` must be a number >= 0 (px per sub-frame) or None; got {slow_speed!r}")
+    video = check_video(video)
+    flow_fn = make_backend(backend, **(DIS_PARAMS if backend == "dis" else {}))
+    t0 = perf_counter()
+    # Everything at the flow's own (small) resolution; resized once at the end.
+    small = downscale(video, scale)
+    vel, conf = successive_flow(small, flow_fn, consistency=consistency, temporal_window=1, memo=memo)
+    px = video.shape[2] / vel.shape[2]  # full-size pixels per flow pixel: thresholds are in full-size ones
+    params = {**backend_params(flow_fn), "scale": scale, "consistency": consistency, "temporal_window": 1}
+    if not (K > 1 and video.shape[0] > 1):
+        vel, conf = to_full_size(vel, conf, video.shape[1:])
+        return FlowField(vel, conf, params, perf_counter() - t0)
+    average = kaverage(small, K)
+    slow = KAverageFlow(small, K, flow_fn, default_stride(K), average=average, memo=memo)
+    use_slow = slow_speed is not None and slow.span == K  # shorter: the averages overlap, too blurred
+    if use_slow:
+        params["slow_speed"] = slow_speed
+    # Fast motion is smeared in the K-average and can escape a flow across K of its
+    # sub-frames: the detector also takes flow between its successive sub-frames (at half size).
+    steps, _ = successive_flow(downscale(average, 0.5), make_backend("dis", **DIS_PARAMS), consistency=False,
+                               temporal_window=1, memo=memo)
+    mean = None
+    if period_gate is not None:
+        # Motion aliased in the K-average (a fan whose blades pass once per K sub-frames leaves
+        # it exactly still): the successive-sub-frame flow averaged over one sampling period.
+        # The high-TR video swims with the code's period (about 1 px per sub-frame at K = 16),
+        # which that average cancels; steady motion stays.
+        from scipy.ndimage import uniform_filter1d
+
+        mean = uniform_filter1d(vel, K, axis=0, mode="nearest")
+        params["period_gate"] = tuple(period_gate)
+    params["gate"] = (lo, hi)
+    out = _GatedFlow(vel, conf, slow, use_slow, slow_speed, steps, mean, (lo, hi), period_gate, px,
+                     video.shape[1:])
+    for_each(out.one, len(vel))
+    return FlowField(out.flow, out.full_confidence(), params, perf_counter() - t0)
+
+
+class _GatedFlow:
+    """:func:`gated_flow`'s gate and resize, a sub-frame at a time (:meth:`one`): every step
+    element-wise on small planes that stay in cache, each sub-frame's gated velocity resized
+    straight into the full-size flow. The same operations, in the same order, as on whole
+    volumes (the same values), without the dozen volumes at flow size those made (fresh
+    memory is dear: 0.8-1.4 s of the 640x480 clip's flow went to them)."""
+
+    def __init__(self, successive, conf, slow, use_slow, slow_speed, steps, mean, gate, period_gate, px, size):
+        self.successive, self.conf, self.slow = successive, conf, slow
+        self.use_slow, self.slow_speed, self.steps, self.mean = use_slow, slow_speed, steps, mean
+        self.gate, self.period_gate, self.px = gate, period_gate, np.float32(px)
+        S, h, w = conf.shape
+        H, W = size
+        self.size = size
+        self.flow = np.empty((S, H, W, 2), np.float32)
+        self.max_magnitude = 0.5 * max(h, w)
+        self.ratio = np.array([W / w, H / h], np.float32)
+        self.step_ratio = np.array([w / steps.shape[2], h / steps.shape[1]], np.float32)
+
+    def one(self, t: int) -> None:
+        lo, hi = self.gate
+        px = self.px
+        vel = self.successive[t]
+        slow = self.slow.at(t, np.empty_like(vel))
+        speed = np.hypot(slow[..., 0], slow[..., 1]) * px
+        if self.use_slow:
+            slow_speed = self.slow_speed
+            use = (speed < slow_speed) & (np.hypot(vel[..., 0], vel[..., 1]) * px < 2 * slow_speed)
+            vel = np.where(use[..., None], slow, vel)
+        else:
+            vel = vel.copy()
+        h, w = vel.shape[:2]
+        steps = cv2.resize(self.steps[t] * self.step_ratio, (w, h), interpolation=cv2.INTER_LINEAR)
+        speed = np.maximum(speed, np.hypot(steps[..., 0], steps[..., 1]) * px)
+        ramp = np.clip((speed - lo) / (hi - lo), 0, 1).astype(np.float32)
+        if self.mean is not None:
+            plo, phi = self.period_gate
+            mean = self.mean[t]
+            mean_speed = np.hypot(mean[..., 0], mean[..., 1]) * px
+            ramp = np.maximum(ramp, np.clip((mean_speed - plo) / (phi - plo), 0, 1))
+        vel *= ramp[..., None]
+        # to_full_size's sanitising (element-wise, so the same a plane at a time), then its resize.
+        vel, self.conf[t] = sanitize_flow(vel, self.conf[t], max_magnitude=self.max_magnitude)
+        if (h, w) == self.size:
+            self.flow[t] = vel
+        else:
+            cv2.resize(vel * self.ratio, self.size[::-1], dst=self.flow[t], interpolation=cv2.INTER_LINEAR)
+
+    def full_confidence(self) -> np.ndarray:
+        """The confidence resized as :func:`~flexvox_core.flow.estimate.to_full_size` does."""
+        conf = self.conf
+        S, h, w = conf.shape
+        H, W = self.size
+        if (h, w) == (H, W):
+            return conf
+        if conf.min() == 1:  # the usual case without a round-trip check: a read-only view of 1
+            return np.broadcast_to(np.float32(1), (S, H, W))
+        full = np.empty((S, H, W), np.float32)
+        for i, c in enumerate(conf):
+            cv2.resize(c, (W, H), dst=full[i], interpolation=cv2.INTER_LINEAR)
+        return full

@@ -1,0 +1,400 @@
+r"""Motion-aware's pipeline as named stages, in the paper's order (its Section 4, with flexvox's safeguards).
+
+=====================  ==========================================================================================
+stage                  what it computes
+=====================  ==========================================================================================
+``high_tr``            normalized convolution with ``diag(1, 1, 0.05)``, n = 2 (the paper's Step 1): sharp in
+                       time, so fast motion survives for the flow
+``samples``            the sample volume (0 off the samples) and its mask; a dropped frame's sub-frames hold none
+``gated_flow``         velocity of every voxel: the high-TR video's flow, gated by a motion detector that cannot
+                       swim, slow motion measured over a long baseline (:mod:`~flexvox_core.motion.gated_flow`);
+                       bridged across dropped frames
+``speed_classes``      still voxels (speed < ``still_speed``) and slow ones (< ``slow_speed``)
+``guides``             the fixed-tensor nc of Eq. 4's tensor at zero flow, with the still voxels' own values (their
+                       pixel's samples averaged over a Gaussian of K/2 sub-frames) written in: the value of every
+                       voxel no trajectory gather reaches
+``noise``              the capture's noise from still pixels' successive samples, and the weight of the wide
+                       spatial kernel per voxel (:mod:`~flexvox_core.motion.noise_aware`)
+``trajectory_gather``  motion-compensated nc along each moving voxel's trajectory (Eq. 3 with Eq. 4's tensor,
+                       :mod:`~flexvox_core.motion.mcnc`), and each sample's leave-one-out estimate
+``long_reach``         the slow voxels' range-weighted gather over ``slow_reach`` sampling periods
+                       (:mod:`~flexvox_core.motion.longreach`)
+``refinement``         the monotone variable-tensor diffusion along the trajectories
+                       (:mod:`~flexvox_core.motion.vardiff`)
+``local_choice``       where oriented nc predicts the samples better, blend it in
+                       (:mod:`~flexvox_core.motion.local_choice`)
+``gaps``               a dropped frame's sub-frames filled from both sides along the flow (:mod:`flexvox_core.gaps`)
+=====================  ==========================================================================================
+
+Each stage is a method of an engine with the same name on the CPU (:class:`CpuStages`, here) and on the GPU
+(:class:`flexvox_core.gpu.engine.CudaStages`); :func:`run_stages` runs them in order, for each pass. An engine
+holds one window's inputs (:class:`Window`) and its working memory: which volume a stage may write into, and
+when one is no longer needed (fresh memory is dear on the CPU: at 640×480 × 240 sub-frames each new volume costs
+0.1–0.5 s of page faults), so the stages themselves read as the algorithm.
+"""
+
+from __future__ import annotations
+
+import logging
+from contextlib import contextmanager
+from dataclasses import dataclass
+from time import perf_counter
+
+import cv2
+import numpy as np
+
+from flexvox_core.forward import sample_mask, sparse_volume
+from flexvox_core.gaps import bridge, bridge_flow, interpolated_subframes
+from flexvox_core.motion import local_choice, noise_aware
+from flexvox_core.motion.gated_flow import gated_flow
+from flexvox_core.motion.longreach import long_reach_nc
+from flexvox_core.motion.mcnc import motion_compensated_nc
+from flexvox_core.motion.options import (
+    LONG_REACH_RANGE,
+    LONG_REACH_SIGMA_S,
+    REFINE_C,
+    STEP1_TENSOR,
+    STEP1_TIME,
+    STILL_TENSOR,
+    MotionOptions,
+    auto_flow_scale,
+)
+from flexvox_core.motion.vardiff import variable_tensor_diffusion
+from flexvox_core.reconstruct.diffusion import diffuse, diffuse_where
+from flexvox_core.reconstruct.oriented_nc import oriented_nc
+from flexvox_core.threads import for_each
+
+_logger = logging.getLogger(__name__)
+
+STAGES = ("high_tr", "samples", "gated_flow", "speed_classes", "guides", "noise", "trajectory_gather", "long_reach",
+          "refinement", "local_choice", "gaps")
+"""The stages in the order they run (the keys of a result's ``stage_seconds``)."""
+
+
+@dataclass(frozen=True)
+class Window:
+    """One run's checked inputs and what follows from them.
+
+    Attributes
+    ----------
+    frames : ndarray (F, H, W) float32
+        Camera frames of an identity ``code`` (m, n, K).
+    options : MotionOptions
+    bounds : (lo, hi)
+        The samples' range (:func:`~flexvox_core.motion.options.sample_bounds`).
+    missing : ndarray (F,) bool or None
+        Dropped frames.
+    keep : (s0, s1)
+        The sub-frames wanted.
+    gathered : (g0, g1)
+        The sub-frames the trajectory gathers and the refinement run over: ``keep`` and the refinement's reach
+        around it, or every sub-frame (a second pass or a dropped frame reads the whole window's result).
+    skip : ndarray (S,) bool or None
+        Sub-frames outside ``gathered`` (None: none).
+    flow_scale : float
+        The resolution of the flow.
+    """
+
+    frames: np.ndarray
+    code: np.ndarray
+    options: MotionOptions
+    bounds: tuple[float, float]
+    missing: np.ndarray | None
+    keep: tuple[int, int]
+    gathered: tuple[int, int]
+    skip: np.ndarray | None
+    flow_scale: float
+
+    @classmethod
+    def plan(cls, frames, code, options: MotionOptions, bounds, *, missing=None, keep=None) -> Window:
+        """The window of ``frames`` (checked) with ``keep`` = (s0, s1) or None (every sub-frame)."""
+        K = code.shape[2]
+        S = frames.shape[0] * K
+        s0, s1 = (0, S) if keep is None else (max(0, int(keep[0])), min(S, int(keep[1])))
+        if not s0 < s1:
+            raise ValueError(f"`keep` must be a non-empty range of the window's {S} sub-frames; got {keep!r}")
+        reach = options.refine_reach(K)
+        g0, g1 = max(0, s0 - reach), min(S, s1 + reach)
+        skip = None
+        if (g0, g1) != (0, S) and options.passes == 1 and missing is None:
+            skip = np.ones(S, bool)
+            skip[g0:g1] = False
+        else:
+            g0, g1 = 0, S
+        scale = auto_flow_scale(*frames.shape[1:]) if options.flow_scale is None else options.flow_scale
+        return cls(frames, code, options, (float(bounds[0]), float(bounds[1])), missing, (s0, s1), (g0, g1), skip,
+                   scale)
+
+    @property
+    def K(self) -> int:
+        return self.code.shape[2]
+
+    @property
+    def S(self) -> int:
+        return self.frames.shape[0] * self.K
+
+    @property
+    def slow_class(self) -> bool:
+        """Whether slow voxels take the long-reach gather (a reach and more than one frame)."""
+        return self.options.slow_reach > 0 and self.frames.shape[0] > 1
+
+    @property
+    def guide_rows(self) -> tuple[int, int] | None:
+        """The sub-frames of the guides that are read (None: all)."""
+        return None if self.skip is None else self.gathered
+
+    @property
+    def still_time(self) -> float:
+        """Diffusion time of the still voxels' time average (a Gaussian of K/2 sub-frames)."""
+        return self.K * self.K / 8
+
+
+class StageTimes:
+    """Seconds spent in each stage (summed over passes); ``sync`` is called before each clock reading (a GPU
+    engine waits for its queued kernels there)."""
+
+    def __init__(self, sync=None):
+        self.seconds: dict[str, float] = {}
+        self._sync = sync or (lambda: None)
+
+    @contextmanager
+    def __call__(self, stage: str):
+        self._sync()
+        t0 = perf_counter()
+        try:
+            yield
+        finally:
+            self._sync()
+            self.seconds[stage] = self.seconds.get(stage, 0.0) + perf_counter() - t0
+
+    def summary(self) -> dict[str, float]:
+        """``high_tr``, ``flow`` and ``diffusion`` (everything after the flow), as results have always reported."""
+        s = self.seconds
+        rest = sum(v for k, v in s.items() if k not in ("high_tr", "samples", "gated_flow"))
+        return {"high_tr": s.get("high_tr", 0.0), "flow": s.get("gated_flow", 0.0), "diffusion": rest}
+
+
+def run_stages(engine, memo=None):
+    """Run motion-aware's stages on ``engine`` (:class:`CpuStages` or a GPU twin); returns its result."""
+    win = engine.window
+    o = win.options
+    times = StageTimes(engine.sync)
+    with times("high_tr"):
+        high_tr = engine.high_tr()
+    with times("samples"):
+        engine.samples()
+    current = high_tr
+    flow = None
+    for pass_ in range(o.passes):
+        last = pass_ + 1 == o.passes
+        with times("gated_flow"):
+            flow = engine.gated_flow(current, memo)
+        with times("speed_classes"):
+            still, slow = engine.speed_classes(flow)
+        with times("guides"):
+            base = engine.guides(still)
+        with times("noise"):
+            wide = engine.noise(current, still) if o.noise_aware else None
+        with times("trajectory_gather"):
+            video, loo, gathered = engine.trajectory_gather(flow, base, still, slow, high_tr, wide,
+                                                            leave_one_out=o.local_choice and last, last=last)
+        del base
+        with times("long_reach"):
+            engine.long_reach(flow, video, slow)
+        with times("refinement"):
+            engine.refinement(video, flow, slow, last)
+        if loo is not None:
+            with times("local_choice"):
+                engine.local_choice(video, loo, gathered, flow, high_tr, last)
+        if win.missing is not None:
+            with times("gaps"):
+                engine.gaps(video, flow)
+        current = engine.clip(video)
+    _logger.info("motion-aware (%s): %s", engine.device,
+                 ", ".join(f"{k} {v:.3f} s" for k, v in times.seconds.items()))
+    return engine.result(current, high_tr, flow, times)
+
+
+class CpuStages:
+    """The stages on the CPU (numpy, OpenCV and numba), for one :class:`Window`."""
+
+    device = "cpu"
+
+    def __init__(self, window: Window):
+        self.window = window
+        self.sparse = self.mask = None
+        self.fixed = self.still_value = None
+
+    def sync(self) -> None:
+        return None
+
+    # ----------------------------------------------------------------------------------------------- stages
+
+    def high_tr(self) -> np.ndarray:
+        w = self.window
+        return diffuse(w.frames, w.code, tensor=STEP1_TENSOR, time=STEP1_TIME, missing=w.missing)
+
+    def samples(self) -> None:
+        w = self.window
+        self.sparse = sparse_volume(np.asarray(w.frames, np.float32), w.code)
+        self.mask = sample_mask(self.sparse.shape, w.code)
+        if w.missing is not None:  # a dropped frame's sub-frames hold no samples
+            gap = interpolated_subframes(w.missing, w.K)
+            self.mask[gap] = False
+            self.sparse[gap] = 0
+
+    def gated_flow(self, current: np.ndarray, memo=None):
+        w, o = self.window, self.window.options
+        field_ = gated_flow(current, w.K, backend=o.flow, gate=o.gate, scale=w.flow_scale,
+                            consistency=o.flow_consistency, slow_speed=o.slow_speed, memo=memo)
+        if w.missing is not None:
+            bridge_flow(field_.flow, w.missing, w.K, margin=w.K // 2)
+        return field_
+
+    def speed_classes(self, field_):
+        w, o = self.window, self.window.options
+        still, slow = speed_classes(field_.flow, o.still_speed, o.slow_speed if w.slow_class else None)
+        if w.skip is not None:  # outside the gathered sub-frames nothing is gathered
+            slow[w.skip] = False
+        return still, slow
+
+    def guides(self, still: np.ndarray) -> np.ndarray:
+        """The value of the voxels no trajectory gather estimates: the fixed-tensor nc of Eq. 4's tensor at zero
+        flow (``diag(c3, c2, c1)``), and at the still voxels their pixel's own samples averaged in time
+        (Eq. 4's tensor in the limit c -> (0, 0, 1)): exact for a still scene, and its noise averages out."""
+        w, o = self.window, self.window.options
+        c = o.c
+        if self.fixed is None:  # computed once: every pass reads it
+            self.fixed = guide(w, (c[2], c[1], c[0]), o.time)
+        base = self.fixed
+        if still.any():
+            if o.passes == 1 and w.skip is None:
+                # `fixed` serves this pass alone: the still voxels' values go straight into it (no volume of them).
+                diffuse_where(w.frames, w.code, base, still, tensor=STILL_TENSOR, time=w.still_time, missing=w.missing)
+            else:
+                if self.still_value is None:
+                    self.still_value = guide(w, STILL_TENSOR, w.still_time)
+                base = self.fixed.copy() if o.passes > 1 else self.fixed  # `fixed` serves every pass
+                np.copyto(base, self.still_value, where=still)
+        return base
+
+    def noise(self, current: np.ndarray, still: np.ndarray):
+        """The wide kernel's weights per sub-frame (None: a noiseless or single-frame capture)."""
+        w = self.window
+        if w.frames.shape[0] < 2:
+            return None
+        noise = noise_aware.frame_noise(w.frames, still, self.mask, w.K)
+        if not noise.any():
+            return None
+        _logger.info("motion-aware: noise %.4g (median of the frames'), smoothing where flatter",
+                     float(np.median(noise)))
+        return noise_aware.SmoothWeights(current, np.repeat(noise, w.K))
+
+    def trajectory_gather(self, field_, base, still, slow, high_tr, wide, *, leave_one_out: bool, last: bool):
+        """(video, loo, gathered): the gather at the voxels neither still nor slow; ``loo`` (F, H, W) each sample's
+        leave-one-out estimate (None unless asked for) and ``gathered`` the voxels gathered (with ``loo``)."""
+        w, o = self.window, self.window.options
+        not_gathered = still | slow
+        if w.skip is not None:
+            not_gathered[w.skip] = True
+        loo = np.full(w.frames.shape, np.nan, np.float32) if leave_one_out else None
+        # The gather writes into `base` when no later pass reads it (one volume less).
+        into = base if o.passes == 1 or base is not self.fixed else None
+        video = motion_compensated_nc(self.sparse, self.mask, field_.flow, c=o.c, time=o.time, fallback=high_tr,
+                                      still=not_gathered, still_value=base, loo=loo, wide=wide,
+                                      wide_sigma=noise_aware.wide_sigma(w.K), out=into)
+        gathered = ~not_gathered if loo is not None else None
+        if last:
+            self.fixed = self.still_value = None  # not needed again: free them before the local choice's volume
+        return video, loo, gathered
+
+    def long_reach(self, field_, video: np.ndarray, slow: np.ndarray) -> None:
+        w, o = self.window, self.window.options
+        if not slow.any():
+            return
+        lo, hi = w.bounds
+        reach = max(1, round(o.slow_reach * w.K))
+        long_reach_nc(self.sparse, self.mask, field_.flow, video, slow, reach=reach, sigma_t=reach,
+                      sigma_s=LONG_REACH_SIGMA_S, h=LONG_REACH_RANGE * max(hi - lo, 1e-12), out=video)
+        np.copyto(video, self.sparse, where=self.mask)
+
+    def _spare(self, last: bool):
+        """A volume the stages after the last pass's gathers may overwrite: the samples' (dead by then)."""
+        return self.sparse if last else None
+
+    def refinement(self, video: np.ndarray, field_, slow: np.ndarray, last: bool) -> None:
+        """Along each trajectory; the slow voxels read their neighbours by clipped Catmull-Rom (a bilinear read
+        a fraction of a pixel off is a blur, which would take the texture their long-reach gather kept)."""
+        w, o = self.window, self.window.options
+        refine_time = o.refine(w.K)
+        if refine_time <= 0:
+            return
+        g0, g1 = w.gathered
+        spare = self._spare(last)
+        variable_tensor_diffusion(video[g0:g1], self.mask[g0:g1], field_.flow[g0:g1], c=REFINE_C, time=refine_time,
+                                  out=video[g0:g1], scratch=None if spare is None else spare[g0:g1],
+                                  sharp=slow[g0:g1])
+
+    def local_choice(self, video, loo, gathered, field_, high_tr, last: bool) -> None:
+        w, o = self.window, self.window.options
+        if not np.isfinite(loo).any():
+            return
+        if not (o.slow_speed is not None and o.slow_speed >= local_choice.STILL_VOXEL_SPEED and w.slow_class):
+            # Gathered voxels slower than that exist (with the slow class on, every gathered voxel is faster than
+            # `slow_speed`): at them the pixel's own sample scores the gather (local_choice.still_voxel_loo).
+            local_choice.still_voxel_loo(loo, video, w.frames, gathered, self.mask, field_.flow, w.K)
+        other, other_loo = oriented_nc(w.frames, w.code, high_tr, where=gathered, fallback=video, missing=w.missing,
+                                       out=self._spare(last))
+        local_choice.blend(video, other, local_choice.local_weights(loo, other_loo, w.frames), gathered, w.K)
+
+    def gaps(self, video, field_) -> None:
+        w = self.window
+        bridge(video, w.missing, w.K, flow=field_.flow)
+
+    def clip(self, video) -> np.ndarray:
+        lo, hi = self.window.bounds
+        return np.clip(video, lo, hi, out=video)
+
+    def result(self, current, high_tr, field_, times: StageTimes):
+        from flexvox_core.motion.pipeline import MotionAwareResult
+
+        w = self.window
+        video = current.astype(np.float32, copy=False)
+        s0, s1 = w.keep
+        if (s0, s1) != (0, w.S):
+            video = np.ascontiguousarray(video[s0:s1])
+        return MotionAwareResult(video, high_tr, field_, w.K, w.options.c, times.summary(), dict(times.seconds),
+                                 self.device)
+
+
+def speed_classes(flow: np.ndarray, still_speed: float | None, slow_speed: float | None):
+    """Bool volumes ``still`` (speed < ``still_speed``) and ``slow`` (not still, speed < ``slow_speed``),
+    a sub-frame at a time (no full-volume speed array); None: no such voxels."""
+    S, H, W = flow.shape[:3]
+    still = np.zeros((S, H, W), bool)
+    slow = np.zeros((S, H, W), bool)
+
+    def one(t):  # a sub-frame at a time, on every core
+        speed = cv2.magnitude(flow[t, ..., 0], flow[t, ..., 1])
+        if still_speed is not None:
+            np.less(speed, still_speed, out=still[t])
+        if slow_speed is not None:
+            np.less(speed, slow_speed, out=slow[t])
+            slow[t] &= ~still[t]
+
+    for_each(one, S)
+    return still, slow
+
+
+def guide(window: Window, tensor, time: float) -> np.ndarray:
+    """The fixed-tensor normalized convolution of the whole window; only the sub-frames the gathers read when
+    the window gathers part of itself (the rest of the volume is 0: nothing reads it)."""
+    w = window
+    rows = w.guide_rows
+    if rows is None:
+        return diffuse(w.frames, w.code, tensor=tensor, time=time, missing=w.missing)
+    out = np.zeros((w.S, *w.frames.shape[1:]), np.float32)
+    out[rows[0]:rows[1]] = diffuse(w.frames, w.code, tensor=tensor, time=time, missing=w.missing, subframes=rows)
+    return out
+
+

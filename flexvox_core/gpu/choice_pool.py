@@ -1,0 +1,325 @@
+r"""The local choice's per-pixel weights on the GPU: :func:`~flexvox_core.motion.local_choice.local_weights`.
+
+For frame f and pixel p, with :math:`\ell_a, \ell_b` the two methods' leave-one-out estimates and y the sample,
+
+.. math::
+
+    e_m = [\ell_a, \ell_b \text{ finite}]\,(\ell_m - y)^2, \qquad
+    w_a = \frac{(G_\sigma * e_b)^P}{(G_\sigma * e_a)^P + (G_\sigma * e_b)^P} \quad (1 \text{ where the sum}
+    \le 10^{-30}),
+
+G_σ OpenCV's Gaussian blur with reflecting borders (``BORDER_REFLECT``, the edge repeated), its kernel
+``cv2.getGaussianKernel(round(8σ + 1) | 1, σ)``; the powers and the ratio in float64, as on the CPU. Above
+:data:`~flexvox_core.motion.local_choice.COARSE_SIGMA` the blur runs on a grid ``step = ⌊σ/4⌋`` times coarser,
+as :func:`~flexvox_core.motion.local_choice._pooled` does with OpenCV: ``cv2.resize`` with ``INTER_AREA`` down
+to (⌈W/step⌉, ⌈H/step⌉) (each coarse cell the area-weighted mean of the pixels it covers, fractional at its
+edges when the step does not divide the size: OpenCV's ``computeResizeAreaTab``), the blur of σ/step there,
+and ``INTER_LINEAR`` back up (OpenCV's half-pixel centres: source x = (x + ½)·w/W − ½, clamped to the edge).
+The resampling tables are computed on the host in float64 as OpenCV computes them, and uploaded.
+
+One thread per pixel of every frame at once (or per coarse cell); float32 sums in OpenCV's order (rows first,
+then columns; area cells row by row), so the pooled errors match OpenCV's to a few units in the last place.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import cv2
+import numpy as np
+from numba import cuda
+
+from flexvox_core.gpu.launch import device, kernel, launch
+from flexvox_core.gpu.nc import fold
+from flexvox_core.motion.local_choice import COARSE_SIGMA, POWER, pooling_sigma
+
+F3 = "float32[:, :, ::1]"
+
+
+@lru_cache(maxsize=32)
+def gaussian_taps(sigma: float) -> np.ndarray:
+    """OpenCV's Gaussian kernel for a float32 image and this σ (2r + 1,) float32: size round(8σ + 1) | 1."""
+    size = int(round(sigma * 8 + 1)) | 1
+    return np.ascontiguousarray(cv2.getGaussianKernel(size, sigma, ktype=cv2.CV_32F).ravel())
+
+
+@lru_cache(maxsize=32)
+def area_table(src: int, dst: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """OpenCV's ``INTER_AREA`` weights from ``src`` pixels down to ``dst`` cells along one axis (src ≥ dst):
+    (start (dst,) int32, count (dst,) int32, weight (dst, n) float32), cell d the sum of weight[d, j] times
+    pixel start[d] + j; a partial pixel at either end of a cell weighs the share of it the cell covers."""
+    scale = 1.0 / (dst / src)
+    rows = []
+    for d in range(dst):
+        lo = d * scale
+        hi = lo + scale
+        width = min(scale, src - lo)
+        s1, s2 = math.ceil(lo), math.floor(hi)
+        s2 = min(s2, src - 1)
+        s1 = min(s1, s2)
+        taps = []
+        if s1 - lo > 1e-3:
+            taps.append((s1 - 1, (s1 - lo) / width))
+        taps += [(s, 1.0 / width) for s in range(s1, s2)]
+        if hi - s2 > 1e-3:
+            taps.append((s2, min(min(hi - s2, 1.0), width) / width))
+        rows.append(taps)
+    n = max(len(t) for t in rows)
+    start = np.array([t[0][0] for t in rows], np.int32)
+    count = np.array([len(t) for t in rows], np.int32)
+    weight = np.zeros((dst, n), np.float32)
+    for d, taps in enumerate(rows):
+        weight[d, :len(taps)] = [np.float32(w) for _, w in taps]
+    return start, count, weight
+
+
+@lru_cache(maxsize=32)
+def linear_table(src: int, dst: int) -> tuple[np.ndarray, np.ndarray]:
+    """OpenCV's ``INTER_LINEAR`` resampling from ``src`` pixels to ``dst`` along one axis: (left (dst,) int32,
+    weights (dst, 2) float32) of pixels left and min(left + 1, src − 1); x = (d + ½)·scale − ½ in float32,
+    the weights (1 − frac, frac), clamped to the first and last pixel (weight (1, 0)) beyond the centres."""
+    scale = 1.0 / (dst / src)
+    left = np.empty(dst, np.int32)
+    weight = np.empty((dst, 2), np.float32)
+    for d in range(dst):
+        fx = np.float32((d + 0.5) * scale - 0.5)
+        sx = math.floor(fx)
+        fx = np.float32(fx - np.float32(sx))
+        if sx < 0:
+            fx, sx = np.float32(0), 0
+        if sx >= src - 1:
+            fx, sx = np.float32(0), src - 1
+        left[d] = sx
+        weight[d] = (np.float32(1) - fx, fx)
+    return left, weight
+
+
+@device
+def reflect(i, n):
+    """Index ``i`` folded into [0, n) as OpenCV's ``BORDER_REFLECT`` (:func:`flexvox_core.gpu.nc.fold`), with
+    no integer division for an index already inside."""
+    if 0 <= i < n:
+        return i
+    return fold(i, n)
+
+
+def coarse_step(sigma: float) -> int:
+    """The coarse grid's step for a pooling σ (0: pooled at full size)."""
+    return 0 if sigma <= COARSE_SIGMA else int(sigma // 4)
+
+
+@device
+def _error(a, b, y, f, r, c):
+    """(e_a, e_b) at one pixel: the squared leave-one-out errors where both are finite, else (0, 0)."""
+    la = a[f, r, c]
+    lb = b[f, r, c]
+    if math.isfinite(la) and math.isfinite(lb):
+        s = y[f, r, c]
+        return (la - s) * (la - s), (lb - s) * (lb - s)
+    return np.float32(0), np.float32(0)
+
+
+@device
+def _weight(pa, pb, power):
+    """Method a's weight from the pooled errors (float64 powers and ratio; 1 where both are ~0)."""
+    ea = 1.0
+    eb = 1.0
+    for _ in range(power):
+        ea *= float(pa)
+        eb *= float(pb)
+    total = ea + eb
+    if total > 1e-30:
+        return np.float32(eb / total)
+    return np.float32(1)
+
+
+@kernel(f"void({F3}, {F3}, {F3}, float32[::1], {F3}, {F3})")
+def _errors_x(a, b, y, taps, ra, rb):
+    """The errors of every frame blurred along x (reflecting)."""
+    i = cuda.grid(1)
+    F, H, W = ra.shape
+    if i >= F * H * W:
+        return
+    f = i // (H * W)
+    p = i - f * (H * W)
+    r = p // W
+    c = p - r * W
+    h = taps.shape[0] // 2
+    sa = np.float32(0)
+    sb = np.float32(0)
+    for t in range(taps.shape[0]):
+        ea, eb = _error(a, b, y, f, r, reflect(c + t - h, W))
+        sa += taps[t] * ea
+        sb += taps[t] * eb
+    ra[f, r, c] = sa
+    rb[f, r, c] = sb
+
+
+@kernel(f"void({F3}, {F3}, {F3}, int32[::1], int32[::1], float32[:, ::1], int32[::1], int32[::1], "
+        f"float32[:, ::1], {F3}, {F3})")
+def _area_errors(a, b, y, x0, xn, xw, y0, yn, yw, sa, sb):
+    """The errors of every frame averaged over the coarse cells (OpenCV's INTER_AREA: row sums, then rows)."""
+    i = cuda.grid(1)
+    F, h, w = sa.shape
+    if i >= F * h * w:
+        return
+    f = i // (h * w)
+    p = i - f * (h * w)
+    dy = p // w
+    dx = p - dy * w
+    acc_a = np.float32(0)
+    acc_b = np.float32(0)
+    for j in range(yn[dy]):
+        row_a = np.float32(0)
+        row_b = np.float32(0)
+        for k in range(xn[dx]):
+            ea, eb = _error(a, b, y, f, y0[dy] + j, x0[dx] + k)
+            row_a += ea * xw[dx, k]
+            row_b += eb * xw[dx, k]
+        acc_a += yw[dy, j] * row_a
+        acc_b += yw[dy, j] * row_b
+    sa[f, dy, dx] = acc_a
+    sb[f, dy, dx] = acc_b
+
+
+@kernel(f"void({F3}, {F3}, float32[::1], {F3}, {F3})")
+def _blur_x2(pa, pb, taps, oa, ob):
+    """Two stacks of planes blurred along x (reflecting)."""
+    i = cuda.grid(1)
+    F, H, W = oa.shape
+    if i >= F * H * W:
+        return
+    f = i // (H * W)
+    p = i - f * (H * W)
+    r = p // W
+    c = p - r * W
+    h = taps.shape[0] // 2
+    sa = np.float32(0)
+    sb = np.float32(0)
+    for t in range(taps.shape[0]):
+        cc = reflect(c + t - h, W)
+        sa += taps[t] * pa[f, r, cc]
+        sb += taps[t] * pb[f, r, cc]
+    oa[f, r, c] = sa
+    ob[f, r, c] = sb
+
+
+@device
+def _blur_y_at(pa, pb, taps, f, r, c, H):
+    """Two stacks of planes blurred along y at one pixel (reflecting; OpenCV's symmetric column sums)."""
+    h = taps.shape[0] // 2
+    sa = taps[h] * pa[f, r, c]
+    sb = taps[h] * pb[f, r, c]
+    for t in range(1, h + 1):
+        up = reflect(r - t, H)
+        down = reflect(r + t, H)
+        sa += taps[h + t] * (pa[f, up, c] + pa[f, down, c])
+        sb += taps[h + t] * (pb[f, up, c] + pb[f, down, c])
+    return sa, sb
+
+
+@kernel(f"void({F3}, {F3}, float32[::1], {F3}, {F3})")
+def _blur_y2(pa, pb, taps, oa, ob):
+    i = cuda.grid(1)
+    F, H, W = oa.shape
+    if i >= F * H * W:
+        return
+    f = i // (H * W)
+    p = i - f * (H * W)
+    r = p // W
+    c = p - r * W
+    sa, sb = _blur_y_at(pa, pb, taps, f, r, c, H)
+    oa[f, r, c] = sa
+    ob[f, r, c] = sb
+
+
+@kernel(f"void({F3}, {F3}, float32[::1], int32, {F3})")
+def _blur_y2_weights(pa, pb, taps, power, out):
+    """The column pass of the full-size pooling, and the weight from it."""
+    i = cuda.grid(1)
+    F, H, W = out.shape
+    if i >= F * H * W:
+        return
+    f = i // (H * W)
+    p = i - f * (H * W)
+    r = p // W
+    c = p - r * W
+    sa, sb = _blur_y_at(pa, pb, taps, f, r, c, H)
+    out[f, r, c] = _weight(sa, sb, power)
+
+
+@kernel(f"void({F3}, {F3}, int32[::1], float32[:, ::1], int32[::1], float32[:, ::1], int32, {F3})")
+def _linear_weights(sa, sb, xl, xw, yl, yw, power, out):
+    """The coarse pooled errors resized up (OpenCV's INTER_LINEAR: along x, then y), and the weight."""
+    i = cuda.grid(1)
+    F, H, W = out.shape
+    if i >= F * H * W:
+        return
+    f = i // (H * W)
+    p = i - f * (H * W)
+    r = p // W
+    c = p - r * W
+    h, w = sa.shape[1], sa.shape[2]
+    x0 = xl[c]
+    x1 = min(x0 + 1, w - 1)
+    r0 = yl[r]
+    r1 = min(r0 + 1, h - 1)
+    a0 = sa[f, r0, x0] * xw[c, 0] + sa[f, r0, x1] * xw[c, 1]
+    a1 = sa[f, r1, x0] * xw[c, 0] + sa[f, r1, x1] * xw[c, 1]
+    b0 = sb[f, r0, x0] * xw[c, 0] + sb[f, r0, x1] * xw[c, 1]
+    b1 = sb[f, r1, x0] * xw[c, 0] + sb[f, r1, x1] * xw[c, 1]
+    out[f, r, c] = _weight(a0 * yw[r, 0] + a1 * yw[r, 1], b0 * yw[r, 0] + b1 * yw[r, 1], power)
+
+
+def local_weights(ws, loo_a, loo_b, samples, out, *, sigma: float | None = None, power: int = POWER) -> None:
+    """Method a's weight per frame and pixel into ``out`` (F, H, W) float32 (device arrays), as
+    :func:`flexvox_core.motion.local_choice.local_weights`.
+
+    Parameters
+    ----------
+    ws : Workspace
+    loo_a, loo_b : device array (F, H, W) float32
+        Each method's leave-one-out estimate of every sample (NaN: none).
+    samples : device array (F, H, W) float32
+        The camera frames.
+    out : device array (F, H, W) float32
+    sigma : float, optional
+        Pooling standard deviation (px); default :func:`~flexvox_core.motion.local_choice.pooling_sigma`.
+    power : int
+        Exponent of the pooled errors.
+    """
+    F, H, W = out.shape
+    for name, a in (("loo_a", loo_a), ("loo_b", loo_b), ("samples", samples)):
+        if tuple(a.shape) != (F, H, W):
+            raise ValueError(f"`{name}` must be (F, H, W) = {(F, H, W)} like `out`; got {tuple(a.shape)}")
+    if sigma is None:
+        sigma = pooling_sigma(H, W)
+    if not (math.isfinite(sigma) and sigma > 0) or isinstance(power, bool) or not isinstance(power, int) or power < 1:
+        raise ValueError(f"`sigma` must be > 0 and `power` a whole number >= 1; got {sigma!r}, {power!r}")
+    n = F * H * W
+    step = coarse_step(sigma)
+    if not step:
+        taps = ws.put("choice.pool.taps", gaussian_taps(float(sigma)))
+        ra = ws.get("choice.pool.ra", (F, H, W))
+        rb = ws.get("choice.pool.rb", (F, H, W))
+        launch(_errors_x, n, loo_a, loo_b, samples, taps, ra, rb)
+        launch(_blur_y2_weights, n, ra, rb, taps, np.int32(power), out)
+        return
+    h, w = max(1, -(-H // step)), max(1, -(-W // step))
+    x0, xn, xw = area_table(W, w)
+    y0, yn, yw = area_table(H, h)
+    sa = ws.get("choice.pool.sa", (F, h, w))
+    sb = ws.get("choice.pool.sb", (F, h, w))
+    ta = ws.get("choice.pool.ta", (F, h, w))
+    tb = ws.get("choice.pool.tb", (F, h, w))
+    launch(_area_errors, F * h * w, loo_a, loo_b, samples, ws.put("choice.pool.x0", x0),
+           ws.put("choice.pool.xn", xn), ws.put("choice.pool.xw", xw), ws.put("choice.pool.y0", y0),
+           ws.put("choice.pool.yn", yn), ws.put("choice.pool.yw", yw), sa, sb)
+    taps = ws.put("choice.pool.taps", gaussian_taps(sigma / step))
+    launch(_blur_x2, F * h * w, sa, sb, taps, ta, tb)
+    launch(_blur_y2, F * h * w, ta, tb, taps, sa, sb)
+    xl, xlw = linear_table(w, W)
+    yl, ylw = linear_table(h, H)
+    launch(_linear_weights, n, sa, sb, ws.put("choice.pool.xl", xl), ws.put("choice.pool.xlw", xlw),
+           ws.put("choice.pool.yl", yl), ws.put("choice.pool.ylw", ylw), np.int32(power), out)

@@ -24,10 +24,8 @@ with :math:`\tilde v, \tilde m` the samples and the sample mask blurred in time 
 weighed by :func:`~flexvox_core.reconstruct.diffusion.time_weights`), g_p the weight of the taps that fold
 onto the voxel itself and c the weight its own sample gives it in time. The leave-one-out sums leave the
 sample's term out instead of subtracting it, so float32 sums keep their relative precision where the sample
-outweighs the others. The structure tensor J = G_ρ * (∇(G_σp * I) ∇(G_σp * I)ᵀ) uses OpenCV's Gaussian
-kernels (:func:`~flexvox_core.gpu.choice_pool.gaussian_taps`) and Sobel's 3×3 derivative scaled by ⅛, with
-reflecting borders, as :func:`flexvox_core.slopes.slopes`; the bank index compares as
-:func:`~flexvox_core.reconstruct.oriented_nc.bank_index` (float64).
+outweighs the others. The kernel of each voxel comes from the structure tensor of its high-TR sub-frame
+(:mod:`~flexvox_core.gpu.choice_structure`).
 
 Every kernel runs over whole volumes (one thread per voxel, or per pixel of every frame). Reference: Pham,
 van Vliet & Schutte, "Robust fusion of irregularly sampled data using adaptive normalized convolution", 2006.
@@ -41,11 +39,12 @@ from functools import lru_cache
 import numpy as np
 from numba import cuda
 
-from flexvox_core.gpu.choice_pool import gaussian_taps, local_weights, reflect
+from flexvox_core.gpu.choice_pool import local_weights, reflect
+from flexvox_core.gpu.choice_structure import structure_bank
 from flexvox_core.gpu.launch import device, kernel, launch
 from flexvox_core.motion.local_choice import STILL_VOXEL_SPEED
 from flexvox_core.reconstruct.diffusion import NC_MIN_WEIGHT, gaussian_kernel, time_weights
-from flexvox_core.reconstruct.oriented_nc import _HIGH, _LOW, _TAN, ANGLES, PRE_SIGMA, RHO, SIGMA, kernel_bank
+from flexvox_core.reconstruct.oriented_nc import SIGMA, kernel_bank
 from flexvox_core.reconstruct.oriented_nc_kernel import tap_lists
 
 _REACH = kernel_bank().shape[1] // 2
@@ -129,159 +128,6 @@ def still_voxel_loo(loo, video, frames, gathered, mask, flow, *, speed: float = 
     float32, ``gathered`` and ``mask`` (S, H, W) uint8, ``flow`` (S, H, W, 2) float32)."""
     launch(_still_voxel_loo, loo.size, loo, video, frames, gathered, mask, flow,
            np.float32(np.float32(speed) ** 2))
-
-
-# ------------------------------------------------------------------------------------------- structure
-
-
-@kernel(f"void({F3}, float32[::1], {F3})")
-def _blur_x(src, taps, dst):
-    """Every plane blurred along x (reflecting)."""
-    i = cuda.grid(1)
-    S, H, W = dst.shape
-    if i >= S * H * W:
-        return
-    s = i // (H * W)
-    p = i - s * (H * W)
-    y = p // W
-    x = p - y * W
-    h = taps.shape[0] // 2
-    acc = np.float32(0)
-    for t in range(taps.shape[0]):
-        acc += taps[t] * src[s, y, reflect(x + t - h, W)]
-    dst[s, y, x] = acc
-
-
-@kernel(f"void({F3}, float32[::1], {F3})")
-def _blur_y(src, taps, dst):
-    """Every plane blurred along y (reflecting; OpenCV's symmetric column sums)."""
-    i = cuda.grid(1)
-    S, H, W = dst.shape
-    if i >= S * H * W:
-        return
-    s = i // (H * W)
-    p = i - s * (H * W)
-    y = p // W
-    x = p - y * W
-    h = taps.shape[0] // 2
-    acc = taps[h] * src[s, y, x]
-    for t in range(1, h + 1):
-        acc += taps[h + t] * (src[s, reflect(y - t, H), x] + src[s, reflect(y + t, H), x])
-    dst[s, y, x] = acc
-
-
-@device
-def _sobel_at(p, s, y, x, H, W):
-    """(∂x, ∂y) of plane s at (y, x): Sobel's 3×3 derivative scaled by ⅛ (OpenCV's row pass, then column pass:
-    [−1, 0, 1]·⅛ along x and [1, 2, 1] along y for ∂x, the transpose for ∂y), reflecting."""
-    xl = reflect(x - 1, W)
-    xr = reflect(x + 1, W)
-    yu = reflect(y - 1, H)
-    yd = reflect(y + 1, H)
-    eighth = np.float32(0.125)
-    two = np.float32(2)
-    gx = ((p[s, yu, xr] - p[s, yu, xl]) * eighth + ((p[s, y, xr] - p[s, y, xl]) * eighth) * two
-          + (p[s, yd, xr] - p[s, yd, xl]) * eighth)
-    top = p[s, yu, xl] + p[s, yu, x] * two + p[s, yu, xr]
-    bottom = p[s, yd, xl] + p[s, yd, x] * two + p[s, yd, xr]
-    return gx, (bottom - top) * eighth
-
-
-@kernel(f"void({F3}, float32[::1], {F3}, {F3}, {F3})")
-def _products_x(p, taps, rxx, rxy, ryy):
-    """The gradient products of every plane of the blurred guide ``p``, blurred along x (reflecting)."""
-    i = cuda.grid(1)
-    S, H, W = p.shape
-    if i >= S * H * W:
-        return
-    s = i // (H * W)
-    q = i - s * (H * W)
-    y = q // W
-    x = q - y * W
-    h = taps.shape[0] // 2
-    axx = np.float32(0)
-    axy = np.float32(0)
-    ayy = np.float32(0)
-    for t in range(taps.shape[0]):
-        gx, gy = _sobel_at(p, s, y, reflect(x + t - h, W), H, W)
-        g = taps[t]
-        axx += g * (gx * gx)
-        axy += g * (gx * gy)
-        ayy += g * (gy * gy)
-    rxx[s, y, x] = axx
-    rxy[s, y, x] = axy
-    ryy[s, y, x] = ayy
-
-
-@device
-def _bank_index(jxx, jxy, jyy):
-    """The kernel of the bank for structure-tensor entries (float64 comparisons, as
-    :func:`flexvox_core.reconstruct.oriented_nc_kernel._bank_index`)."""
-    a = jxx - jyy
-    b = 2.0 * jxy
-    trace = jxx + jyy
-    spread2 = a * a + b * b
-    if not trace > 0.0 or not spread2 > (_LOW * trace) ** 2:
-        return 0
-    level = 1 if spread2 <= (_HIGH * trace) ** 2 else 2
-    ax = abs(a)
-    by = abs(b)
-    if by <= _TAN * ax:
-        angle = 0 if a >= 0 else 4
-    elif ax <= _TAN * by:
-        angle = 2 if b > 0 else 6
-    elif a > 0:
-        angle = 1 if b > 0 else 7
-    else:
-        angle = 3 if b > 0 else 5
-    return 1 + (level - 1) * ANGLES + angle
-
-
-@kernel(f"void({F3}, {F3}, {F3}, float32[::1], {U3}, float32[:, :, :, ::1], uint8)")
-def _structure_y(rxx, rxy, ryy, taps, bank, j, keep):
-    """The column pass of the structure tensor, and the bank index from it (J itself into ``j`` if ``keep``)."""
-    i = cuda.grid(1)
-    S, H, W = bank.shape
-    if i >= S * H * W:
-        return
-    s = i // (H * W)
-    q = i - s * (H * W)
-    y = q // W
-    x = q - y * W
-    h = taps.shape[0] // 2
-    jxx = taps[h] * rxx[s, y, x]
-    jxy = taps[h] * rxy[s, y, x]
-    jyy = taps[h] * ryy[s, y, x]
-    for t in range(1, h + 1):
-        up = reflect(y - t, H)
-        down = reflect(y + t, H)
-        g = taps[h + t]
-        jxx += g * (rxx[s, up, x] + rxx[s, down, x])
-        jxy += g * (rxy[s, up, x] + rxy[s, down, x])
-        jyy += g * (ryy[s, up, x] + ryy[s, down, x])
-    bank[s, y, x] = _bank_index(float(jxx), float(jxy), float(jyy))
-    if keep:
-        j[0, s, y, x] = jxx
-        j[1, s, y, x] = jxy
-        j[2, s, y, x] = jyy
-
-
-def structure_bank(ws, guide, bank, j=None) -> None:
-    """The bank index (S, H, W) uint8 of every voxel of ``guide`` (S, H, W) float32 (device arrays) from its
-    sub-frame's structure tensor; the tensor (3, S, H, W) float32 into ``j`` too if given. Uses the
-    workspace's ``choice.vol0`` … ``choice.vol3``."""
-    S, H, W = guide.shape
-    n = S * H * W
-    v0, v1, v2, v3 = (ws.get(f"choice.vol{k}", (S, H, W)) for k in range(4))
-    pre = ws.put("choice.taps.pre", gaussian_taps(PRE_SIGMA))
-    rho = ws.put("choice.taps.rho", gaussian_taps(RHO))
-    launch(_blur_x, n, guide, pre, v0)
-    launch(_blur_y, n, v0, pre, v1)
-    launch(_products_x, n, v1, rho, v0, v2, v3)
-    keep = j is not None
-    if not keep:
-        j = ws.get("choice.j0", (3, 1, 1, 1))
-    launch(_structure_y, n, v0, v2, v3, rho, bank, j, np.uint8(keep))
 
 
 # ------------------------------------------------------------------------------------------- oriented nc

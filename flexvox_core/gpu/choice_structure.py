@@ -1,0 +1,177 @@
+r"""The structure tensor of every sub-frame of a guide video on the GPU, and the kernel of oriented nc's bank it
+chooses per voxel (:func:`~flexvox_core.reconstruct.oriented_nc.structure`,
+:func:`~flexvox_core.reconstruct.oriented_nc.bank_index`).
+
+.. math::
+
+    J = G_\rho * (\nabla I_\sigma \nabla I_\sigma^\top), \qquad I_\sigma = G_{\sigma_p} * I,
+
+σ_p = :data:`~flexvox_core.reconstruct.oriented_nc.PRE_SIGMA`, ρ = :data:`~flexvox_core.reconstruct.oriented_nc.RHO`,
+G OpenCV's Gaussian blur (:func:`~flexvox_core.gpu.choice_pool.gaussian_taps`, rows then columns) and ∇ Sobel's
+3×3 derivative scaled by ⅛ (:func:`flexvox_core.slopes.slopes`), all with reflecting borders (``BORDER_REFLECT``).
+The bank index rounds the anisotropy A = √((J_xx − J_yy)² + 4 J_xy²) / (J_xx + J_yy) to the nearest level and the
+direction ½ atan2(2 J_xy, J_xx − J_yy) to one of 8, with the CPU kernel's float64 comparisons. Four launches over
+every voxel of every sub-frame; float32 sums.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import cuda
+
+from flexvox_core.gpu.choice_pool import gaussian_taps, reflect
+from flexvox_core.gpu.launch import device, kernel, launch
+from flexvox_core.reconstruct.oriented_nc import _HIGH, _LOW, _TAN, ANGLES, PRE_SIGMA, RHO
+
+F3 = "float32[:, :, ::1]"
+U3 = "uint8[:, :, ::1]"
+
+
+@kernel(f"void({F3}, float32[::1], {F3})")
+def _blur_x(src, taps, dst):
+    """Every plane blurred along x (reflecting)."""
+    i = cuda.grid(1)
+    S, H, W = dst.shape
+    if i >= S * H * W:
+        return
+    s = i // (H * W)
+    p = i - s * (H * W)
+    y = p // W
+    x = p - y * W
+    h = taps.shape[0] // 2
+    acc = np.float32(0)
+    for t in range(taps.shape[0]):
+        acc += taps[t] * src[s, y, reflect(x + t - h, W)]
+    dst[s, y, x] = acc
+
+
+@kernel(f"void({F3}, float32[::1], {F3})")
+def _blur_y(src, taps, dst):
+    """Every plane blurred along y (reflecting; OpenCV's symmetric column sums)."""
+    i = cuda.grid(1)
+    S, H, W = dst.shape
+    if i >= S * H * W:
+        return
+    s = i // (H * W)
+    p = i - s * (H * W)
+    y = p // W
+    x = p - y * W
+    h = taps.shape[0] // 2
+    acc = taps[h] * src[s, y, x]
+    for t in range(1, h + 1):
+        acc += taps[h + t] * (src[s, reflect(y - t, H), x] + src[s, reflect(y + t, H), x])
+    dst[s, y, x] = acc
+
+
+@device
+def _sobel_at(p, s, y, x, H, W):
+    """(∂x, ∂y) of plane s at (y, x): Sobel's 3×3 derivative scaled by ⅛ (OpenCV's row pass, then column pass:
+    [−1, 0, 1]·⅛ along x and [1, 2, 1] along y for ∂x, the transpose for ∂y), reflecting."""
+    xl = reflect(x - 1, W)
+    xr = reflect(x + 1, W)
+    yu = reflect(y - 1, H)
+    yd = reflect(y + 1, H)
+    eighth = np.float32(0.125)
+    two = np.float32(2)
+    gx = ((p[s, yu, xr] - p[s, yu, xl]) * eighth + ((p[s, y, xr] - p[s, y, xl]) * eighth) * two
+          + (p[s, yd, xr] - p[s, yd, xl]) * eighth)
+    top = p[s, yu, xl] + p[s, yu, x] * two + p[s, yu, xr]
+    bottom = p[s, yd, xl] + p[s, yd, x] * two + p[s, yd, xr]
+    return gx, (bottom - top) * eighth
+
+
+@kernel(f"void({F3}, float32[::1], {F3}, {F3}, {F3})")
+def _products_x(p, taps, rxx, rxy, ryy):
+    """The gradient products of every plane of the blurred guide ``p``, blurred along x (reflecting)."""
+    i = cuda.grid(1)
+    S, H, W = p.shape
+    if i >= S * H * W:
+        return
+    s = i // (H * W)
+    q = i - s * (H * W)
+    y = q // W
+    x = q - y * W
+    h = taps.shape[0] // 2
+    axx = np.float32(0)
+    axy = np.float32(0)
+    ayy = np.float32(0)
+    for t in range(taps.shape[0]):
+        gx, gy = _sobel_at(p, s, y, reflect(x + t - h, W), H, W)
+        g = taps[t]
+        axx += g * (gx * gx)
+        axy += g * (gx * gy)
+        ayy += g * (gy * gy)
+    rxx[s, y, x] = axx
+    rxy[s, y, x] = axy
+    ryy[s, y, x] = ayy
+
+
+@device
+def _bank_index(jxx, jxy, jyy):
+    """The kernel of the bank for structure-tensor entries (float64 comparisons, as
+    :func:`flexvox_core.reconstruct.oriented_nc_kernel._bank_index`)."""
+    a = jxx - jyy
+    b = 2.0 * jxy
+    trace = jxx + jyy
+    spread2 = a * a + b * b
+    if not trace > 0.0 or not spread2 > (_LOW * trace) ** 2:
+        return 0
+    level = 1 if spread2 <= (_HIGH * trace) ** 2 else 2
+    ax = abs(a)
+    by = abs(b)
+    if by <= _TAN * ax:
+        angle = 0 if a >= 0 else 4
+    elif ax <= _TAN * by:
+        angle = 2 if b > 0 else 6
+    elif a > 0:
+        angle = 1 if b > 0 else 7
+    else:
+        angle = 3 if b > 0 else 5
+    return 1 + (level - 1) * ANGLES + angle
+
+
+@kernel(f"void({F3}, {F3}, {F3}, float32[::1], {U3}, float32[:, :, :, ::1], uint8)")
+def _structure_y(rxx, rxy, ryy, taps, bank, j, keep):
+    """The column pass of the structure tensor, and the bank index from it (J itself into ``j`` if ``keep``)."""
+    i = cuda.grid(1)
+    S, H, W = bank.shape
+    if i >= S * H * W:
+        return
+    s = i // (H * W)
+    q = i - s * (H * W)
+    y = q // W
+    x = q - y * W
+    h = taps.shape[0] // 2
+    jxx = taps[h] * rxx[s, y, x]
+    jxy = taps[h] * rxy[s, y, x]
+    jyy = taps[h] * ryy[s, y, x]
+    for t in range(1, h + 1):
+        up = reflect(y - t, H)
+        down = reflect(y + t, H)
+        g = taps[h + t]
+        jxx += g * (rxx[s, up, x] + rxx[s, down, x])
+        jxy += g * (rxy[s, up, x] + rxy[s, down, x])
+        jyy += g * (ryy[s, up, x] + ryy[s, down, x])
+    bank[s, y, x] = _bank_index(float(jxx), float(jxy), float(jyy))
+    if keep:
+        j[0, s, y, x] = jxx
+        j[1, s, y, x] = jxy
+        j[2, s, y, x] = jyy
+
+
+def structure_bank(ws, guide, bank, j=None) -> None:
+    """The bank index (S, H, W) uint8 of every voxel of ``guide`` (S, H, W) float32 (device arrays) from its
+    sub-frame's structure tensor; the tensor (3, S, H, W) float32 into ``j`` too if given. Uses the
+    workspace's ``choice.vol0`` … ``choice.vol3``."""
+    S, H, W = guide.shape
+    n = S * H * W
+    v0, v1, v2, v3 = (ws.get(f"choice.vol{k}", (S, H, W)) for k in range(4))
+    pre = ws.put("choice.taps.pre", gaussian_taps(PRE_SIGMA))
+    rho = ws.put("choice.taps.rho", gaussian_taps(RHO))
+    launch(_blur_x, n, guide, pre, v0)
+    launch(_blur_y, n, v0, pre, v1)
+    launch(_products_x, n, v1, rho, v0, v2, v3)
+    keep = j is not None
+    if not keep:
+        j = ws.get("choice.j0", (3, 1, 1, 1))
+    launch(_structure_y, n, v0, v2, v3, rho, bank, j, np.uint8(keep))

@@ -42,7 +42,6 @@ from numba import cuda
 from flexvox_core.gpu.choice_pool import local_weights, reflect
 from flexvox_core.gpu.choice_structure import structure_bank
 from flexvox_core.gpu.launch import device, kernel, launch
-from flexvox_core.motion.local_choice import STILL_VOXEL_SPEED
 from flexvox_core.reconstruct.diffusion import NC_MIN_WEIGHT, gaussian_kernel, time_weights
 from flexvox_core.reconstruct.oriented_nc import SIGMA, kernel_bank
 from flexvox_core.reconstruct.oriented_nc_kernel import tap_lists
@@ -122,10 +121,11 @@ def _still_voxel_loo(loo, video, frames, gathered, mask, flow, limit):
         loo[f, y, x] = s + math.sqrt(err)
 
 
-def still_voxel_loo(loo, video, frames, gathered, mask, flow, *, speed: float = STILL_VOXEL_SPEED) -> None:
+def still_voxel_loo(loo, video, frames, gathered, mask, flow, *, speed: float) -> None:
     """The gather's leave-one-out ``loo`` (F, H, W) corrected in place where the flow calls gathered voxels
-    still, as :func:`flexvox_core.motion.local_choice.still_voxel_loo` (device arrays: ``video`` (S, H, W)
-    float32, ``gathered`` and ``mask`` (S, H, W) uint8, ``flow`` (S, H, W, 2) float32)."""
+    still (slower than ``speed`` px per sub-frame), as :func:`flexvox_core.motion.local_choice.still_voxel_loo`
+    (device arrays: ``video`` (S, H, W) float32, ``gathered`` and ``mask`` (S, H, W) uint8, ``flow``
+    (S, H, W, 2) float32)."""
     launch(_still_voxel_loo, loo.size, loo, video, frames, gathered, mask, flow,
            np.float32(np.float32(speed) ** 2))
 
@@ -309,7 +309,7 @@ def _check(video, loo, gathered, mask, flow, frames, order, present, high_tr, K:
 
 
 def local_choice(ws, video, loo, gathered, mask, flow, frames, order, present, high_tr, K: int, *,
-                 score_still_voxels: bool, sigma: float | None = None) -> bool:
+                 score_still_voxels: bool, still_speed: float, sigma: float) -> bool:
     """Motion-aware's local choice, in place on ``video`` (device arrays throughout).
 
     Parameters
@@ -334,11 +334,14 @@ def local_choice(ws, video, loo, gathered, mask, flow, frames, order, present, h
     K : int
         Sub-frames per frame.
     score_still_voxels : bool
-        Correct the gather's leave-one-out at voxels slower than
-        :data:`~flexvox_core.motion.local_choice.STILL_VOXEL_SPEED` (the CPU does unless the slow class holds
-        every gathered voxel above that speed).
-    sigma : float, optional
-        The pooling's standard deviation (default :func:`~flexvox_core.motion.local_choice.pooling_sigma`).
+        Correct the gather's leave-one-out at voxels slower than ``still_speed`` (the CPU does unless the slow
+        class holds every gathered voxel above that speed).
+    still_speed : float
+        Below this flow speed (px per sub-frame) a gathered voxel counts as still: the CPU's
+        :data:`~flexvox_core.motion.local_choice.STILL_VOXEL_SPEED`.
+    sigma : float
+        The pooling's standard deviation (px): the CPU's :func:`~flexvox_core.motion.local_choice.pooling_sigma`
+        (H, W).
 
     Returns
     -------
@@ -351,7 +354,7 @@ def local_choice(ws, video, loo, gathered, mask, flow, frames, order, present, h
     F, H, W = loo.shape
     S = F * K
     if score_still_voxels:
-        still_voxel_loo(loo, video, frames, gathered, mask, flow)
+        still_voxel_loo(loo, video, frames, gathered, mask, flow, speed=still_speed)
     bank = ws.get("choice.bank", (S, H, W), np.uint8)
     structure_bank(ws, high_tr, bank)
     plan = OrientedPlan(ws, F, K)

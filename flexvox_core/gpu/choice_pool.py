@@ -32,9 +32,14 @@ from numba import cuda
 
 from flexvox_core.gpu.launch import device, kernel, launch
 from flexvox_core.gpu.nc import fold
-from flexvox_core.motion.local_choice import COARSE_SIGMA, POWER, pooling_sigma
 
 F3 = "float32[:, :, ::1]"
+COARSE_SIGMA = 8.0
+"""Above this pooling σ (px) the errors are pooled on the coarse grid: the CPU's
+:data:`flexvox_core.motion.local_choice.COARSE_SIGMA` (the tests check that the two agree; this package does not
+import :mod:`flexvox_core.motion`, which picks the device)."""
+POWER = 2
+"""Exponent of the pooled errors: the CPU's :data:`flexvox_core.motion.local_choice.POWER` (checked likewise)."""
 
 
 @lru_cache(maxsize=32)
@@ -272,7 +277,7 @@ def _linear_weights(sa, sb, xl, xw, yl, yw, power, out):
     out[f, r, c] = _weight(a0 * yw[r, 0] + a1 * yw[r, 1], b0 * yw[r, 0] + b1 * yw[r, 1], power)
 
 
-def local_weights(ws, loo_a, loo_b, samples, out, *, sigma: float | None = None, power: int = POWER) -> None:
+def local_weights(ws, loo_a, loo_b, samples, out, *, sigma: float, power: int = POWER) -> None:
     """Method a's weight per frame and pixel into ``out`` (F, H, W) float32 (device arrays), as
     :func:`flexvox_core.motion.local_choice.local_weights`.
 
@@ -284,8 +289,9 @@ def local_weights(ws, loo_a, loo_b, samples, out, *, sigma: float | None = None,
     samples : device array (F, H, W) float32
         The camera frames.
     out : device array (F, H, W) float32
-    sigma : float, optional
-        Pooling standard deviation (px); default :func:`~flexvox_core.motion.local_choice.pooling_sigma`.
+    sigma : float
+        Pooling standard deviation (px): the CPU's :func:`~flexvox_core.motion.local_choice.pooling_sigma`
+        of the picture's size.
     power : int
         Exponent of the pooled errors.
     """
@@ -293,8 +299,6 @@ def local_weights(ws, loo_a, loo_b, samples, out, *, sigma: float | None = None,
     for name, a in (("loo_a", loo_a), ("loo_b", loo_b), ("samples", samples)):
         if tuple(a.shape) != (F, H, W):
             raise ValueError(f"`{name}` must be (F, H, W) = {(F, H, W)} like `out`; got {tuple(a.shape)}")
-    if sigma is None:
-        sigma = pooling_sigma(H, W)
     if not (math.isfinite(sigma) and sigma > 0) or isinstance(power, bool) or not isinstance(power, int) or power < 1:
         raise ValueError(f"`sigma` must be > 0 and `power` a whole number >= 1; got {sigma!r}, {power!r}")
     n = F * H * W

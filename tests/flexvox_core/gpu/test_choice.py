@@ -100,8 +100,10 @@ def _gpu_stage(sc, score_still_voxels: bool):
     from flexvox_core.gpu.volumes import Workspace
 
     d = _device(sc)
+    H, W = sc.frames.shape[1:]
     done = local_choice(Workspace(), d.video, d.loo, d.gathered, d.mask, d.flow, d.frames, d.order, d.present,
-                        d.high_tr, sc.K, score_still_voxels=score_still_voxels)
+                        d.high_tr, sc.K, score_still_voxels=score_still_voxels,
+                        still_speed=cpu_choice.STILL_VOXEL_SPEED, sigma=cpu_choice.pooling_sigma(H, W))
     return d.video.copy_to_host(), d.loo.copy_to_host(), done
 
 
@@ -121,7 +123,7 @@ def test_the_still_voxel_correction_matches_the_cpu(rng):
     cpu_choice.still_voxel_loo(want, sc.video, sc.frames, sc.gathered, sc.mask, sc.flow, sc.K)
     assert np.nanmax(np.abs(want - sc.loo)) > 0.01  # the correction changes the leave-one-out
     d = _device(sc)
-    still_voxel_loo(d.loo, d.video, d.frames, d.gathered, d.mask, d.flow)
+    still_voxel_loo(d.loo, d.video, d.frames, d.gathered, d.mask, d.flow, speed=cpu_choice.STILL_VOXEL_SPEED)
     _close(d.loo.copy_to_host(), want)
 
 
@@ -200,13 +202,15 @@ def test_the_pooled_weights_match_the_cpu(rng, shape, sigma):
     b[rng.random(shape) < 0.2] = np.nan
     a[1] = np.nan  # a frame without a pixel both estimate: weight 1
     want = cpu_choice.local_weights(a, b, y, sigma=sigma)
+    if sigma is None:
+        sigma = cpu_choice.pooling_sigma(*shape[1:])
     out = cuda.device_array(shape, np.float32)
     local_weights(Workspace(), cuda.to_device(a), cuda.to_device(b), cuda.to_device(y), out, sigma=sigma)
     got = out.copy_to_host()
     np.testing.assert_allclose(got, want, atol=TOL, rtol=0)
     assert (got[1] == 1).all()
     assert np.ptp(got[0]) > 0.05  # the weights follow the errors across the picture
-    assert (coarse_step(sigma or 3.0) > 0) == (sigma is not None and sigma > cpu_choice.COARSE_SIGMA)
+    assert (coarse_step(sigma) > 0) == (sigma > cpu_choice.COARSE_SIGMA)
 
 
 # ------------------------------------------------------------------------------------------- the stage
@@ -253,15 +257,24 @@ def test_inputs_of_the_wrong_type_or_shape_are_refused(rng):
     with pytest.raises(ValueError, match=r"`gathered` must be uint8 \(8, 6, 8\) \(F = 2 frames, K = 4\); "
                                          r"got float32 \(8, 6, 8\)"):
         local_choice(Workspace(), d.video, d.loo, bad, d.mask, d.flow, d.frames, d.order, d.present, d.high_tr,
-                     4, score_still_voxels=True)
+                     4, score_still_voxels=True, still_speed=0.15, sigma=3.0)
     with pytest.raises(ValueError, match=r"`video` must be float32 \(12, 6, 8\) \(F = 2 frames, K = 6\)"):
         local_choice(Workspace(), d.video, d.loo, d.gathered, d.mask, d.flow, d.frames, d.order, d.present,
-                     d.high_tr, 6, score_still_voxels=True)
+                     d.high_tr, 6, score_still_voxels=True, still_speed=0.15, sigma=3.0)
     out = cuda.device_array(sc.frames.shape, np.float32)
     with pytest.raises(ValueError, match=r"`sigma` must be > 0 and `power` a whole number >= 1; got 0.0, 2"):
         local_weights(Workspace(), d.loo, d.loo, d.frames, out, sigma=0.0)
     with pytest.raises(ValueError, match=r"`loo_b` must be \(F, H, W\) = \(2, 6, 8\) like `out`; got \(8, 6, 8\)"):
-        local_weights(Workspace(), d.loo, d.video, d.frames, out)
+        local_weights(Workspace(), d.loo, d.video, d.frames, out, sigma=3.0)
+
+
+def test_the_gpu_constants_are_the_cpus():
+    """flexvox_core.gpu does not import flexvox_core.motion (which imports it to pick the device): its copies of
+    the pooling's constants must be the CPU's."""
+    from flexvox_core.gpu import choice_pool
+
+    assert choice_pool.COARSE_SIGMA == cpu_choice.COARSE_SIGMA
+    assert choice_pool.POWER == cpu_choice.POWER
 
 
 @pytest.mark.skipif(importlib.util.find_spec("numba_cuda") is None, reason="numba-cuda is not installed")
@@ -327,6 +340,6 @@ def test_full_size_kernel_choice_and_weights_match_the_cpu(rng):
     other = (sc.frames + rng.normal(0, 0.05, sc.frames.shape)).astype(np.float32)
     out = cuda.device_array(sc.frames.shape, np.float32)
     d = _device(sc)
-    local_weights(ws, d.loo, cuda.to_device(other), d.frames, out)
+    local_weights(ws, d.loo, cuda.to_device(other), d.frames, out, sigma=cpu_choice.pooling_sigma(480, 640))
     np.testing.assert_allclose(out.copy_to_host(), cpu_choice.local_weights(sc.loo, other, sc.frames), atol=TOL,
                                rtol=0)

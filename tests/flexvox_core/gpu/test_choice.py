@@ -340,6 +340,6 @@ def test_full_size_kernel_choice_and_weights_match_the_cpu(rng):
     other = (sc.frames + rng.normal(0, 0.05, sc.frames.shape)).astype(np.float32)
     out = cuda.device_array(sc.frames.shape, np.float32)
     d = _device(sc)
-    local_weights(ws, d.loo, cuda.to_device(other), d.frames, out, sigma=cpu_choice.pooling_sigma(480, 640))
+    local_weights(ws, d.loo, cuda.to_device(other), d.frames, out, sigma=cpu_choice.pooling_sigma(*sc.frames.shape[1:]))
     np.testing.assert_allclose(out.copy_to_host(), cpu_choice.local_weights(sc.loo, other, sc.frames), atol=TOL,
                                rtol=0)

@@ -1,8 +1,9 @@
-"""Motion-aware reconstruction and ``nc`` on an NVIDIA GPU: the pipeline's stages as CUDA kernels.
+"""Reconstruction on an NVIDIA GPU: CUDA kernels, and which device runs a reconstruction.
 
-The kernels are written in Python with numba-cuda (the ``gpu`` extra: ``pip install 'flexvox[gpu]'``). Each
-stage of :mod:`flexvox_core.motion.stages` has a GPU twin here that takes and returns device arrays, so a
-window's data stays on the card from the upload of the camera frames to the download of the result.
+The kernels are written in Python with numba-cuda (the ``gpu`` extra: ``pip install 'flexvox[gpu]'``). This
+package holds the building blocks: normalized convolution (:mod:`~flexvox_core.gpu.nc`), resizing, the DIS
+optical flow, device buffers, and how kernels are declared and launched (:mod:`~flexvox_core.gpu.launch`).
+Motion-aware's own stages are in :mod:`flexvox_core.motion.gpu`, built on these.
 
 Nothing here is imported by the CPU path: :mod:`flexvox_core.gpu.device` (which GPU, if any; what ``auto``
 picks) imports numba-cuda only when asked, and a core install without it says what is missing.

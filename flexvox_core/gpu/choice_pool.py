@@ -24,14 +24,14 @@ then columns; area cells row by row), so the pooled errors match OpenCV's to a f
 from __future__ import annotations
 
 import math
-from functools import lru_cache
 
-import cv2
 import numpy as np
 from numba import cuda
 
+from flexvox_core.gpu.filters import gaussian_taps
 from flexvox_core.gpu.launch import device, kernel, launch
 from flexvox_core.gpu.nc import fold
+from flexvox_core.gpu.resize import area_table, linear_table
 
 F3 = "float32[:, :, ::1]"
 COARSE_SIGMA = 8.0
@@ -40,64 +40,6 @@ COARSE_SIGMA = 8.0
 import :mod:`flexvox_core.motion`, which picks the device)."""
 POWER = 2
 """Exponent of the pooled errors: the CPU's :data:`flexvox_core.motion.local_choice.POWER` (checked likewise)."""
-
-
-@lru_cache(maxsize=32)
-def gaussian_taps(sigma: float) -> np.ndarray:
-    """OpenCV's Gaussian kernel for a float32 image and this σ (2r + 1,) float32: size round(8σ + 1) | 1."""
-    size = int(round(sigma * 8 + 1)) | 1
-    return np.ascontiguousarray(cv2.getGaussianKernel(size, sigma, ktype=cv2.CV_32F).ravel())
-
-
-@lru_cache(maxsize=32)
-def area_table(src: int, dst: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """OpenCV's ``INTER_AREA`` weights from ``src`` pixels down to ``dst`` cells along one axis (src ≥ dst):
-    (start (dst,) int32, count (dst,) int32, weight (dst, n) float32), cell d the sum of weight[d, j] times
-    pixel start[d] + j; a partial pixel at either end of a cell weighs the share of it the cell covers."""
-    scale = 1.0 / (dst / src)
-    rows = []
-    for d in range(dst):
-        lo = d * scale
-        hi = lo + scale
-        width = min(scale, src - lo)
-        s1, s2 = math.ceil(lo), math.floor(hi)
-        s2 = min(s2, src - 1)
-        s1 = min(s1, s2)
-        taps = []
-        if s1 - lo > 1e-3:
-            taps.append((s1 - 1, (s1 - lo) / width))
-        taps += [(s, 1.0 / width) for s in range(s1, s2)]
-        if hi - s2 > 1e-3:
-            taps.append((s2, min(min(hi - s2, 1.0), width) / width))
-        rows.append(taps)
-    n = max(len(t) for t in rows)
-    start = np.array([t[0][0] for t in rows], np.int32)
-    count = np.array([len(t) for t in rows], np.int32)
-    weight = np.zeros((dst, n), np.float32)
-    for d, taps in enumerate(rows):
-        weight[d, :len(taps)] = [np.float32(w) for _, w in taps]
-    return start, count, weight
-
-
-@lru_cache(maxsize=32)
-def linear_table(src: int, dst: int) -> tuple[np.ndarray, np.ndarray]:
-    """OpenCV's ``INTER_LINEAR`` resampling from ``src`` pixels to ``dst`` along one axis: (left (dst,) int32,
-    weights (dst, 2) float32) of pixels left and min(left + 1, src − 1); x = (d + ½)·scale − ½ in float32,
-    the weights (1 − frac, frac), clamped to the first and last pixel (weight (1, 0)) beyond the centres."""
-    scale = 1.0 / (dst / src)
-    left = np.empty(dst, np.int32)
-    weight = np.empty((dst, 2), np.float32)
-    for d in range(dst):
-        fx = np.float32((d + 0.5) * scale - 0.5)
-        sx = math.floor(fx)
-        fx = np.float32(fx - np.float32(sx))
-        if sx < 0:
-            fx, sx = np.float32(0), 0
-        if sx >= src - 1:
-            fx, sx = np.float32(0), src - 1
-        left[d] = sx
-        weight[d] = (np.float32(1) - fx, fx)
-    return left, weight
 
 
 @device

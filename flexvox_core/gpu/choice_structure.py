@@ -7,7 +7,7 @@ chooses per voxel (:func:`~flexvox_core.reconstruct.oriented_nc.structure`,
     J = G_\rho * (\nabla I_\sigma \nabla I_\sigma^\top), \qquad I_\sigma = G_{\sigma_p} * I,
 
 σ_p = :data:`~flexvox_core.reconstruct.oriented_nc.PRE_SIGMA`, ρ = :data:`~flexvox_core.reconstruct.oriented_nc.RHO`,
-G OpenCV's Gaussian blur (:func:`~flexvox_core.gpu.choice_pool.gaussian_taps`, rows then columns) and ∇ Sobel's
+G OpenCV's Gaussian blur (:func:`~flexvox_core.gpu.filters.gaussian_taps`, rows then columns) and ∇ Sobel's
 3×3 derivative scaled by ⅛ (:func:`flexvox_core.slopes.slopes`), all with reflecting borders (``BORDER_REFLECT``).
 The bank index rounds the anisotropy A = √((J_xx − J_yy)² + 4 J_xy²) / (J_xx + J_yy) to the nearest level and the
 direction ½ atan2(2 J_xy, J_xx − J_yy) to one of 8, with the CPU kernel's float64 comparisons. Four launches over
@@ -19,7 +19,8 @@ from __future__ import annotations
 import numpy as np
 from numba import cuda
 
-from flexvox_core.gpu.choice_pool import gaussian_taps, reflect
+from flexvox_core.gpu.choice_pool import reflect
+from flexvox_core.gpu.filters import gaussian_taps
 from flexvox_core.gpu.launch import device, kernel, launch
 from flexvox_core.reconstruct.oriented_nc import _HIGH, _LOW, _TAN, ANGLES, PRE_SIGMA, RHO
 

@@ -26,17 +26,16 @@ SIM_BLOCK = 32
 """Threads per block under the simulator (each simulated thread is a Python thread: fewer per block is faster)."""
 
 KERNEL_MODULES = (
-    "flexvox_core.gpu.nc",
     "flexvox_core.gpu.volumes",
-    "flexvox_core.gpu.gather",
-    "flexvox_core.gpu.longreach",
-    "flexvox_core.gpu.refine",
+    "flexvox_core.gpu.nc",
+    "flexvox_core.gpu.filters",
     "flexvox_core.gpu.resize",
-    "flexvox_core.gpu.gate",
-    "flexvox_core.gpu.choice",
     "flexvox_core.gpu.dis",
+    "flexvox_core.gpu.choice",
+    "flexvox_core.gpu.choice_pool",
+    "flexvox_core.gpu.choice_structure",
 )
-"""Every module that declares kernels (what :func:`compile_all` imports)."""
+"""This package's modules that declare kernels (motion-aware's own are in :mod:`flexvox_core.motion.gpu`)."""
 
 
 @dataclass(frozen=True)
@@ -134,10 +133,11 @@ def _fits(want, got) -> bool:
     return want == got
 
 
-def compile_all(cc: tuple[int, int] = (9, 0)) -> dict[str, int]:
-    """Compile every declared signature of every kernel to PTX for compute capability ``cc`` without a GPU
-    (numba-cuda's deviceless compile). Returns {kernel name: PTX characters}; raises on the first failure."""
-    for module in KERNEL_MODULES:
+def compile_all(modules=KERNEL_MODULES, cc: tuple[int, int] = (9, 0)) -> dict[str, int]:
+    """Compile every declared signature of every kernel of ``modules`` to PTX for compute capability ``cc``
+    without a GPU (numba-cuda's deviceless compile). Returns {kernel name: PTX characters}; raises on the first
+    failure."""
+    for module in modules:
         importlib.import_module(module)
     out = {}
     for name, k in sorted(REGISTRY.items()):

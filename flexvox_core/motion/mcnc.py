@@ -105,13 +105,7 @@ def motion_compensated_nc(
     S, H, W = vals.shape
     if not np.isfinite(f.sum(dtype=np.float64)):  # one pass, no (S, H, W, 2) temporary
         f = np.where(np.isfinite(f), f, 0).astype(np.float32)
-    if max_reach is None:
-        # Far enough for 3 standard deviations, and at least one sampling period (a pixel is
-        # sampled once every K sub-frames), so a still pixel always reaches its own samples.
-        reach = max(math.ceil(3 * math.sqrt(2 * time * c1)), sampling_period(m))
-    else:
-        reach = int(max_reach)
-    reach = max(0, min(reach, S - 1))
+    reach = default_reach(time, c1, sampling_period(m), S) if max_reach is None else max(0, min(int(max_reach), S - 1))
     sig_space = math.sqrt(2 * time * c2)
     # Value·mask and mask as separate planes (two one-channel remaps cost a third of one
     # two-channel remap, and interpolate exactly: see :mod:`~flexvox_core.motion.longreach`).
@@ -210,6 +204,13 @@ def _own_weights(sigma: float, h: int, w: int) -> np.ndarray:
         return np.ones((h, w))
     g = cv2.getGaussianKernel(int(round(sigma * 8 + 1)) | 1, sigma, cv2.CV_64F).ravel()
     return self_weights(g, h)[:, None] * self_weights(g, w)[None, :]
+
+
+def default_reach(time: float, c1: float, period: int, S: int) -> int:
+    """The gather's largest offset |d| (sub-frames): far enough for 3 standard deviations of the static case, and at
+    least one sampling ``period`` (a pixel is sampled once every K sub-frames), so a still pixel always reaches its
+    own samples; at most S − 1."""
+    return max(0, min(max(math.ceil(3 * math.sqrt(2 * time * c1)), period), S - 1))
 
 
 LIST_WIDTH = 4096

@@ -74,13 +74,19 @@ def frame_noise(frames: np.ndarray, still: np.ndarray, mask: np.ndarray, K: int)
     Frame f pools the differences to its neighbours f − 1 and f + 1 at the pixels still at both
     samples; with fewer than :data:`MIN_PIXELS` of them its noise is 0.
     """
+    F = np.shape(frames)[0]
+    if still.shape != mask.shape or still.shape != (F * K, *np.shape(frames)[1:]):
+        raise ValueError(f"`still` {still.shape} and `mask` {mask.shape} must be (F·K, H, W) for {F} frames "
+                         f"{np.shape(frames)[1:]} at K = {K}")
+    # Whether each pixel's sample of each frame is still (a frame without samples: nowhere).
+    still_at = np.stack([(still[i * K:(i + 1) * K] & mask[i * K:(i + 1) * K]).any(axis=0) for i in range(F)])
+    return noise_from_still(frames, still_at)
+
+
+def noise_from_still(frames: np.ndarray, still_at: np.ndarray) -> np.ndarray:
+    """:func:`frame_noise` from ``still_at`` (F, H, W) bool: whether each pixel's sample of each frame is still."""
     f = np.asarray(frames, np.float32)
     F = f.shape[0]
-    if still.shape != mask.shape or still.shape != (F * K, *f.shape[1:]):
-        raise ValueError(f"`still` {still.shape} and `mask` {mask.shape} must be (F·K, H, W) for {F} frames "
-                         f"{f.shape[1:]} at K = {K}")
-    # Whether each pixel's sample of each frame is still (a frame without samples: nowhere).
-    still_at = [(still[i * K:(i + 1) * K] & mask[i * K:(i + 1) * K]).any(axis=0) for i in range(F)]
     steps = []
     for i in range(F - 1):
         both = still_at[i] & still_at[i + 1]

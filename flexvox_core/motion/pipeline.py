@@ -16,12 +16,8 @@ the gaps. :func:`run_window` runs them on the CPU or on an NVIDIA GPU (:mod:`fle
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from functools import cached_property
-
 import numpy as np
 
-from flexvox_core.flow import FlowField
 from flexvox_core.gaps import as_missing
 from flexvox_core.motion.gated_flow import DIS_PARAMS, gated_flow
 from flexvox_core.motion.options import (
@@ -44,8 +40,9 @@ from flexvox_core.motion.options import (
     auto_flow_scale,
     sample_bounds,
 )
+from flexvox_core.motion.result import MotionAwareResult
 from flexvox_core.motion.stages import CpuStages, Window, run_stages
-from flexvox_core.motion.tensors import DEFAULT_C, resolution_map
+from flexvox_core.motion.tensors import DEFAULT_C
 from flexvox_core.reconstruct._common import check_frames, check_identity_code
 
 __all__ = [
@@ -54,54 +51,6 @@ __all__ = [
     "STEP1_TIME", "STILL_SPEED", "STILL_TENSOR", "MotionAwareResult", "MotionOptions", "auto_flow_scale",
     "gated_flow", "motion_aware", "run_window", "sample_bounds",
 ]
-
-
-@dataclass
-class MotionAwareResult:
-    """Video and everything a person may want to look at.
-
-    Attributes
-    ----------
-    video : ndarray (S, H, W) float32 in the samples' range
-    high_tr : ndarray (S, H, W) float32, the Step-1 reconstruction
-    flow : FlowField
-        The gated flow that drove the tensors (confidence from the high-TR flow).
-    K : int
-        Slots of the code.
-    c : (c1, c2, c3)
-        Eigenvalues of Eq. 4 used.
-    seconds : dict
-        Time of each step: ``high_tr``, ``flow``, ``diffusion`` (every stage after the flow).
-    stage_seconds : dict
-        Time of each stage of :mod:`~flexvox_core.motion.stages` (summed over passes).
-    device : str
-        Where the stages ran: ``cpu`` or ``cuda``.
-    tr, sr : ndarray (S, H, W) float32
-        Effective resolution chosen per voxel (:func:`~flexvox_core.motion.tensors.resolution_map`),
-        computed from ``flow`` when first asked for (two more volumes a plain reconstruction
-        does not need).
-    """
-
-    video: np.ndarray
-    high_tr: np.ndarray
-    flow: FlowField
-    K: int
-    c: tuple = DEFAULT_C
-    seconds: dict = field(default_factory=dict)
-    stage_seconds: dict = field(default_factory=dict)
-    device: str = "cpu"
-
-    @cached_property
-    def _resolution(self) -> tuple[np.ndarray, np.ndarray]:
-        return resolution_map(self.flow.flow, self.K, self.c)
-
-    @property
-    def tr(self) -> np.ndarray:
-        return self._resolution[0]
-
-    @property
-    def sr(self) -> np.ndarray:
-        return self._resolution[1]
 
 
 def motion_aware(
@@ -222,7 +171,7 @@ def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: 
 
         device = resolve_device(device)
     if device == "cuda":
-        from flexvox_core.gpu.engine import CudaStages
+        from flexvox_core.motion.gpu.engine import CudaStages
 
         return run_stages(CudaStages(window))
     return run_stages(CpuStages(window), memo)

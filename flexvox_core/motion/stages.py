@@ -59,6 +59,7 @@ from flexvox_core.motion.options import (
     MotionOptions,
     auto_flow_scale,
 )
+from flexvox_core.motion.result import MotionAwareResult
 from flexvox_core.motion.vardiff import variable_tensor_diffusion
 from flexvox_core.reconstruct.diffusion import diffuse, diffuse_where
 from flexvox_core.reconstruct.oriented_nc import oriented_nc
@@ -356,8 +357,6 @@ class CpuStages:
         return np.clip(video, lo, hi, out=video)
 
     def result(self, current, high_tr, field_, times: StageTimes):
-        from flexvox_core.motion.pipeline import MotionAwareResult
-
         w = self.window
         video = current.astype(np.float32, copy=False)
         s0, s1 = w.keep

@@ -196,7 +196,7 @@ def test_the_candidate_follows_the_high_tr_edges(monkeypatch):
     """The local choice's candidate is nc oriented by the high-TR reconstruction, at the gathered voxels:
     on a turned square moving 1 px per sub-frame its edges come out better than with isotropic nc (the same
     kernel with a guide without edges). Measured: +0.18 dB (K = 8, one frame)."""
-    import flexvox_core.motion.pipeline as pipeline
+    import flexvox_core.motion.stages as pipeline
     from flexvox_core.reconstruct.oriented_nc import oriented_nc
 
     code = design_code((2, 4)).code

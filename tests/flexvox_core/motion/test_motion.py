@@ -290,7 +290,7 @@ def test_the_gather_may_write_into_its_still_values(capture_case):
 def test_still_values_written_in_place_give_the_volumes_result(monkeypatch, passes):
     # motion_aware writes the still voxels' values into the fixed-tensor guide, and the gather into that,
     # instead of two more volumes: the same bits as with them.
-    import flexvox_core.motion.pipeline as P
+    import flexvox_core.motion.stages as P
 
     code = design_code((4, 4)).code
     truth = render_scene("balls", 16 * 4, 40, 52)
@@ -312,7 +312,7 @@ def test_still_values_written_in_place_give_the_volumes_result(monkeypatch, pass
 def test_motion_aware_measures_its_flow_with_two_variational_iterations(monkeypatch):
     # Every DIS pair of motion-aware's flow (successive sub-frames, K-averages, their steps) refines with
     # DIS_PARAMS, and the result's flow parameters say so.
-    import flexvox_core.motion.pipeline as pipeline
+    import flexvox_core.motion.gated_flow as pipeline
 
     built = []
     real = pipeline.make_backend

@@ -1,0 +1,184 @@
+"""Separable filters on stacks of planes (N, H, W) on the GPU, each the twin of the OpenCV or scipy call named.
+
+* :func:`blur` — ``cv2.GaussianBlur`` / ``cv2.sepFilter2D`` with given taps, reflecting (``BORDER_REFLECT``,
+  the edge repeated) or zero borders, one pass per axis;
+* :func:`dilate` — ``cv2.dilate`` with a square of ones (pixels outside the picture never count);
+* :func:`sobel_slopes` — :func:`flexvox_core.slopes.slopes` after its blur: Sobel's 3×3 derivatives / 8;
+* :func:`box_in_time` — ``scipy.ndimage.uniform_filter1d(v, K, axis=0, mode="nearest")``;
+* :func:`gaussian_taps` — the taps ``cv2.GaussianBlur`` uses for a float picture and a σ.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import cv2
+import numpy as np
+from numba import cuda
+
+from flexvox_core.gpu.launch import device, kernel, launch
+from flexvox_core.gpu.nc import fold
+
+
+@lru_cache(maxsize=64)
+def gaussian_taps(sigma: float, size: int | None = None) -> np.ndarray:
+    """The float32 taps ``cv2.GaussianBlur`` uses on a float32 picture with this σ (size round(8σ + 1), made odd,
+    as OpenCV picks for float pictures; or ``size``)."""
+    n = size if size is not None else int(round(sigma * 8 + 1)) | 1
+    return np.ascontiguousarray(cv2.getGaussianKernel(n, sigma, ktype=cv2.CV_32F).ravel())
+
+
+@device
+def _at(src, n, y, x, H, W, reflect):
+    """``src[n, y, x]`` with the picture reflected past its edges, or 0 there."""
+    if reflect:
+        return src[n, fold(y, H), fold(x, W)]
+    if y < 0 or y >= H or x < 0 or x >= W:
+        return np.float32(0)
+    return src[n, y, x]
+
+
+@kernel("void(float32[:, :, ::1], float32[:, :, ::1], float32[::1], int32, uint8)")
+def _blur_pass(src, dst, taps, axis, reflect):
+    i = cuda.grid(1)
+    N, H, W = src.shape
+    if i >= N * H * W:
+        return
+    n = i // (H * W)
+    p = i - n * (H * W)
+    y = p // W
+    x = p - y * W
+    r = taps.shape[0] // 2
+    acc = np.float32(0)
+    if axis == 1:
+        for t in range(-r, r + 1):
+            acc += taps[t + r] * _at(src, n, y + t, x, H, W, reflect)
+    else:
+        for t in range(-r, r + 1):
+            acc += taps[t + r] * _at(src, n, y, x + t, H, W, reflect)
+    dst[n, y, x] = acc
+
+
+def blur(ws, src, dst, taps_y, taps_x, *, reflect: bool = True, tag: str = "blur") -> None:
+    """``dst`` = ``src`` (N, H, W) float32 filtered along rows by ``taps_y`` then columns by ``taps_x`` (host
+    float32 arrays of odd length, None: not along that axis); ``dst`` may be ``src``."""
+    n = int(math.prod(src.shape))
+    passes = [(1, t) for t in (taps_y,) if t is not None] + [(2, t) for t in (taps_x,) if t is not None]
+    if not passes:
+        if dst is not src:
+            dst.copy_to_device(src)
+        return
+    tmp = ws.get(f"{tag}.tmp", src.shape)
+    cur = src
+    for k, (axis, taps) in enumerate(passes):
+        out = dst if k == len(passes) - 1 else tmp
+        if out is cur:  # in place: through the scratch plane
+            out = tmp if cur is not tmp else dst
+        launch(_blur_pass, n, cur, out, ws.put(f"{tag}.taps{axis}", taps), np.int32(axis), np.uint8(reflect))
+        cur = out
+    if cur is not dst:
+        dst.copy_to_device(cur)
+
+
+@kernel("void(uint8[:, :, ::1], uint8[:, :, ::1], int32, int32)")
+def _max_pass(src, dst, radius, axis):
+    i = cuda.grid(1)
+    N, H, W = src.shape
+    if i >= N * H * W:
+        return
+    n = i // (H * W)
+    p = i - n * (H * W)
+    y = p // W
+    x = p - y * W
+    found = 0
+    if axis == 1:
+        for t in range(max(0, y - radius), min(H, y + radius + 1)):
+            if src[n, t, x]:
+                found = 1
+                break
+    else:
+        for t in range(max(0, x - radius), min(W, x + radius + 1)):
+            if src[n, y, t]:
+                found = 1
+                break
+    dst[n, y, x] = found
+
+
+def dilate(ws, mask, out, radius: int, *, tag: str = "dilate") -> None:
+    """``out`` = ``mask`` (N, H, W) uint8 dilated by a (2·radius + 1)² square (``out`` is not ``mask``)."""
+    if radius <= 0:
+        out.copy_to_device(mask)
+        return
+    tmp = ws.get(f"{tag}.tmp", mask.shape, np.uint8)
+    n = int(math.prod(mask.shape))
+    launch(_max_pass, n, mask, tmp, np.int32(radius), np.int32(1))
+    launch(_max_pass, n, tmp, out, np.int32(radius), np.int32(2))
+
+
+@kernel("void(float32[:, :, ::1], float32[:, :, ::1], float32[:, :, ::1])")
+def _sobel(p, gx, gy):
+    i = cuda.grid(1)
+    N, H, W = p.shape
+    if i >= N * H * W:
+        return
+    n = i // (H * W)
+    q = i - n * (H * W)
+    y = q // W
+    x = q - y * W
+    ym, yp, xm, xp = fold(y - 1, H), fold(y + 1, H), fold(x - 1, W), fold(x + 1, W)
+    # Sobel: derivative [-1, 0, 1] along the axis, smoothing [1, 2, 1] across it; scaled by 1/8.
+    dx = (p[n, ym, xp] - p[n, ym, xm]) + np.float32(2) * (p[n, y, xp] - p[n, y, xm]) + (p[n, yp, xp] - p[n, yp, xm])
+    dy = (p[n, yp, xm] - p[n, ym, xm]) + np.float32(2) * (p[n, yp, x] - p[n, ym, x]) + (p[n, yp, xp] - p[n, ym, xp])
+    gx[n, y, x] = dx * np.float32(0.125)
+    gy[n, y, x] = dy * np.float32(0.125)
+
+
+def sobel_slopes(ws, picture, gx, gy, sigma: float, *, tag: str = "slopes") -> None:
+    """(∂x, ∂y) of each plane of ``picture`` (N, H, W) blurred by ``sigma`` px, as
+    :func:`flexvox_core.slopes.slopes` (reflecting borders), into ``gx``, ``gy``."""
+    taps = gaussian_taps(sigma)
+    smooth = ws.get(f"{tag}.smooth", picture.shape)
+    blur(ws, picture, smooth, taps, taps, tag=tag)
+    launch(_sobel, int(math.prod(picture.shape)), smooth, gx, gy)
+
+
+@kernel("void(float32[:, :, ::1], float32[:, :, ::1], int32)")
+def _box_in_time(src, dst, size):
+    i = cuda.grid(1)
+    S, H, W = src.shape
+    if i >= S * H * W:
+        return
+    s = i // (H * W)
+    p = i - s * (H * W)
+    y = p // W
+    x = p - y * W
+    acc = 0.0
+    for t in range(s - size // 2, s - size // 2 + size):
+        acc += src[min(max(t, 0), S - 1), y, x]
+    dst[s, y, x] = acc / size
+
+
+@kernel("void(float32[:, :, :, ::1], float32[:, :, :, ::1], int32)")
+def _box_in_time_2(src, dst, size):
+    i = cuda.grid(1)
+    S, H, W, C = src.shape
+    if i >= S * H * W * C:
+        return
+    s = i // (H * W * C)
+    p = i - s * (H * W * C)
+    y = p // (W * C)
+    x = (p // C) % W
+    c = p % C
+    acc = 0.0
+    for t in range(s - size // 2, s - size // 2 + size):
+        acc += src[min(max(t, 0), S - 1), y, x, c]
+    dst[s, y, x, c] = acc / size
+
+
+def box_in_time(src, dst, size: int) -> None:
+    """``dst`` = the moving average of ``size`` sub-frames of ``src`` (S, H, W) or (S, H, W, 2) float32, edges
+    held (``uniform_filter1d(src, size, axis=0, mode="nearest")``: sub-frames s − size//2 … s − size//2 +
+    size − 1), summed in float64."""
+    n = int(math.prod(src.shape))
+    launch(_box_in_time if len(src.shape) == 3 else _box_in_time_2, n, src, dst, np.int32(size))

@@ -1,0 +1,218 @@
+"""Motion-aware's stages on the GPU: :class:`CudaStages`, the twin of :class:`~flexvox_core.motion.stages.CpuStages`.
+
+The camera frames go up once; every stage reads and writes device arrays held in one
+:class:`~flexvox_core.gpu.volumes.Workspace` (reused from window to window by a streaming run); the result's
+kept sub-frames come down at the end, and the high-TR video and the flow only when a caller reads them.
+Two steps still pass through the host: the noise's per-frame median (one number per frame, from the still
+pixels the device marks) and the bridging of dropped frames (:mod:`flexvox_core.gaps`; only where the camera
+dropped one).
+"""
+
+from __future__ import annotations
+
+import logging
+from time import perf_counter
+
+import numpy as np
+from numba import cuda
+
+from flexvox_core.flow import FlowField
+from flexvox_core.forward import tiled_order
+from flexvox_core.gaps import bridge, bridge_flow, captured
+from flexvox_core.gpu import choice, volumes
+from flexvox_core.gpu.nc import NcPlan, nc
+from flexvox_core.gpu.volumes import Workspace
+from flexvox_core.motion import local_choice as lc
+from flexvox_core.motion import noise_aware
+from flexvox_core.motion.gated_flow import DIS_PARAMS
+from flexvox_core.motion.gpu import gate
+from flexvox_core.motion.gpu.gather import trajectory_gather
+from flexvox_core.motion.gpu.longreach import long_reach
+from flexvox_core.motion.gpu.refine import refine
+from flexvox_core.motion.mcnc import default_reach
+from flexvox_core.motion.options import (
+    LONG_REACH_RANGE,
+    LONG_REACH_SIGMA_S,
+    PERIOD_GATE,
+    REFINE_C,
+    STEP1_TENSOR,
+    STEP1_TIME,
+    STILL_TENSOR,
+)
+from flexvox_core.motion.result import MotionAwareResult
+from flexvox_core.motion.stages import StageTimes, Window
+from flexvox_core.reconstruct.diffusion import diffuse
+
+_logger = logging.getLogger(__name__)
+
+
+class CudaStages:
+    """The stages on the GPU for one :class:`~flexvox_core.motion.stages.Window`.
+
+    ``ws``: a workspace to reuse (a streaming run passes the same one for every window). ``pairs``: where the
+    optical flow of image pairs runs, ``gpu`` (DIS on the card) or ``cpu`` (OpenCV's DIS on the host).
+    """
+
+    device = "cuda"
+
+    def __init__(self, window: Window, *, ws: Workspace | None = None, pairs: str = "gpu"):
+        self.window = w = window
+        self.ws = ws if ws is not None else Workspace()
+        self.pair_flow = gate.PairFlow(self.ws, pairs, DIS_PARAMS)
+        F, H, W = w.frames.shape
+        self.present = np.ones(F, bool) if w.missing is None else ~np.asarray(w.missing, bool)
+        self.frames_d = self.ws.put("frames", np.ascontiguousarray(w.frames, np.float32))
+        self.order_d = self.ws.put("order", np.ascontiguousarray(tiled_order(w.code, H, W), np.int32))
+        self.present_d = self.ws.put("present", self.present.astype(np.uint8))
+        kept = captured(w.frames, w.missing)
+        self.sample_range = (float(kept.min()), float(kept.max()))
+        self.fixed_ready = self.still_ready = False
+        self.generation = self.ws.generation = getattr(self.ws, "generation", 0) + 1
+
+    def sync(self) -> None:
+        cuda.synchronize()
+
+    def _volume(self, name: str, dtype=np.float32):
+        w = self.window
+        return self.ws.get(name, (w.S, *w.frames.shape[1:]), dtype)
+
+    def _nc(self, tensor, time: float, out, tag: str) -> None:
+        """Normalized convolution into ``out``; the rare voxels with no sample in reach take the CPU's value."""
+        w = self.window
+        lo, hi = self.sample_range
+        low = nc(self.ws, self.frames_d, self.order_d, self.present_d, NcPlan(w.frames.shape[0], w.K, tensor, time,
+                 None if w.missing is None else self.present), lo, hi, out, tag=tag)
+        if low:
+            _logger.info("gpu nc: %d voxels with no sample in reach: the volume is computed on the CPU", low)
+            out.copy_to_device(diffuse(w.frames, w.code, tensor=tensor, time=time, missing=w.missing))
+
+    # ----------------------------------------------------------------------------------------------- stages
+
+    def high_tr(self):
+        out = self._volume("high_tr")
+        self._nc(STEP1_TENSOR, STEP1_TIME, out, "nc")
+        return out
+
+    def samples(self) -> None:
+        self.sparse = self._volume("sparse")
+        self.mask = self._volume("mask", np.uint8)
+        volumes.samples(self.frames_d, self.order_d, self.present_d, self.window.K, self.sparse, self.mask)
+
+    def gated_flow(self, current, memo=None):
+        w, o = self.window, self.window.options
+        flow = self.ws.get("flow", (w.S, *w.frames.shape[1:], 2))
+        params = gate.gated_flow(self.ws, current, w.K, gate=o.gate, scale=w.flow_scale, slow_speed=o.slow_speed,
+                                 period_gate=PERIOD_GATE, pair_flow=self.pair_flow, out=flow)
+        self.flow_params = {"backend": "dis", **DIS_PARAMS, **params, "pairs": self.pair_flow.where}
+        if w.missing is not None:  # bridged on the host (dropped frames only)
+            host = flow.copy_to_host()
+            bridge_flow(host, w.missing, w.K, margin=w.K // 2)
+            flow.copy_to_device(host)
+        return flow
+
+    def speed_classes(self, flow):
+        w, o = self.window, self.window.options
+        still, slow, gather = (self._volume(n, np.uint8) for n in ("still", "slow", "gather"))
+        self.n_still, self.n_slow = gate.speed_classes(self.ws, flow, o.still_speed,
+                                                       o.slow_speed if w.slow_class else None, w.skip, still, slow,
+                                                       gather)
+        self.gather_mask = gather
+        return still, slow
+
+    def guides(self, still):
+        w, o = self.window, self.window.options
+        c = o.c
+        fixed = self._volume("fixed")
+        if not self.fixed_ready:
+            self._nc((c[2], c[1], c[0]), o.time, fixed, "nc")
+            self.fixed_ready = o.passes > 1  # a later pass reads it again
+        base = fixed
+        if o.passes > 1:  # `fixed` serves every pass; two volumes in turn, so as not to overwrite the last pass's
+            self.passes_run = getattr(self, "passes_run", 0) + 1
+            base = self._volume(f"base{self.passes_run % 2}")
+            volumes.copy(base, fixed)
+        if self.n_still:
+            still_value = self._volume("still_value")
+            if not self.still_ready:
+                self._nc(STILL_TENSOR, w.still_time, still_value, "nc")
+                self.still_ready = o.passes > 1
+            volumes.copy_where(base, still_value, still)
+        return base
+
+    def noise(self, current, still):
+        w = self.window
+        g = self._volume("noise.g")
+        if not gate.noise_weights(self.ws, w.frames, current, still, self.mask, w.K, g):
+            return None
+        return g
+
+    def trajectory_gather(self, flow, base, still, slow, high_tr, wide, *, leave_one_out: bool, last: bool):
+        w, o = self.window, self.window.options
+        loo = None
+        if leave_one_out:
+            loo = self.ws.get("loo", w.frames.shape)
+            volumes.fill(loo, np.nan)
+        c1, c2, _ = o.c
+        per_pixel = int(self.present.sum())  # an identity code samples each pixel once a frame
+        reach = default_reach(o.time, c1, w.S // per_pixel if per_pixel else w.S, w.S)
+        # The gather writes into the guides' volume: the voxels it does not gather keep their value there.
+        trajectory_gather(self.ws, self.sparse, self.mask, flow, self.gather_mask, base, high_tr, time=o.time, c1=c1,
+                          c2=c2, reach=reach, wide=wide, wide_sigma=noise_aware.wide_sigma(w.K), loo=loo)
+        return base, loo, (self.gather_mask if loo is not None else None)
+
+    def long_reach(self, flow, video, slow) -> None:
+        w, o = self.window, self.window.options
+        if not self.n_slow:
+            return
+        lo, hi = w.bounds
+        reach = max(1, round(o.slow_reach * w.K))
+        long_reach(self.ws, self.sparse, self.mask, flow, video, slow, reach=reach, sigma_t=reach,
+                   sigma_s=LONG_REACH_SIGMA_S, h=LONG_REACH_RANGE * max(hi - lo, 1e-12))
+
+    def refinement(self, video, flow, slow, last: bool) -> None:
+        w, o = self.window, self.window.options
+        t = o.refine(w.K)
+        if t <= 0:
+            return
+        g0, g1 = w.gathered
+        refine(self.ws, video[g0:g1], self.mask[g0:g1], flow[g0:g1], slow[g0:g1], c=REFINE_C, time=t)
+
+    def local_choice(self, video, loo, gathered, flow, high_tr, last: bool) -> None:
+        w, o = self.window, self.window.options
+        score = not (o.slow_speed is not None and o.slow_speed >= lc.STILL_VOXEL_SPEED and w.slow_class)
+        choice.local_choice(self.ws, video, loo, gathered, self.mask, flow, self.frames_d, self.order_d,
+                            self.present_d, high_tr, w.K, score_still_voxels=score, still_speed=lc.STILL_VOXEL_SPEED,
+                            sigma=lc.pooling_sigma(*w.frames.shape[1:]))
+
+    def gaps(self, video, flow) -> None:
+        w = self.window
+        host = video.copy_to_host()
+        bridge(host, w.missing, w.K, flow=flow.copy_to_host())
+        video.copy_to_device(host)
+
+    def clip(self, video):
+        lo, hi = self.window.bounds
+        volumes.clip(video, lo, hi)
+        return video
+
+    def result(self, current, high_tr, flow, times: StageTimes) -> MotionAwareResult:
+        w = self.window
+        s0, s1 = w.keep
+        t0 = perf_counter()
+        video = current[s0:s1].copy_to_host()
+        times.seconds["download"] = perf_counter() - t0
+        params = dict(self.flow_params)
+        shape = (w.S, *w.frames.shape[1:])
+
+        def fresh(array):
+            if self.ws.generation != self.generation:
+                raise RuntimeError("this GPU result's high-TR video and flow were overwritten by a later window of "
+                                   "the same workspace: read them before the next window runs")
+            return array.copy_to_host()
+
+        def flow_field():
+            return FlowField(fresh(flow), np.broadcast_to(np.float32(1), shape), params,
+                             times.seconds.get("gated_flow", 0.0))
+
+        return MotionAwareResult(video, lambda: fresh(high_tr), flow_field, w.K, w.options.c, times.summary(),
+                                 dict(times.seconds), self.device)

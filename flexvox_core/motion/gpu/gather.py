@@ -113,7 +113,8 @@ def _trajectory_sums(value, weight, flow, near, inv_4nc1, reach, num, den):
 def _finish(num, den, num_w, den_w, g, mixed, gather, value, mask, fallback, own_y, own_x, own_wy, own_wx,
             want_loo, loo, out):
     """At the gathered voxels: the mixture of the two blurs, N / D (the fallback where D is tiny) into ``out``,
-    and the leave-one-out of the samples into ``loo`` (F, H, W); elsewhere ``out`` is left as it is."""
+    and the leave-one-out of the samples into ``loo`` (F, H, W); elsewhere ``out`` is left as it is, but for the
+    samples, which every voxel keeps."""
     i = cuda.grid(1)
     S, H, W = num.shape
     if i >= S * H * W:
@@ -123,6 +124,8 @@ def _finish(num, den, num_w, den_w, g, mixed, gather, value, mask, fallback, own
     y = p // W
     x = p - y * W
     if not gather[t, y, x]:
+        if mask[t, y, x]:  # the samples are kept everywhere
+            out[t, y, x] = value[t, y, x]
         return
     n = num[t, y, x]
     d = den[t, y, x]

@@ -1,0 +1,167 @@
+"""Motion-aware's GPU stages against the CPU stages they replace, under numba-cuda's simulator (tiny volumes)."""
+
+import numpy as np
+import pytest
+
+from flexvox_core import capture, code_from_order
+from flexvox_core.forward import sample_mask, sparse_volume
+from flexvox_core.motion.gated_flow import gated_flow
+from flexvox_core.motion.longreach import long_reach_nc
+from flexvox_core.motion.mcnc import motion_compensated_nc
+from flexvox_core.motion.noise_aware import SmoothWeights, frame_noise, wide_sigma
+from flexvox_core.motion.options import PERIOD_GATE
+from flexvox_core.motion.stages import speed_classes
+from flexvox_core.motion.vardiff import variable_tensor_diffusion
+from flexvox_core.simulate.scenes import render_scene
+
+CODE = code_from_order([[0, 2], [3, 1]])
+K = 4
+
+
+def _dev(a):
+    from numba import cuda
+
+    return cuda.to_device(np.ascontiguousarray(a))
+
+
+@pytest.fixture
+def ws():
+    from flexvox_core.gpu.volumes import Workspace
+
+    return Workspace()
+
+
+@pytest.fixture
+def clip(rng):
+    """A tiny moving capture: (frames, sparse, mask, flow, truth) with flows from still to 1.5 px per sub-frame."""
+    truth = render_scene("balls", 3 * K, 10, 12, seed=1)
+    frames = capture(truth, CODE)
+    sparse = sparse_volume(frames, CODE)
+    mask = sample_mask(sparse.shape, CODE)
+    flow = rng.normal(0, 0.8, (*sparse.shape, 2)).astype(np.float32)
+    flow[:, :4] = 0  # a still band
+    return frames, sparse, mask, flow, truth
+
+
+@pytest.mark.parametrize("noisy", [False, True])
+def test_trajectory_gather_is_the_cpus(rng, ws, clip, noisy):
+    from flexvox_core.motion.gpu.gather import trajectory_gather
+    from flexvox_core.motion.mcnc import default_reach
+
+    frames, sparse, mask, flow, truth = clip
+    S = len(sparse)
+    gather = rng.random(sparse.shape) > 0.4
+    base = rng.random(sparse.shape).astype(np.float32)
+    fallback = rng.random(sparse.shape).astype(np.float32)
+    wide = rng.random(sparse.shape).astype(np.float32) if noisy else None
+    loo = np.full(frames.shape, np.nan, np.float32)
+    want = motion_compensated_nc(sparse, mask, flow, time=5.0, fallback=fallback, still=~gather, still_value=base,
+                                 loo=loo, wide=list(wide) if noisy else None, wide_sigma=wide_sigma(K))
+    out = _dev(base)
+    loo_d = _dev(np.full(frames.shape, np.nan, np.float32))
+    trajectory_gather(ws, _dev(sparse), _dev(mask.astype(np.uint8)), _dev(flow), _dev(gather.astype(np.uint8)), out,
+                      _dev(fallback), time=5.0, c1=0.95, c2=0.05, reach=default_reach(5.0, 0.95, K, S),
+                      wide=_dev(wide) if noisy else None, wide_sigma=wide_sigma(K), loo=loo_d)
+    got = out.copy_to_host()
+    # OpenCV's remap rounds positions to 1/32 px; the GPU reads exactly.
+    np.testing.assert_allclose(got, want, atol=3e-3)
+    assert np.abs(got - want).mean() < 3e-4
+    got_loo = loo_d.copy_to_host()
+    np.testing.assert_array_equal(np.isnan(got_loo), np.isnan(loo))
+    np.testing.assert_allclose(got_loo[np.isfinite(loo)], loo[np.isfinite(loo)], atol=5e-3)
+
+
+def test_long_reach_is_the_cpus(rng, ws, clip):
+    from flexvox_core.motion.gpu.longreach import long_reach
+
+    frames, sparse, mask, flow, truth = clip
+    flow = flow * np.float32(0.3)
+    select = (rng.random(sparse.shape) > 0.5) & ~mask
+    guide = np.clip(truth + rng.normal(0, 0.05, truth.shape), 0, 1).astype(np.float32)
+    want = long_reach_nc(sparse, mask, flow, guide, select, reach=6, sigma_t=6, sigma_s=0.3, h=0.1)
+    np.copyto(want, sparse, where=mask)
+    video = _dev(guide)
+    long_reach(ws, _dev(sparse), _dev(mask.astype(np.uint8)), _dev(flow), video, _dev(select.astype(np.uint8)),
+               reach=6, sigma_t=6, sigma_s=0.3, h=0.1)
+    got = video.copy_to_host()
+    np.testing.assert_allclose(got, want, atol=5e-3)
+    assert np.abs(got - want).mean() < 5e-4
+
+
+def test_refinement_is_the_cpus(rng, ws, clip):
+    from flexvox_core.motion.gpu.refine import refine
+    from flexvox_core.motion.options import REFINE_C
+
+    frames, sparse, mask, flow, truth = clip
+    init = rng.random(sparse.shape).astype(np.float32)
+    sharp = rng.random(sparse.shape) > 0.5
+    want = variable_tensor_diffusion(init, mask, flow, c=REFINE_C, time=1.0, sharp=sharp)
+    video = _dev(init)
+    refine(ws, video, _dev(mask.astype(np.uint8)), _dev(flow), _dev(sharp.astype(np.uint8)), c=REFINE_C, time=1.0)
+    np.testing.assert_allclose(video.copy_to_host(), want, atol=2e-6)
+    # A window of the volume, as the engine refines only the gathered sub-frames.
+    video = _dev(init)
+    refine(ws, video[4:8], _dev(mask.astype(np.uint8))[4:8], _dev(flow)[4:8], _dev(sharp.astype(np.uint8))[4:8],
+           c=(0.95, 0.05, 0.02), time=0.5)
+    want = init.copy()
+    want[4:8] = variable_tensor_diffusion(init[4:8], mask[4:8], flow[4:8], c=(0.95, 0.05, 0.02), time=0.5,
+                                          sharp=sharp[4:8])
+    np.testing.assert_allclose(video.copy_to_host(), want, atol=2e-6)
+
+
+def test_speed_classes_are_the_cpus(rng, ws, clip):
+    from flexvox_core.motion.gpu.gate import speed_classes as gpu_classes
+
+    flow = clip[3] * np.float32(0.5)
+    S = len(flow)
+    skip = np.zeros(S, bool)
+    skip[-3:] = True
+    still, slow = speed_classes(flow, 0.2, 0.6)
+    slow[skip] = False
+    d = [_dev(np.zeros(still.shape, np.uint8)) for _ in range(3)]
+    counts = gpu_classes(ws, _dev(flow), 0.2, 0.6, skip, *d)
+    g_still, g_slow, g_gather = (a.copy_to_host().astype(bool) for a in d)
+    np.testing.assert_array_equal(g_still, still)
+    np.testing.assert_array_equal(g_slow, slow)
+    np.testing.assert_array_equal(g_gather, ~(still | slow | skip[:, None, None]))
+    assert counts == (int(still.sum()), int(slow.sum()))
+
+
+def test_noise_weights_are_the_cpus(rng, ws, clip):
+    from flexvox_core.motion.gpu.gate import noise_weights
+
+    frames, sparse, mask, flow, truth = clip
+    noisy = np.clip(frames + rng.normal(0, 0.03, frames.shape), 0, 1).astype(np.float32)
+    still = np.zeros(sparse.shape, bool)
+    still[:, :, :] = True
+    noise = frame_noise(noisy, still, mask, K)
+    assert noise.any()
+    current = truth.astype(np.float32)
+    cpu = SmoothWeights(current, np.repeat(noise, K))
+    out = _dev(np.zeros(sparse.shape, np.float32))
+    assert noise_weights(ws, noisy, _dev(current), _dev(still.astype(np.uint8)), _dev(mask.astype(np.uint8)), K, out)
+    np.testing.assert_allclose(out.copy_to_host(), np.stack([cpu[t] for t in range(len(sparse))]), atol=2e-5)
+    # A noiseless capture: no weights.
+    assert not noise_weights(ws, frames, _dev(current), _dev(still.astype(np.uint8)), _dev(mask.astype(np.uint8)),
+                             K, out)
+
+
+def test_gated_flow_is_the_cpus(ws):
+    """The gate, the K-average's velocity and the resizes, with the pairs' DIS on the host as the CPU runs it."""
+    from flexvox_core.motion.gated_flow import DIS_PARAMS
+    from flexvox_core.motion.gpu.gate import PairFlow
+    from flexvox_core.motion.gpu.gate import gated_flow as gpu_gated
+
+    video = render_scene("pan", 6 * K, 20, 24, seed=2)
+    want = gated_flow(video, K, backend="dis", scale=0.8, slow_speed=0.6, period_gate=PERIOD_GATE).flow
+    out = _dev(np.zeros((*video.shape, 2), np.float32))
+    gpu_gated(ws, _dev(video), K, gate=(0.03, 0.15), scale=0.8, slow_speed=0.6, period_gate=PERIOD_GATE,
+              pair_flow=PairFlow(ws, "cpu", DIS_PARAMS), out=out)
+    np.testing.assert_allclose(out.copy_to_host(), want, atol=2e-4)
+
+
+def test_pair_flow_refuses_an_unknown_place(ws):
+    from flexvox_core.motion.gpu.gate import PairFlow
+
+    with pytest.raises(ValueError, match=r"`pairs` must be one of gpu, cpu; got 'tpu'"):
+        PairFlow(ws, "tpu", {})

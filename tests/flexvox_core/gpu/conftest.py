@@ -1,0 +1,21 @@
+import os
+
+import pytest
+
+if os.environ.get("FLEXVOX_TEST_GPU") != "1":
+    os.environ.setdefault("NUMBA_ENABLE_CUDASIM", "1")
+
+pytest.importorskip("numba_cuda")
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "gpu: needs a real GPU (runs only with FLEXVOX_TEST_GPU=1)")
+
+
+def pytest_collection_modifyitems(config, items):
+    if os.environ.get("FLEXVOX_TEST_GPU") == "1":
+        return
+    skip = pytest.mark.skip(reason="needs a real GPU: set FLEXVOX_TEST_GPU=1")
+    for item in items:
+        if "gpu" in item.keywords:
+            item.add_marker(skip)

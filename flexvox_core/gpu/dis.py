@@ -29,6 +29,7 @@ import numpy as np
 from numba import cuda
 
 from flexvox_core.gpu.device import simulator
+from flexvox_core.gpu.dis_pyramid import gradients, reduce, to_output, upsample
 from flexvox_core.gpu.dis_refine import RefineBuffers, refine_level, zero4
 from flexvox_core.gpu.launch import BLOCK, SIM_BLOCK, device, kernel, launch
 
@@ -160,125 +161,18 @@ def _block() -> int:
     return SIM_BLOCK if simulator() else BLOCK
 
 
-# ----------------------------------------------------------------------------------------------- pyramid
+_SMS: list[int] = []
 
 
-@device
-def _area_span(d, scale, src):
-    """First and last source index and the cell width of destination index ``d`` (INTER_AREA)."""
-    f1 = d * scale
-    f2 = f1 + scale
-    cell = min(scale, src - f1)
-    s1 = int(math.ceil(f1))
-    s2 = min(int(math.floor(f2)), src - 1)
-    s1 = min(s1, s2)
-    lo = s1 - 1 if s1 - f1 > 1e-3 else s1
-    hi = s2 if f2 - s2 > 1e-3 else s2 - 1
-    return f1, f2, cell, s1, s2, lo, hi
-
-
-@device
-def _area_weight(s, f1, f2, cell, s1, s2):
-    """Weight (float32) of source index ``s`` in a destination cell (OpenCV's area tables)."""
-    if s < s1:
-        return np.float32((s1 - f1) / cell)
-    if s < s2:
-        return np.float32(1.0 / cell)
-    return np.float32(min(min(f2 - s2, 1.0), cell) / cell)
-
-
-@device
-def _round_half_even(x):
-    r = int(math.floor(x))
-    frac = x - np.float32(r)
-    if frac > np.float32(0.5) or (frac == np.float32(0.5) and r % 2 == 1):
-        r += 1
-    return min(max(r, 0), 255)
-
-
-@kernel("void(uint8[:, :, ::1], uint8[:, :, ::1], int32, int32, float64, float64)")
-def _area_down(src, dst, n, k, sy, sx):
-    """dst[m] = INTER_AREA resize of src[m], m < n; ``k`` > 0 an exact integer factor, else the general
-    fractional cells of widths (sy, sx) source pixels."""
-    t = cuda.grid(1)
-    dh, dw = dst.shape[1], dst.shape[2]
-    if t >= n * dh * dw:
-        return
-    m = t // (dh * dw)
-    i = (t // dw) % dh
-    j = t % dw
-    if k > 0:
-        s = 0
-        for a in range(k):
-            for b in range(k):
-                s += np.int32(src[m, i * k + a, j * k + b])
-        if k == 2:
-            dst[m, i, j] = np.uint8((s + 2) >> 2)
-        else:
-            dst[m, i, j] = np.uint8(_round_half_even(np.float32(s) * np.float32(1.0 / (k * k))))
-        return
-    yf1, yf2, ycell, ys1, ys2, ylo, yhi = _area_span(i, sy, src.shape[1])
-    xf1, xf2, xcell, xs1, xs2, xlo, xhi = _area_span(j, sx, src.shape[2])
-    acc = ZERO
-    for r in range(ylo, yhi + 1):
-        beta = _area_weight(r, yf1, yf2, ycell, ys1, ys2)
-        row = ZERO
-        for c in range(xlo, xhi + 1):
-            row = row + np.float32(src[m, r, c]) * _area_weight(c, xf1, xf2, xcell, xs1, xs2)
-        acc = acc + beta * row
-    dst[m, i, j] = np.uint8(_round_half_even(acc))
-
-
-@kernel("void(uint8[:, :, ::1], int16[:, :, ::1], int16[:, :, ::1], int32)")
-def _sobel(img, gx, gy, n):
-    """3x3 Sobel derivatives of img[m], m < n, border reflected about the edge pixel (BORDER_REFLECT_101)."""
-    t = cuda.grid(1)
-    h, w = img.shape[1], img.shape[2]
-    if t >= n * h * w:
-        return
-    m = t // (h * w)
-    i = (t // w) % h
-    j = t % w
-    im = i - 1 if i > 0 else 1
-    ip = i + 1 if i < h - 1 else h - 2
-    jm = j - 1 if j > 0 else 1
-    jp = j + 1 if j < w - 1 else w - 2
-    a00, a01, a02 = np.int32(img[m, im, jm]), np.int32(img[m, im, j]), np.int32(img[m, im, jp])
-    a10, a12 = np.int32(img[m, i, jm]), np.int32(img[m, i, jp])
-    a20, a21, a22 = np.int32(img[m, ip, jm]), np.int32(img[m, ip, j]), np.int32(img[m, ip, jp])
-    gx[m, i, j] = np.int16((a02 - a00) + 2 * (a12 - a10) + (a22 - a20))
-    gy[m, i, j] = np.int16((a20 - a00) + 2 * (a21 - a01) + (a22 - a02))
-
-
-@kernel("void(int16[:, :, ::1], int16[:, :, ::1], float32[:, :, :, ::1], int32, int32, int32)")
-def _tensor(gx, gy, st, n, psz, pstride):
-    """st[m, :, r, c] = sums over patch (r, c) of Ix², Iy², IxIy, Ix, Iy (exact integer sums)."""
-    t = cuda.grid(1)
-    hs, ws = st.shape[2], st.shape[3]
-    if t >= n * hs * ws:
-        return
-    m = t // (hs * ws)
-    r = (t // ws) % hs
-    c = t % ws
-    sxx = 0
-    syy = 0
-    sxy = 0
-    sx = 0
-    sy = 0
-    for a in range(psz):
-        for b in range(psz):
-            x = np.int32(gx[m, r * pstride + a, c * pstride + b])
-            y = np.int32(gy[m, r * pstride + a, c * pstride + b])
-            sxx += x * x
-            syy += y * y
-            sxy += x * y
-            sx += x
-            sy += y
-    st[m, 0, r, c] = np.float32(sxx)
-    st[m, 1, r, c] = np.float32(syy)
-    st[m, 2, r, c] = np.float32(sxy)
-    st[m, 3, r, c] = np.float32(sx)
-    st[m, 4, r, c] = np.float32(sy)
+def _blocks_wanted() -> int:
+    """Blocks the patch search spreads its stripes over: two per multiprocessor of the GPU (each stripe
+    is a short sequential chain, so the stripes are better on many multiprocessors than packed into few
+    blocks); two under the simulator."""
+    if simulator():
+        return 2
+    if not _SMS:
+        _SMS.append(int(cuda.get_current_device().MULTIPROCESSOR_COUNT))
+    return 2 * _SMS[0]
 
 
 # ----------------------------------------------------------------------------------------------- patch search
@@ -381,14 +275,13 @@ def _visit(img, gx, gy, st, S, n0, n1, q, r, c, dr, dc, side, up, psz, pstride, 
 
 
 @kernel("void(uint8[:, :, ::1], int16[:, :, ::1], int16[:, :, ::1], float32[:, :, :, ::1], float32[:, :, :, ::1], "
-        "float32[:, :, :, ::1], int32[::1], int32[::1], int32, int32, int32, int32, int32, int32, int32)")
-def _search(img, gx, gy, st, U, S, pa, pb, npairs, psz, pstride, inner, stripe_rows, mean_norm, prop):
+        "float32[:, :, :, ::1], int32[::1], int32[::1], int32, int32, int32, int32, int32, int32, int32, int32)")
+def _search(img, gx, gy, st, U, S, pa, pb, npairs, psz, pstride, inner, stripe_rows, per_block, mean_norm, prop):
     """Sparse flow S (P, 2, hs, ws) of one level from the dense flow U (P, 2, h, w) (its value at each
-    patch centre to start from). One thread per patch row; a block holds whole stripes of
-    ``stripe_rows`` rows, which sweep anti-diagonals with a barrier per step. Every thread of every block
-    runs the same number of steps and barriers."""
+    patch centre to start from). One thread per patch row; a block holds ``per_block`` whole stripes of
+    ``stripe_rows`` rows (its first threads), which sweep anti-diagonals with a barrier per step. Every
+    thread of every block runs the same number of steps and barriers."""
     hs, ws = S.shape[2], S.shape[3]
-    per_block = cuda.blockDim.x // stripe_rows
     k = cuda.threadIdx.x // stripe_rows
     lr = cuda.threadIdx.x - k * stripe_rows
     nstripes = (hs + stripe_rows - 1) // stripe_rows
@@ -467,63 +360,6 @@ def _densify(img, S, U, pa, pb, npairs, psz, pstride):
             den = den + coef
     U[q, 0, i, j] = nx / den
     U[q, 1, i, j] = ny / den
-
-
-# ----------------------------------------------------------------------------------------------- resampling
-
-
-@device
-def _linear_tap(d, scale, src):
-    """(first index, second index, weight of the second) of destination index ``d`` (INTER_LINEAR)."""
-    f = (d + 0.5) * scale - 0.5
-    s = int(math.floor(f))
-    f -= s
-    if s < 0:
-        f = 0.0
-        s = 0
-    if s >= src - 1:
-        f = 0.0
-        s = src - 1
-    return s, min(s + 1, src - 1), np.float32(f)
-
-
-@device
-def _bilinear(U, q, ch, y0, y1, fy, x0, x1, fx):
-    top = U[q, ch, y0, x0] * (ONE - fx) + U[q, ch, y0, x1] * fx
-    bot = U[q, ch, y1, x0] * (ONE - fx) + U[q, ch, y1, x1] * fx
-    return top * (ONE - fy) + bot * fy
-
-
-@kernel("void(float32[:, :, :, ::1], float32[:, :, :, ::1], int32, float32, float64, float64)")
-def _upsample(src, dst, npairs, factor, sy, sx):
-    """dst[q] = factor * bilinear resize of src[q] (OpenCV's INTER_LINEAR, half-pixel centres)."""
-    t = cuda.grid(1)
-    h, w = dst.shape[2], dst.shape[3]
-    if t >= npairs * h * w:
-        return
-    q = t // (h * w)
-    i = (t // w) % h
-    j = t % w
-    y0, y1, fy = _linear_tap(i, sy, src.shape[2])
-    x0, x1, fx = _linear_tap(j, sx, src.shape[3])
-    for ch in range(2):
-        dst[q, ch, i, j] = _bilinear(src, q, ch, y0, y1, fy, x0, x1, fx) * factor
-
-
-@kernel("void(float32[:, :, :, ::1], float32[:, :, :, ::1], int32, float32, float64, float64)")
-def _to_output(src, out, npairs, factor, sy, sx):
-    """out[q, i, j, :] = factor * bilinear resize of src[q] (planes to interleaved (dx, dy))."""
-    t = cuda.grid(1)
-    h, w = out.shape[1], out.shape[2]
-    if t >= npairs * h * w:
-        return
-    q = t // (h * w)
-    i = (t // w) % h
-    j = t % w
-    y0, y1, fy = _linear_tap(i, sy, src.shape[2])
-    x0, x1, fx = _linear_tap(j, sx, src.shape[3])
-    for ch in range(2):
-        out[q, i, j, ch] = _bilinear(src, q, ch, y0, y1, fy, x0, x1, fx) * factor
 
 
 # ----------------------------------------------------------------------------------------------- host side
@@ -646,22 +482,16 @@ def dis_pairs(images, a, b, params: DisParams | None = None, *, out=None, worksp
             raise ValueError(f"dis_pairs: {H}x{W} images give {math.ceil(hs / STRIPES)} patch rows per stripe; at "
                              f"most {block} (threads per block) fit")
     da, db = cuda.to_device(ha), cuda.to_device(hb)
-    i32, f32 = np.int32, np.float32
+    i32 = np.int32
     # pyramid, gradients and structure tensors of every image
     finest, _ = scales(H, W, p)
-    src = images
     levels = []
-    for lev, ((h, w), L) in enumerate(zip(ws.shapes, ws.levels, strict=True)):
-        img = L["img"] if L["img"] is not None else images
-        if lev > 0 or finest > 0:
-            sh, sw = src.shape[1], src.shape[2]
-            k = sh // h if (sh % h == 0 and sw % w == 0 and sh // h == sw // w) else 0
-            launch(_area_down, N * h * w, src, img, i32(N), i32(k), sh / h, sw / w)
-        launch(_sobel, N * h * w, img, L["gx"], L["gy"], i32(N))
-        hs, ws_ = patch_grid(h, w, p)
-        launch(_tensor, N * hs * ws_, L["gx"], L["gy"], L["st"], i32(N), i32(p.patch_size), i32(p.patch_stride))
+    for lev, L in enumerate(ws.levels):
+        img = images if L["img"] is None else L["img"]
+        if L["img"] is not None:
+            reduce(levels[-1] if lev else images, img, N)
+        gradients(img, L["gx"], L["gy"], L["st"], N, p.patch_size, p.patch_stride)
         levels.append(img)
-        src = img
     # coarse to fine
     prop = p.use_spatial_propagation
     inner = int(math.floor(p.gradient_descent_iterations / (2.0 if prop else 1.0)))
@@ -671,15 +501,14 @@ def dis_pairs(images, a, b, params: DisParams | None = None, *, out=None, worksp
         hs, _ = patch_grid(h, w, p)
         rows = math.ceil(hs / STRIPES)
         stripes = P * math.ceil(hs / rows)
-        count = math.ceil(stripes / (block // rows)) * block
-        launch(_search, count, img, L["gx"], L["gy"], L["st"], L["U"], L["S"], da, db, i32(P), i32(p.patch_size),
-               i32(p.patch_stride), i32(inner), i32(rows), i32(p.use_mean_normalization), i32(prop))
+        per_block = max(1, min(block // rows, math.ceil(stripes / _blocks_wanted())))
+        launch(_search, math.ceil(stripes / per_block) * block, img, L["gx"], L["gy"], L["st"], L["U"], L["S"], da,
+               db, i32(P), i32(p.patch_size), i32(p.patch_stride), i32(inner), i32(rows), i32(per_block),
+               i32(p.use_mean_normalization), i32(prop))
         launch(_densify, P * h * w, img, L["S"], L["U"], da, db, i32(P), i32(p.patch_size), i32(p.patch_stride))
         if p.variational_iterations > 0:
             refine_level(img, L["U"], da, db, P, L["refine"], p)
         if lev > 0:
-            nh, nw = ws.shapes[lev - 1]
-            launch(_upsample, P * nh * nw, L["U"], ws.levels[lev - 1]["U"], i32(P), f32(2.0), h / nh, w / nw)
-    h, w = ws.shapes[0]
-    launch(_to_output, P * H * W, ws.levels[0]["U"], out, i32(P), f32(2**finest), h / H, w / W)
+            upsample(L["U"], ws.levels[lev - 1]["U"], P, 2.0)
+    to_output(ws.levels[0]["U"], out, P, 2**finest)
     return out

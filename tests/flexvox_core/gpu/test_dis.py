@@ -197,7 +197,7 @@ def test_out_and_workspace_are_validated():
 _COMPILE = """
 import re
 from numba import cuda
-import flexvox_core.gpu.dis, flexvox_core.gpu.dis_refine
+import flexvox_core.gpu.dis, flexvox_core.gpu.dis_pyramid, flexvox_core.gpu.dis_refine
 from flexvox_core.gpu.launch import REGISTRY
 for name, k in sorted(REGISTRY.items()):
     for sig in k.signatures:

@@ -368,11 +368,14 @@ def _densify(img, S, U, pa, pb, npairs, psz, pstride):
 class DisWorkspace:
     """Device buffers of :func:`dis_pairs` for up to ``n_images`` images and ``n_pairs`` pairs of (H, W)
     images with parameters ``params``: per level the pyramid images, their gradients and structure tensors,
-    the dense and sparse flows and the refinement's buffers. Reused by every call that fits."""
+    the dense and sparse flows and the refinement's buffers. Reused by every call that fits; it serves one
+    call at a time (calls from several threads need a workspace each)."""
 
     def __init__(self, n_images: int, n_pairs: int, H: int, W: int, params: DisParams):
         self.n_images, self.n_pairs, self.H, self.W, self.params = n_images, n_pairs, H, W, params
         self.shapes = level_shapes(H, W, params)
+        self.pa = cuda.device_array(n_pairs, np.int32)
+        self.pb = cuda.device_array(n_pairs, np.int32)
         finest, _ = scales(H, W, params)
         self.levels = []
         for lev, (h, w) in enumerate(self.shapes):
@@ -388,6 +391,16 @@ class DisWorkspace:
                 "refine": RefineBuffers(n_pairs, h, w) if params.variational_iterations > 0 else None,
             })
         _logger.debug("DIS workspace: %d images, %d pairs, %dx%d, levels %s", n_images, n_pairs, W, H, self.shapes)
+
+    @property
+    def nbytes(self) -> int:
+        """Device memory held, in bytes."""
+        arrays = [self.pa, self.pb]
+        for L in self.levels:
+            arrays += [L[k] for k in ("img", "gx", "gy", "st", "U", "S") if L[k] is not None]
+            if L["refine"] is not None:
+                arrays += list(vars(L["refine"]).values())
+        return sum(int(a.size) * a.dtype.itemsize for a in arrays)
 
     def fits(self, n_images: int, n_pairs: int, H: int, W: int, params: DisParams) -> bool:
         return (n_images <= self.n_images and n_pairs <= self.n_pairs and (H, W) == (self.H, self.W)
@@ -481,7 +494,11 @@ def dis_pairs(images, a, b, params: DisParams | None = None, *, out=None, worksp
         if math.ceil(hs / STRIPES) > block:
             raise ValueError(f"dis_pairs: {H}x{W} images give {math.ceil(hs / STRIPES)} patch rows per stripe; at "
                              f"most {block} (threads per block) fit")
-    da, db = cuda.to_device(ha), cuda.to_device(hb)
+    da, db = ws.pa, ws.pb
+    for dev, host in ((da, ha), (db, hb)):
+        full = np.zeros(ws.n_pairs, np.int32)
+        full[:P] = host
+        dev.copy_to_device(full)
     i32 = np.int32
     # pyramid, gradients and structure tensors of every image
     finest, _ = scales(H, W, p)

@@ -4,8 +4,8 @@
 The same algorithm and the same choices as the kernels (which follow OpenCV's ``DISOpticalFlow``), written
 the straightforward way: the patch search sweeps each stripe of patch rows in raster order (forward, then
 backward), vectorised over the stripes, where the kernels sweep anti-diagonals; every value is float32 and
-every sum runs in the kernels' order (``np.add.accumulate`` is sequential), so the two agree to the last bit
-but for the few places noted in the tests. Nothing here uses numba or OpenCV.
+every sum runs in the kernels' order (``np.add.accumulate`` is sequential), so the two agree to the last bit.
+Nothing here uses numba or OpenCV.
 
 ``p`` is any object with :class:`flexvox_core.gpu.dis.DisParams`'s attribute names.
 """

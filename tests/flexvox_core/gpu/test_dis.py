@@ -75,7 +75,7 @@ def test_workspace_is_reused_and_out_is_written(rng):
     ws = workspace_for(2, 1, 16, 16, p)
     assert workspace_for(2, 1, 16, 16, p) is ws and workspace_for(1, 1, 16, 16, p) is ws
     out = gdis.cuda.device_array((1, 16, 16, 2), np.float32)
-    back = dis_pairs(images, [0], [1], p, out=out, workspace=ws)
+    back = dis_pairs(images, gdis.cuda.to_device(np.array([0], np.int64)), (1,), p, out=out, workspace=ws)
     assert back is out
     np.testing.assert_array_equal(out.copy_to_host(), first)
 

@@ -31,6 +31,8 @@ KERNEL_MODULES = (
     "flexvox_core.gpu.filters",
     "flexvox_core.gpu.resize",
     "flexvox_core.gpu.dis",
+    "flexvox_core.gpu.dis_pyramid",
+    "flexvox_core.gpu.dis_refine",
     "flexvox_core.gpu.choice",
     "flexvox_core.gpu.choice_pool",
     "flexvox_core.gpu.choice_structure",

@@ -63,7 +63,7 @@ class PairFlow:
 
         a = self.ws.put(f"{tag}.a", np.ascontiguousarray(pairs[:, 0], np.int32))
         b = self.ws.put(f"{tag}.b", np.ascontiguousarray(pairs[:, 1], np.int32))
-        dis_pairs(images, a, b, DisParams(**self.dis_params), out=out, ws=self.ws)
+        dis_pairs(images, a, b, DisParams(**self.dis_params), out=out)
 
     def _on_host(self, images, pairs, out) -> None:
         from flexvox_core.flow.backends import make_backend

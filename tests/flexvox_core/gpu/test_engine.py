@@ -1,0 +1,138 @@
+"""The GPU engine end to end against the CPU pipeline, the device choice, and the deviceless compile.
+
+Under numba-cuda's simulator every kernel runs as Python: the windows here are tiny (a few frames of 12×16
+pixels at K = 4). The same comparisons at full size, on a GPU, are marked ``gpu``.
+"""
+
+import importlib.util
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from flexvox_core import capture, code_from_order
+from flexvox_core.design import design_code
+from flexvox_core.metrics import psnr
+from flexvox_core.motion.options import MotionOptions, sample_bounds
+from flexvox_core.motion.pipeline import motion_aware, run_window
+from flexvox_core.simulate.scenes import render_scene
+
+CODE = code_from_order([[0, 2], [3, 1]])
+K = 4
+
+
+def _capture(scene, F, H, W, noise=0.0, seed=0):
+    truth = render_scene(scene, F * K, H, W, seed=seed)
+    frames = capture(truth, CODE)
+    if noise:
+        frames = np.clip(frames + np.random.default_rng(seed).normal(0, noise, frames.shape), 0, 1)
+    return truth, np.asarray(frames, np.float32)
+
+
+def _both(frames, options, missing=None, keep=None, pairs="cpu"):
+    from flexvox_core.motion.gpu.engine import CudaStages
+    from flexvox_core.motion.stages import Window, run_stages
+
+    bounds = sample_bounds(frames, missing, None)
+    cpu = run_window(frames, CODE, options, bounds, missing=missing, keep=keep)
+    gpu = run_stages(CudaStages(Window.plan(frames, CODE, options, bounds, missing=missing, keep=keep), pairs=pairs))
+    return cpu, gpu
+
+
+def test_the_whole_pipeline_on_the_gpu_is_the_cpus():
+    """motion_aware(device="cuda"): every stage on the device, DIS included; the same video within float
+    rounding, and ``auto`` never takes the simulator."""
+    truth, frames = _capture("balls", 2, 16, 16)
+    cpu = motion_aware(frames, CODE)
+    gpu = motion_aware(frames, CODE, device="cuda")
+    assert gpu.device == "cuda" and cpu.device == "cpu"
+    np.testing.assert_allclose(gpu.video, cpu.video, atol=2e-5)
+    np.testing.assert_allclose(gpu.high_tr, cpu.high_tr, atol=2e-6)
+    np.testing.assert_allclose(gpu.flow.flow, cpu.flow.flow, atol=1e-3)
+    assert gpu.flow.params["pairs"] == "gpu"
+    assert set(gpu.stage_seconds) >= {"high_tr", "gated_flow", "trajectory_gather", "local_choice", "download"}
+
+
+@pytest.mark.parametrize("case", ["noisy", "dropped frame", "kept sub-frames", "two passes", "no refinement"])
+def test_the_gpu_engine_follows_the_cpu_in_each_case(case):
+    F = 3 if case in ("dropped frame", "kept sub-frames") else 2
+    truth, frames = _capture("balls", F, 12, 12, noise=0.02 if case == "noisy" else 0.0)
+    options = MotionOptions(passes=2 if case == "two passes" else 1,
+                            refine_time=0.0 if case == "no refinement" else None)
+    missing = keep = None
+    if case == "dropped frame":
+        missing = np.array([False, True, False])
+        frames[1] = 0
+    if case == "kept sub-frames":
+        keep = (K, 2 * K)
+    cpu, gpu = _both(frames, options, missing=missing, keep=keep)
+    assert gpu.video.shape == cpu.video.shape
+    # A second pass measures flow on the first pass's result, through 8-bit images: a float rounding there can
+    # move a flow vector, so that case is held to the quality, the others to the values.
+    if case == "two passes":
+        assert abs(psnr(gpu.video, truth).mean - psnr(cpu.video, truth).mean) < 0.05
+    else:
+        np.testing.assert_allclose(gpu.video, cpu.video, atol=2e-4)
+
+
+def test_a_result_read_after_its_workspace_was_reused_says_so():
+    from flexvox_core.gpu.volumes import Workspace
+    from flexvox_core.motion.gpu.engine import CudaStages
+    from flexvox_core.motion.stages import Window, run_stages
+
+    truth, frames = _capture("balls", 2, 8, 8)
+    ws = Workspace()
+    window = Window.plan(frames, CODE, MotionOptions(refine_time=0.0, local_choice=False, noise_aware=False),
+                         (0.0, 1.0))
+    first = run_stages(CudaStages(window, ws=ws, pairs="cpu"))
+    run_stages(CudaStages(window, ws=ws, pairs="cpu"))
+    with pytest.raises(RuntimeError, match="overwritten by a later window of the same workspace"):
+        first.high_tr  # noqa: B018
+
+
+def test_device_choice(monkeypatch):
+    from flexvox_core.gpu import device
+
+    assert device.resolve_device("cpu") == "cpu"
+    assert device.resolve_device("cuda") == "cuda"  # the simulator, asked for by name
+    assert device.resolve_device("auto") == "cpu"
+    with pytest.raises(ValueError, match=r"`device` must be one of auto, cpu, cuda; got 'gpu'"):
+        device.resolve_device("gpu")
+    monkeypatch.setattr(device.importlib.util, "find_spec", lambda name: None)
+    assert device.cuda_status() == (False, "numba-cuda is not installed (pip install 'flexvox[gpu]')")
+    with pytest.raises(device.DeviceUnavailable, match=r"^--device cuda: numba-cuda is not installed"):
+        device.resolve_device("cuda")
+    assert device.resolve_device("auto") == "cpu"
+
+
+@pytest.mark.skipif(importlib.util.find_spec("numba_cuda") is None, reason="numba-cuda is not installed")
+def test_every_kernel_compiles_for_a_gpu_without_one():
+    """numba-cuda's deviceless compile of every declared signature, for the H100's compute capability."""
+    code = textwrap.dedent("""
+        from flexvox_core.gpu.launch import compile_all
+        from flexvox_core.motion.gpu import KERNEL_MODULES
+        sizes = compile_all(KERNEL_MODULES, cc=(9, 0))
+        print(len(sizes), min(sizes.values()))
+    """)
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_ENABLE_CUDASIM"}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    count, smallest = map(int, done.stdout.split())
+    assert count >= 40 and smallest > 1000
+
+
+@pytest.mark.gpu
+@pytest.mark.parametrize("scene", ["balls", "pan"])
+def test_full_size_gpu_against_cpu(scene):
+    """A 640×480, K = 16 clip of 4 frames: the GPU within 0.1 dB of the CPU, and the same bits on a rerun."""
+    code = design_code((4, 4)).code
+    truth = render_scene(scene, 4 * 16, 480, 640, seed=0)
+    frames = capture(truth, code)
+    cpu = motion_aware(frames, code)
+    gpu = motion_aware(frames, code, device="cuda")
+    again = motion_aware(frames, code, device="cuda")
+    assert abs(psnr(gpu.video, truth).mean - psnr(cpu.video, truth).mean) < 0.1
+    np.testing.assert_array_equal(gpu.video, again.video)

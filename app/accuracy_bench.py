@@ -24,7 +24,7 @@ import numpy as np
 
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture
-from flexvox_core.methods import Method, reconstruct
+from flexvox_core.methods import Method
 from flexvox_core.metrics import psnr, ssim
 from flexvox_core.motion.pipeline import DEFAULT_TIME as MA_TIME
 from flexvox_core.output_files import write_text_atomic
@@ -111,8 +111,10 @@ def methods_for(case: Case, *, quick: bool) -> list[tuple[str, Method]]:
     return rows
 
 
-def run_bench(out_dir, *, quick: bool = False, sci: bool = True, progress=None) -> list[dict]:
-    """Run the benchmark, write CSV/JSON/PNG into ``out_dir`` and return the rows."""
+def run_bench(out_dir, *, quick: bool = False, sci: bool = True, progress=None, device: str = "cpu") -> list[dict]:
+    """Run the benchmark, write CSV/JSON/PNG into ``out_dir`` and return the rows (``device``: where each
+    reconstruction runs, :func:`~flexvox_core.methods.runner.device_for`; each row says where it ran)."""
+    from flexvox_core.methods import run
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = []
@@ -120,14 +122,16 @@ def run_bench(out_dir, *, quick: bool = False, sci: bool = True, progress=None) 
     for i, case in enumerate(all_cases):
         for family, method in methods_for(case, quick=quick):
             t0 = time.perf_counter()
-            video = reconstruct(case.frames, case.code, method, chunk_frames=None)
+            out = run(case.frames, case.code, method, chunk_frames=None, device=device)
             seconds = time.perf_counter() - t0
+            video = out.video
             mse = float(np.mean((case.truth.astype(np.float64) - video) ** 2))
             rows.append({
                 "case": case.name, "K": case.K, "family": family, "method": method.label(),
                 "psnr": round(float(psnr(case.truth, video).mean), 3), "mse": mse,
                 "ssim": round(float(ssim(case.truth, video).mean), 4),
                 "seconds": round(seconds, 5), "mvoxels_per_s": round(video.size / max(seconds, 1e-9) / 1e6, 2),
+                "device": out.device,
             })
         if progress:
             progress(i + 1, len(all_cases))

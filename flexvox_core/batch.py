@@ -25,6 +25,7 @@ recording and the output path).
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -36,7 +37,7 @@ from flexvox_core import ngff
 from flexvox_core.capture_reader import CaptureReader, Preparation
 from flexvox_core.gaps import context, interpolated_subframes
 from flexvox_core.methods.method import Method
-from flexvox_core.methods.runner import check_method_reach, run_chunk
+from flexvox_core.methods.runner import check_method_reach, device_for, run_chunk
 from flexvox_core.output_files import atomic_output, check_output
 from flexvox_core.recording import Recording, RecordingError, open_recording
 from flexvox_core.video_io import INTERPOLATED, VIDEO, provenance
@@ -54,6 +55,8 @@ class BatchResult:
     overlap_frames: int
     seconds: float
     scheduler: str
+    device: str = "cpu"
+    device_note: str | None = None
 
 
 def _chunks(F: int, chunk: int, ov: int) -> tuple[int, ...]:
@@ -65,10 +68,14 @@ def _chunks(F: int, chunk: int, ov: int) -> tuple[int, ...]:
     return tuple(sizes) or (0,)
 
 
+_GPU_LOCK = threading.Lock()
+"""One chunk at a time on the GPU: dask's threads would otherwise each hold a window's volumes on the card."""
+
+
 def _chunk_kernel(code, K: int, ov: int, F: int, method: Method, preparation: Preparation, value_range=None,
-                  missing=None):
+                  missing=None, device: str = "cpu"):
     """The dask kernel: one chunk of raw rows (with its context) prepared, then :func:`run_chunk`
-    (``missing``: the recording's dropped frames, or None)."""
+    (``missing``: the recording's dropped frames, or None; ``device``: ``cpu`` or ``cuda``)."""
 
     def kernel(block: np.ndarray, block_info=None) -> np.ndarray:
         s0, s1 = block_info[None]["array-location"][0]
@@ -78,13 +85,18 @@ def _chunk_kernel(code, K: int, ov: int, F: int, method: Method, preparation: Pr
             raise RuntimeError(f"chunk [{start}, {stop}) arrived with {block.shape[0]} frames, expected "
                                f"{stop - start + left + right}")
         lost = None if missing is None else missing[start - left: stop + right]
-        return run_chunk(preparation(block), code, method, left=left, count=stop - start,
-                         value_range=value_range, missing=lost).video
+        frames = preparation(block)
+        if device == "cuda":
+            with _GPU_LOCK:
+                return run_chunk(frames, code, method, left=left, count=stop - start, value_range=value_range,
+                                 missing=lost, device=device).video
+        return run_chunk(frames, code, method, left=left, count=stop - start, value_range=value_range,
+                         missing=lost).video
 
     return kernel
 
 
-def batch_video(rec: Recording, method: Method | None = None, *, chunk_frames: int = 32):
+def batch_video(rec: Recording, method: Method | None = None, *, chunk_frames: int = 32, device: str = "cpu"):
     """The reconstruction of an opened recording as a lazy dask array ``(F·K, H, W)`` float32.
 
     Returns
@@ -125,7 +137,7 @@ def batch_video(rec: Recording, method: Method | None = None, *, chunk_frames: i
     # Methods that scale by the samples' range get the whole recording's in every chunk.
     value_range = reader.sample_range(chunk_frames, method) if method.spec.needs_sample_range else None
     kernel = _chunk_kernel(reader.code_for(method), K, ov, F, method, reader.preparation_for(method), value_range,
-                           reader.missing)
+                           reader.missing, device)
     out_chunks = (tuple(c * K for c in frames.chunks[0]), (H,), (W,))
     return da.map_overlap(kernel, frames, depth={0: ov, 1: 0, 2: 0}, boundary="none", trim=False,
                           dtype=np.float32, chunks=out_chunks, meta=np.empty((0, 0, 0), np.float32)), ov
@@ -134,7 +146,7 @@ def batch_video(rec: Recording, method: Method | None = None, *, chunk_frames: i
 def reconstruct_batch(recording, output, method: Method | None = None, *, chunk_frames: int = 32,
                       scheduler: str | None = None, overwrite: bool = False,
                       progress: Callable[[int, int], None] | None = None,
-                      connect_timeout_s: float = 10.0, pyramid: int = 0) -> BatchResult:
+                      connect_timeout_s: float = 10.0, pyramid: int = 0, device: str = "cpu") -> BatchResult:
     """Reconstruct a recording chunk by chunk into an OME-Zarr image (array ``video``, as ``reconstruct`` writes).
 
     Parameters
@@ -156,6 +168,9 @@ def reconstruct_batch(recording, output, method: Method | None = None, *, chunk_
     pyramid : int
         Pyramid levels of 2×2 means below full resolution (:mod:`flexvox_core.ngff`; default none),
         computed from the same chunks as they are reconstructed.
+    device : {"cpu", "cuda", "auto"}
+        Where the chunks are reconstructed (:func:`~flexvox_core.methods.runner.device_for`; one chunk at a time
+        on the GPU); recorded in the output's provenance. A distributed cluster's workers need the GPU too.
 
     Raises
     ------
@@ -173,19 +188,21 @@ def reconstruct_batch(recording, output, method: Method | None = None, *, chunk_
         rec = open_recording(recording)
     except RecordingError as exc:
         raise ValueError(str(exc)) from None
-    video, ov = batch_video(rec, method, chunk_frames=chunk_frames)
+    device, note = device_for(method, CaptureReader(rec).code_for(method), device)
+    video, ov = batch_video(rec, method, chunk_frames=chunk_frames, device=device)
     pyramid = ngff.check_levels(pyramid, video.shape)
     chunk_frames = max(chunk_frames, ov)
     # Written beside the output and moved into place when every chunk is stored: a failed or
     # cancelled run leaves an old output as it was, and never a store with chunks of zeros.
     with atomic_output(output, overwrite=overwrite) as tmp:
         seconds, used = _store(rec, video, ov, chunk_frames, method, tmp, scheduler, progress, connect_timeout_s,
-                               pyramid)
+                               pyramid, {"device": device, **({"device_note": note} if note else {})})
     _logger.info("batch: %s -> %s, %d sub-frames in %.2f s (%s)", rec.path, output, video.shape[0], seconds, used)
-    return BatchResult(output, tuple(int(v) for v in video.shape), chunk_frames, ov, seconds, used)
+    return BatchResult(output, tuple(int(v) for v in video.shape), chunk_frames, ov, seconds, used, device, note)
 
 
-def _store(rec, video, ov, chunk_frames, method, output, scheduler, progress, connect_timeout_s, pyramid=0):
+def _store(rec, video, ov, chunk_frames, method, output, scheduler, progress, connect_timeout_s, pyramid=0,
+           device=None):
     """Compute ``video`` into a new OME-Zarr image at ``output``; return (seconds, scheduler used)."""
     import dask
     import dask.array as da
@@ -194,7 +211,8 @@ def _store(rec, video, ov, chunk_frames, method, output, scheduler, progress, co
     group = zarr.open_group(str(output), mode="w-", zarr_format=3)
     step = 1.0 / float(rec.attrs["rates"]["subframe_hz"])
     group.attrs["flexvox"] = provenance({"source": str(rec.path), "method": method.as_dict(),
-                                         "chunk_frames": chunk_frames, "overlap_frames": ov, "batch": True}, step)
+                                         "chunk_frames": chunk_frames, "overlap_frames": ov, "batch": True,
+                                         **(device or {"device": "cpu"})}, step)
     dropped = np.asarray(rec.per_frame("dropped"), bool)
     if dropped.any():  # which sub-frames were bridged across dropped frames, as `reconstruct` writes it
         flags = interpolated_subframes(dropped, video.shape[0] // len(dropped))

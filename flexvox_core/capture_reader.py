@@ -215,7 +215,8 @@ class CaptureReader:
         """
         return self.preparation_for(method).demultiplex(self._normalised(start, stop)), self.code_for(method)
 
-    def run(self, method, *, chunk_frames: int | None = 16, progress=None, extras: bool = False):
+    def run(self, method, *, chunk_frames: int | None = 16, progress=None, extras: bool = False,
+            device: str = "cpu"):
         """Reconstruct the whole recording with ``method``: its :meth:`input` and its dropped frames
         (:attr:`missing`) through the one runner (:func:`flexvox_core.methods.runner.run`). Every front
         end that reconstructs a recording in memory calls this, so none forgets the dropped frames."""
@@ -223,7 +224,7 @@ class CaptureReader:
 
         frames, code = self.input(method)
         return run(frames, code, method, chunk_frames=chunk_frames, progress=progress, extras=extras,
-                   missing=self.missing)
+                   missing=self.missing, device=device)
 
     def gaps(self) -> list:
         """The runs of dropped frames (:class:`~flexvox_core.gaps.Gap`), in order."""

@@ -40,13 +40,14 @@ def register(sub) -> None:
 
 def run(args) -> int:
     """Carry out ``flexvox batch``."""
-    from app.cli.method_options import method_from_args
+    from app.cli.method_options import device_line, method_from_args, resolved_device
     from flexvox_core.batch import reconstruct_batch
     from flexvox_core.recording import RecordingError, open_recording
 
     try:
         rec = open_recording(args.recording)
         method = method_from_args(args, rec.attrs["tile"])
+        device = resolved_device(args)
     except (ValueError, RecordingError) as exc:
         raise CliError(str(exc)) from None
     with tqdm(unit="chunk", desc=method.label(), leave=False, disable=True if args.scheduler else None) as bar:
@@ -56,12 +57,13 @@ def run(args) -> int:
         try:
             result = reconstruct_batch(args.recording, args.output, method, chunk_frames=args.chunk,
                                        scheduler=args.scheduler, overwrite=args.overwrite, progress=progress,
-                                       pyramid=args.pyramid)
+                                       pyramid=args.pyramid, device=device)
         except (ValueError, OSError, TimeoutError) as exc:
             raise CliError(str(exc)) from None
     S, H, W = result.shape
     print(f"{method.label()}: {S} sub-frames of {H}x{W} in {result.seconds:.2f} s on {result.scheduler} "
           f"(chunks of {result.chunk_frames} frames, overlap {result.overlap_frames})")
+    print(device_line(result))
     dropped = rec.per_frame("dropped")
     if dropped.any():
         from app.cli.reconstruct import interpolated_line

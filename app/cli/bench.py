@@ -8,6 +8,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from app.cli.errors import EXIT_OK
+from app.cli.method_options import add_device_option, resolved_device
 
 
 def register(sub) -> None:
@@ -28,6 +29,7 @@ def register(sub) -> None:
     p.add_argument("-o", "--out", type=Path, default=Path("bench/results"), metavar="DIR",
                    help="where results go (default bench/results)")
     p.add_argument("--overwrite", action="store_true", help="replace the results an earlier run left in DIR")
+    add_device_option(p)
     p.set_defaults(func=run)
 
 OUTPUTS = ("results.csv", "results.json", "pareto.png")
@@ -39,6 +41,7 @@ def run(args) -> int:
     from app.cli.errors import CliError
     from flexvox_core.output_files import OutputError, check_writable
 
+    device = resolved_device(args)
     old = [name for name in OUTPUTS if (args.out / name).exists()]
     if old and not args.overwrite:
         raise CliError(f"{args.out} already holds {', '.join(old)} from an earlier run; use --overwrite to replace "
@@ -55,7 +58,7 @@ def run(args) -> int:
         def progress(done, total):
             bar.total = total
             bar.update(done - bar.n)
-        rows = run_bench(args.out, quick=args.quick, sci=not args.no_sci, progress=progress)
+        rows = run_bench(args.out, quick=args.quick, sci=not args.no_sci, progress=progress, device=device)
     summ = summary(rows)
     front = {(r["family"], r["method"]) for r in pareto(summ)}
     print("| method | PSNR (dB) | SSIM | seconds | Pareto |")
@@ -71,6 +74,8 @@ def run(args) -> int:
                 best = max((r for r in sci if r["case"] == case and r["family"] == fam), key=lambda r: r["psnr"])
                 print(f"  {case:<18} {fam:<26} {best['psnr']:.2f} dB  {best['seconds']:.3f} s  "
                       f"{best['method']}")
-    print(f"\n{len(rows)} runs in {time.perf_counter() - t0:.0f} s; "
+    on_gpu = sum(r["device"] == "cuda" for r in rows)
+    print(f"\n{on_gpu} of {len(rows)} runs on the GPU" if device == "cuda" else "\nevery run on the CPU")
+    print(f"{len(rows)} runs in {time.perf_counter() - t0:.0f} s; "
           f"wrote {args.out}/results.csv, results.json, pareto.png")
     return EXIT_OK

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from app.cli.errors import EXIT_OK
 
-HELP = "list projectors, cameras, serial ports and the simulated rig this machine can reach"
+HELP = "list projectors, cameras, serial ports, the simulated rig and the GPUs this machine can reach"
 
 GENTL_ENV = "GENICAM_GENTL64_PATH"
 
@@ -20,8 +20,9 @@ def register(sub) -> None:
         help=HELP,
         description=(
             "List what flexvox can drive from this machine: DLP LightCrafter 4500 projectors on "
-            "USB, serial ports (sync boxes), GenTL producers (GenICam cameras) and the simulated "
-            "rig, which is always available. For what it cannot reach it says why. Exits 0 "
+            "USB, serial ports (sync boxes), GenTL producers (GenICam cameras), the simulated "
+            "rig, which is always available, and the NVIDIA GPUs reconstructions can run on (name, memory, "
+            "driver). For what it cannot reach it says why. Exits 0 "
             "whether or not hardware is found."
         ),
     )
@@ -112,13 +113,30 @@ def _simulated(sim_producer=None) -> dict:
     return {"available": True, "reason": None, "devices": devices}
 
 
-def survey(*, list_usb=None, comports=None, environ=None, sim_producer=None, open_projector=None) -> dict:
+def _gpus(describe=None) -> dict:
+    """The NVIDIA GPUs reconstructions can run on (``--device cuda``), or why none can be used."""
+    from flexvox_core.gpu.device import cuda_status, describe_gpus, simulator
+
+    ok, reason = cuda_status()
+    if not ok:
+        return {"available": False, "devices": [], "reason": reason}
+    if simulator():
+        return {"available": False, "devices": [], "reason": f"{reason}: kernels run as Python, for tests"}
+    gpus = (describe or describe_gpus)()
+    devices = [{"name": g.name, "memory": f"{g.memory_total / 2**30:.1f} GiB",
+                "compute_capability": ".".join(map(str, g.compute_capability)), "driver": g.driver} for g in gpus]
+    return {"available": bool(devices), "devices": devices, "reason": None if devices else "the driver lists no GPU"}
+
+
+def survey(*, list_usb=None, comports=None, environ=None, sim_producer=None, open_projector=None,
+           describe_gpus=None) -> dict:
     """What this machine can reach, as a JSON-ready dict (injectable probes for tests)."""
     found = {
         "projectors": _projectors(list_usb, open_projector),
         "serial_ports": _serial_ports(comports),
         "gentl_producers": _gentl_producers(environ),
         "simulated": _simulated(sim_producer),
+        "gpus": _gpus(describe_gpus),
     }
     # Built-in UARTs (/dev/ttyS*, no USB ids) are listed but do not count as rig hardware.
     usb_serial = any(d["vid_pid"] for d in found["serial_ports"]["devices"])
@@ -128,7 +146,8 @@ def survey(*, list_usb=None, comports=None, environ=None, sim_producer=None, ope
 
 
 _TITLES = {"projectors": "DLP LightCrafter 4500 (USB)", "serial_ports": "serial ports (sync box)",
-           "gentl_producers": "GenTL producers (GenICam cameras)", "simulated": "simulated rig"}
+           "gentl_producers": "GenTL producers (GenICam cameras)", "simulated": "simulated rig",
+           "gpus": "GPUs for reconstruction (--device cuda)"}
 
 
 def _describe(entry: dict) -> str:

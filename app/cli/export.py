@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from app.cli.errors import EXIT_OK, CliError, arg_type, positive_fps
-from app.cli.method_options import add_method_options, method_from_args
+from app.cli.method_options import add_method_options, device_line, device_record, method_from_args, resolved_device
 from flexvox_core.ngff import check_levels
 from flexvox_core.output_files import OutputError, atomic_output, check_output
 from flexvox_core.recording import RecordingError, open_recording
@@ -91,6 +91,7 @@ class _Source:
         """(S,) bool for a reconstruction: the sub-frames filled across dropped frames."""
         self.attrs = {"source": str(rec.path), "what": what}
         self.gaps_line = ""
+        self.device_line = ""
         if what == "frames":
             self.array = rec.frames
             self.dtype = np.dtype(rec.frames.dtype)
@@ -107,13 +108,15 @@ class _Source:
             try:
                 reader = CaptureReader(rec)
                 method = method_from_args(args, rec.attrs["tile"])
-                result = reader.run(method, chunk_frames=args.chunk)
+                result = reader.run(method, chunk_frames=args.chunk, device=resolved_device(args))
             except ValueError as exc:  # RecordingError and NotReconstructableError are ValueErrors
                 raise CliError(str(exc)) from None
             self.array = result.video
             # As `flexvox reconstruct` records them: the method and the sub-frames filled across dropped frames.
             self.interpolated = result.interpolated
             self.attrs["method"] = method.as_dict()
+            self.attrs.update(device_record(result))
+            self.device_line = device_line(result)
             if reader.missing is not None:
                 from app.cli.reconstruct import interpolated_line
 
@@ -207,5 +210,7 @@ def run(args) -> int:
         raise CliError(f"cannot write {out}: {exc.strerror or exc}; nothing was replaced") from None
     if src.gaps_line:
         print(src.gaps_line)
+    if src.device_line:
+        print(src.device_line)
     print(f"wrote {args.what} ({src.shape[0]} x {src.shape[1]}x{src.shape[2]} {src.dtype}) to {out}")
     return EXIT_OK

@@ -8,7 +8,7 @@ chosen method has no option for is refused, naming the methods it goes with.
 
 from __future__ import annotations
 
-from app.cli.errors import arg_type
+from app.cli.errors import CliError, arg_type
 from flexvox_core.methods.options import parse_triple
 
 _FLAG_NAMES = {"refine_time": "--refine"}
@@ -91,6 +91,51 @@ def add_method_options(p, *, chunk: int) -> None:
                            metavar="N" if o.kind == "integer" else "X", **kw)
     p.add_argument("--chunk", type=arg_type(_chunk), default=chunk, metavar="F",
                    help=f"camera frames per chunk (default {chunk})")
+    add_device_option(p)
+
+
+def add_device_option(p) -> None:
+    """Add ``--device auto|cpu|cuda`` to parser ``p``."""
+    from flexvox_core.gpu.device import DEVICES
+
+    p.add_argument("--device", choices=DEVICES, default="auto",
+                   help="where the reconstruction runs: an NVIDIA GPU (cuda; needs flexvox[gpu]), the CPU, or auto "
+                        "(default: the GPU when one is usable). Methods without a GPU path run on the CPU and say so")
+
+
+def resolved_device(args) -> str:
+    """``--device`` resolved to ``cpu`` or ``cuda`` before any work; ``cuda`` without a usable GPU is a
+    :class:`~app.cli.errors.CliError` naming what is missing (exit 2)."""
+    from flexvox_core.gpu.device import DeviceUnavailable, resolve_device
+
+    try:
+        return resolve_device(getattr(args, "device", "cpu"))
+    except DeviceUnavailable as exc:
+        raise CliError(str(exc)) from None
+
+
+def device_line(out) -> str:
+    """One line saying where a reconstruction ran (and why on the CPU when the GPU was asked for)."""
+    from flexvox_core.gpu.device import describe_gpus
+
+    if out.device == "cuda":
+        gpus = describe_gpus()
+        return f"device: cuda ({gpus[0].name})" if gpus else "device: cuda"
+    return f"device: cpu ({out.device_note})" if out.device_note else "device: cpu"
+
+
+def device_record(out) -> dict:
+    """What a reconstruction's provenance records of its device."""
+    from flexvox_core.gpu.device import describe_gpus
+
+    record = {"device": out.device}
+    if out.device == "cuda":
+        gpus = describe_gpus()
+        if gpus:
+            record["gpu"] = gpus[0].name
+    if out.device_note:
+        record["device_note"] = out.device_note
+    return record
 
 
 def _foreign(given: list[str], method: str) -> str:

@@ -12,7 +12,7 @@ import numpy as np
 from tqdm import tqdm
 
 from app.cli.errors import EXIT_OK, CliError, arg_type, positive_fps
-from app.cli.method_options import add_method_options, method_from_args
+from app.cli.method_options import add_method_options, device_line, device_record, method_from_args, resolved_device
 from flexvox_core.capture_reader import open_capture
 from flexvox_core.methods import specs
 from flexvox_core.output_files import check_output
@@ -87,6 +87,7 @@ def run(args) -> int:
         reader = open_capture(args.recording)
         rec = reader.recording
         method = method_from_args(args, rec.attrs["tile"])
+        device = resolved_device(args)
         if args.figures and not set(FIGURE_EXTRAS) <= set(method.spec.extras):
             drawable = " or ".join(s.name for s in specs() if set(FIGURE_EXTRAS) <= set(s.extras))
             raise ValueError(f"--figures goes with --method {drawable} (the methods that return the flow)")
@@ -98,12 +99,12 @@ def run(args) -> int:
         def progress(done, total):
             bar.update(done - bar.n)
         try:
-            out = reader.run(method, chunk_frames=args.chunk, progress=progress)
+            out = reader.run(method, chunk_frames=args.chunk, progress=progress, device=device)
         except (ValueError, RecordingError) as exc:
             raise CliError(str(exc)) from None
     video = out.video
     seconds = time.perf_counter() - t0  # the reconstruction itself (reading the ground truth is not)
-    attrs = {"source": str(args.recording), "method": method.as_dict(), "seconds": seconds}
+    attrs = {"source": str(args.recording), "method": method.as_dict(), "seconds": seconds, **device_record(out)}
     score = None
     stop = threading.Event()  # set when the write fails or is interrupted: the PSNR gives up at its next block
     pool = ThreadPoolExecutor(max_workers=1)
@@ -140,6 +141,7 @@ def run(args) -> int:
         except (RecordingError, ValueError) as exc:  # the video is written: a bad truth costs only its PSNR
             print(f"warning: no PSNR: {exc}", file=sys.stderr)
     print(line)
+    print(device_line(out))
     if reader.missing is not None:
         print(interpolated_line(reader.gaps(), reader.K))
     print(f"wrote {args.output}")

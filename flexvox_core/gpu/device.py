@@ -54,6 +54,8 @@ def cuda_status() -> tuple[bool, str]:
         return False, f"numba-cuda is not installed ({INSTALL_HINT})"
     if simulator():
         return True, "numba-cuda's simulator (NUMBA_ENABLE_CUDASIM=1)"
+    if not driver_library():  # without the driver, numba's CUDA module (half a second to import) can do nothing
+        return False, "no NVIDIA driver found (libcuda)"
     try:
         from numba import cuda
 
@@ -63,6 +65,21 @@ def cuda_status() -> tuple[bool, str]:
     except Exception as exc:  # the driver's own words: library not found, no device, wrong version
         return False, f"the CUDA driver cannot be used: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}"
     return True, "CUDA"
+
+
+def driver_library() -> str | None:
+    """The NVIDIA driver's library, if this machine has it (looked for without importing numba-cuda)."""
+    import ctypes
+    import sys
+
+    names = ("nvcuda.dll",) if sys.platform == "win32" else ("libcuda.so.1", "libcuda.so")
+    for name in names:
+        try:
+            ctypes.CDLL(name)
+        except OSError:
+            continue
+        return name
+    return None
 
 
 def describe_gpus() -> list[GpuInfo]:

@@ -154,3 +154,30 @@ def nc(ws, frames_d, order_d, present_d, plan: NcPlan, lo: float, hi: float, out
     launch(_finish, n, num, den, frames_d, order_d, present_d, np.float32(plan.floor), np.float32(lo),
            np.float32(hi), np.uint8(keep_samples), out, low)
     return int(low.copy_to_host()[0])
+
+
+def diffuse_on_gpu(frames, code, *, tensor, time: float, missing=None) -> np.ndarray:
+    """:func:`~flexvox_core.reconstruct.diffuse` (``nc`` solver, samples kept) on the GPU: the frames go up, the
+    video comes down. Returns (F·K, H, W) float32, equal to the CPU's within float rounding."""
+    from flexvox_core.forward import tiled_order
+    from flexvox_core.gaps import as_missing, captured
+    from flexvox_core.gpu.volumes import Workspace
+    from flexvox_core.reconstruct._common import check_frames, check_identity_code
+    from flexvox_core.reconstruct.diffusion import check_tensor, diffuse
+
+    f = np.ascontiguousarray(check_frames(frames), np.float32)
+    c = check_identity_code(code)
+    check_tensor(tensor)
+    F, H, W = f.shape
+    K = c.shape[2]
+    missing = as_missing(missing, F)
+    present = np.ones(F, bool) if missing is None else ~missing
+    kept = captured(f, missing)
+    plan = NcPlan(F, K, tensor, time, None if missing is None else present)
+    ws = Workspace()
+    out = cuda.device_array((F * K, H, W), np.float32)
+    low = nc(ws, cuda.to_device(f), cuda.to_device(np.ascontiguousarray(tiled_order(c, H, W), np.int32)),
+             cuda.to_device(present.astype(np.uint8)), plan, float(kept.min()), float(kept.max()), out)
+    if low:  # voxels with no sample in reach take their nearest sample: the CPU's path
+        return diffuse(f, c, tensor=tensor, time=time, missing=missing)
+    return out.copy_to_host()

@@ -74,14 +74,27 @@ class Diffusion(MethodSpec):
     def accepts_multiplexed(self, values: dict) -> bool:
         return values["solver"] == "nc"  # GAP's denoiser is the Gaussian of Eq. 3, nc's one-pass form
 
-    def run(self, frames, code, values, *, value_range=None, extras=False, missing=None) -> MethodOutput:
+    def cpu_only(self, values: dict, code) -> str | None:
+        if not is_identity_code(code):
+            return "a multiplexed capture's diffusion runs on the CPU"
+        if values["solver"] != "nc":
+            return f"diffusion's {values['solver']} solver runs on the CPU"
+        return None
+
+    def run(self, frames, code, values, *, value_range=None, extras=False, missing=None, device="cpu"
+            ) -> MethodOutput:
         if not is_identity_code(code):  # a multiplexed capture: GAP with this tensor's Gaussian as denoiser
             return MethodOutput(gap_gaussian(frames, code, tensor=values["tensor"],
                                              time=values["time"] * TIME_FRACTION))
-        video = diffuse(frames, code, **self.kwargs(values), missing=missing)
+        if device == "cuda":
+            from flexvox_core.gpu.nc import diffuse_on_gpu
+
+            video = diffuse_on_gpu(frames, code, tensor=values["tensor"], time=values["time"], missing=missing)
+        else:
+            video = diffuse(frames, code, **self.kwargs(values), missing=missing)
         if missing is not None:
             bridge(video, missing, code.shape[2])
-        return MethodOutput(video)
+        return MethodOutput(video, device=device)
 
     def kwargs(self, values: dict) -> dict:
         return {"tensor": values["tensor"], "time": values["time"], "solver": values["solver"]}

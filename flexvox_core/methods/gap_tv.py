@@ -33,7 +33,7 @@ class GapTv(MethodSpec):
     def overlap(self, values: dict, K: int) -> int:
         return 0  # each measurement is reconstructed on its own
 
-    def run(self, frames, code, values, *, value_range=None, extras=False, missing=None) -> MethodOutput:
+    def run(self, frames, code, values, *, value_range=None, extras=False, missing=None, device="cpu") -> MethodOutput:
         # One measurement at a time, as the SCI literature (and its reference figures) does.
         kw = self.kwargs(values)
         return MethodOutput(np.concatenate([gap_tv(frames[f: f + 1], code, **kw) for f in range(frames.shape[0])]))

@@ -75,11 +75,15 @@ class MotionAware(MethodSpec):
     takes_missing = True
     takes_multiplexed = True
 
-    def run(self, frames, code, values, *, value_range=None, extras=False, missing=None) -> MethodOutput:
+    def cpu_only(self, values: dict, code) -> str | None:
+        return None if is_identity_code(code) else "a multiplexed capture's motion-aware runs on the CPU"
+
+    def run(self, frames, code, values, *, value_range=None, extras=False, missing=None, device="cpu"
+            ) -> MethodOutput:
         if not is_identity_code(code):
             return self._run_multiplexed(frames, code, values, extras)
-        r = motion_aware(frames, code, **self.kwargs(values), value_range=value_range, missing=missing)
-        return MethodOutput(r.video, {"flow": r.flow.flow, "tr": r.tr} if extras else {})
+        r = motion_aware(frames, code, **self.kwargs(values), value_range=value_range, missing=missing, device=device)
+        return MethodOutput(r.video, {"flow": r.flow.flow, "tr": r.tr} if extras else {}, device=r.device)
 
     def _run_multiplexed(self, frames, code, values, extras) -> MethodOutput:
         """GAP with the motion-compensated Gaussian (time n · TIME_FRACTION per iteration); the extras are the

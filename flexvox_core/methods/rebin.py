@@ -32,7 +32,7 @@ class Rebin(MethodSpec):
     def overlap(self, values: dict, K: int) -> int:
         return 1 if values["interpolate"] else 0
 
-    def run(self, frames, code, values, *, value_range=None, extras=False, missing=None) -> MethodOutput:
+    def run(self, frames, code, values, *, value_range=None, extras=False, missing=None, device="cpu") -> MethodOutput:
         block = values["block"] or default_block(code)
         return MethodOutput(rebin(frames, code, block, interpolate=values["interpolate"]))
 

@@ -109,8 +109,23 @@ def check_code_for(code, method: Method) -> bool:
     return True
 
 
+def device_for(method: Method, code, device: str = "cpu") -> tuple[str, str | None]:
+    """(where ``method`` runs, why not on the GPU): ``device`` (``auto``, ``cpu`` or ``cuda``) resolved
+    (:func:`flexvox_core.gpu.resolve_device`; ``cuda`` without a usable GPU raises
+    :class:`~flexvox_core.gpu.DeviceUnavailable`), then the CPU for a method, values or code without a GPU path
+    (:meth:`~flexvox_core.methods.spec.MethodSpec.cpu_only`), with that reason."""
+    if device == "cpu":
+        return "cpu", None
+    from flexvox_core.gpu.device import resolve_device
+
+    if resolve_device(device) == "cpu":
+        return "cpu", None
+    why = method.spec.cpu_only(dict(method.values), np.asarray(code, bool))
+    return ("cpu", why) if why else ("cuda", None)
+
+
 def run_chunk(frames, code, method: Method, *, left: int = 0, count: int | None = None, value_range=None,
-              extras: bool = False, missing=None) -> MethodOutput:
+              extras: bool = False, missing=None, device: str = "cpu") -> MethodOutput:
     """Reconstruct one chunk with its context and keep the chunk's own sub-frames.
 
     Parameters
@@ -130,24 +145,28 @@ def run_chunk(frames, code, method: Method, *, left: int = 0, count: int | None 
         Also return the method's extras (trimmed like the video).
     missing : ndarray (F,) bool or None
         The chunk's dropped frames (context included); they must not be all of its frames.
+    device : {"cpu", "cuda", "auto"}
+        Where it runs (:func:`device_for`).
 
     Returns
     -------
     MethodOutput
-        ``video`` (count·K, H, W) float32 clipped to [0, 1], the extras, and which sub-frames
-        were interpolated across dropped frames.
+        ``video`` (count·K, H, W) float32 clipped to [0, 1], the extras, which sub-frames
+        were interpolated across dropped frames, and where it ran.
     """
     K = code.shape[2]
     count = frames.shape[0] - left if count is None else count
     m = as_missing(missing, frames.shape[0])
     spec, values = method.spec, dict(method.values)
     multiplexed = check_code_for(code, method)
+    device, note = device_for(method, code, device)
+    on = {"device": device} if device == "cuda" else {}  # only a method with a GPU path takes `device`
     if m is None:
-        out = spec.run(frames, code, values, value_range=value_range, extras=extras)
+        out = spec.run(frames, code, values, value_range=value_range, extras=extras, **on)
     elif spec.takes_missing and not multiplexed:
-        out = spec.run(frames, code, values, value_range=value_range, extras=extras, missing=m)
+        out = spec.run(frames, code, values, value_range=value_range, extras=extras, missing=m, **on)
     else:
-        out = spec.run(fill_frames(frames, m), code, values, value_range=value_range, extras=extras)
+        out = spec.run(fill_frames(frames, m), code, values, value_range=value_range, extras=extras, **on)
         bridge(out.video, m, K)
     a, b = left * K, (left + count) * K
     whole = out.video
@@ -161,11 +180,11 @@ def run_chunk(frames, code, method: Method, *, left: int = 0, count: int | None 
     else:
         video = np.clip(whole[a:b], 0, 1).astype(np.float32, copy=False)
     interpolated = None if m is None else interpolated_subframes(m, K)[a:b]
-    return MethodOutput(video, {k: v[a:b] for k, v in out.extras.items()}, interpolated)
+    return MethodOutput(video, {k: v[a:b] for k, v in out.extras.items()}, interpolated, out.device, note)
 
 
 def run(frames, code, method: Method | None = None, *, chunk_frames: int | None = 16,
-        progress: Progress | None = None, extras: bool = False, missing=None) -> MethodOutput:
+        progress: Progress | None = None, extras: bool = False, missing=None, device: str = "cpu") -> MethodOutput:
     """Reconstruct the full video ``(F·K, H, W)`` float32 in [0, 1] of an identity-code capture.
 
     Parameters
@@ -187,6 +206,9 @@ def run(frames, code, method: Method | None = None, *, chunk_frames: int | None 
         Frames the camera dropped (zero rows): bridged from both sides, or refused
         (:class:`~flexvox_core.gaps.GapTooLongError`) when a gap is longer than the method's
         :meth:`~flexvox_core.methods.method.Method.max_gap`.
+    device : {"cpu", "cuda", "auto"}
+        Where it runs (:func:`device_for`): ``auto`` takes the GPU when one is usable and the method has a GPU
+        path; the result's ``device`` and ``device_note`` say where it ran and why not on the GPU.
 
     Returns
     -------
@@ -210,9 +232,11 @@ def run(frames, code, method: Method | None = None, *, chunk_frames: int | None 
     missing = as_missing(missing, F)
     check_method_reach(missing, method, K)
     value_range = sample_range(f, missing) if method.spec.needs_sample_range and F else None
+    device, note = device_for(method, code, device)
     chunks = chunk_plan(F, chunk_frames, context(method.overlap(K), missing))
     if len(chunks) == 1:
-        out = run_chunk(f, code, method, value_range=value_range, extras=extras, missing=missing)
+        out = run_chunk(f, code, method, value_range=value_range, extras=extras, missing=missing, device=device)
+        out.device_note = note
         if progress:
             progress(F, F)
         return out
@@ -221,7 +245,7 @@ def run(frames, code, method: Method | None = None, *, chunk_frames: int | None 
     for c in chunks:
         part = run_chunk(f[c.lo:c.hi], code, method, left=c.start - c.lo, count=c.stop - c.start,
                          value_range=value_range, extras=extras,
-                         missing=None if missing is None else missing[c.lo:c.hi])
+                         missing=None if missing is None else missing[c.lo:c.hi], device=device)
         video[c.start * K: c.stop * K] = part.video
         for name, v in part.extras.items():
             if name not in arrays:
@@ -229,7 +253,7 @@ def run(frames, code, method: Method | None = None, *, chunk_frames: int | None 
             arrays[name][c.start * K: c.stop * K] = v
         if progress:
             progress(c.stop, F)
-    return MethodOutput(video, arrays, None if missing is None else interpolated_subframes(missing, K))
+    return MethodOutput(video, arrays, None if missing is None else interpolated_subframes(missing, K), device, note)
 
 
 def reconstruct(frames, code, method: Method | None = None, *, chunk_frames: int | None = 16,

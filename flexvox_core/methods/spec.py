@@ -48,11 +48,17 @@ class MethodOutput:
     interpolated : ndarray (S,) bool or None
         Sub-frames of dropped camera frames, filled from both sides (:mod:`flexvox_core.gaps`);
         None when no frame was missing.
+    device : str
+        Where it ran: ``cpu`` or ``cuda``.
+    device_note : str or None
+        Why it ran on the CPU when the GPU was asked for (None otherwise).
     """
 
     video: np.ndarray
     extras: dict[str, np.ndarray] = field(default_factory=dict)
     interpolated: np.ndarray | None = None
+    device: str = "cpu"
+    device_note: str | None = None
 
 
 class MethodSpec(ABC):
@@ -135,9 +141,14 @@ class MethodSpec(ABC):
         """The longest run of dropped frames it bridges (:func:`flexvox_core.gaps.max_gap`)."""
         return max_gap(self.overlap(values, K))
 
+    def cpu_only(self, values: dict, code) -> str | None:
+        """Why this method runs on the CPU with these values and code even when the GPU is asked for (a short
+        phrase), or None when it runs on the GPU (:mod:`flexvox_core.gpu`). Default: it has no GPU path."""
+        return f"{self.name} has no GPU path"
+
     @abstractmethod
     def run(self, frames: np.ndarray, code: np.ndarray, values: dict, *, value_range=None,
-            extras: bool = False, missing=None) -> MethodOutput:
+            extras: bool = False, missing=None, device: str = "cpu") -> MethodOutput:
         """Reconstruct an identity-code capture (or, when :meth:`accepts_multiplexed`, a multiplexed one).
 
         Parameters
@@ -152,6 +163,8 @@ class MethodSpec(ABC):
             Also return the arrays named in :attr:`extras`.
         missing : ndarray (F,) bool or None
             Methods with :attr:`takes_missing`: the frames the camera dropped.
+        device : {"cpu", "cuda"}
+            ``cuda`` only when :meth:`cpu_only` is None for these values and code.
 
         Returns
         -------

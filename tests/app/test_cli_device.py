@@ -1,0 +1,99 @@
+"""``--device`` on reconstruct, export and batch, and the GPUs ``flexvox devices`` lists.
+
+The tests run numba-cuda's simulator in place of a GPU (tests/conftest.py): ``--device cuda`` runs the GPU path
+there on tiny recordings; ``auto`` never takes the simulator.
+"""
+
+import json
+
+import pytest
+import zarr
+
+from app.cli.main import main
+
+
+@pytest.fixture
+def recording(tmp_path, capsys):
+    path = tmp_path / "r.zarr"
+    assert main(["simulate", "balls", "--size", "8x12", "--frames", "2", "--tile", "2x2", "-o", str(path)]) == 0
+    capsys.readouterr()
+    return path
+
+
+def _provenance(path):
+    return dict(zarr.open_group(str(path), mode="r").attrs["flexvox"])
+
+
+def test_reconstruct_on_the_gpu_says_so_and_records_it(recording, tmp_path, capsys):
+    out = tmp_path / "o.zarr"
+    assert main(["reconstruct", str(recording), "--method", "diffusion", "--device", "cuda", "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "device: cuda" in text.splitlines()
+    assert _provenance(out)["device"] == "cuda"
+
+
+def test_auto_takes_the_cpu_without_a_gpu(recording, tmp_path, capsys):
+    out = tmp_path / "o.zarr"
+    assert main(["reconstruct", str(recording), "--method", "diffusion", "-o", str(out)]) == 0
+    assert "device: cpu" in capsys.readouterr().out.splitlines()
+    assert _provenance(out)["device"] == "cpu"
+
+
+@pytest.mark.parametrize("argv, reason", [
+    (["--method", "rebin"], "rebin has no GPU path"),
+    (["--method", "diffusion", "--solver", "explicit", "--time", "0.2"], "diffusion's explicit solver runs on the CPU"),
+])
+def test_a_method_without_a_gpu_path_runs_on_the_cpu_and_says_why(recording, tmp_path, capsys, argv, reason):
+    out = tmp_path / "o.npy"
+    assert main(["reconstruct", str(recording), *argv, "--device", "cuda", "-o", str(out)]) == 0
+    assert f"device: cpu ({reason})" in capsys.readouterr().out.splitlines()
+
+
+def test_cuda_asked_for_and_absent_exits_2_naming_what_is_missing(recording, tmp_path, capsys, monkeypatch):
+    from flexvox_core.gpu import device
+
+    monkeypatch.setattr(device, "cuda_status", lambda: (False, "no NVIDIA driver found (libcuda)"))
+    for command in (["reconstruct", str(recording), "-o", str(tmp_path / "o.npy")],
+                    ["export", str(recording), "--what", "reconstruction", "-o", str(tmp_path / "o.tif")],
+                    ["batch", str(recording), "-o", str(tmp_path / "o.zarr")]):
+        assert main([*command, "--device", "cuda"]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.endswith("error: --device cuda: no NVIDIA driver found (libcuda)") and len(err.splitlines()) == 1
+    assert not any(p.name.startswith("o.") for p in tmp_path.iterdir())
+
+
+def test_export_and_batch_record_the_device(recording, tmp_path, capsys):
+    tif = tmp_path / "o.tif"
+    assert main(["export", str(recording), "--what", "reconstruction", "--method", "diffusion", "--device", "cuda",
+                 "-o", str(tif)]) == 0
+    assert "device: cuda" in capsys.readouterr().out.splitlines()
+    out = tmp_path / "b.zarr"
+    assert main(["batch", str(recording), "--method", "diffusion", "--device", "cuda", "--chunk", "1",
+                 "-o", str(out)]) == 0
+    assert "device: cuda" in capsys.readouterr().out.splitlines()
+    assert _provenance(out)["device"] == "cuda"
+
+
+def test_devices_lists_the_gpus_section(capsys):
+    """Under the simulator no GPU is listed, and the reason says the simulator stands in."""
+    assert main(["devices", "--json"]) == 0
+    gpus = json.loads(capsys.readouterr().out)["gpus"]
+    assert gpus["available"] is False and "simulator" in gpus["reason"]
+    assert main(["devices"]) == 0
+    assert "GPUs for reconstruction (--device cuda):" in capsys.readouterr().out
+
+
+def test_devices_describes_a_gpu_by_name_memory_and_driver(monkeypatch):
+    from app.cli import devices
+    from flexvox_core.gpu import device
+    from flexvox_core.gpu.device import GpuInfo
+
+    monkeypatch.setattr(device, "simulator", lambda: False)
+    monkeypatch.setattr(device, "cuda_status", lambda: (True, "CUDA"))
+    gpu = GpuInfo(0, "NVIDIA H100 80GB HBM3", (9, 0), 80 * 2**30, 79 * 2**30, "13.0")
+    assert devices._gpus(lambda: [gpu]) == {
+        "available": True, "reason": None,
+        "devices": [{"name": "NVIDIA H100 80GB HBM3", "memory": "80.0 GiB", "compute_capability": "9.0",
+                     "driver": "13.0"}]}
+    monkeypatch.setattr(device, "cuda_status", lambda: (False, "no NVIDIA driver found (libcuda)"))
+    assert devices._gpus() == {"available": False, "devices": [], "reason": "no NVIDIA driver found (libcuda)"}

@@ -3,9 +3,8 @@
 The camera frames go up once; every stage reads and writes device arrays held in one
 :class:`~flexvox_core.gpu.volumes.Workspace` (reused from window to window by a streaming run); the result's
 kept sub-frames come down at the end, and the high-TR video and the flow only when a caller reads them.
-Two steps still pass through the host: the noise's per-frame median (one number per frame, from the still
-pixels the device marks) and the bridging of dropped frames (:mod:`flexvox_core.gaps`; only where the camera
-dropped one).
+One step still passes through the host: the bridging of dropped frames (:mod:`flexvox_core.gaps`; only where
+the camera dropped one).
 """
 
 from __future__ import annotations
@@ -25,7 +24,7 @@ from flexvox_core.gpu.volumes import Workspace
 from flexvox_core.motion import local_choice as lc
 from flexvox_core.motion import noise_aware
 from flexvox_core.motion.gated_flow import DIS_PARAMS
-from flexvox_core.motion.gpu import gate
+from flexvox_core.motion.gpu import gate, noise
 from flexvox_core.motion.gpu.gather import trajectory_gather
 from flexvox_core.motion.gpu.longreach import long_reach
 from flexvox_core.motion.gpu.refine import refine
@@ -142,7 +141,7 @@ class CudaStages:
     def noise(self, current, still):
         w = self.window
         g = self._volume("noise.g")
-        if not gate.noise_weights(self.ws, w.frames, current, still, self.mask, w.K, g):
+        if not noise.noise_weights(self.ws, self.frames_d, current, still, self.mask, w.K, g):
             return None
         return g
 

@@ -1,4 +1,4 @@
-"""The gated flow, the speed classes and the noise weights on the GPU.
+"""The gated flow and the speed classes on the GPU.
 
 :func:`gated_flow` is :func:`flexvox_core.motion.gated_flow.gated_flow` on device arrays: the high-TR video
 shrunk to the flow's size (``INTER_AREA``), its successive-sub-frame flow averaged over ±1 pair, the K-average's
@@ -18,10 +18,9 @@ from numba import cuda
 
 from flexvox_core.flow.baseline import default_stride
 from flexvox_core.flow.estimate import MIN_FLOW_SIDE
-from flexvox_core.gpu.filters import blur, box_in_time, gaussian_taps, sobel_slopes
+from flexvox_core.gpu.filters import box_in_time
 from flexvox_core.gpu.launch import kernel, launch
 from flexvox_core.gpu.resize import resize_area, resize_linear, to_uint8
-from flexvox_core.motion import noise_aware
 
 PAIRS = ("gpu", "cpu")
 """Where the pairs' optical flow runs."""
@@ -374,76 +373,3 @@ def speed_classes(ws, flow, still_speed, slow_speed, skip: np.ndarray | None, st
            skip_d, still, slow, gather, counts)
     c = counts.copy_to_host()
     return int(c[0]), int(c[1])
-
-
-@kernel("void(uint8[:, :, ::1], uint8[:, :, ::1], uint8[:, :, ::1])")
-def _still_at(still, mask, out):
-    i = cuda.grid(1)
-    F, H, W = out.shape
-    if i >= F * H * W:
-        return
-    f = i // (H * W)
-    p = i - f * (H * W)
-    y = p // W
-    x = p - y * W
-    K = still.shape[0] // F
-    found = 0
-    for t in range(f * K, (f + 1) * K):
-        if still[t, y, x] and mask[t, y, x]:
-            found = 1
-    out[f, y, x] = found
-
-
-@kernel("void(float32[:, :, ::1], float32[::1], float32[:, :, ::1])")
-def _smooth_weight(energy, inv_lam2, g):
-    i = cuda.grid(1)
-    S, H, W = energy.shape
-    if i >= S * H * W:
-        return
-    t = i // (H * W)
-    p = i - t * (H * W)
-    y = p // W
-    x = p - y * W
-    if inv_lam2[t] > 0:
-        g[t, y, x] = math.exp(-energy[t, y, x] * inv_lam2[t])
-    else:
-        g[t, y, x] = 0
-
-
-@kernel("void(float32[:, :, ::1], float32[:, :, ::1], float32[:, :, ::1])")
-def _square_sum(gx, gy, out):
-    i = cuda.grid(1)
-    S, H, W = out.shape
-    if i >= S * H * W:
-        return
-    t = i // (H * W)
-    p = i - t * (H * W)
-    y = p // W
-    x = p - y * W
-    out[t, y, x] = gx[t, y, x] * gx[t, y, x] + gy[t, y, x] * gy[t, y, x]
-
-
-def noise_weights(ws, frames: np.ndarray, current, still, mask, K: int, out) -> bool:
-    """The noise-aware weights g (S, H, W) into ``out`` (:mod:`~flexvox_core.motion.noise_aware`); False (and
-    ``out`` untouched) for a noiseless or single-frame capture. The noise itself — one median per frame — is
-    taken on the host from the still pixels the device marks."""
-    F = frames.shape[0]
-    S, H, W = current.shape
-    if F < 2:
-        return False
-    still_at = ws.get("noise.still_at", (F, H, W), np.uint8)
-    launch(_still_at, F * H * W, still, mask, still_at)
-    noise = noise_aware.noise_from_still(frames, still_at.copy_to_host().astype(bool))
-    if not noise.any():
-        return False
-    lam = noise_aware.KAPPA * np.repeat(noise.astype(np.float64), K)
-    inv = np.where(lam > 0, 1 / np.where(lam > 0, lam * lam, 1), 0).astype(np.float32)
-    gx = ws.get("noise.gx", (S, H, W))
-    gy = ws.get("noise.gy", (S, H, W))
-    sobel_slopes(ws, current, gx, gy, noise_aware.GRADIENT_SIGMA, tag="noise.slopes")
-    energy = ws.get("noise.energy", (S, H, W))
-    launch(_square_sum, S * H * W, gx, gy, energy)
-    taps = gaussian_taps(noise_aware.RHO)
-    blur(ws, energy, energy, taps, taps, tag="noise.blur")
-    launch(_smooth_weight, S * H * W, energy, ws.put("noise.inv", inv), out)
-    return True

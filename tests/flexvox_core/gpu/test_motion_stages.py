@@ -127,23 +127,39 @@ def test_speed_classes_are_the_cpus(rng, ws, clip):
     assert counts == (int(still.sum()), int(slow.sum()))
 
 
+@pytest.mark.parametrize("pixels", ["all still", "some still", "too few"])
+def test_the_noise_median_is_selected_exactly(rng, ws, pixels):
+    from flexvox_core.motion.gpu.noise import frame_noise as gpu_noise
+
+    F, H, W = 4, 16, 16
+    frames = rng.random((F, H, W)).astype(np.float32)
+    mask = sample_mask((F * K, H, W), CODE)
+    still = np.ones(mask.shape, bool) if pixels == "all still" else rng.random(mask.shape) > 0.3
+    if pixels == "too few":
+        still[:] = False
+        still[:, :3, :3] = True  # 9 pixels a frame: fewer than MIN_PIXELS
+    want = frame_noise(frames, still, mask, K)
+    got = gpu_noise(ws, _dev(frames), _dev(still.astype(np.uint8)), _dev(mask.astype(np.uint8)), K)
+    np.testing.assert_allclose(got, want, rtol=1e-6)
+    assert got.any() if pixels != "too few" else not got.any()
+
+
 def test_noise_weights_are_the_cpus(rng, ws, clip):
-    from flexvox_core.motion.gpu.gate import noise_weights
+    from flexvox_core.motion.gpu.noise import noise_weights
 
     frames, sparse, mask, flow, truth = clip
     noisy = np.clip(frames + rng.normal(0, 0.03, frames.shape), 0, 1).astype(np.float32)
-    still = np.zeros(sparse.shape, bool)
-    still[:, :, :] = True
+    still = np.ones(sparse.shape, bool)
     noise = frame_noise(noisy, still, mask, K)
     assert noise.any()
     current = truth.astype(np.float32)
     cpu = SmoothWeights(current, np.repeat(noise, K))
     out = _dev(np.zeros(sparse.shape, np.float32))
-    assert noise_weights(ws, noisy, _dev(current), _dev(still.astype(np.uint8)), _dev(mask.astype(np.uint8)), K, out)
+    dev = (_dev(still.astype(np.uint8)), _dev(mask.astype(np.uint8)))
+    assert noise_weights(ws, _dev(noisy), _dev(current), *dev, K, out)
     np.testing.assert_allclose(out.copy_to_host(), np.stack([cpu[t] for t in range(len(sparse))]), atol=2e-5)
-    # A noiseless capture: no weights.
-    assert not noise_weights(ws, frames, _dev(current), _dev(still.astype(np.uint8)), _dev(mask.astype(np.uint8)),
-                             K, out)
+    # A noiseless capture (every difference 0): no weights.
+    assert not noise_weights(ws, _dev(frames), _dev(current), *dev, K, out)
 
 
 def test_gated_flow_is_the_cpus(ws):

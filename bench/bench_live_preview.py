@@ -14,7 +14,12 @@ Capture workspace's preview does. Two strategies in the same run, each for ``--s
 * ``stream`` — now: the same regions rule, motion-aware by the streaming reconstructor (the frame before
   the newest over the same 3-frame window, the frames and flow pairs kept between runs);
 * ``nc`` — the fast preview the operator may choose instead: constant-tensor ``nc`` over the same
-  regions rule (in practice the whole frame).
+  regions rule (in practice the whole frame);
+* ``gpu`` (with ``--device cuda``) — streaming motion-aware on the GPU with all its stages, the whole frame every
+  run, no rest between runs: every camera frame should be previewed.
+
+``--soak S`` then runs the ``gpu`` preview for S seconds at the largest size and prints, per tenth of the soak,
+the previews per second, the latency and the GPU and host memory in use.
 
 Printed per size and strategy: previews per second, the pixels each preview covers (at which
 sampling), the time from a frame's arrival to its preview being ready (median and 90th percentile),
@@ -23,7 +28,8 @@ idle), and the camera thread's late frames: frames it delivered more than one pe
 which a real camera with one buffer would have dropped (the GUI tests record with the preview on and
 check that the simulated rig drops none).
 
-Figures only, never pass/fail. Usage: ``python bench/bench_live_preview.py [--seconds S] [--sizes 160x120,640x480]``.
+Figures only, never pass/fail. Usage: ``python bench/bench_live_preview.py [--seconds S] [--sizes 160x120,640x480]
+[--strategies stride,region,stream,nc] [--device cuda] [--soak S]``.
 """
 
 from __future__ import annotations
@@ -94,10 +100,11 @@ def _from_scratch(frames, code, region):
                          time.perf_counter() - t0, (0.0, 1.0))
 
 
-def run_strategy(name: str, cam: Camera, code, tile, shape, seconds: float) -> dict:
+def run_strategy(name: str, cam: Camera, code, tile, shape, seconds: float, on_tick=None) -> dict:
     step = math.lcm(*tile)
-    stride, cost, stream = None, PixelCost(), PreviewReconstructor()
-    rates, latencies, pixels = [], [], []
+    stride, cost = None, PixelCost()
+    stream = PreviewReconstructor("cuda" if name == "gpu" else "cpu")
+    rates, latencies, pixels, run_seconds = [], [], [], []
     cpu0, t_end = time.process_time(), time.monotonic() + seconds
     wall0 = time.monotonic()
     last_id = -1
@@ -120,6 +127,9 @@ def run_strategy(name: str, cam: Camera, code, tile, shape, seconds: float) -> d
                 if secs * (stride / finer) ** 2 < BUDGET_S / 2:
                     stride = finer
             label = f"every {stride}th pixel" if stride > 1 else "every pixel"
+        elif name == "gpu":
+            r = stream.run(frames, code, None, "motion-aware")
+            secs, px, label = r.seconds, r.region.pixels, "whole frame"
         else:
             region = preview_region(shape, tile, cost.pixels_for(BUDGET_S, 160 * 120))
             method = "nc" if name == "nc" else "motion-aware"
@@ -136,33 +146,80 @@ def run_strategy(name: str, cam: Camera, code, tile, shape, seconds: float) -> d
         latencies.append(done - cam.arrived[r.frame_id if name != "stride" else last_id])
         rates.append(done)
         pixels.append((px, label))
-        time.sleep(secs)  # rest as long as the run took: at most half a core
+        run_seconds.append(secs)
+        if on_tick is not None:
+            on_tick(done, latencies[-1])
+        if name != "gpu":
+            time.sleep(secs)  # rest as long as the run took: at most half a core
     wall = time.monotonic() - wall0
     cpu = time.process_time() - cpu0
     hz = (len(rates) - 1) / (rates[-1] - rates[0]) if len(rates) > 1 else 0.0
     px, label = pixels[-1] if pixels else (0, "-")
     return {"hz": hz, "lat50": float(np.median(latencies)) if latencies else float("nan"),
             "lat90": float(np.percentile(latencies, 90)) if latencies else float("nan"),
-            "px": px, "label": label, "cpu": cpu / wall, "runs": len(rates), "late": cam.late}
+            "px": px, "label": label, "cpu": cpu / wall, "runs": len(rates), "late": cam.late,
+            "run_ms": 1000 * float(np.median(run_seconds)) if run_seconds else float("nan"),
+            "skipped": max(0, int(round(wall * RATE_HZ)) - len(rates))}
+
+
+def _memory() -> tuple[float, float]:
+    """(GPU memory in use, host resident memory) in MiB."""
+    import resource
+
+    from numba import cuda
+
+    free, total = cuda.current_context().get_memory_info()
+    return (total - free) / 2**20, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def soak(frames, code, tile, shape, seconds: float) -> None:
+    """The GPU preview for ``seconds``: per tenth, previews/s, latency and memory."""
+    ticks = []
+    cam = Camera(frames)
+    cam.start()
+    try:
+        r = run_strategy("gpu", cam, code, tile, shape, seconds, on_tick=lambda t, lat: ticks.append((t, lat)))
+    finally:
+        cam.stop.set()
+        cam.join()
+    print(f"\nsoak: {seconds:g} s of the GPU preview at {shape[1]}x{shape[0]}: {r['runs']} previews, "
+          f"{r['skipped']} camera frames not previewed, camera late {r['late']}")
+    print("| part | previews/s | latency median / max s | GPU MiB | host max RSS MiB |")
+    print("|---|---|---|---|---|")
+    if len(ticks) < 2:
+        return
+    t0, t1 = ticks[0][0], ticks[-1][0]
+    for k in range(10):
+        a, b = t0 + (t1 - t0) * k / 10, t0 + (t1 - t0) * (k + 1) / 10
+        part = [lat for t, lat in ticks if a <= t < b or (k == 9 and t == b)]
+        gpu, host = _memory()
+        rate = len(part) / max(b - a, 1e-9)
+        lat = f"{np.median(part):.3f} / {max(part):.3f}" if part else "-"
+        print(f"| {k + 1}/10 | {rate:.2f} | {lat} | {gpu:.0f} | {host:.0f} |", flush=True)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=20.0)
     ap.add_argument("--sizes", default="160x120,640x480")
+    ap.add_argument("--strategies", default="stride,region,stream,nc")
+    ap.add_argument("--device", choices=("cpu", "cuda"), default="cpu",
+                    help="cuda: add the GPU preview (strategy gpu) to each size")
+    ap.add_argument("--soak", type=float, default=0.0, metavar="S", help="then the GPU preview for S seconds")
     args = ap.parse_args()
     tile = (4, 4)
     code = design_code(tile).code
+    strategies = [s for s in args.strategies.split(",") if s] + (["gpu"] if args.device == "cuda" else [])
     print(f"15 Hz camera, K = 16, motion-aware preview of {N_FRAMES} frames, budget {BUDGET_S} s, "
           f"{args.seconds:g} s per row")
     print("| size | preview | previews/s | pixels per preview (last) | arrival to ready, median / p90 s "
-          "| CPU | runs | camera late |")
-    print("|---|---|---|---|---|---|---|---|")
+          "| CPU | run ms (median) | runs | not previewed | camera late |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for size in args.sizes.split(","):
         w, h = (int(v) for v in size.split("x"))
         truth = render_scene("balls", 8 * 16, h, w, seed=0)
         frames = capture(truth, code).astype(np.float32)
-        for name in ("stride", "region", "stream", "nc"):
+        for name in strategies:
             cam = Camera(frames)
             cam.start()
             try:
@@ -170,8 +227,11 @@ def main() -> None:
             finally:
                 cam.stop.set()
                 cam.join()
-            print(f"| {w}x{h} | {name} | {r['hz']:.2f} | {r['px']} ({r['label']}) | {r['lat50']:.2f} / "
-                  f"{r['lat90']:.2f} | {r['cpu']:.2f} cores | {r['runs']} | {r['late']} |", flush=True)
+            print(f"| {w}x{h} | {name} | {r['hz']:.2f} | {r['px']} ({r['label']}) | {r['lat50']:.3f} / "
+                  f"{r['lat90']:.3f} | {r['cpu']:.2f} cores | {r['run_ms']:.1f} | {r['runs']} | {r['skipped']} | "
+                  f"{r['late']} |", flush=True)
+    if args.soak > 0:
+        soak(frames, code, tile, (h, w), args.soak)
 
 
 if __name__ == "__main__":

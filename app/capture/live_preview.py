@@ -189,6 +189,8 @@ class PreviewResult:
     levels : (low, high)
     method : str
         One of :data:`PREVIEW_METHODS`.
+    device : str
+        Where it ran: ``cpu`` or ``cuda``.
     """
 
     video: np.ndarray
@@ -199,6 +201,7 @@ class PreviewResult:
     seconds: float
     levels: tuple[float, float]
     method: str = "motion-aware"
+    device: str = "cpu"
 
     @property
     def size(self) -> tuple[int, int]:
@@ -223,9 +226,16 @@ class PreviewReconstructor:
     more than the window, or frames brighter than the stream's scale (:func:`_full_scale`) starts a new
     stream. ``nc`` keeps no state and shows the newest frame. The runs of one reconstructor must not
     overlap (the live preview runs one at a time).
+
+    ``device``: ``cpu`` (the default) or ``cuda``. On the GPU motion-aware runs with all its stages (the
+    refinement, the local choice and the noise-aware smoothing, which the CPU preview leaves out to cover a
+    larger region), the stream's device buffers kept between runs.
     """
 
-    def __init__(self):
+    def __init__(self, device: str = "cpu"):
+        if device not in ("cpu", "cuda"):
+            raise ValueError(f"`device` must be cpu or cuda; got {device!r}")
+        self.device = device
         self._stream = None
         self._key = None
         self._first_id = 0
@@ -282,7 +292,7 @@ class PreviewReconstructor:
         video = np.clip(video, 0.0, 1.0).astype(np.float32, copy=False)
         hi = float(np.percentile(video, 99.5)) if video.size else 1.0
         return PreviewResult(video, shown, n_frames, region, (int(H), int(W)), time.perf_counter() - t0,
-                             (0.0, hi if hi > 0 else 1.0), method)
+                             (0.0, hi if hi > 0 else 1.0), method, self.device if method == "motion-aware" else "cpu")
 
     def _motion_aware(self, stack: np.ndarray, identity: np.ndarray, ids: list[int], key):
         """(K sub-frames, the frame id shown, frames in its window) by the stream."""
@@ -292,18 +302,14 @@ class PreviewReconstructor:
         pushed_to = None if stream is None else self._first_id + stream.pushed - 1  # newest id in the stream
         if (stream is None or key != self._key or ids != list(range(ids[0], ids[0] + len(ids)))
                 or ids[0] > pushed_to + 1 or ids[-1] <= pushed_to):
-            # Without the refinement (a sixth less time per run, so a larger region; it adds ~0.4 dB offline) and
-            # without the local choice (about 8 % of a VGA run for a few hundredths of a dB there) or the
-            # noise-aware smoothing (a wider blur, more voxels gathered).
-            stream = self._stream = StreamingMotionAware(identity, refine_time=0.0, local_choice=False,
-                                                         noise_aware=False)
+            stream = self._stream = StreamingMotionAware(identity, device=self.device, **self._options())
             self._key, self._first_id, pushed_to = key, ids[0], ids[0] - 1
         if len(ids) == 1:  # the first frame of a run: nothing after it yet, shown alone
             self._stream = None
             from flexvox_core.motion import motion_aware
 
-            return motion_aware(stack, identity, refine_time=0.0, local_choice=False, noise_aware=False,
-                                value_range=(0.0, 1.0)).video, ids[0], 1
+            return motion_aware(stack, identity, value_range=(0.0, 1.0), device=self.device,
+                                **self._options()).video, ids[0], 1
         target = ids[-1] - 1 - self._first_id  # the frame before the newest, as the stream counts
         out = []
         for fid, image in zip(ids, stack, strict=True):
@@ -315,6 +321,15 @@ class PreviewReconstructor:
         return shown.video, self._first_id + shown.index, b - a
 
 
+    def _options(self) -> dict:
+        """Motion-aware's options for the preview: on the CPU without the refinement (a sixth less time per run, so
+        a larger region; it adds ~0.4 dB offline), the local choice (about 8 % of a VGA run for a few hundredths
+        of a dB there) and the noise-aware smoothing (a wider blur, more voxels gathered); on the GPU all of it."""
+        if self.device == "cuda":
+            return {}
+        return {"refine_time": 0.0, "local_choice": False, "noise_aware": False}
+
+
 def _full_scale(stack: np.ndarray) -> float:
     """1 for frames in [0, 1]; else the smallest power of two above their largest value (a float camera's
     counts: 255 -> 256, 4095 -> 4096, 128 -> 256), so that they fall in [0, 1]."""
@@ -322,7 +337,7 @@ def _full_scale(stack: np.ndarray) -> float:
     return 1.0 if not top > 1.0 else float(2.0 ** (math.floor(math.log2(top)) + 1))
 
 
-def reconstruct_preview(frames: list, code, region: Region | None = None, method: str = "motion-aware"
-                        ) -> PreviewResult:
+def reconstruct_preview(frames: list, code, region: Region | None = None, method: str = "motion-aware",
+                        device: str = "cpu") -> PreviewResult:
     """One preview run without state (:meth:`PreviewReconstructor.run` of a new reconstructor)."""
-    return PreviewReconstructor().run(frames, code, region, method)
+    return PreviewReconstructor(device).run(frames, code, region, method)

@@ -152,8 +152,8 @@ def motion_aware(
 
 
 def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: tuple[float, float], *,
-               missing=None, keep: tuple[int, int] | None = None, memo=None, device: str = "cpu"
-               ) -> MotionAwareResult:
+               missing=None, keep: tuple[int, int] | None = None, memo=None, device: str = "cpu",
+               workspace=None) -> MotionAwareResult:
     """The motion-aware stages on checked ``frames`` (F, H, W) float32 and identity ``code``.
 
     ``bounds``: the samples' range (:func:`sample_bounds`). ``keep`` = (s0, s1): only these
@@ -163,7 +163,8 @@ def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: 
     a second pass, or dropped frames in the window, everything is gathered and then cut). Everything
     else (high-TR, flow, the fixed-tensor guides) is computed over the whole window.
     ``memo``: a :class:`~flexvox_core.flow.memo.FlowMemo` for the flow (CPU). ``device``: ``cpu``, ``cuda`` or
-    ``auto`` (:func:`flexvox_core.gpu.resolve_device`).
+    ``auto`` (:func:`flexvox_core.gpu.resolve_device`); ``workspace``: the GPU's device buffers
+    (:class:`~flexvox_core.gpu.volumes.Workspace`) to reuse, as a streaming run does from window to window.
     """
     window = Window.plan(f, code, options, bounds, missing=missing, keep=keep)
     if device != "cpu":
@@ -173,5 +174,5 @@ def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: 
     if device == "cuda":
         from flexvox_core.motion.gpu.engine import CudaStages
 
-        return run_stages(CudaStages(window))
+        return run_stages(CudaStages(window, ws=workspace))
     return run_stages(CpuStages(window), memo)

@@ -84,6 +84,10 @@ class StreamingMotionAware:
     value_range : (lo, hi)
         Range every sample lies in (default [0, 1], normalised frames): it scales the slow voxels'
         range weight and bounds the result, as the whole recording's range does offline.
+    device : {"cpu", "cuda", "auto"}
+        Where each window runs (:func:`flexvox_core.gpu.resolve_device`). On the GPU one set of device buffers
+        serves every window, and every flow pair of a window is measured again (the card does it faster than the
+        memo finds it); :attr:`device` says which ran.
     **options
         The options of :func:`~flexvox_core.motion.pipeline.motion_aware` (flow, time, refine_time, …).
 
@@ -97,7 +101,8 @@ class StreamingMotionAware:
     ...     show(out.video)
     """
 
-    def __init__(self, code, *, back: int = BACK, ahead: int = AHEAD, value_range=(0.0, 1.0), **options):
+    def __init__(self, code, *, back: int = BACK, ahead: int = AHEAD, value_range=(0.0, 1.0), device: str = "cpu",
+                 **options):
         self.code = check_identity_code(code)
         self.K = int(self.code.shape[2])
         for name, value, least in (("back", back, 0), ("ahead", ahead, 1)):
@@ -112,6 +117,16 @@ class StreamingMotionAware:
         # The longest run of dropped frames bridged: as the offline method with its chunk overlap.
         self.max_gap = max_gap(self.options.overlap(self.K))
         self.memo = FlowMemo(max_pairs=max(64, 8 * self.K))
+        if device != "cpu":
+            from flexvox_core.gpu.device import resolve_device
+
+            device = resolve_device(device)
+        self.device = device
+        self._workspace = None
+        if device == "cuda":
+            from flexvox_core.gpu.volumes import Workspace
+
+            self._workspace = Workspace()
         self._frames: dict[int, np.ndarray | None] = {}
         self._shape: tuple[int, int] | None = None
         self._pushed = 0
@@ -251,7 +266,8 @@ class StreamingMotionAware:
         K = self.K
         keep = ((f - a) * K, (f - a + 1) * K)
         result = run_window(frames, self.code, self.options, self.value_range,
-                            missing=missing if missing.any() else None, keep=keep, memo=self.memo)
+                            missing=missing if missing.any() else None, keep=keep, memo=self.memo, device=self.device,
+                            workspace=self._workspace)
         seconds = time.perf_counter() - t0
         _logger.debug("stream frame %d over frames [%d, %d): %.2f s (flow memo %d hits, %d misses)",
                       f, a, b, seconds, self.memo.hits, self.memo.misses)

@@ -96,8 +96,8 @@ class _GatedFlow:
     """:func:`gated_flow`'s gate and resize, a sub-frame at a time (:meth:`one`): every step
     element-wise on small planes that stay in cache, each sub-frame's gated velocity resized
     straight into the full-size flow. The same operations, in the same order, as on whole
-    volumes (the same values), without the dozen volumes at flow size those made (fresh
-    memory is dear: 0.8-1.4 s of the 640x480 clip's flow went to them)."""
+    volumes (the same values), without a dozen volumes at flow size (fresh memory is dear: at
+    640x480 they would cost about a second of page faults, docs/benchmarks.md)."""
 
     def __init__(self, successive, conf, slow, use_slow, slow_speed, steps, mean, gate, period_gate, px, size):
         self.successive, self.conf, self.slow = successive, conf, slow

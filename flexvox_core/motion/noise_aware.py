@@ -26,9 +26,7 @@ frame in the same slot, so where the scene is still two successive frames differ
 1.4826 · median |Δ| / √2 estimates its standard deviation (robust to the moving pixels the gate missed).
 A noiseless capture gives 0 and the gather is exactly the paper's; so does a single-frame capture, which
 has no successive samples. Photon noise depends on brightness; one figure per frame is its typical level.
-
-Measured (``bench/bench_motion_margin.py --noise``, 1000 e⁻ per unit and 3 e⁻ read noise, fan, balls,
-drummer at K = 16, PSNR of the mean MSE): 23.80 → 23.92 dB; noiseless captures unchanged bit for bit.
+``python bench/bench_motion_margin.py --noise [--no-noise-aware]`` measures what it adds (docs/benchmarks.md).
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Pictures of a reconstruction that returns the flow (motion-aware): flow (colour wheel, quiver),
-resolution map, and a panel like the seed's Figs. 7–8 (captured frame, high SR, high TR, flow
+resolution map, and a panel like the paper's Figs. 7–8 (captured frame, high SR, high TR, flow
 magnitude, motion-aware)."""
 
 from __future__ import annotations

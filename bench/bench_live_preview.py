@@ -1,18 +1,19 @@
-"""The live preview at the camera's pace: refresh rate, latency, resolution and CPU share, old against new.
+"""The live preview at the camera's pace: refresh rate, latency, resolution and CPU share of four strategies.
 
 A simulated camera delivers coded frames of the built-in ``balls`` scene (K = 16, 4×4 code) at 15 Hz
 from its own thread; the preview loop takes the newest frames whenever it is free (newest wins),
 reconstructs them with motion-aware, then rests as long as the run took (half a core at most), as the
-Capture workspace's preview does. Two strategies in the same run, each for ``--seconds``:
+Capture workspace's preview does. Four strategies in the same run, each for ``--seconds``:
 
-* ``stride`` — the preview before this change: the frame subsampled with a stride that grows when a
-  run exceeds the 0.6-s budget and shrinks only when the finer run (time ∝ pixels) is predicted under
-  half of it (an aliased picture of the whole field);
-* ``region`` — the preview of the last session: full resolution, the whole frame when the measured cost of
-  a pixel says it fits the budget, else a region of it (``app.capture.live_preview``), each run from scratch
-  over the newest 3 frames, showing the newest;
-* ``stream`` — now: the same regions rule, motion-aware by the streaming reconstructor (the frame before
-  the newest over the same 3-frame window, the frames and flow pairs kept between runs);
+* ``stride`` — the frame subsampled with a stride that grows when a run exceeds the 0.6-s budget and
+  shrinks only when the finer run (time ∝ pixels) is predicted under half of it (an aliased picture of the
+  whole field);
+* ``region`` — full resolution, the whole frame when the measured cost of a pixel says it fits the budget,
+  else a region of it (``app.capture.live_preview``), each run from scratch over the newest 3 frames,
+  showing the newest;
+* ``stream`` — what the Capture workspace runs: the same regions rule, motion-aware by the streaming
+  reconstructor (the frame before the newest over the same 3-frame window, the frames and flow pairs kept
+  between runs);
 * ``nc`` — the fast preview the operator may choose instead: constant-tensor ``nc`` over the same
   regions rule (in practice the whole frame);
 * ``gpu`` (with ``--device cuda``) — streaming motion-aware on the GPU with all its stages, the whole frame every
@@ -89,7 +90,7 @@ def _stride_run(frames, code, tile, stride):
 
 
 def _from_scratch(frames, code, region):
-    """The last session's motion-aware preview: the newest frames from scratch, the newest shown."""
+    """Motion-aware from scratch over the newest frames of ``region``, the newest shown (the ``region`` strategy)."""
     from app.capture.live_preview import PreviewResult, normalise
     from flexvox_core.motion import motion_aware
 

@@ -3,7 +3,7 @@
 For each built-in moving scene (fan, balls, drummer, pan; 4×4 code, K = 16): the offline
 ``motion_aware`` over the whole clip, and :class:`~flexvox_core.motion.streaming.StreamingMotionAware`
 fed one camera frame at a time (one frame behind), both with the samples' range [0, 1]. Printed: each
-one's PSNR (mean over sub-frames) and the difference (the issue's bound: within 0.3 dB), the seconds per
+one's PSNR (mean over sub-frames) and the difference (the goal: within 0.3 dB), the seconds per
 camera frame of both (the stream's median over its frames; the offline run's total over the frames),
 and the stream's flow pairs found again against computed. ``--noise`` adds photon noise and read noise
 (σ = 3 e⁻, 1000 e⁻ per unit). Figures only, never pass/fail. Usage:

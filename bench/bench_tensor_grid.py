@@ -7,7 +7,7 @@ captures of ``flexvox bench`` (built-in scenes at K = 16 and K = 8, 96×128, 6 f
 Runner/Drop when the data is present) and prints:
 
 * the five-scene score (PSNR of the mean squared error, as ``flexvox bench``) of every grid
-  point at K = 16, the best grid point per group, the seed's high-SR tensor (0.05, 0.05, 1) at
+  point at K = 16, the best grid point per group, the paper's high-SR tensor (0.05, 0.05, 1) at
   its best time of the bench's sweep and flexvox's default (0.15, 0.15, 1), n = 1.5;
 * the per-scene oracle: each scene with its own best grid point (what a perfect per-clip
   selector could reach);

@@ -6,9 +6,9 @@ skipped with a printed line when the data is absent — ``$FLEXVOX_DATA/sci_benc
 ``drummer`` (96×128, 6 camera frames through a 4×4 identity code, K = 16; no noise, as in ``flexvox bench``).
 Columns: the ground truth, GAP-TV (``Method("gap-tv")``), constant-tensor ``nc`` (``Method("diffusion")``; isotropic
 ``tensor=(1, 1, 1), time=0.25`` on the SCI clips, its default tensor on the built-in scenes, as
-docs/reconstruction.md advises per scene type), motion-aware as it was when Reconstruction II was filed
-(``refine_time=0, local_choice=False, noise_aware=False`` and DIS's own 5 variational iterations: no refinement, no
-local choice, no noise-aware smoothing) and motion-aware as it is now, the default. Each capture is reconstructed
+docs/reconstruction.md advises per scene type), motion-aware's plain trajectory gather ("before":
+``refine_time=0, local_choice=False, noise_aware=False`` and DIS with OpenCV's own 5 variational iterations: no
+refinement, no local choice, no noise-aware smoothing) and motion-aware with its defaults. Each capture is reconstructed
 whole (``chunk_frames=None``), timed with ``time.perf_counter`` (the best of ``--repeats`` runs, default 3) after a
 warm-up of every method on a small capture (so the compiled kernels' first-call compilation is not counted), and
 scored by ``flexvox_core.metrics.psnr`` (mean over the clip's sub-frames). Every panel shows the same sub-frame, the
@@ -70,7 +70,7 @@ def columns(clip: Clip) -> list[tuple[str, Method]]:
         ("GAP-TV", Method("gap-tv")),
         nc,
         ("motion-aware, before", Method("motion-aware", refine_time=0.0, local_choice=False, noise_aware=False)),
-        ("motion-aware, the new default", Method("motion-aware")),
+        ("motion-aware, the default", Method("motion-aware")),
     ]
 
 
@@ -112,8 +112,8 @@ def warm_up() -> None:
 
 @contextlib.contextmanager
 def as_filed():
-    """Motion-aware's flow as when Reconstruction II was filed: DIS with OpenCV's own variational refinement
-    (5 iterations; ``flexvox_core.motion.gated_flow.DIS_PARAMS`` since)."""
+    """Motion-aware's flow with DIS's own variational refinement (OpenCV's 5 iterations) instead of
+    ``flexvox_core.motion.gated_flow.DIS_PARAMS``."""
     import flexvox_core.motion.gated_flow as gating
 
     saved = gating.DIS_PARAMS
@@ -176,8 +176,9 @@ def draw(clips: list[Clip], results: list[list], out: Path, *, overwrite: bool, 
             ax.set_xticks([])
             ax.set_yticks([])
     shown = ", ".join(f"{c.name} {t}" for c, t in zip(clips, subs, strict=True))
-    fig.suptitle(f"PSNR over the whole clip; seconds per reconstruction, best of {repeats}, on {cores()} CPU cores. "
-                 f"\"before\": motion-aware when Reconstruction II was filed.\n"
+    fig.suptitle(f"PSNR over the whole clip; seconds per reconstruction, best of {repeats}, on {cores()} CPU cores.\n"
+                 "\"before\": the trajectory gather alone (no refinement, local choice or noise-aware smoothing; "
+                 "DIS's own 5 iterations).\n"
                  f"Shown: the middle sub-frame, counted from 0 ({shown})", fontsize=10)
     fig.canvas.draw()
     # Everything drawn is grey: an 8-bit grey PNG holds it exactly, at a third of RGBA's size.
@@ -190,7 +191,7 @@ def draw(clips: list[Clip], results: list[list], out: Path, *, overwrite: bool, 
 
 def table(clips: list[Clip], results: list[list]) -> str:
     """The Markdown table: one row per clip, PSNR (dB) and seconds per method."""
-    heads = ["GAP-TV", "nc", "motion-aware before", "motion-aware, the new default"]
+    heads = ["GAP-TV", "nc", "motion-aware before", "motion-aware, the default"]
     lines = ["| clip | " + " | ".join(heads) + " |", "|---" * (1 + len(heads)) + "|"]
     for clip, res in zip(clips, results, strict=True):
         cells = [f"{p:.2f} dB, {seconds_text(sec)}" for _, _, p, sec in res]

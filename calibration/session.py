@@ -44,7 +44,7 @@ from rig_drivers.pixel_layout import check_layout
 _logger = logging.getLogger(__name__)
 
 DEFAULT_PERIOD_US = 4166
-"""Pattern period of calibration sequences (240 Hz slots, the seed's rate)."""
+"""Pattern period of calibration sequences (240 Hz slots, the paper's rate)."""
 
 EXPOSURE_MARGIN_US = 300
 """Camera exposure = sequence length minus this (the camera must be ready for the next trigger)."""

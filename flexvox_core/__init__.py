@@ -1,6 +1,6 @@
 """flexvox_core — the numerics of flexible-voxel videography.
 
-Codes (the seed's integer program), the forward model, simulation, reconstruction,
+Codes (the paper's integer program), the forward model, simulation, reconstruction,
 optical flow, metrics and recording I/O. This package never imports Qt.
 
 Reconstruction in three layers: the algorithms (:mod:`flexvox_core.reconstruct`,

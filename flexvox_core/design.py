@@ -1,4 +1,4 @@
-r"""Code design: the seed's integer program (its Eq. 1) solved with ``scipy.optimize.milp``.
+r"""Code design: the paper's integer program (its Eq. 1) solved with ``scipy.optimize.milp``.
 
 Variables ``x[i, j, s]`` ∈ {0, 1} mark the sampled (pixel, slot) locations of the
 m×n×K block. Eq. 1 asks that every block of every division holds exactly one sample:

@@ -1,9 +1,9 @@
-"""Divisions of the m×n×K space-time block into K equal blocks (the seed's §2).
+"""Divisions of the m×n×K space-time block into K equal blocks (the paper's §2).
 
 A division is a block shape a rows × b columns × c slots with a | m, b | n, c | K and
 a·b·c = K. Re-binning by it gives a video whose gains over the acquired one are
 TR = K / c (temporal) and SR = 1 / (a·b) (spatial), so TR·SR = 1: the voxel budget is
-constant. (The seed's printed factor lists are inconsistent in places; these are the
+constant. (The paper's printed factor lists are inconsistent in places; these are the
 definitions flexvox uses everywhere.)
 """
 

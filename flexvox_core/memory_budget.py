@@ -1,6 +1,6 @@
 """Refusing work that would not fit in memory, before anything is allocated.
 
-A request for a 100000×100000 simulation used to start allocating 37 GiB and die in the middle.
+Without a check, a request for a 100000×100000 simulation would start allocating 37 GiB and die in the middle.
 Each entry point that allocates in proportion to its request estimates what it will need
 (:func:`simulation_bytes`, :func:`reconstruction_bytes`, :func:`render_bytes`, :func:`video_load_bytes`,
 :func:`shutter_pattern_bytes`) and calls

@@ -1,4 +1,4 @@
-"""Multiplexed codes (the seed's Fig. 9): S-matrix codes and their demultiplexing.
+"""Multiplexed codes (the paper's Fig. 9): S-matrix codes and their demultiplexing.
 
 An S-matrix of order K is a K×K 0/1 matrix with (K+1)/2 ones per row whose inverse is
 ``2/(K+1) · (2 Sᵀ − J)``. It exists when a Hadamard matrix of order K+1 does, so only for

@@ -1,8 +1,8 @@
 """The layers hold by themselves: import-linter's contracts (pyproject.toml) and no module-level cycle.
 
-``make test`` runs ``lint-imports`` before pytest; this test runs the same contracts so that a bare
-``pytest`` sees them too, and adds what import-linter's ``acyclic_siblings`` does not see: a cycle
-between two modules of the same package.
+The contracts run here, as a test (``lint-imports`` in a subprocess), so ``make test`` and a bare ``pytest``
+both check them; this module adds what import-linter's ``acyclic_siblings`` does not see: a cycle between
+two modules of the same package.
 """
 
 import shutil

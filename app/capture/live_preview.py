@@ -17,8 +17,8 @@ need no Qt, so that a benchmark and the tests can run them alone:
   between runs), or the fast constant-tensor ``nc`` (the preview's fallback: the whole VGA frame in
   about a tenth of a second, the newest frame), of a region of the newest frames: K sub-frames.
 
-The order in which the preview gives way when the machine cannot keep up is the one the issue
-asks for: first frames are skipped (the newest wins, always), then the region shrinks.
+When the machine cannot keep up the preview gives way in this order: first frames are skipped (the newest
+wins, always), then the region shrinks; it never shows a subsampled frame.
 """
 
 from __future__ import annotations

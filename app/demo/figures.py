@@ -1,4 +1,4 @@
-"""Figures of the demo report, in the spirit of the seed's Figs. 1, 3, 4, 5 and 7–8."""
+"""Figures of the demo report, in the spirit of the paper's Figs. 1, 3, 4, 5 and 7–8."""
 
 from __future__ import annotations
 
@@ -101,7 +101,7 @@ def fig7_panel(path, frames: np.ndarray, rows: list[int], videos: dict[str, np.n
                 axes[0, j].set_title(t, fontsize=9)
         for ax in axes[i]:
             ax.axis("off")
-    # Put the flow magnitude column before motion-aware, as in the seed.
+    # Put the flow magnitude column before motion-aware, as in the paper.
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)

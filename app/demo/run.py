@@ -316,7 +316,8 @@ figure{{display:inline-block;margin:4px}}code{{background:#f3f3f3}}</style></hea
 <h1>flexvox demo: flexible voxels on the simulated rig</h1>
 <p>A projector co-located with a camera opens each pixel of a {cfg.tile[0]}&times;{cfg.tile[1]} tile in one of
 K = {design.K} slots per exposure, so one camera frame holds samples from K instants. After capture we choose,
-per location, how to trade spatial for temporal resolution.</p>
+per location, how to trade spatial for temporal resolution (Gupta et al. 2010, <i>Flexible Voxels for
+Motion-Aware Videography</i>: "the paper" below).</p>
 <h2>What the demo did</h2><ul>{notes}<li>Total {res.seconds:.1f} s.</li></ul>
 <h2>Calibration (simulated rig, against its hidden truth)</h2>{_calibration_table(res.calibration)}
 <h2>Shutter check: a strobe, recorded through the capture service</h2>
@@ -325,12 +326,13 @@ per location, how to trade spatial for temporal resolution.</p>
 <h2>The code</h2><p>Firing order (slot of each tile pixel), supporting all {len(design.supported)} divisions:</p>
 <pre>{order}</pre>
 <h2>Results against the ground truth</h2>{results}
-<h2>Seed Fig. 1: high SR, high TR, motion-aware</h2><img src="figures/fig1_sampling.png">
-<h2>Seed Fig. 3: re-binning</h2><p>Re-binning the samples at each division trades SR for TR; coded-blur
+<h2>As in the paper's Fig. 1: high SR, high TR, motion-aware</h2><img src="figures/fig1_sampling.png">
+<h2>As in the paper's Fig. 3: re-binning</h2><p>Re-binning the samples at each division trades SR for TR; coded-blur
 artifacts show where things move.</p><img src="figures/fig3_rebinning.png">
-<h2>Seed Fig. 4: the diffusion continuum</h2><img src="figures/fig4_continuum.png">
-<h2>Seed Fig. 5: flow and the tensor field</h2><img src="figures/fig5_flow.png">
-<h2>Seeds Figs. 7&ndash;8: captured, high SR, high TR, motion-aware, flow</h2><img src="figures/fig7_panel.png">
+<h2>As in the paper's Fig. 4: the diffusion continuum</h2><img src="figures/fig4_continuum.png">
+<h2>As in the paper's Fig. 5: flow and the tensor field</h2><img src="figures/fig5_flow.png">
+<h2>As in the paper's Figs. 7&ndash;8: captured, high SR, high TR, motion-aware, flow</h2>
+<img src="figures/fig7_panel.png">
 <h2>Videos</h2>{vids}
 <h2>What accuracy costs in time (quick benchmark on built-in scenes)</h2>{bench}
 <img src="bench/pareto.png"><p>Full run: <code>flexvox bench</code>.</p>

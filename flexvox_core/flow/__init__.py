@@ -1,4 +1,4 @@
-"""Optical flow between successive sub-frames (the seed's Section 4, step 2), and its pictures.
+"""Optical flow between successive sub-frames (the paper's Section 4, step 2), and its pictures.
 
 Flow arrays follow OpenCV's order: ``(..., 2)`` = (u, v) = (dx, dy) in pixels per sub-frame.
 """

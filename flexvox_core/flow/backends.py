@@ -49,7 +49,7 @@ class DisFlow:
 @dataclass(frozen=True)
 class DeepFlow:
     """DeepFlow (Weinzaepfel et al. 2013): Brox-style variational flow with deep matching —
-    the closest to the seed's Brox et al. flow; about 0.9 s per VGA pair here."""
+    the closest to the paper's Brox et al. flow; about 0.9 s per VGA pair here."""
 
     name = "deepflow"
 

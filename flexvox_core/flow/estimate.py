@@ -12,7 +12,7 @@ sub-frame, and a confidence in [0, 1]:
   and a single bad pair does not flip a tensor.
 * **Large motion**: flow is computed on a copy scaled by ``scale`` (default 0.5) and scaled
   back, which halves displacements for the coarse-to-fine search and quarters the work;
-  the seed notes flow needs far less spatial resolution than the scene.
+  the paper notes flow needs far less spatial resolution than the scene.
 * **Robustness of values**: NaN or infinite flow is replaced by zero with confidence 0,
   and magnitudes are capped at half the image size.
 """

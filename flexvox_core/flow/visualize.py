@@ -55,7 +55,7 @@ def flow_to_color(flow, *, max_magnitude: float | None = None) -> np.ndarray:
 
 
 def magnitude_image(flow, *, max_magnitude: float | None = None) -> np.ndarray:
-    """Speed as a colour map (blue still → red fast, like the seed's Fig. 5b), ``(H, W, 3)`` uint8 RGB."""
+    """Speed as a colour map (blue still → red fast, like the paper's Fig. 5b), ``(H, W, 3)`` uint8 RGB."""
     f = np.asarray(flow, dtype=np.float32)
     mag = np.hypot(f[..., 0], f[..., 1])
     mag[~np.isfinite(mag)] = 0

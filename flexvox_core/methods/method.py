@@ -25,13 +25,13 @@ class Method:
     ----------
     name : str
         A registered method (:func:`flexvox_core.methods.registry.names`); default
-        :data:`~flexvox_core.methods.registry.DEFAULT` (diffusion).
+        :data:`~flexvox_core.methods.registry.DEFAULT` (motion-aware).
     **options
         Values of the method's options (``Method(name).spec.options``); None or absent: the
         option's default. For instance ``rebin``: ``block``, ``interpolate``; ``diffusion``:
         ``tensor``, ``time``, ``solver``; ``gap-tv``: ``iterations``, ``tv_weight``,
         ``tv_iterations``; ``motion-aware``: ``flow``, ``time``, ``passes``, ``refine_time``,
-        ``slow_reach``.
+        ``slow_reach``, ``local_choice``, ``noise_aware``.
 
     Raises
     ------

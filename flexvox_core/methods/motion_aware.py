@@ -29,7 +29,7 @@ from flexvox_core.motion.pipeline import (
 )
 
 REFINE_SHOWN = "(K/16)²"
-"""What forms show for the default refinement time: it depends on the code (1 at K = 16, 0.5 at K = 8)."""
+"""What forms show for the default refinement time: it depends on the code (1 at K = 16, 0.25 at K = 8)."""
 
 _LABEL = re.compile(
     r"^motion-aware (?P<flow>\w+) n=(?P<time>[\d.]+)(?: \+refine (?P<refine>[\d.]+))?(?: x(?P<passes>\d+))?"
@@ -37,10 +37,10 @@ _LABEL = re.compile(
 
 
 class MotionAware(MethodSpec):
-    """Flow-driven diffusion tensors per voxel (the seed's Section 4)."""
+    """Flow-driven diffusion tensors per voxel (the paper's Section 4)."""
 
     name = "motion-aware"
-    title = "motion-aware: diffusion tensors oriented along optical flow (the seed's Section 4)"
+    title = "motion-aware: diffusion tensors oriented along optical flow (the paper's Section 4)"
     trade = ("motion-aware chooses the trade per voxel from the flow: high SR where still, "
              "high TR where moving")
     options = (

@@ -18,9 +18,9 @@ BUILTIN: tuple[MethodSpec, ...] = (REBIN, DIFFUSION, GAP_TV, MOTION_AWARE)
 """The built-in methods, in the order menus show them."""
 
 DEFAULT = MOTION_AWARE.name
-"""The method used when none is named: motion-aware, which beats every fixed tensor and re-binning by
-2 dB or more on every group `flexvox bench` measures (docs/reconstruction.md). Constant-tensor
-diffusion (`nc`) stays the fast method: the live preview and the answer under a 10 ms budget."""
+"""The method used when none is named: motion-aware, which beats re-binning, GAP-TV and the best fixed
+tensor on every group `flexvox bench` measures (docs/benchmarks.md, "flexvox bench"). Constant-tensor
+diffusion (`nc`) stays the fast method: the live preview's fast choice and the answer under a 10 ms budget."""
 
 _BY_NAME: dict[str, MethodSpec] = {m.name: m for m in BUILTIN}
 

@@ -1,4 +1,4 @@
-"""Motion-aware reconstruction (the seed's Section 4): flow-driven diffusion tensor fields."""
+"""Motion-aware reconstruction (the paper's Section 4): flow-driven diffusion tensor fields."""
 
 from flexvox_core.motion.mcnc import motion_compensated_nc
 from flexvox_core.motion.pipeline import MotionAwareResult, motion_aware

@@ -15,13 +15,11 @@ from flexvox_core.motion.options import DEFAULT_GATE, PERIOD_GATE, SLOW_SPEED
 from flexvox_core.threads import for_each
 
 DIS_PARAMS = {"variational_iterations": 2}
-"""Motion-aware's DIS flow (every pair it measures): 2 iterations of the variational refinement instead of
-OpenCV's 5. The refinement smooths the flow across the high-TR video's motion edges; measured on
-`flexvox bench`'s captures (96×128, seed 0): the built-in scenes at K = 16 25.21 → 25.36 dB (fan +0.17, drummer
-+0.38, balls −0.04, pan −0.04, the still scene 43.3 → 42.3), K = 8 +0.01, Runner +0.01, Drop +0.02; the margin
-over the best fixed tensor on fan, balls and drummer +2.01 → +2.21 dB (+2.01 → +2.23 with noise; seed 1: +2.12 →
-+2.33); 1 iteration +2.32 but K = 8 −0.05 and the still scenes −1.4. At 640×480 balls −0.18, drummer +0.12, fan
-+0.18, pan −0.06 dB, and each pair's flow about a fifth faster."""
+"""Motion-aware's DIS flow (every pair it measures): 2 iterations of the variational refinement (Brox's energy)
+instead of OpenCV's 5. The refinement smooths the flow of the high-TR video across its motion edges, where the
+trajectories matter most; fewer iterations keep those edges, and each pair's flow costs less. One or none
+lose on still scenes. ``flexvox bench`` and ``bench/bench_motion_margin.py`` measure it (docs/benchmarks.md);
+``bench/make_quality_figure.py``'s "before" column runs OpenCV's 5."""
 
 
 def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, scale: float = 0.5,
@@ -98,8 +96,8 @@ class _GatedFlow:
     """:func:`gated_flow`'s gate and resize, a sub-frame at a time (:meth:`one`): every step
     element-wise on small planes that stay in cache, each sub-frame's gated velocity resized
     straight into the full-size flow. The same operations, in the same order, as on whole
-    volumes (the same values), without the dozen volumes at flow size those made (fresh
-    memory is dear: 0.8-1.4 s of the 640x480 clip's flow went to them)."""
+    volumes (the same values), without a dozen volumes at flow size (fresh memory is dear: at
+    640x480 they would cost about a second of page faults, docs/benchmarks.md)."""
 
     def __init__(self, successive, conf, slow, use_slow, slow_speed, steps, mean, gate, period_gate, px, size):
         self.successive, self.conf, self.slow = successive, conf, slow

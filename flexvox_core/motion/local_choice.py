@@ -1,14 +1,13 @@
 r"""Motion-aware's local choice: where its gather predicts the samples worse than oriented ``nc``, take ``nc``.
 
 Eq. 4's tensor smooths only along the motion. Where the picture itself is smooth, or the flow is wrong, a
-normalized convolution that reaches across space fills the voxels better: on the SCI clip Drop isotropic
-``nc`` (tensor (1, 1, 1), n = 0.25, the issue's comparison) scores 37.16 dB against motion-aware's 35.98,
-and choosing per pixel with the ground truth would give 38.15. The candidate is **oriented nc**
-(:mod:`~flexvox_core.reconstruct.oriented_nc`): that isotropic ``nc`` with its spatial kernel stretched
-along the edges of the high-TR reconstruction and squeezed across them, which alone scores 37.92 on Drop
-(31.77 on Runner, where isotropic ``nc`` scores 31.31). The choice is made without the truth, by
-**leave-one-out**: every sample is estimated by each method from all the *other* samples (for a normalized
-convolution, :math:`(N - c\,y)/(D - c)`, c the weight the sample gives itself), and the squared errors,
+normalized convolution that reaches across space fills the voxels better (on the SCI clip Drop, isotropic
+``nc``, tensor (1, 1, 1), n = 0.25, beats the trajectory gather alone: docs/benchmarks.md, ``flexvox bench``).
+The candidate is **oriented nc** (:mod:`~flexvox_core.reconstruct.oriented_nc`): that isotropic ``nc`` with
+its spatial kernel stretched along the edges of the high-TR reconstruction and squeezed across them
+(structure-adaptive normalized convolution, Pham, van Vliet & Schutte 2006). The choice is made without the
+truth, by **leave-one-out**: every sample is estimated by each method from all the *other* samples (for a
+normalized convolution, :math:`(N - c\,y)/(D - c)`, c the weight the sample gives itself), and the squared errors,
 smoothed in space within each frame by a Gaussian of a sixteenth of the picture's shorter side
 (:func:`pooling_sigma`), weigh the two per pixel:
 
@@ -18,16 +17,13 @@ smoothed in space within each frame by a Gaussian of a sixteenth of the picture'
 
 applied to the voxels the short trajectory gather estimated (the *fast* voxels; still and slow voxels
 keep their own estimates, whose leave-one-out is not the gather's). A convex blend of two results within
-the samples' range stays within it, and both keep the samples. On ``flexvox bench`` (docs/benchmarks.md),
-against the gather alone, with isotropic ``nc`` as the candidate: Drop +1.15 dB, Runner +0.13, the built-in
-scenes +0.09 (K = 16) and +0.27 dB (K = 8); with oriented ``nc``: Drop +2.0 dB and Runner +0.3 (above the
-learned PnP-FFDNet on both), the built-in scenes +0.01 dB more.
+the samples' range stays within it, and both keep the samples. What the choice adds is the difference between
+``flexvox bench``'s default motion-aware row and its ``gather-only`` row (docs/benchmarks.md, "flexvox bench").
 
 A known bias: a sample's leave-one-out leaves its pixel without its own sample, which the gather leans on
 most where a pixel is still and sampled once within the gather's reach (a single-frame capture of a still
-subject): there the gather's error is overestimated and the candidate takes too much.
-``bench/bench_choice_bias.py`` measures it (at K = 8 the gather alone was the best on every still
-single-frame capture it tried, by 0.4–2.4 dB; at K = 16 on three of five).
+subject): there the gather's error is overestimated and the candidate takes too much
+(``bench/bench_choice_bias.py`` measures it on such captures, with and without each candidate).
 :func:`still_voxel_loo` corrects it where the flow calls a voxel still: there the pixel's own sample *is*
 the truth at its other voxels, and the gather is scored on its error at them (see there). The gather's
 leave-one-out is kept everywhere else, and oriented nc's everywhere: its time Gaussian (σ = 0.71
@@ -44,8 +40,8 @@ from flexvox_core.threads import for_each
 
 SIGMA_SHARE = 1 / 16
 """Spatial standard deviation over which the leave-one-out errors are pooled, as a share of the picture's
-shorter side: the same part of the scene at any resolution. Measured on the 1-s VGA clips: a fixed 5 px
-lost 0.25 dB on the drummer (a sixteenth, 30 px: 0.06), while at 96×128 (6 px) it changes nothing."""
+shorter side: the same part of the scene at any resolution (6 px at 96×128, 30 px at 640×480). A fixed
+width in pixels pools too narrowly on large pictures (``bench/bench_motion_throughput.py`` at 640×480)."""
 MIN_SIGMA = 3.0
 """The pooling's standard deviation is never below this many pixels."""
 POWER = 2
@@ -98,10 +94,9 @@ def local_weights(loo_a: np.ndarray, loo_b: np.ndarray, samples: np.ndarray, *, 
 
 STILL_VOXEL_SPEED = 0.15
 """Below this flow speed (px per sub-frame; the motion gate's "trusted as moving" threshold) a gathered voxel
-is scored by :func:`still_voxel_loo` against its pixel's own sample. Measured on `flexvox bench`'s captures
-and ``bench/bench_choice_bias.py`` (prototype): 0.1–0.25 within 0.15 dB of each other and nowhere more than
-0.02 dB below the uncorrected choice; 0.3 and more lost on the still captures at K = 16 (Runner held still
-−0.03 dB at 0.3, −0.09 at 0.6)."""
+is scored by :func:`still_voxel_loo` against its pixel's own sample. Above it the flow may be real motion, so
+the pixel's sample is no longer the truth at its other voxels; ``bench/bench_choice_bias.py`` and
+``flexvox bench`` measure the choice at this threshold."""
 
 
 def still_voxel_loo(loo: np.ndarray, video: np.ndarray, samples: np.ndarray, gathered: np.ndarray,

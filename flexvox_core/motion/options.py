@@ -39,8 +39,8 @@ SLOW_SPEED = 0.6
 """Below this speed (px per sub-frame) of the K-average's long-baseline flow, that flow is the velocity."""
 REFINE_C = (0.95, 0.0, 0.0)
 """Tensor eigenvalues of the refinement: along each voxel's trajectory only. A still voxel then
-diffuses in time alone, so a still scene stays exact; measured on `flexvox bench`'s groups against
-Eq. 4's (0.95, 0.05, 0.05): 25.03 against 25.07 dB at K = 16, the same elsewhere."""
+diffuses in time alone, so a still scene stays exact (Eq. 4's (0.95, 0.05, 0.05) would also blur it
+across space; on `flexvox bench`'s groups the two score within 0.05 dB)."""
 MAX_REFINE_TIME = MAX_EXPLICIT_STEPS / (2 * sum(REFINE_C))
 """The longest refinement: the explicit solver's step limit (``time · 2·Σc`` steps)."""
 MAX_SLOW_REACH = 1000.0
@@ -55,10 +55,10 @@ PERIOD_GATE = (0.9, 1.5)
 def auto_flow_scale(height: int, width: int) -> float:
     """Flow scale with the shorter side at :data:`FLOW_SIDE` px (at most 1: never upsampled).
 
-    Measured (accuracy benchmark, and ``bench/bench_motion_throughput.py`` at 640×480): at
-    96×128 full-size flow beat half-size by 0.3 dB (K = 16) and 0.6 dB (K = 8); on the 256×256
-    SCI clips 0.625 beat 0.5 by 0.2 dB; at 640×480 a third of the size scored within
-    −0.2/+0.3 dB of half size, and the clip's flow took 3.4 instead of 6.7 s.
+    Flow needs far less spatial resolution than the scene, and its time grows with the pixels: a fixed
+    size in pixels keeps small captures at full size (96×128; 0.625 on the 256×256 SCI clips), where
+    halving costs accuracy, and takes a 640×480 clip at a third, where it does not. ``flexvox bench`` and
+    ``bench/bench_motion_throughput.py [--flow-scale S]`` measure the trade (docs/benchmarks.md).
     """
     return min(1.0, FLOW_SIDE / max(1, min(height, width)))
 

@@ -1,4 +1,4 @@
-r"""The per-voxel diffusion tensor of the seed's Eq. 4, and the resolution it amounts to.
+r"""The per-voxel diffusion tensor of the paper's Eq. 4, and the resolution it amounts to.
 
 With (u, v) the flow at a voxel (pixels per sub-frame):
 
@@ -9,7 +9,7 @@ With (u, v) the flow at a voxel (pixels per sub-frame):
 
 in (x, y, t) order. Where the flow is (nearly) zero, ψ is undefined; flexvox takes
 ψ = (0, −1, 0), so zero flow gives the fixed tensor ``diag(c3, c2, c1)`` (with the
-default c2 = c3: ``diag(0.05, 0.05, 0.95)``, the seed's high-SR tensor up to scale).
+default c2 = c3: ``diag(0.05, 0.05, 0.95)``, the paper's high-SR tensor up to scale).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 DEFAULT_C = (0.95, 0.05, 0.05)
-"""(c1, c2, c3) of the seed: smooth sharply along the motion direction λ."""
+"""(c1, c2, c3) of the paper: smooth sharply along the motion direction λ."""
 
 _EPS = 1e-6
 
@@ -68,7 +68,7 @@ def resolution_map(flow, K: int, c=DEFAULT_C) -> tuple[np.ndarray, np.ndarray]:
     The share of the tensor along time, τ = T_tt / trace T, runs from c1/Σc (still: smoothing
     mostly in time, high SR) to c3/Σc (fast: smoothing in space, high TR). flexvox reports
     ``TR = K^(1 − τ)`` and ``SR = 1/TR``, which puts ``diag(0, 0, 1)`` at [1, 1] and
-    ``diag(1, 1, 0)`` at [K, 1/K], as the seed's limiting cases.
+    ``diag(1, 1, 0)`` at [K, 1/K], as the paper's limiting cases.
     """
     c1, c2, c3 = check_c(c)
     f = np.asarray(flow, dtype=np.float32)

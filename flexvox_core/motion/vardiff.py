@@ -1,7 +1,7 @@
 r"""Variable-tensor diffusion (Eq. 2 with the field of Eq. 4) that keeps the maximum principle.
 
 The centred 19-point stencil of trace(T·H) has negative weights once the anisotropy passes
-3 + 2√2 (the seed's tensor has 19), so it overshoots. flexvox instead writes, for
+3 + 2√2 (the paper's tensor has 19), so it overshoots. flexvox instead writes, for
 c1 ≥ c2 ≥ c3 ≥ 0,
 
 .. math::

@@ -1,4 +1,4 @@
-"""Reconstructions that need no motion information (the seed's §§2–3) and a GAP-TV peer.
+"""Reconstructions that need no motion information (the paper's §§2–3) and a GAP-TV peer.
 
 Every function takes an identity-code capture ``frames`` (F, H, W) and its ``code``
 (m, n, K) and returns the full video (F·K, H, W). Multiplexed captures are demultiplexed

@@ -1,4 +1,4 @@
-r"""Constant-tensor diffusion (the seed's §3.1): a continuum from high SR to high TR.
+r"""Constant-tensor diffusion (the paper's §3.1): a continuum from high SR to high TR.
 
 The missing voxels of the sparse sample volume are filled by the diffusion
 
@@ -8,7 +8,7 @@ The missing voxels of the sparse sample volume are filled by the diffusion
     T = \operatorname{diag}(c_x, c_y, c_t),
 
 whose solution after diffusion time ``n`` is a convolution with the Gaussian of
-covariance :math:`2 n T` (the seed's Eq. 3): standard deviations
+covariance :math:`2 n T` (the paper's Eq. 3): standard deviations
 :math:`\sigma_i = \sqrt{2 n c_i}` pixels (sub-frames for t). The tensor is not
 normalised: ``(cx, cy, ct)`` and ``time`` only enter as ``time · c_i``. Tensors with
 :math:`c_t \gg c_x, c_y` (e.g. (0, 0, 1)) smooth along time and keep spatial detail
@@ -677,12 +677,10 @@ def _steady_kernel(init: np.ndarray, mask: np.ndarray, tensor) -> np.ndarray:
 DEFAULT_TENSOR = (0.15, 0.15, 1.0)
 DEFAULT_TIME = 1.5
 """Default tensor and diffusion time, chosen with ``flexvox bench`` as a compromise across
-scenes: PSNR of the mean squared error over the built-in scenes at K=16 22.07 dB and K=8
-23.51 dB (every re-binning is below: 21.94 / 23.13), SCI Runner 29.97 dB and Drop 34.90 dB
-with the 2×4 code (GAP-TV 29.38 / 33.79). Texture-heavy still scenes prefer the seed's
-high-SR tensor (0.05, 0.05, 1) (n = 3: 22.46 dB at K=16, but 28.39 / 32.54 on SCI); the SCI
-clips prefer isotropic (1, 1, 1), n = 0.25 (31.31 / 37.16, but 21.40 dB on the built-in
-scenes). README, "Accuracy against time", has the full table."""
+scenes: texture-heavy still scenes prefer the paper's high-SR tensor (0.05, 0.05, 1), the SCI
+clips isotropic (1, 1, 1), n = 0.25; this one beats every re-binning and GAP-TV on every group of
+the benchmark and lies between those two where either is best. The figures:
+docs/reconstruction.md, "Fixed tensors", and docs/benchmarks.md, "flexvox bench"."""
 
 
 def diffuse(

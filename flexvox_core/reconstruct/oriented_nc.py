@@ -19,11 +19,9 @@ with no sample in reach keeps the ``fallback`` (nc gives it the nearest sample),
 normalized convolution of the samples stays within their range anyway).
 
 The kernels come from a bank: A is rounded to 0, ½ or 1 and the direction to one of 8 (22.5° apart), 17
-kernels cut at 4 σ along their own axes (9×9 px). Measured as motion-aware's local-choice candidate in place
-of isotropic ``nc`` (docs/reconstruction.md, "The local choice"): Drop 37.13 → 37.99 dB, Runner 33.05 →
-33.22, the built-in scenes +0.01 at K = 8 and K = 16, no capture worse by more than 0.05 dB. The guide sets
-the direction only; it is not averaged in: the estimate is a normalized convolution of the samples, within
-their range, and keeps them.
+kernels cut at 4 σ along their own axes (9×9 px). It serves as motion-aware's local-choice candidate
+(docs/reconstruction.md, "The local choice"). The guide sets the direction only; it is not averaged in: the
+estimate is a normalized convolution of the samples, within their range, and keeps them.
 
 The sums run in a compiled kernel (:mod:`~flexvox_core.reconstruct.oriented_nc_kernel`), one sub-frame
 per call, at the voxels asked for; the tests compare it with a plain numpy form that computes each kernel
@@ -48,9 +46,9 @@ from flexvox_core.threads import for_each
 SIGMA = math.sqrt(0.5)
 """Spatial and temporal standard deviation of the isotropic kernel (px, sub-frames): nc's at n = 0.25."""
 ALPHA = 2.0
-"""How far the kernel stretches: at A = 1 it is 1.5 σ along the edge and σ/1.5 across it. Measured
-(prototype, the same captures as the figures above): α = 1 gained 0.06 dB more on Drop but lost 0.10 dB
-on the still scene at K = 8; α = 3 gained less everywhere (Drop +0.68)."""
+"""How far the kernel stretches: at A = 1 it is 1.5 σ along the edge and σ/1.5 across it. A stronger
+stretch (α = 1) helps smooth natural scenes a little and costs still texture; a weaker one (α = 3) gains
+less everywhere (as motion-aware's candidate, on ``flexvox bench``'s captures)."""
 LEVELS = (0.0, 0.5, 1.0)
 """Anisotropy levels of the kernel bank (A is rounded to the nearest)."""
 ANGLES = 8

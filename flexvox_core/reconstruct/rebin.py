@@ -1,4 +1,4 @@
-r"""Re-binning (the seed's §2): the captured samples rearranged into a video at [TR, SR].
+r"""Re-binning (the paper's §2): the captured samples rearranged into a video at [TR, SR].
 
 A division ``a × b × c`` (rows × columns × slots, see :mod:`flexvox_core.divisions`)
 cuts the video into blocks of ``a`` rows, ``b`` columns and ``c`` sub-frames, anchored

@@ -1,4 +1,4 @@
-"""Textures with real high-frequency detail (the seed's point: spatial detail where nothing moves)."""
+"""Textures with real high-frequency detail (the paper's point: spatial detail where nothing moves)."""
 
 from __future__ import annotations
 

@@ -42,7 +42,7 @@ def test_validate_tile_rejects_non_integers():
 def test_divisions_of_4x4_match_the_seed():
     divs = enumerate_divisions((4, 4))
     assert len(divs) == 9
-    # The seed's five distinct resolutions for K = 16 (its footnote 1), with SR = 1/TR.
+    # The paper's five distinct resolutions for K = 16 (its footnote 1), with SR = 1/TR.
     assert sorted({d.tr for d in divs}) == [1, 2, 4, 8, 16]
     assert all(d.tr * d.sr == 1 for d in divs)
     assert Division(2, 2, 4) in divs and Division(2, 2, 4).sr == Fraction(1, 4)

@@ -192,7 +192,7 @@ def test_a_job_that_ends_after_shutdown_does_not_call_back(qtbot, runner):
 
 def test_closing_the_window_while_review_plays_starts_no_preview_after_the_runner_shut_down(qtbot, settings, runner,
                                                                                            recording):
-    """Issue #21: closing during playback stopped playback, which scheduled a preview after the runner had shut down."""
+    """Closing during playback stops playback, and that must not schedule a preview after the runner has shut down."""
     from app.gui.application import build_window
 
     window = build_window(small_rig(), settings=settings, runner=runner, recording=recording)

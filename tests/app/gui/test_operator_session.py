@@ -111,7 +111,7 @@ SESSION_FRAMES = 10
 
 
 def test_the_operator_s_whole_session_through_the_buttons_at_1280x800(qtbot, settings, runner, tmp_path):
-    """Issue #21: connect, calibrate, the sync wizard, save, use for capture, code, live view with preview,
+    """Connect, calibrate, the sync wizard, save, use for capture, code, live view with preview,
     record, open in Review, diffusion, motion-aware, the slider, the motion overlay, compare, export, cancel,
     quit — checking what the operator checks: the actions in view at 1280×800, no clipped text, a layout that
     does not move, the export equal to what is shown, and nothing left running."""

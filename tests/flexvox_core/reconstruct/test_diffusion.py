@@ -138,7 +138,7 @@ def test_no_sample_in_reach_falls_back_to_the_nearest_sample_of_the_pixel(code22
             np.testing.assert_allclose(out[unique, y, x], frames[nearest[unique], y, x], rtol=1e-6)
 
 
-# ----------------------------------------------------------------- the seed's limiting cases
+# ----------------------------------------------------------------- the paper's limiting cases
 
 
 def test_limiting_tensors_are_local_like_the_matching_rebinning(code24, rng):

@@ -24,7 +24,7 @@ def register(sub) -> None:
             "calibration, with the raw phase, uncalibrated), capture a built-in scene with moving and still parts "
             "through the calibration (the drummer-like scene by default), read it back and reconstruct it "
             "(re-binning, high-SR and high-TR diffusion, "
-            "GAP-TV, motion-aware) and write DIR/index.html with figures in the spirit of the seed's Figs. 1, "
+            "GAP-TV, motion-aware) and write DIR/index.html with figures in the spirit of the paper's Figs. 1, "
             "3, 4, 5, 7-8, MP4s and the accuracy-vs-time table and plot."
         ),
     )

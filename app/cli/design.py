@@ -1,4 +1,4 @@
-"""``flexvox design``: solve the seed's integer program for a tile, or verify a code file."""
+"""``flexvox design``: solve the paper's integer program for a tile, or verify a code file."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ from flexvox_core.divisions import enumerate_divisions, parse_division
 from flexvox_core.multiplex import multiplexed_code
 from flexvox_core.tiles import MAX_TILE_SIDE, parse_tile
 
-HELP = "design a shutter code for an MxN tile (the seed's Eq. 1), or verify a code file"
+HELP = "design a shutter code for an MxN tile (the paper's Eq. 1), or verify a code file"
 
 
 def _separation(text: str):

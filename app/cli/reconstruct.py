@@ -36,7 +36,7 @@ def register(sub) -> None:
             "Reconstruct the full (S, H, W) float32 video in [0, 1] (S = F*K) of a recording and "
             f"write it to OUT ({', '.join(WRITABLE)}). Methods: rebin (re-binning at a division), "
             "diffusion (constant tensor; the default nc solver is the fast normalized convolution), "
-            "gap-tv (the classical peer), motion-aware (the seed's Section 4: diffusion tensors oriented "
+            "gap-tv (the classical peer), motion-aware (the paper's Section 4: diffusion tensors oriented "
             "along optical flow). Multiplexed recordings are demultiplexed first. Dropped camera frames are "
             "bridged from both sides (a line says which sub-frames; a .zarr output keeps them as the array "
             "`interpolated`); a run of them longer than the method's reach is refused, naming it."
@@ -46,7 +46,7 @@ def register(sub) -> None:
     add_method_options(p, chunk=16)
     p.add_argument("--figures", type=Path, metavar="DIR",
                    help="motion-aware: write flow (colour wheel, quiver), resolution map and a panel "
-                        "like the seed's Figs. 7-8 as PNGs")
+                        "like the paper's Figs. 7-8 as PNGs")
     p.add_argument("--fps", type=arg_type(positive_fps), default=30.0,
                    help="playback rate of an .mp4 output (default 30)")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT", help="output file")

@@ -86,7 +86,7 @@ def motion_aware(
     time : float
         Diffusion time n of the motion-compensated normalized convolution (the accuracy knob).
     c : (c1, c2, c3)
-        Eigenvalues of Eq. 4 (default the seed's 0.95, 0.05, 0.05).
+        Eigenvalues of Eq. 4 (default the paper's 0.95, 0.05, 0.05).
     refine_time : float or None
         Time of the variable-tensor diffusion along the trajectories after the gather
         (:func:`~flexvox_core.motion.vardiff.variable_tensor_diffusion` with :data:`REFINE_C`; 0: none).

@@ -9,9 +9,22 @@ from concurrent.futures import ThreadPoolExecutor
 import cv2
 
 
+MAX_WORKERS = 16
+"""The most threads per-item work takes."""
+
+
+def cores() -> int:
+    """The cores this process may run on (its CPU affinity: ``taskset`` or a container's share), not the
+    machine's count."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):  # no affinity on this platform
+        return max(1, os.cpu_count() or 1)
+
+
 def workers() -> int:
-    """Threads for per-item work: the machine's cores, at most 8."""
-    return max(1, min(os.cpu_count() or 1, 8))
+    """Threads for per-item work: this process's cores, at most :data:`MAX_WORKERS`."""
+    return min(cores(), MAX_WORKERS)
 
 
 def for_each(fn: Callable[[int], None], count: int) -> None:

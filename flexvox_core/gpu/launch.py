@@ -54,9 +54,12 @@ REGISTRY: dict[str, Kernel] = {}
 
 
 def cuda():
-    """numba's ``cuda`` module (numba-cuda), imported when first needed."""
+    """numba's ``cuda`` module (numba-cuda), imported when first needed. Its warning about launches too small
+    to fill the card is off: flexvox launches small grids on purpose (a frame's few numbers, a tiny window)."""
+    from numba import config
     from numba import cuda as module
 
+    config.CUDA_LOW_OCCUPANCY_WARNINGS = 0
     return module
 
 

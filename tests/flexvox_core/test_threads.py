@@ -29,3 +29,15 @@ def test_an_exception_in_one_item_is_raised_and_threads_restored():
     with pytest.raises(ValueError, match="item 5 failed"):
         for_each(fn, 9)
     assert cv2.getNumThreads() == before
+
+
+def test_workers_follow_the_process_affinity_not_the_machine(monkeypatch):
+    import os
+
+    from flexvox_core import threads
+
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1, 2}, raising=False)
+    monkeypatch.setattr(os, "cpu_count", lambda: 64)
+    assert threads.cores() == 3 and workers() == 3
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(40)), raising=False)
+    assert workers() == threads.MAX_WORKERS

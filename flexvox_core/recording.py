@@ -224,6 +224,15 @@ class RecordingWriter:
     lock : WriterLock, optional
         The recording's lock, already held by the caller (a capture takes it before it sets up
         the devices); the caller keeps it and releases it. Default: the writer takes its own.
+
+    Raises
+    ------
+    RecordingError
+        For a bad argument, or a path that exists (without ``overwrite``).
+    OSError
+        When the store cannot be created (a full disk, a file-size limit): what the writer had
+        made of it is removed and a store it was to replace is put back, so nothing is left that
+        would read as a damaged recording.
     """
 
     def __init__(self, path, *, height: int, width: int, dtype, attrs: dict, overwrite: bool = False,
@@ -247,18 +256,22 @@ class RecordingWriter:
         self._fd = None
         self._replaced: Path | None = None
         self._atomic = bool(atomic)
+        self.store: Path | None = None
         try:
             if (self.path.exists() or self.path.is_symlink()) and not overwrite:
                 raise RecordingError(f"{self.path} already exists; choose another path or allow overwriting")
             if self.path.exists():
                 refuse_other_kind(self.path, "store")  # never a file, or a folder that is not a Zarr store
             if self._atomic:
-                self.store = temporary_sibling(self.path)
+                store = temporary_sibling(self.path)
             else:
                 if self.path.exists() or self.path.is_symlink():
                     self._replaced = temporary_sibling(self.path, "replaced")
                     os.rename(self.path, self._replaced)
-                self.store = self.path
+                store = self.path
+            if store.exists() or store.is_symlink():  # appeared since the check (another program): not ours
+                raise RecordingError(f"{store} already exists; choose another path or allow overwriting")
+            self.store = store  # from here on the store is this writer's own: a failed start removes it
             # The frames are also an OME-Zarr image (NGFF 0.5: axes t, y, x; t = one camera frame), so
             # generic OME-Zarr readers open the raw coded frames; flexvox's own block stays under "flexvox".
             self.group = zarr.open_group(str(self.store), mode="w-", zarr_format=3,
@@ -287,7 +300,9 @@ class RecordingWriter:
             if self._fsync:
                 self._sync_metadata()
         except BaseException:
-            self._abandon()
+            # Nothing was committed: the store this writer made goes (a folder left half-made would read as a
+            # damaged recording), and a replaced one is put back.
+            self._abandon(remove_store=True)
             raise
 
     # -- writing
@@ -470,16 +485,17 @@ class RecordingWriter:
         if not self.closed:
             self._abandon()
 
-    def _abandon(self) -> None:
+    def _abandon(self, *, remove_store: bool = False) -> None:
+        """Close the journal, remove the store where it replaces another or is written aside (or
+        ``remove_store``: a start that failed), and put a replaced store back."""
         from flexvox_core.output_files import remove_path
 
         try:
             if self._fd is not None:
                 os.close(self._fd)
                 self._fd = None
-            store = getattr(self, "store", None)
-            if store is not None and (self._atomic or self._replaced is not None):
-                remove_path(store)
+            if self.store is not None and (remove_store or self._atomic or self._replaced is not None):
+                remove_path(self.store)
             if self._replaced is not None:
                 os.rename(self._replaced, self.path)
                 self._replaced = None

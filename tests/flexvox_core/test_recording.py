@@ -1,5 +1,6 @@
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -282,6 +283,32 @@ def test_full_disk_and_vanished_folder_raise_oserror(tmp_path, monkeypatch):
         v.close()
     with pytest.raises(RecordingError, match=r"`block_frames` must be a whole number 1..65536; got 0"):
         _writer(tmp_path / "b.zarr", block_frames=0)
+
+
+def test_a_writer_that_cannot_write_its_first_metadata_leaves_nothing(tmp_path, monkeypatch):
+    """Under a file-size limit the group's first ``zarr.json`` is refused (EFBIG) after its folder was made: the
+    writer raises the OS error and removes the folder, which would otherwise read as a damaged recording."""
+    import errno
+
+    def refused(store, **kw):
+        Path(store).mkdir()
+        raise OSError(errno.EFBIG, "File too large")
+
+    monkeypatch.setattr(zarr, "open_group", refused)
+    with pytest.raises(OSError, match=r"File too large") as info:
+        _writer(tmp_path / "new.zarr")
+    assert info.value.errno == errno.EFBIG
+    assert sorted(p.name for p in tmp_path.iterdir()) == []  # neither the folder nor its lock file
+    monkeypatch.undo()
+    old = _writer(tmp_path / "old.zarr")
+    _fill(old, 3)
+    old.close()
+    monkeypatch.setattr(zarr, "open_group", refused)
+    with pytest.raises(OSError, match=r"File too large"):
+        _writer(tmp_path / "old.zarr", overwrite=True)
+    monkeypatch.undo()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old.zarr"]
+    assert open_recording(tmp_path / "old.zarr").n_frames == 3  # the recording it was to replace is back
 
 
 def test_opening_never_lists_the_folder(tmp_path, sim):

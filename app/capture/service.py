@@ -30,7 +30,7 @@ Two worker threads::
   row flagged ``dropped`` (the recording convention of simulations). Memory is bounded by
   ``capacity`` frames.
 * The **writer** appends each frame to the recording as it arrives (one chunk per frame,
-  crash-safe: see :mod:`flexvox_core.recording`), filling frame-id gaps with dropped rows.
+  crash-safe: see :mod:`flexvox_core.recording.writer`), filling frame-id gaps with dropped rows.
 
 Every wait has a timeout; :meth:`CaptureService.stop` sets an event that both threads
 check at least every ``read_slice_s`` / 0.1 s, so it returns promptly.

@@ -61,6 +61,7 @@ from pathlib import Path
 
 import numpy as np
 
+from app.capture.pacing import PacedClock
 from app.capture.plan import CapturePlan
 from app.capture.rig_setup import CaptureError, RigSetup, set_up_rig, stop_rig
 from calibration.capture_setup import CaptureCalibration
@@ -71,7 +72,7 @@ from flexvox_core.output_errors import OutputError
 from flexvox_core.recording import RecordingError, RecordingWriter, open_recording, recording_attrs
 from flexvox_core.writer_lock import WriterLock
 from rig_drivers.errors import DeviceError, DeviceTimeoutError
-from rig_drivers.interfaces import DeviceState, Frame
+from rig_drivers.interfaces import DeviceState, Frame, Rig
 
 _logger = logging.getLogger(__name__)
 
@@ -266,10 +267,9 @@ class CaptureService:
 
     Parameters
     ----------
-    rig
-        An object with ``projector``, ``camera`` and ``sync`` (None allowed) devices, and
-        optionally ``trigger_line`` (default Line0): a :class:`rig_drivers.profile.Rig` or a
-        :class:`rig_drivers.simulated_rig.SimulatedRig`. Closed devices are opened and
+    rig : Rig
+        A :class:`rig_drivers.interfaces.Rig` (a :class:`~rig_drivers.profile.ProfileRig` or a
+        :class:`~rig_drivers.simulated_rig.SimulatedRig`). Closed devices are opened and
         closed again at the end; open ones are left open (stopped).
     plan : CapturePlan
         The code and the camera rate.
@@ -282,7 +282,7 @@ class CaptureService:
     sync : SyncSetting
     queue_policy : QueuePolicy
     projector_size : (H, W), optional
-        Default: the projector's ``size`` attribute.
+        Default: the rig's ``projector_size``.
     storage : dict, optional
         The recording's ``storage`` block (default :func:`default_storage` of the first frame).
     ground_truth : bool
@@ -302,7 +302,7 @@ class CaptureService:
         Extra entries for the recording's ``rig`` attribute.
     """
 
-    def __init__(self, rig, plan: CapturePlan, path, *, frames: int | None = None,
+    def __init__(self, rig: Rig, plan: CapturePlan, path, *, frames: int | None = None,
                  calibration: CaptureCalibration | None = None, sync: SyncSetting | None = None,
                  queue_policy: QueuePolicy | None = None, projector_size=None, storage: dict | None = None,
                  ground_truth: bool = False,
@@ -417,9 +417,9 @@ class CaptureService:
         """
         if self._state is not CaptureState.IDLE:
             raise CaptureError(f"cannot start: the capture is {self._state.value} (a service captures once)")
-        clock = getattr(getattr(self.rig, "simulated", None), "clock", None)
-        if hasattr(clock, "resync"):  # a paced simulated clock: building the rig took wall time, not frames
-            clock.resync()
+        sim = self.rig.simulated
+        if sim is not None and isinstance(sim.clock, PacedClock):  # building the rig took wall time, not frames
+            sim.clock.resync()
         try:  # one writer per recording: refused here, before any device is touched
             self._path_lock.acquire()
             if self.path.exists() and not self._overwrite:  # it may have appeared since the service was made
@@ -508,9 +508,8 @@ class CaptureService:
             _logger.info("capture: %s", w)
 
     @staticmethod
-    def _truth_of(rig):
-        sim = getattr(rig, "simulated", None)
-        truth = getattr(sim, "truth", None) or getattr(rig, "truth", None)
+    def _truth_of(rig: Rig):
+        truth = rig.truth
         if truth is None:
             raise CaptureError("ground truth exists only on the simulated rig (a real scene has none)")
         return truth.subframe_video

@@ -701,8 +701,8 @@ class CaptureService:
         try:
             if self._writer_refused is None:
                 self._ensure_writer(None)  # a capture stopped before its first frame: an empty recording
-        except (OSError, RecordingError):
-            self._fail(self._writer_refused)
+        except (OSError, RecordingError) as exc:
+            self._fail(self._writer_refused or f"cannot create {self.path}: {_os_message(exc)}")
             reason = "error"
         try:
             if self._writer is not None:

@@ -182,6 +182,29 @@ def test_a_recording_that_cannot_be_created_says_why_and_leaves_nothing(tmp_path
     assert open_recording(tmp_path / "r.zarr").n_frames == 3
 
 
+def test_a_capture_stopped_before_its_first_frame_that_cannot_create_its_recording_says_so(tmp_path, monkeypatch):
+    import zarr
+
+    def refused(store, **kw):
+        Path(store).mkdir()
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    def never(timeout_s):
+        raise DeviceTimeoutError("no frame")
+
+    rig = make_rig()
+    monkeypatch.setattr(rig.camera, "_do_read_frame", never)
+    monkeypatch.setattr(zarr, "open_group", refused)
+    svc = CaptureService(rig, PLAN, tmp_path / "r.zarr", frames=None, sync=SyncSetting(read_slice_s=0.01))
+    svc.start()
+    result = svc.stop(timeout_s=10)
+    assert result.reason == "error" and not result.ok and result.frames_in_recording is None
+    assert re.fullmatch(r"capture stopped: cannot create \S*r\.zarr: the disk is full \(\[Errno 28\] No space left on "
+                        r"device\); nothing was recorded \(\S*r\.zarr was not created\); 0 dropped \(0 by the queue\)",
+                        result.message), result.message
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_camera_unplugged_keeps_the_frames_received(tmp_path, monkeypatch):
     rig = make_rig()
     real = rig.camera._do_read_frame

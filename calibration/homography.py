@@ -329,7 +329,7 @@ def calibrate_homography(session, *, phase_period: int = 16, phase_steps: int = 
             homography=None, rms_px=float("nan"), inliers=0, decoded=0, coverage=0.0,
             residual_map=np.full((H, W), np.nan), geometry=None, camera_size=(H, W),
             projector_size=tuple(session.projector_size))
-    fit_options.setdefault("layout", getattr(session, "pixel_layout", "square"))
+    fit_options.setdefault("layout", session.pixel_layout)
     result = fit_homography(corr, session.projector_size, **fit_options)
     result.details["correspondences"] = corr
     _logger.info("homography: %s", result.message)

@@ -4,6 +4,10 @@ as one Qt-free call shared by ``flexvox calibrate``, the demo and the GUI wizard
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from rig_drivers.interfaces import Rig
 
 
 @dataclass
@@ -32,7 +36,7 @@ def _no_progress(desc: str):
     return lambda done, total: None
 
 
-def run_calibration(rig, session, *, tile=(4, 4), progress=None) -> CalibrationRun:
+def run_calibration(rig: Rig, session, *, tile=(4, 4), progress=None) -> CalibrationRun:
     """Run every calibration step on an opened ``session`` of ``rig``; stop at the first failure.
 
     ``progress(desc)`` returns an ``update(done, total)`` callable for each step. On the
@@ -114,11 +118,11 @@ def _run_steps(rig, session, tile, progress) -> CalibrationRun:
     return run
 
 
-def truth_comparison(rig, run: CalibrationRun, camera_size) -> dict:
+def truth_comparison(rig: Rig, run: CalibrationRun, camera_size) -> dict:
     """On the simulated rig: the hidden truth beside what was found (for tests, the demo, --json)."""
     from calibration.geometry import homography_error_px
 
-    truth = rig.simulated.truth
+    truth = rig.truth
     out = {"phase_true": int(truth.phase_slots), "delay_true_us": int(truth.delay_us)}
     hom = run.keep.get("homography")
     if hom is not None and hom.homography is not None:

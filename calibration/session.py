@@ -35,6 +35,7 @@ from rig_drivers.interfaces import (
     Frame,
     PatternSequence,
     ProjectorTrigger,
+    Rig,
     SyncSettings,
     TriggerConfig,
     TriggerSource,
@@ -109,7 +110,7 @@ class RigSession:
         projector waits for its external trigger. None: the projector's TRIG_OUT_2 (or
         the camera's own clock) triggers the camera.
     projector_size : (H, W), optional
-        The projector's resolution; default ``projector.size`` where the driver has one.
+        The projector's resolution; default its driver's ``size`` (:attr:`Projector.size`).
     trigger : TriggerConfig, optional
         Camera trigger; default a rising edge on ``Line0``.
     period_us : int
@@ -133,12 +134,12 @@ class RigSession:
         self.projector = projector
         self.camera = camera
         self.sync = sync
-        size = projector_size if projector_size is not None else getattr(projector, "size", None)
+        size = projector_size if projector_size is not None else projector.size
         if size is None:
             raise CalibrationError("`projector_size` is needed: this projector driver does not report its "
                                    "resolution")
         self.projector_size = _size("projector_size", size)
-        self.pixel_layout = check_layout(getattr(projector, "pixel_layout", "square"))
+        self.pixel_layout = check_layout(projector.pixel_layout)
         """How the projector's pixels sit (:mod:`rig_drivers.pixel_layout`), as its driver says."""
         self.trigger = trigger or TriggerConfig(source=TriggerSource.LINE0)
         if not isinstance(self.trigger, TriggerConfig):
@@ -162,13 +163,16 @@ class RigSession:
 
     # ------------------------------------------------------------------ construction
     @classmethod
-    def from_rig(cls, rig, **kwargs) -> RigSession:
-        """A session on a :class:`rig_drivers.profile.Rig` (``open_rig(...)``).
+    def from_rig(cls, rig: Rig, **kwargs) -> RigSession:
+        """A session on a :class:`rig_drivers.interfaces.Rig` (``open_rig(...)``, or a simulated rig): its
+        trigger line, name and projector size unless ``kwargs`` give them.
 
         With the simulated rig the sync box is not used (its projector triggers the camera).
         """
         kwargs.setdefault("trigger", TriggerConfig(source=rig.trigger_line))
-        kwargs.setdefault("rig_name", rig.spec.name)
+        kwargs.setdefault("rig_name", rig.name)
+        if kwargs.get("projector_size") is None:
+            kwargs["projector_size"] = rig.projector_size
         sync = None if rig.simulated is not None else rig.sync
         return cls(rig.projector, rig.camera, sync=sync, **kwargs)
 
@@ -261,7 +265,7 @@ class RigSession:
         if self.sync is not None:
             seq = PatternSequence(pats, self.period_us, self.period_us, trigger=ProjectorTrigger.EXTERNAL_RISING,
                                   patterns_per_trigger=1, repeat=repeat)
-        elif callable(getattr(self.projector, "video_sequence", None)):
+        elif self.projector.video_port:
             seq = self.projector.video_sequence(pats, self.period_us, repeat=repeat)
         else:
             seq = PatternSequence(pats, self.period_us, self.period_us, repeat=repeat)

@@ -1,5 +1,5 @@
-"""Device interfaces: the lifecycle every device shares, and the projector, camera and sync
-controller contracts with their typed settings.
+"""Device interfaces: the lifecycle every device shares, the projector, camera and sync
+controller contracts with their typed settings, and the :class:`Rig` that holds one of each.
 
 The pattern follows python-microscope's ``abc.py``: a public method validates its arguments
 and checks the device state, then calls a ``_do_*`` hook that a driver implements. A driver
@@ -26,6 +26,7 @@ import logging
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from numbers import Integral, Real
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -328,10 +329,28 @@ class Projector(Device):
 
     kind = "projector"
 
+    size: tuple[int, int] | None = None
+    """Pattern size (rows, columns); None where the driver does not know it (its user then gives it)."""
+    pixel_layout: str = "square"
+    """How its pixels sit: one of :data:`rig_drivers.pixel_layout.LAYOUTS` (a diamond DMD staggers its rows)."""
+    video_port: bool = False
+    """True for a projector that takes its patterns on its video input, each exposure triggered by the video
+    signal's VSYNC (the DLPC350): its sequences come from :meth:`video_sequence`, and no sync box can clock it."""
+
     def __init__(self, *, name: str | None = None):
         super().__init__(name=name)
         self._sequence: PatternSequence | None = None
         self._run_state = RunState.STOPPED
+
+    def video_sequence(self, patterns, period_us: int, *, repeat: bool = True) -> PatternSequence:
+        """A sequence of ``patterns`` this projector runs from its video port (only where :attr:`video_port`).
+
+        Raises
+        ------
+        SettingError
+            For a projector without a video port (build a :class:`PatternSequence` instead).
+        """
+        raise SettingError(f"{self.name} takes no patterns on a video port: build a PatternSequence for it")
 
     @property
     def sequence(self) -> PatternSequence | None:
@@ -783,3 +802,63 @@ class SyncController(Device):
 
     @abstractmethod
     def _do_firmware_version(self) -> str: ...
+
+
+# --------------------------------------------------------------------------- the rig
+
+
+@runtime_checkable
+class Rig(Protocol):
+    """A projector, a camera and, optionally, a sync box that work as one flexible-voxel rig.
+
+    Two classes implement it: :class:`~rig_drivers.profile.ProfileRig` (what ``--rig`` names: a
+    profile's real devices, or the simulated ones of ``mock``) and
+    :class:`~rig_drivers.simulated_rig.SimulatedRig` (the simulated rig itself). Building a rig opens
+    no device; each is opened as any other, and :meth:`close` closes them all.
+    """
+
+    @property
+    def name(self) -> str:
+        """The rig's name, as calibration files record it (a calibration is refused on another rig)."""
+
+    @property
+    def projector(self) -> Projector:
+        """The projector that shutters each camera pixel."""
+
+    @property
+    def camera(self) -> Camera:
+        """The camera."""
+
+    @property
+    def sync(self) -> SyncController | None:
+        """The sync box that can clock projector and camera; None when the projector's TRIG_OUT_2 triggers
+        the camera."""
+
+    @property
+    def trigger_line(self) -> TriggerSource:
+        """The camera line the frame trigger arrives on."""
+
+    @property
+    def projector_size(self) -> tuple[int, int] | None:
+        """The projector's pattern size (rows, columns); None where its driver does not know it."""
+
+    @property
+    def pixel_layout(self) -> str:
+        """How the projector's pixels sit (:mod:`rig_drivers.pixel_layout`)."""
+
+    @property
+    def video_port(self) -> bool:
+        """True when the projector takes its patterns on its video input (:attr:`Projector.video_port`)."""
+
+    @property
+    def simulated(self) -> object | None:
+        """The :class:`~rig_drivers.simulated_rig.SimulatedRig` behind this rig (its clock, its view; itself for
+        one); None for real devices."""
+
+    @property
+    def truth(self) -> object | None:
+        """What a simulated rig hides (:class:`~rig_drivers.simulated_rig.RigTruth`: homography, timing, the
+        scene's video), for tests and a capture's ground truth; None for real devices."""
+
+    def close(self) -> None:
+        """Close every device (each is closed even when another fails)."""

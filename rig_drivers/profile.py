@@ -46,10 +46,14 @@ import logging
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from rig_drivers.errors import SettingError
 from rig_drivers.interfaces import Camera, Projector, SyncController, TriggerActivation, TriggerSource
 from rig_drivers.pixel_layout import LAYOUTS
+
+if TYPE_CHECKING:  # the simulated rig is imported only when `mock` is opened
+    from rig_drivers.simulated_rig import RigTruth, SimulatedRig
 
 _logger = logging.getLogger(__name__)
 
@@ -216,8 +220,10 @@ def resolve_rig(value=MOCK) -> RigSpec:
 
 
 @dataclass
-class Rig:
-    """The devices of a rig, built but not opened.
+class ProfileRig:
+    """The devices a ``--rig`` value names (a profile's, or ``mock``'s simulated ones), built but not opened.
+
+    A :class:`~rig_drivers.interfaces.Rig`.
 
     Attributes
     ----------
@@ -226,19 +232,44 @@ class Rig:
         None when the projector's TRIG_OUT_2 triggers the camera directly.
     spec : RigSpec
     simulated : SimulatedRig or None
-        The simulated rig behind ``mock`` (its clock and, for tests, its truth).
+        The simulated rig behind ``mock`` (its clock, its view and, for tests, its truth).
     """
 
     projector: Projector
     camera: Camera
     sync: SyncController | None
     spec: RigSpec
-    simulated: object | None = None
+    simulated: SimulatedRig | None = None
+
+    @property
+    def name(self) -> str:
+        """The profile's name (``mock``'s carries its seed)."""
+        return self.spec.name
 
     @property
     def trigger_line(self) -> TriggerSource:
         """The camera line the frame trigger arrives on."""
         return self.spec.trigger_line
+
+    @property
+    def projector_size(self) -> tuple[int, int] | None:
+        """The projector's pattern size (rows, columns), as its driver reports it."""
+        return self.projector.size
+
+    @property
+    def pixel_layout(self) -> str:
+        """How the projector's pixels sit, as its driver (the profile's ``pixel_layout``) says."""
+        return self.projector.pixel_layout
+
+    @property
+    def video_port(self) -> bool:
+        """True when the projector takes its patterns on its video input (a DLPC350)."""
+        return self.projector.video_port
+
+    @property
+    def truth(self) -> RigTruth | None:
+        """What the simulated rig behind ``mock`` hides; None for real devices."""
+        return None if self.simulated is None else self.simulated.truth
 
     def close(self) -> None:
         """Close every device (each is closed even when another fails)."""
@@ -250,6 +281,10 @@ class Rig:
             finally:
                 if self.sync is not None:
                     self.sync.close()
+
+
+Rig = ProfileRig
+"""Another name of :class:`ProfileRig`, for code that imports the profile rig by it."""
 
 
 class DeferredSerialPort:
@@ -300,7 +335,7 @@ class DeferredSerialPort:
             port.close()
 
 
-def open_rig(rig=MOCK, *, projector_display=None, **simulated_options) -> Rig:
+def open_rig(rig=MOCK, *, projector_display=None, **simulated_options) -> ProfileRig:
     """Build the devices of a rig without opening them.
 
     Parameters
@@ -315,7 +350,8 @@ def open_rig(rig=MOCK, *, projector_display=None, **simulated_options) -> Rig:
         :mod:`rig_drivers.dlpc350.driver`; the app's is :mod:`app.gui.projector.display`).
         Ignored by ``mock``, whose simulated projector needs no video input.
     **simulated_options
-        Passed to :meth:`SimulatedRig.create` for ``mock`` (scene, sizes, seed, clock, ...).
+        For ``mock``: the fields of its :class:`~rig_drivers.simulated_rig_spec.SimulatedRigSpec` (scene,
+        sizes, seed, clock, ...).
 
     Raises
     ------
@@ -325,14 +361,15 @@ def open_rig(rig=MOCK, *, projector_display=None, **simulated_options) -> Rig:
     spec = resolve_rig(rig)
     if spec.simulated:
         from rig_drivers.simulated_rig import SimulatedRig
+        from rig_drivers.simulated_rig_spec import SimulatedRigSpec
 
-        sim = SimulatedRig.create(**simulated_options)
+        sim = SimulatedRig.build(SimulatedRigSpec(**simulated_options))
         # Its seed makes it another rig: a calibration made on seed 0 is refused on seed 1.
         named = RigSpec(name=f"{spec.name[:-1]}, seed {sim.truth.seed})")
-        return Rig(sim.projector, sim.camera, sim.sync, named, simulated=sim)
+        return ProfileRig(sim.projector, sim.camera, sim.sync, named, simulated=sim)
     if simulated_options:
         raise SettingError(f"options {', '.join(sorted(simulated_options))} apply to the simulated rig only")
-    return Rig(_projector(spec.projector, projector_display), _camera(spec.camera), _sync(spec.sync), spec)
+    return ProfileRig(_projector(spec.projector, projector_display), _camera(spec.camera), _sync(spec.sync), spec)
 
 
 def _projector(d: DeviceSpec, display=None) -> Projector:

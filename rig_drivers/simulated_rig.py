@@ -50,20 +50,26 @@ calibration and sync wizards) must find them from frames.
 from __future__ import annotations
 
 import logging
-import math
 from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 
-from flexvox_core.simulate.effects import Effect, parse_effects
+from flexvox_core.simulate.effects import Effect
 from flexvox_core.simulate.scene_file import SceneSpec
-from flexvox_core.simulate.scenes import SCENES, render_scene
+from flexvox_core.simulate.scenes import render_scene
 from rig_drivers.errors import SettingError
 from rig_drivers.interfaces import PatternSequence, RunState, TriggerSource, check_int
 from rig_drivers.pixel_layout import check_layout, mirror_at
 from rig_drivers.simulated import SimulatedProjector, SimulatedSyncController
 from rig_drivers.simulated_camera import MonotonicClock, SimClock, SimulatedCamera
+from rig_drivers.simulated_rig_spec import (
+    DEFAULT_CAMERA_SIZE,
+    SimulatedRigSpec,
+    check_effects,
+    check_homography,
+    check_size,
+)
 from rig_drivers.simulated_target import (
     PROJECTOR_SCALE,
     TARGET_EFFECTS,
@@ -78,25 +84,7 @@ _logger = logging.getLogger(__name__)
 SUPERSAMPLE = 4
 """Sub-samples per camera pixel side in the area-correct warp."""
 
-WIRINGS = ("projector", "syncbox")
-"""How the camera's trigger line is driven: the projector's TRIG_OUT_2, or the sync box."""
-
-
 # --------------------------------------------------------------------------- geometry
-
-
-def check_homography(h) -> np.ndarray:
-    """Validate a 3×3 invertible, finite homography; return it as float64 with h[2, 2] = 1."""
-    arr = np.asarray(h, dtype=np.float64)
-    if arr.shape != (3, 3) or not np.isfinite(arr).all():
-        raise SettingError(f"`homography` must be a finite 3x3 matrix; got shape {arr.shape}")
-    if abs(arr[2, 2]) < 1e-12 or abs(np.linalg.det(arr)) < 1e-12:
-        raise SettingError("`homography` must be invertible with h[2, 2] != 0")
-    return arr / arr[2, 2]
-
-
-DEFAULT_CAMERA_SIZE = (120, 160)
-"""The simulated camera's size (H, W) when neither the caller nor a scene file gives one."""
 
 
 def warp_patterns(patterns, homography, camera_size, *, supersample: int = SUPERSAMPLE,
@@ -313,28 +301,12 @@ class ProjectorLightPath:
         return warped[slot % seq.K]
 
 
-def _effects(effects) -> list[Effect]:
-    if effects is None:
-        return []
-    if isinstance(effects, dict):
-        return parse_effects(effects)
-    out = list(effects)
-    for e in out:
-        if not isinstance(e, Effect):
-            raise SettingError(f"`effects` must be Effect objects or a {{name: params}} table; got {e!r}")
-    return out
-
-
-def _size(name: str, value) -> tuple[int, int]:
-    if not isinstance(value, tuple | list) or len(value) != 2:
-        raise SettingError(f"`{name}` must be (H, W); got {value!r}")
-    return (check_int(f"{name}[0]", value[0], 8, 8192), check_int(f"{name}[1]", value[1], 8, 8192))
-
-
 class SimulatedRig:
     """A simulated projector, camera and sync box coupled through a scene (or the calibration target).
 
-    Build one with :meth:`create`. The devices are not opened; open them as any others.
+    A :class:`~rig_drivers.interfaces.Rig`. Build one with :meth:`build` from a
+    :class:`~rig_drivers.simulated_rig_spec.SimulatedRigSpec` (or :meth:`create` with the spec's
+    fields as keywords). The devices are not opened; open them as any others.
 
     Attributes
     ----------
@@ -345,123 +317,102 @@ class SimulatedRig:
         The clock every device runs on.
     truth : RigTruth
         The hidden homography, phase, delay and seed. For tests only.
+    name : str
+        ``simulated rig (seed N)``: rigs of other seeds hide other homographies and timings.
+    spec : SimulatedRigSpec or None
+        What it was built from (None when its parts were given).
     """
 
     def __init__(self, projector: RigProjector, camera: SimulatedCamera, sync: SimulatedSyncController,
                  clock: SimClock, truth: RigTruth, *, light_path: ProjectorLightPath | None = None,
-                 scene_effects: list[Effect] | None = None, target_effects=None):
+                 scene_effects: list[Effect] | None = None, target_effects=None, name: str | None = None,
+                 spec: SimulatedRigSpec | None = None):
         self.projector = projector
         self.camera = camera
         self.sync = sync
         self.clock = clock
         self.truth = truth
+        self.name = name or f"simulated rig (seed {truth.seed})"
+        self.spec = spec
         self._light_path = light_path
         self._scene_effects = list(scene_effects or [])
         self._target_effects = TARGET_EFFECTS if target_effects is None else target_effects
         self._viewing = "scene"
 
     @classmethod
-    def create(cls, scene: str | SceneSpec | np.ndarray = "drummer", *, camera_size: tuple[int, int] | None = None,
-               projector_size: tuple[int, int] | None = None, homography=None, seed: int | None = None,
-               effects=None, subframes: int | None = None, phase_slots: int | None = None,
-               delay_us: int | None = None, ideal: bool = False, baseline=(0.0, 0.0, 0.0), target_effects=None,
-               wiring: str = "projector", camera_line: TriggerSource = TriggerSource.LINE0,
-               electrons_per_unit: float | None = None, clock: SimClock | None = None,
-               buffer_frames: int = 16, pixel_layout: str = "square") -> SimulatedRig:
-        """Build a rig around a scene.
+    def create(cls, scene: str | SceneSpec | np.ndarray = "drummer", **fields) -> SimulatedRig:
+        """:meth:`build` the rig of ``SimulatedRigSpec(scene, **fields)`` (the spec's fields as keywords)."""
+        return cls.build(SimulatedRigSpec(scene, **fields))
 
-        Parameters
-        ----------
-        scene : str, SceneSpec or ndarray (S, H, W)
-            A built-in scene name (``flexvox_core.simulate.scenes.SCENES``), a parsed scene
-            file (its source, seed, ``electrons_per_unit`` and effects are used; a built-in
-            source is rendered at ``camera_size``), or a video in [0, 1] to use as it is.
-        camera_size : (H, W)
-            Default: the scene file's size, else :data:`DEFAULT_CAMERA_SIZE`.
-        projector_size : (H, W)
-            Default :data:`~rig_drivers.simulated_target.PROJECTOR_SCALE` × the camera's (a finer
-            projector, as per-pixel shuttering needs); the camera's with ``ideal``.
-        pixel_layout : "square" or "diamond"
-            How the projector's pixels sit (:mod:`rig_drivers.pixel_layout`): "diamond" staggers
-            every other row by half a pixel, as the LightCrafter 4500's DMD does. Default square.
-        homography : array (3, 3), optional
-            Projector→camera (in mirror coordinates) on the scene's plane. Default
-            :func:`~rig_drivers.simulated_target.fine_homography` drawn from ``seed`` (the identity
-            with ``ideal``).
-        seed : int, optional
-            Default: the scene file's seed, else 0. Seeds the hidden homography and timing, the
-            calibration target's texture and every effect's noise.
-        effects : list of Effect or dict, optional
-            The scene's declared effects (``{name: {param: value}}`` like a scene file's table).
-            Default: the scene file's, else none.
-        subframes : int, optional
-            Scene length S (it loops). Default 256, or the scene file's frames × K.
-        phase_slots, delay_us : int, optional
-            Hidden timing of the hardware trigger (see the module docstring). Default
-            :func:`~rig_drivers.simulated_target.hidden_timing` of ``seed`` (0 and 0 with ``ideal``).
-        ideal : bool
-            The textbook rig: projector = camera, identity homography, no trigger offset (each
-            still overridable). For tests of the capture path; a real rig is never like this.
-        baseline : (bx, by, bz)
-            The projector's offset from the camera (parallax), in units of the scene's distance.
-        target_effects : dict, optional
-            The effects met with the calibration target in view; default
-            :data:`~rig_drivers.simulated_target.TARGET_EFFECTS`, ``{}`` for none.
-        wiring : {"projector", "syncbox"}
-            ``projector``: TRIG_OUT_2 drives the camera line. ``syncbox``: the sync box drives
-            it, so frames also need the sync box running (the projector is assumed slaved).
-        camera_line : TriggerSource
-            The camera line the trigger is wired to.
-        clock : SimClock, optional
-            Default real time; pass a :class:`~rig_drivers.simulated_camera.VirtualClock`
-            in tests.
-        """
-        if wiring not in WIRINGS:
-            raise SettingError(f"`wiring` must be one of {', '.join(WIRINGS)}; got {wiring!r}")
-        if not isinstance(camera_line, TriggerSource) or not camera_line.value.startswith("Line"):
-            raise SettingError(f"`camera_line` must be a TriggerSource line (Line0..Line3); got {camera_line!r}")
-        spec = scene if isinstance(scene, SceneSpec) else None
-        if spec is None and not isinstance(scene, np.ndarray) and (not isinstance(scene, str) or scene not in SCENES):
-            raise SettingError(f"unknown scene {scene!r}; built-in scenes: {', '.join(SCENES)} "
-                               f"(or pass a SceneSpec)")
-        seed = (spec.seed if spec is not None else 0) if seed is None else check_int("seed", seed, 0, 2**63 - 1)
-        declared = _effects(spec.effects if spec is not None and effects is None else effects)
-        epu = electrons_per_unit or (spec.electrons_per_unit if spec is not None else 1000.0)
-        video = cls._video(scene, spec, camera_size, subframes, seed)
+    @classmethod
+    def build(cls, spec: SimulatedRigSpec) -> SimulatedRig:
+        """Build the rig a :class:`~rig_drivers.simulated_rig_spec.SimulatedRigSpec` describes (its devices not
+        opened): the scene rendered, the hidden homography and timing drawn from its seed where it gives none."""
+        if not isinstance(spec, SimulatedRigSpec):
+            raise SettingError(f"`spec` must be a SimulatedRigSpec (rig_drivers.simulated_rig_spec); got "
+                               f"{type(spec).__name__}")
+        scene = spec.scene
+        file = scene if isinstance(scene, SceneSpec) else None
+        seed = (file.seed if file is not None else 0) if spec.seed is None else spec.seed
+        declared = check_effects(file.effects if file is not None and spec.effects is None else spec.effects)
+        epu = spec.electrons_per_unit or (file.electrons_per_unit if file is not None else 1000.0)
+        video = cls._video(scene, file, spec.camera_size, spec.subframes, seed)
         camera_size = video.shape[1:]
-        if projector_size is not None:
-            projector_size = _size("projector_size", projector_size)
-        elif ideal:
+        if spec.projector_size is not None:
+            projector_size = spec.projector_size
+        elif spec.ideal:
             projector_size = tuple(camera_size)
         else:
             projector_size = (PROJECTOR_SCALE * camera_size[0], PROJECTOR_SCALE * camera_size[1])
-        if homography is not None:
-            h = check_homography(homography)
+        if spec.homography is not None:
+            h = spec.homography
         else:
-            h = np.eye(3) if ideal else fine_homography(camera_size, projector_size, seed)
-        hidden = (0, 0) if ideal else hidden_timing(seed)
-        phase = hidden[0] if phase_slots is None else phase_slots
-        delay = hidden[1] if delay_us is None else delay_us
-        try:
-            base = tuple(float(v) for v in baseline)
-        except (TypeError, ValueError):
-            base = ()
-        if len(base) != 3 or not all(math.isfinite(v) for v in base):
-            raise SettingError(f"`baseline` must be three finite numbers (bx, by, bz); got {baseline!r}")
+            h = np.eye(3) if spec.ideal else fine_homography(camera_size, projector_size, seed)
+        hidden = (0, 0) if spec.ideal else hidden_timing(seed)
+        phase = hidden[0] if spec.phase_slots is None else spec.phase_slots
+        delay = hidden[1] if spec.delay_us is None else spec.delay_us
         truth = RigTruth(h, check_int("phase_slots", phase, 0, 1023), check_int("delay_us", delay, 0, 10**7),
-                         seed, video, {e.name: e.as_dict() for e in declared}, base)
-        clock = clock or MonotonicClock()
-        projector = RigProjector(projector_size, clock_us=clock.now_us, pixel_layout=pixel_layout)
+                         seed, video, {e.name: e.as_dict() for e in declared}, spec.baseline)
+        clock = spec.clock or MonotonicClock()
+        projector = RigProjector(projector_size, clock_us=clock.now_us, pixel_layout=spec.pixel_layout)
         sync = SimulatedSyncController(clock_us=clock.now_us)
-        path = ProjectorLightPath(projector, truth, camera_size, camera_line=camera_line,
-                                  sync=sync if wiring == "syncbox" else None)
+        path = ProjectorLightPath(projector, truth, camera_size, camera_line=spec.camera_line,
+                                  sync=sync if spec.wiring == "syncbox" else None)
         camera = SimulatedCamera(video, effects=declared, seed=seed, electrons_per_unit=epu, light_path=path,
-                                 clock=clock, buffer_frames=buffer_frames)
+                                 clock=clock, buffer_frames=spec.buffer_frames)
         _logger.info("simulated rig: camera %dx%d, projector %dx%d, %s, effects: %s", camera_size[0], camera_size[1],
-                     projector_size[0], projector_size[1], "ideal" if ideal else "hidden homography and timing",
+                     projector_size[0], projector_size[1], "ideal" if spec.ideal else "hidden homography and timing",
                      ", ".join(truth.effects) or "none")
         return cls(projector, camera, sync, clock, truth, light_path=path, scene_effects=declared,
-                   target_effects=target_effects)
+                   target_effects=spec.target_effects, spec=spec)
+
+    # ------------------------------------------------------------------ the Rig protocol
+    @property
+    def trigger_line(self) -> TriggerSource:
+        """The camera line flexvox triggers on: Line0, as ``--rig mock`` declares it. Where the wire really goes
+        (:attr:`SimulatedRigSpec.camera_line <rig_drivers.simulated_rig_spec.SimulatedRigSpec.camera_line>`) is
+        part of what the rig hides: wired to another line, it delivers no frame."""
+        return TriggerSource.LINE0
+
+    @property
+    def projector_size(self) -> tuple[int, int]:
+        """The projector's pattern size (rows, columns)."""
+        return self.projector.size
+
+    @property
+    def pixel_layout(self) -> str:
+        """How the projector's pixels sit (:mod:`rig_drivers.pixel_layout`)."""
+        return self.projector.pixel_layout
+
+    @property
+    def video_port(self) -> bool:
+        """False: the simulated projector runs the sequences it is given, with no video input."""
+        return self.projector.video_port
+
+    @property
+    def simulated(self) -> SimulatedRig:
+        """The simulated rig behind this rig: itself."""
+        return self
 
     # ------------------------------------------------------------------ what the camera looks at
     @property
@@ -472,7 +423,7 @@ class SimulatedRig:
     @property
     def effects_in_view(self) -> dict:
         """``{name: params}`` of the effects simulated now (the scene's, or the calibration target's)."""
-        effects = self._scene_effects if self._viewing == "scene" else _effects(self._target_effects)
+        effects = self._scene_effects if self._viewing == "scene" else check_effects(self._target_effects)
         return {e.name: e.as_dict() for e in effects}
 
     def show_target(self, *, depth: float = 1.0, albedo=(0.35, 0.95), shadow: str | None = None,
@@ -491,7 +442,7 @@ class SimulatedRig:
         """
         H, W = self.camera.sensor_shape
         target = target_video((H, W), self.truth.seed, albedo=albedo, shadow=shadow) if video is None else video
-        self.camera.set_view(target, _effects(self._target_effects))
+        self.camera.set_view(target, check_effects(self._target_effects))
         self._viewing = "target"
         self.move_target(depth)
 
@@ -514,7 +465,7 @@ class SimulatedRig:
         if isinstance(scene, np.ndarray):
             if scene.ndim != 3 or not np.isfinite(scene).all() or scene.min() < 0 or scene.max() > 1:
                 raise SettingError(f"a scene video must have shape (S, H, W) with values in [0, 1]; got {scene.shape}")
-            if camera_size is not None and tuple(scene.shape[1:]) != _size("camera_size", camera_size):
+            if camera_size is not None and tuple(scene.shape[1:]) != check_size("camera_size", camera_size):
                 raise SettingError(f"`camera_size` {tuple(camera_size)} does not match the scene video "
                                    f"{scene.shape[1]}x{scene.shape[2]}")
             return scene.astype(np.float32, copy=False)
@@ -525,13 +476,13 @@ class SimulatedRig:
                 video = load_video(spec.file)
             except ValueError as exc:
                 raise SettingError(f"cannot load the scene video: {exc}") from exc
-            if camera_size is not None and tuple(video.shape[1:]) != _size("camera_size", camera_size):
+            if camera_size is not None and tuple(video.shape[1:]) != check_size("camera_size", camera_size):
                 raise SettingError(f"`camera_size` {tuple(camera_size)} does not match the scene video "
                                    f"{video.shape[1]}x{video.shape[2]}")
             return video
         if camera_size is None:
             camera_size = (spec.height, spec.width) if spec is not None else DEFAULT_CAMERA_SIZE
-        H, W = _size("camera_size", camera_size)
+        H, W = check_size("camera_size", camera_size)
         if subframes is None:
             subframes = (spec.camera_frames() or 16) * spec.K if spec is not None else 256
         S = check_int("subframes", subframes, 1, 1_000_000)

@@ -25,10 +25,12 @@ from calibration.capture_setup import CaptureCalibration
 from rig_drivers.interfaces import (
     MIN_DARK_US,
     MIN_EXPOSURE_1BIT_US,
+    CameraCapabilities,
     CameraSettings,
     DeviceState,
     PatternSequence,
     ProjectorTrigger,
+    Rig,
     RunState,
     SyncSettings,
     TriggerConfig,
@@ -42,13 +44,13 @@ class CaptureError(RuntimeError):
     """The capture cannot start (bad settings, a device refusing its setup); the message says why."""
 
 
-def trigger_delay_by(capabilities, delay_us: float, set_by_hand: bool) -> str | None:
+def trigger_delay_by(capabilities: CameraCapabilities, delay_us: float, set_by_hand: bool) -> str | None:
     """Who applies a camera trigger delay of ``delay_us``: ``"none"`` (no delay needed), ``"camera"`` (it can be
     told one), ``"operator"`` (set by hand, confirmed), or None: nobody, and the exposure opens part-way into a slot.
     """
     if delay_us <= 0:
         return "none"
-    if getattr(capabilities, "trigger_delay", False):
+    if capabilities.trigger_delay:
         return "camera"
     return "operator" if set_by_hand else None
 
@@ -100,9 +102,9 @@ class RigSetup:
     warnings: tuple[str, ...]
     notes: tuple[str, ...] = ()
 
-    def rig_attrs(self, rig) -> dict:
+    def rig_attrs(self, rig: Rig) -> dict:
         """The recording's ``rig`` attribute (the phase and the delay are in its ``calibration``)."""
-        kind = "simulated" if getattr(rig, "simulated", None) is not None or hasattr(rig, "truth") else "hardware"
+        kind = "simulated" if rig.simulated is not None else "hardware"
         return {"kind": kind, "projector": rig.projector.name, "camera": rig.camera.name,
                 "sync": rig.sync.name if self.use_sync else "projector TRIG_OUT_2",
                 "period_us": self.period_us, "camera_exposure_us": self.camera_exposure_us,
@@ -116,20 +118,21 @@ def _open(device) -> None:
     device.enable()
 
 
-def set_up_rig(rig, plan: CapturePlan, calibration: CaptureCalibration | None = None, *, projector_size=None,
+def set_up_rig(rig: Rig, plan: CapturePlan, calibration: CaptureCalibration | None = None, *, projector_size=None,
                use_sync_box: bool | None = None, delay_set_by_hand: bool = False, preview: bool = False,
                open_device: Callable = _open) -> RigSetup:
     """Open the rig's devices and set them up to capture ``plan`` through ``calibration``, and start them.
 
     Parameters
     ----------
-    rig
-        ``projector``, ``camera``, ``sync`` (None allowed) and optionally ``trigger_line``.
+    rig : Rig
+        Its projector, camera, sync box (None allowed), trigger line, projector size, pixel layout and
+        video port (:class:`rig_drivers.interfaces.Rig`).
     plan : CapturePlan
     calibration : CaptureCalibration, optional
         Default uncalibrated.
     projector_size : (H, W), optional
-        Default the projector's ``size``.
+        Default the rig's ``projector_size``.
     use_sync_box : bool or None
         None: when the rig has one.
     delay_set_by_hand : bool
@@ -151,7 +154,7 @@ def set_up_rig(rig, plan: CapturePlan, calibration: CaptureCalibration | None = 
     if not timing.ok:
         raise CaptureError("; ".join(timing.errors))
     projector, camera = rig.projector, rig.camera
-    sync = getattr(rig, "sync", None)
+    sync = rig.sync
     use_sync = (sync is not None) if use_sync_box is None else bool(use_sync_box)
     if use_sync and sync is None:
         raise CaptureError("the sync setting asks for a sync box, but the rig has none")
@@ -168,7 +171,7 @@ def set_up_rig(rig, plan: CapturePlan, calibration: CaptureCalibration | None = 
     if use_sync:
         open_device(sync)
     H, W = (int(v) for v in camera.sensor_shape)
-    psize = projector_size or getattr(projector, "size", None)
+    psize = projector_size or rig.projector_size
     if psize is None:
         raise CaptureError(f"the projector size of {projector.name} is unknown: give it (rows, columns)")
     psize = tuple(int(v) for v in psize)
@@ -183,8 +186,8 @@ def set_up_rig(rig, plan: CapturePlan, calibration: CaptureCalibration | None = 
                         "slot of the live view mixes two patterns")
     elif delay_by == "camera" and delay_set_by_hand:
         notes.append(f"{camera.name} sets the {delay:.0f} µs trigger delay itself: setting it by hand is not needed")
-    patterns = plan.patterns((H, W), psize, cal, layout=getattr(projector, "pixel_layout", "square")).patterns
-    video_port = callable(getattr(projector, "video_sequence", None))  # a DLPC350 fed by its video input
+    patterns = plan.patterns((H, W), psize, cal, layout=rig.pixel_layout).patterns
+    video_port = rig.video_port  # a DLPC350 fed by its video input
     if use_sync and video_port:
         raise CaptureError(
             f"{projector.name} takes its patterns on the video port, paced by the video signal's VSYNC: "
@@ -208,7 +211,7 @@ def set_up_rig(rig, plan: CapturePlan, calibration: CaptureCalibration | None = 
         if sync.running:
             sync.stop()
         sync.configure(SyncSettings(period_us=period, pulses_per_frame=K))
-    line = getattr(rig, "trigger_line", TriggerSource.LINE0)
+    line = rig.trigger_line
     trigger = TriggerConfig(source=TriggerSource.FREE_RUN) if free_run else \
         TriggerConfig(source=line, delay_us=delay if delay_by == "camera" else 0.0)
     camera.stop_acquisition()
@@ -223,14 +226,14 @@ def set_up_rig(rig, plan: CapturePlan, calibration: CaptureCalibration | None = 
                     trigger.source.value, tuple(cal_warnings + notes), tuple(notes))
 
 
-def stop_rig(rig) -> list[str]:
+def stop_rig(rig: Rig) -> list[str]:
     """Stop the camera's acquisition, the sync box and the projector (devices stay open); the errors, in words."""
     from rig_drivers.errors import DeviceError
 
     errors = []
     steps = [("stop the camera", lambda: rig.camera.stop_acquisition()
               if rig.camera.state is not DeviceState.CLOSED else None)]
-    sync = getattr(rig, "sync", None)
+    sync = rig.sync
     if sync is not None:
         steps.append(("stop the sync box", lambda: sync.stop() if sync.state is not DeviceState.CLOSED else None))
     steps.append(("stop the projector", lambda: rig.projector.stop()

@@ -30,7 +30,7 @@ Two worker threads::
   row flagged ``dropped`` (the recording convention of simulations). Memory is bounded by
   ``capacity`` frames.
 * The **writer** appends each frame to the recording as it arrives (one chunk per frame,
-  crash-safe: see :mod:`flexvox_core.recording`), filling frame-id gaps with dropped rows.
+  crash-safe: see :mod:`flexvox_core.recording.writer`), filling frame-id gaps with dropped rows.
 
 Every wait has a timeout; :meth:`CaptureService.stop` sets an event that both threads
 check at least every ``read_slice_s`` / 0.1 s, so it returns promptly.
@@ -41,7 +41,9 @@ A full disk or a vanished folder (``OSError`` from the writer), or a camera that
 (``DeviceError``, e.g. unplugged), stops the capture: the writer keeps every frame already
 received, the recording is finalised (or left with its journal when the disk refuses even
 that — it still opens), and :attr:`CaptureResult.message` says what happened and how many
-frames the recording holds, as read back from disk.
+frames the recording holds, as read back from disk. A recording that cannot even be created (its
+first metadata file refused: a full disk, a file-size limit) leaves nothing behind, and the
+message says that nothing was recorded.
 """
 
 from __future__ import annotations
@@ -59,6 +61,7 @@ from pathlib import Path
 
 import numpy as np
 
+from app.capture.pacing import PacedClock
 from app.capture.plan import CapturePlan
 from app.capture.rig_setup import CaptureError, RigSetup, set_up_rig, stop_rig
 from calibration.capture_setup import CaptureCalibration
@@ -69,7 +72,7 @@ from flexvox_core.output_errors import OutputError
 from flexvox_core.recording import RecordingError, RecordingWriter, open_recording, recording_attrs
 from flexvox_core.writer_lock import WriterLock
 from rig_drivers.errors import DeviceError, DeviceTimeoutError
-from rig_drivers.interfaces import DeviceState, Frame
+from rig_drivers.interfaces import DeviceState, Frame, Rig
 
 _logger = logging.getLogger(__name__)
 
@@ -264,10 +267,9 @@ class CaptureService:
 
     Parameters
     ----------
-    rig
-        An object with ``projector``, ``camera`` and ``sync`` (None allowed) devices, and
-        optionally ``trigger_line`` (default Line0): a :class:`rig_drivers.profile.Rig` or a
-        :class:`rig_drivers.simulated_rig.SimulatedRig`. Closed devices are opened and
+    rig : Rig
+        A :class:`rig_drivers.interfaces.Rig` (a :class:`~rig_drivers.profile.ProfileRig` or a
+        :class:`~rig_drivers.simulated_rig.SimulatedRig`). Closed devices are opened and
         closed again at the end; open ones are left open (stopped).
     plan : CapturePlan
         The code and the camera rate.
@@ -280,7 +282,7 @@ class CaptureService:
     sync : SyncSetting
     queue_policy : QueuePolicy
     projector_size : (H, W), optional
-        Default: the projector's ``size`` attribute.
+        Default: the rig's ``projector_size``.
     storage : dict, optional
         The recording's ``storage`` block (default :func:`default_storage` of the first frame).
     ground_truth : bool
@@ -300,7 +302,7 @@ class CaptureService:
         Extra entries for the recording's ``rig`` attribute.
     """
 
-    def __init__(self, rig, plan: CapturePlan, path, *, frames: int | None = None,
+    def __init__(self, rig: Rig, plan: CapturePlan, path, *, frames: int | None = None,
                  calibration: CaptureCalibration | None = None, sync: SyncSetting | None = None,
                  queue_policy: QueuePolicy | None = None, projector_size=None, storage: dict | None = None,
                  ground_truth: bool = False,
@@ -349,6 +351,8 @@ class CaptureService:
         self._error: str | None = None
         self._result: CaptureResult | None = None
         self._writer = None
+        self._writer_refused: str | None = None
+        """Why the recording could not be created (None: it was, or was not tried yet)."""
         self._period_us = 0
         # counters
         self._received = 0
@@ -413,9 +417,9 @@ class CaptureService:
         """
         if self._state is not CaptureState.IDLE:
             raise CaptureError(f"cannot start: the capture is {self._state.value} (a service captures once)")
-        clock = getattr(getattr(self.rig, "simulated", None), "clock", None)
-        if hasattr(clock, "resync"):  # a paced simulated clock: building the rig took wall time, not frames
-            clock.resync()
+        sim = self.rig.simulated
+        if sim is not None and isinstance(sim.clock, PacedClock):  # building the rig took wall time, not frames
+            sim.clock.resync()
         try:  # one writer per recording: refused here, before any device is touched
             self._path_lock.acquire()
             if self.path.exists() and not self._overwrite:  # it may have appeared since the service was made
@@ -504,9 +508,8 @@ class CaptureService:
             _logger.info("capture: %s", w)
 
     @staticmethod
-    def _truth_of(rig):
-        sim = getattr(rig, "simulated", None)
-        truth = getattr(sim, "truth", None) or getattr(rig, "truth", None)
+    def _truth_of(rig: Rig):
+        truth = rig.truth
         if truth is None:
             raise CaptureError("ground truth exists only on the simulated rig (a real scene has none)")
         return truth.subframe_video
@@ -611,7 +614,7 @@ class CaptureService:
                 self._write_gap(last + 1)
         except (OSError, RecordingError) as exc:
             writer_ok = False
-            self._fail(f"cannot write {self.path}: {_os_message(exc)}")
+            self._fail(self._writer_refused or f"cannot write {self.path}: {_os_message(exc)}")
         except Exception as exc:  # noqa: BLE001 - a writer bug must still end the capture cleanly
             writer_ok = False
             _logger.exception("capture writer crashed")
@@ -649,8 +652,12 @@ class CaptureService:
                                 storage=storage, calibration=calibration, rig=self._rig_attrs,
                                 multiplexed=multiplexed, placement=shutter.placement if multiplexed else None,
                                 source=f"flexvox {__version__} capture")
-        self._writer = self._writer_factory(self.path, height=H, width=W, dtype=store, attrs=attrs,
-                                            overwrite=self._overwrite, fsync=self._durable, lock=self._path_lock)
+        try:
+            self._writer = self._writer_factory(self.path, height=H, width=W, dtype=store, attrs=attrs,
+                                                overwrite=self._overwrite, fsync=self._durable, lock=self._path_lock)
+        except (OSError, RecordingError) as exc:  # the writer removed what it had made of the store
+            self._writer_refused = f"cannot create {self.path}: {_os_message(exc)}"
+            raise
 
     def _append(self, image, frame_id: int, timestamp: float, dropped: bool) -> None:
         t0 = time.perf_counter()
@@ -692,19 +699,18 @@ class CaptureService:
     def _finish(self, reason: str, writer_ok: bool = True) -> None:
         writer_note = ""
         try:
-            self._ensure_writer(None)
-            if self._ground_truth is not None and reason != "error" and self._writer.count:
-                self._writer.write_ground_truth_frames(self._ground_truth(int(i), self.K) for i in self._ids)
-            s = self.stats()
-            self._writer.close(attrs_update={"capture": {
-                "reason": reason, "error": self._error, "frames_received": s.frames_received,
-                "rows": s.rows_written, "drops": s.drops, "queue_drops": s.queue_drops,
-                "write_rate_hz": s.write_rate_hz, "camera_rate_hz": s.camera_rate_hz,
-                "queue": asdict(self.policy)}})
+            if self._writer_refused is None:
+                self._ensure_writer(None)  # a capture stopped before its first frame: an empty recording
+        except (OSError, RecordingError) as exc:
+            self._fail(self._writer_refused or f"cannot create {self.path}: {_os_message(exc)}")
+            reason = "error"
+        try:
+            if self._writer is not None:
+                self._close_writer(reason)
         except (OSError, RecordingError) as exc:
             writer_note = f"; finalising failed ({_os_message(exc)}), the capture journal was kept"
             _logger.error("capture: finalising %s failed: %s", self.path, exc)
-            if self._writer is not None and not getattr(self._writer, "closed", True):
+            if not getattr(self._writer, "closed", True):
                 try:
                     self._writer.close()
                 except (OSError, RecordingError) as exc2:
@@ -712,12 +718,7 @@ class CaptureService:
         finally:
             self._path_lock.release()
         self._state = CaptureState.DONE
-        held = None
-        try:
-            held = open_recording(self.path).n_frames
-            where = f"{self.path} holds {held} frame(s) and opens cleanly"
-        except RecordingError as exc:
-            where = f"the recording cannot be opened: {exc}"
+        held, where = self._what_was_recorded()
         s = self.stats()
         drops = f"{s.drops} dropped ({s.queue_drops} by the queue)"
         if reason == "error":
@@ -729,9 +730,36 @@ class CaptureService:
         _logger.info("%s", message)
         self._done.set()
 
+    def _close_writer(self, reason: str) -> None:
+        """Store the ground truth (simulated rigs) and finalise the recording with the capture's counters."""
+        if self._ground_truth is not None and reason != "error" and self._writer.count:
+            self._writer.write_ground_truth_frames(self._ground_truth(int(i), self.K) for i in self._ids)
+        s = self.stats()
+        self._writer.close(attrs_update={"capture": {
+            "reason": reason, "error": self._error, "frames_received": s.frames_received,
+            "rows": s.rows_written, "drops": s.drops, "queue_drops": s.queue_drops,
+            "write_rate_hz": s.write_rate_hz, "camera_rate_hz": s.camera_rate_hz,
+            "queue": asdict(self.policy)}})
+
+    def _what_was_recorded(self) -> tuple[int | None, str]:
+        """(frames the recording on disk holds or None, the sentence that says so)."""
+        if self._writer is None:  # the recording could not be created
+            if self._overwrite and self.path.exists():
+                return None, f"nothing was recorded; the recording that was at {self.path} is unchanged"
+            if not (self.path.exists() or self.path.is_symlink()):
+                return None, f"nothing was recorded ({self.path} was not created)"
+        try:
+            held = open_recording(self.path).n_frames
+        except RecordingError as exc:
+            return None, f"the recording cannot be opened: {exc}"
+        return held, f"{self.path} holds {held} frame(s) and opens cleanly"
+
 
 def _os_message(exc: Exception) -> str:
     """An operator's reading of a write failure."""
     if isinstance(exc, OSError) and exc.errno == errno.ENOSPC:
         return f"the disk is full ({exc})"
+    if isinstance(exc, OSError) and exc.errno == errno.EFBIG:
+        return (f"a file would pass the file-size limit (`ulimit -f`) or the largest file the file system "
+                f"holds ({exc})")
     return str(exc)

@@ -143,6 +143,8 @@ class DLPC350(Projector):
 
     size = DMD_SIZE
     """Pattern size (rows, columns), as every projector driver reports it."""
+    video_port = True
+    """Patterns arrive on the video input, sequences from :meth:`video_sequence`."""
 
     @property
     def display(self) -> Display | None:

@@ -378,3 +378,26 @@ def test_a_failed_overwrite_leaves_the_old_recording(base, tmp_path):
     assert_refused(proc, 2, r"cannot write .*rec.zarr: File too large; the old recording is unchanged")
     assert digest(rec) == before
     assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.zarr"]
+
+
+def test_a_capture_that_cannot_create_its_recording_says_why_and_leaves_nothing(tmp_path):
+    """Under a file-size limit of 7 KiB the recording's first metadata file (it holds the code) is refused: the
+    capture names the limit and that nothing was recorded, and leaves no folder for `flexvox info` to call
+    damaged."""
+    import resource
+
+    def limit():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (7 * 1024, 7 * 1024))
+
+    rec = tmp_path / "x.zarr"
+    proc = flexvox("capture", "--rig", "mock", "--frames", "400", "--size", "16x16", "--clock", "virtual", "-o", rec,
+                   preexec_fn=limit)
+    assert "Traceback" not in proc.stderr, proc.stderr
+    assert proc.returncode == 1, (proc.stdout, proc.stderr)
+    last = stderr_lines(proc)[-1]
+    assert re.fullmatch(r"flexvox capture: error: capture stopped: cannot create \S*x\.zarr: a file would pass the "
+                        r"file-size limit \(`ulimit -f`\) .*File too large\); nothing was recorded \(\S*x\.zarr was "
+                        r"not created\); 0 dropped \(0 by the queue\)", last), last
+    assert "already exists" not in proc.stderr and "finalising" not in proc.stderr
+    assert list(tmp_path.iterdir()) == []

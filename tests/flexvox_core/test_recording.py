@@ -1,5 +1,6 @@
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -262,12 +263,12 @@ def test_full_disk_and_vanished_folder_raise_oserror(tmp_path, monkeypatch):
     import os
     import shutil
 
-    import flexvox_core.recording as recording
+    import flexvox_core.recording.writer as recording_writer
 
     w = _writer(tmp_path / "f.zarr")
     _fill(w, 2)
     real_write = os.write
-    monkeypatch.setattr(recording.os, "write", lambda fd, data: real_write(fd, data[:5]))
+    monkeypatch.setattr(recording_writer.os, "write", lambda fd, data: real_write(fd, data[:5]))
     with pytest.raises(OSError, match=r"short write") as info:
         _fill(w, 1, start=2)
     assert info.value.errno == errno.ENOSPC
@@ -282,6 +283,32 @@ def test_full_disk_and_vanished_folder_raise_oserror(tmp_path, monkeypatch):
         v.close()
     with pytest.raises(RecordingError, match=r"`block_frames` must be a whole number 1..65536; got 0"):
         _writer(tmp_path / "b.zarr", block_frames=0)
+
+
+def test_a_writer_that_cannot_write_its_first_metadata_leaves_nothing(tmp_path, monkeypatch):
+    """Under a file-size limit the group's first ``zarr.json`` is refused (EFBIG) after its folder was made: the
+    writer raises the OS error and removes the folder, which would otherwise read as a damaged recording."""
+    import errno
+
+    def refused(store, **kw):
+        Path(store).mkdir()
+        raise OSError(errno.EFBIG, "File too large")
+
+    monkeypatch.setattr(zarr, "open_group", refused)
+    with pytest.raises(OSError, match=r"File too large") as info:
+        _writer(tmp_path / "new.zarr")
+    assert info.value.errno == errno.EFBIG
+    assert sorted(p.name for p in tmp_path.iterdir()) == []  # neither the folder nor its lock file
+    monkeypatch.undo()
+    old = _writer(tmp_path / "old.zarr")
+    _fill(old, 3)
+    old.close()
+    monkeypatch.setattr(zarr, "open_group", refused)
+    with pytest.raises(OSError, match=r"File too large"):
+        _writer(tmp_path / "old.zarr", overwrite=True)
+    monkeypatch.undo()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old.zarr"]
+    assert open_recording(tmp_path / "old.zarr").n_frames == 3  # the recording it was to replace is back
 
 
 def test_opening_never_lists_the_folder(tmp_path, sim):
@@ -313,7 +340,7 @@ class _LookingGroup:
 def test_a_capture_starting_while_it_is_opened_is_seen_with_its_journal(tmp_path):
     # The reader looked for the journal before the writer made it, and at the frames after their first block
     # was added: that block's empty rows must not pass for frames of a finished recording.
-    from flexvox_core.recording import _journal_snapshot
+    from flexvox_core.recording.reader import _journal_snapshot
 
     path = tmp_path / "r.zarr"
     w = _writer(path)
@@ -336,7 +363,8 @@ def test_a_capture_starting_while_it_is_opened_is_seen_with_its_journal(tmp_path
 
 
 def test_a_recording_that_keeps_changing_while_it_is_opened_is_refused(tmp_path, sim):
-    from flexvox_core.recording import SNAPSHOT_TRIES, _journal_snapshot
+    from flexvox_core.recording import SNAPSHOT_TRIES
+    from flexvox_core.recording.reader import _journal_snapshot
 
     path = write_simulation(tmp_path / "r.zarr", sim)
     group = zarr.open_group(str(path), mode="r")
@@ -368,7 +396,7 @@ def test_a_recording_opened_before_its_capture_grows_keeps_the_rows_it_was_opene
 def test_a_capture_starting_between_the_snapshot_and_the_checks_is_looked_at_again(tmp_path, monkeypatch):
     # Seen without a journal and with no rows; by the time the per-frame arrays are checked the capture has
     # started (its journal made, its arrays grown): the recording is looked at again, not called damaged.
-    import flexvox_core.recording as recording
+    import flexvox_core.recording.reader as recording_reader
 
     path = tmp_path / "r.zarr"
     w = _writer(path)
@@ -376,7 +404,7 @@ def test_a_capture_starting_between_the_snapshot_and_the_checks_is_looked_at_aga
     w._flush_per_frame()
     hidden = tmp_path / "journal.hidden"
     (path / JOURNAL).rename(hidden)
-    real = recording._journal_snapshot
+    real = recording_reader._journal_snapshot
     calls = []
 
     def snapshot(p, group):
@@ -387,7 +415,7 @@ def test_a_capture_starting_between_the_snapshot_and_the_checks_is_looked_at_aga
             return got
         return real(p, group)
 
-    monkeypatch.setattr(recording, "_journal_snapshot", snapshot)
+    monkeypatch.setattr(recording_reader, "_journal_snapshot", snapshot)
     rec = open_recording(path)
     assert len(calls) == 2 and rec.interrupted and rec.n_frames == 1
     w.close()

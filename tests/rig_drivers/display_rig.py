@@ -23,7 +23,7 @@ from rig_drivers.interfaces import (
     RunState,
     TriggerSource,
 )
-from rig_drivers.profile import DeviceSpec, Rig, RigSpec
+from rig_drivers.profile import DeviceSpec, ProfileRig, RigSpec
 
 
 class RecordingScreen:
@@ -93,8 +93,9 @@ class ScreenCamera(Camera):
         return Frame(image.astype(np.float32), self._id, self._id / 15.0)
 
 
-def display_rig(screen=None, *, shape=(48, 64)) -> Rig:
-    """A real-rig :class:`~rig_drivers.profile.Rig`: DLPC350 (fake USB) + :class:`ScreenCamera`, TRIG_OUT_2 sync."""
+def display_rig(screen=None, *, shape=(48, 64)) -> ProfileRig:
+    """A real-rig :class:`~rig_drivers.profile.ProfileRig`: DLPC350 (fake USB) + :class:`ScreenCamera`, TRIG_OUT_2
+    sync."""
     screen = RecordingScreen() if screen is None else screen
     projector = DLPC350(FakeDLPC350Transport(), poll_interval_s=0, display=screen)
     projector.size = tuple(shape)  # a DMD as small as the camera (the real one is 1140 x 912), so tests are quick
@@ -104,4 +105,4 @@ def display_rig(screen=None, *, shape=(48, 64)) -> Rig:
     spec = RigSpec(name="display test rig", projector=DeviceSpec("dlpc350"),
                    camera=DeviceSpec("genicam", {"cti": "none.cti"}), sync=DeviceSpec("projector-trigger"))
     assert spec.trigger_line is TriggerSource.LINE0
-    return Rig(projector, camera, None, spec)
+    return ProfileRig(projector, camera, None, spec)

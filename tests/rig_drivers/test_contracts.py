@@ -3,11 +3,16 @@
 import pytest
 
 from rig_drivers.dlpc350 import DLPC350, FakeDLPC350Transport
+from rig_drivers.profile import open_rig
 from rig_drivers.simulated import SimulatedProjector, SimulatedSyncController
+from rig_drivers.simulated_camera import VirtualClock
+from rig_drivers.simulated_rig import SimulatedRig
 from rig_drivers.syncbox import FakeSyncBoxSerial, SyncBox
 
 from .contract_projector import ProjectorContract
+from .contract_rig import RigContract
 from .contract_sync import SyncControllerContract
+from .display_rig import display_rig
 
 
 class Clock:
@@ -73,3 +78,23 @@ class TestSyncBoxOverFakeSerial(SyncControllerContract):
     @pytest.fixture
     def advance(self, port):
         return port.advance_us
+
+
+class TestSimulatedRig(RigContract):
+    @pytest.fixture
+    def rig(self):
+        return SimulatedRig.create("balls", camera_size=(16, 24), subframes=8, clock=VirtualClock())
+
+
+class TestProfileRigOfMock(RigContract):
+    @pytest.fixture
+    def rig(self):
+        return open_rig("mock", scene="balls", camera_size=(16, 24), subframes=8, clock=VirtualClock())
+
+
+class TestProfileRigOfADLPC350(RigContract):
+    """A real-rig profile: a DLPC350 (fake USB) fed on its video port, TRIG_OUT_2 to the camera, no sync box."""
+
+    @pytest.fixture
+    def rig(self):
+        return display_rig()

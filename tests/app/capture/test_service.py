@@ -1,7 +1,9 @@
 """The capture service on the simulated rig (virtual clock: nothing sleeps for the camera)."""
 
 import errno
+import re
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -148,6 +150,59 @@ def test_vanished_folder_stops_with_a_clear_message(tmp_path):
     assert result.reason == "error" and result.frames_in_recording is None
     assert "the recording folder" in result.message and "vanished" in result.message
     assert "the recording cannot be opened" in result.message
+
+
+def test_a_recording_that_cannot_be_created_says_why_and_leaves_nothing(tmp_path, monkeypatch):
+    """The recording's first metadata file refused (EFBIG, as under ``ulimit -f``): the capture says so and that
+    nothing was recorded, and leaves no folder that would read as a damaged recording."""
+    import zarr
+
+    def refused(store, **kw):
+        Path(store).mkdir()
+        raise OSError(errno.EFBIG, "File too large")
+
+    monkeypatch.setattr(zarr, "open_group", refused)
+    rig = make_rig()
+    result = CaptureService(rig, PLAN, tmp_path / "r.zarr", frames=50).run()
+    assert not result.ok and result.reason == "error" and result.frames_in_recording is None
+    assert re.fullmatch(r"capture stopped: cannot create \S*r\.zarr: a file would pass the file-size limit "
+                        r"\(`ulimit -f`\) or the largest file the file system holds \(\[Errno 27\] File too large\); "
+                        r"nothing was recorded \(\S*r\.zarr was not created\); 0 dropped \(0 by the queue\)",
+                        result.message), result.message
+    assert list(tmp_path.iterdir()) == []
+    assert all(d.state is DeviceState.CLOSED for d in (rig.camera, rig.projector, rig.sync))
+    monkeypatch.undo()
+    assert CaptureService(make_rig(), PLAN, tmp_path / "r.zarr", frames=3).run().ok
+    monkeypatch.setattr(zarr, "open_group", refused)
+    result = CaptureService(make_rig(), PLAN, tmp_path / "r.zarr", frames=5, overwrite=True).run()
+    assert not result.ok and result.message.endswith(
+        f"nothing was recorded; the recording that was at {tmp_path / 'r.zarr'} is unchanged; 0 dropped (0 by the "
+        "queue)")
+    monkeypatch.undo()
+    assert open_recording(tmp_path / "r.zarr").n_frames == 3
+
+
+def test_a_capture_stopped_before_its_first_frame_that_cannot_create_its_recording_says_so(tmp_path, monkeypatch):
+    import zarr
+
+    def refused(store, **kw):
+        Path(store).mkdir()
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    def never(timeout_s):
+        raise DeviceTimeoutError("no frame")
+
+    rig = make_rig()
+    monkeypatch.setattr(rig.camera, "_do_read_frame", never)
+    monkeypatch.setattr(zarr, "open_group", refused)
+    svc = CaptureService(rig, PLAN, tmp_path / "r.zarr", frames=None, sync=SyncSetting(read_slice_s=0.01))
+    svc.start()
+    result = svc.stop(timeout_s=10)
+    assert result.reason == "error" and not result.ok and result.frames_in_recording is None
+    assert re.fullmatch(r"capture stopped: cannot create \S*r\.zarr: the disk is full \(\[Errno 28\] No space left on "
+                        r"device\); nothing was recorded \(\S*r\.zarr was not created\); 0 dropped \(0 by the queue\)",
+                        result.message), result.message
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_camera_unplugged_keeps_the_frames_received(tmp_path, monkeypatch):

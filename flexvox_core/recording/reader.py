@@ -1,0 +1,239 @@
+"""Reading a recording: :func:`open_recording` validates a store and returns a :class:`Recording`.
+
+A store that still has a capture journal is an *interrupted* capture: :func:`open_recording` takes
+the count and the per-frame values from the journal (``Recording.interrupted`` is True,
+``n_frames`` is the true count and ``frames`` shows exactly those rows). A reader beside a running
+capture looks at the frames' rows before and after looking for the journal, so a capture starting
+or finishing meanwhile is never seen as a finished recording whose capacity rows are frames; each
+array is looked up by name, never by listing the folders, where zarr's temporary files come and go.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+import zarr
+
+from flexvox_core.recording.errors import RecordingError
+from flexvox_core.recording.journal import JOURNAL, read_journal
+from flexvox_core.recording.schema import SCHEMA_VERSION, WRITTEN_PER_FRAME
+from flexvox_core.recording.validation import validate_recording
+from flexvox_core.recording.verified_rows import VerifiedRows, chunk_files_missing
+
+_logger = logging.getLogger(__name__)
+
+
+@dataclass
+class Recording:
+    """An opened, validated recording.
+
+    ``journal`` holds the committed per-frame values of an *interrupted* capture (a store
+    whose writer never closed, see the module docstring); it is None for a finished one.
+    """
+
+    path: Path
+    group: zarr.Group
+    attrs: dict
+    journal: dict | None = field(default=None, repr=False)
+    rows: int | None = field(default=None, repr=False)
+    """The frames' rows when it was opened (a finished recording's count); None: read them now."""
+
+    @property
+    def interrupted(self) -> bool:
+        """True when the capture writing this recording did not finish (journal present)."""
+        return self.journal is not None
+
+    @property
+    def has_checksums(self) -> bool:
+        """True when every frame carries a CRC (schema 2 and later)."""
+        if self.journal is not None:
+            return self.journal.get("frame_crc") is not None
+        return "frame_crc" in self.group
+
+    @cached_property
+    def frames(self) -> VerifiedRows:
+        """The raw frames ``(F, H, W)`` as stored (float32 or uint16 counts), checked as they are read.
+
+        Exactly the committed rows (an interrupted capture may have rows allocated past them), as
+        they were when the recording was opened.
+        """
+        crcs = None
+        if self.has_checksums:
+            crcs = self.journal["frame_crc"] if self.journal is not None else np.asarray(self.group["frame_crc"][:])
+        return VerifiedRows(self.group["frames"], self.n_frames, crcs=crcs, what="frames",
+                            store=self.path, required=None if crcs is not None else ~self.per_frame("dropped"))
+
+    @property
+    def code(self) -> np.ndarray:
+        """The code ``(m, n, K)`` bool."""
+        return np.asarray(self.attrs["code"], dtype=bool)
+
+    @property
+    def K(self) -> int:  # noqa: N802
+        """Slots per frame."""
+        return int(self.attrs["K"])
+
+    @property
+    def n_frames(self) -> int:
+        """Camera frames stored (committed frames of an interrupted capture)."""
+        if self.journal is not None:
+            return min(len(self.journal["frame_id"]), int(self.group["frames"].shape[0]))
+        if self.rows is not None:  # as seen when opened: a capture starting since cannot add rows to it
+            return self.rows
+        return int(self.group["frames"].shape[0])
+
+    @property
+    def has_ground_truth(self) -> bool:
+        """True for simulated recordings that hold the high-speed video."""
+        return "ground_truth" in self.group
+
+    def per_frame(self, name: str) -> np.ndarray:
+        """``frame_id``, ``timestamp``, ``dropped`` (or ``frame_crc``, schema 2) as a numpy array."""
+        if name not in WRITTEN_PER_FRAME:
+            raise RecordingError(f"`name` must be one of {', '.join(WRITTEN_PER_FRAME)}; got {name!r}")
+        if self.journal is not None:
+            values = self.journal.get(name)
+            if values is None:
+                raise RecordingError(f"{self.path} has no `{name}` (schema 1)")
+            return values[: self.n_frames].copy()
+        if name not in self.group:
+            raise RecordingError(f"{self.path} has no `{name}` (schema {self.attrs.get('schema_version')})")
+        return np.asarray(self.group[name][:])
+
+    @property
+    def ground_truth_rows(self) -> VerifiedRows:
+        """The simulated high-speed video ``(S, H, W)`` float32, checked as it is read."""
+        if not self.has_ground_truth:
+            raise RecordingError(f"{self.path} holds no ground truth (a captured recording)")
+        gt = self.group["ground_truth"]
+        crcs = np.asarray(self.group["ground_truth_crc"][:]) if "ground_truth_crc" in self.group else None
+        return VerifiedRows(gt, gt.shape[0], crcs=crcs, what="ground truth", store=self.path)
+
+    def ground_truth(self, start: int = 0, stop: int | None = None) -> np.ndarray:
+        """Sub-frames ``[start, stop)`` of the simulated high-speed video ``(S, H, W)`` float32."""
+        rows = self.ground_truth_rows
+        return rows.read(start, rows.n if stop is None else stop)
+
+    def normalised_frames(self, start: int = 0, stop: int | None = None) -> np.ndarray:
+        """Frames ``[start, stop)`` as float32 relative units (counts converted)."""
+        from flexvox_core.simulate.simulator import normalise_frames
+
+        return normalise_frames(np.asarray(self.frames[start:stop]), self.attrs["storage"])
+
+    def _per_frame_gaps(self) -> list[str]:
+        """Checksum chunks whose file is missing (zarr reads them as zeros). Only ``frame_crc`` is checked:
+        zarr writes no chunk whose values all equal the fill value, which ``dropped`` (all False) and a
+        one-frame ``frame_id`` legitimately are, while a chunk of CRCs that are all 0 does not occur."""
+        if self.journal is not None:
+            return []  # an interrupted capture's per-frame values come from its journal
+        lines = []
+        for name in ("frame_crc",):
+            if name in self.group:
+                arr = self.group[name]
+                for j in chunk_files_missing(arr, self.path):
+                    a, b = j * arr.chunks[0], min(arr.shape[0], (j + 1) * arr.chunks[0]) - 1
+                    lines.append(f"per-frame array `{name}` rows {a}..{b}: its chunk file is missing (it reads as "
+                                 "zeros)")
+        return lines
+
+    def verify(self, progress=None, *, chunk_rows: int = 16) -> list[str]:
+        """Check every committed frame (and ground-truth sub-frame): each chunk exists, decodes, matches its
+        CRC and holds no NaN or inf. Returns one line per damaged row (empty when all are sound).
+
+        ``progress(done, total)`` is called as rows are checked (rows of frames and ground truth).
+        """
+        parts = [self.frames] + ([self.ground_truth_rows] if self.has_ground_truth else [])
+        total = sum(p.n for p in parts)
+        done = 0
+        found = self._per_frame_gaps()
+        for part in parts:
+            for start in range(0, part.n, chunk_rows):
+                stop = min(part.n, start + chunk_rows)
+                found += [f"{part.what} row {row}: {why}" for row, why in part.problems(start, stop)]
+                done += stop - start
+                if progress is not None:
+                    progress(done, total)
+        if not self.has_checksums:
+            found.append("no checksums (schema 1): missing chunks were checked, changed values cannot be")
+        return found
+
+
+def open_recording(path) -> Recording:
+    """Open and validate a recording's structure; :class:`RecordingError` says what is wrong.
+
+    Frames are checked as they are read (:attr:`Recording.frames`); :meth:`Recording.verify`
+    checks them all.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise RecordingError(f"{path}: no such recording")
+    try:
+        group = zarr.open_group(str(path), mode="r")
+    except Exception as exc:  # zarr raises several types for a damaged store
+        raise RecordingError(f"{path}: not a readable Zarr store ({type(exc).__name__}: {exc})") from exc
+    attrs = dict(group.attrs).get("flexvox")
+    if not isinstance(attrs, dict):
+        raise RecordingError(f"{path}: not a flexvox recording (no `flexvox` attributes)")
+    version = attrs.get("schema_version")
+    if version is None:
+        raise RecordingError(f"{path}: the recording has no schema_version; it was not written by flexvox")
+    if isinstance(version, bool) or not isinstance(version, int) or version < 1:
+        raise RecordingError(f"{path}: schema version {version!r} is not a whole number >= 1; the recording's "
+                             "metadata is damaged")
+    if version > SCHEMA_VERSION:
+        raise RecordingError(
+            f"{path}: schema version {version!r} is newer than this software reads ({SCHEMA_VERSION}); "
+            "update flexvox"
+        )
+    for _ in range(SNAPSHOT_TRIES):
+        journal, rows = _journal_snapshot(path, group)
+        rec = Recording(path, group, attrs, journal, rows)
+        problems = validate_recording(rec)
+        # Seen without a journal, and one there now: a capture started while this looked (its per-frame arrays may
+        # already have grown past the rows seen). Look again rather than call it damaged.
+        if not (problems and journal is None and (path / JOURNAL).exists()):
+            break
+    if problems:
+        raise RecordingError(f"{path}: " + "; ".join(problems))
+    if journal is not None:
+        _logger.info("%s: an interrupted capture; %d committed frames", path, len(journal["frame_id"]))
+    return rec
+
+
+SNAPSHOT_TRIES = 5
+"""Times :func:`open_recording` looks again at a recording whose frames changed while it looked."""
+
+
+def _journal_snapshot(path: Path, group):
+    """(journal, rows): the capture journal's committed records and None, or None and the frames' rows of a
+    finished recording, seen consistently with each other.
+
+    A writer creates the journal before it first grows the frames and removes it after trimming them to the
+    count. So the frames' rows are read before and after looking for the journal: with a journal, the rows were
+    read while it existed; without one, equal rows mean a finished recording (a capture starting between the
+    two reads would show its first block of empty rows as frames, one finishing its capacity).
+    """
+    def rows():
+        try:
+            return group["frames"].shape[0]
+        except KeyError:  # no frames array (yet): validate_recording says so
+            return None
+
+    for _ in range(SNAPSHOT_TRIES):
+        before = rows()
+        if (path / JOURNAL).exists():
+            try:
+                return read_journal(path / JOURNAL), None
+            except FileNotFoundError:  # the capture finished meanwhile: look again
+                continue
+            except OSError as exc:
+                raise RecordingError(f"{path}: cannot read the capture journal ({exc})") from exc
+        if rows() == before:
+            return None, before
+    raise RecordingError(f"{path}: the recording changed while it was opened {SNAPSHOT_TRIES} times (a capture "
+                         "starting or finishing in it); open it again")
+

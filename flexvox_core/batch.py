@@ -72,6 +72,13 @@ _GPU_LOCK = threading.Lock()
 """One chunk at a time on the GPU: dask's threads would otherwise each hold a window's volumes on the card."""
 
 
+def _run_chunk_on_gpu(*args, **kwargs):
+    """:func:`run_chunk` with ``device="cuda"``, one at a time in this process (a module-level function: the dask
+    kernel refers to it by name, where a lock of its own would not pickle for a distributed cluster)."""
+    with _GPU_LOCK:
+        return run_chunk(*args, **kwargs, device="cuda")
+
+
 def _chunk_kernel(code, K: int, ov: int, F: int, method: Method, preparation: Preparation, value_range=None,
                   missing=None, device: str = "cpu"):
     """The dask kernel: one chunk of raw rows (with its context) prepared, then :func:`run_chunk`
@@ -86,12 +93,8 @@ def _chunk_kernel(code, K: int, ov: int, F: int, method: Method, preparation: Pr
                                f"{stop - start + left + right}")
         lost = None if missing is None else missing[start - left: stop + right]
         frames = preparation(block)
-        if device == "cuda":
-            with _GPU_LOCK:
-                return run_chunk(frames, code, method, left=left, count=stop - start, value_range=value_range,
-                                 missing=lost, device=device).video
-        return run_chunk(frames, code, method, left=left, count=stop - start, value_range=value_range,
-                         missing=lost).video
+        run = _run_chunk_on_gpu if device == "cuda" else run_chunk
+        return run(frames, code, method, left=left, count=stop - start, value_range=value_range, missing=lost).video
 
     return kernel
 

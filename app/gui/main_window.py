@@ -16,6 +16,7 @@ from app.gui.widgets.device_panel import DevicePanel
 from app.gui.widgets.qt_jobs import JobRunner
 from app.gui.widgets.rich_text import RED, coloured
 from app.gui.widgets.settings import AppSettings
+from app.gui.widgets.wheel_guard import guard_value_widgets, install_wheel_guard
 
 _logger = logging.getLogger(__name__)
 
@@ -68,6 +69,8 @@ class MainWindow(QMainWindow):
         self.capture.open_requested.connect(self._review_recording)
         self.calibrate.status.connect(lambda text: self.statusBar().showMessage(text, 8000))
         self.calibrate.use_for_capture.connect(self._use_for_capture)
+        self.calibrate.save_panel.saved.connect(
+            lambda path: self.capture.outcome_saved(self.calibrate.save_panel.outcome, path))
 
         menu = self.menuBar().addMenu("&File")
         open_action = QAction("&Open recording…", self)
@@ -88,6 +91,9 @@ class MainWindow(QMainWindow):
         self.tabs.setCurrentIndex(min(max(settings.get_int("window/tab", 0), 0), len(WORKSPACES) - 1))
         self.statusBar().showMessage("simulated rig: every device is a simulation" if service.simulated
                                      else f"rig profile: {service.name}")
+        # The wheel scrolls the columns; it changes a value only in the widget the operator clicked into.
+        install_wheel_guard()
+        guard_value_widgets(self)
 
     def _capture_busy(self) -> str | None:
         """What keeps the Calibrate workspace off the rig: a recording (a live view is stopped for it)."""
@@ -102,8 +108,9 @@ class MainWindow(QMainWindow):
         return self.calibrate.rig_busy_reason()
 
     def _use_for_capture(self, outcome) -> None:
-        """Hand the Calibrate workspace's result to Capture; say in the status bar whether it was taken."""
-        used = self.capture.use_outcome(outcome)
+        """Hand the Calibrate workspace's result to Capture (as its file when it was saved); say in the status bar
+        whether it was taken."""
+        used = self.capture.use_outcome(outcome, self.calibrate.save_panel.saved_path)
         self.statusBar().showMessage("Capture now records with this calibration" if used else
                                      "Capture refused the calibration: see its Calibration box", 8000)
         if used:

@@ -63,6 +63,9 @@ class RecordPanel(QObject):
         ``() -> str | None``: why the rig cannot be used now (a calibration).
     before_record : callable
         Called before the capture takes the devices (stops the live view).
+    confirm : callable
+        ``(plan) -> bool``: asks the operator about what would spoil the recording (no calibration); False
+        records nothing.
     capture_factory : callable, optional
         Builds the capture service (tests inject slow or failing writers).
     """
@@ -77,7 +80,8 @@ class RecordPanel(QObject):
     """A recording's path the operator wants to review."""
 
     def __init__(self, service: RigService, settings: AppSettings, runner: JobRunner, *, plan, calibration,
-                 delay_set_by_hand, busy, before_record, capture_factory=None, parent: QWidget):
+                 delay_set_by_hand, busy, before_record, confirm=lambda plan: True, capture_factory=None,
+                 parent: QWidget):
         super().__init__(parent)
         self.service = service
         self.settings = settings
@@ -87,6 +91,7 @@ class RecordPanel(QObject):
         self._delay_set_by_hand = delay_set_by_hand
         self._busy = busy
         self._before_record = before_record
+        self._confirm = confirm
         self.capture_factory = capture_factory
         self.capture = None
         """The running (or last) :class:`CaptureService`, None before the first recording."""
@@ -197,6 +202,9 @@ class RecordPanel(QObject):
         busy = self._busy()
         if busy:
             self.say(f"cannot record: {busy}", RED)
+            return False
+        if not self._confirm(plan):
+            self.say("not recording: you chose not to record with this calibration")
             return False
         self._before_record()
         frames = self.frames_box.value() or None

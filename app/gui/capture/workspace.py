@@ -80,7 +80,7 @@ class CaptureWorkspace(QWidget):
                                         calibration=self.capture_calibration,
                                         delay_set_by_hand=lambda: self.calibration_panel.delay_set_by_hand,
                                         busy=self._guard, before_record=self._before_record,
-                                        capture_factory=capture_factory, parent=self)
+                                        confirm=self._confirm_record, capture_factory=capture_factory, parent=self)
         self.projector = ProjectorPanel(service, self.runner, plan=self.plan, calibration=self.capture_calibration)
         self._layout()
         self.code.changed.connect(self._plan_changed)
@@ -90,6 +90,7 @@ class CaptureWorkspace(QWidget):
         self.record_panel.changed.connect(self._update_buttons)
         self.record_panel.open_requested.connect(self.open_requested)
         self._plan_changed()
+        self.calibration_panel.restore()
 
     def _layout(self) -> None:
         # The actions (live view, Record, Stop, Open in Review) and the calibration's one line stay in view;
@@ -144,11 +145,24 @@ class CaptureWorkspace(QWidget):
         """Use a sync profile's phase and trigger delay; False (with the reason shown) when refused."""
         return self._unless_recording() and self.calibration_panel.load_sync_profile(path)
 
-    def use_outcome(self, outcome) -> bool:
-        """Use the Calibrate workspace's result; False (with the reason shown) when refused."""
+    def use_outcome(self, outcome, saved_path=None) -> bool:
+        """Use the Calibrate workspace's result; False (with the reason shown) when refused.
+
+        A result saved to ``saved_path`` is used as that file (named by its path and content hash, and
+        restored at the next start); one not saved, as the run.
+        """
+        if saved_path is not None:
+            return self.load_calibration(saved_path)
         run = None if outcome is None else outcome.run
         identity = None if outcome is None else outcome.identity
-        return self._unless_recording() and self.calibration_panel.use_run(run, identity)
+        return self._unless_recording() and self.calibration_panel.use_run(run, identity, outcome=outcome)
+
+    def outcome_saved(self, outcome, path) -> bool:
+        """The Calibrate workspace saved ``outcome`` to ``path``: when recordings use that run, they now use the
+        file (its path and content hash). True when Capture switched to the file."""
+        if outcome is None or self.calibration_panel.run_outcome is not outcome or self.record_panel.recording:
+            return False
+        return self.calibration_panel.load_calibration(path)
 
     def clear_calibration(self) -> None:
         """Record uncalibrated (identity homography, phase 0, no trigger delay)."""
@@ -210,6 +224,9 @@ class CaptureWorkspace(QWidget):
 
     def _guard(self) -> str | None:
         return self.rig_guard() if self.rig_guard is not None else None
+
+    def _confirm_record(self, plan) -> bool:
+        return self.calibration_panel.confirm_record(plan, self)
 
     def _before_record(self) -> None:
         if self.live_panel.running:

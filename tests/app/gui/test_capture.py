@@ -16,6 +16,7 @@ def capture(qtbot, settings):
     ws = CaptureWorkspace(service, settings)
     qtbot.addWidget(ws)
     ws.code.rate.setValue(60.0)  # K = 16 at 60 Hz: 1041 µs patterns, frames every 16.7 ms
+    ws.clear_calibration()  # “Record uncalibrated”: these recordings need no calibration
     yield ws
     ws.shutdown()
     service.close()
@@ -122,6 +123,7 @@ def test_a_design_file_is_the_code_recordings_use(qtbot, settings, tmp_path):
     ws = CaptureWorkspace(service, settings)
     qtbot.addWidget(ws)
     ws.live_panel.preview_check.setChecked(False)
+    ws.clear_calibration()  # “Record uncalibrated”: these recordings need no calibration
     code = design_code((2, 4))
     path = tmp_path / "code.json"
     path.write_text(json.dumps(code.as_dict()))

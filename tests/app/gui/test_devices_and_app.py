@@ -105,6 +105,7 @@ def test_a_recording_made_in_capture_opens_in_review(qtbot, settings, runner, tm
     assert window.calibrate.rig_busy_reason() is None  # the simulated rig calibrates its own target
     capture = window.capture
     capture.code.rate.setValue(60.0)
+    capture.clear_calibration()  # “Record uncalibrated”
     capture.record_panel.path_edit.setText(str(tmp_path / "made-here.zarr"))
     capture.record_panel.frames_box.setValue(6)
     with qtbot.waitSignal(capture.recording_finished, timeout=20_000):

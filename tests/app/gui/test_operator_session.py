@@ -11,6 +11,7 @@ import pytest
 from PySide6.QtCore import Qt
 
 from app.gui.application import build_window
+from app.gui.widgets.questions import answering
 from flexvox_core.recording import open_recording
 from flexvox_core.slot_check import slot_accuracy
 from rig_drivers.profile import open_rig
@@ -81,7 +82,9 @@ def test_without_the_calibration_the_recording_visibly_fails(qtbot, window, tmp_
     capture = window.capture
     window.show_workspace("Capture")
     assert "uncalibrated" in capture.calibration_panel.label.text()
-    _, slots = record(qtbot, capture, tmp_path / "uncalibrated.zarr")
+    with answering(True) as asked:
+        _, slots = record(qtbot, capture, tmp_path / "uncalibrated.zarr")
+    assert [q.accept for q in asked] == ["Record uncalibrated"]  # Record asked before recording uncalibrated
     assert slots.accuracy < 0.5, slots.describe()
 
 
@@ -148,7 +151,7 @@ def test_the_operator_s_whole_session_through_the_buttons_at_1280x800(qtbot, set
     assert "3 triggered frames (camera frame ids" in verdicts["Trigger test"]
     assert "The Calibrate run measured" in verdicts["Phase sweep"]  # and why the two delays differ
     assert "saved" in verdicts["Save"]
-    s.save_calibration()
+    saved = s.save_calibration()
     s.use_for_capture()
     assert window.tabs.currentWidget() is capture
     assert "calibrated" in capture.calibration_panel.status_label.text()
@@ -160,6 +163,10 @@ def test_the_operator_s_whole_session_through_the_buttons_at_1280x800(qtbot, set
            panel.recording_label])
     assert "fps" in capture.live_panel.live_label.text() and "dropped" in capture.live_panel.live_label.text()
     s.record(SESSION_FRAMES)
+    from calibration.capture_setup import file_sha256
+
+    named = open_recording(s.recording_path).attrs["calibration"]  # the recording names the file it used
+    assert named["sha256"] == file_sha256(saved) and named["source"].startswith(f"{saved} (sha256 ")
     check([panel.record_button, panel.review_button], [panel.counters_label, panel.recording_label])
     assert panel.review_button.isEnabled()
 
@@ -206,3 +213,166 @@ def test_the_operator_s_whole_session_through_the_buttons_at_1280x800(qtbot, set
     assert runner.pool.activeThreadCount() == 0 and capture.live_panel.preview.runner.pool.activeThreadCount() == 0
     assert flexvox_threads() == []
     assert all(window.service.status(r).state.value == "closed" for r in ("projector", "camera", "sync"))
+
+
+# ---------------------------------------------------------------------- the operator's session, second pass
+def wheel(widget, clicks: int = -1) -> None:
+    """Turn the mouse wheel ``clicks`` notches over the middle of ``widget`` (negative: towards the operator)."""
+    from PySide6.QtCore import QPoint, QPointF
+    from PySide6.QtGui import QWheelEvent
+    from PySide6.QtWidgets import QApplication
+
+    pos = QPointF(widget.width() / 2, widget.height() / 2)
+    event = QWheelEvent(pos, QPointF(widget.mapToGlobal(pos.toPoint())), QPoint(), QPoint(0, 120 * clicks),
+                        Qt.MouseButton.NoButton, Qt.KeyboardModifier.NoModifier, Qt.ScrollPhase.NoScrollPhase, False)
+    QApplication.sendEvent(widget, event)
+
+
+def value_widgets(root):
+    """Every spin box, combo box and slider under ``root`` an operator can reach, with its value."""
+    from PySide6.QtWidgets import QAbstractSlider, QAbstractSpinBox, QComboBox, QScrollBar
+
+    found = []
+    for kind in (QAbstractSpinBox, QComboBox, QAbstractSlider):
+        found += [w for w in root.findChildren(kind) if not isinstance(w, QScrollBar) and w.isEnabled()]
+    return found
+
+
+def value_of(w):
+    from PySide6.QtWidgets import QComboBox
+
+    return w.currentIndex() if isinstance(w, QComboBox) else w.value()
+
+
+def shown_window(qtbot, window, size=(1280, 800)):
+    window.resize(*size)
+    window.show()
+    window.activateWindow()  # clicks give the focus in the active window
+    qtbot.waitUntil(window.isActiveWindow)
+    return window
+
+
+def test_the_wheel_scrolls_the_column_and_changes_only_the_box_clicked_into(qtbot, window):
+    """Point 1: scrolling the Capture column over its boxes changes none of them; the column scrolls instead."""
+    from PySide6.QtWidgets import QLineEdit
+
+    shown_window(qtbot, window)
+    window.show_workspace("Capture")
+    capture = window.capture
+    capture.code.resolutions.set_expanded(True)
+    capture.record_panel.options.set_expanded(True)
+    widgets = value_widgets(capture)
+    names = {type(w).__name__ for w in widgets}
+    assert {"QDoubleSpinBox", "QSpinBox", "QComboBox"} <= names and len(widgets) >= 6, names
+    column = capture.controls_scroll
+    bar = column.verticalScrollBar()
+    assert bar.maximum() > 0  # the column scrolls at 1280×800
+    for w in widgets:
+        in_column = column.widget().isAncestorOf(w)
+        if in_column:
+            column.ensureWidgetVisible(w)
+            bar.setValue(0 if bar.value() > bar.maximum() // 2 else bar.maximum())  # room to scroll either way
+        before, top = value_of(w), bar.value()
+        edit = w.findChild(QLineEdit)  # a spin box's text: the pointer is over it
+        for target in (w,) if edit is None else (w, edit):
+            wheel(target, -3 if top == 0 else +3)
+        assert value_of(w) == before, f"the wheel changed {type(w).__name__} {w.accessibleName()!r}"
+        if in_column:
+            assert bar.value() != top, f"the column did not scroll over {type(w).__name__}"
+    rate = capture.code.rate
+    capture.controls_scroll.ensureWidgetVisible(rate)
+    assert rate.value() == 15.0
+    qtbot.mouseClick(rate, Qt.MouseButton.LeftButton)  # the operator clicks into it: now the wheel is its
+    assert rate.hasFocus()
+    wheel(rate, -3)
+    assert rate.value() == pytest.approx(12.0)
+
+
+def test_a_plan_at_another_timing_says_so_on_top_and_record_asks(qtbot, window, tmp_path):
+    """Point 1: the top line says "calibrated" only while the plan matches what the sync was measured at."""
+    from app.gui.models.capture_calibration import capture_identity
+    from app.gui.widgets.rich_text import AMBER
+
+    from .conftest import write_calibration
+
+    capture = window.capture
+    plan = capture.plan()
+    cal = write_calibration(tmp_path / "cal.json", capture_identity(window.service), K=plan.K,
+                            period_us=plan.period_us, phase=6)
+    assert capture.load_calibration(cal)
+    top = capture.calibration_panel.status_label
+    assert top.text().startswith("<b>calibrated</b>: phase 6") and AMBER not in top.text()
+    capture.code.rate.setValue(13.0)  # what the wheel did: another pattern period than the sync's
+    assert "calibrated at another timing" in top.text() and AMBER in top.text()
+    assert "phase 6 is a guess" in top.text()
+    capture.record_panel.path_edit.setText(str(tmp_path / "guess.zarr"))
+    capture.record_panel.frames_box.setValue(2)
+    with answering(False) as asked:
+        click(qtbot, capture.record_panel.record_button)
+    assert [q.title for q in asked] == ["Record at another timing than the sync was measured at?"]
+    assert asked[0].text.startswith("The sync was measured at K = 16, 4166 µs patterns; this capture is K = 16, "
+                                    "4807 µs: phase 6 is a guess, run the calibration or the synchronisation wizard "
+                                    "in Calibrate at this timing")
+    assert not capture.recording
+    assert not (tmp_path / "guess.zarr").exists()
+    with answering(True) as asked, qtbot.waitSignal(capture.recording_finished, timeout=30_000):
+        click(qtbot, capture.record_panel.record_button)
+    assert len(asked) == 1
+    capture.record_panel.path_edit.setText(str(tmp_path / "again.zarr"))
+    with answering() as asked, qtbot.waitSignal(capture.recording_finished, timeout=30_000):
+        click(qtbot, capture.record_panel.record_button)  # asked once: not again
+    assert asked == []
+
+
+def test_a_restart_restores_the_calibration_file_checked_and_named_by_its_hash(qtbot, settings, tmp_path):
+    """Points 2 and 3: the calibration file in use comes back at the next start, checked against the rig and named
+    by its path and content hash in the recording; one that cannot come back is named with the reason, and then
+    Record asks once before recording uncalibrated."""
+    from app.gui.models.capture_calibration import capture_identity
+    from calibration.capture_setup import file_sha256
+
+    from .conftest import write_calibration
+
+    def start():
+        rig = open_rig("mock", scene="strobe", subframes=FRAMES * 16, seed=0, clock=VirtualClock())
+        w = build_window(rig, settings=settings)  # a runner of its own: closing the window shuts it down
+        qtbot.addWidget(w)
+        w.capture.live_panel.preview_check.setChecked(False)
+        return w
+
+    first = start()
+    plan = first.capture.plan()
+    path = write_calibration(tmp_path / "cal.json", capture_identity(first.service), K=plan.K,
+                             period_us=plan.period_us)
+    assert first.capture.load_calibration(path)
+    first.close()
+
+    second = start()
+    cal = second.capture.calibration
+    digest = file_sha256(path)
+    assert cal is not None and cal.sha256 == digest and cal.source == f"{path} (sha256 {digest[:16]})"
+    assert f"restored at start: {path}, checked against this rig" in second.capture.calibration_panel.label.text()
+    rec, _ = record(qtbot, second.capture, tmp_path / "restored.zarr")
+    assert rec.attrs["calibration"]["sha256"] == digest and str(path) in rec.attrs["calibration"]["source"]
+    second.close()
+
+    write_calibration(path, capture_identity(second.service), K=plan.K, period_us=plan.period_us, rms=0.2,
+                      overwrite=True)  # the file changed behind the app's back
+    third = start()
+    assert third.capture.calibration.sha256 == file_sha256(path) != digest
+    assert "the file changed since it was last used" in third.capture.calibration_panel.label.text()
+    third.close()
+
+    path.unlink()
+    fourth = start()
+    capture = fourth.capture
+    assert capture.calibration is None
+    error = capture.calibration_panel.status_label.text()
+    assert "the calibration last used was not restored" in error and "cal.json: no such file" in error
+    with answering(True) as asked:
+        record(qtbot, capture, tmp_path / "uncalibrated.zarr")
+    assert [q.title for q in asked] == ["Record uncalibrated?"]
+    with answering() as asked:  # once: not again
+        record(qtbot, capture, tmp_path / "uncalibrated-2.zarr")
+    assert asked == []
+    fourth.close()

@@ -23,6 +23,7 @@ def _workspace(qtbot, settings, runner, **kw):
     ws = CaptureWorkspace(service, settings, runner, **kw)
     qtbot.addWidget(ws)
     ws.code.rate.setValue(RATE_HZ)
+    ws.clear_calibration()  # “Record uncalibrated”: these recordings need no calibration
     return ws
 
 

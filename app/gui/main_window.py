@@ -14,6 +14,7 @@ from app.gui.models.rig_service import RigService
 from app.gui.review.workspace import ReviewWorkspace
 from app.gui.widgets.device_panel import DevicePanel
 from app.gui.widgets.qt_jobs import JobRunner
+from app.gui.widgets.questions import ask
 from app.gui.widgets.rich_text import RED, coloured
 from app.gui.widgets.settings import AppSettings
 from app.gui.widgets.wheel_guard import guard_value_widgets, install_wheel_guard
@@ -48,6 +49,7 @@ class MainWindow(QMainWindow):
         self.service = service
         self.settings = settings
         self.runner = runner
+        self._closed = False
         rig = "simulated rig" if service.simulated else service.name
         self.setWindowTitle(f"flexvox — {rig}")
         self.calibrate = CalibrateWorkspace(service, settings, runner, rig_guard=self._capture_busy)
@@ -131,8 +133,22 @@ class MainWindow(QMainWindow):
         """Bring the named workspace forward."""
         self.tabs.setCurrentIndex(WORKSPACES.index(name))
 
+    def closing_losses(self) -> list[str]:
+        """What closing the window now would stop or lose, in words (empty: nothing)."""
+        return self.capture.closing_losses() + self.calibrate.closing_losses() + self.review.closing_losses()
+
     def closeEvent(self, event) -> None:  # noqa: N802 - Qt's name
-        """Stop live view and jobs, close devices, save the window."""
+        """Ask first when closing would stop a recording or a calibration or lose results; then stop live view and
+        jobs, close devices, save the window."""
+        if self._closed:
+            event.accept()
+            return
+        losses = self.closing_losses()
+        if losses and not ask(self, "Quit flexvox?", "Closing the window now:\n\n" + "\n".join(
+                f"• {line}" for line in losses) + "\n\nQuit anyway?", accept="Quit", reject="Keep working"):
+            event.ignore()
+            return
+        self._closed = True
         self.settings.set("window/geometry", self.saveGeometry())
         self.settings.set("window/tab", self.tabs.currentIndex())
         self.settings.sync()

@@ -25,6 +25,7 @@ from PySide6.QtCore import QPoint, QRect
 from PySide6.QtWidgets import QAbstractButton, QApplication, QComboBox, QLabel, QScrollArea, QWidget, QWizard
 
 from app.gui.widgets.elided_label import ElidedLabel
+from app.gui.widgets.questions import answering
 
 _logger = logging.getLogger(__name__)
 
@@ -359,8 +360,11 @@ class OperatorSession:
         self.settle()
         return job
 
-    def quit(self) -> None:
-        """File ▸ Quit."""
+    def quit(self, answer: bool = True) -> list:
+        """File ▸ Quit, answering ``answer`` when the window asks first (it names what would be lost); returns the
+        questions asked."""
         quit_action = next(a for a in self.window.menuBar().actions()[0].menu().actions() if "Quit" in a.text())
-        quit_action.trigger()
+        with answering(answer) as asked:
+            quit_action.trigger()
         self.settle()
+        return asked

@@ -358,6 +358,10 @@ class SyncWizard(QWizard):
             self.addPage(page)
         self.resize(820, 640)
 
+    def measuring(self) -> bool:
+        """True while one of the pages measures."""
+        return any(p.job is not None and p.job.running for p in (self.trigger, self.phase, self.drift))
+
     def cancel_jobs(self) -> None:
         """Cancel every running measurement."""
         for page in (self.trigger, self.phase, self.drift):

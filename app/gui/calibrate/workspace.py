@@ -103,6 +103,8 @@ class CalibrateWorkspace(QWidget):
         self.outcome: CalibrationOutcome | None = None
         self.job: JobHandle | None = None
         self.tracker: StepTracker | None = None
+        self.wizard = None
+        """The synchronisation wizard while it is open."""
         self.results_view = ResultsView()
         self.screen = ProjectorScreen(service, settings, parent=self)
         self.save_panel = SavePanel(settings)
@@ -305,7 +307,22 @@ class CalibrateWorkspace(QWidget):
         return wizard
 
     def _wizard_finished(self, _result: int) -> None:
+        self.wizard = None
         self.screen.release("wizard")
+
+    def closing_losses(self) -> list[str]:
+        """What closing the window would stop or lose now: a calibration or a wizard measurement running, or a
+        successful calibration not saved (the next start cannot restore it)."""
+        out = []
+        if self.running:
+            out.append("the calibration running stops; its result is lost")
+        if self.wizard is not None and self.wizard.measuring():
+            out.append("the synchronisation wizard's measurement stops")
+        o = self.outcome
+        if o is not None and o.success and self.save_panel.saved_path is None:
+            out.append(f"the calibration that succeeded at {o.finished_at} is not saved: it is lost (the next start "
+                       "restores only a saved calibration)")
+        return out
 
     def shutdown(self) -> None:
         """Stop the live numbers and cancel a running calibration (window closing)."""

@@ -323,4 +323,6 @@ class RecordPanel(QObject):
                 result = capture.stop(timeout_s=STOP_TIMEOUT_S)
                 _logger.info("recording stopped at shutdown: %s",
                              "did not stop in time" if result is None else result.message)
+                self.last_result = result
+            self.recording = False
         self.counters_timer.stop()

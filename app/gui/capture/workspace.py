@@ -236,6 +236,15 @@ class CaptureWorkspace(QWidget):
         self.live_panel.end_capture()
         self.recording_finished.emit(result)
 
+    def closing_losses(self) -> list[str]:
+        """What closing the window would stop now: a recording (its frames so far are kept)."""
+        capture = self.capture
+        if not self.recording or capture is None:
+            return []
+        written = capture.stats().rows_written
+        return [f"the recording to {capture.path} stops ({written} frames written so far are kept; it ends "
+                "“stopped”, not after the frames asked for)"]
+
     def shutdown(self) -> None:
         """Stop the live view and any recording (window closing: waits, bounded, for the recording to end)."""
         self.projector.close_window()

@@ -119,6 +119,8 @@ class CalibrationOutcome:
     shutter : calibration.shutter.ShutterVerification or None
         The second verification pass (its ``wrong`` map); None when the run stopped before the shutter.
     seconds : float
+    finished_at : str
+        The local time the run ended ("14:03:27"), to tell runs apart in words.
     """
 
     run: object
@@ -127,6 +129,7 @@ class CalibrationOutcome:
     truth: dict | None = None
     shutter: object | None = None
     seconds: float = 0.0
+    finished_at: str = ""
     notes: list = field(default_factory=list)
 
     @property
@@ -172,6 +175,7 @@ def run_workspace_calibration(target: CalibrationTarget, *, tile=(4, 4), cancel:
     if target.simulated:
         outcome.truth = truth_comparison(target.rig, run, camera_size)
     outcome.seconds = time.perf_counter() - t0
+    outcome.finished_at = time.strftime("%H:%M:%S")
     _logger.info("calibration %s in %.1f s", "succeeded" if run.success else
                  f"stopped at {run.report.get('failed')}", outcome.seconds)
     return outcome

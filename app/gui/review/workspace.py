@@ -77,6 +77,8 @@ class ReviewWorkspace(QWidget):
         self.shown: ReconstructionResult | None = None
         self.exported: tuple[Path, ReconstructionResult] | None = None
         """The last export: its path and the full result written."""
+        self._written: list[ReconstructionResult] = []
+        """Every full result exported (the others are lost when the window closes)."""
         self.job: JobHandle | None = None
         self.preview_job: JobHandle | None = None
         self._preview_generation = 0
@@ -530,10 +532,28 @@ class ReviewWorkspace(QWidget):
         if reconstructed:
             self._reconstructed(result)
         self.exported = (path, result)
+        self._written.append(result)
         self.export_label.setText(f"wrote {path}: {what}")
         self.status.emit(f"exported {path.name}: {what}")
 
     # ------------------------------------------------------------------ state
+    def unexported(self) -> list[ReconstructionResult]:
+        """The full reconstructions never exported (closing the window loses them)."""
+        return [r for r in self.results if not any(r is w for w in self._written)]
+
+    def closing_losses(self) -> list[str]:
+        """What closing the window would stop or lose now: a reconstruction or export running, results not
+        exported."""
+        out = []
+        if self.busy:
+            out.append("the reconstruction running stops; what it computed is lost")
+        lost = self.unexported()
+        if lost:
+            names = "; ".join(r.method.label() for r in lost)
+            out.append(f"{len(lost)} reconstruction{'s' if len(lost) > 1 else ''} not exported "
+                       f"{'are' if len(lost) > 1 else 'is'} lost: {names}")
+        return out
+
     def shutdown(self) -> None:
         """The window closes: stop playback and the preview timer for good, and cancel the jobs.
 

@@ -23,11 +23,12 @@ FRAMES = 17  # the strobe visits every slot of K = 16 in 17 frames
 @pytest.fixture
 def window(qtbot, settings, runner):
     rig = open_rig("mock", scene="strobe", subframes=FRAMES * 16, seed=0, clock=VirtualClock())
-    w = build_window(rig, settings=settings, runner=runner)
-    qtbot.addWidget(w)
+    w = build_window(rig, settings=settings, runner=runner)  # not qtbot's to close: its close asks, answered here
     w.capture.live_panel.preview_check.setChecked(False)
     yield w
-    w.close()
+    with answering(default=True):  # whatever it would stop or lose
+        w.close()
+    w.deleteLater()
 
 
 def click(qtbot, button):
@@ -208,7 +209,10 @@ def test_the_operator_s_whole_session_through_the_buttons_at_1280x800(qtbot, set
     assert job.outcome == "cancelled" and "cancelling" in s.cancelling_text and len(review.results) == n
     assert "cancelled" in review.result_label.text() and review.reconstruct_button.isEnabled()
     assert len(set(layout)) == 1, layout  # the dock's width and the workspaces' place never moved
-    s.quit()
+    asked = s.quit()  # the two results not exported are named before they are lost
+    assert [q.title for q in asked] == ["Quit flexvox?"]
+    assert (f"2 reconstructions not exported are lost: {diffusion.method.label()}; {motion.method.label()}"
+            in asked[0].text)
     assert not window.isVisible() and not capture.live and not capture.recording
     assert runner.pool.activeThreadCount() == 0 and capture.live_panel.preview.runner.pool.activeThreadCount() == 0
     assert flexvox_threads() == []
@@ -376,3 +380,50 @@ def test_a_restart_restores_the_calibration_file_checked_and_named_by_its_hash(q
         record(qtbot, capture, tmp_path / "uncalibrated-2.zarr")
     assert asked == []
     fourth.close()
+
+
+def test_closing_asks_first_naming_what_would_stop_or_be_lost(qtbot, settings, tmp_path):
+    """Point 4: closing during a recording or a calibration, or with results not exported, asks first."""
+    from .conftest import small_rig
+
+    window = build_window(small_rig(), settings=settings)  # real time: the recording runs while the window closes
+    qtbot.addWidget(window)
+    capture = window.capture
+    capture.live_panel.preview_check.setChecked(False)
+    capture.code.rate.setValue(60.0)
+    capture.clear_calibration()
+    path = tmp_path / "long.zarr"
+    capture.record_panel.path_edit.setText(str(path))
+    capture.record_panel.frames_box.setValue(6000)  # 100 s: far longer than the test
+    with qtbot.waitSignal(capture.record_panel.started, timeout=20_000):
+        assert capture.record()
+    qtbot.waitUntil(lambda: capture.capture.stats().rows_written >= 3, timeout=20_000)
+    window.show()
+    with answering(False) as asked:
+        window.close()
+    assert window.isVisible() and capture.recording  # "Keep working": nothing stopped
+    assert asked[0].title == "Quit flexvox?" and asked[0].accept == "Quit"
+    assert f"the recording to {path} stops (" in asked[0].text and "frames written so far are kept" in asked[0].text
+    with answering(True):
+        window.close()
+    assert not window.isVisible() and not capture.recording
+    assert open_recording(path).n_frames >= 3  # what was written is kept
+
+    second = build_window(open_rig("mock", scene="strobe", subframes=FRAMES * 16, seed=0, clock=VirtualClock()),
+                          settings=settings)
+    qtbot.addWidget(second)
+    second.show()
+    assert second.calibrate.run_calibration()
+    with answering(False) as asked:
+        second.close()
+    assert second.isVisible() and asked[0].text.startswith("Closing the window now:\n\n• the calibration running "
+                                                           "stops; its result is lost")
+    qtbot.waitUntil(lambda: not second.calibrate.running, timeout=60_000)
+    assert second.calibrate.outcome.success
+    with answering(False) as asked:  # a calibration that succeeded and was not saved is lost too
+        second.close()
+    assert "is not saved: it is lost (the next start restores only a saved calibration)" in asked[0].text
+    second.calibrate.save_panel.save(tmp_path / "cal.json")
+    with answering() as asked:  # nothing to lose: no question
+        second.close()
+    assert asked == [] and not second.isVisible()

@@ -6,12 +6,13 @@ import logging
 
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QAction, QKeySequence
-from PySide6.QtWidgets import QDockWidget, QMainWindow, QTabWidget
+from PySide6.QtWidgets import QMainWindow, QTabWidget
 
 from app.gui.calibrate.workspace import CalibrateWorkspace
 from app.gui.capture.workspace import CaptureWorkspace
 from app.gui.models.rig_service import RigService
 from app.gui.review.workspace import ReviewWorkspace
+from app.gui.widgets.device_dock import DeviceDock
 from app.gui.widgets.device_panel import DevicePanel
 from app.gui.widgets.qt_jobs import JobRunner
 from app.gui.widgets.questions import ask
@@ -61,12 +62,8 @@ class MainWindow(QMainWindow):
             self.tabs.addTab(w, name)
         self.setCentralWidget(self.tabs)
         self.devices = DevicePanel(service)
-        dock = QDockWidget("Devices", self)
-        dock.setObjectName("devices")
-        dock.setWidget(self.devices)
-        dock.setFeatures(QDockWidget.DockWidgetFeature.DockWidgetMovable
-                         | QDockWidget.DockWidgetFeature.DockWidgetFloatable)
-        self.addDockWidget(Qt.DockWidgetArea.LeftDockWidgetArea, dock)
+        self.device_dock = DeviceDock(self.devices, service, settings, self)
+        self.addDockWidget(Qt.DockWidgetArea.LeftDockWidgetArea, self.device_dock)
         self.review.status.connect(lambda text: self.statusBar().showMessage(text, 8000))
         self.capture.open_requested.connect(self._review_recording)
         self.calibrate.status.connect(lambda text: self.statusBar().showMessage(text, 8000))
@@ -83,6 +80,13 @@ class MainWindow(QMainWindow):
         quit_action.triggered.connect(self.close)
         menu.addAction(open_action)
         menu.addAction(quit_action)
+        view = self.menuBar().addMenu("&View")
+        self.fold_action = QAction("&Fold the Devices panel", self)
+        self.fold_action.setCheckable(True)
+        self.fold_action.setChecked(self.device_dock.folded)
+        self.fold_action.toggled.connect(self.device_dock.set_folded)
+        self.device_dock.folded_changed.connect(self.fold_action.setChecked)
+        view.addAction(self.fold_action)
 
         geometry = settings.get_bytes("window/geometry")
         if geometry is not None:

@@ -7,8 +7,9 @@ checked. The steps: connect the devices, calibrate, the sync wizard, save, use f
 code, live view with its preview, record, open in Review, diffusion, motion-aware, the continuum slider,
 the motion overlay, compare, export, cancel, quit.
 
-:func:`outside_view` and :func:`clipped` are the checks: a primary action must lie inside the window and
-inside the visible part of any scroll area around it; a label's text must fit its label.
+:func:`outside_view`, :func:`clipped` and :func:`too_wide` are the checks: a primary action must lie inside
+the window and inside the visible part of any scroll area around it; a label's text must fit its label; a
+column's contents must fit its width.
 
 File dialogs are not opened: the steps type the path into the field the dialog fills (a test cannot
 answer a native dialog), and export takes its path as the dialog would return it.
@@ -89,6 +90,17 @@ def clipped(widgets) -> list[str]:
                            else 0, w.minimumSizeHint().width())
                 if need > w.width():
                     bad.append(f"{_describe(w)}: needs {need} px of width, has {w.width()}")
+    return bad
+
+
+def too_wide(areas) -> list[str]:
+    """The scroll areas of ``areas`` whose contents are wider than their view (cut off at the right: their
+    horizontal scroll bars are off). Returns their descriptions."""
+    bad = []
+    for area in areas:
+        inner, port = area.widget().width(), area.viewport().width()
+        if area.isVisible() and inner > port:
+            bad.append(f"{_describe(area)}: contents {inner} px wide in a view of {port} px")
     return bad
 
 

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import html
 
-from PySide6.QtCore import QObject, Qt, QTimer
-from PySide6.QtWidgets import QCheckBox, QGroupBox, QLabel, QVBoxLayout, QWidget
+from PySide6.QtCore import QObject, QTimer
+from PySide6.QtWidgets import QCheckBox, QGroupBox, QVBoxLayout, QWidget
 
 from app.gui.calibrate.projector_screen import ProjectorScreen
 from app.gui.calibrate.results_view import ResultsView
@@ -19,6 +19,7 @@ from app.gui.models.calibration_model import measure_live_colocation, target_for
 from app.gui.models.rig_service import RigService
 from app.gui.widgets.qt_jobs import JobHandle, JobRunner
 from app.gui.widgets.rich_text import RED, coloured
+from app.gui.widgets.status_line import StatusLine
 
 LIVE_INTERVAL_MS = 300
 """Pause between two live co-location measurements."""
@@ -54,10 +55,9 @@ class LiveColocation(QObject):
         """The newest :class:`~app.gui.models.calibration_model.LiveColocation` (numbers, image, projector size)."""
         self._target = None
         box = QGroupBox("Co-location live", parent)
-        self.check = QCheckBox("measure continuously (while you adjust the beam splitter)")
-        self.label = QLabel("off")
-        self.label.setWordWrap(True)
-        self.label.setTextFormat(Qt.TextFormat.RichText)
+        self.check = QCheckBox("measure continuously")
+        self.check.setToolTip("re-measure the offset, rotation and scale while you adjust the beam splitter")
+        self.label = StatusLine("off", lines=3)
         v = QVBoxLayout(box)
         v.addWidget(self.check)
         v.addWidget(self.label)

@@ -81,7 +81,9 @@ class ResultsView(QTabWidget):
         self.addTab(self.residuals, "Residuals")
         self.addTab(self.wrong_panel, "Shutter")
         self.addTab(sync_page, "Sync")
-        self.addTab(self.colocation_view, "Co-location live")
+        self.addTab(self.colocation_view, "Co-location")
+        self.setTabToolTip(self.count() - 1, "co-location live: the camera with the projector's grid, while you "
+                                             "adjust the beam splitter")
 
     def show_outcome(self, outcome: CalibrationOutcome) -> None:
         """Show a run's figures, maps and plots."""

@@ -5,12 +5,13 @@ from __future__ import annotations
 import html
 from pathlib import Path
 
-from PySide6.QtCore import Qt, Signal
-from PySide6.QtWidgets import QFileDialog, QGroupBox, QHBoxLayout, QLabel, QLineEdit, QPushButton, QVBoxLayout
+from PySide6.QtCore import Signal
+from PySide6.QtWidgets import QFileDialog, QGroupBox, QHBoxLayout, QLineEdit, QPushButton, QVBoxLayout
 
 from app.gui.models.calibration_model import CalibrationOutcome
 from app.gui.widgets.rich_text import AMBER, GREEN, RED, coloured
 from app.gui.widgets.settings import AppSettings
+from app.gui.widgets.status_line import StatusLine
 
 
 class SavePanel(QGroupBox):
@@ -40,9 +41,7 @@ class SavePanel(QGroupBox):
         row.addWidget(self.browse)
         self.save_button = QPushButton("Save calibration")
         self.save_button.setEnabled(False)
-        self.label = QLabel("run a calibration first")
-        self.label.setWordWrap(True)
-        self.label.setTextFormat(Qt.TextFormat.RichText)
+        self.label = StatusLine("run a calibration first", lines=2)
         self.use_button = QPushButton("Use for capture")
         self.use_button.setToolTip("hand this homography, sync phase and trigger delay to the Capture workspace")
         self.use_button.setEnabled(False)

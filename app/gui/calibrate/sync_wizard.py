@@ -34,6 +34,7 @@ from app.gui.models.calibration_model import CalibrationTarget
 from app.gui.models.jobs import CancelToken
 from app.gui.widgets.qt_jobs import JobHandle, JobRunner
 from app.gui.widgets.rich_text import AMBER, GREEN, RED
+from app.gui.widgets.status_line import StatusLine
 
 _logger = logging.getLogger(__name__)
 
@@ -62,8 +63,7 @@ class _JobPage(QWizardPage):
         self.bar = QProgressBar()
         self.bar.setRange(0, 1)
         self.bar.setValue(0)
-        self.verdict = QLabel("not measured yet")
-        self.verdict.setWordWrap(True)
+        self.verdict = StatusLine("not measured yet", lines=4)
         self.layout_ = QVBoxLayout(self)
         self.layout_.addWidget(self.button)
         self.layout_.addWidget(self.bar)
@@ -279,8 +279,7 @@ class SavePage(QWizardPage):
         self.path = QLineEdit()
         self.path.setPlaceholderText("folder/sync-profile.json")
         self.button = QPushButton("Save sync profile")
-        self.label = QLabel("")
-        self.label.setWordWrap(True)
+        self.label = StatusLine(lines=2)
         v = QVBoxLayout(self)
         v.addWidget(self.path)
         v.addWidget(self.button)

@@ -33,6 +33,7 @@ from PySide6.QtWidgets import (
     QLabel,
     QProgressBar,
     QPushButton,
+    QVBoxLayout,
     QWidget,
 )
 
@@ -52,6 +53,7 @@ from app.gui.models.rig_service import RigService
 from app.gui.widgets.qt_jobs import JobHandle, JobRunner
 from app.gui.widgets.rich_text import GREEN, GREY, RED, coloured
 from app.gui.widgets.settings import AppSettings
+from app.gui.widgets.status_line import StatusLine
 from app.gui.widgets.workspace_layout import controls_beside_view
 
 _logger = logging.getLogger(__name__)
@@ -137,13 +139,10 @@ class CalibrateWorkspace(QWidget):
         self.progress = QProgressBar()
         self.progress.setRange(0, 1)
         self.progress.setValue(0)
-        self.step_label = QLabel("not run")
-        self.step_label.setWordWrap(True)
-        self.step_label.setTextFormat(Qt.TextFormat.RichText)
+        self.step_label = StatusLine("not run", lines=2)
         self.steps_label = QLabel(steps_html(-1))
         self.steps_label.setTextFormat(Qt.TextFormat.RichText)
         f = QFormLayout(run)
-        f.addRow(self.rig_label)
         f.addRow("shutter code", self.tile_box)
         if self.screen.needed:
             f.addRow("projector screen", self.screen.screen_box)
@@ -151,11 +150,16 @@ class CalibrateWorkspace(QWidget):
         f.addRow(buttons)
         f.addRow(self.progress)
         f.addRow(self.step_label)
-        f.addRow(self.steps_label)
+        steps = QGroupBox("Steps")
+        sv = QVBoxLayout(steps)
+        sv.addWidget(self.steps_label)
+        sv.addWidget(self.rig_label)
 
+        # Run, Cancel, Save, Use for capture and the wizard stay in view; the steps, the rig and co-location scroll.
         self.wizard_button = QPushButton("Synchronisation wizard…")
-        controls_beside_view(self, (run, self.save_panel, self.live_panel.box, self.wizard_button), self.results_view,
-                             sizes=(420, 880))
+        self.controls_scroll = controls_beside_view(self, (steps, self.live_panel.box), self.results_view,
+                                                    actions=(run, self.save_panel, self.wizard_button),
+                                                    min_width=340, max_width=420)
 
         self.run_button.clicked.connect(self.run_calibration)
         self.cancel_button.clicked.connect(self.cancel)

@@ -22,21 +22,22 @@ import html
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import QObject, QRectF, Qt, QTimer
-from PySide6.QtWidgets import QCheckBox, QComboBox, QGroupBox, QLabel, QPushButton, QSplitter, QVBoxLayout, QWidget
+from PySide6.QtWidgets import QCheckBox, QComboBox, QGroupBox, QPushButton, QVBoxLayout, QWidget
 
 from app.gui.capture.live_preview import LivePreview
 from app.gui.capture.live_view import LiveStream
 from app.gui.models.live_source import LiveStartError, start_live, stop_live
 from app.gui.models.live_stats import LiveStats, histogram, saturation_level, saturation_mask
 from app.gui.models.rig_service import RigService
+from app.gui.widgets.adaptive_split import AdaptiveSplit
 from app.gui.widgets.image_panel import ImagePanel
 from app.gui.widgets.rich_text import RED, coloured
 from app.gui.widgets.settings import AppSettings
+from app.gui.widgets.status_line import StatusLine
 
 DISPLAY_HZ = 30
 """The live image is redrawn at most this often, whatever the camera's rate."""
 SATURATION_RGBA = (255, 0, 0, 170)
-
 
 
 class LivePanel(QObject):
@@ -87,7 +88,7 @@ class LivePanel(QObject):
         self.preview_check = QCheckBox("preview the newest frames, reconstructed with")
         self.preview_check.setChecked(self.settings.get_bool("capture/preview", True))
         self.preview_method = QComboBox()
-        for name, text in (("motion-aware", "motion-aware (a region when the frame does not fit)"),
+        for name, text in (("motion-aware", "motion-aware (a region if need be)"),
                            ("nc", "nc (fast: the whole frame)")):
             self.preview_method.addItem(text, name)
         self.preview_method.setToolTip("motion-aware shows motion best but takes about a second per run at "
@@ -95,8 +96,7 @@ class LivePanel(QObject):
                                        "diffusion) previews the whole frame several times a second")
         self.preview_method.setCurrentIndex(max(0, self.preview_method.findData(
             self.settings.get_str("capture/preview_method", "motion-aware"))))
-        self.live_label = QLabel("stopped")
-        self.live_label.setWordWrap(True)
+        self.live_label = StatusLine("stopped", lines=2)
         v = QVBoxLayout(live)
         v.addWidget(self.live_button)
         v.addWidget(self.saturation_check)
@@ -121,24 +121,21 @@ class LivePanel(QObject):
         self.hist.setLabel("left", "pixels")
         self.hist.getAxis("left").enableAutoSIPrefix(False)  # counts, never "pixels (×0.001)"
         self.hist.setLimits(yMin=0)
-        self.hist.setMaximumHeight(200)
+        self.hist.setMaximumHeight(130)
         self.hist_curve = self.hist.plot([0, 1], [0], stepMode="center", fillLevel=0, brush=(90, 160, 255, 120))
         self.sat_line = pg.InfiniteLine(angle=90, pen=pg.mkPen((255, 60, 60), width=1, style=Qt.PenStyle.DashLine))
         self.hist.addItem(self.sat_line)
         self.preview_panel = ImagePanel("motion-aware preview")
         self.preview_panel.clear("starts with the live view")
-        self.preview_label = QLabel("preview: off")
-        self.preview_label.setWordWrap(True)
-        self.preview_label.setTextFormat(Qt.TextFormat.RichText)
+        self.preview_label = StatusLine("preview: off", lines=3)
         preview_box = QWidget()
         pv = QVBoxLayout(preview_box)
         pv.setContentsMargins(0, 0, 0, 0)
         pv.addWidget(self.preview_panel, 1)
         pv.addWidget(self.preview_label)
-        images = QSplitter()
-        images.addWidget(self.image_panel)
-        images.addWidget(preview_box)
+        images = AdaptiveSplit(self.image_panel, preview_box)  # one above the other in a narrow view
         images.setSizes([500, 500])
+        self.images = images
         views = QWidget(parent)
         rv = QVBoxLayout(views)
         rv.addWidget(images, 1)

@@ -26,7 +26,6 @@ from PySide6.QtWidgets import (
     QFormLayout,
     QGroupBox,
     QHBoxLayout,
-    QLabel,
     QLineEdit,
     QPushButton,
     QSpinBox,
@@ -40,6 +39,7 @@ from app.gui.widgets.collapsible import Collapsible
 from app.gui.widgets.qt_jobs import JobRunner
 from app.gui.widgets.rich_text import GREEN, RED, coloured
 from app.gui.widgets.settings import AppSettings
+from app.gui.widgets.status_line import StatusLine
 
 _logger = logging.getLogger(__name__)
 
@@ -129,11 +129,8 @@ class RecordPanel(QObject):
         buttons = QHBoxLayout()
         buttons.addWidget(self.record_button)
         buttons.addWidget(self.stop_button)
-        self.counters_label = QLabel("not recording")
-        self.counters_label.setWordWrap(True)
-        self.recording_label = QLabel("not recorded yet")
-        self.recording_label.setWordWrap(True)
-        self.recording_label.setTextFormat(Qt.TextFormat.RichText)
+        self.counters_label = StatusLine("not recording", lines=2)
+        self.recording_label = StatusLine("not recorded yet", lines=3)
         self.recording_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
         self.review_button = QPushButton("Open in Review")
         self.review_button.setEnabled(False)

@@ -98,7 +98,7 @@ class CaptureWorkspace(QWidget):
         self.controls_scroll = controls_beside_view(
             self, (self.code, self.calibration_panel, self.projector), self.live_panel.views,
             actions=(self.calibration_panel.status_label, self.live_panel.controls, self.record_panel.box),
-            min_width=400, sizes=(420, 860))
+            min_width=350, max_width=420)
 
     # ------------------------------------------------------------------ what everything uses
     def plan(self) -> CapturePlan:

@@ -29,6 +29,7 @@ from PySide6.QtWidgets import (
 from app.gui.models.continuum import continuum_division, continuum_tensor, describe
 from app.gui.widgets.collapsible import Collapsible
 from app.gui.widgets.settings import AppSettings
+from app.gui.widgets.status_line import StatusLine
 from flexvox_core.methods import DEFAULT, Method, Option, get, names, specs
 
 SLIDER_STEPS = 100
@@ -158,8 +159,7 @@ class MethodForm(QWidget):
         ends.addWidget(QLabel("high SR"))
         ends.addWidget(self.slider, 1)
         ends.addWidget(QLabel("high TR"))
-        self.slider_text = QLabel()
-        self.slider_text.setWordWrap(True)
+        self.slider_text = StatusLine(lines=2)
 
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)

@@ -30,10 +30,12 @@ from app.gui.models.review_session import ReviewSession
 from app.gui.review.compare_view import CompareView
 from app.gui.review.method_form import MethodForm
 from app.gui.review.motion_view import MotionView
+from app.gui.widgets.adaptive_split import AdaptiveSplit
 from app.gui.widgets.image_panel import ImagePanel
 from app.gui.widgets.qt_jobs import JobHandle, JobRunner
 from app.gui.widgets.rich_text import RED, coloured
 from app.gui.widgets.settings import AppSettings
+from app.gui.widgets.status_line import StatusLine
 from app.gui.widgets.workspace_layout import controls_beside_view
 from flexvox_core.output_files import OutputError, check_output
 from flexvox_core.video_io import write_video
@@ -94,11 +96,9 @@ class ReviewWorkspace(QWidget):
     def _build(self) -> None:
         rec = QGroupBox("Recording")
         self.open_button = QPushButton("Open recording…")
-        self.path_label = QLabel("no recording open")
-        self.path_label.setWordWrap(True)
+        self.path_label = StatusLine("no recording open", lines=1)
         self.path_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
-        self.summary_label = QLabel("")
-        self.summary_label.setWordWrap(True)
+        self.summary_label = StatusLine(lines=3)
         v = QVBoxLayout(rec)
         v.addWidget(self.open_button)
         v.addWidget(self.path_label)
@@ -108,21 +108,18 @@ class ReviewWorkspace(QWidget):
         self.form = MethodForm(self.settings)
         self.preview_check = QCheckBox("live preview around the current frame")
         self.preview_check.setChecked(self.settings.get_bool("review/preview", True))
-        self.expected_label = QLabel("")
-        self.expected_label.setWordWrap(True)
-        self.reconstruct_button = QPushButton("Reconstruct all frames")
+        self.expected_label = StatusLine(lines=3)
+        self.reconstruct_button = QPushButton("Reconstruct")
         self.cancel_button = QPushButton("Cancel")
         self.progress = QProgressBar()
         self.progress.setRange(0, 1)
         self.progress.setValue(0)
-        self.result_label = QLabel("")
-        self.result_label.setWordWrap(True)
+        self.result_label = StatusLine(lines=2)
         buttons = QHBoxLayout()
         buttons.addWidget(self.reconstruct_button, 1)
         buttons.addWidget(self.cancel_button)
         self.export_button = QPushButton("Export shown reconstruction…")
-        self.export_label = QLabel("")
-        self.export_label.setWordWrap(True)
+        self.export_label = StatusLine(lines=2)
         v = QVBoxLayout(box)
         v.addWidget(self.form)
         v.addWidget(self.expected_label)
@@ -139,10 +136,7 @@ class ReviewWorkspace(QWidget):
 
         self.raw_panel = ImagePanel("raw camera frame")
         self.recon_panel = ImagePanel("reconstruction")
-        frames = QWidget()
-        h = QHBoxLayout(frames)
-        h.addWidget(self.raw_panel, 1)
-        h.addWidget(self.recon_panel, 1)
+        frames = AdaptiveSplit(self.raw_panel, self.recon_panel)  # one above the other in a narrow view
         self.motion_view = MotionView()
         self.compare_view = CompareView()
         self.tabs = QTabWidget()
@@ -155,24 +149,24 @@ class ReviewWorkspace(QWidget):
         self.frame_slider = QSlider(Qt.Orientation.Horizontal)
         self.frame_slider.setRange(0, 0)
         self.frame_label = QLabel("")
-        self.frame_label.setMinimumWidth(220)
         self.fps = QSpinBox()
         self.fps.setRange(1, 120)
         self.fps.setValue(self.settings.get_int("review/fps", 12))
         self.fps.setSuffix(" fps")
+        # The scrubber has the view's whole width, whatever the window's; Play, the position and the speed sit under it.
         player = QHBoxLayout()
         player.addWidget(self.play_button)
-        player.addWidget(self.frame_slider, 1)
-        player.addWidget(self.frame_label)
+        player.addWidget(self.frame_label, 1)
         player.addWidget(self.fps)
         right = QWidget()
         rv = QVBoxLayout(right)
         rv.addWidget(self.tabs, 1)
+        rv.addWidget(self.frame_slider)
         rv.addLayout(player)
 
         # Open, Reconstruct, Cancel and Export stay in view; the method's knobs fold below them.
-        self.controls_scroll = controls_beside_view(self, (details,), right, actions=(rec, box), min_width=360,
-                                                    sizes=(380, 1000))
+        self.controls_scroll = controls_beside_view(self, (details,), right, actions=(rec, box), min_width=330,
+                                                    max_width=400)
 
         self.timer = QTimer(self)
         self.timer.timeout.connect(self._tick)
@@ -623,7 +617,9 @@ class ReviewWorkspace(QWidget):
     def _refresh_enabled(self) -> None:
         can = self.session is not None and self.session.frames is not None
         self.reconstruct_button.setEnabled(can and not self.busy)
-        self.reconstruct_button.setText(f"Reconstruct all frames: {self.form.method().name}")
+        name = self.form.method().name
+        self.reconstruct_button.setText(f"Reconstruct: {name}")
+        self.reconstruct_button.setToolTip(f"reconstruct every frame of the recording with {name}")
         self.cancel_button.setEnabled(self.busy)
         self.export_button.setEnabled(self.export_candidate() is not None)
         self.play_button.setEnabled(self.session is not None)

@@ -20,7 +20,7 @@ from app.gui.widgets.elided_label import ElidedLabel
 from app.gui.widgets.rich_text import AMBER, GREEN, GREY, RED
 from rig_drivers.interfaces import DeviceState
 
-_STATE_COLOUR = {DeviceState.CLOSED: GREY, DeviceState.OPEN: AMBER, DeviceState.ENABLED: GREEN}
+STATE_COLOUR = {DeviceState.CLOSED: GREY, DeviceState.OPEN: AMBER, DeviceState.ENABLED: GREEN}
 
 
 def _detail(service: RigService, role: str) -> str:
@@ -140,7 +140,7 @@ class DevicePanel(QWidget):
                 row["button"].setEnabled(False)
                 row["button"].setText("Connect")
             else:
-                colour = _STATE_COLOUR[st.state]
+                colour = STATE_COLOUR[st.state]
                 state = f"{st.state.value}{_detail(self.service, r)}"
                 row["state"].setText(f"● {state}")
                 row["state"].setStyleSheet(f"color: {colour}")

@@ -427,3 +427,48 @@ def test_closing_asks_first_naming_what_would_stop_or_be_lost(qtbot, settings, t
     with answering() as asked:  # nothing to lose: no question
         second.close()
     assert asked == [] and not second.isVisible()
+
+
+@pytest.mark.parametrize("folded", [False, True], ids=["devices open", "devices folded"])
+def test_at_1024x700_every_primary_action_the_tabs_and_the_scrubber_are_usable(qtbot, window, recording, folded):
+    """Point 5: a 1024×700 window holds every workspace's primary actions in view, the Calibrate tabs without scroll
+    arrows, images at least 300 px wide and a scrubber across the view that moves the player."""
+    from app.gui.operator_session import clipped, outside_view, too_wide
+
+    window.device_dock.set_folded(folded)
+    shown_window(qtbot, window, (1024, 700))
+    assert window.size().toTuple() == (1024, 700)  # no minimum size above it
+    assert window.device_dock.width() == (28 if folded else 240)
+    cal, capture, review = window.calibrate, window.capture, window.review
+
+    def check(name, actions, labels, images):
+        window.show_workspace(name)
+        for _ in range(5):
+            qtbot.wait(10)
+        assert outside_view(window, actions) == []
+        assert clipped(labels) == []
+        assert too_wide([getattr(window, name.lower()).controls_scroll]) == []
+        narrow = [(p.title.text(), p.width()) for p in images if p.width() < 300]
+        assert narrow == [], f"{name}: images narrower than 300 px"
+
+    check("Calibrate", [cal.run_button, cal.cancel_button, cal.save_panel.save_button, cal.save_panel.use_button,
+                        cal.wizard_button], [cal.step_label, cal.save_panel.label], [cal.results_view.residuals])
+    bar = cal.results_view.tabBar()
+    for i in range(bar.count()):  # every tab in view: none behind scroll arrows
+        assert bar.rect().contains(bar.tabRect(i)), bar.tabText(i)
+    panel = capture.record_panel
+    check("Capture", [capture.live_panel.live_button, panel.record_button, panel.stop_button, panel.review_button],
+          [capture.live_panel.live_label, panel.counters_label, panel.recording_label],
+          [capture.live_panel.image_panel, capture.live_panel.preview_panel])
+    review.preview_check.setChecked(False)
+    review.open_recording(recording)
+    qtbot.waitUntil(lambda: review.session is not None, timeout=10_000)
+    check("Review", [review.open_button, review.reconstruct_button, review.cancel_button, review.export_button,
+                     review.play_button, review.frame_slider],
+          [review.summary_label, review.expected_label, review.result_label, review.frame_label],
+          [review.raw_panel, review.recon_panel])
+    slider = review.frame_slider
+    assert slider.width() >= 0.9 * review.tabs.width()  # the scrubber spans the view
+    before = slider.value()
+    qtbot.mouseClick(slider, Qt.MouseButton.LeftButton, pos=slider.rect().center() + slider.rect().topRight() / 3)
+    assert slider.value() > before and review.frame_label.text().startswith(f"frame {slider.value() // 8 + 1}/")

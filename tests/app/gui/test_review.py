@@ -150,7 +150,7 @@ def test_the_slider_previews_a_fixed_tensor_beside_motion_aware_without_switchin
     assert "for comparison; Reconstruct runs motion-aware" in ws.form.slider_text.text()
     qtbot.waitUntil(lambda: ws.shown is not None and ws.shown.method.name == "diffusion", timeout=10_000)
     assert ws.shown.method.tensor == continuum_tensor(0.9)
-    assert ws.reconstruct_button.text() == "Reconstruct all frames: motion-aware"
+    assert ws.reconstruct_button.text() == "Reconstruct: motion-aware"
     ws.form.widget("time").setValue(3.0)  # a knob of the chosen method: back to previewing it
     assert not ws.form.comparing and ws.form.preview_method().name == "motion-aware"
 

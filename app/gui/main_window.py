@@ -66,6 +66,7 @@ class MainWindow(QMainWindow):
         self.addDockWidget(Qt.DockWidgetArea.LeftDockWidgetArea, self.device_dock)
         self.review.status.connect(lambda text: self.statusBar().showMessage(text, 8000))
         self.capture.open_requested.connect(self._review_recording)
+        self.capture.recording_finished.connect(lambda _: self.calibrate.recheck_refusals())
         self.calibrate.status.connect(lambda text: self.statusBar().showMessage(text, 8000))
         self.calibrate.use_for_capture.connect(self._use_for_capture)
         self.calibrate.save_panel.saved.connect(

@@ -321,11 +321,12 @@ class OperatorSession:
         self.settle()
 
     def slide(self, position: float):
-        """Move the continuum slider and wait for its preview; returns the result shown."""
+        """Move the continuum slider and wait for its preview; returns the preview (beside the chosen method's
+        result when there is one)."""
         review = self.window.review
         review.form.set_position(position)
         self.wait_preview()
-        return review.shown
+        return review.comparison or review.shown
 
     def motion_overlay(self, mode: str = "color") -> None:
         """Show the Motion tab, as colour wheel or quiver."""

@@ -21,6 +21,7 @@ from app.gui.widgets.qt_jobs import JobHandle, JobRunner
 from app.gui.widgets.rich_text import RED, coloured
 from app.gui.widgets.status_line import StatusLine
 
+LIVE_USER = "co-location live"
 LIVE_INTERVAL_MS = 300
 """Pause between two live co-location measurements."""
 
@@ -62,11 +63,20 @@ class LiveColocation(QObject):
         v.addWidget(self.check)
         v.addWidget(self.label)
         self.box = box
+        self.refused = False
+        """True while a refusal to measure is shown."""
         self.timer = QTimer(self)
         self.timer.setSingleShot(True)
         self.timer.setInterval(LIVE_INTERVAL_MS)
         self.timer.timeout.connect(self._measure)
         self.check.toggled.connect(self.set_live)
+
+    def recheck(self) -> None:
+        """The rig was freed: take a refusal to measure off the screen."""
+        if self.refused and not self.live:
+            self.refused = False
+            self.label.setText("off" if self.alignment is None else
+                               f"stopped · last: {html.escape(self.alignment.message)}")
 
     @property
     def live(self) -> bool:
@@ -84,11 +94,15 @@ class LiveColocation(QObject):
             busy = blocked or self._guard() or self.screen.attach("live")
             if busy:
                 self.label.setText(coloured(f"cannot measure: {busy}", RED))
+                self.refused = True
                 on = False
+            else:
+                self.refused = False
         self.check.blockSignals(True)
         self.check.setChecked(on)
         self.check.blockSignals(False)
         if on:
+            self.service.begin_use(LIVE_USER)
             self.label.setText("measuring …")
             self.view.setCurrentWidget(self.view.colocation_view)
             self.view.colocation_view.set_title("co-location live: measuring …")
@@ -98,7 +112,7 @@ class LiveColocation(QObject):
             if self.measuring:
                 self.job.cancel()
             else:
-                self.screen.release("live")
+                self._release()
             if not self.label.text().startswith("<span"):
                 self.label.setText("off" if self.alignment is None else
                                    f"stopped · last: {html.escape(self.alignment.message)}")
@@ -145,4 +159,9 @@ class LiveColocation(QObject):
         if self.live:
             self.timer.start()
         else:
-            self.screen.release("live")
+            self._release()
+
+    def _release(self) -> None:
+        """The live numbers are off and no measurement runs: the screen and the devices are free."""
+        self.screen.release("live")
+        self.service.end_use(LIVE_USER)

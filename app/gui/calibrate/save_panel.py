@@ -73,6 +73,21 @@ class SavePanel(QGroupBox):
         else:
             self.label.setText(html.escape(note))
 
+    def hold(self, note: str) -> None:
+        """A new calibration runs: nothing can be saved or used until it ends; ``note`` says so."""
+        self.save_button.setEnabled(False)
+        self.use_button.setEnabled(False)
+        self.label.setText(html.escape(note))
+
+    def release(self, note: str) -> None:
+        """The run ended without a new result: the outcome held before is offered again (saved or not, as it
+        was); ``note`` says what happened."""
+        ok = self.outcome is not None and self.outcome.success
+        self.save_button.setEnabled(ok)
+        self.use_button.setEnabled(ok)
+        saved = f"; saved as {self.saved_path}" if ok and self.saved_path is not None else ""
+        self.label.setText(html.escape(note + saved))
+
     def _browse(self) -> None:
         start = self.path.text() or str(Path(self.settings.last_folder()) / "rig-calibration.json")
         path, _ = QFileDialog.getSaveFileName(self, "Save calibration", start, "Calibration (*.json)")

@@ -28,6 +28,7 @@ from app.gui.capture.live_preview import LivePreview
 from app.gui.capture.live_view import LiveStream
 from app.gui.models.live_source import LiveStartError, start_live, stop_live
 from app.gui.models.live_stats import LiveStats, histogram, saturation_level, saturation_mask
+from app.gui.models.operator_words import in_gui_words
 from app.gui.models.rig_service import RigService
 from app.gui.widgets.adaptive_split import AdaptiveSplit
 from app.gui.widgets.image_panel import ImagePanel
@@ -65,6 +66,8 @@ class LivePanel(QObject):
         self._delay_set_by_hand = delay_set_by_hand
         self._busy = busy
         self.stats = LiveStats()
+        self.refused: str | None = None
+        """Why the last start was refused, while that is shown: "busy" (the rig) or "settings"; None otherwise."""
         self.stream = LiveStream(self)
         self._latest = None
         self._capture = None
@@ -75,7 +78,7 @@ class LivePanel(QObject):
         self._build(parent)
         self.preview.updated.connect(self._on_preview)
         self.preview.failed.connect(lambda message: self.preview_label.setText(
-            coloured(f"preview stopped: {message}", RED)))
+            coloured(f"preview stopped: {in_gui_words(message)}", RED)))
         self.stream.frame.connect(self._on_frame)
         self.stream.failed.connect(self._on_failed)
 
@@ -168,16 +171,15 @@ class LivePanel(QObject):
             return True
         busy = self._busy()
         if busy:
-            self.live_label.setText(coloured(f"cannot start: {busy}", RED))
-            self.set_button(False)
+            self._refuse(f"cannot start: {busy}", busy=True)
             return False
         plan = self._plan()
         try:
             note = start_live(self.service, plan, self._calibration(), delay_set_by_hand=self._delay_set_by_hand())
         except LiveStartError as exc:
-            self.live_label.setText(coloured(f"cannot start: {exc}", RED))
-            self.set_button(False)
+            self._refuse(f"cannot start: {in_gui_words(str(exc))}", busy=False)
             return False
+        self.refused = None
         self.stats = LiveStats()
         self._latest = None
         self.stream.start(self.service.rig.camera, timeout_s=max(1.0, 3 / plan.camera_hz))
@@ -187,6 +189,20 @@ class LivePanel(QObject):
         self.image_panel.set_title("camera: live")
         self.set_button(True)
         return True
+
+    def _refuse(self, text: str, *, busy: bool) -> None:
+        self.live_label.setText(coloured(text, RED))
+        self.refused = "busy" if busy else "settings"
+        self.set_button(False)
+
+    def recheck(self, *, settings_changed: bool = False) -> None:
+        """Take a refusal off the screen once it no longer holds: the rig is free again, or (``settings_changed``)
+        the plan or calibration it was about changed."""
+        if self.refused is None or self.running:
+            return
+        if (self.refused == "busy" and not self._busy()) or (self.refused == "settings" and settings_changed):
+            self.refused = None
+            self.live_label.setText("stopped")
 
     def stop(self) -> None:
         """Stop the live view (devices stay connected)."""
@@ -218,6 +234,7 @@ class LivePanel(QObject):
         self.preview.feed(frame)  # a list append; the reconstruction runs on the preview's own worker
 
     def _on_failed(self, message: str) -> None:
+        message = in_gui_words(message)
         self.service.record_error("camera", f"live view: {message}")
         self.stop()
         self.live_label.setText(coloured(f"live view stopped: {message}", RED))
@@ -299,7 +316,7 @@ class LivePanel(QObject):
         try:
             code = plan.shutter_code
         except ValueError as exc:
-            self.preview_label.setText(coloured(f"preview: {exc}", RED))
+            self.preview_label.setText(coloured(f"preview: {in_gui_words(str(exc))}", RED))
             return
         self.preview.set_code(code, plan.tile)
         self.preview.start()
@@ -313,6 +330,9 @@ class LivePanel(QObject):
         was = self.preview.enabled
         self.preview.stop()
         self.region_roi.setVisible(False)
+        if self.preview.result is None:  # it never showed a picture: it is not reconstructing anything now
+            self.preview_panel.clear("starts with the live view")
+            self.preview_panel.set_title(f"{self.preview.method} preview")
         if was:
             self.preview_label.setText(self.preview.text().replace("preview:", "preview (stopped):", 1)
                                        if self.preview.result is not None else "preview: off")

@@ -89,6 +89,9 @@ class CaptureWorkspace(QWidget):
         self.record_panel.finished.connect(self._recording_ended)
         self.record_panel.changed.connect(self._update_buttons)
         self.record_panel.open_requested.connect(self.open_requested)
+        self.record_panel.path_edit.textChanged.connect(lambda _: self.record_panel.recheck(settings_changed=True))
+        service.subscribe(self._on_devices)
+        self.destroyed.connect(lambda *_: service.unsubscribe(self._on_devices))
         self._plan_changed()
         self.calibration_panel.restore()
 
@@ -122,11 +125,22 @@ class CaptureWorkspace(QWidget):
         self.calibration_panel.show_plan(self.plan())
         self.projector.patterns_changed()
         self._update_buttons()
+        self.recheck_refusals(settings_changed=True)
 
     def _calibration_changed(self, calibration) -> None:
         self.live_panel.restart()  # the projector shows the new patterns
         self.projector.patterns_changed()
         self.calibration_changed.emit(calibration)
+        self.recheck_refusals(settings_changed=True)
+
+    def _on_devices(self, _role: str) -> None:
+        self.recheck_refusals()
+
+    def recheck_refusals(self, *, settings_changed: bool = False) -> None:
+        """Take refusals off the screen that no longer hold (the rig is free again; the plan or calibration they
+        were about changed)."""
+        self.live_panel.recheck(settings_changed=settings_changed)
+        self.record_panel.recheck(settings_changed=settings_changed)
 
     def _update_buttons(self) -> None:
         ok = self.plan().timing().ok

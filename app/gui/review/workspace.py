@@ -77,6 +77,8 @@ class ReviewWorkspace(QWidget):
         self.session: ReviewSession | None = None
         self.results: list[ReconstructionResult] = []
         self.shown: ReconstructionResult | None = None
+        self.comparison: ReconstructionResult | None = None
+        """The slider's preview shown beside :attr:`shown` (the chosen method's full result), or None."""
         self.exported: tuple[Path, ReconstructionResult] | None = None
         """The last export: its path and the full result written."""
         self._written: list[ReconstructionResult] = []
@@ -136,7 +138,10 @@ class ReviewWorkspace(QWidget):
 
         self.raw_panel = ImagePanel("raw camera frame")
         self.recon_panel = ImagePanel("reconstruction")
-        frames = AdaptiveSplit(self.raw_panel, self.recon_panel)  # one above the other in a narrow view
+        self.slider_panel = ImagePanel("slider preview")
+        """The slider's fixed-tensor preview beside the chosen method's result (shown only then)."""
+        self.slider_panel.hide()
+        frames = AdaptiveSplit(self.raw_panel, self.recon_panel, self.slider_panel)  # stacked in a narrow view
         self.motion_view = MotionView()
         self.compare_view = CompareView()
         self.tabs = QTabWidget()
@@ -210,6 +215,8 @@ class ReviewWorkspace(QWidget):
         self.session = session
         self.results = []
         self.shown = None
+        self._set_comparison(None)
+        self._written = []
         self._truth = session.truth() if session.has_ground_truth else None
         self.settings.remember_folder(session.path, "review/last_dir")
         self.settings.set("review/last_recording", str(session.path))
@@ -277,7 +284,8 @@ class ReviewWorkspace(QWidget):
 
     def _on_frame(self, s: int) -> None:
         self._show(s)
-        if not self.playing and not self._covers(self.shown, s):
+        if not self.playing and (not self._covers(self.shown, s)
+                                 or self.comparison is not None and not self._covers(self.comparison, s)):
             self._schedule_preview()
 
     def _covers(self, r: ReconstructionResult | None, s: int) -> bool:
@@ -303,6 +311,12 @@ class ReviewWorkspace(QWidget):
             self.recon_panel.set_title(f"{kind}: {r.method.label()} · sub-frame {s + 1}")
         elif r is not None:
             self.recon_panel.clear("outside the preview window: pause to recompute it here")
+        c = self.comparison
+        if self._covers(c, s):
+            self.slider_panel.set_image(c.video[s - c.first_frame * K], levels=(0, 1))
+            self.slider_panel.set_title(f"slider preview: {c.method.label()} · sub-frame {s + 1}")
+        elif c is not None:
+            self.slider_panel.clear("outside the preview window: pause to recompute it here")
         self.motion_view.show_subframe(s)
         self.compare_view.show_subframe(s)
 
@@ -313,6 +327,7 @@ class ReviewWorkspace(QWidget):
             self._schedule_preview()
 
     def _on_form_changed(self) -> None:
+        self.form.set_beside(self.full_result_of(self.form.method()) is not None)
         self._refresh_expected()
         self._refresh_enabled()
         self._schedule_preview()
@@ -331,8 +346,17 @@ class ReviewWorkspace(QWidget):
             self.preview_job.cancel()
         self._preview_generation += 1
         gen = self._preview_generation
-        a, b = preview_window(s.n_frames, self.subframe // s.K, half_width=1, missing=s.missing)
         method = self.form.preview_method()
+        chosen = self.full_result_of(self.form.method())
+        beside = self.form.comparing and chosen is not None
+        if not beside:
+            self._set_comparison(None)
+        if chosen is not None and (beside or method == chosen.method):
+            if self.shown is not chosen:  # the result itself, never a preview of it
+                self.set_shown(chosen)
+            if not beside:
+                return None
+        a, b = preview_window(s.n_frames, self.subframe // s.K, half_width=1, missing=s.missing)
         frames, code = s.input(method)
         frames, truth = frames[a:b], s.truth(a, b)
         missing = None if s.missing is None else s.missing[a:b]
@@ -344,14 +368,26 @@ class ReviewWorkspace(QWidget):
             return r
 
         self.preview_job = self.runner.submit(
-            "preview", work, on_finished=lambda r, g=gen: self._preview_done(r, g),
+            "preview", work, on_finished=lambda r, g=gen: self._preview_done(r, g, beside),
             on_failed=lambda msg: self.result_label.setText(f"preview failed: {html.escape(msg)}"))
         return self.preview_job
 
-    def _preview_done(self, result: ReconstructionResult, generation: int) -> None:
+    def _preview_done(self, result: ReconstructionResult, generation: int, beside: bool = False) -> None:
         if generation != self._preview_generation:
             return  # a newer request superseded it
-        self.set_shown(result)
+        if beside:
+            self._set_comparison(result)
+        else:
+            self.set_shown(result)
+
+    def _set_comparison(self, result: ReconstructionResult | None) -> None:
+        """Show the slider's preview beside the chosen method's result (None: hide it)."""
+        self.comparison = result
+        self.slider_panel.setVisible(result is not None)
+        if result is None:
+            self.slider_panel.clear("")
+        elif self.session is not None:
+            self._show(self.subframe)
 
     def set_shown(self, result: ReconstructionResult | None) -> None:
         """Show ``result`` in the reconstruction panel; the motion panel shows the flow of the result that has
@@ -432,6 +468,7 @@ class ReviewWorkspace(QWidget):
                      "unknown (not timed yet)" if expected_s is None else f"{expected_s:.3f} s")
         self.result_label.setText(text)
         self.set_shown(result)
+        self.form.set_beside(self.full_result_of(self.form.method()) is not None)
         self.compare_view.set_results(self.results, self.session.K, self._truth)
         self.result_added.emit(result)
         self.status.emit(text)

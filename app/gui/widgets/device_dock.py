@@ -13,6 +13,7 @@ from PySide6.QtWidgets import QDockWidget, QHBoxLayout, QLabel, QSizePolicy, QTo
 
 from app.gui.models.rig_service import ROLES, RigService
 from app.gui.widgets.device_panel import STATE_COLOUR, DevicePanel
+from app.gui.widgets.rich_text import AMBER
 from app.gui.widgets.settings import AppSettings
 
 STRIP_WIDTH = 28
@@ -114,5 +115,5 @@ class DeviceDock(QDockWidget):
                 dot.setToolTip(f"{role}: none")
                 continue
             dot.setText("●")
-            dot.setStyleSheet(f"color: {STATE_COLOUR[st.state]}")
+            dot.setStyleSheet(f"color: {AMBER if self.service.in_use_by else STATE_COLOUR[st.state]}")
             dot.setToolTip(f"{role}: {self.panel.state_text(role).lstrip('● ')}")

@@ -139,12 +139,18 @@ class DevicePanel(QWidget):
                 row["state"].setStyleSheet("")
                 row["button"].setEnabled(False)
                 row["button"].setText("Connect")
+            elif self.service.in_use_by:  # opened and closed by its user: held, whatever the moment's state
+                row["state"].setText(f"● in use by {self.service.in_use_by}")
+                row["state"].setStyleSheet(f"color: {AMBER}")
+                row["button"].setEnabled(False)
+                row["button"].setToolTip(f"in use by {self.service.in_use_by}: wait for it to end")
             else:
                 colour = STATE_COLOUR[st.state]
                 state = f"{st.state.value}{_detail(self.service, r)}"
                 row["state"].setText(f"● {state}")
                 row["state"].setStyleSheet(f"color: {colour}")
                 row["button"].setEnabled(True)
+                row["button"].setToolTip("")
                 row["button"].setText("Connect" if st.state is DeviceState.CLOSED else "Disconnect")
             row["error"].setText(html.escape(st.last_error))
             row["error"].setVisible(bool(st.last_error))

@@ -90,8 +90,36 @@ def test_cancel_stops_between_steps_and_keeps_nothing(qtbot, calibrate):
     assert re.fullmatch(r"cancelled during (parallax: near target|parallax: far target|homography|shutter|sync)"
                         r"; the devices were stopped", ws.step_label.text())
     assert ws.outcome is None and not ws.save_panel.save_button.isEnabled() and ws.run_button.isEnabled()
-    assert "nothing to save (cancelled)" in ws.save_panel.label.text()
+    assert "nothing to save (the new run was cancelled)" in ws.save_panel.label.text()
     assert ws.save_panel.save("x.json") is None and "nothing to save" in ws.save_panel.label.text()
+
+
+def test_a_cancelled_second_run_keeps_the_first_result_and_the_bar_never_goes_back(qtbot, calibrate, tmp_path):
+    """Point 6: the bar fills once over the whole run (it restarted at every step); a second run that is cancelled
+    leaves the first result shown, offered and savable (it said "succeeded" beside "nothing to save")."""
+    ws = calibrate
+    seen = []
+    ws.progress.valueChanged.connect(lambda v: seen.append((v, ws.progress.maximum())) if ws.running else None)
+    _run(qtbot, ws)
+    first = ws.outcome
+    assert first.success and first.finished_at
+    run = [v for v, top in seen if top == 6000]
+    assert len(run) > 10 and run == sorted(run) and run[-1] >= 5000, run  # one bar, never going back
+    assert ws.progress.value() == ws.progress.maximum()
+    assert ws.run_calibration()
+    assert not ws.save_panel.save_button.isEnabled() and not ws.save_panel.use_button.isEnabled()  # running
+    assert f"shown: the calibration of {first.finished_at}" in ws.results_view.results.text()
+    qtbot.waitUntil(lambda: ws.tracker.index >= 1, timeout=10_000)
+    ws.cancel_button.click()
+    qtbot.waitUntil(lambda: not ws.running, timeout=20_000)
+    assert ws.outcome is first and ws.save_panel.save_button.isEnabled() and ws.save_panel.use_button.isEnabled()
+    text = ws.results_view.results.text()
+    assert f"the new run was cancelled; shown: the calibration of {first.finished_at}" in text
+    assert "calibration succeeded" in text
+    assert (f"the new run was cancelled; the calibration of {first.finished_at} can still be saved"
+            in ws.save_panel.label.text())
+    path = ws.save_panel.save(tmp_path / "first.json")
+    np.testing.assert_allclose(load_calibration(path, first.identity)["H"], first.homography.homography)
 
 
 def test_a_rig_that_is_not_co_located_is_reported_and_not_saved(qtbot, calibrate):

@@ -180,11 +180,15 @@ def test_the_operator_s_whole_session_through_the_buttons_at_1280x800(qtbot, set
           [review.path_label, review.summary_label, review.expected_label, review.result_label, review.frame_label])
     # timed here (off the GUI thread, first use only), not read off the bench table
     qtbot.waitUntil(lambda: "on this machine" in review.expected_label.text(), timeout=30_000)
-    # The slider, without leaving motion-aware: a fixed tensor's preview beside it.
+    # The slider, without leaving motion-aware: a fixed tensor's preview beside the motion-aware result (point 6).
     s.go_to(4 * 16 + 5)
-    shown = s.slide(0.8)
+    preview = s.slide(0.8)
     assert review.form.method_box.currentText() == "motion-aware" and review.form.comparing
-    assert shown.extra["preview"] and shown.method.name == "diffusion"
+    assert preview.extra["preview"] and preview.method.name == "diffusion" and review.comparison is preview
+    assert review.shown is motion and review.slider_panel.isVisible() and review.recon_panel.has_image()
+    assert review.recon_panel.title.text().startswith(f"reconstruction: {motion.method.label()}")
+    assert review.slider_panel.title.text().startswith(f"slider preview: {preview.method.label()}")
+    assert "beside the motion-aware result for comparison" in review.form.slider_text.text()
     # The Motion tab keeps the full motion-aware result while the diffusion preview shows.
     s.motion_overlay("color")
     mv = review.motion_view
@@ -195,24 +199,28 @@ def test_the_operator_s_whole_session_through_the_buttons_at_1280x800(qtbot, set
     check([review.export_button], [mv.note])
     s.compare()
     check([review.export_button], [review.compare_view.box_a, review.compare_view.box_b])
-    # Export what is shown: the diffusion preview's method and options, over every frame.
+    # Export what the reconstruction panel shows: the motion-aware result, over every frame.
     path, written = s.export("shown.zarr")
-    assert written.method == shown.method and written.video.shape == motion.video.shape
+    assert written is motion
     store = zarr.open_group(str(path), mode="r")
     np.testing.assert_array_equal(store["video"][:], written.video)
-    assert Method(**store.attrs["flexvox"]["method"]) == shown.method
-    assert shown.method.label() in review.export_label.text()
+    assert Method(**store.attrs["flexvox"]["method"]) == motion.method
+    assert motion.method.label() in review.export_label.text()
     check([review.export_button], [review.export_label])
+    # Back from the slider's preview: the result itself, not a preview of it.
+    review.form.stop_comparing()
+    s.wait_preview()
+    assert review.shown is motion and review.comparison is None and not review.slider_panel.isVisible()
+    assert review.recon_panel.title.text().startswith("reconstruction: ")
     # Cancel says so at once, then goes idle with nothing kept.
     n = len(review.results)
     job = s.cancel("motion-aware")
     assert job.outcome == "cancelled" and "cancelling" in s.cancelling_text and len(review.results) == n
     assert "cancelled" in review.result_label.text() and review.reconstruct_button.isEnabled()
     assert len(set(layout)) == 1, layout  # the dock's width and the workspaces' place never moved
-    asked = s.quit()  # the two results not exported are named before they are lost
+    asked = s.quit()  # the result not exported is named before it is lost
     assert [q.title for q in asked] == ["Quit flexvox?"]
-    assert (f"2 reconstructions not exported are lost: {diffusion.method.label()}; {motion.method.label()}"
-            in asked[0].text)
+    assert f"1 reconstruction not exported is lost: {diffusion.method.label()}" in asked[0].text
     assert not window.isVisible() and not capture.live and not capture.recording
     assert runner.pool.activeThreadCount() == 0 and capture.live_panel.preview.runner.pool.activeThreadCount() == 0
     assert flexvox_threads() == []
@@ -472,3 +480,41 @@ def test_at_1024x700_every_primary_action_the_tabs_and_the_scrubber_are_usable(q
     before = slider.value()
     qtbot.mouseClick(slider, Qt.MouseButton.LeftButton, pos=slider.rect().center() + slider.rect().topRight() / 3)
     assert slider.value() > before and review.frame_label.text().startswith(f"frame {slider.value() // 8 + 1}/")
+
+
+def test_the_devices_and_the_refusals_say_what_holds_now(qtbot, window):
+    """Point 6: the Devices panel says who holds the devices while a calibration opens and closes them, and gives
+    them back connected; a refusal leaves the screen once it no longer holds; a stopped preview does not claim to be
+    reconstructing."""
+    from app.gui.widgets.rich_text import AMBER
+
+    shown_window(qtbot, window)
+    panel, dock = window.devices, window.device_dock
+    for role in ("projector", "camera", "sync"):
+        click(qtbot, panel.rows[role]["button"])
+    assert all(panel.state_text(r).startswith("● enabled") for r in ("projector", "camera", "sync"))
+    cal, capture = window.calibrate, window.capture
+    assert cal.run_calibration()
+    for role in ("projector", "camera", "sync"):
+        assert panel.state_text(role) == "● in use by the calibration", role
+        assert not panel.rows[role]["button"].isEnabled() and AMBER in dock.dots[role].styleSheet()
+    window.show_workspace("Capture")
+    click(qtbot, capture.live_panel.live_button)
+    live = capture.live_panel.live_label
+    assert live.text() == "<span style='color:#c0392b'>cannot start: a calibration is running in the Calibrate " \
+                          "workspace</span>" and not capture.live
+    capture.record_panel.path_edit.setText("")
+    click(qtbot, capture.record_panel.record_button)
+    assert "choose a recording path first" in capture.record_panel.recording_label.text()
+    qtbot.waitUntil(lambda: not cal.running, timeout=60_000)
+    assert cal.outcome.success
+    assert all(panel.state_text(r).startswith("● enabled") for r in ("projector", "camera", "sync"))  # given back
+    assert live.text() == "stopped"  # the calibration ended: the refusal went with it
+    capture.record_panel.path_edit.setText("somewhere.zarr")  # the path it was about changed
+    assert capture.record_panel.recording_label.text() == "not recorded yet"
+    capture.live_panel.preview_check.setChecked(True)
+    capture.clear_calibration()
+    assert capture.start_live()
+    assert capture.live_panel.preview_panel.placeholder_text() == "reconstructing the newest frames …"
+    capture.stop_live()  # before its first picture
+    assert capture.live_panel.preview_panel.placeholder_text() == "starts with the live view"

@@ -10,6 +10,7 @@ from app.capture.service import CaptureService
 from app.gui.capture.workspace import CaptureWorkspace
 from app.gui.models.recording import counters_text, result_text
 from app.gui.models.rig_service import RigService
+from app.gui.widgets.questions import Question, answering
 from flexvox_core.recording import RecordingWriter, open_recording
 from rig_drivers.interfaces import DeviceState, RunState
 
@@ -104,8 +105,11 @@ def test_a_path_in_a_missing_folder_is_refused_in_words(qtbot, capture, tmp_path
     existing = tmp_path / "taken.zarr"
     existing.mkdir()
     ws.record_panel.path_edit.setText(str(existing))
-    assert not ws.record()
-    assert "already exists; choose another path or allow overwriting" in ws.record_panel.recording_label.text()
+    with answering(False) as asked:  # the one rule for an existing file: ask, naming it
+        assert not ws.record()
+    assert asked == [Question("Replace the existing recording?",
+                              f"{existing} already exists. Replace it with the new recording?", "Replace")]
+    assert f"not recording: {existing} is kept" in ws.record_panel.recording_label.text() and existing.is_dir()
 
 
 def test_a_timing_the_projector_refuses_cannot_record(capture, tmp_path):
@@ -200,9 +204,9 @@ def test_durable_and_a_second_writer_from_the_workspace(qtbot, settings, runner,
             assert ws.record()
         assert finished.args[0].ok and _RecordingFsync.seen[-1] is True
         assert open_recording(path).verify() == []
-        ws.record_panel.overwrite_check.setChecked(True)
-        with WriterLock(path):  # another process writes it
+        with WriterLock(path), answering(True) as asked:  # replace it? yes; but another process writes it
             assert not ws.record()
+        assert [q.title for q in asked] == ["Replace the existing recording?"]
         assert re.search(r"cannot record: .*d.zarr is being written by process \d+",
                          ws.record_panel.recording_label.text())
         assert open_recording(path).n_frames == 3  # untouched

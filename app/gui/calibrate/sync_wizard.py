@@ -47,7 +47,25 @@ WIRING = (
 )
 
 
-def _say(label: QLabel, text: str, colour: str | None = None) -> None:
+def trigger_verdict(frames, slots: int, settled: int) -> str:
+    """What the trigger test found, explained: which camera frames came, and how bright they were in the camera's
+    own units (counts of its full scale, or the simulated camera's relative units)."""
+    ids = ", ".join(str(f.frame_id) for f in frames)
+    gaps = (f"; the camera numbers every frame, and {settled} before each was skipped while the pattern settled"
+            if settled else "")
+    image = frames[0].image
+    mean = float(np.mean([f.image.mean() for f in frames]))
+    if np.issubdtype(image.dtype, np.integer):
+        top = float(np.iinfo(image.dtype).max)
+        level = f"mean level {mean:.0f} of {top:.0f} counts ({mean / top:.0%} of the camera's full scale)"
+    else:
+        level = (f"mean level {mean:.3g} in relative units (a white target seen through {slots} open slots reads "
+                 f"about {slots}: the target sends back {mean / slots:.0%} of that)")
+    return (f"{len(frames)} triggered frames arrived (camera frame numbers {ids}{gaps}); {level}: the camera follows "
+            "the projector")
+
+
+def _say(label, text: str, colour: str | None = None) -> None:
     label.setText(f"<span style='color:{colour}'>{html.escape(text)}</span>" if colour else html.escape(text))
 
 
@@ -163,10 +181,7 @@ class TriggerPage(_JobPage):
             except DeviceTimeoutError as exc:
                 return False, (f"no frame within {session.timeout_s:g} s of showing the pattern: the camera is "
                                f"not triggered by the projector ({exc}). Check the wiring and the trigger line.")
-            mean = float(np.mean([f.image.mean() for f in frames]))
-            ids = ", ".join(str(f.frame_id) for f in frames)
-            return True, (f"{len(frames)} triggered frames (camera frame ids {ids}), mean level {mean:.3g}: the "
-                          "camera follows the projector")
+            return True, trigger_verdict(frames, session.slots, session.settle_frames)
 
     def show_result(self, result) -> bool:
         ok, message = result

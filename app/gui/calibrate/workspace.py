@@ -227,8 +227,12 @@ class CalibrateWorkspace(QWidget):
         tile, service = self.tile(), self.service
 
         def job(token_, progress):
+            def report(done: int, total: int) -> None:  # the whole run's progress, taken where the step is known
+                within = done / total if total > 0 else 0.0
+                progress(round(PROGRESS_STEP * (max(tracker.index, 0) + min(within, 1.0))), len(STEPS) * PROGRESS_STEP)
+
             tracker.token = token_
-            tracker.report = progress
+            tracker.report = report
             return run_workspace_calibration(target_for(service), tile=tile, cancel=token_, tracker=tracker)
 
         # The last result stays the one offered (Save, Use for capture) until this run ends: a cancelled or
@@ -263,16 +267,15 @@ class CalibrateWorkspace(QWidget):
             self.job.cancel()
             self.step_label.setText("cancelling …")
 
-    def _on_progress(self, done: int, total: int) -> None:
+    def _on_progress(self, value: int, top: int) -> None:
+        """One bar for the whole run (``value`` of ``top``): each step has its share, filled by its patterns."""
         t = self.tracker
         if t is None:
             return
         step = f"step {t.index + 1} of {len(STEPS)}: {html.escape(t.step)}"
-        # One bar for the whole run: each step has its share, filled by its patterns.
-        within = done / total if total > 0 else 0.0
-        self.progress.setRange(0, len(STEPS) * PROGRESS_STEP)
-        self.progress.setValue(round(PROGRESS_STEP * (max(t.index, 0) + min(within, 1.0))))
-        self.step_label.setText(f"{step} — {done}/{total} patterns" if total > 0 else step)
+        self.progress.setRange(0, top)
+        self.progress.setValue(max(value, self.progress.value()))
+        self.step_label.setText(f"{step} — {t.done}/{t.total} patterns" if t.total > 0 else step)
         self.steps_label.setText(steps_html(t.index))
 
     def _on_done(self, outcome: CalibrationOutcome) -> None:

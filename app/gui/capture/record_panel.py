@@ -307,7 +307,7 @@ class RecordPanel(QObject):
         capture = self.capture
         if capture is None:
             return
-        self.counters_label.setText(counters_text(capture.stats(), capture.n_target))
+        self.counters_label.setText(counters_text(capture.stats(), capture.n_target, capture.frame_period_s))
         if capture.result is not None and self._stop_job is None:
             self._finish(capture, capture.result)
 
@@ -319,11 +319,12 @@ class RecordPanel(QObject):
         self._stop_job = None
         self.last_result = result
         if result is not None:
-            self.counters_label.setText(counters_text(result.stats, capture.n_target))
+            self.counters_label.setText(counters_text(result.stats, capture.n_target, capture.frame_period_s))
         if error is not None:
             self.say(f"recording failed: {in_gui_words(error)}", RED)
         else:
-            self.say(result_text(result, capture.path), GREEN if result is not None and result.ok else RED)
+            ok = result is not None and result.ok
+            self.say(result_text(result, capture.path, capture.frame_period_s), GREEN if ok else RED)
         self.review_button.setEnabled(result is not None and result.frames_in_recording is not None
                                       and result.frames_in_recording > 0)
         self._notify_devices()

@@ -300,10 +300,10 @@ def summary_rows(outcome: CalibrationOutcome) -> list[tuple[str, list[tuple[str,
     sy = rep.get("sync")
     if sy is not None:
         rows.append(("Synchronisation", [
-            ("phase (exposure slot 0 sees slot)", str(sy.get("phase_slots"))),
+            ("phase with no camera delay (exposure slot 0 sees slot)", str(sy.get("phase_slots"))),
             ("sub-slot delay", _num(sy.get("delay_us"), ".0f", " µs")),
             ("recommended camera trigger delay", _num(sy.get("recommended_camera_delay_us"), ".0f", " µs")),
-            ("phase for the shutter patterns", str(sy.get("effective_phase_slots"))),
+            ("phase the shutter patterns use, with that delay", str(sy.get("effective_phase_slots"))),
             ("sweep slope (expected 1)", _num(sy.get("slope"), ".3f")),
         ], sy.get("status"), sy.get("message", "")))
     fr = rep.get("frames")

@@ -5,6 +5,7 @@ from __future__ import annotations
 import html
 import logging
 import re
+import time
 from pathlib import Path
 
 from PySide6.QtCore import Qt, QTimer, Signal
@@ -45,6 +46,26 @@ _logger = logging.getLogger(__name__)
 def export_slug(method) -> str:
     """A file-name fragment naming the method and its options, e.g. ``diffusion-tensor-0.05-0.05-1-n-5``."""
     return re.sub(r"[^A-Za-z0-9.+-]+", "-", method.label()).strip("-")
+
+
+MAX_DRAWS_HZ = 30
+"""Playback draws at most this many pictures a second; faster speeds skip sub-frames between them."""
+
+
+def playback_advance(elapsed_s: float, speed: float, step: int, carried: float = 0.0) -> tuple[int, float]:
+    """Sub-frames to advance after ``elapsed_s`` at ``speed`` sub-frames/s, in whole ``step`` s, and the part
+    carried to the next tick.
+
+    Examples
+    --------
+    >>> playback_advance(1.0, 240.0, 16)   # real time at 15 Hz × 16: a second is 15 raw frames
+    (240, 0.0)
+    >>> playback_advance(0.05, 12.0, 1, 0.5)
+    (1, 0.10000000000000009)
+    """
+    total = carried + max(0.0, elapsed_s) * speed
+    n = int(total // step) * step
+    return n, total - n
 
 
 EXPORT_FILTER = "TIFF stack (*.tif);;MP4 video, 8-bit (*.mp4);;NumPy array (*.npy);;Zarr store (*.zarr)"
@@ -89,6 +110,7 @@ class ReviewWorkspace(QWidget):
         self._truth = None
         self._expected_for_job: float | None = None
         self._closed = False
+        self._last_tick, self._carried = 0.0, 0.0
         self._speed_jobs: dict[str, JobHandle] = {}
         self._build()
         self.form.changed.connect(self._on_form_changed)
@@ -155,19 +177,29 @@ class ReviewWorkspace(QWidget):
         self.frame_slider.setRange(0, 0)
         self.frame_label = QLabel("")
         self.fps = QSpinBox()
-        self.fps.setRange(1, 120)
+        self.fps.setRange(1, 10_000)
         self.fps.setValue(self.settings.get_int("review/fps", 12))
-        self.fps.setSuffix(" fps")
+        self.fps.setSuffix(" sub-frames/s")
+        self.fps.setToolTip("playback speed in sub-frames per second (a camera frame is K sub-frames; raw frames "
+                            "advance a whole frame at a time)")
+        self.real_time = QCheckBox("real time")
+        self.real_time.setToolTip("play at the recording's own speed: its sub-frame rate (camera rate × K)")
+        self.real_time.setChecked(self.settings.get_bool("review/real_time", False))
         # The scrubber has the view's whole width, whatever the window's; Play, the position and the speed sit under it.
         player = QHBoxLayout()
         player.addWidget(self.play_button)
         player.addWidget(self.frame_label, 1)
-        player.addWidget(self.fps)
+        speed = QHBoxLayout()
+        speed.addWidget(QLabel("speed"))
+        speed.addWidget(self.fps)
+        speed.addWidget(self.real_time)
+        speed.addStretch(1)
         right = QWidget()
         rv = QVBoxLayout(right)
         rv.addWidget(self.tabs, 1)
         rv.addWidget(self.frame_slider)
         rv.addLayout(player)
+        rv.addLayout(speed)
 
         # Open, Reconstruct, Cancel and Export stay in view; the method's knobs fold below them.
         self.controls_scroll = controls_beside_view(self, (details,), right, actions=(rec, box), min_width=330,
@@ -187,6 +219,8 @@ class ReviewWorkspace(QWidget):
         self.play_button.toggled.connect(self.set_playing)
         self.frame_slider.valueChanged.connect(self._on_frame)
         self.fps.valueChanged.connect(self._on_fps)
+        self.real_time.toggled.connect(self._on_real_time)
+        self.fps.setEnabled(not self.real_time.isChecked())
         self.preview_check.toggled.connect(self._on_preview_toggled)
         self.raw_panel.clear("open a recording (File ▸ Open, or flexvox app REC.zarr)")
         self.recon_panel.clear("")
@@ -225,6 +259,9 @@ class ReviewWorkspace(QWidget):
         if session.blocked:
             text += "<br>" + coloured(f"cannot reconstruct: {session.blocked}", RED)
         self.summary_label.setText(text)
+        rate = self.subframe_hz()
+        self.real_time.setText(f"real time ({rate:.4g}/s)" if rate else "real time")
+        self.real_time.setEnabled(rate is not None)
         self.form.set_divisions(session.divisions())
         self._levels = session.raw_levels()
         self.frame_slider.blockSignals(True)
@@ -257,7 +294,8 @@ class ReviewWorkspace(QWidget):
             self.play_button.blockSignals(False)
         self.play_button.setText("Pause" if playing else "Play")
         if playing:
-            self.timer.start(int(1000 / self.fps.value()))
+            self._last_tick, self._carried = time.monotonic(), 0.0
+            self.timer.start(self._interval_ms())
         else:
             self.timer.stop()
             self._schedule_preview()
@@ -271,16 +309,41 @@ class ReviewWorkspace(QWidget):
         # Raw frames advance a whole frame; a shown reconstruction advances one sub-frame.
         return 1 if self.shown is not None else self.session.K
 
-    def _tick(self) -> None:
+    def subframe_hz(self) -> float | None:
+        """The recording's sub-frame rate (its real time), None when it does not say."""
+        if self.session is None:
+            return None
+        rate = self.session.recording.attrs.get("rates", {}).get("subframe_hz")
+        return float(rate) if rate else None
+
+    def speed(self) -> float:
+        """Playback speed in sub-frames per second: the recording's own rate in real time, else the speed box's."""
+        rate = self.subframe_hz()
+        return rate if self.real_time.isChecked() and rate else float(self.fps.value())
+
+    def _interval_ms(self) -> int:
+        """Time between two pictures: one step at the speed, but never more than :data:`MAX_DRAWS_HZ` a second."""
+        return max(round(1000 / MAX_DRAWS_HZ), round(1000 * self._step() / self.speed()))
+
+    def _tick(self, now: float | None = None) -> None:
         if self.session is None:
             return
-        s = (self.subframe + self._step()) % self.session.n_subframes
-        self.frame_slider.setValue(s)
+        now = time.monotonic() if now is None else now
+        n, self._carried = playback_advance(now - self._last_tick, self.speed(), self._step(), self._carried)
+        self._last_tick = now
+        if n:
+            self.frame_slider.setValue((self.subframe + n) % self.session.n_subframes)
 
     def _on_fps(self, value: int) -> None:
         self.settings.set("review/fps", value)
         if self.timer.isActive():
-            self.timer.setInterval(int(1000 / value))
+            self.timer.setInterval(self._interval_ms())
+
+    def _on_real_time(self, on: bool) -> None:
+        self.settings.set("review/real_time", on)
+        self.fps.setEnabled(not on)
+        if self.timer.isActive():
+            self.timer.setInterval(self._interval_ms())
 
     def _on_frame(self, s: int) -> None:
         self._show(s)

@@ -60,6 +60,10 @@ def test_calibration_runs_off_the_gui_thread_shows_its_figures_and_saves(qtbot, 
                    "Synchronisation", "Drops and drift", "no gaps", "hidden truth"):
         assert phrase in text, phrase
     assert f"{truth_phase} / {truth_phase}" in text  # phase found / true
+    # the time it took, then what to do (it read "save it in 30.2 s", a deadline); the two phases say which is which
+    assert re.search(r"calibration succeeded in [\d.]+ s at \d\d:\d\d:\d\d</b>: save it, or use it for capture", text)
+    assert "phase with no camera delay (exposure slot 0 sees slot)" in text
+    assert "phase the shutter patterns use, with that delay" in text
     assert "calibration succeeded" in ws.step_label.text() and ws.run_button.isEnabled()
     # residual heat map with a colour map, and the map of wrong pixels
     assert ws.results_view.residuals.image.image.shape == (120, 160) and ws.results_view.residuals.colorbar is not None
@@ -173,7 +177,9 @@ def test_sync_wizard_end_to_end(qtbot, calibrate, tmp_path):
     wizard.trigger.button.click()
     qtbot.waitUntil(wizard.trigger.isComplete, timeout=10_000)
     verdict = wizard.trigger.verdict.text()
-    assert "3 triggered frames (camera frame ids " in verdict and "–" not in verdict  # the ids, not a range
+    assert "3 triggered frames arrived (camera frame numbers " in verdict and "–" not in verdict  # the ids, no range
+    assert "skipped while the pattern settled" in verdict
+    assert "in relative units (a white target seen through" in verdict
     wizard.next()
     # 3. phase sweep (no homography from the workspace yet: the page measures one first)
     assert wizard.homography is None

@@ -118,6 +118,18 @@ def test_expected_matches_exact_rows_and_interpolates_between_times():
     assert other_k.approximate and other_k.basis.startswith("bench K=16")
 
 
+def test_a_tensor_the_bench_never_measured_is_not_given_another_tensor_s_quality_as_its_own():
+    """Point 7: diffusion at (1, 1, 0.21) quoted the quality of (1, 1, 0.05) as its own."""
+    table = load_table()
+    code = design_code((4, 4)).code
+    e = expected(table, Method("diffusion", tensor=(1.0, 1.0, 0.21), time=1.5), code, voxels=16 * 6 * 96 * 128)
+    assert e.nearest == "diffusion nc (1,1,0.05) n=1.5"
+    assert e.quality_text().startswith("quality not benched at these settings (the nearest benched, diffusion nc "
+                                       "(1,1,0.05) n=1.5: ")
+    benched = expected(table, Method("diffusion", tensor=(1.0, 1.0, 0.05), time=1.5), code, voxels=16 * 6 * 96 * 128)
+    assert benched.nearest == "" and benched.quality_text().endswith("on the built-in scenes")
+
+
 def test_missing_table_gives_no_expectation(tmp_path, caplog):
     assert load_table(tmp_path / "none.json") is None
     assert "no expected-quality table" in caplog.text

@@ -59,8 +59,10 @@ def test_record_n_frames_then_the_recording_opens_with_n_frames(qtbot, capture, 
     assert rec.n_frames == 12 and rec.K == 16
     assert rec.ground_truth().shape == (12 * 16, 48, 64)  # the simulated scene, kept as truth
     text = ws.record_panel.recording_label.text()
-    assert "recording done: captured 12 frames: 0 dropped" in text and "holds 12 frame(s)" in text
-    assert re.search(r"12 of 12 frames written \(\d+ received\) · 0 dropped", ws.record_panel.counters_label.text())
+    assert "recording done: 0.20 s of video at 60 Hz; captured 12 frames: 0 dropped" in text
+    assert "holds 12 frame(s)" in text
+    assert re.search(r"12 of 12 frames written = 0.20 s of video \(\d+ received\) · 0 dropped",
+                     ws.record_panel.counters_label.text())
     assert "write" in ws.record_panel.counters_label.text() and "queue" in ws.record_panel.counters_label.text()
     assert ws.live_panel.image_panel.has_image() and ws.live_panel.image_panel.image.image.shape == (48, 64)
     rec = ws.record_panel
@@ -89,7 +91,8 @@ def test_stop_early_keeps_what_was_captured(qtbot, capture, tmp_path):
     result = ws.last_result
     assert result.ok and result.reason == "stopped" and result.frames_in_recording >= 4
     assert open_recording(path).n_frames == result.frames_in_recording
-    assert re.search(r"recording done: stopped after \d+ frames: 0 dropped", ws.record_panel.recording_label.text())
+    assert re.search(r"recording done: [\d.]+ s of video at 60 Hz; stopped after \d+ frames: 0 dropped",
+                     ws.record_panel.recording_label.text())
     assert ws.service.rig.camera.state is DeviceState.CLOSED  # the service opened it, so it closed it
 
 
@@ -174,7 +177,11 @@ def test_counter_and_result_lines():
     s = CaptureStats(frames_received=10, rows_written=9, drops=1, queue_drops=1, queue_depth=2, queue_capacity=64,
                      max_queue_depth=5, write_rate_hz=14.9, camera_rate_hz=15.0, elapsed_s=0.7)
     assert counters_text(s, 100) == ("9 of 100 frames written (10 received) · 1 dropped (1 by the queue) · queue 2/64 "
-                                     "(max 5) · write 14.9 Hz · camera 15.0 Hz · 0.7 s")
+                                     "(max 5) · write 14.9 Hz · camera 15.0 Hz · 0.7 s since Record")
+    # the length of the video, as flexvox info says it: 63 frames at 15 Hz are 4.20 s (7.1 s went by since Record)
+    s63 = CaptureStats(frames_received=63, rows_written=63, camera_rate_hz=15.0, elapsed_s=7.1)
+    assert counters_text(s63, 63, 1 / 15).startswith("63 of 63 frames written = 4.20 s of video (63 received)")
+    assert counters_text(s63, 63, 1 / 15).endswith("7.1 s since Record")
     assert "did not stop within the time allowed" in result_text(None, "x.zarr")
 
 

@@ -44,6 +44,24 @@ def test_open_shows_the_recording_and_plays_it(qtbot, opened):
     np.testing.assert_array_equal(ws.raw_panel.image.image, ws.session.raw[f])
 
 
+def test_the_speed_says_sub_frames_per_second_and_real_time_plays_the_recording_s_own_rate(opened):
+    """Point 7: "12 fps" was sub-frames per second; real time plays 15 Hz × 8 = 120 sub-frames a second."""
+    ws = opened
+    assert ws.fps.suffix() == " sub-frames/s" and ws.real_time.text() == "real time (120/s)"
+    ws.fps.setValue(12)
+    assert ws.speed() == 12.0
+    ws.real_time.setChecked(True)
+    assert ws.speed() == 120.0 and not ws.fps.isEnabled()
+    ws.frame_slider.setValue(0)
+    ws.set_playing(True)
+    start = ws._last_tick
+    ws._tick(start + 0.5)  # half a second at 15 Hz: 7 whole frames of 8 sub-frames (the half carried), wrapped at 6
+    assert ws.subframe == 56 % 48 and ws._carried == pytest.approx(4.0)
+    ws._tick(start + 1.0)
+    assert ws.subframe == 120 % 48  # a second: 15 frames
+    ws.set_playing(False)
+
+
 def test_open_failure_is_said_in_words(qtbot, review, tmp_path):
     (tmp_path / "junk.zarr").mkdir()
     review.open_recording(tmp_path / "junk.zarr")
@@ -84,7 +102,7 @@ def test_reconstruct_each_method_beats_the_raw_frames(qtbot, opened, naive_psnr,
     # The reconstruction panel now shows the result at the current sub-frame, and playback steps sub-frames.
     opened.frame_slider.setValue(13)
     np.testing.assert_array_equal(opened.recon_panel.image.image, r.video[13])
-    opened._tick()
+    opened._tick(opened._last_tick + 1.5 / opened.speed())  # one sub-frame's time and a half
     assert opened.subframe == 14
 
 

@@ -16,6 +16,7 @@ from PySide6.QtWidgets import QCheckBox, QGroupBox, QVBoxLayout, QWidget
 from app.gui.calibrate.projector_screen import ProjectorScreen
 from app.gui.calibrate.results_view import ResultsView
 from app.gui.models.calibration_model import measure_live_colocation, target_for
+from app.gui.models.operator_words import in_gui_words
 from app.gui.models.rig_service import RigService
 from app.gui.widgets.qt_jobs import JobHandle, JobRunner
 from app.gui.widgets.rich_text import RED, coloured
@@ -152,7 +153,7 @@ class LiveColocation(QObject):
         self.label.setText(text)
 
     def _on_failed(self, message: str) -> None:
-        self.label.setText(coloured(f"live co-location stopped: {message}", RED))
+        self.label.setText(coloured(f"live co-location stopped: {in_gui_words(message)}", RED))
         self.set_live(False)
 
     def _on_done(self) -> None:

@@ -9,6 +9,7 @@ from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QFileDialog, QGroupBox, QHBoxLayout, QLineEdit, QPushButton, QVBoxLayout
 
 from app.gui.models.calibration_model import CalibrationOutcome
+from app.gui.models.operator_words import in_gui_words
 from app.gui.widgets.rich_text import AMBER, GREEN, RED, coloured
 from app.gui.widgets.settings import AppSettings
 from app.gui.widgets.status_line import StatusLine
@@ -121,7 +122,7 @@ class SavePanel(QGroupBox):
             written = save_calibration(target, self.outcome.homography, self.outcome.identity,
                                        sync=self.outcome.sync, overwrite=True)
         except CalibrationError as exc:
-            self.label.setText(coloured(f"not saved: {exc}", RED))
+            self.label.setText(coloured(f"not saved: {in_gui_words(str(exc))}", RED))
             return None
         self.saved_path = Path(written)
         self.settings.remember_folder(written)

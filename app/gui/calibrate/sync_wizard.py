@@ -32,6 +32,7 @@ from PySide6.QtWidgets import (
 
 from app.gui.models.calibration_model import CalibrationTarget
 from app.gui.models.jobs import CancelToken
+from app.gui.models.operator_words import in_gui_words
 from app.gui.widgets.qt_jobs import JobHandle, JobRunner
 from app.gui.widgets.rich_text import AMBER, GREEN, RED
 from app.gui.widgets.status_line import StatusLine
@@ -120,7 +121,7 @@ class _JobPage(QWizardPage):
         self.completeChanged.emit()
 
     def _failed(self, message: str) -> None:
-        _say(self.verdict, f"failed: {message}", RED)
+        _say(self.verdict, f"failed: {in_gui_words(message)}", RED)
 
     def _done(self) -> None:
         self.bar.setRange(0, 1)
@@ -326,7 +327,7 @@ class SavePage(QWizardPage):
             written = save_sync_profile(target, self.owner.sync, self.owner.identity,
                                         frame_check=self.owner.frame_check, overwrite=True)
         except CalibrationError as exc:
-            _say(self.label, f"not saved: {exc}", RED)
+            _say(self.label, f"not saved: {in_gui_words(str(exc))}", RED)
             return None
         self.written = written
         _say(self.label, f"saved {written}", GREEN)

@@ -28,6 +28,7 @@ from PySide6.QtWidgets import (
 )
 
 from app.capture.plan import TILES, CapturePlan
+from app.gui.models.operator_words import in_gui_words
 from app.gui.widgets.collapsible import Collapsible
 from app.gui.widgets.rich_text import AMBER, GREEN, RED
 from app.gui.widgets.settings import AppSettings
@@ -164,7 +165,7 @@ class CodePanel(QWidget):
         try:
             code = load_shutter_code(path)
         except CodeFileError as exc:
-            self.file_error = str(exc)
+            self.file_error = in_gui_words(str(exc))
             self._on_changed()
             return False
         self.code_file, self._file_code, self.file_error = path, code, ""
@@ -214,7 +215,7 @@ class CodePanel(QWidget):
                 "<table cellspacing='6'><tr><th>block</th><th>TR</th><th>SR</th></tr>"
                 f"{rows}</table>")
         except ValueError as exc:
-            lines.append(f"<span style='color:{RED}'>{html.escape(str(exc))}</span>")
+            lines.append(f"<span style='color:{RED}'>{html.escape(in_gui_words(str(exc)))}</span>")
             self.resolutions_label.setText("")
         if self.file_error:
             lines.append(f"<span style='color:{RED}'>refused: {html.escape(self.file_error)}</span>")

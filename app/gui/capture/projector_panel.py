@@ -14,6 +14,7 @@ from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QFormLayout, QGroupBox, QLabel, QPushButton
 
 from app.gui.models.live_source import projector_size
+from app.gui.models.operator_words import in_gui_words
 from app.gui.models.rig_service import RigService
 from app.gui.projector.window import ProjectorWindow, ScreenPicker
 from app.gui.widgets.qt_jobs import JobRunner
@@ -87,7 +88,7 @@ class ProjectorPanel(QGroupBox):
             plan.code  # noqa: B018 - refuse an impossible code before packing
             camera_size = tuple(int(v) for v in self.service.rig.camera.sensor_shape)
         except (ValueError, OSError) as exc:
-            self.label.setText(coloured(f"cannot make the patterns: {exc}", RED))
+            self.label.setText(coloured(f"cannot make the patterns: {in_gui_words(str(exc))}", RED))
             self._set_button(False)
             return False
         psize = projector_size(self.service.rig.projector)
@@ -99,10 +100,12 @@ class ProjectorPanel(QGroupBox):
         def job(token, progress):
             return plan.patterns(camera_size, psize, calibration, layout=layout).packed
 
-        self._job = self.runner.submit(
-            "projector patterns", job, on_finished=lambda frames: self._show(frames, screen, plan.K),
-            on_failed=lambda message: (self.label.setText(coloured(f"cannot make the patterns: {message}", RED)),
-                                       self._set_button(False)))
+        def failed(message: str) -> None:
+            self.label.setText(coloured(f"cannot make the patterns: {in_gui_words(message)}", RED))
+            self._set_button(False)
+
+        self._job = self.runner.submit("projector patterns", job,
+                                       on_finished=lambda frames: self._show(frames, screen, plan.K), on_failed=failed)
         return True
 
     def _show(self, frames, screen, K: int) -> None:

@@ -27,6 +27,7 @@ from PySide6.QtWidgets import (
 from app.gui.models.expected_quality import expected, format_seconds
 from app.gui.models.jobs import ReconstructionResult, chunk_frames_for, preview_window, run_reconstruction
 from app.gui.models.machine_speed import SpeedModel, calibrate, estimate_seconds, is_current, settings_key
+from app.gui.models.operator_words import in_gui_words
 from app.gui.models.review_session import ReviewSession
 from app.gui.review.compare_view import CompareView
 from app.gui.review.method_form import MethodForm
@@ -240,6 +241,7 @@ class ReviewWorkspace(QWidget):
                                   on_finished=self._opened, on_failed=self._open_failed)
 
     def _open_failed(self, message: str) -> None:
+        message = in_gui_words(message)
         self.path_label.setText(coloured(f"cannot open: {message}", RED))
         self.status.emit(f"cannot open: {message}")
 
@@ -432,7 +434,7 @@ class ReviewWorkspace(QWidget):
 
         self.preview_job = self.runner.submit(
             "preview", work, on_finished=lambda r, g=gen: self._preview_done(r, g, beside),
-            on_failed=lambda msg: self.result_label.setText(f"preview failed: {html.escape(msg)}"))
+            on_failed=lambda msg: self.result_label.setText(f"preview failed: {html.escape(in_gui_words(msg))}"))
         return self.preview_job
 
     def _preview_done(self, result: ReconstructionResult, generation: int, beside: bool = False) -> None:
@@ -490,7 +492,7 @@ class ReviewWorkspace(QWidget):
             "reconstruct", work, on_progress=lambda done, total: self.progress.setValue(done),
             on_finished=self._reconstructed, on_cancelled=self._reconstruction_cancelled,
             on_failed=lambda msg: self.result_label.setText(
-                coloured(f"reconstruction failed: {msg}", RED)),
+                coloured(f"reconstruction failed: {in_gui_words(msg)}", RED)),
             on_done=self._refresh_enabled)
         self._refresh_enabled()
         return self.job
@@ -580,7 +582,7 @@ class ReviewWorkspace(QWidget):
         try:  # never onto the recording under review; the folder must take the file
             check_output(path, overwrite=overwrite, inputs=[s.path])
         except OutputError as exc:
-            self.export_label.setText(coloured(f"not exported: {exc}", RED))
+            self.export_label.setText(coloured(f"not exported: {in_gui_words(str(exc))}", RED))
             return None
         method = r.method
         full = r if not r.extra.get("preview") else self.full_result_of(method)
@@ -614,7 +616,7 @@ class ReviewWorkspace(QWidget):
             "export", work, on_progress=lambda done, total: self.progress.setValue(done),
             on_finished=lambda out: self._exported(out, full is None, what),
             on_cancelled=lambda: self.export_label.setText("export cancelled; nothing was written"),
-            on_failed=lambda msg: self.export_label.setText(coloured(f"export failed: {msg}", RED)),
+            on_failed=lambda msg: self.export_label.setText(coloured(f"export failed: {in_gui_words(msg)}", RED)),
             on_done=self._refresh_enabled)
         if full is None:
             self.job = handle  # Cancel stops it; Reconstruct waits for it

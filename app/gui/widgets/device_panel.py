@@ -15,6 +15,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from app.gui.models.operator_words import in_gui_words
 from app.gui.models.rig_service import ROLES, RigService
 from app.gui.widgets.elided_label import ElidedLabel
 from app.gui.widgets.rich_text import AMBER, GREEN, GREY, RED
@@ -152,7 +153,7 @@ class DevicePanel(QWidget):
                 row["button"].setEnabled(True)
                 row["button"].setToolTip("")
                 row["button"].setText("Connect" if st.state is DeviceState.CLOSED else "Disconnect")
-            row["error"].setText(html.escape(st.last_error))
+            row["error"].setText(html.escape(in_gui_words(st.last_error)))
             row["error"].setVisible(bool(st.last_error))
 
     def state_text(self, role: str) -> str:

@@ -152,6 +152,8 @@ def test_another_simulated_rigs_calibration_is_refused(qtbot, settings, runner):
     qtbot.addWidget(ws)
     assert not ws.use_outcome(outcome)
     assert ws.calibration_error.startswith("the calibration just run was made for rig")
+    assert ws.calibration_error.endswith("calibrate this rig in the Calibrate workspace instead of reusing it (or "
+                                         "start flexvox on the simulated rig with the seed that file was made with)")
     assert "refused: the calibration just run was made for" in html.unescape(ws.calibration_panel.label.text())
     assert ws.calibration is None
     ws.shutdown()

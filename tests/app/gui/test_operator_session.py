@@ -522,3 +522,26 @@ def test_the_devices_and_the_refusals_say_what_holds_now(qtbot, window):
     assert capture.live_panel.preview_panel.placeholder_text() == "reconstructing the newest frames …"
     capture.stop_live()  # before its first picture
     assert capture.live_panel.preview_panel.placeholder_text() == "starts with the live view"
+
+
+def test_a_camera_that_goes_away_is_said_in_the_window_s_words(qtbot, settings, runner):
+    """Point 8: the live view's end after the camera went away says what happened and what to do in the window's
+    words ("call start_acquisition() first" was shown as it came from the driver)."""
+    from .conftest import small_rig
+
+    window = build_window(small_rig(), settings=settings, runner=runner)  # real time: the reader waits on frames
+    window.capture.live_panel.preview_check.setChecked(False)
+    capture = window.capture
+    capture.code.rate.setValue(60.0)
+    capture.clear_calibration()
+    assert capture.start_live()
+    qtbot.waitUntil(lambda: capture.live_panel.stats.received >= 2, timeout=10_000)
+    window.service.rig.camera.stop_acquisition()  # unplugged: it delivers nothing more
+    qtbot.waitUntil(lambda: not capture.live, timeout=10_000)
+    text = capture.live_panel.live_label.text()
+    assert "live view stopped: the camera is not delivering frames (it was disconnected, switched off or closed): " \
+           "connect it in the Devices panel and start again" in text
+    error = window.devices.rows["camera"]["error"].text()
+    assert "connect it in the Devices panel" in error and "start_acquisition" not in error + text
+    with answering(default=True):
+        window.close()

@@ -34,6 +34,7 @@ from app.gui.models.calibration_model import CalibrationTarget
 from app.gui.models.jobs import CancelToken
 from app.gui.models.operator_words import in_gui_words
 from app.gui.widgets.qt_jobs import JobHandle, JobRunner
+from app.gui.widgets.questions import replace_question
 from app.gui.widgets.rich_text import AMBER, GREEN, RED
 from app.gui.widgets.status_line import StatusLine
 
@@ -303,11 +304,10 @@ class SavePage(QWizardPage):
         v.addStretch(1)
         self.button.clicked.connect(lambda: self.save(self.path.text().strip()))
         self.written: Path | None = None
-        self._replace_ok: Path | None = None
 
     def save(self, path) -> Path | None:
-        """Write the profile; None (with the reason shown) when it cannot. An existing file is
-        replaced only when Save is pressed a second time for it."""
+        """Write the profile; None (with the reason shown) when it cannot. An existing file is replaced only when
+        the operator answers Replace to the question that names it."""
         from calibration.errors import CalibrationError
         from calibration.sync import save_sync_profile
 
@@ -318,11 +318,9 @@ class SavePage(QWizardPage):
             _say(self.label, "choose where to save (folder/name.json)", RED)
             return None
         target = Path(path).expanduser()
-        if target.exists() and self._replace_ok != target:
-            self._replace_ok = target
-            _say(self.label, f"{target} exists: press Save again to replace it", AMBER)
+        if target.exists() and not replace_question(self, target, "sync profile"):
+            _say(self.label, f"not saved: {target} is kept (choose another path)", AMBER)
             return None
-        self._replace_ok = None
         try:
             written = save_sync_profile(target, self.owner.sync, self.owner.identity,
                                         frame_check=self.owner.frame_check, overwrite=True)

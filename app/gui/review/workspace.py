@@ -35,6 +35,7 @@ from app.gui.review.motion_view import MotionView
 from app.gui.widgets.adaptive_split import AdaptiveSplit
 from app.gui.widgets.image_panel import ImagePanel
 from app.gui.widgets.qt_jobs import JobHandle, JobRunner
+from app.gui.widgets.questions import replace_question
 from app.gui.widgets.rich_text import RED, coloured
 from app.gui.widgets.settings import AppSettings
 from app.gui.widgets.status_line import StatusLine
@@ -545,9 +546,10 @@ class ReviewWorkspace(QWidget):
             return
         start = self.settings.last_folder("review/export_dir")
         name = str(Path(start) / f"{self.session.path.stem}-{export_slug(r.method)}.tif")
-        path, _ = QFileDialog.getSaveFileName(self, "Export the reconstruction", name, EXPORT_FILTER)
+        path, _ = QFileDialog.getSaveFileName(self, "Export the reconstruction", name, EXPORT_FILTER,
+                                              options=QFileDialog.Option.DontConfirmOverwrite)  # export asks
         if path:
-            self.export(path, overwrite=True)
+            self.export(path)
 
     def export_candidate(self) -> ReconstructionResult | None:
         """What the reconstruction panel shows (a full result or a preview), else the newest full result."""
@@ -559,13 +561,15 @@ class ReviewWorkspace(QWidget):
         """The newest full reconstruction made with exactly ``method`` (None: none yet)."""
         return next((r for r in reversed(self.results) if r.method == method), None)
 
-    def export(self, path, *, overwrite: bool = False) -> JobHandle | None:
+    def export(self, path, *, overwrite: bool | None = None) -> JobHandle | None:
         """Write what the panel shows, over every frame, to ``path`` (.tif, .mp4, .npy, .zarr) off the GUI thread.
 
         A full reconstruction is written as it is. A preview is written as the full reconstruction with the same
         method and options: an existing one, or one made now (with progress and Cancel) and then kept in the
         results. A .zarr export carries the method, its options and the source in its ``flexvox`` attributes;
-        the message names the method and its options whatever the format.
+        the message names the method and its options whatever the format. An existing ``path`` is replaced when
+        ``overwrite`` is True, kept when it is False, and otherwise when the operator says so (the question names
+        it).
         """
         r = self.export_candidate()
         s = self.session
@@ -579,6 +583,12 @@ class ReviewWorkspace(QWidget):
             return None
         path = Path(path)
         self.settings.remember_folder(path, "review/export_dir")
+        if overwrite is None and path.exists() and path.resolve() != s.path.resolve():  # the recording: refused
+            if not replace_question(self, path, "export"):
+                self.export_label.setText(f"not exported: {html.escape(str(path))} is kept (choose another path)")
+                return None
+            overwrite = True
+        overwrite = bool(overwrite)
         try:  # never onto the recording under review; the folder must take the file
             check_output(path, overwrite=overwrite, inputs=[s.path])
         except OutputError as exc:

@@ -13,6 +13,7 @@ from app.gui.models.calibration_model import (
     target_for,
 )
 from app.gui.models.rig_service import RigService
+from app.gui.widgets.questions import Question, answering
 from calibration.files import load_calibration
 from calibration.sync import load_sync_profile
 from rig_drivers.simulated_target import hidden_timing
@@ -82,6 +83,16 @@ def test_calibration_runs_off_the_gui_thread_shows_its_figures_and_saves(qtbot, 
     data = load_calibration(path, outcome.identity)
     np.testing.assert_allclose(data["H"], outcome.homography.homography)
     assert data["sync"]["phase_slots"] == truth_phase
+    # Point 9, one rule for existing files: ask, naming the file (a second Save replaced it unasked)
+    before = path.read_bytes()
+    with answering(False) as asked:
+        ws.save_panel.save_button.click()
+    assert asked == [Question("Replace the existing calibration?",
+                              f"{path} already exists. Replace it with the new calibration?", "Replace")]
+    assert f"not saved: {path} is kept" in ws.save_panel.label.text() and path.read_bytes() == before
+    with answering(True):
+        ws.save_panel.save_button.click()
+    assert f"saved {path}" in ws.save_panel.label.text()
 
 
 def test_cancel_stops_between_steps_and_keeps_nothing(qtbot, calibrate):
@@ -209,6 +220,10 @@ def test_sync_wizard_end_to_end(qtbot, calibrate, tmp_path):
     assert "saved" in wizard.save_page.label.text()
     data = load_sync_profile(path, wizard.identity)
     assert data["sync"]["phase_slots"] == truth_phase and data["frame_check"]["status"] == "ok"
+    with answering(False) as asked:  # the one rule for an existing file
+        wizard.save_page.button.click()
+    assert [q.text for q in asked] == [f"{path} already exists. Replace it with the new sync profile?"]
+    assert f"not saved: {path} is kept" in wizard.save_page.label.text()
     with qtbot.waitSignal(wizard.destroyed, timeout=5000):
         wizard.accept()
 

@@ -6,6 +6,7 @@ import tifffile
 from PySide6.QtCore import QTimer
 
 from app.gui.review.workspace import ReviewWorkspace
+from app.gui.widgets.questions import Question, answering
 
 from .conftest import FRAMES, SIZE
 
@@ -192,8 +193,12 @@ def test_export_writes_the_reconstruction(qtbot, opened, tmp_path, suffix):
             assert r.method.label() in tif.imagej_metadata["Info"]  # the file names what it holds
     else:
         assert path.stat().st_size > 1000
-    assert opened.export(path) is None  # no silent overwrite: refused before any work
-    assert "already exists" in opened.export_label.text()
+    with answering(False) as asked:  # no silent overwrite: asked, naming the file, before any work
+        assert opened.export(path) is None
+    assert asked == [Question("Replace the existing export?", f"{path} already exists. Replace it with the new "
+                                                              "export?", "Replace")]
+    assert f"not exported: {path} is kept" in opened.export_label.text()
+    assert opened.export(path, overwrite=False) is None and "already exists" in opened.export_label.text()
     assert opened.export(opened.session.path) is None  # never onto the recording under review
     assert "an output never replaces its input" in opened.export_label.text()
 

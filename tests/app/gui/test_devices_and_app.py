@@ -212,3 +212,23 @@ def test_closing_the_window_while_review_plays_starts_no_preview_after_the_runne
     assert refused.outcome == "cancelled" and not refused.running
     assert runner.pool.activeThreadCount() == 0  # no job thread still runs
     qtbot.waitUntil(lambda: runner.active == 0, timeout=5000)  # the jobs' last queued signals were delivered
+
+
+def test_a_status_line_keeps_its_height_and_cuts_a_long_text_with_the_whole_on_hover(qtbot):
+    from app.gui.widgets.rich_text import RED, coloured
+    from app.gui.widgets.status_line import StatusLine
+
+    line = StatusLine("short", lines=2)
+    qtbot.addWidget(line)
+    line.resize(300, line.height())
+    line.show()
+    height = line.height()
+    assert not line.elided and line.shown_text() == "short" and line.toolTip() == ""
+    long = coloured("cannot record: " + "a long reason, " * 30, RED)
+    line.setText(long)
+    assert line.height() == height and line.elided and line.text() == long and line.toolTip() == long
+    shown = line.shown_text()
+    assert shown.count("<br>") == 1 and shown.endswith("…</span>") and RED in shown  # two lines, its colour kept
+    assert line.heightForWidth(line.width()) <= height  # what it shows fits
+    with pytest.raises(ValueError, match="`lines` must be at least 1; got 0"):
+        StatusLine(lines=0)

@@ -545,3 +545,45 @@ def test_a_camera_that_goes_away_is_said_in_the_window_s_words(qtbot, settings, 
     assert "connect it in the Devices panel" in error and "start_acquisition" not in error + text
     with answering(default=True):
         window.close()
+
+
+def test_buttons_hold_still_while_status_lines_grow_and_the_method_changes(qtbot, window, recording):
+    """Point 10: status lines keep their height (the whole text on hover), so no button moves under the pointer."""
+    from PySide6.QtCore import QPoint
+
+    from app.gui.widgets.rich_text import RED, coloured
+
+    shown_window(qtbot, window)
+    cal, capture, review = window.calibrate, window.capture, window.review
+    review.preview_check.setChecked(False)
+    review.open_recording(recording)
+    qtbot.waitUntil(lambda: review.session is not None, timeout=10_000)
+    buttons = {"Calibrate": [cal.run_button, cal.cancel_button, cal.save_panel.save_button, cal.save_panel.use_button,
+                             cal.wizard_button],
+               "Capture": [capture.live_panel.live_button, capture.record_panel.record_button,
+                           capture.record_panel.stop_button, capture.record_panel.review_button],
+               "Review": [review.reconstruct_button, review.cancel_button, review.export_button, review.play_button]}
+    lines = {"Calibrate": [cal.step_label, cal.save_panel.label],
+             "Capture": [capture.calibration_panel.status_label, capture.live_panel.live_label,
+                         capture.record_panel.counters_label, capture.record_panel.recording_label],
+             "Review": [review.path_label, review.summary_label, review.expected_label, review.result_label,
+                        review.export_label, review.form.slider_text]}
+    long = coloured("cannot record: " + "a reason that goes on and on, " * 20, RED)
+
+    def where(name):
+        window.show_workspace(name)
+        for _ in range(5):
+            qtbot.wait(10)
+        return [b.mapTo(window, QPoint(0, 0)).toTuple() for b in buttons[name]]
+
+    for name in buttons:
+        before = where(name)
+        if name == "Review":
+            for method in ("gap-tv", "diffusion", "motion-aware", "rebin"):  # the slider's line changes with it
+                review.form.set_method_name(method)
+                assert where(name) == before, method
+        for line in lines[name]:
+            line.setText(long)
+        assert where(name) == before, name
+        for line in lines[name]:
+            assert line.text() == long and line.elided and line.toolTip() == long  # all of it on hover

@@ -14,6 +14,7 @@ from app.gui.models.rig_service import RigService
 from app.gui.review.workspace import ReviewWorkspace
 from app.gui.widgets.device_dock import DeviceDock
 from app.gui.widgets.device_panel import DevicePanel
+from app.gui.widgets.qapp import DEFAULT_SIZE
 from app.gui.widgets.qt_jobs import JobRunner
 from app.gui.widgets.questions import ask
 from app.gui.widgets.rich_text import RED, coloured
@@ -23,8 +24,6 @@ from app.gui.widgets.wheel_guard import guard_value_widgets, install_wheel_guard
 _logger = logging.getLogger(__name__)
 
 WORKSPACES = ("Calibrate", "Capture", "Review")
-DEFAULT_SIZE = (1280, 800)
-"""The first window's size: every workspace's primary actions are in view at this size."""
 
 
 class MainWindow(QMainWindow):

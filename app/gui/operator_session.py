@@ -135,6 +135,8 @@ class OperatorSession:
         self.recording_path: Path | None = None
         self.cancelling_text = ""
         """What the result line said right after Cancel."""
+        self.projector_questions: list = []
+        """The questions asked before the patterns went full-screen."""
 
     # ------------------------------------------------------------------ helpers
     def wait(self, condition, timeout_s: float = 60.0, what: str = "") -> None:
@@ -272,10 +274,12 @@ class OperatorSession:
         return self.recording_path
 
     def projector_window(self):
-        """Show the patterns full-screen and close them again; returns the window while it was open."""
+        """Show the patterns full-screen (on the only screen, answering the question that comes first); returns the
+        window while it was open."""
         projector = self.window.capture.projector
         self.window.capture.controls_scroll.ensureWidgetVisible(projector)  # the operator scrolls down to it
-        self.click(projector.button)
+        with answering(True) as self.projector_questions:
+            self.click(projector.button)
         self.wait(lambda: projector.window is not None, 30, "the projector window")
         self.settle()
         self.shot("capture_projector.png")

@@ -9,6 +9,7 @@ controls describe and :attr:`CodePanel.changed` says when it changed.
 from __future__ import annotations
 
 import html
+from functools import cache
 from pathlib import Path
 
 from PySide6.QtCore import Qt, Signal
@@ -38,6 +39,18 @@ MULTIPLEXED_TIP = ("S-matrix code (K = 3, 7, 15: 1x3, 1x7, 3x5), each pixel open
                    "bench_multiplex_light.py: +1.4 to +7.6 dB over the identity code at 50 electrons per unit or "
                    "fewer, 150 with 10 e- read noise) and loses 0.5 to 3.1 dB in brighter light")
 """The multiplexed choice's tooltip: where multiplexing wins (docs/reconstruction.md, "Multiplexed codes")."""
+
+
+@cache
+def no_s_matrix(K: int) -> str:
+    """Why no S-matrix code of K slots exists ("" when one does)."""
+    from flexvox_core.multiplex import s_matrix
+
+    try:
+        s_matrix(int(K))
+    except ValueError as exc:
+        return str(exc)
+    return ""
 
 
 class CodePanel(QWidget):
@@ -191,12 +204,25 @@ class CodePanel(QWidget):
             w.setEnabled(not locked)
         for w in (self.tile_box, self.identity, self.multiplexed):
             w.setEnabled(not locked and not from_file)
+        m, n = self.tile()
+        reason = no_s_matrix(m * n)
+        if reason:
+            self.multiplexed.setEnabled(False)
+        self.multiplexed.setText(f"multiplexed (S-matrix): none for K = {m * n}" if reason else
+                                 "multiplexed (S-matrix)")
+        self.multiplexed.setToolTip(f"not for this tile: {reason}" if reason else MULTIPLEXED_TIP)
         self.tile_code_button.setEnabled(not locked and from_file)
         self.exposure.setEnabled(not locked and not self.auto_exposure.isChecked())
 
     # ------------------------------------------------------------------ what the controls say
     def _on_changed(self, *_) -> None:
         m, n = self.tile()
+        if self.multiplexed.isChecked() and no_s_matrix(m * n):  # none for this tile: the identity code, said
+            for b in (self.identity, self.multiplexed):
+                b.blockSignals(True)
+            self.identity.setChecked(True)
+            for b in (self.identity, self.multiplexed):
+                b.blockSignals(False)
         s = self.settings
         s.set("capture/tile", f"{m}x{n}")
         s.set("capture/multiplexed", self.multiplexed.isChecked())

@@ -18,6 +18,8 @@ Its widgets sit in two places: :attr:`LivePanel.controls` (a box for the control
 from __future__ import annotations
 
 import html
+import math
+import time
 
 import numpy as np
 import pyqtgraph as pg
@@ -36,6 +38,9 @@ from app.gui.widgets.rich_text import RED, coloured
 from app.gui.widgets.settings import AppSettings
 from app.gui.widgets.status_line import StatusLine
 
+DEBOUNCE_S = 0.6
+"""A second click on Start/Stop live view sooner than this after the first is a double click: it is ignored (a
+double click started the live view and stopped it after one frame)."""
 DISPLAY_HZ = 30
 """The live image is redrawn at most this often, whatever the camera's rate."""
 SATURATION_RGBA = (255, 0, 0, 170)
@@ -66,6 +71,9 @@ class LivePanel(QObject):
         self._delay_set_by_hand = delay_set_by_hand
         self._busy = busy
         self.stats = LiveStats()
+        self.clock = time.monotonic
+        """The clock the button's debounce reads (tests set their own)."""
+        self._toggled_at = -math.inf
         self.refused: str | None = None
         """Why the last start was refused, while that is shown: "busy" (the rig) or "settings"; None otherwise."""
         self.stream = LiveStream(self)
@@ -160,6 +168,11 @@ class LivePanel(QObject):
         return self.stream.running
 
     def _on_live_toggled(self, on: bool) -> None:
+        now = self.clock()
+        if now - self._toggled_at < DEBOUNCE_S:  # the second click of a double click
+            self.set_button(self.running)
+            return
+        self._toggled_at = now
         if on:
             self.start()
         else:

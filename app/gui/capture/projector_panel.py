@@ -11,6 +11,7 @@ from __future__ import annotations
 import html
 
 from PySide6.QtCore import Qt
+from PySide6.QtGui import QGuiApplication
 from PySide6.QtWidgets import QFormLayout, QGroupBox, QLabel, QPushButton
 
 from app.gui.models.live_source import projector_size
@@ -18,6 +19,7 @@ from app.gui.models.operator_words import in_gui_words
 from app.gui.models.rig_service import RigService
 from app.gui.projector.window import ProjectorWindow, ScreenPicker
 from app.gui.widgets.qt_jobs import JobRunner
+from app.gui.widgets.questions import ask
 from app.gui.widgets.rich_text import AMBER, RED, coloured
 
 
@@ -81,6 +83,14 @@ class ProjectorPanel(QGroupBox):
         screen = self.chosen_screen()
         if screen is None:
             self.label.setText(coloured("no screen to show the patterns on", RED))
+            self._set_button(False)
+            return False
+        if len(QGuiApplication.screens()) == 1 and not ask(
+                self, "Cover the only screen?",
+                f"{screen.name() or 'This screen'} is the only screen: the patterns would cover all of it, this window "
+                "too, until you press Esc. Connect the projector's video input as a second screen to keep this one.\n\n"
+                "Show the patterns full-screen here?", accept="Show full-screen", reject="Cancel"):
+            self.label.setText("not shown: it is the only screen")
             self._set_button(False)
             return False
         plan = self._plan()

@@ -232,3 +232,48 @@ def test_a_status_line_keeps_its_height_and_cuts_a_long_text_with_the_whole_on_h
     assert line.heightForWidth(line.width()) <= height  # what it shows fits
     with pytest.raises(ValueError, match="`lines` must be at least 1; got 0"):
         StatusLine(lines=0)
+
+
+STARTUP_SCRIPT = """
+import sys, time
+from PySide6.QtCore import QTimer
+from PySide6.QtWidgets import QApplication
+from app.gui.application import StartupWindow, launch
+from app.gui.widgets.settings import settings_at
+
+seen = {}
+
+def open_the_rig():
+    # what the operator sees while the rig opens: the start-up window, before any workspace was imported
+    seen["startup shown"] = any(isinstance(w, StartupWindow) and w.isVisible() for w in QApplication.topLevelWidgets())
+    seen["workspaces not loaded yet"] = "app.gui.main_window" not in sys.modules
+    from rig_drivers.profile import open_rig
+    return open_rig("mock", scene="balls", camera_size=(48, 64), subframes=64)
+
+def close_when_shown():  # runs from the first events on: it must not import the workspaces itself
+    windows = [w for w in QApplication.topLevelWidgets() if type(w).__name__ == "MainWindow" and w.isVisible()]
+    if windows:
+        seen["startup gone"] = not any(isinstance(w, StartupWindow) and w.isVisible()
+                                       for w in QApplication.topLevelWidgets())
+        windows[0].close()
+    else:
+        QTimer.singleShot(20, close_when_shown)
+
+QTimer.singleShot(0, close_when_shown)
+status = launch(open_the_rig, settings=settings_at(sys.argv[1]))
+print(seen, "status", status)
+"""
+
+
+def test_the_first_window_shows_at_once_and_the_rest_loads_behind_it(tmp_path):
+    """Point 11: the start-up window shows before the rig opens and the workspaces load, and goes when they are in."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, QT_QPA_PLATFORM="offscreen")
+    out = subprocess.run([sys.executable, "-c", STARTUP_SCRIPT, str(tmp_path / "s.ini")], capture_output=True,
+                         text=True, env=env, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert ("{'startup shown': True, 'workspaces not loaded yet': True, 'startup gone': True} status 0"
+            in out.stdout), out.stdout + out.stderr[-2000:]

@@ -29,7 +29,7 @@ from flexvox_core.motion.pipeline import (
 )
 
 REFINE_SHOWN = "(K/16)²"
-"""What forms show for the default refinement time: it depends on the code (1 at K = 16, 0.5 at K = 8)."""
+"""What forms show for the default refinement time: it depends on the code (1 at K = 16, 0.25 at K = 8)."""
 
 _LABEL = re.compile(
     r"^motion-aware (?P<flow>\w+) n=(?P<time>[\d.]+)(?: \+refine (?P<refine>[\d.]+))?(?: x(?P<passes>\d+))?"

@@ -277,3 +277,21 @@ def test_the_first_window_shows_at_once_and_the_rest_loads_behind_it(tmp_path):
     assert out.returncode == 0, out.stderr[-2000:]
     assert ("{'startup shown': True, 'workspaces not loaded yet': True, 'startup gone': True} status 0"
             in out.stdout), out.stdout + out.stderr[-2000:]
+
+
+def test_the_docs_say_what_the_application_does():
+    """Point 12: the README's Debian list has the libraries Qt's xcb platform needs; docs/application.md quotes the
+    refinement default as the form shows it and says what a TIFF export carries (the writer's ImageJ metadata)."""
+    from pathlib import Path
+
+    from flexvox_core.methods.motion_aware import REFINE_SHOWN
+    from flexvox_core.video_io import imagej_metadata
+
+    root = Path(__file__).resolve().parents[3]
+    readme = (root / "README.md").read_text()
+    apt = readme[readme.index("sudo apt install libgl1"):].split("`")[0]
+    assert {"libxcb-cursor0", "libxcb-icccm4", "libxcb-keysyms1"} <= set(apt.split())
+    app_doc = " ".join((root / "docs" / "application.md").read_text().split())
+    assert f'"default ({REFINE_SHOWN})"' in app_doc and "TIFF, NPY and MP4 files carry no attributes" not in app_doc
+    meta = imagej_metadata(1 / 240, {"method": "m"})
+    assert {"finterval", "Info"} <= set(meta) and "ImageJ Info" in app_doc and "`finterval`" in app_doc

@@ -5,8 +5,8 @@ re-exported here for callers that build a window.
 
 :func:`launch` shows a window at once (:class:`StartupWindow`, which says what is loading) and only then
 opens the rig (when it is given as a callable), imports the workspaces and builds the main window
-behind it: the operator sees the application start within a second, not after the 9–14 s the whole
-of it can take on a lab machine. This module imports only Qt at its top for that reason.
+behind it, so the operator sees the application start before the slow part of starting it. This
+module imports only Qt (and pyqtgraph) at its top for that reason.
 """
 
 from __future__ import annotations

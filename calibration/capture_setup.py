@@ -25,6 +25,7 @@ while the recommended delay is set are one slot off.
 from __future__ import annotations
 
 import datetime as _dt
+import hashlib
 import logging
 import math
 from dataclasses import dataclass, field, replace
@@ -133,6 +134,8 @@ class CaptureCalibration:
         When the calibration was made (ISO date), "" when unknown.
     calibrated : bool
         True when the homography was measured (False: the identity stand-in).
+    sha256 : str
+        The calibration file's content hash (hex), "" when the calibration is no file's.
     """
 
     homography: np.ndarray = field(default_factory=lambda: np.eye(3))
@@ -141,6 +144,7 @@ class CaptureCalibration:
     rms_px: float | None = None
     created: str = ""
     calibrated: bool = False
+    sha256: str = ""
 
     def __post_init__(self):
         try:
@@ -200,7 +204,8 @@ class CaptureCalibration:
                 "phase_slots": self.phase_slots, "trigger_delay_us": self.trigger_delay_us,
                 "sync": None if s is None else {"K": s.K, "period_us": s.period_us, "raw_phase_slots":
                                                 s.raw_phase_slots, "offset_us": s.offset_us},
-                "rms_px": self.rms_px, "created": self.created, "source": self.source}
+                "rms_px": self.rms_px, "created": self.created, "source": self.source,
+                "sha256": self.sha256 or None}
 
     def describe(self) -> str:
         """One line: origin, date, RMS, phase and delay."""
@@ -208,6 +213,20 @@ class CaptureCalibration:
         sync = "no sync" if self.sync is None else self.sync.describe()
         when = f" · {self.created}" if self.created else ""
         return f"{self.source}{when} · RMS {rms} · {sync}"
+
+
+def file_sha256(path) -> str:
+    """The SHA-256 of a file's bytes (hex): what names a calibration file's content."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def named(path: Path, sha256: str) -> str:
+    """A file as a recording names it: its path and the start of its content hash."""
+    return f"{path} (sha256 {sha256[:16]})"
 
 
 def _format_of(path: Path) -> str | None:
@@ -250,9 +269,10 @@ def load_for_capture(path, identity) -> CaptureCalibration:
     sync = SyncTiming.from_summary(data.get("sync"))
     rms = quality.get("rms_px")
     created = str(data.get("created", ""))
-    _logger.info("calibration for capture: %s", path)
-    source = f"{path}" + (" (a partial calibration)" if quality.get("status") == "partial" else "")
-    return CaptureCalibration(data["H"], sync, source, None if rms is None else float(rms), created, True)
+    sha256 = file_sha256(path)
+    _logger.info("calibration for capture: %s (sha256 %s)", path, sha256)
+    source = named(path, sha256) + (" (a partial calibration)" if quality.get("status") == "partial" else "")
+    return CaptureCalibration(data["H"], sync, source, None if rms is None else float(rms), created, True, sha256)
 
 
 def load_sync_for_capture(path, identity, *, base: CaptureCalibration | None = None) -> CaptureCalibration:
@@ -276,7 +296,8 @@ def load_sync_for_capture(path, identity, *, base: CaptureCalibration | None = N
     if sync is None:
         raise CalibrationRefused(f"{path}: the sync profile holds no successful measurement")
     _logger.info("sync profile for capture: %s (%s)", path, sync.describe())
-    return (base or CaptureCalibration()).with_sync(sync, source=f"{path} ({data.get('created', 'undated')})")
+    return (base or CaptureCalibration()).with_sync(
+        sync, source=f"{named(path, file_sha256(path))}, made {data.get('created', 'undated')}")
 
 
 def from_run(run, run_identity, identity, *, now=None) -> CaptureCalibration:
@@ -308,5 +329,5 @@ def from_run(run, run_identity, identity, *, now=None) -> CaptureCalibration:
                               "the calibration just run (not saved)", float(hom.rms_px), when, True)
 
 
-__all__ = ["CalibrationRefused", "CaptureCalibration", "SyncTiming", "from_run", "load_for_capture",
-           "load_sync_for_capture"]
+__all__ = ["CalibrationRefused", "CaptureCalibration", "SyncTiming", "file_sha256", "from_run", "load_for_capture",
+           "load_sync_for_capture", "named"]

@@ -6,22 +6,24 @@ import logging
 
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QAction, QKeySequence
-from PySide6.QtWidgets import QDockWidget, QMainWindow, QTabWidget
+from PySide6.QtWidgets import QMainWindow, QTabWidget
 
 from app.gui.calibrate.workspace import CalibrateWorkspace
 from app.gui.capture.workspace import CaptureWorkspace
 from app.gui.models.rig_service import RigService
 from app.gui.review.workspace import ReviewWorkspace
+from app.gui.widgets.device_dock import DeviceDock
 from app.gui.widgets.device_panel import DevicePanel
+from app.gui.widgets.qapp import DEFAULT_SIZE
 from app.gui.widgets.qt_jobs import JobRunner
+from app.gui.widgets.questions import ask
 from app.gui.widgets.rich_text import RED, coloured
 from app.gui.widgets.settings import AppSettings
+from app.gui.widgets.wheel_guard import guard_value_widgets, install_wheel_guard
 
 _logger = logging.getLogger(__name__)
 
 WORKSPACES = ("Calibrate", "Capture", "Review")
-DEFAULT_SIZE = (1280, 800)
-"""The first window's size: every workspace's primary actions are in view at this size."""
 
 
 class MainWindow(QMainWindow):
@@ -47,6 +49,7 @@ class MainWindow(QMainWindow):
         self.service = service
         self.settings = settings
         self.runner = runner
+        self._closed = False
         rig = "simulated rig" if service.simulated else service.name
         self.setWindowTitle(f"flexvox — {rig}")
         self.calibrate = CalibrateWorkspace(service, settings, runner, rig_guard=self._capture_busy)
@@ -58,16 +61,15 @@ class MainWindow(QMainWindow):
             self.tabs.addTab(w, name)
         self.setCentralWidget(self.tabs)
         self.devices = DevicePanel(service)
-        dock = QDockWidget("Devices", self)
-        dock.setObjectName("devices")
-        dock.setWidget(self.devices)
-        dock.setFeatures(QDockWidget.DockWidgetFeature.DockWidgetMovable
-                         | QDockWidget.DockWidgetFeature.DockWidgetFloatable)
-        self.addDockWidget(Qt.DockWidgetArea.LeftDockWidgetArea, dock)
+        self.device_dock = DeviceDock(self.devices, service, settings, self)
+        self.addDockWidget(Qt.DockWidgetArea.LeftDockWidgetArea, self.device_dock)
         self.review.status.connect(lambda text: self.statusBar().showMessage(text, 8000))
         self.capture.open_requested.connect(self._review_recording)
+        self.capture.recording_finished.connect(lambda _: self.calibrate.recheck_refusals())
         self.calibrate.status.connect(lambda text: self.statusBar().showMessage(text, 8000))
         self.calibrate.use_for_capture.connect(self._use_for_capture)
+        self.calibrate.save_panel.saved.connect(
+            lambda path: self.capture.outcome_saved(self.calibrate.save_panel.outcome, path))
 
         menu = self.menuBar().addMenu("&File")
         open_action = QAction("&Open recording…", self)
@@ -78,6 +80,13 @@ class MainWindow(QMainWindow):
         quit_action.triggered.connect(self.close)
         menu.addAction(open_action)
         menu.addAction(quit_action)
+        view = self.menuBar().addMenu("&View")
+        self.fold_action = QAction("&Fold the Devices panel", self)
+        self.fold_action.setCheckable(True)
+        self.fold_action.setChecked(self.device_dock.folded)
+        self.fold_action.toggled.connect(self.device_dock.set_folded)
+        self.device_dock.folded_changed.connect(self.fold_action.setChecked)
+        view.addAction(self.fold_action)
 
         geometry = settings.get_bytes("window/geometry")
         if geometry is not None:
@@ -88,6 +97,9 @@ class MainWindow(QMainWindow):
         self.tabs.setCurrentIndex(min(max(settings.get_int("window/tab", 0), 0), len(WORKSPACES) - 1))
         self.statusBar().showMessage("simulated rig: every device is a simulation" if service.simulated
                                      else f"rig profile: {service.name}")
+        # The wheel scrolls the columns; it changes a value only in the widget the operator clicked into.
+        install_wheel_guard()
+        guard_value_widgets(self)
 
     def _capture_busy(self) -> str | None:
         """What keeps the Calibrate workspace off the rig: a recording (a live view is stopped for it)."""
@@ -102,8 +114,9 @@ class MainWindow(QMainWindow):
         return self.calibrate.rig_busy_reason()
 
     def _use_for_capture(self, outcome) -> None:
-        """Hand the Calibrate workspace's result to Capture; say in the status bar whether it was taken."""
-        used = self.capture.use_outcome(outcome)
+        """Hand the Calibrate workspace's result to Capture (as its file when it was saved); say in the status bar
+        whether it was taken."""
+        used = self.capture.use_outcome(outcome, self.calibrate.save_panel.saved_path)
         self.statusBar().showMessage("Capture now records with this calibration" if used else
                                      "Capture refused the calibration: see its Calibration box", 8000)
         if used:
@@ -124,8 +137,22 @@ class MainWindow(QMainWindow):
         """Bring the named workspace forward."""
         self.tabs.setCurrentIndex(WORKSPACES.index(name))
 
+    def closing_losses(self) -> list[str]:
+        """What closing the window now would stop or lose, in words (empty: nothing)."""
+        return self.capture.closing_losses() + self.calibrate.closing_losses() + self.review.closing_losses()
+
     def closeEvent(self, event) -> None:  # noqa: N802 - Qt's name
-        """Stop live view and jobs, close devices, save the window."""
+        """Ask first when closing would stop a recording or a calibration or lose results; then stop live view and
+        jobs, close devices, save the window."""
+        if self._closed:
+            event.accept()
+            return
+        losses = self.closing_losses()
+        if losses and not ask(self, "Quit flexvox?", "Closing the window now:\n\n" + "\n".join(
+                f"• {line}" for line in losses) + "\n\nQuit anyway?", accept="Quit", reject="Keep working"):
+            event.ignore()
+            return
+        self._closed = True
         self.settings.set("window/geometry", self.saveGeometry())
         self.settings.set("window/tab", self.tabs.currentIndex())
         self.settings.sync()

@@ -7,8 +7,9 @@ checked. The steps: connect the devices, calibrate, the sync wizard, save, use f
 code, live view with its preview, record, open in Review, diffusion, motion-aware, the continuum slider,
 the motion overlay, compare, export, cancel, quit.
 
-:func:`outside_view` and :func:`clipped` are the checks: a primary action must lie inside the window and
-inside the visible part of any scroll area around it; a label's text must fit its label.
+:func:`outside_view`, :func:`clipped` and :func:`too_wide` are the checks: a primary action must lie inside
+the window and inside the visible part of any scroll area around it; a label's text must fit its label; a
+column's contents must fit its width.
 
 File dialogs are not opened: the steps type the path into the field the dialog fills (a test cannot
 answer a native dialog), and export takes its path as the dialog would return it.
@@ -25,6 +26,7 @@ from PySide6.QtCore import QPoint, QRect
 from PySide6.QtWidgets import QAbstractButton, QApplication, QComboBox, QLabel, QScrollArea, QWidget, QWizard
 
 from app.gui.widgets.elided_label import ElidedLabel
+from app.gui.widgets.questions import answering
 
 _logger = logging.getLogger(__name__)
 
@@ -91,6 +93,17 @@ def clipped(widgets) -> list[str]:
     return bad
 
 
+def too_wide(areas) -> list[str]:
+    """The scroll areas of ``areas`` whose contents are wider than their view (cut off at the right: their
+    horizontal scroll bars are off). Returns their descriptions."""
+    bad = []
+    for area in areas:
+        inner, port = area.widget().width(), area.viewport().width()
+        if area.isVisible() and inner > port:
+            bad.append(f"{_describe(area)}: contents {inner} px wide in a view of {port} px")
+    return bad
+
+
 def _describe(w: QWidget) -> str:
     text = w.text() if isinstance(w, QAbstractButton | QLabel) else ""
     return f"{type(w).__name__} {text[:40]!r}" if text else type(w).__name__
@@ -122,6 +135,8 @@ class OperatorSession:
         self.recording_path: Path | None = None
         self.cancelling_text = ""
         """What the result line said right after Cancel."""
+        self.projector_questions: list = []
+        """The questions asked before the patterns went full-screen."""
 
     # ------------------------------------------------------------------ helpers
     def wait(self, condition, timeout_s: float = 60.0, what: str = "") -> None:
@@ -259,10 +274,12 @@ class OperatorSession:
         return self.recording_path
 
     def projector_window(self):
-        """Show the patterns full-screen and close them again; returns the window while it was open."""
+        """Show the patterns full-screen (on the only screen, answering the question that comes first); returns the
+        window while it was open."""
         projector = self.window.capture.projector
         self.window.capture.controls_scroll.ensureWidgetVisible(projector)  # the operator scrolls down to it
-        self.click(projector.button)
+        with answering(True) as self.projector_questions:
+            self.click(projector.button)
         self.wait(lambda: projector.window is not None, 30, "the projector window")
         self.settle()
         self.shot("capture_projector.png")
@@ -308,11 +325,12 @@ class OperatorSession:
         self.settle()
 
     def slide(self, position: float):
-        """Move the continuum slider and wait for its preview; returns the result shown."""
+        """Move the continuum slider and wait for its preview; returns the preview (beside the chosen method's
+        result when there is one)."""
         review = self.window.review
         review.form.set_position(position)
         self.wait_preview()
-        return review.shown
+        return review.comparison or review.shown
 
     def motion_overlay(self, mode: str = "color") -> None:
         """Show the Motion tab, as colour wheel or quiver."""
@@ -359,8 +377,11 @@ class OperatorSession:
         self.settle()
         return job
 
-    def quit(self) -> None:
-        """File ▸ Quit."""
+    def quit(self, answer: bool = True) -> list:
+        """File ▸ Quit, answering ``answer`` when the window asks first (it names what would be lost); returns the
+        questions asked."""
         quit_action = next(a for a in self.window.menuBar().actions()[0].menu().actions() if "Quit" in a.text())
-        quit_action.trigger()
+        with answering(answer) as asked:
+            quit_action.trigger()
         self.settle()
+        return asked

@@ -9,8 +9,10 @@ preview), ``capture_recording.png`` (the recording ended, "Open in Review" next)
 (the workspace saying where the projector output window shows) and ``projector_window.png`` (the window's
 top-left corner, where the packed pattern sits at its native size, magnified ×4 without smoothing);
 in Review, after diffusion and motion-aware reconstructions, ``review.png`` (the slider's diffusion
-preview beside the motion-aware choice), ``review_motion.png`` (the flow and the TR map of the
-motion-aware result) and ``review_compare.png``. Settings go to a temporary INI file, never the user's.
+preview beside the motion-aware result), ``review_motion.png`` (the flow and the TR map of the
+motion-aware result) and ``review_compare.png``; then at 1024×700 with the Devices dock folded,
+``calibrate_1024x700.png``, ``capture_1024x700.png`` and ``review_1024x700.png``. Settings go to a
+temporary INI file, never the user's.
 """
 
 from __future__ import annotations
@@ -25,6 +27,8 @@ from pathlib import Path
 _logger = logging.getLogger(__name__)
 
 SIZE = (1280, 800)
+SMALL = (1024, 700)
+"""The small screen the application must work on (every primary action and the scrubber in view)."""
 RECORDED_FRAMES = 12
 
 
@@ -98,6 +102,14 @@ def render(out_dir) -> list[Path]:
             shot("review_motion.png")
             s.compare()
             shot("review_compare.png")
+            # The small screen: 1024×700 with the Devices dock folded to its strip, each workspace as left.
+            s.frames_tab()
+            window.device_dock.set_folded(True)
+            window.resize(*SMALL)
+            for name in ("Calibrate", "Capture", "Review"):
+                window.show_workspace(name)
+                s.settle()
+                shot(f"{name.lower()}_1024x700.png")
             s.quit()
         finally:
             if window.isVisible():  # a step failed: stop the devices and the jobs all the same

@@ -10,16 +10,19 @@ from __future__ import annotations
 
 import html
 
-from PySide6.QtCore import QObject, Qt, QTimer
-from PySide6.QtWidgets import QCheckBox, QGroupBox, QLabel, QVBoxLayout, QWidget
+from PySide6.QtCore import QObject, QTimer
+from PySide6.QtWidgets import QCheckBox, QGroupBox, QVBoxLayout, QWidget
 
 from app.gui.calibrate.projector_screen import ProjectorScreen
 from app.gui.calibrate.results_view import ResultsView
 from app.gui.models.calibration_model import measure_live_colocation, target_for
+from app.gui.models.operator_words import in_gui_words
 from app.gui.models.rig_service import RigService
 from app.gui.widgets.qt_jobs import JobHandle, JobRunner
 from app.gui.widgets.rich_text import RED, coloured
+from app.gui.widgets.status_line import StatusLine
 
+LIVE_USER = "co-location live"
 LIVE_INTERVAL_MS = 300
 """Pause between two live co-location measurements."""
 
@@ -54,19 +57,27 @@ class LiveColocation(QObject):
         """The newest :class:`~app.gui.models.calibration_model.LiveColocation` (numbers, image, projector size)."""
         self._target = None
         box = QGroupBox("Co-location live", parent)
-        self.check = QCheckBox("measure continuously (while you adjust the beam splitter)")
-        self.label = QLabel("off")
-        self.label.setWordWrap(True)
-        self.label.setTextFormat(Qt.TextFormat.RichText)
+        self.check = QCheckBox("measure continuously")
+        self.check.setToolTip("re-measure the offset, rotation and scale while you adjust the beam splitter")
+        self.label = StatusLine("off", lines=3)
         v = QVBoxLayout(box)
         v.addWidget(self.check)
         v.addWidget(self.label)
         self.box = box
+        self.refused = False
+        """True while a refusal to measure is shown."""
         self.timer = QTimer(self)
         self.timer.setSingleShot(True)
         self.timer.setInterval(LIVE_INTERVAL_MS)
         self.timer.timeout.connect(self._measure)
         self.check.toggled.connect(self.set_live)
+
+    def recheck(self) -> None:
+        """The rig was freed: take a refusal to measure off the screen."""
+        if self.refused and not self.live:
+            self.refused = False
+            self.label.setText("off" if self.alignment is None else
+                               f"stopped · last: {html.escape(self.alignment.message)}")
 
     @property
     def live(self) -> bool:
@@ -84,11 +95,15 @@ class LiveColocation(QObject):
             busy = blocked or self._guard() or self.screen.attach("live")
             if busy:
                 self.label.setText(coloured(f"cannot measure: {busy}", RED))
+                self.refused = True
                 on = False
+            else:
+                self.refused = False
         self.check.blockSignals(True)
         self.check.setChecked(on)
         self.check.blockSignals(False)
         if on:
+            self.service.begin_use(LIVE_USER)
             self.label.setText("measuring …")
             self.view.setCurrentWidget(self.view.colocation_view)
             self.view.colocation_view.set_title("co-location live: measuring …")
@@ -98,7 +113,7 @@ class LiveColocation(QObject):
             if self.measuring:
                 self.job.cancel()
             else:
-                self.screen.release("live")
+                self._release()
             if not self.label.text().startswith("<span"):
                 self.label.setText("off" if self.alignment is None else
                                    f"stopped · last: {html.escape(self.alignment.message)}")
@@ -138,11 +153,16 @@ class LiveColocation(QObject):
         self.label.setText(text)
 
     def _on_failed(self, message: str) -> None:
-        self.label.setText(coloured(f"live co-location stopped: {message}", RED))
+        self.label.setText(coloured(f"live co-location stopped: {in_gui_words(message)}", RED))
         self.set_live(False)
 
     def _on_done(self) -> None:
         if self.live:
             self.timer.start()
         else:
-            self.screen.release("live")
+            self._release()
+
+    def _release(self) -> None:
+        """The live numbers are off and no measurement runs: the screen and the devices are free."""
+        self.screen.release("live")
+        self.service.end_use(LIVE_USER)

@@ -13,7 +13,7 @@ from PySide6.QtWidgets import QLabel, QScrollArea, QTabWidget, QVBoxLayout, QWid
 from app.gui.calibrate.colocation_view import ColocationView
 from app.gui.models.calibration_model import CalibrationOutcome, summary_rows, verdict
 from app.gui.widgets.image_panel import ImagePanel
-from app.gui.widgets.rich_text import GREEN, GREY, RED
+from app.gui.widgets.rich_text import AMBER, GREEN, GREY, RED
 
 UNDECODED_RGBA = (60, 60, 90, 255)
 WRONG_RGB = (230, 40, 40)
@@ -24,14 +24,20 @@ def _colour(good: bool | None) -> str:
     return GREY if good is None else (GREEN if good else RED)
 
 
-def results_html(outcome: CalibrationOutcome) -> str:
-    """The results page (rich text): one table per step with its verdict and message."""
-    parts = []
-    said = ("succeeded: save it" if outcome.success
-            else f"stopped: the {outcome.report.get('failed', 'last')} step failed")
-    verdict_word = (f"<b style='color:{GREEN if outcome.success else RED}'>calibration {html.escape(said)}</b> "
-                    f"in {outcome.seconds:.1f} s")
-    parts.append(f"<p>{verdict_word}</p>")
+def results_html(outcome: CalibrationOutcome, note: str = "") -> str:
+    """The results page (rich text): one table per step with its verdict and message; ``note`` first (in amber)
+    when these results are not the newest run's."""
+    parts = [f"<p style='color:{AMBER}'><b>{html.escape(note)}</b></p>"] if note else []
+    when = f" at {outcome.finished_at}" if outcome.finished_at else ""
+    if outcome.success:
+        said = f"calibration succeeded in {outcome.seconds:.1f} s{when}"
+        then = ": save it, or use it for capture"
+    else:
+        said = f"calibration stopped after {outcome.seconds:.1f} s{when}: the {outcome.report.get('failed', 'last')} " \
+               "step failed"
+        then = ""
+    parts.append(f"<p><b style='color:{GREEN if outcome.success else RED}'>{html.escape(said)}</b>"
+                 f"{html.escape(then)}</p>")
     for title, figures, status, message in summary_rows(outcome):
         word, good = verdict(status)
         rows = "".join(f"<tr><td>{html.escape(k)}</td><td><b>{html.escape(v)}</b></td></tr>" for k, v in figures)
@@ -81,11 +87,17 @@ class ResultsView(QTabWidget):
         self.addTab(self.residuals, "Residuals")
         self.addTab(self.wrong_panel, "Shutter")
         self.addTab(sync_page, "Sync")
-        self.addTab(self.colocation_view, "Co-location live")
+        self.addTab(self.colocation_view, "Co-location")
+        self.setTabToolTip(self.count() - 1, "co-location live: the camera with the projector's grid, while you "
+                                             "adjust the beam splitter")
 
-    def show_outcome(self, outcome: CalibrationOutcome) -> None:
-        """Show a run's figures, maps and plots."""
-        self.results.setText(results_html(outcome))
+    def show_message(self, text: str) -> None:
+        """Say ``text`` on the results page instead of a run's results."""
+        self.results.setText(f"<p>{html.escape(text)}</p>")
+
+    def show_outcome(self, outcome: CalibrationOutcome, *, note: str = "") -> None:
+        """Show a run's figures, maps and plots (``note``: why these are not the newest run's)."""
+        self.results.setText(results_html(outcome, note))
         hom = outcome.homography
         if hom is not None and np.isfinite(hom.residual_map).any():
             rmap = hom.residual_map

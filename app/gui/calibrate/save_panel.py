@@ -5,12 +5,15 @@ from __future__ import annotations
 import html
 from pathlib import Path
 
-from PySide6.QtCore import Qt, Signal
-from PySide6.QtWidgets import QFileDialog, QGroupBox, QHBoxLayout, QLabel, QLineEdit, QPushButton, QVBoxLayout
+from PySide6.QtCore import Signal
+from PySide6.QtWidgets import QFileDialog, QGroupBox, QHBoxLayout, QLineEdit, QPushButton, QVBoxLayout
 
 from app.gui.models.calibration_model import CalibrationOutcome
+from app.gui.models.operator_words import in_gui_words
+from app.gui.widgets.questions import replace_question
 from app.gui.widgets.rich_text import AMBER, GREEN, RED, coloured
 from app.gui.widgets.settings import AppSettings
+from app.gui.widgets.status_line import StatusLine
 
 
 class SavePanel(QGroupBox):
@@ -30,8 +33,6 @@ class SavePanel(QGroupBox):
         self.outcome: CalibrationOutcome | None = None
         self.saved_path: Path | None = None
         """Where the current outcome was saved (None: not saved)."""
-        self._replace_ok: Path | None = None
-        """An existing file the operator agreed to replace (a second Save, or the file dialog's question)."""
         self.path = QLineEdit(settings.get_str("calibrate/path", ""))
         self.path.setPlaceholderText("folder/rig-calibration.json")
         self.browse = QPushButton("Browse…")
@@ -40,9 +41,7 @@ class SavePanel(QGroupBox):
         row.addWidget(self.browse)
         self.save_button = QPushButton("Save calibration")
         self.save_button.setEnabled(False)
-        self.label = QLabel("run a calibration first")
-        self.label.setWordWrap(True)
-        self.label.setTextFormat(Qt.TextFormat.RichText)
+        self.label = StatusLine("run a calibration first", lines=2)
         self.use_button = QPushButton("Use for capture")
         self.use_button.setToolTip("hand this homography, sync phase and trigger delay to the Capture workspace")
         self.use_button.setEnabled(False)
@@ -74,19 +73,34 @@ class SavePanel(QGroupBox):
         else:
             self.label.setText(html.escape(note))
 
+    def hold(self, note: str) -> None:
+        """A new calibration runs: nothing can be saved or used until it ends; ``note`` says so."""
+        self.save_button.setEnabled(False)
+        self.use_button.setEnabled(False)
+        self.label.setText(html.escape(note))
+
+    def release(self, note: str) -> None:
+        """The run ended without a new result: the outcome held before is offered again (saved or not, as it
+        was); ``note`` says what happened."""
+        ok = self.outcome is not None and self.outcome.success
+        self.save_button.setEnabled(ok)
+        self.use_button.setEnabled(ok)
+        saved = f"; saved as {self.saved_path}" if ok and self.saved_path is not None else ""
+        self.label.setText(html.escape(note + saved))
+
     def _browse(self) -> None:
         start = self.path.text() or str(Path(self.settings.last_folder()) / "rig-calibration.json")
-        path, _ = QFileDialog.getSaveFileName(self, "Save calibration", start, "Calibration (*.json)")
+        path, _ = QFileDialog.getSaveFileName(self, "Save calibration", start, "Calibration (*.json)",
+                                              options=QFileDialog.Option.DontConfirmOverwrite)  # Save asks
         if path:
             self.settings.remember_folder(path)
             self.path.setText(path)
-            self._replace_ok = Path(path).expanduser()  # the dialog asked before it returned an existing file
 
     def save(self, path) -> Path | None:
         """Write the calibration file; None (with the reason shown) when it cannot.
 
-        An existing file is replaced only once the operator agreed: the first Save says it exists,
-        the second replaces it (atomically: the old file stays until the new one is complete).
+        An existing file is replaced only when the operator answers Replace to the question that names it
+        (atomically: the old file stays until the new one is complete).
         """
         from calibration.errors import CalibrationError
         from calibration.files import save_calibration
@@ -98,16 +112,14 @@ class SavePanel(QGroupBox):
             self.label.setText(coloured("choose where to save (folder/name.json)", RED))
             return None
         target = Path(path).expanduser()
-        if target.exists() and self._replace_ok != target:
-            self._replace_ok = target
-            self.label.setText(coloured(f"{target} exists: press Save again to replace it", AMBER))
+        if target.exists() and not replace_question(self, target, "calibration"):
+            self.label.setText(coloured(f"not saved: {target} is kept (choose another path)", AMBER))
             return None
-        self._replace_ok = None
         try:
             written = save_calibration(target, self.outcome.homography, self.outcome.identity,
                                        sync=self.outcome.sync, overwrite=True)
         except CalibrationError as exc:
-            self.label.setText(coloured(f"not saved: {exc}", RED))
+            self.label.setText(coloured(f"not saved: {in_gui_words(str(exc))}", RED))
             return None
         self.saved_path = Path(written)
         self.settings.remember_folder(written)

@@ -32,8 +32,11 @@ from PySide6.QtWidgets import (
 
 from app.gui.models.calibration_model import CalibrationTarget
 from app.gui.models.jobs import CancelToken
+from app.gui.models.operator_words import in_gui_words
 from app.gui.widgets.qt_jobs import JobHandle, JobRunner
+from app.gui.widgets.questions import replace_question
 from app.gui.widgets.rich_text import AMBER, GREEN, RED
+from app.gui.widgets.status_line import StatusLine
 
 _logger = logging.getLogger(__name__)
 
@@ -46,7 +49,25 @@ WIRING = (
 )
 
 
-def _say(label: QLabel, text: str, colour: str | None = None) -> None:
+def trigger_verdict(frames, slots: int, settled: int) -> str:
+    """What the trigger test found, explained: which camera frames came, and how bright they were in the camera's
+    own units (counts of its full scale, or the simulated camera's relative units)."""
+    ids = ", ".join(str(f.frame_id) for f in frames)
+    gaps = (f"; the camera numbers every frame, and {settled} before each was skipped while the pattern settled"
+            if settled else "")
+    image = frames[0].image
+    mean = float(np.mean([f.image.mean() for f in frames]))
+    if np.issubdtype(image.dtype, np.integer):
+        top = float(np.iinfo(image.dtype).max)
+        level = f"mean level {mean:.0f} of {top:.0f} counts ({mean / top:.0%} of the camera's full scale)"
+    else:
+        level = (f"mean level {mean:.3g} in relative units (a white target seen through {slots} open slots reads "
+                 f"about {slots}: the target sends back {mean / slots:.0%} of that)")
+    return (f"{len(frames)} triggered frames arrived (camera frame numbers {ids}{gaps}); {level}: the camera follows "
+            "the projector")
+
+
+def _say(label, text: str, colour: str | None = None) -> None:
     label.setText(f"<span style='color:{colour}'>{html.escape(text)}</span>" if colour else html.escape(text))
 
 
@@ -62,8 +83,7 @@ class _JobPage(QWizardPage):
         self.bar = QProgressBar()
         self.bar.setRange(0, 1)
         self.bar.setValue(0)
-        self.verdict = QLabel("not measured yet")
-        self.verdict.setWordWrap(True)
+        self.verdict = StatusLine("not measured yet", lines=4)
         self.layout_ = QVBoxLayout(self)
         self.layout_.addWidget(self.button)
         self.layout_.addWidget(self.bar)
@@ -102,7 +122,7 @@ class _JobPage(QWizardPage):
         self.completeChanged.emit()
 
     def _failed(self, message: str) -> None:
-        _say(self.verdict, f"failed: {message}", RED)
+        _say(self.verdict, f"failed: {in_gui_words(message)}", RED)
 
     def _done(self) -> None:
         self.bar.setRange(0, 1)
@@ -163,10 +183,7 @@ class TriggerPage(_JobPage):
             except DeviceTimeoutError as exc:
                 return False, (f"no frame within {session.timeout_s:g} s of showing the pattern: the camera is "
                                f"not triggered by the projector ({exc}). Check the wiring and the trigger line.")
-            mean = float(np.mean([f.image.mean() for f in frames]))
-            ids = ", ".join(str(f.frame_id) for f in frames)
-            return True, (f"{len(frames)} triggered frames (camera frame ids {ids}), mean level {mean:.3g}: the "
-                          "camera follows the projector")
+            return True, trigger_verdict(frames, session.slots, session.settle_frames)
 
     def show_result(self, result) -> bool:
         ok, message = result
@@ -279,8 +296,7 @@ class SavePage(QWizardPage):
         self.path = QLineEdit()
         self.path.setPlaceholderText("folder/sync-profile.json")
         self.button = QPushButton("Save sync profile")
-        self.label = QLabel("")
-        self.label.setWordWrap(True)
+        self.label = StatusLine(lines=2)
         v = QVBoxLayout(self)
         v.addWidget(self.path)
         v.addWidget(self.button)
@@ -288,11 +304,10 @@ class SavePage(QWizardPage):
         v.addStretch(1)
         self.button.clicked.connect(lambda: self.save(self.path.text().strip()))
         self.written: Path | None = None
-        self._replace_ok: Path | None = None
 
     def save(self, path) -> Path | None:
-        """Write the profile; None (with the reason shown) when it cannot. An existing file is
-        replaced only when Save is pressed a second time for it."""
+        """Write the profile; None (with the reason shown) when it cannot. An existing file is replaced only when
+        the operator answers Replace to the question that names it."""
         from calibration.errors import CalibrationError
         from calibration.sync import save_sync_profile
 
@@ -303,16 +318,14 @@ class SavePage(QWizardPage):
             _say(self.label, "choose where to save (folder/name.json)", RED)
             return None
         target = Path(path).expanduser()
-        if target.exists() and self._replace_ok != target:
-            self._replace_ok = target
-            _say(self.label, f"{target} exists: press Save again to replace it", AMBER)
+        if target.exists() and not replace_question(self, target, "sync profile"):
+            _say(self.label, f"not saved: {target} is kept (choose another path)", AMBER)
             return None
-        self._replace_ok = None
         try:
             written = save_sync_profile(target, self.owner.sync, self.owner.identity,
                                         frame_check=self.owner.frame_check, overwrite=True)
         except CalibrationError as exc:
-            _say(self.label, f"not saved: {exc}", RED)
+            _say(self.label, f"not saved: {in_gui_words(str(exc))}", RED)
             return None
         self.written = written
         _say(self.label, f"saved {written}", GREEN)
@@ -357,6 +370,10 @@ class SyncWizard(QWizard):
         for page in (self.wiring, self.trigger, self.phase, self.drift, self.save_page):
             self.addPage(page)
         self.resize(820, 640)
+
+    def measuring(self) -> bool:
+        """True while one of the pages measures."""
+        return any(p.job is not None and p.job.running for p in (self.trigger, self.phase, self.drift))
 
     def cancel_jobs(self) -> None:
         """Cancel every running measurement."""

@@ -33,6 +33,7 @@ from PySide6.QtWidgets import (
     QLabel,
     QProgressBar,
     QPushButton,
+    QVBoxLayout,
     QWidget,
 )
 
@@ -48,13 +49,20 @@ from app.gui.models.calibration_model import (
     target_for,
 )
 from app.gui.models.jobs import CancelToken
+from app.gui.models.operator_words import in_gui_words
 from app.gui.models.rig_service import RigService
 from app.gui.widgets.qt_jobs import JobHandle, JobRunner
 from app.gui.widgets.rich_text import GREEN, GREY, RED, coloured
 from app.gui.widgets.settings import AppSettings
+from app.gui.widgets.status_line import StatusLine
 from app.gui.widgets.workspace_layout import controls_beside_view
 
 _logger = logging.getLogger(__name__)
+
+CALIBRATION_USER = "the calibration"
+WIZARD_USER = "the synchronisation wizard"
+PROGRESS_STEP = 1000
+"""The progress bar's units per calibration step."""
 
 TILES = ((4, 4), (2, 4), (4, 2), (2, 2), (3, 5))
 
@@ -103,6 +111,10 @@ class CalibrateWorkspace(QWidget):
         self.outcome: CalibrationOutcome | None = None
         self.job: JobHandle | None = None
         self.tracker: StepTracker | None = None
+        self.wizard = None
+        """The synchronisation wizard while it is open."""
+        self._before_refusal: str | None = None
+        """The step line before a refusal took its place (None: no refusal shown)."""
         self.results_view = ResultsView()
         self.screen = ProjectorScreen(service, settings, parent=self)
         self.save_panel = SavePanel(settings)
@@ -135,13 +147,10 @@ class CalibrateWorkspace(QWidget):
         self.progress = QProgressBar()
         self.progress.setRange(0, 1)
         self.progress.setValue(0)
-        self.step_label = QLabel("not run")
-        self.step_label.setWordWrap(True)
-        self.step_label.setTextFormat(Qt.TextFormat.RichText)
+        self.step_label = StatusLine("not run", lines=2)
         self.steps_label = QLabel(steps_html(-1))
         self.steps_label.setTextFormat(Qt.TextFormat.RichText)
         f = QFormLayout(run)
-        f.addRow(self.rig_label)
         f.addRow("shutter code", self.tile_box)
         if self.screen.needed:
             f.addRow("projector screen", self.screen.screen_box)
@@ -149,11 +158,16 @@ class CalibrateWorkspace(QWidget):
         f.addRow(buttons)
         f.addRow(self.progress)
         f.addRow(self.step_label)
-        f.addRow(self.steps_label)
+        steps = QGroupBox("Steps")
+        sv = QVBoxLayout(steps)
+        sv.addWidget(self.steps_label)
+        sv.addWidget(self.rig_label)
 
+        # Run, Cancel, Save, Use for capture and the wizard stay in view; the steps, the rig and co-location scroll.
         self.wizard_button = QPushButton("Synchronisation wizard…")
-        controls_beside_view(self, (run, self.save_panel, self.live_panel.box, self.wizard_button), self.results_view,
-                             sizes=(420, 880))
+        self.controls_scroll = controls_beside_view(self, (steps, self.live_panel.box), self.results_view,
+                                                    actions=(run, self.save_panel, self.wizard_button),
+                                                    min_width=340, max_width=420)
 
         self.run_button.clicked.connect(self.run_calibration)
         self.cancel_button.clicked.connect(self.cancel)
@@ -173,6 +187,8 @@ class CalibrateWorkspace(QWidget):
             return "a calibration is running in the Calibrate workspace"
         if self.live_panel.measuring:
             return "the co-location live numbers are measuring in the Calibrate workspace"
+        if self.service.in_use_by:
+            return f"{self.service.in_use_by} uses the devices (Calibrate workspace)"
         return None
 
     def _guard(self) -> str | None:
@@ -200,24 +216,39 @@ class CalibrateWorkspace(QWidget):
             return False
         refused = self._claim_rig("calibration")
         if refused:
+            if self._before_refusal is None:
+                self._before_refusal = self.step_label.text()
             self.step_label.setText(coloured(f"cannot start: {refused}", RED))
             return False
+        self._before_refusal = None
         token = CancelToken()
         tracker = StepTracker(token)
         self.tracker = tracker
         tile, service = self.tile(), self.service
 
         def job(token_, progress):
+            def report(done: int, total: int) -> None:  # the whole run's progress, taken where the step is known
+                within = done / total if total > 0 else 0.0
+                progress(round(PROGRESS_STEP * (max(tracker.index, 0) + min(within, 1.0))), len(STEPS) * PROGRESS_STEP)
+
             tracker.token = token_
-            tracker.report = progress
+            tracker.report = report
             return run_workspace_calibration(target_for(service), tile=tile, cancel=token_, tracker=tracker)
 
-        self.outcome = None
-        self.save_panel.set_outcome(None, "calibrating …")
+        # The last result stays the one offered (Save, Use for capture) until this run ends: a cancelled or
+        # failed run leaves it as it was.
+        previous = self.outcome
+        self.save_panel.hold("calibrating …" + (f" (the calibration of {previous.finished_at} is kept if this run "
+                                                "is cancelled)" if previous is not None and previous.success else ""))
+        if previous is not None:
+            self.results_view.show_outcome(previous, note=f"a new calibration is running; shown: the calibration "
+                                                          f"of {previous.finished_at}")
+        self.service.begin_use(CALIBRATION_USER)
         self._set_running(True)
         self.step_label.setText("starting …")
         self.steps_label.setText(steps_html(0))
-        self.progress.setRange(0, 0)
+        self.progress.setRange(0, len(STEPS) * PROGRESS_STEP)
+        self.progress.setValue(0)
         self.job = self.runner.submit("calibration", job, on_progress=self._on_progress, on_finished=self._on_done,
                                       on_failed=self._on_failed, on_cancelled=self._on_cancelled,
                                       on_done=self._on_job_done)
@@ -236,18 +267,15 @@ class CalibrateWorkspace(QWidget):
             self.job.cancel()
             self.step_label.setText("cancelling …")
 
-    def _on_progress(self, done: int, total: int) -> None:
+    def _on_progress(self, value: int, top: int) -> None:
+        """One bar for the whole run (``value`` of ``top``): each step has its share, filled by its patterns."""
         t = self.tracker
         if t is None:
             return
         step = f"step {t.index + 1} of {len(STEPS)}: {html.escape(t.step)}"
-        if total > 0:
-            self.progress.setRange(0, total)
-            self.progress.setValue(done)
-            self.step_label.setText(f"{step} — {done}/{total} patterns")
-        else:
-            self.progress.setRange(0, 0)
-            self.step_label.setText(step)
+        self.progress.setRange(0, top)
+        self.progress.setValue(max(value, self.progress.value()))
+        self.step_label.setText(f"{step} — {t.done}/{t.total} patterns" if t.total > 0 else step)
         self.steps_label.setText(steps_html(t.index))
 
     def _on_done(self, outcome: CalibrationOutcome) -> None:
@@ -259,24 +287,35 @@ class CalibrateWorkspace(QWidget):
         self.status.emit(f"calibration {word}")
         self.calibrated.emit(outcome)
 
+    def _kept(self, what: str) -> None:
+        """The run ended without a result (``what`` happened): the previous result stays offered, and shown."""
+        previous = self.outcome
+        if previous is not None:
+            self.results_view.show_outcome(previous, note=f"{what}; shown: the calibration of {previous.finished_at}")
+            kept = "can still be saved" if previous.success else "stays"
+            self.save_panel.release(f"{what}; the calibration of {previous.finished_at} {kept}")
+        else:
+            self.results_view.show_message(f"{what}: no results")
+            self.save_panel.release(f"nothing to save ({what})")
+
     def _on_failed(self, message: str) -> None:
-        self.step_label.setText(coloured(f"calibration failed: {message}", RED))
-        self.save_panel.set_outcome(None, "nothing to save")
-        self.status.emit(f"calibration failed: {message}")
+        self.step_label.setText(coloured(f"calibration failed: {in_gui_words(message)}", RED))
+        self._kept("the calibration failed")
+        self.status.emit(f"calibration failed: {in_gui_words(message)}")
 
     def _on_cancelled(self) -> None:
         step = self.tracker.step if self.tracker is not None else ""
         self.step_label.setText(f"cancelled during {html.escape(step) or 'set-up'}; the devices were stopped")
-        self.save_panel.set_outcome(None, "nothing to save (cancelled)")
+        self._kept("the new run was cancelled")
         self.status.emit("calibration cancelled")
 
     def _on_job_done(self) -> None:
         self.screen.release("calibration")
+        self.service.end_use(CALIBRATION_USER)
+        finished = self.job is not None and self.job.outcome == "finished"
         self.progress.setRange(0, 1)
-        self.progress.setValue(1 if self.outcome is not None else 0)
+        self.progress.setValue(1 if finished else 0)
         self._set_running(False)
-        for role in ("projector", "camera", "sync"):
-            self.service.notify(role)
 
     def show_outcome(self, outcome: CalibrationOutcome) -> None:
         """Show a run's figures, maps and plots, and offer its result to save."""
@@ -302,10 +341,34 @@ class CalibrateWorkspace(QWidget):
         wizard.finished.connect(self._wizard_finished)
         wizard.show()
         self.wizard = wizard
+        self.service.begin_use(WIZARD_USER)
         return wizard
 
     def _wizard_finished(self, _result: int) -> None:
+        self.wizard = None
         self.screen.release("wizard")
+        self.service.end_use(WIZARD_USER)
+
+    def recheck_refusals(self) -> None:
+        """The rig was freed (a recording ended): take the refusals that said it was busy off the screen."""
+        if self._before_refusal is not None and not self.running:
+            self.step_label.setText(self._before_refusal)
+            self._before_refusal = None
+        self.live_panel.recheck()
+
+    def closing_losses(self) -> list[str]:
+        """What closing the window would stop or lose now: a calibration or a wizard measurement running, or a
+        successful calibration not saved (the next start cannot restore it)."""
+        out = []
+        if self.running:
+            out.append("the calibration running stops; its result is lost")
+        if self.wizard is not None and self.wizard.measuring():
+            out.append("the synchronisation wizard's measurement stops")
+        o = self.outcome
+        if o is not None and o.success and self.save_panel.saved_path is None:
+            out.append(f"the calibration that succeeded at {o.finished_at} is not saved: it is lost (the next start "
+                       "restores only a saved calibration)")
+        return out
 
     def shutdown(self) -> None:
         """Stop the live numbers and cancel a running calibration (window closing)."""

@@ -6,15 +6,23 @@ synchronisation wizard's; its phase and trigger delay replace the calibration's)
 Calibrate workspace's fresh run ("Use for capture"). A file or run made for another rig, camera
 or resolution is refused, in words, and the previous calibration is kept.
 
-The box says what recordings use: the homography's origin, the phase of the shutter patterns
-and the camera trigger delay that goes with it, and whether the camera applies the delay itself
-(a camera with a trigger-delay feature) or the operator must set it and tick "trigger delay set
-on the camera".
+The box says what recordings use: the homography's origin (a file by its path and content hash),
+the phase of the shutter patterns and the camera trigger delay that goes with it, and whether the
+camera applies the delay itself (a camera with a trigger-delay feature) or the operator must set it
+and tick "trigger delay set on the camera".
+
+The calibration file in use (and a sync profile loaded on top) is remembered in the settings and
+loaded again at the next start, checked against the rig like any file; a file that is refused then
+is named with the reason. Before a recording, :meth:`CalibrationPanel.confirm_record` asks once
+about what would spoil it: no calibration at all (the operator's explicit "Record uncalibrated"
+counts as the answer), or a plan at another timing than the sync was measured at.
 """
 
 from __future__ import annotations
 
 import html
+import logging
+from pathlib import Path
 
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import QCheckBox, QFileDialog, QGridLayout, QGroupBox, QLabel, QPushButton, QVBoxLayout
@@ -22,9 +30,12 @@ from PySide6.QtWidgets import QCheckBox, QFileDialog, QGridLayout, QGroupBox, QL
 from app.capture.plan import CapturePlan
 from app.capture.rig_setup import trigger_delay_by
 from app.gui.models.capture_calibration import capture_identity
+from app.gui.models.operator_words import in_gui_words
 from app.gui.models.rig_service import RigService
+from app.gui.widgets.questions import ask
 from app.gui.widgets.rich_text import AMBER, RED, coloured
 from app.gui.widgets.settings import AppSettings
+from app.gui.widgets.status_line import StatusLine
 from calibration.capture_setup import (
     CalibrationRefused,
     CaptureCalibration,
@@ -32,6 +43,16 @@ from calibration.capture_setup import (
     load_for_capture,
     load_sync_for_capture,
 )
+
+CALIBRATION_FILE = "capture/calibration_file"
+"""Settings key: the calibration file in use ("" when none)."""
+CALIBRATION_SHA256 = "capture/calibration_sha256"
+SYNC_PROFILE_FILE = "capture/sync_profile_file"
+"""Settings key: the sync profile loaded on top of it ("" when none)."""
+_logger = logging.getLogger(__name__)
+
+UNCALIBRATED = "uncalibrated"
+"""The risk of recording without a calibration (see :meth:`CalibrationPanel.record_risks`)."""
 
 
 class CalibrationPanel(QGroupBox):
@@ -42,6 +63,7 @@ class CalibrationPanel(QGroupBox):
     service : RigService
         The capture rig (a calibration must match its identity).
     settings : AppSettings
+        Remembers the calibration file in use; :meth:`restore` loads it again.
     """
 
     changed = Signal(object)
@@ -55,15 +77,19 @@ class CalibrationPanel(QGroupBox):
         """The calibration recordings use (None: uncalibrated, the identity map and phase 0)."""
         self.error = ""
         """Why the last calibration offered was refused ("" when it was taken)."""
+        self.note = ""
+        """What the start-up said of the calibration it restored ("" when nothing to say)."""
+        self.run_outcome = None
+        """The Calibrate workspace's outcome in use when it came from a run not (yet) saved, else None."""
+        self.accepted: set[str] = set()
+        """The risks the operator already accepted for this calibration (see :meth:`record_risks`)."""
         self._plan: CapturePlan | None = None
         self.label = QLabel()
         self.label.setWordWrap(True)
         self.label.setTextFormat(Qt.TextFormat.RichText)
         self.label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
-        self.status_label = QLabel()
-        """One line for the workspace's actions: calibrated or not, the phase and delay, or the next step."""
-        self.status_label.setWordWrap(True)
-        self.status_label.setTextFormat(Qt.TextFormat.RichText)
+        self.status_label = StatusLine(lines=2)
+        """Two lines for the workspace's actions: calibrated or not, the phase and delay, or the next step."""
         self.load_button = QPushButton("Load calibration…")
         self.sync_button = QPushButton("Load sync profile…")
         self.sync_button.setToolTip("the synchronisation wizard's profile: its phase and camera trigger delay")
@@ -112,35 +138,80 @@ class CalibrationPanel(QGroupBox):
         if path:
             self.load_sync_profile(path)
 
-    def _take(self, make) -> bool:
+    def _take(self, make, *, calibration_file=None, sync_file=None, outcome=None) -> bool:
         try:
             calibration = make()
         except CalibrationRefused as exc:
-            self.error = str(exc)
+            self.error = in_gui_words(str(exc))
             self._show()
             return False
-        self.calibration, self.error = calibration, ""
+        self.calibration, self.error, self.note = calibration, "", ""
+        self.run_outcome = outcome
+        self.accepted.clear()
+        if calibration_file is not None:
+            self._remember(calibration_file, "")
+        if sync_file is not None:
+            self.settings.set(SYNC_PROFILE_FILE, str(sync_file))
         self._show()
         self.changed.emit(calibration)
         return True
 
+    def _remember(self, calibration_file, sync_file) -> None:
+        """Keep the files in use for the next start ("" forgets them)."""
+        path = str(Path(calibration_file).expanduser().resolve()) if calibration_file else ""
+        self.settings.set(CALIBRATION_FILE, path)
+        self.settings.set(CALIBRATION_SHA256, self.calibration.sha256 if path and self.calibration else "")
+        self.settings.set(SYNC_PROFILE_FILE, str(sync_file))
+
     def load_calibration(self, path) -> bool:
         """Use a calibration file; False (reason shown, previous one kept) when refused."""
-        return self._take(lambda: load_for_capture(path, self._identity()))
+        return self._take(lambda: load_for_capture(path, self._identity()), calibration_file=path)
 
     def load_sync_profile(self, path) -> bool:
         """Use a sync profile's phase and trigger delay with the current homography; False when refused."""
-        return self._take(lambda: load_sync_for_capture(path, self._identity(), base=self.calibration))
+        path = str(Path(path).expanduser().resolve())
+        return self._take(lambda: load_sync_for_capture(path, self._identity(), base=self.calibration),
+                          sync_file=path, outcome=self.run_outcome)
 
-    def use_run(self, run, run_identity) -> bool:
-        """Use a fresh calibration run (the Calibrate workspace's); False (with the reason) when refused."""
-        return self._take(lambda: from_run(run, run_identity, self._identity()))
+    def use_run(self, run, run_identity, *, outcome=None) -> bool:
+        """Use a fresh calibration run (the Calibrate workspace's ``outcome``, not saved); False (with the reason)
+        when refused. A run is no file: the next start cannot restore it."""
+        return self._take(lambda: from_run(run, run_identity, self._identity()), calibration_file="",
+                          outcome=outcome)
 
     def clear(self) -> None:
-        """Record uncalibrated."""
-        self.calibration, self.error = None, ""
+        """Record uncalibrated (the operator's choice: Record does not ask about it again)."""
+        self.calibration, self.error, self.note, self.run_outcome = None, "", "", None
+        self.accepted = {UNCALIBRATED}
+        self._remember("", "")
         self._show()
         self.changed.emit(None)
+
+    def restore(self) -> bool:
+        """Load the calibration file (and sync profile) in use at the last start, checked against this rig.
+
+        Returns True when one was restored; a file that is refused now is named with the reason (and
+        uncalibrated stays).
+        """
+        path = self.settings.get_str(CALIBRATION_FILE, "")
+        sync = self.settings.get_str(SYNC_PROFILE_FILE, "")
+        if not path and not sync:
+            return False
+        remembered = self.settings.get_str(CALIBRATION_SHA256, "")
+        ok = self.load_calibration(path) if path else True
+        if ok and sync:
+            ok = self.load_sync_profile(sync)
+        if not ok:
+            self.error = f"the calibration last used was not restored: {self.error}"
+            self._show()
+            return False
+        notes = [f"restored at start: {path or sync}, checked against this rig"]
+        if path and remembered and self.calibration.sha256 != remembered:
+            notes.append("the file changed since it was last used")
+        self.note = "; ".join(notes)
+        self._show()
+        _logger.info("calibration restored: %s", self.note)
+        return True
 
     def refuse(self, message: str) -> None:
         """Show why a calibration could not be taken now (e.g. a recording runs)."""
@@ -167,17 +238,48 @@ class CalibrationPanel(QGroupBox):
         self._plan = plan
         self._show()
 
+    def record_risks(self, plan: CapturePlan) -> list[str]:
+        """What would spoil a recording of ``plan``, in words: no calibration (:data:`UNCALIBRATED`), or a
+        sync measured at another timing. Empty when nothing does."""
+        if self.calibration is None:
+            return [UNCALIBRATED]
+        return [in_gui_words(w) for w in self.calibration.for_plan(plan.K, plan.period_us)[2]]
+
+    def confirm_record(self, plan: CapturePlan, parent=None) -> bool:
+        """Ask once about each risk of :meth:`record_risks` the operator has not accepted; False when one was
+        declined (nothing is recorded)."""
+        for risk in self.record_risks(plan):
+            if risk in self.accepted:
+                continue
+            if risk == UNCALIBRATED:
+                title = "Record uncalibrated?"
+                text = ("No calibration is in use: the shutter patterns assume the identity projector-to-camera map, "
+                        "phase 0 and no trigger delay, so on this rig most pixels would see the wrong slot.\n\n"
+                        "Calibrate (Calibrate workspace, then “Use for capture”) or load a calibration file; or "
+                        "record uncalibrated anyway.")
+                accept = "Record uncalibrated"
+            else:
+                title = "Record at another timing than the sync was measured at?"
+                text = f"{risk[0].upper()}{risk[1:]}.\n\nRecord anyway?"
+                accept = "Record anyway"
+            if not ask(parent or self, title, text, accept=accept, reject="Cancel"):
+                return False
+            self.accepted.add(risk)
+        return True
+
     def _show(self) -> None:
         cal = self.capture_calibration()
         lines = []
-        short = (coloured("uncalibrated: run Calibrate and “Use for capture”, or load a calibration below", AMBER)
-                 if self.calibration is None else "<b>calibrated</b>")
+        uncalibrated_line = "uncalibrated: run Calibrate and “Use for capture”, or load a calibration below"
+        short = coloured(uncalibrated_line, AMBER) if self.calibration is None else "<b>calibrated</b>"
         if self.calibration is None:
             lines.append("<b>uncalibrated</b>: identity homography, phase 0, no trigger delay — a real rig (and the "
                          "simulated one) needs its calibration: run it in Calibrate and “Use for capture”, or load "
                          "the file")
         else:
             lines.append(f"<b>active</b>: {html.escape(cal.describe())}")
+        if self.note:
+            lines.append(html.escape(self.note))
         needs_hand = False
         if self._plan is not None:
             phase, delay, warnings = cal.for_plan(self._plan.K, self._plan.period_us)
@@ -190,9 +292,14 @@ class CalibrationPanel(QGroupBox):
                     by, "this camera cannot be told it: set it in the camera's own tool and tick the box below")
                 lines.append(f"recordings use phase <b>{phase}</b> and a <b>{delay:.0f} µs</b> camera trigger delay "
                              f"({html.escape(how)})")
+            warnings = [in_gui_words(w) for w in warnings]
             lines += [coloured(f"• {w}", AMBER) for w in warnings if self.calibration is not None]
             if self.calibration is not None:
-                short += f": phase {phase}" + (f", {delay:.0f} µs trigger delay" if by != "none" else "")
+                numbers = f"phase {phase}" + (f", {delay:.0f} µs trigger delay" if by != "none" else "")
+                if warnings:  # the timing changed since the sync was measured: not what "calibrated" promises
+                    short = coloured(f"calibrated at another timing: {numbers} is a guess — {warnings[0]}", AMBER)
+                else:
+                    short += f": {html.escape(numbers)}"
                 if needs_hand and not self.delay_set_by_hand:
                     short += coloured(" — set the delay on the camera (Calibration below)", AMBER)
         self.delay_check.setVisible(needs_hand)
@@ -200,5 +307,5 @@ class CalibrationPanel(QGroupBox):
             lines.append(coloured(f"refused: {self.error}", RED))
         self.label.setText("<br>".join(lines))
         if self.error:
-            short += "<br>" + coloured(f"refused: {self.error}", RED)
+            short = coloured(f"refused: {self.error}", RED) + " · " + short
         self.status_label.setText(short)

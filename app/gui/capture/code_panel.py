@@ -9,6 +9,7 @@ controls describe and :attr:`CodePanel.changed` says when it changed.
 from __future__ import annotations
 
 import html
+from functools import cache
 from pathlib import Path
 
 from PySide6.QtCore import Qt, Signal
@@ -28,6 +29,7 @@ from PySide6.QtWidgets import (
 )
 
 from app.capture.plan import TILES, CapturePlan
+from app.gui.models.operator_words import in_gui_words
 from app.gui.widgets.collapsible import Collapsible
 from app.gui.widgets.rich_text import AMBER, GREEN, RED
 from app.gui.widgets.settings import AppSettings
@@ -37,6 +39,18 @@ MULTIPLEXED_TIP = ("S-matrix code (K = 3, 7, 15: 1x3, 1x7, 3x5), each pixel open
                    "bench_multiplex_light.py: +1.4 to +7.6 dB over the identity code at 50 electrons per unit or "
                    "fewer, 150 with 10 e- read noise) and loses 0.5 to 3.1 dB in brighter light")
 """The multiplexed choice's tooltip: where multiplexing wins (docs/reconstruction.md, "Multiplexed codes")."""
+
+
+@cache
+def no_s_matrix(K: int) -> str:
+    """Why no S-matrix code of K slots exists ("" when one does)."""
+    from flexvox_core.multiplex import s_matrix
+
+    try:
+        s_matrix(int(K))
+    except ValueError as exc:
+        return str(exc)
+    return ""
 
 
 class CodePanel(QWidget):
@@ -164,7 +178,7 @@ class CodePanel(QWidget):
         try:
             code = load_shutter_code(path)
         except CodeFileError as exc:
-            self.file_error = str(exc)
+            self.file_error = in_gui_words(str(exc))
             self._on_changed()
             return False
         self.code_file, self._file_code, self.file_error = path, code, ""
@@ -190,12 +204,25 @@ class CodePanel(QWidget):
             w.setEnabled(not locked)
         for w in (self.tile_box, self.identity, self.multiplexed):
             w.setEnabled(not locked and not from_file)
+        m, n = self.tile()
+        reason = no_s_matrix(m * n)
+        if reason:
+            self.multiplexed.setEnabled(False)
+        self.multiplexed.setText(f"multiplexed (S-matrix): none for K = {m * n}" if reason else
+                                 "multiplexed (S-matrix)")
+        self.multiplexed.setToolTip(f"not for this tile: {reason}" if reason else MULTIPLEXED_TIP)
         self.tile_code_button.setEnabled(not locked and from_file)
         self.exposure.setEnabled(not locked and not self.auto_exposure.isChecked())
 
     # ------------------------------------------------------------------ what the controls say
     def _on_changed(self, *_) -> None:
         m, n = self.tile()
+        if self.multiplexed.isChecked() and no_s_matrix(m * n):  # none for this tile: the identity code, said
+            for b in (self.identity, self.multiplexed):
+                b.blockSignals(True)
+            self.identity.setChecked(True)
+            for b in (self.identity, self.multiplexed):
+                b.blockSignals(False)
         s = self.settings
         s.set("capture/tile", f"{m}x{n}")
         s.set("capture/multiplexed", self.multiplexed.isChecked())
@@ -214,7 +241,7 @@ class CodePanel(QWidget):
                 "<table cellspacing='6'><tr><th>block</th><th>TR</th><th>SR</th></tr>"
                 f"{rows}</table>")
         except ValueError as exc:
-            lines.append(f"<span style='color:{RED}'>{html.escape(str(exc))}</span>")
+            lines.append(f"<span style='color:{RED}'>{html.escape(in_gui_words(str(exc)))}</span>")
             self.resolutions_label.setText("")
         if self.file_error:
             lines.append(f"<span style='color:{RED}'>refused: {html.escape(self.file_error)}</span>")

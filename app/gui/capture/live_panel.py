@@ -18,25 +18,32 @@ Its widgets sit in two places: :attr:`LivePanel.controls` (a box for the control
 from __future__ import annotations
 
 import html
+import math
+import time
 
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import QObject, QRectF, Qt, QTimer
-from PySide6.QtWidgets import QCheckBox, QComboBox, QGroupBox, QLabel, QPushButton, QSplitter, QVBoxLayout, QWidget
+from PySide6.QtWidgets import QCheckBox, QComboBox, QGroupBox, QPushButton, QVBoxLayout, QWidget
 
 from app.gui.capture.live_preview import LivePreview
 from app.gui.capture.live_view import LiveStream
 from app.gui.models.live_source import LiveStartError, start_live, stop_live
 from app.gui.models.live_stats import LiveStats, histogram, saturation_level, saturation_mask
+from app.gui.models.operator_words import in_gui_words
 from app.gui.models.rig_service import RigService
+from app.gui.widgets.adaptive_split import AdaptiveSplit
 from app.gui.widgets.image_panel import ImagePanel
 from app.gui.widgets.rich_text import RED, coloured
 from app.gui.widgets.settings import AppSettings
+from app.gui.widgets.status_line import StatusLine
 
+DEBOUNCE_S = 0.6
+"""A second click on Start/Stop live view sooner than this after the first is a double click: it is ignored (a
+double click started the live view and stopped it after one frame)."""
 DISPLAY_HZ = 30
 """The live image is redrawn at most this often, whatever the camera's rate."""
 SATURATION_RGBA = (255, 0, 0, 170)
-
 
 
 class LivePanel(QObject):
@@ -64,6 +71,11 @@ class LivePanel(QObject):
         self._delay_set_by_hand = delay_set_by_hand
         self._busy = busy
         self.stats = LiveStats()
+        self.clock = time.monotonic
+        """The clock the button's debounce reads (tests set their own)."""
+        self._toggled_at = -math.inf
+        self.refused: str | None = None
+        """Why the last start was refused, while that is shown: "busy" (the rig) or "settings"; None otherwise."""
         self.stream = LiveStream(self)
         self._latest = None
         self._capture = None
@@ -74,7 +86,7 @@ class LivePanel(QObject):
         self._build(parent)
         self.preview.updated.connect(self._on_preview)
         self.preview.failed.connect(lambda message: self.preview_label.setText(
-            coloured(f"preview stopped: {message}", RED)))
+            coloured(f"preview stopped: {in_gui_words(message)}", RED)))
         self.stream.frame.connect(self._on_frame)
         self.stream.failed.connect(self._on_failed)
 
@@ -87,7 +99,7 @@ class LivePanel(QObject):
         self.preview_check = QCheckBox("preview the newest frames, reconstructed with")
         self.preview_check.setChecked(self.settings.get_bool("capture/preview", True))
         self.preview_method = QComboBox()
-        for name, text in (("motion-aware", "motion-aware (a region when the frame does not fit)"),
+        for name, text in (("motion-aware", "motion-aware (a region if need be)"),
                            ("nc", "nc (fast: the whole frame)")):
             self.preview_method.addItem(text, name)
         self.preview_method.setToolTip("motion-aware shows motion best but takes about a second per run at "
@@ -95,8 +107,7 @@ class LivePanel(QObject):
                                        "diffusion) previews the whole frame several times a second")
         self.preview_method.setCurrentIndex(max(0, self.preview_method.findData(
             self.settings.get_str("capture/preview_method", "motion-aware"))))
-        self.live_label = QLabel("stopped")
-        self.live_label.setWordWrap(True)
+        self.live_label = StatusLine("stopped", lines=2)
         v = QVBoxLayout(live)
         v.addWidget(self.live_button)
         v.addWidget(self.saturation_check)
@@ -121,24 +132,21 @@ class LivePanel(QObject):
         self.hist.setLabel("left", "pixels")
         self.hist.getAxis("left").enableAutoSIPrefix(False)  # counts, never "pixels (×0.001)"
         self.hist.setLimits(yMin=0)
-        self.hist.setMaximumHeight(200)
+        self.hist.setMaximumHeight(130)
         self.hist_curve = self.hist.plot([0, 1], [0], stepMode="center", fillLevel=0, brush=(90, 160, 255, 120))
         self.sat_line = pg.InfiniteLine(angle=90, pen=pg.mkPen((255, 60, 60), width=1, style=Qt.PenStyle.DashLine))
         self.hist.addItem(self.sat_line)
         self.preview_panel = ImagePanel("motion-aware preview")
         self.preview_panel.clear("starts with the live view")
-        self.preview_label = QLabel("preview: off")
-        self.preview_label.setWordWrap(True)
-        self.preview_label.setTextFormat(Qt.TextFormat.RichText)
+        self.preview_label = StatusLine("preview: off", lines=3)
         preview_box = QWidget()
         pv = QVBoxLayout(preview_box)
         pv.setContentsMargins(0, 0, 0, 0)
         pv.addWidget(self.preview_panel, 1)
         pv.addWidget(self.preview_label)
-        images = QSplitter()
-        images.addWidget(self.image_panel)
-        images.addWidget(preview_box)
+        images = AdaptiveSplit(self.image_panel, preview_box)  # one above the other in a narrow view
         images.setSizes([500, 500])
+        self.images = images
         views = QWidget(parent)
         rv = QVBoxLayout(views)
         rv.addWidget(images, 1)
@@ -160,6 +168,11 @@ class LivePanel(QObject):
         return self.stream.running
 
     def _on_live_toggled(self, on: bool) -> None:
+        now = self.clock()
+        if now - self._toggled_at < DEBOUNCE_S:  # the second click of a double click
+            self.set_button(self.running)
+            return
+        self._toggled_at = now
         if on:
             self.start()
         else:
@@ -171,16 +184,15 @@ class LivePanel(QObject):
             return True
         busy = self._busy()
         if busy:
-            self.live_label.setText(coloured(f"cannot start: {busy}", RED))
-            self.set_button(False)
+            self._refuse(f"cannot start: {busy}", busy=True)
             return False
         plan = self._plan()
         try:
             note = start_live(self.service, plan, self._calibration(), delay_set_by_hand=self._delay_set_by_hand())
         except LiveStartError as exc:
-            self.live_label.setText(coloured(f"cannot start: {exc}", RED))
-            self.set_button(False)
+            self._refuse(f"cannot start: {in_gui_words(str(exc))}", busy=False)
             return False
+        self.refused = None
         self.stats = LiveStats()
         self._latest = None
         self.stream.start(self.service.rig.camera, timeout_s=max(1.0, 3 / plan.camera_hz))
@@ -190,6 +202,20 @@ class LivePanel(QObject):
         self.image_panel.set_title("camera: live")
         self.set_button(True)
         return True
+
+    def _refuse(self, text: str, *, busy: bool) -> None:
+        self.live_label.setText(coloured(text, RED))
+        self.refused = "busy" if busy else "settings"
+        self.set_button(False)
+
+    def recheck(self, *, settings_changed: bool = False) -> None:
+        """Take a refusal off the screen once it no longer holds: the rig is free again, or (``settings_changed``)
+        the plan or calibration it was about changed."""
+        if self.refused is None or self.running:
+            return
+        if (self.refused == "busy" and not self._busy()) or (self.refused == "settings" and settings_changed):
+            self.refused = None
+            self.live_label.setText("stopped")
 
     def stop(self) -> None:
         """Stop the live view (devices stay connected)."""
@@ -221,6 +247,7 @@ class LivePanel(QObject):
         self.preview.feed(frame)  # a list append; the reconstruction runs on the preview's own worker
 
     def _on_failed(self, message: str) -> None:
+        message = in_gui_words(message)
         self.service.record_error("camera", f"live view: {message}")
         self.stop()
         self.live_label.setText(coloured(f"live view stopped: {message}", RED))
@@ -302,7 +329,7 @@ class LivePanel(QObject):
         try:
             code = plan.shutter_code
         except ValueError as exc:
-            self.preview_label.setText(coloured(f"preview: {exc}", RED))
+            self.preview_label.setText(coloured(f"preview: {in_gui_words(str(exc))}", RED))
             return
         self.preview.set_code(code, plan.tile)
         self.preview.start()
@@ -316,6 +343,9 @@ class LivePanel(QObject):
         was = self.preview.enabled
         self.preview.stop()
         self.region_roi.setVisible(False)
+        if self.preview.result is None:  # it never showed a picture: it is not reconstructing anything now
+            self.preview_panel.clear("starts with the live view")
+            self.preview_panel.set_title(f"{self.preview.method} preview")
         if was:
             self.preview_label.setText(self.preview.text().replace("preview:", "preview (stopped):", 1)
                                        if self.preview.result is not None else "preview: off")

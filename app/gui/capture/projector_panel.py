@@ -11,12 +11,15 @@ from __future__ import annotations
 import html
 
 from PySide6.QtCore import Qt
+from PySide6.QtGui import QGuiApplication
 from PySide6.QtWidgets import QFormLayout, QGroupBox, QLabel, QPushButton
 
 from app.gui.models.live_source import projector_size
+from app.gui.models.operator_words import in_gui_words
 from app.gui.models.rig_service import RigService
 from app.gui.projector.window import ProjectorWindow, ScreenPicker
 from app.gui.widgets.qt_jobs import JobRunner
+from app.gui.widgets.questions import ask
 from app.gui.widgets.rich_text import AMBER, RED, coloured
 
 
@@ -82,12 +85,20 @@ class ProjectorPanel(QGroupBox):
             self.label.setText(coloured("no screen to show the patterns on", RED))
             self._set_button(False)
             return False
+        if len(QGuiApplication.screens()) == 1 and not ask(
+                self, "Cover the only screen?",
+                f"{screen.name() or 'This screen'} is the only screen: the patterns would cover all of it, this window "
+                "too, until you press Esc. Connect the projector's video input as a second screen to keep this one.\n\n"
+                "Show the patterns full-screen here?", accept="Show full-screen", reject="Cancel"):
+            self.label.setText("not shown: it is the only screen")
+            self._set_button(False)
+            return False
         plan = self._plan()
         try:
             plan.code  # noqa: B018 - refuse an impossible code before packing
             camera_size = tuple(int(v) for v in self.service.rig.camera.sensor_shape)
         except (ValueError, OSError) as exc:
-            self.label.setText(coloured(f"cannot make the patterns: {exc}", RED))
+            self.label.setText(coloured(f"cannot make the patterns: {in_gui_words(str(exc))}", RED))
             self._set_button(False)
             return False
         psize = projector_size(self.service.rig.projector)
@@ -99,10 +110,12 @@ class ProjectorPanel(QGroupBox):
         def job(token, progress):
             return plan.patterns(camera_size, psize, calibration, layout=layout).packed
 
-        self._job = self.runner.submit(
-            "projector patterns", job, on_finished=lambda frames: self._show(frames, screen, plan.K),
-            on_failed=lambda message: (self.label.setText(coloured(f"cannot make the patterns: {message}", RED)),
-                                       self._set_button(False)))
+        def failed(message: str) -> None:
+            self.label.setText(coloured(f"cannot make the patterns: {in_gui_words(message)}", RED))
+            self._set_button(False)
+
+        self._job = self.runner.submit("projector patterns", job,
+                                       on_finished=lambda frames: self._show(frames, screen, plan.K), on_failed=failed)
         return True
 
     def _show(self, frames, screen, K: int) -> None:

@@ -26,7 +26,6 @@ from PySide6.QtWidgets import (
     QFormLayout,
     QGroupBox,
     QHBoxLayout,
-    QLabel,
     QLineEdit,
     QPushButton,
     QSpinBox,
@@ -34,12 +33,15 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from app.gui.models.operator_words import in_gui_words
 from app.gui.models.recording import counters_text, make_capture, result_text
 from app.gui.models.rig_service import RigService
 from app.gui.widgets.collapsible import Collapsible
 from app.gui.widgets.qt_jobs import JobRunner
+from app.gui.widgets.questions import replace_question
 from app.gui.widgets.rich_text import GREEN, RED, coloured
 from app.gui.widgets.settings import AppSettings
+from app.gui.widgets.status_line import StatusLine
 
 _logger = logging.getLogger(__name__)
 
@@ -63,6 +65,9 @@ class RecordPanel(QObject):
         ``() -> str | None``: why the rig cannot be used now (a calibration).
     before_record : callable
         Called before the capture takes the devices (stops the live view).
+    confirm : callable
+        ``(plan) -> bool``: asks the operator about what would spoil the recording (no calibration); False
+        records nothing.
     capture_factory : callable, optional
         Builds the capture service (tests inject slow or failing writers).
     """
@@ -77,7 +82,8 @@ class RecordPanel(QObject):
     """A recording's path the operator wants to review."""
 
     def __init__(self, service: RigService, settings: AppSettings, runner: JobRunner, *, plan, calibration,
-                 delay_set_by_hand, busy, before_record, capture_factory=None, parent: QWidget):
+                 delay_set_by_hand, busy, before_record, confirm=lambda plan: True, capture_factory=None,
+                 parent: QWidget):
         super().__init__(parent)
         self.service = service
         self.settings = settings
@@ -87,6 +93,7 @@ class RecordPanel(QObject):
         self._delay_set_by_hand = delay_set_by_hand
         self._busy = busy
         self._before_record = before_record
+        self._confirm = confirm
         self.capture_factory = capture_factory
         self.capture = None
         """The running (or last) :class:`CaptureService`, None before the first recording."""
@@ -95,6 +102,9 @@ class RecordPanel(QObject):
         """True from Record until the capture has ended."""
         self._stop_job = None
         self._start_job = None
+        self.refused: str | None = None
+        """Why the last Record did nothing, while that is shown: "busy" (the rig) or "settings"; None otherwise."""
+        self._before_refusal = ""
         self._build(parent)
 
     def _build(self, parent) -> None:
@@ -109,7 +119,6 @@ class RecordPanel(QObject):
         self.frames_box.setRange(0, 10_000_000)
         self.frames_box.setSpecialValueText("until Stop")
         self.frames_box.setValue(self.settings.get_int("capture/frames", 150))
-        self.overwrite_check = QCheckBox("replace an existing recording")
         self.durable_check = QCheckBox("flush every frame to disk (survives a power cut; slower)")
         self.durable_check.setToolTip("flexvox capture --durable: each frame's chunk and journal record reach the "
                                       "disk before the next frame, so a power cut loses at most the frame in "
@@ -124,11 +133,8 @@ class RecordPanel(QObject):
         buttons = QHBoxLayout()
         buttons.addWidget(self.record_button)
         buttons.addWidget(self.stop_button)
-        self.counters_label = QLabel("not recording")
-        self.counters_label.setWordWrap(True)
-        self.recording_label = QLabel("not recorded yet")
-        self.recording_label.setWordWrap(True)
-        self.recording_label.setTextFormat(Qt.TextFormat.RichText)
+        self.counters_label = StatusLine("not recording", lines=2)
+        self.recording_label = StatusLine("not recorded yet", lines=3)
         self.recording_label.setTextInteractionFlags(Qt.TextInteractionFlag.TextSelectableByMouse)
         self.review_button = QPushButton("Open in Review")
         self.review_button.setEnabled(False)
@@ -138,7 +144,7 @@ class RecordPanel(QObject):
         options = QWidget()
         ov = QVBoxLayout(options)
         ov.setContentsMargins(12, 0, 0, 0)
-        for w in (self.overwrite_check, self.durable_check, self.truth_check):
+        for w in (self.durable_check, self.truth_check):
             ov.addWidget(w)
         self.options = Collapsible("options", options, settings=self.settings, key="capture/show_record_options")
         rv = QVBoxLayout(rec)  # word-wrapped labels get their full height in a box layout, not a form
@@ -164,20 +170,37 @@ class RecordPanel(QObject):
         """Enable what can be used now (``plan_ok``: the plan's timing is accepted)."""
         self.record_button.setEnabled(plan_ok and not self.recording)
         self.stop_button.setEnabled(self.recording and self._stop_job is None)
-        for w in (self.path_edit, self.browse_button, self.frames_box, self.overwrite_check, self.durable_check,
-                  self.truth_check):
+        for w in (self.path_edit, self.browse_button, self.frames_box, self.durable_check, self.truth_check):
             w.setEnabled(not self.recording)
 
     def _browse(self) -> None:
         start = self.path_edit.text() or str(Path(self.settings.last_folder()) / "recording.zarr")
-        path, _ = QFileDialog.getSaveFileName(self.box, "Record to", start, "Zarr recordings (*.zarr)")
+        path, _ = QFileDialog.getSaveFileName(self.box, "Record to", start, "Zarr recordings (*.zarr)",
+                                              options=QFileDialog.Option.DontConfirmOverwrite)  # Record asks
         if path:
             self.settings.remember_folder(path)
             self.path_edit.setText(path if path.endswith(".zarr") else path + ".zarr")
 
     def say(self, text: str, colour: str | None = None) -> None:
         """Put ``text`` in the result line."""
+        self.refused = None
         self.recording_label.setText(coloured(text, colour) if colour else html.escape(text))
+
+    def _refuse(self, text: str, *, busy: bool) -> None:
+        """Say why Record did nothing; the line before comes back once the reason is gone (:meth:`recheck`)."""
+        if self.refused is None:
+            self._before_refusal = self.recording_label.text()
+        self.recording_label.setText(coloured(text, RED))
+        self.refused = "busy" if busy else "settings"
+
+    def recheck(self, *, settings_changed: bool = False) -> None:
+        """Take a refusal off the screen once it no longer holds: the rig is free again, or (``settings_changed``)
+        the plan, calibration or path it was about changed."""
+        if self.refused is None or self.recording:
+            return
+        if (self.refused == "busy" and not self._busy()) or (self.refused == "settings" and settings_changed):
+            self.refused = None
+            self.recording_label.setText(self._before_refusal)
 
     # ------------------------------------------------------------------ recording
     def record(self) -> bool:
@@ -188,27 +211,34 @@ class RecordPanel(QObject):
             return False
         text = self.path_edit.text().strip()
         if not text:
-            self.say("choose a recording path first (folder/name.zarr)", RED)
+            self._refuse("choose a recording path first (folder/name.zarr)", busy=False)
             return False
         plan = self._plan()
         if not plan.timing().ok:
-            self.say("cannot record: " + "; ".join(plan.timing().errors), RED)
+            self._refuse("cannot record: " + "; ".join(plan.timing().errors), busy=False)
             return False
         busy = self._busy()
         if busy:
-            self.say(f"cannot record: {busy}", RED)
+            self._refuse(f"cannot record: {busy}", busy=True)
+            return False
+        path = Path(text).expanduser()
+        overwrite = path.exists()
+        if overwrite and not replace_question(self.box, path, "recording"):
+            self._refuse(f"not recording: {path} is kept (choose another path)", busy=False)
+            return False
+        if not self._confirm(plan):
+            self._refuse("not recording: you chose not to record with this calibration", busy=False)
             return False
         self._before_record()
         frames = self.frames_box.value() or None
         options = {} if self.capture_factory is None else {"factory": self.capture_factory}
         try:
-            capture = make_capture(self.service, plan, Path(text).expanduser(), frames=frames,
+            capture = make_capture(self.service, plan, path, frames=frames,
                                    calibration=self._calibration(), delay_set_by_hand=self._delay_set_by_hand(),
-                                   overwrite=self.overwrite_check.isChecked(),
-                                   durable=self.durable_check.isChecked(),
+                                   overwrite=overwrite, durable=self.durable_check.isChecked(),
                                    ground_truth=self.service.simulated and self.truth_check.isChecked(), **options)
         except (CaptureError, ValueError) as exc:
-            self.say(f"cannot record: {exc}", RED)
+            self._refuse(f"cannot record: {in_gui_words(str(exc))}", busy=False)
             return False
         self.capture = capture
         self.settings.remember_folder(capture.path)
@@ -245,7 +275,7 @@ class RecordPanel(QObject):
             return
         self.recording = False
         self.counters_label.setText("not recording")
-        self.say(f"cannot record: {message}", RED)
+        self.say(f"cannot record: {in_gui_words(message)}", RED)
         self._notify_devices()
         self.changed.emit()
 
@@ -277,7 +307,7 @@ class RecordPanel(QObject):
         capture = self.capture
         if capture is None:
             return
-        self.counters_label.setText(counters_text(capture.stats(), capture.n_target))
+        self.counters_label.setText(counters_text(capture.stats(), capture.n_target, capture.frame_period_s))
         if capture.result is not None and self._stop_job is None:
             self._finish(capture, capture.result)
 
@@ -289,11 +319,12 @@ class RecordPanel(QObject):
         self._stop_job = None
         self.last_result = result
         if result is not None:
-            self.counters_label.setText(counters_text(result.stats, capture.n_target))
+            self.counters_label.setText(counters_text(result.stats, capture.n_target, capture.frame_period_s))
         if error is not None:
-            self.say(f"recording failed: {error}", RED)
+            self.say(f"recording failed: {in_gui_words(error)}", RED)
         else:
-            self.say(result_text(result, capture.path), GREEN if result is not None and result.ok else RED)
+            ok = result is not None and result.ok
+            self.say(result_text(result, capture.path, capture.frame_period_s), GREEN if ok else RED)
         self.review_button.setEnabled(result is not None and result.frames_in_recording is not None
                                       and result.frames_in_recording > 0)
         self._notify_devices()
@@ -315,4 +346,6 @@ class RecordPanel(QObject):
                 result = capture.stop(timeout_s=STOP_TIMEOUT_S)
                 _logger.info("recording stopped at shutdown: %s",
                              "did not stop in time" if result is None else result.message)
+                self.last_result = result
+            self.recording = False
         self.counters_timer.stop()

@@ -80,7 +80,7 @@ class CaptureWorkspace(QWidget):
                                         calibration=self.capture_calibration,
                                         delay_set_by_hand=lambda: self.calibration_panel.delay_set_by_hand,
                                         busy=self._guard, before_record=self._before_record,
-                                        capture_factory=capture_factory, parent=self)
+                                        confirm=self._confirm_record, capture_factory=capture_factory, parent=self)
         self.projector = ProjectorPanel(service, self.runner, plan=self.plan, calibration=self.capture_calibration)
         self._layout()
         self.code.changed.connect(self._plan_changed)
@@ -89,7 +89,11 @@ class CaptureWorkspace(QWidget):
         self.record_panel.finished.connect(self._recording_ended)
         self.record_panel.changed.connect(self._update_buttons)
         self.record_panel.open_requested.connect(self.open_requested)
+        self.record_panel.path_edit.textChanged.connect(lambda _: self.record_panel.recheck(settings_changed=True))
+        service.subscribe(self._on_devices)
+        self.destroyed.connect(lambda *_: service.unsubscribe(self._on_devices))
         self._plan_changed()
+        self.calibration_panel.restore()
 
     def _layout(self) -> None:
         # The actions (live view, Record, Stop, Open in Review) and the calibration's one line stay in view;
@@ -97,7 +101,7 @@ class CaptureWorkspace(QWidget):
         self.controls_scroll = controls_beside_view(
             self, (self.code, self.calibration_panel, self.projector), self.live_panel.views,
             actions=(self.calibration_panel.status_label, self.live_panel.controls, self.record_panel.box),
-            min_width=400, sizes=(420, 860))
+            min_width=350, max_width=420)
 
     # ------------------------------------------------------------------ what everything uses
     def plan(self) -> CapturePlan:
@@ -121,11 +125,22 @@ class CaptureWorkspace(QWidget):
         self.calibration_panel.show_plan(self.plan())
         self.projector.patterns_changed()
         self._update_buttons()
+        self.recheck_refusals(settings_changed=True)
 
     def _calibration_changed(self, calibration) -> None:
         self.live_panel.restart()  # the projector shows the new patterns
         self.projector.patterns_changed()
         self.calibration_changed.emit(calibration)
+        self.recheck_refusals(settings_changed=True)
+
+    def _on_devices(self, _role: str) -> None:
+        self.recheck_refusals()
+
+    def recheck_refusals(self, *, settings_changed: bool = False) -> None:
+        """Take refusals off the screen that no longer hold (the rig is free again; the plan or calibration they
+        were about changed)."""
+        self.live_panel.recheck(settings_changed=settings_changed)
+        self.record_panel.recheck(settings_changed=settings_changed)
 
     def _update_buttons(self) -> None:
         ok = self.plan().timing().ok
@@ -144,11 +159,24 @@ class CaptureWorkspace(QWidget):
         """Use a sync profile's phase and trigger delay; False (with the reason shown) when refused."""
         return self._unless_recording() and self.calibration_panel.load_sync_profile(path)
 
-    def use_outcome(self, outcome) -> bool:
-        """Use the Calibrate workspace's result; False (with the reason shown) when refused."""
+    def use_outcome(self, outcome, saved_path=None) -> bool:
+        """Use the Calibrate workspace's result; False (with the reason shown) when refused.
+
+        A result saved to ``saved_path`` is used as that file (named by its path and content hash, and
+        restored at the next start); one not saved, as the run.
+        """
+        if saved_path is not None:
+            return self.load_calibration(saved_path)
         run = None if outcome is None else outcome.run
         identity = None if outcome is None else outcome.identity
-        return self._unless_recording() and self.calibration_panel.use_run(run, identity)
+        return self._unless_recording() and self.calibration_panel.use_run(run, identity, outcome=outcome)
+
+    def outcome_saved(self, outcome, path) -> bool:
+        """The Calibrate workspace saved ``outcome`` to ``path``: when recordings use that run, they now use the
+        file (its path and content hash). True when Capture switched to the file."""
+        if outcome is None or self.calibration_panel.run_outcome is not outcome or self.record_panel.recording:
+            return False
+        return self.calibration_panel.load_calibration(path)
 
     def clear_calibration(self) -> None:
         """Record uncalibrated (identity homography, phase 0, no trigger delay)."""
@@ -211,6 +239,9 @@ class CaptureWorkspace(QWidget):
     def _guard(self) -> str | None:
         return self.rig_guard() if self.rig_guard is not None else None
 
+    def _confirm_record(self, plan) -> bool:
+        return self.calibration_panel.confirm_record(plan, self)
+
     def _before_record(self) -> None:
         if self.live_panel.running:
             self.live_panel.stop()
@@ -218,6 +249,15 @@ class CaptureWorkspace(QWidget):
     def _recording_ended(self, result) -> None:
         self.live_panel.end_capture()
         self.recording_finished.emit(result)
+
+    def closing_losses(self) -> list[str]:
+        """What closing the window would stop now: a recording (its frames so far are kept)."""
+        capture = self.capture
+        if not self.recording or capture is None:
+            return []
+        written = capture.stats().rows_written
+        return [f"the recording to {capture.path} stops ({written} frames written so far are kept; it ends "
+                "“stopped”, not after the frames asked for)"]
 
     def shutdown(self) -> None:
         """Stop the live view and any recording (window closing: waits, bounded, for the recording to end)."""

@@ -119,6 +119,8 @@ class CalibrationOutcome:
     shutter : calibration.shutter.ShutterVerification or None
         The second verification pass (its ``wrong`` map); None when the run stopped before the shutter.
     seconds : float
+    finished_at : str
+        The local time the run ended ("14:03:27"), to tell runs apart in words.
     """
 
     run: object
@@ -127,6 +129,7 @@ class CalibrationOutcome:
     truth: dict | None = None
     shutter: object | None = None
     seconds: float = 0.0
+    finished_at: str = ""
     notes: list = field(default_factory=list)
 
     @property
@@ -172,6 +175,7 @@ def run_workspace_calibration(target: CalibrationTarget, *, tile=(4, 4), cancel:
     if target.simulated:
         outcome.truth = truth_comparison(target.rig, run, camera_size)
     outcome.seconds = time.perf_counter() - t0
+    outcome.finished_at = time.strftime("%H:%M:%S")
     _logger.info("calibration %s in %.1f s", "succeeded" if run.success else
                  f"stopped at {run.report.get('failed')}", outcome.seconds)
     return outcome
@@ -296,10 +300,10 @@ def summary_rows(outcome: CalibrationOutcome) -> list[tuple[str, list[tuple[str,
     sy = rep.get("sync")
     if sy is not None:
         rows.append(("Synchronisation", [
-            ("phase (exposure slot 0 sees slot)", str(sy.get("phase_slots"))),
+            ("phase with no camera delay (exposure slot 0 sees slot)", str(sy.get("phase_slots"))),
             ("sub-slot delay", _num(sy.get("delay_us"), ".0f", " µs")),
             ("recommended camera trigger delay", _num(sy.get("recommended_camera_delay_us"), ".0f", " µs")),
-            ("phase for the shutter patterns", str(sy.get("effective_phase_slots"))),
+            ("phase the shutter patterns use, with that delay", str(sy.get("effective_phase_slots"))),
             ("sweep slope (expected 1)", _num(sy.get("slope"), ".3f")),
         ], sy.get("status"), sy.get("message", "")))
     fr = rep.get("frames")

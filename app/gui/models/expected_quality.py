@@ -123,6 +123,9 @@ class Expectation:
         True when no bench row matches the settings exactly (nearest or interpolated rows, another K).
     sci_psnr : float or None
         Mean PSNR on the SCI clips (Runner, Drop), when the bench had them.
+    nearest : str
+        The bench setting the quality is quoted from when the bench never measured these settings (say another
+        diffusion tensor); "" when it did.
     """
 
     psnr: float
@@ -131,15 +134,19 @@ class Expectation:
     basis: str
     approximate: bool
     sci_psnr: float | None = None
+    nearest: str = ""
 
     def text(self) -> str:
         """One line for the UI."""
         return (f"{'≈ ' if self.approximate else ''}{format_seconds(self.seconds)}, {self.quality_text()}")
 
     def quality_text(self) -> str:
-        """The quality part of :meth:`text`."""
+        """The quality part of :meth:`text` (settings the bench never measured: the nearest it did, named)."""
         sci = f", SCI clips {self.sci_psnr:.1f} dB" if self.sci_psnr is not None else ""
-        return f"{self.psnr:.1f} dB PSNR / SSIM {self.ssim:.2f} on the built-in scenes{sci}"
+        figures = f"{self.psnr:.1f} dB PSNR / SSIM {self.ssim:.2f} on the built-in scenes{sci}"
+        if self.nearest:
+            return f"quality not benched at these settings (the nearest benched, {self.nearest}: {figures})"
+        return figures
 
 
 def format_seconds(s: float) -> str:
@@ -195,9 +202,10 @@ def expected(table: dict | None, method: Method, code, *, voxels: int) -> Expect
         fig, more, basis = _interp(fam, spec.bench_axis, values[spec.bench_axis])
     approx = approx or more or not exact
     seconds = voxels / max(fig["mvoxels_per_s"] * 1e6, 1e-9)
+    nearest = "" if exact else basis
     basis = f"bench K={bench_k}: {basis}"
     return Expectation(psnr=float(fig["psnr"]), ssim=float(fig["ssim"]), seconds=float(seconds), basis=basis,
-                       approximate=bool(approx), sci_psnr=fig.get("sci_psnr"))
+                       approximate=bool(approx), sci_psnr=fig.get("sci_psnr"), nearest=nearest)
 
 
 if __name__ == "__main__":  # pragma: no cover - regenerates the shipped table

@@ -74,20 +74,31 @@ def make_capture(service: RigService, plan: CapturePlan, path, *, frames: int | 
                    rig_info={"profile": "mock" if service.simulated else service.name, "source": "flexvox app"})
 
 
-def counters_text(s: CaptureStats, target: int | None = None) -> str:
-    """One line of counters: frames, drops, queue depth, write and camera rates."""
+def video_seconds(frames: int, frame_period_s: float) -> str:
+    """How long ``frames`` camera frames last in the recording ("4.20 s of video"), as ``flexvox info`` says it."""
+    return f"{frames * frame_period_s:.2f} s of video"
+
+
+def counters_text(s: CaptureStats, target: int | None = None, frame_period_s: float | None = None) -> str:
+    """One line of counters: frames (and the video they make, with ``frame_period_s``), drops, queue depth, write
+    and camera rates, and the time since Record (which includes setting the rig up)."""
     of = f" of {target}" if target else ""
-    return (f"{s.rows_written}{of} frames written ({s.frames_received} received) · "
+    video = f" = {video_seconds(s.rows_written, frame_period_s)}" if frame_period_s else ""
+    return (f"{s.rows_written}{of} frames written{video} ({s.frames_received} received) · "
             f"{s.drops} dropped ({s.queue_drops} by the queue) · queue {s.queue_depth}/{s.queue_capacity} "
             f"(max {s.max_queue_depth}) · write {s.write_rate_hz:.1f} Hz · camera {s.camera_rate_hz:.1f} Hz · "
-            f"{s.elapsed_s:.1f} s")
+            f"{s.elapsed_s:.1f} s since Record")
 
 
-def result_text(result: CaptureResult | None, path) -> str:
-    """What the workspace says when a capture has ended (None: it did not stop in time)."""
+def result_text(result: CaptureResult | None, path, frame_period_s: float | None = None) -> str:
+    """What the workspace says when a capture has ended (None: it did not stop in time); with ``frame_period_s``,
+    how long the recording lasts."""
     if result is None:
         return (f"the capture did not stop within the time allowed (the disk may hang); {path} keeps what was "
-                "written — check it with `flexvox info`")
+                "written: open it in Review to see what it holds")
+    held = result.frames_in_recording
+    video = (f"{video_seconds(held, frame_period_s)} at {1 / frame_period_s:.3g} Hz; "
+             if frame_period_s and held is not None else "")
     if result.ok:
-        return f"recording done: {result.message}"
-    return f"recording failed: {result.message}"
+        return f"recording done: {video}{result.message}"
+    return f"recording failed: {result.message}" + (f" ({video[:-2]} kept)" if video else "")

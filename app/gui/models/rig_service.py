@@ -1,7 +1,10 @@
 """The rig's devices as the device panel sees them (Qt-free service).
 
 Wraps a :class:`rig_drivers.profile.Rig`: each device's role, name, state, whether it is
-simulated, and the last error in words. :meth:`RigService.connect` opens and enables a device,
+simulated, the last error in words, and who is using the devices (a calibration, co-location live,
+the synchronisation wizard: they open and close the devices themselves, so their state flickers
+while they run; :meth:`RigService.begin_use` says who holds them, and :meth:`RigService.end_use`
+connects again what the operator had connected before). :meth:`RigService.connect` opens and enables a device,
 :meth:`RigService.disconnect` closes it; failures are caught *as results* (kept in
 ``last_error`` and logged at warning level), never swallowed. Views subscribe with
 :meth:`RigService.subscribe` (a plain callback, napari-style events without Qt).
@@ -49,6 +52,8 @@ class RigService:
         self.rig = rig
         self._errors: dict[str, str] = dict.fromkeys(ROLES, "")
         self._listeners: list[Callable[[str], None]] = []
+        self._users: dict[str, set[str]] = {}
+        """Who uses the devices now, each with the roles that were connected when it began."""
 
     @property
     def simulated(self) -> bool:
@@ -159,6 +164,41 @@ class RigService:
             self.record_error("projector", "connect the projector first to set its LED currents")
             return False
         return self._attempt("projector", "setting the LED currents", lambda: dev.set_led_currents(red, green, blue))
+
+    @property
+    def in_use_by(self) -> str | None:
+        """Who uses the devices now ("the calibration"), None when nobody does."""
+        return next(iter(self._users), None)
+
+    def begin_use(self, user: str) -> None:
+        """``user`` opens and closes the devices from now on (they are held: the panel says so)."""
+        if user in self._users:
+            return
+        connected = {r for r in ROLES if (d := self.device(r)) is not None and d.state is DeviceState.ENABLED}
+        if self._users:  # a user before this one remembers what the operator had connected
+            connected = set()
+        self._users[user] = connected
+        _logger.info("devices in use by %s", user)
+        for role in ROLES:
+            self.notify(role)
+
+    def end_use(self, user: str) -> list[str]:
+        """``user`` is done with the devices: connect again those the operator had connected before it began
+        (its own session closed them). Returns the roles connected again."""
+        if user not in self._users:
+            return []
+        connected = self._users.pop(user)
+        again = []
+        if not self._users:
+            for role in ROLES:
+                dev = self.device(role)
+                if role in connected and dev is not None and dev.state is not DeviceState.ENABLED:
+                    if self.connect(role):
+                        again.append(role)
+        _logger.info("devices free (%s done); connected again: %s", user, ", ".join(again) or "none")
+        for role in ROLES:
+            self.notify(role)
+        return again
 
     def record_error(self, role: str, message: str) -> None:
         """Keep an error another part of the app met with this device (e.g. during live view)."""

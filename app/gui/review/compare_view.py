@@ -6,11 +6,13 @@ from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QComboBox, QFormLayout, QGridLayout, QWidget
 
 from app.gui.models.jobs import ReconstructionResult
+from app.gui.widgets.adaptive_split import AdaptiveSplit
 from app.gui.widgets.image_panel import ImagePanel
 
 
 class CompareView(QWidget):
-    """Pick two results (A, B); both show the same sub-frame, panned and zoomed together."""
+    """Pick two results (A, B); both show the same sub-frame, panned and zoomed together (side by side, or A above B
+    where the view is narrow)."""
 
     def __init__(self, parent: QWidget | None = None):
         super().__init__(parent)
@@ -24,11 +26,10 @@ class CompareView(QWidget):
             box.setSizeAdjustPolicy(QComboBox.SizeAdjustPolicy.AdjustToMinimumContentsLengthWithIcon)
         grid = QGridLayout(self)
         picks = QFormLayout()
-        picks.addRow("A (left)", self.box_a)
-        picks.addRow("B (right)", self.box_b)
+        picks.addRow("A", self.box_a)
+        picks.addRow("B", self.box_b)
         grid.addLayout(picks, 0, 0, 1, 2)
-        grid.addWidget(self.panel_a, 1, 0)
-        grid.addWidget(self.panel_b, 1, 1)
+        grid.addWidget(AdaptiveSplit(self.panel_a, self.panel_b), 1, 0, 1, 2)  # A above B in a narrow view
         grid.setRowStretch(1, 1)
         self._results: list[ReconstructionResult] = []
         self._truth = None

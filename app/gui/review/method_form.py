@@ -29,6 +29,7 @@ from PySide6.QtWidgets import (
 from app.gui.models.continuum import continuum_division, continuum_tensor, describe
 from app.gui.widgets.collapsible import Collapsible
 from app.gui.widgets.settings import AppSettings
+from app.gui.widgets.status_line import StatusLine
 from flexvox_core.methods import DEFAULT, Method, Option, get, names, specs
 
 SLIDER_STEPS = 100
@@ -129,6 +130,7 @@ class MethodForm(QWidget):
         self.settings = settings
         self._divisions: list = []
         self._comparing = False
+        self._beside = False
         self.method_box = QComboBox()
         self.method_box.addItems(names())
         self.stack = QStackedWidget()
@@ -158,8 +160,7 @@ class MethodForm(QWidget):
         ends.addWidget(QLabel("high SR"))
         ends.addWidget(self.slider, 1)
         ends.addWidget(QLabel("high TR"))
-        self.slider_text = QLabel()
-        self.slider_text.setWordWrap(True)
+        self.slider_text = StatusLine(lines=2)
 
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
@@ -250,6 +251,13 @@ class MethodForm(QWidget):
         self._comparing = not self._has_slider()
         self._on_change()
 
+    def set_beside(self, beside: bool) -> None:
+        """Whether the chosen method has a full result for the slider's preview to stand beside (the line under the
+        slider says which)."""
+        if bool(beside) != self._beside:
+            self._beside = bool(beside)
+            self._refresh()
+
     def stop_comparing(self) -> None:
         """Preview the chosen method again (after the slider previewed a fixed tensor)."""
         if self._comparing:
@@ -278,8 +286,11 @@ class MethodForm(QWidget):
                 self.slider_text.setText("open a recording to see its divisions")
         elif "triple" in kinds:
             self.slider_text.setText(describe(self.position))
+        elif self._comparing and self._beside:
+            self.slider_text.setText(f"previewing diffusion, {describe(self.position)}, beside the {spec.name} "
+                                     f"result for comparison; Reconstruct runs {spec.name}")
         elif self._comparing:
-            self.slider_text.setText(f"previewing diffusion, {describe(self.position)}, beside {spec.name} "
-                                     f"for comparison; Reconstruct runs {spec.name}")
+            self.slider_text.setText(f"previewing diffusion, {describe(self.position)}, in place of {spec.name} (no "
+                                     f"{spec.name} result to set it beside yet); Reconstruct runs {spec.name}")
         else:
             self.slider_text.setText(f"{spec.trade}; the slider previews a fixed tensor for comparison")

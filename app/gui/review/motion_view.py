@@ -6,6 +6,7 @@ import numpy as np
 from PySide6.QtWidgets import QButtonGroup, QHBoxLayout, QLabel, QRadioButton, QVBoxLayout, QWidget
 
 from app.gui.models.jobs import ReconstructionResult
+from app.gui.widgets.adaptive_split import AdaptiveSplit
 from app.gui.widgets.image_panel import ImagePanel
 from flexvox_core.flow import flow_to_color, quiver_image
 
@@ -33,13 +34,11 @@ class MotionView(QWidget):
         top.addWidget(self.color)
         top.addWidget(self.quiver)
         top.addStretch(1)
-        panels = QHBoxLayout()
-        panels.addWidget(self.flow_panel, 1)
-        panels.addWidget(self.map_panel, 1)
+        panels = AdaptiveSplit(self.flow_panel, self.map_panel)  # one above the other in a narrow view
         layout = QVBoxLayout(self)
         layout.addLayout(top)
         layout.addWidget(self.note)
-        layout.addLayout(panels, 1)
+        layout.addWidget(panels, 1)
         self._result: ReconstructionResult | None = None
         self._shown: ReconstructionResult | None = None
         self._n_subframes = 0

@@ -15,12 +15,13 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from app.gui.models.operator_words import in_gui_words
 from app.gui.models.rig_service import ROLES, RigService
 from app.gui.widgets.elided_label import ElidedLabel
 from app.gui.widgets.rich_text import AMBER, GREEN, GREY, RED
 from rig_drivers.interfaces import DeviceState
 
-_STATE_COLOUR = {DeviceState.CLOSED: GREY, DeviceState.OPEN: AMBER, DeviceState.ENABLED: GREEN}
+STATE_COLOUR = {DeviceState.CLOSED: GREY, DeviceState.OPEN: AMBER, DeviceState.ENABLED: GREEN}
 
 
 def _detail(service: RigService, role: str) -> str:
@@ -139,14 +140,20 @@ class DevicePanel(QWidget):
                 row["state"].setStyleSheet("")
                 row["button"].setEnabled(False)
                 row["button"].setText("Connect")
+            elif self.service.in_use_by:  # opened and closed by its user: held, whatever the moment's state
+                row["state"].setText(f"● in use by {self.service.in_use_by}")
+                row["state"].setStyleSheet(f"color: {AMBER}")
+                row["button"].setEnabled(False)
+                row["button"].setToolTip(f"in use by {self.service.in_use_by}: wait for it to end")
             else:
-                colour = _STATE_COLOUR[st.state]
+                colour = STATE_COLOUR[st.state]
                 state = f"{st.state.value}{_detail(self.service, r)}"
                 row["state"].setText(f"● {state}")
                 row["state"].setStyleSheet(f"color: {colour}")
                 row["button"].setEnabled(True)
+                row["button"].setToolTip("")
                 row["button"].setText("Connect" if st.state is DeviceState.CLOSED else "Disconnect")
-            row["error"].setText(html.escape(st.last_error))
+            row["error"].setText(html.escape(in_gui_words(st.last_error)))
             row["error"].setVisible(bool(st.last_error))
 
     def state_text(self, role: str) -> str:

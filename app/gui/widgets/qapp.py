@@ -12,6 +12,9 @@ import sys
 import pyqtgraph as pg
 from PySide6.QtWidgets import QApplication
 
+DEFAULT_SIZE = (1280, 800)
+"""The first window's size: every workspace's primary actions are in view at this size (and at 1024×700)."""
+
 
 def configure_pyqtgraph() -> None:
     """pyqtgraph options the app relies on: row-major images (numpy's (H, W) order), antialiasing."""

@@ -101,3 +101,21 @@ def small_rig(**kw):
     kw.setdefault("camera_size", (48, 64))
     kw.setdefault("subframes", 64)
     return open_rig("mock", **kw)
+
+
+H_SHIFT = np.array([[1.0, 0.0, 0.5], [0.0, 1.0, -0.25], [0.0, 0.0, 1.0]])
+"""A homography a hand-made calibration file holds (half a pixel right, a quarter up)."""
+
+
+def write_calibration(path, identity, *, h=H_SHIFT, phase=3, K=16, period_us=1041, rms=0.123, overwrite=False):
+    """A calibration file for the rig of ``identity`` (as flexvox calibrate writes it), made 2026-03-14."""
+    import datetime as dt
+
+    from calibration.files import CALIBRATION_FORMAT, CALIBRATION_VERSION, write_versioned
+
+    body = {"homography": {"projector_to_camera": h.tolist(), "camera_to_projector": np.linalg.inv(h).tolist()},
+            "quality": {"status": "ok", "rms_px": rms},
+            "sync": {"status": "ok", "phase_slots": phase, "K": K, "period_us": period_us,
+                     "recommended_camera_delay_us": 0.0}}
+    return write_versioned(path, CALIBRATION_FORMAT, CALIBRATION_VERSION, identity, body, overwrite=overwrite,
+                           now=dt.datetime(2026, 3, 14, 9, 30, tzinfo=dt.UTC))

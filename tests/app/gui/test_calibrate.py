@@ -13,6 +13,7 @@ from app.gui.models.calibration_model import (
     target_for,
 )
 from app.gui.models.rig_service import RigService
+from app.gui.widgets.questions import Question, answering
 from calibration.files import load_calibration
 from calibration.sync import load_sync_profile
 from rig_drivers.simulated_target import hidden_timing
@@ -60,6 +61,10 @@ def test_calibration_runs_off_the_gui_thread_shows_its_figures_and_saves(qtbot, 
                    "Synchronisation", "Drops and drift", "no gaps", "hidden truth"):
         assert phrase in text, phrase
     assert f"{truth_phase} / {truth_phase}" in text  # phase found / true
+    # the time it took, then what to do (it read "save it in 30.2 s", a deadline); the two phases say which is which
+    assert re.search(r"calibration succeeded in [\d.]+ s at \d\d:\d\d:\d\d</b>: save it, or use it for capture", text)
+    assert "phase with no camera delay (exposure slot 0 sees slot)" in text
+    assert "phase the shutter patterns use, with that delay" in text
     assert "calibration succeeded" in ws.step_label.text() and ws.run_button.isEnabled()
     # residual heat map with a colour map, and the map of wrong pixels
     assert ws.results_view.residuals.image.image.shape == (120, 160) and ws.results_view.residuals.colorbar is not None
@@ -78,6 +83,16 @@ def test_calibration_runs_off_the_gui_thread_shows_its_figures_and_saves(qtbot, 
     data = load_calibration(path, outcome.identity)
     np.testing.assert_allclose(data["H"], outcome.homography.homography)
     assert data["sync"]["phase_slots"] == truth_phase
+    # Point 9, one rule for existing files: ask, naming the file (a second Save replaced it unasked)
+    before = path.read_bytes()
+    with answering(False) as asked:
+        ws.save_panel.save_button.click()
+    assert asked == [Question("Replace the existing calibration?",
+                              f"{path} already exists. Replace it with the new calibration?", "Replace")]
+    assert f"not saved: {path} is kept" in ws.save_panel.label.text() and path.read_bytes() == before
+    with answering(True):
+        ws.save_panel.save_button.click()
+    assert f"saved {path}" in ws.save_panel.label.text()
 
 
 def test_cancel_stops_between_steps_and_keeps_nothing(qtbot, calibrate):
@@ -90,8 +105,36 @@ def test_cancel_stops_between_steps_and_keeps_nothing(qtbot, calibrate):
     assert re.fullmatch(r"cancelled during (parallax: near target|parallax: far target|homography|shutter|sync)"
                         r"; the devices were stopped", ws.step_label.text())
     assert ws.outcome is None and not ws.save_panel.save_button.isEnabled() and ws.run_button.isEnabled()
-    assert "nothing to save (cancelled)" in ws.save_panel.label.text()
+    assert "nothing to save (the new run was cancelled)" in ws.save_panel.label.text()
     assert ws.save_panel.save("x.json") is None and "nothing to save" in ws.save_panel.label.text()
+
+
+def test_a_cancelled_second_run_keeps_the_first_result_and_the_bar_never_goes_back(qtbot, calibrate, tmp_path):
+    """Point 6: the bar fills once over the whole run (it restarted at every step); a second run that is cancelled
+    leaves the first result shown, offered and savable (it said "succeeded" beside "nothing to save")."""
+    ws = calibrate
+    seen = []
+    ws.progress.valueChanged.connect(lambda v: seen.append((v, ws.progress.maximum())) if ws.running else None)
+    _run(qtbot, ws)
+    first = ws.outcome
+    assert first.success and first.finished_at
+    run = [v for v, top in seen if top == 6000]
+    assert len(run) > 10 and run == sorted(run) and run[-1] >= 5000, run  # one bar, never going back
+    assert ws.progress.value() == ws.progress.maximum()
+    assert ws.run_calibration()
+    assert not ws.save_panel.save_button.isEnabled() and not ws.save_panel.use_button.isEnabled()  # running
+    assert f"shown: the calibration of {first.finished_at}" in ws.results_view.results.text()
+    qtbot.waitUntil(lambda: ws.tracker.index >= 1, timeout=10_000)
+    ws.cancel_button.click()
+    qtbot.waitUntil(lambda: not ws.running, timeout=20_000)
+    assert ws.outcome is first and ws.save_panel.save_button.isEnabled() and ws.save_panel.use_button.isEnabled()
+    text = ws.results_view.results.text()
+    assert f"the new run was cancelled; shown: the calibration of {first.finished_at}" in text
+    assert "calibration succeeded" in text
+    assert (f"the new run was cancelled; the calibration of {first.finished_at} can still be saved"
+            in ws.save_panel.label.text())
+    path = ws.save_panel.save(tmp_path / "first.json")
+    np.testing.assert_allclose(load_calibration(path, first.identity)["H"], first.homography.homography)
 
 
 def test_a_rig_that_is_not_co_located_is_reported_and_not_saved(qtbot, calibrate):
@@ -145,7 +188,9 @@ def test_sync_wizard_end_to_end(qtbot, calibrate, tmp_path):
     wizard.trigger.button.click()
     qtbot.waitUntil(wizard.trigger.isComplete, timeout=10_000)
     verdict = wizard.trigger.verdict.text()
-    assert "3 triggered frames (camera frame ids " in verdict and "–" not in verdict  # the ids, not a range
+    assert "3 triggered frames arrived (camera frame numbers " in verdict and "–" not in verdict  # the ids, no range
+    assert "skipped while the pattern settled" in verdict
+    assert "in relative units (a white target seen through" in verdict
     wizard.next()
     # 3. phase sweep (no homography from the workspace yet: the page measures one first)
     assert wizard.homography is None
@@ -175,6 +220,10 @@ def test_sync_wizard_end_to_end(qtbot, calibrate, tmp_path):
     assert "saved" in wizard.save_page.label.text()
     data = load_sync_profile(path, wizard.identity)
     assert data["sync"]["phase_slots"] == truth_phase and data["frame_check"]["status"] == "ok"
+    with answering(False) as asked:  # the one rule for an existing file
+        wizard.save_page.button.click()
+    assert [q.text for q in asked] == [f"{path} already exists. Replace it with the new sync profile?"]
+    assert f"not saved: {path} is kept" in wizard.save_page.label.text()
     with qtbot.waitSignal(wizard.destroyed, timeout=5000):
         wizard.accept()
 

@@ -1,7 +1,10 @@
 """The Capture workspace on the simulated rig: code choice, timing check, live view start/stop."""
 
+import itertools
+
 import numpy as np
 import pytest
+from PySide6.QtCore import Qt
 
 from app.gui.capture.workspace import CaptureWorkspace
 from app.gui.models.rig_service import RigService
@@ -16,6 +19,9 @@ def capture(qtbot, settings):
     ws = CaptureWorkspace(service, settings)
     qtbot.addWidget(ws)
     ws.code.rate.setValue(60.0)  # K = 16 at 60 Hz: 1041 µs patterns, frames every 16.7 ms
+    ws.clear_calibration()  # “Record uncalibrated”: these recordings need no calibration
+    clicks = itertools.count(0.0, 1.0)
+    ws.live_panel.clock = lambda: next(clicks)  # a second between two clicks: none is the half of a double click
     yield ws
     ws.shutdown()
     service.close()
@@ -82,10 +88,17 @@ def test_code_choice_lists_tr_sr_and_multiplexed_codes(capture):
     ws.set_tile((2, 4))
     text = ws.code.resolutions_label.text()
     assert "1x1x8" in text and "2x4x1" in text and "identity code, K = 8" in ws.code.code_label.text()
-    ws.code.multiplexed.setChecked(True)
-    assert "no S-matrix exists for K = 8" in ws.code.code_label.text()
+    # Point 11: no S-matrix at K = 8: the choice is off, and says why
+    multiplexed = ws.code.multiplexed
+    assert not multiplexed.isEnabled() and multiplexed.text() == "multiplexed (S-matrix): none for K = 8"
+    assert multiplexed.toolTip().startswith("not for this tile: no S-matrix exists for K = 8")
     ws.set_tile((3, 5))
+    assert multiplexed.isEnabled() and multiplexed.text() == "multiplexed (S-matrix)"
+    multiplexed.setChecked(True)
     assert "S-matrix multiplexed, K = 15" in ws.code.code_label.text() and "3x5x1" in ws.code.resolutions_label.text()
+    ws.set_tile((4, 4))  # the choice made at K = 15 does not follow to a tile without one
+    assert ws.code.identity.isChecked() and not ws.plan().multiplexed and not multiplexed.isEnabled()
+    assert "identity code, K = 16" in ws.code.code_label.text() and "refused" not in ws.live_panel.live_label.text()
 
 
 def test_a_camera_that_stops_delivering_ends_the_live_view_with_the_reason(qtbot, capture):
@@ -122,6 +135,7 @@ def test_a_design_file_is_the_code_recordings_use(qtbot, settings, tmp_path):
     ws = CaptureWorkspace(service, settings)
     qtbot.addWidget(ws)
     ws.live_panel.preview_check.setChecked(False)
+    ws.clear_calibration()  # “Record uncalibrated”: these recordings need no calibration
     code = design_code((2, 4))
     path = tmp_path / "code.json"
     path.write_text(json.dumps(code.as_dict()))
@@ -145,3 +159,19 @@ def test_a_design_file_is_the_code_recordings_use(qtbot, settings, tmp_path):
     assert ws.plan().code_file is None and ws.code.tile_box.isEnabled()
     ws.shutdown()
     service.close()
+
+
+def test_a_double_click_on_start_live_view_does_not_stop_it_after_one_frame(qtbot, capture):
+    """Point 11: the second click of a double click is ignored; a later click stops the live view."""
+    ws = capture
+    now = [100.0]
+    ws.live_panel.clock = lambda: now[0]
+    for _ in range(2):  # a double click: two clicks with no time between them on the clock
+        qtbot.mouseClick(ws.live_panel.live_button, Qt.MouseButton.LeftButton)
+    assert ws.live and ws.live_panel.live_button.isChecked() and ws.live_panel.live_button.text() == "Stop live view"
+    now[0] += 0.3
+    ws.live_panel.live_button.click()  # still within the double-click time
+    assert ws.live
+    now[0] += 1.0
+    ws.live_panel.live_button.click()
+    assert not ws.live and ws.live_panel.live_button.text() == "Start live view"

@@ -11,24 +11,12 @@ from app.gui.capture.workspace import CaptureWorkspace
 from app.gui.models.calibration_model import run_workspace_calibration, target_for
 from app.gui.models.capture_calibration import capture_identity
 from app.gui.models.rig_service import RigService
-from calibration.capture_setup import CalibrationRefused, from_run, load_for_capture
-from calibration.files import CALIBRATION_FORMAT, CALIBRATION_VERSION, write_versioned
+from calibration.capture_setup import CalibrationRefused, file_sha256, from_run, load_for_capture
+from calibration.files import write_versioned
 from flexvox_core.recording import open_recording
 
-from .conftest import small_rig
-
-H_SHIFT = np.array([[1.0, 0.0, 0.5], [0.0, 1.0, -0.25], [0.0, 0.0, 1.0]])
-
-
-def _write(path, identity, *, h=H_SHIFT, phase=3, K=16, period_us=1041, rms=0.123):
-    body = {"homography": {"projector_to_camera": h.tolist(), "camera_to_projector": np.linalg.inv(h).tolist()},
-            "quality": {"status": "ok", "rms_px": rms},
-            "sync": {"status": "ok", "phase_slots": phase, "K": K, "period_us": period_us,
-                     "recommended_camera_delay_us": 0.0}}
-    import datetime as dt
-
-    return write_versioned(path, CALIBRATION_FORMAT, CALIBRATION_VERSION, identity, body,
-                           now=dt.datetime(2026, 3, 14, 9, 30, tzinfo=dt.UTC))
+from .conftest import H_SHIFT, small_rig
+from .conftest import write_calibration as _write
 
 
 @pytest.fixture
@@ -58,7 +46,8 @@ def test_a_file_for_this_rig_is_used_by_recordings(qtbot, capture, tmp_path):
     assert "recordings use phase <b>3</b>, no camera trigger delay" in text
     cal = ws.capture_calibration()
     np.testing.assert_allclose(cal.homography, H_SHIFT)
-    assert cal.phase_slots == 3 and cal.source == str(path) and cal.created == "2026-03-14T09:30:00+00:00"
+    assert cal.phase_slots == 3 and cal.created == "2026-03-14T09:30:00+00:00"
+    assert cal.source == f"{path} (sha256 {file_sha256(path)[:16]})" and cal.sha256 == file_sha256(path)
     ws.record_panel.path_edit.setText(str(tmp_path / "run.zarr"))
     ws.record_panel.frames_box.setValue(4)
     with qtbot.waitSignal(ws.recording_finished, timeout=20_000) as finished:
@@ -66,7 +55,7 @@ def test_a_file_for_this_rig_is_used_by_recordings(qtbot, capture, tmp_path):
     assert finished.args[0].ok
     stored = open_recording(tmp_path / "run.zarr").attrs["calibration"]
     np.testing.assert_allclose(stored["homography"], H_SHIFT)
-    assert stored["phase_slots"] == 3 and stored["source"] == cal.source
+    assert stored["phase_slots"] == 3 and stored["source"] == cal.source and stored["sha256"] == cal.sha256
     # another timing: the phase is only a guess, and the box says so
     ws.set_tile((2, 4))
     assert "the sync was measured at K = 16, 1041 µs patterns; this capture is K = 8" in label.text()
@@ -126,10 +115,17 @@ def test_the_calibrate_workspaces_result_hands_over_to_capture(qtbot, settings, 
     cal.run_calibration()
     qtbot.waitUntil(lambda: not cal.running, timeout=30_000)
     assert cal.outcome.success and cal.save_panel.use_button.isEnabled()
-    cal.save_panel.save(tmp_path / "fresh.json")
     cal.save_panel.use_button.click()
     capture = window.capture
     assert window.tabs.currentWidget() is capture
+    assert capture.calibration.source == "the calibration just run (not saved)" and capture.calibration.sha256 == ""
+    # Saved afterwards: recordings now name the file by its path and content hash, as when it is loaded.
+    path = cal.save_panel.save(tmp_path / "fresh.json")
+    digest = file_sha256(path)
+    assert capture.calibration.source == f"{path} (sha256 {digest[:16]})" and capture.calibration.sha256 == digest
+    window.show_workspace("Calibrate")
+    cal.save_panel.use_button.click()  # saved first, then used: the same file
+    assert capture.calibration.sha256 == digest and settings.get_str("capture/calibration_file") == str(path)
     active = capture.calibration
     np.testing.assert_allclose(active.homography, cal.outcome.homography.homography)
     sync = cal.outcome.sync
@@ -156,6 +152,8 @@ def test_another_simulated_rigs_calibration_is_refused(qtbot, settings, runner):
     qtbot.addWidget(ws)
     assert not ws.use_outcome(outcome)
     assert ws.calibration_error.startswith("the calibration just run was made for rig")
+    assert ws.calibration_error.endswith("calibrate this rig in the Calibrate workspace instead of reusing it (or "
+                                         "start flexvox on the simulated rig with the seed that file was made with)")
     assert "refused: the calibration just run was made for" in html.unescape(ws.calibration_panel.label.text())
     assert ws.calibration is None
     ws.shutdown()

@@ -105,6 +105,7 @@ def test_a_recording_made_in_capture_opens_in_review(qtbot, settings, runner, tm
     assert window.calibrate.rig_busy_reason() is None  # the simulated rig calibrates its own target
     capture = window.capture
     capture.code.rate.setValue(60.0)
+    capture.clear_calibration()  # “Record uncalibrated”
     capture.record_panel.path_edit.setText(str(tmp_path / "made-here.zarr"))
     capture.record_panel.frames_box.setValue(6)
     with qtbot.waitSignal(capture.recording_finished, timeout=20_000):
@@ -211,3 +212,86 @@ def test_closing_the_window_while_review_plays_starts_no_preview_after_the_runne
     assert refused.outcome == "cancelled" and not refused.running
     assert runner.pool.activeThreadCount() == 0  # no job thread still runs
     qtbot.waitUntil(lambda: runner.active == 0, timeout=5000)  # the jobs' last queued signals were delivered
+
+
+def test_a_status_line_keeps_its_height_and_cuts_a_long_text_with_the_whole_on_hover(qtbot):
+    from app.gui.widgets.rich_text import RED, coloured
+    from app.gui.widgets.status_line import StatusLine
+
+    line = StatusLine("short", lines=2)
+    qtbot.addWidget(line)
+    line.resize(300, line.height())
+    line.show()
+    height = line.height()
+    assert not line.elided and line.shown_text() == "short" and line.toolTip() == ""
+    long = coloured("cannot record: " + "a long reason, " * 30, RED)
+    line.setText(long)
+    assert line.height() == height and line.elided and line.text() == long and line.toolTip() == long
+    shown = line.shown_text()
+    assert shown.count("<br>") == 1 and shown.endswith("…</span>") and RED in shown  # two lines, its colour kept
+    assert line.heightForWidth(line.width()) <= height  # what it shows fits
+    with pytest.raises(ValueError, match="`lines` must be at least 1; got 0"):
+        StatusLine(lines=0)
+
+
+STARTUP_SCRIPT = """
+import sys, time
+from PySide6.QtCore import QTimer
+from PySide6.QtWidgets import QApplication
+from app.gui.application import StartupWindow, launch
+from app.gui.widgets.settings import settings_at
+
+seen = {}
+
+def open_the_rig():
+    # what the operator sees while the rig opens: the start-up window, before any workspace was imported
+    seen["startup shown"] = any(isinstance(w, StartupWindow) and w.isVisible() for w in QApplication.topLevelWidgets())
+    seen["workspaces not loaded yet"] = "app.gui.main_window" not in sys.modules
+    from rig_drivers.profile import open_rig
+    return open_rig("mock", scene="balls", camera_size=(48, 64), subframes=64)
+
+def close_when_shown():  # runs from the first events on: it must not import the workspaces itself
+    windows = [w for w in QApplication.topLevelWidgets() if type(w).__name__ == "MainWindow" and w.isVisible()]
+    if windows:
+        seen["startup gone"] = not any(isinstance(w, StartupWindow) and w.isVisible()
+                                       for w in QApplication.topLevelWidgets())
+        windows[0].close()
+    else:
+        QTimer.singleShot(20, close_when_shown)
+
+QTimer.singleShot(0, close_when_shown)
+status = launch(open_the_rig, settings=settings_at(sys.argv[1]))
+print(seen, "status", status)
+"""
+
+
+def test_the_first_window_shows_at_once_and_the_rest_loads_behind_it(tmp_path):
+    """Point 11: the start-up window shows before the rig opens and the workspaces load, and goes when they are in."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, QT_QPA_PLATFORM="offscreen")
+    out = subprocess.run([sys.executable, "-c", STARTUP_SCRIPT, str(tmp_path / "s.ini")], capture_output=True,
+                         text=True, env=env, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert ("{'startup shown': True, 'workspaces not loaded yet': True, 'startup gone': True} status 0"
+            in out.stdout), out.stdout + out.stderr[-2000:]
+
+
+def test_the_docs_say_what_the_application_does():
+    """Point 12: the README's Debian list has the libraries Qt's xcb platform needs; docs/application.md quotes the
+    refinement default as the form shows it and says what a TIFF export carries (the writer's ImageJ metadata)."""
+    from pathlib import Path
+
+    from flexvox_core.methods.motion_aware import REFINE_SHOWN
+    from flexvox_core.video_io import imagej_metadata
+
+    root = Path(__file__).resolve().parents[3]
+    readme = (root / "README.md").read_text()
+    apt = readme[readme.index("sudo apt install libgl1"):].split("`")[0]
+    assert {"libxcb-cursor0", "libxcb-icccm4", "libxcb-keysyms1"} <= set(apt.split())
+    app_doc = " ".join((root / "docs" / "application.md").read_text().split())
+    assert f'"default ({REFINE_SHOWN})"' in app_doc and "TIFF, NPY and MP4 files carry no attributes" not in app_doc
+    meta = imagej_metadata(1 / 240, {"method": "m"})
+    assert {"finterval", "Info"} <= set(meta) and "ImageJ Info" in app_doc and "`finterval`" in app_doc

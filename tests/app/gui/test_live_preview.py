@@ -229,6 +229,7 @@ def capture(qtbot, settings, runner):
     ws.resize(1300, 800)
     ws.code.rate.setValue(60.0)  # K = 16 at 60 Hz: a frame every 16.7 ms
     ws.live_panel.preview.budget_s = 1e3  # the whole frame, however busy the machine (sizing: tested apart)
+    ws.clear_calibration()  # “Record uncalibrated”: these recordings need no calibration
     yield ws
     ws.shutdown()
     service.close()

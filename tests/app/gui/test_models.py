@@ -2,6 +2,7 @@
 
 import json
 import math
+import re
 import subprocess
 import sys
 import textwrap
@@ -116,6 +117,18 @@ def test_expected_matches_exact_rows_and_interpolates_between_times():
     assert twice.seconds == pytest.approx(2 * gap.seconds)
     other_k = expected(table, Method("rebin"), design_code((3, 5)).code, voxels=vox)
     assert other_k.approximate and other_k.basis.startswith("bench K=16")
+
+
+def test_a_tensor_the_bench_never_measured_is_not_given_another_tensor_s_quality_as_its_own():
+    """Point 7: diffusion at (1, 1, 0.21) quoted the quality of (1, 1, 0.05) as its own."""
+    table = load_table()
+    code = design_code((4, 4)).code
+    e = expected(table, Method("diffusion", tensor=(1.0, 1.0, 0.21), time=1.5), code, voxels=16 * 6 * 96 * 128)
+    assert e.nearest == "diffusion nc (1,1,0.05) n=1.5"
+    assert e.quality_text().startswith("quality not benched at these settings (the nearest benched, diffusion nc "
+                                       "(1,1,0.05) n=1.5: ")
+    benched = expected(table, Method("diffusion", tensor=(1.0, 1.0, 0.05), time=1.5), code, voxels=16 * 6 * 96 * 128)
+    assert benched.nearest == "" and benched.quality_text().endswith("on the built-in scenes")
 
 
 def test_missing_table_gives_no_expectation(tmp_path, caplog):
@@ -346,3 +359,36 @@ def test_file_dialogs_start_in_the_last_folder_used(settings, tmp_path):
     settings.remember_folder(tmp_path / "runs" / "cal.json")
     assert settings.last_folder("review/export_dir") == str(tmp_path)  # its own folder first
     assert settings.last_folder() == str(tmp_path / "runs")
+
+
+def test_messages_from_below_are_said_in_the_window_s_words():
+    """Point 8: no driver call, parameter in backticks or command-line flag in what the operator reads."""
+    from app.capture.rig_setup import delay_refusal
+    from app.gui.models.operator_words import in_gui_words
+    from calibration.capture_setup import CaptureCalibration
+    from rig_drivers.errors import IncompatibleStateError
+
+    said = {
+        "camera gone": "cannot read a frame: call start_acquisition() first",
+        "plan": "`plan`: no S-matrix exists for K = 16: S-matrices need K = 3 (mod 4)",
+        "closed": str(IncompatibleStateError("cannot read the sensor shape: cam is closed (call open() first)")),
+        "no delay": delay_refusal("the camera", 3, 441.0),
+        "seed": "cal.json was made for rig 'simulated rig (mock, seed 1)', not 'simulated rig (mock, seed 0)': "
+                "calibrate this rig (flexvox calibrate) instead of reusing it (or open the simulated rig with the seed "
+                "it was made on: --seed)",
+        "sync profile": "x.json is a sync profile (the synchronisation wizard's), not a calibration: it has no "
+                        "homography. Give it as a sync profile (flexvox capture --sync-profile; Capture: \"Load sync "
+                        "profile…\") and a calibration file as the calibration",
+    }
+    said |= {f"warning {i}": w for i, w in enumerate(CaptureCalibration().for_plan(16, 1000)[2])}
+    for what, message in said.items():
+        text = in_gui_words(message)
+        assert "`" not in text and "()" not in text and not re.search(r"(^|\s|\()--\w", text), (what, text)
+        assert "flexvox calibrate" not in text and "flexvox capture" not in text, (what, text)
+    assert in_gui_words(said["camera gone"]) == (
+        "the camera is not delivering frames (it was disconnected, switched off or closed): connect it in the Devices "
+        "panel and start again")
+    assert in_gui_words(said["plan"]) == "no S-matrix exists for K = 16: S-matrices need K = 3 (mod 4)"
+    assert in_gui_words(said["sync profile"]).endswith("Give it as a sync profile (“Load sync profile…”) and a "
+                                                       "calibration file as the calibration")
+    assert "tick \"trigger delay set on the camera\")" in in_gui_words(said["no delay"])

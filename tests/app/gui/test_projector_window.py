@@ -15,6 +15,7 @@ from PySide6.QtGui import QGuiApplication, QImage
 from app.gui.capture.workspace import CaptureWorkspace
 from app.gui.models.rig_service import RigService
 from app.gui.projector.window import ProjectorWindow, screen_label
+from app.gui.widgets.questions import answering
 from rig_drivers.dlpc350.bitplanes import pack_bitplanes, unpack_bitplanes
 
 from .conftest import small_rig
@@ -142,7 +143,14 @@ def test_capture_lists_the_screens_with_their_geometry(capture):
 def test_capture_shows_the_plans_patterns_full_screen_and_esc_closes(qtbot, capture):
     ws = capture
     ws.set_tile((2, 4))
-    ws.projector.button.click()
+    assert len(QGuiApplication.screens()) == 1  # offscreen: the only screen, so it asks first (point 11)
+    with answering(False) as asked:
+        ws.projector.button.click()
+    assert [q.title for q in asked] == ["Cover the only screen?"] and "until you press Esc" in asked[0].text
+    assert ws.projector.window is None and not ws.projector.button.isChecked()
+    assert ws.projector.label.text() == "not shown: it is the only screen"
+    with answering(True):
+        ws.projector.button.click()
     qtbot.waitUntil(lambda: ws.projector.window is not None, timeout=10_000)
     win = ws.projector.window
     qtbot.waitExposed(win)

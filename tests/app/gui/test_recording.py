@@ -10,6 +10,7 @@ from app.capture.service import CaptureService
 from app.gui.capture.workspace import CaptureWorkspace
 from app.gui.models.recording import counters_text, result_text
 from app.gui.models.rig_service import RigService
+from app.gui.widgets.questions import Question, answering
 from flexvox_core.recording import RecordingWriter, open_recording
 from rig_drivers.interfaces import DeviceState, RunState
 
@@ -23,6 +24,7 @@ def _workspace(qtbot, settings, runner, **kw):
     ws = CaptureWorkspace(service, settings, runner, **kw)
     qtbot.addWidget(ws)
     ws.code.rate.setValue(RATE_HZ)
+    ws.clear_calibration()  # “Record uncalibrated”: these recordings need no calibration
     return ws
 
 
@@ -57,8 +59,10 @@ def test_record_n_frames_then_the_recording_opens_with_n_frames(qtbot, capture, 
     assert rec.n_frames == 12 and rec.K == 16
     assert rec.ground_truth().shape == (12 * 16, 48, 64)  # the simulated scene, kept as truth
     text = ws.record_panel.recording_label.text()
-    assert "recording done: captured 12 frames: 0 dropped" in text and "holds 12 frame(s)" in text
-    assert re.search(r"12 of 12 frames written \(\d+ received\) · 0 dropped", ws.record_panel.counters_label.text())
+    assert "recording done: 0.20 s of video at 60 Hz; captured 12 frames: 0 dropped" in text
+    assert "holds 12 frame(s)" in text
+    assert re.search(r"12 of 12 frames written = 0.20 s of video \(\d+ received\) · 0 dropped",
+                     ws.record_panel.counters_label.text())
     assert "write" in ws.record_panel.counters_label.text() and "queue" in ws.record_panel.counters_label.text()
     assert ws.live_panel.image_panel.has_image() and ws.live_panel.image_panel.image.image.shape == (48, 64)
     rec = ws.record_panel
@@ -87,7 +91,8 @@ def test_stop_early_keeps_what_was_captured(qtbot, capture, tmp_path):
     result = ws.last_result
     assert result.ok and result.reason == "stopped" and result.frames_in_recording >= 4
     assert open_recording(path).n_frames == result.frames_in_recording
-    assert re.search(r"recording done: stopped after \d+ frames: 0 dropped", ws.record_panel.recording_label.text())
+    assert re.search(r"recording done: [\d.]+ s of video at 60 Hz; stopped after \d+ frames: 0 dropped",
+                     ws.record_panel.recording_label.text())
     assert ws.service.rig.camera.state is DeviceState.CLOSED  # the service opened it, so it closed it
 
 
@@ -103,8 +108,11 @@ def test_a_path_in_a_missing_folder_is_refused_in_words(qtbot, capture, tmp_path
     existing = tmp_path / "taken.zarr"
     existing.mkdir()
     ws.record_panel.path_edit.setText(str(existing))
-    assert not ws.record()
-    assert "already exists; choose another path or allow overwriting" in ws.record_panel.recording_label.text()
+    with answering(False) as asked:  # the one rule for an existing file: ask, naming it
+        assert not ws.record()
+    assert asked == [Question("Replace the existing recording?",
+                              f"{existing} already exists. Replace it with the new recording?", "Replace")]
+    assert f"not recording: {existing} is kept" in ws.record_panel.recording_label.text() and existing.is_dir()
 
 
 def test_a_timing_the_projector_refuses_cannot_record(capture, tmp_path):
@@ -169,7 +177,11 @@ def test_counter_and_result_lines():
     s = CaptureStats(frames_received=10, rows_written=9, drops=1, queue_drops=1, queue_depth=2, queue_capacity=64,
                      max_queue_depth=5, write_rate_hz=14.9, camera_rate_hz=15.0, elapsed_s=0.7)
     assert counters_text(s, 100) == ("9 of 100 frames written (10 received) · 1 dropped (1 by the queue) · queue 2/64 "
-                                     "(max 5) · write 14.9 Hz · camera 15.0 Hz · 0.7 s")
+                                     "(max 5) · write 14.9 Hz · camera 15.0 Hz · 0.7 s since Record")
+    # the length of the video, as flexvox info says it: 63 frames at 15 Hz are 4.20 s (7.1 s went by since Record)
+    s63 = CaptureStats(frames_received=63, rows_written=63, camera_rate_hz=15.0, elapsed_s=7.1)
+    assert counters_text(s63, 63, 1 / 15).startswith("63 of 63 frames written = 4.20 s of video (63 received)")
+    assert counters_text(s63, 63, 1 / 15).endswith("7.1 s since Record")
     assert "did not stop within the time allowed" in result_text(None, "x.zarr")
 
 
@@ -199,9 +211,9 @@ def test_durable_and_a_second_writer_from_the_workspace(qtbot, settings, runner,
             assert ws.record()
         assert finished.args[0].ok and _RecordingFsync.seen[-1] is True
         assert open_recording(path).verify() == []
-        ws.record_panel.overwrite_check.setChecked(True)
-        with WriterLock(path):  # another process writes it
+        with WriterLock(path), answering(True) as asked:  # replace it? yes; but another process writes it
             assert not ws.record()
+        assert [q.title for q in asked] == ["Replace the existing recording?"]
         assert re.search(r"cannot record: .*d.zarr is being written by process \d+",
                          ws.record_panel.recording_label.text())
         assert open_recording(path).n_frames == 3  # untouched

@@ -6,6 +6,7 @@ import tifffile
 from PySide6.QtCore import QTimer
 
 from app.gui.review.workspace import ReviewWorkspace
+from app.gui.widgets.questions import Question, answering
 
 from .conftest import FRAMES, SIZE
 
@@ -42,6 +43,24 @@ def test_open_shows_the_recording_and_plays_it(qtbot, opened):
     assert not ws.playing
     f = ws.subframe // 8
     np.testing.assert_array_equal(ws.raw_panel.image.image, ws.session.raw[f])
+
+
+def test_the_speed_says_sub_frames_per_second_and_real_time_plays_the_recording_s_own_rate(opened):
+    """Point 7: "12 fps" was sub-frames per second; real time plays 15 Hz × 8 = 120 sub-frames a second."""
+    ws = opened
+    assert ws.fps.suffix() == " sub-frames/s" and ws.real_time.text() == "real time (120/s)"
+    ws.fps.setValue(12)
+    assert ws.speed() == 12.0
+    ws.real_time.setChecked(True)
+    assert ws.speed() == 120.0 and not ws.fps.isEnabled()
+    ws.frame_slider.setValue(0)
+    ws.set_playing(True)
+    start = ws._last_tick
+    ws._tick(start + 0.5)  # half a second at 15 Hz: 7 whole frames of 8 sub-frames (the half carried), wrapped at 6
+    assert ws.subframe == 56 % 48 and ws._carried == pytest.approx(4.0)
+    ws._tick(start + 1.0)
+    assert ws.subframe == 120 % 48  # a second: 15 frames
+    ws.set_playing(False)
 
 
 def test_open_failure_is_said_in_words(qtbot, review, tmp_path):
@@ -84,7 +103,7 @@ def test_reconstruct_each_method_beats_the_raw_frames(qtbot, opened, naive_psnr,
     # The reconstruction panel now shows the result at the current sub-frame, and playback steps sub-frames.
     opened.frame_slider.setValue(13)
     np.testing.assert_array_equal(opened.recon_panel.image.image, r.video[13])
-    opened._tick()
+    opened._tick(opened._last_tick + 1.5 / opened.speed())  # one sub-frame's time and a half
     assert opened.subframe == 14
 
 
@@ -147,10 +166,11 @@ def test_the_slider_previews_a_fixed_tensor_beside_motion_aware_without_switchin
     ws.form.set_position(0.9)
     assert ws.form.comparing and ws.form.method_box.currentText() == "motion-aware"
     assert ws.form.preview_method().tensor == continuum_tensor(0.9)
-    assert "for comparison; Reconstruct runs motion-aware" in ws.form.slider_text.text()
+    assert ("in place of motion-aware (no motion-aware result to set it beside yet); Reconstruct runs motion-aware"
+            in ws.form.slider_text.text())
     qtbot.waitUntil(lambda: ws.shown is not None and ws.shown.method.name == "diffusion", timeout=10_000)
     assert ws.shown.method.tensor == continuum_tensor(0.9)
-    assert ws.reconstruct_button.text() == "Reconstruct all frames: motion-aware"
+    assert ws.reconstruct_button.text() == "Reconstruct: motion-aware"
     ws.form.widget("time").setValue(3.0)  # a knob of the chosen method: back to previewing it
     assert not ws.form.comparing and ws.form.preview_method().name == "motion-aware"
 
@@ -173,8 +193,12 @@ def test_export_writes_the_reconstruction(qtbot, opened, tmp_path, suffix):
             assert r.method.label() in tif.imagej_metadata["Info"]  # the file names what it holds
     else:
         assert path.stat().st_size > 1000
-    assert opened.export(path) is None  # no silent overwrite: refused before any work
-    assert "already exists" in opened.export_label.text()
+    with answering(False) as asked:  # no silent overwrite: asked, naming the file, before any work
+        assert opened.export(path) is None
+    assert asked == [Question("Replace the existing export?", f"{path} already exists. Replace it with the new "
+                                                              "export?", "Replace")]
+    assert f"not exported: {path} is kept" in opened.export_label.text()
+    assert opened.export(path, overwrite=False) is None and "already exists" in opened.export_label.text()
     assert opened.export(opened.session.path) is None  # never onto the recording under review
     assert "an output never replaces its input" in opened.export_label.text()
 

@@ -37,7 +37,7 @@ from flexvox_core import ngff
 from flexvox_core.capture_reader import CaptureReader, Preparation
 from flexvox_core.gaps import context, interpolated_subframes
 from flexvox_core.methods.method import Method
-from flexvox_core.methods.runner import check_method_reach, device_for, run_chunk
+from flexvox_core.methods.runner import check_method_reach, device_for, gpu_chunk_frames, run_chunk
 from flexvox_core.output_files import atomic_output, check_output
 from flexvox_core.recording import Recording, RecordingError, open_recording
 from flexvox_core.video_io import INTERPOLATED, VIDEO, provenance
@@ -129,6 +129,8 @@ def batch_video(rec: Recording, method: Method | None = None, *, chunk_frames: i
     if ov is None:
         raise ValueError(f"{method.label()} is a global solve and cannot run in chunks; choose another solver")
     check_method_reach(reader.missing, method, K)
+    if device == "cuda":  # chunks that fit the card's free memory
+        chunk_frames = gpu_chunk_frames(method, K, H, W, F, chunk_frames) or chunk_frames
     # A recording shorter than the context needs none beyond itself (dask refuses a depth above the array).
     ov = min(context(ov, reader.missing), max(0, F - 1))
     if chunk_frames < ov:

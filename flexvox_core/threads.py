@@ -8,7 +8,6 @@ from concurrent.futures import ThreadPoolExecutor
 
 import cv2
 
-
 MAX_WORKERS = 16
 """The most threads per-item work takes."""
 

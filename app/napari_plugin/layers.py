@@ -160,12 +160,13 @@ def recording_of(metadata) -> str | None:
 
 
 def reconstruction_steps(path, method, *, chunk_frames: int = 16, extras: bool = False,
-                         cancel: threading.Event | None = None) -> Iterator[int]:
+                         cancel: threading.Event | None = None, device: str = "auto") -> Iterator[int]:
     """Reconstruct a recording with flexvox's one runner, yielding after every chunk.
 
     A generator for napari's ``thread_worker``: each ``yield`` gives the camera frames done since the
     last one (napari's progress bar counts them); its return value (``StopIteration.value``) is the
-    :class:`~flexvox_core.methods.spec.MethodOutput`. The runner works in lock-step with the consumer:
+    :class:`~flexvox_core.methods.spec.MethodOutput` (its ``device`` says where it ran: the GPU by default when
+    one is usable and the method has a GPU path). The runner works in lock-step with the consumer:
     it waits after each chunk until the generator is resumed, so closing the generator, or setting
     ``cancel``, stops it at the next chunk boundary (raising :class:`Cancelled` in the generator when
     ``cancel`` was set).
@@ -195,7 +196,7 @@ def reconstruction_steps(path, method, *, chunk_frames: int = 16, extras: bool =
 
     def work() -> None:
         try:
-            box["out"] = reader.run(method, chunk_frames=chunk_frames, progress=progress, extras=extras)
+            box["out"] = reader.run(method, chunk_frames=chunk_frames, progress=progress, extras=extras, device=device)
         except BaseException as exc:  # noqa: BLE001 - handed to the generator, which raises it
             box["error"] = exc
         finally:

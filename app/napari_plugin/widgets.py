@@ -273,7 +273,8 @@ class ReconstructWidget(QWidget):
         for data, kwargs, kind in fl.result_layers(output, method=method, recording=path, subframe_hz=subframe_hz,
                                                    K=K):
             added.append(getattr(self.viewer, f"add_{kind}")(data, **kwargs))
-        self.status.setText(f"{method.label()}: added {len(added)} layer{'s' if len(added) > 1 else ''}")
+        where = " on the GPU" if getattr(output, "device", "cpu") == "cuda" else ""
+        self.status.setText(f"{method.label()}{where}: added {len(added)} layer{'s' if len(added) > 1 else ''}")
         self.status.setToolTip("\n".join(layer.name for layer in added))
 
     def _failed(self, exc) -> None:

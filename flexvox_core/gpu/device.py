@@ -101,6 +101,16 @@ def describe_gpus() -> list[GpuInfo]:
     return out
 
 
+def free_memory() -> int | None:
+    """Bytes free on the current GPU (None under the simulator, whose memory is the host's)."""
+    if simulator():
+        return None
+    from numba import cuda
+
+    free, _ = cuda.current_context().get_memory_info()
+    return int(free)
+
+
 def resolve_device(requested: str = "auto") -> str:
     """``cpu`` or ``cuda`` for a ``--device`` value; ``cuda`` unusable raises :class:`DeviceUnavailable`."""
     if requested not in DEVICES:

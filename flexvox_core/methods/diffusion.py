@@ -74,6 +74,9 @@ class Diffusion(MethodSpec):
     def accepts_multiplexed(self, values: dict) -> bool:
         return values["solver"] == "nc"  # GAP's denoiser is the Gaussian of Eq. 3, nc's one-pass form
 
+    gpu_bytes_per_voxel = 28
+    """The result and nc's four working volumes (flexvox_core.gpu.nc), and the frames."""
+
     def cpu_only(self, values: dict, code) -> str | None:
         if not is_identity_code(code):
             return "a multiplexed capture's diffusion runs on the CPU"

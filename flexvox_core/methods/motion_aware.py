@@ -75,6 +75,9 @@ class MotionAware(MethodSpec):
     takes_missing = True
     takes_multiplexed = True
 
+    gpu_bytes_per_voxel = 136
+    """About 30 float32 volumes and 9 byte volumes (flexvox_core.motion.gpu.engine's workspace)."""
+
     def cpu_only(self, values: dict, code) -> str | None:
         return None if is_identity_code(code) else "a multiplexed capture's motion-aware runs on the CPU"
 

@@ -23,6 +23,7 @@ sub-frames were interpolated (:attr:`MethodOutput.interpolated`).
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from typing import NamedTuple
 
@@ -41,6 +42,8 @@ from flexvox_core.gaps import (
 from flexvox_core.memory_budget import check_fits, reconstruction_bytes
 from flexvox_core.methods.method import Method
 from flexvox_core.methods.spec import MethodOutput
+
+_logger = logging.getLogger(__name__)
 
 Progress = Callable[[int, int], None]
 
@@ -122,6 +125,33 @@ def device_for(method: Method, code, device: str = "cpu") -> tuple[str, str | No
         return "cpu", None
     why = method.spec.cpu_only(dict(method.values), np.asarray(code, bool))
     return ("cpu", why) if why else ("cuda", None)
+
+
+GPU_MEMORY_SHARE = 0.8
+"""The share of the card's free memory a chunk may take."""
+
+
+def gpu_chunk_frames(method: Method, K: int, H: int, W: int, n_frames: int, chunk_frames: int | None) -> int | None:
+    """``chunk_frames`` shortened so that a chunk and its context fit the GPU's free memory (at most
+    :data:`GPU_MEMORY_SHARE` of it, :attr:`~flexvox_core.methods.spec.MethodSpec.gpu_bytes_per_voxel`); unchanged
+    when it fits or the free memory is not known. ``ValueError`` when not even one frame with its context fits."""
+    from flexvox_core.gpu.device import free_memory
+
+    free = free_memory()
+    per_voxel = method.spec.gpu_bytes_per_voxel
+    if free is None or not per_voxel:
+        return chunk_frames
+    overlap = method.overlap(K) or 0
+    fit = int(GPU_MEMORY_SHARE * free // (per_voxel * K * H * W)) - 2 * overlap
+    wanted = n_frames if chunk_frames is None else chunk_frames
+    if fit < 1:
+        raise ValueError(f"{method.label()} needs about {per_voxel * K * H * W * (1 + 2 * overlap) / 2**30:.1f} GiB "
+                         f"of GPU memory for one {H}x{W} frame and its context; {free / 2**30:.1f} GiB are free: "
+                         "reconstruct on the CPU (--device cpu)")
+    if fit < wanted:
+        _logger.info("GPU: chunks of %d camera frames to fit %.1f GiB free", fit, free / 2**30)
+        return fit
+    return chunk_frames
 
 
 def run_chunk(frames, code, method: Method, *, left: int = 0, count: int | None = None, value_range=None,
@@ -233,6 +263,8 @@ def run(frames, code, method: Method | None = None, *, chunk_frames: int | None 
     check_method_reach(missing, method, K)
     value_range = sample_range(f, missing) if method.spec.needs_sample_range and F else None
     device, note = device_for(method, code, device)
+    if device == "cuda":
+        chunk_frames = gpu_chunk_frames(method, K, H, W, F, chunk_frames)
     chunks = chunk_plan(F, chunk_frames, context(method.overlap(K), missing))
     if len(chunks) == 1:
         out = run_chunk(f, code, method, value_range=value_range, extras=extras, missing=missing, device=device)

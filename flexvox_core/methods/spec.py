@@ -141,6 +141,10 @@ class MethodSpec(ABC):
         """The longest run of dropped frames it bridges (:func:`flexvox_core.gaps.max_gap`)."""
         return max_gap(self.overlap(values, K))
 
+    gpu_bytes_per_voxel: int = 0
+    """Device memory a GPU run holds per voxel of a chunk (its context included); the runner shortens chunks that
+    would not fit the card's free memory."""
+
     def cpu_only(self, values: dict, code) -> str | None:
         """Why this method runs on the CPU with these values and code even when the GPU is asked for (a short
         phrase), or None when it runs on the GPU (:mod:`flexvox_core.gpu`). Default: it has no GPU path."""

@@ -64,6 +64,10 @@ class ReconstructionResult:
         Methods that return it (motion-aware): effective temporal resolution per voxel (SR = 1 / TR).
     psnr : float or None
         Mean PSNR against the recording's ground truth, when it has one.
+    device : str
+        Where it ran: ``cpu`` or ``cuda`` (an NVIDIA GPU: jobs take it when one is usable).
+    device_note : str or None
+        Why it ran on the CPU although a GPU was there (its method has no GPU path).
     """
 
     video: np.ndarray
@@ -74,16 +78,19 @@ class ReconstructionResult:
     tr: np.ndarray | None = None
     psnr: float | None = None
     extra: dict = field(default_factory=dict)
+    device: str = "cpu"
+    device_note: str | None = None
 
     def label(self) -> str:
-        """Method and score, for lists and titles."""
+        """Method, time (on the GPU when it ran there) and score, for lists and titles."""
         score = f", {self.psnr:.2f} dB" if self.psnr is not None else ""
-        return f"{self.method.label()} ({self.seconds:.2f} s{score})"
+        where = " on the GPU" if self.device == "cuda" else ""
+        return f"{self.method.label()} ({self.seconds:.2f} s{where}{score})"
 
 
 def run_reconstruction(frames, code, method: Method, *, cancel: CancelToken | None = None,
                        progress: Progress | None = None, chunk_frames: int = 4, first_frame: int = 0,
-                       truth: np.ndarray | None = None, missing=None) -> ReconstructionResult:
+                       truth: np.ndarray | None = None, missing=None, device: str = "auto") -> ReconstructionResult:
     """Reconstruct ``frames`` (F, H, W) with ``method``, checking ``cancel`` between chunks.
 
     Parameters
@@ -102,6 +109,9 @@ def run_reconstruction(frames, code, method: Method, *, cancel: CancelToken | No
     missing : ndarray (F,) bool, optional
         Which of these frames the camera dropped: bridged (:mod:`flexvox_core.gaps`); the result's
         ``extra["interpolated"]`` says which sub-frames.
+    device : {"auto", "cpu", "cuda"}
+        Where it runs (:func:`flexvox_core.methods.runner.device_for`): by default the GPU when one is usable
+        and the method has a GPU path; the result says where it ran.
 
     Raises
     ------
@@ -121,7 +131,8 @@ def run_reconstruction(frames, code, method: Method, *, cancel: CancelToken | No
             progress(done, total)
         cancel.check()
 
-    out = run(f, code, method, chunk_frames=chunk_frames, progress=checked, extras=True, missing=missing)
+    out = run(f, code, method, chunk_frames=chunk_frames, progress=checked, extras=True, missing=missing,
+              device=device)
     video, flow, tr = out.video, out.extras.get("flow"), out.extras.get("tr")
     cancel.check()
     seconds = time.perf_counter() - t0
@@ -130,7 +141,8 @@ def run_reconstruction(frames, code, method: Method, *, cancel: CancelToken | No
         from flexvox_core.metrics import psnr
 
         score = float(psnr(truth, video).mean)
-    result = ReconstructionResult(video, method, seconds, first_frame=first_frame, flow=flow, tr=tr, psnr=score)
+    result = ReconstructionResult(video, method, seconds, first_frame=first_frame, flow=flow, tr=tr, psnr=score,
+                                  device=out.device, device_note=out.device_note)
     if out.interpolated is not None:
         result.extra["interpolated"] = out.interpolated
     return result

@@ -11,5 +11,5 @@ from flexvox_core.gpu.launch import KERNEL_MODULES as _GENERIC
 
 KERNEL_MODULES = (*_GENERIC, "flexvox_core.motion.gpu.gather", "flexvox_core.motion.gpu.longreach",
                   "flexvox_core.motion.gpu.refine", "flexvox_core.motion.gpu.gate",
-                  "flexvox_core.motion.gpu.noise")
+                  "flexvox_core.motion.gpu.noise", "flexvox_core.motion.gpu.gaps")
 """Every module that declares kernels (what :func:`flexvox_core.gpu.launch.compile_all` compiles in the tests)."""

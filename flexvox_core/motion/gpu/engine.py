@@ -3,8 +3,6 @@
 The camera frames go up once; every stage reads and writes device arrays held in one
 :class:`~flexvox_core.gpu.volumes.Workspace` (reused from window to window by a streaming run); the result's
 kept sub-frames come down at the end, and the high-TR video and the flow only when a caller reads them.
-One step still passes through the host: the bridging of dropped frames (:mod:`flexvox_core.gaps`; only where
-the camera dropped one).
 """
 
 from __future__ import annotations
@@ -17,14 +15,14 @@ from numba import cuda
 
 from flexvox_core.flow import FlowField
 from flexvox_core.forward import tiled_order
-from flexvox_core.gaps import bridge, bridge_flow, captured
+from flexvox_core.gaps import captured
 from flexvox_core.gpu import choice, volumes
 from flexvox_core.gpu.nc import NcPlan, nc
 from flexvox_core.gpu.volumes import Workspace
 from flexvox_core.motion import local_choice as lc
 from flexvox_core.motion import noise_aware
 from flexvox_core.motion.gated_flow import DIS_PARAMS
-from flexvox_core.motion.gpu import gate, noise
+from flexvox_core.motion.gpu import gaps, gate, noise
 from flexvox_core.motion.gpu.gather import trajectory_gather
 from flexvox_core.motion.gpu.longreach import long_reach
 from flexvox_core.motion.gpu.refine import refine
@@ -103,10 +101,8 @@ class CudaStages:
         params = gate.gated_flow(self.ws, current, w.K, gate=o.gate, scale=w.flow_scale, slow_speed=o.slow_speed,
                                  period_gate=PERIOD_GATE, pair_flow=self.pair_flow, out=flow)
         self.flow_params = {"backend": "dis", **DIS_PARAMS, **params, "pairs": self.pair_flow.where}
-        if w.missing is not None:  # bridged on the host (dropped frames only)
-            host = flow.copy_to_host()
-            bridge_flow(host, w.missing, w.K, margin=w.K // 2)
-            flow.copy_to_device(host)
+        if w.missing is not None:
+            gaps.bridge_flow(flow, w.missing, w.K, margin=w.K // 2)
         return flow
 
     def speed_classes(self, flow):
@@ -185,9 +181,7 @@ class CudaStages:
 
     def gaps(self, video, flow) -> None:
         w = self.window
-        host = video.copy_to_host()
-        bridge(host, w.missing, w.K, flow=flow.copy_to_host())
-        video.copy_to_device(host)
+        gaps.bridge(video, flow, w.missing, w.K)
 
     def clip(self, video):
         lo, hi = self.window.bounds

@@ -96,6 +96,21 @@ def test_the_steps_yield_after_each_chunk_and_return_the_runners_result(recordin
                                atol=1e-6)
 
 
+def test_the_steps_run_on_the_gpu_asked_for_and_the_result_says_so(tmp_path):
+    from flexvox_core.design import design_code
+    from flexvox_core.recording import write_simulation
+    from flexvox_core.simulate.scenes import render_scene
+    from flexvox_core.simulate.simulator import simulate_video
+
+    video = render_scene("fan", 2 * 4, 8, 8, seed=3)  # tiny: the tests' simulator runs every GPU thread as Python
+    tiny = write_simulation(tmp_path / "tiny.zarr", simulate_video(video, design_code((2, 2)).code, seed=1))
+    method = Method("diffusion")
+    _, on_gpu = _drain(fl.reconstruction_steps(str(tiny), method, device="cuda"))
+    _, by_default = _drain(fl.reconstruction_steps(str(tiny), method))
+    assert on_gpu.device == "cuda" and by_default.device == "cpu"  # auto never takes the tests' simulator
+    np.testing.assert_allclose(on_gpu.video, by_default.video, atol=2e-6)
+
+
 def test_cancel_stops_at_the_next_chunk_boundary(recording):
     cancel = threading.Event()
     steps = fl.reconstruction_steps(str(recording), Method("diffusion"), chunk_frames=1, cancel=cancel)

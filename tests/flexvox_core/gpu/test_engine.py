@@ -136,3 +136,21 @@ def test_full_size_gpu_against_cpu(scene):
     again = motion_aware(frames, code, device="cuda")
     assert abs(psnr(gpu.video, truth).mean - psnr(cpu.video, truth).mean) < 0.1
     np.testing.assert_array_equal(gpu.video, again.video)
+
+
+def test_chunks_shrink_to_fit_the_cards_free_memory(monkeypatch):
+    from flexvox_core.gpu import device
+    from flexvox_core.methods import Method
+    from flexvox_core.methods.runner import gpu_chunk_frames
+
+    method = Method("motion-aware")  # 4 frames of context each side at K = 16
+    per_frame = 136 * 16 * 480 * 640
+    monkeypatch.setattr(device, "free_memory", lambda: int(12 * per_frame / 0.8))
+    assert gpu_chunk_frames(method, 16, 480, 640, 100, 16) == 4  # 12 frames fit: 4 and 4 + 4 of context
+    assert gpu_chunk_frames(method, 16, 480, 640, 4, None) is None  # the whole clip fits
+    monkeypatch.setattr(device, "free_memory", lambda: int(8 * per_frame))
+    with pytest.raises(ValueError, match=r"needs about .* GiB of GPU memory for one 480x640 frame and its context; "
+                                         r".* GiB are free: reconstruct on the CPU \(--device cpu\)"):
+        gpu_chunk_frames(method, 16, 480, 640, 100, 16)
+    monkeypatch.setattr(device, "free_memory", lambda: None)  # the simulator: no limit known
+    assert gpu_chunk_frames(method, 16, 480, 640, 100, 16) == 16

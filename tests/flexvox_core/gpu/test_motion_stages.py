@@ -181,3 +181,26 @@ def test_pair_flow_refuses_an_unknown_place(ws):
 
     with pytest.raises(ValueError, match=r"`pairs` must be one of gpu, cpu; got 'tpu'"):
         PairFlow(ws, "tpu", {})
+
+
+@pytest.mark.parametrize("lost", [[False, True, False, False], [True, False, True, True], [False, False, True, True]])
+def test_dropped_frames_are_bridged_as_on_the_cpu(rng, lost):
+    from flexvox_core.gaps import bridge, bridge_flow
+    from flexvox_core.motion.gpu import gaps
+
+    missing = np.array(lost)
+    video = rng.random((4 * K, 6, 7)).astype(np.float32)
+    flow = rng.normal(0, 1.5, (*video.shape, 2)).astype(np.float32)
+    want_flow = flow.copy()
+    bridge_flow(want_flow, missing, K, margin=K // 2)
+    want = video.copy()
+    bridge(want, missing, K, flow=want_flow)
+    v, f = _dev(video), _dev(flow)
+    gaps.bridge_flow(f, missing, K, K // 2)
+    np.testing.assert_allclose(f.copy_to_host()[~np.repeat(missing, K)], want_flow[~np.repeat(missing, K)],
+                               atol=1e-6)
+    gaps.bridge(v, f, missing, K)
+    np.testing.assert_allclose(f.copy_to_host(), want_flow, atol=1e-5)
+    # OpenCV's remap rounds positions to 1/32 px.
+    np.testing.assert_allclose(v.copy_to_host(), want, atol=0.02)
+    assert np.abs(v.copy_to_host() - want).mean() < 2e-3

@@ -73,6 +73,11 @@ class LivePreview(QObject):
         How long a run should last; with the measured cost of a pixel it sizes the region.
     rest_fraction : float
         Idle time after each run, relative to its duration.
+    device : {"auto", "cpu", "cuda"}
+        Where motion-aware runs (:func:`flexvox_core.gpu.resolve_device`; ``auto``: the GPU when one is usable).
+        On the GPU every run takes on the whole frame with all of motion-aware's stages and no rest between runs,
+        so that every camera frame can be previewed; on the CPU the region and rest above apply. :attr:`device`
+        says which, and :meth:`text` says so.
     """
 
     updated = Signal(object)
@@ -81,8 +86,17 @@ class LivePreview(QObject):
     """The preview stopped on an error (in words)."""
 
     def __init__(self, parent: QObject | None = None, *, n_frames: int = PREVIEW_FRAMES, max_pixels: int = START_PIXELS,
-                 budget_s: float = BUDGET_S, rest_fraction: float = REST_FRACTION):
+                 budget_s: float = BUDGET_S, rest_fraction: float = REST_FRACTION, device: str = "auto"):
         super().__init__(parent)
+        from flexvox_core.gpu.device import DeviceUnavailable, resolve_device
+
+        try:
+            self.device = resolve_device(device)
+        except DeviceUnavailable as exc:
+            _logger.warning("live preview on the CPU: %s", exc)
+            self.device = "cpu"
+        if self.device == "cuda":  # the whole frame from the first run on, no rest
+            max_pixels, rest_fraction = 2**31 - 1, 0.0
         if not (isinstance(rest_fraction, int | float) and math.isfinite(rest_fraction) and rest_fraction >= 0):
             raise ValueError(f"`rest_fraction` must be a finite number >= 0; got {rest_fraction!r}")
         budget_s = positive_number("`budget_s`", budget_s, unit="seconds")
@@ -97,7 +111,7 @@ class LivePreview(QObject):
         self.rest_fraction = float(rest_fraction)
         self.code = None
         self.tile = (1, 1)
-        self.reconstructor = PreviewReconstructor()
+        self.reconstructor = PreviewReconstructor(self.device)
         self.cost = PixelCost()
         self.region: Region | None = None
         """The region of the last run started."""
@@ -129,7 +143,7 @@ class LivePreview(QObject):
         """The capture's code (identity array or MultiplexedCode) and tile; resets the buffer and region."""
         self.code = code
         self.tile = tuple(int(v) for v in tile)
-        self.reconstructor = PreviewReconstructor()  # a run still going keeps the old one
+        self.reconstructor = PreviewReconstructor(self.device)  # a run still going keeps the old one
         self.region = None
         self.cost.clear()
         self.buffer.clear()
@@ -157,7 +171,7 @@ class LivePreview(QObject):
         self.result = None
         self.runs = self.offered = 0
         self.latency_s = None
-        self.reconstructor = PreviewReconstructor()  # a new session starts a new stream
+        self.reconstructor = PreviewReconstructor(self.device)  # a new session starts a new stream
         self._fed_at.clear()
         self._finish_times.clear()
         self.buffer.clear()
@@ -202,7 +216,8 @@ class LivePreview(QObject):
 
     def _next_region(self, shape) -> Region:
         """The whole frame when the measured cost of a pixel says it fits in the budget, else a region."""
-        pixels = self.cost.pixels_for(self.budget_s, default=self.max_pixels)
+        pixels = self.max_pixels if self.device == "cuda" else self.cost.pixels_for(self.budget_s,
+                                                                                     default=self.max_pixels)
         new = preview_region(shape, self.tile, pixels, self.centre)
         old = self.region
         if old is not None and not new.covers(shape) and abs(new.pixels / old.pixels - 1) < HYSTERESIS:
@@ -256,7 +271,8 @@ class LivePreview(QObject):
         frames = f"{r.n_frames} frame{'s' if r.n_frames != 1 else ''}"
         rate = f"{self.rate_hz:.1f} Hz" if self.runs > 1 else "rate after the next run"  # one run has no rate
         behind = f", {self.latency_s:.2f} s behind the camera" if self.latency_s is not None else ""
-        return (f"{r.method} preview: {w}×{h} ({where}), {frames}, {rate}, {r.seconds:.2f} s per run{behind} · "
+        on = " on the GPU" if r.device == "cuda" else ""
+        return (f"{r.method} preview{on}: {w}×{h} ({where}), {frames}, {rate}, {r.seconds:.2f} s per run{behind} · "
                 f"{self.runs} of {self.offered} camera frames previewed (newest wins)")
 
     def shutdown(self, timeout_ms: int = 5000) -> bool:

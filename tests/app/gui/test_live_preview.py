@@ -296,3 +296,22 @@ def test_the_preview_can_be_switched_off(qtbot, capture):
     qtbot.waitUntil(lambda: ws.live_panel.stats.received >= 5, timeout=10_000)
     assert ws.live_panel.preview.runs == 0 and ws.live_panel.preview_label.text() == "preview: off"
     assert not ws.settings.get_bool("capture/preview", True)
+
+
+def test_on_the_gpu_the_preview_takes_the_whole_frame_every_run_and_says_so(qtbot):
+    """LivePreview(device="cuda") (the tests' simulator stands in for the card): the whole frame from the first run,
+    no rest between runs, all of motion-aware's stages, and the words say it runs on the GPU."""
+    import numpy as np
+
+    from app.capture.live_preview import PreviewResult, Region
+    from app.gui.capture.live_preview import LivePreview
+
+    preview = LivePreview(device="cuda")
+    assert preview.device == "cuda" and preview.reconstructor.device == "cuda" and preview.rest_fraction == 0
+    assert preview._next_region((480, 640)).covers((480, 640))
+    assert preview.reconstructor._options() == {}
+    preview.enabled, preview.runs = True, 1
+    preview.result = PreviewResult(np.zeros((16, 48, 64), np.float32), 3, 3, Region(0, 48, 0, 64), (48, 64), 0.01,
+                                   (0.0, 1.0), "motion-aware", "cuda")
+    assert preview.text().startswith("motion-aware preview on the GPU: 64×48 (the whole frame)")
+    assert LivePreview().device == "cpu"  # auto never takes the simulator

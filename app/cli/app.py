@@ -55,13 +55,15 @@ def run(args) -> int:
     problem = missing_gui_extra() or display_problem()
     if problem is not None:
         raise CliError(problem)
-    try:
-        rig = open_rig("mock", scene=args.scene, seed=args.seed) if args.rig == "mock" else open_rig(args.rig)
-    except SettingError as exc:
-        raise CliError(str(exc)) from None
+    def opened():  # behind the start-up window, which shows at once
+        return open_rig("mock", scene=args.scene, seed=args.seed) if args.rig == "mock" else open_rig(args.rig)
+
     from app.gui.application import launch  # Qt is loaded only here
 
-    return launch(rig, recording=args.recording)
+    try:
+        return launch(opened, recording=args.recording)
+    except SettingError as exc:
+        raise CliError(str(exc)) from None
 
 
 # --------------------------------------------------------------------------- the projector screen

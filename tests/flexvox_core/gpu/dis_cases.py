@@ -4,7 +4,9 @@ docs/gpu.md ("Optical flow on the GPU (DIS)").
 Each pair samples a smooth random texture T (Gaussian-blurred noise): I0(x) = T(x) and I1 the texture moved
 by an affine motion about the image centre c, so that the true flow is u(x) = (A - 1)(x - c) + t
 (I1(x + u(x)) = I0(x)); the moving-square pair pastes a second texture over a static one. Run
-``python -m tests.flexvox_core.gpu.dis_cases`` from the repository root to print the table.
+``python -m tests.flexvox_core.gpu.dis_cases`` from the repository root to print the tables (the second: the
+built-in scenes' high-TR pairs, as motion-aware's flow sees them; no true flow there, the reference against
+OpenCV only).
 """
 
 from __future__ import annotations
@@ -134,5 +136,44 @@ def epe_table(p=None) -> str:
     return "\n".join(lines)
 
 
+
+def scene_pairs(scene: str, *, h: int = 160, w: int = 213, pairs: int = 3):
+    """Successive sub-frames of a built-in scene's high-TR reconstruction at the flow's size (what motion-aware's
+    flow measures on a 640×480 clip), as uint8: ``pairs`` (I0, I1) from the middle of a 4-frame capture."""
+    from flexvox_core.design import design_code
+    from flexvox_core.flow.estimate import to_uint8
+    from flexvox_core.forward import capture
+    from flexvox_core.motion.options import STEP1_TENSOR, STEP1_TIME
+    from flexvox_core.reconstruct import diffuse
+    from flexvox_core.simulate.scenes import render_scene
+
+    code = design_code((4, 4)).code
+    truth = render_scene(scene, 4 * 16, h, w, seed=0)
+    u8 = to_uint8(diffuse(capture(truth, code), code, tensor=STEP1_TENSOR, time=STEP1_TIME))
+    mid = len(u8) // 2
+    return [(u8[t], u8[t + 1]) for t in range(mid, mid + pairs)]
+
+
+def scene_table(p=None, scenes=("balls", "drummer", "fan", "pan")) -> str:
+    """Markdown table: per built-in scene, the numpy reference against OpenCV's DIS on its high-TR pairs."""
+    from flexvox_core.gpu.dis import DisParams
+    from tests.flexvox_core.gpu.dis_reference import dis
+
+    p = DisParams() if p is None else p
+    lines = ["| scene (160×213, high-TR pairs) | reference vs OpenCV, mean / max (px) | OpenCV's mean speed (px) |",
+             "|---|---|---|"]
+    for scene in scenes:
+        errs, speeds = [], []
+        for a, b in scene_pairs(scene):
+            ref, ocv = dis(a, b, p), opencv_dis(a, b, p)
+            errs.append(epe(ref, ocv))
+            speeds.append(np.hypot(ocv[..., 0], ocv[..., 1]).mean())
+        e = np.stack(errs)
+        lines.append(f"| {scene} | {e.mean():.1e} / {e.max():.1e} | {np.mean(speeds):.2f} |")
+    return "\n".join(lines)
+
+
 if __name__ == "__main__":
     print(epe_table())
+    print()
+    print(scene_table())

@@ -240,3 +240,15 @@ def test_gpu_matches_opencv_at_full_size(h, w):
     truth = np.broadcast_to(np.float32(shifts)[:, None, None, :], got.shape)
     inner = (slice(None), slice(8, h - 8), slice(8, w - 8))
     assert epe(got, truth)[inner].mean() <= epe(ocv, truth)[inner].mean() + 0.01
+
+
+def test_the_reference_follows_opencv_on_a_built_in_scenes_high_tr_pairs():
+    """What motion-aware's flow measures: successive high-TR sub-frames of the balls at the flow's size."""
+    from flexvox_core.gpu.dis import DisParams
+    from tests.flexvox_core.gpu.dis_cases import epe, opencv_dis, scene_pairs
+    from tests.flexvox_core.gpu.dis_reference import dis
+
+    p = DisParams()
+    for a, b in scene_pairs("balls", h=80, w=107, pairs=2):
+        e = epe(dis(a, b, p), opencv_dis(a, b, p))
+        assert e.mean() < 1e-3 and np.percentile(e, 99.9) < 0.05

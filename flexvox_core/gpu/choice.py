@@ -41,6 +41,7 @@ from numba import cuda
 
 from flexvox_core.gpu.choice_pool import local_weights, reflect
 from flexvox_core.gpu.choice_structure import structure_bank
+from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import device, kernel, launch
 from flexvox_core.reconstruct.diffusion import NC_MIN_WEIGHT, gaussian_kernel, time_weights
 from flexvox_core.reconstruct.oriented_nc import SIGMA, kernel_bank
@@ -96,10 +97,7 @@ def _still_voxel_loo(loo, video, frames, gathered, mask, flow, limit):
     F, H, W = loo.shape
     if i >= F * H * W:
         return
-    f = i // (H * W)
-    p = i - f * (H * W)
-    y = p // W
-    x = p - y * W
+    f, y, x = voxel(i, H, W)
     K = video.shape[0] // F
     s = frames[f, y, x]
     count = np.float32(0)
@@ -140,10 +138,7 @@ def _time_blur(frames, order, weight, first, present, vt, mt):
     S, H, W = vt.shape
     if i >= S * H * W:
         return
-    s = i // (H * W)
-    p = i - s * (H * W)
-    y = p // W
-    x = p - y * W
+    s, y, x = voxel(i, H, W)
     k = order[y, x]
     f0 = first[s]
     acc = np.float32(0)
@@ -198,10 +193,7 @@ def _oriented_loo(vt, mt, frames, order, present, gathered, bank, weight, first,
     F, H, W = loo.shape
     if i >= F * H * W:
         return
-    f = i // (H * W)
-    p = i - f * (H * W)
-    y = p // W
-    x = p - y * W
+    f, y, x = voxel(i, H, W)
     K = vt.shape[0] // F
     k = order[y, x]
     s = f * K + k
@@ -233,10 +225,7 @@ def _oriented_blend(video, vt, mt, frames, order, present, gathered, bank, offse
     S, H, W = video.shape
     if i >= S * H * W:
         return
-    s = i // (H * W)
-    p = i - s * (H * W)
-    y = p // W
-    x = p - y * W
+    s, y, x = voxel(i, H, W)
     if not gathered[s, y, x]:
         return
     F = frames.shape[0]

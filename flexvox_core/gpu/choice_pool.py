@@ -29,6 +29,7 @@ import numpy as np
 from numba import cuda
 
 from flexvox_core.gpu.filters import gaussian_taps
+from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import device, kernel, launch
 from flexvox_core.gpu.nc import fold
 from flexvox_core.gpu.resize import area_table, linear_table
@@ -88,10 +89,7 @@ def _errors_x(a, b, y, taps, ra, rb):
     F, H, W = ra.shape
     if i >= F * H * W:
         return
-    f = i // (H * W)
-    p = i - f * (H * W)
-    r = p // W
-    c = p - r * W
+    f, r, c = voxel(i, H, W)
     h = taps.shape[0] // 2
     sa = np.float32(0)
     sb = np.float32(0)
@@ -111,10 +109,7 @@ def _area_errors(a, b, y, x0, xn, xw, y0, yn, yw, sa, sb):
     F, h, w = sa.shape
     if i >= F * h * w:
         return
-    f = i // (h * w)
-    p = i - f * (h * w)
-    dy = p // w
-    dx = p - dy * w
+    f, dy, dx = voxel(i, h, w)
     acc_a = np.float32(0)
     acc_b = np.float32(0)
     for j in range(yn[dy]):
@@ -137,10 +132,7 @@ def _blur_x2(pa, pb, taps, oa, ob):
     F, H, W = oa.shape
     if i >= F * H * W:
         return
-    f = i // (H * W)
-    p = i - f * (H * W)
-    r = p // W
-    c = p - r * W
+    f, r, c = voxel(i, H, W)
     h = taps.shape[0] // 2
     sa = np.float32(0)
     sb = np.float32(0)
@@ -172,10 +164,7 @@ def _blur_y2(pa, pb, taps, oa, ob):
     F, H, W = oa.shape
     if i >= F * H * W:
         return
-    f = i // (H * W)
-    p = i - f * (H * W)
-    r = p // W
-    c = p - r * W
+    f, r, c = voxel(i, H, W)
     sa, sb = _blur_y_at(pa, pb, taps, f, r, c, H)
     oa[f, r, c] = sa
     ob[f, r, c] = sb
@@ -188,10 +177,7 @@ def _blur_y2_weights(pa, pb, taps, power, out):
     F, H, W = out.shape
     if i >= F * H * W:
         return
-    f = i // (H * W)
-    p = i - f * (H * W)
-    r = p // W
-    c = p - r * W
+    f, r, c = voxel(i, H, W)
     sa, sb = _blur_y_at(pa, pb, taps, f, r, c, H)
     out[f, r, c] = _weight(sa, sb, power)
 
@@ -203,10 +189,7 @@ def _linear_weights(sa, sb, xl, xw, yl, yw, power, out):
     F, H, W = out.shape
     if i >= F * H * W:
         return
-    f = i // (H * W)
-    p = i - f * (H * W)
-    r = p // W
-    c = p - r * W
+    f, r, c = voxel(i, H, W)
     h, w = sa.shape[1], sa.shape[2]
     x0 = xl[c]
     x1 = min(x0 + 1, w - 1)

@@ -21,6 +21,7 @@ from numba import cuda
 
 from flexvox_core.gpu.choice_pool import reflect
 from flexvox_core.gpu.filters import gaussian_taps
+from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import device, kernel, launch
 from flexvox_core.reconstruct.oriented_nc import _HIGH, _LOW, _TAN, ANGLES, PRE_SIGMA, RHO
 
@@ -35,10 +36,7 @@ def _blur_x(src, taps, dst):
     S, H, W = dst.shape
     if i >= S * H * W:
         return
-    s = i // (H * W)
-    p = i - s * (H * W)
-    y = p // W
-    x = p - y * W
+    s, y, x = voxel(i, H, W)
     h = taps.shape[0] // 2
     acc = np.float32(0)
     for t in range(taps.shape[0]):
@@ -53,10 +51,7 @@ def _blur_y(src, taps, dst):
     S, H, W = dst.shape
     if i >= S * H * W:
         return
-    s = i // (H * W)
-    p = i - s * (H * W)
-    y = p // W
-    x = p - y * W
+    s, y, x = voxel(i, H, W)
     h = taps.shape[0] // 2
     acc = taps[h] * src[s, y, x]
     for t in range(1, h + 1):
@@ -88,10 +83,7 @@ def _products_x(p, taps, rxx, rxy, ryy):
     S, H, W = p.shape
     if i >= S * H * W:
         return
-    s = i // (H * W)
-    q = i - s * (H * W)
-    y = q // W
-    x = q - y * W
+    s, y, x = voxel(i, H, W)
     h = taps.shape[0] // 2
     axx = np.float32(0)
     axy = np.float32(0)
@@ -138,10 +130,7 @@ def _structure_y(rxx, rxy, ryy, taps, bank, j, keep):
     S, H, W = bank.shape
     if i >= S * H * W:
         return
-    s = i // (H * W)
-    q = i - s * (H * W)
-    y = q // W
-    x = q - y * W
+    s, y, x = voxel(i, H, W)
     h = taps.shape[0] // 2
     jxx = taps[h] * rxx[s, y, x]
     jxy = taps[h] * rxy[s, y, x]

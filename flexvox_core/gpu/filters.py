@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 from numba import cuda
 
+from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import device, kernel, launch
 from flexvox_core.gpu.nc import fold
 
@@ -45,10 +46,7 @@ def _blur_pass(src, dst, taps, axis, reflect):
     N, H, W = src.shape
     if i >= N * H * W:
         return
-    n = i // (H * W)
-    p = i - n * (H * W)
-    y = p // W
-    x = p - y * W
+    n, y, x = voxel(i, H, W)
     r = taps.shape[0] // 2
     acc = np.float32(0)
     if axis == 1:
@@ -87,10 +85,7 @@ def _max_pass(src, dst, radius, axis):
     N, H, W = src.shape
     if i >= N * H * W:
         return
-    n = i // (H * W)
-    p = i - n * (H * W)
-    y = p // W
-    x = p - y * W
+    n, y, x = voxel(i, H, W)
     found = 0
     if axis == 1:
         for t in range(max(0, y - radius), min(H, y + radius + 1)):
@@ -122,10 +117,7 @@ def _sobel(p, gx, gy):
     N, H, W = p.shape
     if i >= N * H * W:
         return
-    n = i // (H * W)
-    q = i - n * (H * W)
-    y = q // W
-    x = q - y * W
+    n, y, x = voxel(i, H, W)
     ym, yp, xm, xp = fold(y - 1, H), fold(y + 1, H), fold(x - 1, W), fold(x + 1, W)
     # Sobel: derivative [-1, 0, 1] along the axis, smoothing [1, 2, 1] across it; scaled by 1/8.
     dx = (p[n, ym, xp] - p[n, ym, xm]) + np.float32(2) * (p[n, y, xp] - p[n, y, xm]) + (p[n, yp, xp] - p[n, yp, xm])
@@ -149,10 +141,7 @@ def _box_in_time(src, dst, size):
     S, H, W = src.shape
     if i >= S * H * W:
         return
-    s = i // (H * W)
-    p = i - s * (H * W)
-    y = p // W
-    x = p - y * W
+    s, y, x = voxel(i, H, W)
     acc = 0.0
     for t in range(s - size // 2, s - size // 2 + size):
         acc += src[min(max(t, 0), S - 1), y, x]

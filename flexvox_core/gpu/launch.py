@@ -26,6 +26,7 @@ SIM_BLOCK = 32
 """Threads per block under the simulator (each simulated thread is a Python thread: fewer per block is faster)."""
 
 KERNEL_MODULES = (
+    "flexvox_core.gpu.index",
     "flexvox_core.gpu.volumes",
     "flexvox_core.gpu.nc",
     "flexvox_core.gpu.filters",

@@ -21,6 +21,7 @@ import math
 import numpy as np
 from numba import cuda
 
+from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import device, kernel, launch
 from flexvox_core.reconstruct.diffusion import NC_MIN_WEIGHT, _peak, gaussian_kernel, sigmas, time_weights
 
@@ -44,10 +45,7 @@ def _time_pass(frames, order, weight, first, num, den):
     S, H, W = num.shape
     if i >= S * H * W:
         return
-    s = i // (H * W)
-    p = i - s * (H * W)
-    y = p // W
-    x = p - y * W
+    s, y, x = voxel(i, H, W)
     k = order[y, x]
     f0 = first[s]
     acc = np.float32(0)
@@ -69,10 +67,7 @@ def _blur_axis(num, den, num_out, den_out, taps, axis):
     S, H, W = num.shape
     if i >= S * H * W:
         return
-    s = i // (H * W)
-    p = i - s * (H * W)
-    y = p // W
-    x = p - y * W
+    s, y, x = voxel(i, H, W)
     r = taps.shape[0] // 2
     a = np.float32(0)
     b = np.float32(0)
@@ -99,10 +94,7 @@ def _finish(num, den, frames, order, present, floor, lo, hi, keep, out, low):
     S, H, W = num.shape
     if i >= S * H * W:
         return
-    s = i // (H * W)
-    p = i - s * (H * W)
-    y = p // W
-    x = p - y * W
+    s, y, x = voxel(i, H, W)
     K = S // frames.shape[0]
     f = s // K
     d = den[s, y, x]

@@ -15,6 +15,7 @@ from functools import lru_cache
 import numpy as np
 from numba import cuda
 
+from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import kernel, launch
 
 
@@ -55,10 +56,7 @@ def _area(src, dst, y0, wy, x0, wx):
     N, h, w = dst.shape
     if i >= N * h * w:
         return
-    n = i // (h * w)
-    p = i - n * (h * w)
-    y = p // w
-    x = p - y * w
+    n, y, x = voxel(i, h, w)
     H = src.shape[1]
     W = src.shape[2]
     acc = np.float32(0)
@@ -111,10 +109,7 @@ def _linear(src, dst, sy, ay, sx, ax):
     N, h, w = dst.shape
     if i >= N * h * w:
         return
-    n = i // (h * w)
-    p = i - n * (h * w)
-    y = p // w
-    x = p - y * w
+    n, y, x = voxel(i, h, w)
     H = src.shape[1]
     W = src.shape[2]
     y0 = sy[y]
@@ -136,10 +131,7 @@ def _linear_flow(src, dst, sy, ay, sx, ax, mx, my):
     N, h, w, _ = dst.shape
     if i >= N * h * w:
         return
-    n = i // (h * w)
-    p = i - n * (h * w)
-    y = p // w
-    x = p - y * w
+    n, y, x = voxel(i, h, w)
     H = src.shape[1]
     W = src.shape[2]
     y0 = sy[y]
@@ -179,10 +171,7 @@ def _to_uint8(src, dst):
     N, H, W = src.shape
     if i >= N * H * W:
         return
-    n = i // (H * W)
-    p = i - n * (H * W)
-    y = p // W
-    x = p - y * W
+    n, y, x = voxel(i, H, W)
     v = src[n, y, x] * np.float32(255) + np.float32(0.5)
     dst[n, y, x] = np.uint8(min(max(v, np.float32(0)), np.float32(255)))
 

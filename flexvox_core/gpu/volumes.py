@@ -12,6 +12,7 @@ import math
 import numpy as np
 from numba import cuda
 
+from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import kernel, launch
 
 
@@ -113,10 +114,7 @@ def _samples(frames, order, present, sparse, mask):
     S, H, W = sparse.shape
     if i >= S * H * W:
         return
-    s = i // (H * W)
-    p = i - s * (H * W)
-    y = p // W
-    x = p - y * W
+    s, y, x = voxel(i, H, W)
     K = S // frames.shape[0]
     f = s // K
     if order[y, x] == s - f * K and present[f]:

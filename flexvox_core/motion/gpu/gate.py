@@ -19,7 +19,8 @@ from numba import cuda
 from flexvox_core.flow.baseline import default_stride
 from flexvox_core.flow.estimate import MIN_FLOW_SIDE
 from flexvox_core.gpu.filters import box_in_time
-from flexvox_core.gpu.launch import kernel, launch
+from flexvox_core.gpu.index import voxel
+from flexvox_core.gpu.launch import device, kernel, launch
 from flexvox_core.gpu.resize import resize_area, resize_linear, to_uint8
 
 PAIRS = ("gpu", "cpu")
@@ -84,10 +85,7 @@ def _successive_mean(fwd, vel):
     S, h, w, _ = vel.shape
     if i >= S * h * w:
         return
-    s = i // (h * w)
-    p = i - s * (h * w)
-    y = p // w
-    x = p - y * w
+    s, y, x = voxel(i, h, w)
     P = S - 1
     c = min(s, P - 1)
     reach = min(1, P - 1)
@@ -122,10 +120,7 @@ def _pad_reflect(src, dst):
     N, H, W = dst.shape
     if i >= N * H * W:
         return
-    n = i // (H * W)
-    p = i - n * (H * W)
-    y = p // W
-    x = p - y * W
+    n, y, x = voxel(i, H, W)
     h = src.shape[1]
     w = src.shape[2]
     yy = y if y < h else 2 * h - 1 - y
@@ -190,6 +185,18 @@ def kaverage_plan(S: int, K: int, stride: int) -> tuple[int, np.ndarray, np.ndar
     return span, pairs, interp
 
 
+@device
+def _sanitized(u, v, max_mag):
+    """(u, v) with NaN or infinity as 0 and the magnitude capped at ``max_mag``
+    (:func:`~flexvox_core.flow.estimate.sanitize_flow`)."""
+    if not (math.isfinite(u) and math.isfinite(v)):
+        return np.float32(0), np.float32(0)
+    mag = math.sqrt(u * u + v * v)
+    if mag > max_mag:
+        return u * (max_mag / mag), v * (max_mag / mag)
+    return u, v
+
+
 @kernel("void(float32[:, :, :, ::1], float32[:, :, :, ::1], float32[:, ::1], float32[:, :, :, ::1], "
         "float32[:, :, :, ::1], float32, float32, float32, uint8, float32, uint8, float32, float32, float32, "
         "float32[:, :, :, ::1])")
@@ -199,10 +206,7 @@ def _gate(vel, disp, interp, steps, mean, px, lo, hi, use_slow, slow_speed, has_
     S, h, w, _ = vel.shape
     if i >= S * h * w:
         return
-    s = i // (h * w)
-    p = i - s * (h * w)
-    y = p // w
-    x = p - y * w
+    s, y, x = voxel(i, h, w)
     j0 = int(interp[s, 0])
     j1 = int(interp[s, 1])
     a = interp[s, 2]
@@ -223,15 +227,7 @@ def _gate(vel, disp, interp, steps, mean, px, lo, hi, use_slow, slow_speed, has_
         mu = mean[s, y, x, 0]
         mv = mean[s, y, x, 1]
         ramp = max(ramp, min(max((math.sqrt(mu * mu + mv * mv) * px - plo) / (phi - plo), np.float32(0)), one))
-    u *= ramp
-    v *= ramp
-    if not (math.isfinite(u) and math.isfinite(v)):
-        u = np.float32(0)
-        v = np.float32(0)
-    mag = math.sqrt(u * u + v * v)
-    if mag > max_mag:
-        u *= max_mag / mag
-        v *= max_mag / mag
+    u, v = _sanitized(u * ramp, v * ramp, max_mag)
     out[s, y, x, 0] = u
     out[s, y, x, 1] = v
 
@@ -313,19 +309,8 @@ def _sanitize(flow, max_mag):
     S, h, w, _ = flow.shape
     if i >= S * h * w:
         return
-    s = i // (h * w)
-    p = i - s * (h * w)
-    y = p // w
-    x = p - y * w
-    u = flow[s, y, x, 0]
-    v = flow[s, y, x, 1]
-    if not (math.isfinite(u) and math.isfinite(v)):
-        u = np.float32(0)
-        v = np.float32(0)
-    mag = math.sqrt(u * u + v * v)
-    if mag > max_mag:
-        u *= max_mag / mag
-        v *= max_mag / mag
+    s, y, x = voxel(i, h, w)
+    u, v = _sanitized(flow[s, y, x, 0], flow[s, y, x, 1], max_mag)
     flow[s, y, x, 0] = u
     flow[s, y, x, 1] = v
 
@@ -344,10 +329,7 @@ def _classes(flow, still_speed, slow_speed, has_still, has_slow, skip, still, sl
     S, H, W, _ = flow.shape
     if i >= S * H * W:
         return
-    t = i // (H * W)
-    p = i - t * (H * W)
-    y = p // W
-    x = p - y * W
+    t, y, x = voxel(i, H, W)
     u = flow[t, y, x, 0]
     v = flow[t, y, x, 1]
     speed = math.sqrt(u * u + v * v)

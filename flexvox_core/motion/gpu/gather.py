@@ -22,6 +22,7 @@ import numpy as np
 from numba import cuda
 
 from flexvox_core.gpu.filters import blur, dilate, gaussian_taps
+from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import device, kernel, launch
 from flexvox_core.motion.mcnc import CUTOFF, MIN_WEIGHT
 from flexvox_core.reconstruct.diffusion import self_weights
@@ -59,10 +60,7 @@ def _trajectory_sums(value, weight, flow, near, inv_4nc1, reach, num, den):
     S, H, W = value.shape
     if i >= S * H * W:
         return
-    t = i // (H * W)
-    p = i - t * (H * W)
-    y = p // W
-    x = p - y * W
+    t, y, x = voxel(i, H, W)
     if not near[t, y, x]:
         num[t, y, x] = 0
         den[t, y, x] = 0
@@ -119,10 +117,7 @@ def _finish(num, den, num_w, den_w, g, mixed, gather, value, mask, fallback, own
     S, H, W = num.shape
     if i >= S * H * W:
         return
-    t = i // (H * W)
-    p = i - t * (H * W)
-    y = p // W
-    x = p - y * W
+    t, y, x = voxel(i, H, W)
     if not gather[t, y, x]:
         if mask[t, y, x]:  # the samples are kept everywhere
             out[t, y, x] = value[t, y, x]

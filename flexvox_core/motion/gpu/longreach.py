@@ -19,6 +19,7 @@ import numpy as np
 from numba import cuda
 
 from flexvox_core.gpu.filters import blur, dilate, gaussian_taps
+from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import kernel, launch
 from flexvox_core.motion.gpu.gather import bilinear_zero
 from flexvox_core.motion.longreach import MIN_WEIGHT
@@ -31,10 +32,7 @@ def _range_weighted_sums(value, weight, flow, guide, act, reach, inv_2st2, scale
     S, H, W = value.shape
     if i >= S * H * W:
         return
-    t = i // (H * W)
-    p = i - t * (H * W)
-    y = p // W
-    x = p - y * W
+    t, y, x = voxel(i, H, W)
     if not act[t, y, x]:
         num[t, y, x] = 0
         den[t, y, x] = 0
@@ -88,10 +86,7 @@ def _finish(num, den, select, value, mask, out):
     S, H, W = num.shape
     if i >= S * H * W:
         return
-    t = i // (H * W)
-    p = i - t * (H * W)
-    y = p // W
-    x = p - y * W
+    t, y, x = voxel(i, H, W)
     if mask[t, y, x]:
         out[t, y, x] = value[t, y, x]
     elif select[t, y, x] and den[t, y, x] > MIN_WEIGHT:

@@ -15,6 +15,7 @@ import numpy as np
 from numba import cuda
 
 from flexvox_core.gpu.filters import blur, gaussian_taps, sobel_slopes
+from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import kernel, launch
 from flexvox_core.motion import noise_aware
 
@@ -26,10 +27,7 @@ def _still_at(still, mask, out):
     F, H, W = out.shape
     if i >= F * H * W:
         return
-    f = i // (H * W)
-    p = i - f * (H * W)
-    y = p // W
-    x = p - y * W
+    f, y, x = voxel(i, H, W)
     K = still.shape[0] // F
     found = 0
     for t in range(f * K, (f + 1) * K):
@@ -45,10 +43,7 @@ def _differences(frames, still_at, out):
     P, H, W = out.shape
     if j >= P * H * W:
         return
-    i = j // (H * W)
-    p = j - i * (H * W)
-    y = p // W
-    x = p - y * W
+    i, y, x = voxel(j, H, W)
     if still_at[i, y, x] and still_at[i + 1, y, x]:
         out[i, y, x] = abs(frames[i + 1, y, x] - frames[i, y, x])
     else:
@@ -64,10 +59,7 @@ def _histogram(diff_bits, prefix, shift, hist):
     P, H, W = diff_bits.shape
     if j >= P * H * W:
         return
-    i = j // (H * W)
-    p = j - i * (H * W)
-    y = p // W
-    x = p - y * W
+    i, y, x = voxel(j, H, W)
     bits = diff_bits[i, y, x]
     if bits >= np.uint32(0x80000000):
         return
@@ -140,10 +132,7 @@ def _smooth_weight(energy, inv_lam2, g):
     S, H, W = energy.shape
     if i >= S * H * W:
         return
-    t = i // (H * W)
-    p = i - t * (H * W)
-    y = p // W
-    x = p - y * W
+    t, y, x = voxel(i, H, W)
     if inv_lam2[t] > 0:
         g[t, y, x] = math.exp(-energy[t, y, x] * inv_lam2[t])
     else:
@@ -156,10 +145,7 @@ def _square_sum(gx, gy, out):
     S, H, W = out.shape
     if i >= S * H * W:
         return
-    t = i // (H * W)
-    p = i - t * (H * W)
-    y = p // W
-    x = p - y * W
+    t, y, x = voxel(i, H, W)
     out[t, y, x] = gx[t, y, x] * gx[t, y, x] + gy[t, y, x] * gy[t, y, x]
 
 

@@ -13,6 +13,7 @@ import math
 import numpy as np
 from numba import cuda
 
+from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import device, kernel, launch
 from flexvox_core.motion.vardiff import explicit_steps
 
@@ -79,10 +80,7 @@ def _step(vol, new, flow, mask, sharp, c1, c2, c3, dt):
     S, H, W = vol.shape
     if i >= S * H * W:
         return
-    t = i // (H * W)
-    p = i - t * (H * W)
-    y = p // W
-    x = p - y * W
+    t, y, x = voxel(i, H, W)
     cur = vol[t, y, x]
     if mask[t, y, x]:
         new[t, y, x] = cur

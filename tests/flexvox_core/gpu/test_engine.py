@@ -13,39 +13,18 @@ import textwrap
 import numpy as np
 import pytest
 
-from flexvox_core import capture, code_from_order
+from flexvox_core import capture
 from flexvox_core.design import design_code
 from flexvox_core.metrics import psnr
-from flexvox_core.motion.options import sample_bounds
-from flexvox_core.motion.pipeline import motion_aware, run_window
+from flexvox_core.motion.pipeline import motion_aware
 from flexvox_core.simulate.scenes import render_scene
-
-CODE = code_from_order([[0, 2], [3, 1]])
-K = 4
-
-
-def _capture(scene, F, H, W, noise=0.0, seed=0):
-    truth = render_scene(scene, F * K, H, W, seed=seed)
-    frames = capture(truth, CODE)
-    if noise:
-        frames = np.clip(frames + np.random.default_rng(seed).normal(0, noise, frames.shape), 0, 1)
-    return truth, np.asarray(frames, np.float32)
-
-
-def _both(frames, options, missing=None, keep=None, pairs="cpu"):
-    from flexvox_core.motion.gpu.engine import CudaStages
-    from flexvox_core.motion.stages import Window, run_stages
-
-    bounds = sample_bounds(frames, missing, None)
-    cpu = run_window(frames, CODE, options, bounds, missing=missing, keep=keep)
-    gpu = run_stages(CudaStages(Window.plan(frames, CODE, options, bounds, missing=missing, keep=keep), pairs=pairs))
-    return cpu, gpu
+from tests.flexvox_core.gpu.tiny import CODE, tiny_capture
 
 
 def test_the_whole_pipeline_on_the_gpu_is_the_cpus():
     """motion_aware(device="cuda"): every stage on the device, DIS included; the same video within float
     rounding, and ``auto`` never takes the simulator."""
-    truth, frames = _capture("balls", 2, 16, 16)
+    truth, frames = tiny_capture("balls", 2, 16, 16)
     cpu = motion_aware(frames, CODE)
     gpu = motion_aware(frames, CODE, device="cuda")
     assert gpu.device == "cuda" and cpu.device == "cpu"

@@ -8,22 +8,10 @@ pixels at K = 4). The same comparisons at full size, on a GPU, are marked ``gpu`
 import numpy as np
 import pytest
 
-from flexvox_core import capture, code_from_order
 from flexvox_core.metrics import psnr
 from flexvox_core.motion.options import MotionOptions, sample_bounds
 from flexvox_core.motion.pipeline import run_window
-from flexvox_core.simulate.scenes import render_scene
-
-CODE = code_from_order([[0, 2], [3, 1]])
-K = 4
-
-
-def _capture(scene, F, H, W, noise=0.0, seed=0):
-    truth = render_scene(scene, F * K, H, W, seed=seed)
-    frames = capture(truth, CODE)
-    if noise:
-        frames = np.clip(frames + np.random.default_rng(seed).normal(0, noise, frames.shape), 0, 1)
-    return truth, np.asarray(frames, np.float32)
+from tests.flexvox_core.gpu.tiny import CODE, K, tiny_capture
 
 
 def _both(frames, options, missing=None, keep=None, pairs="cpu"):
@@ -39,7 +27,7 @@ def _both(frames, options, missing=None, keep=None, pairs="cpu"):
 @pytest.mark.parametrize("case", ["noisy", "dropped frame", "kept sub-frames", "two passes", "no refinement"])
 def test_the_gpu_engine_follows_the_cpu_in_each_case(case):
     F = 3 if case in ("dropped frame", "kept sub-frames") else 2
-    truth, frames = _capture("balls", F, 12, 12, noise=0.02 if case == "noisy" else 0.0)
+    truth, frames = tiny_capture("balls", F, 12, 12, noise=0.02 if case == "noisy" else 0.0)
     options = MotionOptions(passes=2 if case == "two passes" else 1,
                             refine_time=0.0 if case == "no refinement" else None)
     missing = keep = None
@@ -62,7 +50,7 @@ def test_a_result_read_after_its_workspace_was_reused_says_so():
     from flexvox_core.motion.gpu.engine import CudaStages
     from flexvox_core.motion.stages import Window, run_stages
 
-    truth, frames = _capture("balls", 2, 8, 8)
+    truth, frames = tiny_capture("balls", 2, 8, 8)
     ws = Workspace()
     window = Window.plan(frames, CODE, MotionOptions(refine_time=0.0, local_choice=False, noise_aware=False),
                          (0.0, 1.0))
@@ -80,7 +68,7 @@ def test_a_stream_on_the_gpu_reuses_its_workspace_and_follows_the_cpus(monkeypat
             super().__init__(ws, "cpu", params)
 
     monkeypatch.setattr(gate, "PairFlow", HostPairs)
-    truth, frames = _capture("balls", 3, 8, 8)
+    truth, frames = tiny_capture("balls", 3, 8, 8)
     options = {"refine_time": 0.0, "local_choice": False, "noise_aware": False}
     cpu, gpu = StreamingMotionAware(CODE, **options), StreamingMotionAware(CODE, device="cuda", **options)
     assert gpu.device == "cuda" and cpu.device == "cpu"

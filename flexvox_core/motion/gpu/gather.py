@@ -52,6 +52,16 @@ def bilinear_zero(plane, t, y, x, H, W):
     return acc
 
 
+@device
+def velocity(flow, t, y, x):
+    """(u, v) of the voxel (t, y, x), NaN or infinity read as still (no flow measured there)."""
+    u = flow[t, y, x, 0]
+    v = flow[t, y, x, 1]
+    if not (math.isfinite(u) and math.isfinite(v)):
+        return np.float32(0), np.float32(0)
+    return u, v
+
+
 @kernel("void(float32[:, :, ::1], uint8[:, :, ::1], float32[:, :, :, ::1], uint8[:, :, ::1], float32, int32, "
         "float32[:, :, ::1], float32[:, :, ::1])")
 def _trajectory_sums(value, weight, flow, near, inv_4nc1, reach, num, den):
@@ -65,11 +75,7 @@ def _trajectory_sums(value, weight, flow, near, inv_4nc1, reach, num, den):
         num[t, y, x] = 0
         den[t, y, x] = 0
         return
-    u = flow[t, y, x, 0]
-    v = flow[t, y, x, 1]
-    if not (math.isfinite(u) and math.isfinite(v)):
-        u = np.float32(0)
-        v = np.float32(0)
+    u, v = velocity(flow, t, y, x)
     e = math.exp(-(np.float32(1) + u * u + v * v) * inv_4nc1)
     # The voxel's own reach: the largest d <= reach with e^(d²) >= CUTOFF.
     if e <= CUTOFF:

@@ -21,7 +21,7 @@ from numba import cuda
 from flexvox_core.gpu.filters import blur, dilate, gaussian_taps
 from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import kernel, launch
-from flexvox_core.motion.gpu.gather import bilinear_zero
+from flexvox_core.motion.gpu.gather import bilinear_zero, velocity
 from flexvox_core.motion.longreach import MIN_WEIGHT
 
 
@@ -37,11 +37,7 @@ def _range_weighted_sums(value, weight, flow, guide, act, reach, inv_2st2, scale
         num[t, y, x] = 0
         den[t, y, x] = 0
         return
-    u = flow[t, y, x, 0]
-    v = flow[t, y, x, 1]
-    if not (math.isfinite(u) and math.isfinite(v)):
-        u = np.float32(0)
-        v = np.float32(0)
+    u, v = velocity(flow, t, y, x)
     g = guide[t, y, x]
     tiny = np.float32(1e-12)
     # d = 0: the voxel's own sample (if any).

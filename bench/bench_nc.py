@@ -20,13 +20,15 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository: the tests' reference
 
 from bench_gaptv_sci import REFERENCE, SCENES, data_dir, load  # noqa: E402
 
 from flexvox_core.design import design_code  # noqa: E402
 from flexvox_core.forward import capture  # noqa: E402
 from flexvox_core.metrics import psnr, ssim  # noqa: E402
-from flexvox_core.reconstruct import diffuse, nc_naive, rebin, supported_divisions  # noqa: E402
+from flexvox_core.reconstruct import diffuse, rebin, supported_divisions  # noqa: E402
+from tests.flexvox_core.reconstruct.nc_reference import nc_naive  # noqa: E402
 
 
 def best_of(fn, repeat: int) -> float:

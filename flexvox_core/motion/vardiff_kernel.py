@@ -8,7 +8,7 @@ on the number of threads.
 
 Bilinear reads are exact (OpenCV rounds the fractional position to 1/32 px) and clamp at the
 border (a neighbour outside the picture is the nearest edge pixel, OpenCV's ``BORDER_REPLICATE``).
-:func:`~flexvox_core.motion.vardiff.variable_tensor_diffusion_reference` is the same step in plain
+``tests/flexvox_core/motion/vardiff_reference.py`` is the same step in plain
 numpy and scipy, which the tests compare this against.
 """
 

@@ -15,7 +15,7 @@ overlap, label) and runs any of them in time chunks; this package never imports 
 """
 
 from flexvox_core.reconstruct._common import prepare
-from flexvox_core.reconstruct.diffusion import SOLVERS, diffuse, nc_naive, sigmas, stability_bound
+from flexvox_core.reconstruct.diffusion import SOLVERS, diffuse, sigmas, stability_bound
 from flexvox_core.reconstruct.gaptv import gap_tv, gap_tv_masks, tv_denoise
 from flexvox_core.reconstruct.rebin import default_block, rebin, rebin_blocks, supported_divisions
 
@@ -25,7 +25,6 @@ __all__ = [
     "diffuse",
     "gap_tv",
     "gap_tv_masks",
-    "nc_naive",
     "prepare",
     "rebin",
     "rebin_blocks",

@@ -73,7 +73,7 @@ from flexvox_core.threads import for_each
 
 _logger = logging.getLogger(__name__)
 
-__all__ = ["NC_MIN_WEIGHT", "SOLVERS", "diffuse", "diffuse_where", "gaussian", "nc_naive", "sigmas", "stability_bound"]
+__all__ = ["NC_MIN_WEIGHT", "SOLVERS", "diffuse", "diffuse_where", "gaussian", "sigmas", "stability_bound"]
 
 SOLVERS = ("nc", "explicit", "steady")
 
@@ -846,37 +846,3 @@ def nc_leave_one_out(frames, code, *, tensor=DEFAULT_TENSOR, time: float = DEFAU
     loo = np.empty(f.shape, np.float32)
     video = _nc_kernel(f, c, sig, True, np.float32, None if missing is None else ~missing, loo=loo)
     return video, loo
-
-
-def nc_naive(frames, code, *, tensor=DEFAULT_TENSOR, time: float = DEFAULT_TIME,
-             keep_samples: bool = True) -> np.ndarray:
-    """Normalized convolution with ``scipy.ndimage.gaussian_filter`` in float64 (a baseline).
-
-    The straightforward implementation of ``diffuse(..., solver="nc")``: the same kernels,
-    boundaries and fall-back, on dense float64 volumes, for checking and benchmarking.
-
-    Returns
-    -------
-    video : ndarray, shape (F·K, H, W), float64
-    """
-    from scipy.ndimage import gaussian_filter
-
-    f = check_frames(frames)
-    c = check_identity_code(code)
-    sig = sigmas(tensor, time)
-    vals, order = _sample_volume(f, c, np.float64)
-    mask = _sample_mask(order, *f.shape[:1], c.shape[2])
-    sigma = (sig[2], sig[1], sig[0])
-    num = gaussian_filter(vals, sigma, mode="reflect", truncate=TRUNCATE)
-    den = gaussian_filter(mask.astype(np.float64), sigma, mode="reflect", truncate=TRUNCATE)
-    peak = _peak(gaussian_kernel(s, np.float64) for s in sig)
-    low = den <= NC_MIN_WEIGHT * peak
-    out = np.divide(num, den, out=np.zeros_like(num), where=~low)
-    samples = f.astype(np.float64)
-    if low.any():
-        _put_samples(out, samples, order)
-        _nearest_fill(out, mask, low, sig)
-    np.clip(out, samples.min(), samples.max(), out=out)
-    if keep_samples:
-        _put_samples(out, samples, order)
-    return out

@@ -19,8 +19,7 @@ from flexvox_core.gaps import captured
 from flexvox_core.gpu import choice, volumes
 from flexvox_core.gpu.nc import NcPlan, nc
 from flexvox_core.gpu.volumes import Workspace
-from flexvox_core.motion import local_choice as lc
-from flexvox_core.motion import noise_aware
+from flexvox_core.motion import local_choice, noise_aware
 from flexvox_core.motion.gated_flow import DIS_PARAMS
 from flexvox_core.motion.gpu import gaps, gate, noise
 from flexvox_core.motion.gpu.gather import trajectory_gather
@@ -174,10 +173,11 @@ class CudaStages:
 
     def local_choice(self, video, loo, gathered, flow, high_tr, last: bool) -> None:
         w, o = self.window, self.window.options
-        score = not (o.slow_speed is not None and o.slow_speed >= lc.STILL_VOXEL_SPEED and w.slow_class)
+        score = not (o.slow_speed is not None and o.slow_speed >= local_choice.STILL_VOXEL_SPEED and w.slow_class)
         choice.local_choice(self.ws, video, loo, gathered, self.mask, flow, self.frames_d, self.order_d,
-                            self.present_d, high_tr, w.K, score_still_voxels=score, still_speed=lc.STILL_VOXEL_SPEED,
-                            sigma=lc.pooling_sigma(*w.frames.shape[1:]))
+                            self.present_d, high_tr, w.K, score_still_voxels=score,
+                            still_speed=local_choice.STILL_VOXEL_SPEED,
+                            sigma=local_choice.pooling_sigma(*w.frames.shape[1:]))
 
     def gaps(self, video, flow) -> None:
         w = self.window

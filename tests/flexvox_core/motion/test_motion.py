@@ -161,7 +161,7 @@ def test_automatic_flow_scale_puts_the_shorter_side_near_160_px():
        c=st.sampled_from([(0.95, 0.05, 0.05), (0.95, 0.3, 0.0), (1.0, 0.0, 0.0), (0.5, 0.5, 0.5)]),
        keep=st.booleans(), sharp=st.sampled_from([None, 0.5, 1.0]))
 def test_the_compiled_variable_diffusion_is_the_numpy_reference(seed, speed, time, c, keep, sharp):
-    from flexvox_core.motion.vardiff import variable_tensor_diffusion_reference
+    from tests.flexvox_core.motion.vardiff_reference import variable_tensor_diffusion_reference
 
     rng = np.random.default_rng(seed)
     init = rng.uniform(0.2, 0.8, (6, 9, 11)).astype(np.float32)

@@ -5,7 +5,8 @@ from hypothesis import strategies as st
 
 from flexvox_core.codes import code_from_order
 from flexvox_core.forward import capture, sample_mask
-from flexvox_core.reconstruct import diffuse, nc_naive, rebin, sigmas, stability_bound
+from flexvox_core.reconstruct import diffuse, rebin, sigmas, stability_bound
+from tests.flexvox_core.reconstruct.nc_reference import nc_naive
 
 from .conftest import smooth_video
 

@@ -6,7 +6,8 @@ import pytest
 import flexvox_core.reconstruct.diffusion as D
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture
-from flexvox_core.reconstruct import diffuse, nc_naive
+from flexvox_core.reconstruct import diffuse
+from tests.flexvox_core.reconstruct.nc_reference import nc_naive
 
 from .conftest import smooth_video
 

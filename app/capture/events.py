@@ -28,10 +28,15 @@ class Signal:
     ----------
     name : str
         Its name in log messages.
+    contain : bool
+        Log what a callback raises and go on with the next (a capture's events: a subscriber cannot stop
+        the capture). False: it reaches the emitter (a model driven on the GUI thread, whose callbacks'
+        errors the event loop reports).
     """
 
-    def __init__(self, name: str):
+    def __init__(self, name: str, *, contain: bool = True):
         self.name = name
+        self.contain = bool(contain)
         self._lock = threading.Lock()
         self._callbacks: list[Callable] = []
 
@@ -53,10 +58,14 @@ class Signal:
             return len(self._callbacks)
 
     def emit(self, *args) -> None:
-        """Call every connected callback with ``args``, on this thread; one that raises is logged and skipped."""
+        """Call every connected callback with ``args``, on this thread; one that raises is logged and skipped
+        (unless the signal does not ``contain`` errors)."""
         with self._lock:
             callbacks = list(self._callbacks)
         for callback in callbacks:
+            if not self.contain:
+                callback(*args)
+                continue
             try:
                 callback(*args)
             except Exception:  # noqa: BLE001 - a subscriber's bug must not end the capture

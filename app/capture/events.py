@@ -9,7 +9,8 @@ The service emits every event on one thread of its own (``flexvox-capture-events
 threads that read the camera or write the disk, so a slow subscriber (a terminal nobody reads, a
 busy window) never holds a frame up. A callback runs on that thread: a Qt window hands the event to
 its GUI thread (``app.gui.capture.capture_signals``). What a callback raises is logged and
-ignored: a subscriber cannot stop a capture.
+ignored: a subscriber cannot stop a capture. Qt-free models driven on the GUI thread (Review's,
+``app.gui.models.review_model``) use the same :class:`Signal`, letting their callbacks' errors through.
 """
 
 from __future__ import annotations

@@ -35,6 +35,10 @@ def test_a_signal_calls_its_callbacks_in_order_and_logs_one_that_raises(caplog):
     assert calls[-1] == ("a", 2) and len(signal) == 2
     with pytest.raises(TypeError, match=r"`callback` of progress must be callable; got int"):
         signal.connect(3)
+    model_signal = Signal("changed", contain=False)  # a model on the GUI thread: the error reaches the emitter
+    model_signal.connect(broken)
+    with pytest.raises(RuntimeError, match=r"a subscriber's bug"):
+        model_signal.emit(1)
 
 
 def test_a_capture_publishes_started_progress_and_finished_in_order(tmp_path):

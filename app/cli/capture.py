@@ -9,6 +9,7 @@ from __future__ import annotations
 import re
 import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -19,6 +20,8 @@ from flexvox_core.tiles import parse_tile
 _SIZE_RE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
 
 
+PROGRESS_EVERY_S = 0.25
+"""The counters are printed this often on a terminal (every 2 s when stderr is a file or a pipe)."""
 GROUND_TRUTH_RATE = 500.0
 """Sub-frames per second the simulated ground truth is written at, at least (about 1330 at 120x160 here)."""
 
@@ -124,7 +127,7 @@ def _plan(args):
 def _build(args, display=None):
     from app.capture import CaptureService, QueuePolicy, SyncSetting
     from app.capture.pacing import PacedClock
-    from app.capture.service import check_output
+    from app.capture.sink import check_output
     from rig_drivers.profile import open_rig
     from rig_drivers.simulated_camera import VirtualClock
 
@@ -156,8 +159,7 @@ def _build(args, display=None):
         sync=SyncSetting(delay_set_by_hand=args.delay_set_by_hand),
         queue_policy=QueuePolicy(capacity=args.queue, block_s=args.block),
         projector_size=args.projector_size, ground_truth=args.ground_truth, overwrite=args.overwrite,
-        durable=args.durable,
-        rig_info={"profile": args.rig})
+        durable=args.durable, rig_info={"profile": args.rig}, progress_every_s=PROGRESS_EVERY_S)
     return service
 
 
@@ -193,6 +195,34 @@ def _calibration(args, rig):
 def _counters(s) -> str:
     return (f"{s.rows_written} written, {s.drops} dropped, queue {s.queue_depth}/{s.queue_capacity}, "
             f"write {s.write_rate_hz:.1f} Hz, camera {s.camera_rate_hz:.1f} Hz")
+
+
+class _ProgressLines:
+    """The counters on stderr as the capture's ``progress`` events arrive: every event on a terminal (one line
+    rewritten), every ``2 s`` otherwise; nothing once :meth:`close` ran (the end is printed by the caller)."""
+
+    def __init__(self, interactive: bool):
+        self.interactive = interactive
+        self._every_s = PROGRESS_EVERY_S if interactive else 2.0
+        self._last = 0.0
+        self._closed = False
+        self._lock = threading.Lock()
+
+    def __call__(self, stats) -> None:
+        with self._lock:
+            now = time.monotonic()
+            if self._closed or stats.state == "done" or now - self._last < self._every_s:
+                return
+            self._last = now
+            if self.interactive:
+                print(f"\r{_counters(stats)}   ", end="", file=sys.stderr, flush=True)
+            else:
+                print(_counters(stats), file=sys.stderr, flush=True)
+
+    def close(self) -> None:
+        """Print no more lines."""
+        with self._lock:
+            self._closed = True
 
 
 def run(args) -> int:
@@ -232,21 +262,16 @@ def _capture(args, display=None, interrupted=None) -> int:
     for warning in service.warnings:
         print(f"warning: {warning}", file=sys.stderr, flush=True)
     interactive = sys.stderr.isatty()
-    last = 0.0
+    lines = _ProgressLines(interactive)
+    service.events.progress.connect(lines)
     try:
-        while not service.wait(0.25):
+        while not service.wait(0.25):  # the end, or Ctrl-C
             if interrupted is not None and interrupted.is_set():
                 raise KeyboardInterrupt
-            now = time.monotonic()
-            if now - last >= (0.25 if interactive else 2.0):
-                last = now
-                line = _counters(service.stats())
-                if interactive:
-                    print(f"\r{line}   ", end="", file=sys.stderr, flush=True)
-                else:
-                    print(line, file=sys.stderr, flush=True)
     except KeyboardInterrupt:
+        lines.close()
         print("\nstopping...", file=sys.stderr, flush=True)
+    lines.close()
     rows = service.stats().rows_written
     timeout = stop_timeout(rows, service.K, args.ground_truth)
     if args.ground_truth and not service.wait(0):

@@ -9,7 +9,8 @@ to stop its live view first (``before_record``: its reader thread and the captur
 read the camera); the capture service sets up the projector, sync box and camera, reads and
 writes on its own threads, and stops the devices at the end. Starting (a real projector's
 pattern upload takes seconds) and stopping (the writer drains its queue) run on the job runner,
-so the window never waits on them. The counters come from ``service.stats()``.
+so the window never waits on them. The counters and the end come as the capture's events
+(``progress``, ``finished``), handed to the GUI thread by :class:`~app.gui.capture.capture_signals.CaptureSignals`.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import logging
 import time
 from pathlib import Path
 
-from PySide6.QtCore import QObject, Qt, QTimer, Signal
+from PySide6.QtCore import QObject, Qt, Signal
 from PySide6.QtWidgets import (
     QCheckBox,
     QFileDialog,
@@ -33,6 +34,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from app.gui.capture.capture_signals import CaptureSignals
 from app.gui.models.operator_words import in_gui_words
 from app.gui.models.recording import counters_text, make_capture, result_text
 from app.gui.models.rig_service import RigService
@@ -45,8 +47,6 @@ from app.gui.widgets.status_line import StatusLine
 
 _logger = logging.getLogger(__name__)
 
-COUNTERS_MS = 200
-"""The recording counters are refreshed this often."""
 STOP_TIMEOUT_S = 30.0
 
 
@@ -105,6 +105,10 @@ class RecordPanel(QObject):
         self.refused: str | None = None
         """Why the last Record did nothing, while that is shown: "busy" (the rig) or "settings"; None otherwise."""
         self._before_refusal = ""
+        self.signals = CaptureSignals(self)
+        """The running capture's events, on the GUI thread."""
+        self.signals.progress.connect(self._on_progress)
+        self.signals.finished.connect(self._on_finished)
         self._build(parent)
 
     def _build(self, parent) -> None:
@@ -155,9 +159,6 @@ class RecordPanel(QObject):
             rv.addWidget(w)
         self.box = rec
 
-        self.counters_timer = QTimer(self)
-        self.counters_timer.setInterval(COUNTERS_MS)
-        self.counters_timer.timeout.connect(self._poll)
         self.browse_button.clicked.connect(self._browse)
         self.record_button.clicked.connect(self.record)
         self.stop_button.clicked.connect(self.stop)
@@ -241,6 +242,7 @@ class RecordPanel(QObject):
             self._refuse(f"cannot record: {in_gui_words(str(exc))}", busy=False)
             return False
         self.capture = capture
+        self.signals.follow(capture)  # before it starts: no event is missed
         self.settings.remember_folder(capture.path)
         self.last_result = None
         self.recording = True
@@ -259,7 +261,7 @@ class RecordPanel(QObject):
             self.service.notify(role)
 
     def _on_started(self, capture) -> None:
-        if capture is not self.capture:
+        if capture is not self.capture or not self.recording:
             return
         self._notify_devices()
         target = f"{capture.n_target} frames" if capture.n_target else "until Stop"
@@ -267,13 +269,12 @@ class RecordPanel(QObject):
                  f"{capture.calibration.source}; phase {capture.phase_slots}, trigger delay "
                  f"{capture.trigger_delay_us:.0f} µs)")
         self.started.emit(capture)
-        self.counters_timer.start()
-        self._poll()
 
     def _on_start_failed(self, capture, message: str) -> None:
         if capture is not self.capture:
             return
         self.recording = False
+        self.signals.release()
         self.counters_label.setText("not recording")
         self.say(f"cannot record: {in_gui_words(message)}", RED)
         self._notify_devices()
@@ -303,18 +304,18 @@ class RecordPanel(QObject):
                                             on_failed=lambda m: self._finish(capture, None, m))
         self.changed.emit()
 
-    def _poll(self) -> None:
-        capture = self.capture
-        if capture is None:
-            return
-        self.counters_label.setText(counters_text(capture.stats(), capture.n_target, capture.frame_period_s))
-        if capture.result is not None and self._stop_job is None:
-            self._finish(capture, capture.result)
+    def _on_progress(self, capture, stats) -> None:
+        if capture is self.capture and self.recording:
+            self.counters_label.setText(counters_text(stats, capture.n_target, capture.frame_period_s))
+
+    def _on_finished(self, capture, result) -> None:
+        if self._stop_job is None:  # else Stop's job reports the end
+            self._finish(capture, result)
 
     def _finish(self, capture, result, error: str | None = None) -> None:
         if capture is not self.capture or not self.recording:
             return
-        self.counters_timer.stop()
+        self.signals.release()
         self.recording = False
         self._stop_job = None
         self.last_result = result
@@ -348,4 +349,4 @@ class RecordPanel(QObject):
                              "did not stop in time" if result is None else result.message)
                 self.last_result = result
             self.recording = False
-        self.counters_timer.stop()
+        self.signals.release()

@@ -220,3 +220,24 @@ def test_durable_and_a_second_writer_from_the_workspace(qtbot, settings, runner,
     finally:
         ws.shutdown()
         ws.service.close()
+
+
+def test_a_capture_s_events_reach_the_gui_thread_as_qt_signals(qtbot, tmp_path):
+    import threading
+
+    from app.capture import CapturePlan
+    from app.gui.capture.capture_signals import CaptureSignals
+
+    signals = CaptureSignals()
+    threads, counters = set(), []
+    signals.progress.connect(lambda c, stats: (threads.add(threading.current_thread()), counters.append(stats)))
+    capture = CaptureService(small_rig(), CapturePlan(tile=(2, 2), camera_hz=RATE_HZ), tmp_path / "r.zarr", frames=6,
+                             progress_every_s=0.02)
+    signals.follow(capture)
+    assert len(capture.events.progress) == len(capture.events.finished) == 1
+    with qtbot.waitSignal(signals.finished, timeout=20_000) as finished:
+        capture.start()
+    assert finished.args[0] is capture and finished.args[1] is capture.result and capture.result.ok
+    assert threads == {threading.main_thread()} and counters[-1] is capture.result.stats
+    signals.release()
+    assert len(capture.events.progress) == len(capture.events.finished) == 0

@@ -55,10 +55,10 @@ def test_the_speed_says_sub_frames_per_second_and_real_time_plays_the_recording_
     assert ws.speed() == 120.0 and not ws.fps.isEnabled()
     ws.frame_slider.setValue(0)
     ws.set_playing(True)
-    start = ws._last_tick
-    ws._tick(start + 0.5)  # half a second at 15 Hz: 7 whole frames of 8 sub-frames (the half carried), wrapped at 6
-    assert ws.subframe == 56 % 48 and ws._carried == pytest.approx(4.0)
-    ws._tick(start + 1.0)
+    start = ws.model.last_tick
+    ws.model.tick(start + 0.5)  # half a second at 15 Hz: 7 whole frames of 8 sub-frames (half carried), wrapped at 6
+    assert ws.subframe == 56 % 48 and ws.model.carried == pytest.approx(4.0)
+    ws.model.tick(start + 1.0)
     assert ws.subframe == 120 % 48  # a second: 15 frames
     ws.set_playing(False)
 
@@ -103,7 +103,7 @@ def test_reconstruct_each_method_beats_the_raw_frames(qtbot, opened, naive_psnr,
     # The reconstruction panel now shows the result at the current sub-frame, and playback steps sub-frames.
     opened.frame_slider.setValue(13)
     np.testing.assert_array_equal(opened.recon_panel.image.image, r.video[13])
-    opened._tick(opened._last_tick + 1.5 / opened.speed())  # one sub-frame's time and a half
+    opened.model.tick(opened.model.last_tick + 1.5 / opened.speed())  # one sub-frame's time and a half
     assert opened.subframe == 14
 
 
@@ -396,7 +396,7 @@ def test_the_expected_time_comes_from_timing_this_machine_and_is_logged_against_
     assert "on this machine" in ws.expected_label.text() and "timing this machine" not in ws.expected_label.text()
     expected_s = ws.expected_seconds()
     assert expected_s > 0
-    with caplog.at_level(logging.INFO, logger="app.gui.review.workspace"):
+    with caplog.at_level(logging.INFO, logger="app.gui.models.review_model"):
         r = reconstruct(qtbot, ws, "diffusion")
     assert "(expected ≈" in ws.result_label.text()
     assert any(f"measured {r.seconds:.3f} s, expected {expected_s:.3f} s" in m for m in caplog.messages)

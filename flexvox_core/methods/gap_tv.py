@@ -30,17 +30,13 @@ class GapTv(MethodSpec):
 
     takes_multiplexed = True  # GAP-TV takes any 0/1 code
 
-    def overlap(self, values: dict, K: int) -> int:
+    def overlap(self, options, K: int) -> int:
         return 0  # each measurement is reconstructed on its own
 
-    def run(self, frames, code, values, *, value_range=None, extras=False, missing=None, device="cpu") -> MethodOutput:
-        # One measurement at a time, as the SCI literature (and its reference figures) does.
-        kw = self.kwargs(values)
-        return MethodOutput(np.concatenate([gap_tv(frames[f: f + 1], code, **kw) for f in range(frames.shape[0])]))
-
-    def kwargs(self, values: dict) -> dict:
-        return {"iterations": values["iterations"], "tv_weight": values["tv_weight"],
-                "tv_iterations": values["tv_iterations"]}
+    def run(self, frames, code, options, *, value_range=None, extras=False, missing=None, device="cpu") -> MethodOutput:
+        # One measurement at a time, as the SCI literature (and its reference figures) does; the options are
+        # gap_tv's keywords.
+        return MethodOutput(np.concatenate([gap_tv(frames[f: f + 1], code, **options) for f in range(frames.shape[0])]))
 
     def label(self, values: dict) -> str:
         return f"gap-tv {values['iterations']} it"

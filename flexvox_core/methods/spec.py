@@ -4,7 +4,9 @@ A method is one subclass of :class:`MethodSpec` in its own module of
 :mod:`flexvox_core.methods`, listed once in :mod:`~flexvox_core.methods.registry`. It says
 
 - its ``name``, a one-line ``title`` and how it trades spatial for temporal resolution (``trade``);
-- its typed :attr:`~MethodSpec.options` with defaults (:class:`~flexvox_core.methods.options.Option`);
+- its typed :attr:`~MethodSpec.options` with defaults (:class:`~flexvox_core.methods.options.Option`), and
+  :meth:`~MethodSpec.build`: the options object its algorithm takes, made once from their checked values
+  (motion-aware's :class:`~flexvox_core.motion.options.MotionOptions`; by default the values, read-only);
 - :meth:`~MethodSpec.run`: the reconstruction of one identity-code capture;
 - :meth:`~MethodSpec.overlap`: the camera frames of context a time chunk needs on each side
   (None: it cannot run in chunks);
@@ -17,15 +19,18 @@ A method is one subclass of :class:`MethodSpec` in its own module of
   :meth:`~MethodSpec.parse_label`, and how near a bench row's knobs are to given values
   (:attr:`~MethodSpec.bench_axis`, :meth:`~MethodSpec.bench_rank`).
 
-Callers never compare method names: they ask these attributes. Values of the options travel
-as a dict (``values``), checked by :meth:`MethodSpec.resolve`;
-:class:`~flexvox_core.methods.method.Method` is the value users hold.
+Callers never compare method names: they ask these attributes. The options' values are checked by
+:meth:`MethodSpec.resolve` into a dict (``values``: what labels, records and bench rows read) and built
+once into the options object (``options``: what :meth:`~MethodSpec.run`, :meth:`~MethodSpec.overlap` and
+the other capabilities read); :class:`~flexvox_core.methods.method.Method` holds both and is the value
+users hold.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
+from types import MappingProxyType
 
 import numpy as np
 
@@ -128,30 +133,36 @@ class MethodSpec(ABC):
     def validate(self, values: dict) -> None:  # noqa: B027 - an optional hook: most methods have no such check
         """Checks across options (``ValueError``); the default has none."""
 
+    def build(self, values: dict):
+        """The options object :meth:`run` and the capabilities below take, made once from checked ``values``
+        (``ValueError`` where it checks more); default: the values, read-only."""
+        return MappingProxyType(dict(values))
+
     # ------------------------------------------------------------------ running
+    # ``options`` below is what :meth:`build` made.
     @abstractmethod
-    def overlap(self, values: dict, K: int) -> int | None:
+    def overlap(self, options, K: int) -> int | None:
         """Camera frames of context a chunk needs on each side (None: cannot run in chunks)."""
 
-    def accepts_multiplexed(self, values: dict) -> bool:
-        """Whether :meth:`run` takes a multiplexed capture with these values (default: :attr:`takes_multiplexed`)."""
+    def accepts_multiplexed(self, options) -> bool:
+        """Whether :meth:`run` takes a multiplexed capture with these options (default: :attr:`takes_multiplexed`)."""
         return self.takes_multiplexed
 
-    def max_gap(self, values: dict, K: int) -> int:
+    def max_gap(self, options, K: int) -> int:
         """The longest run of dropped frames it bridges (:func:`flexvox_core.gaps.max_gap`)."""
-        return max_gap(self.overlap(values, K))
+        return max_gap(self.overlap(options, K))
 
     gpu_bytes_per_voxel: int = 0
     """Device memory a GPU run holds per voxel of a chunk (its context included); the runner shortens chunks that
     would not fit the card's free memory."""
 
-    def cpu_only(self, values: dict, code) -> str | None:
-        """Why this method runs on the CPU with these values and code even when the GPU is asked for (a short
+    def cpu_only(self, options, code) -> str | None:
+        """Why this method runs on the CPU with these options and code even when the GPU is asked for (a short
         phrase), or None when it runs on the GPU (:mod:`flexvox_core.gpu`). Default: it has no GPU path."""
         return f"{self.name} has no GPU path"
 
     @abstractmethod
-    def run(self, frames: np.ndarray, code: np.ndarray, values: dict, *, value_range=None,
+    def run(self, frames: np.ndarray, code: np.ndarray, options, *, value_range=None,
             extras: bool = False, missing=None, device: str = "cpu") -> MethodOutput:
         """Reconstruct an identity-code capture (or, when :meth:`accepts_multiplexed`, a multiplexed one).
 
@@ -159,8 +170,8 @@ class MethodSpec(ABC):
         ----------
         frames : ndarray (F, H, W)
         code : ndarray (m, n, K) bool, identity code (or any 0/1 code, see :attr:`takes_multiplexed`)
-        values : dict
-            Every option's value (:meth:`resolve`).
+        options
+            What :meth:`build` made of every option's value.
         value_range : (lo, hi) or None
             Methods with :attr:`needs_sample_range`: the whole recording's sample range.
         extras : bool
@@ -177,10 +188,6 @@ class MethodSpec(ABC):
             (unless it shares memory with ``frames`` or an extra): return memory the method owns, or a
             read-only array.
         """
-
-    def kwargs(self, values: dict) -> dict:
-        """Keyword arguments of the method's algorithm function for ``values`` (default: the values)."""
-        return dict(values)
 
     # ------------------------------------------------------------------ description
     @abstractmethod

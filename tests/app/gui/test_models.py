@@ -178,14 +178,14 @@ def test_run_reconstruction_does_not_depend_on_chunks_and_scores_against_truth()
 def test_motion_aware_in_chunks_matches_one_run_with_slow_voxels():
     # The slow voxels' range weight follows the samples' range: every chunk must use the whole capture's.
     from flexvox_core.forward import capture
-    from flexvox_core.motion import motion_aware
+    from flexvox_core.motion.pipeline import run_clip
     from flexvox_core.simulate.scenes import render_scene
 
     code = design_code((2, 4)).code
     frames = capture(render_scene("pan", 10 * 8, 24, 32, seed=0), code)
     method = Method("motion-aware", time=2.0, slow_reach=2.0)
     chunked = run_reconstruction(frames, code, method, chunk_frames=3)
-    whole = motion_aware(frames, code, **method.motion_kwargs())
+    whole = run_clip(frames, code, method.options)
     np.testing.assert_array_equal(chunked.video, np.clip(whole.video, 0, 1))
 
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import re
 
 import numpy as np
 
@@ -14,8 +13,6 @@ from flexvox_core.methods.options import Option, choice, number
 from flexvox_core.methods.spec import MethodOutput, MethodSpec
 from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, SOLVERS, check_tensor, diffuse, sigmas
 from flexvox_core.reconstruct.multiplexed import TIME_FRACTION, gap_gaussian
-
-_LABEL = re.compile(r"^diffusion (?P<solver>\w+) \((?P<tensor>[\d.,]+)\) n=(?P<time>[\d.]+)$")
 
 
 def _is_tensor(v) -> bool:
@@ -104,16 +101,9 @@ class Diffusion(MethodSpec):
         t = ",".join(f"{c:g}" for c in values["tensor"])
         return f"diffusion {values['solver']} ({t}) n={values['time']:g}"
 
-    def parse_label(self, label: str) -> dict | None:
-        m = _LABEL.match(label.strip())
-        if not m:
-            return None
-        return {"name": self.name, "solver": m["solver"], "tensor": [float(c) for c in m["tensor"].split(",")],
-                "time": float(m["time"])}
-
-    def bench_rank(self, knobs: dict, values: dict, code) -> tuple[tuple, bool]:
-        other_solver = knobs["solver"] != values["solver"]
-        tensor = tuple(knobs["tensor"])
+    def bench_rank(self, row: dict, values: dict, code) -> tuple[tuple, bool]:
+        other_solver = row["solver"] != values["solver"]
+        tensor = tuple(row["tensor"])
         logs = np.log(np.asarray(tensor, float)) - np.log(np.asarray(values["tensor"], float))
         distance = float(np.linalg.norm(logs))
         return (other_solver, distance, tensor), not other_solver and distance <= 1e-6

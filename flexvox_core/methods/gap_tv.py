@@ -2,15 +2,11 @@
 
 from __future__ import annotations
 
-import re
-
 import numpy as np
 
 from flexvox_core.methods.options import integer, number
 from flexvox_core.methods.spec import MethodOutput, MethodSpec
 from flexvox_core.reconstruct.gaptv import gap_tv
-
-_LABEL = re.compile(r"^gap-tv (?P<iterations>\d+) it$")
 
 
 class GapTv(MethodSpec):
@@ -40,10 +36,6 @@ class GapTv(MethodSpec):
 
     def label(self, values: dict) -> str:
         return f"gap-tv {values['iterations']} it"
-
-    def parse_label(self, label: str) -> dict | None:
-        m = _LABEL.match(label.strip())
-        return None if not m else {"name": self.name, "iterations": int(m["iterations"])}
 
 
 GAP_TV = GapTv()

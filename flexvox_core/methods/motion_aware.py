@@ -9,8 +9,6 @@ result), and it can return the flow that drove its tensors and the temporal reso
 
 from __future__ import annotations
 
-import re
-
 import numpy as np
 
 from flexvox_core.codes import is_identity_code
@@ -33,10 +31,6 @@ from flexvox_core.motion.pipeline import (
 
 REFINE_SHOWN = "(K/16)²"
 """What forms show for the default refinement time: it depends on the code (1 at K = 16, 0.25 at K = 8)."""
-
-_LABEL = re.compile(
-    r"^motion-aware (?P<flow>\w+) n=(?P<time>[\d.]+)(?: \+refine (?P<refine>[\d.]+))?(?: x(?P<passes>\d+))?"
-    r"(?P<gather> gather-only)?(?P<blind> noise-blind)?$")
 
 
 class MotionAware(MethodSpec):
@@ -114,22 +108,14 @@ class MotionAware(MethodSpec):
         extra += " noise-blind" if not values["noise_aware"] else ""
         return f"motion-aware {values['flow']} n={values['time']:g}{extra}"
 
-    def parse_label(self, label: str) -> dict | None:
-        m = _LABEL.match(label.strip())
-        if not m:
-            return None
-        return {"name": self.name, "flow": m["flow"], "time": float(m["time"]),
-                "refine_time": None if m["refine"] is None else float(m["refine"]), "passes": int(m["passes"] or 1),
-                "local_choice": m["gather"] is None, "noise_aware": m["blind"] is None}
-
-    def bench_rank(self, knobs: dict, values: dict, code) -> tuple[tuple, bool]:
-        def refines(r):  # None: the default refinement ((K/16)²)
+    def bench_rank(self, row: dict, values: dict, code) -> tuple[tuple, bool]:
+        def refines(r):  # None: the default refinement ((K/16)²); any other time > 0 counts as refining
             return r is None or r > 0
 
-        same = (knobs["passes"] == values["passes"] and refines(knobs["refine_time"]) == refines(values["refine_time"])
-                and knobs.get("local_choice", True) == values["local_choice"]
-                and knobs.get("noise_aware", True) == values["noise_aware"])
-        return (not same,), knobs["flow"] == values["flow"]
+        differ = sum((row["passes"] != values["passes"], refines(row["refine_time"]) != refines(values["refine_time"]),
+                      row["slow_reach"] != values["slow_reach"], row["local_choice"] != values["local_choice"],
+                      row["noise_aware"] != values["noise_aware"], row["flow"] != values["flow"]))
+        return (differ,), differ == 0
 
 
 MOTION_AWARE = MotionAware()

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import re
 
 import numpy as np
 
@@ -12,8 +11,6 @@ from flexvox_core.methods.option_kinds import DIVISION
 from flexvox_core.methods.options import Option, flag
 from flexvox_core.methods.spec import MethodOutput, MethodSpec
 from flexvox_core.reconstruct.rebin import default_block, rebin
-
-_LABEL = re.compile(r"^rebin (?P<block>\d+x\d+x\d+)(?P<interp> interp)?$")
 
 
 class Rebin(MethodSpec):
@@ -44,18 +41,12 @@ class Rebin(MethodSpec):
     def as_dict(self, values: dict) -> dict:
         return {"name": self.name, **values, "block": None if values["block"] is None else values["block"].label}
 
-    def parse_label(self, label: str) -> dict | None:
-        m = _LABEL.match(label.strip())
-        if not m:
-            return None
-        return {"name": self.name, "block": m["block"], "interpolate": m["interp"] is not None}
-
-    def bench_rank(self, knobs: dict, values: dict, code) -> tuple[tuple, bool]:
+    def bench_rank(self, row: dict, values: dict, code) -> tuple[tuple, bool]:
         # The block's slot count c (TR = K / c) first, so a K=12 recording borrows the nearest K=16 division.
         block = values["block"] or default_block(np.asarray(code, dtype=bool))
-        c = int(knobs["block"].split("x")[2])
-        other_interp = knobs["interpolate"] != values["interpolate"]
-        other_block = knobs["block"] != block.label
+        c = int(row["block"].split("x")[2])
+        other_interp = row["interpolate"] != values["interpolate"]
+        other_block = row["block"] != block.label
         return (other_interp, abs(math.log(block.c / c)), other_block), not (other_interp or other_block)
 
 

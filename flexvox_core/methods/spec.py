@@ -15,8 +15,8 @@ A method is one subclass of :class:`MethodSpec` in its own module of
   :attr:`~MethodSpec.takes_multiplexed` (multiplexed captures from their own forward model)
   and :attr:`~MethodSpec.extras` (per-sub-frame arrays it can return beside the video, trimmed to a
   chunk like the video);
-- :meth:`~MethodSpec.label` (a short description; the bench's row key) and its inverse
-  :meth:`~MethodSpec.parse_label`, and how near a bench row's knobs are to given values
+- :meth:`~MethodSpec.label` (a short description), :meth:`~MethodSpec.as_dict` (what metadata records and
+  what keys a bench row), and how near a bench row's options are to given values
   (:attr:`~MethodSpec.bench_axis`, :meth:`~MethodSpec.bench_rank`).
 
 Callers never compare method names: they ask these attributes. The options' values are checked by
@@ -28,6 +28,7 @@ users hold.
 
 from __future__ import annotations
 
+import json
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -194,19 +195,22 @@ class MethodSpec(ABC):
     def label(self, values: dict) -> str:
         """Short human-readable description (also the bench's method column)."""
 
-    def parse_label(self, label: str) -> dict | None:
-        """The knobs (``{"name": ..., option: value}``) of a :meth:`label` this method wrote, or None."""
-        return None
-
     def as_dict(self, values: dict) -> dict:
-        """Metadata form: the name and every option's value (JSON-friendly)."""
+        """Metadata form: the name and every option's value (JSON-friendly); a bench row carries it."""
         return {"name": self.name, **values}
 
-    def bench_rank(self, knobs: dict, values: dict, code) -> tuple[tuple, bool]:
-        """How near a bench row's ``knobs`` (:meth:`parse_label`) are to ``values``, apart from
-        :attr:`bench_axis`: a sort key (smaller is nearer; rows with the smallest key form the
-        family figures are taken from) and whether the row matches exactly."""
-        return (), True
+    def bench_rank(self, row: dict, values: dict, code) -> tuple[tuple, bool]:
+        """How near a bench row's options (the :meth:`as_dict` it carries) are to ``values``, apart from
+        :attr:`bench_axis`: a sort key (smaller is nearer; rows with the smallest key form the family
+        figures are taken from) and whether the row matches exactly. Default: the options that differ,
+        counted (none: exact)."""
+        differ = sum(_json(row.get(k)) != _json(v) for k, v in self.as_dict(values).items() if k != self.bench_axis)
+        return (differ,), differ == 0
 
     def __repr__(self) -> str:
         return f"<method {self.name}>"
+
+
+def _json(value) -> str:
+    """A value as a bench row's JSON holds it (tuples as lists), for comparison."""
+    return json.dumps(value, sort_keys=True)

@@ -3,8 +3,9 @@
 An :class:`~flexvox_core.methods.options.Option` checks a value against its own rule; its kind says how
 a value of that sort is typed as text and read back (:meth:`Kind.parse`, :meth:`Kind.format`), how the
 command line takes it (:meth:`Kind.flag`, :meth:`Kind.arguments`, :meth:`Kind.help_words`) and which
-field a form shows for it (:attr:`Kind.field`). The command line, the Review form and the napari form
-ask the kind; none of them knows the kinds by name.
+field a form shows for it (:attr:`Kind.field`). The command line (``app/cli/method_options.py``) and the
+options form that Review and the napari plugin share (``app/gui/widgets/options_form.py``) ask the kind;
+neither parses, formats or picks a widget by a kind's name.
 
 =============  ===============================================  ===============  ===============
 kind           values                                           command line     form field
@@ -61,7 +62,7 @@ class Kind:
         ------
         ValueError
             Text that is not of this kind: "<name> must be <syntax>; got <text>" (``name``: how the front end
-            calls the option, default ```option```).
+            calls the option, ``--tensor`` say; default: the option's name in backquotes).
         """
         value = self._read(option, str(text).strip(), tile)
         if value is None:
@@ -104,6 +105,8 @@ class Kind:
 
 
 class Number(Kind):
+    """A real number, typed as Python reads a float."""
+
     name, field, metavar, syntax = "number", "real", "X", "a number"
 
     def _read(self, option, text, tile):
@@ -119,6 +122,8 @@ class Number(Kind):
 
 
 class Integer(Kind):
+    """A whole number."""
+
     name, field, metavar, syntax = "integer", "whole", "N", "a whole number"
 
     def _read(self, option, text, tile):
@@ -129,6 +134,8 @@ class Integer(Kind):
 
 
 class Choice(Kind):
+    """One of the option's choices (argparse's ``choices``)."""
+
     name, field = "choice", "list"
 
     def _read(self, option, text, tile):
@@ -142,6 +149,8 @@ class Choice(Kind):
 
 
 class Flag(Kind):
+    """True or False: on the command line a flag that turns the default round."""
+
     name, field, syntax, says_default = "flag", "check", "true or false", False
     _WORDS = {"true": True, "yes": True, "on": True, "1": True, "false": False, "no": False, "off": False, "0": False}
 
@@ -164,6 +173,8 @@ class Flag(Kind):
 
 
 class Triple(Kind):
+    """Three numbers, typed ``a,b,c`` (or ``axbxc``)."""
+
     name, metavar, syntax = "triple", "a,b,c", "three numbers separated by commas"
 
     def _read(self, option, text, tile):
@@ -179,6 +190,9 @@ class Triple(Kind):
 
 
 class DivisionKind(Kind):
+    """A :class:`~flexvox_core.divisions.Division`, typed ``a,b,c`` (or ``AxBxC``) and read
+    against the capture's tile."""
+
     name, metavar, needs_tile, says_default = "division", "a,b,c", True, False
     syntax = "three whole numbers a,b,c (rows, columns, slots of the division), e.g. 2,2,4"
 

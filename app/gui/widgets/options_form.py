@@ -63,6 +63,8 @@ class _Field:
 
 
 class _Check(_Field):
+    """A check box named by the option's label."""
+
     def _make(self):
         w = QCheckBox(self.option.label or self.option.name)
         return w, w.toggled
@@ -81,6 +83,8 @@ class _Check(_Field):
 
 
 class _List(_Field):
+    """A combo box of the option's choices."""
+
     def _make(self):
         w = QComboBox()
         w.addItems([str(c) for c in self.option.choices])
@@ -159,6 +163,8 @@ class _Whole(_Real):
 
 
 class _Text(_Field):
+    """A line of text the option's kind reads (empty: the default)."""
+
     def _make(self):
         w = QLineEdit()
         w.setPlaceholderText(f"{self.option.kind.metavar or 'a value'} (empty: default)")

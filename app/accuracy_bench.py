@@ -6,6 +6,10 @@ motion-aware reconstruction (diffusion time, refinement, a second pass) on the
 built-in scenes at K = 8 (2×4) and K = 16 (4×4), and on the SCI benchmark's Runner and
 Drop (2×4 code) when that data is present. Writes ``results.csv``, ``results.json`` and a
 Pareto plot ``pareto.png`` (mean PSNR against log time), and returns the rows.
+
+Each row carries its method's options (``options``: :meth:`Method.as_dict()
+<flexvox_core.methods.Method.as_dict>`, the name and every option's value; JSON text in the CSV), which is
+what rows are grouped and matched by; ``method`` is its label, for reading.
 """
 
 from __future__ import annotations
@@ -33,6 +37,8 @@ from flexvox_core.simulate.scenes import render_scene
 
 _logger = logging.getLogger(__name__)
 
+TILES = ((2, 4), (4, 4))
+"""The codes' tiles: K = 8 and K = 16."""
 SCENES_FULL = ("fan", "balls", "drummer", "pan", "static")
 SCENES_QUICK = ("balls", "static")
 TENSORS = {
@@ -69,7 +75,7 @@ def cases(*, quick: bool, sci: bool = True) -> list[Case]:
     """The captures of the benchmark (seeded, deterministic)."""
     H, W, F = (48, 64, 4) if quick else (96, 128, 6)
     out = []
-    for tile in ((2, 4), (4, 4)):
+    for tile in TILES:
         code = design_code(tile).code
         K = tile[0] * tile[1]
         for scene in SCENES_QUICK if quick else SCENES_FULL:
@@ -111,6 +117,16 @@ def methods_for(case: Case, *, quick: bool) -> list[tuple[str, Method]]:
     return rows
 
 
+def known_options(K: int) -> dict[str, dict]:
+    """The options (``as_dict``) of every method the full bench runs at K (a tile of :data:`TILES`), by label:
+    how a results.csv without an ``options`` column is read."""
+    tile = next((t for t in TILES if t[0] * t[1] == K), None)
+    if tile is None:
+        return {}
+    case = Case(f"K={K}", K, np.empty(0), np.empty(0), design_code(tile).code)
+    return {method.label(): method.as_dict() for _, method in methods_for(case, quick=False)}
+
+
 def run_bench(out_dir, *, quick: bool = False, sci: bool = True, progress=None, device: str = "cpu") -> list[dict]:
     """Run the benchmark, write CSV/JSON/PNG into ``out_dir`` and return the rows (``device``: where each
     reconstruction runs, :func:`~flexvox_core.methods.runner.device_for`; each row says where it ran)."""
@@ -131,7 +147,7 @@ def run_bench(out_dir, *, quick: bool = False, sci: bool = True, progress=None, 
                 "psnr": round(float(psnr(case.truth, video).mean), 3), "mse": mse,
                 "ssim": round(float(ssim(case.truth, video).mean), 4),
                 "seconds": round(seconds, 5), "mvoxels_per_s": round(video.size / max(seconds, 1e-9) / 1e6, 2),
-                "device": out.device,
+                "device": out.device, "options": method.as_dict(),
             })
         if progress:
             progress(i + 1, len(all_cases))
@@ -139,18 +155,23 @@ def run_bench(out_dir, *, quick: bool = False, sci: bool = True, progress=None, 
     return rows
 
 
+def options_key(options: dict) -> str:
+    """A row's options as one comparable text (JSON, keys sorted)."""
+    return json.dumps(options, sort_keys=True)
+
+
 def summary(rows: list[dict]) -> list[dict]:
-    """Per method over the built-in scenes: PSNR of the mean squared error (so an exact
+    """Per method (its options) over the built-in scenes: PSNR of the mean squared error (so an exact
     reconstruction of a still scene counts as error 0, not as an infinite PSNR), mean SSIM
     and mean seconds."""
     by: dict[tuple, list[dict]] = {}
     for r in rows:
         if "SCI" in r["case"]:
             continue
-        by.setdefault((r["family"], r["method"]), []).append(r)
+        by.setdefault((r["family"], options_key(r["options"])), []).append(r)
     out = []
-    for (family, method), rs in by.items():
-        out.append({"family": family, "method": method,
+    for (family, _), rs in by.items():
+        out.append({"family": family, "method": rs[0]["method"], "options": rs[0]["options"],
                     "psnr": float(10 * np.log10(1 / max(np.mean([r["mse"] for r in rs]), 1e-20))),
                     "ssim": float(np.mean([r["ssim"] for r in rs])),
                     "seconds": float(np.mean([r["seconds"] for r in rs])),
@@ -172,7 +193,7 @@ def _write(out_dir: Path, rows: list[dict]) -> None:
     table = io.StringIO(newline="")
     writer = csv.DictWriter(table, fieldnames=list(rows[0]))
     writer.writeheader()
-    writer.writerows(rows)
+    writer.writerows({**r, "options": json.dumps(r["options"])} for r in rows)
     write_text_atomic(out_dir / "results.csv", table.getvalue())
     summ = summary(rows)
     write_text_atomic(out_dir / "results.json", json.dumps({"rows": rows, "summary": summ, "pareto": pareto(summ)},

@@ -9,7 +9,6 @@ chosen method has no option for is refused, naming the methods it goes with.
 from __future__ import annotations
 
 from app.cli.errors import CliError, arg_type
-from flexvox_core.methods.options import parse_triple
 
 _FLAG_NAMES = {"refine_time": "--refine"}
 """Flags whose name is not the option's (``--refine`` is older than ``refine_time``)."""
@@ -29,36 +28,23 @@ def _options():
 
 
 def _flag(option) -> str:
-    if option.name in _FLAG_NAMES:
-        return _FLAG_NAMES[option.name]
-    dashed = option.name.replace("_", "-")
-    return f"--no-{dashed}" if option.kind == "flag" and option.default else f"--{dashed}"
-
-
-def _fmt(value) -> str:
-    if isinstance(value, tuple):
-        return ",".join(f"{v:g}" for v in value)
-    if isinstance(value, float):
-        return f"{value:g}"
-    return str(value)
+    return _FLAG_NAMES.get(option.name) or option.kind.flag(option)
 
 
 def _help(option, owners) -> str:
     from flexvox_core.methods import specs
 
-    words = option.help or option.label or option.name
-    if option.kind == "flag":
-        words = f"{'no ' if option.default else ''}{option.label or option.name}"
+    words = option.kind.help_words(option)
     if len(owners) < len(specs()):
         words = f"{' and '.join(s.name for s in owners)}: {words}"
     defaults = []
     for s in owners:
         o = s.option(option.name)
-        shown = o.shown_default if o.default is None else o.default
-        if "(default" in (o.help or ""):
-            continue  # its help says the default in words (motion-aware's refinement: (K/16)²)
-        if shown is not None and option.kind not in ("flag", "division"):
-            defaults.append(_fmt(shown) + (f" for {s.name}" if len(owners) > 1 else ""))
+        if "(default" in (o.help or "") or not o.kind.says_default:
+            continue  # its help says the default in words (motion-aware's refinement: (K/16)²), or its flag does
+        shown = o.kind.default_text(o)
+        if shown:
+            defaults.append(shown + (f" for {s.name}" if len(owners) > 1 else ""))
     return words + (f" (default {'; '.join(defaults)})" if defaults else "")
 
 
@@ -76,19 +62,10 @@ def add_method_options(p, *, chunk: int) -> None:
 
     p.add_argument("--method", choices=names(), default=DEFAULT, help=f"default: {DEFAULT}")
     for name, (o, owners) in _options().items():
-        kw = {"dest": name, "default": None, "help": _help(o, owners)}
-        if o.kind == "flag":
-            p.add_argument(_flag(o), action="store_const", const=not o.default, **kw)
-        elif o.kind == "choice":
-            p.add_argument(_flag(o), choices=o.choices, **kw)
-        elif o.kind == "triple":
-            p.add_argument(_flag(o), type=arg_type(lambda text, n=name: parse_triple(text, n)),
-                           metavar="a,b,c", **kw)
-        elif o.kind == "division":
-            p.add_argument(_flag(o), metavar="a,b,c", **kw)
-        else:
-            p.add_argument(_flag(o), type=int if o.kind == "integer" else float,
-                           metavar="N" if o.kind == "integer" else "X", **kw)
+        kw = o.kind.arguments(o, _flag(o))
+        if "type" in kw:
+            kw["type"] = arg_type(kw["type"])
+        p.add_argument(_flag(o), dest=name, default=None, help=_help(o, owners), **kw)
     p.add_argument("--chunk", type=arg_type(_chunk), default=chunk, metavar="F",
                    help=f"camera frames per chunk (default {chunk})")
     add_device_option(p)
@@ -163,7 +140,6 @@ def method_from_args(args, tile):
     ValueError
         A flag the method has no option for (naming the methods it goes with), or a bad value.
     """
-    from flexvox_core.divisions import parse_division
     from flexvox_core.methods import Method, get
 
     spec = get(args.method)
@@ -173,10 +149,7 @@ def method_from_args(args, tile):
     if foreign:
         raise ValueError(_foreign(foreign, spec.name))
     for name, value in given.items():
-        if spec.option(name).kind == "division":
-            parts = [p.strip() for p in str(value).replace("x", ",").split(",")]  # a,b,c (or AxBxC)
-            if len(parts) != 3 or not all(p.isdigit() for p in parts):
-                raise ValueError(f"--{name.replace('_', '-')} must be three whole numbers a,b,c (rows, columns, "
-                                 f"slots of the division), e.g. 2,2,4; got {value!r}")
-            given[name] = parse_division("x".join(parts), tuple(tile))
+        o = spec.option(name)
+        if o.kind.needs_tile:  # kept as typed: read with the recording's tile
+            given[name] = o.kind.parse(o, value, name=_flag(o), tile=tile)
     return Method(spec.name, **given)

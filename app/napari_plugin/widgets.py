@@ -2,14 +2,16 @@
 
 Both are the same widget with a different set of methods: *Reconstruct* offers every registered
 method (:mod:`flexvox_core.methods.registry`), *Motion-aware flow* those that return the flow and
-the TR map (``MethodSpec.extras``) — no method is named here. Each method's options are built from
-its :class:`~flexvox_core.methods.options.Option` list by kind (spin box, combo box, check box, a
-text field for three numbers), checked by :class:`~flexvox_core.methods.Method` as everywhere else.
+the TR map (``MethodSpec.extras``) — no method is named here. Each method's options are the shared
+options form of the Review workspace (:class:`~app.gui.widgets.options_form.OptionsForm`, a field per
+option by its kind; the tensor and the division as text), checked by :class:`~flexvox_core.methods.Method`
+as everywhere else.
 
 The reconstruction runs off the GUI thread in napari's ``thread_worker`` with a progress bar in
 napari's activity dock (one step per camera frame, advanced after each chunk) and Cancel (stops at
 the next chunk boundary: :func:`~app.napari_plugin.layers.reconstruction_steps`); the result is
-added as layers (:func:`~app.napari_plugin.layers.result_layers`).
+added as layers (:func:`~app.napari_plugin.layers.result_layers`). The widgets are qtpy's, over the same
+PySide6 as the form.
 """
 
 from __future__ import annotations
@@ -17,13 +19,10 @@ from __future__ import annotations
 import threading
 
 from qtpy.QtWidgets import (
-    QCheckBox,
     QComboBox,
-    QDoubleSpinBox,
     QFormLayout,
     QHBoxLayout,
     QLabel,
-    QLineEdit,
     QPushButton,
     QSpinBox,
     QStackedWidget,
@@ -31,109 +30,9 @@ from qtpy.QtWidgets import (
     QWidget,
 )
 
+from app.gui.widgets.options_form import OptionsForm
 from app.napari_plugin import layers as fl
 from flexvox_core.methods import DEFAULT, Method, chunk_plan, get, specs
-
-_BIG = 1_000_000
-
-
-def _fmt(value) -> str:
-    if isinstance(value, tuple | list):
-        return ",".join(f"{v:g}" if isinstance(v, float) else str(v) for v in value)
-    return "" if value is None else str(value)
-
-
-class OptionsForm(QWidget):
-    """One method's options, a widget per option by its kind; :meth:`values` for ``Method(name, **values)``."""
-
-    def __init__(self, spec, parent=None):
-        super().__init__(parent)
-        self.spec = spec
-        self.widgets: dict[str, QWidget] = {}
-        form = QFormLayout(self)
-        form.setContentsMargins(0, 0, 0, 0)
-        for o in spec.options:
-            w = self._widget(o)
-            w.setToolTip(o.help or o.rule)
-            w.setObjectName(o.name)
-            self.widgets[o.name] = w
-            form.addRow(o.label or o.name, w)
-
-    @staticmethod
-    def _widget(o) -> QWidget:
-        if o.kind == "flag":
-            w = QCheckBox()
-            w.setChecked(bool(o.default))
-        elif o.kind == "choice":
-            w = QComboBox()
-            w.addItems([str(c) for c in o.choices])
-            w.setCurrentText(str(o.default))
-        elif o.kind == "integer" and o.default is not None:
-            w = QSpinBox()
-            lo, hi, step = o.span or (0, _BIG, 1)
-            w.setRange(int(lo), int(hi))
-            w.setSingleStep(max(1, int(step)))
-            w.setValue(int(o.default))
-        elif o.kind == "number" and o.default is not None:
-            w = QDoubleSpinBox()
-            lo, hi, step = o.span or (0.0, float(_BIG), 0.1)
-            w.setDecimals(3)
-            w.setRange(float(lo), float(hi))
-            w.setSingleStep(float(step))
-            w.setValue(float(o.default))
-        else:  # three numbers (a tensor, a division), or a number whose default is "the method decides"
-            w = QLineEdit(_fmt(o.default))
-            shown = o.shown_default if o.shown_default is not None else "the method's default"
-            w.setPlaceholderText(f"empty: {shown}" if o.kind in ("number", "integer") else "a,b,c (empty: default)")
-        return w
-
-    def values(self, tile) -> dict:
-        """The options as ``Method`` takes them (empty fields: None, the default).
-
-        Raises
-        ------
-        ValueError
-            A field whose text is not what its option's kind needs, naming the option and the rule.
-        """
-        from flexvox_core.divisions import parse_division
-        from flexvox_core.methods.options import parse_triple
-
-        out = {}
-        for o in self.spec.options:
-            w = self.widgets[o.name]
-            if isinstance(w, QCheckBox):
-                out[o.name] = w.isChecked()
-            elif isinstance(w, QComboBox):
-                out[o.name] = o.choices[w.currentIndex()]
-            elif isinstance(w, QSpinBox | QDoubleSpinBox):
-                out[o.name] = w.value()
-            else:
-                text = w.text().strip()
-                if not text:
-                    out[o.name] = None
-                    continue
-                try:
-                    if o.kind == "triple":
-                        out[o.name] = parse_triple(text, o.name)
-                    elif o.kind == "division":
-                        out[o.name] = parse_division(text.replace(",", "x"), tuple(tile))
-                    else:
-                        out[o.name] = float(text) if o.kind == "number" else int(text)
-                except ValueError:
-                    raise ValueError(f"`{o.name}` must be {o.rule}; got {text!r}") from None
-        return out
-
-    def set_value(self, name: str, value) -> None:
-        """Set one option's field (tests, presets)."""
-        w = self.widgets[name]
-        if isinstance(w, QCheckBox):
-            w.setChecked(bool(value))
-        elif isinstance(w, QComboBox):
-            w.setCurrentText(str(value))
-        elif isinstance(w, QSpinBox | QDoubleSpinBox):
-            w.setValue(value)
-        else:
-            w.setText(_fmt(value))
 
 
 class ReconstructWidget(QWidget):

@@ -3,18 +3,16 @@
 from __future__ import annotations
 
 import math
-import re
 
 import numpy as np
 
 from flexvox_core.codes import is_identity_code
 from flexvox_core.gaps import bridge
+from flexvox_core.methods.option_kinds import TRIPLE
 from flexvox_core.methods.options import Option, choice, number
 from flexvox_core.methods.spec import MethodOutput, MethodSpec
 from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, SOLVERS, check_tensor, diffuse, sigmas
 from flexvox_core.reconstruct.multiplexed import TIME_FRACTION, gap_gaussian
-
-_LABEL = re.compile(r"^diffusion (?P<solver>\w+) \((?P<tensor>[\d.,]+)\) n=(?P<time>[\d.]+)$")
 
 
 def _is_tensor(v) -> bool:
@@ -26,7 +24,7 @@ def _is_tensor(v) -> bool:
 
 
 TENSOR = Option("tensor", DEFAULT_TENSOR, "three finite numbers >= 0 (cx, cy, ct), at least one of them > 0",
-                _is_tensor, kind="triple", label="diffusion tensor",
+                _is_tensor, kind=TRIPLE, label="diffusion tensor",
                 help="diffusion tensor (cx, cy, ct): large ct keeps spatial detail, large cx, cy temporal detail")
 """The diffusion tensor option (the Review workspace's continuum slider sets it)."""
 
@@ -59,63 +57,53 @@ class Diffusion(MethodSpec):
         values["tensor"] = tuple(values["tensor"])
         return values
 
-    def overlap(self, values: dict, K: int) -> int | None:
-        if values["solver"] == "steady":
+    def overlap(self, options, K: int) -> int | None:
+        if options["solver"] == "steady":
             return None  # a global linear solve
-        sig_t = sigmas(values["tensor"], values["time"])[2]
+        sig_t = sigmas(options["tensor"], options["time"])[2]
         reach = 4 * sig_t + K  # the Gaussian's support, plus one frame for the nearest-sample fallback
-        if values["solver"] == "explicit":
+        if options["solver"] == "explicit":
             reach *= 2  # the nc start, then diffusion of the same time
         return max(1, math.ceil(reach / K))
 
     takes_missing = True
     takes_multiplexed = True
 
-    def accepts_multiplexed(self, values: dict) -> bool:
-        return values["solver"] == "nc"  # GAP's denoiser is the Gaussian of Eq. 3, nc's one-pass form
+    def accepts_multiplexed(self, options) -> bool:
+        return options["solver"] == "nc"  # GAP's denoiser is the Gaussian of Eq. 3, nc's one-pass form
 
     gpu_bytes_per_voxel = 28
     """The result and nc's four working volumes (flexvox_core.gpu.nc), and the frames."""
 
-    def cpu_only(self, values: dict, code) -> str | None:
+    def cpu_only(self, options, code) -> str | None:
         if not is_identity_code(code):
             return "a multiplexed capture's diffusion runs on the CPU"
-        if values["solver"] != "nc":
-            return f"diffusion's {values['solver']} solver runs on the CPU"
+        if options["solver"] != "nc":
+            return f"diffusion's {options['solver']} solver runs on the CPU"
         return None
 
-    def run(self, frames, code, values, *, value_range=None, extras=False, missing=None, device="cpu"
+    def run(self, frames, code, options, *, value_range=None, extras=False, missing=None, device="cpu"
             ) -> MethodOutput:
         if not is_identity_code(code):  # a multiplexed capture: GAP with this tensor's Gaussian as denoiser
-            return MethodOutput(gap_gaussian(frames, code, tensor=values["tensor"],
-                                             time=values["time"] * TIME_FRACTION))
+            return MethodOutput(gap_gaussian(frames, code, tensor=options["tensor"],
+                                             time=options["time"] * TIME_FRACTION))
         if device == "cuda":
             from flexvox_core.gpu.nc import diffuse_on_gpu
 
-            video = diffuse_on_gpu(frames, code, tensor=values["tensor"], time=values["time"], missing=missing)
+            video = diffuse_on_gpu(frames, code, tensor=options["tensor"], time=options["time"], missing=missing)
         else:
-            video = diffuse(frames, code, **self.kwargs(values), missing=missing)
+            video = diffuse(frames, code, **options, missing=missing)  # the options are diffuse's keywords
         if missing is not None:
             bridge(video, missing, code.shape[2])
         return MethodOutput(video, device=device)
-
-    def kwargs(self, values: dict) -> dict:
-        return {"tensor": values["tensor"], "time": values["time"], "solver": values["solver"]}
 
     def label(self, values: dict) -> str:
         t = ",".join(f"{c:g}" for c in values["tensor"])
         return f"diffusion {values['solver']} ({t}) n={values['time']:g}"
 
-    def parse_label(self, label: str) -> dict | None:
-        m = _LABEL.match(label.strip())
-        if not m:
-            return None
-        return {"name": self.name, "solver": m["solver"], "tensor": [float(c) for c in m["tensor"].split(",")],
-                "time": float(m["time"])}
-
-    def bench_rank(self, knobs: dict, values: dict, code) -> tuple[tuple, bool]:
-        other_solver = knobs["solver"] != values["solver"]
-        tensor = tuple(knobs["tensor"])
+    def bench_rank(self, row: dict, values: dict, code) -> tuple[tuple, bool]:
+        other_solver = row["solver"] != values["solver"]
+        tensor = tuple(row["tensor"])
         logs = np.log(np.asarray(tensor, float)) - np.log(np.asarray(values["tensor"], float))
         distance = float(np.linalg.norm(logs))
         return (other_solver, distance, tensor), not other_solver and distance <= 1e-6

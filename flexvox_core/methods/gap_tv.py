@@ -2,15 +2,11 @@
 
 from __future__ import annotations
 
-import re
-
 import numpy as np
 
 from flexvox_core.methods.options import integer, number
 from flexvox_core.methods.spec import MethodOutput, MethodSpec
 from flexvox_core.reconstruct.gaptv import gap_tv
-
-_LABEL = re.compile(r"^gap-tv (?P<iterations>\d+) it$")
 
 
 class GapTv(MethodSpec):
@@ -30,24 +26,16 @@ class GapTv(MethodSpec):
 
     takes_multiplexed = True  # GAP-TV takes any 0/1 code
 
-    def overlap(self, values: dict, K: int) -> int:
+    def overlap(self, options, K: int) -> int:
         return 0  # each measurement is reconstructed on its own
 
-    def run(self, frames, code, values, *, value_range=None, extras=False, missing=None, device="cpu") -> MethodOutput:
-        # One measurement at a time, as the SCI literature (and its reference figures) does.
-        kw = self.kwargs(values)
-        return MethodOutput(np.concatenate([gap_tv(frames[f: f + 1], code, **kw) for f in range(frames.shape[0])]))
-
-    def kwargs(self, values: dict) -> dict:
-        return {"iterations": values["iterations"], "tv_weight": values["tv_weight"],
-                "tv_iterations": values["tv_iterations"]}
+    def run(self, frames, code, options, *, value_range=None, extras=False, missing=None, device="cpu") -> MethodOutput:
+        # One measurement at a time, as the SCI literature (and its reference figures) does; the options are
+        # gap_tv's keywords.
+        return MethodOutput(np.concatenate([gap_tv(frames[f: f + 1], code, **options) for f in range(frames.shape[0])]))
 
     def label(self, values: dict) -> str:
         return f"gap-tv {values['iterations']} it"
-
-    def parse_label(self, label: str) -> dict | None:
-        m = _LABEL.match(label.strip())
-        return None if not m else {"name": self.name, "iterations": int(m["iterations"])}
 
 
 GAP_TV = GapTv()

@@ -2,8 +2,10 @@
 
 ``Method("motion-aware", time=3)`` looks the method up in the registry, checks every given
 option against its rule (an unknown option or a bad value is a ``ValueError`` naming both),
-fills the defaults, and then reads like a frozen record: ``m.name``, ``m.time``, ``m.label()``,
-``m.as_dict()``. Two methods with the same name and values are equal (and hash alike).
+fills the defaults, builds the options object the method's algorithm takes (``m.options``,
+:meth:`MethodSpec.build <flexvox_core.methods.spec.MethodSpec.build>`), and then reads like a frozen
+record: ``m.name``, ``m.time``, ``m.label()``, ``m.as_dict()``. Two methods with the same name and
+values are equal (and hash alike).
 """
 
 from __future__ import annotations
@@ -39,12 +41,14 @@ class Method:
         An unknown method or option, or a value that breaks its option's rule.
     """
 
-    __slots__ = ("_spec", "_values")
+    __slots__ = ("_options", "_spec", "_values")
 
     def __init__(self, name: str = DEFAULT, **options):
         spec = get(name)
+        values = spec.resolve(options)
         object.__setattr__(self, "_spec", spec)
-        object.__setattr__(self, "_values", MappingProxyType(spec.resolve(options)))
+        object.__setattr__(self, "_values", MappingProxyType(values))
+        object.__setattr__(self, "_options", spec.build(values))
 
     # ------------------------------------------------------------------ record
     @property
@@ -61,6 +65,12 @@ class Method:
     def values(self) -> MappingProxyType:
         """Every option's value, read-only."""
         return self._values
+
+    @property
+    def options(self):
+        """The options object the method runs with, built once from :attr:`values` (motion-aware's
+        :class:`~flexvox_core.motion.options.MotionOptions`; for the others the values)."""
+        return self._options
 
     def __getattr__(self, key: str):
         if key.startswith("_"):
@@ -101,23 +111,19 @@ class Method:
     def overlap(self, K: int) -> int | None:
         """Camera frames of context each chunk needs on each side for a code of K slots
         (None: it cannot run in chunks)."""
-        return self._spec.overlap(dict(self._values), K)
+        return self._spec.overlap(self._options, K)
 
     def takes_multiplexed(self) -> bool:
         """True when it reconstructs a multiplexed capture from its own forward model with these values
         (:meth:`MethodSpec.accepts_multiplexed <flexvox_core.methods.spec.MethodSpec.accepts_multiplexed>`);
         False: a multiplexed recording is demultiplexed per tile for it."""
-        return self._spec.accepts_multiplexed(dict(self._values))
+        return self._spec.accepts_multiplexed(self._options)
 
     def max_gap(self, K: int) -> int:
         """The longest run of dropped camera frames it bridges for a code of K slots."""
-        return self._spec.max_gap(dict(self._values), K)
+        return self._spec.max_gap(self._options, K)
 
-    def algorithm_kwargs(self) -> dict:
-        """Keyword arguments of the method's algorithm function."""
-        return self._spec.kwargs(dict(self._values))
-
-    def motion_kwargs(self) -> dict:
-        """Keyword arguments of :func:`flexvox_core.motion.motion_aware` for a motion-aware method
-        (the same as :meth:`algorithm_kwargs`)."""
-        return self.algorithm_kwargs()
+    def cpu_only(self, code) -> str | None:
+        """Why it runs on the CPU with this code even when the GPU is asked for, or None
+        (:meth:`MethodSpec.cpu_only <flexvox_core.methods.spec.MethodSpec.cpu_only>`)."""
+        return self._spec.cpu_only(self._options, code)

@@ -1,13 +1,13 @@
 """The motion-aware reconstruction as a method (:func:`flexvox_core.motion.motion_aware`).
 
-It needs the whole recording's sample range in every chunk (it scales the slow voxels' range
-weight and bounds the result), and it can return the flow that drove its tensors and the
-temporal resolution it chose per voxel (extras ``flow`` and ``tr``).
+Its option values build one :class:`~flexvox_core.motion.options.MotionOptions` (the option names are its
+fields), which the pipeline takes as it is (:func:`~flexvox_core.motion.pipeline.run_clip`). It needs the
+whole recording's sample range in every chunk (it scales the slow voxels' range weight and bounds the
+result), and it can return the flow that drove its tensors and the temporal resolution it chose per voxel
+(extras ``flow`` and ``tr``).
 """
 
 from __future__ import annotations
-
-import re
 
 import numpy as np
 
@@ -16,7 +16,7 @@ from flexvox_core.flow import BACKENDS
 from flexvox_core.methods.diffusion import time_option
 from flexvox_core.methods.options import choice, flag, integer, number
 from flexvox_core.methods.spec import MethodOutput, MethodSpec
-from flexvox_core.motion import motion_aware, resolution_map
+from flexvox_core.motion import resolution_map
 from flexvox_core.motion.multiplexed import TIME_FRACTION, motion_aware_multiplexed
 from flexvox_core.motion.pipeline import (
     DEFAULT_TIME,
@@ -26,14 +26,11 @@ from flexvox_core.motion.pipeline import (
     MotionOptions,
     auto_flow_scale,
     gated_flow,
+    run_clip,
 )
 
 REFINE_SHOWN = "(K/16)²"
 """What forms show for the default refinement time: it depends on the code (1 at K = 16, 0.25 at K = 8)."""
-
-_LABEL = re.compile(
-    r"^motion-aware (?P<flow>\w+) n=(?P<time>[\d.]+)(?: \+refine (?P<refine>[\d.]+))?(?: x(?P<passes>\d+))?"
-    r"(?P<gather> gather-only)?(?P<blind> noise-blind)?$")
 
 
 class MotionAware(MethodSpec):
@@ -69,8 +66,12 @@ class MotionAware(MethodSpec):
     extras = ("flow", "tr")
     bench_axis = "time"
 
-    def overlap(self, values: dict, K: int) -> int:
-        return MotionOptions(**self.kwargs(values)).overlap(K)
+    def build(self, values: dict) -> MotionOptions:
+        """The pipeline's options: every value as it is (None: the pipeline's default), checked again as a whole."""
+        return MotionOptions(**values)
+
+    def overlap(self, options: MotionOptions, K: int) -> int:
+        return options.overlap(K)
 
     takes_missing = True
     takes_multiplexed = True
@@ -78,38 +79,26 @@ class MotionAware(MethodSpec):
     gpu_bytes_per_voxel = 136
     """About 30 float32 volumes and 9 byte volumes (flexvox_core.motion.gpu.engine's workspace)."""
 
-    def cpu_only(self, values: dict, code) -> str | None:
+    def cpu_only(self, options, code) -> str | None:
         return None if is_identity_code(code) else "a multiplexed capture's motion-aware runs on the CPU"
 
-    def run(self, frames, code, values, *, value_range=None, extras=False, missing=None, device="cpu"
-            ) -> MethodOutput:
+    def run(self, frames, code, options: MotionOptions, *, value_range=None, extras=False, missing=None,
+            device="cpu") -> MethodOutput:
         if not is_identity_code(code):
-            return self._run_multiplexed(frames, code, values, extras)
-        r = motion_aware(frames, code, **self.kwargs(values), value_range=value_range, missing=missing, device=device)
+            return self._run_multiplexed(frames, code, options, extras)
+        r = run_clip(frames, code, options, value_range=value_range, missing=missing, device=device)
         return MethodOutput(r.video, {"flow": r.flow.flow, "tr": r.tr} if extras else {}, device=r.device)
 
-    def _run_multiplexed(self, frames, code, values, extras) -> MethodOutput:
+    def _run_multiplexed(self, frames, code, options: MotionOptions, extras) -> MethodOutput:
         """GAP with the motion-compensated Gaussian (time n · TIME_FRACTION per iteration); the extras are the
         gated flow of the result and the TR it implies (refinement and slow reach do not apply)."""
-        video = motion_aware_multiplexed(frames, code, flow=values["flow"], passes=values["passes"],
-                                         time=values["time"] * TIME_FRACTION)
+        video = motion_aware_multiplexed(frames, code, flow=options.flow, passes=options.passes,
+                                         time=options.time * TIME_FRACTION)
         if not extras:
             return MethodOutput(video)
         K = code.shape[2]
-        flow = gated_flow(np.clip(video, 0, 1), K, backend=values["flow"], scale=auto_flow_scale(*video.shape[1:])).flow
+        flow = gated_flow(np.clip(video, 0, 1), K, backend=options.flow, scale=auto_flow_scale(*video.shape[1:])).flow
         return MethodOutput(video, {"flow": flow, "tr": resolution_map(flow, K)[0]})
-
-    def kwargs(self, values: dict) -> dict:
-        """Keyword arguments of :func:`flexvox_core.motion.motion_aware` (no ``slow_reach`` when
-        it is None: the pipeline's default)."""
-        kw = {"flow": values["flow"], "passes": values["passes"], "time": values["time"],
-              "refine_time": values["refine_time"]}
-        if values["slow_reach"] is not None:
-            kw["slow_reach"] = float(values["slow_reach"])
-        for name in ("local_choice", "noise_aware"):
-            if not values[name]:
-                kw[name] = False
-        return kw
 
     def label(self, values: dict) -> str:
         extra = f" +refine {values['refine_time']:g}" if values["refine_time"] is not None else ""
@@ -119,22 +108,14 @@ class MotionAware(MethodSpec):
         extra += " noise-blind" if not values["noise_aware"] else ""
         return f"motion-aware {values['flow']} n={values['time']:g}{extra}"
 
-    def parse_label(self, label: str) -> dict | None:
-        m = _LABEL.match(label.strip())
-        if not m:
-            return None
-        return {"name": self.name, "flow": m["flow"], "time": float(m["time"]),
-                "refine_time": None if m["refine"] is None else float(m["refine"]), "passes": int(m["passes"] or 1),
-                "local_choice": m["gather"] is None, "noise_aware": m["blind"] is None}
-
-    def bench_rank(self, knobs: dict, values: dict, code) -> tuple[tuple, bool]:
-        def refines(r):  # None: the default refinement ((K/16)²)
+    def bench_rank(self, row: dict, values: dict, code) -> tuple[tuple, bool]:
+        def refines(r):  # None: the default refinement ((K/16)²); any other time > 0 counts as refining
             return r is None or r > 0
 
-        same = (knobs["passes"] == values["passes"] and refines(knobs["refine_time"]) == refines(values["refine_time"])
-                and knobs.get("local_choice", True) == values["local_choice"]
-                and knobs.get("noise_aware", True) == values["noise_aware"])
-        return (not same,), knobs["flow"] == values["flow"]
+        differ = sum((row["passes"] != values["passes"], refines(row["refine_time"]) != refines(values["refine_time"]),
+                      row["slow_reach"] != values["slow_reach"], row["local_choice"] != values["local_choice"],
+                      row["noise_aware"] != values["noise_aware"], row["flow"] != values["flow"]))
+        return (differ,), differ == 0
 
 
 MOTION_AWARE = MotionAware()

@@ -1,30 +1,21 @@
-"""Typed options of a reconstruction method: name, default, the rule a value must meet.
+"""Typed options of a reconstruction method: name, default, the rule a value must meet, its kind.
 
 An :class:`Option` checks a value (``None`` selects its default) and says, when it refuses one,
-the option's name, the rule and the value. ``kind`` tells a command line or a form how to offer
-it, without knowing which method it belongs to:
-
-=============  ===============================================  ==========================
-kind           values                                           offered as
-=============  ===============================================  ==========================
-``number``     a real number (``default`` may be None)          ``--name X``, a spin box
-``integer``    a whole number                                   ``--name N``, a spin box
-``choice``     one of ``choices``                               ``--name C``, a combo box
-``flag``       True / False                                     ``--[no-]name``, a check box
-``triple``     three numbers, e.g. a tensor (cx, cy, ct)        ``--name a,b,c``, a slider
-``division``   a :class:`~flexvox_core.divisions.Division`      ``--name a,b,c``, a slider
-=============  ===============================================  ==========================
+the option's name, the rule and the value. Its ``kind`` (:mod:`flexvox_core.methods.option_kinds`)
+says how a value is typed as text and read back, and how a command line or a form offers it, without
+knowing which method it belongs to. One factory per kind builds an option with its rule:
+:func:`number`, :func:`integer`, :func:`choice`, :func:`flag`; a ``triple`` or ``division`` option
+is an :class:`Option` with its own rule.
 """
 
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from numbers import Integral, Real
 
-KINDS = ("number", "integer", "choice", "flag", "triple", "division")
+from flexvox_core.methods.option_kinds import CHOICE, FLAG, INTEGER, KINDS, NUMBER, Kind
 
 
 @dataclass(frozen=True)
@@ -42,8 +33,9 @@ class Option:
         "`name` must be <rule>; got <value>".
     accepts : callable(value) -> bool
         True when a (non-None) value meets the rule.
-    kind : str
-        One of :data:`KINDS`.
+    kind : Kind
+        How a value is typed and offered (:mod:`~flexvox_core.methods.option_kinds`); given by name
+        (``"division"``) or as the kind.
     label : str
         A few words for a form ("diffusion time n").
     help : str
@@ -61,7 +53,7 @@ class Option:
     default: object
     rule: str
     accepts: Callable[[object], bool] = field(repr=False, compare=False)
-    kind: str = "number"
+    kind: Kind = NUMBER
     label: str = ""
     help: str = ""
     choices: tuple = ()
@@ -69,7 +61,9 @@ class Option:
     shown_default: float | str | None = None
 
     def __post_init__(self):
-        if self.kind not in KINDS:
+        if isinstance(self.kind, str) and self.kind in KINDS:
+            object.__setattr__(self, "kind", KINDS[self.kind])
+        if not isinstance(self.kind, Kind):
             raise ValueError(f"`kind` of option {self.name!r} must be one of {', '.join(KINDS)}; got {self.kind!r}")
         if not self.name.isidentifier():
             raise ValueError(f"an option's `name` must be a Python identifier; got {self.name!r}")
@@ -94,7 +88,7 @@ def number(name: str, default, *, minimum: float = 0.0, strict: bool = False, ma
         return _is_number(v) and (v > minimum if strict else v >= minimum) and v <= maximum
 
     words = rule or f"a finite number {'>' if strict else '>='} {minimum:g}"
-    return Option(name, default, words, accepts, "number", label, help, (), span, shown_default)
+    return Option(name, default, words, accepts, NUMBER, label, help, (), span, shown_default)
 
 
 def integer(name: str, default: int, *, minimum: int = 1, label: str = "", help: str = "", span=None) -> Option:
@@ -102,28 +96,16 @@ def integer(name: str, default: int, *, minimum: int = 1, label: str = "", help:
     def accepts(v) -> bool:
         return isinstance(v, Integral) and not isinstance(v, bool) and v >= minimum
 
-    return Option(name, default, f"a whole number >= {minimum}", accepts, "integer", label, help, (), span)
+    return Option(name, default, f"a whole number >= {minimum}", accepts, INTEGER, label, help, (), span)
 
 
 def choice(name: str, default: str, choices, *, label: str = "", help: str = "") -> Option:
     """One of ``choices``."""
     choices = tuple(choices)
-    return Option(name, default, f"one of {', '.join(choices)}", lambda v: v in choices, "choice", label, help,
+    return Option(name, default, f"one of {', '.join(choices)}", lambda v: v in choices, CHOICE, label, help,
                   choices)
 
 
 def flag(name: str, default: bool, *, label: str = "", help: str = "") -> Option:
     """True or False."""
-    return Option(name, default, "True or False", lambda v: isinstance(v, bool), "flag", label, help)
-
-
-_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
-
-
-def parse_triple(text: str, what: str = "tensor"):
-    """Three numbers written ``a,b,c`` (or ``axbxc``): how a ``triple`` option is typed, on the command
-    line (``--tensor``) and in a form's text box (the napari plugin's)."""
-    parts = [p.strip() for p in re.split(r"[,xX]", text) if p.strip()]
-    if len(parts) == 3 and all(_NUMBER.fullmatch(p) for p in parts):
-        return tuple(float(p) for p in parts)
-    raise ValueError(f"--{what} must be three numbers separated by commas; got {text!r}")
+    return Option(name, default, "True or False", lambda v: isinstance(v, bool), FLAG, label, help)

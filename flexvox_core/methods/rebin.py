@@ -3,16 +3,14 @@
 from __future__ import annotations
 
 import math
-import re
 
 import numpy as np
 
 from flexvox_core.divisions import Division
+from flexvox_core.methods.option_kinds import DIVISION
 from flexvox_core.methods.options import Option, flag
 from flexvox_core.methods.spec import MethodOutput, MethodSpec
 from flexvox_core.reconstruct.rebin import default_block, rebin
-
-_LABEL = re.compile(r"^rebin (?P<block>\d+x\d+x\d+)(?P<interp> interp)?$")
 
 
 class Rebin(MethodSpec):
@@ -23,41 +21,32 @@ class Rebin(MethodSpec):
     trade = "one division a x b x c for the whole video: TR = K / c, SR = 1 / (a b)"
     options = (
         Option("block", None, "a Division (e.g. parse_division('2x2x4', tile)) or None (the default division)",
-               lambda v: isinstance(v, Division), kind="division", label="division",
+               lambda v: isinstance(v, Division), kind=DIVISION, label="division",
                help="rows,columns,slots of the division (default: the one with TR closest to sqrt(K))"),
         flag("interpolate", True, label="interpolation between block centres",
              help="trilinear interpolation between block centres (off: each block's one sample fills it)"),
     )
 
-    def overlap(self, values: dict, K: int) -> int:
-        return 1 if values["interpolate"] else 0
+    def overlap(self, options, K: int) -> int:
+        return 1 if options["interpolate"] else 0
 
-    def run(self, frames, code, values, *, value_range=None, extras=False, missing=None, device="cpu") -> MethodOutput:
-        block = values["block"] or default_block(code)
-        return MethodOutput(rebin(frames, code, block, interpolate=values["interpolate"]))
-
-    def kwargs(self, values: dict) -> dict:
-        return {"division": values["block"], "interpolate": values["interpolate"]}
+    def run(self, frames, code, options, *, value_range=None, extras=False, missing=None, device="cpu") -> MethodOutput:
+        block = options["block"] or default_block(code)
+        return MethodOutput(rebin(frames, code, block, interpolate=options["interpolate"]))
 
     def label(self, values: dict) -> str:
         b = "default" if values["block"] is None else values["block"].label
         return f"rebin {b}{' interp' if values['interpolate'] else ''}"
 
-    def parse_label(self, label: str) -> dict | None:
-        m = _LABEL.match(label.strip())
-        if not m:
-            return None
-        return {"name": self.name, "block": m["block"], "interpolate": m["interp"] is not None}
-
     def as_dict(self, values: dict) -> dict:
         return {"name": self.name, **values, "block": None if values["block"] is None else values["block"].label}
 
-    def bench_rank(self, knobs: dict, values: dict, code) -> tuple[tuple, bool]:
+    def bench_rank(self, row: dict, values: dict, code) -> tuple[tuple, bool]:
         # The block's slot count c (TR = K / c) first, so a K=12 recording borrows the nearest K=16 division.
         block = values["block"] or default_block(np.asarray(code, dtype=bool))
-        c = int(knobs["block"].split("x")[2])
-        other_interp = knobs["interpolate"] != values["interpolate"]
-        other_block = knobs["block"] != block.label
+        c = int(row["block"].split("x")[2])
+        other_interp = row["interpolate"] != values["interpolate"]
+        other_block = row["block"] != block.label
         return (other_interp, abs(math.log(block.c / c)), other_block), not (other_interp or other_block)
 
 

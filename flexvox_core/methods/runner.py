@@ -123,7 +123,7 @@ def device_for(method: Method, code, device: str = "cpu") -> tuple[str, str | No
 
     if resolve_device(device) == "cpu":
         return "cpu", None
-    why = method.spec.cpu_only(dict(method.values), np.asarray(code, bool))
+    why = method.cpu_only(np.asarray(code, bool))
     return ("cpu", why) if why else ("cuda", None)
 
 
@@ -187,16 +187,16 @@ def run_chunk(frames, code, method: Method, *, left: int = 0, count: int | None 
     K = code.shape[2]
     count = frames.shape[0] - left if count is None else count
     m = as_missing(missing, frames.shape[0])
-    spec, values = method.spec, dict(method.values)
+    spec, options = method.spec, method.options
     multiplexed = check_code_for(code, method)
     device, note = device_for(method, code, device)
     on = {"device": device} if device == "cuda" else {}  # only a method with a GPU path takes `device`
     if m is None:
-        out = spec.run(frames, code, values, value_range=value_range, extras=extras, **on)
+        out = spec.run(frames, code, options, value_range=value_range, extras=extras, **on)
     elif spec.takes_missing and not multiplexed:
-        out = spec.run(frames, code, values, value_range=value_range, extras=extras, missing=m, **on)
+        out = spec.run(frames, code, options, value_range=value_range, extras=extras, missing=m, **on)
     else:
-        out = spec.run(fill_frames(frames, m), code, values, value_range=value_range, extras=extras, **on)
+        out = spec.run(fill_frames(frames, m), code, options, value_range=value_range, extras=extras, **on)
         bridge(out.video, m, K)
     a, b = left * K, (left + count) * K
     whole = out.video

@@ -4,7 +4,9 @@ A method is one subclass of :class:`MethodSpec` in its own module of
 :mod:`flexvox_core.methods`, listed once in :mod:`~flexvox_core.methods.registry`. It says
 
 - its ``name``, a one-line ``title`` and how it trades spatial for temporal resolution (``trade``);
-- its typed :attr:`~MethodSpec.options` with defaults (:class:`~flexvox_core.methods.options.Option`);
+- its typed :attr:`~MethodSpec.options` with defaults (:class:`~flexvox_core.methods.options.Option`), and
+  :meth:`~MethodSpec.build`: the options object its algorithm takes, made once from their checked values
+  (motion-aware's :class:`~flexvox_core.motion.options.MotionOptions`; by default the values, read-only);
 - :meth:`~MethodSpec.run`: the reconstruction of one identity-code capture;
 - :meth:`~MethodSpec.overlap`: the camera frames of context a time chunk needs on each side
   (None: it cannot run in chunks);
@@ -13,19 +15,23 @@ A method is one subclass of :class:`MethodSpec` in its own module of
   :attr:`~MethodSpec.takes_multiplexed` (multiplexed captures from their own forward model)
   and :attr:`~MethodSpec.extras` (per-sub-frame arrays it can return beside the video, trimmed to a
   chunk like the video);
-- :meth:`~MethodSpec.label` (a short description; the bench's row key) and its inverse
-  :meth:`~MethodSpec.parse_label`, and how near a bench row's knobs are to given values
+- :meth:`~MethodSpec.label` (a short description), :meth:`~MethodSpec.as_dict` (what metadata records and
+  what keys a bench row), and how near a bench row's options are to given values
   (:attr:`~MethodSpec.bench_axis`, :meth:`~MethodSpec.bench_rank`).
 
-Callers never compare method names: they ask these attributes. Values of the options travel
-as a dict (``values``), checked by :meth:`MethodSpec.resolve`;
-:class:`~flexvox_core.methods.method.Method` is the value users hold.
+Callers never compare method names: they ask these attributes. The options' values are checked by
+:meth:`MethodSpec.resolve` into a dict (``values``: what labels, records and bench rows read) and built
+once into the options object (``options``: what :meth:`~MethodSpec.run`, :meth:`~MethodSpec.overlap` and
+the other capabilities read); :class:`~flexvox_core.methods.method.Method` holds both and is the value
+users hold.
 """
 
 from __future__ import annotations
 
+import json
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
+from types import MappingProxyType
 
 import numpy as np
 
@@ -128,30 +134,36 @@ class MethodSpec(ABC):
     def validate(self, values: dict) -> None:  # noqa: B027 - an optional hook: most methods have no such check
         """Checks across options (``ValueError``); the default has none."""
 
+    def build(self, values: dict):
+        """The options object :meth:`run` and the capabilities below take, made once from checked ``values``
+        (``ValueError`` where it checks more); default: the values, read-only."""
+        return MappingProxyType(dict(values))
+
     # ------------------------------------------------------------------ running
+    # ``options`` below is what :meth:`build` made.
     @abstractmethod
-    def overlap(self, values: dict, K: int) -> int | None:
+    def overlap(self, options, K: int) -> int | None:
         """Camera frames of context a chunk needs on each side (None: cannot run in chunks)."""
 
-    def accepts_multiplexed(self, values: dict) -> bool:
-        """Whether :meth:`run` takes a multiplexed capture with these values (default: :attr:`takes_multiplexed`)."""
+    def accepts_multiplexed(self, options) -> bool:
+        """Whether :meth:`run` takes a multiplexed capture with these options (default: :attr:`takes_multiplexed`)."""
         return self.takes_multiplexed
 
-    def max_gap(self, values: dict, K: int) -> int:
+    def max_gap(self, options, K: int) -> int:
         """The longest run of dropped frames it bridges (:func:`flexvox_core.gaps.max_gap`)."""
-        return max_gap(self.overlap(values, K))
+        return max_gap(self.overlap(options, K))
 
     gpu_bytes_per_voxel: int = 0
     """Device memory a GPU run holds per voxel of a chunk (its context included); the runner shortens chunks that
     would not fit the card's free memory."""
 
-    def cpu_only(self, values: dict, code) -> str | None:
-        """Why this method runs on the CPU with these values and code even when the GPU is asked for (a short
+    def cpu_only(self, options, code) -> str | None:
+        """Why this method runs on the CPU with these options and code even when the GPU is asked for (a short
         phrase), or None when it runs on the GPU (:mod:`flexvox_core.gpu`). Default: it has no GPU path."""
         return f"{self.name} has no GPU path"
 
     @abstractmethod
-    def run(self, frames: np.ndarray, code: np.ndarray, values: dict, *, value_range=None,
+    def run(self, frames: np.ndarray, code: np.ndarray, options, *, value_range=None,
             extras: bool = False, missing=None, device: str = "cpu") -> MethodOutput:
         """Reconstruct an identity-code capture (or, when :meth:`accepts_multiplexed`, a multiplexed one).
 
@@ -159,8 +171,8 @@ class MethodSpec(ABC):
         ----------
         frames : ndarray (F, H, W)
         code : ndarray (m, n, K) bool, identity code (or any 0/1 code, see :attr:`takes_multiplexed`)
-        values : dict
-            Every option's value (:meth:`resolve`).
+        options
+            What :meth:`build` made of every option's value.
         value_range : (lo, hi) or None
             Methods with :attr:`needs_sample_range`: the whole recording's sample range.
         extras : bool
@@ -178,28 +190,27 @@ class MethodSpec(ABC):
             read-only array.
         """
 
-    def kwargs(self, values: dict) -> dict:
-        """Keyword arguments of the method's algorithm function for ``values`` (default: the values)."""
-        return dict(values)
-
     # ------------------------------------------------------------------ description
     @abstractmethod
     def label(self, values: dict) -> str:
         """Short human-readable description (also the bench's method column)."""
 
-    def parse_label(self, label: str) -> dict | None:
-        """The knobs (``{"name": ..., option: value}``) of a :meth:`label` this method wrote, or None."""
-        return None
-
     def as_dict(self, values: dict) -> dict:
-        """Metadata form: the name and every option's value (JSON-friendly)."""
+        """Metadata form: the name and every option's value (JSON-friendly); a bench row carries it."""
         return {"name": self.name, **values}
 
-    def bench_rank(self, knobs: dict, values: dict, code) -> tuple[tuple, bool]:
-        """How near a bench row's ``knobs`` (:meth:`parse_label`) are to ``values``, apart from
-        :attr:`bench_axis`: a sort key (smaller is nearer; rows with the smallest key form the
-        family figures are taken from) and whether the row matches exactly."""
-        return (), True
+    def bench_rank(self, row: dict, values: dict, code) -> tuple[tuple, bool]:
+        """How near a bench row's options (the :meth:`as_dict` it carries) are to ``values``, apart from
+        :attr:`bench_axis`: a sort key (smaller is nearer; rows with the smallest key form the family
+        figures are taken from) and whether the row matches exactly. Default: the options that differ,
+        counted (none: exact)."""
+        differ = sum(_json(row.get(k)) != _json(v) for k, v in self.as_dict(values).items() if k != self.bench_axis)
+        return (differ,), differ == 0
 
     def __repr__(self) -> str:
         return f"<method {self.name}>"
+
+
+def _json(value) -> str:
+    """A value as a bench row's JSON holds it (tuples as lists), for comparison."""
+    return json.dumps(value, sort_keys=True)

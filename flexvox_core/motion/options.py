@@ -65,7 +65,10 @@ def auto_flow_scale(height: int, width: int) -> float:
 
 @dataclass(frozen=True)
 class MotionOptions:
-    """The options of :func:`motion_aware` (see there), checked once."""
+    """The options of :func:`~flexvox_core.motion.pipeline.motion_aware` (see there), checked once: what the
+    motion-aware method builds from its option values and what :func:`~flexvox_core.motion.pipeline.run_window`
+    takes. ``slow_reach`` None stands for :data:`SLOW_REACH` (and reads back as it); ``refine_time`` None for
+    (K/16)² (:meth:`refine`)."""
 
     flow: str = "dis"
     passes: int = 1
@@ -77,7 +80,7 @@ class MotionOptions:
     still_speed: float | None = STILL_SPEED
     flow_consistency: bool = False
     slow_speed: float | None = SLOW_SPEED
-    slow_reach: float = SLOW_REACH
+    slow_reach: float | None = SLOW_REACH
     local_choice: bool = True
     noise_aware: bool = True
 
@@ -94,8 +97,10 @@ class MotionOptions:
             raise ValueError(f"`passes` must be a whole number >= 1; got {passes!r}")
         checked_number("time", self.time, "a finite number > 0", lambda v: v > 0)
         sigmas((self.c[2], self.c[1], self.c[0]), self.time)  # the guides' blur: within MAX_SIGMA
-        checked_number("slow_reach", self.slow_reach, f"a number from 0 to {MAX_SLOW_REACH:g} (sampling periods)",
-                       lambda v: 0 <= v <= MAX_SLOW_REACH)
+        reach = SLOW_REACH if self.slow_reach is None else self.slow_reach
+        object.__setattr__(self, "slow_reach", checked_number(
+            "slow_reach", reach, f"a number from 0 to {MAX_SLOW_REACH:g} (sampling periods)",
+            lambda v: 0 <= v <= MAX_SLOW_REACH))
         for name, rule, ok in (("refine_time", "a finite number >= 0", lambda v: v >= 0),
                                ("flow_scale", "in (0, 1] or None", lambda v: 0 < v <= 1),
                                ("still_speed", "a number >= 0 (px per sub-frame) or None", lambda v: v >= 0),

@@ -49,7 +49,7 @@ __all__ = [
     "DEFAULT_GATE", "DEFAULT_TIME", "DIS_PARAMS", "FLOW_SIDE", "LONG_REACH_RANGE", "LONG_REACH_SIGMA_S",
     "MAX_REFINE_TIME", "MAX_SLOW_REACH", "PERIOD_GATE", "REFINE_C", "SLOW_REACH", "SLOW_SPEED", "STEP1_TENSOR",
     "STEP1_TIME", "STILL_SPEED", "STILL_TENSOR", "MotionAwareResult", "MotionOptions", "auto_flow_scale",
-    "gated_flow", "motion_aware", "run_window", "sample_bounds",
+    "gated_flow", "motion_aware", "run_clip", "run_window", "sample_bounds",
 ]
 
 
@@ -67,7 +67,7 @@ def motion_aware(
     still_speed: float | None = STILL_SPEED,
     flow_consistency: bool = False,
     slow_speed: float | None = SLOW_SPEED,
-    slow_reach: float = SLOW_REACH,
+    slow_reach: float | None = SLOW_REACH,
     value_range: tuple[float, float] | None = None,
     missing=None,
     local_choice: bool = True,
@@ -108,11 +108,12 @@ def motion_aware(
     slow_speed : float or None
         Below this speed (px per sub-frame) the velocity is the K-average's long-baseline flow
         (see :func:`gated_flow`); None: successive-sub-frame flow everywhere (and no slow voxels).
-    slow_reach : float
+    slow_reach : float or None
         Voxels that move, slower than ``slow_speed``, take a range-weighted gather reaching this
         many sampling periods (K sub-frames) each way along their trajectory
         (:func:`~flexvox_core.motion.longreach.long_reach_nc`); 0: the short gather of the fast
-        voxels. The accuracy knob that costs most time where the whole picture drifts slowly.
+        voxels; None: :data:`SLOW_REACH`. The accuracy knob that costs most time where the whole picture drifts
+        slowly.
     value_range : (lo, hi) or None
         Range of the whole recording's samples: it scales the slow voxels' range weight and
         bounds the result. None: this clip's own range. A run in time chunks passes the whole
@@ -140,12 +141,19 @@ def motion_aware(
         :class:`~flexvox_core.gpu.DeviceUnavailable` naming what is missing when none is usable), ``auto`` there
         when one is usable and on the CPU otherwise. The result's ``device`` says which ran.
     """
-    f = check_frames(frames)
-    code = check_identity_code(code)
     options = MotionOptions(flow=flow, passes=passes, time=time, c=c, refine_time=refine_time, gate=gate,
                             flow_scale=flow_scale, still_speed=still_speed, flow_consistency=flow_consistency,
                             slow_speed=slow_speed, slow_reach=slow_reach, local_choice=local_choice,
                             noise_aware=noise_aware)
+    return run_clip(frames, code, options, value_range=value_range, missing=missing, device=device)
+
+
+def run_clip(frames, code, options: MotionOptions, *, value_range: tuple[float, float] | None = None, missing=None,
+             device: str = "cpu") -> MotionAwareResult:
+    """:func:`motion_aware` with its options already checked (the motion-aware method's): the frames, code,
+    ``missing`` and ``value_range`` checked, then :func:`run_window` over the whole clip."""
+    f = check_frames(frames)
+    code = check_identity_code(code)
     missing = as_missing(missing, f.shape[0])
     lo, hi = sample_bounds(f, missing, value_range)
     return run_window(f, code, options, (lo, hi), missing=missing, device=device)

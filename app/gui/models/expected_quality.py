@@ -1,18 +1,20 @@
 """Expected time and quality of a reconstruction, from the accuracy-vs-time benchmark.
 
-``flexvox bench`` writes ``docs/bench/results.csv`` (one row per scene × method × knob).
+``flexvox bench`` writes ``docs/bench/results.csv`` (one row per scene × method × knob, each carrying its
+method's options: :meth:`Method.as_dict() <flexvox_core.methods.Method.as_dict>`).
 :func:`build_table` condenses it into the small table shipped with the application,
 ``app/gui/expected_quality.json`` (regenerate with ``python -m app.gui.models.expected_quality``):
-per K and method, the PSNR of the mean squared error over the built-in scenes (as the bench's
-summary does), mean SSIM, mean seconds and the throughput in voxels per second, plus the mean
-PSNR on the SCI clips (Runner, Drop) where the bench had them.
+per K and method (its options), the PSNR of the mean squared error over the built-in scenes (as the
+bench's summary does), mean SSIM, mean seconds and the throughput in voxels per second, plus the mean
+PSNR on the SCI clips (Runner, Drop) where the bench had them. A results.csv without an ``options``
+column is read by its labels, against the methods the bench runs (:func:`app.accuracy_bench.known_options`).
 
 :func:`expected` finds the bench figures nearest to a :class:`~flexvox_core.methods.Method`
 (interpolating along the method's bench axis, e.g. the diffusion time or iteration count, on a
 log scale between measured values) and scales the time to the recording's size by the measured
 throughput. It says which bench rows it used, and whether it had to extrapolate. The method
-objects read their own labels back (``parse_label``) and rank bench rows (``bench_rank``); this
-module knows no method by name.
+objects rank bench rows by the options they carry (``bench_rank``); this module knows no method by
+name.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from flexvox_core.methods import Method, specs
+from flexvox_core.methods import Method
 from flexvox_core.output_files import write_text_atomic
 
 _logger = logging.getLogger(__name__)
@@ -37,18 +39,28 @@ TABLE_PATH = Path(__file__).with_name("expected_quality.json")
 BENCH_CSV = Path(__file__).resolve().parents[3] / "docs" / "bench" / "results.csv"
 """Where ``flexvox bench`` figures live in a checkout."""
 
-def parse_label(label: str) -> dict:
-    """Knobs of a bench method label (``Method.label()``), e.g. ``"gap-tv 40 it"`` → ``{"name": "gap-tv",
-    "iterations": 40}``. Raises ValueError for a label no registered method wrote."""
-    for spec in specs():
-        knobs = spec.parse_label(label)
-        if knobs is not None:
-            return knobs
-    raise ValueError(f"unknown bench method label {label!r}")
+def _row_options(rows: list[dict], csv_path: Path) -> list[dict]:
+    """Each row's options: its ``options`` column, or (a results.csv without one) the options of the method
+    the bench runs under its label."""
+    if "options" in rows[0]:
+        return [json.loads(r["options"]) for r in rows]
+    from app.accuracy_bench import known_options
+
+    known = {K: known_options(K) for K in {int(r["K"]) for r in rows}}
+    out = []
+    for r in rows:
+        options = known[int(r["K"])].get(r["method"])
+        if options is None:
+            raise ValueError(f"{csv_path}: row {r['method']!r} at K={r['K']} has no `options` column and flexvox "
+                             "bench runs no method of that label; run flexvox bench again for its rows")
+        out.append(options)
+    return out
 
 
 def build_table(csv_path=BENCH_CSV) -> dict:
     """Condense a bench ``results.csv`` into the shipped table (see the module docstring)."""
+    from app.accuracy_bench import options_key
+
     csv_path = Path(csv_path)
     with open(csv_path, newline="") as fh:
         rows = list(csv.DictReader(fh))
@@ -57,18 +69,18 @@ def build_table(csv_path=BENCH_CSV) -> dict:
     missing = {"case", "K", "method", "mse", "ssim", "seconds", "mvoxels_per_s", "psnr"} - set(rows[0])
     if missing:
         raise ValueError(f"{csv_path}: missing column(s) {', '.join(sorted(missing))}")
-    groups: dict[tuple[int, str], dict[str, list]] = {}
-    for r in rows:
-        key = (int(r["K"]), r["method"])
-        g = groups.setdefault(key, {"builtin": [], "sci": []})
+    groups: dict[tuple[int, str, str], dict] = {}
+    for r, options in zip(rows, _row_options(rows, csv_path), strict=True):
+        key = (int(r["K"]), r["method"], options_key(options))
+        g = groups.setdefault(key, {"options": options, "builtin": [], "sci": []})
         g["sci" if "SCI" in r["case"] else "builtin"].append(r)
     entries = []
-    for (K, label), g in sorted(groups.items()):
+    for (K, label, _), g in sorted(groups.items()):
         b = g["builtin"]
         if not b:
             continue
         entry = {
-            "K": K, "label": label, "knobs": parse_label(label),
+            "K": K, "label": label, "options": g["options"],
             "psnr": round(10 * math.log10(1 / max(float(np.mean([float(r["mse"]) for r in b])), 1e-20)), 2),
             "ssim": round(float(np.mean([float(r["ssim"]) for r in b])), 4),
             "seconds": round(float(np.mean([float(r["seconds"]) for r in b])), 5),
@@ -160,12 +172,12 @@ def format_seconds(s: float) -> str:
 
 def _interp(entries: list[dict], key: str, value: float) -> tuple[dict, bool, str]:
     """Interpolate psnr/ssim/mvoxels_per_s in log(``key``) between the bracketing entries."""
-    pts = sorted(entries, key=lambda e: e["knobs"][key])
-    xs = [math.log(e["knobs"][key]) for e in pts]
+    pts = sorted(entries, key=lambda e: e["options"][key])
+    xs = [math.log(e["options"][key]) for e in pts]
     x = math.log(value)
     if len(pts) == 1 or x <= xs[0] or x >= xs[-1]:
         e = pts[0] if x <= xs[0] else pts[-1]
-        exact = math.isclose(e["knobs"][key], value, rel_tol=1e-6)
+        exact = math.isclose(e["options"][key], value, rel_tol=1e-6)
         return e, not exact, e["label"] + ("" if exact else f" (nearest: {key} outside the bench's range)")
     i = int(np.searchsorted(xs, x))
     lo, hi = pts[i - 1], pts[i]
@@ -184,7 +196,7 @@ def expected(table: dict | None, method: Method, code, *, voxels: int) -> Expect
     if not table:
         return None
     K = int(np.asarray(code).shape[2])
-    by_name = [e for e in table["entries"] if e["knobs"]["name"] == method.name]
+    by_name = [e for e in table["entries"] if e["options"]["name"] == method.name]
     if not by_name:
         return None
     ks = sorted({e["K"] for e in by_name}, key=lambda k: (abs(math.log(k / K)), k))
@@ -192,7 +204,8 @@ def expected(table: dict | None, method: Method, code, *, voxels: int) -> Expect
     cands = [e for e in by_name if e["K"] == bench_k]
     approx = bench_k != K
     spec, values = method.spec, dict(method.values)
-    ranked = [(spec.bench_rank(e["knobs"], values, code), e) for e in cands]
+    defaults = Method(method.name).as_dict()  # an option a row does not name: it ran at the default
+    ranked = [(spec.bench_rank({**defaults, **e["options"]}, values, code), e) for e in cands]
     best = min(rank for (rank, _), _ in ranked)
     fam = [e for (rank, _), e in ranked if rank == best]
     exact = next(ok for (rank, ok), _ in ranked if rank == best)

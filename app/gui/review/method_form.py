@@ -1,26 +1,24 @@
 """The method picker with its knobs and the SR ↔ TR continuum slider; produces a :class:`Method`.
 
-The form is built from the registered method objects (:mod:`flexvox_core.methods.registry`): one
-page per method with a widget per option, chosen by the option's kind (check box, combo box, spin
-box). Options of kind ``triple`` (the diffusion tensor) and ``division`` (re-binning's block) are
-set by the continuum slider instead. For a method without one (motion-aware chooses the trade per
-voxel, GAP-TV has none) the slider stays usable: moving it previews the fixed diffusion tensor at that
-position beside the chosen method (:meth:`MethodForm.preview_method`), for comparison, without
-switching method; Reconstruct still runs the chosen method.
+One page per registered method (:mod:`flexvox_core.methods.registry`), each the shared options form
+(:class:`~app.gui.widgets.options_form.OptionsForm`, a field per option by its kind; the napari plugin shows
+the same). The options the continuum slider sets stay off the pages: a ``triple`` (the diffusion tensor, at
+the slider's position) and a ``division`` (re-binning's block: the recording's divisions along the slider).
+For a method without one (motion-aware chooses the trade per voxel, GAP-TV has none) the slider stays usable:
+moving it previews the fixed diffusion tensor at that position beside the chosen method
+(:meth:`MethodForm.preview_method`), for comparison, without switching method; Reconstruct still runs the
+chosen method.
 """
 
 from __future__ import annotations
 
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
-    QCheckBox,
     QComboBox,
-    QDoubleSpinBox,
     QFormLayout,
     QHBoxLayout,
     QLabel,
     QSlider,
-    QSpinBox,
     QStackedWidget,
     QVBoxLayout,
     QWidget,
@@ -28,89 +26,18 @@ from PySide6.QtWidgets import (
 
 from app.gui.models.continuum import continuum_division, continuum_tensor, describe
 from app.gui.widgets.collapsible import Collapsible
+from app.gui.widgets.options_form import OptionsForm
 from app.gui.widgets.settings import AppSettings
 from app.gui.widgets.status_line import StatusLine
-from flexvox_core.methods import DEFAULT, Method, Option, get, names, specs
+from flexvox_core.methods import DEFAULT, Method, get, names, specs
+from flexvox_core.methods.option_kinds import DIVISION, TRIPLE
 
 SLIDER_STEPS = 100
 DEFAULT_POSITION = 0.18
 """Slider position of the default tensor (≈ (0.15, 0.15, 1))."""
 
-
-def _spin(lo: float, hi: float, value: float, step: float, decimals: int = 2) -> QDoubleSpinBox:
-    s = QDoubleSpinBox()
-    s.setRange(lo, hi)
-    s.setDecimals(decimals)
-    s.setSingleStep(step)
-    s.setValue(value)
-    return s
-
-
-SLIDER_KINDS = ("triple", "division")
+SLIDER_KINDS = (TRIPLE, DIVISION)
 """Option kinds the continuum slider sets (the diffusion tensor, re-binning's division)."""
-
-
-class _Knob:
-    """One option's widget on a method's page, and how it reads, shows and persists its value."""
-
-    def __init__(self, option: Option, settings: AppSettings, key: str):
-        self.option, self.settings, self.key = option, settings, key
-        o = option
-        if o.kind == "flag":
-            self.widget = QCheckBox(o.label or o.name)
-            self.widget.setChecked(settings.get_bool(key, bool(o.default)))
-            self.signal = self.widget.toggled
-        elif o.kind == "choice":
-            self.widget = QComboBox()
-            self.widget.addItems([str(c) for c in o.choices])
-            self.widget.setCurrentText(settings.get_str(key, str(o.default)))
-            self.signal = self.widget.currentIndexChanged
-        elif o.kind == "integer":
-            lo, hi, _ = o.span or (1, 1000, 1)
-            self.widget = QSpinBox()
-            self.widget.setRange(int(lo), int(hi))
-            self.widget.setValue(settings.get_int(key, int(o.default)))
-            self.signal = self.widget.valueChanged
-        elif isinstance(o.shown_default, str) and o.default is None:
-            # A default that depends on the capture (motion-aware's refinement: (K/16)²) is a choice of
-            # its own, one step below the range, shown in words; every number in the range means itself.
-            # Its own settings key: a value stored before (where the number shown stood for the default)
-            # must not come back as that number.
-            lo, hi, step = o.span or (0.0, 100.0, 0.1)
-            self.key = key = f"{key}-or-default"
-            self.floor = lo
-            self.widget = _spin(lo - step, hi, settings.get_float(key, lo - step), step)
-            self.widget.setSpecialValueText(f"default ({o.shown_default})")
-            self.signal = self.widget.valueChanged
-        else:
-            lo, hi, step = o.span or (0.0, 100.0, 0.1)
-            shown = o.shown_default if o.default is None else o.default
-            self.widget = _spin(lo, hi, settings.get_float(key, float(lo if shown is None else shown)), step)
-            self.signal = self.widget.valueChanged
-        self.widget.setToolTip(o.help)
-
-    def value(self):
-        """The option's value (a number equal to ``shown_default``, or the "default (…)" choice below the
-        range, or any number typed below the range, stands for a None default)."""
-        w, o = self.widget, self.option
-        if o.kind == "flag":
-            return w.isChecked()
-        if o.kind == "choice":
-            return w.currentText()
-        value = w.value()
-        if o.default is None and (value == o.shown_default
-                                  or isinstance(o.shown_default, str) and value < self.floor):
-            return None  # the default, or a number typed below the range: the default too
-        return value
-
-    def save(self) -> None:
-        w, o = self.widget, self.option
-        if o.kind == "flag":
-            self.settings.set(self.key, w.isChecked())
-        elif o.kind == "choice":
-            self.settings.set(self.key, w.currentText())
-        else:
-            self.settings.set(self.key, w.value())
 
 
 class MethodForm(QWidget):
@@ -134,22 +61,12 @@ class MethodForm(QWidget):
         self.method_box = QComboBox()
         self.method_box.addItems(names())
         self.stack = QStackedWidget()
-        self._knobs: dict[str, dict[str, _Knob]] = {}
+        self.pages: dict[str, OptionsForm] = {}
+        """Each method's options form (the options the slider sets left out)."""
         for spec in specs():
-            page = QWidget()
-            f = QFormLayout(page)
-            knobs = {}
-            for o in spec.options:
-                if o.kind in SLIDER_KINDS:
-                    continue
-                knob = knobs[o.name] = _Knob(o, settings, f"review/{spec.name}/{o.name}")
-                if o.kind == "flag":
-                    f.addRow(knob.widget)
-                else:
-                    f.addRow(o.label or o.name, knob.widget)
-            if not knobs:
-                f.addRow(QLabel("no knobs besides the slider"))
-            self._knobs[spec.name] = knobs
+            page = self.pages[spec.name] = OptionsForm(
+                spec, skip=[o.name for o in spec.options if o.kind in SLIDER_KINDS], settings=settings,
+                key=f"review/{spec.name}", empty="no knobs besides the slider")
             self.stack.addWidget(page)
 
         self.slider = QSlider(Qt.Orientation.Horizontal)
@@ -176,9 +93,8 @@ class MethodForm(QWidget):
         self.stack.setCurrentIndex(self.method_box.currentIndex())
         self.method_box.currentIndexChanged.connect(self._on_method)
         self.slider.valueChanged.connect(self._on_slider)
-        for knobs in self._knobs.values():
-            for knob in knobs.values():
-                knob.signal.connect(self._on_knob)
+        for page in self.pages.values():
+            page.changed.connect(self._on_knob)
         self._refresh()
 
     # ------------------------------------------------------------------ state
@@ -204,11 +120,11 @@ class MethodForm(QWidget):
     def widget(self, option: str, method: str | None = None) -> QWidget:
         """The widget of ``option`` on ``method``'s page (default: the chosen method's)."""
         name = method or self.method_box.currentText()
-        knobs = self._knobs[get(name).name]
-        if option not in knobs:
-            raise ValueError(f"{name} has no widget for {option!r} (its widgets: {', '.join(knobs) or 'none'}; "
+        widgets = self.pages[get(name).name].widgets
+        if option not in widgets:
+            raise ValueError(f"{name} has no widget for {option!r} (its widgets: {', '.join(widgets) or 'none'}; "
                              "the slider sets the tensor or division)")
-        return knobs[option].widget
+        return widgets[option]
 
     def method(self) -> Method:
         """The :class:`Method` the form describes (what Reconstruct runs)."""
@@ -227,17 +143,15 @@ class MethodForm(QWidget):
 
     def _method_for(self, name: str) -> Method:
         spec = get(name)
-        values = {name: knob.value() for name, knob in self._knobs[spec.name].items()}
-        for o in spec.options:
-            if o.kind == "triple":
-                values[o.name] = continuum_tensor(self.position)
-            elif o.kind == "division":
-                values[o.name] = continuum_division(self.position, self._divisions) if self._divisions else None
+        values = self.pages[spec.name].values()
+        along = {TRIPLE: lambda: continuum_tensor(self.position),
+                 DIVISION: lambda: continuum_division(self.position, self._divisions) if self._divisions else None}
+        values.update({o.name: along[o.kind]() for o in spec.options if o.kind in along})
         return Method(spec.name, **values)
 
     # ------------------------------------------------------------------ reactions
     def _has_slider(self) -> bool:
-        return bool({o.kind for o in get(self.method_box.currentText()).options} & set(SLIDER_KINDS))
+        return any(o.kind in SLIDER_KINDS for o in get(self.method_box.currentText()).options)
 
     def _on_method(self, *_):
         self._comparing = False
@@ -268,23 +182,22 @@ class MethodForm(QWidget):
         self.stack.setCurrentIndex(self.method_box.currentIndex())
         self.settings.set("review/method", self.method_box.currentText())
         self.settings.set("review/continuum", self.position)
-        for knobs in self._knobs.values():
-            for knob in knobs.values():
-                knob.save()
+        for page in self.pages.values():
+            page.save()
         self._refresh()
         self.changed.emit()
 
     def _refresh(self) -> None:
         spec = get(self.method_box.currentText())
         kinds = {o.kind for o in spec.options}
-        if "division" in kinds:
+        if DIVISION in kinds:
             if self._divisions:
                 d = continuum_division(self.position, self._divisions)
                 self.slider_text.setText(f"division {d.label}: TR ×{d.tr}, SR ×{d.sr} "
                                          f"({len(self._divisions)} supported divisions along the slider)")
             else:
                 self.slider_text.setText("open a recording to see its divisions")
-        elif "triple" in kinds:
+        elif TRIPLE in kinds:
             self.slider_text.setText(describe(self.position))
         elif self._comparing and self._beside:
             self.slider_text.setText(f"previewing diffusion, {describe(self.position)}, beside the {spec.name} "

@@ -12,7 +12,7 @@ import pytest
 
 from app.capture.plan import CapturePlan
 from app.gui.models.continuum import continuum_division, continuum_tensor, describe, ordered_divisions, tensor_position
-from app.gui.models.expected_quality import BENCH_CSV, TABLE_PATH, build_table, expected, load_table, parse_label
+from app.gui.models.expected_quality import BENCH_CSV, TABLE_PATH, build_table, expected, load_table
 from app.gui.models.jobs import Cancelled, CancelToken, chunk_frames_for, preview_window, run_reconstruction
 from app.gui.models.live_stats import LiveStats, histogram, saturation_level
 from flexvox_core.design import design_code
@@ -68,34 +68,66 @@ def test_shipped_table_is_generated_from_the_bench_csv():
     assert json.loads(TABLE_PATH.read_text()) == json.loads(json.dumps(build_table(BENCH_CSV)))
 
 
+def _results_csv(path, rows):
+    """A results.csv as flexvox bench writes it: each row's method options as JSON text."""
+    import csv
+
+    with open(path, "w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(["case", "K", "family", "method", "psnr", "mse", "ssim", "seconds", "mvoxels_per_s",
+                         "device", "options"])
+        for case, method, *figures in rows:
+            writer.writerow([case, 8, method.name, method.label(), *figures, "cpu", json.dumps(method.as_dict())])
+    return path
+
+
 def test_build_table_takes_psnr_of_the_mean_mse_and_separates_sci(tmp_path):
+    gap = Method("gap-tv", iterations=40)
+    csv = _results_csv(tmp_path / "r.csv", [
+        ("a K=8", gap, 20, 0.01, 0.5, 1.0, 2.0),
+        ("b K=8", gap, 30, 0.001, 0.7, 3.0, 1.0),
+        ("runner (SCI) K=8", gap, 29.4, 0.001, 0.9, 0.5, 4.0),
+    ])
+    (e,) = build_table(csv)["entries"]
+    assert e["psnr"] == pytest.approx(10 * math.log10(1 / 0.0055), abs=0.01)
+    assert (e["ssim"], e["seconds"], e["scenes"], e["sci_psnr"]) == (0.6, 2.0, 2, 29.4)
+    assert e["options"] == {"name": "gap-tv", "iterations": 40, "tv_weight": 0.3, "tv_iterations": 4}
+
+
+def test_rows_are_grouped_and_matched_by_their_options_not_their_labels(tmp_path):
+    # Two settings one label cannot tell apart (the label names the iterations only): two entries, and each
+    # method finds its own.
+    plain, heavy = Method("gap-tv"), Method("gap-tv", tv_weight=1.0)
+    assert plain.label() == heavy.label()
+    table = build_table(_results_csv(tmp_path / "r.csv", [
+        ("a K=8", plain, 20, 0.01, 0.5, 1.0, 2.0),
+        ("a K=8", heavy, 25, 0.003, 0.6, 1.0, 2.0),
+    ]))
+    assert [e["options"]["tv_weight"] for e in table["entries"]] == [0.3, 1.0]
+    code = design_code((2, 4)).code
+    got = expected(table, heavy, code, voxels=10)
+    assert not got.approximate and got.psnr == pytest.approx(25.23, abs=0.01)
+    assert expected(table, plain, code, voxels=10).psnr == pytest.approx(20.0)
+    other = expected(table, Method("gap-tv", tv_weight=2.0), code, voxels=10)
+    assert other.approximate and other.nearest == "gap-tv 40 it"
+
+
+def test_a_results_file_without_options_is_read_by_the_labels_of_the_methods_the_bench_runs(tmp_path):
     csv = tmp_path / "r.csv"
     csv.write_text(
         "case,K,family,method,psnr,mse,ssim,seconds,mvoxels_per_s\n"
         "a K=8,8,gap-tv,gap-tv 40 it,20,0.01,0.5,1.0,2.0\n"
-        "b K=8,8,gap-tv,gap-tv 40 it,30,0.001,0.7,3.0,1.0\n"
-        "runner (SCI) K=8,8,gap-tv,gap-tv 40 it,29.4,0.001,0.9,0.5,4.0\n"
+        "a K=16,16,motion-aware,motion-aware dis n=5 gather-only,30,0.001,0.7,3.0,1.0\n"
+        "a K=16,16,rebin,rebin 2x2x4 interp,30,0.001,0.7,3.0,1.0\n"
     )
-    (e,) = build_table(csv)["entries"]
-    assert e["psnr"] == pytest.approx(10 * math.log10(1 / 0.0055), abs=0.01)
-    assert (e["ssim"], e["seconds"], e["scenes"], e["sci_psnr"]) == (0.6, 2.0, 2, 29.4)
-    assert e["knobs"] == {"name": "gap-tv", "iterations": 40}
-
-
-@pytest.mark.parametrize("label, knobs", [
-    ("rebin 2x1x4 interp", {"name": "rebin", "block": "2x1x4", "interpolate": True}),
-    ("diffusion nc (0.15,0.15,1) n=0.5", {"name": "diffusion", "solver": "nc", "tensor": [0.15, 0.15, 1.0],
-                                          "time": 0.5}),
-    ("motion-aware dis n=4 x2", {"name": "motion-aware", "flow": "dis", "time": 4.0, "refine_time": None,
-                                 "passes": 2, "local_choice": True, "noise_aware": True}),
-])
-def test_parse_label_reads_method_labels(label, knobs):
-    assert parse_label(label) == knobs
-
-
-def test_parse_label_refuses_unknown_labels():
-    with pytest.raises(ValueError, match="unknown bench method label 'pnp-ffdnet'"):
-        parse_label("pnp-ffdnet")
+    gap, ma, rebin = build_table(csv)["entries"]
+    assert gap["options"] == Method("gap-tv", iterations=40).as_dict()
+    assert ma["options"] == Method("motion-aware", local_choice=False).as_dict()
+    assert rebin["options"] == {"name": "rebin", "block": "2x2x4", "interpolate": True}
+    csv.write_text(csv.read_text() + "a K=8,8,pnp,pnp-ffdnet,20,0.01,0.5,1.0,2.0\n")
+    with pytest.raises(ValueError, match=r"r.csv: row 'pnp-ffdnet' at K=8 has no `options` column and flexvox bench "
+                                         r"runs no method of that label"):
+        build_table(csv)
 
 
 def test_expected_matches_exact_rows_and_interpolates_between_times():
@@ -111,6 +143,10 @@ def test_expected_matches_exact_rows_and_interpolates_between_times():
     assert mid.approximate and "interpolated" in mid.basis
     assert min(lo.psnr, hi.psnr) <= mid.psnr <= max(lo.psnr, hi.psnr)
     ma = expected(table, Method("motion-aware", time=4.0), code, voxels=vox)
+    assert not ma.approximate and "interpolated" not in ma.basis  # benched at n = 4
+    # The bench never ran this slow reach: the figures are the nearest benched setting's, and say so.
+    reach = expected(table, Method("motion-aware", time=4.0, slow_reach=2.0), code, voxels=vox)
+    assert reach.approximate and reach.nearest == "motion-aware dis n=4"
     gap = expected(table, Method("gap-tv"), code, voxels=vox)
     assert ma.seconds > 10 * exact.seconds and gap.psnr < ma.psnr  # what the bench found
     twice = expected(table, Method("gap-tv"), code, voxels=2 * vox)
@@ -178,14 +214,14 @@ def test_run_reconstruction_does_not_depend_on_chunks_and_scores_against_truth()
 def test_motion_aware_in_chunks_matches_one_run_with_slow_voxels():
     # The slow voxels' range weight follows the samples' range: every chunk must use the whole capture's.
     from flexvox_core.forward import capture
-    from flexvox_core.motion import motion_aware
+    from flexvox_core.motion.pipeline import run_clip
     from flexvox_core.simulate.scenes import render_scene
 
     code = design_code((2, 4)).code
     frames = capture(render_scene("pan", 10 * 8, 24, 32, seed=0), code)
     method = Method("motion-aware", time=2.0, slow_reach=2.0)
     chunked = run_reconstruction(frames, code, method, chunk_frames=3)
-    whole = motion_aware(frames, code, **method.motion_kwargs())
+    whole = run_clip(frames, code, method.options)
     np.testing.assert_array_equal(chunked.video, np.clip(whole.video, 0, 1))
 
 

@@ -7,6 +7,7 @@ from flexvox_core.design import design_code
 from flexvox_core.divisions import Division
 from flexvox_core.forward import capture
 from flexvox_core.methods import Method, default_block, overlap_frames, reconstruct
+from flexvox_core.motion.options import SLOW_REACH
 
 CODE = design_code((2, 4)).code
 
@@ -104,8 +105,8 @@ def test_motion_aware_chunking_matches_the_whole_with_slow_voxels(slow_reach):
 def test_slow_reach_knob():
     m = Method("motion-aware", slow_reach=2)
     assert m.label().endswith("slow-reach 2")
-    assert m.motion_kwargs()["slow_reach"] == 2.0
-    assert "slow_reach" not in Method("motion-aware").motion_kwargs()  # the pipeline's default
+    assert m.options.slow_reach == 2.0 and m.slow_reach == 2
+    assert Method("motion-aware").options.slow_reach == SLOW_REACH  # None: the pipeline's default
     assert overlap_frames(Method("motion-aware", refine_time=0.0), 8) == 3
     # The default refinement ((K/16)²: 1 explicit step at K = 8, 2 at K = 16) reads one frame further.
     assert overlap_frames(Method("motion-aware"), 8) == 4 and overlap_frames(Method("motion-aware"), 16) == 4
@@ -142,7 +143,7 @@ class _Echo:
                 return "echo"
 
         self.spec = Spec()
-        self.values = {}
+        self.options = {}
 
     def takes_multiplexed(self):
         return False

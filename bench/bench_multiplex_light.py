@@ -26,7 +26,7 @@ from flexvox_core.design import design_code
 from flexvox_core.methods import Method, run
 from flexvox_core.metrics import psnr
 from flexvox_core.multiplex import multiplexed_code
-from flexvox_core.reconstruct import prepare
+from flexvox_core.reconstruct import as_identity_capture
 from flexvox_core.simulate.effects import EFFECTS
 from flexvox_core.simulate.scenes import render_scene
 from flexvox_core.simulate.simulator import simulate_video
@@ -58,7 +58,8 @@ def _row(truth, tile, light, read_sigma, methods, seed) -> dict:
         frames = _capture(truth, mc.code, light, read_sigma, seed)
         for name in methods:
             scores[f"multiplexed {name}"] = _psnr(truth, run(frames, mc.code, Method(name), chunk_frames=None).video)
-        scores["demux nc"] = _psnr(truth, run(*prepare(frames, mc), Method("diffusion"), chunk_frames=None).video)
+        identity = as_identity_capture(frames, mc)
+        scores["demux nc"] = _psnr(truth, run(*identity, Method("diffusion"), chunk_frames=None).video)
     return scores
 
 

@@ -14,7 +14,7 @@ A recording's raw frames become what every reconstruction takes, an identity-cod
    (:func:`flexvox_core.simulate.simulator.normalise_frames`);
 3. **demultiplexing** — an S-matrix recording (attributes ``multiplexed``, ``tile``,
    ``placement_order``) is demultiplexed into the identity capture of its placement
-   (:func:`flexvox_core.reconstruct.prepare`), *unless* the method reconstructs multiplexed
+   (:func:`flexvox_core.reconstruct.as_identity_capture`), *unless* the method reconstructs multiplexed
    captures from their own forward model
    (:meth:`Method.takes_multiplexed <flexvox_core.methods.method.Method.takes_multiplexed>`): then
    :meth:`CaptureReader.input` hands it the normalised multiplexed frames and the S-matrix code
@@ -73,9 +73,9 @@ class Preparation:
         """Normalised rows ``(n, H, W)`` as an identity-code capture (unchanged for an identity code)."""
         if self.multiplexed is None:
             return frames
-        from flexvox_core.reconstruct import prepare
+        from flexvox_core.reconstruct import as_identity_capture
 
-        return prepare(frames, self.multiplexed)[0]
+        return as_identity_capture(frames, self.multiplexed)[0]
 
     def __call__(self, raw) -> np.ndarray:
         """Raw rows ``(n, H, W)`` normalised and demultiplexed: ``(n, H, W)`` float32."""

@@ -254,7 +254,7 @@ class PreviewReconstructor:
         camera's counts, by :func:`_full_scale`) and clipped there (a noisy demultiplex leaves it a little): a
         preview never stops on its input's range.
         """
-        from flexvox_core.reconstruct import diffuse, prepare
+        from flexvox_core.reconstruct import as_identity_capture, diffuse
 
         if method not in PREVIEW_METHODS:
             raise ValueError(f"`method` must be one of {', '.join(PREVIEW_METHODS)}; got {method!r}")
@@ -271,9 +271,9 @@ class PreviewReconstructor:
             m, n = code.shape[:2]
             if region.y0 % m or region.x0 % n:
                 raise ValueError(f"a preview region must start on the tile grid ({m}x{n}); got {region}")
-            stack, identity = prepare(region.crop(stack), code)
+            stack, identity = as_identity_capture(region.crop(stack), code)
         else:
-            stack, identity = prepare(stack, code)  # demultiplex whole tiles, then crop
+            stack, identity = as_identity_capture(stack, code)  # demultiplex whole tiles, then crop
             stack = region.crop(stack)
         K = identity.shape[2]
         ids = [int(f.frame_id) for f in frames]

@@ -31,7 +31,7 @@ from qtpy.QtWidgets import (
 )
 
 from app.gui.widgets.options_form import OptionsForm
-from app.napari_plugin import layers as fl
+from app.napari_plugin import layers
 from flexvox_core.methods import DEFAULT, Method, chunk_plan, get, specs
 
 
@@ -103,7 +103,7 @@ class ReconstructWidget(QWidget):
         current = self.recording_box.currentText()
         paths = []
         for layer in reversed(list(self.viewer.layers)):
-            path = fl.recording_of(getattr(layer, "metadata", None))
+            path = layers.recording_of(getattr(layer, "metadata", None))
             if path and path not in paths:
                 paths.append(path)
         self.recording_box.blockSignals(True)
@@ -142,7 +142,7 @@ class ReconstructWidget(QWidget):
         chunks = len(chunk_plan(rec.n_frames, chunk, method.overlap(K)))
         self._cancel = cancel = threading.Event()
         # napari's bar advances one step per yield: one per chunk.
-        worker = create_worker(fl.reconstruction_steps, path, method, chunk_frames=chunk, extras=self.extras,
+        worker = create_worker(layers.reconstruction_steps, path, method, chunk_frames=chunk, extras=self.extras,
                                cancel=cancel, _start_thread=False, _ignore_errors=True,  # shown in the panel
                                _progress={"total": chunks, "desc": f"flexvox: {method.label()}"})
         worker.returned.connect(lambda out: self._done(out, method, path, rates["subframe_hz"], K))
@@ -169,7 +169,7 @@ class ReconstructWidget(QWidget):
 
     def _done(self, output, method, path, subframe_hz, K) -> None:
         added = []
-        for data, kwargs, kind in fl.result_layers(output, method=method, recording=path, subframe_hz=subframe_hz,
+        for data, kwargs, kind in layers.result_layers(output, method=method, recording=path, subframe_hz=subframe_hz,
                                                    K=K):
             added.append(getattr(self.viewer, f"add_{kind}")(data, **kwargs))
         where = " on the GPU" if getattr(output, "device", "cpu") == "cuda" else ""
@@ -177,7 +177,7 @@ class ReconstructWidget(QWidget):
         self.status.setToolTip("\n".join(layer.name for layer in added))
 
     def _failed(self, exc) -> None:
-        if isinstance(exc, fl.Cancelled):
+        if isinstance(exc, layers.Cancelled):
             self._cancelled()
         else:
             self.status.setText(f"failed: {exc}")

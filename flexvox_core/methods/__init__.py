@@ -3,8 +3,8 @@
 - :mod:`~flexvox_core.methods.spec` — :class:`MethodSpec`, what a method is (options, run,
   overlap, capabilities, label) and :class:`MethodOutput`;
 - :mod:`~flexvox_core.methods.options` — typed options with defaults and rules;
-- one module per method: :mod:`~flexvox_core.methods.rebin`, :mod:`~flexvox_core.methods.diffusion`,
-  :mod:`~flexvox_core.methods.gap_tv`, :mod:`~flexvox_core.methods.motion_aware` (the algorithms
+- one module per method: :mod:`~flexvox_core.methods.rebin_method`, :mod:`~flexvox_core.methods.diffusion_method`,
+  :mod:`~flexvox_core.methods.gap_tv_method`, :mod:`~flexvox_core.methods.motion_aware_method` (the algorithms
   stay in :mod:`flexvox_core.reconstruct` and :mod:`flexvox_core.motion`, which never import this
   package);
 - :mod:`~flexvox_core.methods.registry` — the methods by name (adding one: a module and a line there);

@@ -8,10 +8,10 @@ runner and the batch read this registry; nothing else lists methods.
 
 from __future__ import annotations
 
-from flexvox_core.methods.diffusion import DIFFUSION
-from flexvox_core.methods.gap_tv import GAP_TV
-from flexvox_core.methods.motion_aware import MOTION_AWARE
-from flexvox_core.methods.rebin import REBIN
+from flexvox_core.methods.diffusion_method import DIFFUSION
+from flexvox_core.methods.gap_tv_method import GAP_TV
+from flexvox_core.methods.motion_aware_method import MOTION_AWARE
+from flexvox_core.methods.rebin_method import REBIN
 from flexvox_core.methods.spec import MethodSpec
 
 BUILTIN: tuple[MethodSpec, ...] = (REBIN, DIFFUSION, GAP_TV, MOTION_AWARE)

@@ -108,7 +108,8 @@ def check_code_for(code, method: Method) -> bool:
         return False
     if not method.takes_multiplexed():
         raise ValueError(f"{method.label()} takes identity-code captures only; demultiplex this multiplexed capture "
-                         "first (flexvox_core.reconstruct.prepare; CaptureReader.input does it for such methods)")
+                         "first (flexvox_core.reconstruct.as_identity_capture; CaptureReader.input does it for such "
+                         "methods)")
     return True
 
 

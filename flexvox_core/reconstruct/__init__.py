@@ -2,7 +2,7 @@
 
 Every function takes an identity-code capture ``frames`` (F, H, W) and its ``code``
 (m, n, K) and returns the full video (F·K, H, W). Multiplexed captures are demultiplexed
-first with :func:`prepare`.
+first with :func:`as_identity_capture`.
 
 - :mod:`~flexvox_core.reconstruct.rebin` — re-binning at every supported division;
 - :mod:`~flexvox_core.reconstruct.diffusion` — constant-tensor diffusion, solvers
@@ -14,7 +14,7 @@ overlap, label) and runs any of them in time chunks; this package never imports 
 :mod:`flexvox_core.motion`, which builds on it).
 """
 
-from flexvox_core.reconstruct._common import prepare
+from flexvox_core.reconstruct._common import as_identity_capture
 from flexvox_core.reconstruct.diffusion import SOLVERS, diffuse, sigmas, stability_bound
 from flexvox_core.reconstruct.gaptv import gap_tv, gap_tv_masks, tv_denoise
 from flexvox_core.reconstruct.rebin import default_block, rebin, rebin_blocks, supported_divisions
@@ -25,7 +25,7 @@ __all__ = [
     "diffuse",
     "gap_tv",
     "gap_tv_masks",
-    "prepare",
+    "as_identity_capture",
     "rebin",
     "rebin_blocks",
     "sigmas",

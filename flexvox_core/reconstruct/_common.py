@@ -40,14 +40,14 @@ def check_identity_code(code) -> np.ndarray:
     if isinstance(code, MultiplexedCode):
         raise ValueError(
             "`code` is a MultiplexedCode: demultiplex the capture first, e.g. "
-            "frames, code = prepare(frames, mcode)"
+            "frames, code = as_identity_capture(frames, mcode)"
         )
     c = validate_code(code)
     if not is_identity_code(c):
         raise ValueError(
             "`code` must be an identity code (each pixel open in exactly one slot, each slot "
             "used once); got a multiplexed code: demultiplex the capture first "
-            "(flexvox_core.reconstruct.prepare)"
+            "(flexvox_core.reconstruct.as_identity_capture)"
         )
     return c
 
@@ -63,7 +63,7 @@ def check_dtype(dtype) -> type:
     return dt.type
 
 
-def prepare(frames, code_or_multiplexed) -> tuple[np.ndarray, np.ndarray]:
+def as_identity_capture(frames, code_or_multiplexed) -> tuple[np.ndarray, np.ndarray]:
     """Bring a capture into the form every reconstruction takes: an identity-code capture.
 
     Parameters
@@ -87,7 +87,7 @@ def prepare(frames, code_or_multiplexed) -> tuple[np.ndarray, np.ndarray]:
     >>> from flexvox_core import capture, multiplexed_code
     >>> mc = multiplexed_code((1, 3), placement=[[0, 1, 2]])
     >>> video = np.full((3, 2, 3), 0.5, dtype=np.float32)
-    >>> f, c = prepare(capture(video, mc.code), mc)
+    >>> f, c = as_identity_capture(capture(video, mc.code), mc)
     >>> np.allclose(f, 0.5), c.shape
     (True, (1, 3, 3))
     """

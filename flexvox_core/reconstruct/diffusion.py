@@ -701,7 +701,7 @@ def diffuse(
     Parameters
     ----------
     frames : ndarray, shape (F, H, W)
-        An identity-code capture (demultiplex first: :func:`~flexvox_core.reconstruct.prepare`).
+        An identity-code capture (demultiplex first: :func:`~flexvox_core.reconstruct.as_identity_capture`).
         A NaN or infinite value raises ``ValueError`` naming the frame.
     code : ndarray, shape (m, n, K), bool
         Its identity code. Partial tiles at the borders are fine.

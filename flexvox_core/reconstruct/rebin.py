@@ -129,7 +129,7 @@ def rebin_blocks(frames, code, division, *, dtype=np.float32) -> np.ndarray:
     Parameters
     ----------
     frames : ndarray, shape (F, H, W)
-        An identity-code capture (demultiplex first: :func:`~flexvox_core.reconstruct.prepare`).
+        An identity-code capture (demultiplex first: :func:`~flexvox_core.reconstruct.as_identity_capture`).
     code : ndarray, shape (m, n, K), bool
         Its identity code.
     division : Division, str 'AxBxC' or (a, b, c)

@@ -7,7 +7,7 @@ import pytest
 from flexvox_core.capture_reader import CaptureReader, NotReconstructableError, open_capture, read_capture
 from flexvox_core.design import design_code
 from flexvox_core.multiplex import multiplexed_code
-from flexvox_core.reconstruct import prepare
+from flexvox_core.reconstruct import as_identity_capture
 from flexvox_core.recording import RecordingError, open_recording, write_simulation
 from flexvox_core.simulate.effects import parse_effects
 from flexvox_core.simulate.simulator import normalise_frames, simulate_video
@@ -44,7 +44,8 @@ def test_counts_are_normalised_and_windows_are_slices_of_the_whole(counts_path):
 def test_multiplexed_recordings_are_demultiplexed(mux_path):
     rec = open_recording(mux_path)
     reader = CaptureReader(rec)
-    expected, code = prepare(rec.normalised_frames(), multiplexed_code((1, 3), placement=rec.attrs["placement_order"]))
+    mc = multiplexed_code((1, 3), placement=rec.attrs["placement_order"])
+    expected, code = as_identity_capture(rec.normalised_frames(), mc)
     np.testing.assert_array_equal(reader.read(), expected)
     np.testing.assert_array_equal(reader.code, code)
     assert not np.array_equal(reader.code, rec.code)  # the placement's identity code, not the S-matrix code

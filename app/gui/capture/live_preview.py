@@ -21,7 +21,7 @@ How it stays out of capture's way:
 
 What is on screen says the resolution, rate and latency it achieves ("preview: 640×480 (the whole
 frame), 3 frames, 1.4 Hz, 0.35 s per run, 0.5 s behind the camera"). Multiplexed captures are
-demultiplexed first (:func:`flexvox_core.reconstruct.prepare`).
+demultiplexed first (:func:`flexvox_core.reconstruct.as_identity_capture`).
 """
 
 from __future__ import annotations

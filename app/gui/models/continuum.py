@@ -1,6 +1,6 @@
 """The continuum from high spatial resolution (SR) to high temporal resolution (TR).
 
-The Review workspace has one slider, position ``p`` in [0, 1], that runs from the seed's
+The Review workspace has one slider, position ``p`` in [0, 1], that runs from the paper's
 high-SR tensor to its high-TR tensor. For **diffusion** it maps to a constant tensor
 ``(c_x, c_y, c_t)`` whose largest component is always 1 (so the diffusion time ``n``
 keeps one meaning along the whole slider), interpolated geometrically::
@@ -24,7 +24,7 @@ import math
 from flexvox_core.divisions import Division
 
 LOW = 0.05
-"""The small eigenvalue of the seed's high-SR (0.05, 0.05, 1) and high-TR (1, 1, 0.05) tensors."""
+"""The small eigenvalue of the paper's high-SR (0.05, 0.05, 1) and high-TR (1, 1, 0.05) tensors."""
 
 
 def _check_p(p) -> float:

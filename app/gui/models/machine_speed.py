@@ -3,7 +3,7 @@
 The bench table (:mod:`app.gui.models.expected_quality`) was measured elsewhere, on small clips, on
 the kernels alone; the Review workspace runs the whole chunked runner (overlap recomputed, the
 sample range, the PSNR against ground truth) on this machine. Its throughput alone mis-predicted
-the time by up to 5× (issue #21). So the first time a method is used for a code with K slots,
+the time by up to 5×. So the first time a method is used for a code with K slots,
 :func:`calibrate` runs it — through the same :func:`~app.gui.models.jobs.run_reconstruction` and
 the same chunking as a full reconstruction — on two small simulated clips of the same length and
 different frame sizes, and fits ``seconds = c · sub-frames processed · pixels^p`` (:class:`SpeedModel`:

@@ -284,7 +284,7 @@ def test_the_docs_say_what_the_application_does():
     refinement default as the form shows it and says what a TIFF export carries (the writer's ImageJ metadata)."""
     from pathlib import Path
 
-    from flexvox_core.methods.motion_aware import REFINE_SHOWN
+    from flexvox_core.methods.motion_aware_method import REFINE_SHOWN
     from flexvox_core.video_io import imagej_metadata
 
     root = Path(__file__).resolve().parents[3]

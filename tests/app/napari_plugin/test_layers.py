@@ -10,15 +10,15 @@ import numpy as np
 import pytest
 import zarr
 
-from app.napari_plugin import layers as fl
+from app.napari_plugin import layers
 from flexvox_core.methods import Method, reconstruct
 from flexvox_core.recording import open_recording
 from flexvox_core.video_io import write_video
 
 
 def test_a_recording_opens_as_coded_frames_and_ground_truth_with_time_in_seconds(recording):
-    assert fl.get_reader(str(recording)) is fl.read and fl.get_reader([str(recording)]) is fl.read
-    (frames, fk, ft), (truth, tk, tt) = fl.read(str(recording))
+    assert layers.get_reader(str(recording)) is layers.read and layers.get_reader([str(recording)]) is layers.read
+    (frames, fk, ft), (truth, tk, tt) = layers.read(str(recording))
     assert ft == tt == "image"
     assert fk["name"] == "rec: coded frames" and tk["name"] == "rec: ground truth"
     assert fk["scale"] == pytest.approx((1 / 15, 1, 1)) and tk["scale"] == pytest.approx((1 / 60, 1, 1))
@@ -29,11 +29,11 @@ def test_a_recording_opens_as_coded_frames_and_ground_truth_with_time_in_seconds
     np.testing.assert_array_equal(np.asarray(frames[2]), rec.frames[2])
     np.testing.assert_array_equal(np.asarray(truth[5]), rec.ground_truth(5, 6)[0])
     assert fk["metadata"]["flexvox"]["recording"] == str(rec.path) and fk["metadata"]["flexvox"]["K"] == 4
-    assert fl.recording_of(fk["metadata"]) == str(rec.path) and fl.recording_of({}) is None
+    assert layers.recording_of(fk["metadata"]) == str(rec.path) and layers.recording_of({}) is None
 
 
 def test_the_frames_layer_reads_through_the_checksums(recording):
-    (frames, _, _), _ = fl.read(str(recording))
+    (frames, _, _), _ = layers.read(str(recording))
     changed = zarr.open_group(str(recording), mode="r+")["frames"]
     changed[3] = changed[3] + 1  # the chunk is valid Zarr, but no longer what was recorded
     np.asarray(frames[2])  # the other rows still read
@@ -46,8 +46,8 @@ def test_a_reconstruction_opens_with_its_sub_frame_period_and_method(recording, 
     method = Method("rebin")
     write_video(tmp_path / "v.zarr", video, time_step=1 / 60, attrs={"source": str(recording),
                                                                      "method": method.as_dict()})
-    assert fl.get_reader(str(tmp_path / "v.zarr")) is fl.read
-    ((data, kwargs, kind),) = fl.read(str(tmp_path / "v.zarr"))
+    assert layers.get_reader(str(tmp_path / "v.zarr")) is layers.read
+    ((data, kwargs, kind),) = layers.read(str(tmp_path / "v.zarr"))
     assert kind == "image" and kwargs["name"] == f"v: {method.label()}" and not kwargs["multiscale"]
     assert kwargs["scale"] == pytest.approx((1 / 60, 1, 1)) and kwargs["contrast_limits"] == (0.0, 1.0)
     np.testing.assert_array_equal(data[:], video)
@@ -55,7 +55,7 @@ def test_a_reconstruction_opens_with_its_sub_frame_period_and_method(recording, 
 
 def test_a_pyramid_opens_as_napari_multiscale(tmp_path):
     write_video(tmp_path / "p.zarr", np.zeros((3, 16, 16)), time_step=0.01, pyramid=2)
-    ((data, kwargs, _),) = fl.read(str(tmp_path / "p.zarr"))
+    ((data, kwargs, _),) = layers.read(str(tmp_path / "p.zarr"))
     assert kwargs["multiscale"] and [d.shape for d in data] == [(3, 16, 16), (3, 8, 8), (3, 4, 4)]
 
 
@@ -63,7 +63,7 @@ def test_a_store_from_before_ngff_opens_with_its_recordings_time_step(recording,
     group = zarr.open_group(str(tmp_path / "old.zarr"), mode="w-", zarr_format=3)
     group.create_array("video", shape=(24, 24, 32), chunks=(1, 24, 32), dtype="float32")
     group.attrs["flexvox"] = {"source": str(recording), "method": {"name": "no-longer-registered"}}
-    ((_, kwargs, _),) = fl.read(str(tmp_path / "old.zarr"))
+    ((_, kwargs, _),) = layers.read(str(tmp_path / "old.zarr"))
     assert kwargs["name"] == "old: no-longer-registered" and kwargs["scale"] == pytest.approx((1 / 60, 1, 1))
 
 
@@ -72,10 +72,10 @@ def test_other_paths_are_not_ours(tmp_path):
                                                                                           dtype="int8")
     (tmp_path / "folder").mkdir()
     for path in (tmp_path / "plain.zarr", tmp_path / "folder", tmp_path / "missing.zarr"):
-        assert fl.get_reader(str(path)) is None and fl.what_is(path) is None
-    assert fl.get_reader([str(tmp_path / "a.zarr"), str(tmp_path / "b.zarr")]) is None
+        assert layers.get_reader(str(path)) is None and layers.what_is(path) is None
+    assert layers.get_reader([str(tmp_path / "a.zarr"), str(tmp_path / "b.zarr")]) is None
     with pytest.raises(ValueError, match=r"plain.zarr: not a flexvox recording or reconstruction"):
-        fl.read(str(tmp_path / "plain.zarr"))
+        layers.read(str(tmp_path / "plain.zarr"))
 
 
 def _drain(steps):
@@ -89,7 +89,7 @@ def _drain(steps):
 
 def test_the_steps_yield_after_each_chunk_and_return_the_runners_result(recording):
     method = Method("diffusion")
-    done, out = _drain(fl.reconstruction_steps(str(recording), method, chunk_frames=2))
+    done, out = _drain(layers.reconstruction_steps(str(recording), method, chunk_frames=2))
     assert done == [2, 2, 2]  # camera frames per chunk, 6 frames in chunks of 2
     rec = open_recording(recording)
     np.testing.assert_allclose(out.video, reconstruct(rec.normalised_frames(), rec.code, method, chunk_frames=2),
@@ -105,23 +105,23 @@ def test_the_steps_run_on_the_gpu_asked_for_and_the_result_says_so(tmp_path):
     video = render_scene("fan", 2 * 4, 8, 8, seed=3)  # tiny: the tests' simulator runs every GPU thread as Python
     tiny = write_simulation(tmp_path / "tiny.zarr", simulate_video(video, design_code((2, 2)).code, seed=1))
     method = Method("diffusion")
-    _, on_gpu = _drain(fl.reconstruction_steps(str(tiny), method, device="cuda"))
-    _, by_default = _drain(fl.reconstruction_steps(str(tiny), method))
+    _, on_gpu = _drain(layers.reconstruction_steps(str(tiny), method, device="cuda"))
+    _, by_default = _drain(layers.reconstruction_steps(str(tiny), method))
     assert on_gpu.device == "cuda" and by_default.device == "cpu"  # auto never takes the tests' simulator
     np.testing.assert_allclose(on_gpu.video, by_default.video, atol=2e-6)
 
 
 def test_cancel_stops_at_the_next_chunk_boundary(recording):
     cancel = threading.Event()
-    steps = fl.reconstruction_steps(str(recording), Method("diffusion"), chunk_frames=1, cancel=cancel)
+    steps = layers.reconstruction_steps(str(recording), Method("diffusion"), chunk_frames=1, cancel=cancel)
     assert next(steps) == 1  # the runner now waits for the consumer: no chunk runs ahead
     cancel.set()
-    with pytest.raises(fl.Cancelled, match="the reconstruction was cancelled"):
+    with pytest.raises(layers.Cancelled, match="the reconstruction was cancelled"):
         next(steps)
 
 
 def test_closing_the_steps_stops_the_runner(recording):
-    steps = fl.reconstruction_steps(str(recording), Method("diffusion"), chunk_frames=1)
+    steps = layers.reconstruction_steps(str(recording), Method("diffusion"), chunk_frames=1)
     next(steps)
     before = {t for t in threading.enumerate() if t.name == "flexvox-napari-reconstruction"}
     assert before
@@ -140,21 +140,21 @@ def test_dropped_frames_are_bridged_not_read_as_black(tmp_path):
     result.dropped[3] = True
     path = write_simulation(tmp_path / "d.zarr", result)
     method = Method("diffusion")
-    _, out = _drain(fl.reconstruction_steps(str(path), method, chunk_frames=2))
+    _, out = _drain(layers.reconstruction_steps(str(path), method, chunk_frames=2))
     np.testing.assert_allclose(out.video, 0.5, atol=1e-5)  # the zero row is no sample: the gap is bridged
-    video = fl.result_layers(out, method=method, recording=str(path), subframe_hz=60.0, K=4)[0]
+    video = layers.result_layers(out, method=method, recording=str(path), subframe_hz=60.0, K=4)[0]
     assert video[1]["metadata"]["flexvox"]["interpolated_subframes"] == [12, 13, 14, 15]
 
 
 def test_a_recording_that_cannot_be_reconstructed_says_why(tmp_path):
     with pytest.raises(ValueError, match="missing.zarr"):
-        next(fl.reconstruction_steps(str(tmp_path / "missing.zarr"), Method()))
+        next(layers.reconstruction_steps(str(tmp_path / "missing.zarr"), Method()))
 
 
 def test_motion_aware_results_become_video_flow_wheel_and_tr_map_layers(moving_recording):
     method = Method("motion-aware")
-    _, out = _drain(fl.reconstruction_steps(str(moving_recording), method, extras=True, chunk_frames=8))
-    video, flow, tr = fl.result_layers(out, method=method, recording=str(moving_recording), subframe_hz=240.0, K=16)
+    _, out = _drain(layers.reconstruction_steps(str(moving_recording), method, extras=True, chunk_frames=8))
+    video, flow, tr = layers.result_layers(out, method=method, recording=str(moving_recording), subframe_hz=240.0, K=16)
     assert video[0].shape == (48, 32, 40) and video[1]["name"] == f"moving: {method.label()}"
     assert flow[0].shape == (48, 32, 40, 3) and flow[0].dtype == np.uint8 and flow[1]["rgb"]
     assert flow[1]["name"].startswith("moving: flow (colour wheel, full = ")
@@ -167,6 +167,6 @@ def test_motion_aware_results_become_video_flow_wheel_and_tr_map_layers(moving_r
 
 def test_a_method_without_extras_gives_only_the_video(recording):
     method = Method("rebin")
-    _, out = _drain(fl.reconstruction_steps(str(recording), method))
-    assert [k["name"] for _, k, _ in fl.result_layers(out, method=method, recording=str(recording),
+    _, out = _drain(layers.reconstruction_steps(str(recording), method))
+    assert [k["name"] for _, k, _ in layers.result_layers(out, method=method, recording=str(recording),
                                                        subframe_hz=60.0, K=4)] == [f"rec: {method.label()}"]

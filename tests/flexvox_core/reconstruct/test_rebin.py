@@ -5,7 +5,7 @@ from flexvox_core.codes import code_from_order
 from flexvox_core.divisions import Division, enumerate_divisions
 from flexvox_core.forward import capture
 from flexvox_core.multiplex import multiplexed_code
-from flexvox_core.reconstruct import prepare, rebin, rebin_blocks, supported_divisions
+from flexvox_core.reconstruct import as_identity_capture, rebin, rebin_blocks, supported_divisions
 
 from .conftest import smooth_video
 
@@ -97,7 +97,7 @@ def test_k1_and_border_tiles(rng):
 def test_prepare_demultiplexes_and_rejects_misuse(rng):
     mc = multiplexed_code((1, 3))
     video = np.full((6, 4, 6), 0.4, np.float32)
-    f, c = prepare(capture(video, mc.code), mc)
+    f, c = as_identity_capture(capture(video, mc.code), mc)
     np.testing.assert_allclose(rebin(f, c, "1x3x1"), video, atol=1e-5)
     with pytest.raises(ValueError, match=r"`code` must be an identity code"):
         rebin(capture(video, mc.code), mc.code, "1x1x3")

@@ -13,7 +13,7 @@ import numpy as np
 
 from flexvox_core.codes import is_identity_code
 from flexvox_core.flow import BACKENDS
-from flexvox_core.methods.diffusion import time_option
+from flexvox_core.methods.diffusion_method import time_option
 from flexvox_core.methods.options import choice, flag, integer, number
 from flexvox_core.methods.spec import MethodOutput, MethodSpec
 from flexvox_core.motion import resolution_map

@@ -283,10 +283,6 @@ class ProfileRig:
                     self.sync.close()
 
 
-Rig = ProfileRig
-"""Another name of :class:`ProfileRig`, for code that imports the profile rig by it."""
-
-
 class DeferredSerialPort:
     """A pyserial port opened on first use, so that building a rig does no I/O.
 

@@ -31,7 +31,7 @@ _logger = logging.getLogger(__name__)
 
 def build_window(rig, *, settings: AppSettings | None = None, recording=None, runner: JobRunner | None = None,
                  capture_factory=None) -> MainWindow:
-    """The main window over ``rig`` (a :class:`rig_drivers.profile.Rig`), opening ``recording`` if given."""
+    """The main window over ``rig`` (a :class:`rig_drivers.interfaces.Rig`), opening ``recording`` if given."""
     from app.gui.main_window import MainWindow
     from app.gui.models.expected_quality import load_table
     from app.gui.models.rig_service import RigService
@@ -71,7 +71,7 @@ class StartupWindow(QWidget):
 def launch(rig, *, recording=None, settings: AppSettings | None = None) -> int:
     """Show a window at once, build the application behind it, run the event loop; returns the exit status.
 
-    ``rig`` is a :class:`rig_drivers.profile.Rig`, or a callable that opens one (it then opens behind the
+    ``rig`` is a :class:`rig_drivers.interfaces.Rig`, or a callable that opens one (it then opens behind the
     startup window too).
     """
     app = ensure_application()

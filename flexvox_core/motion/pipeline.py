@@ -91,10 +91,8 @@ def motion_aware(
         Time of the variable-tensor diffusion along the trajectories after the gather
         (:func:`~flexvox_core.motion.vardiff.variable_tensor_diffusion` with :data:`REFINE_C`; 0: none).
         None (default): (K/16)² — 1 at K = 16, 0.25 at K = 8: a diffusion time grows with the square of the
-        distance to cover, here the sampling period. Measured on `flexvox bench`'s groups
-        (``docs/reconstruction.md``): +0.4 dB on the built-in scenes at K = 16; at K = 8 0.25 beat the earlier
-        K/16 = 0.5 by 0.11 dB (0.08 and 0.04 with photon noise), the SCI clips within 0.02 dB; a time of 1 at
-        K = 8 lost 0.36 dB. Only K = 8 and 16 were measured.
+        distance to cover, here the sampling period (chosen with ``flexvox bench``, K = 8 and 16;
+        ``docs/reconstruction.md``, "The refinement").
     gate : (low, high)
         Motion-detector ramp, pixels per sub-frame.
     flow_scale : float or None
@@ -103,8 +101,8 @@ def motion_aware(
         Voxels slower than this take their own samples interpolated in time (see
         :data:`STILL_SPEED`); None gathers along trajectories everywhere.
     flow_consistency : bool
-        Also compute backward flow for a forward–backward confidence map. Off by default: on
-        the built-in scenes it changed PSNR by at most 0.06 dB and cost 10–40 % of the flow time.
+        Also compute backward flow for a forward–backward confidence map. Off by default: it costs a second
+        flow per pair for little change in PSNR.
     slow_speed : float or None
         Below this speed (px per sub-frame) the velocity is the K-average's long-baseline flow
         (see :func:`gated_flow`); None: successive-sub-frame flow everywhere (and no slow voxels).
@@ -128,14 +126,13 @@ def motion_aware(
         Where oriented normalized convolution (:mod:`~flexvox_core.reconstruct.oriented_nc`, its kernel
         following the high-TR reconstruction's edges) predicts the samples better than the trajectory gather
         (each sample estimated from the others, :mod:`~flexvox_core.motion.local_choice`), blend it in at
-        the gathered voxels. On by default: on ``flexvox bench`` Drop +2.0 dB and Runner +0.3 against the
-        gather alone, the built-in scenes +0.1 (K = 16) and +0.3 dB (K = 8); see the module for its bias on
-        single-frame captures of still subjects.
+        the gathered voxels. On by default (its gain: ``flexvox bench``'s "gather-only" rows; the module says
+        where it is biased: single-frame captures of still subjects).
     noise_aware : bool
         Estimate the capture's noise from its still pixels' successive samples and let the gather smooth
         across space where the picture is flat compared with it (:mod:`~flexvox_core.motion.noise_aware`).
-        A noiseless or single-frame capture is unchanged. On by default: +0.12 dB on the noisy built-in
-        moving scenes at K = 16.
+        A noiseless or single-frame capture is unchanged. On by default (its gain:
+        ``bench/bench_motion_margin.py --noise``).
     device : {"cpu", "cuda", "auto"}
         Where the stages run (:mod:`flexvox_core.gpu`): ``cuda`` on an NVIDIA GPU (raises
         :class:`~flexvox_core.gpu.DeviceUnavailable` naming what is missing when none is usable), ``auto`` there

@@ -72,7 +72,7 @@ class CalibrationTarget:
 
     Attributes
     ----------
-    rig : rig_drivers.profile.Rig
+    rig : rig_drivers.interfaces.Rig
     simulated : bool
     """
 

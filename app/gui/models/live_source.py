@@ -24,7 +24,7 @@ class LiveStartError(Exception):
 
 def projector_size(projector) -> tuple[int, int]:
     """The projector's pattern size (H, W), as its driver reports it."""
-    size = getattr(projector, "size", None)
+    size = projector.size
     if size is None:
         raise LiveStartError(f"{projector.name} does not report its pattern size")
     return tuple(int(v) for v in size)

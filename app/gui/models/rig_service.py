@@ -1,6 +1,6 @@
 """The rig's devices as the device panel sees them (Qt-free service).
 
-Wraps a :class:`rig_drivers.profile.Rig`: each device's role, name, state, whether it is
+Wraps a :class:`rig_drivers.interfaces.Rig`: each device's role, name, state, whether it is
 simulated, the last error in words, and who is using the devices (a calibration, co-location live,
 the synchronisation wizard: they open and close the devices themselves, so their state flickers
 while they run; :meth:`RigService.begin_use` says who holds them, and :meth:`RigService.end_use`
@@ -45,7 +45,7 @@ class RigService:
 
     Parameters
     ----------
-    rig : rig_drivers.profile.Rig
+    rig : rig_drivers.interfaces.Rig
     """
 
     def __init__(self, rig):

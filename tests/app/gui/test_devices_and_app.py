@@ -10,7 +10,7 @@ from app.gui.models.rig_service import RigService
 from app.gui.widgets.device_panel import DevicePanel
 from rig_drivers.errors import DevicePermissionError
 from rig_drivers.interfaces import DeviceState
-from rig_drivers.profile import MOCK_SPEC, Rig
+from rig_drivers.profile import MOCK_SPEC, ProfileRig
 from rig_drivers.simulated import SimulatedProjector
 
 from .conftest import small_rig
@@ -39,7 +39,7 @@ def test_device_panel_connects_and_disconnects(qtbot):
 
 def test_device_panel_says_the_last_error_in_words(qtbot):
     sim = small_rig()
-    rig = Rig(LockedProjector(name="LightCrafter 4500"), sim.camera, None, MOCK_SPEC)
+    rig = ProfileRig(LockedProjector(name="LightCrafter 4500"), sim.camera, None, MOCK_SPEC)
     service = RigService(rig)
     panel = DevicePanel(service)
     qtbot.addWidget(panel)

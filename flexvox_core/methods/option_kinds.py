@@ -26,6 +26,7 @@ A kind reads text; whether the value meets the option's rule is the option's own
 from __future__ import annotations
 
 import re
+from abc import ABC, abstractmethod
 
 FIELDS = ("check", "list", "whole", "real", "text")
 """The fields a form offers: a check box, a list to pick from, a whole-number box, a real-number box, a text
@@ -34,7 +35,7 @@ line (read with :meth:`Kind.parse`)."""
 _NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 
 
-class Kind:
+class Kind(ABC):
     """How one kind of option is typed, shown and offered (subclasses set the class attributes)."""
 
     name: str = ""
@@ -73,9 +74,9 @@ class Kind:
         """What typed text of ``option`` must be, in words (default :attr:`syntax`)."""
         return self.syntax
 
+    @abstractmethod
     def _read(self, option, text: str, tile):
         """The value of ``text``, or None when it is not of this kind."""
-        raise NotImplementedError
 
     def format(self, value) -> str:
         """``value`` as text that :meth:`parse` reads back ("" for None, words as they are)."""

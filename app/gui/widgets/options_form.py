@@ -19,6 +19,8 @@ Values are checked where every front end checks them: by :class:`~flexvox_core.m
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
+
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QCheckBox, QComboBox, QDoubleSpinBox, QFormLayout, QLabel, QLineEdit, QSpinBox, QWidget
 
@@ -28,7 +30,7 @@ _BIG = 1_000_000
 """The top of a whole- or real-number box whose option gives no span."""
 
 
-class _Field:
+class _Field(ABC):
     """One option's widget: how it reads, shows and keeps its value (``changed``: the widget's signal)."""
 
     keeps = ""
@@ -41,21 +43,21 @@ class _Field:
         self.widget.setObjectName(option.name)
         self.show(None)
 
+    @abstractmethod
     def _make(self) -> tuple:
         """The widget and its change signal."""
-        raise NotImplementedError
 
+    @abstractmethod
     def value(self, tile=None):
         """The option's value (None: its default)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def show(self, value) -> None:
         """Show ``value`` (None: the default)."""
-        raise NotImplementedError
 
+    @abstractmethod
     def stored(self):
         """What the settings keep of the field."""
-        raise NotImplementedError
 
     def kept(self, settings: AppSettings, key: str):
         """The value ``settings`` keep at ``key`` for this field (the default when none)."""

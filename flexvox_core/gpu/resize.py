@@ -16,7 +16,7 @@ import numpy as np
 from numba import cuda
 
 from flexvox_core.gpu.index import voxel
-from flexvox_core.gpu.launch import kernel, launch
+from flexvox_core.gpu.launch import device, kernel, launch
 
 
 @lru_cache(maxsize=64)
@@ -103,6 +103,20 @@ def linear_table(src: int, dst: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 
+@device
+def _source(sy, ay, sx, ax, y, x, H, W):
+    """The four source pixels of destination pixel (y, x) and the weights of the lower and right ones."""
+    y0 = sy[y]
+    x0 = sx[x]
+    return y0, min(y0 + 1, H - 1), x0, min(x0 + 1, W - 1), ay[y], ax[x]
+
+
+@device
+def _blend(p00, p01, p10, p11, b, a):
+    one = np.float32(1)
+    return (p00 * (one - a) + p01 * a) * (one - b) + (p10 * (one - a) + p11 * a) * b
+
+
 @kernel("void(float32[:, :, ::1], float32[:, :, ::1], int32[::1], float32[::1], int32[::1], float32[::1])")
 def _linear(src, dst, sy, ay, sx, ax):
     i = cuda.grid(1)
@@ -110,18 +124,8 @@ def _linear(src, dst, sy, ay, sx, ax):
     if i >= N * h * w:
         return
     n, y, x = voxel(i, h, w)
-    H = src.shape[1]
-    W = src.shape[2]
-    y0 = sy[y]
-    x0 = sx[x]
-    y1 = min(y0 + 1, H - 1)
-    x1 = min(x0 + 1, W - 1)
-    b = ay[y]
-    a = ax[x]
-    one = np.float32(1)
-    top = src[n, y0, x0] * (one - a) + src[n, y0, x1] * a
-    bottom = src[n, y1, x0] * (one - a) + src[n, y1, x1] * a
-    dst[n, y, x] = top * (one - b) + bottom * b
+    y0, y1, x0, x1, b, a = _source(sy, ay, sx, ax, y, x, src.shape[1], src.shape[2])
+    dst[n, y, x] = _blend(src[n, y0, x0], src[n, y0, x1], src[n, y1, x0], src[n, y1, x1], b, a)
 
 
 @kernel("void(float32[:, :, :, ::1], float32[:, :, :, ::1], int32[::1], float32[::1], int32[::1], float32[::1], "
@@ -132,20 +136,11 @@ def _linear_flow(src, dst, sy, ay, sx, ax, mx, my):
     if i >= N * h * w:
         return
     n, y, x = voxel(i, h, w)
-    H = src.shape[1]
-    W = src.shape[2]
-    y0 = sy[y]
-    x0 = sx[x]
-    y1 = min(y0 + 1, H - 1)
-    x1 = min(x0 + 1, W - 1)
-    b = ay[y]
-    a = ax[x]
-    one = np.float32(1)
+    y0, y1, x0, x1, b, a = _source(sy, ay, sx, ax, y, x, src.shape[1], src.shape[2])
     for c in range(2):
         m = mx if c == 0 else my
-        top = src[n, y0, x0, c] * m * (one - a) + src[n, y0, x1, c] * m * a
-        bottom = src[n, y1, x0, c] * m * (one - a) + src[n, y1, x1, c] * m * a
-        dst[n, y, x, c] = top * (one - b) + bottom * b
+        dst[n, y, x, c] = _blend(src[n, y0, x0, c] * m, src[n, y0, x1, c] * m, src[n, y1, x0, c] * m,
+                                 src[n, y1, x1, c] * m, b, a)
 
 
 def resize_linear(ws, src, dst, *, scale=None, tag: str = "linear") -> None:

@@ -21,7 +21,8 @@ $(STAMP): $(BIN)/python pyproject.toml
 demo: $(STAMP)
 	$(BIN)/flexvox demo --overwrite
 
-# Two workers (pytest-xdist), whole test files kept together; tests/test_layering.py runs the import contracts.
+# Two workers (pytest-xdist), whole test files kept together; tests/test_layering.py runs the import contracts;
+# the packages' docstring examples run too (--doctest-modules, pyproject.toml).
 test: $(STAMP)
 	QT_QPA_PLATFORM=offscreen $(BIN)/python -m pytest -n 2 --dist loadfile
 

@@ -1,6 +1,6 @@
 """``--device`` on reconstruct, export and batch, and the GPUs ``flexvox devices`` lists.
 
-The tests run numba-cuda's simulator in place of a GPU (tests/conftest.py): ``--device cuda`` runs the GPU path
+The tests run numba-cuda's simulator in place of a GPU (conftest.py): ``--device cuda`` runs the GPU path
 there on tiny recordings; ``auto`` never takes the simulator.
 """
 

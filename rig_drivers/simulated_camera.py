@@ -34,8 +34,10 @@ from __future__ import annotations
 
 import logging
 import math
+import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from typing import Protocol
 
 import numpy as np
@@ -47,6 +49,7 @@ from rig_drivers.interfaces import (
     Camera,
     CameraCapabilities,
     CameraSettings,
+    DeviceState,
     Frame,
     TriggerSource,
     check_int,
@@ -56,6 +59,67 @@ _logger = logging.getLogger(__name__)
 
 DEFAULT_SLOTS = 16
 """Slots per exposure when the light path has no pattern sequence (nothing projected)."""
+
+
+# --------------------------------------------------------------------------- the scene's video
+
+
+class SceneVideo:
+    """A scene video ``(S, H, W)`` float32 whose shape is known at once and whose pixels come when first read.
+
+    Rendering a built-in scene takes seconds (the drummer's 256 sub-frames: about 12 s on 2 cores); building a
+    rig does not render it: the camera's :meth:`~rig_drivers.interfaces.Device.open` does (before any exposure
+    is timed), or the first read of :attr:`array`.
+
+    Parameters
+    ----------
+    shape : (S, H, W)
+    render : callable
+        ``render() -> ndarray`` of that shape, called once.
+    """
+
+    def __init__(self, shape: tuple[int, int, int], render: Callable[[], np.ndarray]):
+        if len(shape) != 3 or min(shape) < 1:
+            raise SettingError(f"a scene video's shape must be (S, H, W) with S, H, W >= 1; got {shape}")
+        self._shape = (int(shape[0]), int(shape[1]), int(shape[2]))
+        self._render: Callable[[], np.ndarray] | None = render
+        self._array: np.ndarray | None = None
+        self._lock = threading.Lock()
+
+    @classmethod
+    def of(cls, video) -> SceneVideo:
+        """An already rendered video ``(S, H, W)`` (floating point kept, else float32)."""
+        video = np.asarray(video)
+        if video.ndim != 3 or video.shape[0] < 1 or min(video.shape[1:]) < 1:
+            raise SettingError(f"`video` must have shape (S, H, W) with S, H, W >= 1; got {video.shape}")
+        if not np.issubdtype(video.dtype, np.floating):
+            video = video.astype(np.float32)
+        scene = cls(video.shape, lambda: video)
+        scene._array, scene._render = video, None
+        return scene
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        """``(S, H, W)``."""
+        return self._shape
+
+    @property
+    def rendered(self) -> bool:
+        """True once the pixels exist."""
+        return self._array is not None
+
+    @property
+    def array(self) -> np.ndarray:
+        """The pixels, rendered on the first read."""
+        if self._array is None:
+            with self._lock:
+                if self._array is None:
+                    assert self._render is not None
+                    video = np.asarray(self._render())
+                    if video.shape != self._shape:
+                        raise SettingError(f"the scene rendered {video.shape}, not its declared {self._shape}")
+                    self._array, self._render = video, None
+        return self._array
 
 
 # --------------------------------------------------------------------------- clocks
@@ -161,8 +225,9 @@ class SimulatedCamera(Camera):
 
     Parameters
     ----------
-    video : ndarray, shape (S, H, W)
-        The scene's radiance per sub-frame in [0, 1]; it loops. The frame size is (H, W).
+    video : ndarray, shape (S, H, W), or SceneVideo
+        The scene's radiance per sub-frame in [0, 1]; it loops. The frame size is (H, W). A
+        :class:`SceneVideo` not rendered yet is rendered by :meth:`~rig_drivers.interfaces.Device.open`.
     effects : list of Effect
         The scene's declared effects (only these are simulated).
     seed : int
@@ -185,12 +250,7 @@ class SimulatedCamera(Camera):
                  clock: SimClock | None = None, buffer_frames: int = 16,
                  default_slots: int = DEFAULT_SLOTS, name: str | None = None):
         super().__init__(name=name or "simulated camera")
-        video = np.asarray(video)
-        if video.ndim != 3 or video.shape[0] < 1 or min(video.shape[1:]) < 1:
-            raise SettingError(f"`video` must have shape (S, H, W) with S, H, W >= 1; got {video.shape}")
-        if not np.issubdtype(video.dtype, np.floating):
-            video = video.astype(np.float32)
-        self._video = video
+        self._scene = video if isinstance(video, SceneVideo) else SceneVideo.of(video)
         self._effects = list(effects)
         for e in self._effects:
             if not isinstance(e, Effect):
@@ -219,7 +279,12 @@ class SimulatedCamera(Camera):
     @property
     def sensor_shape(self) -> tuple[int, int]:
         """``(H, W)`` of the scene video."""
-        return int(self._video.shape[1]), int(self._video.shape[2])
+        return self._scene.shape[1], self._scene.shape[2]
+
+    @property
+    def scene(self) -> SceneVideo:
+        """The scene video the camera looks at now."""
+        return self._scene
 
     @property
     def clock(self) -> SimClock:
@@ -230,25 +295,28 @@ class SimulatedCamera(Camera):
         """Look at another scene ``(S, H, W)`` of the same size, met with ``effects`` (e.g. a calibration target).
 
         Exposures go on counting (frame ids and noise streams continue); the new video starts
-        at its sub-frame ``(e·K) mod S`` like the old one.
+        at its sub-frame ``(e·K) mod S`` like the old one. An open camera renders a :class:`SceneVideo` now.
         """
-        video = np.asarray(video)
-        if video.ndim != 3 or video.shape[0] < 1 or tuple(video.shape[1:]) != self.sensor_shape:
+        scene = video if isinstance(video, SceneVideo) else SceneVideo.of(video)
+        if scene.shape[1:] != self.sensor_shape:
             raise SettingError(f"`video` must have shape (S, {self.sensor_shape[0]}, {self.sensor_shape[1]}); "
-                               f"got {video.shape}")
+                               f"got {scene.shape}")
         effects = list(effects)
         for e in effects:
             if not isinstance(e, Effect):
                 raise SettingError(f"`effects` must hold Effect objects; got {type(e).__name__}")
-        self._video = video if np.issubdtype(video.dtype, np.floating) else video.astype(np.float32)
+        if self.state is not DeviceState.CLOSED:
+            scene.array  # noqa: B018 - rendered before the next exposure is timed
+        self._scene = scene
         self._effects = effects
 
     def subframes_of(self, frame_id: int, K: int) -> np.ndarray:
         """Scene sub-frame indices integrated by exposure ``frame_id`` with K slots."""
-        return (int(frame_id) * K + np.arange(K)) % self._video.shape[0]
+        return (int(frame_id) * K + np.arange(K)) % self._scene.shape[0]
 
     # ------------------------------------------------------------------ hooks
     def _do_open(self) -> None:
+        self._scene.array  # noqa: B018 - a scene not rendered yet is rendered here, before any exposure is timed
         self._exposures = 0
         self.dropped_ids = []
 
@@ -376,7 +444,7 @@ class SimulatedCamera(Camera):
         if light is None:
             light = np.zeros((K, H, W), np.float32)
         K = light.shape[0]
-        video = self._video[self.subframes_of(exposure, K)]
+        video = self._scene.array[self.subframes_of(exposure, K)]
         frames, _dropped, _storage = render_exposures(
             video, light, effects=self._effects, seed=self._seed, stream=exposure,
             rate_hz=1e6 / duration, electrons_per_unit=self._electrons_per_unit)

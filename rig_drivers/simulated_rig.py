@@ -57,12 +57,13 @@ import numpy as np
 
 from flexvox_core.simulate.effects import Effect
 from flexvox_core.simulate.scene_file import SceneSpec
-from flexvox_core.simulate.scenes import render_scene
+from flexvox_core.memory_budget import check_fits, render_bytes
+from flexvox_core.simulate.scenes import SCENES, render_scene
 from rig_drivers.errors import SettingError
 from rig_drivers.interfaces import PatternSequence, RunState, TriggerSource, check_int
 from rig_drivers.pixel_layout import check_layout, mirror_at
 from rig_drivers.simulated import SimulatedProjector, SimulatedSyncController
-from rig_drivers.simulated_camera import MonotonicClock, SimClock, SimulatedCamera
+from rig_drivers.simulated_camera import MonotonicClock, SceneVideo, SimClock, SimulatedCamera
 from rig_drivers.simulated_rig_spec import (
     DEFAULT_CAMERA_SIZE,
     SimulatedRigSpec,
@@ -153,8 +154,9 @@ class RigTruth:
         Trigger latency (cable, opto-coupler) between TRIG_OUT_2 and the exposure start.
     seed : int
         The seed of every effect's noise and of the default homography.
-    video : ndarray, shape (S, H, W)
-        The scene's ground truth (it loops; exposure e sees sub-frames (e·K + s) mod S).
+    scene : SceneVideo
+        The scene's ground truth (it loops; exposure e sees sub-frames (e·K + s) mod S), rendered when first read
+        (:attr:`video`).
     effects : dict
         ``{name: params}`` of the scene's declared effects.
     baseline : (bx, by, bz)
@@ -166,16 +168,21 @@ class RigTruth:
     phase_slots: int
     delay_us: int
     seed: int
-    video: np.ndarray
+    scene: SceneVideo
     effects: dict = field(default_factory=dict)
     baseline: tuple = (0.0, 0.0, 0.0)
+
+    @property
+    def video(self) -> np.ndarray:
+        """The scene's ground truth ``(S, H, W)`` (rendered on the first read)."""
+        return self.scene.array
 
     def homography_at(self, depth: float) -> np.ndarray:
         """The projector→camera homography of a plane at ``depth`` (1: the scene's plane, :attr:`homography`).
 
         The same as :attr:`homography` at every depth for a co-located rig (no baseline).
         """
-        size = self.video.shape[1:]
+        size = self.scene.shape[1:]
         at_1 = plane_homography(np.eye(3), size, baseline=self.baseline, depth=1.0)
         at_z = plane_homography(np.eye(3), size, baseline=self.baseline, depth=depth)
         h = at_z @ np.linalg.inv(at_1) @ self.homography
@@ -188,7 +195,7 @@ class RigTruth:
 
     def subframes(self, frame_id: int, K: int) -> np.ndarray:
         """Sub-frame indices of :attr:`video` integrated by the frame with ``frame_id``."""
-        return (int(frame_id) * K + np.arange(K)) % self.video.shape[0]
+        return (int(frame_id) * K + np.arange(K)) % self.scene.shape[0]
 
     def subframe_video(self, frame_id: int, K: int) -> np.ndarray:
         """The scene's ``(K, H, W)`` sub-frames the frame with ``frame_id`` integrates (a recording's ground truth)."""
@@ -357,7 +364,7 @@ class SimulatedRig:
         declared = check_effects(file.effects if file is not None and spec.effects is None else spec.effects)
         epu = spec.electrons_per_unit or (file.electrons_per_unit if file is not None else 1000.0)
         video = cls._video(scene, file, spec.camera_size, spec.subframes, seed)
-        camera_size = video.shape[1:]
+        camera_size = video.shape[1:]  # known before the scene is rendered (the camera's open renders it)
         if spec.projector_size is not None:
             projector_size = spec.projector_size
         elif spec.ideal:
@@ -455,20 +462,20 @@ class SimulatedRig:
 
     def show_scene(self) -> None:
         """Put the scene back in front of the camera (after calibration)."""
-        self.camera.set_view(self.truth.video, self._scene_effects)
+        self.camera.set_view(self.truth.scene, self._scene_effects)
         self._light_path.set_homography(self.truth.homography)
         self._viewing = "scene"
         _logger.info("simulated rig: the scene in view")
 
     @staticmethod
-    def _video(scene, spec: SceneSpec | None, camera_size, subframes, seed) -> np.ndarray:
+    def _video(scene, spec: SceneSpec | None, camera_size, subframes, seed) -> SceneVideo:
         if isinstance(scene, np.ndarray):
             if scene.ndim != 3 or not np.isfinite(scene).all() or scene.min() < 0 or scene.max() > 1:
                 raise SettingError(f"a scene video must have shape (S, H, W) with values in [0, 1]; got {scene.shape}")
             if camera_size is not None and tuple(scene.shape[1:]) != check_size("camera_size", camera_size):
                 raise SettingError(f"`camera_size` {tuple(camera_size)} does not match the scene video "
                                    f"{scene.shape[1]}x{scene.shape[2]}")
-            return scene.astype(np.float32, copy=False)
+            return SceneVideo.of(scene.astype(np.float32, copy=False))
         if spec is not None and spec.file is not None:
             from flexvox_core.simulate.sources import load_video
 
@@ -479,7 +486,7 @@ class SimulatedRig:
             if camera_size is not None and tuple(video.shape[1:]) != check_size("camera_size", camera_size):
                 raise SettingError(f"`camera_size` {tuple(camera_size)} does not match the scene video "
                                    f"{video.shape[1]}x{video.shape[2]}")
-            return video
+            return SceneVideo.of(video)
         if camera_size is None:
             camera_size = (spec.height, spec.width) if spec is not None else DEFAULT_CAMERA_SIZE
         H, W = check_size("camera_size", camera_size)
@@ -487,7 +494,12 @@ class SimulatedRig:
             subframes = (spec.camera_frames() or 16) * spec.K if spec is not None else 256
         S = check_int("subframes", subframes, 1, 1_000_000)
         name = spec.builtin if spec is not None else scene
-        return render_scene(name, S, H, W, seed=seed, advice="use a smaller camera size (flexvox capture --size)")
+        advice = "use a smaller camera size (flexvox capture --size)"
+        if name not in SCENES:
+            raise SettingError(f"unknown scene {name!r}; built-in scenes: {', '.join(SCENES)}")
+        check_fits(render_bytes(S, H, W), f"the {name} scene at {H}x{W} with {S} sub-frames", advice)
+        # Rendered when the camera opens (seconds for the drummer): building the rig builds only its devices.
+        return SceneVideo((S, H, W), lambda: render_scene(name, S, H, W, seed=seed, advice=advice))
 
     @property
     def devices(self) -> tuple:

@@ -3,6 +3,7 @@
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from rig_drivers.dlpc350 import DLPC350
@@ -34,6 +35,18 @@ def test_mock_is_the_default_and_builds_unopened_simulated_devices():
     assert isinstance(rig.simulated, SimulatedRig) and isinstance(rig.camera, SimulatedCamera)
     assert all(d.state is DeviceState.CLOSED for d in (rig.projector, rig.camera, rig.sync))
     assert rig.trigger_line is TriggerSource.LINE0
+
+
+def test_building_the_mock_rig_renders_no_scene_and_the_camera_s_open_does():
+    rig = open_rig(scene="drummer", camera_size=(24, 32), subframes=32, clock=VirtualClock())
+    scene = rig.truth.scene
+    assert rig.camera.sensor_shape == (24, 32) and scene.shape == (32, 24, 32)
+    assert not scene.rendered  # open_rig built the devices only
+    rig.camera.open()
+    assert scene.rendered and rig.camera.scene is scene
+    assert rig.truth.video.shape == (32, 24, 32) and rig.truth.video.dtype == np.float32
+    with pytest.raises(SettingError, match=r"unknown scene 'nope'; built-in scenes: fan"):
+        SimulatedRig._video("nope", None, (24, 32), 32, 0)
 
 
 def test_example_profile_builds_real_drivers_without_io(tmp_path):

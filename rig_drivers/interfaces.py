@@ -24,6 +24,7 @@ from __future__ import annotations
 import enum
 import logging
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from numbers import Integral, Real
 from typing import Protocol, runtime_checkable
@@ -320,6 +321,38 @@ class PatternSequence:
         return cls(patterns=patterns, period_us=period, **kwargs)
 
 
+Display = Callable[[np.ndarray], None]
+"""A display sink: shows ``(N, H, W, 3)`` uint8 frames on the projector's video input, returns when shown."""
+
+
+class LedControl(Protocol):
+    """A projector's LED currents (a LightCrafter 4500's): :attr:`Projector.led_control`, None for a projector
+    whose LEDs flexvox does not set."""
+
+    @property
+    def configured_led_currents(self) -> tuple[int, int, int] | None:
+        """The (red, green, blue) PWM values 0..255 set whenever the projector is enabled (a rig profile's
+        ``led_current``); None leaves the projector's own."""
+
+    def led_currents(self) -> tuple[int, int, int]:
+        """The (red, green, blue) PWM values read back from the open projector."""
+
+    def set_led_currents(self, red: int, green: int, blue: int) -> None:
+        """Send (red, green, blue) PWM values 0..255 to the open projector."""
+
+
+class DisplayInput(Protocol):
+    """The video input of a projector that takes its patterns there (:attr:`Projector.display_input`): the
+    app plugs in a display sink, which every sequence loaded is shown through."""
+
+    @property
+    def display(self) -> Display | None:
+        """The display sink, None when none is plugged in (nothing is shown)."""
+
+    @display.setter
+    def display(self, display: Display | None) -> None: ...
+
+
 class Projector(Device):
     """A pattern projector used as a per-pixel shutter.
 
@@ -341,6 +374,16 @@ class Projector(Device):
         super().__init__(name=name)
         self._sequence: PatternSequence | None = None
         self._run_state = RunState.STOPPED
+
+    @property
+    def led_control(self) -> LedControl | None:
+        """Its LED currents, where flexvox sets them (a LightCrafter 4500); None here (the projector's own)."""
+        return None
+
+    @property
+    def display_input(self) -> DisplayInput | None:
+        """Its video input, where a display sink shows its patterns (:attr:`video_port`); None here."""
+        return None
 
     def video_sequence(self, patterns, period_us: int, *, repeat: bool = True) -> PatternSequence:
         """A sequence of ``patterns`` this projector runs from its video port (only where :attr:`video_port`).

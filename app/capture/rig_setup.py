@@ -226,22 +226,34 @@ def set_up_rig(rig: Rig, plan: CapturePlan, calibration: CaptureCalibration | No
                     trigger.source.value, tuple(cal_warnings + notes), tuple(notes))
 
 
-def stop_rig(rig: Rig) -> list[str]:
+@dataclass(frozen=True)
+class StopError:
+    """A device that :func:`stop_rig` could not stop: its role ("projector", "camera", "sync") and why, in words."""
+
+    role: str
+    message: str
+
+    def __str__(self) -> str:
+        return self.message
+
+
+def stop_rig(rig: Rig) -> list[StopError]:
     """Stop the camera's acquisition, the sync box and the projector (devices stay open); the errors, in words."""
     from rig_drivers.errors import DeviceError
 
     errors = []
-    steps = [("stop the camera", lambda: rig.camera.stop_acquisition()
+    steps = [("camera", "stop the camera", lambda: rig.camera.stop_acquisition()
               if rig.camera.state is not DeviceState.CLOSED else None)]
     sync = rig.sync
     if sync is not None:
-        steps.append(("stop the sync box", lambda: sync.stop() if sync.state is not DeviceState.CLOSED else None))
-    steps.append(("stop the projector", lambda: rig.projector.stop()
+        steps.append(("sync", "stop the sync box",
+                      lambda: sync.stop() if sync.state is not DeviceState.CLOSED else None))
+    steps.append(("projector", "stop the projector", lambda: rig.projector.stop()
                   if rig.projector.state is not DeviceState.CLOSED and rig.projector.run_state is not RunState.STOPPED
                   else None))
-    for what, step in steps:
+    for role, what, step in steps:
         try:
             step()
         except (DeviceError, OSError) as exc:
-            errors.append(f"could not {what}: {exc}")
+            errors.append(StopError(role, f"could not {what}: {exc}"))
     return errors

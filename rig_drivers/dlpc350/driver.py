@@ -48,6 +48,7 @@ from rig_drivers.errors import (
 )
 from rig_drivers.interfaces import (
     DeviceState,
+    Display,
     PatternSequence,
     Projector,
     ProjectorTrigger,
@@ -58,10 +59,6 @@ from rig_drivers.interfaces import (
 from rig_drivers.pixel_layout import check_layout
 
 _logger = logging.getLogger(__name__)
-
-Display = Callable[[np.ndarray], None]
-"""A display sink: shows ``(N, H, W, 3)`` uint8 frames on the projector's video input, returns when shown."""
-
 
 class ProjectorDisplayError(DeviceError):
     """The display sink could not put the pattern frames on the projector's video input."""
@@ -145,6 +142,21 @@ class DLPC350(Projector):
     """Pattern size (rows, columns), as every projector driver reports it."""
     video_port = True
     """Patterns arrive on the video input, sequences from :meth:`video_sequence`."""
+
+    @property
+    def led_control(self) -> DLPC350:
+        """Itself: it sets its LED currents (:class:`~rig_drivers.interfaces.LedControl`)."""
+        return self
+
+    @property
+    def configured_led_currents(self) -> tuple[int, int, int] | None:
+        """The LED PWM values :meth:`enable` sets (the profile's ``led_current``), or None."""
+        return self.led_settings[0]
+
+    @property
+    def display_input(self) -> DLPC350:
+        """Itself: its video input takes a display sink (:attr:`display`, :class:`~rig_drivers.interfaces.DisplayInput`)."""
+        return self
 
     @property
     def display(self) -> Display | None:

@@ -50,7 +50,7 @@ class ProjectorScreen(QObject):
     @property
     def needed(self) -> bool:
         """True on a real rig whose projector takes its patterns on a video input (it has a display sink)."""
-        return not self.service.simulated and hasattr(self.service.rig.projector, "display")
+        return not self.service.simulated and self.service.rig.projector.display_input is not None
 
     def chosen_screen(self):
         """The QScreen picked for the projector's video input (None: no screens)."""
@@ -68,7 +68,9 @@ class ProjectorScreen(QObject):
             self.display = ProjectorDisplay(screen, parent=self._parent)
             self.display.shown.connect(self._on_shown)
         self.settings.set("calibrate/screen", self.screen_box.currentData() or "")
-        self.service.rig.projector.display = self.display
+        video_input = self.service.rig.projector.display_input
+        assert video_input is not None  # `needed` checked it
+        video_input.display = self.display
         self._users.add(user)
         self.label.setText(f"patterns go to {html.escape(screen.name() or 'the chosen screen')}")
         return None
@@ -88,9 +90,9 @@ class ProjectorScreen(QObject):
         display, self.display = self.display, None
         if display is None:
             return
-        projector = self.service.rig.projector
-        if getattr(projector, "display", None) is display:
-            projector.display = None
+        video_input = self.service.rig.projector.display_input
+        if video_input is not None and video_input.display is display:
+            video_input.display = None
         display.close()
         display.deleteLater()
         self.label.setText("projector window closed")

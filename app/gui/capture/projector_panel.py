@@ -102,7 +102,7 @@ class ProjectorPanel(QGroupBox):
             self._set_button(False)
             return False
         psize = projector_size(self.service.rig.projector)
-        layout = getattr(self.service.rig.projector, "pixel_layout", "square")
+        layout = self.service.rig.projector.pixel_layout
         calibration = self._calibration()
         self.label.setText(f"packing {plan.K} masks of {psize[1]}×{psize[0]} …")
         self._set_button(True)

@@ -64,8 +64,7 @@ def start_live(service: RigService, plan: CapturePlan, calibration=None, *, dela
 
 def stop_live(service: RigService) -> None:
     """Stop the camera's acquisition, the sync box and the projector's sequence (devices stay connected)."""
-    for message in stop_rig(service.rig):
-        role = "camera" if "camera" in message else "sync" if "sync" in message else "projector"
-        service.record_error(role, message)
+    for error in stop_rig(service.rig):
+        service.record_error(error.role, error.message)
     for role in ("projector", "camera", "sync"):
         service.notify(role)

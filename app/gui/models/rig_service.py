@@ -17,7 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from rig_drivers.errors import DeviceError
-from rig_drivers.interfaces import Device, DeviceState
+from rig_drivers.interfaces import Device, DeviceState, LedControl, Rig
 
 _logger = logging.getLogger(__name__)
 
@@ -48,7 +48,7 @@ class RigService:
     rig : rig_drivers.interfaces.Rig
     """
 
-    def __init__(self, rig):
+    def __init__(self, rig: Rig):
         self.rig = rig
         self._errors: dict[str, str] = dict.fromkeys(ROLES, "")
         self._listeners: list[Callable[[str], None]] = []
@@ -62,14 +62,18 @@ class RigService:
 
     @property
     def name(self) -> str:
-        """The rig profile's name."""
-        return self.rig.spec.name
+        """The rig's name (:attr:`rig_drivers.interfaces.Rig.name`: a profile's, or the simulated rig's)."""
+        return self.rig.name
 
     def device(self, role: str) -> Device | None:
         """The device in ``role`` (None: the rig has none)."""
-        if role not in ROLES:
-            raise ValueError(f"`role` must be one of {', '.join(ROLES)}; got {role!r}")
-        return getattr(self.rig, role)
+        if role == "projector":
+            return self.rig.projector
+        if role == "camera":
+            return self.rig.camera
+        if role == "sync":
+            return self.rig.sync
+        raise ValueError(f"`role` must be one of {', '.join(ROLES)}; got {role!r}")
 
     def status(self, role: str) -> DeviceStatus:
         """The device's current status."""
@@ -139,31 +143,37 @@ class RigService:
         return ok
 
     @property
+    def led_control(self) -> LedControl | None:
+        """The projector's LED currents (:attr:`rig_drivers.interfaces.Projector.led_control`), None where flexvox
+        does not set them."""
+        return self.rig.projector.led_control
+
+    @property
     def has_led_control(self) -> bool:
         """True when the projector takes LED currents (a LightCrafter 4500)."""
-        return callable(getattr(self.device("projector"), "set_led_currents", None))
+        return self.led_control is not None
 
     def led_currents(self) -> tuple[int, int, int] | None:
         """The projector's LED PWM values (read back when connected, else the profile's), or None."""
-        dev = self.device("projector")
-        if not self.has_led_control:
+        leds = self.led_control
+        if leds is None:
             return None
-        if dev.state is not DeviceState.CLOSED:
+        if self.rig.projector.state is not DeviceState.CLOSED:
             try:
-                return dev.led_currents()
+                return leds.led_currents()
             except DeviceError as exc:
                 self.record_error("projector", f"reading the LED currents failed: {exc}")
-        return getattr(dev, "led_settings", (None, None))[0]
+        return leds.configured_led_currents
 
     def set_led_currents(self, red: int, green: int, blue: int) -> bool:
         """Send LED PWM values 0..255 to a connected projector; False (with ``last_error``) when it fails."""
-        dev = self.device("projector")
-        if not self.has_led_control:
+        leds = self.led_control
+        if leds is None:
             return False
-        if dev.state is DeviceState.CLOSED:
+        if self.rig.projector.state is DeviceState.CLOSED:
             self.record_error("projector", "connect the projector first to set its LED currents")
             return False
-        return self._attempt("projector", "setting the LED currents", lambda: dev.set_led_currents(red, green, blue))
+        return self._attempt("projector", "setting the LED currents", lambda: leds.set_led_currents(red, green, blue))
 
     @property
     def in_use_by(self) -> str | None:

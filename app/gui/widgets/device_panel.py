@@ -28,13 +28,12 @@ def _detail(service: RigService, role: str) -> str:
     dev = service.device(role)
     if dev is None or dev.state is not DeviceState.ENABLED:
         return ""
-    if role == "camera" and getattr(dev, "acquiring", False):
-        return " · acquiring"
+    rig = service.rig
+    if role == "camera":
+        return " · acquiring" if rig.camera.acquiring else ""
     if role == "projector":
-        return f" · {dev.run_state.value}"
-    if role == "sync" and getattr(dev, "running", False):
-        return " · running"
-    return ""
+        return f" · {rig.projector.run_state.value}"
+    return " · running" if rig.sync is not None and rig.sync.running else ""
 
 
 WIDTH = 240

@@ -1,0 +1,78 @@
+"""The rig service (Qt-free) reads the rig through its protocol: its name, its devices, its optional capabilities."""
+
+import pytest
+
+from app.capture.rig_setup import StopError, stop_rig
+from app.gui.models.live_source import stop_live
+from app.gui.models.rig_service import RigService
+from rig_drivers.dlpc350 import DLPC350, FakeDLPC350Transport
+from rig_drivers.errors import DeviceError
+from rig_drivers.interfaces import DeviceState, DisplayInput, LedControl
+from rig_drivers.profile import MOCK_SPEC, ProfileRig
+from rig_drivers.simulated import SimulatedSyncController
+from rig_drivers.simulated_camera import VirtualClock
+from rig_drivers.simulated_rig import SimulatedRig
+
+from .conftest import small_rig
+
+
+def test_the_name_of_either_kind_of_rig():
+    sim = SimulatedRig.create("static", camera_size=(16, 24), subframes=16, seed=3, clock=VirtualClock())
+    assert RigService(sim).name == "simulated rig (seed 3)"
+    assert RigService(small_rig()).name == "simulated rig (mock, seed 0)"
+
+
+def test_devices_by_role_and_a_role_that_is_none():
+    rig = small_rig()
+    service = RigService(rig)
+    assert service.device("projector") is rig.projector and service.device("camera") is rig.camera
+    assert service.device("sync") is rig.sync
+    no_sync = RigService(ProfileRig(rig.projector, rig.camera, None, MOCK_SPEC))
+    assert no_sync.device("sync") is None and not no_sync.status("sync").present
+    with pytest.raises(ValueError, match=r"`role` must be one of projector, camera, sync; got 'lamp'"):
+        service.device("lamp")
+
+
+def test_leds_and_the_video_input_are_declared_capabilities_none_where_absent():
+    sim = small_rig()
+    assert sim.projector.led_control is None and sim.projector.display_input is None
+    service = RigService(sim)
+    assert not service.has_led_control and service.led_currents() is None
+    assert not service.set_led_currents(1, 2, 3)
+    fake = FakeDLPC350Transport()
+    lcr = DLPC350(fake, led_currents=(90, 140, 120), poll_interval_s=0)
+    assert lcr.led_control is lcr and lcr.display_input is lcr  # the LightCrafter 4500 has both
+    leds: LedControl = lcr.led_control
+    video_input: DisplayInput = lcr.display_input
+    assert leds.configured_led_currents == (90, 140, 120) and video_input.display is None
+    service = RigService(ProfileRig(lcr, sim.camera, None, MOCK_SPEC))
+    assert service.has_led_control and service.led_currents() == (90, 140, 120)  # closed: the profile's
+    assert service.connect("projector")
+    assert service.led_currents() == tuple(fake.led_currents)  # open: read back
+    assert service.set_led_currents(30, 220, 128) and fake.led_currents == bytes([30, 220, 128])
+    shown = []
+    video_input.display = shown.append
+    assert lcr.display is not None
+    service.close()
+
+
+class StuckSync(SimulatedSyncController):
+    """A sync box that cannot stop, with an error text that names the camera (its frame output)."""
+
+    def _do_stop(self):
+        raise DeviceError("the camera trigger output is stuck high")
+
+
+def test_a_device_that_cannot_stop_is_named_by_its_role_not_by_the_words_of_its_error():
+    sim = small_rig()
+    sync = StuckSync()
+    rig = ProfileRig(sim.projector, sim.camera, sync, MOCK_SPEC)
+    service = RigService(rig)
+    assert service.connect("sync")
+    sync._running = True  # running, as after a recording's start
+    errors = stop_rig(rig)
+    assert errors == [StopError("sync", "could not stop the sync box: the camera trigger output is stuck high")]
+    sync._running = True
+    stop_live(service)
+    assert service.status("sync").last_error == "could not stop the sync box: the camera trigger output is stuck high"
+    assert service.status("camera").last_error == "" and rig.sync.state is DeviceState.ENABLED

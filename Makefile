@@ -22,7 +22,7 @@ demo: $(STAMP)
 	$(BIN)/flexvox demo --overwrite
 
 # Two workers (pytest-xdist), whole test files kept together; tests/test_layering.py runs the import contracts;
-# the packages' docstring examples run too (--doctest-modules, pyproject.toml).
+# the packages' docstring examples run too (--doctest-modules), and tests/test_types.py runs mypy (pyproject.toml).
 test: $(STAMP)
 	QT_QPA_PLATFORM=offscreen $(BIN)/python -m pytest -n 2 --dist loadfile
 

@@ -23,11 +23,12 @@ from __future__ import annotations
 
 import enum
 import logging
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from numbers import Integral, Real
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, Self, runtime_checkable
 
 import numpy as np
 
@@ -39,7 +40,7 @@ _logger = logging.getLogger(__name__)
 # --------------------------------------------------------------------------- helpers
 
 
-def check_int(name: str, value, low: int, high: int, unit: str = "") -> int:
+def check_int(name: str, value: object, low: int, high: int, unit: str = "") -> int:
     """Return ``value`` as an int in ``[low, high]`` or raise :class:`SettingError`."""
     if isinstance(value, bool) or not isinstance(value, Integral):
         raise SettingError(f"`{name}` must be a whole number{unit and ' of ' + unit}; got {value!r}")
@@ -49,16 +50,16 @@ def check_int(name: str, value, low: int, high: int, unit: str = "") -> int:
     return int(value)
 
 
-def check_positive_float(name: str, value, high: float, unit: str) -> float:
+def check_positive_float(name: str, value: object, high: float, unit: str) -> float:
     """Return ``value`` as a finite float in ``(0, high]`` or raise :class:`SettingError`."""
-    if isinstance(value, bool) or not isinstance(value, Real) or not np.isfinite(value):
+    if isinstance(value, bool) or not isinstance(value, Real) or not math.isfinite(value):
         raise SettingError(f"`{name}` must be a finite number of {unit}; got {value!r}")
     if not 0 < float(value) <= high:
         raise SettingError(f"`{name}` must be > 0 and <= {high:g} {unit}; got {float(value):g}")
     return float(value)
 
 
-def check_timeout(timeout_s) -> float:
+def check_timeout(timeout_s: object) -> float:
     """Validate a timeout in seconds (finite, > 0, at most an hour)."""
     return check_positive_float("timeout_s", timeout_s, 3600.0, "s")
 
@@ -144,11 +145,11 @@ class Device(ABC):
                 self._state = DeviceState.CLOSED
                 _logger.info("%s closed", self.name)
 
-    def __enter__(self):
+    def __enter__(self) -> Self:
         self.open()
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     # -- hooks
@@ -202,7 +203,7 @@ class RunState(enum.Enum):
     RUNNING = "running"
 
 
-def check_pattern_timing(exposure_us, period_us) -> tuple[int, int]:
+def check_pattern_timing(exposure_us: object, period_us: object) -> tuple[int, int]:
     """Validate a pattern exposure and period in whole microseconds.
 
     The rule (DLPC350 Programmer's Guide DLPU010G §2.4.3.4.3): the exposure equals the
@@ -257,7 +258,7 @@ class PatternSequence:
     trigger_out_every: int | None = None
     repeat: bool = True
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         arr = np.asarray(self.patterns)
         if arr.ndim != 3:
             raise SettingError(f"`patterns` must have shape (K, H, W); got {arr.ndim} dimensions {arr.shape}")
@@ -305,7 +306,7 @@ class PatternSequence:
         return self.K * self.period_us
 
     @classmethod
-    def for_camera_rate(cls, patterns, camera_fps: float, **kwargs) -> PatternSequence:
+    def for_camera_rate(cls, patterns: np.ndarray, camera_fps: float, **kwargs: Any) -> PatternSequence:
         """A sequence whose K patterns fill one camera frame at ``camera_fps``.
 
         The period is ``floor(1e6 / (camera_fps * K))`` whole µs (the projector counts whole
@@ -385,7 +386,7 @@ class Projector(Device):
         """Its video input, where a display sink shows its patterns (:attr:`video_port`); None here."""
         return None
 
-    def video_sequence(self, patterns, period_us: int, *, repeat: bool = True) -> PatternSequence:
+    def video_sequence(self, patterns: np.ndarray, period_us: int, *, repeat: bool = True) -> PatternSequence:
         """A sequence of ``patterns`` this projector runs from its video port (only where :attr:`video_port`).
 
         Raises
@@ -512,7 +513,7 @@ class TriggerConfig:
     selector: TriggerSelector = TriggerSelector.FRAME_START
     delay_us: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         for name, cls in (("source", TriggerSource), ("activation", TriggerActivation),
                           ("selector", TriggerSelector)):
             if not isinstance(getattr(self, name), cls):
@@ -548,7 +549,7 @@ class CameraSettings:
     trigger: TriggerConfig = field(default_factory=TriggerConfig)
     gain_db: float = 0.0
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         object.__setattr__(self, "exposure_us",
                            check_positive_float("exposure_us", self.exposure_us, MAX_CAMERA_EXPOSURE_US, "µs"))
         if not isinstance(self.trigger, TriggerConfig):
@@ -593,7 +594,7 @@ class Frame:
     frame_id: int
     timestamp_s: float
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if np.ndim(self.image) != 2:
             raise SettingError(f"`image` must have shape (H, W); got shape {np.shape(self.image)}")
         if isinstance(self.frame_id, bool) or not isinstance(self.frame_id, Integral) or self.frame_id < 0:
@@ -694,9 +695,10 @@ class Camera(Device):
         """Fire one frame (trigger source SOFTWARE only)."""
         if not self._acquiring:
             raise IncompatibleStateError("cannot trigger: call start_acquisition() first")
-        if self._settings.trigger.source is not TriggerSource.SOFTWARE:
+        source = self._settings.trigger.source if self._settings is not None else None
+        if source is not TriggerSource.SOFTWARE:
             raise IncompatibleStateError(
-                f"cannot trigger by software: the trigger source is {self._settings.trigger.source.value}")
+                f"cannot trigger by software: the trigger source is {source.value if source else 'not set'}")
         self._do_trigger_software()
 
     def _do_disable(self) -> None:
@@ -744,7 +746,7 @@ class SyncSettings:
     period_us: int
     pulses_per_frame: int
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         object.__setattr__(self, "period_us", check_int(
             "period_us", self.period_us, SYNC_MIN_PERIOD_US, SYNC_MAX_PERIOD_US, "µs"))
         object.__setattr__(self, "pulses_per_frame", check_int(

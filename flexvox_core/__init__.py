@@ -1,7 +1,8 @@
 """flexvox_core — the numerics of flexible-voxel videography.
 
 Codes (the paper's integer program), the forward model, simulation, reconstruction,
-optical flow, metrics and recording I/O. This package never imports Qt.
+optical flow, metrics and recording I/O. This package never imports Qt. "The paper" in flexvox's
+docstrings is Gupta et al. [1]_; a module names the section or equation of it that it implements.
 
 Reconstruction in three layers: the algorithms (:mod:`flexvox_core.reconstruct`,
 :mod:`flexvox_core.motion`); the methods as objects, their registry and the one chunked runner
@@ -21,6 +22,11 @@ firing order           ``(m, n)`` int             identity code as slot numbers 
 =====================  =========================  =====================================
 
 Pixel ``(y, x)`` uses ``code[y % m, x % n]``.
+
+References
+----------
+.. [1] M. Gupta, A. Agrawal, A. Veeraraghavan and S. G. Narasimhan, "Flexible Voxels for
+   Motion-Aware Videography", European Conference on Computer Vision (ECCV), 2010.
 """
 
 import lazy_loader

@@ -1,5 +1,8 @@
 """Shutter codes as arrays: validation, identity codes and firing orders, verification.
 
+The paper's §2: the temporal firing order of a K-pixel tile (its Fig. 2), and the check that a code samples
+every block of every division once (the constraints of its Eq. 1).
+
 A code is an ``(m, n, K)`` bool array: ``code[i, j, s]`` is True when tile pixel
 ``(i, j)`` is open in slot ``s``. An *identity* code opens every pixel in exactly one
 slot; its *firing order* is the ``(m, n)`` int array of those slots.

@@ -1,5 +1,8 @@
 """The forward model of a per-pixel shutter, and the helpers every reconstruction needs.
 
+The paper's §2 ("Simulating multi-resolution sampling": K consecutive high-speed frames weighted by the
+per-pixel code and added) and §5 (the projector's binary patterns as that shutter).
+
 .. math::
 
     \\mathrm{capture}[f, y, x] = \\sum_s \\mathrm{code}[y \\bmod m, x \\bmod n, s]

@@ -1,4 +1,7 @@
-"""Tiles: the m×n pixel neighbourhood that shares one exposure's K = m·n slots."""
+"""Tiles: the m×n pixel neighbourhood that shares one exposure's K = m·n slots.
+
+The paper's §2: the space-time volume :math:`V_{mn}` of one tile and one camera integration time.
+"""
 
 from __future__ import annotations
 

@@ -1,5 +1,7 @@
 """Interchangeable dense optical-flow backends with named parameters (no positional magic).
 
+The paper's §4, step 2 (it used Brox et al.'s flow; these are OpenCV's dense methods).
+
 Each backend is a small frozen dataclass whose fields are the method's parameters and
 whose ``__call__(a, b)`` takes two uint8 images ``(H, W)`` and returns the flow from a to b,
 ``(H, W, 2)`` float32. The OpenCV object is built per call, so backends are thread-safe.

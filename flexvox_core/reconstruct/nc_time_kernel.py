@@ -1,5 +1,7 @@
 """Normalized convolution along time alone (a tensor (0, 0, c_t)), compiled (numba): one pass per output row.
 
+The paper's Eq. 3 (the Gaussian of a diffusion tensor, §3.1) at its high-SR end, :math:`c_x = c_y = 0`.
+
 With no spatial blur each pixel's estimate depends only on its own samples: one per camera frame, at
 its slot. The time Gaussian then reaches a handful of them per sub-frame (2 r / K + 1 at K slots and
 kernel radius r), instead of blurring the whole volume of mostly-zero sub-frames along time. The

@@ -1,5 +1,8 @@
 """Built-in procedural scenes, by name.
 
+Stand-ins for the paper's sequences: ``drummer`` for its drums (§2, Figs. 1, 3–5), ``fan`` for its
+rotating fan (Fig. 7), ``balls`` for its bouncing balls (Fig. 8).
+
 Each renders a high-speed video ``(S, H, W)`` float32 in [0, 1], deterministic for a
 seed. Motion is given in pixels per *sub-frame* (one shutter slot).
 """

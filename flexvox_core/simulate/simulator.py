@@ -1,5 +1,8 @@
 """The simulator: a high-speed video, a code and the declared effects in; camera frames out.
 
+The paper's §2 simulation of the per-pixel shutter (high-speed frames weighted by the code and summed), with
+the rig's imperfections (§5: a projector as the shutter) as declared effects.
+
 With no effect declared the frames are :func:`flexvox_core.forward.capture`, bit for bit.
 Optical effects (pattern, timing, light stages) turn the code into per-slot weights
 ``W (K, H, W)`` and the frames become ``Σ_s W[s] · video[f·K + s]``; electron-domain

@@ -23,9 +23,10 @@ The search solves Eq. 1 alone first (an infeasible request is answered at once: 
 all 16 divisions is infeasible, which HiGHS proves in about 9 s), then tries
 ``d = ⌊K/4⌋`` and, when that fails, bisects between the gap already achieved and ⌊K/4⌋.
 Above K = 40 the default skips the gap search (see :data:`GAP_SEARCH_MAX_K`).
-⌊K/4⌋ is where the search starts, not a proven bound, but it is reached for every tile
-we tried (2×2, 2×4, 3×3, 4×4, 4×8, 5×7, 8×8), and the solver proves ⌊K/4⌋+1 infeasible
-for 2×2, 3×3, 4×4 and 4×8. Each MILP has a node limit, so the search is deterministic
+⌊K/4⌋ is where the search starts, not a proven bound. It is reached for 2×2, 2×4, 3×3, 3×5,
+4×4 and 4×8 (``tests/flexvox_core/test_design.py`` checks these) and for 5×7; the solver proves
+⌊K/4⌋+1 infeasible for 2×2, 2×4, 3×3 and 4×4, and for 4×8 reaches its node limit first (no proof
+either way). Each MILP has a node limit, so the search is deterministic
 (no wall-clock limits decide the answer). Ties are broken by a canonical form: of the
 code's images under row flip, column flip, time reversal (and transpose for square
 tiles) — all of which keep both the divisions and the gaps — the lexicographically

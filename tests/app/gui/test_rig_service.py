@@ -52,7 +52,7 @@ def test_leds_and_the_video_input_are_declared_capabilities_none_where_absent():
     assert service.set_led_currents(30, 220, 128) and fake.led_currents == bytes([30, 220, 128])
     shown = []
     video_input.display = shown.append
-    assert lcr.display is not None
+    assert lcr.display == shown.append  # set through the declared video input
     service.close()
 
 

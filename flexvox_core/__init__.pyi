@@ -26,7 +26,8 @@ from .forward import capture, sample_mask, sparse_volume, tiled_code
 from .simulate import EFFECTS, SCENES, SimulationResult, render_scene, simulate_video
 
 # Reconstruction.
-from .methods import METHODS, Method, MethodOutput, reconstruct, run
+from .methods import METHODS, Method, MethodOutput, run
+from .video_api import reconstruct_video  # not `reconstruct`: flexvox_core.reconstruct holds the algorithms
 from .motion import motion_aware
 from .batch import BatchResult, reconstruct_batch
 

@@ -83,7 +83,7 @@ def s_matrix(K: int) -> np.ndarray:
     Examples
     --------
     >>> s_matrix(3).tolist()
-    [[1, 0, 1], [0, 1, 1], [1, 1, 0]]
+    [[1, 1, 0], [0, 1, 1], [1, 0, 1]]
     """
     if isinstance(K, bool) or not isinstance(K, int | np.integer) or K < 1:
         raise ValueError(f"`K` must be a positive whole number; got {K!r}")

@@ -20,7 +20,7 @@ From Python (docs/python.md): ``from rig_drivers import open_rig``; each name be
 
 import importlib
 
-__all__ = ["DeviceError", "Rig", "open_rig"]
+__all__ = ["DeviceError", "open_rig", "Rig"]
 
 _WHERE = {"DeviceError": "rig_drivers.errors", "Rig": "rig_drivers.interfaces", "open_rig": "rig_drivers.profile"}
 

@@ -3,7 +3,7 @@
 # that each has a docstring and an example.
 
 # Submodules, attributes of the package.
-from . import codes, design, divisions, forward, metrics, multiplex, tiles
+from . import codes, design, divisions, forward, multiplex, tiles
 from ._version import __version__
 
 # Codes: design one, or build one from a firing order.

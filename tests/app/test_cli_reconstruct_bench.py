@@ -225,17 +225,18 @@ def test_a_damaged_ground_truth_costs_only_the_psnr(recording, tmp_path, capsys)
 
 def test_a_ground_truth_with_nan_costs_only_the_psnr(recording, tmp_path, capsys, monkeypatch):
     # A truth that reads but holds a NaN: a warning naming the sub-frames, the video written, "wrote" printed.
-    from flexvox_core.recording import Recording
+    from flexvox_core.recording import GroundTruthRows
 
-    real = Recording.ground_truth
+    real = GroundTruthRows.__getitem__
 
-    def with_nan(self, start=0, stop=None):
-        rows = real(self, start, stop).copy()
-        if start <= 20 < start + len(rows):
+    def with_nan(self, key):
+        rows = real(self, key).copy()
+        start = key.indices(self.n)[0] if isinstance(key, slice) else 0
+        if isinstance(key, slice) and start <= 20 < start + len(rows):
             rows[20 - start, 0, 0] = np.nan
         return rows
 
-    monkeypatch.setattr(Recording, "ground_truth", with_nan)
+    monkeypatch.setattr(GroundTruthRows, "__getitem__", with_nan)
     out = tmp_path / "out.npy"
     assert main(["reconstruct", str(recording), "-o", str(out)]) == 0
     captured = capsys.readouterr()

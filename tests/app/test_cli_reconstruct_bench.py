@@ -249,15 +249,15 @@ def test_a_failed_write_stops_the_psnr_at_its_next_block(recording, tmp_path, ca
     import threading
 
     import app.cli.reconstruct as cli
-    from flexvox_core.recording import Recording
+    from flexvox_core.recording import GroundTruthRows
 
-    real = Recording.ground_truth
+    real = GroundTruthRows.__getitem__
     reads, written = [], threading.Event()
 
-    def counted(self, start=0, stop=None):
-        reads.append(start)
+    def counted(self, key):
+        reads.append(key.indices(self.n)[0] if isinstance(key, slice) else key)
         written.wait(10)  # the first block is read while the write fails
-        return real(self, start, stop)
+        return real(self, key)
 
     def failing_write(*args, **kwargs):
         try:
@@ -265,7 +265,7 @@ def test_a_failed_write_stops_the_psnr_at_its_next_block(recording, tmp_path, ca
         finally:
             threading.Timer(0.05, written.set).start()
 
-    monkeypatch.setattr(Recording, "ground_truth", counted)
+    monkeypatch.setattr(GroundTruthRows, "__getitem__", counted)
     monkeypatch.setattr(cli, "write_video", failing_write)
     out = tmp_path / "out.npy"
     assert main(["reconstruct", str(recording), "-o", str(out)]) != 0

@@ -10,8 +10,9 @@ tcp://HOST:8786`` to run the chunks on a dask cluster.
 import argparse
 from pathlib import Path
 
-import flexvox_core as fv
 from _sample import sample_recording
+
+import flexvox_core as fv
 
 parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 parser.add_argument("folder", nargs="?", type=Path)

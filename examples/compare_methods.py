@@ -9,8 +9,9 @@ simulated recording) and the time each took.
 import sys
 import time
 
-import flexvox_core as fv
 from _sample import sample_recording
+
+import flexvox_core as fv
 
 path = sys.argv[1] if len(sys.argv) > 1 else sample_recording()
 rec = fv.open_recording(path)

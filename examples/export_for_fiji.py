@@ -9,9 +9,9 @@ seconds: Fiji's time axis (Image > Properties) then reads real time.
 import sys
 
 import tifffile
+from _sample import sample_recording
 
 import flexvox_core as fv
-from _sample import sample_recording
 
 path = sys.argv[1] if len(sys.argv) > 1 else sample_recording()
 out = sys.argv[2] if len(sys.argv) > 2 else "video.tif"

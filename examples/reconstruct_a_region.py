@@ -8,8 +8,9 @@ corner sits on the code's tile grid (so the code still applies as it is), recons
 
 import sys
 
-import flexvox_core as fv
 from _sample import sample_recording
+
+import flexvox_core as fv
 
 path = sys.argv[1] if len(sys.argv) > 1 else sample_recording()
 rec = fv.open_recording(path)

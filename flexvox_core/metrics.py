@@ -1,9 +1,9 @@
 r"""Image-quality metrics for reconstructed videos: PSNR and SSIM, averaged over frames or per frame.
 
 :func:`psnr` and :func:`ssim` return one float, as scikit-image's do; :func:`psnr_per_frame` and
-:func:`ssim_per_frame` return every frame's score. Both follow the convention of the video snapshot-compressive-imaging literature (and of
-flexvox's benchmarks): frames are compared one by one, with an explicit data range
-(1 for videos in [0, 1]), and the per-frame scores are averaged.
+:func:`ssim_per_frame` return every frame's score. Both follow the convention of the video
+snapshot-compressive-imaging literature (and of flexvox's benchmarks): frames are compared one by one,
+with an explicit data range (1 for videos in [0, 1]), and the per-frame scores are averaged.
 
 .. math::
 

@@ -1,8 +1,8 @@
-import numpy as np
-import pytest
-
 import pickle
 import warnings
+
+import numpy as np
+import pytest
 
 from flexvox_core.metrics import psnr, psnr_per_frame, ssim, ssim_per_frame
 

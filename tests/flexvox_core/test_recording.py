@@ -422,9 +422,8 @@ def test_a_capture_starting_between_the_snapshot_and_the_checks_is_looked_at_aga
 
 
 def test_recording_names_say_what_they_hold_and_old_names_warn(tmp_path):
-    from flexvox_core.recording import GroundTruthRows
-
     from flexvox_core import code_from_order, render_scene, sequential_order
+    from flexvox_core.recording import GroundTruthRows
 
     sim = simulate_video(render_scene("balls", 12, 16, 20, seed=3), code_from_order(sequential_order((2, 2))))
     path = write_simulation(tmp_path / "r.zarr", sim)

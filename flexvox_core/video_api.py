@@ -8,7 +8,7 @@ import numpy as np
 __all__ = ["reconstruct_video"]
 
 
-def reconstruct_video(frames, code, method=None, *, chunk_frames: int | None = 16, progress=None, missing=None,
+def reconstruct_video(frames, code, method=None, *, chunk_frames: int | None = 16, progress=False, missing=None,
                       device: str = "cpu") -> np.ndarray:
     """The high-speed video ``(F·K, H, W)`` float32 in [0, 1] of a capture: :func:`flexvox_core.methods.reconstruct`.
 
@@ -22,8 +22,9 @@ def reconstruct_video(frames, code, method=None, *, chunk_frames: int | None = 1
         Default ``Method()`` (motion-aware); ``Method("diffusion")``, ``Method("rebin", block=...)``, ...
     chunk_frames : int or None, keyword-only
         Camera frames per chunk (None: all at once); the result does not depend on it.
-    progress : callable(done_frames, total_frames), optional, keyword-only
-        Called after each chunk.
+    progress : bool or callable(done_frames, total_frames), keyword-only
+        True: a ``tqdm.auto`` bar (a widget in Jupyter, text in a terminal); a callable is called after each
+        chunk; False or None: nothing.
     missing : ndarray (F,) bool, optional, keyword-only
         Frames the camera dropped (``Recording.dropped``): bridged from both sides.
     device : {"cpu", "cuda", "auto"}, keyword-only
@@ -43,5 +44,14 @@ def reconstruct_video(frames, code, method=None, *, chunk_frames: int | None = 1
     """
     from flexvox_core.methods import reconstruct
 
-    return reconstruct(frames, code, method, chunk_frames=chunk_frames, progress=progress, missing=missing,
-                       device=device)
+    if progress is not True:
+        return reconstruct(frames, code, method, chunk_frames=chunk_frames, progress=progress or None,
+                           missing=missing, device=device)
+    from tqdm.auto import tqdm
+
+    with tqdm(total=len(frames), unit="frame", desc="reconstruct", leave=False) as bar:
+        def update(done: int, total: int) -> None:
+            bar.update(done - bar.n)
+
+        return reconstruct(frames, code, method, chunk_frames=chunk_frames, progress=update, missing=missing,
+                           device=device)

@@ -60,3 +60,17 @@ def test_docstring_examples_run(package, name, obj, tmp_path, monkeypatch):
         runner.run(test)
     result = runner.summarize(verbose=False)
     assert result.failed == 0, f"{package}.{name}: {result.failed} docstring example(s) failed"
+
+
+def test_reconstruct_video_shows_a_tqdm_bar_when_asked(capsys):
+    import numpy as np
+
+    import flexvox_core as fv
+
+    code = fv.code_from_order(fv.sequential_order((2, 2)))
+    frames = fv.capture(fv.render_scene("balls", 16, 12, 12), code)
+    plain = fv.reconstruct_video(frames, code, fv.Method("diffusion"), chunk_frames=2)
+    assert capsys.readouterr().err == ""
+    shown = fv.reconstruct_video(frames, code, fv.Method("diffusion"), chunk_frames=2, progress=True)
+    assert "reconstruct" in capsys.readouterr().err  # tqdm writes to stderr outside Jupyter
+    np.testing.assert_array_equal(shown, plain)

@@ -8,7 +8,7 @@ STAMP := $(VENV)/.installed
 # Every extra: the Qt application (gui), the napari plugin, GenICam cameras, the tests. `pip install flexvox` alone has no Qt.
 EXTRAS := test,gui,genicam,napari
 
-.PHONY: demo test lint bench screenshots napari-screenshot clean
+.PHONY: demo test lint bench screenshots napari-screenshot docs clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -40,5 +40,16 @@ screenshots: $(STAMP)
 napari-screenshot: $(STAMP)
 	xvfb-run -a -s "-screen 0 1600x1000x24" env QT_QPA_PLATFORM=xcb $(BIN)/python -m app.napari_plugin.screenshot docs/screenshots/napari.png
 
+# The Python guide, the examples and the API reference (Sphinx, numpydoc, MyST) into docs/_build/html; any warning
+# fails it. Installs the `docs` extra into .venv on first use (a fresh clone needs nothing else).
+DOCS_STAMP := $(VENV)/.installed-docs
+$(DOCS_STAMP): $(BIN)/python pyproject.toml
+	$(BIN)/python -m pip install --quiet -e ".[docs]"
+	touch $(DOCS_STAMP)
+
+docs: $(DOCS_STAMP)
+	rm -rf docs/_build
+	MPLBACKEND=Agg $(BIN)/python -m sphinx -W --keep-going -b html docs docs/_build/html
+
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache .hypothesis
+	rm -rf $(VENV) build *.egg-info .pytest_cache .hypothesis docs/_build

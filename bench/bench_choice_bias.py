@@ -62,11 +62,11 @@ def main() -> None:
         K = code.shape[2]
         for name, truth in clips(K).items():
             frames = capture(truth, code)
-            alone = psnr(truth, motion_aware(frames, code, local_choice=False).video).mean
-            default = psnr(truth, motion_aware(frames, code).video).mean
+            alone = psnr(truth, motion_aware(frames, code, local_choice=False).video)
+            default = psnr(truth, motion_aware(frames, code).video)
             pipeline.oriented_nc = isotropic
             try:
-                iso = psnr(truth, motion_aware(frames, code).video).mean
+                iso = psnr(truth, motion_aware(frames, code).video)
             finally:
                 pipeline.oriented_nc = oriented
             print(f"| {K} | {name} | {alone:.2f} | {iso:.2f} | {default:.2f} |", flush=True)

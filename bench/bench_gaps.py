@@ -30,7 +30,7 @@ F, K, FIRST = 12, 16, 5
 
 def _p(truth, video, frames) -> float:
     sl = slice(frames[0] * K, frames[-1] * K + K)
-    return float(psnr(truth[sl], video[sl]).mean)
+    return float(psnr(truth[sl], video[sl]))
 
 
 def main() -> None:

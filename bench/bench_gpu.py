@@ -86,7 +86,7 @@ def throughput(scenes, frames: int, repeat: int, cpu: bool, size=(480, 640), pai
         g = runs[0][1]
         same = all(np.array_equal(g.video, r.video) for _, r in runs[1:])
         row = {"scene": scene, "gpu_s": seconds, "warm_s": warm, "stages": g.stage_seconds, "held_mib": held,
-               "gpu_psnr": psnr(truth, g.video).mean, "same_bits": same, "voxels": truth.size}
+               "gpu_psnr": psnr(truth, g.video), "same_bits": same, "voxels": truth.size}
         t0 = time.perf_counter()
         nc_gpu = diffuse_on_gpu(f, code, tensor=(0.05, 0.05, 1.0), time=4.0)
         row["nc_gpu_s"] = time.perf_counter() - t0
@@ -94,7 +94,7 @@ def throughput(scenes, frames: int, repeat: int, cpu: bool, size=(480, 640), pai
             t0 = time.perf_counter()
             c = motion_aware(f, code)
             row["cpu_s"] = time.perf_counter() - t0
-            row["cpu_psnr"] = psnr(truth, c.video).mean
+            row["cpu_psnr"] = psnr(truth, c.video)
             row["cpu_split"] = c.seconds
             t0 = time.perf_counter()
             nc_cpu = diffuse(f, code, tensor=(0.05, 0.05, 1.0), time=4.0)
@@ -143,7 +143,7 @@ def bench_rows() -> None:
             t0 = time.perf_counter()
             g = run(case.frames, case.code, method, chunk_frames=None, device="cuda").video
             tg = time.perf_counter() - t0
-            pc, pg = psnr(case.truth, c).mean, psnr(case.truth, g).mean
+            pc, pg = psnr(case.truth, c), psnr(case.truth, g)
             worst = max(worst, abs(pg - pc))
             first = first or (case, method, g)
             print(f"| {case.name} | {method.label()} | {pc:.2f} | {pg:.2f} | {pg - pc:+.3f} | {tc:.2f} | {tg:.2f} |",

@@ -79,7 +79,7 @@ def main() -> None:
 def _score(truth: np.ndarray, video: np.ndarray) -> tuple[float, float]:
     """(mean PSNR over sub-frames, mean squared error) of a reconstruction clipped to [0, 1]."""
     video = np.clip(video, 0, 1)
-    return float(psnr(truth, video).mean), float(np.mean((truth.astype(np.float64) - video) ** 2))
+    return float(psnr(truth, video)), float(np.mean((truth.astype(np.float64) - video) ** 2))
 
 
 def _mean_psnr(scores) -> float:

@@ -61,8 +61,8 @@ def main() -> None:
         t_ma = time.perf_counter() - t0
         sec = result.seconds
         print(f"| {scene} | {t_ma:.1f} | {sec['high_tr']:.1f} / {sec['flow']:.1f} / {sec['diffusion']:.1f} "
-              f"| {truth.size / t_ma / 1e6:.2f} | {psnr(truth, result.video).mean:.2f} | {t_fixed:.2f} "
-              f"| {psnr(truth, fixed).mean:.2f} | {t_ma / t_fixed:.0f}x |", flush=True)
+              f"| {truth.size / t_ma / 1e6:.2f} | {psnr(truth, result.video):.2f} | {t_fixed:.2f} "
+              f"| {psnr(truth, fixed):.2f} | {t_ma / t_fixed:.0f}x |", flush=True)
 
 
 if __name__ == "__main__":

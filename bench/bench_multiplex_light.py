@@ -38,7 +38,7 @@ TILES = ((3, 5), (4, 4))
 
 
 def _psnr(truth, video) -> float:
-    return float(psnr(truth, np.clip(video, 0, 1)).mean)
+    return float(psnr(truth, np.clip(video, 0, 1)))
 
 
 def _capture(truth, code, light, read_sigma, seed):

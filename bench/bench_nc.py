@@ -74,25 +74,25 @@ def quality() -> None:
             for t in times:
                 t0 = time.perf_counter()
                 out = diffuse(frames, code, tensor=tensor, time=t)
-                rows.append((psnr(gt, out).mean, tensor, t, time.perf_counter() - t0, out))
+                rows.append((psnr(gt, out), tensor, t, time.perf_counter() - t0, out))
         iso = [r for r in rows if r[1] == (1, 1, 1)]
         print(f"  {scene}: isotropic nc by time: "
               + ", ".join(f"n={r[2]}: {r[0]:.2f}" for r in iso))
         best = max(rows, key=lambda r: r[0])
         print(f"  {scene}: best of sweep: tensor {best[1]} time {best[2]}: {best[0]:.2f} dB,"
-              f" SSIM {ssim(gt, best[4]).mean:.3f}, {best[3] * 1e3:.0f} ms"
+              f" SSIM {ssim(gt, best[4]):.3f}, {best[3] * 1e3:.0f} ms"
               f" (GAP-TV reference {REFERENCE[(scene, '2x4')]:.1f} dB)")
         for solver in ("explicit", "steady"):
             t0 = time.perf_counter()
             out = diffuse(frames, code, tensor=(1, 1, 1), time=best[2] if best[1] == (1, 1, 1) else 0.25,
                           solver=solver)
             ms = (time.perf_counter() - t0) * 1e3
-            print(f"  {scene}: {solver:8s} (1,1,1): {psnr(gt, out).mean:.2f} dB, {ms:.0f} ms")
+            print(f"  {scene}: {solver:8s} (1,1,1): {psnr(gt, out):.2f} dB, {ms:.0f} ms")
         for d in supported_divisions(code):
             for interp in (False, True):
                 out = rebin(frames, code, d, interpolate=interp)
                 print(f"  {scene}: rebin {d.label} [TR {d.tr}, SR {d.sr}]{' interp' if interp else '       '}:"
-                      f" {psnr(gt, out).mean:.2f} dB")
+                      f" {psnr(gt, out):.2f} dB")
 
 
 def main() -> int:

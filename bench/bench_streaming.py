@@ -64,7 +64,7 @@ def main() -> None:
         out += stream.finish()
         video = np.concatenate([o.video for o in out])
         t_st = float(np.median([o.seconds for o in out]))
-        p_off, p_st = psnr(truth, offline).mean, psnr(truth, video).mean
+        p_off, p_st = psnr(truth, offline), psnr(truth, video)
         print(f"| {scene} | {p_off:.2f} | {p_st:.2f} | {p_st - p_off:+.2f} | {t_off:.2f} | {t_st:.2f} "
               f"| {t_st / t_off:.2f}x | {stream.memo.hits} / {stream.memo.misses} |", flush=True)
 

@@ -134,7 +134,7 @@ def measure(clip: Clip, repeats: int) -> list[tuple[str, np.ndarray, float, floa
             with as_filed() if title == "motion-aware, before" else contextlib.nullcontext():
                 video = reconstruct(clip.frames, clip.code, method, chunk_frames=None)
             times.append(time.perf_counter() - t0)
-        rows.append((title, video, float(psnr(clip.truth, video).mean), min(times)))
+        rows.append((title, video, float(psnr(clip.truth, video)), min(times)))
     return rows
 
 

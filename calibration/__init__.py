@@ -13,4 +13,30 @@ sync               phase and sub-slot delay (single-shot band code + delay sweep
 files              versioned JSON calibration files tied to a rig's identity and resolution
 capture_setup      what capture needs from a calibration: homography, phase, trigger delay, refusals
 pipeline           every step in order (run_calibration), shared by the CLI, the GUI and the demo
+for_rig            calibrate_rig / load_rig_calibration: a rig in, what capture takes out (one call)
+
+From Python (docs/python.md): ``from calibration import calibrate_rig, load_rig_calibration``; each
+name below is imported when first used.
 """
+
+import importlib
+
+__all__ = ["CalibrationError", "CalibrationRefused", "CaptureCalibration", "calibrate_rig", "load_rig_calibration"]
+
+_WHERE = {
+    "CalibrationError": "calibration.errors",
+    "CalibrationRefused": "calibration.capture_setup",
+    "CaptureCalibration": "calibration.capture_setup",
+    "calibrate_rig": "calibration.for_rig",
+    "load_rig_calibration": "calibration.for_rig",
+}
+
+
+def __getattr__(name: str):
+    if name in _WHERE:
+        return getattr(importlib.import_module(_WHERE[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

@@ -49,7 +49,7 @@ from flexvox_core.codes import (
     neighbour_separation,
     verify,
 )
-from flexvox_core.divisions import Division, check_division, enumerate_divisions
+from flexvox_core.divisions import Division, enumerate_divisions, parse_division
 from flexvox_core.tiles import validate_tile
 
 _logger = logging.getLogger(__name__)
@@ -230,7 +230,7 @@ def design_code(
     ----------
     tile : (int, int)
         Tile rows and columns, each 1..8.
-    divisions : iterable of Division, optional
+    divisions : iterable of Division (or its spellings: "2x2x4", "2,2,4", (2, 2, 4)), optional
         Divisions the code must support; all of the tile's by default. ``1×1×K`` and
         ``m×n×1`` are always added: they make it an identity code (every pixel open in
         one slot, every slot used by one pixel).
@@ -256,7 +256,7 @@ def design_code(
     if divisions is None:
         divs = enumerate_divisions((m, n))
     else:
-        requested = {check_division(d, (m, n)) for d in divisions}
+        requested = {parse_division(d, (m, n)) for d in divisions}  # "2x2x4", "2,2,4", (2, 2, 4) or a Division
         if not requested:
             raise ValueError("`divisions` must name at least one division")
         # 1×1×K (each pixel open once) and m×n×1 (each slot used once) make it an identity code.

@@ -15,7 +15,9 @@ from fractions import Fraction
 
 from flexvox_core.tiles import validate_tile
 
-_DIVISION_RE = re.compile(r"^\s*(\d+)\s*[xX×]\s*(\d+)\s*[xX×]\s*(\d+)\s*$")
+# One spelling set everywhere (the command line's --divisions and --block, Method options, files): "2x2x4",
+# "2×2×4" and "2,2,4"; in Python also (2, 2, 4) and a Division.
+_DIVISION_RE = re.compile(r"^\s*(\d+)\s*([xX×,])\s*(\d+)\s*\2\s*(\d+)\s*$")
 
 
 @dataclass(frozen=True, order=True)
@@ -104,14 +106,45 @@ def check_division(division: Division, tile) -> Division:
     return division
 
 
-def parse_division(text: str, tile=None) -> Division:
-    """Parse ``"AxBxC"`` (rows × columns × slots); check it against ``tile`` when given."""
-    match = _DIVISION_RE.match(str(text))
-    if match is None:
-        raise ValueError(
-            f"a division must be written AxBxC (rows x columns x slots), e.g. 2x2x4; got {text!r}"
-        )
-    d = Division(*(int(g) for g in match.groups()))
+def parse_division(text, tile=None) -> Division:
+    """A division from any of its spellings; checked against ``tile`` when given.
+
+    Parameters
+    ----------
+    text : str, sequence of 3 ints, or Division
+        ``"AxBxC"`` (rows × columns × slots; ``×`` too), ``"A,B,C"``, ``(a, b, c)`` or a :class:`Division`.
+    tile : (int, int), optional
+        The tile the division must divide (``a | m``, ``b | n``, ``c | K``, ``a·b·c = K``).
+
+    Returns
+    -------
+    Division
+
+    Examples
+    --------
+    >>> parse_division("2x2x4") == parse_division("2,2,4") == parse_division((2, 2, 4))
+    True
+    >>> parse_division("1x2x8", (4, 4)).label
+    '1x2x8'
+    """
+    if isinstance(text, Division):
+        d = text
+    elif isinstance(text, (tuple, list)):
+        if len(text) != 3 or not all(isinstance(v, int) and not isinstance(v, bool) for v in text):
+            raise ValueError(f"a division must be three whole numbers (rows, columns, slots), e.g. (2, 2, 4); "
+                             f"got {text!r}")
+        d = Division(*text)
+    else:
+        match = _DIVISION_RE.match(str(text))
+        if match is None:
+            raise ValueError(
+                "a division must be written AxBxC or A,B,C (rows x columns x slots), e.g. 2x2x4; "
+                f"got {text!r}"
+            )
+        a, _, b, c = match.groups()
+        d = Division(int(a), int(b), int(c))
+    if min(d.a, d.b, d.c) < 1:
+        raise ValueError(f"a division's sizes must be >= 1; got {d.a}x{d.b}x{d.c}")
     if tile is not None:
         check_division(d, tile)
     return d

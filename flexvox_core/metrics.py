@@ -1,8 +1,9 @@
-r"""Image-quality metrics for reconstructed videos: PSNR and SSIM, per frame and averaged.
+r"""Image-quality metrics for reconstructed videos: PSNR and SSIM, averaged over frames or per frame.
 
-Both follow the convention of the video snapshot-compressive-imaging literature (and of
-flexvox's benchmarks): frames are compared one by one, with an explicit data range
-(1 for videos in [0, 1]), and the per-frame scores are averaged.
+:func:`psnr` and :func:`ssim` return one float, as scikit-image's do; :func:`psnr_per_frame` and
+:func:`ssim_per_frame` return every frame's score. Both follow the convention of the video
+snapshot-compressive-imaging literature (and of flexvox's benchmarks): frames are compared one by one,
+with an explicit data range (1 for videos in [0, 1]), and the per-frame scores are averaged.
 
 .. math::
 
@@ -25,6 +26,7 @@ error visibility to structural similarity", IEEE TIP 13(4), 2004.
 from __future__ import annotations
 
 import logging
+import warnings
 from typing import NamedTuple
 
 import numpy as np
@@ -33,7 +35,7 @@ from flexvox_core.numbers import positive_number
 
 _logger = logging.getLogger(__name__)
 
-__all__ = ["FrameScores", "psnr", "ssim"]
+__all__ = ["FrameScores", "psnr", "psnr_per_frame", "ssim", "ssim_per_frame"]
 
 _SSIM_SIGMA = 1.5
 _SSIM_TRUNCATE = 3.5
@@ -52,6 +54,46 @@ class FrameScores(NamedTuple):
 
     per_frame: np.ndarray
     mean: float
+
+
+class _Score(float):
+    """A mean score (a float) that still answers the old ``FrameScores`` fields, with a DeprecationWarning.
+
+    Until 0.2, :func:`psnr` and :func:`ssim` returned :class:`FrameScores`; ``.mean`` and ``.per_frame``
+    keep working for one release.
+    """
+
+    _per_frame: np.ndarray
+    _name: str
+
+    def __new__(cls, per_frame: np.ndarray, name: str):
+        per = np.asarray(per_frame, dtype=np.float64)
+        self = super().__new__(cls, float(np.mean(per)) if per.size else float("nan"))
+        self._per_frame = per
+        self._name = name
+        return self
+
+    def _warn(self, field: str, instead: str) -> None:
+        warnings.warn(f"{self._name}() returns a float now (the mean over frames); `.{field}` on it is deprecated "
+                      f"and goes in flexvox 0.3: use {instead}", DeprecationWarning, stacklevel=3)
+
+    @property
+    def mean(self) -> float:
+        """Deprecated: the score itself is the mean."""
+        self._warn("mean", f"the value itself, `{self._name}(ref, x)`")
+        return float(self)
+
+    @property
+    def per_frame(self) -> np.ndarray:
+        """Deprecated: use ``psnr_per_frame`` / ``ssim_per_frame``."""
+        self._warn("per_frame", f"`{self._name}_per_frame(ref, x)`")
+        return self._per_frame
+
+    def __repr__(self) -> str:
+        return float.__repr__(self)
+
+    def __reduce__(self):
+        return (float, (float(self),))
 
 
 def _check_pair(ref, x, data_range, *, convert: bool = True, check_finite: bool = True
@@ -95,8 +137,8 @@ def _exact_in_float32(dtype) -> bool:
     return dtype.kind == "b" or (dtype.kind in "iuf" and dtype.itemsize <= (4 if dtype.kind == "f" else 2))
 
 
-def psnr(ref, x, *, data_range: float = 1.0) -> FrameScores:
-    """Peak signal-to-noise ratio of every frame, in dB, and their mean.
+def psnr(ref, x, *, data_range: float = 1.0) -> float:
+    """Peak signal-to-noise ratio in dB, the mean of every frame's (as the benchmarks report it).
 
     Parameters
     ----------
@@ -109,16 +151,42 @@ def psnr(ref, x, *, data_range: float = 1.0) -> FrameScores:
 
     Returns
     -------
-    FrameScores
-        ``per_frame`` (S,) in dB (``inf`` for a frame equal to its reference) and ``mean``
-        (``inf`` when any frame is exact).
+    float
+        The mean of :func:`psnr_per_frame` (``inf`` when any frame equals its reference).
 
     Examples
     --------
     >>> import numpy as np
     >>> ref = np.zeros((2, 4, 4)); x = ref + 0.1
-    >>> psnr(ref, x).per_frame.round(6).tolist()
-    [20.0, 20.0]
+    >>> round(psnr(ref, x), 6)
+    20.0
+    """
+    return _Score(psnr_per_frame(ref, x, data_range=data_range), "psnr")
+
+
+def psnr_per_frame(ref, x, *, data_range: float = 1.0) -> np.ndarray:
+    """Peak signal-to-noise ratio of every frame, in dB.
+
+    Parameters
+    ----------
+    ref : ndarray, shape (S, H, W) or (H, W)
+        Ground truth.
+    x : ndarray, same shape as ``ref``
+        Estimate.
+    data_range : float, keyword-only
+        Peak value L (1 for videos in [0, 1], 255 for 8-bit frames).
+
+    Returns
+    -------
+    ndarray, shape (S,), float64
+        ``inf`` for a frame equal to its reference.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> ref = np.zeros((2, 4, 4)); x = ref + [[[0.1]], [[0.01]]]
+    >>> psnr_per_frame(ref, x).round(6).tolist()
+    [20.0, 40.0]
     """
     r, v, L = _check_pair(ref, x, data_range, convert=False, check_finite=False)
     # A frame at a time into one reused buffer: no copies of whole volumes (two float64 copies of a 1-s VGA
@@ -148,7 +216,7 @@ def psnr(ref, x, *, data_range: float = 1.0) -> FrameScores:
     per = np.full(mse.shape, np.inf)
     ok = mse > 0
     per[ok] = 10.0 * np.log10(L * L / mse[ok])
-    return FrameScores(per, float(np.mean(per)))
+    return per
 
 
 def psnr_of_rows(read_ref, x, *, rows: int = 16, data_range: float = 1.0) -> FrameScores:
@@ -166,7 +234,7 @@ def psnr_of_rows(read_ref, x, *, rows: int = 16, data_range: float = 1.0) -> Fra
     for a in range(0, S, rows):
         b = min(S, a + rows)
         try:
-            per.append(psnr(read_ref(a, b), v[a:b], data_range=data_range).per_frame)
+            per.append(psnr_per_frame(read_ref(a, b), v[a:b], data_range=data_range))
         except ValueError as exc:  # its frame numbers count from `a`: say which sub-frames
             raise ValueError(f"sub-frames {a}..{b - 1}: {exc}") from None
     per = np.concatenate(per) if S else np.zeros(0)
@@ -194,8 +262,8 @@ def _ssim_frame(a: np.ndarray, b: np.ndarray, L: float) -> float:
     return float(np.mean(smap))
 
 
-def ssim(ref, x, *, data_range: float = 1.0) -> FrameScores:
-    """Structural similarity (Gaussian window, σ = 1.5) of every frame, and the mean.
+def ssim(ref, x, *, data_range: float = 1.0) -> float:
+    """Structural similarity (Gaussian window, σ = 1.5), the mean of every frame's.
 
     Parameters
     ----------
@@ -208,17 +276,43 @@ def ssim(ref, x, *, data_range: float = 1.0) -> FrameScores:
 
     Returns
     -------
-    FrameScores
-        ``per_frame`` (S,) in [-1, 1] (1 for identical frames) and ``mean``. Frames
-        smaller than 11 pixels on a side are averaged over the whole map (no border crop).
+    float
+        The mean of :func:`ssim_per_frame`, in [-1, 1] (1 for identical videos).
 
     Examples
     --------
     >>> import numpy as np
     >>> a = np.random.default_rng(0).random((1, 32, 32))
-    >>> ssim(a, a).mean
+    >>> ssim(a, a)
     1.0
     """
+    return _Score(ssim_per_frame(ref, x, data_range=data_range), "ssim")
+
+
+def ssim_per_frame(ref, x, *, data_range: float = 1.0) -> np.ndarray:
+    """Structural similarity (Gaussian window, σ = 1.5) of every frame.
+
+    Parameters
+    ----------
+    ref : ndarray, shape (S, H, W) or (H, W)
+        Ground truth.
+    x : ndarray, same shape as ``ref``
+        Estimate.
+    data_range : float, keyword-only
+        Peak value L; sets C₁ = (0.01 L)² and C₂ = (0.03 L)².
+
+    Returns
+    -------
+    ndarray, shape (S,), float64
+        In [-1, 1] (1 for identical frames). Frames smaller than 11 pixels on a side are averaged over the
+        whole map (no border crop).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> a = np.random.default_rng(0).random((2, 32, 32))
+    >>> ssim_per_frame(a, a).tolist()
+    [1.0, 1.0]
+    """
     r, v, L = _check_pair(ref, x, data_range)
-    per = np.array([_ssim_frame(r[i], v[i], L) for i in range(r.shape[0])])
-    return FrameScores(per, float(np.mean(per)))
+    return np.array([_ssim_frame(r[i], v[i], L) for i in range(r.shape[0])])

@@ -14,4 +14,22 @@ sync box). Qt-free.
   the ProfileRig it returns
 - :mod:`rig_drivers.dlpc350`: TI DLP LightCrafter 4500 over USB HID (+ a fake transport)
 - :mod:`rig_drivers.syncbox`: the serial sync box (+ a fake serial port)
+
+From Python (docs/python.md): ``from rig_drivers import open_rig``; each name below is imported when first used.
 """
+
+import importlib
+
+__all__ = ["DeviceError", "open_rig", "Rig"]
+
+_WHERE = {"DeviceError": "rig_drivers.errors", "Rig": "rig_drivers.interfaces", "open_rig": "rig_drivers.profile"}
+
+
+def __getattr__(name: str):
+    if name in _WHERE:
+        return getattr(importlib.import_module(_WHERE[name]), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

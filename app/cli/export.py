@@ -99,7 +99,7 @@ class _Source:
         elif what == "ground-truth":
             if not rec.has_ground_truth:
                 raise CliError(f"{rec.path} holds no ground truth (only simulated recordings have one)")
-            self.array = rec.ground_truth_rows
+            self.array = rec.ground_truth
             self.dtype = np.dtype(np.float32)
             self.rate = rec.attrs["rates"]["subframe_hz"]
         else:

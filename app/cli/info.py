@@ -144,7 +144,7 @@ def _slots(rec) -> dict:
                        "(flexvox capture --rig mock --ground-truth, or flexvox simulate)")
     try:
         frames, code = read_capture(rec)
-        truth = rec.ground_truth()
+        truth = rec.ground_truth[:]
     except RecordingError as exc:
         raise CliError(f"--slots: {exc}") from None
     check = slot_accuracy(frames, truth, code)

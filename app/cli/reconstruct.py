@@ -115,7 +115,7 @@ def run(args) -> int:
             def truth(a, b):
                 if stop.is_set():
                     raise _Abandoned
-                return rec.ground_truth(a, b)
+                return rec.ground_truth[a:b]
 
             # While the output is written (compression and files on one core, the truth's decompression, checks
             # and the PSNR on the other), a few sub-frames at a time, each checked as it is read: the truth is

@@ -141,7 +141,7 @@ def _shutter_check(cfg: DemoConfig, calibration, folder: Path) -> list[dict]:
         path = folder / f"strobe-{len(rows)}.zarr"
         service = _record(cfg, _rig(cfg, "strobe", STROBE_FRAMES), cal, path, STROBE_FRAMES)
         frames, code = read_capture(path)
-        check = slot_accuracy(frames, open_recording(path).ground_truth(), code)
+        check = slot_accuracy(frames, open_recording(path).ground_truth[:], code)
         rows.append({"with": name, "phase": service.phase_slots, "delay_us": service.trigger_delay_us,
                      "accuracy": check.accuracy, "decidable": check.decidable_fraction})
     return rows
@@ -157,7 +157,7 @@ def _capture(cfg: DemoConfig, rig, calibration, path: Path):
     _record(cfg, rig, calibration, path, F)
     frames, code = read_capture(path)
     rec = open_recording(path)
-    return frames, code, rec.ground_truth(), {"rows": rec.n_frames, "drops": int(rec.per_frame("dropped").sum())}
+    return frames, code, rec.ground_truth[:], {"rows": rec.n_frames, "drops": int(rec.per_frame("dropped").sum())}
 
 
 def _timed(fn, *args, **kwargs):
@@ -231,7 +231,7 @@ def run_demo(cfg: DemoConfig, *, step=None) -> DemoResult:
     ma, t = _timed(motion_aware, frames, code)
     videos["motion-aware"], timings["motion-aware"] = ma.video, t
     for name, v in videos.items():
-        res.rows.append({"method": name, "psnr": float(psnr(truth, v).mean), "seconds": timings[name]})
+        res.rows.append({"method": name, "psnr": float(psnr(truth, v)), "seconds": timings[name]})
 
     step("figures")
     s = F * K // 2 + K // 2

@@ -104,7 +104,7 @@ def recording_layers(path) -> list[tuple]:
         "metadata": {"flexvox": {"kind": FRAMES, **common}},
     }, "image")]
     if rec.has_ground_truth:
-        layers.append((_lazy(rec.ground_truth_rows), {
+        layers.append((_lazy(rec.ground_truth), {
             "name": f"{stem}: {TRUTH}",
             "scale": (1.0 / sub_hz, 1.0, 1.0),
             "contrast_limits": (0.0, 1.0),

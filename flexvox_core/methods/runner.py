@@ -290,7 +290,7 @@ def run(frames, code, method: Method | None = None, *, chunk_frames: int | None 
 
 
 def reconstruct(frames, code, method: Method | None = None, *, chunk_frames: int | None = 16,
-                progress: Progress | None = None, missing=None) -> np.ndarray:
+                progress: Progress | None = None, missing=None, device: str = "cpu") -> np.ndarray:
     """The video of :func:`run` alone: ``(F·K, H, W)`` float32 in [0, 1].
 
     Parameters
@@ -298,12 +298,23 @@ def reconstruct(frames, code, method: Method | None = None, *, chunk_frames: int
     frames : ndarray (F, H, W), identity-code capture
     code : ndarray (m, n, K), identity code
     method : Method, optional
-        Default ``Method()``.
+        Default ``Method()`` (motion-aware).
     chunk_frames : int or None
         Camera frames per chunk (None: all at once); the result does not depend on it.
     progress : callable(done_frames, total_frames), optional
         Called after each chunk.
     missing : ndarray (F,) bool, optional
         Frames the camera dropped (see :func:`run`).
+    device : {"cpu", "cuda", "auto"}
+        Where it runs (see :func:`run`).
+
+    Examples
+    --------
+    >>> from flexvox_core import Method, capture, code_from_order, render_scene, sequential_order
+    >>> code = code_from_order(sequential_order((2, 2)))
+    >>> frames = capture(render_scene("balls", 8, 16, 16), code)
+    >>> reconstruct(frames, code, Method("diffusion")).shape
+    (8, 16, 16)
     """
-    return run(frames, code, method, chunk_frames=chunk_frames, progress=progress, missing=missing).video
+    return run(frames, code, method, chunk_frames=chunk_frames, progress=progress, missing=missing,
+               device=device).video

@@ -43,7 +43,7 @@ Every name below is importable from the package itself (``from flexvox_core.reco
 
 from flexvox_core.recording.errors import DamagedRecordingError, RecordingError
 from flexvox_core.recording.journal import JOURNAL, read_journal
-from flexvox_core.recording.reader import SNAPSHOT_TRIES, Recording, open_recording
+from flexvox_core.recording.reader import SNAPSHOT_TRIES, GroundTruthRows, Recording, open_recording
 from flexvox_core.recording.repair import recover_recording
 from flexvox_core.recording.schema import (
     FRAME_AXES,
@@ -65,6 +65,7 @@ __all__ = [
     "SCHEMA_VERSION",
     "SNAPSHOT_TRIES",
     "DamagedRecordingError",
+    "GroundTruthRows",
     "Recording",
     "RecordingError",
     "RecordingWriter",

@@ -10,7 +10,9 @@ array is looked up by name, never by listing the folders, where zarr's temporary
 
 from __future__ import annotations
 
+import html
 import logging
+import warnings
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -27,20 +29,57 @@ from flexvox_core.recording.verified_rows import VerifiedRows, chunk_files_missi
 _logger = logging.getLogger(__name__)
 
 
-@dataclass
+def _deprecated(old: str, new: str) -> None:
+    warnings.warn(f"`Recording.{old}` is deprecated and goes in flexvox 0.3: use {new}", DeprecationWarning,
+                  stacklevel=3)
+
+
+class GroundTruthRows(VerifiedRows):
+    """The simulated high-speed video ``(S, H, W)`` float32 as an array-like (:class:`VerifiedRows`).
+
+    Calling it, ``rec.ground_truth(start, stop)``, is the old method's spelling: it still returns
+    sub-frames ``[start, stop)``, with a DeprecationWarning, until flexvox 0.3 (write
+    ``rec.ground_truth[start:stop]``).
+    """
+
+    def __call__(self, start: int = 0, stop: int | None = None) -> np.ndarray:
+        warnings.warn("`Recording.ground_truth` is an array-like now; calling it is deprecated and goes in flexvox "
+                      "0.3: write `rec.ground_truth[start:stop]` (or `np.asarray(rec.ground_truth)`)",
+                      DeprecationWarning, stacklevel=2)
+        return self.read(start, self.n if stop is None else stop)
+
+
+@dataclass(repr=False)
 class Recording:
-    """An opened, validated recording.
+    """An opened, validated recording (:func:`open_recording`).
+
+    Array-likes (read lazily, every row checked against its checksum): :attr:`frames` ``(F, H, W)`` as
+    stored and :attr:`ground_truth` ``(S, H, W)`` (simulated recordings). Metadata: :attr:`code`,
+    :attr:`tile`, :attr:`K`, :attr:`n_frames`, :attr:`camera_hz`, :attr:`dropped`, :attr:`calibration`,
+    and every attribute in :attr:`attrs`.
 
     ``journal`` holds the committed per-frame values of an *interrupted* capture (a store
     whose writer never closed, see the module docstring); it is None for a finished one.
+
+    Examples
+    --------
+    >>> rec = open_recording("rec.zarr")  # doctest: +SKIP
+    >>> rec.n_frames, rec.K, rec.dropped.sum(), rec.ground_truth[:2].shape  # doctest: +SKIP
+    (12, 16, 0, (2, 120, 160))
     """
 
     path: Path
     group: zarr.Group
     attrs: dict
     journal: dict | None = field(default=None, repr=False)
-    rows: int | None = field(default=None, repr=False)
+    rows_seen: int | None = field(default=None, repr=False)
     """The frames' rows when it was opened (a finished recording's count); None: read them now."""
+
+    @property
+    def rows(self) -> int | None:
+        """Deprecated (until flexvox 0.3): the frames' rows seen when opened; use :attr:`n_frames`."""
+        _deprecated("rows", "`n_frames` (the number of camera frames)")
+        return self.rows_seen
 
     @property
     def interrupted(self) -> bool:
@@ -82,8 +121,8 @@ class Recording:
         """Camera frames stored (committed frames of an interrupted capture)."""
         if self.journal is not None:
             return min(len(self.journal["frame_id"]), int(self.group["frames"].shape[0]))
-        if self.rows is not None:  # as seen when opened: a capture starting since cannot add rows to it
-            return self.rows
+        if self.rows_seen is not None:  # as seen when opened: a capture starting since cannot add rows to it
+            return self.rows_seen
         return int(self.group["frames"].shape[0])
 
     @property
@@ -105,18 +144,72 @@ class Recording:
         return np.asarray(self.group[name][:])
 
     @property
-    def ground_truth_rows(self) -> VerifiedRows:
-        """The simulated high-speed video ``(S, H, W)`` float32, checked as it is read."""
+    def ground_truth(self) -> GroundTruthRows:
+        """The simulated high-speed video ``(S, H, W)`` float32, S = F·K, an array-like checked as it is read:
+        ``rec.ground_truth[:8]``, ``np.asarray(rec.ground_truth)``. :class:`RecordingError` for a captured
+        recording (:attr:`has_ground_truth` says beforehand)."""
         if not self.has_ground_truth:
             raise RecordingError(f"{self.path} holds no ground truth (a captured recording)")
         gt = self.group["ground_truth"]
         crcs = np.asarray(self.group["ground_truth_crc"][:]) if "ground_truth_crc" in self.group else None
-        return VerifiedRows(gt, gt.shape[0], crcs=crcs, what="ground truth", store=self.path)
+        return GroundTruthRows(gt, gt.shape[0], crcs=crcs, what="ground truth", store=self.path)
 
-    def ground_truth(self, start: int = 0, stop: int | None = None) -> np.ndarray:
-        """Sub-frames ``[start, stop)`` of the simulated high-speed video ``(S, H, W)`` float32."""
-        rows = self.ground_truth_rows
-        return rows.read(start, rows.n if stop is None else stop)
+    @property
+    def ground_truth_rows(self) -> VerifiedRows:
+        """Deprecated (until flexvox 0.3): :attr:`ground_truth`."""
+        _deprecated("ground_truth_rows", "`ground_truth` (the same array-like)")
+        return self.ground_truth
+
+    @property
+    def tile(self) -> tuple[int, int]:
+        """The code's tile ``(m, n)``."""
+        m, n = self.attrs["tile"]
+        return int(m), int(n)
+
+    @property
+    def shape(self) -> tuple[int, int, int]:
+        """The frames' shape ``(F, H, W)``."""
+        return self.frames.shape
+
+    @property
+    def camera_hz(self) -> float:
+        """Camera frames per second (sub-frames per second: ``camera_hz * K``)."""
+        return float(self.attrs["rates"]["camera_hz"])
+
+    @property
+    def dropped(self) -> np.ndarray:
+        """``(F,)`` bool: the frames the camera dropped (stored as zero rows)."""
+        return self.per_frame("dropped").astype(bool)
+
+    @property
+    def calibration(self) -> dict | None:
+        """The calibration the capture used (its file's name, checksum, phase, delay), or None (a simulated
+        recording, or a capture without one)."""
+        return self.attrs.get("calibration")
+
+    def __repr__(self) -> str:
+        F, H, W = self.shape
+        m, n = self.tile
+        drops = int(self.dropped.sum()) if F else 0
+        state = ", interrupted" if self.interrupted else ""
+        truth = ", ground truth" if self.has_ground_truth else ""
+        calib = ", calibrated" if self.calibration else ""
+        return (f"<Recording {self.path.name}: {F} frames of {H}x{W}, tile {m}x{n} (K = {self.K}), "
+                f"{self.camera_hz:g} Hz, {drops} dropped{truth}{calib}{state}>")
+
+    def _repr_html_(self) -> str:
+        F, H, W = self.shape
+        m, n = self.tile
+        rows = [("path", str(self.path)), ("kind", self.attrs.get("kind", "")),
+                ("frames", f"{F} of {H}×{W} ({self.frames.dtype})"), ("tile", f"{m}×{n} (K = {self.K})"),
+                ("camera", f"{self.camera_hz:g} Hz ({self.camera_hz * self.K:g} sub-frames/s)"),
+                ("dropped", str(int(self.dropped.sum()) if F else 0)),
+                ("ground truth", "yes" if self.has_ground_truth else "no"),
+                ("calibration", str(self.calibration.get("source", "")) if self.calibration else "none"),
+                ("interrupted", "yes" if self.interrupted else "no")]
+        body = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>"
+                       for k, v in rows)
+        return f"<table><caption>Recording</caption>{body}</table>"
 
     def normalised_frames(self, start: int = 0, stop: int | None = None) -> np.ndarray:
         """Frames ``[start, stop)`` as float32 relative units (counts converted)."""
@@ -146,7 +239,7 @@ class Recording:
 
         ``progress(done, total)`` is called as rows are checked (rows of frames and ground truth).
         """
-        parts = [self.frames] + ([self.ground_truth_rows] if self.has_ground_truth else [])
+        parts = [self.frames] + ([self.ground_truth] if self.has_ground_truth else [])
         total = sum(p.n for p in parts)
         done = 0
         found = self._per_frame_gaps()

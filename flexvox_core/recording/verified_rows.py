@@ -152,6 +152,10 @@ class VerifiedRows:
         row = self.read(idx % self.n, idx % self.n + 1)[0]
         return row[rest] if rest else row
 
+    def __repr__(self) -> str:
+        shape = "x".join(str(v) for v in self.shape)
+        return f"<{type(self).__name__} {self.label}: {shape} {self.dtype}, checked as read>"
+
     def __array__(self, dtype=None, copy=None):
         out = self.read(0, self.n)
         return out if dtype is None else out.astype(dtype)

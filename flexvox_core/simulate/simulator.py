@@ -68,6 +68,13 @@ class SimulationResult:
         """Frames as float32 relative units, whatever the storage."""
         return normalise_frames(self.frames, self.storage)
 
+    def __repr__(self) -> str:
+        F, H, W = self.frames.shape
+        m, n, K = self.code.shape
+        effects = ", ".join(self.effects) or "none"
+        return (f"<SimulationResult: {F} frames of {H}x{W} ({self.frames.dtype}), tile {m}x{n} (K = {K}), "
+                f"{int(np.count_nonzero(self.dropped))} dropped, effects: {effects}>")
+
 
 def normalise_frames(frames: np.ndarray, storage: dict) -> np.ndarray:
     """Counts → relative units: ``(DN − black_level) / (gain · electrons_per_unit)``."""
@@ -232,15 +239,33 @@ def simulate_video(
     video : ndarray, shape (S, H, W)
         Ground truth in [0, 1]; S a multiple of K.
     code : ndarray, shape (m, n, K)
-    effects : list of Effect
-        Only these are simulated (see :mod:`flexvox_core.simulate.effects`).
+    effects : list of Effect, or mapping
+        Only these are simulated (see :mod:`flexvox_core.simulate.effects`); a mapping ``{name: {param:
+        value}}`` (a scene file's ``[effects]``) is read by :func:`~flexvox_core.simulate.parse_effects`.
     seed : int
         Seeds every effect's own generator.
     rate_hz : float
         Camera frame rate (the exposure of dark current is one frame period).
     electrons_per_unit : float
         Electrons from a white scene in one open slot.
+
+    Returns
+    -------
+    SimulationResult
+        ``frames`` (F, H, W), ``dropped``, ``ground_truth`` (the video), ``code`` and what a recording needs.
+
+    Examples
+    --------
+    >>> from flexvox_core import render_scene, sequential_order, code_from_order
+    >>> code = code_from_order(sequential_order((2, 2)))
+    >>> sim = simulate_video(render_scene("balls", 8, 16, 16), code, effects={"read_noise": {"sigma": 2}})
+    >>> sim.frames.shape, list(sim.effects)
+    ((2, 16, 16), ['read_noise'])
     """
+    if isinstance(effects, dict):
+        from flexvox_core.simulate.effects import parse_effects
+
+        effects = parse_effects(effects)
     code = validate_code(code)
     K = code.shape[2]
     video = check_video(video, K)

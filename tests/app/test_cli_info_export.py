@@ -121,7 +121,7 @@ def test_export_frames_to_every_format(recording, tmp_path, capsys):
 def test_export_ground_truth_and_reconstruction(recording, tmp_path):
     rec = open_recording(recording)
     assert cli(["export", str(recording), "--what", "ground-truth", "-o", str(tmp_path / "g.tif")]) == 0
-    np.testing.assert_array_equal(tifffile.imread(tmp_path / "g.tif"), rec.ground_truth())
+    np.testing.assert_array_equal(tifffile.imread(tmp_path / "g.tif"), rec.ground_truth[:])
     assert cli(["export", str(recording), "--what", "reconstruction", "--method", "rebin",
                 "-o", str(tmp_path / "r.npy")]) == 0
     expected = reconstruct(rec.normalised_frames(), rec.code, Method("rebin"))

@@ -36,7 +36,7 @@ def test_reconstruct_writes_every_format(recording, tmp_path, capsys, suffix):
         return
     assert video.shape == (48, 24, 32) and video.dtype == np.float32
     assert 0 <= video.min() and video.max() <= 1
-    assert psnr(open_recording(recording).ground_truth(), video).mean > 15
+    assert psnr(open_recording(recording).ground_truth[:], video) > 15
 
 
 @pytest.mark.parametrize(
@@ -225,17 +225,18 @@ def test_a_damaged_ground_truth_costs_only_the_psnr(recording, tmp_path, capsys)
 
 def test_a_ground_truth_with_nan_costs_only_the_psnr(recording, tmp_path, capsys, monkeypatch):
     # A truth that reads but holds a NaN: a warning naming the sub-frames, the video written, "wrote" printed.
-    from flexvox_core.recording import Recording
+    from flexvox_core.recording import GroundTruthRows
 
-    real = Recording.ground_truth
+    real = GroundTruthRows.__getitem__
 
-    def with_nan(self, start=0, stop=None):
-        rows = real(self, start, stop).copy()
-        if start <= 20 < start + len(rows):
+    def with_nan(self, key):
+        rows = real(self, key).copy()
+        start = key.indices(self.n)[0] if isinstance(key, slice) else 0
+        if isinstance(key, slice) and start <= 20 < start + len(rows):
             rows[20 - start, 0, 0] = np.nan
         return rows
 
-    monkeypatch.setattr(Recording, "ground_truth", with_nan)
+    monkeypatch.setattr(GroundTruthRows, "__getitem__", with_nan)
     out = tmp_path / "out.npy"
     assert main(["reconstruct", str(recording), "-o", str(out)]) == 0
     captured = capsys.readouterr()
@@ -248,15 +249,15 @@ def test_a_failed_write_stops_the_psnr_at_its_next_block(recording, tmp_path, ca
     import threading
 
     import app.cli.reconstruct as cli
-    from flexvox_core.recording import Recording
+    from flexvox_core.recording import GroundTruthRows
 
-    real = Recording.ground_truth
+    real = GroundTruthRows.__getitem__
     reads, written = [], threading.Event()
 
-    def counted(self, start=0, stop=None):
-        reads.append(start)
+    def counted(self, key):
+        reads.append(key.indices(self.n)[0] if isinstance(key, slice) else key)
         written.wait(10)  # the first block is read while the write fails
-        return real(self, start, stop)
+        return real(self, key)
 
     def failing_write(*args, **kwargs):
         try:
@@ -264,7 +265,7 @@ def test_a_failed_write_stops_the_psnr_at_its_next_block(recording, tmp_path, ca
         finally:
             threading.Timer(0.05, written.set).start()
 
-    monkeypatch.setattr(Recording, "ground_truth", counted)
+    monkeypatch.setattr(GroundTruthRows, "__getitem__", counted)
     monkeypatch.setattr(cli, "write_video", failing_write)
     out = tmp_path / "out.npy"
     assert main(["reconstruct", str(recording), "-o", str(out)]) != 0

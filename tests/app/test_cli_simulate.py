@@ -23,7 +23,7 @@ def test_simulate_npy_matches_the_forward_model(capsys, tmp_path, rng):
     rec = open_recording(tmp_path / "rec.zarr")
     assert rec.frames.shape == (3, 100, 130)
     assert np.max(np.abs(rec.frames[:] - capture(gt, rec.code))) <= 1e-6
-    assert np.array_equal(rec.ground_truth(), gt)
+    assert np.array_equal(rec.ground_truth[:], gt)
     assert "none (ideal forward model)" in out
 
 

@@ -80,8 +80,8 @@ def test_a_damaged_ground_truth_chunk_is_found(rec_path):
     rec = open_recording(rec_path)
     assert rec.verify() == ["ground truth row 5: its chunk file is missing"]
     with pytest.raises(DamagedRecordingError, match=r"ground truth row 5 is damaged"):
-        rec.ground_truth()
-    assert rec.ground_truth(0, 4).shape == (4, 8, 10)
+        rec.ground_truth[:]
+    assert rec.ground_truth[0:4].shape == (4, 8, 10)
 
 
 def test_frame_ids_must_increase_by_one_before_reconstruction(rec_path):

@@ -1,18 +1,19 @@
+import pickle
+import warnings
+
 import numpy as np
 import pytest
 
-from flexvox_core.metrics import psnr, ssim
+from flexvox_core.metrics import psnr, psnr_per_frame, ssim, ssim_per_frame
 
 
 def test_psnr_known_value_and_identity(rng):
     ref = rng.random((3, 16, 16))
     x = ref + 0.01  # MSE 1e-4 -> 40 dB at data range 1
-    scores = psnr(ref, x)
-    assert np.allclose(scores.per_frame, 40.0)
-    assert scores.mean == pytest.approx(40.0)
-    assert psnr(ref, x, data_range=255).mean == pytest.approx(40.0 + 20 * np.log10(255))
-    same = psnr(ref, ref)
-    assert np.all(np.isinf(same.per_frame)) and same.mean == np.inf
+    assert np.allclose(psnr_per_frame(ref, x), 40.0)
+    assert psnr(ref, x) == pytest.approx(40.0)
+    assert psnr(ref, x, data_range=255) == pytest.approx(40.0 + 20 * np.log10(255))
+    assert np.all(np.isinf(psnr_per_frame(ref, ref))) and psnr(ref, ref) == np.inf
 
 
 def test_psnr_per_frame_differs(rng):
@@ -20,31 +21,31 @@ def test_psnr_per_frame_differs(rng):
     x = ref.copy()
     x[0] += 0.1
     x[1] += 0.01
-    assert psnr(ref, x).per_frame.round(6).tolist() == [20.0, 40.0]
+    assert psnr_per_frame(ref, x).round(6).tolist() == [20.0, 40.0]
 
 
 def test_ssim_identical_is_one_and_noise_lowers_it(rng):
     ref = rng.random((2, 32, 32))
-    assert ssim(ref, ref).mean == pytest.approx(1.0, abs=1e-12)
+    assert ssim(ref, ref) == pytest.approx(1.0, abs=1e-12)
     noisy = ref + 0.2 * rng.standard_normal(ref.shape)
-    s = ssim(ref, noisy)
-    assert np.all(s.per_frame < 0.9)
-    assert np.all(s.per_frame > -1)
+    s = ssim_per_frame(ref, noisy)
+    assert np.all(s < 0.9)
+    assert np.all(s > -1)
 
 
 def test_ssim_of_two_constant_images_is_the_luminance_term():
     a, b = 0.3, 0.6
     c1 = (0.01 * 1.0) ** 2
     want = (2 * a * b + c1) / (a * a + b * b + c1)
-    got = ssim(np.full((1, 20, 20), a), np.full((1, 20, 20), b)).mean
+    got = ssim(np.full((1, 20, 20), a), np.full((1, 20, 20), b))
     assert got == pytest.approx(want, rel=1e-9)
 
 
 def test_ssim_is_symmetric_and_scale_invariant_with_data_range(rng):
     a = rng.random((1, 24, 24))
     b = np.clip(a + 0.1 * rng.standard_normal(a.shape), 0, 1)
-    assert ssim(a, b).mean == pytest.approx(ssim(b, a).mean, rel=1e-12)
-    assert ssim(255 * a, 255 * b, data_range=255).mean == pytest.approx(ssim(a, b).mean, rel=1e-9)
+    assert ssim(a, b) == pytest.approx(ssim(b, a), rel=1e-12)
+    assert ssim(255 * a, 255 * b, data_range=255) == pytest.approx(ssim(a, b), rel=1e-9)
 
 
 @pytest.mark.parametrize(
@@ -75,10 +76,10 @@ def test_psnr_of_float32_volumes_is_the_float64_figure(rng):
     ref = rng.random((5, 31, 17)).astype(np.float32)
     x = (ref + rng.normal(0, 0.05, ref.shape)).astype(np.float32)
     expected = 10 * np.log10(1 / np.mean((ref.astype(np.float64) - x.astype(np.float64)) ** 2, axis=(1, 2)))
-    np.testing.assert_allclose(psnr(ref, x).per_frame, expected, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(psnr_per_frame(ref, x), expected, rtol=0, atol=1e-6)
     x64 = x.astype(np.float64) + rng.normal(0, 1e-9, x.shape)  # not a float32 value: float64 throughout
     want64 = 10 * np.log10(1 / np.mean((ref.astype(np.float64) - x64) ** 2, axis=(1, 2)))
-    np.testing.assert_allclose(psnr(ref, x64).per_frame, want64, rtol=1e-12)
+    np.testing.assert_allclose(psnr_per_frame(ref, x64), want64, rtol=1e-12)
 
 
 def test_psnr_of_16_bit_frames_is_exact(rng):
@@ -87,7 +88,7 @@ def test_psnr_of_16_bit_frames_is_exact(rng):
     x = rng.integers(0, 65536, (3, 20, 30)).astype(np.uint16)
     d = ref.astype(np.int64) - x.astype(np.int64)
     expected = 10 * np.log10(65535.0**2 / (d * d).mean(axis=(1, 2)))
-    np.testing.assert_allclose(psnr(ref, x, data_range=65535).per_frame, expected, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(psnr_per_frame(ref, x, data_range=65535), expected, rtol=0, atol=1e-6)
 
 
 @pytest.mark.parametrize("value", [0, -1.0, float("nan"), float("inf"), "two", None])
@@ -112,9 +113,8 @@ def test_psnr_of_rows_reads_the_reference_a_few_frames_at_a_time(rng):
         return ref[a:b]
 
     got = psnr_of_rows(read, x, rows=16)
-    want = psnr(ref, x)
-    np.testing.assert_array_equal(got.per_frame, want.per_frame)
-    assert got.mean == want.mean == np.inf
+    np.testing.assert_array_equal(got.per_frame, psnr_per_frame(ref, x))
+    assert got.mean == psnr(ref, x) == np.inf
     assert calls == [(0, 16), (16, 32), (32, 37)]
     with pytest.raises(ValueError, match=r"`rows` must be a whole number >= 1; got 0"):
         psnr_of_rows(read, x, rows=0)
@@ -128,7 +128,7 @@ def test_psnr_of_float32_frames_at_extreme_scales_is_the_float64_figure(rng, sca
     x = (ref + rng.normal(0, 0.1 * scale, ref.shape)).astype(np.float32)
     d = ref.astype(np.float64) - x.astype(np.float64)
     expected = 10 * np.log10(scale**2 / (d * d).mean(axis=(1, 2)))
-    got = psnr(ref, x, data_range=scale).per_frame
+    got = psnr_per_frame(ref, x, data_range=scale)
     assert np.isfinite(got).all()
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-6)
 
@@ -145,3 +145,27 @@ def test_psnr_of_rows_names_the_sub_frames_of_a_bad_block(rng):
     ref[21, 1, 1] = np.nan
     with pytest.raises(ValueError, match=r"^sub-frames 16\.\.31: `ref` frame 5 holds NaN"):
         psnr_of_rows(lambda a, b: ref[a:b], ref.copy(), rows=16)
+
+
+def test_psnr_and_ssim_return_a_float_like_scikit_image(rng):
+    ref = rng.random((3, 16, 16))
+    x = ref + 0.01 * rng.standard_normal(ref.shape)
+    for score, per_frame in ((psnr, psnr_per_frame), (ssim, ssim_per_frame)):
+        value = score(ref, x)
+        assert isinstance(value, float) and repr(value) == repr(float(value))
+        assert value == pytest.approx(float(np.mean(per_frame(ref, x))), rel=1e-12)
+        assert type(pickle.loads(pickle.dumps(value))) is float
+
+
+def test_old_frame_scores_fields_warn_for_one_release(rng):
+    ref = rng.random((2, 16, 16))
+    x = ref + 0.01
+    with pytest.warns(DeprecationWarning, match=r"psnr\(\) returns a float now .*`\.mean` .*goes in flexvox 0\.3"):
+        mean = psnr(ref, x).mean
+    assert mean == pytest.approx(40.0) and type(mean) is float
+    with pytest.warns(DeprecationWarning, match=r"use `ssim_per_frame\(ref, x\)`"):
+        per = ssim(ref, x).per_frame
+    np.testing.assert_array_equal(per, ssim_per_frame(ref, x))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert psnr(ref, x) + 0 == pytest.approx(40.0)  # plain use warns nothing

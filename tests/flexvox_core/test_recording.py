@@ -25,7 +25,7 @@ def test_round_trip_float(tmp_path, sim):
     assert rec.n_frames == 3 and rec.K == 16
     assert rec.frames.dtype == np.float32 and rec.frames.chunks == (1, 12, 20)
     assert np.array_equal(rec.frames[:], capture(sim.ground_truth, rec.code))
-    assert np.array_equal(rec.ground_truth(), sim.ground_truth)
+    assert np.array_equal(rec.ground_truth[:], sim.ground_truth)
     assert rec.per_frame("frame_id").tolist() == [0, 1, 2]
     assert rec.attrs["schema_version"] == SCHEMA_VERSION and rec.attrs["seed"] == 7
     assert rec.attrs["order"] == design_code((4, 4)).order.tolist()
@@ -47,10 +47,10 @@ def test_a_ground_truth_stored_with_zstd_still_reads_and_checks(tmp_path, sim):
     del g["ground_truth"]
     g.create_array("ground_truth", data=truth, chunks=(1, *truth.shape[1:]), compressors=zarr.codecs.ZstdCodec())
     rec = open_recording(path)
-    assert np.array_equal(rec.ground_truth(), sim.ground_truth)
+    assert np.array_equal(rec.ground_truth[:], sim.ground_truth)
     g["ground_truth"][5] = truth[5] + 1
     with pytest.raises(RecordingError, match="ground_truth.*5"):
-        open_recording(path).ground_truth()
+        open_recording(path).ground_truth[:]
 
 
 def test_counts_and_effects_metadata(tmp_path, rng):
@@ -419,3 +419,27 @@ def test_a_capture_starting_between_the_snapshot_and_the_checks_is_looked_at_aga
     rec = open_recording(path)
     assert len(calls) == 2 and rec.interrupted and rec.n_frames == 1
     w.close()
+
+
+def test_recording_names_say_what_they_hold_and_old_names_warn(tmp_path):
+    from flexvox_core import code_from_order, render_scene, sequential_order
+    from flexvox_core.recording import GroundTruthRows
+
+    sim = simulate_video(render_scene("balls", 12, 16, 20, seed=3), code_from_order(sequential_order((2, 2))))
+    path = write_simulation(tmp_path / "r.zarr", sim)
+    rec = open_recording(path)
+    assert isinstance(rec.ground_truth, GroundTruthRows)
+    np.testing.assert_array_equal(rec.ground_truth[:2], sim.ground_truth[:2])  # an array-like: slices
+    np.testing.assert_array_equal(np.asarray(rec.ground_truth), sim.ground_truth)
+    assert rec.n_frames == 3 and rec.tile == (2, 2) and rec.shape == (3, 16, 20) and rec.camera_hz == 15.0
+    assert rec.dropped.dtype == bool and rec.dropped.shape == (3,) and rec.calibration is None
+    assert repr(rec).startswith("<Recording r.zarr: 3 frames of 16x20, tile 2x2 (K = 4), 15 Hz, 0 dropped, ground")
+    assert "<th style='text-align:left'>tile</th><td>2×2 (K = 4)</td>" in rec._repr_html_()
+    assert "ground truth: 12x16x20 float32" in repr(rec.ground_truth)
+    with pytest.warns(DeprecationWarning, match=r"calling it is deprecated .*rec\.ground_truth\[start:stop\]"):
+        old = rec.ground_truth(1, 3)
+    np.testing.assert_array_equal(old, sim.ground_truth[1:3])
+    with pytest.warns(DeprecationWarning, match=r"`Recording\.ground_truth_rows` is deprecated .*use `ground_truth`"):
+        assert rec.ground_truth_rows.shape == (12, 16, 20)
+    with pytest.warns(DeprecationWarning, match=r"`Recording\.rows` is deprecated .*use `n_frames`"):
+        assert rec.rows == 3

@@ -72,3 +72,17 @@ def test_parse_division():
         parse_division("2x2")
     with pytest.raises(ValueError, match=r"does not divide a 2x2 tile"):
         check_division(Division(1, 1, 2), (2, 2))
+
+
+def test_parse_division_takes_every_spelling():
+    want = Division(2, 2, 4)
+    for spelling in ("2x2x4", "2X2X4", "2×2×4", " 2 , 2 , 4 ", "2,2,4", (2, 2, 4), [2, 2, 4], want):
+        assert parse_division(spelling, (4, 4)) == want
+    with pytest.raises(ValueError, match=r"AxBxC or A,B,C .*got '2x2,4'"):
+        parse_division("2x2,4")  # one separator throughout
+    with pytest.raises(ValueError, match=r"three whole numbers .*got \(2, 2\.0, 4\)"):
+        parse_division((2, 2.0, 4))
+    with pytest.raises(ValueError, match=r"sizes must be >= 1; got 0x2x4"):
+        parse_division((0, 2, 4))
+    with pytest.raises(ValueError, match=r"does not divide a 4x4 tile"):
+        parse_division((3, 1, 4), (4, 4))

@@ -27,7 +27,7 @@ def test_a_recording_opens_as_coded_frames_and_ground_truth_with_time_in_seconds
     rec = open_recording(recording)
     assert frames.shape == (6, 24, 32) and truth.shape == (24, 24, 32)
     np.testing.assert_array_equal(np.asarray(frames[2]), rec.frames[2])
-    np.testing.assert_array_equal(np.asarray(truth[5]), rec.ground_truth(5, 6)[0])
+    np.testing.assert_array_equal(np.asarray(truth[5]), rec.ground_truth[5:6][0])
     assert fk["metadata"]["flexvox"]["recording"] == str(rec.path) and fk["metadata"]["flexvox"]["K"] == 4
     assert layers.recording_of(fk["metadata"]) == str(rec.path) and layers.recording_of({}) is None
 

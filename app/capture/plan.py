@@ -13,6 +13,7 @@ function calibration verifies with: what was verified is what is projected.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from functools import cached_property
@@ -24,7 +25,6 @@ from calibration.capture_setup import CaptureCalibration
 from calibration.session import EXPOSURE_MARGIN_US
 from calibration.shutter import ShutterPatterns, make_shutter_patterns
 from flexvox_core.codes import code_from_order, verify
-from flexvox_core.design import design_code
 from flexvox_core.divisions import Division
 from flexvox_core.multiplex import MultiplexedCode, multiplexed_code
 from flexvox_core.rates import MAX_CAMERA_HZ
@@ -70,6 +70,20 @@ class TimingCheck:
     def ok(self) -> bool:
         """No errors."""
         return not self.errors
+
+
+def designed_code(tile: tuple[int, int]) -> np.ndarray:
+    """The tile's designed identity code (m, n, K) bool, a fresh copy. The design (``flexvox_core.design``, which
+    loads scipy.optimize) runs once per tile and process; the application's start-up runs it for the remembered
+    tile behind its start-up window."""
+    return _designed(tuple(int(v) for v in tile)).copy()
+
+
+@functools.lru_cache(maxsize=16)
+def _designed(tile: tuple[int, int]) -> np.ndarray:
+    from flexvox_core.design import design_code  # scipy.optimize: only when a code is designed
+
+    return design_code(tile).require()
 
 
 @dataclass(frozen=True)
@@ -167,7 +181,7 @@ class CapturePlan:
             return multiplexed_code(self.tile, placement=self.placement)
         if self.order is not None:
             return code_from_order(self.order)
-        return design_code(self.tile).require()
+        return designed_code(self.tile)
 
     @property
     def code(self) -> np.ndarray:

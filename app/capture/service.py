@@ -252,6 +252,7 @@ class CaptureService:
                 writer_capacity_hz=rows / write_busy if write_busy > 0 else 0.0,
                 elapsed_s=(now - self._t_start) if self._t_start else 0.0,
                 state=self._state.value,
+                finishing=self.sink.finishing,
             )
 
     def start(self) -> None:

@@ -39,6 +39,9 @@ class CaptureStats:
         Rows per second of time spent writing: what the disk path could sustain.
     elapsed_s : float
     state : str
+    finishing : str
+        While the recording is finalised after its last frame, what is being written ("writing the ground truth:
+        frame 120 of 300", "closing the recording"); "" otherwise.
     """
 
     frames_received: int = 0
@@ -53,6 +56,7 @@ class CaptureStats:
     writer_capacity_hz: float = 0.0
     elapsed_s: float = 0.0
     state: str = CaptureState.IDLE.value
+    finishing: str = ""
 
 
 @dataclass(frozen=True)

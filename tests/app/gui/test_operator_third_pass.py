@@ -1,6 +1,7 @@
 """The operator's session, third pass: work is never dropped unasked, the state shown is the state held, where a
 result ran is named, and messages are in the operator's words. (The start-up window: ``test_startup.py``.)"""
 
+import html
 import shutil
 
 import pytest
@@ -79,3 +80,79 @@ def test_messages_for_programmers_become_words_naming_what_to_open_instead(messa
 
     text = in_gui_words(message)
     assert words in text and gone not in text and "open" in text, text
+
+
+# ---------------------------------------------------------------------- ground truth: its cost, its finish, remembered
+def truth_window(qtbot, settings):
+    from app.gui.application import build_window
+    from rig_drivers.profile import open_rig
+    from rig_drivers.simulated_camera import VirtualClock
+
+    rig = open_rig("mock", scene="strobe", subframes=17 * 16, seed=0, clock=VirtualClock())
+    w = build_window(rig, settings=settings)
+    qtbot.addWidget(w)
+    w.capture.live_panel.preview_check.setChecked(False)
+    return w
+
+
+def test_ground_truth_says_what_it_costs_and_the_choice_survives_a_restart(qtbot, settings):
+    w = truth_window(qtbot, settings)
+    panel = w.capture.record_panel
+    w.show()
+    w.show_workspace("Capture")
+    panel.frames_box.setValue(300)
+    assert panel.truth_check.isChecked() and panel.truth_cost.isVisible()
+    cost = panel.truth_cost.text()  # 4x4 code on a 120x160 camera at 15 Hz: 16 float32 pictures per frame
+    assert "ground truth adds 1.2 MB per frame (18 MB per second at 15 Hz, about 32× the frames' size)" in cost, cost
+    assert "369 MB for 300 frames" in cost and "finishing takes longer" in cost
+    panel.truth_check.setChecked(False)
+    assert not panel.truth_cost.isVisible()
+    with answering(default=True):
+        w.close()
+    again = truth_window(qtbot, settings)
+    assert not again.capture.record_panel.truth_check.isChecked()  # unticked stays unticked
+    with answering(default=True):
+        again.close()
+
+
+def test_while_a_recording_finishes_its_ground_truth_the_status_says_what_is_written_and_stop_is_off(qtbot, settings, tmp_path):
+    from dataclasses import replace
+
+    w = truth_window(qtbot, settings)
+    capture, panel = w.capture, w.capture.record_panel
+    panel.path_edit.setText(str(tmp_path / "t.zarr"))
+    panel.frames_box.setValue(17)
+    with answering(default=True), qtbot.waitSignal(panel.started, timeout=20_000):
+        assert panel.record()
+    assert panel.stop_button.isEnabled()
+    stats = replace(panel.capture.stats(), finishing="writing the scene's ground truth: frame 3 of 17",
+                    queue_depth=0)
+    panel._on_progress(panel.capture, stats)  # as the capture's progress event says it
+    said = html.unescape(panel.recording_label.text())
+    assert "finishing t.zarr: writing the scene's ground truth: frame 3 of 17 …" in said, said
+    assert not panel.stop_button.isEnabled()
+    with qtbot.waitSignal(panel.finished, timeout=30_000) as done:
+        pass
+    assert done.args[0].ok and settings.get_float("capture/truth_finish_s_per_frame", -1) > 0
+    assert "measured on the last such recording" in panel.truth_cost.text()
+    with answering(default=True):
+        w.close()
+
+
+def test_the_sink_says_which_ground_truth_frame_it_writes(tmp_path):
+    from app.capture.service import CaptureService
+    from app.capture.plan import CapturePlan
+    from rig_drivers.profile import open_rig
+    from rig_drivers.simulated_camera import VirtualClock
+
+    rig = open_rig("mock", scene="strobe", subframes=17 * 16, seed=0, clock=VirtualClock())
+    svc = CaptureService(rig, CapturePlan(), tmp_path / "r.zarr", frames=4, ground_truth=True)
+    seen = []
+    truth = svc.sink._ground_truth
+    svc.sink._ground_truth = lambda i, K: (seen.append(svc.stats().finishing), truth(i, K))[1]
+    svc.start()
+    assert svc.wait(30)
+    result = svc.result() if callable(svc.result) else svc.result
+    assert result is not None and result.ok, result
+    assert seen == [f"writing the scene's ground truth: frame {i} of 4" for i in range(1, 5)]
+    assert svc.stats().finishing == ""

@@ -391,7 +391,7 @@ class ReviewModel:
         self._set_progress(self.progress[1], self.progress[1])
         vox = result.video.size / max(result.seconds, 1e-9) / 1e6
         text = f"{result.method.label()}: {result.video.shape[0]} sub-frames in {result.seconds:.2f} s " \
-               f"({vox:.2g} M voxels/s)"
+               f"{result.where} ({vox:.2g} M voxels/s)"
         if result.psnr is not None:
             text += f"; PSNR vs ground truth {result.psnr:.2f} dB"
         expected_s, self._expected_for_job = self._expected_for_job, None

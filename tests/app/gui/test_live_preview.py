@@ -313,5 +313,6 @@ def test_on_the_gpu_the_preview_takes_the_whole_frame_every_run_and_says_so(qtbo
     preview.enabled, preview.runs = True, 1
     preview.result = PreviewResult(np.zeros((16, 48, 64), np.float32), 3, 3, Region(0, 48, 0, 64), (48, 64), 0.01,
                                    (0.0, 1.0), "motion-aware", "cuda")
-    assert preview.text().startswith("motion-aware preview on the GPU: 64×48 (the whole frame)")
+    assert preview.text().startswith("motion-aware preview on numba-cuda's simulator (NUMBA_ENABLE_CUDASIM=1: no GPU, "
+                                     "slower than the CPU): 64×48 (the whole frame)")
     assert LivePreview().device == "cpu"  # auto never takes the simulator

@@ -243,3 +243,46 @@ def test_a_double_click_on_a_slow_start_does_not_stop_the_live_view(qtbot, setti
     w.capture.stop_live()
     with answering(default=True):
         w.close()
+
+
+# ---------------------------------------------------------------------- where each result ran
+def test_where_it_ran_names_the_gpu_the_simulator_and_why_a_gpu_is_unused(monkeypatch):
+    import flexvox_core.gpu.device as device
+    from app.gui.models import device_words as words
+
+    monkeypatch.setattr(device, "simulator", lambda: False)
+    monkeypatch.setattr(words, "gpu_name", lambda: "NVIDIA H200")
+    monkeypatch.setattr(words, "gpu_status", lambda: (True, "CUDA", True))
+    assert words.where_it_ran("cuda") == "on the GPU (NVIDIA H200)"
+    assert words.where_it_ran("cpu", "gap-tv has no GPU path") == "on the CPU (gap-tv has no GPU path)"
+    assert words.where_it_ran("cpu") == "on the CPU (the GPU was not asked for)"
+    monkeypatch.setattr(words, "gpu_status", lambda: (False, "numba-cuda is not installed (pip install "
+                                                             "'flexvox[gpu]')", True))
+    assert words.where_it_ran("cpu") == ("on the CPU (a GPU is here but unused: numba-cuda is not installed "
+                                         "(pip install 'flexvox[gpu]'))")
+    monkeypatch.setattr(words, "gpu_status", lambda: (False, "no NVIDIA driver found (libcuda)", False))
+    assert words.where_it_ran("cpu") == "on the CPU"
+    monkeypatch.setattr(device, "simulator", lambda: True)
+    assert words.where_it_ran("cuda").startswith("on numba-cuda's simulator (") and "no GPU" in words.where_it_ran("cuda")
+
+
+def test_review_s_result_line_and_the_compare_list_say_where_each_result_ran(qtbot, opened):
+    review = opened
+    reconstruct(qtbot, review, "diffusion")
+    reconstruct(qtbot, review, "rebin")
+    assert "sub-frames in" in review.result_label.text() and " on the CPU" in review.result_label.text()
+    items = [review.compare_view.box_a.itemText(i) for i in range(review.compare_view.box_a.count())]
+    assert len(items) == 2 and all(" on the CPU" in item for item in items), items
+
+
+def test_the_live_preview_line_says_where_it_runs():
+    import numpy as np
+
+    from app.capture.live_preview import PreviewResult, Region
+    from app.gui.capture.live_preview import LivePreview
+
+    preview = LivePreview(device="cpu")
+    preview.enabled, preview.runs = True, 1
+    preview.result = PreviewResult(np.zeros((16, 48, 64), np.float32), 3, 3, Region(0, 48, 0, 64), (48, 64), 0.01,
+                                   (0.0, 1.0), "motion-aware", "cpu")
+    assert preview.text().startswith("motion-aware preview on the CPU: 64×48 (the whole frame)"), preview.text()

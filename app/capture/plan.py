@@ -244,7 +244,7 @@ class CapturePlan:
         if drift > 1e-6:
             notes.append(f"the projector counts whole µs: {self.K} × {period} µs = {seq / 1000:.3f} ms < "
                          f"{frame_us / 1000:.3f} ms, so a free-running camera drifts one slot every "
-                         f"{period / drift / self.camera_hz:.0f} s: trigger it from TRIG_OUT_2 or the sync box")
+                         f"{_duration(period / drift / self.camera_hz)}: trigger it from TRIG_OUT_2 or the sync box")
         return TimingCheck(period, proj, seq, cam, tuple(errors), tuple(notes))
 
     def patterns(self, camera_size: tuple[int, int], projector_size: tuple[int, int],
@@ -260,3 +260,12 @@ class CapturePlan:
         phase, _delay, _warnings = cal.for_plan(self.K, self.period_us)
         return make_shutter_patterns(self.code, cal.homography, camera_size, projector_size, phase_slots=phase,
                                      layout=layout)
+
+
+def _duration(seconds: float) -> str:
+    """A time in words a timing note can give: "12 s", "1.5 s", "40 ms"."""
+    if seconds >= 10:
+        return f"{seconds:.0f} s"
+    if seconds >= 1:
+        return f"{seconds:.1f} s"
+    return f"{seconds * 1000:.0f} ms"

@@ -123,10 +123,10 @@ class RecordPanel(QObject):
         self.frames_box.setRange(0, 10_000_000)
         self.frames_box.setSpecialValueText("until Stop")
         self.frames_box.setValue(self.settings.get_int("capture/frames", 150))
-        self.durable_check = QCheckBox("flush every frame to disk (survives a power cut; slower)")
-        self.durable_check.setToolTip("flexvox capture --durable: each frame's chunk and journal record reach the "
-                                      "disk before the next frame, so a power cut loses at most the frame in "
-                                      "flight. Without it, a killed program still loses nothing.")
+        self.durable_check = QCheckBox("flush each frame to disk (slower)")
+        self.durable_check.setToolTip("survives a power cut (flexvox capture --durable): each frame's chunk and "
+                                      "journal record reach the disk before the next frame, so a power cut loses at "
+                                      "most the frame in flight. Without it, a killed program still loses nothing.")
         self.durable_check.setChecked(self.settings.get_bool("capture/durable", False))
         self.truth_check = QCheckBox("store the scene's ground truth (simulated rig)")
         self.truth_check.setChecked(self.service.simulated and self.settings.get_bool("capture/ground_truth", True))

@@ -286,3 +286,50 @@ def test_the_live_preview_line_says_where_it_runs():
     preview.result = PreviewResult(np.zeros((16, 48, 64), np.float32), 3, 3, Region(0, 48, 0, 64), (48, 64), 0.01,
                                    (0.0, 1.0), "motion-aware", "cpu")
     assert preview.text().startswith("motion-aware preview on the CPU: 64×48 (the whole frame)"), preview.text()
+
+
+# ---------------------------------------------------------------------- the live preview's region grows back
+def test_the_preview_region_shrunk_under_load_grows_back_when_runs_get_faster():
+    from app.capture.live_preview import PixelCost, preview_region
+
+    cost, budget, shape = PixelCost(), 0.6, (120, 160)
+
+    def run(pixels, load):  # a run: a large fixed part and a part per pixel, both slowed by the load
+        return load * (0.45 + 5e-6 * pixels)  # idle, the whole 160×120 frame takes 0.55 s: it fits 0.6 s
+
+    region = preview_region(shape, (4, 4), 160 * 120)
+    for _ in range(6):  # under load the region shrinks
+        cost.add(run(region.pixels, 3.0), region.pixels)
+        region = preview_region(shape, (4, 4), cost.pixels_for(budget, 160 * 120))
+    small = region.pixels
+    assert small < 160 * 120 / 8
+    for _ in range(8):  # the load falls: runs are quick again
+        cost.add(run(region.pixels, 1.0), region.pixels)
+        region = preview_region(shape, (4, 4), cost.pixels_for(budget, 160 * 120))
+    assert region.covers(shape), (small, region)
+
+
+# ---------------------------------------------------------------------- small things
+def test_the_qt_start_failure_names_the_libraries_missing_and_their_packages(monkeypatch):
+    import subprocess
+
+    import app.qt_platform as qp
+
+    assert qp.debian_package("libxcb-icccm.so.4") == "libxcb-icccm4"
+    assert qp.debian_package("libxcb-keysyms.so.1") == "libxcb-keysyms1"
+    assert qp.debian_package("libfoo2.so.1") == "libfoo2-1"
+    monkeypatch.setattr(qp, "missing_xcb_libraries", lambda: ["libxcb-icccm.so.4", "libxcb-keysyms.so.1"])
+    monkeypatch.setattr(qp.sys, "platform", "linux")
+    monkeypatch.setattr(subprocess, "run", lambda *a, **k: subprocess.CompletedProcess(
+        a, 134, "", "qt.qpa.plugin: From 6.5.0, xcb-cursor0 or libxcb-cursor0 is needed to load the Qt xcb platform "
+                    "plugin.\nCould not load the Qt platform plugin \"xcb\""))
+    text = qp.display_problem({"DISPLAY": ":0"})
+    assert "lacks libxcb-icccm.so.4, libxcb-keysyms.so.1" in text and "cursor" not in text
+    assert "sudo apt install libxcb-icccm4 libxcb-keysyms1" in text and "README" in text
+
+
+def test_the_drift_note_says_sub_second_drifts_in_milliseconds():
+    from app.capture.plan import CapturePlan
+
+    notes = " ".join(CapturePlan(camera_hz=200.0).timing().notes)
+    assert "drifts one slot every" in notes and "every 0 s" not in notes, notes

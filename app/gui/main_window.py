@@ -68,6 +68,7 @@ class MainWindow(QMainWindow):
         self.capture.recording_finished.connect(lambda _: self.calibrate.recheck_refusals())
         self.calibrate.status.connect(lambda text: self.statusBar().showMessage(text, 8000))
         self.calibrate.use_for_capture.connect(self._use_for_capture)
+        self.calibrate.sync_profile_saved.connect(self.capture.calibration_panel.offer_sync_profile)
         self.calibrate.save_panel.saved.connect(
             lambda path: self.capture.outcome_saved(self.calibrate.save_panel.outcome, path))
 

@@ -34,7 +34,7 @@ from app.gui.models.calibration_model import CalibrationTarget
 from app.gui.models.jobs import CancelToken
 from app.gui.models.operator_words import in_gui_words
 from app.gui.widgets.qt_jobs import JobHandle, JobRunner
-from app.gui.widgets.questions import replace_question
+from app.gui.widgets.questions import ask, replace_question
 from app.gui.widgets.rich_text import AMBER, GREEN, RED
 from app.gui.widgets.status_line import StatusLine
 
@@ -295,15 +295,29 @@ class SavePage(QWizardPage):
         self.setSubTitle("Writes the sync profile (phase, delay, drop/drift verdict) tied to this rig.")
         self.path = QLineEdit()
         self.path.setPlaceholderText("folder/sync-profile.json")
+        self.browse_button = QPushButton("Browse…")
         self.button = QPushButton("Save sync profile")
         self.label = StatusLine(lines=2)
         v = QVBoxLayout(self)
-        v.addWidget(self.path)
+        row = QHBoxLayout()
+        row.addWidget(self.path, 1)
+        row.addWidget(self.browse_button)
+        v.addLayout(row)
         v.addWidget(self.button)
         v.addWidget(self.label)
         v.addStretch(1)
         self.button.clicked.connect(lambda: self.save(self.path.text().strip()))
+        self.browse_button.clicked.connect(self._browse)
         self.written: Path | None = None
+
+    def _browse(self) -> None:
+        from PySide6.QtWidgets import QFileDialog
+
+        start = self.path.text().strip() or "sync-profile.json"
+        path, _ = QFileDialog.getSaveFileName(self, "Save the sync profile", start, "flexvox sync profile (*.json)",
+                                              options=QFileDialog.Option.DontConfirmOverwrite)  # save asks
+        if path:
+            self.path.setText(path if path.endswith(".json") else path + ".json")
 
     def save(self, path) -> Path | None:
         """Write the profile; None (with the reason shown) when it cannot. An existing file is replaced only when
@@ -379,6 +393,27 @@ class SyncWizard(QWizard):
         """Cancel every running measurement."""
         for page in (self.trigger, self.phase, self.drift):
             page.cancel()
+
+    def unsaved_work(self) -> list[str]:
+        """The finished measurements that closing the wizard now would lose (not saved as a profile), in words."""
+        if self.save_page.written is not None:
+            return []
+        out = []
+        if self.sync is not None and self.sync.success:
+            out.append(f"the phase sweep's result (phase {self.sync.effective_phase_slots}, camera trigger delay "
+                       f"{self.sync.recommended_camera_delay_us:.0f} µs)")
+        if self.frame_check is not None:
+            out.append("the drop/drift test's verdict")
+        return out
+
+    def reject(self) -> None:
+        """Cancel (or Esc, or the window's close box): ask first when finished measurements would be lost."""
+        lost = self.unsaved_work()
+        if lost and not ask(self, "Close the synchronisation wizard?", "Closing the wizard now loses, not saved as a "
+                            "sync profile:\n\n" + "\n".join(f"• {w}" for w in lost) + "\n\nClose anyway?",
+                            accept="Close and lose them", reject="Keep working"):
+            return
+        super().reject()
 
     def done(self, result: int) -> None:
         """Closing the wizard cancels what it measures."""

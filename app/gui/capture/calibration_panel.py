@@ -86,6 +86,8 @@ class CalibrationPanel(QGroupBox):
         self._plan: CapturePlan | None = None
         self.file_changed = False
         """The calibration file restored at start differs from the one last used (its hash changed)."""
+        self.offered_profile: Path | None = None
+        """The sync profile the wizard saved this session, until it is loaded."""
         self.label = QLabel()
         self.label.setWordWrap(True)
         self.label.setTextFormat(Qt.TextFormat.RichText)
@@ -238,6 +240,11 @@ class CalibrationPanel(QGroupBox):
         self.error = message
         self._show()
 
+    def offer_sync_profile(self, path) -> None:
+        """The sync wizard saved a profile: say so here, and how to record with it (it is not taken unasked)."""
+        self.offered_profile = Path(path)
+        self._show()
+
     def forget_refusal(self) -> None:
         """The last refused load is old news once the live view or a recording starts with what is in use."""
         if self.error:
@@ -330,6 +337,11 @@ class CalibrationPanel(QGroupBox):
                 if needs_hand and not self.delay_set_by_hand:
                     short += coloured(" — set the delay on the camera (Calibration below)", AMBER)
         self.delay_check.setVisible(needs_hand)
+        if self.offered_profile is not None and self.settings.get_str(SYNC_PROFILE_FILE, "") != str(
+                self.offered_profile.expanduser().resolve()):
+            lines.append(f"the synchronisation wizard saved {html.escape(str(self.offered_profile))}: “Load sync "
+                         "profile…” records with its phase and trigger delay")
+            short += " · " + coloured("the wizard's sync profile is not loaded (Calibration below)", AMBER)
         if self.error:
             lines.append(coloured(f"refused: {self.error}", RED))
         self.label.setText("<br>".join(lines))

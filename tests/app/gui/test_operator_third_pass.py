@@ -333,3 +333,34 @@ def test_the_drift_note_says_sub_second_drifts_in_milliseconds():
 
     notes = " ".join(CapturePlan(camera_hz=200.0).timing().notes)
     assert "drifts one slot every" in notes and "every 0 s" not in notes, notes
+
+
+# ---------------------------------------------------------------------- the sync wizard keeps finished work
+def test_the_sync_wizard_asks_before_cancel_loses_work_has_browse_and_its_profile_reaches_capture(
+        qtbot, settings, tmp_path):
+    from types import SimpleNamespace
+
+    w = truth_window(qtbot, settings)
+    w.show_workspace("Calibrate")
+    wizard = w.calibrate.open_sync_wizard()
+    assert wizard.save_page.browse_button.text() == "Browse…"
+    wizard.sync = SimpleNamespace(success=True, effective_phase_slots=6, recommended_camera_delay_us=412.0)
+    wizard.frame_check = object()
+    with answering(False) as asked:
+        wizard.reject()
+    assert wizard.isVisible() and asked[0].title == "Close the synchronisation wizard?"
+    assert "the phase sweep's result (phase 6, camera trigger delay 412 µs)" in asked[0].text
+    assert "the drop/drift test's verdict" in asked[0].text
+    profile = tmp_path / "sync.json"
+    wizard.save_page.written = profile  # as a save would leave it
+    statuses = []
+    w.calibrate.status.connect(statuses.append)
+    with answering() as asked:  # saved: nothing to lose, no question
+        wizard.accept()
+    assert asked == []
+    assert any(str(profile) in s and "Load sync profile" in s for s in statuses), statuses
+    assert str(profile) in w.calibrate.wizard_button.toolTip()
+    assert f"the synchronisation wizard saved {profile}" in w.capture.calibration_panel.label.text()
+    assert "sync profile is not loaded" in w.capture.calibration_panel.status_label.text()
+    with answering(default=True):
+        w.close()

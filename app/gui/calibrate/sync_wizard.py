@@ -221,15 +221,23 @@ class PhasePage(_JobPage):
         owner = self.owner
         K = owner.tile[0] * owner.tile[1]
 
-        def checked(done, total):
-            progress(done, total)
-            token.check()
+        stages = 1 if owner.homography is None else 0  # the homography first, when measured here: one bar, 0→100 %
+
+        shown = [0]
+
+        def part(stage):
+            def checked(done, total):  # stage s of the bar's (stages + 1) equal parts: it never goes back
+                shown[0] = max(shown[0], int(1000 * (stage + min(done / max(total, 1), 1.0))))
+                progress(shown[0], 1000 * (stages + 1))
+                token.check()
+            return checked
 
         with owner.target.session() as session:
             identity = session.identity
             h = owner.homography
+            checked = part(stages)
             if h is None:
-                hom = calibrate_homography(session, progress=checked)
+                hom = calibrate_homography(session, progress=part(0))
                 if hom.homography is None or not hom.success:
                     return None, f"the homography (needed for the band code) failed: {hom.message}", identity
                 h = hom.homography

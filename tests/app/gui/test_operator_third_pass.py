@@ -364,3 +364,18 @@ def test_the_sync_wizard_asks_before_cancel_loses_work_has_browse_and_its_profil
     assert "sync profile is not loaded" in w.capture.calibration_panel.status_label.text()
     with answering(default=True):
         w.close()
+
+
+def test_the_phase_sweep_bar_only_goes_forward(qtbot, settings):
+    from app.gui.models.jobs import CancelToken
+
+    w = truth_window(qtbot, settings)
+    wizard = w.calibrate.open_sync_wizard()
+    wizard.homography = None  # measured on the page first: two parts on one bar
+    seen = []
+    h, sync, _ = wizard.phase.work(CancelToken(), lambda done, total: seen.append(done / total))
+    assert h is not None and sync.success
+    assert seen == sorted(seen) and seen[-1] == 1.0 and seen[0] < 0.5, seen
+    with answering(default=True):
+        wizard.reject()
+        w.close()

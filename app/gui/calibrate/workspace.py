@@ -294,6 +294,9 @@ class CalibrateWorkspace(QWidget):
     def _kept(self, what: str) -> None:
         """The run ended without a result (``what`` happened): the previous result stays offered, and shown."""
         previous = self.outcome
+        # The Steps list shows the run the results show (the earlier one), not the steps of the one that ended.
+        self.steps_label.setText(steps_html(len(STEPS), finished=previous.success) if previous is not None
+                                 else steps_html(-1))
         if previous is not None:
             self.results_view.show_outcome(previous, note=f"{what}; shown: the calibration of {previous.finished_at}")
             kept = "can still be saved" if previous.success else "stays"

@@ -379,3 +379,21 @@ def test_the_phase_sweep_bar_only_goes_forward(qtbot, settings):
     with answering(default=True):
         wizard.reject()
         w.close()
+
+
+def test_after_a_cancelled_calibration_the_steps_list_shows_the_run_the_results_show(qtbot, settings):
+    from app.gui.calibrate.workspace import STEPS, steps_html
+
+    w = truth_window(qtbot, settings)
+    cal = w.calibrate
+    assert cal.run_calibration()
+    qtbot.waitUntil(lambda: not cal.running, timeout=120_000)
+    assert cal.outcome.success
+    assert cal.run_calibration()
+    qtbot.waitUntil(lambda: "▶" in cal.steps_label.text() and steps_html(0) != cal.steps_label.text(),
+                    timeout=60_000)
+    cal.cancel()
+    qtbot.waitUntil(lambda: not cal.running, timeout=60_000)
+    assert cal.steps_label.text() == steps_html(len(STEPS), finished=True)  # the earlier run's, as the results
+    with answering(default=True):
+        w.close()

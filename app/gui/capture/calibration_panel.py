@@ -341,7 +341,8 @@ class CalibrationPanel(QGroupBox):
                 self.offered_profile.expanduser().resolve()):
             lines.append(f"the synchronisation wizard saved {html.escape(str(self.offered_profile))}: “Load sync "
                          "profile…” records with its phase and trigger delay")
-            short += " · " + coloured("the wizard's sync profile is not loaded (Calibration below)", AMBER)
+            if self.calibration is None:  # calibrated, the profile is an alternative, said below
+                short += " · " + coloured("the wizard's sync profile is not loaded (Calibration below)", AMBER)
         if self.error:
             lines.append(coloured(f"refused: {self.error}", RED))
         self.label.setText("<br>".join(lines))

@@ -397,3 +397,14 @@ def test_after_a_cancelled_calibration_the_steps_list_shows_the_run_the_results_
     assert cal.steps_label.text() == steps_html(len(STEPS), finished=True)  # the earlier run's, as the results
     with answering(default=True):
         w.close()
+
+
+def test_the_slider_s_default_step_gives_the_benched_default_tensor(review):
+    from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR
+
+    review.form.set_method_name("diffusion")
+    review.form.set_position(0.18)
+    assert tuple(review.form.method().tensor) == tuple(DEFAULT_TENSOR) == (0.15, 0.15, 1.0)
+    assert "not benched" not in review.expected_label.text()
+    review.form.set_position(0.25)
+    assert tuple(review.form.method().tensor) != tuple(DEFAULT_TENSOR)

@@ -34,7 +34,8 @@ class CaptureStats:
     write_rate_hz : float
         Rows written per second since the first frame arrived.
     camera_rate_hz : float
-        Frames delivered per second (measured).
+        The camera's frame rate, measured on its own clock (frame ids over timestamps; by arrival when it gives no
+        advancing timestamps).
     writer_capacity_hz : float
         Rows per second of time spent writing: what the disk path could sustain.
     elapsed_s : float

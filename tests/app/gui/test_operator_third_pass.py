@@ -408,3 +408,17 @@ def test_the_slider_s_default_step_gives_the_benched_default_tensor(review):
     assert "not benched" not in review.expected_label.text()
     review.form.set_position(0.25)
     assert tuple(review.form.method().tensor) != tuple(DEFAULT_TENSOR)
+
+
+def test_the_camera_rate_is_the_camera_s_own_not_its_delivery_bursts(tmp_path):
+    from app.capture.plan import CapturePlan
+    from app.capture.service import CaptureService
+    from rig_drivers.profile import open_rig
+    from rig_drivers.simulated_camera import VirtualClock
+
+    # the virtual clock delivers every frame at once in real time: only the camera's timestamps say 15 Hz
+    rig = open_rig("mock", scene="strobe", subframes=17 * 16, seed=0, clock=VirtualClock())
+    svc = CaptureService(rig, CapturePlan(camera_hz=15.0), tmp_path / "r.zarr", frames=17)
+    svc.start()
+    assert svc.wait(30)
+    assert svc.stats().camera_rate_hz == pytest.approx(15.0, rel=0.01)

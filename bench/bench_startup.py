@@ -3,8 +3,8 @@
 Each run starts a fresh interpreter that runs ``flexvox app`` (the simulated rig, a throw-away settings file)
 as the command line does, through ``app.cli.main``. The child logs each start-up step (the
 ``start-up: …`` lines of :mod:`app.gui.application`) and notes when the main window is shown and its event loop
-runs (usable); it then closes. Printed per run: the seconds from starting the process to each step and to the usable main window
-(the interpreter's own start included).
+runs (usable); it then closes. Printed per run: the seconds from starting the process to each step and to the
+usable main window (the interpreter's own start included).
 
 Under load, ``--busy N`` processes spinning on the CPU (pure Python loops) start before the run and are
 stopped after it (each by its process id, and each stops itself after ``--busy-limit`` seconds whatever

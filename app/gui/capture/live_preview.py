@@ -275,8 +275,8 @@ class LivePreview(QObject):
             whole = self.cost.seconds_for(H * W)
             why = (f"the whole frame would take about {whole:.1f} s a run, over the {self.budget_s:g} s budget"
                    if whole is not None else "the whole frame is not timed yet")
-            where = (f"a region of the {W}×{H} frame at full resolution, as {why}; it grows when runs get faster: drag it on "
-                     "the live view")
+            where = (f"a region of the {W}×{H} frame at full resolution, as {why}; it grows when runs get faster: "
+                     "drag it on the live view")
         frames = f"{r.n_frames} frame{'s' if r.n_frames != 1 else ''}"
         rate = f"{self.rate_hz:.1f} Hz" if self.runs > 1 else "rate after the next run"  # one run has no rate
         behind = f", {self.latency_s:.2f} s behind the camera" if self.latency_s is not None else ""

@@ -84,7 +84,8 @@ class ReconstructionResult:
 
     @property
     def where(self) -> str:
-        """Where it ran, in words: "on the CPU", "on the GPU (its name)" (:func:`~app.gui.models.device_words.where_it_ran`)."""
+        """Where it ran, in words: "on the CPU", "on the GPU (its name)", with why not the GPU
+        (:func:`~app.gui.models.device_words.where_it_ran`)."""
         return where_it_ran(self.device, self.device_note)
 
     def label(self) -> str:

@@ -122,8 +122,9 @@ def test_a_busy_machine_previews_a_region_never_a_subsampled_frame(qtbot):
     r = preview.result
     assert not r.whole_frame and r.region.pixels < 64 * 48 and r.video.shape[1:] == r.region.shape
     assert r.region.y1 == 48 and r.region.x1 == 64  # around the operator's point, inside the frame
-    assert re.search(r"a region of the 64×48 frame at full resolution, as the whole frame would take about \d+\.\d s a "
-                     r"run, over the 0\.6 s budget; it grows when runs get faster: drag it on the live view",
+    assert re.search(r"a region of the 64×48 frame at full resolution, as the whole frame would take about "
+                     r"\d+\.\d s a run, over the 0\.6 s budget; it grows when runs get faster: drag it on the "
+                     r"live view",
                      preview.text()), preview.text()
     assert preview.shutdown(5000)
 

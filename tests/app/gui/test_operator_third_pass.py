@@ -115,7 +115,8 @@ def test_ground_truth_says_what_it_costs_and_the_choice_survives_a_restart(qtbot
         again.close()
 
 
-def test_while_a_recording_finishes_its_ground_truth_the_status_says_what_is_written_and_stop_is_off(qtbot, settings, tmp_path):
+def test_while_a_recording_finishes_its_ground_truth_the_status_says_what_is_written_and_stop_is_off(
+        qtbot, settings, tmp_path):
     from dataclasses import replace
 
     w = truth_window(qtbot, settings)
@@ -158,7 +159,7 @@ def test_the_sink_says_which_ground_truth_frame_it_writes(tmp_path):
     assert svc.stats().finishing == ""
 
 
-# ---------------------------------------------------------------------- dropping a calibration asks; refusals stay second
+# ---------------------------------------------------------------------- dropping a calibration asks; refusals after
 def calibrated_window(qtbot, settings, tmp_path):
     from app.gui.models.capture_calibration import capture_identity
 
@@ -263,7 +264,8 @@ def test_where_it_ran_names_the_gpu_the_simulator_and_why_a_gpu_is_unused(monkey
     monkeypatch.setattr(words, "gpu_status", lambda: (False, "no NVIDIA driver found (libcuda)", False))
     assert words.where_it_ran("cpu") == "on the CPU"
     monkeypatch.setattr(device, "simulator", lambda: True)
-    assert words.where_it_ran("cuda").startswith("on numba-cuda's simulator (") and "no GPU" in words.where_it_ran("cuda")
+    simulated = words.where_it_ran("cuda")
+    assert simulated.startswith("on numba-cuda's simulator (") and "no GPU" in simulated
 
 
 def test_review_s_result_line_and_the_compare_list_say_where_each_result_ran(qtbot, opened):

@@ -424,3 +424,14 @@ def test_the_camera_rate_is_the_camera_s_own_not_its_delivery_bursts(tmp_path):
     svc.start()
     assert svc.wait(30)
     assert svc.stats().camera_rate_hz == pytest.approx(15.0, rel=0.01)
+
+
+def test_the_close_question_s_text_follows_the_recording_while_it_is_open(qtbot):
+    from app.gui.widgets.questions import question_box
+
+    frames = [3]
+    box = question_box(None, "Quit flexvox?", "3 frames", accept="Quit", update=lambda: f"{frames[0]} frames")
+    qtbot.addWidget(box)
+    frames[0] = 40  # the recording went on while the operator read
+    qtbot.waitUntil(lambda: box.text() == "40 frames", timeout=3000)
+    assert box.yes.text() == "Quit" and box.defaultButton() is not box.yes

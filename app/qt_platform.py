@@ -10,6 +10,7 @@ import importlib.util
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 _HEADLESS = ("offscreen", "minimal")
 _PROBE = "import sys; from PySide6.QtGui import QGuiApplication; QGuiApplication(sys.argv[:1])"
@@ -70,7 +71,50 @@ def display_problem(env=None, *, probe: bool = True) -> str | None:
         return None  # cannot tell: let Qt try
     if child.returncode == 0:
         return None
+    missing = missing_xcb_libraries() if platform in ("", "xcb") and sys.platform.startswith("linux") else []
+    if missing:  # Qt's own message names libxcb-cursor0 whatever is missing: name what is
+        packages = " ".join(debian_package(name) for name in missing)
+        return (f"Qt's X11 platform plugin (xcb) cannot load: this system lacks {', '.join(missing)} "
+                f"(Debian/Ubuntu: sudo apt install {packages}; the README lists every system library Qt needs)")
     lines = [ln.strip() for ln in child.stderr.splitlines() if ln.strip()]
     key = next((ln for ln in lines if "platform plugin" in ln or "connect to display" in ln),
                lines[0] if lines else f"exit status {child.returncode}")
     return f"Qt cannot start its platform plugin here ({key}); {_HOW}"
+
+
+def missing_xcb_libraries() -> list[str]:
+    """The shared libraries Qt's X11 platform plugin (``libqxcb.so`` and the ``libQt6XcbQpa`` it loads) needs and
+    this system lacks, by ``ldd`` (sonames such as ``libxcb-icccm.so.4``); [] when none is, or it cannot tell."""
+    import importlib.util
+    import re
+    import shutil
+
+    spec = importlib.util.find_spec("PySide6")
+    if spec is None or not spec.submodule_search_locations or shutil.which("ldd") is None:
+        return []
+    qt = Path(next(iter(spec.submodule_search_locations))) / "Qt"
+    files = [qt / "plugins" / "platforms" / "libqxcb.so", *sorted((qt / "lib").glob("libQt6XcbQpa.so*"))[:1]]
+    missing: list[str] = []
+    for f in files:
+        if not f.exists():
+            continue
+        try:
+            out = subprocess.run(["ldd", str(f)], capture_output=True, text=True, timeout=10).stdout
+        except (OSError, subprocess.TimeoutExpired):
+            return []
+        for name in re.findall(r"^\s*(\S+) => not found", out, flags=re.MULTILINE):
+            if name not in missing:
+                missing.append(name)
+    return missing
+
+
+def debian_package(soname: str) -> str:
+    """The Debian package that ships a library, by Debian's naming rule: ``libxcb-icccm.so.4`` → ``libxcb-icccm4``
+    (a name ending in a digit takes a dash: ``libfoo2.so.1`` → ``libfoo2-1``)."""
+    import re
+
+    m = re.match(r"^(lib[\w+.-]+?)\.so\.(\d+)", soname)
+    if m is None:
+        return soname
+    name, version = m.groups()
+    return f"{name}{'-' if name[-1].isdigit() else ''}{version}"

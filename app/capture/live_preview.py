@@ -108,25 +108,57 @@ def preview_region(shape: tuple[int, int], tile: tuple[int, int], max_pixels: fl
     return Region(y0, min(H, y0 + h), x0, min(W, x0 + w))
 
 
+PROBE = 1.5
+"""After a run that took under :data:`PROBE_BELOW` of the budget, the next may take on this many times its pixels
+whatever the measured cost says (at worst, all cost per pixel, it lasts 1.2 budgets): the region grows back when
+runs get faster, also where a run's fixed part makes a small region's cost per pixel look dear."""
+PROBE_BELOW = 0.8
+
+
 class PixelCost:
-    """Seconds per reconstructed pixel, the median of the last ``runs`` runs."""
+    """What a run costs: ``a + b·pixels`` fitted over the last ``runs`` runs when they covered different sizes (a
+    run's fixed part — the flow's set-up, the compiled kernels' calls — then does not count as cost per pixel), else
+    their median cost per pixel."""
 
     def __init__(self, runs: int = 3):
-        self._per_pixel: deque[float] = deque(maxlen=runs)
+        self._runs: deque[tuple[float, int]] = deque(maxlen=runs)
 
     def add(self, seconds: float, pixels: int) -> None:
         """Record a run of ``seconds`` over ``pixels``."""
         if pixels > 0 and seconds > 0:
-            self._per_pixel.append(seconds / pixels)
+            self._runs.append((float(seconds), int(pixels)))
+
+    def _model(self) -> tuple[float, float]:
+        """(fixed seconds a, seconds per pixel b) of the runs recorded."""
+        t = np.array([r[0] for r in self._runs])
+        p = np.array([r[1] for r in self._runs], float)
+        if p.max() > 1.1 * p.min():
+            b, a = np.polyfit(p, t, 1)
+            if b > 0 and a >= 0:
+                return float(a), float(b)
+        return 0.0, float(np.median(t / p))
 
     def pixels_for(self, budget_s: float, default: float) -> float:
-        """Pixels a run may take on to last about ``budget_s``; ``default`` before any run."""
-        if not self._per_pixel:
+        """Pixels a run may take on to last about ``budget_s``; ``default`` before any run; after a quick run at
+        least :data:`PROBE` times its pixels."""
+        if not self._runs:
             return default
-        return budget_s / float(np.median(self._per_pixel))
+        a, b = self._model()
+        pixels = (budget_s - a) / b if budget_s > a else budget_s / float(np.median([t / p for t, p in self._runs]))
+        seconds, last = self._runs[-1]
+        if seconds < PROBE_BELOW * budget_s:
+            pixels = max(pixels, PROBE * last)
+        return pixels
+
+    def seconds_for(self, pixels: int) -> float | None:
+        """About how long a run over ``pixels`` takes at the measured cost (None before any run)."""
+        if not self._runs:
+            return None
+        a, b = self._model()
+        return a + b * pixels
 
     def clear(self) -> None:
-        self._per_pixel.clear()
+        self._runs.clear()
 
 
 def normalise(image: np.ndarray) -> np.ndarray:

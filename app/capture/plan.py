@@ -13,6 +13,7 @@ function calibration verifies with: what was verified is what is projected.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from functools import cached_property
@@ -24,7 +25,6 @@ from calibration.capture_setup import CaptureCalibration
 from calibration.session import EXPOSURE_MARGIN_US
 from calibration.shutter import ShutterPatterns, make_shutter_patterns
 from flexvox_core.codes import code_from_order, verify
-from flexvox_core.design import design_code
 from flexvox_core.divisions import Division
 from flexvox_core.multiplex import MultiplexedCode, multiplexed_code
 from flexvox_core.rates import MAX_CAMERA_HZ
@@ -70,6 +70,20 @@ class TimingCheck:
     def ok(self) -> bool:
         """No errors."""
         return not self.errors
+
+
+def designed_code(tile: tuple[int, int]) -> np.ndarray:
+    """The tile's designed identity code (m, n, K) bool, a fresh copy. The design (``flexvox_core.design``, which
+    loads scipy.optimize) runs once per tile and process; the application's start-up runs it for the remembered
+    tile behind its start-up window."""
+    return _designed(tuple(int(v) for v in tile)).copy()
+
+
+@functools.lru_cache(maxsize=16)
+def _designed(tile: tuple[int, int]) -> np.ndarray:
+    from flexvox_core.design import design_code  # scipy.optimize: only when a code is designed
+
+    return design_code(tile).require()
 
 
 @dataclass(frozen=True)
@@ -167,7 +181,7 @@ class CapturePlan:
             return multiplexed_code(self.tile, placement=self.placement)
         if self.order is not None:
             return code_from_order(self.order)
-        return design_code(self.tile).require()
+        return designed_code(self.tile)
 
     @property
     def code(self) -> np.ndarray:
@@ -230,7 +244,7 @@ class CapturePlan:
         if drift > 1e-6:
             notes.append(f"the projector counts whole µs: {self.K} × {period} µs = {seq / 1000:.3f} ms < "
                          f"{frame_us / 1000:.3f} ms, so a free-running camera drifts one slot every "
-                         f"{period / drift / self.camera_hz:.0f} s: trigger it from TRIG_OUT_2 or the sync box")
+                         f"{_duration(period / drift / self.camera_hz)}: trigger it from TRIG_OUT_2 or the sync box")
         return TimingCheck(period, proj, seq, cam, tuple(errors), tuple(notes))
 
     def patterns(self, camera_size: tuple[int, int], projector_size: tuple[int, int],
@@ -246,3 +260,12 @@ class CapturePlan:
         phase, _delay, _warnings = cal.for_plan(self.K, self.period_us)
         return make_shutter_patterns(self.code, cal.homography, camera_size, projector_size, phase_slots=phase,
                                      layout=layout)
+
+
+def _duration(seconds: float) -> str:
+    """A time in words a timing note can give: "12 s", "1.5 s", "40 ms"."""
+    if seconds >= 10:
+        return f"{seconds:.0f} s"
+    if seconds >= 1:
+        return f"{seconds:.1f} s"
+    return f"{seconds * 1000:.0f} ms"

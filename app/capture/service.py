@@ -212,6 +212,7 @@ class CaptureService:
         self._t_start = 0.0
         self._t_first = None
         self._t_last_arrival = None
+        self._first_stamp = self._last_stamp = None
         self._first_id: int | None = None
         self._last_seen_id: int | None = None
 
@@ -248,11 +249,20 @@ class CaptureService:
                 queue_drops=self._queue_drops, queue_depth=self._queue.qsize(),
                 queue_capacity=self.policy.capacity, max_queue_depth=self._max_depth,
                 write_rate_hz=(rows - 1) / span_w if span_w > 0 else 0.0,
-                camera_rate_hz=(self._received - 1) / span_c if span_c > 0 else 0.0,
+                camera_rate_hz=self._camera_rate(span_c),
                 writer_capacity_hz=rows / write_busy if write_busy > 0 else 0.0,
                 elapsed_s=(now - self._t_start) if self._t_start else 0.0,
                 state=self._state.value,
+                finishing=self.sink.finishing,
             )
+
+    def _camera_rate(self, arrival_span_s: float) -> float:
+        """The camera's frame rate on its own clock: frame ids over timestamps (frames the driver delivers in a burst
+        after a stall do not raise it); by arrival when the timestamps do not advance. Called under the lock."""
+        first, last = self._first_stamp, self._last_stamp
+        if first is not None and last is not None and last > first and self._last_seen_id > self._first_id:
+            return (self._last_seen_id - self._first_id) / (last - first)
+        return (self._received - 1) / arrival_span_s if arrival_span_s > 0 else 0.0
 
     def start(self) -> None:
         """Take the recording's path, set up the devices and start capturing on worker threads.
@@ -339,7 +349,9 @@ class CaptureService:
                     if self._t_first is None:
                         self._t_first = now
                         self._first_id = frame.frame_id
+                        self._first_stamp = frame.timestamp_s
                     self._t_last_arrival = now
+                    self._last_stamp = frame.timestamp_s
                     self._received += 1
                     self._last_seen_id = frame.frame_id
                 self._latest.put(frame)

@@ -121,6 +121,8 @@ class RecordingSink:
         self._writer = None
         self.refused: str | None = None
         """Why the recording could not be created (None: it was, or was not tried yet)."""
+        self.finishing = ""
+        """What :meth:`finalise` is writing now, in words ("" before and after it)."""
         self._lock = threading.Lock()
         self._rows = 0
         self._drops = 0
@@ -274,8 +276,8 @@ class RecordingSink:
         try:
             if self._writer is not None:
                 if self._ground_truth is not None and reason != "error" and self._writer.count:
-                    K = self.plan.K
-                    self._writer.write_ground_truth_frames(self._ground_truth(int(i), K) for i in self._ids)
+                    self._writer.write_ground_truth_frames(self._truth_rows())
+                self.finishing = "closing the recording (the per-frame arrays, the journal removed)"
                 self._writer.close(attrs_update={"capture": capture_attrs})
         except (OSError, RecordingError) as exc:
             note = f"; finalising failed ({os_message(exc)}), the capture journal was kept"
@@ -286,8 +288,16 @@ class RecordingSink:
                 except (OSError, RecordingError) as exc2:
                     _logger.error("capture: closing %s failed again: %s", self.path, exc2)
         finally:
+            self.finishing = ""
             self.release()
         return note
+
+    def _truth_rows(self):
+        """The ground truth's rows, one per recorded frame, saying in :attr:`finishing` how far it is."""
+        K, n = self.plan.K, len(self._ids)
+        for done, i in enumerate(self._ids):
+            self.finishing = f"writing the scene's ground truth: frame {done + 1} of {n}"
+            yield self._ground_truth(int(i), K)
 
     def what_was_recorded(self) -> tuple[int | None, str]:
         """(frames the recording on disk holds or None, the sentence that says so)."""

@@ -34,11 +34,15 @@ class CaptureStats:
     write_rate_hz : float
         Rows written per second since the first frame arrived.
     camera_rate_hz : float
-        Frames delivered per second (measured).
+        The camera's frame rate, measured on its own clock (frame ids over timestamps; by arrival when it gives no
+        advancing timestamps).
     writer_capacity_hz : float
         Rows per second of time spent writing: what the disk path could sustain.
     elapsed_s : float
     state : str
+    finishing : str
+        While the recording is finalised after its last frame, what is being written ("writing the ground truth:
+        frame 120 of 300", "closing the recording"); "" otherwise.
     """
 
     frames_received: int = 0
@@ -53,6 +57,7 @@ class CaptureStats:
     writer_capacity_hz: float = 0.0
     elapsed_s: float = 0.0
     state: str = CaptureState.IDLE.value
+    finishing: str = ""
 
 
 @dataclass(frozen=True)

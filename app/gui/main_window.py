@@ -68,6 +68,7 @@ class MainWindow(QMainWindow):
         self.capture.recording_finished.connect(lambda _: self.calibrate.recheck_refusals())
         self.calibrate.status.connect(lambda text: self.statusBar().showMessage(text, 8000))
         self.calibrate.use_for_capture.connect(self._use_for_capture)
+        self.calibrate.sync_profile_saved.connect(self.capture.calibration_panel.offer_sync_profile)
         self.calibrate.save_panel.saved.connect(
             lambda path: self.capture.outcome_saved(self.calibrate.save_panel.outcome, path))
 
@@ -141,6 +142,11 @@ class MainWindow(QMainWindow):
         """What closing the window now would stop or lose, in words (empty: nothing)."""
         return self.capture.closing_losses() + self.calibrate.closing_losses() + self.review.closing_losses()
 
+    @staticmethod
+    def closing_question(losses: list[str]) -> str:
+        """The close question's text for ``losses`` (it follows them while it is open: the frames go on)."""
+        return "Closing the window now:\n\n" + "\n".join(f"• {line}" for line in losses) + "\n\nQuit anyway?"
+
     def closeEvent(self, event) -> None:  # noqa: N802 - Qt's name
         """Ask first when closing would stop a recording or a calibration or lose results; then stop live view and
         jobs, close devices, save the window."""
@@ -148,8 +154,8 @@ class MainWindow(QMainWindow):
             event.accept()
             return
         losses = self.closing_losses()
-        if losses and not ask(self, "Quit flexvox?", "Closing the window now:\n\n" + "\n".join(
-                f"• {line}" for line in losses) + "\n\nQuit anyway?", accept="Quit", reject="Keep working"):
+        if losses and not ask(self, "Quit flexvox?", self.closing_question(losses), accept="Quit",
+                              reject="Keep working", update=lambda: self.closing_question(self.closing_losses())):
             event.ignore()
             return
         self._closed = True

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import cv2
 import numpy as np
 
@@ -34,21 +36,42 @@ def shift_image(img: np.ndarray, dx: float, dy: float) -> np.ndarray:
 
 def disc_coverage(height: int, width: int, cx: float, cy: float, r: float, supersample: int = 4) -> np.ndarray:
     """Fraction of each pixel covered by a disc (anti-aliased by supersampling)."""
-    offs = (np.arange(supersample, dtype=np.float32) + 0.5) / supersample - 0.5
-    yy = np.arange(height, dtype=np.float32)[:, None, None, None] + offs[None, None, :, None]
-    xx = np.arange(width, dtype=np.float32)[None, :, None, None] + offs[None, None, None, :]
-    inside = (xx - cx) ** 2 + (yy - cy) ** 2 <= r * r
-    return inside.mean(axis=(2, 3)).astype(np.float32)
+    out = np.zeros((height, width), np.float32)
+    rows, cols = _box(height, width, cx - r, cy - r, cx + r, cy + r)
+    if rows.start < rows.stop and cols.start < cols.stop:
+        yy, xx = _samples(rows, cols, supersample)
+        inside = (xx - cx) ** 2 + (yy - cy) ** 2 <= r * r
+        out[rows, cols] = inside.mean(axis=(2, 3))
+    return out
 
 
 def bar_coverage(height: int, width: int, x0: float, y0: float, x1: float, y1: float,
                  half_width: float, supersample: int = 3) -> np.ndarray:
     """Fraction of each pixel covered by a thick segment from (x0, y0) to (x1, y1)."""
+    out = np.zeros((height, width), np.float32)
+    rows, cols = _box(height, width, min(x0, x1) - half_width, min(y0, y1) - half_width,
+                      max(x0, x1) + half_width, max(y0, y1) + half_width)
+    if rows.start < rows.stop and cols.start < cols.stop:
+        yy, xx = _samples(rows, cols, supersample)
+        dx, dy = x1 - x0, y1 - y0
+        length2 = max(dx * dx + dy * dy, 1e-9)
+        t = np.clip(((xx - x0) * dx + (yy - y0) * dy) / length2, 0, 1)
+        dist2 = (xx - x0 - t * dx) ** 2 + (yy - y0 - t * dy) ** 2
+        out[rows, cols] = (dist2 <= half_width**2).mean(axis=(2, 3))
+    return out
+
+
+def _box(height: int, width: int, left: float, top: float, right: float, bottom: float) -> tuple[slice, slice]:
+    """The pixels a shape within ``[left, right] × [top, bottom]`` can cover (a pixel's samples lie within half a
+    pixel of its centre; one pixel of margin more), clipped to the image. Outside them the coverage is 0."""
+    rows = slice(max(0, math.floor(top) - 1), min(height, math.ceil(bottom) + 2))
+    cols = slice(max(0, math.floor(left) - 1), min(width, math.ceil(right) + 2))
+    return rows, cols
+
+
+def _samples(rows: slice, cols: slice, supersample: int) -> tuple[np.ndarray, np.ndarray]:
+    """The supersampled positions (y, x) of the pixels ``rows × cols``, shaped (h, w, s, s) by broadcasting."""
     offs = (np.arange(supersample, dtype=np.float32) + 0.5) / supersample - 0.5
-    yy = np.arange(height, dtype=np.float32)[:, None, None, None] + offs[None, None, :, None]
-    xx = np.arange(width, dtype=np.float32)[None, :, None, None] + offs[None, None, None, :]
-    dx, dy = x1 - x0, y1 - y0
-    length2 = max(dx * dx + dy * dy, 1e-9)
-    t = np.clip(((xx - x0) * dx + (yy - y0) * dy) / length2, 0, 1)
-    dist2 = (xx - x0 - t * dx) ** 2 + (yy - y0 - t * dy) ** 2
-    return (dist2 <= half_width**2).mean(axis=(2, 3)).astype(np.float32)
+    yy = np.arange(rows.start, rows.stop, dtype=np.float32)[:, None, None, None] + offs[None, None, :, None]
+    xx = np.arange(cols.start, cols.stop, dtype=np.float32)[None, :, None, None] + offs[None, None, None, :]
+    return yy, xx

@@ -34,7 +34,7 @@ from app.gui.models.calibration_model import CalibrationTarget
 from app.gui.models.jobs import CancelToken
 from app.gui.models.operator_words import in_gui_words
 from app.gui.widgets.qt_jobs import JobHandle, JobRunner
-from app.gui.widgets.questions import replace_question
+from app.gui.widgets.questions import ask, replace_question
 from app.gui.widgets.rich_text import AMBER, GREEN, RED
 from app.gui.widgets.status_line import StatusLine
 
@@ -221,15 +221,23 @@ class PhasePage(_JobPage):
         owner = self.owner
         K = owner.tile[0] * owner.tile[1]
 
-        def checked(done, total):
-            progress(done, total)
-            token.check()
+        stages = 1 if owner.homography is None else 0  # the homography first, when measured here: one bar, 0→100 %
+
+        shown = [0]
+
+        def part(stage):
+            def checked(done, total):  # stage s of the bar's (stages + 1) equal parts: it never goes back
+                shown[0] = max(shown[0], int(1000 * (stage + min(done / max(total, 1), 1.0))))
+                progress(shown[0], 1000 * (stages + 1))
+                token.check()
+            return checked
 
         with owner.target.session() as session:
             identity = session.identity
             h = owner.homography
+            checked = part(stages)
             if h is None:
-                hom = calibrate_homography(session, progress=checked)
+                hom = calibrate_homography(session, progress=part(0))
                 if hom.homography is None or not hom.success:
                     return None, f"the homography (needed for the band code) failed: {hom.message}", identity
                 h = hom.homography
@@ -295,15 +303,29 @@ class SavePage(QWizardPage):
         self.setSubTitle("Writes the sync profile (phase, delay, drop/drift verdict) tied to this rig.")
         self.path = QLineEdit()
         self.path.setPlaceholderText("folder/sync-profile.json")
+        self.browse_button = QPushButton("Browse…")
         self.button = QPushButton("Save sync profile")
         self.label = StatusLine(lines=2)
         v = QVBoxLayout(self)
-        v.addWidget(self.path)
+        row = QHBoxLayout()
+        row.addWidget(self.path, 1)
+        row.addWidget(self.browse_button)
+        v.addLayout(row)
         v.addWidget(self.button)
         v.addWidget(self.label)
         v.addStretch(1)
         self.button.clicked.connect(lambda: self.save(self.path.text().strip()))
+        self.browse_button.clicked.connect(self._browse)
         self.written: Path | None = None
+
+    def _browse(self) -> None:
+        from PySide6.QtWidgets import QFileDialog
+
+        start = self.path.text().strip() or "sync-profile.json"
+        path, _ = QFileDialog.getSaveFileName(self, "Save the sync profile", start, "flexvox sync profile (*.json)",
+                                              options=QFileDialog.Option.DontConfirmOverwrite)  # save asks
+        if path:
+            self.path.setText(path if path.endswith(".json") else path + ".json")
 
     def save(self, path) -> Path | None:
         """Write the profile; None (with the reason shown) when it cannot. An existing file is replaced only when
@@ -379,6 +401,27 @@ class SyncWizard(QWizard):
         """Cancel every running measurement."""
         for page in (self.trigger, self.phase, self.drift):
             page.cancel()
+
+    def unsaved_work(self) -> list[str]:
+        """The finished measurements that closing the wizard now would lose (not saved as a profile), in words."""
+        if self.save_page.written is not None:
+            return []
+        out = []
+        if self.sync is not None and self.sync.success:
+            out.append(f"the phase sweep's result (phase {self.sync.effective_phase_slots}, camera trigger delay "
+                       f"{self.sync.recommended_camera_delay_us:.0f} µs)")
+        if self.frame_check is not None:
+            out.append("the drop/drift test's verdict")
+        return out
+
+    def reject(self) -> None:
+        """Cancel (or Esc, or the window's close box): ask first when finished measurements would be lost."""
+        lost = self.unsaved_work()
+        if lost and not ask(self, "Close the synchronisation wizard?", "Closing the wizard now loses, not saved as a "
+                            "sync profile:\n\n" + "\n".join(f"• {w}" for w in lost) + "\n\nClose anyway?",
+                            accept="Close and lose them", reject="Keep working"):
+            return
+        super().reject()
 
     def done(self, result: int) -> None:
         """Closing the wizard cancels what it measures."""

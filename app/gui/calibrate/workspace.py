@@ -99,6 +99,8 @@ class CalibrateWorkspace(QWidget):
     calibrated = Signal(object)
     """A :class:`CalibrationOutcome` (successful or not) after each run."""
     use_for_capture = Signal(object)
+    sync_profile_saved = Signal(object)
+    """``(path)``: the synchronisation wizard finished with a profile saved there."""
     """The successful outcome the operator hands to the Capture workspace."""
 
     def __init__(self, service: RigService, settings: AppSettings, runner: JobRunner, *, rig_guard=None,
@@ -113,6 +115,8 @@ class CalibrateWorkspace(QWidget):
         self.tracker: StepTracker | None = None
         self.wizard = None
         """The synchronisation wizard while it is open."""
+        self.sync_profile = None
+        """The sync profile the wizard last saved (None: none this session)."""
         self._before_refusal: str | None = None
         """The step line before a refusal took its place (None: no refusal shown)."""
         self.results_view = ResultsView()
@@ -290,6 +294,9 @@ class CalibrateWorkspace(QWidget):
     def _kept(self, what: str) -> None:
         """The run ended without a result (``what`` happened): the previous result stays offered, and shown."""
         previous = self.outcome
+        # The Steps list shows the run the results show (the earlier one), not the steps of the one that ended.
+        self.steps_label.setText(steps_html(len(STEPS), finished=previous.success) if previous is not None
+                                 else steps_html(-1))
         if previous is not None:
             self.results_view.show_outcome(previous, note=f"{what}; shown: the calibration of {previous.finished_at}")
             kept = "can still be saved" if previous.success else "stays"
@@ -345,6 +352,12 @@ class CalibrateWorkspace(QWidget):
         return wizard
 
     def _wizard_finished(self, _result: int) -> None:
+        written = self.wizard.save_page.written if self.wizard is not None else None
+        if written is not None:
+            self.sync_profile = written
+            self.wizard_button.setToolTip(f"last sync profile saved: {written}")
+            self.status.emit(f"sync profile saved: {written}; Capture offers it (“Load sync profile…”)")
+            self.sync_profile_saved.emit(written)
         self.wizard = None
         self.screen.release("wizard")
         self.service.end_use(WIZARD_USER)
@@ -364,6 +377,8 @@ class CalibrateWorkspace(QWidget):
             out.append("the calibration running stops; its result is lost")
         if self.wizard is not None and self.wizard.measuring():
             out.append("the synchronisation wizard's measurement stops")
+        if self.wizard is not None:
+            out += [f"{w} is lost (not saved as a sync profile)" for w in self.wizard.unsaved_work()]
         o = self.outcome
         if o is not None and o.success and self.save_panel.saved_path is None:
             out.append(f"the calibration that succeeded at {o.finished_at} is not saved: it is lost (the next start "

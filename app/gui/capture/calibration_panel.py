@@ -84,6 +84,10 @@ class CalibrationPanel(QGroupBox):
         self.accepted: set[str] = set()
         """The risks the operator already accepted for this calibration (see :meth:`record_risks`)."""
         self._plan: CapturePlan | None = None
+        self.file_changed = False
+        """The calibration file restored at start differs from the one last used (its hash changed)."""
+        self.offered_profile: Path | None = None
+        """The sync profile the wizard saved this session, until it is loaded."""
         self.label = QLabel()
         self.label.setWordWrap(True)
         self.label.setTextFormat(Qt.TextFormat.RichText)
@@ -93,9 +97,9 @@ class CalibrationPanel(QGroupBox):
         self.load_button = QPushButton("Load calibration…")
         self.sync_button = QPushButton("Load sync profile…")
         self.sync_button.setToolTip("the synchronisation wizard's profile: its phase and camera trigger delay")
-        self.clear_button = QPushButton("Record uncalibrated")
-        self.clear_button.setToolTip("forget the calibration: record with the identity homography, phase 0 and no "
-                                     "trigger delay")
+        self.clear_button = QPushButton("Drop the calibration…")
+        self.clear_button.setToolTip("stop using the calibration: recordings and the live view then use the identity "
+                                     "homography, phase 0 and no trigger delay (it asks first; the file stays)")
         self.delay_check = QCheckBox("trigger delay set on the camera (it cannot be told one)")
         self.delay_check.setToolTip("this camera has no trigger-delay feature: set the delay shown above in its "
                                     "vendor's tool, then tick this")
@@ -108,7 +112,7 @@ class CalibrationPanel(QGroupBox):
         v.addWidget(self.delay_check)
         self.load_button.clicked.connect(self._ask_calibration)
         self.sync_button.clicked.connect(self._ask_sync_profile)
-        self.clear_button.clicked.connect(self.clear)
+        self.clear_button.clicked.connect(self.ask_clear)
         self.delay_check.toggled.connect(lambda _: self._show())
         self._show()
 
@@ -146,6 +150,7 @@ class CalibrationPanel(QGroupBox):
             self._show()
             return False
         self.calibration, self.error, self.note = calibration, "", ""
+        self.file_changed = False
         self.run_outcome = outcome
         self.accepted.clear()
         if calibration_file is not None:
@@ -179,9 +184,25 @@ class CalibrationPanel(QGroupBox):
         return self._take(lambda: from_run(run, run_identity, self._identity()), calibration_file="",
                           outcome=outcome)
 
+    def ask_clear(self) -> bool:
+        """"Drop the calibration…": ask first, naming the calibration in use and what recordings use instead; True
+        when it was dropped."""
+        if self.calibration is None:
+            return False
+        if not ask(self, "Drop the calibration?",
+                   f"Recordings and the live view now use: {self.calibration.describe()}.\n\n"
+                   "Dropped, they use the identity projector-to-camera map, phase 0 and no trigger delay: on this "
+                   "rig most pixels would see the wrong slot. A calibration file stays on disk (“Load "
+                   "calibration…” takes it again); a run not saved is lost.",
+                   accept="Drop the calibration", reject="Keep it"):
+            return False
+        self.clear()
+        return True
+
     def clear(self) -> None:
         """Record uncalibrated (the operator's choice: Record does not ask about it again)."""
         self.calibration, self.error, self.note, self.run_outcome = None, "", "", None
+        self.file_changed = False
         self.accepted = {UNCALIBRATED}
         self._remember("", "")
         self._show()
@@ -208,6 +229,7 @@ class CalibrationPanel(QGroupBox):
         notes = [f"restored at start: {path or sync}, checked against this rig"]
         if path and remembered and self.calibration.sha256 != remembered:
             notes.append("the file changed since it was last used")
+            self.file_changed = True
         self.note = "; ".join(notes)
         self._show()
         _logger.info("calibration restored: %s", self.note)
@@ -218,10 +240,22 @@ class CalibrationPanel(QGroupBox):
         self.error = message
         self._show()
 
+    def offer_sync_profile(self, path) -> None:
+        """The sync wizard saved a profile: say so here, and how to record with it (it is not taken unasked)."""
+        self.offered_profile = Path(path)
+        self._show()
+
+    def forget_refusal(self) -> None:
+        """The last refused load is old news once the live view or a recording starts with what is in use."""
+        if self.error:
+            self.error = ""
+            self._show()
+
     def set_locked(self, locked: bool) -> None:
-        """Grey the buttons out while a recording runs."""
+        """Grey the buttons out while a recording runs (Drop has nothing to drop when uncalibrated)."""
         for w in (self.load_button, self.sync_button, self.clear_button, self.delay_check):
             w.setEnabled(not locked)
+        self.clear_button.setEnabled(not locked and self.calibration is not None)
 
     # ------------------------------------------------------------------ what recordings use
     def capture_calibration(self) -> CaptureCalibration:
@@ -303,9 +337,18 @@ class CalibrationPanel(QGroupBox):
                 if needs_hand and not self.delay_set_by_hand:
                     short += coloured(" — set the delay on the camera (Calibration below)", AMBER)
         self.delay_check.setVisible(needs_hand)
+        if self.offered_profile is not None and self.settings.get_str(SYNC_PROFILE_FILE, "") != str(
+                self.offered_profile.expanduser().resolve()):
+            lines.append(f"the synchronisation wizard saved {html.escape(str(self.offered_profile))}: “Load sync "
+                         "profile…” records with its phase and trigger delay")
+            if self.calibration is None:  # calibrated, the profile is an alternative, said below
+                short += " · " + coloured("the wizard's sync profile is not loaded (Calibration below)", AMBER)
         if self.error:
             lines.append(coloured(f"refused: {self.error}", RED))
         self.label.setText("<br>".join(lines))
-        if self.error:
-            short = coloured(f"refused: {self.error}", RED) + " · " + short
+        if self.calibration is not None and self.file_changed:
+            short += coloured(" — the file changed since it was last used", AMBER)
+        if self.error:  # after what is in use: the refusal changed nothing
+            short += " · " + coloured(f"not loaded: {self.error}", RED)
+        self.clear_button.setEnabled(self.calibration is not None and self.load_button.isEnabled())
         self.status_label.setText(short)

@@ -177,6 +177,9 @@ class LivePanel(QObject):
             self.start()
         else:
             self.stop()
+        # From the end of the action too: a busy machine may take longer than the debounce to start the live
+        # view, and the second click of a double click is handled only then.
+        self._toggled_at = self.clock()
 
     def start(self) -> bool:
         """Start the live view; False (with the reason shown) when it cannot start."""

@@ -44,6 +44,7 @@ from app.capture.live_preview import (
     Region,
     preview_region,
 )
+from app.gui.models.device_words import where_it_ran
 from app.gui.widgets.qt_jobs import JobRunner
 from flexvox_core.numbers import positive_number
 
@@ -90,11 +91,13 @@ class LivePreview(QObject):
         super().__init__(parent)
         from flexvox_core.gpu.device import DeviceUnavailable, resolve_device
 
+        self.device_note: str | None = None
+        """Why the preview runs on the CPU although the GPU was asked for (None: it was not, or it runs there)."""
         try:
             self.device = resolve_device(device)
         except DeviceUnavailable as exc:
             _logger.warning("live preview on the CPU: %s", exc)
-            self.device = "cpu"
+            self.device, self.device_note = "cpu", str(exc)
         if self.device == "cuda":  # the whole frame from the first run on, no rest
             max_pixels, rest_fraction = 2**31 - 1, 0.0
         if not (isinstance(rest_fraction, int | float) and math.isfinite(rest_fraction) and rest_fraction >= 0):
@@ -266,12 +269,21 @@ class LivePreview(QObject):
             return "preview: waiting for frames …" if self.enabled else "preview: off"
         w, h = r.size
         H, W = r.frame_shape
-        where = ("the whole frame" if r.whole_frame
-                 else f"a region of {W}×{H} at full resolution: drag it on the live view")
+        if r.whole_frame:
+            where = "the whole frame"
+        else:
+            whole = self.cost.seconds_for(H * W)
+            why = (f"the whole frame would take about {whole:.1f} s a run, over the {self.budget_s:g} s budget"
+                   if whole is not None else "the whole frame is not timed yet")
+            where = (f"a region of the {W}×{H} frame at full resolution, as {why}; it grows when runs get faster: "
+                     "drag it on the live view")
         frames = f"{r.n_frames} frame{'s' if r.n_frames != 1 else ''}"
         rate = f"{self.rate_hz:.1f} Hz" if self.runs > 1 else "rate after the next run"  # one run has no rate
         behind = f", {self.latency_s:.2f} s behind the camera" if self.latency_s is not None else ""
-        on = " on the GPU" if r.device == "cuda" else ""
+        note = self.device_note
+        if r.device == "cpu" and r.method != "motion-aware" and self.device == "cuda":
+            note = f"the {r.method} preview runs on the CPU"
+        on = " " + where_it_ran(r.device, note)
         return (f"{r.method} preview{on}: {w}×{h} ({where}), {frames}, {rate}, {r.seconds:.2f} s per run{behind} · "
                 f"{self.runs} of {self.offered} camera frames previewed (newest wins)")
 

@@ -36,7 +36,7 @@ from PySide6.QtWidgets import (
 
 from app.gui.capture.capture_signals import CaptureSignals
 from app.gui.models.operator_words import in_gui_words
-from app.gui.models.recording import counters_text, make_capture, result_text
+from app.gui.models.recording import counters_text, ground_truth_cost, make_capture, result_text
 from app.gui.models.rig_service import RigService
 from app.gui.widgets.collapsible import Collapsible
 from app.gui.widgets.qt_jobs import JobRunner
@@ -123,14 +123,18 @@ class RecordPanel(QObject):
         self.frames_box.setRange(0, 10_000_000)
         self.frames_box.setSpecialValueText("until Stop")
         self.frames_box.setValue(self.settings.get_int("capture/frames", 150))
-        self.durable_check = QCheckBox("flush every frame to disk (survives a power cut; slower)")
-        self.durable_check.setToolTip("flexvox capture --durable: each frame's chunk and journal record reach the "
-                                      "disk before the next frame, so a power cut loses at most the frame in "
-                                      "flight. Without it, a killed program still loses nothing.")
+        self.durable_check = QCheckBox("flush each frame to disk (slower)")
+        self.durable_check.setToolTip("survives a power cut (flexvox capture --durable): each frame's chunk and "
+                                      "journal record reach the disk before the next frame, so a power cut loses at "
+                                      "most the frame in flight. Without it, a killed program still loses nothing.")
         self.durable_check.setChecked(self.settings.get_bool("capture/durable", False))
         self.truth_check = QCheckBox("store the scene's ground truth (simulated rig)")
-        self.truth_check.setChecked(self.service.simulated)
+        self.truth_check.setChecked(self.service.simulated and self.settings.get_bool("capture/ground_truth", True))
         self.truth_check.setVisible(self.service.simulated)
+        self.truth_cost = StatusLine("", lines=2)  # what the ground truth costs, shown while it is ticked
+        self.truth_cost.setStyleSheet("color: gray")
+        self._finish_started: float | None = None
+        self._with_truth = False
         self.record_button = QPushButton("● Record")
         self.stop_button = QPushButton("■ Stop")
         self.stop_button.setEnabled(False)
@@ -155,6 +159,7 @@ class RecordPanel(QObject):
         rv.addLayout(f)
         rv.addWidget(self.options)
         rv.addLayout(buttons)
+        rv.addWidget(self.truth_cost)
         for w in (self.counters_label, self.recording_label, self.review_button):
             rv.addWidget(w)
         self.box = rec
@@ -166,11 +171,41 @@ class RecordPanel(QObject):
         self.path_edit.textChanged.connect(lambda text: self.settings.set("capture/recording_path", text))
         self.frames_box.valueChanged.connect(lambda n: self.settings.set("capture/frames", n))
         self.durable_check.toggled.connect(lambda on: self.settings.set("capture/durable", on))
+        self.truth_check.toggled.connect(self._on_truth_toggled)
+        self.frames_box.valueChanged.connect(lambda _: self.show_truth_cost())
+        self.show_truth_cost()
+
+    def _on_truth_toggled(self, on: bool) -> None:
+        self.settings.set("capture/ground_truth", on)  # the next start keeps the operator's choice
+        self.show_truth_cost()
+
+    def show_truth_cost(self) -> None:
+        """Say what the ground truth costs while it is ticked: size per frame and second, the longer finish."""
+        sim = self.service.rig.simulated
+        on = sim is not None and self.truth_check.isChecked()
+        self.truth_cost.setVisible(on)
+        if not on:
+            return
+        try:
+            plan = self._plan()
+            K, hz = plan.K, plan.camera_hz
+        except ValueError:
+            return
+        H, W = sim.camera.sensor_shape
+        measured = self.settings.get_float("capture/truth_finish_s_per_frame", -1.0)
+        self.truth_cost.setText(ground_truth_cost(K, H, W, hz, self.frames_box.value() or None,
+                                                  measured if measured > 0 else None))
+
+    @property
+    def finishing(self) -> bool:
+        """The recording has its last frame and is being finalised: Stop can do nothing more."""
+        return self.recording and self._finish_started is not None
 
     def update_buttons(self, plan_ok: bool) -> None:
         """Enable what can be used now (``plan_ok``: the plan's timing is accepted)."""
         self.record_button.setEnabled(plan_ok and not self.recording)
-        self.stop_button.setEnabled(self.recording and self._stop_job is None)
+        self.stop_button.setEnabled(self.recording and self._stop_job is None and not self.finishing)
+        self.show_truth_cost()
         for w in (self.path_edit, self.browse_button, self.frames_box, self.durable_check, self.truth_check):
             w.setEnabled(not self.recording)
 
@@ -233,11 +268,12 @@ class RecordPanel(QObject):
         self._before_record()
         frames = self.frames_box.value() or None
         options = {} if self.capture_factory is None else {"factory": self.capture_factory}
+        with_truth = self.service.simulated and self.truth_check.isChecked()
         try:
             capture = make_capture(self.service, plan, path, frames=frames,
                                    calibration=self._calibration(), delay_set_by_hand=self._delay_set_by_hand(),
                                    overwrite=overwrite, durable=self.durable_check.isChecked(),
-                                   ground_truth=self.service.simulated and self.truth_check.isChecked(), **options)
+                                   ground_truth=with_truth, **options)
         except (CaptureError, ValueError) as exc:
             self._refuse(f"cannot record: {in_gui_words(str(exc))}", busy=False)
             return False
@@ -247,6 +283,8 @@ class RecordPanel(QObject):
         self.last_result = None
         self.recording = True
         self._stop_job = None
+        self._finish_started = None
+        self._with_truth = with_truth
         self.review_button.setEnabled(False)
         self.changed.emit()
         self.say(f"starting: setting up the rig for {capture.path.name} …")
@@ -285,7 +323,9 @@ class RecordPanel(QObject):
         capture, start = self.capture, self._start_job
         if not self.recording or capture is None or self._stop_job is not None:
             return
-        self.say("stopping: writing the frames still queued …")
+        depth = capture.stats().queue_depth
+        self.say(f"stopping: writing the {depth} frame{'s' if depth != 1 else ''} still queued …" if depth else
+                 "stopping: the camera stops; then the recording is finalised …")
 
         def stop(token, progress):
             while start is not None and start.outcome is None:  # still setting up: stop once it runs
@@ -307,6 +347,11 @@ class RecordPanel(QObject):
     def _on_progress(self, capture, stats) -> None:
         if capture is self.capture and self.recording:
             self.counters_label.setText(counters_text(stats, capture.n_target, capture.frame_period_s))
+            if stats.finishing:
+                if self._finish_started is None:
+                    self._finish_started = time.monotonic()
+                    self.changed.emit()  # Stop goes grey: there is nothing left to stop
+                self.say(f"finishing {capture.path.name}: {stats.finishing} …")
 
     def _on_finished(self, capture, result) -> None:
         if self._stop_job is None:  # else Stop's job reports the end
@@ -319,6 +364,11 @@ class RecordPanel(QObject):
         self.recording = False
         self._stop_job = None
         self.last_result = result
+        if self._finish_started is not None and self._with_truth and result is not None and result.ok \
+                and result.frames_in_recording:
+            per_frame = (time.monotonic() - self._finish_started) / result.frames_in_recording
+            self.settings.set("capture/truth_finish_s_per_frame", per_frame)
+        self._finish_started = None
         if result is not None:
             self.counters_label.setText(counters_text(result.stats, capture.n_target, capture.frame_period_s))
         if error is not None:

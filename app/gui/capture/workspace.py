@@ -86,6 +86,8 @@ class CaptureWorkspace(QWidget):
         self.code.changed.connect(self._plan_changed)
         self.calibration_panel.changed.connect(self._calibration_changed)
         self.record_panel.started.connect(self.live_panel.follow_capture)
+        self.record_panel.started.connect(lambda _: self.calibration_panel.forget_refusal())
+        self.live_panel.live_button.toggled.connect(lambda on: on and self.calibration_panel.forget_refusal())
         self.record_panel.finished.connect(self._recording_ended)
         self.record_panel.changed.connect(self._update_buttons)
         self.record_panel.open_requested.connect(self.open_requested)

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from app.gui.models.device_words import short_where, where_it_ran
 from flexvox_core.methods import Method, run
 
 Progress = Callable[[int, int], None]
@@ -81,11 +82,17 @@ class ReconstructionResult:
     device: str = "cpu"
     device_note: str | None = None
 
+    @property
+    def where(self) -> str:
+        """Where it ran, in words: "on the CPU", "on the GPU (its name)", with why not the GPU
+        (:func:`~app.gui.models.device_words.where_it_ran`)."""
+        return where_it_ran(self.device, self.device_note)
+
     def label(self) -> str:
-        """Method, time (on the GPU when it ran there) and score, for lists and titles."""
+        """Method, time, where it ran (the CPU or the GPU by name; why not the GPU stays in :attr:`where`) and
+        score, for lists and titles."""
         score = f", {self.psnr:.2f} dB" if self.psnr is not None else ""
-        where = " on the GPU" if self.device == "cuda" else ""
-        return f"{self.method.label()} ({self.seconds:.2f} s{where}{score})"
+        return f"{self.method.label()} ({self.seconds:.2f} s {short_where(self.device)}{score})"
 
 
 def run_reconstruction(frames, code, method: Method, *, cancel: CancelToken | None = None,

@@ -40,6 +40,16 @@ _RULES: tuple[tuple[re.Pattern, str], ...] = tuple((re.compile(p), r) for p, r i
     (r"\(check it with flexvox design --verify\)", "(check it with the command flexvox design --verify)"),
     (r"\(write it again with flexvox design --multiplexed\)",
      "(write it again with the command flexvox design --multiplexed)"),
+    # what a file is not, and what to open instead (no exception names, no parser positions)
+    (r"not a readable Zarr store \([^()]*(?:\([^()]*\)[^()]*)*\)",
+     "is not a recording: no Zarr store there (a recording is the .zarr folder the Capture workspace or "
+     "flexvox capture wrote; open that folder)"),
+    (r"not a flexvox recording \(no `flexvox` attributes\)",
+     "is not a recording flexvox wrote (a Zarr store of another program; open the .zarr folder the Capture "
+     "workspace or flexvox capture wrote)"),
+    (r"not valid JSON \([^()]*\)",
+     "not a file flexvox wrote: its text is not JSON (open the .json file Calibrate saved, or a code file of "
+     "flexvox design -o)"),
     # a parameter's name before the reason
     (r"^`\w+`:\s*", ""),
 ))

@@ -74,6 +74,32 @@ def make_capture(service: RigService, plan: CapturePlan, path, *, frames: int | 
                    rig_info={"profile": "mock" if service.simulated else service.name, "source": "flexvox app"})
 
 
+def megabytes(n_bytes: float) -> str:
+    """``n_bytes`` in MB (10⁶ bytes), two significant figures at least."""
+    mb = n_bytes / 1e6
+    return f"{mb:.2g} MB" if mb < 10 else f"{mb:.0f} MB"
+
+
+def ground_truth_cost(K: int, height: int, width: int, camera_hz: float, frames: int | None,
+                      finish_s_per_frame: float | None = None) -> str:
+    """What storing the simulated scene's ground truth costs, in words: its size per frame and per second of
+    recording (K float32 pictures per camera frame, beside one 16-bit frame: 2·K times the frames' size before
+    compression), and that it is written after the last frame, so finishing takes longer (``finish_s_per_frame``:
+    as measured on this machine by the last recording that stored it)."""
+    per_frame = K * height * width * 4
+    ratio = per_frame / (height * width * 2)
+    text = (f"ground truth adds {megabytes(per_frame)} per frame ({megabytes(per_frame * camera_hz)} per second at "
+            f"{camera_hz:g} Hz, about {ratio:.0f}× the frames' size)")
+    if frames:
+        text += f", {megabytes(per_frame * frames)} for {frames} frames"
+    text += "; it is written after the last frame, so finishing takes longer"
+    if finish_s_per_frame is not None:
+        what = f"{finish_s_per_frame * frames:.0f} s for {frames} frames" if frames else \
+            f"{finish_s_per_frame:.2f} s per frame"
+        text += f" (about {what} on this machine, measured on the last such recording)"
+    return text
+
+
 def video_seconds(frames: int, frame_period_s: float) -> str:
     """How long ``frames`` camera frames last in the recording ("4.20 s of video"), as ``flexvox info`` says it."""
     return f"{frames * frame_period_s:.2f} s of video"

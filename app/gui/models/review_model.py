@@ -147,12 +147,17 @@ class ReviewModel:
         path = Path(path)
         self._say("path", Line(f"opening {path} …"))
         return self.runner.submit("open", lambda token, progress: ReviewSession.open(path),
-                                  on_finished=self._opened, on_failed=self._open_failed)
+                                  on_finished=self._opened, on_failed=lambda message: self._open_failed(path, message))
 
-    def _open_failed(self, message: str) -> None:
+    def _open_failed(self, path: Path, message: str) -> None:
+        """The path line names what is open still (the frames and the actions shown are its) after the refusal."""
         message = in_gui_words(message)
-        self._say("path", Line(f"cannot open: {message}", error=True))
-        self.status.emit(f"cannot open: {message}")
+        if self.session is not None:
+            self._say("path", Line(f"{self.session.path} (still open) — cannot open {path.name}: {message}",
+                                   error=True))
+        else:
+            self._say("path", Line(f"cannot open {path.name}: {message}", error=True))
+        self.status.emit(f"cannot open {path.name}: {message}")
 
     def _opened(self, session: ReviewSession) -> None:
         self.set_playing(False)
@@ -167,6 +172,10 @@ class ReviewModel:
         self.settings.remember_folder(session.path, "review/last_dir")
         self.settings.set("review/last_recording", str(session.path))
         self.path_line = Line(str(session.path))
+        self.result_line, self.export_line = Line(), Line()  # they spoke of the recording before
+        self._set_progress(0, 1)
+        self.changed.emit("result")
+        self.changed.emit("export")
         self.changed.emit("session")
         self.opened.emit(session)
         self.status.emit(f"opened {session.path.name}")
@@ -341,10 +350,11 @@ class ReviewModel:
         self._expected_for_job = self.expected_seconds(method)
         self._say("result", Line(f"reconstructing with {method.label()} …"))
         self.job = self.runner.submit(
-            "reconstruct", work, on_progress=self._progressed, on_finished=self._reconstructed,
-            on_cancelled=self._reconstruction_cancelled,
-            on_failed=lambda msg: self._say("result", Line(f"reconstruction failed: {in_gui_words(msg)}",
-                                                                         error=True)),
+            "reconstruct", work, on_progress=self._progressed,
+            on_finished=lambda result: s is self.session and self._reconstructed(result),
+            on_cancelled=lambda: self._reconstruction_cancelled(s),
+            on_failed=lambda msg: s is self.session and self._say(
+                "result", Line(f"reconstruction failed: {in_gui_words(msg)}", error=True)),
             on_done=lambda: self.changed.emit("jobs"))
         self.changed.emit("jobs")
         return self.job
@@ -369,7 +379,9 @@ class ReviewModel:
             if h is not None and h.running:
                 h.cancel()
 
-    def _reconstruction_cancelled(self) -> None:
+    def _reconstruction_cancelled(self, session) -> None:
+        if session is not self.session:  # cancelled because another recording opened: nothing to say of it
+            return
         self._set_progress(0, self.progress[1])
         self._say("result", Line("cancelled; nothing was kept"))
         self.status.emit("reconstruction cancelled")
@@ -379,7 +391,7 @@ class ReviewModel:
         self._set_progress(self.progress[1], self.progress[1])
         vox = result.video.size / max(result.seconds, 1e-9) / 1e6
         text = f"{result.method.label()}: {result.video.shape[0]} sub-frames in {result.seconds:.2f} s " \
-               f"({vox:.2g} M voxels/s)"
+               f"{result.where} ({vox:.2g} M voxels/s)"
         if result.psnr is not None:
             text += f"; PSNR vs ground truth {result.psnr:.2f} dB"
         expected_s, self._expected_for_job = self._expected_for_job, None

@@ -34,7 +34,9 @@ from flexvox_core.methods.option_kinds import DIVISION, TRIPLE
 
 SLIDER_STEPS = 100
 DEFAULT_POSITION = 0.18
-"""Slider position of the default tensor (≈ (0.15, 0.15, 1))."""
+"""Slider position of the default tensor: at this step the slider gives diffusion's default tensor (0.15, 0.15, 1)
+itself, the one the bench measures, not the continuum's (0.147, 0.147, 1) nearby."""
+DEFAULT_STEP = round(DEFAULT_POSITION * SLIDER_STEPS)
 
 SLIDER_KINDS = (TRIPLE, DIVISION)
 """Option kinds the continuum slider sets (the diffusion tensor, re-binning's division)."""
@@ -144,9 +146,10 @@ class MethodForm(QWidget):
     def _method_for(self, name: str) -> Method:
         spec = get(name)
         values = self.pages[spec.name].values()
-        along = {TRIPLE: lambda: continuum_tensor(self.position),
-                 DIVISION: lambda: continuum_division(self.position, self._divisions) if self._divisions else None}
-        values.update({o.name: along[o.kind]() for o in spec.options if o.kind in along})
+        along = {TRIPLE: lambda o: tuple(o.default) if self.slider.value() == DEFAULT_STEP else
+                 continuum_tensor(self.position),  # one default tensor: the benched one, at its step
+                 DIVISION: lambda o: continuum_division(self.position, self._divisions) if self._divisions else None}
+        values.update({o.name: along[o.kind](o) for o in spec.options if o.kind in along})
         return Method(spec.name, **values)
 
     # ------------------------------------------------------------------ reactions

@@ -39,7 +39,7 @@ from app.gui.review.motion_view import MotionView
 from app.gui.widgets.adaptive_split import AdaptiveSplit
 from app.gui.widgets.image_panel import ImagePanel
 from app.gui.widgets.qt_jobs import JobHandle, JobRunner
-from app.gui.widgets.questions import replace_question
+from app.gui.widgets.questions import ask, replace_question
 from app.gui.widgets.rich_text import RED, coloured
 from app.gui.widgets.settings import AppSettings
 from app.gui.widgets.status_line import StatusLine
@@ -295,8 +295,18 @@ class ReviewWorkspace(QWidget):
         if path:
             self.open_recording(path)
 
-    def open_recording(self, path) -> JobHandle:
-        """Open ``path`` off the GUI thread; ``session_opened`` fires when it is ready."""
+    def open_recording(self, path) -> JobHandle | None:
+        """Open ``path`` off the GUI thread; ``session_opened`` fires when it is ready. When opening it would stop
+        a reconstruction or lose results not exported, ask first, naming them, as closing the window does; None
+        when the operator keeps working."""
+        losses = self.model.closing_losses()
+        name = Path(path).name
+        if losses and not ask(self, f"Open {name}?", f"Opening {name} now:\n\n" + "\n".join(
+                f"• {line}" for line in losses) + f"\n\nOpen {name} anyway?", accept=f"Open {name}",
+                reject="Keep working"):
+            self.model.status.emit(f"{name} not opened: {self.model.session.path.name} stays open"
+                                   if self.model.session is not None else f"{name} not opened")
+            return None
         return self.model.open(path)
 
     def set_playing(self, playing: bool) -> None:

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import sys
 
-import pyqtgraph as pg
 from PySide6.QtWidgets import QApplication
 
 DEFAULT_SIZE = (1280, 800)
@@ -17,7 +16,11 @@ DEFAULT_SIZE = (1280, 800)
 
 
 def configure_pyqtgraph() -> None:
-    """pyqtgraph options the app relies on: row-major images (numpy's (H, W) order), antialiasing."""
+    """pyqtgraph options the app relies on: row-major images (numpy's (H, W) order), antialiasing.
+
+    pyqtgraph is imported here, not at the module's top, so the start-up window needs only Qt."""
+    import pyqtgraph as pg
+
     pg.setConfigOptions(imageAxisOrder="row-major", antialias=True)
 
 

@@ -17,6 +17,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 
+from PySide6.QtCore import QTimer
 from PySide6.QtGui import QGuiApplication
 from PySide6.QtWidgets import QMessageBox, QWidget
 
@@ -69,8 +70,27 @@ def answering(*replies: bool | Callable[[Question], bool], default: bool | None 
         _SCRIPT = outer
 
 
-def ask(parent: QWidget | None, title: str, text: str, *, accept: str, reject: str = "Cancel") -> bool:
-    """Ask ``text``; True when the operator pressed ``accept`` (the default button is ``reject``)."""
+def question_box(parent: QWidget | None, title: str, text: str, *, accept: str, reject: str = "Cancel",
+                 update: Callable[[], str] | None = None) -> QMessageBox:
+    """The message box :func:`ask` shows (not yet shown); with ``update``, its text follows ``update()`` twice a
+    second while it is open (a recording's frame count goes on while the operator reads)."""
+    box = QMessageBox(QMessageBox.Icon.Question, title, text, QMessageBox.StandardButton.NoButton, parent)
+    box.yes = box.addButton(accept, QMessageBox.ButtonRole.AcceptRole)
+    no = box.addButton(reject, QMessageBox.ButtonRole.RejectRole)
+    box.setDefaultButton(no)
+    box.setEscapeButton(no)
+    if update is not None:
+        timer = QTimer(box)
+        timer.setInterval(500)
+        timer.timeout.connect(lambda: box.setText(update()))
+        timer.start()
+    return box
+
+
+def ask(parent: QWidget | None, title: str, text: str, *, accept: str, reject: str = "Cancel",
+        update: Callable[[], str] | None = None) -> bool:
+    """Ask ``text``; True when the operator pressed ``accept`` (the default button is ``reject``). ``update``: the
+    text as it is now, shown while the question is open (see :func:`question_box`)."""
     question = Question(title, text, accept)
     _logger.info("asking: %s: %s", title, text)
     if _SCRIPT is not None:
@@ -79,13 +99,9 @@ def ask(parent: QWidget | None, title: str, text: str, *, accept: str, reject: s
         return answer
     if QGuiApplication.platformName() == "offscreen":
         raise Unanswered(f"no one can answer the question {title!r} offscreen: {text}")
-    box = QMessageBox(QMessageBox.Icon.Question, title, text, QMessageBox.StandardButton.NoButton, parent)
-    yes = box.addButton(accept, QMessageBox.ButtonRole.AcceptRole)
-    no = box.addButton(reject, QMessageBox.ButtonRole.RejectRole)
-    box.setDefaultButton(no)
-    box.setEscapeButton(no)
+    box = question_box(parent, title, text, accept=accept, reject=reject, update=update)
     box.exec()
-    answer = box.clickedButton() is yes
+    answer = box.clickedButton() is box.yes
     _logger.info("answered %s", accept if answer else reject)
     return answer
 

@@ -77,7 +77,7 @@ def test_the_preview_method_is_chosen_in_the_panel_and_kept(qtbot, capture):
     assert ws.start_live()
     qtbot.waitUntil(lambda: panel.preview.result is not None, timeout=20_000)
     assert panel.preview.result.method == "nc" and panel.preview.result.whole_frame
-    assert panel.preview_label.text().startswith("nc preview: 64×48 (the whole frame)")
+    assert panel.preview_label.text().startswith("nc preview on the CPU: 64×48 (the whole frame)")
     assert panel.preview_panel.title.text().startswith("nc preview: frame")
     ws.stop_live()
     with pytest.raises(ValueError, match=r"`method` must be one of motion-aware, nc; got 'rebin'"):
@@ -122,7 +122,10 @@ def test_a_busy_machine_previews_a_region_never_a_subsampled_frame(qtbot):
     r = preview.result
     assert not r.whole_frame and r.region.pixels < 64 * 48 and r.video.shape[1:] == r.region.shape
     assert r.region.y1 == 48 and r.region.x1 == 64  # around the operator's point, inside the frame
-    assert "a region of 64×48 at full resolution: drag it on the live view" in preview.text()
+    assert re.search(r"a region of the 64×48 frame at full resolution, as the whole frame would take about "
+                     r"\d+\.\d s a run, over the 0\.6 s budget; it grows when runs get faster: drag it on the "
+                     r"live view",
+                     preview.text()), preview.text()
     assert preview.shutdown(5000)
 
 
@@ -247,7 +250,7 @@ def test_the_preview_updates_during_live_view_without_costing_frames(qtbot, capt
     qtbot.waitUntil(lambda: ws.live_panel.preview.result is not first, timeout=10_000)  # keeps updating
     assert ws.live_panel.preview_panel.has_image() and ws.live_panel.preview_panel.image.image.shape == (48, 64)
     assert re.match(r"motion-aware preview: frame \d+, sub-frame \d+/16", ws.live_panel.preview_panel.title.text())
-    assert re.match(r"motion-aware preview: 64×48 \(the whole frame\), [123] frames?, \d+\.\d Hz, \d+\.\d\d s per run, "
+    assert re.match(r"motion-aware preview on the CPU: 64×48 \(the whole frame\), [123] frames?, \d+\.\d Hz, \d+\.\d\d s per run, "
                     r"\d+\.\d\d s behind the camera · \d+ of \d+ camera frames previewed \(newest wins\)",
                     ws.live_panel.preview_label.text())
     assert not ws.live_panel.region_roi.isVisible()  # the whole frame: no region drawn
@@ -313,5 +316,6 @@ def test_on_the_gpu_the_preview_takes_the_whole_frame_every_run_and_says_so(qtbo
     preview.enabled, preview.runs = True, 1
     preview.result = PreviewResult(np.zeros((16, 48, 64), np.float32), 3, 3, Region(0, 48, 0, 64), (48, 64), 0.01,
                                    (0.0, 1.0), "motion-aware", "cuda")
-    assert preview.text().startswith("motion-aware preview on the GPU: 64×48 (the whole frame)")
+    assert preview.text().startswith("motion-aware preview on numba-cuda's simulator (NUMBA_ENABLE_CUDASIM=1: no GPU, "
+                                     "slower than the CPU): 64×48 (the whole frame)")
     assert LivePreview().device == "cpu"  # auto never takes the simulator

@@ -377,7 +377,9 @@ def test_a_refinement_stored_before_the_default_was_in_words_does_not_come_back_
     form.set_method_name("diffusion")
     from app.gui.models.continuum import continuum_tensor
 
-    assert form.slider.isEnabled() and form.method().tensor == continuum_tensor(form.position)
+    assert form.slider.isEnabled() and form.method().tensor == (0.15, 0.15, 1.0)  # the default step: the default
+    form.set_position(0.3)
+    assert form.method().tensor == continuum_tensor(form.position)
     with pytest.raises(ValueError, match=r"`method` must be one of rebin, diffusion, gap-tv, motion-aware; got 'x'"):
         form.set_method_name("x")
 

@@ -195,5 +195,5 @@ def test_an_open_failure_is_said_in_words(recording, tmp_path):
     m.status.connect(status.append)
     m.open(tmp_path / "junk.zarr")
     runner.turn()
-    assert m.session is None and m.path_line.error and m.path_line.text.startswith("cannot open: ")
+    assert m.session is None and m.path_line.error and m.path_line.text.startswith("cannot open junk.zarr: ")
     assert status == [m.path_line.text]

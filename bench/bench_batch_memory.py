@@ -89,7 +89,7 @@ def main() -> None:
             video_mib = F * K * H * W * 4 / 2**20
             rows.append((mode, F, rss, secs, video_mib))
         print(f"{H}x{W}, K = {K}, chunk {args.chunk} frames ({args.chunk * K * H * W * 4 / 2**20:.0f} MiB of output "
-              "per chunk), {args.method} at its defaults")
+              f"per chunk), {args.method} at its defaults")
         print(f"{'mode':<10} {'frames':>7} {'video MiB':>10} {'peak RSS MiB':>13} {'seconds':>8}")
         for mode, F, rss, secs, vm in rows:
             print(f"{mode:<10} {F:>7} {vm:>10.0f} {rss:>13.0f} {secs:>8.1f}")

@@ -16,7 +16,9 @@ failed.
   (:data:`SMALLER`): built-in scenes at 48×64 with 4 frames, the simulated rig's capture on its virtual clock,
   ``bench`` and ``demo`` in their quick modes.
 - ``make TARGET`` runs this checkout's Makefile with ``flexvox`` and ``python`` as above (no install).
-- ``--quick`` (``make test``): the README only; ``make docs-check`` (and ``.ci/run``) runs every file.
+- ``--quick`` (``make test``, a few seconds): every line of every file is *parsed*, not run: a ``flexvox`` line by
+  the command line's own parser (an option renamed or removed fails), a ``make`` line by ``make -n``. The whole
+  run (``make docs-check``, and ``.ci/run``) takes about 11 minutes for the README alone on a busy 2-core machine.
 """
 
 from __future__ import annotations
@@ -43,6 +45,8 @@ RUNS_THIS_CHECK = {
     "make docs-check": "this is the docs check",
 }
 LINE_TIMEOUT_S = 900
+CAPTURE_FRAMES = 32
+"""The most frames a simulated capture records here (two camera frames per sub-frame slot of a 4x4 code)."""
 
 
 @dataclass(frozen=True)
@@ -142,6 +146,10 @@ def smaller(command: str) -> str:
         new = _add(_add(new, "--size", "48x64"), "--frames", "4")
     elif sub == "capture" and _value(args, "--rig", "mock") == "mock":
         new = _add(new, "--clock", "virtual")
+    if sub == "capture" and _value(args, "--rig", "mock") == "mock" and "--frames" in new[:-1]:
+        at = new.index("--frames") + 1
+        if new[at].isdigit() and int(new[at]) > CAPTURE_FRAMES:
+            new[at] = str(CAPTURE_FRAMES)
     elif sub in ("bench", "demo"):
         new = _add(new, "--quick")
     return command if new == args else shlex.join(new)
@@ -149,7 +157,8 @@ def smaller(command: str) -> str:
 
 SMALLER = {
     "flexvox simulate <built-in scene>": "--size 48x64 --frames 4",
-    "flexvox capture on the simulated rig": "--clock virtual (frames as fast as they are made, not in real time)",
+    "flexvox capture on the simulated rig": "--clock virtual (frames as fast as they are made, not in real time), "
+                                            f"--frames at most {CAPTURE_FRAMES}",
     "flexvox bench, flexvox demo": "--quick",
 }
 """What the check adds to a line, where the line does not say it already."""
@@ -194,8 +203,33 @@ class Outcome:
     ran_as: str | None = None
 
 
-def run_file(path: Path, scratch: Path, bin_dir: Path, out=sys.stdout) -> list[Outcome]:
-    """Run ``path``'s shell lines in order in ``scratch``; print each with what it did."""
+def parse_only(command: str, bin_dir: Path) -> tuple[bool, str]:
+    """``--quick``: whether ``command`` parses (the command line's parser; ``make -n``), and what was checked."""
+    import contextlib
+    import io
+
+    args = shlex.split(command)
+    if args[0] == "flexvox":
+        from app.cli.main import build_parser
+
+        err = io.StringIO()
+        try:
+            with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+                build_parser().parse_args(args[1:])
+        except SystemExit as exc:
+            if exc.code not in (0, None):
+                return False, err.getvalue().strip().splitlines()[-1] if err.getvalue().strip() else str(exc)
+        return True, "parsed by flexvox's parser (not run: --quick)"
+    if args[0] == "make":
+        proc = subprocess.run(["make", "-n", "-f", str(ROOT / "Makefile"), *args[1:], f"BIN={bin_dir}", "STAMP="],
+                              capture_output=True, text=True, cwd=ROOT)
+        return proc.returncode == 0, ("make -n knows the target (not run: --quick)" if proc.returncode == 0
+                                      else proc.stderr.strip())
+    return True, "not run: --quick"
+
+
+def run_file(path: Path, scratch: Path, bin_dir: Path, out=sys.stdout, quick: bool = False) -> list[Outcome]:
+    """Run ``path``'s shell lines in order in ``scratch`` (``quick``: parse them); print each with what it did."""
     scratch.mkdir(parents=True, exist_ok=True)
     env = _environment(bin_dir)
     outcomes = []
@@ -205,6 +239,11 @@ def run_file(path: Path, scratch: Path, bin_dir: Path, out=sys.stdout) -> list[O
         if reason:
             outcomes.append(Outcome(line, "skipped", reason))
             print(f"    skipped: {reason}", file=out, flush=True)
+            continue
+        if quick:
+            ok, what = parse_only(line.command, bin_dir)
+            outcomes.append(Outcome(line, "ok" if ok else "FAILED", what))
+            print(f"    {'ok' if ok else 'FAILED'}: {what}", file=out, flush=True)
             continue
         run = _as_run(line.command, bin_dir)
         shown = smaller(line.command)
@@ -231,15 +270,15 @@ def run_file(path: Path, scratch: Path, bin_dir: Path, out=sys.stdout) -> list[O
     return outcomes
 
 
-def documents(quick: bool) -> list[Path]:
-    """The README, then docs/*.md in name order (the README alone when ``quick``)."""
-    return [ROOT / "README.md"] + ([] if quick else sorted((ROOT / "docs").glob("*.md")))
+def documents() -> list[Path]:
+    """The README, then docs/*.md in name order."""
+    return [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 
 
 def named_scripts() -> list[Path]:
     """The scripts of bench/ and docs/ that the README or docs/*.md name, sorted."""
     named = set()
-    for doc in documents(quick=False):
+    for doc in documents():
         for m in re.finditer(r"\b((?:bench|docs)/[A-Za-z0-9_]+\.(?:py|sh))\b", doc.read_text(encoding="utf-8")):
             named.add(m.group(1))
     return sorted(ROOT / n for n in named)
@@ -248,10 +287,10 @@ def named_scripts() -> list[Path]:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("files", nargs="*", type=Path, help="Markdown files (default: README.md and docs/*.md)")
-    ap.add_argument("--quick", action="store_true", help="the README only (what make test runs)")
+    ap.add_argument("--quick", action="store_true", help="parse every line, run none (what make test runs)")
     ap.add_argument("--keep", type=Path, help="the scratch folder, kept (default: a temporary one, removed)")
     args = ap.parse_args(argv)
-    files = [f.resolve() for f in args.files] or documents(args.quick)
+    files = [f.resolve() for f in args.files] or documents()
     if args.keep is not None and args.keep.exists():
         ap.error(f"--keep {args.keep} already exists; name a new folder")
     top = args.keep.resolve() if args.keep else Path(tempfile.mkdtemp(prefix="flexvox-docs-check-"))
@@ -260,12 +299,13 @@ def main(argv=None) -> int:
         bin_dir = _shims(top / ".bin")
         outcomes = []
         for f in files:
-            outcomes += run_file(f, top / f.stem, bin_dir)
+            outcomes += run_file(f, top / f.stem, bin_dir, quick=args.quick)
     finally:
         if args.keep is None:
             shutil.rmtree(top, ignore_errors=True)
     counts = {s: sum(o.status == s for o in outcomes) for s in ("ok", "FAILED", "skipped")}
-    print(f"\n{len(outcomes)} shell lines in {len(files)} files: {counts['ok']} ran ok, {counts['FAILED']} failed, "
+    done = "parsed ok (--quick: none run)" if args.quick else "ran ok"
+    print(f"\n{len(outcomes)} shell lines in {len(files)} files: {counts['ok']} {done}, {counts['FAILED']} failed, "
           f"{counts['skipped']} skipped ({time.monotonic() - t0:.0f} s)")
     for o in outcomes:
         if o.status == "FAILED":

@@ -47,6 +47,22 @@ def leftovers(path) -> list[str]:
     return sorted(p.name for pattern in patterns for p in path.parent.glob(pattern))
 
 
+def not_a_recording(path) -> str | None:
+    """Why ``path`` (which exists) is not a recording at all, in words, or None when it looks like one.
+
+    A recording is a Zarr folder (``NAME.zarr/zarr.json``); a file or a folder without ``zarr.json`` is something
+    else (exit 2), not a damaged recording (exit 1).
+    """
+    path = Path(path)
+    if not path.is_dir():
+        return (f"{path} is a file, not a flexvox recording (a recording is a .zarr folder, as flexvox simulate "
+                "and flexvox capture write it)")
+    if not (path / "zarr.json").is_file():
+        return (f"{path} is a folder but not a flexvox recording: it holds no zarr.json (a recording is a .zarr "
+                "folder, as flexvox simulate and flexvox capture write it)")
+    return None
+
+
 def check(rec, *, quick: bool = False, progress=None) -> tuple[dict, list[str]]:
     """Summary of an opened recording and the problems found beyond its structure.
 
@@ -156,6 +172,9 @@ def run(args) -> int:
     """Carry out ``flexvox info``."""
     if not args.recording.exists():
         raise CliError(f"{args.recording}: no such recording")
+    not_one = not_a_recording(args.recording)
+    if not_one:
+        raise CliError(not_one)
     try:
         if args.repair:
             try:

@@ -145,8 +145,8 @@ def _text(s: dict) -> list[str]:
                      "is readable. `flexvox info --repair` finalises it.")
     for name in s["leftovers"]:
         kind = "the recording an overwriting capture moved aside" if ".replaced-" in name else "a partial write"
-        lines.append(f"note: {name} beside it is {kind}, left by a write that did not finish; delete it when you "
-                     "no longer need it")
+        lines.append(f"note: {name} beside it is {kind}, left by a write that did not finish; `flexvox clean` "
+                     "lists such leftovers and removes them")
     return lines
 
 

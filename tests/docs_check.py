@@ -276,11 +276,13 @@ def documents() -> list[Path]:
 
 
 def named_scripts() -> list[Path]:
-    """The scripts of bench/ and docs/ that the README or docs/*.md name, sorted."""
+    """The scripts of bench/ and docs/ that the README or docs/*.md name (as a path or as ``python -m bench.NAME``),
+    sorted."""
     named = set()
     for doc in documents():
-        for m in re.finditer(r"\b((?:bench|docs)/[A-Za-z0-9_]+\.(?:py|sh))\b", doc.read_text(encoding="utf-8")):
-            named.add(m.group(1))
+        text = doc.read_text(encoding="utf-8")
+        named.update(m.group(1) for m in re.finditer(r"\b((?:bench|docs)/[A-Za-z0-9_]+\.(?:py|sh))\b", text))
+        named.update(f"bench/{m.group(1)}.py" for m in re.finditer(r"python -m bench\.([A-Za-z0-9_]+)", text))
     return sorted(ROOT / n for n in named)
 
 

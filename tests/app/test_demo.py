@@ -1,6 +1,9 @@
+import pytest
+
 from app.cli.main import main
 
 
+@pytest.mark.slow_sim  # a minute or two on a busy 2-core machine; make docs-check runs `flexvox demo --quick` too
 def test_quick_demo_writes_the_report(tmp_path, capsys):
     out = tmp_path / "demo"
     assert main(["demo", "--quick", "--out", str(out)]) == 0

@@ -89,3 +89,16 @@ def test_every_script_the_docs_name_runs_with_help(script):
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "usage" in proc.stdout.lower() or script.suffix == ".sh", proc.stdout[:500]
     assert proc.stdout.strip()
+
+
+def test_the_quality_figure_is_not_replaced_by_a_partial_one_without_the_sci_data(monkeypatch, capsys):
+    from bench import make_quality_figure
+
+    figure = ROOT / make_quality_figure.DEFAULT_OUT
+    before = figure.read_bytes()
+    monkeypatch.setattr(make_quality_figure, "sci_data_dir", lambda: None)
+    monkeypatch.chdir(ROOT)
+    assert make_quality_figure.main(["--overwrite", "--repeats", "1"]) == 2
+    err = capsys.readouterr().err
+    assert "no SCI benchmark data for runner, drop" in err and "write another one with -o FILE.png" in err
+    assert figure.read_bytes() == before

@@ -60,8 +60,9 @@ def main() -> None:
         result = motion_aware(frames, code, flow_scale=args.flow_scale, **extra)
         t_ma = time.perf_counter() - t0
         sec = result.seconds
+        rate = truth.size / t_ma / 1e6  # M voxels/s
         print(f"| {scene} | {t_ma:.1f} | {sec['high_tr']:.1f} / {sec['flow']:.1f} / {sec['diffusion']:.1f} "
-              f"| {truth.size / t_ma / 1e6:.2f} ({truth.size / t_ma / 5e6:.2f}, {truth.size / t_ma / 15e6:.2f}) | {psnr(truth, result.video).mean:.2f} | {t_fixed:.2f} "
+              f"| {rate:.2f} ({rate / 5:.2f}, {rate / 15:.2f}) | {psnr(truth, result.video).mean:.2f} | {t_fixed:.2f} "
               f"| {psnr(truth, fixed).mean:.2f} | {t_ma / t_fixed:.0f}x |", flush=True)
 
 

@@ -1,4 +1,4 @@
-"""Normalized convolution the straightforward way, in float64: the reference the tests (and ``python -m bench.bench_nc``)
+"""Normalized convolution the straightforward way, in float64: the reference the tests (and bench.bench_nc)
 compare :func:`flexvox_core.reconstruct.diffuse`'s ``nc`` with."""
 
 import numpy as np

@@ -47,6 +47,20 @@ def leftovers(path) -> list[str]:
     return sorted(p.name for pattern in patterns for p in path.parent.glob(pattern))
 
 
+def _left_by_a_killed_write(path) -> str:
+    """"; a killed write left …" when unfinished outputs of ``path`` lie beside it, else ""."""
+    from flexvox_core.output_files import find_leftovers
+
+    path = Path(path)
+    if not path.parent.is_dir():
+        return ""
+    left = [i.path.name for i in find_leftovers(path.parent) if i.output.name == path.name and i.kind != "lock"]
+    if not left:
+        return ""
+    return (f"; an unfinished write left {', '.join(left)} beside it (`flexvox clean {path.parent}` lists such "
+            "leftovers and removes them)")
+
+
 def not_a_recording(path) -> str | None:
     """Why ``path`` (which exists) is not a recording at all, in words, or None when it looks like one.
 
@@ -171,7 +185,7 @@ def _slots(rec) -> dict:
 def run(args) -> int:
     """Carry out ``flexvox info``."""
     if not args.recording.exists():
-        raise CliError(f"{args.recording}: no such recording")
+        raise CliError(f"{args.recording}: no such recording{_left_by_a_killed_write(args.recording)}")
     not_one = not_a_recording(args.recording)
     if not_one:
         raise CliError(not_one)

@@ -42,6 +42,9 @@ def rec(tmp_path_factory):
 
 def test_clean_lists_a_killed_writers_leftovers_and_removes_them_on_request(tmp_path):
     partial, lock = killed_write(tmp_path)
+    assert_refused(flexvox("info", tmp_path / "kk.zarr"), 2,
+                   rf"kk.zarr: no such recording; an unfinished write left {partial.name} beside it "
+                   rf"\(`flexvox clean .*` lists such leftovers and removes them\)")
     listed = flexvox("clean", tmp_path)
     assert listed.returncode == 0, listed.stderr
     assert f"{partial.name}: the unfinished output of kk.zarr by process" in listed.stdout

@@ -13,12 +13,13 @@ failed.
   Lines that would run this check itself (``make test``, ``make test-full``, ``make docs-check``) are skipped
   with that reason.
 - **Tiny sizes**: where a flag allows it the line runs smaller than typed, and the check prints the line as run
-  (:data:`SMALLER`): built-in scenes at 48×64 with 4 frames, the simulated rig's capture on its virtual clock,
-  ``bench`` and ``demo`` in their quick modes.
+  (:data:`SMALLER`): built-in scenes at 48×64 with 4 frames, the simulated rig's capture on its virtual clock
+  and at most 32 frames, ``bench`` and ``demo`` in their quick modes.
 - ``make TARGET`` runs this checkout's Makefile with ``flexvox`` and ``python`` as above (no install).
 - ``--quick`` (``make test``, a few seconds): every line of every file is *parsed*, not run: a ``flexvox`` line by
   the command line's own parser (an option renamed or removed fails), a ``make`` line by ``make -n``. The whole
-  run (``make docs-check``, and ``.ci/run``) takes about 11 minutes for the README alone on a busy 2-core machine.
+  run (``make docs-check``, and ``.ci/run``) took 29 minutes, 15 of them the README's, on a busy 2-core machine
+  (docs/benchmarks.md, "Wall times").
 """
 
 from __future__ import annotations

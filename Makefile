@@ -8,7 +8,7 @@ STAMP := $(VENV)/.installed
 # Every extra: the Qt application (gui), the napari plugin, GenICam cameras, the tests. `pip install flexvox` alone has no Qt.
 EXTRAS := test,gui,genicam,napari
 
-.PHONY: demo test lint bench screenshots napari-screenshot docs clean
+.PHONY: demo test test-slow test-full docs-check lint bench screenshots napari-screenshot docs clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -23,8 +23,22 @@ demo: $(STAMP)
 
 # Two workers (pytest-xdist), whole test files kept together; tests/test_layering.py runs the import contracts;
 # the packages' docstring examples run too (--doctest-modules), and tests/test_types.py runs mypy (pyproject.toml).
+# `make test` leaves out the tests marked slow_sim (the GPU path's larger cases under numba-cuda's simulator, and
+# a few long end-to-end runs); `make test-slow` runs only those, `make test-full` everything.
+# .ci/run runs test, test-slow, docs and docs-check.
 test: $(STAMP)
+	QT_QPA_PLATFORM=offscreen $(BIN)/python -m pytest -n 2 --dist loadfile -m "not slow_sim"
+
+test-slow: $(STAMP)
+	QT_QPA_PLATFORM=offscreen $(BIN)/python -m pytest -n 2 --dist loadfile -m slow_sim
+
+test-full: $(STAMP)
 	QT_QPA_PLATFORM=offscreen $(BIN)/python -m pytest -n 2 --dist loadfile
+
+# Every shell line of README.md and docs/*.md, run in order in a scratch folder (tests/docs_check.py);
+# `make test` runs its quick part (every line parsed, every named script's --help).
+docs-check: $(STAMP)
+	$(BIN)/python -m tests.docs_check
 
 lint: $(STAMP)
 	$(BIN)/python -m pip install --quiet ruff

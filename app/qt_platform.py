@@ -20,13 +20,13 @@ _HOW = ("run it in a desktop session, under a virtual screen (`xvfb-run flexvox 
 
 GUI_PACKAGES = ("PySide6", "pyqtgraph")
 """What the ``gui`` extra installs and the Qt application imports."""
-GUI_INSTALL = "pip install 'flexvox[gui]'"
+GUI_INSTALL = "pip install '.[gui]' in a clone of flexvox"
 
 
 def missing_gui_extra() -> str | None:
     """Why the Qt application cannot start in this environment (its extra is not installed), or None.
 
-    The core, the command line and batch install without Qt (``pip install flexvox``); the window
+    The core, the command line and batch install without Qt (``pip install .`` in a clone); the window
     needs the ``gui`` extra. Asked without importing Qt: only whether its packages can be found.
     """
     missing = []

@@ -4,16 +4,17 @@ Each run is a fresh subprocess (``flexvox_core.batch.reconstruct_batch`` on dask
 threads); its peak RSS comes from ``resource.getrusage(RUSAGE_CHILDREN).ru_maxrss`` in the
 parent. For contrast, the in-memory ``reconstruct`` of the short recording is measured too
 (it holds the whole (F*K, H, W) video). The recordings are synthetic (a looping coded
-capture of random video), written frame by frame.
+capture of random video), written frame by frame. Each child reports its own peak
+(``RUSAGE_SELF``), so the rows do not depend on their order.
 
-    .venv/bin/python bench/bench_batch_memory.py [--frames 60] [--factor 10] [--size 120x160] [--chunk 16]
+    python bench/bench_batch_memory.py [--frames 60] [--factor 10] [--size 120x160] [--chunk 16]
+                                       [--method diffusion|motion-aware|...]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import resource
 import subprocess
 import sys
 import tempfile
@@ -31,18 +32,20 @@ from flexvox_core.recording import RecordingWriter, recording_attrs  # noqa: E40
 CHILD = """
 import json, sys, time
 sys.path.insert(0, {root!r})
+import resource
 from flexvox_core.methods import Method
-mode, rec, out, chunk = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
+mode, rec, out, chunk, method = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4]), sys.argv[5]
 t = time.perf_counter()
 if mode == "batch":
     from flexvox_core.batch import reconstruct_batch
-    reconstruct_batch(rec, out, Method(), chunk_frames=chunk)
+    reconstruct_batch(rec, out, Method(method), chunk_frames=chunk)
 else:
     from flexvox_core.capture_reader import read_capture
     from flexvox_core.methods import reconstruct
     frames, code = read_capture(rec)
-    video = reconstruct(frames, code, Method(), chunk_frames=chunk)
-print(json.dumps({{"seconds": time.perf_counter() - t}}))
+    video = reconstruct(frames, code, Method(method), chunk_frames=chunk)
+print(json.dumps({{"seconds": time.perf_counter() - t,
+                  "peak_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}}))
 """
 
 
@@ -56,13 +59,12 @@ def make_recording(path: Path, frames: int, H: int, W: int, code) -> None:
             w.append(loop[f % 4], frame_id=f, timestamp=f / 15)
 
 
-def peak_rss_mib(mode: str, rec: Path, out: Path, chunk: int) -> tuple[float, float]:
-    before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-    proc = subprocess.run([sys.executable, "-c", CHILD.format(root=str(ROOT)), mode, str(rec), str(out), str(chunk)],
-                          capture_output=True, text=True, timeout=1800, check=True)
-    after = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
-    # ru_maxrss of children is the max over all waited-for children: run the smallest first.
-    return max(after, before) / 1024, json.loads(proc.stdout.strip().splitlines()[-1])["seconds"]
+def peak_rss_mib(mode: str, rec: Path, out: Path, chunk: int, method: str) -> tuple[float, float]:
+    """The child's own peak RSS (MiB) and its seconds of reconstruction."""
+    proc = subprocess.run([sys.executable, "-c", CHILD.format(root=str(ROOT)), mode, str(rec), str(out), str(chunk),
+                           method], capture_output=True, text=True, timeout=1800, check=True)
+    report = json.loads(proc.stdout.strip().splitlines()[-1])
+    return report["peak_mib"], report["seconds"]
 
 
 def main() -> None:
@@ -71,6 +73,7 @@ def main() -> None:
     ap.add_argument("--factor", type=int, default=10)
     ap.add_argument("--size", default="120x160")
     ap.add_argument("--chunk", type=int, default=16)
+    ap.add_argument("--method", default="diffusion", help="the method reconstructed with (default: diffusion, nc)")
     args = ap.parse_args()
     H, W = (int(v) for v in args.size.split("x"))
     code = design_code((4, 4)).code
@@ -81,18 +84,18 @@ def main() -> None:
         short, long_ = args.frames, args.frames * args.factor
         for F in (short, long_):
             make_recording(tmp / f"r{F}.zarr", F, H, W, code)
-        # Increasing order: RUSAGE_CHILDREN reports the largest child so far.
         for mode, F in (("batch", short), ("batch", long_), ("in-memory", short)):
-            rss, secs = peak_rss_mib(mode, tmp / f"r{F}.zarr", tmp / f"o-{mode}-{F}.zarr", args.chunk)
+            rss, secs = peak_rss_mib(mode, tmp / f"r{F}.zarr", tmp / f"o-{mode}-{F}.zarr", args.chunk, args.method)
             video_mib = F * K * H * W * 4 / 2**20
             rows.append((mode, F, rss, secs, video_mib))
         print(f"{H}x{W}, K = {K}, chunk {args.chunk} frames ({args.chunk * K * H * W * 4 / 2**20:.0f} MiB of output "
-              "per chunk), diffusion nc")
+              f"per chunk), {args.method} at its defaults")
         print(f"{'mode':<10} {'frames':>7} {'video MiB':>10} {'peak RSS MiB':>13} {'seconds':>8}")
         for mode, F, rss, secs, vm in rows:
             print(f"{mode:<10} {F:>7} {vm:>10.0f} {rss:>13.0f} {secs:>8.1f}")
-        print("note: the in-memory row is measured after the batch rows; RUSAGE_CHILDREN keeps the max, so a "
-              "value equal to the previous row means 'at most that'.")
+        (_, _, first, _, _), (_, _, second, _, _), (_, _, whole, _, _) = rows
+        print(f"batch peak, {args.factor}x the frames: {second / first:.2f}x; in-memory / batch at {short} frames: "
+              f"{whole / first:.2f}x")
 
 
 if __name__ == "__main__":

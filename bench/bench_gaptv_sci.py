@@ -56,6 +56,9 @@ def timed(fn):
 
 
 def main() -> int:
+    import argparse
+
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args()
     root = data_dir()
     if root is None:
         print("SKIP: no sci_benchmark data (set FLEXVOX_DATA or provide ../shared/data)")

@@ -11,6 +11,10 @@
 # GPU_CHECK_SMALL=1: tiny sizes under numba-cuda's simulator, with this machine's packages, to try the script on a
 # machine without a GPU (PYTHON=.venv/bin/python OUT=/tmp/check GPU_CHECK_SMALL=1 bench/gpu_check.sh).
 set -uo pipefail
+if [[ "${1:-}" == "-h" || "${1:-}" == "--help" ]]; then
+    sed -n '2,/^set -uo/p' "$0" | sed '$d; s/^# \{0,1\}//'
+    exit 0
+fi
 cd "$(dirname "$0")/.."
 WHEELS=(numpy==2.4.6 zarr==3.1.6 numcodecs==0.16.6 donfig==0.8.1.post1 google-crc32c==1.9.0)
 if [[ "${1:-}" == "--download" ]]; then

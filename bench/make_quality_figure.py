@@ -42,7 +42,9 @@ from flexvox_core.output_errors import OutputError
 from flexvox_core.output_files import atomic_output, check_output
 from flexvox_core.simulate.scenes import render_scene
 
+ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = Path("docs/motion/quality.png")
+"""The committed figure (relative to the repository root, where the script runs)."""
 CLIPS = ("runner", "drop", "balls", "drummer")
 SCI_CLIPS = ("runner", "drop")
 H, W, FRAMES = 96, 128, 6  # built-in scenes: the size and length of `flexvox bench`
@@ -213,6 +215,12 @@ def main(argv=None) -> int:
         ap.error("--repeats must be at least 1")
     if unknown or not names:
         ap.error(f"unknown clip(s) {', '.join(unknown) or '(none given)'}; choose from {', '.join(CLIPS)}")
+    absent = [n for n in names if n in SCI_CLIPS] if sci_data_dir() is None else []
+    if absent and args.out.expanduser().resolve() == (ROOT / DEFAULT_OUT).resolve():
+        print(f"error: no SCI benchmark data for {', '.join(absent)} (set FLEXVOX_DATA, or put sci_benchmark/ in "
+              f"../shared/data next to the checkout); {DEFAULT_OUT} shows them, so it is not replaced with a partial "
+              "figure: write another one with -o FILE.png, or leave them out with --clips", file=sys.stderr)
+        return 2
     try:
         out = check_output(args.out, overwrite=args.overwrite)
     except OutputError as exc:

@@ -1,8 +1,9 @@
 """Render one picture per built-in scene: a ground-truth sub-frame beside a coded frame (4×4).
 
-Run: ``.venv/bin/python docs/make_scene_pictures.py`` (writes docs/scenes/*.png).
+Run: ``python docs/make_scene_pictures.py [--out FOLDER]`` (writes docs/scenes/*.png by default).
 """
 
+import argparse
 from pathlib import Path
 
 import cv2
@@ -25,4 +26,6 @@ def main(out: Path = Path(__file__).parent / "scenes") -> None:
 
 
 if __name__ == "__main__":
-    main()
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", type=Path, default=Path(__file__).parent / "scenes", help="where the pictures go")
+    main(ap.parse_args().out)

@@ -217,6 +217,11 @@ def _canonical(order: np.ndarray) -> np.ndarray:
     return min(images, key=lambda x: x.ravel().tolist())
 
 
+TILES_WITH_CODES = "every tile with both sides at most 6 but 6x6 has one, and 4x8, 5x7 and 8x8 do"
+"""Which tiles have an identity code supporting all their divisions (Eq. 1): tests/flexvox_core/test_design.py
+solves every tile up to 6x6; 4x8, 5x7 and 8x8 are solved at the defaults."""
+
+
 def design_code(
     tile,
     *,
@@ -307,10 +312,13 @@ def design_code(
                 msg = f"no {m}x{n} code has a 4-neighbour gap >= {target} while supporting "
             else:
                 msg = f"no {m}x{n} code supports "
-            msg += ", ".join(d.label for d in divs) + f": {what}"
+            msg += ", ".join(d.label for d in divs) + f": {what}; " + (
+                "ask for a smaller neighbour gap, or fewer divisions" if separation != "auto" and target > 1
+                else f"ask for fewer divisions, or take another tile ({TILES_WITH_CODES})")
         else:
             status = STATUS_LIMIT
-            msg = f"the solver reached its node limit ({node_limit}) before finding a code"
+            msg = (f"the solver reached its node limit ({node_limit}) before finding a code; ask for fewer "
+                   f"divisions or a smaller neighbour gap, or take another tile ({TILES_WITH_CODES})")
         return DesignResult(status, False, msg, (m, n), None, None, divs, [], None,
                             target, elapsed)
 

@@ -13,6 +13,9 @@ Every command and every GUI save that writes a file or a store goes through here
   sibling and leaves the old output as it was.
 * :func:`write_text_atomic` — small text files (calibration files, code files, sync profiles):
   written, flushed to the disk, then renamed into place.
+* :func:`find_leftovers` — what killed writers left in a folder (partial outputs, outputs moved aside, lock
+  files), each with whether its writer still runs; ``flexvox clean`` lists and removes them.
+  :func:`atomic_output` removes the partial outputs a killed writer of the same output left, and says so.
 
 Replacing a file is one ``os.replace`` (atomic on POSIX and Windows). Replacing a *folder*
 (a Zarr store, a folder of PNGs) takes two renames, because no portable call swaps two
@@ -24,12 +27,15 @@ renames leaves both, under their hidden names; nothing is lost.
 from __future__ import annotations
 
 import contextlib
+import glob
 import logging
 import os
+import re
 import secrets
 import shutil
 import tempfile
 from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 from flexvox_core.output_errors import OutputError
@@ -219,6 +225,7 @@ def atomic_output(path, *, overwrite: bool = False, hint: str = OVERWRITE_HINT) 
     # One writer per output: a capture (or another command) cannot start on it while this one
     # writes, and this one cannot replace what a capture is writing.
     with WriterLock(path):
+        remove_dead_partials(path)
         try:
             yield tmp
             if not (tmp.exists() or tmp.is_symlink()):
@@ -241,3 +248,94 @@ def write_text_atomic(path, text: str, *, overwrite: bool = True, encoding: str 
             fh.flush()
             os.fsync(fh.fileno())
     return path
+
+
+_LEFTOVER = re.compile(r"^\.(?P<stem>.+)\.(?P<tag>partial|replaced)-(?P<pid>\d+)-[0-9a-f]+(?P<suffix>(\.[^.]+)?)$")
+_LOCK = re.compile(r"^\.(?P<name>.+)\.lock$")
+
+
+@dataclass(frozen=True)
+class Leftover:
+    """What an unfinished write left in a folder: a partial output, an output moved aside, or a lock file."""
+
+    path: Path
+    kind: str
+    """"partial" (``.NAME.partial-PID-XXXX.SUFFIX``), "replaced" (``.NAME.replaced-PID-XXXX.SUFFIX``) or "lock"
+    (``.NAME.lock``)."""
+    output: Path
+    """The output it belongs to."""
+    writer: str | None
+    """Who writes ``output`` now ("process 123 (...)"), or None when its writer no longer runs."""
+    removable: bool
+    why: str
+    """What it is and what removing it means, in words."""
+
+
+def _process_runs(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):
+        return True
+    return True
+
+
+def _leftover(path: Path, *, lock_held_here: bool = False) -> Leftover | None:
+    m = _LEFTOVER.match(path.name)
+    if m:
+        output = path.with_name(m["stem"] + m["suffix"])
+        pid = int(m["pid"])
+        writer = None if lock_held_here else lock_holder(output)
+        if writer is None and pid != os.getpid() and _process_runs(pid):
+            writer = f"process {pid}"
+        if m["tag"] == "partial":
+            why = f"the unfinished output of {output.name} by process {pid}"
+            return Leftover(path, "partial", output, writer, writer is None, why)
+        if output.exists():
+            why = f"the earlier {output.name}, moved aside by process {pid} when it replaced it"
+            return Leftover(path, "replaced", output, writer, writer is None, why)
+        why = (f"the earlier {output.name}, moved aside by process {pid}, which stopped before the new one took its "
+               f"place: the only copy; rename it back to {output.name} to keep it")
+        return Leftover(path, "replaced", output, writer, False, why)
+    m = _LOCK.match(path.name)
+    if m and path.is_file():
+        try:
+            head = path.read_bytes()[:64].decode("utf-8", "replace")
+        except OSError:
+            return None
+        if head and not re.match(r"^\d+ ", head):
+            return None  # another program's lock file
+        output = path.with_name(m["name"])
+        writer = lock_holder(output)
+        return Leftover(path, "lock", output, writer, writer is None, f"the lock file of {output.name}")
+    return None
+
+
+def find_leftovers(folder) -> list[Leftover]:
+    """Every leftover of an unfinished write in ``folder`` (not recursive), sorted by name.
+
+    A leftover whose writer still runs (its output's lock is held, or the process named in its name runs) has
+    ``writer`` set and is never ``removable``.
+    """
+    found = [_leftover(p) for p in sorted(Path(folder).iterdir()) if p.name.startswith(".")]
+    return [f for f in found if f is not None]
+
+
+def remove_dead_partials(path) -> list[str]:
+    """Remove the partial outputs of ``path`` that a killed writer left; return their names.
+
+    Called with ``path``'s writer lock held (:func:`atomic_output`), so no other writer of ``path`` runs.
+    """
+    path = Path(path)
+    removed = []
+    if not path.parent.is_dir():
+        return removed
+    for p in sorted(path.parent.glob(f".{glob.escape(path.stem)}.partial-*")):
+        item = _leftover(p, lock_held_here=True)  # the lock is this process's: only the process id can tell
+        if item is not None and item.kind == "partial" and item.output == path and item.writer is None:
+            remove_path(item.path)
+            removed.append(item.path.name)
+            _logger.warning("found and removed %s, the unfinished output of a writer of %s that no longer runs "
+                            "(a killed write)", item.path.name, path.name)
+    return removed

@@ -42,6 +42,9 @@ def run(args) -> int:
     from flexvox_core.output_files import OutputError, check_writable
 
     device = resolved_device(args)
+    if args.out.exists() and not args.out.is_dir():
+        raise CliError(f"-o {args.out} is a file; -o takes a folder, where results.csv, results.json and pareto.png "
+                       "go")
     old = [name for name in OUTPUTS if (args.out / name).exists()]
     if old and not args.overwrite:
         raise CliError(f"{args.out} already holds {', '.join(old)} from an earlier run; use --overwrite to replace "

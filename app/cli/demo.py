@@ -33,7 +33,8 @@ def register(sub) -> None:
     p.add_argument("--quick", action="store_true", help="a smaller capture and fewer GAP-TV iterations")
     p.add_argument("--scene", default="drummer", help="built-in scene (default drummer)")
     p.add_argument("--overwrite", action="store_true",
-                   help="replace the report an earlier run left in DIR (`make demo` passes it)")
+                   help="replace the report an earlier run left in DIR (`make demo` passes it); a folder holding "
+                        "anything else is never replaced")
     p.set_defaults(func=run)
 
 
@@ -44,10 +45,14 @@ def run(args) -> int:
 
     if args.scene not in SCENES:
         raise CliError(f"unknown scene {args.scene!r}; built-in scenes: {', '.join(SCENES)}")
-    if (args.out / "index.html").exists() and not args.overwrite:
-        raise CliError(f"{args.out} already holds a demo report; use --overwrite to replace it, or --out another "
-                       "folder")
-    cfg = DemoConfig(out=args.out, quick=args.quick, scene=args.scene)
+    from app.demo.run import check_report_folder
+    from flexvox_core.output_files import OutputError
+
+    try:  # before any work; the report is built beside it and moved into place when complete
+        check_report_folder(args.out, args.overwrite)
+    except OutputError as exc:
+        raise CliError(str(exc)) from None
+    cfg = DemoConfig(out=args.out, quick=args.quick, scene=args.scene, overwrite=args.overwrite)
     with tqdm(total=len(STEPS), unit="step", leave=False) as bar:
         def step(name):
             if bar.n < len(STEPS) and bar.desc:
@@ -55,6 +60,8 @@ def run(args) -> int:
             bar.set_description(name)
         try:
             res = run_demo(cfg, step=step)
+        except OutputError as exc:
+            raise CliError(str(exc)) from None
         except OSError as exc:
             raise CliError(f"cannot write the report in {args.out}: {exc.strerror}") from None
         bar.update(len(STEPS) - bar.n)

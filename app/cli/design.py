@@ -185,7 +185,8 @@ def run(args) -> int:
         print(json.dumps(payload))
         return EXIT_OK if result.success else EXIT_FAILED
     if not result.success:
-        print(f"{m}x{n} tile: {result.message}", file=sys.stderr)
+        flags = "--separation N for the gap, --divisions AxBxC,... for the divisions"
+        print(f"{m}x{n} tile: {result.message} ({flags})", file=sys.stderr)
         return EXIT_FAILED
     print(f"{m}x{n} tile, K = {m * n}: {result.message}")
     print("firing order (slot of each tile pixel):\n" + _grid(result.order))

@@ -47,6 +47,36 @@ def leftovers(path) -> list[str]:
     return sorted(p.name for pattern in patterns for p in path.parent.glob(pattern))
 
 
+def _left_by_a_killed_write(path) -> str:
+    """"; a killed write left …" when unfinished outputs of ``path`` lie beside it, else ""."""
+    from flexvox_core.output_files import find_leftovers
+
+    path = Path(path)
+    if not path.parent.is_dir():
+        return ""
+    left = [i.path.name for i in find_leftovers(path.parent) if i.output.name == path.name and i.kind != "lock"]
+    if not left:
+        return ""
+    return (f"; an unfinished write left {', '.join(left)} beside it (`flexvox clean {path.parent}` lists such "
+            "leftovers and removes them)")
+
+
+def not_a_recording(path) -> str | None:
+    """Why ``path`` (which exists) is not a recording at all, in words, or None when it looks like one.
+
+    A recording is a Zarr folder (``NAME.zarr/zarr.json``); a file or a folder without ``zarr.json`` is something
+    else (exit 2), not a damaged recording (exit 1).
+    """
+    path = Path(path)
+    if not path.is_dir():
+        return (f"{path} is a file, not a flexvox recording (a recording is a .zarr folder, as flexvox simulate "
+                "and flexvox capture write it)")
+    if not (path / "zarr.json").is_file():
+        return (f"{path} is a folder but not a flexvox recording: it holds no zarr.json (a recording is a .zarr "
+                "folder, as flexvox simulate and flexvox capture write it)")
+    return None
+
+
 def check(rec, *, quick: bool = False, progress=None) -> tuple[dict, list[str]]:
     """Summary of an opened recording and the problems found beyond its structure.
 
@@ -129,8 +159,8 @@ def _text(s: dict) -> list[str]:
                      "is readable. `flexvox info --repair` finalises it.")
     for name in s["leftovers"]:
         kind = "the recording an overwriting capture moved aside" if ".replaced-" in name else "a partial write"
-        lines.append(f"note: {name} beside it is {kind}, left by a write that did not finish; delete it when you "
-                     "no longer need it")
+        lines.append(f"note: {name} beside it is {kind}, left by a write that did not finish; `flexvox clean` "
+                     "lists such leftovers and removes them")
     return lines
 
 
@@ -155,7 +185,10 @@ def _slots(rec) -> dict:
 def run(args) -> int:
     """Carry out ``flexvox info``."""
     if not args.recording.exists():
-        raise CliError(f"{args.recording}: no such recording")
+        raise CliError(f"{args.recording}: no such recording{_left_by_a_killed_write(args.recording)}")
+    not_one = not_a_recording(args.recording)
+    if not_one:
+        raise CliError(not_one)
     try:
         if args.repair:
             try:

@@ -6,11 +6,13 @@ import logging
 import sys
 
 from app.cli import app as app_cmd
-from app.cli import batch, bench, calibrate, capture, demo, design, devices, export, info, reconstruct, simulate
+from app.cli import (batch, bench, calibrate, capture, clean, demo, design, devices, export, info, reconstruct,
+                     simulate)
 from app.cli.errors import EXIT_USAGE, CliError, OneLineParser
 from flexvox_core import __version__
 
-SUBCOMMANDS = (design, simulate, reconstruct, bench, devices, calibrate, capture, info, export, batch, app_cmd, demo)
+SUBCOMMANDS = (design, simulate, reconstruct, bench, devices, calibrate, capture, info, export, batch, app_cmd, demo,
+               clean)
 """Each module has ``register(subparsers)`` that adds its parser with ``func=run``."""
 
 

@@ -93,20 +93,31 @@ def resolved_device(args) -> str:
 
 def device_line(out) -> str:
     """One line saying where a reconstruction ran (and why on the CPU when the GPU was asked for)."""
-    from flexvox_core.gpu.device import describe_gpus
+    from flexvox_core.gpu.device import describe_gpus, simulator
 
     if out.device == "cuda":
+        if simulator():
+            return f"device: cuda ({SIMULATOR})"
         gpus = describe_gpus()
         return f"device: cuda ({gpus[0].name})" if gpus else "device: cuda"
     return f"device: cpu ({out.device_note})" if out.device_note else "device: cpu"
+
+
+SIMULATOR = ("numba-cuda's simulator, NUMBA_ENABLE_CUDASIM=1: the GPU kernels run on the CPU, one thread at a time; "
+             "no GPU was used")
+"""What the device line says when numba-cuda's simulator stands in for the GPU."""
 
 
 def device_record(out) -> dict:
     """What a reconstruction's provenance records of its device."""
     from flexvox_core.gpu.device import describe_gpus
 
+    from flexvox_core.gpu.device import simulator
+
     record = {"device": out.device}
-    if out.device == "cuda":
+    if out.device == "cuda" and simulator():
+        record["gpu"] = "numba-cuda's simulator"
+    elif out.device == "cuda":
         gpus = describe_gpus()
         if gpus:
             record["gpu"] = gpus[0].name

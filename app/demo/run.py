@@ -26,7 +26,7 @@ from flexvox_core.divisions import Division
 from flexvox_core.methods import Method, reconstruct
 from flexvox_core.metrics import psnr
 from flexvox_core.motion import motion_aware
-from flexvox_core.output_files import write_text_atomic
+from flexvox_core.output_files import OutputError, atomic_output, write_text_atomic
 from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, diffuse
 from flexvox_core.reconstruct.rebin import rebin
 from flexvox_core.video_io import write_video
@@ -47,6 +47,8 @@ class DemoConfig:
     scene: str = "drummer"
     tile: tuple[int, int] = (4, 4)
     seed: int = 0
+    overwrite: bool = False
+    """Whether an earlier report in ``out`` may be replaced."""
 
     @property
     def size(self) -> tuple[int, int, int]:
@@ -166,11 +168,50 @@ def _timed(fn, *args, **kwargs):
     return out, time.perf_counter() - t0
 
 
+REPORT_ENTRIES = frozenset({"index.html", "shutter-check", "recording.zarr", "figures", "videos", "bench"})
+"""What a demo report folder holds; ``overwrite`` replaces only a folder that holds nothing else."""
+
+
+def check_report_folder(out, overwrite: bool) -> None:
+    """Refuse, before any work, a report folder that may not be replaced (:class:`OutputError`).
+
+    An empty folder is used; a folder of an earlier report needs ``overwrite``; a folder holding anything else is
+    never replaced.
+    """
+    out = Path(out)
+    if not out.exists():
+        if not out.parent.is_dir():
+            raise OutputError(f"cannot write {out}: the folder {out.parent} does not exist")
+        return
+    if not out.is_dir():
+        raise OutputError(f"{out} is a file; --out takes a folder for the report")
+    entries = {p.name for p in out.iterdir()}
+    if not entries:
+        return
+    if entries - REPORT_ENTRIES:
+        others = ", ".join(sorted(entries - REPORT_ENTRIES)[:3])
+        raise OutputError(f"{out} holds other things than a demo report ({others}); --out another folder")
+    if not overwrite:
+        what = "a demo report" if "index.html" in entries else "part of a demo report"
+        raise OutputError(f"{out} already holds {what}; use --overwrite to replace it, or --out another folder")
+
+
 def run_demo(cfg: DemoConfig, *, step=None) -> DemoResult:
-    """Run the demo and write ``cfg.out/index.html``; ``step(name)`` is called before each step."""
-    step = step or (lambda name: None)
+    """Run the demo and write ``cfg.out/index.html``; ``step(name)`` is called before each step.
+
+    The report is built in a hidden sibling of ``cfg.out`` and moved into place when complete
+    (:func:`~flexvox_core.output_files.atomic_output`): an interrupted or failed run leaves ``cfg.out`` as it was.
+    """
     out = Path(cfg.out)
-    out.mkdir(parents=True, exist_ok=True)
+    check_report_folder(out, cfg.overwrite)
+    with atomic_output(out, overwrite=out.exists()) as work:
+        work.mkdir()
+        res = _run_demo(cfg, work, step or (lambda name: None))
+    res.files = [out / Path(f).relative_to(work) for f in res.files]
+    return res
+
+
+def _run_demo(cfg: DemoConfig, out: Path, step) -> DemoResult:
     res = DemoResult()
     t_start = time.perf_counter()
     F, H, W = cfg.size

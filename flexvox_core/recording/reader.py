@@ -11,6 +11,7 @@ array is looked up by name, never by listing the folders, where zarr's temporary
 from __future__ import annotations
 
 import html
+import json
 import logging
 import warnings
 from dataclasses import dataclass, field
@@ -255,6 +256,22 @@ class Recording:
         return found
 
 
+def _unreadable(path: Path) -> str:
+    """Why a store zarr cannot open is unreadable, in words (never an exception's class name)."""
+    meta = path / "zarr.json"
+    if not path.is_dir():
+        return "it is a file; a recording is a .zarr folder"
+    if not meta.is_file():
+        return "its zarr.json is missing"
+    try:
+        doc = json.loads(meta.read_bytes())
+    except (OSError, ValueError):
+        return "its zarr.json is not readable JSON: the file is damaged or truncated"
+    if not isinstance(doc, dict) or doc.get("node_type") != "group":
+        return "its zarr.json does not describe a Zarr group"
+    return "its zarr.json does not describe a Zarr version 3 group"
+
+
 def open_recording(path) -> Recording:
     """Open and validate a recording's structure; :class:`RecordingError` says what is wrong.
 
@@ -266,8 +283,8 @@ def open_recording(path) -> Recording:
         raise RecordingError(f"{path}: no such recording")
     try:
         group = zarr.open_group(str(path), mode="r")
-    except Exception as exc:  # zarr raises several types for a damaged store
-        raise RecordingError(f"{path}: not a readable Zarr store ({type(exc).__name__}: {exc})") from exc
+    except Exception as exc:  # zarr raises several types for a damaged store: say what is wrong in words
+        raise RecordingError(f"{path}: not a readable Zarr store ({_unreadable(path)})") from exc
     attrs = dict(group.attrs).get("flexvox")
     if not isinstance(attrs, dict):
         raise RecordingError(f"{path}: not a flexvox recording (no `flexvox` attributes)")

@@ -114,7 +114,7 @@ class RecordingWriter:
     def __init__(self, path, *, height: int, width: int, dtype, attrs: dict, overwrite: bool = False,
                  block_frames: int = DEFAULT_BLOCK_FRAMES, fsync: bool = False, atomic: bool = False,
                  lock=None):
-        from flexvox_core.output_files import refuse_other_kind, temporary_sibling
+        from flexvox_core.output_files import refuse_other_kind, remove_dead_partials, temporary_sibling
         from flexvox_core.writer_lock import WriterLock
 
         self.path = Path(path)
@@ -129,6 +129,7 @@ class RecordingWriter:
             self._lock, self._own_lock = lock, False
         else:  # OutputBusyError (a ValueError) names the holder
             self._lock, self._own_lock = WriterLock(self.path).acquire(), True
+        remove_dead_partials(self.path)  # a killed writer's partial store of this path: said and removed
         self._fd = None
         self._replaced: Path | None = None
         self._atomic = bool(atomic)

@@ -163,6 +163,9 @@ def test_separation_option_validation(capsys):
     assert code == 2 and "--separation must be 'auto' or a whole number" in err
     code, out, err = run_cli(capsys, "design", "--tile", "4x4", "--separation", "8", "--json")
     assert code == 1 and json.loads(out)["status"] == 2  # possible in principle, infeasible here
+    code, _, err = run_cli(capsys, "design", "--tile", "4x4", "--separation", "8")
+    assert code == 1 and "no 4x4 code has a 4-neighbour gap >= 8" in err
+    assert "ask for a smaller neighbour gap, or fewer divisions (--separation N for the gap, --divisions" in err
     # beyond any code (two of 16 slots are at most 8 apart): refused before the solver, which tried to build a
     # constraint matrix for it (10^21: a traceback; 2*10^7 on 2x2: more than 2 GB)
     code, _, err = run_cli(capsys, "design", "--tile", "4x4", "--separation", "1000000000000000000000")

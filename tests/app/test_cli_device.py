@@ -10,6 +10,7 @@ import pytest
 import zarr
 
 from app.cli.main import main
+from app.cli.method_options import SIMULATOR
 
 
 @pytest.fixture
@@ -28,8 +29,8 @@ def test_reconstruct_on_the_gpu_says_so_and_records_it(recording, tmp_path, caps
     out = tmp_path / "o.zarr"
     assert main(["reconstruct", str(recording), "--method", "diffusion", "--device", "cuda", "-o", str(out)]) == 0
     text = capsys.readouterr().out
-    assert "device: cuda" in text.splitlines()
-    assert _provenance(out)["device"] == "cuda"
+    assert f"device: cuda ({SIMULATOR})" in text.splitlines()  # the simulator, never taken for a GPU
+    assert _provenance(out)["device"] == "cuda" and _provenance(out)["gpu"] == "numba-cuda's simulator"
 
 
 def test_auto_takes_the_cpu_without_a_gpu(recording, tmp_path, capsys):
@@ -66,11 +67,11 @@ def test_export_and_batch_record_the_device(recording, tmp_path, capsys):
     tif = tmp_path / "o.tif"
     assert main(["export", str(recording), "--what", "reconstruction", "--method", "diffusion", "--device", "cuda",
                  "-o", str(tif)]) == 0
-    assert "device: cuda" in capsys.readouterr().out.splitlines()
+    assert f"device: cuda ({SIMULATOR})" in capsys.readouterr().out.splitlines()
     out = tmp_path / "b.zarr"
     assert main(["batch", str(recording), "--method", "diffusion", "--device", "cuda", "--chunk", "1",
                  "-o", str(out)]) == 0
-    assert "device: cuda" in capsys.readouterr().out.splitlines()
+    assert f"device: cuda ({SIMULATOR})" in capsys.readouterr().out.splitlines()
     assert _provenance(out)["device"] == "cuda"
 
 

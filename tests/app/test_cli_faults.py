@@ -21,6 +21,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.app.no_display import unserved_display
+
 ROOT = Path(__file__).resolve().parents[2]
 ENV = {**os.environ, "QT_QPA_PLATFORM": "offscreen", "PYTHONPATH": str(ROOT)}
 
@@ -241,7 +243,7 @@ CASES = {
     "app-without-a-display": Case("app", 2, r"no display to open the window on \(DISPLAY is not set\); .*"
                                   r"QT_QPA_PLATFORM=offscreen", inputs=(), env=NO_DISPLAY),
     "app-with-a-display-qt-cannot-use": Case("app", 2, r"Qt cannot start its platform plugin here \(.+\); ",
-                                             inputs=(), env={"DISPLAY": ":77", "QT_QPA_PLATFORM": "xcb"}),
+                                             inputs=(), env={"DISPLAY": unserved_display(), "QT_QPA_PLATFORM": "xcb"}),
     "figures-into-a-file": Case("reconstruct {rec} -o {dir}/v.npy --method motion-aware --figures {dir}/out.npy", 2,
                                 r"--figures .*out.npy is a file; the figures go into a folder", _existing_outputs,
                                 inputs=("rec", "out")),

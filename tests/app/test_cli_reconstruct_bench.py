@@ -65,6 +65,7 @@ def test_reconstruct_refuses_bad_outputs_and_recordings(recording, tmp_path, cap
     assert "no such recording" in capsys.readouterr().err
 
 
+@pytest.mark.slow_sim  # 3 min on a busy 2-core machine (every method across a gap); tests/flexvox_core cover the bridge
 def test_reconstruct_bridges_dropped_frames_and_says_which(tmp_path, capsys):
     import zarr
 
@@ -125,6 +126,7 @@ def test_reconstruct_multiplexed_recording(tmp_path, capsys):
     assert np.load(tmp_path / "o.npy").shape == (30, 15, 20)
 
 
+@pytest.mark.slow_sim  # 2 min on a busy 2-core machine; make docs-check runs `flexvox bench --quick` too
 def test_bench_quick_writes_table_csv_json_and_plot(tmp_path, capsys):
     assert main(["bench", "--quick", "--no-sci", "-o", str(tmp_path / "b")]) == 0
     out = capsys.readouterr().out

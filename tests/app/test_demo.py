@@ -1,6 +1,9 @@
+import pytest
+
 from app.cli.main import main
 
 
+@pytest.mark.slow_sim  # a minute or two on a busy 2-core machine; make docs-check runs `flexvox demo --quick` too
 def test_quick_demo_writes_the_report(tmp_path, capsys):
     out = tmp_path / "demo"
     assert main(["demo", "--quick", "--out", str(out)]) == 0
@@ -28,3 +31,29 @@ def test_quick_demo_writes_the_report(tmp_path, capsys):
 def test_demo_rejects_unknown_scene(tmp_path, capsys):
     assert main(["demo", "--quick", "--scene", "nope", "--out", str(tmp_path)]) == 2
     assert "unknown scene 'nope'" in capsys.readouterr().err
+
+
+def test_an_interrupted_demo_leaves_nothing_half_written(tmp_path, capsys, monkeypatch):
+    import app.demo.run as demo_run
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(demo_run, "_capture", interrupted)  # Ctrl-C during the capture: figures half done
+    out = tmp_path / "d"
+    assert main(["demo", "--quick", "--out", str(out)]) == 130
+    assert "interrupted; no output was replaced" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == []  # no d/, no hidden partial report, no lock file
+
+
+def test_a_report_folder_is_replaced_only_with_overwrite_and_only_when_it_holds_a_report(tmp_path, capsys):
+    half = tmp_path / "d"
+    (half / "figures").mkdir(parents=True)  # what an interrupted run of an older flexvox left
+    assert main(["demo", "--quick", "--out", str(half)]) == 2
+    assert "already holds part of a demo report; use --overwrite" in capsys.readouterr().err
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("keep me")
+    assert main(["demo", "--quick", "--out", str(mine), "--overwrite"]) == 2
+    assert "holds other things than a demo report (notes.txt); --out another folder" in capsys.readouterr().err
+    assert (mine / "notes.txt").read_text() == "keep me"

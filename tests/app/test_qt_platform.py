@@ -34,6 +34,16 @@ def test_headless_platforms_and_a_display_pass_without_a_probe():
 def test_the_probe_reports_what_qt_says(monkeypatch):
     import os
 
-    env = {**os.environ, "DISPLAY": ":77", "QT_QPA_PLATFORM": "xcb"}  # no X server there
+    from tests.app.no_display import unserved_display
+
+    env = {**os.environ, "DISPLAY": unserved_display(), "QT_QPA_PLATFORM": "xcb"}  # no X server there
     problem = display_problem(env)
     assert problem is not None and problem.startswith("Qt cannot start its platform plugin here (")
+
+
+def test_the_display_without_a_server_skips_a_served_one(monkeypatch):
+    from tests.app import no_display
+
+    served = {59999, 59998}
+    monkeypatch.setattr(no_display, "_served", lambda number: number in served)
+    assert no_display.unserved_display() == ":59997"

@@ -250,15 +250,21 @@ def test_the_preview_updates_during_live_view_without_costing_frames(qtbot, capt
     qtbot.waitUntil(lambda: ws.live_panel.preview.result is not first, timeout=10_000)  # keeps updating
     assert ws.live_panel.preview_panel.has_image() and ws.live_panel.preview_panel.image.image.shape == (48, 64)
     assert re.match(r"motion-aware preview: frame \d+, sub-frame \d+/16", ws.live_panel.preview_panel.title.text())
-    assert re.match(r"motion-aware preview on the CPU: 64×48 \(the whole frame\), [123] frames?, \d+\.\d Hz, \d+\.\d\d s per run, "
-                    r"\d+\.\d\d s behind the camera · \d+ of \d+ camera frames previewed \(newest wins\)",
+    # What holds at any speed: the whole frame, a rate, a time per run, how many frames were previewed; how far
+    # behind the camera it is shows only while the newest run's frame is known (the next run may be under way).
+    line = re.match(r"motion-aware preview on the CPU: 64×48 \(the whole frame\), [123] frames?, \d+\.\d Hz, \d+\.\d\d s per run"
+                    r"(?:, (\d+\.\d\d) s behind the camera)? · (\d+) of (\d+) camera frames previewed \(newest wins\)",
                     ws.live_panel.preview_label.text())
+    assert line, ws.live_panel.preview_label.text()
+    assert 1 <= int(line[2]) <= int(line[3])
     assert not ws.live_panel.region_roi.isVisible()  # the whole frame: no region drawn
     assert ws.live_panel.preview.rate_hz > 0
     assert max(jobs_at_once) <= 1  # one reconstruction at a time, never a queue
     preview = ws.live_panel.preview
     assert preview.offered > preview.runs  # frames arrive faster than previews: the newest wins
-    assert ws.live_panel.stats.received >= 20 and ws.live_panel.stats.dropped == 0
+    stats = ws.live_panel.stats
+    assert stats.received >= preview.offered  # every frame offered to the preview was shown live first
+    assert stats.dropped == 0, f"{stats.dropped} of {stats.received + stats.dropped} camera frames dropped"
     ws.stop_live()
     assert not ws.live_panel.preview.enabled
     assert ws.live_panel.preview_label.text().startswith("motion-aware preview (stopped):")

@@ -1,4 +1,4 @@
-"""Normalized convolution the straightforward way, in float64: the reference the tests (and bench/bench_nc.py)
+"""Normalized convolution the straightforward way, in float64: the reference the tests (and bench.bench_nc)
 compare :func:`flexvox_core.reconstruct.diffuse`'s ``nc`` with."""
 
 import numpy as np

@@ -147,7 +147,7 @@ def run_reconstruction(frames, code, method: Method, *, cancel: CancelToken | No
     if truth is not None:
         from flexvox_core.metrics import psnr
 
-        score = float(psnr(truth, video).mean)
+        score = float(psnr(truth, video))
     result = ReconstructionResult(video, method, seconds, first_frame=first_frame, flow=flow, tr=tr, psnr=score,
                                   device=out.device, device_note=out.device_note)
     if out.interpolated is not None:

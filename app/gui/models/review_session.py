@@ -113,7 +113,7 @@ class ReviewSession:
             return None
         K = self.K
         stop = self.n_frames if stop_frame is None else stop_frame
-        return self.recording.ground_truth(first_frame * K, stop * K)
+        return self.recording.ground_truth[first_frame * K:stop * K]
 
     def divisions(self) -> list[Division]:
         """Divisions the code supports (what re-binning can use)."""

@@ -78,5 +78,5 @@ class CompareView(QWidget):
             if self._truth is not None:
                 from flexvox_core.metrics import psnr
 
-                score = f" · this sub-frame {psnr(self._truth[j], r.video[j]).mean:.2f} dB"
+                score = f" · this sub-frame {psnr(self._truth[j], r.video[j]):.2f} dB"
             panel.set_title(f"{name}: {r.label()}{score}")

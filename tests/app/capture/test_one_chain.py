@@ -54,7 +54,7 @@ def record(rig, calibration, path, *, plan=None):
 
 
 def slots(rec):
-    return slot_accuracy(rec.normalised_frames(), rec.ground_truth(), rec.code)
+    return slot_accuracy(rec.normalised_frames(), rec.ground_truth[:], rec.code)
 
 
 def test_the_cli_records_through_its_calibration_and_every_slot_is_right(calibration_file, tmp_path, capsys):

@@ -45,7 +45,7 @@ def naive_psnr(recording):
     from flexvox_core.recording import open_recording
 
     rec = open_recording(recording)
-    return float(psnr(rec.ground_truth(), np.repeat(rec.normalised_frames(), rec.K, axis=0)).mean)
+    return float(psnr(rec.ground_truth[:], np.repeat(rec.normalised_frames(), rec.K, axis=0)))
 
 
 @pytest.fixture

@@ -46,7 +46,7 @@ def record(qtbot, capture, path):
         click(qtbot, capture.record_panel.record_button)
     assert finished.args[0].ok, finished.args[0].message
     rec = open_recording(path)
-    return rec, slot_accuracy(rec.normalised_frames(), rec.ground_truth(), rec.code)
+    return rec, slot_accuracy(rec.normalised_frames(), rec.ground_truth[:], rec.code)
 
 
 def test_calibrate_use_for_capture_record_and_review(qtbot, window, tmp_path):
@@ -109,7 +109,7 @@ def test_the_cli_and_the_workspace_record_the_same_phase_from_one_calibration_fi
     assert by_gui.attrs["calibration"]["trigger_delay_us"] > 0
     assert by_gui.attrs["rig"]["trigger_delay_set_by"] == by_cli.attrs["rig"]["trigger_delay_set_by"] == "camera"
     assert slots.accuracy == 1.0
-    cli_slots = slot_accuracy(by_cli.normalised_frames(), by_cli.ground_truth(), by_cli.code)
+    cli_slots = slot_accuracy(by_cli.normalised_frames(), by_cli.ground_truth[:], by_cli.code)
     assert cli_slots.accuracy == 1.0
 
 

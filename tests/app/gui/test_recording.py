@@ -57,7 +57,7 @@ def test_record_n_frames_then_the_recording_opens_with_n_frames(qtbot, capture, 
     assert result.ok and result.reason == "done" and result.frames_in_recording == 12
     rec = open_recording(path)
     assert rec.n_frames == 12 and rec.K == 16
-    assert rec.ground_truth().shape == (12 * 16, 48, 64)  # the simulated scene, kept as truth
+    assert rec.ground_truth[:].shape == (12 * 16, 48, 64)  # the simulated scene, kept as truth
     text = ws.record_panel.recording_label.text()
     assert "recording done: 0.20 s of video at 60 Hz; captured 12 frames: 0 dropped" in text
     assert "holds 12 frame(s)" in text

@@ -28,6 +28,7 @@ from flexvox_core.motion.pipeline import (
     gated_flow,
     run_clip,
 )
+from flexvox_core.motion.stages import cuda_unsupported
 
 REFINE_SHOWN = "(K/16)²"
 """What forms show for the default refinement time: it depends on the code (1 at K = 16, 0.25 at K = 8)."""
@@ -80,14 +81,17 @@ class MotionAware(MethodSpec):
     """About 30 float32 volumes and 9 byte volumes (flexvox_core.motion.gpu.engine's workspace)."""
 
     def cpu_only(self, options, code) -> str | None:
-        return None if is_identity_code(code) else "a multiplexed capture's motion-aware runs on the CPU"
+        if not is_identity_code(code):
+            return "a multiplexed capture's motion-aware runs on the CPU"
+        return cuda_unsupported(options)
 
     def run(self, frames, code, options: MotionOptions, *, value_range=None, extras=False, missing=None,
             device="cpu") -> MethodOutput:
         if not is_identity_code(code):
             return self._run_multiplexed(frames, code, options, extras)
         r = run_clip(frames, code, options, value_range=value_range, missing=missing, device=device)
-        return MethodOutput(r.video, {"flow": r.flow.flow, "tr": r.tr} if extras else {}, device=r.device)
+        return MethodOutput(r.video, {"flow": r.flow.flow, "tr": r.tr} if extras else {}, device=r.device,
+                            device_note=r.device_note)
 
     def _run_multiplexed(self, frames, code, options: MotionOptions, extras) -> MethodOutput:
         """GAP with the motion-compensated Gaussian (time n · TIME_FRACTION per iteration); the extras are the

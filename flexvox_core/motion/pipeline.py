@@ -16,6 +16,8 @@ the gaps. :func:`run_window` runs them on the CPU or on an NVIDIA GPU (:mod:`fle
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 
 from flexvox_core.gaps import as_missing
@@ -41,15 +43,17 @@ from flexvox_core.motion.options import (
     sample_bounds,
 )
 from flexvox_core.motion.result import MotionAwareResult
-from flexvox_core.motion.stages import CpuStages, Window, run_stages
+from flexvox_core.motion.stages import CpuStages, Window, cuda_unsupported, run_stages
 from flexvox_core.motion.tensors import DEFAULT_C
 from flexvox_core.reconstruct._common import check_frames, check_identity_code
+
+_logger = logging.getLogger(__name__)
 
 __all__ = [
     "DEFAULT_GATE", "DEFAULT_TIME", "DIS_PARAMS", "FLOW_SIDE", "LONG_REACH_RANGE", "LONG_REACH_SIGMA_S",
     "MAX_REFINE_TIME", "MAX_SLOW_REACH", "PERIOD_GATE", "REFINE_C", "SLOW_REACH", "SLOW_SPEED", "STEP1_TENSOR",
     "STEP1_TIME", "STILL_SPEED", "STILL_TENSOR", "MotionAwareResult", "MotionOptions", "auto_flow_scale",
-    "gated_flow", "motion_aware", "run_clip", "run_window", "sample_bounds",
+    "engine_for", "gated_flow", "motion_aware", "run_clip", "run_window", "sample_bounds",
 ]
 
 
@@ -172,12 +176,28 @@ def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: 
     (:class:`~flexvox_core.gpu.volumes.Workspace`) to reuse, as a streaming run does from window to window.
     """
     window = Window.plan(f, code, options, bounds, missing=missing, keep=keep)
-    if device != "cpu":
-        from flexvox_core.gpu.device import resolve_device
-
-        device = resolve_device(device)
+    device, note = engine_for(options, device)
     if device == "cuda":
         from flexvox_core.motion.gpu.engine import CudaStages
 
         return run_stages(CudaStages(window, ws=workspace))
-    return run_stages(CpuStages(window), memo)
+    result = run_stages(CpuStages(window), memo)
+    result.device_note = note
+    return result
+
+
+def engine_for(options: MotionOptions, device: str) -> tuple[str, str | None]:
+    """(``cpu`` or ``cuda``, why the CPU when the GPU was asked for): ``device`` resolved
+    (:func:`flexvox_core.gpu.resolve_device`), then the CPU for options the GPU's stages do not run as the CPU's
+    (:func:`~flexvox_core.motion.stages.cuda_unsupported`), logged once per call as a warning."""
+    if device == "cpu":
+        return "cpu", None
+    from flexvox_core.gpu.device import resolve_device
+
+    if resolve_device(device) == "cpu":
+        return "cpu", None
+    why = cuda_unsupported(options)
+    if why is None:
+        return "cuda", None
+    _logger.warning("motion-aware: %s", why)
+    return "cpu", why

@@ -150,6 +150,20 @@ class Window:
         return self.K * self.K / 8
 
 
+def cuda_unsupported(options: MotionOptions) -> str | None:
+    """Why :class:`~flexvox_core.motion.gpu.engine.CudaStages` cannot run ``options`` as the CPU does (None: it can).
+
+    The GPU's optical flow is DIS alone (:mod:`flexvox_core.gpu.dis`) and has no backward flow, so another
+    ``flow`` backend or ``flow_consistency`` runs on the CPU; the reason says so, and reaches the result's
+    ``device_note`` (and the command line's ``device:`` line)."""
+    why = []
+    if options.flow != "dis":
+        why.append(f"flow={options.flow!r} runs on the CPU (the GPU's optical flow is DIS)")
+    if options.flow_consistency:
+        why.append("flow_consistency runs on the CPU (the GPU's DIS has no backward flow)")
+    return "; ".join(why) or None
+
+
 class StageTimes:
     """Seconds spent in each stage (summed over passes); ``sync`` is called before each clock reading (a GPU
     engine waits for its queued kernels there)."""

@@ -36,7 +36,7 @@ import numpy as np
 
 from flexvox_core.flow.memo import FlowMemo
 from flexvox_core.gaps import GapTooLongError, max_gap
-from flexvox_core.motion.pipeline import MotionOptions, run_window
+from flexvox_core.motion.pipeline import MotionOptions, engine_for, run_window
 from flexvox_core.numbers import number_pair
 from flexvox_core.reconstruct._common import check_identity_code
 
@@ -87,7 +87,8 @@ class StreamingMotionAware:
     device : {"cpu", "cuda", "auto"}
         Where each window runs (:func:`flexvox_core.gpu.resolve_device`). On the GPU one set of device buffers
         serves every window, and every flow pair of a window is measured again (the card does it faster than the
-        memo finds it); :attr:`device` says which ran.
+        memo finds it); :attr:`device` says which ran, and ``device_note`` why the CPU when the GPU was asked for
+        (options the GPU's stages do not run as the CPU's).
     **options
         The options of :func:`~flexvox_core.motion.pipeline.motion_aware` (flow, time, refine_time, …).
 
@@ -117,11 +118,9 @@ class StreamingMotionAware:
         # The longest run of dropped frames bridged: as the offline method with its chunk overlap.
         self.max_gap = max_gap(self.options.overlap(self.K))
         self.memo = FlowMemo(max_pairs=max(64, 8 * self.K))
-        if device != "cpu":
-            from flexvox_core.gpu.device import resolve_device
-
-            device = resolve_device(device)
-        self.device = device
+        # Options the GPU's stages do not run as the CPU's run on the CPU (``device_note`` says why).
+        self.device, self.device_note = engine_for(self.options, device)
+        device = self.device
         self._workspace = None
         if device == "cuda":
             from flexvox_core.gpu.volumes import Workspace

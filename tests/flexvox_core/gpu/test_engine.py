@@ -96,3 +96,26 @@ def test_chunks_shrink_to_fit_the_cards_free_memory(monkeypatch):
         gpu_chunk_frames(method, 16, 480, 640, 100, 16)
     monkeypatch.setattr(device, "free_memory", lambda: None)  # the simulator: no limit known
     assert gpu_chunk_frames(method, 16, 480, 640, 100, 16) == 16
+
+
+def test_options_the_gpu_does_not_run_go_to_the_cpu_with_a_note():
+    """The GPU's flow is DIS without backward flow: farneback with flow_consistency asked for on the GPU runs on
+    the CPU, gives the CPU's video bit for bit and says why (the result, the method's ``cpu_only``, the runner's
+    ``device_note``); never another flow in silence."""
+    from flexvox_core.methods import Method
+    from flexvox_core.methods.runner import run
+
+    _, frames = tiny_capture("balls", 2, 12, 16)
+    options = {"flow": "farneback", "flow_consistency": True}
+    cpu = motion_aware(frames, CODE, **options)
+    gpu = motion_aware(frames, CODE, device="cuda", **options)
+    note = ("flow='farneback' runs on the CPU (the GPU's optical flow is DIS); "
+            "flow_consistency runs on the CPU (the GPU's DIS has no backward flow)")
+    assert (gpu.device, gpu.device_note) == ("cpu", note) and cpu.device_note is None
+    assert gpu.flow.params["backend"] == "farneback" and gpu.flow.params["consistency"] is True
+    np.testing.assert_array_equal(gpu.video, cpu.video)
+    method = Method("motion-aware", flow="farneback")
+    assert method.cpu_only(CODE) == "flow='farneback' runs on the CPU (the GPU's optical flow is DIS)"
+    assert Method("motion-aware").cpu_only(CODE) is None
+    out = run(frames, CODE, method, device="cuda")
+    assert (out.device, out.device_note) == ("cpu", method.cpu_only(CODE))

@@ -21,6 +21,13 @@ class Workspace:
 
     def __init__(self):
         self._buffers: dict[str, object] = {}
+        self.generation = 0
+        """How many windows have run on the workspace: a result whose buffers a later window overwrote knows it."""
+
+    def next_generation(self) -> int:
+        """A new window starts on the workspace: its generation."""
+        self.generation += 1
+        return self.generation
 
     def get(self, name: str, shape, dtype=np.float32):
         """The buffer ``name`` of ``shape`` and ``dtype`` (its contents are whatever was left in it)."""

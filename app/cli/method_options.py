@@ -88,7 +88,7 @@ def resolved_device(args) -> str:
     try:
         return resolve_device(getattr(args, "device", "cpu"))
     except DeviceUnavailable as exc:
-        raise CliError(str(exc)) from None
+        raise CliError(f"--device cuda: {exc.reason}") from None
 
 
 def device_line(out) -> str:

@@ -140,13 +140,23 @@ def motion_aware(
     device : {"cpu", "cuda", "auto"}
         Where the stages run (:mod:`flexvox_core.gpu`): ``cuda`` on an NVIDIA GPU (raises
         :class:`~flexvox_core.gpu.DeviceUnavailable` naming what is missing when none is usable), ``auto`` there
-        when one is usable and on the CPU otherwise. The result's ``device`` says which ran.
+        when one is usable and on the CPU otherwise. The result's ``device`` says which ran, and its
+        ``device_note`` why the CPU ran options the GPU's stages do not run as the CPU's
+        (:func:`~flexvox_core.motion.stages.cuda_unsupported`).
+
+    Returns
+    -------
+    MotionAwareResult
+        Its ``video`` in [0, 1] (the pipeline bounds it by the samples' range, which noise may take past [0, 1];
+        :func:`run_clip` and :func:`run_window` leave it there).
     """
     options = MotionOptions(flow=flow, passes=passes, time=time, c=c, refine_time=refine_time, gate=gate,
                             flow_scale=flow_scale, still_speed=still_speed, flow_consistency=flow_consistency,
                             slow_speed=slow_speed, slow_reach=slow_reach, local_choice=local_choice,
                             noise_aware=noise_aware)
-    return run_clip(frames, code, options, value_range=value_range, missing=missing, device=device)
+    result = run_clip(frames, code, options, value_range=value_range, missing=missing, device=device)
+    np.clip(result.video, 0.0, 1.0, out=result.video)
+    return result
 
 
 def run_clip(frames, code, options: MotionOptions, *, value_range: tuple[float, float] | None = None, missing=None,

@@ -45,8 +45,9 @@ def test_device_choice(monkeypatch):
         device.resolve_device("gpu")
     monkeypatch.setattr(device.importlib.util, "find_spec", lambda name: None)
     assert device.cuda_status() == (False, "numba-cuda is not installed (pip install 'flexvox[gpu]')")
-    with pytest.raises(device.DeviceUnavailable, match=r"^--device cuda: numba-cuda is not installed"):
+    with pytest.raises(device.DeviceUnavailable, match=r"^device='cuda': numba-cuda is not installed") as info:
         device.resolve_device("cuda")
+    assert info.value.reason == "numba-cuda is not installed (pip install 'flexvox[gpu]')"
     assert device.resolve_device("auto") == "cpu"
 
 

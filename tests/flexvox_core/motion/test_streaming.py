@@ -226,3 +226,38 @@ def test_flow_memo_forgets_the_oldest_pairs():
     assert not flow.flags.writeable
     with pytest.raises(ValueError, match=r"`max_pairs` must be a whole number >= 1; got 0"):
         FlowMemo(max_pairs=0)
+
+
+def test_a_noisy_frame_is_clipped_by_default_and_refused_outside_a_given_range(caplog):
+    """Sensor noise takes a normalised frame a little past [0, 1]: the default stream clips it into [0, 1] (logged
+    once, counted); a stream given its ``value_range`` refuses it."""
+    rng = np.random.default_rng(0)
+    frame = np.clip(rng.random((16, 16)), 0, 1).astype(np.float32) + rng.normal(0, 0.02, (16, 16)).astype(np.float32)
+    assert frame.min() < 0 and frame.max() > 1
+    stream = StreamingMotionAware(CODE)
+    with caplog.at_level("INFO", logger="flexvox_core.motion.streaming"):
+        stream.push(frame)
+        stream.push(frame)
+    assert stream.clipped == 2 and stream.pushed == 2
+    assert sum("clipped into [0, 1]" in r.getMessage() for r in caplog.records) == 1
+    assert stream._frames[0].min() == 0 and stream._frames[0].max() == 1
+    strict = StreamingMotionAware(CODE, value_range=(0, 1))
+    with pytest.raises(ValueError, match=r"frame 0 has values in \[-0\.0\d+, 1\.0\d+\], outside the stream's "
+                                         r"value_range \[0, 1\]"):
+        strict.push(frame)
+
+
+def test_motion_aware_returns_values_in_0_1_on_a_noisy_capture():
+    """The samples' range bounds the pipeline's video; the public function's lies in [0, 1] (the pipeline's own
+    values inside it unchanged)."""
+    from flexvox_core.motion.options import MotionOptions
+    from flexvox_core.motion.pipeline import run_clip
+
+    frames = capture(render_scene("balls", 3 * K, 12, 16, seed=0), CODE)
+    frames = (frames - frames.min()) / np.ptp(frames) * 1.1 - 0.05  # the scene's range a little past [0, 1]
+    frames = (frames + np.random.default_rng(1).normal(0, 0.02, frames.shape)).astype(np.float32)
+    inner = run_clip(frames, CODE, MotionOptions()).video
+    assert inner.min() < 0 and inner.max() > 1
+    video = motion_aware(frames, CODE).video
+    assert video.min() == 0 and video.max() == 1
+    np.testing.assert_array_equal(video, np.clip(inner, 0, 1))

@@ -150,6 +150,37 @@ class Window:
         """Diffusion time of the still voxels' time average (a Gaussian of K/2 sub-frames)."""
         return self.K * self.K / 8
 
+    @property
+    def guide_tensor(self) -> tuple[float, float, float]:
+        """The guides' fixed tensor: Eq. 4's at zero flow, ``diag(c3, c2, c1)`` in (x, y, t) order."""
+        c = self.options.c
+        return (c[2], c[1], c[0])
+
+    @property
+    def bridge_margin(self) -> int:
+        """Sub-frames on each side of a gap whose flow is bridged too (measured across the gap): half a period."""
+        return self.K // 2
+
+    @property
+    def long_reach(self) -> int:
+        """The slow voxels' gather's reach each way (and its temporal standard deviation), in sub-frames."""
+        return max(1, round(self.options.slow_reach * self.K))
+
+    @property
+    def range_weight(self) -> float:
+        """The slow voxels' gather's range-weight scale: :data:`LONG_REACH_RANGE` of the samples' range."""
+        lo, hi = self.bounds
+        return LONG_REACH_RANGE * max(hi - lo, 1e-12)
+
+    @property
+    def scores_still_voxels(self) -> bool:
+        """Whether the local choice scores the gather at gathered voxels slower than
+        :data:`~flexvox_core.motion.local_choice.STILL_VOXEL_SPEED` by the pixel's own sample
+        (:func:`~flexvox_core.motion.local_choice.still_voxel_loo`): such voxels exist unless the slow class takes
+        every voxel below a ``slow_speed`` at least that speed."""
+        o = self.options
+        return not (o.slow_speed is not None and o.slow_speed >= local_choice.STILL_VOXEL_SPEED and self.slow_class)
+
 
 def cuda_unsupported(options: MotionOptions) -> str | None:
     """Why :class:`~flexvox_core.motion.gpu.engine.CudaStages` cannot run ``options`` as the CPU does (None: it can).
@@ -323,7 +354,7 @@ class CpuStages:
         field_ = gated_flow(current, w.K, backend=o.flow, gate=o.gate, scale=w.flow_scale,
                             consistency=o.flow_consistency, slow_speed=o.slow_speed, memo=memo)
         if w.missing is not None:
-            bridge_flow(field_.flow, w.missing, w.K, margin=w.K // 2)
+            bridge_flow(field_.flow, w.missing, w.K, margin=w.bridge_margin)
         return field_
 
     def speed_classes(self, flow: Flow) -> tuple[Volume, Volume]:
@@ -338,9 +369,8 @@ class CpuStages:
         flow (``diag(c3, c2, c1)``), and at the still voxels their pixel's own samples averaged in time
         (Eq. 4's tensor in the limit c -> (0, 0, 1)): exact for a still scene, and its noise averages out."""
         w, o = self.window, self.window.options
-        c = o.c
         if self.fixed is None:  # computed once: every pass reads it
-            self.fixed = guide(w, (c[2], c[1], c[0]), o.time)
+            self.fixed = guide(w, w.guide_tensor, o.time)
         base = self.fixed
         if still.any():
             if o.passes == 1 and w.skip is None:
@@ -385,13 +415,11 @@ class CpuStages:
         return video, loo, gathered
 
     def long_reach(self, flow: Flow, video: Volume, slow: Volume) -> None:
-        w, o = self.window, self.window.options
+        w = self.window
         if not slow.any():
             return
-        lo, hi = w.bounds
-        reach = max(1, round(o.slow_reach * w.K))
-        long_reach_nc(self.sparse, self.mask, flow.flow, video, slow, reach=reach, sigma_t=reach,
-                      sigma_s=LONG_REACH_SIGMA_S, h=LONG_REACH_RANGE * max(hi - lo, 1e-12), out=video)
+        long_reach_nc(self.sparse, self.mask, flow.flow, video, slow, reach=w.long_reach, sigma_t=w.long_reach,
+                      sigma_s=LONG_REACH_SIGMA_S, h=w.range_weight, out=video)
         np.copyto(video, self.sparse, where=self.mask)
 
     def _spare(self, last: bool):
@@ -412,12 +440,10 @@ class CpuStages:
                                   sharp=slow[g0:g1])
 
     def local_choice(self, video: Volume, loo, gathered, flow: Flow, high_tr: Volume, last: bool) -> None:
-        w, o = self.window, self.window.options
+        w = self.window
         if not np.isfinite(loo).any():
             return
-        if not (o.slow_speed is not None and o.slow_speed >= local_choice.STILL_VOXEL_SPEED and w.slow_class):
-            # Gathered voxels slower than that exist (with the slow class on, every gathered voxel is faster than
-            # `slow_speed`): at them the pixel's own sample scores the gather (local_choice.still_voxel_loo).
+        if w.scores_still_voxels:  # at gathered voxels slower than STILL_VOXEL_SPEED the pixel's own sample scores
             local_choice.still_voxel_loo(loo, video, w.frames, gathered, self.mask, flow.flow, w.K)
         other, other_loo = oriented_nc(w.frames, w.code, high_tr, where=gathered, fallback=video, missing=w.missing,
                                        out=self._spare(last))

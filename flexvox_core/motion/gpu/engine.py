@@ -28,7 +28,6 @@ from flexvox_core.motion.gpu.longreach import long_reach
 from flexvox_core.motion.gpu.refine import refine
 from flexvox_core.motion.mcnc import default_reach
 from flexvox_core.motion.options import (
-    LONG_REACH_RANGE,
     LONG_REACH_SIGMA_S,
     PERIOD_GATE,
     REFINE_C,
@@ -132,7 +131,7 @@ class CudaStages:
                                  period_gate=PERIOD_GATE, pair_flow=self.pair_flow, out=flow)
         self.flow_params = {"backend": "dis", **DIS_PARAMS, **params, "pairs": self.pair_flow.where}
         if w.missing is not None:
-            gaps.bridge_flow(flow, w.missing, w.K, margin=w.K // 2)
+            gaps.bridge_flow(flow, w.missing, w.K, margin=w.bridge_margin)
         return flow
 
     def speed_classes(self, flow: Flow) -> tuple[Volume, Volume]:
@@ -146,10 +145,9 @@ class CudaStages:
 
     def guides(self, still: Volume) -> Volume:
         w, o = self.window, self.window.options
-        c = o.c
         fixed = self._volume(Buffers.FIXED)
         if not self.fixed_ready:
-            self._nc((c[2], c[1], c[0]), o.time, fixed, Buffers.NC)
+            self._nc(w.guide_tensor, o.time, fixed, Buffers.NC)
             self.fixed_ready = o.passes > 1  # a later pass reads it again
         base = fixed
         if o.passes > 1:  # `fixed` serves every pass; two volumes in turn, so as not to overwrite the last pass's
@@ -187,13 +185,11 @@ class CudaStages:
         return base, loo, (self.gather_mask if loo is not None else None)
 
     def long_reach(self, flow: Flow, video: Volume, slow: Volume) -> None:
-        w, o = self.window, self.window.options
+        w = self.window
         if not self.n_slow:
             return
-        lo, hi = w.bounds
-        reach = max(1, round(o.slow_reach * w.K))
-        long_reach(self.ws, self.sparse, self.mask, flow, video, slow, reach=reach, sigma_t=reach,
-                   sigma_s=LONG_REACH_SIGMA_S, h=LONG_REACH_RANGE * max(hi - lo, 1e-12))
+        long_reach(self.ws, self.sparse, self.mask, flow, video, slow, reach=w.long_reach, sigma_t=w.long_reach,
+                   sigma_s=LONG_REACH_SIGMA_S, h=w.range_weight)
 
     def refinement(self, video: Volume, flow: Flow, slow: Volume, last: bool) -> None:
         w, o = self.window, self.window.options
@@ -204,10 +200,9 @@ class CudaStages:
         refine(self.ws, video[g0:g1], self.mask[g0:g1], flow[g0:g1], slow[g0:g1], c=REFINE_C, time=t)
 
     def local_choice(self, video: Volume, loo, gathered, flow: Flow, high_tr: Volume, last: bool) -> None:
-        w, o = self.window, self.window.options
-        score = not (o.slow_speed is not None and o.slow_speed >= local_choice.STILL_VOXEL_SPEED and w.slow_class)
+        w = self.window
         choice.local_choice(self.ws, video, loo, gathered, self.mask, flow, self.frames_d, self.order_d,
-                            self.present_d, high_tr, w.K, score_still_voxels=score,
+                            self.present_d, high_tr, w.K, score_still_voxels=w.scores_still_voxels,
                             still_speed=local_choice.STILL_VOXEL_SPEED,
                             sigma=local_choice.pooling_sigma(*w.frames.shape[1:]))
 

@@ -17,12 +17,12 @@ from numba import cuda
 from flexvox_core.flow import FlowField
 from flexvox_core.forward import tiled_order
 from flexvox_core.gaps import captured
-from flexvox_core.gpu import choice, volumes
+from flexvox_core.gpu import volumes
 from flexvox_core.gpu.nc import NcPlan, nc
 from flexvox_core.gpu.volumes import Workspace
 from flexvox_core.motion import local_choice, noise_aware
 from flexvox_core.motion.gated_flow import DIS_PARAMS
-from flexvox_core.motion.gpu import gaps, gate, noise
+from flexvox_core.motion.gpu import choice, gaps, gate, noise
 from flexvox_core.motion.gpu.gather import trajectory_gather
 from flexvox_core.motion.gpu.longreach import long_reach
 from flexvox_core.motion.gpu.refine import refine

@@ -60,11 +60,14 @@ class PairFlow:
         if self.where == "cpu":
             self._on_host(images, pairs, out)
             return
-        from flexvox_core.gpu.dis import DisParams, dis_pairs
+        from flexvox_core.gpu.dis import DisParams, DisWorkspace, dis_pairs
 
         a = self.ws.put(f"{tag}.a", np.ascontiguousarray(pairs[:, 0], np.int32))
         b = self.ws.put(f"{tag}.b", np.ascontiguousarray(pairs[:, 1], np.int32))
-        dis_pairs(images, a, b, DisParams(**self.dis_params), out=out)
+        params = DisParams(**self.dis_params)
+        size = (images.shape[0], len(pairs), *images.shape[1:], params)
+        buffers = self.ws.held(f"{tag}.dis", lambda d: d.fits(*size), lambda: DisWorkspace(*size))
+        dis_pairs(images, a, b, params, out=out, workspace=buffers)
 
     def _on_host(self, images, pairs, out) -> None:
         from flexvox_core.flow.backends import make_backend

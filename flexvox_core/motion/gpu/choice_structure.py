@@ -19,9 +19,8 @@ from __future__ import annotations
 import numpy as np
 from numba import cuda
 
-from flexvox_core.gpu.choice_pool import reflect
 from flexvox_core.gpu.filters import gaussian_taps
-from flexvox_core.gpu.index import voxel
+from flexvox_core.gpu.index import reflect, voxel
 from flexvox_core.gpu.launch import device, kernel, launch
 from flexvox_core.reconstruct.oriented_nc import _HIGH, _LOW, _TAN, PRE_SIGMA, RHO
 from flexvox_core.reconstruct.oriented_nc_kernel import bank_of

@@ -30,9 +30,9 @@ def gaussian_taps(sigma: float, size: int | None = None) -> np.ndarray:
 
 
 @device
-def _at(src, n, y, x, H, W, reflect):
+def _at(src, n, y, x, H, W, mirror):
     """``src[n, y, x]`` with the picture reflected past its edges, or 0 there."""
-    if reflect:
+    if mirror:
         return src[n, reflect(y, H), reflect(x, W)]
     if y < 0 or y >= H or x < 0 or x >= W:
         return np.float32(0)
@@ -40,7 +40,7 @@ def _at(src, n, y, x, H, W, reflect):
 
 
 @kernel("void(float32[:, :, ::1], float32[:, :, ::1], float32[::1], int32, uint8)")
-def _blur_pass(src, dst, taps, axis, reflect):
+def _blur_pass(src, dst, taps, axis, mirror):
     i = cuda.grid(1)
     N, H, W = src.shape
     if i >= N * H * W:
@@ -50,10 +50,10 @@ def _blur_pass(src, dst, taps, axis, reflect):
     acc = np.float32(0)
     if axis == 1:
         for t in range(-r, r + 1):
-            acc += taps[t + r] * _at(src, n, y + t, x, H, W, reflect)
+            acc += taps[t + r] * _at(src, n, y + t, x, H, W, mirror)
     else:
         for t in range(-r, r + 1):
-            acc += taps[t + r] * _at(src, n, y, x + t, H, W, reflect)
+            acc += taps[t + r] * _at(src, n, y, x + t, H, W, mirror)
     dst[n, y, x] = acc
 
 

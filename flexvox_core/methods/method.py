@@ -4,7 +4,7 @@
 option against its rule (an unknown option or a bad value is a ``ValueError`` naming both),
 fills the defaults, builds the options object the method's algorithm takes (``m.options``,
 :meth:`MethodSpec.build <flexvox_core.methods.spec.MethodSpec.build>`), and then reads like a frozen
-record: ``m.name``, ``m.time``, ``m.label()``, ``m.as_dict()``. Two methods with the same name and
+record: ``m.name``, ``m.time``, ``m.label``, ``m.as_dict()``. Two methods with the same name and
 values are equal (and hash alike).
 """
 
@@ -14,6 +14,16 @@ from types import MappingProxyType
 
 from flexvox_core.methods.registry import DEFAULT, get
 from flexvox_core.methods.spec import MethodSpec
+
+
+class Label(str):
+    """A method's label (:attr:`Method.label`): a str. Calling it gives it too, as when ``label`` was a method
+    (kept for one release: read ``m.label``)."""
+
+    __slots__ = ()
+
+    def __call__(self) -> str:
+        return str(self)
 
 
 def _rebuild(name: str, values: dict) -> Method:
@@ -100,9 +110,10 @@ class Method:
         return _rebuild, (self.name, dict(self._values))
 
     # ------------------------------------------------------------------ what it says
-    def label(self) -> str:
-        """Short human-readable description."""
-        return self._spec.label(dict(self._values))
+    @property
+    def label(self) -> Label:
+        """Short human-readable description (a str; ``m.label()``, from when it was a method, gives it too)."""
+        return Label(self._spec.label(dict(self._values)))
 
     def as_dict(self) -> dict:
         """Metadata form: ``name`` and every option's value."""

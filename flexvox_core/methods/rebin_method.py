@@ -20,7 +20,7 @@ class Rebin(MethodSpec):
     title = "re-binning at one division (TR x SR fixed for the whole video)"
     trade = "one division a x b x c for the whole video: TR = K / c, SR = 1 / (a b)"
     options = (
-        Option("block", None, "a Division (e.g. parse_division('2x2x4', tile)) or None (the default division)",
+        Option("block", None, "a Division, written 2x2x4 or 2,2,4 or given as (2, 2, 4), or None (the default division)",
                lambda v: isinstance(v, Division), kind=DIVISION, label="division",
                help="rows,columns,slots of the division (default: the one with TR closest to sqrt(K))"),
         flag("interpolate", True, label="interpolation between block centres",

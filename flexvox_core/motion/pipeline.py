@@ -17,6 +17,7 @@ the gaps. :func:`run_window` runs them on the CPU or on an NVIDIA GPU (:mod:`fle
 from __future__ import annotations
 
 import logging
+from dataclasses import fields
 
 import numpy as np
 
@@ -44,7 +45,6 @@ from flexvox_core.motion.options import (
 )
 from flexvox_core.motion.result import MotionAwareResult
 from flexvox_core.motion.stages import CpuStages, Window, cuda_unsupported, run_stages
-from flexvox_core.motion.tensors import DEFAULT_C
 from flexvox_core.reconstruct._common import check_frames, check_identity_code
 
 _logger = logging.getLogger(__name__)
@@ -57,27 +57,8 @@ __all__ = [
 ]
 
 
-def motion_aware(
-    frames,
-    code,
-    *,
-    flow: str = "dis",
-    passes: int = 1,
-    time: float = DEFAULT_TIME,
-    c=DEFAULT_C,
-    refine_time: float | None = None,
-    gate=DEFAULT_GATE,
-    flow_scale: float | None = None,
-    still_speed: float | None = STILL_SPEED,
-    flow_consistency: bool = False,
-    slow_speed: float | None = SLOW_SPEED,
-    slow_reach: float | None = SLOW_REACH,
-    value_range: tuple[float, float] | None = None,
-    missing=None,
-    local_choice: bool = True,
-    noise_aware: bool = True,
-    device: str = "cpu",
-) -> MotionAwareResult:
+def motion_aware(frames, code, *, value_range: tuple[float, float] | None = None, missing=None, device: str = "cpu",
+                 **options) -> MotionAwareResult:
     """Motion-aware reconstruction of an identity-code capture.
 
     Parameters
@@ -150,13 +131,27 @@ def motion_aware(
         Its ``video`` in [0, 1] (the pipeline bounds it by the samples' range, which noise may take past [0, 1];
         :func:`run_clip` and :func:`run_window` leave it there).
     """
-    options = MotionOptions(flow=flow, passes=passes, time=time, c=c, refine_time=refine_time, gate=gate,
-                            flow_scale=flow_scale, still_speed=still_speed, flow_consistency=flow_consistency,
-                            slow_speed=slow_speed, slow_reach=slow_reach, local_choice=local_choice,
-                            noise_aware=noise_aware)
-    result = run_clip(frames, code, options, value_range=value_range, missing=missing, device=device)
+    result = run_clip(frames, code, MotionOptions(**options), value_range=value_range, missing=missing,
+                      device=device)
     np.clip(result.video, 0.0, 1.0, out=result.video)
     return result
+
+
+def _signature():
+    """``motion_aware``'s signature as ``help()`` and ``inspect`` show it: the frames and code, every field of
+    :class:`MotionOptions` with its default (the keywords are its fields: they are not listed twice), then
+    ``value_range``, ``missing`` and ``device``."""
+    import inspect
+
+    own = inspect.signature(motion_aware)
+    kw = inspect.Parameter.KEYWORD_ONLY
+    params = [own.parameters["frames"], own.parameters["code"],
+              *(inspect.Parameter(f.name, kw, default=f.default, annotation=f.type) for f in fields(MotionOptions)),
+              *(p for n, p in own.parameters.items() if n in ("value_range", "missing", "device"))]
+    return own.replace(parameters=params)
+
+
+motion_aware.__signature__ = _signature()
 
 
 def run_clip(frames, code, options: MotionOptions, *, value_range: tuple[float, float] | None = None, missing=None,

@@ -20,7 +20,7 @@ def _options():
 
     table: dict[str, tuple] = {}
     for spec in specs():
-        for o in spec.options:
+        for o in spec.option_specs:
             first, owners = table.get(o.name, (o, []))
             owners.append(spec)
             table[o.name] = (first, owners)

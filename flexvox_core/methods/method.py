@@ -39,7 +39,7 @@ class Method:
         A registered method (:func:`flexvox_core.methods.registry.names`); default
         :data:`~flexvox_core.methods.registry.DEFAULT` (motion-aware).
     **options
-        Values of the method's options (``Method(name).spec.options``); None or absent: the
+        Values of the method's options (``Method(name).spec.option_specs``); None or absent: the
         option's default. For instance ``rebin``: ``block``, ``interpolate``; ``diffusion``:
         ``tensor``, ``time``, ``solver``; ``gap-tv``: ``iterations``, ``tv_weight``,
         ``tv_iterations``; ``motion-aware``: ``flow``, ``time``, ``passes``, ``refine_time``,
@@ -78,8 +78,9 @@ class Method:
 
     @property
     def options(self):
-        """The options object the method runs with, built once from :attr:`values` (motion-aware's
-        :class:`~flexvox_core.motion.options.MotionOptions`; for the others the values)."""
+        """The options object the method runs with, built once from :attr:`values`, frozen (motion-aware's
+        :class:`~flexvox_core.motion.options.MotionOptions`; for the others a dataclass of them,
+        :func:`~flexvox_core.methods.spec.options_type`)."""
         return self._options
 
     def __getattr__(self, key: str):

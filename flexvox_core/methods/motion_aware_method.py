@@ -38,7 +38,7 @@ class MotionAware(MethodSpec):
     title = "motion-aware: diffusion tensors oriented along optical flow (the paper's Section 4)"
     trade = ("motion-aware chooses the trade per voxel from the flow: high SR where still, "
              "high TR where moving")
-    options = tuple(_option(f) for f in offered())
+    option_specs = tuple(_option(f) for f in offered())
     needs_sample_range = True
     extras = ("flow", "tr")
     bench_axis = "time"

@@ -110,7 +110,8 @@ class MotionOptions:
     reads back as it); ``refine_time`` None for (K/16)² (:meth:`refine`)."""
 
     flow: str = declared(
-        "dis", f"one of {', '.join(BACKENDS)}", lambda v: isinstance(v, str) and v in BACKENDS, kind="choice", choices=BACKENDS,
+        "dis", f"one of {', '.join(BACKENDS)}", lambda v: isinstance(v, str) and v in BACKENDS, kind="choice",
+        choices=BACKENDS,
         label="optical flow", help="optical-flow backend (dis: DIS + variational refinement)", tag=lambda v: f" {v}")
     time: float = declared(
         DEFAULT_TIME, "a finite number > 0", lambda v: _real(v) and v > 0, kind="number", label="diffusion time n",

@@ -62,8 +62,9 @@ def _declared_kernels(packages) -> set[str]:
         for path in sorted((root / package.replace(".", "/")).glob("*.py")):
             module = f"{package}.{path.stem}"
             for node in ast.walk(ast.parse(path.read_text())):
+                decorators = getattr(node, "decorator_list", ())
                 if isinstance(node, ast.FunctionDef) and any(
-                        isinstance(d, ast.Call) and getattr(d.func, "id", None) == "kernel" for d in node.decorator_list):
+                        isinstance(d, ast.Call) and getattr(d.func, "id", None) == "kernel" for d in decorators):
                     names.add(f"{module}.{node.name}")
     return names
 

@@ -169,10 +169,10 @@ def test_motion_aware_options_are_motion_options_fields():
 
     spec = Method("motion-aware").spec
     declared = {f.name: f for f in dataclasses.fields(MotionOptions) if f.metadata["kind"]}
-    assert [o.name for o in spec.options] == list(declared)
-    assert [o.name for o in spec.options] == ["flow", "time", "passes", "refine_time", "slow_reach", "local_choice",
-                                              "noise_aware"]
-    for o in spec.options:
+    assert [o.name for o in spec.option_specs] == list(declared)
+    assert [o.name for o in spec.option_specs] == ["flow", "time", "passes", "refine_time", "slow_reach",
+                                                   "local_choice", "noise_aware"]
+    for o in spec.option_specs:
         assert (o.default, o.rule, o.kind.name) == (declared[o.name].default, declared[o.name].metadata["rule"],
                                                     declared[o.name].metadata["kind"])
     m = Method("motion-aware", passes=2, refine_time=0.5, local_choice=False, noise_aware=False, slow_reach=1)
@@ -209,3 +209,18 @@ def test_label_is_a_property_and_calling_it_still_works():
     m = Method("motion-aware", passes=2)
     assert isinstance(m.label, str) and m.label == "motion-aware dis n=5 x2"
     assert m.label() == m.label and type(m.label()) is str
+
+
+@pytest.mark.parametrize("name", ["diffusion", "rebin", "gap-tv", "motion-aware"])
+def test_every_method_takes_a_frozen_options_object(name):
+    """A method's options object has an attribute per option and cannot be changed (diffusion's as motion-aware's)."""
+    import dataclasses
+
+    m = Method(name)
+    options = m.options
+    assert dataclasses.is_dataclass(options)
+    assert {f.name for f in dataclasses.fields(options)} >= {o.name for o in m.spec.option_specs}
+    for o in m.spec.option_specs:
+        assert getattr(options, o.name) == getattr(m, o.name) or o.name == "slow_reach"  # None: SLOW_REACH
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        object.__getattribute__(options, "__setattr__")(m.spec.option_specs[0].name, 1)

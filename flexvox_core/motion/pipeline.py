@@ -61,6 +61,9 @@ def motion_aware(frames, code, *, value_range: tuple[float, float] | None = None
                  **options) -> MotionAwareResult:
     """Motion-aware reconstruction of an identity-code capture.
 
+    The keywords from ``flow`` to ``noise_aware`` are the fields of :class:`MotionOptions` (declared there, with
+    their rules; ``inspect.signature(motion_aware)`` lists them with their defaults).
+
     Parameters
     ----------
     frames : ndarray (F, H, W)

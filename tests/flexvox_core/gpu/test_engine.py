@@ -146,3 +146,8 @@ def test_options_the_gpu_does_not_run_go_to_the_cpu_with_a_note():
     assert Method("motion-aware").cpu_only(CODE) is None
     out = run(frames, CODE, method, device="cuda")
     assert (out.device, out.device_note) == ("cpu", method.cpu_only(CODE))
+    from flexvox_core.motion.streaming import StreamingMotionAware
+
+    stream = StreamingMotionAware(CODE, device="cuda", flow="tvl1")
+    assert (stream.device, stream.device_note) == ("cpu", "flow='tvl1' runs on the CPU (the GPU's optical flow is DIS)")
+    assert StreamingMotionAware(CODE, device="cuda").device_note is None

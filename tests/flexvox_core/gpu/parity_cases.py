@@ -85,7 +85,7 @@ def _multiplexed():
     from flexvox_core.simulate.scenes import render_scene
 
     code = multiplexed_code((1, 3)).code
-    frames = np.asarray(capture(render_scene("balls", 3 * 3, 6, 9, seed=0), code), np.float32)
+    frames = np.asarray(capture(render_scene("balls", 3 * 3, 8, 9, seed=0), code), np.float32)
     method = Method("motion-aware")
     cpu = run(frames, code, method)
     gpu = run(frames, code, method, device="cuda")

@@ -20,7 +20,7 @@ def _options():
 
     table: dict[str, tuple] = {}
     for spec in specs():
-        for o in spec.options:
+        for o in spec.option_specs:
             first, owners = table.get(o.name, (o, []))
             owners.append(spec)
             table[o.name] = (first, owners)
@@ -88,7 +88,7 @@ def resolved_device(args) -> str:
     try:
         return resolve_device(getattr(args, "device", "cpu"))
     except DeviceUnavailable as exc:
-        raise CliError(str(exc)) from None
+        raise CliError(f"--device cuda: {exc.reason}") from None
 
 
 def device_line(out) -> str:

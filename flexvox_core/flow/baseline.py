@@ -84,6 +84,26 @@ def kaverage_flow(small: np.ndarray, K: int, flow_fn, stride: int, *, average: n
     return vel, measured.span
 
 
+def measurements(S: int, K: int, stride: int) -> tuple[int, list[int]]:
+    """The K-average's plan for ``S`` sub-frames: (span, the first sub-frame of each measurement), a measurement
+    being the flow from sub-frame ``a`` to ``a + span`` (the last one ends at the last sub-frame)."""
+    span = max(1, min(K, S - 1))
+    starts = list(range(0, S - span, stride))
+    if not starts or starts[-1] != S - 1 - span:
+        starts.append(S - 1 - span)
+    return span, starts
+
+
+def blend(centres: np.ndarray, s: int) -> tuple[int, int, float]:
+    """(j0, j1, a): sub-frame ``s``'s velocity is (1 − a)·disp[j0] + a·disp[j1], the measurements centred at
+    ``centres``; j0 = j1 (a = 0) before the first centre and past the last."""
+    j = int(np.searchsorted(centres, s))
+    if j == 0 or j == len(centres):
+        k = min(j, len(centres) - 1)
+        return k, k, 0.0
+    return j - 1, j, (s - centres[j - 1]) / (centres[j] - centres[j - 1])
+
+
 class KAverageFlow:
     """The K-average's flow measured across ``span`` sub-frames every ``stride`` sub-frames, and the
     velocity of any sub-frame from it (:meth:`at`, a sub-frame at a time: no volume is made).
@@ -92,11 +112,9 @@ class KAverageFlow:
     def __init__(self, small: np.ndarray, K: int, flow_fn, stride: int, *, average: np.ndarray | None = None,
                  memo=None):
         S, h, w = small.shape
-        self.span = span = max(1, min(K, S - 1))
+        span, starts = measurements(S, K, stride)
+        self.span = span
         average = kaverage(small, K) if average is None else average
-        starts = list(range(0, S - span, stride))
-        if not starts or starts[-1] != S - 1 - span:
-            starts.append(S - 1 - span)
         u8 = to_uint8(average)
         disp = np.empty((len(starts), h, w, 2), np.float32)
         conf = np.ones((len(starts), h, w), np.float32)
@@ -108,11 +126,10 @@ class KAverageFlow:
     def at(self, s: int, out: np.ndarray) -> np.ndarray:
         """Velocity ``(h, w, 2)`` of sub-frame ``s`` into ``out``: linear in time between measurements,
         constant beyond the first and last."""
-        disp, centres = self.disp, self.centres
-        j = int(np.searchsorted(centres, s))
-        if j == 0 or j == len(centres):
-            out[...] = disp[min(j, len(centres) - 1)]
+        disp = self.disp
+        j0, j1, a = blend(self.centres, s)
+        if j0 == j1:
+            out[...] = disp[j0]
         else:
-            a = (s - centres[j - 1]) / (centres[j] - centres[j - 1])
-            out[...] = (1 - a) * disp[j - 1] + a * disp[j]
+            out[...] = (1 - a) * disp[j0] + a * disp[j1]
         return out

@@ -22,7 +22,12 @@ INSTALL_HINT = "pip install 'flexvox[gpu]'"
 
 
 class DeviceUnavailable(RuntimeError):
-    """``--device cuda`` was asked for and no usable GPU is there (the message says what is missing)."""
+    """``device='cuda'`` was asked for and no usable GPU is there: ``reason`` says what is missing (the message
+    is ``device='cuda': <reason>``; a front end words it its own way, the command line as ``--device cuda``)."""
+
+    def __init__(self, reason: str):
+        super().__init__(f"device='cuda': {reason}")
+        self.reason = reason
 
 
 @dataclass(frozen=True)
@@ -112,7 +117,8 @@ def free_memory() -> int | None:
 
 
 def resolve_device(requested: str = "auto") -> str:
-    """``cpu`` or ``cuda`` for a ``--device`` value; ``cuda`` unusable raises :class:`DeviceUnavailable`."""
+    """``cpu`` or ``cuda`` for ``requested`` (one of :data:`DEVICES`); ``cuda`` unusable raises
+    :class:`DeviceUnavailable`."""
     if requested not in DEVICES:
         raise ValueError(f"`device` must be one of {', '.join(DEVICES)}; got {requested!r}")
     if requested == "cpu":
@@ -120,7 +126,7 @@ def resolve_device(requested: str = "auto") -> str:
     ok, reason = cuda_status()
     if requested == "cuda":
         if not ok:
-            raise DeviceUnavailable(f"--device cuda: {reason}")
+            raise DeviceUnavailable(reason)
         return "cuda"
     if ok and not simulator():
         return "cuda"

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import logging
 import math
-from collections import OrderedDict
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -407,28 +406,6 @@ class DisWorkspace:
                 and params == self.params)
 
 
-_WORKSPACES: OrderedDict = OrderedDict()
-_KEEP = 4
-
-
-def workspace_for(n_images: int, n_pairs: int, H: int, W: int, params: DisParams) -> DisWorkspace:
-    """A cached :class:`DisWorkspace` that fits (the last four are kept, the least recently used dropped)."""
-    for key, ws in _WORKSPACES.items():
-        if ws.fits(n_images, n_pairs, H, W, params):
-            _WORKSPACES.move_to_end(key)
-            return ws
-    ws = DisWorkspace(n_images, n_pairs, H, W, params)
-    _WORKSPACES[(n_images, n_pairs, H, W, params)] = ws
-    while len(_WORKSPACES) > _KEEP:
-        _WORKSPACES.popitem(last=False)
-    return ws
-
-
-def clear_workspaces() -> None:
-    """Drop the cached workspaces (their device memory is freed when nothing else holds them)."""
-    _WORKSPACES.clear()
-
-
 def _index_array(name: str, v, n_images: int) -> np.ndarray:
     host = v.copy_to_host() if hasattr(v, "copy_to_host") else np.asarray(v)
     if host.ndim != 1 or host.size == 0 or not (np.issubdtype(host.dtype, np.integer)):
@@ -454,7 +431,8 @@ def dis_pairs(images, a, b, params: DisParams | None = None, *, out=None, worksp
     out : device array (P, H, W, 2) float32, optional
         Where to write the flow.
     workspace : DisWorkspace, optional
-        Buffers to use; by default a cached one for these sizes.
+        Buffers to use (a caller that calls again keeps one, as motion-aware's engine does in its
+        :class:`~flexvox_core.gpu.volumes.Workspace`); by default new ones for this call.
 
     Returns
     -------
@@ -484,7 +462,7 @@ def dis_pairs(images, a, b, params: DisParams | None = None, *, out=None, worksp
     elif out.shape != (P, H, W, 2) or out.dtype != np.float32 or not out.is_c_contiguous():
         raise ValueError(f"dis_pairs: out must be a C-contiguous ({P}, {H}, {W}, 2) float32 array; got dtype "
                          f"{out.dtype}, shape {out.shape}")
-    ws = workspace if workspace is not None else workspace_for(N, P, H, W, p)
+    ws = workspace if workspace is not None else DisWorkspace(N, P, H, W, p)
     if not ws.fits(N, P, H, W, p):
         raise ValueError(f"dis_pairs: the workspace holds {ws.n_images} images, {ws.n_pairs} pairs of "
                          f"{ws.H}x{ws.W}; got {N} images, {P} pairs of {H}x{W} (or other params)")

@@ -17,9 +17,8 @@ import cv2
 import numpy as np
 from numba import cuda
 
-from flexvox_core.gpu.index import voxel
+from flexvox_core.gpu.index import reflect, voxel
 from flexvox_core.gpu.launch import device, kernel, launch
-from flexvox_core.gpu.nc import fold
 
 
 @lru_cache(maxsize=64)
@@ -31,17 +30,17 @@ def gaussian_taps(sigma: float, size: int | None = None) -> np.ndarray:
 
 
 @device
-def _at(src, n, y, x, H, W, reflect):
+def _at(src, n, y, x, H, W, mirror):
     """``src[n, y, x]`` with the picture reflected past its edges, or 0 there."""
-    if reflect:
-        return src[n, fold(y, H), fold(x, W)]
+    if mirror:
+        return src[n, reflect(y, H), reflect(x, W)]
     if y < 0 or y >= H or x < 0 or x >= W:
         return np.float32(0)
     return src[n, y, x]
 
 
 @kernel("void(float32[:, :, ::1], float32[:, :, ::1], float32[::1], int32, uint8)")
-def _blur_pass(src, dst, taps, axis, reflect):
+def _blur_pass(src, dst, taps, axis, mirror):
     i = cuda.grid(1)
     N, H, W = src.shape
     if i >= N * H * W:
@@ -51,10 +50,10 @@ def _blur_pass(src, dst, taps, axis, reflect):
     acc = np.float32(0)
     if axis == 1:
         for t in range(-r, r + 1):
-            acc += taps[t + r] * _at(src, n, y + t, x, H, W, reflect)
+            acc += taps[t + r] * _at(src, n, y + t, x, H, W, mirror)
     else:
         for t in range(-r, r + 1):
-            acc += taps[t + r] * _at(src, n, y, x + t, H, W, reflect)
+            acc += taps[t + r] * _at(src, n, y, x + t, H, W, mirror)
     dst[n, y, x] = acc
 
 
@@ -118,7 +117,7 @@ def _sobel(p, gx, gy):
     if i >= N * H * W:
         return
     n, y, x = voxel(i, H, W)
-    ym, yp, xm, xp = fold(y - 1, H), fold(y + 1, H), fold(x - 1, W), fold(x + 1, W)
+    ym, yp, xm, xp = reflect(y - 1, H), reflect(y + 1, H), reflect(x - 1, W), reflect(x + 1, W)
     # Sobel: derivative [-1, 0, 1] along the axis, smoothing [1, 2, 1] across it; scaled by 1/8.
     dx = (p[n, ym, xp] - p[n, ym, xm]) + np.float32(2) * (p[n, y, xp] - p[n, y, xm]) + (p[n, yp, xp] - p[n, yp, xm])
     dy = (p[n, yp, xm] - p[n, ym, xm]) + np.float32(2) * (p[n, yp, x] - p[n, ym, x]) + (p[n, yp, xp] - p[n, ym, xp])

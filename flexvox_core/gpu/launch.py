@@ -25,20 +25,21 @@ BLOCK = 256
 SIM_BLOCK = 32
 """Threads per block under the simulator (each simulated thread is a Python thread: fewer per block is faster)."""
 
-KERNEL_MODULES = (
-    "flexvox_core.gpu.index",
-    "flexvox_core.gpu.volumes",
-    "flexvox_core.gpu.nc",
-    "flexvox_core.gpu.filters",
-    "flexvox_core.gpu.resize",
-    "flexvox_core.gpu.dis",
-    "flexvox_core.gpu.dis_pyramid",
-    "flexvox_core.gpu.dis_refine",
-    "flexvox_core.gpu.choice",
-    "flexvox_core.gpu.choice_pool",
-    "flexvox_core.gpu.choice_structure",
-)
-"""This package's modules that declare kernels (motion-aware's own are in :mod:`flexvox_core.motion.gpu`)."""
+KERNEL_PACKAGES = ("flexvox_core.gpu",)
+"""The packages whose modules declare this package's kernels (motion-aware's own: :mod:`flexvox_core.motion.gpu`,
+whose ``KERNEL_PACKAGES`` adds itself)."""
+
+
+def modules_of(packages) -> tuple[str, ...]:
+    """Every module of ``packages`` (names), found with :mod:`pkgutil`: importing them registers every kernel
+    they declare (:data:`REGISTRY`)."""
+    import pkgutil
+
+    found = []
+    for name in packages:
+        package = importlib.import_module(name)
+        found += [f"{name}.{m.name}" for m in pkgutil.iter_modules(package.__path__) if not m.ispkg]
+    return tuple(sorted(found))
 
 
 @dataclass(frozen=True)
@@ -139,14 +140,17 @@ def _fits(want, got) -> bool:
     return want == got
 
 
-def compile_all(modules=KERNEL_MODULES, cc: tuple[int, int] = (9, 0)) -> dict[str, int]:
-    """Compile every declared signature of every kernel of ``modules`` to PTX for compute capability ``cc``
-    without a GPU (numba-cuda's deviceless compile). Returns {kernel name: PTX characters}; raises on the first
-    failure."""
+def compile_all(packages=KERNEL_PACKAGES, cc: tuple[int, int] = (9, 0)) -> dict[str, int]:
+    """Compile every declared signature of every kernel of the modules of ``packages`` (:func:`modules_of`) to PTX
+    for compute capability ``cc`` without a GPU (numba-cuda's deviceless compile). Returns {kernel name: PTX
+    characters}; raises on the first failure."""
+    modules = modules_of(packages)
     for module in modules:
         importlib.import_module(module)
     out = {}
     for name, k in sorted(REGISTRY.items()):
+        if k.py_func.__module__ not in modules:
+            continue
         size = 0
         for sig in k.signatures:
             ptx, _ = cuda().compile_ptx(k.py_func, sig, cc=cc)

@@ -21,21 +21,9 @@ import math
 import numpy as np
 from numba import cuda
 
-from flexvox_core.gpu.index import voxel
-from flexvox_core.gpu.launch import device, kernel, launch
+from flexvox_core.gpu.index import reflect, voxel
+from flexvox_core.gpu.launch import kernel, launch
 from flexvox_core.reconstruct.diffusion import NC_MIN_WEIGHT, _peak, gaussian_kernel, sigmas, time_weights
-
-
-@device
-def fold(i, n):
-    """Index ``i`` reflected into [0, n) with the edge repeated (… 1 0 | 0 1 … n-1 | n-1 …), any distance."""
-    period = 2 * n
-    j = i % period
-    if j < 0:
-        j += period
-    if j >= n:
-        j = period - 1 - j
-    return j
 
 
 @kernel("void(float32[:, :, ::1], int32[:, ::1], float32[:, :, ::1], int32[::1], float32[:, :, ::1], "
@@ -73,13 +61,13 @@ def _blur_axis(num, den, num_out, den_out, taps, axis):
     b = np.float32(0)
     if axis == 1:
         for t in range(-r, r + 1):
-            yy = fold(y + t, H)
+            yy = reflect(y + t, H)
             w = taps[t + r]
             a += w * num[s, yy, x]
             b += w * den[s, yy, x]
     else:
         for t in range(-r, r + 1):
-            xx = fold(x + t, W)
+            xx = reflect(x + t, W)
             w = taps[t + r]
             a += w * num[s, y, xx]
             b += w * den[s, y, xx]

@@ -21,6 +21,14 @@ class Workspace:
 
     def __init__(self):
         self._buffers: dict[str, object] = {}
+        self._held: dict[str, object] = {}
+        self.generation = 0
+        """How many windows have run on the workspace: a result whose buffers a later window overwrote knows it."""
+
+    def next_generation(self) -> int:
+        """A new window starts on the workspace: its generation."""
+        self.generation += 1
+        return self.generation
 
     def get(self, name: str, shape, dtype=np.float32):
         """The buffer ``name`` of ``shape`` and ``dtype`` (its contents are whatever was left in it)."""
@@ -39,15 +47,26 @@ class Workspace:
         buf.copy_to_device(host)
         return buf
 
+    def held(self, name: str, fits, make):
+        """An object ``name`` that holds device buffers of its own and says how many bytes (``nbytes``), such as
+        DIS's :class:`~flexvox_core.gpu.dis.DisWorkspace`: the one held while ``fits(it)``, else ``make()``'s."""
+        obj = self._held.get(name)
+        if obj is None or not fits(obj):
+            self._held.pop(name, None)  # freed before its successor is made
+            obj = self._held[name] = make()
+        return obj
+
     def drop(self, *names: str) -> None:
-        """Free these buffers (the next :meth:`get` allocates again)."""
+        """Free these buffers or held objects (the next :meth:`get` or :meth:`held` allocates again)."""
         for name in names:
             self._buffers.pop(name, None)
+            self._held.pop(name, None)
 
     @property
     def nbytes(self) -> int:
-        """Device memory the workspace holds."""
-        return sum(int(b.size) * np.dtype(b.dtype).itemsize for b in self._buffers.values())
+        """Device memory the workspace holds, its held objects' included."""
+        return (sum(int(b.size) * np.dtype(b.dtype).itemsize for b in self._buffers.values())
+                + sum(int(h.nbytes) for h in self._held.values()))
 
 
 def flat(a):

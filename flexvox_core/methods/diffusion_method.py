@@ -10,7 +10,7 @@ from flexvox_core.codes import is_identity_code
 from flexvox_core.gaps import bridge
 from flexvox_core.methods.option_kinds import TRIPLE
 from flexvox_core.methods.options import Option, choice, number
-from flexvox_core.methods.spec import MethodOutput, MethodSpec
+from flexvox_core.methods.spec import MethodOutput, MethodSpec, keywords
 from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, SOLVERS, check_tensor, diffuse, sigmas
 from flexvox_core.reconstruct.multiplexed import TIME_FRACTION, gap_gaussian
 
@@ -41,7 +41,7 @@ class Diffusion(MethodSpec):
     name = "diffusion"
     title = "constant-tensor diffusion (nc: the fast normalized convolution; explicit; steady)"
     trade = "one tensor (cx, cy, ct) for the whole video: large ct keeps spatial detail, large cx, cy temporal"
-    options = (
+    option_specs = (
         TENSOR,
         time_option(DEFAULT_TIME, (0.05, 20.0, 0.25)),
         choice("solver", "nc", SOLVERS, label="solver",
@@ -58,11 +58,11 @@ class Diffusion(MethodSpec):
         return values
 
     def overlap(self, options, K: int) -> int | None:
-        if options["solver"] == "steady":
+        if options.solver == "steady":
             return None  # a global linear solve
-        sig_t = sigmas(options["tensor"], options["time"])[2]
+        sig_t = sigmas(options.tensor, options.time)[2]
         reach = 4 * sig_t + K  # the Gaussian's support, plus one frame for the nearest-sample fallback
-        if options["solver"] == "explicit":
+        if options.solver == "explicit":
             reach *= 2  # the nc start, then diffusion of the same time
         return max(1, math.ceil(reach / K))
 
@@ -70,7 +70,7 @@ class Diffusion(MethodSpec):
     takes_multiplexed = True
 
     def accepts_multiplexed(self, options) -> bool:
-        return options["solver"] == "nc"  # GAP's denoiser is the Gaussian of Eq. 3, nc's one-pass form
+        return options.solver == "nc"  # GAP's denoiser is the Gaussian of Eq. 3, nc's one-pass form
 
     gpu_bytes_per_voxel = 28
     """The result and nc's four working volumes (flexvox_core.gpu.nc), and the frames."""
@@ -78,21 +78,21 @@ class Diffusion(MethodSpec):
     def cpu_only(self, options, code) -> str | None:
         if not is_identity_code(code):
             return "a multiplexed capture's diffusion runs on the CPU"
-        if options["solver"] != "nc":
-            return f"diffusion's {options['solver']} solver runs on the CPU"
+        if options.solver != "nc":
+            return f"diffusion's {options.solver} solver runs on the CPU"
         return None
 
     def run(self, frames, code, options, *, value_range=None, extras=False, missing=None, device="cpu"
             ) -> MethodOutput:
         if not is_identity_code(code):  # a multiplexed capture: GAP with this tensor's Gaussian as denoiser
-            return MethodOutput(gap_gaussian(frames, code, tensor=options["tensor"],
-                                             time=options["time"] * TIME_FRACTION))
+            return MethodOutput(gap_gaussian(frames, code, tensor=options.tensor,
+                                             time=options.time * TIME_FRACTION))
         if device == "cuda":
             from flexvox_core.gpu.nc import diffuse_on_gpu
 
-            video = diffuse_on_gpu(frames, code, tensor=options["tensor"], time=options["time"], missing=missing)
+            video = diffuse_on_gpu(frames, code, tensor=options.tensor, time=options.time, missing=missing)
         else:
-            video = diffuse(frames, code, **options, missing=missing)  # the options are diffuse's keywords
+            video = diffuse(frames, code, **keywords(options), missing=missing)  # the options are diffuse's keywords
         if missing is not None:
             bridge(video, missing, code.shape[2])
         return MethodOutput(video, device=device)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from flexvox_core.methods.options import integer, number
-from flexvox_core.methods.spec import MethodOutput, MethodSpec
+from flexvox_core.methods.spec import MethodOutput, MethodSpec, keywords
 from flexvox_core.reconstruct.gaptv import gap_tv
 
 
@@ -15,7 +15,7 @@ class GapTv(MethodSpec):
     name = "gap-tv"
     title = "GAP-TV, the classical compressive-video reconstruction (the peer)"
     trade = "GAP-TV has no space-time knob"
-    options = (
+    option_specs = (
         integer("iterations", 40, label="iterations", help="GAP-TV iterations", span=(1, 500, 1)),
         number("tv_weight", 0.3, strict=True, label="TV weight", help="GAP-TV's total-variation weight",
                span=(0.01, 5.0, 0.05)),
@@ -32,7 +32,8 @@ class GapTv(MethodSpec):
     def run(self, frames, code, options, *, value_range=None, extras=False, missing=None, device="cpu") -> MethodOutput:
         # One measurement at a time, as the SCI literature (and its reference figures) does; the options are
         # gap_tv's keywords.
-        return MethodOutput(np.concatenate([gap_tv(frames[f: f + 1], code, **options) for f in range(frames.shape[0])]))
+        kw = keywords(options)
+        return MethodOutput(np.concatenate([gap_tv(frames[f: f + 1], code, **kw) for f in range(frames.shape[0])]))
 
     def label(self, values: dict) -> str:
         return f"gap-tv {values['iterations']} it"

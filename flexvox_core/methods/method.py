@@ -4,7 +4,7 @@
 option against its rule (an unknown option or a bad value is a ``ValueError`` naming both),
 fills the defaults, builds the options object the method's algorithm takes (``m.options``,
 :meth:`MethodSpec.build <flexvox_core.methods.spec.MethodSpec.build>`), and then reads like a frozen
-record: ``m.name``, ``m.time``, ``m.label()``, ``m.as_dict()``. Two methods with the same name and
+record: ``m.name``, ``m.time``, ``m.label``, ``m.as_dict()``. Two methods with the same name and
 values are equal (and hash alike).
 """
 
@@ -14,6 +14,16 @@ from types import MappingProxyType
 
 from flexvox_core.methods.registry import DEFAULT, get
 from flexvox_core.methods.spec import MethodSpec
+
+
+class Label(str):
+    """A method's label (:attr:`Method.label`): a str. Calling it gives it too, as when ``label`` was a method
+    (kept for one release: read ``m.label``)."""
+
+    __slots__ = ()
+
+    def __call__(self) -> str:
+        return str(self)
 
 
 def _rebuild(name: str, values: dict) -> Method:
@@ -29,7 +39,7 @@ class Method:
         A registered method (:func:`flexvox_core.methods.registry.names`); default
         :data:`~flexvox_core.methods.registry.DEFAULT` (motion-aware).
     **options
-        Values of the method's options (``Method(name).spec.options``); None or absent: the
+        Values of the method's options (``Method(name).spec.option_specs``); None or absent: the
         option's default. For instance ``rebin``: ``block``, ``interpolate``; ``diffusion``:
         ``tensor``, ``time``, ``solver``; ``gap-tv``: ``iterations``, ``tv_weight``,
         ``tv_iterations``; ``motion-aware``: ``flow``, ``time``, ``passes``, ``refine_time``,
@@ -68,8 +78,9 @@ class Method:
 
     @property
     def options(self):
-        """The options object the method runs with, built once from :attr:`values` (motion-aware's
-        :class:`~flexvox_core.motion.options.MotionOptions`; for the others the values)."""
+        """The options object the method runs with, built once from :attr:`values`, frozen (motion-aware's
+        :class:`~flexvox_core.motion.options.MotionOptions`; for the others a dataclass of them,
+        :func:`~flexvox_core.methods.spec.options_type`)."""
         return self._options
 
     def __getattr__(self, key: str):
@@ -100,9 +111,10 @@ class Method:
         return _rebuild, (self.name, dict(self._values))
 
     # ------------------------------------------------------------------ what it says
-    def label(self) -> str:
-        """Short human-readable description."""
-        return self._spec.label(dict(self._values))
+    @property
+    def label(self) -> Label:
+        """Short human-readable description (a str; ``m.label()``, from when it was a method, gives it too)."""
+        return Label(self._spec.label(dict(self._values)))
 
     def as_dict(self) -> dict:
         """Metadata form: ``name`` and every option's value."""

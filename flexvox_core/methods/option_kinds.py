@@ -78,6 +78,12 @@ class Kind(ABC):
     def _read(self, option, text: str, tile):
         """The value of ``text``, or None when it is not of this kind."""
 
+    def coerce(self, option, value):
+        """A value given in a spelling of this kind's other than its own type, as that type (a division typed
+        as text or given as three numbers: a :class:`~flexvox_core.divisions.Division`); anything else as it is
+        (the option's rule then judges it)."""
+        return value
+
     def format(self, value) -> str:
         """``value`` as text that :meth:`parse` reads back ("" for None, words as they are)."""
         return "" if value is None else str(value)
@@ -204,6 +210,20 @@ class DivisionKind(Kind):
         if len(parts) != 3 or not all(p.isdigit() for p in parts):
             return None
         return parse_division("x".join(parts), None if tile is None else tuple(tile))  # its own words on the tile
+
+    def coerce(self, option, value):
+        """``"2x2x4"``, ``"2,2,4"`` or ``(2, 2, 4)`` as the Division (:func:`~flexvox_core.divisions.parse_division`,
+        its own words for a bad one); a Division or anything else as it is."""
+        from numbers import Integral
+
+        from flexvox_core.divisions import parse_division
+
+        if isinstance(value, str):
+            return self.parse(option, value)
+        if (isinstance(value, tuple | list) and len(value) == 3
+                and all(isinstance(v, Integral) and not isinstance(v, bool) for v in value)):
+            return parse_division("x".join(str(int(v)) for v in value))
+        return value
 
     def format(self, value) -> str:
         if value is None or isinstance(value, str):

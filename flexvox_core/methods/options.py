@@ -72,6 +72,7 @@ class Option:
         """``value`` if it meets the rule (None: the default); ``ValueError`` naming both otherwise."""
         if value is None:
             return self.default
+        value = self.kind.coerce(self, value)  # another spelling of the kind's value (a division as text)
         if not self.accepts(value):
             raise ValueError(f"`{self.name}` must be {self.rule}; got {value!r}")
         return value

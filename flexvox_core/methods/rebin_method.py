@@ -19,8 +19,9 @@ class Rebin(MethodSpec):
     name = "rebin"
     title = "re-binning at one division (TR x SR fixed for the whole video)"
     trade = "one division a x b x c for the whole video: TR = K / c, SR = 1 / (a b)"
-    options = (
-        Option("block", None, "a Division (e.g. parse_division('2x2x4', tile)) or None (the default division)",
+    option_specs = (
+        Option("block", None,
+               "a Division, written 2x2x4 or 2,2,4 or given as (2, 2, 4), or None (the default division)",
                lambda v: isinstance(v, Division), kind=DIVISION, label="division",
                help="rows,columns,slots of the division (default: the one with TR closest to sqrt(K))"),
         flag("interpolate", True, label="interpolation between block centres",
@@ -28,11 +29,11 @@ class Rebin(MethodSpec):
     )
 
     def overlap(self, options, K: int) -> int:
-        return 1 if options["interpolate"] else 0
+        return 1 if options.interpolate else 0
 
     def run(self, frames, code, options, *, value_range=None, extras=False, missing=None, device="cpu") -> MethodOutput:
-        block = options["block"] or default_block(code)
-        return MethodOutput(rebin(frames, code, block, interpolate=options["interpolate"]))
+        block = options.block or default_block(code)
+        return MethodOutput(rebin(frames, code, block, interpolate=options.interpolate))
 
     def label(self, values: dict) -> str:
         b = "default" if values["block"] is None else values["block"].label

@@ -107,7 +107,7 @@ def check_code_for(code, method: Method) -> bool:
     if is_identity_code(code):
         return False
     if not method.takes_multiplexed():
-        raise ValueError(f"{method.label()} takes identity-code captures only; demultiplex this multiplexed capture "
+        raise ValueError(f"{method.label} takes identity-code captures only; demultiplex this multiplexed capture "
                          "first (flexvox_core.reconstruct.as_identity_capture; CaptureReader.input does it for such "
                          "methods)")
     return True
@@ -146,7 +146,7 @@ def gpu_chunk_frames(method: Method, K: int, H: int, W: int, n_frames: int, chun
     fit = int(GPU_MEMORY_SHARE * free // (per_voxel * K * H * W)) - 2 * overlap
     wanted = n_frames if chunk_frames is None else chunk_frames
     if fit < 1:
-        raise ValueError(f"{method.label()} needs about {per_voxel * K * H * W * (1 + 2 * overlap) / 2**30:.1f} GiB "
+        raise ValueError(f"{method.label} needs about {per_voxel * K * H * W * (1 + 2 * overlap) / 2**30:.1f} GiB "
                          f"of GPU memory for one {H}x{W} frame and its context; {free / 2**30:.1f} GiB are free: "
                          "reconstruct on the CPU (--device cpu)")
     if fit < wanted:

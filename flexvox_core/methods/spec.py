@@ -4,9 +4,9 @@ A method is one subclass of :class:`MethodSpec` in its own module of
 :mod:`flexvox_core.methods`, listed once in :mod:`~flexvox_core.methods.registry`. It says
 
 - its ``name``, a one-line ``title`` and how it trades spatial for temporal resolution (``trade``);
-- its typed :attr:`~MethodSpec.options` with defaults (:class:`~flexvox_core.methods.options.Option`), and
+- its typed :attr:`~MethodSpec.option_specs` with defaults (:class:`~flexvox_core.methods.options.Option`), and
   :meth:`~MethodSpec.build`: the options object its algorithm takes, made once from their checked values
-  (motion-aware's :class:`~flexvox_core.motion.options.MotionOptions`; by default the values, read-only);
+  (motion-aware's :class:`~flexvox_core.motion.options.MotionOptions`; by default a frozen dataclass of them);
 - :meth:`~MethodSpec.run`: the reconstruction of one identity-code capture;
 - :meth:`~MethodSpec.overlap`: the camera frames of context a time chunk needs on each side
   (None: it cannot run in chunks);
@@ -30,8 +30,8 @@ from __future__ import annotations
 
 import json
 from abc import ABC, abstractmethod
-from dataclasses import dataclass, field
-from types import MappingProxyType
+from dataclasses import dataclass, field, fields, make_dataclass
+from functools import cache
 
 import numpy as np
 
@@ -80,7 +80,7 @@ class MethodSpec(ABC):
     """One line: what the method is."""
     trade: str = ""
     """How it trades spatial for temporal resolution, in one sentence."""
-    options: tuple[Option, ...] = ()
+    option_specs: tuple[Option, ...] = ()
     """Its knobs, in the order forms show them."""
     needs_sample_range: bool = False
     """True: :meth:`run` takes ``value_range``, the whole recording's (lo, hi) sample range,
@@ -103,18 +103,18 @@ class MethodSpec(ABC):
     # ------------------------------------------------------------------ options
     def option(self, name: str) -> Option:
         """The option called ``name``; ``ValueError`` naming this method's options otherwise."""
-        for o in self.options:
+        for o in self.option_specs:
             if o.name == name:
                 return o
         raise ValueError(f"`{name}` is not an option of {self.name} (its options: {self.option_list()})")
 
     def has_option(self, name: str) -> bool:
         """True when the method has an option called ``name``."""
-        return any(o.name == name for o in self.options)
+        return any(o.name == name for o in self.option_specs)
 
     def option_list(self) -> str:
         """The option names in words ("none" when there are none)."""
-        return ", ".join(o.name for o in self.options) or "none"
+        return ", ".join(o.name for o in self.option_specs) or "none"
 
     def resolve(self, given: dict) -> dict:
         """Every option's value: ``given`` checked, the defaults for the rest (and for None).
@@ -127,7 +127,7 @@ class MethodSpec(ABC):
         for name in given:
             if not self.has_option(name):
                 raise ValueError(f"`{name}` is not an option of {self.name} (its options: {self.option_list()})")
-        values = {o.name: o.check(given.get(o.name)) for o in self.options}
+        values = {o.name: o.check(given.get(o.name)) for o in self.option_specs}
         self.validate(values)
         return values
 
@@ -136,8 +136,9 @@ class MethodSpec(ABC):
 
     def build(self, values: dict):
         """The options object :meth:`run` and the capabilities below take, made once from checked ``values``
-        (``ValueError`` where it checks more); default: the values, read-only."""
-        return MappingProxyType(dict(values))
+        (``ValueError`` where it checks more): frozen, its attributes the option names. Default: a frozen
+        dataclass of one field per option (:func:`options_type`)."""
+        return options_type(type(self))(**values)
 
     # ------------------------------------------------------------------ running
     # ``options`` below is what :meth:`build` made.
@@ -209,6 +210,19 @@ class MethodSpec(ABC):
 
     def __repr__(self) -> str:
         return f"<method {self.name}>"
+
+
+@cache
+def options_type(spec_type: type) -> type:
+    """The frozen dataclass ``<Method>Options`` of a method class: one field per option spec, its default the
+    option's. What :meth:`MethodSpec.build` makes by default."""
+    return make_dataclass(f"{spec_type.__name__}Options",
+                          [(o.name, object, field(default=o.default)) for o in spec_type.option_specs], frozen=True)
+
+
+def keywords(options) -> dict:
+    """A frozen options object's values by name (the keywords of an algorithm whose parameters they are)."""
+    return {f.name: getattr(options, f.name) for f in fields(options)}
 
 
 def _json(value) -> str:

@@ -92,6 +92,14 @@ def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, sc
     return FlowField(out.flow, out.full_confidence(), params, perf_counter() - t0)
 
 
+def takes_slow(slow, successive, slow_speed):
+    """Whether a voxel's velocity is the K-average's: its speed there (``slow``) below ``slow_speed`` and its
+    successive-sub-frame speed (``successive``, both in full-size px per sub-frame) below twice it (faster, the
+    K-average blurred the motion away). Element-wise on arrays here; the GPU compiles it as a device function
+    (:mod:`flexvox_core.motion.gpu.gate`)."""
+    return (slow < slow_speed) & (successive < 2 * slow_speed)
+
+
 class _GatedFlow:
     """:func:`gated_flow`'s gate and resize, a sub-frame at a time (:meth:`one`): every step
     element-wise on small planes that stay in cache, each sub-frame's gated velocity resized
@@ -119,7 +127,7 @@ class _GatedFlow:
         speed = np.hypot(slow[..., 0], slow[..., 1]) * px
         if self.use_slow:
             slow_speed = self.slow_speed
-            use = (speed < slow_speed) & (np.hypot(vel[..., 0], vel[..., 1]) * px < 2 * slow_speed)
+            use = takes_slow(speed, np.hypot(vel[..., 0], vel[..., 1]) * px, slow_speed)
             vel = np.where(use[..., None], slow, vel)
         else:
             vel = vel.copy()

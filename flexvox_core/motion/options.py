@@ -3,15 +3,16 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields
+from numbers import Integral, Real
 
 import numpy as np
 
-from flexvox_core.flow.backends import make_backend
+from flexvox_core.flow.backends import BACKENDS
 from flexvox_core.gaps import captured
 from flexvox_core.motion.tensors import DEFAULT_C, check_c
 from flexvox_core.motion.vardiff import explicit_steps
-from flexvox_core.numbers import checked_number, number_pair
+from flexvox_core.numbers import number_pair
 from flexvox_core.reconstruct.diffusion import MAX_EXPLICIT_STEPS, sigmas
 
 STEP1_TENSOR = (1.0, 1.0, 0.05)
@@ -63,59 +64,103 @@ def auto_flow_scale(height: int, width: int) -> float:
     return min(1.0, FLOW_SIDE / max(1, min(height, width)))
 
 
+REFINE_SHOWN = "(K/16)²"
+"""What forms show for the default refinement time: it depends on the code (1 at K = 16, 0.25 at K = 8)."""
+
+
+def _real(v) -> bool:
+    """A finite real number (Python's or numpy's), not a bool."""
+    return isinstance(v, Real) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _flag(v) -> bool:
+    return isinstance(v, bool | np.bool_)
+
+
+def _check_gate(gate):
+    try:
+        lo, hi = (float(v) for v in gate)
+    except (TypeError, ValueError):
+        lo, hi = math.nan, math.nan
+    if not 0 <= lo < hi:
+        raise ValueError(f"`gate` must be two thresholds 0 <= low < high (px per sub-frame); got {gate!r}")
+    return gate
+
+
+def declared(default, rule: str = "", accepts=None, *, check=None, kind: str | None = None, label: str = "",
+             help: str = "", span=None, shown_default=None, choices=(), tag=None, rank=None):
+    """A :class:`MotionOptions` field and its declaration, which its metadata holds: the rule (``accepts`` a value,
+    None included, and the rule in ``rule``'s words: "`name` must be <rule>; got <value>"; or ``check``, which
+    returns the value as kept and raises in its own words), and, for the options the motion-aware method offers
+    (``kind`` given: an option kind's name, :mod:`flexvox_core.methods.option_kinds`), what its option shows:
+    ``label``, ``help``, ``span``, ``shown_default``, ``choices``; ``tag``: its words in the method's label
+    (value -> str); ``rank``: what the bench compares of its value (default the value)."""
+    return field(default=default, metadata={
+        "rule": rule, "accepts": accepts, "check": check, "kind": kind, "label": label, "help": help, "span": span,
+        "shown_default": shown_default, "choices": tuple(choices), "tag": tag, "rank": rank})
+
+
 @dataclass(frozen=True)
 class MotionOptions:
     """The options of :func:`~flexvox_core.motion.pipeline.motion_aware` (see there), checked once: what the
     motion-aware method builds from its option values and what :func:`~flexvox_core.motion.pipeline.run_window`
-    takes. ``slow_reach`` None stands for :data:`SLOW_REACH` (and reads back as it); ``refine_time`` None for
-    (K/16)² (:meth:`refine`)."""
+    takes. Each field's metadata declares its rule (:func:`declared`), and, for the options the motion-aware
+    method offers, what its option shows: the method's options are made from them
+    (:mod:`flexvox_core.methods.motion_aware_method`). ``slow_reach`` None stands for :data:`SLOW_REACH` (and
+    reads back as it); ``refine_time`` None for (K/16)² (:meth:`refine`)."""
 
-    flow: str = "dis"
-    passes: int = 1
-    time: float = DEFAULT_TIME
-    c: tuple = DEFAULT_C
-    refine_time: float | None = None
-    gate: tuple = DEFAULT_GATE
-    flow_scale: float | None = None
-    still_speed: float | None = STILL_SPEED
-    flow_consistency: bool = False
-    slow_speed: float | None = SLOW_SPEED
-    slow_reach: float | None = SLOW_REACH
-    local_choice: bool = True
-    noise_aware: bool = True
+    flow: str = declared(
+        "dis", f"one of {', '.join(BACKENDS)}", lambda v: isinstance(v, str) and v in BACKENDS, kind="choice",
+        choices=BACKENDS,
+        label="optical flow", help="optical-flow backend (dis: DIS + variational refinement)", tag=lambda v: f" {v}")
+    time: float = declared(
+        DEFAULT_TIME, "a finite number > 0", lambda v: _real(v) and v > 0, kind="number", label="diffusion time n",
+        help="diffusion time n, the accuracy knob (not a convergence tolerance)", span=(0.25, 20.0, 0.5),
+        tag=lambda v: f" n={v:g}")
+    passes: int = declared(
+        1, "a whole number >= 1", lambda v: isinstance(v, Integral) and not isinstance(v, bool) and v >= 1,
+        kind="integer", label="passes", help="flow re-estimated from the previous pass N-1 times", span=(1, 4, 1),
+        tag=lambda v: f" x{v}" if v > 1 else "")
+    c: tuple = declared(DEFAULT_C, check=check_c)
+    refine_time: float | None = declared(
+        None, f"a number from 0 to {MAX_REFINE_TIME:.0f} or None ((K/16)²)",
+        lambda v: v is None or _real(v) and 0 <= v <= MAX_REFINE_TIME, kind="number", label="refinement time",
+        help="time of the monotone diffusion along the trajectories after the gather (default (K/16)²: "
+             "1 at K = 16, 0.25 at K = 8; 0 for none)", span=(0.0, 10.0, 0.5), shown_default=REFINE_SHOWN,
+        tag=lambda v: f" +refine {v:g}" if v is not None else "",
+        rank=lambda v: v is None or v > 0)  # None: the default refinement; any other time > 0 counts as refining
+    gate: tuple = declared(DEFAULT_GATE, check=_check_gate)
+    flow_scale: float | None = declared(None, "in (0, 1] or None", lambda v: v is None or _real(v) and 0 < v <= 1)
+    still_speed: float | None = declared(STILL_SPEED, "a number >= 0 (px per sub-frame) or None",
+                                         lambda v: v is None or _real(v) and v >= 0)
+    flow_consistency: bool = declared(False, "True or False", _flag)
+    slow_speed: float | None = declared(SLOW_SPEED, "a number >= 0 (px per sub-frame) or None",
+                                        lambda v: v is None or _real(v) and v >= 0)
+    slow_reach: float | None = declared(
+        None, f"a number from 0 to {MAX_SLOW_REACH:g} (sampling periods) or None",
+        lambda v: v is None or _real(v) and 0 <= v <= MAX_SLOW_REACH, kind="number", label="slow-drift reach",
+        help="how far the slowly moving voxels' gather reaches along their trajectory, in sampling periods each "
+             "way (0: no long gather, faster where the whole picture drifts slowly)", span=(0.0, 4.0, 0.25),
+        shown_default=SLOW_REACH, tag=lambda v: f" slow-reach {v:g}" if v is not None else "")
+    local_choice: bool = declared(
+        True, "True or False", _flag, kind="flag", label="local choice (leave-one-out)",
+        help="blend in nc (its kernel following the edges of the high-TR reconstruction) wherever it predicts "
+             "left-out samples better than the trajectory gather (off: the gather alone)",
+        tag=lambda v: "" if v else " gather-only")
+    noise_aware: bool = declared(
+        True, "True or False", _flag, kind="flag", label="noise-aware smoothing",
+        help="estimate the noise from still pixels' successive samples and smooth across space where the "
+             "picture is flatter than it (off: Eq. 3's narrow spatial blur everywhere)",
+        tag=lambda v: "" if v else " noise-blind")
 
     def __post_init__(self):
-        object.__setattr__(self, "c", check_c(self.c))
-        for name in ("local_choice", "noise_aware"):
-            if not isinstance(getattr(self, name), bool | np.bool_):
-                raise ValueError(f"`{name}` must be True or False; got {getattr(self, name)!r}")
-        if not isinstance(self.flow_consistency, bool | np.bool_):
-            raise ValueError(f"`flow_consistency` must be True or False; got {self.flow_consistency!r}")
-        make_backend(self.flow)  # an unknown backend is refused here, naming the backends
-        passes = self.passes
-        if isinstance(passes, bool) or not isinstance(passes, int) or passes < 1:
-            raise ValueError(f"`passes` must be a whole number >= 1; got {passes!r}")
-        checked_number("time", self.time, "a finite number > 0", lambda v: v > 0)
-        sigmas((self.c[2], self.c[1], self.c[0]), self.time)  # the guides' blur: within MAX_SIGMA
-        reach = SLOW_REACH if self.slow_reach is None else self.slow_reach
-        object.__setattr__(self, "slow_reach", checked_number(
-            "slow_reach", reach, f"a number from 0 to {MAX_SLOW_REACH:g} (sampling periods)",
-            lambda v: 0 <= v <= MAX_SLOW_REACH))
-        for name, rule, ok in (("refine_time", "a finite number >= 0", lambda v: v >= 0),
-                               ("flow_scale", "in (0, 1] or None", lambda v: 0 < v <= 1),
-                               ("still_speed", "a number >= 0 (px per sub-frame) or None", lambda v: v >= 0),
-                               ("slow_speed", "a number >= 0 (px per sub-frame) or None", lambda v: v >= 0)):
-            if getattr(self, name) is not None:
-                checked_number(name, getattr(self, name), rule, ok)
-        if self.refine_time is not None and float(self.refine_time) > MAX_REFINE_TIME:
-            raise ValueError(f"`refine_time` {self.refine_time!r} takes more than {MAX_EXPLICIT_STEPS} explicit steps "
-                             f"(time · 2·Σc, Σc = {sum(REFINE_C):g}); take a time of at most {MAX_REFINE_TIME:.0f}")
-        try:
-            lo, hi = (float(v) for v in self.gate)
-        except (TypeError, ValueError):
-            lo, hi = math.nan, math.nan
-        if not 0 <= lo < hi:
-            raise ValueError(f"`gate` must be two thresholds 0 <= low < high (px per sub-frame); got {self.gate!r}")
+        for f in fields(self):
+            value = check_field(f, getattr(self, f.name))
+            if value is not getattr(self, f.name):
+                object.__setattr__(self, f.name, value)
+        object.__setattr__(self, "slow_reach", SLOW_REACH if self.slow_reach is None else float(self.slow_reach))
+        # Across fields: the guides' blur (time with c) within MAX_SIGMA.
+        sigmas((self.c[2], self.c[1], self.c[0]), self.time)
 
     def refine(self, K: int) -> float:
         """The refinement time at K slots (None: (K/16)²)."""
@@ -134,6 +179,22 @@ class MotionOptions:
         frames = max(3, math.ceil(self.slow_reach) + 2)
         # The refinement's explicit steps reach one sub-frame each.
         return frames + math.ceil(self.refine_reach(K) / K)
+
+
+def check_field(f, value):
+    """``value`` of :class:`MotionOptions`' field ``f`` by its declaration: as kept, or a ``ValueError`` in the
+    rule's words."""
+    meta = f.metadata
+    if meta["check"] is not None:
+        return meta["check"](value)
+    if not meta["accepts"](value):
+        raise ValueError(f"`{f.name}` must be {meta['rule']}; got {value!r}")
+    return value
+
+
+def offered() -> tuple:
+    """The fields of :class:`MotionOptions` the motion-aware method offers as options (a ``kind`` declared)."""
+    return tuple(f for f in fields(MotionOptions) if f.metadata["kind"] is not None)
 
 
 def sample_bounds(frames: np.ndarray, missing, value_range) -> tuple[float, float]:

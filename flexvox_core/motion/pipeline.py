@@ -16,6 +16,9 @@ the gaps. :func:`run_window` runs them on the CPU or on an NVIDIA GPU (:mod:`fle
 
 from __future__ import annotations
 
+import logging
+from dataclasses import fields
+
 import numpy as np
 
 from flexvox_core.gaps import as_missing
@@ -41,40 +44,25 @@ from flexvox_core.motion.options import (
     sample_bounds,
 )
 from flexvox_core.motion.result import MotionAwareResult
-from flexvox_core.motion.stages import CpuStages, Window, run_stages
-from flexvox_core.motion.tensors import DEFAULT_C
+from flexvox_core.motion.stages import CpuStages, Window, cuda_unsupported, run_stages
 from flexvox_core.reconstruct._common import check_frames, check_identity_code
+
+_logger = logging.getLogger(__name__)
 
 __all__ = [
     "DEFAULT_GATE", "DEFAULT_TIME", "DIS_PARAMS", "FLOW_SIDE", "LONG_REACH_RANGE", "LONG_REACH_SIGMA_S",
     "MAX_REFINE_TIME", "MAX_SLOW_REACH", "PERIOD_GATE", "REFINE_C", "SLOW_REACH", "SLOW_SPEED", "STEP1_TENSOR",
     "STEP1_TIME", "STILL_SPEED", "STILL_TENSOR", "MotionAwareResult", "MotionOptions", "auto_flow_scale",
-    "gated_flow", "motion_aware", "run_clip", "run_window", "sample_bounds",
+    "engine_for", "gated_flow", "motion_aware", "run_clip", "run_window", "sample_bounds",
 ]
 
 
-def motion_aware(
-    frames,
-    code,
-    *,
-    flow: str = "dis",
-    passes: int = 1,
-    time: float = DEFAULT_TIME,
-    c=DEFAULT_C,
-    refine_time: float | None = None,
-    gate=DEFAULT_GATE,
-    flow_scale: float | None = None,
-    still_speed: float | None = STILL_SPEED,
-    flow_consistency: bool = False,
-    slow_speed: float | None = SLOW_SPEED,
-    slow_reach: float | None = SLOW_REACH,
-    value_range: tuple[float, float] | None = None,
-    missing=None,
-    local_choice: bool = True,
-    noise_aware: bool = True,
-    device: str = "cpu",
-) -> MotionAwareResult:
+def motion_aware(frames, code, *, value_range: tuple[float, float] | None = None, missing=None, device: str = "cpu",
+                 **options) -> MotionAwareResult:
     """Motion-aware reconstruction of an identity-code capture.
+
+    The keywords from ``flow`` to ``noise_aware`` are the fields of :class:`MotionOptions` (declared there, with
+    their rules; ``inspect.signature(motion_aware)`` lists them with their defaults).
 
     Parameters
     ----------
@@ -136,13 +124,37 @@ def motion_aware(
     device : {"cpu", "cuda", "auto"}
         Where the stages run (:mod:`flexvox_core.gpu`): ``cuda`` on an NVIDIA GPU (raises
         :class:`~flexvox_core.gpu.DeviceUnavailable` naming what is missing when none is usable), ``auto`` there
-        when one is usable and on the CPU otherwise. The result's ``device`` says which ran.
+        when one is usable and on the CPU otherwise. The result's ``device`` says which ran, and its
+        ``device_note`` why the CPU ran options the GPU's stages do not run as the CPU's
+        (:func:`~flexvox_core.motion.stages.cuda_unsupported`).
+
+    Returns
+    -------
+    MotionAwareResult
+        Its ``video`` in [0, 1] (the pipeline bounds it by the samples' range, which noise may take past [0, 1];
+        :func:`run_clip` and :func:`run_window` leave it there).
     """
-    options = MotionOptions(flow=flow, passes=passes, time=time, c=c, refine_time=refine_time, gate=gate,
-                            flow_scale=flow_scale, still_speed=still_speed, flow_consistency=flow_consistency,
-                            slow_speed=slow_speed, slow_reach=slow_reach, local_choice=local_choice,
-                            noise_aware=noise_aware)
-    return run_clip(frames, code, options, value_range=value_range, missing=missing, device=device)
+    result = run_clip(frames, code, MotionOptions(**options), value_range=value_range, missing=missing,
+                      device=device)
+    np.clip(result.video, 0.0, 1.0, out=result.video)
+    return result
+
+
+def _signature():
+    """``motion_aware``'s signature as ``help()`` and ``inspect`` show it: the frames and code, every field of
+    :class:`MotionOptions` with its default (the keywords are its fields: they are not listed twice), then
+    ``value_range``, ``missing`` and ``device``."""
+    import inspect
+
+    own = inspect.signature(motion_aware)
+    kw = inspect.Parameter.KEYWORD_ONLY
+    params = [own.parameters["frames"], own.parameters["code"],
+              *(inspect.Parameter(f.name, kw, default=f.default, annotation=f.type) for f in fields(MotionOptions)),
+              *(p for n, p in own.parameters.items() if n in ("value_range", "missing", "device"))]
+    return own.replace(parameters=params)
+
+
+motion_aware.__signature__ = _signature()
 
 
 def run_clip(frames, code, options: MotionOptions, *, value_range: tuple[float, float] | None = None, missing=None,
@@ -172,12 +184,28 @@ def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: 
     (:class:`~flexvox_core.gpu.volumes.Workspace`) to reuse, as a streaming run does from window to window.
     """
     window = Window.plan(f, code, options, bounds, missing=missing, keep=keep)
-    if device != "cpu":
-        from flexvox_core.gpu.device import resolve_device
-
-        device = resolve_device(device)
+    device, note = engine_for(options, device)
     if device == "cuda":
         from flexvox_core.motion.gpu.engine import CudaStages
 
         return run_stages(CudaStages(window, ws=workspace))
-    return run_stages(CpuStages(window), memo)
+    result = run_stages(CpuStages(window), memo)
+    result.device_note = note
+    return result
+
+
+def engine_for(options: MotionOptions, device: str) -> tuple[str, str | None]:
+    """(``cpu`` or ``cuda``, why the CPU when the GPU was asked for): ``device`` resolved
+    (:func:`flexvox_core.gpu.resolve_device`), then the CPU for options the GPU's stages do not run as the CPU's
+    (:func:`~flexvox_core.motion.stages.cuda_unsupported`), logged once per call as a warning."""
+    if device == "cpu":
+        return "cpu", None
+    from flexvox_core.gpu.device import resolve_device
+
+    if resolve_device(device) == "cpu":
+        return "cpu", None
+    why = cuda_unsupported(options)
+    if why is None:
+        return "cuda", None
+    _logger.warning("motion-aware: %s", why)
+    return "cpu", why

@@ -29,6 +29,9 @@ class MotionAwareResult:
         Time of each stage of :mod:`~flexvox_core.motion.stages` (summed over passes).
     device : str
         Where the stages ran: ``cpu`` or ``cuda``.
+    device_note : str or None
+        Why the CPU ran them when the GPU was asked for (options the GPU's stages do not run as the CPU's,
+        :func:`~flexvox_core.motion.stages.cuda_unsupported`); None otherwise.
     tr, sr : ndarray (S, H, W) float32
         Effective resolution chosen per voxel (:func:`~flexvox_core.motion.tensors.resolution_map`),
         computed from ``flow`` when first asked for (two more volumes a plain reconstruction
@@ -39,7 +42,7 @@ class MotionAwareResult:
     """
 
     def __init__(self, video: np.ndarray, high_tr, flow, K: int, c: tuple = DEFAULT_C, seconds: dict | None = None,
-                 stage_seconds: dict | None = None, device: str = "cpu"):
+                 stage_seconds: dict | None = None, device: str = "cpu", device_note: str | None = None):
         self.video = video
         self._high_tr = high_tr
         self._flow = flow
@@ -48,6 +51,7 @@ class MotionAwareResult:
         self.seconds = dict(seconds or {})
         self.stage_seconds = dict(stage_seconds or {})
         self.device = device
+        self.device_note = device_note
 
     @cached_property
     def high_tr(self) -> np.ndarray:

@@ -27,7 +27,7 @@ stage                  what it computes
 =====================  ==========================================================================================
 
 Each stage is a method of an engine with the same name on the CPU (:class:`CpuStages`, here) and on the GPU
-(:class:`flexvox_core.gpu.engine.CudaStages`); :func:`run_stages` runs them in order, for each pass. An engine
+(:class:`flexvox_core.motion.gpu.engine.CudaStages`); :func:`run_stages` runs them in order, for each pass. An engine
 holds one window's inputs (:class:`Window`) and its working memory: which volume a stage may write into, and
 when one is no longer needed (fresh memory is dear on the CPU: at 640×480 × 240 sub-frames each new volume costs
 0.1–0.5 s of page faults), so the stages themselves read as the algorithm.
@@ -39,6 +39,7 @@ import logging
 from contextlib import contextmanager
 from dataclasses import dataclass
 from time import perf_counter
+from typing import Any, Protocol
 
 import cv2
 import numpy as np
@@ -149,6 +150,51 @@ class Window:
         """Diffusion time of the still voxels' time average (a Gaussian of K/2 sub-frames)."""
         return self.K * self.K / 8
 
+    @property
+    def guide_tensor(self) -> tuple[float, float, float]:
+        """The guides' fixed tensor: Eq. 4's at zero flow, ``diag(c3, c2, c1)`` in (x, y, t) order."""
+        c = self.options.c
+        return (c[2], c[1], c[0])
+
+    @property
+    def bridge_margin(self) -> int:
+        """Sub-frames on each side of a gap whose flow is bridged too (measured across the gap): half a period."""
+        return self.K // 2
+
+    @property
+    def long_reach(self) -> int:
+        """The slow voxels' gather's reach each way (and its temporal standard deviation), in sub-frames."""
+        return max(1, round(self.options.slow_reach * self.K))
+
+    @property
+    def range_weight(self) -> float:
+        """The slow voxels' gather's range-weight scale: :data:`LONG_REACH_RANGE` of the samples' range."""
+        lo, hi = self.bounds
+        return LONG_REACH_RANGE * max(hi - lo, 1e-12)
+
+    @property
+    def scores_still_voxels(self) -> bool:
+        """Whether the local choice scores the gather at gathered voxels slower than
+        :data:`~flexvox_core.motion.local_choice.STILL_VOXEL_SPEED` by the pixel's own sample
+        (:func:`~flexvox_core.motion.local_choice.still_voxel_loo`): such voxels exist unless the slow class takes
+        every voxel below a ``slow_speed`` at least that speed."""
+        o = self.options
+        return not (o.slow_speed is not None and o.slow_speed >= local_choice.STILL_VOXEL_SPEED and self.slow_class)
+
+
+def cuda_unsupported(options: MotionOptions) -> str | None:
+    """Why :class:`~flexvox_core.motion.gpu.engine.CudaStages` cannot run ``options`` as the CPU does (None: it can).
+
+    The GPU's optical flow is DIS alone (:mod:`flexvox_core.gpu.dis`) and has no backward flow, so another
+    ``flow`` backend or ``flow_consistency`` runs on the CPU; the reason says so, and reaches the result's
+    ``device_note`` (and the command line's ``device:`` line)."""
+    why = []
+    if options.flow != "dis":
+        why.append(f"flow={options.flow!r} runs on the CPU (the GPU's optical flow is DIS)")
+    if options.flow_consistency:
+        why.append("flow_consistency runs on the CPU (the GPU's DIS has no backward flow)")
+    return "; ".join(why) or None
+
 
 class StageTimes:
     """Seconds spent in each stage (summed over passes); ``sync`` is called before each clock reading (a GPU
@@ -175,8 +221,67 @@ class StageTimes:
         return {"high_tr": s.get("high_tr", 0.0), "flow": s.get("gated_flow", 0.0), "diffusion": rest}
 
 
-def run_stages(engine, memo=None):
-    """Run motion-aware's stages on ``engine`` (:class:`CpuStages` or a GPU twin); returns its result."""
+Volume = Any
+"""A volume a stage reads or writes: a numpy array on the CPU, a numba-cuda device array on the GPU."""
+Flow = Any
+"""The gated flow a stage reads: a :class:`~flexvox_core.flow.FlowField` on the CPU, its (S, H, W, 2) device
+array on the GPU."""
+
+
+class Stages(Protocol):
+    """What :func:`run_stages` runs: one engine per device, each holding one :class:`Window` and its working
+    memory. :class:`CpuStages` and :class:`~flexvox_core.motion.gpu.engine.CudaStages` implement it with the
+    same signatures (a test checks them)."""
+
+    device: str
+    window: Window
+
+    def sync(self) -> None:
+        """Wait for queued work (before each clock reading)."""
+
+    def high_tr(self) -> Volume:
+        """The high-TR video (Step 1)."""
+
+    def samples(self) -> None:
+        """The sample volume and its mask, held by the engine."""
+
+    def gated_flow(self, current: Volume, memo=None) -> Flow:
+        """The velocity of every voxel, from ``current`` (the high-TR video or the last pass's result)."""
+
+    def speed_classes(self, flow: Flow) -> tuple[Volume, Volume]:
+        """(still, slow) voxels."""
+
+    def guides(self, still: Volume) -> Volume:
+        """The value of the voxels no trajectory gather estimates (the gather writes into it)."""
+
+    def noise(self, current: Volume, still: Volume) -> Volume | None:
+        """The wide kernel's weight per voxel (None: none)."""
+
+    def trajectory_gather(self, flow: Flow, base: Volume, still: Volume, slow: Volume, high_tr: Volume,
+                          wide: Volume | None, *, leave_one_out: bool, last: bool) -> tuple[Volume, Any, Any]:
+        """(video, loo, gathered)."""
+
+    def long_reach(self, flow: Flow, video: Volume, slow: Volume) -> None:
+        """The slow voxels' range-weighted gather, into ``video``."""
+
+    def refinement(self, video: Volume, flow: Flow, slow: Volume, last: bool) -> None:
+        """The monotone diffusion along the trajectories, in place."""
+
+    def local_choice(self, video: Volume, loo, gathered, flow: Flow, high_tr: Volume, last: bool) -> None:
+        """Oriented nc blended in where it predicts the samples better, in place."""
+
+    def gaps(self, video: Volume, flow: Flow) -> None:
+        """Dropped frames' sub-frames bridged along the flow, in place."""
+
+    def clip(self, video: Volume) -> Volume:
+        """``video`` clipped to the window's sample range, in place."""
+
+    def result(self, current: Volume, high_tr: Volume, flow: Flow, times: StageTimes) -> MotionAwareResult:
+        """What the run gives back."""
+
+
+def run_stages(engine: Stages, memo=None) -> MotionAwareResult:
+    """Run motion-aware's stages on ``engine`` (:class:`CpuStages` or its GPU twin); returns its result."""
     win = engine.window
     o = win.options
     times = StageTimes(engine.sync)
@@ -231,7 +336,7 @@ class CpuStages:
 
     # ----------------------------------------------------------------------------------------------- stages
 
-    def high_tr(self) -> np.ndarray:
+    def high_tr(self) -> Volume:
         w = self.window
         return diffuse(w.frames, w.code, tensor=STEP1_TENSOR, time=STEP1_TIME, missing=w.missing)
 
@@ -244,29 +349,28 @@ class CpuStages:
             self.mask[gap] = False
             self.sparse[gap] = 0
 
-    def gated_flow(self, current: np.ndarray, memo=None):
+    def gated_flow(self, current: Volume, memo=None) -> Flow:
         w, o = self.window, self.window.options
         field_ = gated_flow(current, w.K, backend=o.flow, gate=o.gate, scale=w.flow_scale,
                             consistency=o.flow_consistency, slow_speed=o.slow_speed, memo=memo)
         if w.missing is not None:
-            bridge_flow(field_.flow, w.missing, w.K, margin=w.K // 2)
+            bridge_flow(field_.flow, w.missing, w.K, margin=w.bridge_margin)
         return field_
 
-    def speed_classes(self, field_):
+    def speed_classes(self, flow: Flow) -> tuple[Volume, Volume]:
         w, o = self.window, self.window.options
-        still, slow = speed_classes(field_.flow, o.still_speed, o.slow_speed if w.slow_class else None)
+        still, slow = speed_classes(flow.flow, o.still_speed, o.slow_speed if w.slow_class else None)
         if w.skip is not None:  # outside the gathered sub-frames nothing is gathered
             slow[w.skip] = False
         return still, slow
 
-    def guides(self, still: np.ndarray) -> np.ndarray:
+    def guides(self, still: Volume) -> Volume:
         """The value of the voxels no trajectory gather estimates: the fixed-tensor nc of Eq. 4's tensor at zero
         flow (``diag(c3, c2, c1)``), and at the still voxels their pixel's own samples averaged in time
         (Eq. 4's tensor in the limit c -> (0, 0, 1)): exact for a still scene, and its noise averages out."""
         w, o = self.window, self.window.options
-        c = o.c
         if self.fixed is None:  # computed once: every pass reads it
-            self.fixed = guide(w, (c[2], c[1], c[0]), o.time)
+            self.fixed = guide(w, w.guide_tensor, o.time)
         base = self.fixed
         if still.any():
             if o.passes == 1 and w.skip is None:
@@ -279,7 +383,7 @@ class CpuStages:
                 np.copyto(base, self.still_value, where=still)
         return base
 
-    def noise(self, current: np.ndarray, still: np.ndarray):
+    def noise(self, current: Volume, still: Volume) -> Volume | None:
         """The wide kernel's weights per sub-frame (None: a noiseless or single-frame capture)."""
         w = self.window
         if w.frames.shape[0] < 2:
@@ -291,7 +395,8 @@ class CpuStages:
                      float(np.median(noise)))
         return noise_aware.SmoothWeights(current, np.repeat(noise, w.K))
 
-    def trajectory_gather(self, field_, base, still, slow, high_tr, wide, *, leave_one_out: bool, last: bool):
+    def trajectory_gather(self, flow: Flow, base: Volume, still: Volume, slow: Volume, high_tr: Volume,
+                          wide: Volume | None, *, leave_one_out: bool, last: bool) -> tuple[Volume, Any, Any]:
         """(video, loo, gathered): the gather at the voxels neither still nor slow; ``loo`` (F, H, W) each sample's
         leave-one-out estimate (None unless asked for) and ``gathered`` the voxels gathered (with ``loo``)."""
         w, o = self.window, self.window.options
@@ -301,7 +406,7 @@ class CpuStages:
         loo = np.full(w.frames.shape, np.nan, np.float32) if leave_one_out else None
         # The gather writes into `base` when no later pass reads it (one volume less).
         into = base if o.passes == 1 or base is not self.fixed else None
-        video = motion_compensated_nc(self.sparse, self.mask, field_.flow, c=o.c, time=o.time, fallback=high_tr,
+        video = motion_compensated_nc(self.sparse, self.mask, flow.flow, c=o.c, time=o.time, fallback=high_tr,
                                       still=not_gathered, still_value=base, loo=loo, wide=wide,
                                       wide_sigma=noise_aware.wide_sigma(w.K), out=into)
         gathered = ~not_gathered if loo is not None else None
@@ -309,21 +414,19 @@ class CpuStages:
             self.fixed = self.still_value = None  # not needed again: free them before the local choice's volume
         return video, loo, gathered
 
-    def long_reach(self, field_, video: np.ndarray, slow: np.ndarray) -> None:
-        w, o = self.window, self.window.options
+    def long_reach(self, flow: Flow, video: Volume, slow: Volume) -> None:
+        w = self.window
         if not slow.any():
             return
-        lo, hi = w.bounds
-        reach = max(1, round(o.slow_reach * w.K))
-        long_reach_nc(self.sparse, self.mask, field_.flow, video, slow, reach=reach, sigma_t=reach,
-                      sigma_s=LONG_REACH_SIGMA_S, h=LONG_REACH_RANGE * max(hi - lo, 1e-12), out=video)
+        long_reach_nc(self.sparse, self.mask, flow.flow, video, slow, reach=w.long_reach, sigma_t=w.long_reach,
+                      sigma_s=LONG_REACH_SIGMA_S, h=w.range_weight, out=video)
         np.copyto(video, self.sparse, where=self.mask)
 
     def _spare(self, last: bool):
         """A volume the stages after the last pass's gathers may overwrite: the samples' (dead by then)."""
         return self.sparse if last else None
 
-    def refinement(self, video: np.ndarray, field_, slow: np.ndarray, last: bool) -> None:
+    def refinement(self, video: Volume, flow: Flow, slow: Volume, last: bool) -> None:
         """Along each trajectory; the slow voxels read their neighbours by clipped Catmull-Rom (a bilinear read
         a fraction of a pixel off is a blur, which would take the texture their long-reach gather kept)."""
         w, o = self.window, self.window.options
@@ -332,37 +435,35 @@ class CpuStages:
             return
         g0, g1 = w.gathered
         spare = self._spare(last)
-        variable_tensor_diffusion(video[g0:g1], self.mask[g0:g1], field_.flow[g0:g1], c=REFINE_C, time=refine_time,
+        variable_tensor_diffusion(video[g0:g1], self.mask[g0:g1], flow.flow[g0:g1], c=REFINE_C, time=refine_time,
                                   out=video[g0:g1], scratch=None if spare is None else spare[g0:g1],
                                   sharp=slow[g0:g1])
 
-    def local_choice(self, video, loo, gathered, field_, high_tr, last: bool) -> None:
-        w, o = self.window, self.window.options
+    def local_choice(self, video: Volume, loo, gathered, flow: Flow, high_tr: Volume, last: bool) -> None:
+        w = self.window
         if not np.isfinite(loo).any():
             return
-        if not (o.slow_speed is not None and o.slow_speed >= local_choice.STILL_VOXEL_SPEED and w.slow_class):
-            # Gathered voxels slower than that exist (with the slow class on, every gathered voxel is faster than
-            # `slow_speed`): at them the pixel's own sample scores the gather (local_choice.still_voxel_loo).
-            local_choice.still_voxel_loo(loo, video, w.frames, gathered, self.mask, field_.flow, w.K)
+        if w.scores_still_voxels:  # at gathered voxels slower than STILL_VOXEL_SPEED the pixel's own sample scores
+            local_choice.still_voxel_loo(loo, video, w.frames, gathered, self.mask, flow.flow, w.K)
         other, other_loo = oriented_nc(w.frames, w.code, high_tr, where=gathered, fallback=video, missing=w.missing,
                                        out=self._spare(last))
         local_choice.blend(video, other, local_choice.local_weights(loo, other_loo, w.frames), gathered, w.K)
 
-    def gaps(self, video, field_) -> None:
+    def gaps(self, video: Volume, flow: Flow) -> None:
         w = self.window
-        bridge(video, w.missing, w.K, flow=field_.flow)
+        bridge(video, w.missing, w.K, flow=flow.flow)
 
-    def clip(self, video) -> np.ndarray:
+    def clip(self, video: Volume) -> Volume:
         lo, hi = self.window.bounds
         return np.clip(video, lo, hi, out=video)
 
-    def result(self, current, high_tr, field_, times: StageTimes):
+    def result(self, current: Volume, high_tr: Volume, flow: Flow, times: StageTimes) -> MotionAwareResult:
         w = self.window
         video = current.astype(np.float32, copy=False)
         s0, s1 = w.keep
         if (s0, s1) != (0, w.S):
             video = np.ascontiguousarray(video[s0:s1])
-        return MotionAwareResult(video, high_tr, field_, w.K, w.options.c, times.summary(), dict(times.seconds),
+        return MotionAwareResult(video, high_tr, flow, w.K, w.options.c, times.summary(), dict(times.seconds),
                                  self.device)
 
 

@@ -36,11 +36,15 @@ import numpy as np
 
 from flexvox_core.flow.memo import FlowMemo
 from flexvox_core.gaps import GapTooLongError, max_gap
-from flexvox_core.motion.pipeline import MotionOptions, run_window
+from flexvox_core.motion.pipeline import MotionOptions, engine_for, run_window
 from flexvox_core.numbers import number_pair
 from flexvox_core.reconstruct._common import check_identity_code
 
 _logger = logging.getLogger(__name__)
+
+NOISE_MARGIN = 0.25
+"""How far outside [0, 1] a normalised frame's values may lie and be taken as sensor noise (clipped into it);
+further out a frame is refused (it is not normalised)."""
 
 BACK = 1
 """Frames of context before the reconstructed one by default (they cost time, not latency)."""
@@ -81,13 +85,16 @@ class StreamingMotionAware:
     code : ndarray (m, n, K)
     back, ahead : int
         Frames of context before and after each reconstructed frame (``ahead`` >= 1: the latency).
-    value_range : (lo, hi)
-        Range every sample lies in (default [0, 1], normalised frames): it scales the slow voxels'
-        range weight and bounds the result, as the whole recording's range does offline.
+    value_range : (lo, hi) or None
+        Range every sample lies in: it scales the slow voxels' range weight and bounds the result, as the whole
+        recording's range does offline; a frame outside it is refused. None (default): normalised frames, [0, 1],
+        and a frame that sensor noise takes out of it by at most :data:`NOISE_MARGIN` is clipped into it (logged
+        once per stream, counted in :attr:`clipped`).
     device : {"cpu", "cuda", "auto"}
         Where each window runs (:func:`flexvox_core.gpu.resolve_device`). On the GPU one set of device buffers
         serves every window, and every flow pair of a window is measured again (the card does it faster than the
-        memo finds it); :attr:`device` says which ran.
+        memo finds it); :attr:`device` says which ran, and ``device_note`` why the CPU when the GPU was asked for
+        (options the GPU's stages do not run as the CPU's).
     **options
         The options of :func:`~flexvox_core.motion.pipeline.motion_aware` (flow, time, refine_time, …).
 
@@ -101,7 +108,7 @@ class StreamingMotionAware:
     ...     show(out.video)
     """
 
-    def __init__(self, code, *, back: int = BACK, ahead: int = AHEAD, value_range=(0.0, 1.0), device: str = "cpu",
+    def __init__(self, code, *, back: int = BACK, ahead: int = AHEAD, value_range=None, device: str = "cpu",
                  **options):
         self.code = check_identity_code(code)
         self.K = int(self.code.shape[2])
@@ -110,18 +117,19 @@ class StreamingMotionAware:
                 raise ValueError(f"`{name}` must be a whole number >= {least} (frames); got {value!r}")
         self.back, self.ahead = back, ahead
         self.options = MotionOptions(**options)
-        lo, hi = number_pair("value_range", value_range)
+        self._noise_margin = NOISE_MARGIN if value_range is None else 0.0
+        lo, hi = number_pair("value_range", (0.0, 1.0) if value_range is None else value_range)
         if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
             raise ValueError(f"`value_range` must be two finite numbers lo < hi; got {value_range!r}")
         self.value_range = (lo, hi)
+        self.clipped = 0
+        """Frames clipped into [0, 1] (``value_range`` None: values sensor noise took out of it)."""
         # The longest run of dropped frames bridged: as the offline method with its chunk overlap.
         self.max_gap = max_gap(self.options.overlap(self.K))
         self.memo = FlowMemo(max_pairs=max(64, 8 * self.K))
-        if device != "cpu":
-            from flexvox_core.gpu.device import resolve_device
-
-            device = resolve_device(device)
-        self.device = device
+        # Options the GPU's stages do not run as the CPU's run on the CPU (``device_note`` says why).
+        self.device, self.device_note = engine_for(self.options, device)
+        device = self.device
         self._workspace = None
         if device == "cuda":
             from flexvox_core.gpu.volumes import Workspace
@@ -207,8 +215,15 @@ class StreamingMotionAware:
             raise ValueError(f"frame {self._pushed} holds NaN or infinite values")
         f_lo, f_hi = float(img.min()), float(img.max())
         if f_lo < lo or f_hi > hi:
-            raise ValueError(f"frame {self._pushed} has values in [{f_lo:g}, {f_hi:g}], outside the stream's "
-                             f"value_range [{lo:g}, {hi:g}]")
+            margin = self._noise_margin
+            if not (lo - margin <= f_lo and f_hi <= hi + margin):
+                raise ValueError(f"frame {self._pushed} has values in [{f_lo:g}, {f_hi:g}], outside the stream's "
+                                 f"value_range [{lo:g}, {hi:g}]")
+            if not self.clipped:
+                _logger.info("stream: frame %d has values in [%g, %g] (sensor noise): clipped into [%g, %g], as are "
+                             "the later frames outside it", self._pushed, f_lo, f_hi, lo, hi)
+            self.clipped += 1
+            np.clip(img, lo, hi, out=img)
         return img
 
     def _left(self, f: int) -> int:

@@ -26,10 +26,11 @@ def _reflect(i, n):
     return i
 
 
-@numba.njit(inline="always", nogil=True, cache=True)
-def _bank_index(jxx, jxy, jyy, low, high, tan1):
+def bank_of(jxx, jxy, jyy, low, high, tan1):
     """As :func:`~flexvox_core.reconstruct.oriented_nc.bank_index` (the same comparisons), for one voxel;
-    ``low``, ``high``: where the anisotropy rounds up to the next level; ``tan1``: the sectors' edge slope."""
+    ``low``, ``high``: where the anisotropy rounds up to the next level; ``tan1``: the sectors' edge slope.
+    Written once, compiled for the CPU here (:func:`_bank_index`) and for the GPU as a device function
+    (:mod:`flexvox_core.motion.gpu.choice_structure`)."""
     a = jxx - jyy
     b = 2.0 * jxy
     trace = jxx + jyy
@@ -48,6 +49,9 @@ def _bank_index(jxx, jxy, jyy, low, high, tan1):
     else:
         angle = 3 if b > 0 else 5
     return 1 + (level - 1) * _ANGLES + angle
+
+
+_bank_index = numba.njit(inline="always", nogil=True, cache=True)(bank_of)
 
 
 def tap_lists(bank: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -67,7 +67,7 @@ class MethodForm(QWidget):
         """Each method's options form (the options the slider sets left out)."""
         for spec in specs():
             page = self.pages[spec.name] = OptionsForm(
-                spec, skip=[o.name for o in spec.options if o.kind in SLIDER_KINDS], settings=settings,
+                spec, skip=[o.name for o in spec.option_specs if o.kind in SLIDER_KINDS], settings=settings,
                 key=f"review/{spec.name}", empty="no knobs besides the slider")
             self.stack.addWidget(page)
 
@@ -149,12 +149,12 @@ class MethodForm(QWidget):
         along = {TRIPLE: lambda o: tuple(o.default) if self.slider.value() == DEFAULT_STEP else
                  continuum_tensor(self.position),  # one default tensor: the benched one, at its step
                  DIVISION: lambda o: continuum_division(self.position, self._divisions) if self._divisions else None}
-        values.update({o.name: along[o.kind](o) for o in spec.options if o.kind in along})
+        values.update({o.name: along[o.kind](o) for o in spec.option_specs if o.kind in along})
         return Method(spec.name, **values)
 
     # ------------------------------------------------------------------ reactions
     def _has_slider(self) -> bool:
-        return any(o.kind in SLIDER_KINDS for o in get(self.method_box.currentText()).options)
+        return any(o.kind in SLIDER_KINDS for o in get(self.method_box.currentText()).option_specs)
 
     def _on_method(self, *_):
         self._comparing = False
@@ -192,7 +192,7 @@ class MethodForm(QWidget):
 
     def _refresh(self) -> None:
         spec = get(self.method_box.currentText())
-        kinds = {o.kind for o in spec.options}
+        kinds = {o.kind for o in spec.option_specs}
         if DIVISION in kinds:
             if self._divisions:
                 d = continuum_division(self.position, self._divisions)

@@ -213,7 +213,7 @@ class OptionsForm(QWidget):
         self._fields: dict[str, _Field] = {}
         self._keys: dict[str, str] = {}
         form = QFormLayout(self)
-        for o in spec.options:
+        for o in spec.option_specs:
             if o.name in skip:
                 continue
             field = self._fields[o.name] = FIELDS[o.kind.field](o)

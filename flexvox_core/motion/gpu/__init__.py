@@ -3,13 +3,12 @@
 Each stage of :mod:`flexvox_core.motion.stages` has a twin here made of CUDA kernels (numba-cuda, the ``gpu``
 extra) on device arrays: a window's data stays on the card from the upload of the camera frames to the
 download of the result. The building blocks that are not motion-aware's own (normalized convolution, resizing,
-the DIS optical flow, the local choice, device buffers) are in :mod:`flexvox_core.gpu`. Nothing here is imported
-on the CPU path.
+the DIS optical flow, device buffers) are in :mod:`flexvox_core.gpu`; motion-aware's own, the local choice among
+them, are here. Nothing here is imported on the CPU path.
 """
 
-from flexvox_core.gpu.launch import KERNEL_MODULES as _GENERIC
+from flexvox_core.gpu.launch import KERNEL_PACKAGES as _GENERIC
 
-KERNEL_MODULES = (*_GENERIC, "flexvox_core.motion.gpu.gather", "flexvox_core.motion.gpu.longreach",
-                  "flexvox_core.motion.gpu.refine", "flexvox_core.motion.gpu.gate",
-                  "flexvox_core.motion.gpu.noise", "flexvox_core.motion.gpu.gaps")
-"""Every module that declares kernels (what :func:`flexvox_core.gpu.launch.compile_all` compiles in the tests)."""
+KERNEL_PACKAGES = (*_GENERIC, "flexvox_core.motion.gpu")
+"""The packages whose modules declare motion-aware's kernels and the generic ones it uses (what
+:func:`flexvox_core.gpu.launch.compile_all` compiles in the tests)."""

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 from time import perf_counter
+from typing import Any
 
 import numpy as np
 from numba import cuda
@@ -16,18 +17,17 @@ from numba import cuda
 from flexvox_core.flow import FlowField
 from flexvox_core.forward import tiled_order
 from flexvox_core.gaps import captured
-from flexvox_core.gpu import choice, volumes
+from flexvox_core.gpu import volumes
 from flexvox_core.gpu.nc import NcPlan, nc
 from flexvox_core.gpu.volumes import Workspace
 from flexvox_core.motion import local_choice, noise_aware
 from flexvox_core.motion.gated_flow import DIS_PARAMS
-from flexvox_core.motion.gpu import gaps, gate, noise
+from flexvox_core.motion.gpu import choice, gaps, gate, noise
 from flexvox_core.motion.gpu.gather import trajectory_gather
 from flexvox_core.motion.gpu.longreach import long_reach
 from flexvox_core.motion.gpu.refine import refine
 from flexvox_core.motion.mcnc import default_reach
 from flexvox_core.motion.options import (
-    LONG_REACH_RANGE,
     LONG_REACH_SIGMA_S,
     PERIOD_GATE,
     REFINE_C,
@@ -36,10 +36,34 @@ from flexvox_core.motion.options import (
     STILL_TENSOR,
 )
 from flexvox_core.motion.result import MotionAwareResult
-from flexvox_core.motion.stages import StageTimes, Window
+from flexvox_core.motion.stages import Flow, StageTimes, Volume, Window
 from flexvox_core.reconstruct.diffusion import diffuse
 
 _logger = logging.getLogger(__name__)
+
+
+class Buffers:
+    """The names of the engine's device buffers in its :class:`~flexvox_core.gpu.volumes.Workspace`: the window's
+    inputs, then one per stage's result (the stage's own scratch buffers carry its name as a prefix)."""
+
+    FRAMES = "frames"
+    ORDER = "order"
+    PRESENT = "present"
+    NC = "nc"
+    """The scratch of every normalized convolution (high-TR, the guides)."""
+    HIGH_TR = "high_tr"
+    SPARSE = "samples.sparse"
+    MASK = "samples.mask"
+    FLOW = "gated_flow"
+    STILL = "speed_classes.still"
+    SLOW = "speed_classes.slow"
+    GATHER = "speed_classes.gather"
+    FIXED = "guides.fixed"
+    BASE = ("guides.base0", "guides.base1")
+    """With several passes: the guides of even and odd passes (a pass must not overwrite the last one's result)."""
+    STILL_VALUE = "guides.still_value"
+    NOISE = "noise.g"
+    LOO = "trajectory_gather.loo"
 
 
 class CudaStages:
@@ -57,18 +81,24 @@ class CudaStages:
         self.pair_flow = gate.PairFlow(self.ws, pairs, DIS_PARAMS)
         F, H, W = w.frames.shape
         self.present = np.ones(F, bool) if w.missing is None else ~np.asarray(w.missing, bool)
-        self.frames_d = self.ws.put("frames", np.ascontiguousarray(w.frames, np.float32))
-        self.order_d = self.ws.put("order", np.ascontiguousarray(tiled_order(w.code, H, W), np.int32))
-        self.present_d = self.ws.put("present", self.present.astype(np.uint8))
+        self.frames_d = self.ws.put(Buffers.FRAMES, np.ascontiguousarray(w.frames, np.float32))
+        self.order_d = self.ws.put(Buffers.ORDER, np.ascontiguousarray(tiled_order(w.code, H, W), np.int32))
+        self.present_d = self.ws.put(Buffers.PRESENT, self.present.astype(np.uint8))
         kept = captured(w.frames, w.missing)
         self.sample_range = (float(kept.min()), float(kept.max()))
         self.fixed_ready = self.still_ready = False
-        self.generation = self.ws.generation = getattr(self.ws, "generation", 0) + 1
+        self.generation = self.ws.next_generation()
+        # What the stages set, for the stages after them.
+        self.sparse = self.mask = None  # samples
+        self.flow_params: dict = {}  # gated_flow
+        self.n_still = self.n_slow = 0  # speed_classes
+        self.gather_mask = None  # speed_classes: the voxels the trajectory gather estimates
+        self.passes_run = 0  # guides: the passes whose guides were made
 
     def sync(self) -> None:
         cuda.synchronize()
 
-    def _volume(self, name: str, dtype=np.float32):
+    def _volume(self, name: str, dtype=np.float32) -> Volume:
         w = self.window
         return self.ws.get(name, (w.S, *w.frames.shape[1:]), dtype)
 
@@ -84,67 +114,67 @@ class CudaStages:
 
     # ----------------------------------------------------------------------------------------------- stages
 
-    def high_tr(self):
-        out = self._volume("high_tr")
-        self._nc(STEP1_TENSOR, STEP1_TIME, out, "nc")
+    def high_tr(self) -> Volume:
+        out = self._volume(Buffers.HIGH_TR)
+        self._nc(STEP1_TENSOR, STEP1_TIME, out, Buffers.NC)
         return out
 
     def samples(self) -> None:
-        self.sparse = self._volume("sparse")
-        self.mask = self._volume("mask", np.uint8)
+        self.sparse = self._volume(Buffers.SPARSE)
+        self.mask = self._volume(Buffers.MASK, np.uint8)
         volumes.samples(self.frames_d, self.order_d, self.present_d, self.window.K, self.sparse, self.mask)
 
-    def gated_flow(self, current, memo=None):
+    def gated_flow(self, current: Volume, memo=None) -> Flow:
         w, o = self.window, self.window.options
-        flow = self.ws.get("flow", (w.S, *w.frames.shape[1:], 2))
+        flow = self.ws.get(Buffers.FLOW, (w.S, *w.frames.shape[1:], 2))
         params = gate.gated_flow(self.ws, current, w.K, gate=o.gate, scale=w.flow_scale, slow_speed=o.slow_speed,
                                  period_gate=PERIOD_GATE, pair_flow=self.pair_flow, out=flow)
         self.flow_params = {"backend": "dis", **DIS_PARAMS, **params, "pairs": self.pair_flow.where}
         if w.missing is not None:
-            gaps.bridge_flow(flow, w.missing, w.K, margin=w.K // 2)
+            gaps.bridge_flow(flow, w.missing, w.K, margin=w.bridge_margin)
         return flow
 
-    def speed_classes(self, flow):
+    def speed_classes(self, flow: Flow) -> tuple[Volume, Volume]:
         w, o = self.window, self.window.options
-        still, slow, gather = (self._volume(n, np.uint8) for n in ("still", "slow", "gather"))
+        still, slow, gather = (self._volume(n, np.uint8) for n in (Buffers.STILL, Buffers.SLOW, Buffers.GATHER))
         self.n_still, self.n_slow = gate.speed_classes(self.ws, flow, o.still_speed,
                                                        o.slow_speed if w.slow_class else None, w.skip, still, slow,
                                                        gather)
         self.gather_mask = gather
         return still, slow
 
-    def guides(self, still):
+    def guides(self, still: Volume) -> Volume:
         w, o = self.window, self.window.options
-        c = o.c
-        fixed = self._volume("fixed")
+        fixed = self._volume(Buffers.FIXED)
         if not self.fixed_ready:
-            self._nc((c[2], c[1], c[0]), o.time, fixed, "nc")
+            self._nc(w.guide_tensor, o.time, fixed, Buffers.NC)
             self.fixed_ready = o.passes > 1  # a later pass reads it again
         base = fixed
         if o.passes > 1:  # `fixed` serves every pass; two volumes in turn, so as not to overwrite the last pass's
-            self.passes_run = getattr(self, "passes_run", 0) + 1
-            base = self._volume(f"base{self.passes_run % 2}")
+            self.passes_run += 1
+            base = self._volume(Buffers.BASE[self.passes_run % 2])
             volumes.copy(base, fixed)
         if self.n_still:
-            still_value = self._volume("still_value")
+            still_value = self._volume(Buffers.STILL_VALUE)
             if not self.still_ready:
-                self._nc(STILL_TENSOR, w.still_time, still_value, "nc")
+                self._nc(STILL_TENSOR, w.still_time, still_value, Buffers.NC)
                 self.still_ready = o.passes > 1
             volumes.copy_where(base, still_value, still)
         return base
 
-    def noise(self, current, still):
+    def noise(self, current: Volume, still: Volume) -> Volume | None:
         w = self.window
-        g = self._volume("noise.g")
+        g = self._volume(Buffers.NOISE)
         if not noise.noise_weights(self.ws, self.frames_d, current, still, self.mask, w.K, g):
             return None
         return g
 
-    def trajectory_gather(self, flow, base, still, slow, high_tr, wide, *, leave_one_out: bool, last: bool):
+    def trajectory_gather(self, flow: Flow, base: Volume, still: Volume, slow: Volume, high_tr: Volume,
+                          wide: Volume | None, *, leave_one_out: bool, last: bool) -> tuple[Volume, Any, Any]:
         w, o = self.window, self.window.options
         loo = None
         if leave_one_out:
-            loo = self.ws.get("loo", w.frames.shape)
+            loo = self.ws.get(Buffers.LOO, w.frames.shape)
             volumes.fill(loo, np.nan)
         c1, c2, _ = o.c
         per_pixel = int(self.present.sum())  # an identity code samples each pixel once a frame
@@ -154,16 +184,14 @@ class CudaStages:
                           c2=c2, reach=reach, wide=wide, wide_sigma=noise_aware.wide_sigma(w.K), loo=loo)
         return base, loo, (self.gather_mask if loo is not None else None)
 
-    def long_reach(self, flow, video, slow) -> None:
-        w, o = self.window, self.window.options
+    def long_reach(self, flow: Flow, video: Volume, slow: Volume) -> None:
+        w = self.window
         if not self.n_slow:
             return
-        lo, hi = w.bounds
-        reach = max(1, round(o.slow_reach * w.K))
-        long_reach(self.ws, self.sparse, self.mask, flow, video, slow, reach=reach, sigma_t=reach,
-                   sigma_s=LONG_REACH_SIGMA_S, h=LONG_REACH_RANGE * max(hi - lo, 1e-12))
+        long_reach(self.ws, self.sparse, self.mask, flow, video, slow, reach=w.long_reach, sigma_t=w.long_reach,
+                   sigma_s=LONG_REACH_SIGMA_S, h=w.range_weight)
 
-    def refinement(self, video, flow, slow, last: bool) -> None:
+    def refinement(self, video: Volume, flow: Flow, slow: Volume, last: bool) -> None:
         w, o = self.window, self.window.options
         t = o.refine(w.K)
         if t <= 0:
@@ -171,24 +199,23 @@ class CudaStages:
         g0, g1 = w.gathered
         refine(self.ws, video[g0:g1], self.mask[g0:g1], flow[g0:g1], slow[g0:g1], c=REFINE_C, time=t)
 
-    def local_choice(self, video, loo, gathered, flow, high_tr, last: bool) -> None:
-        w, o = self.window, self.window.options
-        score = not (o.slow_speed is not None and o.slow_speed >= local_choice.STILL_VOXEL_SPEED and w.slow_class)
+    def local_choice(self, video: Volume, loo, gathered, flow: Flow, high_tr: Volume, last: bool) -> None:
+        w = self.window
         choice.local_choice(self.ws, video, loo, gathered, self.mask, flow, self.frames_d, self.order_d,
-                            self.present_d, high_tr, w.K, score_still_voxels=score,
+                            self.present_d, high_tr, w.K, score_still_voxels=w.scores_still_voxels,
                             still_speed=local_choice.STILL_VOXEL_SPEED,
                             sigma=local_choice.pooling_sigma(*w.frames.shape[1:]))
 
-    def gaps(self, video, flow) -> None:
+    def gaps(self, video: Volume, flow: Flow) -> None:
         w = self.window
         gaps.bridge(video, flow, w.missing, w.K)
 
-    def clip(self, video):
+    def clip(self, video: Volume) -> Volume:
         lo, hi = self.window.bounds
         volumes.clip(video, lo, hi)
         return video
 
-    def result(self, current, high_tr, flow, times: StageTimes) -> MotionAwareResult:
+    def result(self, current: Volume, high_tr: Volume, flow: Flow, times: StageTimes) -> MotionAwareResult:
         w = self.window
         s0, s1 = w.keep
         t0 = perf_counter()

@@ -16,12 +16,13 @@ import math
 import numpy as np
 from numba import cuda
 
-from flexvox_core.flow.baseline import default_stride
+from flexvox_core.flow.baseline import blend, default_stride, measurements
 from flexvox_core.flow.estimate import MIN_FLOW_SIDE
 from flexvox_core.gpu.filters import box_in_time
 from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import device, kernel, launch
 from flexvox_core.gpu.resize import resize_area, resize_linear, to_uint8
+from flexvox_core.motion.gated_flow import takes_slow
 
 PAIRS = ("gpu", "cpu")
 """Where the pairs' optical flow runs."""
@@ -59,11 +60,14 @@ class PairFlow:
         if self.where == "cpu":
             self._on_host(images, pairs, out)
             return
-        from flexvox_core.gpu.dis import DisParams, dis_pairs
+        from flexvox_core.gpu.dis import DisParams, DisWorkspace, dis_pairs
 
         a = self.ws.put(f"{tag}.a", np.ascontiguousarray(pairs[:, 0], np.int32))
         b = self.ws.put(f"{tag}.b", np.ascontiguousarray(pairs[:, 1], np.int32))
-        dis_pairs(images, a, b, DisParams(**self.dis_params), out=out)
+        params = DisParams(**self.dis_params)
+        size = (images.shape[0], len(pairs), *images.shape[1:], params)
+        buffers = self.ws.held(f"{tag}.dis", lambda d: d.fits(*size), lambda: DisWorkspace(*size))
+        dis_pairs(images, a, b, params, out=out, workspace=buffers)
 
     def _on_host(self, images, pairs, out) -> None:
         from flexvox_core.flow.backends import make_backend
@@ -166,23 +170,18 @@ def cropped(ws, flow, h: int, w: int, tag: str):
 
 
 def kaverage_plan(S: int, K: int, stride: int) -> tuple[int, np.ndarray, np.ndarray]:
-    """The K-average's measurements as :class:`~flexvox_core.flow.baseline.KAverageFlow` makes them: the span,
-    the pairs (M, 2) and, per sub-frame, (j0, j1, a): velocity = (1 − a)·disp[j0] + a·disp[j1]."""
-    span = max(1, min(K, S - 1))
-    starts = list(range(0, S - span, stride))
-    if not starts or starts[-1] != S - 1 - span:
-        starts.append(S - 1 - span)
+    """The K-average's measurements as :class:`~flexvox_core.flow.baseline.KAverageFlow` makes them
+    (:func:`~flexvox_core.flow.baseline.measurements`, :func:`~flexvox_core.flow.baseline.blend`): the span, the
+    pairs (M, 2) and, per sub-frame, (j0, j1, a): velocity = (1 − a)·disp[j0] + a·disp[j1]."""
+    span, starts = measurements(S, K, stride)
     centres = np.asarray(starts, np.float64) + span / 2
-    interp = np.zeros((S, 3), np.float32)
-    for s in range(S):
-        j = int(np.searchsorted(centres, s))
-        if j == 0 or j == len(centres):
-            k = min(j, len(centres) - 1)
-            interp[s] = (k, k, 0)
-        else:
-            interp[s] = (j - 1, j, (s - centres[j - 1]) / (centres[j] - centres[j - 1]))
+    interp = np.array([blend(centres, s) for s in range(S)], np.float32).reshape(S, 3)
     pairs = np.array([(a, a + span) for a in starts], np.int64)
     return span, pairs, interp
+
+
+_takes_slow = device(takes_slow)
+"""The CPU's rule (:func:`~flexvox_core.motion.gated_flow.takes_slow`) for one voxel."""
 
 
 @device
@@ -216,7 +215,7 @@ def _gate(vel, disp, interp, steps, mean, px, lo, hi, use_slow, slow_speed, has_
     u = vel[s, y, x, 0]
     v = vel[s, y, x, 1]
     speed = math.sqrt(su * su + sv * sv) * px
-    if use_slow and speed < slow_speed and math.sqrt(u * u + v * v) * px < 2 * slow_speed:
+    if use_slow and _takes_slow(speed, math.sqrt(u * u + v * v) * px, slow_speed):
         u = su
         v = sv
     tu = steps[s, y, x, 0]

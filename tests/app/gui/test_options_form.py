@@ -13,7 +13,7 @@ def test_each_option_gets_its_kind_s_field_and_the_form_gives_the_method_s_defau
     for name in ("rebin", "diffusion", "gap-tv", "motion-aware"):
         form = OptionsForm(get(name))
         qtbot.addWidget(form)
-        for o in get(name).options:
+        for o in get(name).option_specs:
             assert type(form.widgets[o.name]) is kinds[o.kind.field], (name, o.name)
         assert Method(name, **form.values((2, 4))) == Method(name), name
 

@@ -56,7 +56,7 @@ def test_the_widget_offers_every_registered_method_with_its_options(viewer, qtbo
     methods = [widget.method_box.itemText(i) for i in range(widget.method_box.count())]
     assert methods == list(names())
     for spec in specs():
-        assert list(widget.forms[spec.name].widgets) == [o.name for o in spec.options]
+        assert list(widget.forms[spec.name].widgets) == [o.name for o in spec.option_specs]
     assert not widget.run_button.isEnabled() and "open a flexvox recording" in widget.status.text()
     viewer.open(str(recording), plugin="flexvox")
     assert widget.recording_box.currentText() == str(recording.resolve()) and widget.run_button.isEnabled()

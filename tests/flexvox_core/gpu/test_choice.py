@@ -1,4 +1,4 @@
-"""The GPU local choice (flexvox_core/gpu/choice.py, choice_pool.py) against the CPU's stage and its parts: the
+"""The GPU local choice (flexvox_core/motion/gpu/choice.py, choice_pool.py) against the CPU's stage and its parts: the
 still-voxel correction, the structure tensor and kernel choice, oriented nc and its leave-one-out, the pooled
 weights (full size and on the coarse grid) and the whole stage, with dropped frames and empty, partial and full
 gathered sets. Under the simulator the kernels run as Python on pictures of a few pixels; the tests marked
@@ -96,7 +96,7 @@ def _cpu_stage(sc, score_still_voxels: bool):
 
 
 def _gpu_stage(sc, score_still_voxels: bool):
-    from flexvox_core.gpu.choice import local_choice
+    from flexvox_core.motion.gpu.choice import local_choice
     from flexvox_core.gpu.volumes import Workspace
 
     d = _device(sc)
@@ -116,7 +116,7 @@ def _close(got, want, tol=TOL):
 
 
 def test_the_still_voxel_correction_matches_the_cpu(rng):
-    from flexvox_core.gpu.choice import still_voxel_loo
+    from flexvox_core.motion.gpu.choice import still_voxel_loo
 
     sc = _scene(rng, 3, 10, 12, dropped=1)
     want = sc.loo.copy()
@@ -131,7 +131,7 @@ def test_the_still_voxel_correction_matches_the_cpu(rng):
 def test_the_structure_tensor_and_the_kernel_choice_match_the_cpu(rng, shape):
     from numba import cuda
 
-    from flexvox_core.gpu.choice_structure import structure_bank
+    from flexvox_core.motion.gpu.choice_structure import structure_bank
     from flexvox_core.gpu.volumes import Workspace
 
     sc = _scene(rng, 2, *shape)
@@ -153,7 +153,7 @@ def test_oriented_nc_and_its_leave_one_out_match_the_cpu(rng, F, dropped, gather
     """With the CPU's kernel choice uploaded: oriented nc blended in with weight 0 is oriented nc itself."""
     from numba import cuda
 
-    from flexvox_core.gpu.choice import OrientedPlan, oriented_blend, oriented_loo, time_blur
+    from flexvox_core.motion.gpu.choice import OrientedPlan, oriented_blend, oriented_loo, time_blur
     from flexvox_core.gpu.volumes import Workspace
 
     sc = _scene(rng, F, dropped=dropped, gathered=gathered)
@@ -192,7 +192,7 @@ def test_oriented_nc_and_its_leave_one_out_match_the_cpu(rng, F, dropped, gather
 def test_the_pooled_weights_match_the_cpu(rng, shape, sigma):
     from numba import cuda
 
-    from flexvox_core.gpu.choice_pool import coarse_step, local_weights
+    from flexvox_core.motion.gpu.choice_pool import coarse_step, local_weights
     from flexvox_core.gpu.volumes import Workspace
 
     y = rng.uniform(0.1, 0.9, shape).astype(np.float32)
@@ -247,8 +247,8 @@ def test_nothing_to_choose_leaves_the_video(rng):
 def test_inputs_of_the_wrong_type_or_shape_are_refused(rng):
     from numba import cuda
 
-    from flexvox_core.gpu.choice import local_choice
-    from flexvox_core.gpu.choice_pool import local_weights
+    from flexvox_core.motion.gpu.choice import local_choice
+    from flexvox_core.motion.gpu.choice_pool import local_weights
     from flexvox_core.gpu.volumes import Workspace
 
     sc = _scene(rng, 2, 6, 8)
@@ -271,7 +271,7 @@ def test_inputs_of_the_wrong_type_or_shape_are_refused(rng):
 def test_the_gpu_constants_are_the_cpus():
     """flexvox_core.gpu does not import flexvox_core.motion (which imports it to pick the device): its copies of
     the pooling's constants must be the CPU's."""
-    from flexvox_core.gpu import choice_pool
+    from flexvox_core.motion.gpu import choice_pool
 
     assert choice_pool.COARSE_SIGMA == cpu_choice.COARSE_SIGMA
     assert choice_pool.POWER == cpu_choice.POWER
@@ -281,9 +281,9 @@ def test_the_gpu_constants_are_the_cpus():
 def test_the_kernels_compile_for_a_gpu_without_one():
     """numba-cuda's deviceless compile of every declared signature (the simulator off: it has no compiler)."""
     script = ("from numba import cuda\n"
-              "import flexvox_core.gpu.choice\n"
+              "import flexvox_core.motion.gpu.choice\n"
               "from flexvox_core.gpu.launch import REGISTRY\n"
-              "names = sorted(n for n in REGISTRY if n.startswith('flexvox_core.gpu.choice'))\n"
+              "names = sorted(n for n in REGISTRY if n.startswith('flexvox_core.motion.gpu.choice'))\n"
               "for n in names:\n"
               "    for sig in REGISTRY[n].signatures:\n"
               "        ptx, _ = cuda.compile_ptx(REGISTRY[n].py_func, sig, cc=(9, 0))\n"
@@ -326,8 +326,8 @@ def test_full_size_stage_matches_the_cpu(rng, dropped, score):
 def test_full_size_kernel_choice_and_weights_match_the_cpu(rng):
     from numba import cuda
 
-    from flexvox_core.gpu.choice_pool import local_weights
-    from flexvox_core.gpu.choice_structure import structure_bank
+    from flexvox_core.motion.gpu.choice_pool import local_weights
+    from flexvox_core.motion.gpu.choice_structure import structure_bank
     from flexvox_core.gpu.volumes import Workspace
 
     sc = _full_size(rng)

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from flexvox_core.gpu import dis as gdis
-from flexvox_core.gpu.dis import DisParams, DisWorkspace, dis_pairs, level_shapes, scales, workspace_for
+from flexvox_core.gpu.dis import DisParams, DisWorkspace, dis_pairs, level_shapes, scales
 from tests.flexvox_core.gpu import dis_reference as ref
 from tests.flexvox_core.gpu.dis_cases import affine_case, cases, epe, opencv_dis, texture
 
@@ -72,8 +72,12 @@ def test_workspace_is_reused_and_out_is_written(rng):
     images = _clip(rng, 16, 16, [(0.5, 0.5)])
     p = DisParams(gradient_descent_iterations=2, variational_iterations=0)
     first = dis_pairs(images, [0], [1], p).copy_to_host()
-    ws = workspace_for(2, 1, 16, 16, p)
-    assert workspace_for(2, 1, 16, 16, p) is ws and workspace_for(1, 1, 16, 16, p) is ws
+    from flexvox_core.gpu.volumes import Workspace
+
+    held = Workspace()
+    ws = held.held("dis", lambda d: d.fits(2, 1, 16, 16, p), lambda: DisWorkspace(2, 1, 16, 16, p))
+    assert held.held("dis", lambda d: d.fits(1, 1, 16, 16, p), lambda: DisWorkspace(1, 1, 16, 16, p)) is ws
+    assert held.nbytes == ws.nbytes > 0  # the DIS buffers count in the workspace's memory
     out = gdis.cuda.device_array((1, 16, 16, 2), np.float32)
     back = dis_pairs(images, gdis.cuda.to_device(np.array([0], np.int64)), (1,), p, out=out, workspace=ws)
     assert back is out

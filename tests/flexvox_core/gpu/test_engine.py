@@ -45,25 +45,52 @@ def test_device_choice(monkeypatch):
         device.resolve_device("gpu")
     monkeypatch.setattr(device.importlib.util, "find_spec", lambda name: None)
     assert device.cuda_status() == (False, "numba-cuda is not installed (pip install 'flexvox[gpu]')")
-    with pytest.raises(device.DeviceUnavailable, match=r"^--device cuda: numba-cuda is not installed"):
+    with pytest.raises(device.DeviceUnavailable, match=r"^device='cuda': numba-cuda is not installed") as info:
         device.resolve_device("cuda")
+    assert info.value.reason == "numba-cuda is not installed (pip install 'flexvox[gpu]')"
     assert device.resolve_device("auto") == "cpu"
+
+
+def _declared_kernels(packages) -> set[str]:
+    """The functions decorated ``@kernel(...)`` in the packages' source files, read with ast (not imported)."""
+    import ast
+    import pathlib
+
+    root = pathlib.Path(__file__).resolve().parents[3]
+    names = set()
+    for package in packages:
+        for path in sorted((root / package.replace(".", "/")).glob("*.py")):
+            module = f"{package}.{path.stem}"
+            for node in ast.walk(ast.parse(path.read_text())):
+                decorators = getattr(node, "decorator_list", ())
+                if isinstance(node, ast.FunctionDef) and any(
+                        isinstance(d, ast.Call) and getattr(d.func, "id", None) == "kernel" for d in decorators):
+                    names.add(f"{module}.{node.name}")
+    return names
 
 
 @pytest.mark.skipif(importlib.util.find_spec("numba_cuda") is None, reason="numba-cuda is not installed")
 def test_every_kernel_compiles_for_a_gpu_without_one():
-    """numba-cuda's deviceless compile of every declared signature, for the H100's compute capability."""
+    """numba-cuda's deviceless compile of every declared signature, for the H100's compute capability: every kernel
+    the packages' files declare (found in their source, not in a hand-kept list) compiles to PTX."""
+    from flexvox_core.motion.gpu import KERNEL_PACKAGES
+
     code = textwrap.dedent("""
+        import json
         from flexvox_core.gpu.launch import compile_all
-        from flexvox_core.motion.gpu import KERNEL_MODULES
-        sizes = compile_all(KERNEL_MODULES, cc=(9, 0))
-        print(len(sizes), min(sizes.values()))
+        from flexvox_core.motion.gpu import KERNEL_PACKAGES
+        print(json.dumps(compile_all(KERNEL_PACKAGES, cc=(9, 0))))
     """)
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_ENABLE_CUDASIM"}
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
-    count, smallest = map(int, done.stdout.split())
-    assert count >= 40 and smallest > 1000
+    import json
+
+    sizes = json.loads(done.stdout.splitlines()[-1])
+    declared = _declared_kernels(KERNEL_PACKAGES)
+    assert "flexvox_core.motion.gpu.choice_structure._structure_y" in declared
+    assert set(sizes) == declared
+    assert min(sizes.values()) > 1000  # PTX with an entry point, not an empty module
 
 
 @pytest.mark.gpu
@@ -96,3 +123,31 @@ def test_chunks_shrink_to_fit_the_cards_free_memory(monkeypatch):
         gpu_chunk_frames(method, 16, 480, 640, 100, 16)
     monkeypatch.setattr(device, "free_memory", lambda: None)  # the simulator: no limit known
     assert gpu_chunk_frames(method, 16, 480, 640, 100, 16) == 16
+
+
+def test_options_the_gpu_does_not_run_go_to_the_cpu_with_a_note():
+    """The GPU's flow is DIS without backward flow: farneback with flow_consistency asked for on the GPU runs on
+    the CPU, gives the CPU's video bit for bit and says why (the result, the method's ``cpu_only``, the runner's
+    ``device_note``); never another flow in silence."""
+    from flexvox_core.methods import Method
+    from flexvox_core.methods.runner import run
+
+    _, frames = tiny_capture("balls", 2, 12, 16)
+    options = {"flow": "farneback", "flow_consistency": True}
+    cpu = motion_aware(frames, CODE, **options)
+    gpu = motion_aware(frames, CODE, device="cuda", **options)
+    note = ("flow='farneback' runs on the CPU (the GPU's optical flow is DIS); "
+            "flow_consistency runs on the CPU (the GPU's DIS has no backward flow)")
+    assert (gpu.device, gpu.device_note) == ("cpu", note) and cpu.device_note is None
+    assert gpu.flow.params["backend"] == "farneback" and gpu.flow.params["consistency"] is True
+    np.testing.assert_array_equal(gpu.video, cpu.video)
+    method = Method("motion-aware", flow="farneback")
+    assert method.cpu_only(CODE) == "flow='farneback' runs on the CPU (the GPU's optical flow is DIS)"
+    assert Method("motion-aware").cpu_only(CODE) is None
+    out = run(frames, CODE, method, device="cuda")
+    assert (out.device, out.device_note) == ("cpu", method.cpu_only(CODE))
+    from flexvox_core.motion.streaming import StreamingMotionAware
+
+    stream = StreamingMotionAware(CODE, device="cuda", flow="tvl1")
+    assert (stream.device, stream.device_note) == ("cpu", "flow='tvl1' runs on the CPU (the GPU's optical flow is DIS)")
+    assert StreamingMotionAware(CODE, device="cuda").device_note is None

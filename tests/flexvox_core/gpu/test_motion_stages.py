@@ -204,3 +204,39 @@ def test_dropped_frames_are_bridged_as_on_the_cpu(rng, lost):
     # OpenCV's remap rounds positions to 1/32 px.
     np.testing.assert_allclose(v.copy_to_host(), want, atol=0.02)
     assert np.abs(v.copy_to_host() - want).mean() < 2e-3
+
+
+def test_both_engines_implement_the_stages_protocol_with_the_same_signatures():
+    """Every method of :class:`Stages` is on :class:`CpuStages` and :class:`CudaStages` with its signature (names,
+    kinds, defaults and annotations), and both set the protocol's attributes."""
+    import inspect
+    import typing
+
+    from flexvox_core.motion.gpu.engine import CudaStages
+    from flexvox_core.motion.stages import CpuStages, Stages
+
+    methods = [n for n, v in vars(Stages).items() if inspect.isfunction(v) and not n.startswith("_")]
+    assert set(methods) >= {"sync", "high_tr", "gated_flow", "trajectory_gather", "local_choice", "gaps", "result"}
+    for engine in (CpuStages, CudaStages):
+        for name in methods:
+            assert inspect.signature(getattr(engine, name)) == inspect.signature(getattr(Stages, name)), (engine, name)
+        assert engine.device in ("cpu", "cuda")
+    assert set(typing.get_type_hints(Stages)) == {"device", "window"}
+    assert list(inspect.signature(CudaStages.__init__).parameters)[:2] == ["self", "window"]
+
+
+@pytest.mark.slow_sim
+def test_the_gpu_engine_sets_its_state_in_init():
+    """A stage sets no attribute that ``__init__`` did not: what a stage leaves for the next is declared there."""
+    from flexvox_core.motion.gpu.engine import CudaStages
+    from flexvox_core.motion.options import MotionOptions
+    from flexvox_core.motion.stages import Window, run_stages
+    from tests.flexvox_core.gpu.tiny import CODE, tiny_capture
+
+    _, frames = tiny_capture("balls", 2, 8, 8)
+    engine = CudaStages(Window.plan(frames, CODE, MotionOptions(passes=2), (0.0, 1.0)))
+    declared = set(vars(engine))
+    generation = engine.ws.generation
+    run_stages(engine)
+    assert set(vars(engine)) == declared
+    assert engine.generation == generation and engine.passes_run == 2

@@ -9,7 +9,7 @@ from flexvox_core.methods.option_kinds import DIVISION, FIELDS, FLAG, KINDS, TRI
 
 def test_every_option_has_a_kind_with_a_field_and_text_that_reads_back():
     for spec in specs():
-        for o in spec.options:
+        for o in spec.option_specs:
             assert o.kind in KINDS.values() and o.kind.field in FIELDS, (spec.name, o.name)
             value = Method(spec.name).values[o.name]
             if value is not None and not o.kind.needs_tile:

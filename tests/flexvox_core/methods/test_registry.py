@@ -61,7 +61,11 @@ def test_register_refusals(frame_mean):
     ("gap-tv", {"iterations": 0}, r"`iterations` must be a whole number >= 1; got 0"),
     ("gap-tv", {"tv_weight": 0}, r"`tv_weight` must be a finite number > 0; got 0"),
     ("rebin", {"interpolate": 1}, r"`interpolate` must be True or False; got 1"),
-    ("rebin", {"block": "2x2x1"}, r"`block` must be a Division .* or None \(the default division\); got '2x2x1'"),
+    ("rebin", {"block": "2x2"}, r"`block` must be three whole numbers a,b,c \(rows, columns, slots of the division\), "
+                                r"e.g. 2,2,4; got '2x2'"),
+    ("rebin", {"block": (2, 2)}, r"`block` must be a Division, written 2x2x4 or 2,2,4 or given as \(2, 2, 4\), or None "
+                                 r"\(the default division\); got \(2, 2\)"),
+    ("motion-aware", {"time": 0}, r"`time` must be a finite number > 0; got 0"),
     ("motion-aware", {"flow": "lucas"}, r"`flow` must be one of dis, deepflow, farneback, tvl1; got 'lucas'"),
     ("motion-aware", {"passes": 0}, r"`passes` must be a whole number >= 1; got 0"),
     ("motion-aware", {"refine_time": -1.0},
@@ -133,3 +137,90 @@ def test_a_bench_row_is_matched_by_the_options_it_carries():
         assert not m.spec.bench_rank(row, dict(m.values), code)[1], (m, change)
     assert get("gap-tv").bench_rank({"name": "gap-tv", "iterations": 5, "tv_weight": 0.3, "tv_iterations": 4},
                                     dict(Method("gap-tv").values), code) == ((0,), True)  # iterations: the axis
+
+
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"refine_time": -1}, r"^`refine_time` must be a number from 0 to 10526 or None \(\(K/16\)²\); got -1$"),
+    ({"time": 0}, r"^`time` must be a finite number > 0; got 0$"),
+    ({"slow_reach": -1}, r"^`slow_reach` must be a number from 0 to 1000 \(sampling periods\) or None; got -1$"),
+    ({"flow": "lucas"}, r"^`flow` must be one of dis, deepflow, farneback, tvl1; got 'lucas'$"),
+])
+def test_one_rule_one_message_through_method_and_motion_options(kwargs, match):
+    """Motion-aware's options are MotionOptions' fields, declared once (their metadata): the same words whichever
+    door a value comes in by."""
+    from flexvox_core.motion.options import MotionOptions
+    from flexvox_core.motion.streaming import StreamingMotionAware
+    from tests.flexvox_core.gpu.tiny import CODE
+
+    with pytest.raises(ValueError, match=match):
+        Method("motion-aware", **kwargs)
+    with pytest.raises(ValueError, match=match):
+        MotionOptions(**kwargs)
+    with pytest.raises(ValueError, match=match):
+        StreamingMotionAware(CODE, **kwargs)
+
+
+def test_motion_aware_options_are_motion_options_fields():
+    """The method offers the fields that declare a kind, with their defaults and rules; its label and bench rank
+    read the fields."""
+    import dataclasses
+
+    from flexvox_core.motion.options import MotionOptions
+
+    spec = Method("motion-aware").spec
+    declared = {f.name: f for f in dataclasses.fields(MotionOptions) if f.metadata["kind"]}
+    assert [o.name for o in spec.option_specs] == list(declared)
+    assert [o.name for o in spec.option_specs] == ["flow", "time", "passes", "refine_time", "slow_reach",
+                                                   "local_choice", "noise_aware"]
+    for o in spec.option_specs:
+        assert (o.default, o.rule, o.kind.name) == (declared[o.name].default, declared[o.name].metadata["rule"],
+                                                    declared[o.name].metadata["kind"])
+    m = Method("motion-aware", passes=2, refine_time=0.5, local_choice=False, noise_aware=False, slow_reach=1)
+    assert m.label == "motion-aware dis n=5 x2 +refine 0.5 slow-reach 1 gather-only noise-blind"
+    row = Method("motion-aware", time=2.0).as_dict()
+    assert spec.bench_rank(row, dict(Method("motion-aware", refine_time=0.3).values), None) == ((0,), True)
+    assert spec.bench_rank(row, dict(m.values), None) == ((4,), False)  # passes, slow reach, two flags
+
+
+def test_motion_aware_function_shows_every_option_in_its_signature():
+    import dataclasses
+    import inspect
+
+    from flexvox_core.motion.options import MotionOptions
+    from flexvox_core.motion.pipeline import motion_aware
+
+    params = inspect.signature(motion_aware).parameters
+    assert list(params) == ["frames", "code", *(f.name for f in dataclasses.fields(MotionOptions)), "value_range",
+                            "missing", "device"]
+    assert params["slow_speed"].default == MotionOptions.__dataclass_fields__["slow_speed"].default
+    with pytest.raises(TypeError, match="slow_sped"):
+        motion_aware(np.zeros((1, 4, 4), np.float32), np.eye(4, dtype=bool).reshape(2, 2, 4), slow_sped=1)
+
+
+@pytest.mark.parametrize("block", [(2, 2, 4), [2, 2, 4], "2x2x4", "2,2,4", " 2, 2, 4 "])
+def test_a_division_option_takes_its_spellings(block):
+    from flexvox_core.divisions import Division
+
+    m = Method("rebin", block=block)
+    assert m.block == Division(2, 2, 4) and m == Method("rebin", block=Division(2, 2, 4))
+
+
+def test_label_is_a_property_and_calling_it_still_works():
+    m = Method("motion-aware", passes=2)
+    assert isinstance(m.label, str) and m.label == "motion-aware dis n=5 x2"
+    assert m.label() == m.label and type(m.label()) is str
+
+
+@pytest.mark.parametrize("name", ["diffusion", "rebin", "gap-tv", "motion-aware"])
+def test_every_method_takes_a_frozen_options_object(name):
+    """A method's options object has an attribute per option and cannot be changed (diffusion's as motion-aware's)."""
+    import dataclasses
+
+    m = Method(name)
+    options = m.options
+    assert dataclasses.is_dataclass(options)
+    assert {f.name for f in dataclasses.fields(options)} >= {o.name for o in m.spec.option_specs}
+    for o in m.spec.option_specs:
+        assert getattr(options, o.name) == getattr(m, o.name) or o.name == "slow_reach"  # None: SLOW_REACH
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        object.__getattribute__(options, "__setattr__")(m.spec.option_specs[0].name, 1)

@@ -17,15 +17,15 @@ class FrameMean(MethodSpec):
     name = "frame-mean"
     title = "mean of neighbouring camera frames (a test method)"
     trade = "frame-mean keeps space and gives up time"
-    options = (integer("radius", 1, minimum=0, label="radius", help="camera frames averaged on each side"),)
+    option_specs = (integer("radius", 1, minimum=0, label="radius", help="camera frames averaged on each side"),)
     needs_sample_range = True
     extras = ("frame",)
 
-    def overlap(self, values, K):
-        return values["radius"]
+    def overlap(self, options, K):
+        return options.radius
 
-    def run(self, frames, code, values, *, value_range=None, extras=False):
-        F, K, r = frames.shape[0], code.shape[2], values["radius"]
+    def run(self, frames, code, options, *, value_range=None, extras=False):
+        F, K, r = frames.shape[0], code.shape[2], options.radius
         lo, hi = value_range if value_range is not None else (float(frames.min()), float(frames.max()))
         means = np.stack([frames[max(0, f - r): f + r + 1].mean(axis=0) for f in range(F)])
         video = np.repeat((means - lo) / max(hi - lo, 1e-12), K, axis=0)

@@ -120,7 +120,7 @@ def test_resolution_map_limits():
         ({"passes": 0}, r"`passes` must be a whole number >= 1; got 0"),
         ({"time": 0}, r"`time` must be a finite number > 0; got 0"),
         ({"c": (0.05, 0.95, 0.05)}, r"`c` must satisfy c1 >= c2 >= c3 >= 0"),
-        ({"flow": "magic"}, r"unknown flow backend 'magic'"),
+        ({"flow": "magic"}, r"`flow` must be one of dis, deepflow, farneback, tvl1; got 'magic'"),
         ({"gate": (0.5, 0.1)}, r"`gate` must be two thresholds"),
         ({"flow_scale": 0}, r"`flow_scale` must be in \(0, 1\] or None; got 0"),
         ({"value_range": (0.6, 1.0)},

@@ -164,14 +164,15 @@ def test_skip_to_gives_up_older_frames(balls):
     ({"value_range": (1, 0)}, r"`value_range` must be two finite numbers lo < hi; got \(1, 0\)"),
     ({"time": -1.0}, r"`time` must be a finite number > 0; got -1.0"),
     ({"flow_scale": 2.0}, r"`flow_scale` must be in \(0, 1\] or None; got 2.0"),
-    ({"flow": "dsi"}, r"unknown flow backend 'dsi'; backends: dis, deepflow, farneback, tvl1"),
+    ({"flow": "dsi"}, r"`flow` must be one of dis, deepflow, farneback, tvl1; got 'dsi'"),
     ({"gate": (0.2, 0.1)}, r"`gate` must be two thresholds 0 <= low < high \(px per sub-frame\); got \(0.2, 0.1\)"),
     ({"time": "5"}, r"`time` must be a finite number > 0; got '5'"),
     ({"still_speed": -1}, r"`still_speed` must be a number >= 0 \(px per sub-frame\) or None; got -1"),
     ({"time": 1e308}, r"time 1e\+308 with tensor \(0.05, 0.05, 0.95\) asks for a blur of σ = .*; at most 10000"),
-    ({"refine_time": 1e308}, r"`refine_time` 1e\+308 takes more than 20000 explicit steps .*at most 10526"),
-    ({"refine_time": 1e6}, r"`refine_time` 1000000.0 takes more than 20000 explicit steps"),
-    ({"slow_reach": 1e308}, r"`slow_reach` must be a number from 0 to 1000 \(sampling periods\); got 1e\+308"),
+    ({"refine_time": 1e308}, r"`refine_time` must be a number from 0 to 10526 or None \(\(K/16\)²\); got 1e\+308"),
+    ({"refine_time": 1e6}, r"`refine_time` must be a number from 0 to 10526 or None \(\(K/16\)²\); got 1000000.0"),
+    ({"slow_reach": 1e308},
+     r"`slow_reach` must be a number from 0 to 1000 \(sampling periods\) or None; got 1e\+308"),
 ])
 def test_bad_options_are_refused_by_name(kw, message):
     with pytest.raises(ValueError, match=message):
@@ -226,3 +227,38 @@ def test_flow_memo_forgets_the_oldest_pairs():
     assert not flow.flags.writeable
     with pytest.raises(ValueError, match=r"`max_pairs` must be a whole number >= 1; got 0"):
         FlowMemo(max_pairs=0)
+
+
+def test_a_noisy_frame_is_clipped_by_default_and_refused_outside_a_given_range(caplog):
+    """Sensor noise takes a normalised frame a little past [0, 1]: the default stream clips it into [0, 1] (logged
+    once, counted); a stream given its ``value_range`` refuses it."""
+    rng = np.random.default_rng(0)
+    frame = np.clip(rng.random((16, 16)), 0, 1).astype(np.float32) + rng.normal(0, 0.02, (16, 16)).astype(np.float32)
+    assert frame.min() < 0 and frame.max() > 1
+    stream = StreamingMotionAware(CODE)
+    with caplog.at_level("INFO", logger="flexvox_core.motion.streaming"):
+        stream.push(frame)
+        stream.push(frame)
+    assert stream.clipped == 2 and stream.pushed == 2
+    assert sum("clipped into [0, 1]" in r.getMessage() for r in caplog.records) == 1
+    assert stream._frames[0].min() == 0 and stream._frames[0].max() == 1
+    strict = StreamingMotionAware(CODE, value_range=(0, 1))
+    with pytest.raises(ValueError, match=r"frame 0 has values in \[-0\.0\d+, 1\.0\d+\], outside the stream's "
+                                         r"value_range \[0, 1\]"):
+        strict.push(frame)
+
+
+def test_motion_aware_returns_values_in_0_1_on_a_noisy_capture():
+    """The samples' range bounds the pipeline's video; the public function's lies in [0, 1] (the pipeline's own
+    values inside it unchanged)."""
+    from flexvox_core.motion.options import MotionOptions
+    from flexvox_core.motion.pipeline import run_clip
+
+    frames = capture(render_scene("balls", 3 * K, 12, 16, seed=0), CODE)
+    frames = (frames - frames.min()) / np.ptp(frames) * 1.1 - 0.05  # the scene's range a little past [0, 1]
+    frames = (frames + np.random.default_rng(1).normal(0, 0.02, frames.shape)).astype(np.float32)
+    inner = run_clip(frames, CODE, MotionOptions()).video
+    assert inner.min() < 0 and inner.max() > 1
+    video = motion_aware(frames, CODE).video
+    assert video.min() == 0 and video.max() == 1
+    np.testing.assert_array_equal(video, np.clip(inner, 0, 1))

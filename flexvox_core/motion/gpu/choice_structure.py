@@ -19,11 +19,11 @@ from __future__ import annotations
 import numpy as np
 from numba import cuda
 
-from flexvox_core.gpu.choice_pool import reflect
 from flexvox_core.gpu.filters import gaussian_taps
-from flexvox_core.gpu.index import voxel
+from flexvox_core.gpu.index import reflect, voxel
 from flexvox_core.gpu.launch import device, kernel, launch
-from flexvox_core.reconstruct.oriented_nc import _HIGH, _LOW, _TAN, ANGLES, PRE_SIGMA, RHO
+from flexvox_core.reconstruct.oriented_nc import _HIGH, _LOW, _TAN, PRE_SIGMA, RHO
+from flexvox_core.reconstruct.oriented_nc_kernel import bank_of
 
 F3 = "float32[:, :, ::1]"
 U3 = "uint8[:, :, ::1]"
@@ -99,28 +99,8 @@ def _products_x(p, taps, rxx, rxy, ryy):
     ryy[s, y, x] = ayy
 
 
-@device
-def _bank_index(jxx, jxy, jyy):
-    """The kernel of the bank for structure-tensor entries (float64 comparisons, as
-    :func:`flexvox_core.reconstruct.oriented_nc_kernel._bank_index`)."""
-    a = jxx - jyy
-    b = 2.0 * jxy
-    trace = jxx + jyy
-    spread2 = a * a + b * b
-    if not trace > 0.0 or not spread2 > (_LOW * trace) ** 2:
-        return 0
-    level = 1 if spread2 <= (_HIGH * trace) ** 2 else 2
-    ax = abs(a)
-    by = abs(b)
-    if by <= _TAN * ax:
-        angle = 0 if a >= 0 else 4
-    elif ax <= _TAN * by:
-        angle = 2 if b > 0 else 6
-    elif a > 0:
-        angle = 1 if b > 0 else 7
-    else:
-        angle = 3 if b > 0 else 5
-    return 1 + (level - 1) * ANGLES + angle
+_bank_index = device(bank_of)
+"""The CPU kernel's scalar bank index (:func:`~flexvox_core.reconstruct.oriented_nc_kernel.bank_of`) on the card."""
 
 
 @kernel(f"void({F3}, {F3}, {F3}, float32[::1], {U3}, float32[:, :, :, ::1], uint8)")
@@ -142,7 +122,7 @@ def _structure_y(rxx, rxy, ryy, taps, bank, j, keep):
         jxx += g * (rxx[s, up, x] + rxx[s, down, x])
         jxy += g * (rxy[s, up, x] + rxy[s, down, x])
         jyy += g * (ryy[s, up, x] + ryy[s, down, x])
-    bank[s, y, x] = _bank_index(float(jxx), float(jxy), float(jyy))
+    bank[s, y, x] = _bank_index(float(jxx), float(jxy), float(jyy), _LOW, _HIGH, _TAN)
     if keep:
         j[0, s, y, x] = jxx
         j[1, s, y, x] = jxy

@@ -29,27 +29,16 @@ import numpy as np
 from numba import cuda
 
 from flexvox_core.gpu.filters import gaussian_taps
-from flexvox_core.gpu.index import voxel
+from flexvox_core.gpu.index import reflect, voxel
 from flexvox_core.gpu.launch import device, kernel, launch
-from flexvox_core.gpu.nc import fold
 from flexvox_core.gpu.resize import area_table, linear_table
+from flexvox_core.motion import local_choice
 
 F3 = "float32[:, :, ::1]"
-COARSE_SIGMA = 8.0
-"""Above this pooling σ (px) the errors are pooled on the coarse grid: the CPU's
-:data:`flexvox_core.motion.local_choice.COARSE_SIGMA` (the tests check that the two agree; this package does not
-import :mod:`flexvox_core.motion`, which picks the device)."""
-POWER = 2
-"""Exponent of the pooled errors: the CPU's :data:`flexvox_core.motion.local_choice.POWER` (checked likewise)."""
-
-
-@device
-def reflect(i, n):
-    """Index ``i`` folded into [0, n) as OpenCV's ``BORDER_REFLECT`` (:func:`flexvox_core.gpu.nc.fold`), with
-    no integer division for an index already inside."""
-    if 0 <= i < n:
-        return i
-    return fold(i, n)
+COARSE_SIGMA = local_choice.COARSE_SIGMA
+"""Above this pooling σ (px) the errors are pooled on the coarse grid (the CPU's)."""
+POWER = local_choice.POWER
+"""Exponent of the pooled errors (the CPU's)."""
 
 
 def coarse_step(sigma: float) -> int:

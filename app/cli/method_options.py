@@ -76,7 +76,7 @@ def add_device_option(p) -> None:
     from flexvox_core.gpu.device import DEVICES
 
     p.add_argument("--device", choices=DEVICES, default="auto",
-                   help="where the reconstruction runs: an NVIDIA GPU (cuda; needs flexvox[gpu]), the CPU, or auto "
+                   help="where the reconstruction runs: an NVIDIA GPU (cuda; needs the gpu extra), the CPU, or auto "
                         "(default: the GPU when one is usable). Methods without a GPU path run on the CPU and say so")
 
 

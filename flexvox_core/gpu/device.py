@@ -18,7 +18,7 @@ _logger = logging.getLogger(__name__)
 DEVICES = ("auto", "cpu", "cuda")
 """The values of every ``--device`` option."""
 
-INSTALL_HINT = "pip install 'flexvox[gpu]'"
+INSTALL_HINT = "pip install '.[gpu]' in a clone of flexvox"
 
 
 class DeviceUnavailable(RuntimeError):

@@ -2,4 +2,4 @@
 
 import pytest
 
-pytest.importorskip("numba_cuda", reason="numba-cuda is not installed (pip install 'flexvox[gpu]')")
+pytest.importorskip("numba_cuda", reason="numba-cuda is not installed (pip install '.[gpu]' in a clone of flexvox)")

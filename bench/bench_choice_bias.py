@@ -30,7 +30,6 @@ from flexvox_core.motion import motion_aware
 from flexvox_core.reconstruct.oriented_nc import oriented_nc
 from flexvox_core.simulate.scenes import render_scene
 
-
 ORIENTED = stages.oriented_nc
 """The candidate the CPU stages call, read at import: a renamed or moved name fails here, under ``--help`` too."""
 

@@ -328,7 +328,7 @@ def remove_dead_partials(path) -> list[str]:
     Called with ``path``'s writer lock held (:func:`atomic_output`), so no other writer of ``path`` runs.
     """
     path = Path(path)
-    removed = []
+    removed: list[str] = []
     if not path.parent.is_dir():
         return removed
     for p in sorted(path.parent.glob(f".{glob.escape(path.stem)}.partial-*")):

@@ -3,12 +3,21 @@ subpackage of the algorithms, :mod:`flexvox_core.reconstruct`)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
 import numpy as np
+from numpy.typing import ArrayLike
+
+if TYPE_CHECKING:
+    from flexvox_core.methods import Method
 
 __all__ = ["reconstruct_video"]
 
 
-def reconstruct_video(frames, code, method=None, *, chunk_frames: int | None = 16, progress=False, missing=None,
+def reconstruct_video(frames: ArrayLike, code: ArrayLike, method: Method | None = None, *,
+                      chunk_frames: int | None = 16,
+                      progress: bool | Callable[[int, int], None] | None = False, missing: ArrayLike | None = None,
                       device: str = "cpu") -> np.ndarray:
     """The high-speed video ``(F·K, H, W)`` float32 in [0, 1] of a capture: :func:`flexvox_core.methods.reconstruct`.
 
@@ -47,9 +56,9 @@ def reconstruct_video(frames, code, method=None, *, chunk_frames: int | None = 1
     if progress is not True:
         return reconstruct(frames, code, method, chunk_frames=chunk_frames, progress=progress or None,
                            missing=missing, device=device)
-    from tqdm.auto import tqdm
+    from tqdm.auto import tqdm  # type: ignore[import-untyped]
 
-    with tqdm(total=len(frames), unit="frame", desc="reconstruct", leave=False) as bar:
+    with tqdm(total=np.shape(frames)[0], unit="frame", desc="reconstruct", leave=False) as bar:
         def update(done: int, total: int) -> None:
             bar.update(done - bar.n)
 

@@ -55,9 +55,9 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from flexvox_core.memory_budget import check_fits, render_bytes
 from flexvox_core.simulate.effects import Effect
 from flexvox_core.simulate.scene_file import SceneSpec
-from flexvox_core.memory_budget import check_fits, render_bytes
 from flexvox_core.simulate.scenes import SCENES, render_scene
 from rig_drivers.errors import SettingError
 from rig_drivers.interfaces import PatternSequence, RunState, TriggerSource, check_int

@@ -1,4 +1,5 @@
-"""Shared test settings: seeded randomness, deterministic hypothesis (the GPU simulator, offscreen Qt: ../conftest.py)."""
+"""Shared test settings: seeded randomness, deterministic hypothesis (the GPU simulator and offscreen Qt: the root
+conftest.py)."""
 
 import os
 

@@ -282,7 +282,7 @@ def named_scripts() -> list[Path]:
     named = set()
     for doc in documents():
         text = doc.read_text(encoding="utf-8")
-        named.update(m.group(1) for m in re.finditer(r"\b((?:bench|docs)/[A-Za-z0-9_]+\.(?:py|sh))\b", text))
+        named.update(m.group(1) for m in re.finditer(r"(?<![\w/.])((?:bench|docs)/[A-Za-z0-9_]+\.(?:py|sh))\b", text))
         named.update(f"bench/{m.group(1)}.py" for m in re.finditer(r"python -m bench\.([A-Za-z0-9_]+)", text))
     return sorted(ROOT / n for n in named)
 

@@ -6,8 +6,7 @@ import logging
 import sys
 
 from app.cli import app as app_cmd
-from app.cli import (batch, bench, calibrate, capture, clean, demo, design, devices, export, info, reconstruct,
-                     simulate)
+from app.cli import batch, bench, calibrate, capture, clean, demo, design, devices, export, info, reconstruct, simulate
 from app.cli.errors import EXIT_USAGE, CliError, OneLineParser
 from flexvox_core import __version__
 

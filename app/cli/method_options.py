@@ -110,9 +110,7 @@ SIMULATOR = ("numba-cuda's simulator, NUMBA_ENABLE_CUDASIM=1: the GPU kernels ru
 
 def device_record(out) -> dict:
     """What a reconstruction's provenance records of its device."""
-    from flexvox_core.gpu.device import describe_gpus
-
-    from flexvox_core.gpu.device import simulator
+    from flexvox_core.gpu.device import describe_gpus, simulator
 
     record = {"device": out.device}
     if out.device == "cuda" and simulator():

@@ -1,6 +1,7 @@
 """Reconstruction on an NVIDIA GPU: CUDA kernels, and which device runs a reconstruction.
 
-The kernels are written in Python with numba-cuda (the ``gpu`` extra: ``pip install '.[gpu]' in a clone of flexvox``). This
+The kernels are written in Python with numba-cuda (the ``gpu`` extra: ``pip install '.[gpu]'`` in a clone of
+flexvox). This
 package holds the building blocks: normalized convolution (:mod:`~flexvox_core.gpu.nc`), resizing, the DIS
 optical flow, device buffers, and how kernels are declared and launched (:mod:`~flexvox_core.gpu.launch`).
 Motion-aware's own stages are in :mod:`flexvox_core.motion.gpu`, built on these.

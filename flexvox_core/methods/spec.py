@@ -213,7 +213,7 @@ class MethodSpec(ABC):
 
 
 @cache
-def options_type(spec_type: type) -> type:
+def options_type(spec_type: type[MethodSpec]) -> type:
     """The frozen dataclass ``<Method>Options`` of a method class: one field per option spec, its default the
     option's. What :meth:`MethodSpec.build` makes by default."""
     return make_dataclass(f"{spec_type.__name__}Options",

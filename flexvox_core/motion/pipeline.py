@@ -154,7 +154,7 @@ def _signature():
     return own.replace(parameters=params)
 
 
-motion_aware.__signature__ = _signature()
+motion_aware.__signature__ = _signature()  # type: ignore[attr-defined]
 
 
 def run_clip(frames, code, options: MotionOptions, *, value_range: tuple[float, float] | None = None, missing=None,

@@ -36,13 +36,15 @@ when one is no longer needed (fresh memory is dear on the CPU: at 640×480 × 24
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from time import perf_counter
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import cv2
 import numpy as np
+import numpy.typing as npt
 
 from flexvox_core.forward import sample_mask, sparse_volume
 from flexvox_core.gaps import bridge, bridge_flow, interpolated_subframes
@@ -65,6 +67,9 @@ from flexvox_core.motion.vardiff import variable_tensor_diffusion
 from flexvox_core.reconstruct.diffusion import diffuse, diffuse_where
 from flexvox_core.reconstruct.oriented_nc import oriented_nc
 from flexvox_core.threads import for_each
+
+if TYPE_CHECKING:
+    from flexvox_core.flow.memo import FlowMemo
 
 _logger = logging.getLogger(__name__)
 
@@ -108,7 +113,8 @@ class Window:
     flow_scale: float
 
     @classmethod
-    def plan(cls, frames, code, options: MotionOptions, bounds, *, missing=None, keep=None) -> Window:
+    def plan(cls, frames: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: tuple[float, float], *,
+             missing: np.ndarray | None = None, keep: tuple[int, int] | None = None) -> Window:
         """The window of ``frames`` (checked) with ``keep`` = (s0, s1) or None (every sub-frame)."""
         K = code.shape[2]
         S = frames.shape[0] * K
@@ -129,16 +135,20 @@ class Window:
 
     @property
     def K(self) -> int:
-        return self.code.shape[2]
+        K: int = self.code.shape[2]
+        return K
 
     @property
     def S(self) -> int:
-        return self.frames.shape[0] * self.K
+        S: int = self.frames.shape[0] * self.K
+        return S
 
     @property
     def slow_class(self) -> bool:
         """Whether slow voxels take the long-reach gather (a reach and more than one frame)."""
-        return self.options.slow_reach > 0 and self.frames.shape[0] > 1
+        reach = self.options.slow_reach
+        assert reach is not None, "MotionOptions resolves a slow_reach of None to SLOW_REACH"
+        return reach > 0 and self.frames.shape[0] > 1
 
     @property
     def guide_rows(self) -> tuple[int, int] | None:
@@ -164,7 +174,9 @@ class Window:
     @property
     def long_reach(self) -> int:
         """The slow voxels' gather's reach each way (and its temporal standard deviation), in sub-frames."""
-        return max(1, round(self.options.slow_reach * self.K))
+        reach = self.options.slow_reach
+        assert reach is not None, "MotionOptions resolves a slow_reach of None to SLOW_REACH"
+        return max(1, round(reach * self.K))
 
     @property
     def range_weight(self) -> float:
@@ -200,12 +212,12 @@ class StageTimes:
     """Seconds spent in each stage (summed over passes); ``sync`` is called before each clock reading (a GPU
     engine waits for its queued kernels there)."""
 
-    def __init__(self, sync=None):
+    def __init__(self, sync: Callable[[], None] | None = None) -> None:
         self.seconds: dict[str, float] = {}
-        self._sync = sync or (lambda: None)
+        self._sync: Callable[[], None] = sync or (lambda: None)
 
     @contextmanager
-    def __call__(self, stage: str):
+    def __call__(self, stage: str) -> Iterator[None]:
         self._sync()
         t0 = perf_counter()
         try:
@@ -245,7 +257,7 @@ class Stages(Protocol):
     def samples(self) -> None:
         """The sample volume and its mask, held by the engine."""
 
-    def gated_flow(self, current: Volume, memo=None) -> Flow:
+    def gated_flow(self, current: Volume, memo: FlowMemo | None = None) -> Flow:
         """The velocity of every voxel, from ``current`` (the high-TR video or the last pass's result)."""
 
     def speed_classes(self, flow: Flow) -> tuple[Volume, Volume]:
@@ -267,7 +279,8 @@ class Stages(Protocol):
     def refinement(self, video: Volume, flow: Flow, slow: Volume, last: bool) -> None:
         """The monotone diffusion along the trajectories, in place."""
 
-    def local_choice(self, video: Volume, loo, gathered, flow: Flow, high_tr: Volume, last: bool) -> None:
+    def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume,
+                     last: bool) -> None:
         """Oriented nc blended in where it predicts the samples better, in place."""
 
     def gaps(self, video: Volume, flow: Flow) -> None:
@@ -280,7 +293,7 @@ class Stages(Protocol):
         """What the run gives back."""
 
 
-def run_stages(engine: Stages, memo=None) -> MotionAwareResult:
+def run_stages(engine: Stages, memo: FlowMemo | None = None) -> MotionAwareResult:
     """Run motion-aware's stages on ``engine`` (:class:`CpuStages` or its GPU twin); returns its result."""
     win = engine.window
     o = win.options
@@ -326,13 +339,25 @@ class CpuStages:
 
     device = "cpu"
 
-    def __init__(self, window: Window):
+    def __init__(self, window: Window) -> None:
         self.window = window
-        self.sparse = self.mask = None
-        self.fixed = self.still_value = None
+        self.sparse: npt.NDArray[np.float32] | None = None
+        self.mask: npt.NDArray[np.bool_] | None = None
+        self.fixed: npt.NDArray[np.float32] | None = None
+        self.still_value: npt.NDArray[np.float32] | None = None
 
     def sync(self) -> None:
         return None
+
+    def _samples(self) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.bool_]]:
+        """The sample volume and its mask (:meth:`samples` sets them, before every later stage)."""
+        assert self.sparse is not None, "the samples stage runs first"
+        return self.sparse, self._mask()
+
+    def _mask(self) -> npt.NDArray[np.bool_]:
+        """The samples' mask (:meth:`samples` sets it, before every later stage)."""
+        assert self.mask is not None, "the samples stage runs first"
+        return self.mask
 
     # ----------------------------------------------------------------------------------------------- stages
 
@@ -342,14 +367,14 @@ class CpuStages:
 
     def samples(self) -> None:
         w = self.window
-        self.sparse = sparse_volume(np.asarray(w.frames, np.float32), w.code)
-        self.mask = sample_mask(self.sparse.shape, w.code)
+        self.sparse = sparse = sparse_volume(np.asarray(w.frames, np.float32), w.code)
+        self.mask = mask = sample_mask(sparse.shape, w.code)
         if w.missing is not None:  # a dropped frame's sub-frames hold no samples
             gap = interpolated_subframes(w.missing, w.K)
-            self.mask[gap] = False
-            self.sparse[gap] = 0
+            mask[gap] = False
+            sparse[gap] = 0
 
-    def gated_flow(self, current: Volume, memo=None) -> Flow:
+    def gated_flow(self, current: Volume, memo: FlowMemo | None = None) -> Flow:
         w, o = self.window, self.window.options
         field_ = gated_flow(current, w.K, backend=o.flow, gate=o.gate, scale=w.flow_scale,
                             consistency=o.flow_consistency, slow_speed=o.slow_speed, memo=memo)
@@ -369,18 +394,20 @@ class CpuStages:
         flow (``diag(c3, c2, c1)``), and at the still voxels their pixel's own samples averaged in time
         (Eq. 4's tensor in the limit c -> (0, 0, 1)): exact for a still scene, and its noise averages out."""
         w, o = self.window, self.window.options
-        if self.fixed is None:  # computed once: every pass reads it
-            self.fixed = guide(w, w.guide_tensor, o.time)
-        base = self.fixed
+        fixed = self.fixed
+        if fixed is None:  # computed once: every pass reads it
+            fixed = self.fixed = guide(w, w.guide_tensor, o.time)
+        base = fixed
         if still.any():
             if o.passes == 1 and w.skip is None:
                 # `fixed` serves this pass alone: the still voxels' values go straight into it (no volume of them).
                 diffuse_where(w.frames, w.code, base, still, tensor=STILL_TENSOR, time=w.still_time, missing=w.missing)
             else:
-                if self.still_value is None:
-                    self.still_value = guide(w, STILL_TENSOR, w.still_time)
-                base = self.fixed.copy() if o.passes > 1 else self.fixed  # `fixed` serves every pass
-                np.copyto(base, self.still_value, where=still)
+                still_value = self.still_value
+                if still_value is None:
+                    still_value = self.still_value = guide(w, STILL_TENSOR, w.still_time)
+                base = fixed.copy() if o.passes > 1 else fixed  # `fixed` serves every pass
+                np.copyto(base, still_value, where=still)
         return base
 
     def noise(self, current: Volume, still: Volume) -> Volume | None:
@@ -388,7 +415,8 @@ class CpuStages:
         w = self.window
         if w.frames.shape[0] < 2:
             return None
-        noise = noise_aware.frame_noise(w.frames, still, self.mask, w.K)
+        mask = self._mask()
+        noise = noise_aware.frame_noise(w.frames, still, mask, w.K)
         if not noise.any():
             return None
         _logger.info("motion-aware: noise %.4g (median of the frames'), smoothing where flatter",
@@ -406,7 +434,8 @@ class CpuStages:
         loo = np.full(w.frames.shape, np.nan, np.float32) if leave_one_out else None
         # The gather writes into `base` when no later pass reads it (one volume less).
         into = base if o.passes == 1 or base is not self.fixed else None
-        video = motion_compensated_nc(self.sparse, self.mask, flow.flow, c=o.c, time=o.time, fallback=high_tr,
+        sparse, mask = self._samples()
+        video = motion_compensated_nc(sparse, mask, flow.flow, c=o.c, time=o.time, fallback=high_tr,
                                       still=not_gathered, still_value=base, loo=loo, wide=wide,
                                       wide_sigma=noise_aware.wide_sigma(w.K), out=into)
         gathered = ~not_gathered if loo is not None else None
@@ -418,11 +447,12 @@ class CpuStages:
         w = self.window
         if not slow.any():
             return
-        long_reach_nc(self.sparse, self.mask, flow.flow, video, slow, reach=w.long_reach, sigma_t=w.long_reach,
+        sparse, mask = self._samples()
+        long_reach_nc(sparse, mask, flow.flow, video, slow, reach=w.long_reach, sigma_t=w.long_reach,
                       sigma_s=LONG_REACH_SIGMA_S, h=w.range_weight, out=video)
-        np.copyto(video, self.sparse, where=self.mask)
+        np.copyto(video, sparse, where=mask)
 
-    def _spare(self, last: bool):
+    def _spare(self, last: bool) -> npt.NDArray[np.float32] | None:
         """A volume the stages after the last pass's gathers may overwrite: the samples' (dead by then)."""
         return self.sparse if last else None
 
@@ -435,16 +465,19 @@ class CpuStages:
             return
         g0, g1 = w.gathered
         spare = self._spare(last)
-        variable_tensor_diffusion(video[g0:g1], self.mask[g0:g1], flow.flow[g0:g1], c=REFINE_C, time=refine_time,
+        mask = self._mask()
+        variable_tensor_diffusion(video[g0:g1], mask[g0:g1], flow.flow[g0:g1], c=REFINE_C, time=refine_time,
                                   out=video[g0:g1], scratch=None if spare is None else spare[g0:g1],
                                   sharp=slow[g0:g1])
 
-    def local_choice(self, video: Volume, loo, gathered, flow: Flow, high_tr: Volume, last: bool) -> None:
+    def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume,
+                     last: bool) -> None:
         w = self.window
         if not np.isfinite(loo).any():
             return
         if w.scores_still_voxels:  # at gathered voxels slower than STILL_VOXEL_SPEED the pixel's own sample scores
-            local_choice.still_voxel_loo(loo, video, w.frames, gathered, self.mask, flow.flow, w.K)
+            mask = self._mask()
+            local_choice.still_voxel_loo(loo, video, w.frames, gathered, mask, flow.flow, w.K)
         other, other_loo = oriented_nc(w.frames, w.code, high_tr, where=gathered, fallback=video, missing=w.missing,
                                        out=self._spare(last))
         local_choice.blend(video, other, local_choice.local_weights(loo, other_loo, w.frames), gathered, w.K)
@@ -467,14 +500,15 @@ class CpuStages:
                                  self.device)
 
 
-def speed_classes(flow: np.ndarray, still_speed: float | None, slow_speed: float | None):
+def speed_classes(flow: np.ndarray, still_speed: float | None, slow_speed: float | None
+                  ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
     """Bool volumes ``still`` (speed < ``still_speed``) and ``slow`` (not still, speed < ``slow_speed``),
     a sub-frame at a time (no full-volume speed array); None: no such voxels."""
     S, H, W = flow.shape[:3]
     still = np.zeros((S, H, W), bool)
     slow = np.zeros((S, H, W), bool)
 
-    def one(t):  # a sub-frame at a time, on every core
+    def one(t: int) -> None:  # a sub-frame at a time, on every core
         speed = cv2.magnitude(flow[t, ..., 0], flow[t, ..., 1])
         if still_speed is not None:
             np.less(speed, still_speed, out=still[t])
@@ -486,7 +520,7 @@ def speed_classes(flow: np.ndarray, still_speed: float | None, slow_speed: float
     return still, slow
 
 
-def guide(window: Window, tensor, time: float) -> np.ndarray:
+def guide(window: Window, tensor: tuple[float, float, float], time: float) -> npt.NDArray[np.float32]:
     """The fixed-tensor normalized convolution of the whole window; only the sub-frames the gathers read when
     the window gathers part of itself (the rest of the volume is 0: nothing reads it)."""
     w = window

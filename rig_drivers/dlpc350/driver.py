@@ -154,7 +154,8 @@ class DLPC350(Projector):
 
     @property
     def display_input(self) -> DLPC350:
-        """Itself: its video input takes a display sink (:attr:`display`, :class:`~rig_drivers.interfaces.DisplayInput`)."""
+        """Itself: its video input takes a display sink (:attr:`display`,
+        :class:`~rig_drivers.interfaces.DisplayInput`)."""
         return self
 
     @property

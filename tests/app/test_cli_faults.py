@@ -242,7 +242,8 @@ CASES = {
                                         inputs=()),
     "app-without-a-display": Case("app", 2, r"no display to open the window on \(DISPLAY is not set\); .*"
                                   r"QT_QPA_PLATFORM=offscreen", inputs=(), env=NO_DISPLAY),
-    "app-with-a-display-qt-cannot-use": Case("app", 2, r"Qt cannot start its platform plugin here \(.+\); ",
+    "app-with-a-display-qt-cannot-use": Case("app", 2, r"Qt( cannot start its platform plugin here \(.+\); |'s X11 "
+                                                      r"platform plugin \(xcb\) cannot load: this system lacks \S)",
                                              inputs=(), env={"DISPLAY": unserved_display(), "QT_QPA_PLATFORM": "xcb"}),
     "figures-into-a-file": Case("reconstruct {rec} -o {dir}/v.npy --method motion-aware --figures {dir}/out.npy", 2,
                                 r"--figures .*out.npy is a file; the figures go into a folder", _existing_outputs,

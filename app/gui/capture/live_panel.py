@@ -350,7 +350,7 @@ class LivePanel(QObject):
             self.preview_panel.clear("starts with the live view")
             self.preview_panel.set_title(f"{self.preview.method} preview")
         if was:
-            self.preview_label.setText(self.preview.text().replace("preview:", "preview (stopped):", 1)
+            self.preview_label.setText(self.preview.text().replace(" preview", " preview (stopped)", 1)
                                        if self.preview.result is not None else "preview: off")
 
     def _on_preview(self, result) -> None:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import logging
 from time import perf_counter
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numba import cuda
@@ -38,6 +38,9 @@ from flexvox_core.motion.options import (
 from flexvox_core.motion.result import MotionAwareResult
 from flexvox_core.motion.stages import Flow, StageTimes, Volume, Window
 from flexvox_core.reconstruct.diffusion import diffuse
+
+if TYPE_CHECKING:
+    from flexvox_core.flow.memo import FlowMemo
 
 _logger = logging.getLogger(__name__)
 
@@ -124,7 +127,7 @@ class CudaStages:
         self.mask = self._volume(Buffers.MASK, np.uint8)
         volumes.samples(self.frames_d, self.order_d, self.present_d, self.window.K, self.sparse, self.mask)
 
-    def gated_flow(self, current: Volume, memo=None) -> Flow:
+    def gated_flow(self, current: Volume, memo: FlowMemo | None = None) -> Flow:
         w, o = self.window, self.window.options
         flow = self.ws.get(Buffers.FLOW, (w.S, *w.frames.shape[1:], 2))
         params = gate.gated_flow(self.ws, current, w.K, gate=o.gate, scale=w.flow_scale, slow_speed=o.slow_speed,
@@ -199,7 +202,8 @@ class CudaStages:
         g0, g1 = w.gathered
         refine(self.ws, video[g0:g1], self.mask[g0:g1], flow[g0:g1], slow[g0:g1], c=REFINE_C, time=t)
 
-    def local_choice(self, video: Volume, loo, gathered, flow: Flow, high_tr: Volume, last: bool) -> None:
+    def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume,
+                     last: bool) -> None:
         w = self.window
         choice.local_choice(self.ws, video, loo, gathered, self.mask, flow, self.frames_d, self.order_d,
                             self.present_d, high_tr, w.K, score_still_voxels=w.scores_still_voxels,

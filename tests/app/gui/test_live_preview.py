@@ -252,7 +252,8 @@ def test_the_preview_updates_during_live_view_without_costing_frames(qtbot, capt
     assert re.match(r"motion-aware preview: frame \d+, sub-frame \d+/16", ws.live_panel.preview_panel.title.text())
     # What holds at any speed: the whole frame, a rate, a time per run, how many frames were previewed; how far
     # behind the camera it is shows only while the newest run's frame is known (the next run may be under way).
-    line = re.match(r"motion-aware preview on the CPU: 64×48 \(the whole frame\), [123] frames?, \d+\.\d Hz, \d+\.\d\d s per run"
+    line = re.match(r"motion-aware preview on the CPU: 64×48 \(the whole frame\), [123] frames?, \d+\.\d Hz, "
+                    r"\d+\.\d\d s per run"
                     r"(?:, (\d+\.\d\d) s behind the camera)? · (\d+) of (\d+) camera frames previewed \(newest wins\)",
                     ws.live_panel.preview_label.text())
     assert line, ws.live_panel.preview_label.text()
@@ -267,7 +268,7 @@ def test_the_preview_updates_during_live_view_without_costing_frames(qtbot, capt
     assert stats.dropped == 0, f"{stats.dropped} of {stats.received + stats.dropped} camera frames dropped"
     ws.stop_live()
     assert not ws.live_panel.preview.enabled
-    assert ws.live_panel.preview_label.text().startswith("motion-aware preview (stopped):")
+    assert ws.live_panel.preview_label.text().startswith("motion-aware preview (stopped) on the CPU: ")
 
 
 def test_a_recording_with_the_preview_on_drops_nothing(qtbot, capture, tmp_path):

@@ -120,7 +120,7 @@ def test_while_a_recording_finishes_its_ground_truth_the_status_says_what_is_wri
     from dataclasses import replace
 
     w = truth_window(qtbot, settings)
-    capture, panel = w.capture, w.capture.record_panel
+    panel = w.capture.record_panel
     panel.path_edit.setText(str(tmp_path / "t.zarr"))
     panel.frames_box.setValue(17)
     with answering(default=True), qtbot.waitSignal(panel.started, timeout=20_000):
@@ -141,8 +141,8 @@ def test_while_a_recording_finishes_its_ground_truth_the_status_says_what_is_wri
 
 
 def test_the_sink_says_which_ground_truth_frame_it_writes(tmp_path):
-    from app.capture.service import CaptureService
     from app.capture.plan import CapturePlan
+    from app.capture.service import CaptureService
     from rig_drivers.profile import open_rig
     from rig_drivers.simulated_camera import VirtualClock
 

@@ -96,8 +96,8 @@ def _cpu_stage(sc, score_still_voxels: bool):
 
 
 def _gpu_stage(sc, score_still_voxels: bool):
-    from flexvox_core.motion.gpu.choice import local_choice
     from flexvox_core.gpu.volumes import Workspace
+    from flexvox_core.motion.gpu.choice import local_choice
 
     d = _device(sc)
     H, W = sc.frames.shape[1:]
@@ -131,8 +131,8 @@ def test_the_still_voxel_correction_matches_the_cpu(rng):
 def test_the_structure_tensor_and_the_kernel_choice_match_the_cpu(rng, shape):
     from numba import cuda
 
-    from flexvox_core.motion.gpu.choice_structure import structure_bank
     from flexvox_core.gpu.volumes import Workspace
+    from flexvox_core.motion.gpu.choice_structure import structure_bank
 
     sc = _scene(rng, 2, *shape)
     S = sc.high_tr.shape[0]
@@ -153,8 +153,8 @@ def test_oriented_nc_and_its_leave_one_out_match_the_cpu(rng, F, dropped, gather
     """With the CPU's kernel choice uploaded: oriented nc blended in with weight 0 is oriented nc itself."""
     from numba import cuda
 
-    from flexvox_core.motion.gpu.choice import OrientedPlan, oriented_blend, oriented_loo, time_blur
     from flexvox_core.gpu.volumes import Workspace
+    from flexvox_core.motion.gpu.choice import OrientedPlan, oriented_blend, oriented_loo, time_blur
 
     sc = _scene(rng, F, dropped=dropped, gathered=gathered)
     want_video, want_loo = oriented_nc(sc.frames, sc.code, sc.high_tr, where=sc.gathered, fallback=sc.video,
@@ -192,8 +192,8 @@ def test_oriented_nc_and_its_leave_one_out_match_the_cpu(rng, F, dropped, gather
 def test_the_pooled_weights_match_the_cpu(rng, shape, sigma):
     from numba import cuda
 
-    from flexvox_core.motion.gpu.choice_pool import coarse_step, local_weights
     from flexvox_core.gpu.volumes import Workspace
+    from flexvox_core.motion.gpu.choice_pool import coarse_step, local_weights
 
     y = rng.uniform(0.1, 0.9, shape).astype(np.float32)
     a = (y + rng.normal(0, 0.05, shape) * np.linspace(0.2, 2, shape[2])).astype(np.float32)
@@ -247,9 +247,9 @@ def test_nothing_to_choose_leaves_the_video(rng):
 def test_inputs_of_the_wrong_type_or_shape_are_refused(rng):
     from numba import cuda
 
+    from flexvox_core.gpu.volumes import Workspace
     from flexvox_core.motion.gpu.choice import local_choice
     from flexvox_core.motion.gpu.choice_pool import local_weights
-    from flexvox_core.gpu.volumes import Workspace
 
     sc = _scene(rng, 2, 6, 8)
     d = _device(sc)
@@ -326,9 +326,9 @@ def test_full_size_stage_matches_the_cpu(rng, dropped, score):
 def test_full_size_kernel_choice_and_weights_match_the_cpu(rng):
     from numba import cuda
 
+    from flexvox_core.gpu.volumes import Workspace
     from flexvox_core.motion.gpu.choice_pool import local_weights
     from flexvox_core.motion.gpu.choice_structure import structure_bank
-    from flexvox_core.gpu.volumes import Workspace
 
     sc = _full_size(rng)
     ws = Workspace()

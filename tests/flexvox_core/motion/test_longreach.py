@@ -120,7 +120,8 @@ def test_period_gate_sees_motion_aliased_in_the_k_average():
 
 def test_bad_slow_reach_and_period_gate():
     frames = np.full((2, 8, 8), 0.5, np.float32)
-    with pytest.raises(ValueError, match=r"`slow_reach` must be a number from 0 to 1000 \(sampling periods\); got -1"):
+    with pytest.raises(ValueError,
+                       match=r"`slow_reach` must be a number from 0 to 1000 \(sampling periods\) or None; got -1"):
         motion_aware(frames, CODE, slow_reach=-1)
     with pytest.raises(ValueError, match=r"`period_gate` must be two thresholds"):
         gated_flow(np.zeros((16, 8, 8), np.float32), 8, backend="dis", period_gate=(2.0, 1.0))

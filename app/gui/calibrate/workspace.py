@@ -116,7 +116,7 @@ class CalibrateWorkspace(QWidget):
         self.wizard = None
         """The synchronisation wizard while it is open."""
         self.sync_profile = None
-        """The sync profile the wizard last saved (None: none this session)."""
+        """The sync profile the wizard last saved (None: none since flexvox started)."""
         self._before_refusal: str | None = None
         """The step line before a refusal took its place (None: no refusal shown)."""
         self.results_view = ResultsView()

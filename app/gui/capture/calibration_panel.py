@@ -87,7 +87,7 @@ class CalibrationPanel(QGroupBox):
         self.file_changed = False
         """The calibration file restored at start differs from the one last used (its hash changed)."""
         self.offered_profile: Path | None = None
-        """The sync profile the wizard saved this session, until it is loaded."""
+        """The sync profile the wizard saved since flexvox started, until it is loaded."""
         self.label = QLabel()
         self.label.setWordWrap(True)
         self.label.setTextFormat(Qt.TextFormat.RichText)

@@ -1,4 +1,7 @@
-"""Constant-tensor diffusion as a method (:mod:`flexvox_core.reconstruct.diffusion`)."""
+"""Constant-tensor diffusion as a method (:mod:`flexvox_core.reconstruct.diffusion`).
+
+The paper's §3.1: Eq. 2 with one tensor for the whole video, whose one-pass solution is Eq. 3.
+"""
 
 from __future__ import annotations
 

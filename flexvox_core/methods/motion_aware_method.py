@@ -1,4 +1,4 @@
-"""The motion-aware reconstruction as a method (:func:`flexvox_core.motion.motion_aware`).
+"""The motion-aware reconstruction as a method (:func:`flexvox_core.motion.motion_aware`); the paper's §4.
 
 Its option values build one :class:`~flexvox_core.motion.options.MotionOptions` (the option names are its
 fields), which the pipeline takes as it is (:func:`~flexvox_core.motion.pipeline.run_clip`). It needs the

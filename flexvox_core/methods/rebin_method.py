@@ -1,4 +1,7 @@
-"""Re-binning as a method: one division for the whole video (:mod:`flexvox_core.reconstruct.rebin`)."""
+"""Re-binning as a method: one division for the whole video (:mod:`flexvox_core.reconstruct.rebin`).
+
+The paper's §2: each block of a division holds one sample, which fills the block.
+"""
 
 from __future__ import annotations
 

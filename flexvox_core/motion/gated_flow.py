@@ -1,4 +1,7 @@
-"""The gated flow: motion-aware's velocity of every voxel (the flow stage of :mod:`flexvox_core.motion.stages`)."""
+"""The gated flow: motion-aware's velocity of every voxel (the flow stage of :mod:`flexvox_core.motion.stages`).
+
+The paper's §4 step 2: optical flow between successive frames of the high-TR reconstruction.
+"""
 
 from __future__ import annotations
 

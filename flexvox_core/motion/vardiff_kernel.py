@@ -1,5 +1,7 @@
 """One explicit step of the variable-tensor diffusion, compiled (numba), one pass per voxel.
 
+The paper's §4 step 3: Eq. 2 with, at each voxel, the tensor of Eq. 4 oriented along the motion.
+
 Written with OpenCV and numpy, each step cost four remaps and some twenty element-wise passes over
 full-size temporaries per sub-frame, on one core. Here each voxel reads its neighbours, forms its
 tensor's weights from its own flow and writes its update in one pass, the sub-frames spread over

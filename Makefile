@@ -48,11 +48,11 @@ bench: $(STAMP)
 	$(BIN)/flexvox bench --quick --overwrite
 
 screenshots: $(STAMP)
-	QT_QPA_PLATFORM=offscreen $(BIN)/python -m app.gui.screenshots docs/screenshots
+	QT_QPA_PLATFORM=offscreen $(BIN)/python -m flexvox_app.gui.screenshots docs/screenshots
 
 # napari draws with OpenGL, which Qt's offscreen platform lacks: a virtual X server (xvfb) and Mesa's software GL.
 napari-screenshot: $(STAMP)
-	xvfb-run -a -s "-screen 0 1600x1000x24" env QT_QPA_PLATFORM=xcb $(BIN)/python -m app.napari_plugin.screenshot docs/screenshots/napari.png
+	xvfb-run -a -s "-screen 0 1600x1000x24" env QT_QPA_PLATFORM=xcb $(BIN)/python -m flexvox_app.napari_plugin.screenshot docs/screenshots/napari.png
 
 # The Python guide, the examples and the API reference (Sphinx, numpydoc, MyST) into docs/_build/html; any warning
 # fails it. Installs the `docs` extra into .venv on first use (a fresh clone needs nothing else).

@@ -1,8 +1,8 @@
 """pytest's settings for the whole repository, read before any test module or package module is imported.
 
-`make test` runs the docstring examples of ``flexvox_core``, ``rig_drivers``, ``calibration`` and ``app`` beside
-``tests/`` (``--doctest-modules``, ``testpaths`` in pyproject.toml); every module of the four imports headless,
-so none is left out. Collecting them imports the ``flexvox_core.gpu`` modules too, so numba-cuda's simulator is
+`make test` runs the docstring examples of ``flexvox_core`` and ``rig_drivers`` beside ``tests/``
+(``--doctest-modules``, ``testpaths`` in pyproject.toml); those of ``flexvox_app`` and ``flexvox_calibration``,
+which install under names other than their folders', run from ``tests/test_doctests.py``. Collecting them imports the ``flexvox_core.gpu`` modules too, so numba-cuda's simulator is
 chosen here, before anything imports numba's cuda module.
 """
 

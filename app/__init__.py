@@ -1,1 +1,1 @@
-"""flexvox's front ends: the ``flexvox`` command line (``app.cli``) and the Qt application."""
+"""flexvox's front ends: the ``flexvox`` command line (``flexvox_app.cli``) and the Qt application."""

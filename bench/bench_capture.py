@@ -6,7 +6,7 @@ so the projector runs the same patterns and the camera the same trigger delay as
 
 Prints frames, drops, the write rate reached against the camera rate, the queue's peak depth
 and the writer's capacity (rows per second of time spent writing). The simulated rig runs on
-a :class:`~app.capture.pacing.PacedClock` (real time at the set camera rate); ``--virtual``
+a :class:`~flexvox_app.capture.pacing.PacedClock` (real time at the set camera rate); ``--virtual``
 runs it on a virtual clock instead (frames as fast as they render: the pipeline's ceiling).
 
     .venv/bin/python bench/bench_capture.py [--frames 2000] [--rate 60] [--size 120x160] [--tile 4x4]
@@ -21,9 +21,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from app.capture import CapturePlan, CaptureService  # noqa: E402
-from app.capture.pacing import PacedClock  # noqa: E402
-from calibration.capture_setup import CaptureCalibration, SyncTiming  # noqa: E402
+from flexvox_app.capture import CapturePlan, CaptureService  # noqa: E402
+from flexvox_app.capture.pacing import PacedClock  # noqa: E402
+from flexvox_calibration.capture_setup import CaptureCalibration, SyncTiming  # noqa: E402
 from flexvox_core.recording import open_recording  # noqa: E402
 from rig_drivers.simulated_camera import VirtualClock  # noqa: E402
 from rig_drivers.simulated_rig import SimulatedRig  # noqa: E402

@@ -22,7 +22,7 @@ import argparse
 import numpy as np
 
 import flexvox_core.motion.stages as stages
-from app.accuracy_bench import sci_data_dir
+from flexvox_app.accuracy_bench import sci_data_dir
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture
 from flexvox_core.metrics import psnr

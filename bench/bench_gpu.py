@@ -125,7 +125,7 @@ def throughput(scenes, frames: int, repeat: int, cpu: bool, size=(480, 640), pai
 
 
 def bench_rows() -> None:
-    from app.accuracy_bench import cases, methods_for
+    from flexvox_app.accuracy_bench import cases, methods_for
     from flexvox_core.methods import run
 
     print("\nflexvox bench's motion-aware rows, CPU against GPU (PSNR dB):")

@@ -9,7 +9,7 @@ Capture workspace's preview does. Four strategies in the same run, each for ``--
   shrinks only when the finer run (time ∝ pixels) is predicted under half of it (an aliased picture of the
   whole field);
 * ``region`` — full resolution, the whole frame when the measured cost of a pixel says it fits the budget,
-  else a region of it (``app.capture.live_preview``), each run from scratch over the newest 3 frames,
+  else a region of it (``flexvox_app.capture.live_preview``), each run from scratch over the newest 3 frames,
   showing the newest;
 * ``stream`` — what the Capture workspace runs: the same regions rule, motion-aware by the streaming
   reconstructor (the frame before the newest over the same 3-frame window, the frames and flow pairs kept
@@ -42,7 +42,7 @@ import time
 
 import numpy as np
 
-from app.capture.live_preview import PixelCost, PreviewReconstructor, preview_region, reconstruct_preview
+from flexvox_app.capture.live_preview import PixelCost, PreviewReconstructor, preview_region, reconstruct_preview
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture
 from flexvox_core.simulate.scenes import render_scene
@@ -91,7 +91,7 @@ def _stride_run(frames, code, tile, stride):
 
 def _from_scratch(frames, code, region):
     """Motion-aware from scratch over the newest frames of ``region``, the newest shown (the ``region`` strategy)."""
-    from app.capture.live_preview import PreviewResult, normalise
+    from flexvox_app.capture.live_preview import PreviewResult, normalise
     from flexvox_core.motion import motion_aware
 
     t0 = time.perf_counter()

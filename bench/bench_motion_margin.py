@@ -19,7 +19,7 @@ import argparse
 
 import numpy as np
 
-from app.accuracy_bench import TENSORS, TIMES_FULL
+from flexvox_app.accuracy_bench import TENSORS, TIMES_FULL
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture
 from flexvox_core.metrics import psnr

@@ -35,7 +35,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from calibration.shutter import make_shutter_patterns  # noqa: E402
+from flexvox_calibration.shutter import make_shutter_patterns  # noqa: E402
 from flexvox_core.design import design_code  # noqa: E402
 from flexvox_core.forward import tiled_code  # noqa: E402
 from rig_drivers.simulated_rig import warp_patterns  # noqa: E402
@@ -73,9 +73,9 @@ def measure(camera_size, model: str, rig: str, supersample: int) -> dict:
 
 def calibrate(camera_size, rig_layout: str, model: str) -> dict:
     """The whole calibration of a simulated rig at the real ratio; figures against its truth."""
-    from calibration.geometry import homography_error_px
-    from calibration.pipeline import run_calibration
-    from calibration.session import RigSession
+    from flexvox_calibration.geometry import homography_error_px
+    from flexvox_calibration.pipeline import run_calibration
+    from flexvox_calibration.session import RigSession
     from rig_drivers.profile import open_rig
     from rig_drivers.simulated_camera import VirtualClock
 

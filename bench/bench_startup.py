@@ -1,8 +1,8 @@
 """Time from ``flexvox app`` to a usable main window, idle and under load.
 
 Each run starts a fresh interpreter that runs ``flexvox app`` (the simulated rig, a throw-away settings file)
-as the command line does, through ``app.cli.main``. The child logs each start-up step (the
-``start-up: …`` lines of :mod:`app.gui.application`) and notes when the main window is shown and its event loop
+as the command line does, through ``flexvox_app.cli.main``. The child logs each start-up step (the
+``start-up: …`` lines of :mod:`flexvox_app.gui.application`) and notes when the main window is shown and its event loop
 runs (usable); it then closes. Printed per run: the seconds from starting the process to each step and to the
 usable main window (the interpreter's own start included).
 
@@ -42,7 +42,7 @@ class Marks(logging.Handler):
         if msg.startswith("start-up: ") and "main window shown" not in msg:
             marks.append((time.time() - T0, msg[len("start-up: "):]))
 
-log = logging.getLogger("app.gui.application")
+log = logging.getLogger("flexvox_app.gui.application")
 log.addHandler(Marks())
 log.setLevel(logging.INFO)
 
@@ -59,9 +59,9 @@ def shown_then_closed(window):  # the main window shown: usable once its event l
     QTimer.singleShot(0, usable)
 
 QMainWindow.show = shown_then_closed
-from app.gui.widgets import settings as s
+from flexvox_app.gui.widgets import settings as s
 s.default_settings = lambda: s.settings_at(os.path.join(sys.argv[2], "flexvox.ini"))
-from app.cli.main import main
+from flexvox_app.cli.main import main
 status = main(["app"])
 for seconds, step in marks:
     print(f"{seconds:7.2f} s  {step}")

@@ -27,7 +27,7 @@ import time
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from app.accuracy_bench import TIMES_FULL, cases
+from flexvox_app.accuracy_bench import TIMES_FULL, cases
 from flexvox_core.forward import sample_mask, sparse_volume
 from flexvox_core.reconstruct import diffuse
 from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, TRUNCATE

@@ -33,7 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.accuracy_bench import sci_data_dir
+from flexvox_app.accuracy_bench import sci_data_dir
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture
 from flexvox_core.methods import Method, reconstruct

@@ -24,11 +24,11 @@ import importlib
 __all__ = ["CalibrationError", "CalibrationRefused", "CaptureCalibration", "calibrate_rig", "load_rig_calibration"]
 
 _WHERE = {
-    "CalibrationError": "calibration.errors",
-    "CalibrationRefused": "calibration.capture_setup",
-    "CaptureCalibration": "calibration.capture_setup",
-    "calibrate_rig": "calibration.for_rig",
-    "load_rig_calibration": "calibration.for_rig",
+    "CalibrationError": "flexvox_calibration.errors",
+    "CalibrationRefused": "flexvox_calibration.capture_setup",
+    "CaptureCalibration": "flexvox_calibration.capture_setup",
+    "calibrate_rig": "flexvox_calibration.for_rig",
+    "load_rig_calibration": "flexvox_calibration.for_rig",
 }
 
 

@@ -13,7 +13,7 @@ turn a calibration into a :class:`CaptureCalibration` here and nowhere else:
 The phase and the delay go together
 -----------------------------------
 The sync measurement finds that exposure slot 0 opens ``p + f`` slots after the projector's
-sequence starts (whole slots ``p``, fraction ``f``; see :mod:`calibration.sync`). An exposure
+sequence starts (whole slots ``p``, fraction ``f``; see :mod:`flexvox_calibration.sync`). An exposure
 that opens part-way into a slot mixes two patterns in every slot. So capture delays the camera's
 trigger by ``(1 − f)·period`` (:attr:`SyncTiming.trigger_delay_us`): the exposure then opens on a
 slot boundary, and exposure slot ``t`` sees pattern ``(t + p') mod K`` with ``p' = p + 1`` when
@@ -33,10 +33,10 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration import geometry
-from calibration.errors import CalibrationError
-from calibration.files import CALIBRATION_FORMAT, check_identity, load_calibration
-from calibration.sync import SYNC_FORMAT, boundary_phase, load_sync_profile
+from flexvox_calibration import geometry
+from flexvox_calibration.errors import CalibrationError
+from flexvox_calibration.files import CALIBRATION_FORMAT, check_identity, load_calibration
+from flexvox_calibration.sync import SYNC_FORMAT, boundary_phase, load_sync_profile
 from flexvox_core.json_file import read_json
 
 _logger = logging.getLogger(__name__)
@@ -88,7 +88,7 @@ class SyncTiming:
 
     @classmethod
     def from_summary(cls, sync: dict | None) -> SyncTiming | None:
-        """From a sync measurement's summary (:meth:`calibration.sync.SyncResult.summary`); None when
+        """From a sync measurement's summary (:meth:`flexvox_calibration.sync.SyncResult.summary`); None when
         there is none, or it failed."""
         if not sync or sync.get("status") not in (None, "ok") or sync.get("phase_slots") is None:
             return None
@@ -244,7 +244,7 @@ def load_for_capture(path, identity) -> CaptureCalibration:
     ----------
     path : str or Path
         A calibration file: the homography and, when the sync step ran, its timing.
-    identity : calibration.session.RigIdentity
+    identity : flexvox_calibration.session.RigIdentity
         The capture rig's; a file made for another rig, camera or resolution is refused.
 
     Raises
@@ -301,7 +301,7 @@ def load_sync_for_capture(path, identity, *, base: CaptureCalibration | None = N
 
 
 def from_run(run, run_identity, identity, *, now=None) -> CaptureCalibration:
-    """A fresh calibration run (:class:`calibration.pipeline.CalibrationRun`) for capture.
+    """A fresh calibration run (:class:`flexvox_calibration.pipeline.CalibrationRun`) for capture.
 
     Parameters
     ----------

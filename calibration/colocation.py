@@ -28,10 +28,10 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from calibration import geometry
-from calibration.errors import CalibrationError
-from calibration.homography import Correspondences, capture_correspondences, fit_homography
-from calibration.results import StepResult
+from flexvox_calibration import geometry
+from flexvox_calibration.errors import CalibrationError
+from flexvox_calibration.homography import Correspondences, capture_correspondences, fit_homography
+from flexvox_calibration.results import StepResult
 from rig_drivers.errors import DeviceTimeoutError
 
 _logger = logging.getLogger(__name__)
@@ -39,7 +39,7 @@ _logger = logging.getLogger(__name__)
 
 @dataclass(kw_only=True)
 class AlignmentResult(StepResult):
-    """Live alignment numbers (statuses as :class:`~calibration.homography.HomographyResult`'s).
+    """Live alignment numbers (statuses as :class:`~flexvox_calibration.homography.HomographyResult`'s).
 
     Attributes
     ----------

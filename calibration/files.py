@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.errors import CalibrationError, CalibrationFileError, CalibrationMismatchError
+from flexvox_calibration.errors import CalibrationError, CalibrationFileError, CalibrationMismatchError
 from flexvox_core.json_file import read_json
 
 CALIBRATION_FORMAT = "flexvox-calibration"
@@ -131,7 +131,7 @@ def save_calibration(path, result, identity, *, sync=None, allow_partial: bool =
         For a failed result: a bad calibration is never written. :class:`CalibrationFileError`
         for an existing file without ``overwrite`` or a write that failed (an old file stays).
     """
-    from calibration.homography import HomographyResult
+    from flexvox_calibration.homography import HomographyResult
 
     if not isinstance(result, HomographyResult):
         raise CalibrationError(f"`result` must be a HomographyResult; got {type(result).__name__}")

@@ -3,15 +3,15 @@
 What ``flexvox calibrate -o CAL.json`` followed by ``flexvox capture --calibration CAL.json`` does, from Python::
 
     from rig_drivers import open_rig
-    from calibration import calibrate_rig
+    from flexvox_calibration import calibrate_rig
 
     rig = open_rig("mock")
     cal = calibrate_rig(rig, save="cal.json")   # a CaptureCalibration
     # ... CaptureService(rig, plan, "rec.zarr", calibration=cal, ...)
 
-Both functions build the rig's :class:`~calibration.session.RigSession` themselves; the steps are
-:func:`calibration.pipeline.run_calibration`'s, and the result is
-:func:`calibration.capture_setup.from_run`'s (or :func:`~calibration.capture_setup.load_for_capture`'s).
+Both functions build the rig's :class:`~flexvox_calibration.session.RigSession` themselves; the steps are
+:func:`flexvox_calibration.pipeline.run_calibration`'s, and the result is
+:func:`flexvox_calibration.capture_setup.from_run`'s (or :func:`~flexvox_calibration.capture_setup.load_for_capture`'s).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import logging
 from collections.abc import Callable
 from pathlib import Path
 
-from calibration.capture_setup import CalibrationRefused, CaptureCalibration, from_run, load_for_capture
+from flexvox_calibration.capture_setup import CalibrationRefused, CaptureCalibration, from_run, load_for_capture
 
 _logger = logging.getLogger(__name__)
 
@@ -67,7 +67,7 @@ def calibrate_rig(rig, *, tile=(4, 4), progress: bool | Callable = True, save=No
     -------
     CaptureCalibration
         The homography, the phase and the camera trigger delay that go together; give it to
-        :class:`app.capture.CaptureService` as ``calibration=``.
+        :class:`flexvox_app.capture.CaptureService` as ``calibration=``.
 
     Raises
     ------
@@ -82,9 +82,9 @@ def calibrate_rig(rig, *, tile=(4, 4), progress: bool | Callable = True, save=No
     >>> cal.phase_slots, round(cal.rms_px, 2)  # doctest: +SKIP
     (6, 0.18)
     """
-    from calibration.files import save_calibration
-    from calibration.pipeline import run_calibration
-    from calibration.session import RigSession
+    from flexvox_calibration.files import save_calibration
+    from flexvox_calibration.pipeline import run_calibration
+    from flexvox_calibration.session import RigSession
 
     steps = _tqdm_steps if progress is True else (None if progress is False else progress)
     if steps is not None and not callable(steps):
@@ -130,6 +130,6 @@ def load_rig_calibration(rig, path) -> CaptureCalibration:
     >>> cal.calibrated  # doctest: +SKIP
     True
     """
-    from calibration.session import RigSession
+    from flexvox_calibration.session import RigSession
 
     return load_for_capture(Path(path), RigSession.from_rig(rig).identity)

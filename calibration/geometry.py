@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from calibration.errors import CalibrationError
+from flexvox_calibration.errors import CalibrationError
 
 MAX_ANISOTROPY = 4.0
 """Largest ratio of the homography's local stretches before it is called nearly singular.

@@ -2,9 +2,9 @@
 
 :func:`capture_correspondences` shows black and white frames (twice each: the shadow mask
 and the noise level), the Gray code and the phase-shift patterns through a
-:class:`~calibration.session.RigSession` (which only accepts frames exposed after each
+:class:`~flexvox_calibration.session.RigSession` (which only accepts frames exposed after each
 pattern change), and decodes, per camera pixel, the projector point it sees, to sub-pixel
-precision (see :mod:`calibration.structured_light`). :func:`fit_homography` fits one
+precision (see :mod:`flexvox_calibration.structured_light`). :func:`fit_homography` fits one
 homography to them with RANSAC (:func:`cv2.findHomography`), refits on the inliers, and
 judges the result: RMS reprojection error, inliers, coverage, a residual map, and the
 geometry (mirrored, nearly singular, folded). :func:`calibrate_homography` does both.
@@ -38,10 +38,10 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from calibration import geometry
-from calibration.errors import CalibrationError
-from calibration.results import StepResult
-from calibration.structured_light import (
+from flexvox_calibration import geometry
+from flexvox_calibration.errors import CalibrationError
+from flexvox_calibration.results import StepResult
+from flexvox_calibration.structured_light import (
     decode_gray,
     decode_phase,
     gray_code_patterns,

@@ -23,7 +23,7 @@ class CalibrationRun:
     keep : dict
         The full results: ``homography`` (a HomographyResult, with its residual map), ``shutter``
         (the verification, with its map of wrong pixels), ``shutter_patterns`` (the
-        :class:`~calibration.shutter.ShutterPatterns` verified, phase 0), ``parallax`` (simulated
+        :class:`~flexvox_calibration.shutter.ShutterPatterns` verified, phase 0), ``parallax`` (simulated
         rig), ``sync`` (a SyncResult, with its leakage curve).
     """
 
@@ -58,10 +58,10 @@ def run_calibration(rig: Rig, session, *, tile=(4, 4), progress=None) -> Calibra
 
 
 def _run_steps(rig, session, tile, progress) -> CalibrationRun:
-    from calibration.colocation import capture_view, measure_alignment, parallax_test
-    from calibration.homography import calibrate_homography
-    from calibration.shutter import make_shutter_patterns, verify_shutter
-    from calibration.sync import band_patterns, check_frames, measure_sync
+    from flexvox_calibration.colocation import capture_view, measure_alignment, parallax_test
+    from flexvox_calibration.homography import calibrate_homography
+    from flexvox_calibration.shutter import make_shutter_patterns, verify_shutter
+    from flexvox_calibration.sync import band_patterns, check_frames, measure_sync
     from flexvox_core.design import design_code
 
     code = design_code(tuple(tile)).require()  # an impossible tile is refused before any device moves
@@ -120,7 +120,7 @@ def _run_steps(rig, session, tile, progress) -> CalibrationRun:
 
 def truth_comparison(rig: Rig, run: CalibrationRun, camera_size) -> dict:
     """On the simulated rig: the hidden truth beside what was found (for tests, the demo, --json)."""
-    from calibration.geometry import homography_error_px
+    from flexvox_calibration.geometry import homography_error_px
 
     truth = rig.truth
     out = {"phase_true": int(truth.phase_slots), "delay_true_us": int(truth.delay_us)}

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from calibration.errors import CalibrationError
+from flexvox_calibration.errors import CalibrationError
 from rig_drivers.errors import DeviceTimeoutError
 from rig_drivers.interfaces import (
     CameraSettings,

@@ -4,7 +4,7 @@
 projector→camera homography to the *nearest* camera pixel and gives it that camera pixel's
 slots (no blending: a mirror is on or off). Pattern ``j`` is shown in projector slot ``j``;
 with a sync phase ``p`` (exposure slot ``t`` sees pattern ``(t + p) mod K``, see
-:mod:`calibration.sync`) pattern ``j`` carries code slot ``(j − p) mod K`` so that exposure
+:mod:`flexvox_calibration.sync`) pattern ``j`` carries code slot ``(j − p) mod K`` so that exposure
 slot ``s`` sees code slot ``s``. :func:`~rig_drivers.dlpc350.bitplanes.pack_bitplanes`
 packs them for the projector's video port.
 
@@ -25,9 +25,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from calibration import geometry
-from calibration.errors import CalibrationError
-from calibration.results import StepResult
+from flexvox_calibration import geometry
+from flexvox_calibration.errors import CalibrationError
+from flexvox_calibration.results import StepResult
 from flexvox_core.codes import validate_code
 from flexvox_core.forward import tiled_code
 from flexvox_core.memory_budget import check_fits, shutter_pattern_bytes

@@ -29,7 +29,7 @@ import math
 import cv2
 import numpy as np
 
-from calibration.errors import CalibrationError
+from flexvox_calibration.errors import CalibrationError
 
 
 def gray_code_patterns(projector_size) -> tuple[np.ndarray, int, int]:

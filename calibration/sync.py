@@ -21,7 +21,7 @@ whose slope (≈ 1) checks the units and whose intercept is the estimate.
 
 The recommended camera trigger delay ``(1 − f)·period`` makes the exposure open on a slot
 boundary (then exposure slot ``t`` sees pattern ``(t + p') mod K`` with ``p' = p + 1`` when
-``f > 0``): give ``p'`` to :func:`calibration.shutter.make_shutter_patterns`.
+``f > 0``): give ``p'`` to :func:`flexvox_calibration.shutter.make_shutter_patterns`.
 
 :func:`check_frames` reads N frames of a repeating sequence and reports frame-id gaps,
 long inter-arrival times and drift against the sequence period.
@@ -37,10 +37,10 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration import geometry
-from calibration.errors import CalibrationError
-from calibration.files import check_identity, read_versioned, write_versioned
-from calibration.results import StepResult
+from flexvox_calibration import geometry
+from flexvox_calibration.errors import CalibrationError
+from flexvox_calibration.files import check_identity, read_versioned, write_versioned
+from flexvox_calibration.results import StepResult
 from rig_drivers.errors import DeviceTimeoutError
 
 _logger = logging.getLogger(__name__)
@@ -179,7 +179,7 @@ def measure_sync(session, homography, *, K: int = 16, sweep_steps: int = 8,
     session : RigSession
         Opened, with a hardware-triggered camera.
     homography : array (3, 3)
-        Projector → camera, from :func:`calibration.homography.calibrate_homography`.
+        Projector → camera, from :func:`flexvox_calibration.homography.calibrate_homography`.
     K : int
         Slots per exposure.
     sweep_steps : int

@@ -343,7 +343,7 @@ def open_rig(rig=MOCK, *, projector_display=None, **simulated_options) -> Profil
     projector_display : callable, optional
         Real rigs: the projector's display sink, ``display(frames)`` with the packed
         ``(N, H, W, 3)`` uint8 frames of every sequence loaded (see
-        :mod:`rig_drivers.dlpc350.driver`; the app's is :mod:`app.gui.projector.display`).
+        :mod:`rig_drivers.dlpc350.driver`; the app's is :mod:`flexvox_app.gui.projector.display`).
         Ignored by ``mock``, whose simulated projector needs no video input.
     **simulated_options
         For ``mock``: the fields of its :class:`~rig_drivers.simulated_rig_spec.SimulatedRigSpec` (scene,

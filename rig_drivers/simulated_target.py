@@ -50,7 +50,7 @@ TARGET_EFFECTS = {
 Defocus σ = 0.3 camera px is a rig focused for per-pixel shuttering. At σ = 0.5 px a fifth of
 the camera pixels get a neighbour's slot at more than 3/4 of their own light, and about 1 %
 see a neighbour's slot *more* than their own: no calibration can fix that (focus the
-projector); :func:`calibration.shutter.verify_shutter` reports it as crosstalk."""
+projector); :func:`flexvox_calibration.shutter.verify_shutter` reports it as crosstalk."""
 
 HIDDEN_K = 16
 """Slots the hidden timing is drawn for (a 4×4 tile)."""

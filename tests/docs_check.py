@@ -168,7 +168,7 @@ SMALLER = {
 def _shims(folder: Path) -> Path:
     """A bin folder whose ``flexvox`` and ``python`` run this checkout with this interpreter."""
     folder.mkdir(parents=True, exist_ok=True)
-    for name, body in (("flexvox", f'exec "{sys.executable}" -m app.cli.main "$@"'),
+    for name, body in (("flexvox", f'exec "{sys.executable}" -m flexvox_app.cli.main "$@"'),
                        ("python", f'exec "{sys.executable}" "$@"'), ("python3", f'exec "{sys.executable}" "$@"')):
         shim = folder / name
         shim.write_text(f"#!/bin/sh\n{body}\n")
@@ -211,7 +211,7 @@ def parse_only(command: str, bin_dir: Path) -> tuple[bool, str]:
 
     args = shlex.split(command)
     if args[0] == "flexvox":
-        from app.cli.main import build_parser
+        from flexvox_app.cli.main import build_parser
 
         err = io.StringIO()
         try:

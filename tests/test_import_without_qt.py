@@ -46,11 +46,11 @@ CORE = BLOCK_QT + textwrap.dedent(
 CLI = BLOCK_QT + textwrap.dedent(
     """
     import importlib, pkgutil
-    import app.cli, app.cli.main, flexvox_core.batch, flexvox_core.video_io, flexvox_core.methods
+    import flexvox_app.cli, flexvox_app.cli.main, flexvox_core.batch, flexvox_core.video_io, flexvox_core.methods
     # every subcommand's module, and the parser that registers them all
-    for info in pkgutil.iter_modules(app.cli.__path__):
-        importlib.import_module(f"app.cli.{info.name}")
-    app.cli.main.build_parser()
+    for info in pkgutil.iter_modules(flexvox_app.cli.__path__):
+        importlib.import_module(f"flexvox_app.cli.{info.name}")
+    flexvox_app.cli.main.build_parser()
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot
@@ -62,7 +62,7 @@ CLI = BLOCK_QT + textwrap.dedent(
 RUN = BLOCK_QT + textwrap.dedent(
     """
     import sys
-    from app.cli.main import main
+    from flexvox_app.cli.main import main
     out = sys.argv[1]
     assert main(["simulate", "drummer", "--frames", "8", "--size", "32x32", "-o", f"{out}/rec.zarr"]) == 0
     assert main(["reconstruct", f"{out}/rec.zarr", "-o", f"{out}/video.zarr"]) == 0
@@ -76,7 +76,7 @@ RUN = BLOCK_QT + textwrap.dedent(
 APP = BLOCK_QT + textwrap.dedent(
     """
     import sys
-    from app.cli.main import main
+    from flexvox_app.cli.main import main
     sys.exit(main(sys.argv[1:]))
     """
 )
@@ -125,8 +125,8 @@ def test_list_screens_without_the_gui_extra_exits_2_naming_it():
 LEAN = textwrap.dedent(
     """
     import sys
-    import app.cli.main
-    app.cli.main.build_parser()
+    import flexvox_app.cli.main
+    flexvox_app.cli.main.build_parser()
     heavy = sorted({m.split(".")[0] for m in sys.modules} & {"scipy", "numba", "dask", "matplotlib", "tifffile"})
     print(",".join(heavy) or "none")
     """

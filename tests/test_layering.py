@@ -13,7 +13,7 @@ from pathlib import Path
 import grimp
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("app", "calibration", "rig_drivers", "flexvox_core")
+PACKAGES = ("flexvox_app", "flexvox_calibration", "rig_drivers", "flexvox_core")
 
 
 def _module_cycles(edges: dict[str, set[str]]) -> list[list[str]]:

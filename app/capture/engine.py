@@ -2,12 +2,12 @@
 
 :class:`AcquisitionEngine` holds the devices' side of a capture and nothing of the recording's:
 :meth:`~AcquisitionEngine.set_up` opens what is closed and sets the rig up through
-:func:`~app.capture.rig_setup.set_up_rig` (patterns, sync box, camera trigger and delay; the
+:func:`~flexvox_app.capture.rig_setup.set_up_rig` (patterns, sync box, camera trigger and delay; the
 projector and the sync box start, so the camera is triggered from then on),
 :meth:`~AcquisitionEngine.frames` reads the camera until told to stop, and
 :meth:`~AcquisitionEngine.tear_down` stops the devices and closes those it opened.
-:class:`~app.capture.service.CaptureService` drives it on its reader thread and hands each frame
-to the recording sink (:mod:`app.capture.sink`).
+:class:`~flexvox_app.capture.service.CaptureService` drives it on its reader thread and hands each frame
+to the recording sink (:mod:`flexvox_app.capture.sink`).
 """
 
 from __future__ import annotations
@@ -17,11 +17,11 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 
-from app.capture.pacing import PacedClock
-from app.capture.plan import CapturePlan
-from app.capture.rig_setup import CaptureError, RigSetup, set_up_rig, stop_rig
-from app.capture.settings import SyncSetting
-from calibration.capture_setup import CaptureCalibration
+from flexvox_app.capture.pacing import PacedClock
+from flexvox_app.capture.plan import CapturePlan
+from flexvox_app.capture.rig_setup import CaptureError, RigSetup, set_up_rig, stop_rig
+from flexvox_app.capture.settings import SyncSetting
+from flexvox_calibration.capture_setup import CaptureCalibration
 from rig_drivers.errors import DeviceError, DeviceTimeoutError
 from rig_drivers.interfaces import DeviceState, Frame, Rig
 

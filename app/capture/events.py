@@ -8,9 +8,9 @@ A front end subscribes instead of asking the service for its state on a timer::
 The service emits every event on one thread of its own (``flexvox-capture-events``), never on the
 threads that read the camera or write the disk, so a slow subscriber (a terminal nobody reads, a
 busy window) never holds a frame up. A callback runs on that thread: a Qt window hands the event to
-its GUI thread (``app.gui.capture.capture_signals``). What a callback raises is logged and
+its GUI thread (``flexvox_app.gui.capture.capture_signals``). What a callback raises is logged and
 ignored: a subscriber cannot stop a capture. Qt-free models driven on the GUI thread (Review's,
-``app.gui.models.review_model``) use the same :class:`Signal`, letting their callbacks' errors through.
+``flexvox_app.gui.models.review_model``) use the same :class:`Signal`, letting their callbacks' errors through.
 """
 
 from __future__ import annotations
@@ -79,12 +79,12 @@ class CaptureEvents:
     Attributes
     ----------
     started : Signal
-        ``(setup)``: the rig is set up (a :class:`~app.capture.rig_setup.RigSetup`) and frames are being read.
+        ``(setup)``: the rig is set up (a :class:`~flexvox_app.capture.rig_setup.RigSetup`) and frames are being read.
     progress : Signal
-        ``(stats)``: a :class:`~app.capture.status.CaptureStats`, every ``progress_every_s`` while the capture
+        ``(stats)``: a :class:`~flexvox_app.capture.status.CaptureStats`, every ``progress_every_s`` while the capture
         runs, and once more with the final counters when it has ended.
     finished : Signal
-        ``(result)``: the :class:`~app.capture.status.CaptureResult`, once, when the recording is finalised.
+        ``(result)``: the :class:`~flexvox_app.capture.status.CaptureResult`, once, when the recording is finalised.
     """
 
     def __init__(self):

@@ -1,7 +1,7 @@
 """What the live preview reconstructs, and how big a region it takes on (Qt-free).
 
 The Capture workspace previews the newest camera frames reconstructed by motion-aware
-(:mod:`app.gui.capture.live_preview` runs it beside capture). This module holds the parts that
+(:mod:`flexvox_app.gui.capture.live_preview` runs it beside capture). This module holds the parts that
 need no Qt, so that a benchmark and the tests can run them alone:
 
 * :class:`FrameBuffer` — the newest run of consecutive frames (a gap starts a new run).

@@ -7,7 +7,7 @@ projector pattern exposure. ``flexvox capture`` and the Capture workspace both b
 (``rig_drivers.interfaces.check_pattern_timing``: exposure = period, or at most period − 230 µs;
 1-bit patterns ≥ 235 µs) and the camera's exposure window, and says how fast a free-running
 camera would drift (the projector counts whole µs). :meth:`CapturePlan.patterns` turns the code
-into the projector's patterns through :func:`calibration.shutter.make_shutter_patterns`, the one
+into the projector's patterns through :func:`flexvox_calibration.shutter.make_shutter_patterns`, the one
 function calibration verifies with: what was verified is what is projected.
 """
 
@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from calibration.capture_setup import CaptureCalibration
-from calibration.session import EXPOSURE_MARGIN_US
-from calibration.shutter import ShutterPatterns, make_shutter_patterns
+from flexvox_calibration.capture_setup import CaptureCalibration
+from flexvox_calibration.session import EXPOSURE_MARGIN_US
+from flexvox_calibration.shutter import ShutterPatterns, make_shutter_patterns
 from flexvox_core.codes import code_from_order, verify
 from flexvox_core.divisions import Division
 from flexvox_core.multiplex import MultiplexedCode, multiplexed_code
@@ -102,7 +102,7 @@ class CapturePlan:
         An S-matrix code (K ≡ 3 mod 4) instead of an identity code.
     camera_hz : float
     camera_exposure_us : float or None
-        Camera exposure; default one sequence less :data:`~calibration.session.EXPOSURE_MARGIN_US`
+        Camera exposure; default one sequence less :data:`~flexvox_calibration.session.EXPOSURE_MARGIN_US`
         of read-out before the next trigger.
     projector_exposure_us : int or None
         Pattern exposure; default the period (what the video port needs).
@@ -251,8 +251,8 @@ class CapturePlan:
                  calibration: CaptureCalibration | None = None, *, layout: str = "square") -> ShutterPatterns:
         """The projector's patterns for this plan through ``calibration`` (default: uncalibrated).
 
-        :func:`calibration.shutter.make_shutter_patterns` with the calibration's homography and the
-        phase :meth:`calibration.capture_setup.CaptureCalibration.for_plan` gives at this plan's timing:
+        :func:`flexvox_calibration.shutter.make_shutter_patterns` with the calibration's homography and the
+        phase :meth:`flexvox_calibration.capture_setup.CaptureCalibration.for_plan` gives at this plan's timing:
         exactly the patterns calibration verifies, relabelled for the phase. ``layout`` is the
         projector's pixel layout (its driver's ``pixel_layout``).
         """

@@ -1,6 +1,6 @@
 """The rig set up for a capture plan: patterns, sync box, camera trigger and delay, in one place.
 
-:func:`set_up_rig` is what a recording (:class:`~app.capture.service.CaptureService`) and the
+:func:`set_up_rig` is what a recording (:class:`~flexvox_app.capture.service.CaptureService`) and the
 Capture workspace's live view both call, so the live view shows what a recording records:
 
 1. the plan's timing must be one the projector and camera accept (:meth:`CapturePlan.timing`);
@@ -20,8 +20,8 @@ import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from app.capture.plan import CapturePlan
-from calibration.capture_setup import CaptureCalibration
+from flexvox_app.capture.plan import CapturePlan
+from flexvox_calibration.capture_setup import CaptureCalibration
 from rig_drivers.interfaces import (
     MIN_DARK_US,
     MIN_EXPOSURE_1BIT_US,

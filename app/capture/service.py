@@ -1,7 +1,7 @@
 """The capture service: a plan's frames from the rig into a crash-safe recording, its progress published as events.
 
-A capture takes a :class:`~app.capture.plan.CapturePlan` (code, camera rate) and a
-:class:`~calibration.capture_setup.CaptureCalibration` (homography, phase, camera trigger delay),
+A capture takes a :class:`~flexvox_app.capture.plan.CapturePlan` (code, camera rate) and a
+:class:`~flexvox_calibration.capture_setup.CaptureCalibration` (homography, phase, camera trigger delay),
 both built the same way by ``flexvox capture`` and the Capture workspace. The projector shows
 :meth:`CapturePlan.patterns` (the patterns calibration verifies), the camera's trigger is
 delayed by the calibration's delay where the camera can do it (else the operator confirms it was
@@ -9,15 +9,15 @@ set another way), and the recording stores the phase and the delay in use.
 
 Three parts, each in its own module:
 
-* the **acquisition engine** (:class:`~app.capture.engine.AcquisitionEngine`): sets the rig up,
+* the **acquisition engine** (:class:`~flexvox_app.capture.engine.AcquisitionEngine`): sets the rig up,
   starts the projector and the sync box that trigger the camera, reads the camera, and puts the
   rig back;
-* the **recording sink** (:class:`~app.capture.sink.RecordingSink`): the one-writer lock, the
+* the **recording sink** (:class:`~flexvox_app.capture.sink.RecordingSink`): the one-writer lock, the
   recording created at the first frame, frame-id gaps as dropped rows, each row's checksum, the
   finalisation;
 * the **service** here, the runner between them: its state, the threads and the queue between
   them, the counters, and the events a front end subscribes to
-  (:class:`~app.capture.events.CaptureEvents`: ``started``, ``progress``, ``finished``), emitted on
+  (:class:`~flexvox_app.capture.events.CaptureEvents`: ``started``, ``progress``, ``finished``), emitted on
   a thread of their own.
 
 Qt-free; it sits above ``rig_drivers`` and ``flexvox_core``.
@@ -70,14 +70,14 @@ import time
 from collections.abc import Callable
 from dataclasses import asdict
 
-from app.capture.engine import AcquisitionEngine, CameraStopped
-from app.capture.events import CaptureEvents
-from app.capture.plan import CapturePlan
-from app.capture.rig_setup import CaptureError, RigSetup
-from app.capture.settings import QueuePolicy, SyncSetting
-from app.capture.sink import RecordingSink, check_output, os_message
-from app.capture.status import CaptureResult, CaptureState, CaptureStats
-from calibration.capture_setup import CaptureCalibration
+from flexvox_app.capture.engine import AcquisitionEngine, CameraStopped
+from flexvox_app.capture.events import CaptureEvents
+from flexvox_app.capture.plan import CapturePlan
+from flexvox_app.capture.rig_setup import CaptureError, RigSetup
+from flexvox_app.capture.settings import QueuePolicy, SyncSetting
+from flexvox_app.capture.sink import RecordingSink, check_output, os_message
+from flexvox_app.capture.status import CaptureResult, CaptureState, CaptureStats
+from flexvox_calibration.capture_setup import CaptureCalibration
 from flexvox_core.recording import RecordingError
 from rig_drivers.interfaces import Frame, Rig
 
@@ -166,7 +166,7 @@ class CaptureService:
                  writer_factory: Callable | None = None, overwrite: bool = False, durable: bool = False,
                  rig_info: dict | None = None, progress_every_s: float = 0.2):
         if not isinstance(plan, CapturePlan):
-            raise CaptureError(f"`plan` must be a CapturePlan (app.capture.plan); got {type(plan).__name__}")
+            raise CaptureError(f"`plan` must be a CapturePlan (flexvox_app.capture.plan); got {type(plan).__name__}")
         try:
             self.code = plan.code
         except ValueError as exc:
@@ -174,7 +174,7 @@ class CaptureService:
         if frames is not None and (isinstance(frames, bool) or not isinstance(frames, int) or frames < 1):
             raise CaptureError(f"`frames` must be a whole number >= 1 or None; got {frames!r}")
         if calibration is not None and not isinstance(calibration, CaptureCalibration):
-            raise CaptureError(f"`calibration` must be a CaptureCalibration (calibration.capture_setup); got "
+            raise CaptureError(f"`calibration` must be a CaptureCalibration (flexvox_calibration.capture_setup); got "
                                f"{type(calibration).__name__}")
         if not 0 < progress_every_s <= 60:
             raise CaptureError(f"`progress_every_s` must be in (0, 60] s; got {progress_every_s!r}")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from app.capture.rig_setup import CaptureError
+from flexvox_app.capture.rig_setup import CaptureError
 
 
 @dataclass(frozen=True)
@@ -44,7 +44,7 @@ class SyncSetting:
 
 @dataclass(frozen=True)
 class QueuePolicy:
-    """The bounded queue between camera and disk (see :mod:`app.capture.service`).
+    """The bounded queue between camera and disk (see :mod:`flexvox_app.capture.service`).
 
     Parameters
     ----------

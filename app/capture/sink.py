@@ -6,7 +6,7 @@ with the code, rates, calibration and rig it was made with, each frame appended 
 chunk with its checksum (:class:`~flexvox_core.recording.RecordingWriter`), every frame-id gap
 filled with zero rows flagged ``dropped`` (the convention of simulations), and the recording
 finalised with the capture's counters (:meth:`~RecordingSink.finalise`), or left with its journal
-when the disk refuses even that (it still opens). :class:`~app.capture.service.CaptureService`
+when the disk refuses even that (it still opens). :class:`~flexvox_app.capture.service.CaptureService`
 drives it on its writer thread.
 """
 
@@ -22,9 +22,9 @@ from pathlib import Path
 
 import numpy as np
 
-from app.capture.plan import CapturePlan
-from app.capture.rig_setup import CaptureError, RigSetup
-from calibration.capture_setup import CaptureCalibration
+from flexvox_app.capture.plan import CapturePlan
+from flexvox_app.capture.rig_setup import CaptureError, RigSetup
+from flexvox_calibration.capture_setup import CaptureCalibration
 from flexvox_core import output_files
 from flexvox_core._version import __version__
 from flexvox_core.multiplex import MultiplexedCode

@@ -1,1 +1,1 @@
-"""The ``flexvox`` command line: one module per subcommand, registered in :mod:`app.cli.main`."""
+"""The ``flexvox`` command line: one module per subcommand, registered in :mod:`flexvox_app.cli.main`."""

@@ -2,8 +2,8 @@
 
 ``flexvox app`` starts the Qt application (device panel; Calibrate, Capture and Review
 workspaces). ``flexvox calibrate|capture --projector-screen N`` show the projector's patterns on
-a screen (a DLPC350 takes them on its video input) through :mod:`app.gui.projector.display`.
-Both import :mod:`app.gui` lazily, here and nowhere else in :mod:`app.cli` (an import-linter
+a screen (a DLPC350 takes them on its video input) through :mod:`flexvox_app.gui.projector.display`.
+Both import :mod:`flexvox_app.gui` lazily, here and nowhere else in :mod:`flexvox_app.cli` (an import-linter
 contract in pyproject.toml holds every other CLI module to that).
 """
 
@@ -11,8 +11,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from app.cli.errors import EXIT_OK, CliError, arg_type
-from app.qt_platform import display_problem, missing_gui_extra
+from flexvox_app.cli.errors import EXIT_OK, CliError, arg_type
+from flexvox_app.qt_platform import display_problem, missing_gui_extra
 
 HELP = "start the Qt application (device panel; Calibrate, Capture, Review)"
 
@@ -58,7 +58,7 @@ def run(args) -> int:
     def opened():  # behind the start-up window, which shows at once
         return open_rig("mock", scene=args.scene, seed=args.seed) if args.rig == "mock" else open_rig(args.rig)
 
-    from app.gui.application import launch  # Qt is loaded only here
+    from flexvox_app.gui.application import launch  # Qt is loaded only here
 
     try:
         return launch(opened, recording=args.recording)
@@ -90,7 +90,7 @@ def add_screen_options(p) -> None:
 def list_screens() -> int:
     """Print the screens ``--projector-screen`` can name."""
     require_gui_extra()
-    from app.gui.projector.display import ScreenError, screen_lines
+    from flexvox_app.gui.projector.display import ScreenError, screen_lines
 
     try:
         lines = screen_lines()
@@ -127,7 +127,7 @@ def with_projector_screen(args, spec, work):
         raise CliError("the DLP LightCrafter 4500 takes its patterns on its video input: give --projector-screen N, "
                        "the screen its HDMI input is (list them with --list-screens)")
     require_gui_extra()
-    from app.gui.projector.display import ScreenError, run_with_projector_screen
+    from flexvox_app.gui.projector.display import ScreenError, run_with_projector_screen
 
     try:
         return run_with_projector_screen(args.projector_screen, work)

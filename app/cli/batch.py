@@ -6,13 +6,13 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from app.cli.errors import EXIT_OK, CliError
+from flexvox_app.cli.errors import EXIT_OK, CliError
 
 
 def register(sub) -> None:
     """Add the ``batch`` subcommand."""
-    from app.cli.export import add_pyramid_option
-    from app.cli.method_options import add_method_options
+    from flexvox_app.cli.export import add_pyramid_option
+    from flexvox_app.cli.method_options import add_method_options
 
     p = sub.add_parser(
         "batch",
@@ -40,7 +40,7 @@ def register(sub) -> None:
 
 def run(args) -> int:
     """Carry out ``flexvox batch``."""
-    from app.cli.method_options import device_line, method_from_args, resolved_device
+    from flexvox_app.cli.method_options import device_line, method_from_args, resolved_device
     from flexvox_core.batch import reconstruct_batch
     from flexvox_core.recording import RecordingError, open_recording
 
@@ -66,7 +66,7 @@ def run(args) -> int:
     print(device_line(result))
     dropped = rec.per_frame("dropped")
     if dropped.any():
-        from app.cli.reconstruct import interpolated_line
+        from flexvox_app.cli.reconstruct import interpolated_line
         from flexvox_core.gaps import find_gaps
 
         print(interpolated_line(find_gaps(dropped), S // len(dropped)))

@@ -7,8 +7,8 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from app.cli.errors import EXIT_OK
-from app.cli.method_options import add_device_option, resolved_device
+from flexvox_app.cli.errors import EXIT_OK
+from flexvox_app.cli.method_options import add_device_option, resolved_device
 
 
 def register(sub) -> None:
@@ -37,8 +37,8 @@ OUTPUTS = ("results.csv", "results.json", "pareto.png")
 
 def run(args) -> int:
     """Carry out ``flexvox bench``."""
-    from app.accuracy_bench import pareto, run_bench, summary
-    from app.cli.errors import CliError
+    from flexvox_app.accuracy_bench import pareto, run_bench, summary
+    from flexvox_app.cli.errors import CliError
     from flexvox_core.output_files import OutputError, check_writable
 
     device = resolved_device(args)

@@ -9,8 +9,8 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from app.cli.app import add_screen_options, list_screens, with_projector_screen
-from app.cli.errors import EXIT_FAILED, EXIT_OK, CliError, arg_type
+from flexvox_app.cli.app import add_screen_options, list_screens, with_projector_screen
+from flexvox_app.cli.errors import EXIT_FAILED, EXIT_OK, CliError, arg_type
 
 HELP = "calibrate the rig: co-location, projector-camera homography, shutter masks, synchronisation"
 
@@ -96,7 +96,7 @@ class _Progress:
 
 
 def _open(args, spec, display=None):
-    from calibration.session import RigSession
+    from flexvox_calibration.session import RigSession
     from rig_drivers.profile import open_rig
     from rig_drivers.simulated_camera import VirtualClock
 
@@ -132,9 +132,9 @@ def run(args) -> int:
 
 
 def _calibrate(args, spec, display=None, interrupted=None) -> int:
-    from calibration.errors import CalibrationError
-    from calibration.files import save_calibration
-    from calibration.pipeline import run_calibration, truth_comparison
+    from flexvox_calibration.errors import CalibrationError
+    from flexvox_calibration.files import save_calibration
+    from flexvox_calibration.pipeline import run_calibration, truth_comparison
     from rig_drivers.errors import DeviceError
 
     t0 = time.perf_counter()

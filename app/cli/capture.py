@@ -1,6 +1,6 @@
 """``flexvox capture``: headless capture from a rig into a crash-safe recording.
 
-``python -m app.cli.capture ...`` runs the same command on its own (the crash-safety test
+``python -m flexvox_app.cli.capture ...`` runs the same command on its own (the crash-safety test
 kills such a process).
 """
 
@@ -13,8 +13,8 @@ import threading
 import time
 from pathlib import Path
 
-from app.cli.app import add_screen_options, list_screens, with_projector_screen
-from app.cli.errors import EXIT_FAILED, EXIT_OK, CliError, OneLineParser, arg_type
+from flexvox_app.cli.app import add_screen_options, list_screens, with_projector_screen
+from flexvox_app.cli.errors import EXIT_FAILED, EXIT_OK, CliError, OneLineParser, arg_type
 from flexvox_core.tiles import parse_tile
 
 _SIZE_RE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
@@ -113,7 +113,7 @@ def register(sub) -> None:
 
 def _plan(args):
     """The capture plan the code options describe."""
-    from app.capture import CapturePlan
+    from flexvox_app.capture import CapturePlan
 
     if not 0 < args.rate <= 10_000:
         raise ValueError(f"--rate must be a camera rate above 0 and at most 10000 Hz; got {args.rate:g}")
@@ -125,9 +125,9 @@ def _plan(args):
 
 
 def _build(args, display=None):
-    from app.capture import CaptureService, QueuePolicy, SyncSetting
-    from app.capture.pacing import PacedClock
-    from app.capture.sink import check_output
+    from flexvox_app.capture import CaptureService, QueuePolicy, SyncSetting
+    from flexvox_app.capture.pacing import PacedClock
+    from flexvox_app.capture.sink import check_output
     from rig_drivers.profile import open_rig
     from rig_drivers.simulated_camera import VirtualClock
 
@@ -165,8 +165,8 @@ def _build(args, display=None):
 
 def _calibration(args, rig):
     """The capture calibration from ``--calibration`` / ``--sync-profile`` (the one loader)."""
-    from calibration.capture_setup import load_for_capture, load_sync_for_capture
-    from calibration.session import RigSession
+    from flexvox_calibration.capture_setup import load_for_capture, load_sync_for_capture
+    from flexvox_calibration.session import RigSession
 
     if args.calibration is None and args.sync_profile is None:
         return None
@@ -176,7 +176,7 @@ def _calibration(args, rig):
         try:
             calibration = load_for_capture(args.calibration, identity)
         except ValueError as exc:
-            from calibration.errors import CalibrationMismatchError
+            from flexvox_calibration.errors import CalibrationMismatchError
             from rig_drivers.simulated_rig import DEFAULT_CAMERA_SIZE
 
             mismatch = isinstance(exc, CalibrationMismatchError) or isinstance(exc.__cause__, CalibrationMismatchError)
@@ -242,7 +242,7 @@ def run(args) -> int:
 
 def _capture(args, display=None, interrupted=None) -> int:
     """Build, start and follow the capture; ``interrupted`` (an Event) stops it like Ctrl-C."""
-    from app.capture import CaptureError
+    from flexvox_app.capture import CaptureError
     from rig_drivers.errors import DeviceError
 
     try:
@@ -293,7 +293,7 @@ def _capture(args, display=None, interrupted=None) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run ``capture`` alone (``python -m app.cli.capture ...``)."""
+    """Run ``capture`` alone (``python -m flexvox_app.cli.capture ...``)."""
     import logging
 
     parser = OneLineParser(prog="flexvox")

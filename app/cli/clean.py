@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from app.cli.errors import EXIT_OK, CliError
+from flexvox_app.cli.errors import EXIT_OK, CliError
 
 
 def register(sub) -> None:

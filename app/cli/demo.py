@@ -6,7 +6,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from app.cli.errors import EXIT_OK, CliError
+from flexvox_app.cli.errors import EXIT_OK, CliError
 
 HELP = "run the end-to-end demo on the simulated rig and write an HTML report"
 STEPS = ("design", "calibrate", "shutter check", "capture", "reconstruct", "figures", "videos", "accuracy vs time",
@@ -40,12 +40,12 @@ def register(sub) -> None:
 
 def run(args) -> int:
     """Carry out ``flexvox demo``."""
-    from app.demo.run import DemoConfig, run_demo
+    from flexvox_app.demo.run import DemoConfig, run_demo
     from flexvox_core.simulate.scenes import SCENES
 
     if args.scene not in SCENES:
         raise CliError(f"unknown scene {args.scene!r}; built-in scenes: {', '.join(SCENES)}")
-    from app.demo.run import check_report_folder
+    from flexvox_app.demo.run import check_report_folder
     from flexvox_core.output_files import OutputError
 
     try:  # before any work; the report is built beside it and moved into place when complete

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.cli.errors import EXIT_FAILED, EXIT_OK, CliError, arg_type
+from flexvox_app.cli.errors import EXIT_FAILED, EXIT_OK, CliError, arg_type
 from flexvox_core.codes import code_from_order, verify
 from flexvox_core.divisions import enumerate_divisions, parse_division
 from flexvox_core.multiplex import multiplexed_code

@@ -6,7 +6,7 @@ import json
 import os
 from pathlib import Path
 
-from app.cli.errors import EXIT_OK
+from flexvox_app.cli.errors import EXIT_OK
 
 HELP = "list projectors, cameras, serial ports, the simulated rig and the GPUs this machine can reach"
 

@@ -30,8 +30,14 @@ from pathlib import Path
 
 import numpy as np
 
-from app.cli.errors import EXIT_OK, CliError, arg_type, positive_fps
-from app.cli.method_options import add_method_options, device_line, device_record, method_from_args, resolved_device
+from flexvox_app.cli.errors import EXIT_OK, CliError, arg_type, positive_fps
+from flexvox_app.cli.method_options import (
+    add_method_options,
+    device_line,
+    device_record,
+    method_from_args,
+    resolved_device,
+)
 from flexvox_core.ngff import check_levels
 from flexvox_core.output_files import OutputError, atomic_output, check_output
 from flexvox_core.recording import RecordingError, open_recording
@@ -118,7 +124,7 @@ class _Source:
             self.attrs.update(device_record(result))
             self.device_line = device_line(result)
             if reader.missing is not None:
-                from app.cli.reconstruct import interpolated_line
+                from flexvox_app.cli.reconstruct import interpolated_line
 
                 self.gaps_line = interpolated_line(reader.gaps(), reader.K)
             self.dtype = np.dtype(np.float32)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.cli.errors import EXIT_FAILED, EXIT_OK, CliError
+from flexvox_app.cli.errors import EXIT_FAILED, EXIT_OK, CliError
 from flexvox_core.output_files import OutputError
 from flexvox_core.recording import RecordingError, open_recording, recover_recording
 from flexvox_core.writer_lock import lock_holder

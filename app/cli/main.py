@@ -5,9 +5,22 @@ from __future__ import annotations
 import logging
 import sys
 
-from app.cli import app as app_cmd
-from app.cli import batch, bench, calibrate, capture, clean, demo, design, devices, export, info, reconstruct, simulate
-from app.cli.errors import EXIT_USAGE, CliError, OneLineParser
+from flexvox_app.cli import app as app_cmd
+from flexvox_app.cli import (
+    batch,
+    bench,
+    calibrate,
+    capture,
+    clean,
+    demo,
+    design,
+    devices,
+    export,
+    info,
+    reconstruct,
+    simulate,
+)
+from flexvox_app.cli.errors import EXIT_USAGE, CliError, OneLineParser
 from flexvox_core import __version__
 
 SUBCOMMANDS = (design, simulate, reconstruct, bench, devices, calibrate, capture, info, export, batch, app_cmd, demo,

@@ -8,7 +8,7 @@ chosen method has no option for is refused, naming the methods it goes with.
 
 from __future__ import annotations
 
-from app.cli.errors import CliError, arg_type
+from flexvox_app.cli.errors import CliError, arg_type
 
 _FLAG_NAMES = {"refine_time": "--refine"}
 """Flags whose name is not the option's (``--refine`` is older than ``refine_time``)."""
@@ -82,7 +82,7 @@ def add_device_option(p) -> None:
 
 def resolved_device(args) -> str:
     """``--device`` resolved to ``cpu`` or ``cuda`` before any work; ``cuda`` without a usable GPU is a
-    :class:`~app.cli.errors.CliError` naming what is missing (exit 2)."""
+    :class:`~flexvox_app.cli.errors.CliError` naming what is missing (exit 2)."""
     from flexvox_core.gpu.device import DeviceUnavailable, resolve_device
 
     try:

@@ -11,8 +11,14 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from app.cli.errors import EXIT_OK, CliError, arg_type, positive_fps
-from app.cli.method_options import add_method_options, device_line, device_record, method_from_args, resolved_device
+from flexvox_app.cli.errors import EXIT_OK, CliError, arg_type, positive_fps
+from flexvox_app.cli.method_options import (
+    add_method_options,
+    device_line,
+    device_record,
+    method_from_args,
+    resolved_device,
+)
 from flexvox_core.capture_reader import open_capture
 from flexvox_core.methods import specs
 from flexvox_core.output_files import check_output
@@ -81,7 +87,7 @@ def run(args) -> int:
             raise ValueError(f"-o {args.output}: the output must end in {', '.join(WRITABLE)}")
         check_output(args.output, overwrite=args.overwrite, inputs=[args.recording])
         if args.figures is not None:
-            from app.figures import check_figures_dir
+            from flexvox_app.figures import check_figures_dir
 
             check_figures_dir(args.figures, overwrite=args.overwrite, inputs=[args.recording])
         reader = open_capture(args.recording)
@@ -146,7 +152,7 @@ def run(args) -> int:
         print(interpolated_line(reader.gaps(), reader.K))
     print(f"wrote {args.output}")
     if args.figures:
-        from app.figures import write_figures
+        from flexvox_app.figures import write_figures
 
         written = write_figures(args.figures, *reader.input(method), method, missing=reader.missing)
         print(f"wrote {len(written)} figures to {args.figures}")

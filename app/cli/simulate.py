@@ -7,7 +7,7 @@ import re
 import warnings
 from pathlib import Path
 
-from app.cli.errors import EXIT_OK, CliError, arg_type
+from flexvox_app.cli.errors import EXIT_OK, CliError, arg_type
 from flexvox_core.output_files import check_output
 from flexvox_core.recording import RecordingError, write_simulation
 from flexvox_core.simulate.effects import EFFECTS, parse_effects

@@ -2,8 +2,8 @@
 
 Design a code; open the simulated rig (``--rig mock``: a projector finer than the camera behind a
 hidden homography, a trigger offset that is not a whole slot); calibrate it
-(:func:`calibration.pipeline.run_calibration`); hand the result to capture
-(:func:`calibration.capture_setup.from_run`, what "Use for capture" does); check the shutter with
+(:func:`flexvox_calibration.pipeline.run_calibration`); hand the result to capture
+(:func:`flexvox_calibration.capture_setup.from_run`, what "Use for capture" does); check the shutter with
 a strobe in front of the camera (every slot right with the calibration, and how it fails without
 it or with the raw phase); record the scene through the capture service; read the recording
 back with the one reader (:func:`flexvox_core.capture_reader.read_capture`) and reconstruct it;
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from app.demo import figures
+from flexvox_app.demo import figures
 from flexvox_core.design import design_code
 from flexvox_core.divisions import Division
 from flexvox_core.methods import Method, reconstruct
@@ -86,10 +86,10 @@ def _rig(cfg: DemoConfig, scene: str, frames: int):
 
 def _calibrate(cfg: DemoConfig, rig) -> tuple[dict, object]:
     """Calibrate the rig itself (its calibration target in view); its numbers beside the hidden truth, and the
-    :class:`~calibration.capture_setup.CaptureCalibration` capture uses."""
-    from calibration.capture_setup import from_run
-    from calibration.pipeline import run_calibration, truth_comparison
-    from calibration.session import RigSession
+    :class:`~flexvox_calibration.capture_setup.CaptureCalibration` capture uses."""
+    from flexvox_calibration.capture_setup import from_run
+    from flexvox_calibration.pipeline import run_calibration, truth_comparison
+    from flexvox_calibration.session import RigSession
 
     t0 = time.perf_counter()
     session = RigSession.from_rig(rig)
@@ -114,7 +114,7 @@ def _calibrate(cfg: DemoConfig, rig) -> tuple[dict, object]:
 
 def _record(cfg: DemoConfig, rig, calibration, path: Path, frames: int):
     """Record ``frames`` frames through the capture service (the one ``flexvox capture`` and the app use)."""
-    from app.capture import CapturePlan, CaptureService
+    from flexvox_app.capture import CapturePlan, CaptureService
 
     plan = CapturePlan(tile=cfg.tile)
     service = CaptureService(rig, plan, path, frames=frames, overwrite=True, calibration=calibration,
@@ -128,7 +128,7 @@ def _record(cfg: DemoConfig, rig, calibration, path: Path, frames: int):
 
 def _shutter_check(cfg: DemoConfig, calibration, folder: Path) -> list[dict]:
     """Record the strobe with the calibration, with the raw phase, and uncalibrated; the slot accuracy of each."""
-    from calibration.capture_setup import SyncTiming
+    from flexvox_calibration.capture_setup import SyncTiming
     from flexvox_core.capture_reader import read_capture
     from flexvox_core.recording import open_recording
     from flexvox_core.slot_check import slot_accuracy
@@ -300,7 +300,7 @@ def _run_demo(cfg: DemoConfig, out: Path, step) -> DemoResult:
         res.files.append(write_video(vid_dir / f"{name}.mp4", np.clip(v, 0, 1), fps=30, overwrite=True))
 
     step("accuracy vs time")
-    from app.accuracy_bench import pareto, run_bench, summary
+    from flexvox_app.accuracy_bench import pareto, run_bench, summary
 
     bench_rows = run_bench(out / "bench", quick=True, sci=False)
     bench_summary = summary(bench_rows)

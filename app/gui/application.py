@@ -1,6 +1,6 @@
 """Building and running the application (what ``flexvox app`` calls).
 
-``ensure_application`` and ``configure_pyqtgraph`` live in :mod:`app.gui.widgets.qapp` and are
+``ensure_application`` and ``configure_pyqtgraph`` live in :mod:`flexvox_app.gui.widgets.qapp` and are
 re-exported here for callers that build a window.
 
 :func:`launch` shows a window at once (:class:`StartupWindow`, which says what is loading) and only then
@@ -21,12 +21,12 @@ from typing import TYPE_CHECKING
 from PySide6.QtCore import QEventLoop, Qt, QTimer
 from PySide6.QtWidgets import QLabel, QVBoxLayout, QWidget
 
-from app.gui.widgets.qapp import DEFAULT_SIZE, configure_pyqtgraph, ensure_application
+from flexvox_app.gui.widgets.qapp import DEFAULT_SIZE, configure_pyqtgraph, ensure_application
 
 if TYPE_CHECKING:
-    from app.gui.main_window import MainWindow
-    from app.gui.widgets.qt_jobs import JobRunner
-    from app.gui.widgets.settings import AppSettings
+    from flexvox_app.gui.main_window import MainWindow
+    from flexvox_app.gui.widgets.qt_jobs import JobRunner
+    from flexvox_app.gui.widgets.settings import AppSettings
 
 __all__ = ["StartupWindow", "build_window", "configure_pyqtgraph", "ensure_application", "launch"]
 
@@ -36,11 +36,11 @@ _logger = logging.getLogger(__name__)
 def build_window(rig, *, settings: AppSettings | None = None, recording=None, runner: JobRunner | None = None,
                  capture_factory=None) -> MainWindow:
     """The main window over ``rig`` (a :class:`rig_drivers.interfaces.Rig`), opening ``recording`` if given."""
-    from app.gui.main_window import MainWindow
-    from app.gui.models.expected_quality import load_table
-    from app.gui.models.rig_service import RigService
-    from app.gui.widgets.qt_jobs import JobRunner
-    from app.gui.widgets.settings import default_settings
+    from flexvox_app.gui.main_window import MainWindow
+    from flexvox_app.gui.models.expected_quality import load_table
+    from flexvox_app.gui.models.rig_service import RigService
+    from flexvox_app.gui.widgets.qt_jobs import JobRunner
+    from flexvox_app.gui.widgets.settings import default_settings
 
     configure_pyqtgraph()
     settings = settings or default_settings()
@@ -61,8 +61,9 @@ STEPS = (
 )
 """The start-up's steps in order, as the start-up window lists them."""
 
-PRELOADED = ("flexvox_core.design", "flexvox_core.methods", "app.capture", "app.gui.models.calibration_model",
-             "app.gui.models.review_model", "app.gui.models.jobs")
+PRELOADED = ("flexvox_core.design", "flexvox_core.methods", "flexvox_app.capture",
+             "flexvox_app.gui.models.calibration_model",
+             "flexvox_app.gui.models.review_model", "flexvox_app.gui.models.jobs")
 """Qt-free modules the workspaces import, loaded on the start-up's loader thread while the window paints."""
 
 
@@ -135,7 +136,7 @@ class _Loader(threading.Thread):
             for name in PRELOADED:
                 importlib.import_module(name)
             if self.tile is not None:
-                from app.capture.plan import designed_code
+                from flexvox_app.capture.plan import designed_code
 
                 try:
                     designed_code(self.tile)
@@ -147,7 +148,7 @@ class _Loader(threading.Thread):
 
 def _remembered_tile(settings: AppSettings | None) -> tuple[int, int] | None:
     """The tile the Capture workspace will open with (its setting), when it is a designed identity code."""
-    from app.gui.widgets.settings import default_settings
+    from flexvox_app.gui.widgets.settings import default_settings
 
     settings = settings or default_settings()
     if settings.get_bool("capture/multiplexed", False):
@@ -187,7 +188,7 @@ def launch(rig, *, recording=None, settings: AppSettings | None = None) -> int:
         startup.close()
         raise loader.error
     startup.say(dict(STEPS)["workspaces"])
-    importlib.import_module("app.gui.main_window")  # Qt widgets and pyqtgraph, on the GUI thread
+    importlib.import_module("flexvox_app.gui.main_window")  # Qt widgets and pyqtgraph, on the GUI thread
 
     startup.say(dict(STEPS)["window"])
     window = build_window(loader.rig, settings=settings, recording=recording)

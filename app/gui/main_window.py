@@ -8,18 +8,18 @@ from PySide6.QtCore import Qt
 from PySide6.QtGui import QAction, QKeySequence
 from PySide6.QtWidgets import QMainWindow, QTabWidget
 
-from app.gui.calibrate.workspace import CalibrateWorkspace
-from app.gui.capture.workspace import CaptureWorkspace
-from app.gui.models.rig_service import RigService
-from app.gui.review.workspace import ReviewWorkspace
-from app.gui.widgets.device_dock import DeviceDock
-from app.gui.widgets.device_panel import DevicePanel
-from app.gui.widgets.qapp import DEFAULT_SIZE
-from app.gui.widgets.qt_jobs import JobRunner
-from app.gui.widgets.questions import ask
-from app.gui.widgets.rich_text import RED, coloured
-from app.gui.widgets.settings import AppSettings
-from app.gui.widgets.wheel_guard import guard_value_widgets, install_wheel_guard
+from flexvox_app.gui.calibrate.workspace import CalibrateWorkspace
+from flexvox_app.gui.capture.workspace import CaptureWorkspace
+from flexvox_app.gui.models.rig_service import RigService
+from flexvox_app.gui.review.workspace import ReviewWorkspace
+from flexvox_app.gui.widgets.device_dock import DeviceDock
+from flexvox_app.gui.widgets.device_panel import DevicePanel
+from flexvox_app.gui.widgets.qapp import DEFAULT_SIZE
+from flexvox_app.gui.widgets.qt_jobs import JobRunner
+from flexvox_app.gui.widgets.questions import ask
+from flexvox_app.gui.widgets.rich_text import RED, coloured
+from flexvox_app.gui.widgets.settings import AppSettings
+from flexvox_app.gui.widgets.wheel_guard import guard_value_widgets, install_wheel_guard
 
 _logger = logging.getLogger(__name__)
 

@@ -1,7 +1,7 @@
 """The operator's whole session, played through the window's buttons on the simulated rig.
 
 One script, two users: the session test (``tests/app/gui/test_operator_session.py``) plays it and checks
-what an operator would check after each step, and ``make screenshots`` (:mod:`app.gui.screenshots`)
+what an operator would check after each step, and ``make screenshots`` (:mod:`flexvox_app.gui.screenshots`)
 plays it and photographs the window at the same steps, so the README's pictures show what the test
 checked. The steps: connect the devices, calibrate, the sync wizard, save, use for capture, choose the
 code, live view with its preview, record, open in Review, diffusion, motion-aware, the continuum slider,
@@ -25,8 +25,8 @@ from pathlib import Path
 from PySide6.QtCore import QPoint, QRect
 from PySide6.QtWidgets import QAbstractButton, QApplication, QComboBox, QLabel, QScrollArea, QWidget, QWizard
 
-from app.gui.widgets.elided_label import ElidedLabel
-from app.gui.widgets.questions import answering
+from flexvox_app.gui.widgets.elided_label import ElidedLabel
+from flexvox_app.gui.widgets.questions import answering
 
 _logger = logging.getLogger(__name__)
 
@@ -116,7 +116,7 @@ def flexvox_threads() -> list[str]:
 
 # ---------------------------------------------------------------------- the session
 class OperatorSession:
-    """The steps of the operator's session on ``window`` (a :class:`~app.gui.main_window.MainWindow`).
+    """The steps of the operator's session on ``window`` (a :class:`~flexvox_app.gui.main_window.MainWindow`).
 
     Parameters
     ----------

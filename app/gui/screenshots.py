@@ -1,6 +1,6 @@
-"""Render each workspace to PNG offscreen: ``python -m app.gui.screenshots OUTDIR`` (``make screenshots``).
+"""Render each workspace to PNG offscreen: ``python -m flexvox_app.gui.screenshots OUTDIR`` (``make screenshots``).
 
-Plays the operator's session (:class:`app.gui.operator_session.OperatorSession`, the one the session test
+Plays the operator's session (:class:`flexvox_app.gui.operator_session.OperatorSession`, the one the session test
 plays) on the simulated rig at 1280×800 and photographs the window at its steps: ``calibrate.png`` (the
 results), ``calibrate_residuals.png`` (the homography's residual heat map), ``calibrate_sync.png`` (the
 leakage curve and delay sweep), ``calibrate_colocation.png`` (co-location live: the camera with the
@@ -49,9 +49,9 @@ def render(out_dir) -> list[Path]:
     os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
     from PySide6.QtCore import Qt
 
-    from app.gui.application import build_window, ensure_application
-    from app.gui.operator_session import OperatorSession
-    from app.gui.widgets.settings import settings_at
+    from flexvox_app.gui.application import build_window, ensure_application
+    from flexvox_app.gui.operator_session import OperatorSession
+    from flexvox_app.gui.widgets.settings import settings_at
     from rig_drivers.profile import open_rig
 
     out = Path(out_dir)

@@ -1,6 +1,6 @@
 """The README's napari picture: a recording and its motion-aware reconstruction, flow and TR map.
 
-``python -m app.napari_plugin.screenshot docs/screenshots/napari.png`` (``make napari-screenshot``)
+``python -m flexvox_app.napari_plugin.screenshot docs/screenshots/napari.png`` (``make napari-screenshot``)
 simulates the drummer scene with photon and read noise (as ``flexvox simulate`` would), opens it
 in napari through the plugin's reader, runs the *Motion-aware flow* dock widget and saves the
 window. napari draws with OpenGL, which Qt's offscreen platform lacks: run it on a desktop or under
@@ -23,8 +23,8 @@ def make(out: Path) -> Path:
     from qtpy.QtCore import QEventLoop
     from qtpy.QtWidgets import QApplication
 
-    from app.cli.main import main
-    from app.napari_plugin.widgets import MotionWidget
+    from flexvox_app.cli.main import main
+    from flexvox_app.napari_plugin.widgets import MotionWidget
 
     with tempfile.TemporaryDirectory() as tmp:
         rec = Path(tmp) / "drummer.zarr"

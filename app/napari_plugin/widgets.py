@@ -3,14 +3,14 @@
 Both are the same widget with a different set of methods: *Reconstruct* offers every registered
 method (:mod:`flexvox_core.methods.registry`), *Motion-aware flow* those that return the flow and
 the TR map (``MethodSpec.extras``) — no method is named here. Each method's options are the shared
-options form of the Review workspace (:class:`~app.gui.widgets.options_form.OptionsForm`, a field per
+options form of the Review workspace (:class:`~flexvox_app.gui.widgets.options_form.OptionsForm`, a field per
 option by its kind; the tensor and the division as text), checked by :class:`~flexvox_core.methods.Method`
 as everywhere else.
 
 The reconstruction runs off the GUI thread in napari's ``thread_worker`` with a progress bar in
 napari's activity dock (one step per camera frame, advanced after each chunk) and Cancel (stops at
-the next chunk boundary: :func:`~app.napari_plugin.layers.reconstruction_steps`); the result is
-added as layers (:func:`~app.napari_plugin.layers.result_layers`). The widgets are qtpy's, over the same
+the next chunk boundary: :func:`~flexvox_app.napari_plugin.layers.reconstruction_steps`); the result is
+added as layers (:func:`~flexvox_app.napari_plugin.layers.result_layers`). The widgets are qtpy's, over the same
 PySide6 as the form.
 """
 
@@ -30,8 +30,8 @@ from qtpy.QtWidgets import (
     QWidget,
 )
 
-from app.gui.widgets.options_form import OptionsForm
-from app.napari_plugin import layers
+from flexvox_app.gui.widgets.options_form import OptionsForm
+from flexvox_app.napari_plugin import layers
 from flexvox_core.methods import DEFAULT, Method, chunk_plan, get, specs
 
 

@@ -14,7 +14,7 @@ The driver calls it from :meth:`~rig_drivers.interfaces.Projector.load_sequence`
 controller has validated the sequence and before ``load_sequence`` returns, so a caller that
 loads, starts and then waits for a camera frame taken after the change (the calibration
 session's rule) sees the new patterns. The sink must return only once the frames are on the
-screen, and within a bounded time (the app's Qt adapter, :mod:`app.gui.projector.display`, waits
+screen, and within a bounded time (the app's Qt adapter, :mod:`flexvox_app.gui.projector.display`, waits
 at most its ``timeout_s`` and raises otherwise); anything it raises becomes a
 :class:`ProjectorDisplayError`. No Qt here: the sink is the app's business. Nothing is blanked
 on stop (a stopped pattern sequence does not show the video input, and the next load replaces

@@ -5,9 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from app.cli import calibrate
-from app.cli.errors import CliError, OneLineParser
-from calibration.files import load_calibration
+from flexvox_app.cli import calibrate
+from flexvox_app.cli.errors import CliError, OneLineParser
+from flexvox_calibration.files import load_calibration
 
 
 def parse(*argv):
@@ -67,7 +67,7 @@ def test_a_missing_rig_profile_is_a_cli_error(tmp_path):
 
 
 def test_an_output_folder_that_does_not_exist_is_refused_before_calibrating(tmp_path, capsys):
-    from app.cli.main import main
+    from flexvox_app.cli.main import main
 
     assert main(["calibrate", "--rig", "mock", "-o", str(tmp_path / "nope" / "cal.json")]) == 2
     err = capsys.readouterr().err

@@ -2,8 +2,8 @@
 
 import pytest
 
-from app.cli import capture
-from app.cli.errors import CliError, OneLineParser
+from flexvox_app.cli import capture
+from flexvox_app.cli.errors import CliError, OneLineParser
 from flexvox_core.recording import open_recording
 
 
@@ -71,8 +71,8 @@ def _calibration_file(path, *, camera_size=(24, 32), phase=3):
     """A calibration file for the mock capture rig of the given size (as `flexvox calibrate -o` writes)."""
     import numpy as np
 
-    from calibration.files import CALIBRATION_FORMAT, CALIBRATION_VERSION, write_versioned
-    from calibration.session import RigSession
+    from flexvox_calibration.files import CALIBRATION_FORMAT, CALIBRATION_VERSION, write_versioned
+    from flexvox_calibration.session import RigSession
     from rig_drivers.profile import open_rig
 
     rig = open_rig("mock", camera_size=camera_size)
@@ -135,7 +135,7 @@ def test_capture_refuses_a_rate_of_zero_in_its_own_words(tmp_path):
 def test_a_stopped_ground_truth_capture_is_given_the_time_its_truth_takes():
     # Ctrl-C after 3,675 frames with --ground-truth: 30 s were not enough to write its 58,800 truth sub-frames
     # (about 1,330 a second here), and the recording was left damaged. The wait now grows with the truth.
-    from app.cli.capture import GROUND_TRUTH_RATE, stop_timeout
+    from flexvox_app.cli.capture import GROUND_TRUTH_RATE, stop_timeout
 
     assert stop_timeout(3675, 16, ground_truth=False) == 30.0
     assert stop_timeout(3675, 16, ground_truth=True) == 30.0 + 3675 * 16 / GROUND_TRUTH_RATE

@@ -32,7 +32,7 @@ def killed_write(folder, name="kk.zarr", pid=None):
 
 @pytest.fixture(scope="module")
 def rec(tmp_path_factory):
-    from app.cli.main import main
+    from flexvox_app.cli.main import main
 
     folder = tmp_path_factory.mktemp("clean")
     path = folder / "rec.zarr"

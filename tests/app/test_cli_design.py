@@ -5,7 +5,7 @@ import sys
 import numpy as np
 import pytest
 
-from app.cli.main import main
+from flexvox_app.cli.main import main
 from flexvox_core.codes import code_from_order, sequential_order
 
 from ..flexvox_core.independent import supports_all_slow
@@ -59,7 +59,7 @@ def test_bad_tiles_exit_2_with_one_line(capsys, tile, message):
 
 def test_console_script_reports_bad_tile_without_traceback():
     out = subprocess.run(
-        [sys.executable, "-m", "app.cli.main", "design", "--tile", "ax4"], capture_output=True, text=True
+        [sys.executable, "-m", "flexvox_app.cli.main", "design", "--tile", "ax4"], capture_output=True, text=True
     )
     assert out.returncode == 2
     assert out.stderr.strip().splitlines() == [

@@ -9,8 +9,8 @@ import json
 import pytest
 import zarr
 
-from app.cli.main import main
-from app.cli.method_options import SIMULATOR
+from flexvox_app.cli.main import main
+from flexvox_app.cli.method_options import SIMULATOR
 
 
 @pytest.fixture
@@ -85,7 +85,7 @@ def test_devices_lists_the_gpus_section(capsys):
 
 
 def test_devices_describes_a_gpu_by_name_memory_and_driver(monkeypatch):
-    from app.cli import devices
+    from flexvox_app.cli import devices
     from flexvox_core.gpu import device
     from flexvox_core.gpu.device import GpuInfo
 

@@ -5,8 +5,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from app.cli import devices
-from app.cli.errors import OneLineParser
+from flexvox_app.cli import devices
+from flexvox_app.cli.errors import OneLineParser
 
 
 def parse(*argv):

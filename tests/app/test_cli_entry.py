@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import zarr
 
-import app.cli.main as cli_main
+import flexvox_app.cli.main as cli_main
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -35,17 +35,17 @@ def test_main_itself_leaves_the_collector_alone(capsys):
 
 def test_the_installed_script_is_the_console_entry():
     scripts = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"]
-    assert scripts["flexvox"] == "app.cli.main:console"
+    assert scripts["flexvox"] == "flexvox_app.cli.main:console"
 
 
 def test_a_reconstruction_through_the_console_entry_is_complete(tmp_path):
-    """Simulate and reconstruct in real processes (``python -m app.cli.main``: the console entry): every line
+    """Simulate and reconstruct in real processes (``python -m flexvox_app.cli.main``: the console entry): every line
     is printed and the output is whole; and what the quick exit must keep, it keeps."""
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     rec, out = tmp_path / "r.zarr", tmp_path / "o.zarr"
 
     def run(*args):
-        return subprocess.run([sys.executable, "-m", "app.cli.main", *map(str, args)], cwd=ROOT, env=env,
+        return subprocess.run([sys.executable, "-m", "flexvox_app.cli.main", *map(str, args)], cwd=ROOT, env=env,
                               capture_output=True, text=True, timeout=300)
 
     assert run("simulate", "balls", "--size", "24x32", "--frames", "3", "-o", rec).returncode == 0
@@ -57,7 +57,7 @@ def test_a_reconstruction_through_the_console_entry_is_complete(tmp_path):
     assert video.shape == (48, 24, 32) and np.isfinite(video).all()
     # In a real process: the collector is frozen at exit, atexit handlers still run, and an object the command
     # left in a reference cycle is still finalized (its __del__ writes a file).
-    code = ("import atexit, gc, sys\nimport app.cli.main as m\n"
+    code = ("import atexit, gc, sys\nimport flexvox_app.cli.main as m\n"
             "class Canary:\n"
             f"    def __del__(self): open({str(tmp_path / 'finalized')!r}, 'w').write('yes')\n"
             "def command():\n"

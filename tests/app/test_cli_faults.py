@@ -1,6 +1,6 @@
 """Every command's bad input and faults, through the real command line.
 
-Each case runs ``python -m app.cli.main ...`` in a subprocess, as a user would, and checks four
+Each case runs ``python -m flexvox_app.cli.main ...`` in a subprocess, as a user would, and checks four
 things: the exit status, exactly one line on stderr that names the problem, no traceback, and the
 bytes of every input file unchanged. The cases are a table (``CASES``) so that a new fault is one
 row; the faults that need a second process or a resource limit are the tests after it.
@@ -29,7 +29,7 @@ ENV = {**os.environ, "QT_QPA_PLATFORM": "offscreen", "PYTHONPATH": str(ROOT)}
 
 def flexvox(*args, env=None, timeout=120, **kw) -> subprocess.CompletedProcess:
     """Run the real command line; text stdout and stderr."""
-    return subprocess.run([sys.executable, "-m", "app.cli.main", *map(str, args)], cwd=ROOT, env=env or ENV,
+    return subprocess.run([sys.executable, "-m", "flexvox_app.cli.main", *map(str, args)], cwd=ROOT, env=env or ENV,
                           capture_output=True, text=True, timeout=timeout, **kw)
 
 
@@ -56,7 +56,7 @@ def assert_refused(proc, status: int, pattern: str) -> None:
 @pytest.fixture(scope="module")
 def base(tmp_path_factory):
     """A small simulated recording (drummer, 2x2 tile, 6 frames of 24x32) and a code file."""
-    from app.cli.main import main
+    from flexvox_app.cli.main import main
 
     folder = tmp_path_factory.mktemp("faults")
     rec = folder / "base.zarr"
@@ -334,7 +334,8 @@ def _wait_for_frames(path: Path, n: int, proc, seconds: float = 40.0) -> None:
 @pytest.mark.skipif(not hasattr(signal, "SIGKILL"), reason="POSIX process control")
 def test_a_second_capture_to_a_recording_being_written_is_refused(tmp_path):
     path = tmp_path / "run.zarr"
-    first = subprocess.Popen([sys.executable, "-m", "app.cli.main", "capture", "--frames", "100000", "-o", str(path),
+    first = subprocess.Popen([sys.executable, "-m", "flexvox_app.cli.main", "capture", "--frames", "100000", "-o",
+                              str(path),
                               "--size", "24x32", "--tile", "2x2", "--rate", "100", "--scene", "balls"],
                              cwd=ROOT, env=ENV, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     try:

@@ -9,8 +9,8 @@ import pytest
 import tifffile
 import zarr
 
-from app.cli import batch, export, info
-from app.cli.errors import CliError, OneLineParser
+from flexvox_app.cli import batch, export, info
+from flexvox_app.cli.errors import CliError, OneLineParser
 from flexvox_core.methods import Method, reconstruct
 from flexvox_core.recording import JOURNAL, RecordingWriter, open_recording, recording_attrs
 from tests.killed_writer import kill
@@ -27,7 +27,7 @@ def cli(argv):
 
 @pytest.fixture
 def recording(tmp_path, capsys):
-    from app.cli.main import main
+    from flexvox_app.cli.main import main
 
     path = tmp_path / "r.zarr"
     assert main(["simulate", "balls", "--size", "16x24", "--frames", "5", "--tile", "2x2", "-o", str(path)]) == 0

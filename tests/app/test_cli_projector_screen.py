@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import rig_drivers.profile as profile
-from app.cli.main import main
+from flexvox_app.cli.main import main
 from rig_drivers.dlpc350 import DLPC350, FakeDLPC350Transport
 from tests.rig_drivers.display_rig import ScreenCamera
 
@@ -105,7 +105,7 @@ def test_list_screens(capsys):
 def test_no_display_is_a_clear_error(rig_toml):
     env = {k: v for k, v in os.environ.items() if k not in ("QT_QPA_PLATFORM", "DISPLAY", "WAYLAND_DISPLAY")}
     root = Path(__file__).resolve().parents[2]
-    out = subprocess.run([sys.executable, "-m", "app.cli.main", "calibrate", "--rig", str(rig_toml),
+    out = subprocess.run([sys.executable, "-m", "flexvox_app.cli.main", "calibrate", "--rig", str(rig_toml),
                           "--projector-screen", "0"], capture_output=True, text=True, env=env, cwd=root, timeout=60)
     assert out.returncode == 2
     assert out.stderr == ("flexvox calibrate: error: no display: --projector-screen needs a desktop session with the "

@@ -5,7 +5,7 @@ import pytest
 import tifffile
 import zarr
 
-from app.cli.main import main
+from flexvox_app.cli.main import main
 from flexvox_core.metrics import psnr
 from flexvox_core.recording import open_recording
 
@@ -250,7 +250,7 @@ def test_a_failed_write_stops_the_psnr_at_its_next_block(recording, tmp_path, ca
     # The PSNR runs beside the write; when the write fails the truth is read no further (3 blocks of 16 here).
     import threading
 
-    import app.cli.reconstruct as cli
+    import flexvox_app.cli.reconstruct as cli
     from flexvox_core.recording import GroundTruthRows
 
     real = GroundTruthRows.__getitem__
@@ -281,6 +281,6 @@ def test_a_failed_write_stops_the_psnr_at_its_next_block(recording, tmp_path, ca
     ([np.inf, np.inf], "exact on all 2 sub-frames"),
 ])
 def test_the_psnr_line_counts_exact_sub_frames_apart_instead_of_saying_inf(per_frame, words):
-    from app.cli.reconstruct import psnr_words
+    from flexvox_app.cli.reconstruct import psnr_words
 
     assert psnr_words(np.array(per_frame)) == words

@@ -3,7 +3,7 @@ import json
 import numpy as np
 import pytest
 
-from app.cli.main import main
+from flexvox_app.cli.main import main
 from flexvox_core.forward import capture
 from flexvox_core.recording import open_recording
 
@@ -49,7 +49,8 @@ def test_simulate_warns_when_trimming(capsys, tmp_path, rng):
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[2]
-    proc = subprocess.run([sys.executable, "-m", "app.cli.main", "simulate", str(tmp_path / "w.npy"), "--tile", "2x2",
+    proc = subprocess.run([sys.executable, "-m", "flexvox_app.cli.main", "simulate", str(tmp_path / "w.npy"),
+                           "--tile", "2x2",
                            "-o", str(tmp_path / "w2.zarr")], cwd=root, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and (proc.stdout + proc.stderr).count("19 sub-frames is not a multiple") == 1
 

@@ -1,6 +1,6 @@
 import pytest
 
-from app.cli.main import main
+from flexvox_app.cli.main import main
 
 
 @pytest.mark.slow_sim  # a minute or two on a busy 2-core machine; make docs-check runs `flexvox demo --quick` too
@@ -34,7 +34,7 @@ def test_demo_rejects_unknown_scene(tmp_path, capsys):
 
 
 def test_an_interrupted_demo_leaves_nothing_half_written(tmp_path, capsys, monkeypatch):
-    import app.demo.run as demo_run
+    import flexvox_app.demo.run as demo_run
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt

@@ -5,7 +5,7 @@ import sys
 
 import pytest
 
-from app.qt_platform import display_problem
+from flexvox_app.qt_platform import display_problem
 
 linux = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the DISPLAY rules are Linux's")
 

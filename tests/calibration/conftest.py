@@ -2,8 +2,8 @@
 
 import pytest
 
-from calibration.homography import calibrate_homography
-from calibration.session import RigSession
+from flexvox_calibration.homography import calibrate_homography
+from flexvox_calibration.session import RigSession
 from tests.rig_drivers.mock_rigs import calibration_rig
 
 SEEDS = (0, 1, 2)

@@ -2,7 +2,7 @@
 
 import pytest
 
-from calibration.capture_setup import CalibrationRefused, SyncTiming
+from flexvox_calibration.capture_setup import CalibrationRefused, SyncTiming
 
 GOOD = {"status": "ok", "K": 16, "period_us": 4000, "phase_slots": 4, "delay_us": 30.0,
         "recommended_camera_delay_us": 220.0, "effective_phase_slots": 5}

@@ -2,10 +2,10 @@
 
 import pytest
 
-from calibration import geometry
-from calibration.colocation import capture_view, live_alignment, measure_alignment, parallax_test
-from calibration.errors import CalibrationError
-from calibration.session import RigSession
+from flexvox_calibration import geometry
+from flexvox_calibration.colocation import capture_view, live_alignment, measure_alignment, parallax_test
+from flexvox_calibration.errors import CalibrationError
+from flexvox_calibration.session import RigSession
 from tests.rig_drivers.mock_rigs import calibration_rig
 
 

@@ -6,11 +6,11 @@ import json
 import numpy as np
 import pytest
 
-from calibration import geometry
-from calibration.errors import CalibrationError, CalibrationFileError, CalibrationMismatchError
-from calibration.files import load_calibration, save_calibration
-from calibration.homography import calibrate_homography
-from calibration.session import RigIdentity, RigSession
+from flexvox_calibration import geometry
+from flexvox_calibration.errors import CalibrationError, CalibrationFileError, CalibrationMismatchError
+from flexvox_calibration.files import load_calibration, save_calibration
+from flexvox_calibration.homography import calibrate_homography
+from flexvox_calibration.session import RigIdentity, RigSession
 from rig_drivers.interfaces import TriggerSource
 from rig_drivers.simulated_target import fine_homography
 from tests.rig_drivers.mock_rigs import calibration_rig
@@ -148,7 +148,7 @@ def test_session_counts_only_frames_taken_after_the_pattern_change():
 def test_a_diamond_dmd_is_fitted_in_mirror_coordinates():
     """The decoded columns of a staggered-row DMD average its rows' offsets: fitted as square, the
     homography is 0.15 camera px off (and its RMS does not show it); in mirror coordinates it is exact."""
-    from calibration.homography import fit_homography
+    from flexvox_calibration.homography import fit_homography
     from rig_drivers.profile import open_rig
     from rig_drivers.simulated_camera import VirtualClock
 

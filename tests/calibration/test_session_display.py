@@ -6,10 +6,10 @@ The rig is the fake DLPC350 transport and a camera that sees only what the sink 
 
 import numpy as np
 
-from calibration.geometry import homography_error_px
-from calibration.homography import calibrate_homography
-from calibration.session import RigSession
-from calibration.sync import band_patterns
+from flexvox_calibration.geometry import homography_error_px
+from flexvox_calibration.homography import calibrate_homography
+from flexvox_calibration.session import RigSession
+from flexvox_calibration.sync import band_patterns
 from rig_drivers.dlpc350.bitplanes import unpack_bitplanes
 from rig_drivers.interfaces import ProjectorTrigger, RunState
 from tests.rig_drivers.display_rig import display_rig

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from calibration.errors import CalibrationError
-from calibration.homography import calibrate_homography
-from calibration.session import RigSession
-from calibration.shutter import make_shutter_patterns, verify_shutter
+from flexvox_calibration.errors import CalibrationError
+from flexvox_calibration.homography import calibrate_homography
+from flexvox_calibration.session import RigSession
+from flexvox_calibration.shutter import make_shutter_patterns, verify_shutter
 from flexvox_core.codes import code_from_order
 from flexvox_core.design import design_code
 from flexvox_core.forward import tiled_order
@@ -79,7 +79,7 @@ def test_defocus_shows_as_crosstalk_warning():
 def test_the_whole_calibration_on_a_diamond_dmd_models_its_stagger():
     """On the simulated rig with a staggered-row DMD, calibrating with the layout keeps the shutter
     near a square DMD's (100 %, 0.2 % crosstalk there); ignoring it lets odd rows shutter the wrong slot."""
-    from calibration.pipeline import run_calibration
+    from flexvox_calibration.pipeline import run_calibration
     from rig_drivers.profile import open_rig
     from rig_drivers.simulated_camera import VirtualClock
 

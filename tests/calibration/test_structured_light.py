@@ -4,8 +4,8 @@ import cv2
 import numpy as np
 import pytest
 
-from calibration.errors import CalibrationError
-from calibration.structured_light import (
+from flexvox_calibration.errors import CalibrationError
+from flexvox_calibration.structured_light import (
     decode_gray,
     decode_phase,
     gray_code_patterns,

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from calibration.errors import CalibrationError, CalibrationMismatchError
-from calibration.session import RigSession
-from calibration.sync import band_patterns, check_frames, load_sync_profile, measure_sync, save_sync_profile
+from flexvox_calibration.errors import CalibrationError, CalibrationMismatchError
+from flexvox_calibration.session import RigSession
+from flexvox_calibration.sync import band_patterns, check_frames, load_sync_profile, measure_sync, save_sync_profile
 from rig_drivers.interfaces import TriggerConfig, TriggerSource
 from tests.rig_drivers.mock_rigs import calibration_rig
 

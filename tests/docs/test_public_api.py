@@ -1,7 +1,7 @@
 """Every public name has a docstring and an example; the examples in docstrings run.
 
 Public: ``flexvox_core.__all__`` (listed once in flexvox_core/__init__.pyi) and the façades' ``__all__``
-(rig_drivers, calibration). An example is an ``Examples`` section (doctest) in the name's
+(rig_drivers, flexvox_calibration). An example is an ``Examples`` section (doctest) in the name's
 docstring, or a use in docs/python.md, whose blocks run as tests. Constants and submodules need neither.
 """
 
@@ -15,7 +15,7 @@ import pytest
 
 from tests.docs.guide_blocks import ROOT
 
-FACADES = ["flexvox_core", "rig_drivers", "calibration"]
+FACADES = ["flexvox_core", "rig_drivers", "flexvox_calibration"]
 GUIDE = (ROOT / "docs" / "python.md").read_text(encoding="utf-8")
 
 

@@ -106,7 +106,7 @@ def test_a_video_file_whose_simulation_would_not_fit_is_refused(tmp_path, monkey
 
 
 def test_huge_shutter_patterns_are_refused(small_machine):
-    from calibration.shutter import make_shutter_patterns
+    from flexvox_calibration.shutter import make_shutter_patterns
 
     code = design_code((8, 8)).code
     with pytest.raises(MemoryBudgetError, match=r"^making shutter patterns for a 8192x8192 projector at K = 64 needs "

@@ -11,7 +11,7 @@ import pytest
 import tifffile
 import zarr
 
-from app.cli.main import main
+from flexvox_app.cli.main import main
 from flexvox_core import ngff
 from flexvox_core.batch import reconstruct_batch
 from flexvox_core.design import design_code

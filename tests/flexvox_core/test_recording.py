@@ -114,7 +114,7 @@ def test_rates_that_no_time_step_can_come_from_are_damage(tmp_path, sim, rates, 
 def test_a_frame_holding_nan_is_named_by_its_row_when_checked_and_when_read(tmp_path, rng, capsys):
     # Stored as written (its checksum matches): info lists the row, and a chunked reconstruction names the
     # same row, not its place within a chunk.
-    from app.cli.main import main
+    from flexvox_app.cli.main import main
     from flexvox_core.recording import values_crc
 
     v = rng.random((8 * 4, 8, 12)).astype(np.float32)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from calibration.shutter import make_shutter_patterns
+from flexvox_calibration.shutter import make_shutter_patterns
 from flexvox_core.design import design_code
 from flexvox_core.forward import tiled_code
 from rig_drivers.errors import SettingError
@@ -81,9 +81,9 @@ def test_the_other_stagger_is_the_same_up_to_a_shift():
 
 
 def test_a_calibration_made_in_another_layout_is_refused(tmp_path):
-    from calibration.errors import CalibrationMismatchError
-    from calibration.files import check_identity
-    from calibration.session import RigIdentity
+    from flexvox_calibration.errors import CalibrationMismatchError
+    from flexvox_calibration.files import check_identity
+    from flexvox_calibration.session import RigIdentity
 
     square = RigIdentity("lab rig", "cam", "LightCrafter", (480, 640), (1140, 912))
     diamond = RigIdentity("lab rig", "cam", "LightCrafter", (480, 640), (1140, 912), "diamond")

@@ -13,7 +13,7 @@ import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import Qt
 
-from app.gui.widgets.image_panel import ImagePanel
+from flexvox_app.gui.widgets.image_panel import ImagePanel
 
 GRID_PEN = (80, 220, 255)
 BORDER_PEN = (255, 200, 60)

@@ -1,6 +1,6 @@
 """The Calibrate workspace's "Co-location live": alignment numbers re-measured while the operator adjusts.
 
-Each measurement (:func:`app.gui.models.calibration_model.measure_live_colocation`: the numbers
+Each measurement (:func:`flexvox_app.gui.models.calibration_model.measure_live_colocation`: the numbers
 and the camera's view under a white projector) is a job; the next one starts
 :data:`LIVE_INTERVAL_MS` after the previous ended, so there are never two at once. The view shows
 the camera with the projector's expected grid through the homography estimate.
@@ -13,14 +13,14 @@ import html
 from PySide6.QtCore import QObject, QTimer
 from PySide6.QtWidgets import QCheckBox, QGroupBox, QVBoxLayout, QWidget
 
-from app.gui.calibrate.projector_screen import ProjectorScreen
-from app.gui.calibrate.results_view import ResultsView
-from app.gui.models.calibration_model import measure_live_colocation, target_for
-from app.gui.models.operator_words import in_gui_words
-from app.gui.models.rig_service import RigService
-from app.gui.widgets.qt_jobs import JobHandle, JobRunner
-from app.gui.widgets.rich_text import RED, coloured
-from app.gui.widgets.status_line import StatusLine
+from flexvox_app.gui.calibrate.projector_screen import ProjectorScreen
+from flexvox_app.gui.calibrate.results_view import ResultsView
+from flexvox_app.gui.models.calibration_model import measure_live_colocation, target_for
+from flexvox_app.gui.models.operator_words import in_gui_words
+from flexvox_app.gui.models.rig_service import RigService
+from flexvox_app.gui.widgets.qt_jobs import JobHandle, JobRunner
+from flexvox_app.gui.widgets.rich_text import RED, coloured
+from flexvox_app.gui.widgets.status_line import StatusLine
 
 LIVE_USER = "co-location live"
 LIVE_INTERVAL_MS = 300
@@ -54,7 +54,8 @@ class LiveColocation(QObject):
         self.alignment = None
         """The newest co-location result."""
         self.colocation = None
-        """The newest :class:`~app.gui.models.calibration_model.LiveColocation` (numbers, image, projector size)."""
+        """The newest :class:`~flexvox_app.gui.models.calibration_model.LiveColocation` (numbers, image, projector
+        size)."""
         self._target = None
         box = QGroupBox("Co-location live", parent)
         self.check = QCheckBox("measure continuously")

@@ -2,7 +2,7 @@
 
 On a real rig whose projector takes its patterns on a video input (the DLPC350), the operator picks
 the screen that feeds it ("projector screen"); while a calibration, the live co-location numbers or
-the synchronisation wizard use the rig, a :class:`~app.gui.projector.display.ProjectorDisplay` on
+the synchronisation wizard use the rig, a :class:`~flexvox_app.gui.projector.display.ProjectorDisplay` on
 that screen is the projector's display sink, so every pattern the session loads is shown
 full-screen, pixel-exact, before its sequence starts. The window closes and the sink is removed
 when the last of them is done.
@@ -15,11 +15,11 @@ import html
 from PySide6.QtCore import QObject, Qt
 from PySide6.QtWidgets import QLabel, QWidget
 
-from app.gui.models.rig_service import RigService
-from app.gui.projector.display import ProjectorDisplay
-from app.gui.projector.window import ScreenPicker
-from app.gui.widgets.rich_text import RED
-from app.gui.widgets.settings import AppSettings
+from flexvox_app.gui.models.rig_service import RigService
+from flexvox_app.gui.projector.display import ProjectorDisplay
+from flexvox_app.gui.projector.window import ScreenPicker
+from flexvox_app.gui.widgets.rich_text import RED
+from flexvox_app.gui.widgets.settings import AppSettings
 
 
 class ProjectorScreen(QObject):

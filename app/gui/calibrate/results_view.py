@@ -10,10 +10,10 @@ import pyqtgraph as pg
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QLabel, QScrollArea, QTabWidget, QVBoxLayout, QWidget
 
-from app.gui.calibrate.colocation_view import ColocationView
-from app.gui.models.calibration_model import CalibrationOutcome, summary_rows, verdict
-from app.gui.widgets.image_panel import ImagePanel
-from app.gui.widgets.rich_text import AMBER, GREEN, GREY, RED
+from flexvox_app.gui.calibrate.colocation_view import ColocationView
+from flexvox_app.gui.models.calibration_model import CalibrationOutcome, summary_rows, verdict
+from flexvox_app.gui.widgets.image_panel import ImagePanel
+from flexvox_app.gui.widgets.rich_text import AMBER, GREEN, GREY, RED
 
 UNDECODED_RGBA = (60, 60, 90, 255)
 WRONG_RGB = (230, 40, 40)

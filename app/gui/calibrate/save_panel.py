@@ -8,16 +8,16 @@ from pathlib import Path
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QFileDialog, QGroupBox, QHBoxLayout, QLineEdit, QPushButton, QVBoxLayout
 
-from app.gui.models.calibration_model import CalibrationOutcome
-from app.gui.models.operator_words import in_gui_words
-from app.gui.widgets.questions import replace_question
-from app.gui.widgets.rich_text import AMBER, GREEN, RED, coloured
-from app.gui.widgets.settings import AppSettings
-from app.gui.widgets.status_line import StatusLine
+from flexvox_app.gui.models.calibration_model import CalibrationOutcome
+from flexvox_app.gui.models.operator_words import in_gui_words
+from flexvox_app.gui.widgets.questions import replace_question
+from flexvox_app.gui.widgets.rich_text import AMBER, GREEN, RED, coloured
+from flexvox_app.gui.widgets.settings import AppSettings
+from flexvox_app.gui.widgets.status_line import StatusLine
 
 
 class SavePanel(QGroupBox):
-    """Save the calibration file (:func:`calibration.files.save_calibration`) or use it for capture.
+    """Save the calibration file (:func:`flexvox_calibration.files.save_calibration`) or use it for capture.
 
     A failed calibration is never written and never handed over.
     """
@@ -102,8 +102,8 @@ class SavePanel(QGroupBox):
         An existing file is replaced only when the operator answers Replace to the question that names it
         (atomically: the old file stays until the new one is complete).
         """
-        from calibration.errors import CalibrationError
-        from calibration.files import save_calibration
+        from flexvox_calibration.errors import CalibrationError
+        from flexvox_calibration.files import save_calibration
 
         if self.outcome is None or not self.outcome.success:
             self.label.setText(coloured("nothing to save: run a successful calibration first", RED))

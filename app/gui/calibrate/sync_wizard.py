@@ -1,12 +1,12 @@
 """The synchronisation wizard (``QWizard``): wiring checklist, trigger test, phase sweep, drop/drift test, save.
 
 Each measuring page runs its step on the job runner with its own
-:class:`calibration.session.RigSession` (opened and closed by the job), so the window keeps
+:class:`flexvox_calibration.session.RigSession` (opened and closed by the job), so the window keeps
 running; a page is complete when its measurement succeeded (the drop/drift page when it ran:
-its verdict is saved with the profile either way). The steps are the ``calibration.sync``
-functions ``flexvox calibrate`` uses: :func:`~calibration.sync.measure_sync` (single-shot band
-code and delay sweep: the leakage curve) and :func:`~calibration.sync.check_frames`; Save
-writes :func:`~calibration.sync.save_sync_profile`.
+its verdict is saved with the profile either way). The steps are the ``flexvox_calibration.sync``
+functions ``flexvox calibrate`` uses: :func:`~flexvox_calibration.sync.measure_sync` (single-shot band
+code and delay sweep: the leakage curve) and :func:`~flexvox_calibration.sync.check_frames`; Save
+writes :func:`~flexvox_calibration.sync.save_sync_profile`.
 """
 
 from __future__ import annotations
@@ -30,13 +30,13 @@ from PySide6.QtWidgets import (
     QWizardPage,
 )
 
-from app.gui.models.calibration_model import CalibrationTarget
-from app.gui.models.jobs import CancelToken
-from app.gui.models.operator_words import in_gui_words
-from app.gui.widgets.qt_jobs import JobHandle, JobRunner
-from app.gui.widgets.questions import ask, replace_question
-from app.gui.widgets.rich_text import AMBER, GREEN, RED
-from app.gui.widgets.status_line import StatusLine
+from flexvox_app.gui.models.calibration_model import CalibrationTarget
+from flexvox_app.gui.models.jobs import CancelToken
+from flexvox_app.gui.models.operator_words import in_gui_words
+from flexvox_app.gui.widgets.qt_jobs import JobHandle, JobRunner
+from flexvox_app.gui.widgets.questions import ask, replace_question
+from flexvox_app.gui.widgets.rich_text import AMBER, GREEN, RED
+from flexvox_app.gui.widgets.status_line import StatusLine
 
 _logger = logging.getLogger(__name__)
 
@@ -215,8 +215,8 @@ class PhasePage(_JobPage):
         self.layout_.addLayout(plots, 1)
 
     def work(self, token, progress):
-        from calibration.homography import calibrate_homography
-        from calibration.sync import measure_sync
+        from flexvox_calibration.homography import calibrate_homography
+        from flexvox_calibration.sync import measure_sync
 
         owner = self.owner
         K = owner.tile[0] * owner.tile[1]
@@ -278,7 +278,7 @@ class DriftPage(_JobPage):
                          "the drift of the frame period against the sequence.", "Test drops and drift")
 
     def work(self, token, progress):
-        from calibration.sync import band_patterns, check_frames
+        from flexvox_calibration.sync import band_patterns, check_frames
 
         owner = self.owner
         K = owner.tile[0] * owner.tile[1]
@@ -330,8 +330,8 @@ class SavePage(QWizardPage):
     def save(self, path) -> Path | None:
         """Write the profile; None (with the reason shown) when it cannot. An existing file is replaced only when
         the operator answers Replace to the question that names it."""
-        from calibration.errors import CalibrationError
-        from calibration.sync import save_sync_profile
+        from flexvox_calibration.errors import CalibrationError
+        from flexvox_calibration.sync import save_sync_profile
 
         if self.owner.sync is None or not self.owner.sync.success:
             _say(self.label, "nothing to save: the phase sweep has not succeeded", RED)

@@ -2,18 +2,18 @@
 
 The workspace runs the calibration and composes its parts:
 
-- the run itself here: :func:`app.gui.models.calibration_model.run_workspace_calibration` (the
+- the run itself here: :func:`flexvox_app.gui.models.calibration_model.run_workspace_calibration` (the
   pipeline ``flexvox calibrate`` runs) on the job runner, with the step and its pattern count on
   screen and Cancel taking effect between steps and patterns;
-- :class:`~app.gui.calibrate.results_view.ResultsView`: every step's numbers and verdict, the
+- :class:`~flexvox_app.gui.calibrate.results_view.ResultsView`: every step's numbers and verdict, the
   homography's residual map, the shutter's wrong pixels, the sync leakage and delay sweep, and on
   the simulated rig the hidden truth beside what was found;
-- :class:`~app.gui.calibrate.save_panel.SavePanel`: the calibration file, or "Use for capture";
-- :class:`~app.gui.calibrate.live_colocation.LiveColocation`: the alignment numbers re-measured
+- :class:`~flexvox_app.gui.calibrate.save_panel.SavePanel`: the calibration file, or "Use for capture";
+- :class:`~flexvox_app.gui.calibrate.live_colocation.LiveColocation`: the alignment numbers re-measured
   while the operator adjusts the beam splitter;
-- :class:`~app.gui.calibrate.projector_screen.ProjectorScreen`: on a real rig whose projector takes
+- :class:`~flexvox_app.gui.calibrate.projector_screen.ProjectorScreen`: on a real rig whose projector takes
   its patterns on a video input (the DLPC350), the screen the patterns go to while the rig is used;
-- the synchronisation wizard (:mod:`app.gui.calibrate.sync_wizard`).
+- the synchronisation wizard (:mod:`flexvox_app.gui.calibrate.sync_wizard`).
 
 On the simulated rig the calibration runs on the rig Capture records with (its calibration target
 put in view), so "Use for capture" hands Capture a calibration of the same rig.
@@ -37,25 +37,25 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.calibrate.live_colocation import LiveColocation
-from app.gui.calibrate.projector_screen import ProjectorScreen
-from app.gui.calibrate.results_view import ResultsView
-from app.gui.calibrate.save_panel import SavePanel
-from app.gui.models.calibration_model import (
+from flexvox_app.gui.calibrate.live_colocation import LiveColocation
+from flexvox_app.gui.calibrate.projector_screen import ProjectorScreen
+from flexvox_app.gui.calibrate.results_view import ResultsView
+from flexvox_app.gui.calibrate.save_panel import SavePanel
+from flexvox_app.gui.models.calibration_model import (
     STEPS,
     CalibrationOutcome,
     StepTracker,
     run_workspace_calibration,
     target_for,
 )
-from app.gui.models.jobs import CancelToken
-from app.gui.models.operator_words import in_gui_words
-from app.gui.models.rig_service import RigService
-from app.gui.widgets.qt_jobs import JobHandle, JobRunner
-from app.gui.widgets.rich_text import GREEN, GREY, RED, coloured
-from app.gui.widgets.settings import AppSettings
-from app.gui.widgets.status_line import StatusLine
-from app.gui.widgets.workspace_layout import controls_beside_view
+from flexvox_app.gui.models.jobs import CancelToken
+from flexvox_app.gui.models.operator_words import in_gui_words
+from flexvox_app.gui.models.rig_service import RigService
+from flexvox_app.gui.widgets.qt_jobs import JobHandle, JobRunner
+from flexvox_app.gui.widgets.rich_text import GREEN, GREY, RED, coloured
+from flexvox_app.gui.widgets.settings import AppSettings
+from flexvox_app.gui.widgets.status_line import StatusLine
+from flexvox_app.gui.widgets.workspace_layout import controls_beside_view
 
 _logger = logging.getLogger(__name__)
 
@@ -333,7 +333,7 @@ class CalibrateWorkspace(QWidget):
     # ------------------------------------------------------------------ wizard
     def open_sync_wizard(self):
         """Open the synchronisation wizard (modeless); returns it."""
-        from app.gui.calibrate.sync_wizard import SyncWizard
+        from flexvox_app.gui.calibrate.sync_wizard import SyncWizard
 
         refused = self._claim_rig("wizard")
         if refused:

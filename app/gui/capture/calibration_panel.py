@@ -1,7 +1,7 @@
 """The Capture workspace's "Calibration" box: which calibration recordings use, and its phase and delay.
 
 A calibration reaches Capture the ways it reaches ``flexvox capture``, through
-:mod:`calibration.capture_setup` (the one loader): a calibration file, a sync profile (the
+:mod:`flexvox_calibration.capture_setup` (the one loader): a calibration file, a sync profile (the
 synchronisation wizard's; its phase and trigger delay replace the calibration's), or the
 Calibrate workspace's fresh run ("Use for capture"). A file or run made for another rig, camera
 or resolution is refused, in words, and the previous calibration is kept.
@@ -27,16 +27,16 @@ from pathlib import Path
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import QCheckBox, QFileDialog, QGridLayout, QGroupBox, QLabel, QPushButton, QVBoxLayout
 
-from app.capture.plan import CapturePlan
-from app.capture.rig_setup import trigger_delay_by
-from app.gui.models.capture_calibration import capture_identity
-from app.gui.models.operator_words import in_gui_words
-from app.gui.models.rig_service import RigService
-from app.gui.widgets.questions import ask
-from app.gui.widgets.rich_text import AMBER, RED, coloured
-from app.gui.widgets.settings import AppSettings
-from app.gui.widgets.status_line import StatusLine
-from calibration.capture_setup import (
+from flexvox_app.capture.plan import CapturePlan
+from flexvox_app.capture.rig_setup import trigger_delay_by
+from flexvox_app.gui.models.capture_calibration import capture_identity
+from flexvox_app.gui.models.operator_words import in_gui_words
+from flexvox_app.gui.models.rig_service import RigService
+from flexvox_app.gui.widgets.questions import ask
+from flexvox_app.gui.widgets.rich_text import AMBER, RED, coloured
+from flexvox_app.gui.widgets.settings import AppSettings
+from flexvox_app.gui.widgets.status_line import StatusLine
+from flexvox_calibration.capture_setup import (
     CalibrationRefused,
     CaptureCalibration,
     from_run,
@@ -67,7 +67,7 @@ class CalibrationPanel(QGroupBox):
     """
 
     changed = Signal(object)
-    """The :class:`~calibration.capture_setup.CaptureCalibration` now used (None: uncalibrated)."""
+    """The :class:`~flexvox_calibration.capture_setup.CaptureCalibration` now used (None: uncalibrated)."""
 
     def __init__(self, service: RigService, settings: AppSettings, parent=None):
         super().__init__("Calibration", parent)

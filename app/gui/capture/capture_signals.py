@@ -1,6 +1,6 @@
 """A capture's events as Qt signals, delivered on the GUI thread.
 
-The capture service emits its events (:class:`app.capture.events.CaptureEvents`) on a thread of its
+The capture service emits its events (:class:`flexvox_app.capture.events.CaptureEvents`) on a thread of its
 own. :class:`CaptureSignals` lives on the GUI thread and re-emits each as a Qt signal, which Qt
 queues to the slots there, so a widget subscribes to a capture as to any Qt signal and never reads
 the service's state on a timer. Each signal carries the capture it is about, so a slot can ignore a
@@ -28,7 +28,8 @@ class CaptureSignals(QObject):
         self._relays: tuple = ()
 
     def follow(self, capture) -> None:
-        """Relay the events of ``capture`` (a :class:`~app.capture.service.CaptureService`); the capture followed
+        """Relay the events of ``capture`` (a :class:`~flexvox_app.capture.service.CaptureService`); the capture
+        followed
         until now is let go."""
         self.release()
 

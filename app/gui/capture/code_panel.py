@@ -1,6 +1,6 @@
 """The Capture workspace's code and timing: which code, how fast, and whether the projector accepts it.
 
-Its model is :class:`app.capture.plan.CapturePlan` (the one ``flexvox capture`` builds): a tile's
+Its model is :class:`flexvox_app.capture.plan.CapturePlan` (the one ``flexvox capture`` builds): a tile's
 designed identity code, its S-matrix multiplexed code, or a ``flexvox design -o`` file; the
 camera rate and exposure; the pattern exposure. :meth:`CodePanel.plan` returns the plan the
 controls describe and :attr:`CodePanel.changed` says when it changed.
@@ -28,11 +28,11 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.capture.plan import TILES, CapturePlan
-from app.gui.models.operator_words import in_gui_words
-from app.gui.widgets.collapsible import Collapsible
-from app.gui.widgets.rich_text import AMBER, GREEN, RED
-from app.gui.widgets.settings import AppSettings
+from flexvox_app.capture.plan import TILES, CapturePlan
+from flexvox_app.gui.models.operator_words import in_gui_words
+from flexvox_app.gui.widgets.collapsible import Collapsible
+from flexvox_app.gui.widgets.rich_text import AMBER, GREEN, RED
+from flexvox_app.gui.widgets.settings import AppSettings
 
 MULTIPLEXED_TIP = ("S-matrix code (K = 3, 7, 15: 1x3, 1x7, 3x5), each pixel open in (K+1)/2 slots, "
                    "reconstructed from its own forward model: it pays in dim light only (balls, 3x5 tile, "

@@ -1,10 +1,10 @@
 """The Capture workspace's live view: the camera's frames, a histogram, saturation, and a motion-aware preview.
 
-:class:`LivePanel` owns the live view (:func:`app.gui.models.live_source.start_live` sets the rig
-up for the plan and its calibration, :class:`~app.gui.capture.live_view.LiveStream` reads the
+:class:`LivePanel` owns the live view (:func:`flexvox_app.gui.models.live_source.start_live` sets the rig
+up for the plan and its calibration, :class:`~flexvox_app.gui.capture.live_view.LiveStream` reads the
 camera on a worker thread) and the display: the raw view redrawn at most :data:`DISPLAY_HZ`,
 the histogram with the saturation level, and the motion-aware preview of the newest frames
-(:mod:`app.gui.capture.live_preview`: its own worker, newest wins, a bounded duty cycle, full resolution
+(:mod:`flexvox_app.gui.capture.live_preview`: its own worker, newest wins, a bounded duty cycle, full resolution
 over the whole frame or a region the operator drags on the live view).
 
 While a recording runs the capture service owns the devices; the panel then shows
@@ -26,17 +26,17 @@ import pyqtgraph as pg
 from PySide6.QtCore import QObject, QRectF, Qt, QTimer
 from PySide6.QtWidgets import QCheckBox, QComboBox, QGroupBox, QPushButton, QVBoxLayout, QWidget
 
-from app.gui.capture.live_preview import LivePreview
-from app.gui.capture.live_view import LiveStream
-from app.gui.models.live_source import LiveStartError, start_live, stop_live
-from app.gui.models.live_stats import LiveStats, histogram, saturation_level, saturation_mask
-from app.gui.models.operator_words import in_gui_words
-from app.gui.models.rig_service import RigService
-from app.gui.widgets.adaptive_split import AdaptiveSplit
-from app.gui.widgets.image_panel import ImagePanel
-from app.gui.widgets.rich_text import RED, coloured
-from app.gui.widgets.settings import AppSettings
-from app.gui.widgets.status_line import StatusLine
+from flexvox_app.gui.capture.live_preview import LivePreview
+from flexvox_app.gui.capture.live_view import LiveStream
+from flexvox_app.gui.models.live_source import LiveStartError, start_live, stop_live
+from flexvox_app.gui.models.live_stats import LiveStats, histogram, saturation_level, saturation_mask
+from flexvox_app.gui.models.operator_words import in_gui_words
+from flexvox_app.gui.models.rig_service import RigService
+from flexvox_app.gui.widgets.adaptive_split import AdaptiveSplit
+from flexvox_app.gui.widgets.image_panel import ImagePanel
+from flexvox_app.gui.widgets.rich_text import RED, coloured
+from flexvox_app.gui.widgets.settings import AppSettings
+from flexvox_app.gui.widgets.status_line import StatusLine
 
 DEBOUNCE_S = 0.6
 """A second click on Start/Stop live view sooner than this after the first is a double click: it is ignored (a

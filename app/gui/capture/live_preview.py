@@ -15,7 +15,7 @@ How it stays out of capture's way:
   ``rest_fraction · t`` later, so the preview uses at most ``1 / (1 + rest_fraction)`` of one core.
 * **Full resolution, a region when it must.** A run takes on the whole frame when the measured
   cost of a pixel says it fits in ``budget_s``; otherwise a region of the frame at full resolution
-  (:func:`app.capture.live_preview.preview_region`), which the operator drags on the live view
+  (:func:`flexvox_app.capture.live_preview.preview_region`), which the operator drags on the live view
   (:meth:`LivePreview.set_centre`). Never a subsampled, aliased frame. The region follows the
   measured cost, so it grows back as soon as the machine is less busy.
 
@@ -33,7 +33,7 @@ from collections import OrderedDict, deque
 
 from PySide6.QtCore import QObject, QThreadPool, QTimer, Signal
 
-from app.capture.live_preview import (
+from flexvox_app.capture.live_preview import (
     PREVIEW_FRAMES,
     PREVIEW_METHODS,
     START_PIXELS,
@@ -44,8 +44,8 @@ from app.capture.live_preview import (
     Region,
     preview_region,
 )
-from app.gui.models.device_words import where_it_ran
-from app.gui.widgets.qt_jobs import JobRunner
+from flexvox_app.gui.models.device_words import where_it_ran
+from flexvox_app.gui.widgets.qt_jobs import JobRunner
 from flexvox_core.numbers import positive_number
 
 _logger = logging.getLogger(__name__)
@@ -61,7 +61,7 @@ __all__ = ["BUDGET_S", "LivePreview", "PreviewResult", "REST_FRACTION"]
 
 
 class LivePreview(QObject):
-    """Runs a :class:`~app.capture.live_preview.PreviewReconstructor` on the newest frames, newest-wins, on a
+    """Runs a :class:`~flexvox_app.capture.live_preview.PreviewReconstructor` on the newest frames, newest-wins, on a
     worker of its own (motion-aware streams: the frame before the newest, state kept between runs).
 
     Parameters
@@ -121,7 +121,7 @@ class LivePreview(QObject):
         self.centre: tuple[float, float] | None = None
         """Where the operator put the region (y, x); None: the frame's centre."""
         self.method = PREVIEW_METHODS[0]
-        """What runs reconstruct with (:data:`app.capture.live_preview.PREVIEW_METHODS`)."""
+        """What runs reconstruct with (:data:`flexvox_app.capture.live_preview.PREVIEW_METHODS`)."""
         self.latency_s: float | None = None
         """Seconds from the shown frame's arrival to its preview on screen, for the last preview (motion-aware
         shows the frame before the newest, so this includes the wait for the next frame)."""

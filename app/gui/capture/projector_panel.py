@@ -1,9 +1,9 @@
 """The Capture workspace's "Projector output" box: the packed patterns full-screen on a chosen screen.
 
 For a projector driven through its video input (a DLPC350): the plan's patterns through the
-calibration (:meth:`app.capture.plan.CapturePlan.patterns`, what a recording loads), packed into
-24-bit frames (:attr:`calibration.shutter.ShutterPatterns.packed`) on the job runner, and shown
-pixel-exact by :class:`~app.gui.projector.window.ProjectorWindow`.
+calibration (:meth:`flexvox_app.capture.plan.CapturePlan.patterns`, what a recording loads), packed into
+24-bit frames (:attr:`flexvox_calibration.shutter.ShutterPatterns.packed`) on the job runner, and shown
+pixel-exact by :class:`~flexvox_app.gui.projector.window.ProjectorWindow`.
 """
 
 from __future__ import annotations
@@ -14,13 +14,13 @@ from PySide6.QtCore import Qt
 from PySide6.QtGui import QGuiApplication
 from PySide6.QtWidgets import QFormLayout, QGroupBox, QLabel, QPushButton
 
-from app.gui.models.live_source import projector_size
-from app.gui.models.operator_words import in_gui_words
-from app.gui.models.rig_service import RigService
-from app.gui.projector.window import ProjectorWindow, ScreenPicker
-from app.gui.widgets.qt_jobs import JobRunner
-from app.gui.widgets.questions import ask
-from app.gui.widgets.rich_text import AMBER, RED, coloured
+from flexvox_app.gui.models.live_source import projector_size
+from flexvox_app.gui.models.operator_words import in_gui_words
+from flexvox_app.gui.models.rig_service import RigService
+from flexvox_app.gui.projector.window import ProjectorWindow, ScreenPicker
+from flexvox_app.gui.widgets.qt_jobs import JobRunner
+from flexvox_app.gui.widgets.questions import ask
+from flexvox_app.gui.widgets.rich_text import AMBER, RED, coloured
 
 
 class ProjectorPanel(QGroupBox):

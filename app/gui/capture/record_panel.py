@@ -1,7 +1,7 @@
 """The Capture workspace's "Recording" box: where, how many frames, Record and Stop, counters, the end.
 
-Recording runs through :class:`app.capture.service.CaptureService` (built by
-:func:`app.gui.models.recording.make_capture`, or the ``capture_factory`` given), the service
+Recording runs through :class:`flexvox_app.capture.service.CaptureService` (built by
+:func:`flexvox_app.gui.models.recording.make_capture`, or the ``capture_factory`` given), the service
 ``flexvox capture`` drives, with the plan and calibration the workspace shows.
 
 Device ownership: a recording *owns* the devices. :meth:`RecordPanel.record` asks the workspace
@@ -10,7 +10,8 @@ read the camera); the capture service sets up the projector, sync box and camera
 writes on its own threads, and stops the devices at the end. Starting (a real projector's
 pattern upload takes seconds) and stopping (the writer drains its queue) run on the job runner,
 so the window never waits on them. The counters and the end come as the capture's events
-(``progress``, ``finished``), handed to the GUI thread by :class:`~app.gui.capture.capture_signals.CaptureSignals`.
+(``progress``, ``finished``), handed to the GUI thread by
+:class:`~flexvox_app.gui.capture.capture_signals.CaptureSignals`.
 """
 
 from __future__ import annotations
@@ -34,16 +35,16 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.capture.capture_signals import CaptureSignals
-from app.gui.models.operator_words import in_gui_words
-from app.gui.models.recording import counters_text, ground_truth_cost, make_capture, result_text
-from app.gui.models.rig_service import RigService
-from app.gui.widgets.collapsible import Collapsible
-from app.gui.widgets.qt_jobs import JobRunner
-from app.gui.widgets.questions import replace_question
-from app.gui.widgets.rich_text import GREEN, RED, coloured
-from app.gui.widgets.settings import AppSettings
-from app.gui.widgets.status_line import StatusLine
+from flexvox_app.gui.capture.capture_signals import CaptureSignals
+from flexvox_app.gui.models.operator_words import in_gui_words
+from flexvox_app.gui.models.recording import counters_text, ground_truth_cost, make_capture, result_text
+from flexvox_app.gui.models.rig_service import RigService
+from flexvox_app.gui.widgets.collapsible import Collapsible
+from flexvox_app.gui.widgets.qt_jobs import JobRunner
+from flexvox_app.gui.widgets.questions import replace_question
+from flexvox_app.gui.widgets.rich_text import GREEN, RED, coloured
+from flexvox_app.gui.widgets.settings import AppSettings
+from flexvox_app.gui.widgets.status_line import StatusLine
 
 _logger = logging.getLogger(__name__)
 
@@ -75,7 +76,7 @@ class RecordPanel(QObject):
     started = Signal(object)
     """The running :class:`CaptureService` (its frames can now be shown)."""
     finished = Signal(object)
-    """The :class:`~app.capture.service.CaptureResult` (None when the capture did not stop in time)."""
+    """The :class:`~flexvox_app.capture.service.CaptureResult` (None when the capture did not stop in time)."""
     changed = Signal()
     """Recording began or ended (buttons elsewhere follow)."""
     open_requested = Signal(object)
@@ -241,7 +242,7 @@ class RecordPanel(QObject):
     # ------------------------------------------------------------------ recording
     def record(self) -> bool:
         """Start recording to the chosen path; False (with the reason shown) when it cannot start."""
-        from app.capture.service import CaptureError
+        from flexvox_app.capture.service import CaptureError
 
         if self.recording:
             return False

@@ -2,16 +2,16 @@
 
 It only composes and wires its panels; each holds its own part:
 
-- :class:`~app.gui.capture.code_panel.CodePanel`: the :class:`~app.capture.plan.CapturePlan`
+- :class:`~flexvox_app.gui.capture.code_panel.CodePanel`: the :class:`~flexvox_app.capture.plan.CapturePlan`
   (tile, multiplexed or a ``flexvox design -o`` file; rate and exposures; the timing check);
-- :class:`~app.gui.capture.calibration_panel.CalibrationPanel`: the
-  :class:`~calibration.capture_setup.CaptureCalibration` (a calibration file, a sync profile or
+- :class:`~flexvox_app.gui.capture.calibration_panel.CalibrationPanel`: the
+  :class:`~flexvox_calibration.capture_setup.CaptureCalibration` (a calibration file, a sync profile or
   the Calibrate workspace's run), the phase and the camera trigger delay in use;
-- :class:`~app.gui.capture.live_panel.LivePanel`: the live view, histogram, saturation and the
+- :class:`~flexvox_app.gui.capture.live_panel.LivePanel`: the live view, histogram, saturation and the
   motion-aware preview (also of a running recording's frames);
-- :class:`~app.gui.capture.record_panel.RecordPanel`: Record and Stop through the capture
+- :class:`~flexvox_app.gui.capture.record_panel.RecordPanel`: Record and Stop through the capture
   service ``flexvox capture`` drives, counters, the end, "Open in Review";
-- :class:`~app.gui.capture.projector_panel.ProjectorPanel`: the packed patterns full-screen.
+- :class:`~flexvox_app.gui.capture.projector_panel.ProjectorPanel`: the packed patterns full-screen.
 
 The plan and the calibration are read from their panels whenever something needs them, so the
 live view, a recording and the projector window always use the same two (and the same
@@ -26,17 +26,17 @@ import logging
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QWidget
 
-from app.capture.plan import CapturePlan
-from app.gui.capture.calibration_panel import CalibrationPanel
-from app.gui.capture.code_panel import CodePanel
-from app.gui.capture.live_panel import LivePanel
-from app.gui.capture.projector_panel import ProjectorPanel
-from app.gui.capture.record_panel import RecordPanel
-from app.gui.models.rig_service import RigService
-from app.gui.widgets.qt_jobs import JobRunner
-from app.gui.widgets.settings import AppSettings
-from app.gui.widgets.workspace_layout import controls_beside_view
-from calibration.capture_setup import CaptureCalibration
+from flexvox_app.capture.plan import CapturePlan
+from flexvox_app.gui.capture.calibration_panel import CalibrationPanel
+from flexvox_app.gui.capture.code_panel import CodePanel
+from flexvox_app.gui.capture.live_panel import LivePanel
+from flexvox_app.gui.capture.projector_panel import ProjectorPanel
+from flexvox_app.gui.capture.record_panel import RecordPanel
+from flexvox_app.gui.models.rig_service import RigService
+from flexvox_app.gui.widgets.qt_jobs import JobRunner
+from flexvox_app.gui.widgets.settings import AppSettings
+from flexvox_app.gui.widgets.workspace_layout import controls_beside_view
+from flexvox_calibration.capture_setup import CaptureCalibration
 
 _logger = logging.getLogger(__name__)
 
@@ -58,11 +58,11 @@ class CaptureWorkspace(QWidget):
     """
 
     recording_finished = Signal(object)
-    """The :class:`~app.capture.service.CaptureResult` (None when the capture did not stop in time)."""
+    """The :class:`~flexvox_app.capture.service.CaptureResult` (None when the capture did not stop in time)."""
     open_requested = Signal(object)
     """A recording's path the operator wants to review."""
     calibration_changed = Signal(object)
-    """The :class:`~calibration.capture_setup.CaptureCalibration` now used (None: uncalibrated)."""
+    """The :class:`~flexvox_calibration.capture_setup.CaptureCalibration` now used (None: uncalibrated)."""
 
     def __init__(self, service: RigService, settings: AppSettings, runner: JobRunner | None = None, *,
                  capture_factory=None, rig_guard=None, parent: QWidget | None = None):

@@ -1,13 +1,13 @@
 """The Calibrate workspace's model (Qt-free): what a calibration runs on, the run itself, and its figures.
 
-:func:`run_workspace_calibration` is :func:`calibration.pipeline.run_calibration` (the call
+:func:`run_workspace_calibration` is :func:`flexvox_calibration.pipeline.run_calibration` (the call
 ``flexvox calibrate`` makes) with per-step progress and cancel: the pipeline asks
 ``progress(desc)`` for an update callable at the start of each step, and the callable this
-module returns raises :class:`~app.gui.models.jobs.Cancelled` when the token is set, so a cancel
+module returns raises :class:`~flexvox_app.gui.models.jobs.Cancelled` when the token is set, so a cancel
 takes effect between steps and between the patterns of a step (the session's ``with`` block
 stops and closes the devices on the way out).
 
-The pipeline's :class:`~calibration.pipeline.CalibrationRun` keeps the full results: the
+The pipeline's :class:`~flexvox_calibration.pipeline.CalibrationRun` keeps the full results: the
 homography (with its residual map), the shutter verification (with its map of wrong pixels)
 and the sync result (with its leakage curve and delay sweep).
 
@@ -26,9 +26,9 @@ import math
 import time
 from dataclasses import dataclass, field
 
-from app.gui.models.jobs import CancelToken
-from app.gui.models.live_source import projector_size
-from app.gui.models.rig_service import RigService
+from flexvox_app.gui.models.jobs import CancelToken
+from flexvox_app.gui.models.live_source import projector_size
+from flexvox_app.gui.models.rig_service import RigService
 
 _logger = logging.getLogger(__name__)
 
@@ -85,12 +85,12 @@ class CalibrationTarget:
         return int(self.rig.simulated.truth.seed) if self.simulated else None
 
     def session(self):
-        """A new (unopened) :class:`calibration.session.RigSession` on the rig.
+        """A new (unopened) :class:`flexvox_calibration.session.RigSession` on the rig.
 
         On the simulated rig the calibration target is put in front of the camera first (the
         Capture workspace puts the scene back when it starts the live view or a recording).
         """
-        from calibration.session import RigSession
+        from flexvox_calibration.session import RigSession
 
         if self.simulated:
             if self.rig.simulated.viewing != "target":
@@ -110,13 +110,13 @@ class CalibrationOutcome:
 
     Attributes
     ----------
-    run : calibration.pipeline.CalibrationRun
-    identity : calibration.session.RigIdentity
+    run : flexvox_calibration.pipeline.CalibrationRun
+    identity : flexvox_calibration.session.RigIdentity
         What a saved file is tied to.
     camera_size : (H, W)
     truth : dict or None
-        Simulated rig: :func:`calibration.pipeline.truth_comparison`.
-    shutter : calibration.shutter.ShutterVerification or None
+        Simulated rig: :func:`flexvox_calibration.pipeline.truth_comparison`.
+    shutter : flexvox_calibration.shutter.ShutterVerification or None
         The second verification pass (its ``wrong`` map); None when the run stopped before the shutter.
     seconds : float
     finished_at : str
@@ -144,12 +144,12 @@ class CalibrationOutcome:
 
     @property
     def homography(self):
-        """The :class:`~calibration.homography.HomographyResult`, or None."""
+        """The :class:`~flexvox_calibration.homography.HomographyResult`, or None."""
         return self.run.keep.get("homography")
 
     @property
     def sync(self):
-        """The :class:`~calibration.sync.SyncResult`, or None."""
+        """The :class:`~flexvox_calibration.sync.SyncResult`, or None."""
         return self.run.keep.get("sync")
 
 
@@ -159,10 +159,10 @@ def run_workspace_calibration(target: CalibrationTarget, *, tile=(4, 4), cancel:
 
     Raises
     ------
-    app.gui.models.jobs.Cancelled
+    flexvox_app.gui.models.jobs.Cancelled
         When ``cancel`` was set (between steps or patterns); the devices are stopped and closed.
     """
-    from calibration.pipeline import run_calibration, truth_comparison
+    from flexvox_calibration.pipeline import run_calibration, truth_comparison
 
     cancel = cancel or CancelToken()
     tracker = tracker or StepTracker(cancel)
@@ -187,7 +187,7 @@ class LiveColocation:
 
     Attributes
     ----------
-    alignment : calibration.colocation.AlignmentResult
+    alignment : flexvox_calibration.colocation.AlignmentResult
         The numbers, and the homography estimate (None when the fit failed).
     image : ndarray (H, W) float64 or None
         The camera's view with the projector fully lit, right after the measurement.
@@ -203,7 +203,7 @@ def measure_live_colocation(target: CalibrationTarget, cancel: CancelToken | Non
     """:func:`measure_live_alignment` and one camera image under a white projector (one more capture)."""
     import numpy as np
 
-    from calibration.colocation import measure_alignment
+    from flexvox_calibration.colocation import measure_alignment
 
     cancel = cancel or CancelToken()
 
@@ -220,8 +220,8 @@ def measure_live_colocation(target: CalibrationTarget, cancel: CancelToken | Non
 
 
 def measure_live_alignment(target: CalibrationTarget, cancel: CancelToken | None = None):
-    """One set of co-location numbers (:func:`calibration.colocation.measure_alignment`) on ``target``."""
-    from calibration.colocation import measure_alignment
+    """One set of co-location numbers (:func:`flexvox_calibration.colocation.measure_alignment`) on ``target``."""
+    from flexvox_calibration.colocation import measure_alignment
 
     cancel = cancel or CancelToken()
 

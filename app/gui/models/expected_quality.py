@@ -3,11 +3,11 @@
 ``flexvox bench`` writes ``docs/bench/results.csv`` (one row per scene × method × knob, each carrying its
 method's options: :meth:`Method.as_dict() <flexvox_core.methods.Method.as_dict>`).
 :func:`build_table` condenses it into the small table shipped with the application,
-``app/gui/expected_quality.json`` (regenerate with ``python -m app.gui.models.expected_quality``):
+``app/gui/expected_quality.json`` (regenerate with ``python -m flexvox_app.gui.models.expected_quality``):
 per K and method (its options), the PSNR of the mean squared error over the built-in scenes (as the
 bench's summary does), mean SSIM, mean seconds and the throughput in voxels per second, plus the mean
 PSNR on the SCI clips (Runner, Drop) where the bench had them. A results.csv without an ``options``
-column is read by its labels, against the methods the bench runs (:func:`app.accuracy_bench.known_options`).
+column is read by its labels, against the methods the bench runs (:func:`flexvox_app.accuracy_bench.known_options`).
 
 :func:`expected` finds the bench figures nearest to a :class:`~flexvox_core.methods.Method`
 (interpolating along the method's bench axis, e.g. the diffusion time or iteration count, on a
@@ -44,7 +44,7 @@ def _row_options(rows: list[dict], csv_path: Path) -> list[dict]:
     the bench runs under its label."""
     if "options" in rows[0]:
         return [json.loads(r["options"]) for r in rows]
-    from app.accuracy_bench import known_options
+    from flexvox_app.accuracy_bench import known_options
 
     known = {K: known_options(K) for K in {int(r["K"]) for r in rows}}
     out = []
@@ -59,7 +59,7 @@ def _row_options(rows: list[dict], csv_path: Path) -> list[dict]:
 
 def build_table(csv_path=BENCH_CSV) -> dict:
     """Condense a bench ``results.csv`` into the shipped table (see the module docstring)."""
-    from app.accuracy_bench import options_key
+    from flexvox_app.accuracy_bench import options_key
 
     csv_path = Path(csv_path)
     with open(csv_path, newline="") as fh:

@@ -1,6 +1,6 @@
 """Reconstruction jobs that can be cancelled between chunks (Qt-free).
 
-A job runs on a worker thread (see :mod:`app.gui.widgets.qt_jobs`) and checks a :class:`CancelToken`
+A job runs on a worker thread (see :mod:`flexvox_app.gui.widgets.qt_jobs`) and checks a :class:`CancelToken`
 after every chunk of camera frames: :func:`run_reconstruction` passes a progress callback to the
 one chunked runner, :func:`flexvox_core.methods.run`, that raises :class:`Cancelled` when the
 token is set. It asks the runner for the method's extras, so a method that returns the flow and
@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from app.gui.models.device_words import short_where, where_it_ran
+from flexvox_app.gui.models.device_words import short_where, where_it_ran
 from flexvox_core.methods import Method, run
 
 Progress = Callable[[int, int], None]
@@ -85,7 +85,7 @@ class ReconstructionResult:
     @property
     def where(self) -> str:
         """Where it ran, in words: "on the CPU", "on the GPU (its name)", with why not the GPU
-        (:func:`~app.gui.models.device_words.where_it_ran`)."""
+        (:func:`~flexvox_app.gui.models.device_words.where_it_ran`)."""
         return where_it_ran(self.device, self.device_note)
 
     def label(self) -> str:

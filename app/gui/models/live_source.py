@@ -1,6 +1,6 @@
 """Starting and stopping the Capture workspace's live view on a rig (Qt-free).
 
-The live view sets the rig up exactly as a recording does (:func:`app.capture.rig_setup.set_up_rig`:
+The live view sets the rig up exactly as a recording does (:func:`flexvox_app.capture.rig_setup.set_up_rig`:
 the plan's patterns through the calibration, the sync box when the rig has one, the camera's
 trigger and delay), with ``preview=True``: a camera without a hardware trigger (a UVC webcam)
 free-runs, and a trigger delay the camera cannot be told is left out; the note says so.
@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import logging
 
-from app.capture.plan import CapturePlan
-from app.capture.rig_setup import CaptureError, set_up_rig, stop_rig
-from app.gui.models.rig_service import RigService
+from flexvox_app.capture.plan import CapturePlan
+from flexvox_app.capture.rig_setup import CaptureError, set_up_rig, stop_rig
+from flexvox_app.gui.models.rig_service import RigService
 from rig_drivers.errors import DeviceError, SettingError
 
 _logger = logging.getLogger(__name__)

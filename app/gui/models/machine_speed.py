@@ -1,10 +1,10 @@
 """How fast this machine reconstructs: a quick calibration run of a method's kernels (Qt-free).
 
-The bench table (:mod:`app.gui.models.expected_quality`) was measured elsewhere, on small clips, on
+The bench table (:mod:`flexvox_app.gui.models.expected_quality`) was measured elsewhere, on small clips, on
 the kernels alone; the Review workspace runs the whole chunked runner (overlap recomputed, the
 sample range, the PSNR against ground truth) on this machine. Its throughput alone mis-predicted
 the time by up to 5×. So the first time a method is used for a code with K slots,
-:func:`calibrate` runs it — through the same :func:`~app.gui.models.jobs.run_reconstruction` and
+:func:`calibrate` runs it — through the same :func:`~flexvox_app.gui.models.jobs.run_reconstruction` and
 the same chunking as a full reconstruction — on two small simulated clips of the same length and
 different frame sizes, and fits ``seconds = c · sub-frames processed · pixels^p`` (:class:`SpeedModel`:
 linear in time, a power of the frame's pixels, since per-frame costs such as the optical flow at an
@@ -27,8 +27,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from app.gui.models.expected_quality import expected
-from app.gui.models.jobs import CancelToken, chunk_frames_for, run_reconstruction
+from flexvox_app.gui.models.expected_quality import expected
+from flexvox_app.gui.models.jobs import CancelToken, chunk_frames_for, run_reconstruction
 from flexvox_core.methods import Method
 from flexvox_core.methods.runner import chunk_plan
 
@@ -106,7 +106,7 @@ def is_current(model: SpeedModel | None) -> bool:
 def processed_voxels(method: Method, n_frames: int, K: int, H: int, W: int, chunk_frames: int | None = None) -> int:
     """Voxels the chunked runner processes for a full reconstruction (each chunk with its overlap).
 
-    ``chunk_frames`` defaults to what the Review workspace uses (:func:`~app.gui.models.jobs.chunk_frames_for`).
+    ``chunk_frames`` defaults to what the Review workspace uses (:func:`~flexvox_app.gui.models.jobs.chunk_frames_for`).
     """
     if chunk_frames is None:
         chunk_frames = chunk_frames_for(method, n_frames, K)
@@ -127,7 +127,8 @@ def calibrate(method_name: str, code, *, cancel: CancelToken | None = None) -> S
     """Measure ``method_name`` (default options) with ``code`` on this machine (see the module docstring).
 
     Runs a warm-up on part of the small clip, then each clip twice (the faster run counts).
-    Takes about half a second for diffusion and two for motion-aware here. :class:`~app.gui.models.jobs.Cancelled`
+    Takes about half a second for diffusion and two for motion-aware here.
+    :class:`~flexvox_app.gui.models.jobs.Cancelled`
     when ``cancel`` is set.
     """
     from flexvox_core.design import design_code

@@ -1,8 +1,8 @@
 """Recording from the Capture workspace (Qt-free): build the capture service, say its counters and its end.
 
-The Capture workspace records through :class:`app.capture.service.CaptureService`, the same
+The Capture workspace records through :class:`flexvox_app.capture.service.CaptureService`, the same
 service ``flexvox capture`` drives. :func:`make_capture` builds one from the workspace's plan
-and the :class:`~app.gui.models.rig_service.RigService`'s rig; :func:`counters_text` and
+and the :class:`~flexvox_app.gui.models.rig_service.RigService`'s rig; :func:`counters_text` and
 :func:`result_text` are the lines the workspace shows while and after it records.
 
 Device ownership: while it records, the capture service owns the projector, camera and sync
@@ -17,11 +17,11 @@ import logging
 from collections.abc import Callable
 from pathlib import Path
 
-from app.capture.plan import CapturePlan
-from app.capture.service import CaptureResult, CaptureService, CaptureStats, SyncSetting
-from app.gui.models.live_source import put_scene_in_view
-from app.gui.models.rig_service import RigService
-from calibration.capture_setup import CaptureCalibration
+from flexvox_app.capture.plan import CapturePlan
+from flexvox_app.capture.service import CaptureResult, CaptureService, CaptureStats, SyncSetting
+from flexvox_app.gui.models.live_source import put_scene_in_view
+from flexvox_app.gui.models.rig_service import RigService
+from flexvox_calibration.capture_setup import CaptureCalibration
 
 _logger = logging.getLogger(__name__)
 
@@ -59,7 +59,7 @@ def make_capture(service: RigService, plan: CapturePlan, path, *, frames: int | 
 
     Raises
     ------
-    app.capture.service.CaptureError
+    flexvox_app.capture.service.CaptureError
         For a path that exists (without ``overwrite``), a folder that does not exist, a bad code.
     ValueError
         For a code the plan cannot make, or ground truth asked of a real rig.

@@ -1,9 +1,9 @@
 """The Review workspace's model (Qt-free): the recording open, playback, previews, reconstructions and exports.
 
 :class:`ReviewModel` holds what Review knows and decides, and the widget
-(:class:`app.gui.review.workspace.ReviewWorkspace`) shows it and forwards the operator's actions:
+(:class:`flexvox_app.gui.review.workspace.ReviewWorkspace`) shows it and forwards the operator's actions:
 
-* **opening** a recording (a :class:`~app.gui.models.review_session.ReviewSession`, read off the GUI thread);
+* **opening** a recording (a :class:`~flexvox_app.gui.models.review_session.ReviewSession`, read off the GUI thread);
 * **playback**: the current sub-frame, playing or not, the speed (sub-frames per second, or the recording's own
   rate in real time), and how far a tick of the widget's timer advances (:func:`playback_advance`);
 * **preview scheduling**: when a preview of the form's settings around the current frame is wanted (a knob
@@ -14,12 +14,12 @@
 * **export** of what is shown, over every frame (a preview is reconstructed in full first).
 
 Long work runs as jobs of a runner with ``submit(name, fn, *, on_progress, on_finished, on_failed,
-on_cancelled, on_done) -> handle`` (:class:`app.gui.widgets.qt_jobs.JobRunner`, whose callbacks run on the GUI
+on_cancelled, on_done) -> handle`` (:class:`flexvox_app.gui.widgets.qt_jobs.JobRunner`, whose callbacks run on the GUI
 thread); a handle has ``outcome``, ``running``, ``token`` and ``cancel()``. The model says what changed through
-:class:`~app.capture.events.Signal` s (:attr:`ReviewModel.changed` names the part; see :data:`PARTS`), called
+:class:`~flexvox_app.capture.events.Signal` s (:attr:`ReviewModel.changed` names the part; see :data:`PARTS`), called
 on the thread that drives it. The settings it keeps (playback speed, the preview switch, each method's speed on
 this machine, the last folders) go to a settings object with ``get_str``, ``get_int``, ``get_bool``, ``set`` and
-``remember_folder`` (:class:`app.gui.widgets.settings.AppSettings`).
+``remember_folder`` (:class:`flexvox_app.gui.widgets.settings.AppSettings`).
 """
 
 from __future__ import annotations
@@ -30,12 +30,12 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from app.capture.events import Signal
-from app.gui.models.expected_quality import Expectation, expected, format_seconds
-from app.gui.models.jobs import ReconstructionResult, chunk_frames_for, preview_window, run_reconstruction
-from app.gui.models.machine_speed import SpeedModel, calibrate, estimate_seconds, is_current, settings_key
-from app.gui.models.operator_words import in_gui_words
-from app.gui.models.review_session import ReviewSession
+from flexvox_app.capture.events import Signal
+from flexvox_app.gui.models.expected_quality import Expectation, expected, format_seconds
+from flexvox_app.gui.models.jobs import ReconstructionResult, chunk_frames_for, preview_window, run_reconstruction
+from flexvox_app.gui.models.machine_speed import SpeedModel, calibrate, estimate_seconds, is_current, settings_key
+from flexvox_app.gui.models.operator_words import in_gui_words
+from flexvox_app.gui.models.review_session import ReviewSession
 from flexvox_core.output_files import OutputError, check_output
 from flexvox_core.video_io import write_video
 
@@ -86,7 +86,7 @@ class ReviewModel:
     settings
         Where the playback speed, the preview switch, the speeds on this machine and the last folders are kept.
     quality_table : dict or None
-        The shipped bench figures (:func:`app.gui.models.expected_quality.load_table`).
+        The shipped bench figures (:func:`flexvox_app.gui.models.expected_quality.load_table`).
     """
 
     def __init__(self, runner, settings, quality_table: dict | None):

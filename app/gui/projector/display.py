@@ -7,7 +7,7 @@ frames onto the screen that feeds the projector's HDMI. The driver does that thr
 ``(N, H, W, 3)`` uint8 frames, called inside ``load_sequence`` on whatever thread loads it.
 
 :class:`ProjectorDisplay` is that sink for the app. It owns a
-:class:`~app.gui.projector.window.ProjectorWindow` (the pixel-exact drawing: no scaling, one
+:class:`~flexvox_app.gui.projector.window.ProjectorWindow` (the pixel-exact drawing: no scaling, one
 image pixel per device pixel) on the chosen screen and is called like a function:
 
 * from the GUI thread it shows the frames at once;
@@ -38,7 +38,7 @@ from collections.abc import Callable
 import numpy as np
 from PySide6.QtCore import QCoreApplication, QEventLoop, QObject, Qt, QThread, QTimer, Signal
 
-from app.gui.projector.window import CYCLE_MS, ProjectorWindow, check_frames, screen_label
+from flexvox_app.gui.projector.window import CYCLE_MS, ProjectorWindow, check_frames, screen_label
 
 _logger = logging.getLogger(__name__)
 
@@ -218,15 +218,15 @@ def screens_or_error():
     Raises
     ------
     ScreenError
-        When Qt cannot open a window here (:func:`app.qt_platform.display_problem`: no display, a
+        When Qt cannot open a window here (:func:`flexvox_app.qt_platform.display_problem`: no display, a
         platform plugin that cannot start), or when Qt reports no screen.
     """
     from PySide6.QtGui import QGuiApplication
 
-    from app.gui.widgets.qapp import ensure_application
+    from flexvox_app.gui.widgets.qapp import ensure_application
 
     if QGuiApplication.instance() is None:
-        from app.qt_platform import display_problem
+        from flexvox_app.qt_platform import display_problem
 
         problem = display_problem()
         if problem is not None:

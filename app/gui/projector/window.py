@@ -4,9 +4,9 @@ For a projector driven through its video input (the DLPC350 in video pattern mod
 24-bit input frame is shown as 24 one-bit patterns, so the K masks are packed into the
 bit-planes of ``ceil(K / 24)`` RGB frames by :func:`rig_drivers.dlpc350.bitplanes.pack_bitplanes`
 (green bits 0-7, red 8-15, blue 16-23). The capture service and this window show the same
-masks, :meth:`app.capture.plan.CapturePlan.patterns` (the code tiled over the camera, through the
+masks, :meth:`flexvox_app.capture.plan.CapturePlan.patterns` (the code tiled over the camera, through the
 calibration's homography, phase compensated), packed as
-:attr:`calibration.shutter.ShutterPatterns.packed`.
+:attr:`flexvox_calibration.shutter.ShutterPatterns.packed`.
 
 Pixel-exactness
 ---------------
@@ -143,7 +143,7 @@ class ProjectorWindow(QWidget):
     Parameters
     ----------
     frames : ndarray (F, H, W, 3) uint8
-        :attr:`calibration.shutter.ShutterPatterns.packed`; with F > 1 they are cycled every ``cycle_ms``.
+        :attr:`flexvox_calibration.shutter.ShutterPatterns.packed`; with F > 1 they are cycled every ``cycle_ms``.
     screen : QScreen, optional
         Where to show it (default the primary screen).
     cycle_ms : int

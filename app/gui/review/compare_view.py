@@ -5,9 +5,9 @@ from __future__ import annotations
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QComboBox, QFormLayout, QGridLayout, QWidget
 
-from app.gui.models.jobs import ReconstructionResult
-from app.gui.widgets.adaptive_split import AdaptiveSplit
-from app.gui.widgets.image_panel import ImagePanel
+from flexvox_app.gui.models.jobs import ReconstructionResult
+from flexvox_app.gui.widgets.adaptive_split import AdaptiveSplit
+from flexvox_app.gui.widgets.image_panel import ImagePanel
 
 
 class CompareView(QWidget):

@@ -1,7 +1,7 @@
 """The method picker with its knobs and the SR ↔ TR continuum slider; produces a :class:`Method`.
 
 One page per registered method (:mod:`flexvox_core.methods.registry`), each the shared options form
-(:class:`~app.gui.widgets.options_form.OptionsForm`, a field per option by its kind; the napari plugin shows
+(:class:`~flexvox_app.gui.widgets.options_form.OptionsForm`, a field per option by its kind; the napari plugin shows
 the same). The options the continuum slider sets stay off the pages: a ``triple`` (the diffusion tensor, at
 the slider's position) and a ``division`` (re-binning's block: the recording's divisions along the slider).
 For a method without one (motion-aware chooses the trade per voxel, GAP-TV has none) the slider stays usable:
@@ -24,11 +24,11 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.models.continuum import continuum_division, continuum_tensor, describe
-from app.gui.widgets.collapsible import Collapsible
-from app.gui.widgets.options_form import OptionsForm
-from app.gui.widgets.settings import AppSettings
-from app.gui.widgets.status_line import StatusLine
+from flexvox_app.gui.models.continuum import continuum_division, continuum_tensor, describe
+from flexvox_app.gui.widgets.collapsible import Collapsible
+from flexvox_app.gui.widgets.options_form import OptionsForm
+from flexvox_app.gui.widgets.settings import AppSettings
+from flexvox_app.gui.widgets.status_line import StatusLine
 from flexvox_core.methods import DEFAULT, Method, get, names, specs
 from flexvox_core.methods.option_kinds import DIVISION, TRIPLE
 

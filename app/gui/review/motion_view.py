@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 from PySide6.QtWidgets import QButtonGroup, QHBoxLayout, QLabel, QRadioButton, QVBoxLayout, QWidget
 
-from app.gui.models.jobs import ReconstructionResult
-from app.gui.widgets.adaptive_split import AdaptiveSplit
-from app.gui.widgets.image_panel import ImagePanel
+from flexvox_app.gui.models.jobs import ReconstructionResult
+from flexvox_app.gui.widgets.adaptive_split import AdaptiveSplit
+from flexvox_app.gui.widgets.image_panel import ImagePanel
 from flexvox_core.flow import flow_to_color, quiver_image
 
 NO_FLOW = "no flow yet: reconstruct with motion-aware (or preview it) to see the flow and the resolution map"

@@ -1,6 +1,6 @@
 """The Review workspace: open a recording, play it, reconstruct, preview, compare and export.
 
-The widget shows a :class:`~app.gui.models.review_model.ReviewModel` (Qt-free: the recording open, playback,
+The widget shows a :class:`~flexvox_app.gui.models.review_model.ReviewModel` (Qt-free: the recording open, playback,
 preview scheduling, the jobs and the export) and forwards the operator's actions to it. It keeps what needs Qt:
 the controls and the views, the file dialogs and the questions, the playback timer and the short wait that
 gathers knob changes into one preview, and the method form, whose choices it hands to the model.
@@ -28,22 +28,22 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.models.expected_quality import format_seconds
-from app.gui.models.jobs import ReconstructionResult
-from app.gui.models.machine_speed import SpeedModel
-from app.gui.models.review_model import Line, ReviewModel
-from app.gui.models.review_session import ReviewSession
-from app.gui.review.compare_view import CompareView
-from app.gui.review.method_form import MethodForm
-from app.gui.review.motion_view import MotionView
-from app.gui.widgets.adaptive_split import AdaptiveSplit
-from app.gui.widgets.image_panel import ImagePanel
-from app.gui.widgets.qt_jobs import JobHandle, JobRunner
-from app.gui.widgets.questions import ask, replace_question
-from app.gui.widgets.rich_text import RED, coloured
-from app.gui.widgets.settings import AppSettings
-from app.gui.widgets.status_line import StatusLine
-from app.gui.widgets.workspace_layout import controls_beside_view
+from flexvox_app.gui.models.expected_quality import format_seconds
+from flexvox_app.gui.models.jobs import ReconstructionResult
+from flexvox_app.gui.models.machine_speed import SpeedModel
+from flexvox_app.gui.models.review_model import Line, ReviewModel
+from flexvox_app.gui.models.review_session import ReviewSession
+from flexvox_app.gui.review.compare_view import CompareView
+from flexvox_app.gui.review.method_form import MethodForm
+from flexvox_app.gui.review.motion_view import MotionView
+from flexvox_app.gui.widgets.adaptive_split import AdaptiveSplit
+from flexvox_app.gui.widgets.image_panel import ImagePanel
+from flexvox_app.gui.widgets.qt_jobs import JobHandle, JobRunner
+from flexvox_app.gui.widgets.questions import ask, replace_question
+from flexvox_app.gui.widgets.rich_text import RED, coloured
+from flexvox_app.gui.widgets.settings import AppSettings
+from flexvox_app.gui.widgets.status_line import StatusLine
+from flexvox_app.gui.widgets.workspace_layout import controls_beside_view
 
 
 def export_slug(method) -> str:
@@ -70,7 +70,7 @@ class ReviewWorkspace(QWidget):
     runner : JobRunner
         Runs loading, reconstructions, previews and exports off the GUI thread.
     quality_table : dict or None
-        The shipped bench figures (:func:`app.gui.models.expected_quality.load_table`).
+        The shipped bench figures (:func:`flexvox_app.gui.models.expected_quality.load_table`).
 
     Attributes
     ----------

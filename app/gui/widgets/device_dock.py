@@ -1,6 +1,6 @@
 """The Devices dock: the device panel, which folds to a narrow strip to give a small screen to the workspaces.
 
-Open, it is the :class:`~app.gui.widgets.device_panel.DevicePanel` under a header with a fold button (◂).
+Open, it is the :class:`~flexvox_app.gui.widgets.device_panel.DevicePanel` under a header with a fold button (◂).
 Folded, it is a strip :data:`STRIP_WIDTH` pixels wide: an unfold button (▸) and one coloured dot per
 device (its state in the tooltip), so a device that drops out still shows. Whether it is folded persists
 in the settings (``window/devices_folded``).
@@ -11,10 +11,10 @@ from __future__ import annotations
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import QDockWidget, QHBoxLayout, QLabel, QSizePolicy, QToolButton, QVBoxLayout, QWidget
 
-from app.gui.models.rig_service import ROLES, RigService
-from app.gui.widgets.device_panel import STATE_COLOUR, DevicePanel
-from app.gui.widgets.rich_text import AMBER
-from app.gui.widgets.settings import AppSettings
+from flexvox_app.gui.models.rig_service import ROLES, RigService
+from flexvox_app.gui.widgets.device_panel import STATE_COLOUR, DevicePanel
+from flexvox_app.gui.widgets.rich_text import AMBER
+from flexvox_app.gui.widgets.settings import AppSettings
 
 STRIP_WIDTH = 28
 """The folded dock's width (px)."""

@@ -15,10 +15,10 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from app.gui.models.operator_words import in_gui_words
-from app.gui.models.rig_service import ROLES, RigService
-from app.gui.widgets.elided_label import ElidedLabel
-from app.gui.widgets.rich_text import AMBER, GREEN, GREY, RED
+from flexvox_app.gui.models.operator_words import in_gui_words
+from flexvox_app.gui.models.rig_service import ROLES, RigService
+from flexvox_app.gui.widgets.elided_label import ElidedLabel
+from flexvox_app.gui.widgets.rich_text import AMBER, GREEN, GREY, RED
 from rig_drivers.interfaces import DeviceState
 
 STATE_COLOUR = {DeviceState.CLOSED: GREY, DeviceState.OPEN: AMBER, DeviceState.ENABLED: GREEN}

@@ -24,7 +24,7 @@ from abc import ABC, abstractmethod
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QCheckBox, QComboBox, QDoubleSpinBox, QFormLayout, QLabel, QLineEdit, QSpinBox, QWidget
 
-from app.gui.widgets.settings import AppSettings
+from flexvox_app.gui.widgets.settings import AppSettings
 
 _BIG = 1_000_000
 """The top of a whole- or real-number box whose option gives no span."""

@@ -1,7 +1,7 @@
 """The one QApplication of the process and the pyqtgraph options the app relies on.
 
-Both the main window (:mod:`app.gui.application`) and the projector output that
-``flexvox calibrate|capture --projector-screen`` shows (:mod:`app.gui.projector.display`) need a
+Both the main window (:mod:`flexvox_app.gui.application`) and the projector output that
+``flexvox calibrate|capture --projector-screen`` shows (:mod:`flexvox_app.gui.projector.display`) need a
 QApplication; they get it here, so neither imports the other.
 """
 

@@ -1,7 +1,7 @@
 """Long work off the GUI thread: callables run on a QThreadPool, with progress, result and cancel.
 
-A job is ``fn(token, progress) -> result``; it polls ``token`` (a :class:`~app.gui.models.jobs.CancelToken`)
-and raises :class:`~app.gui.models.jobs.Cancelled` to stop. Its :class:`JobHandle` carries Qt signals
+A job is ``fn(token, progress) -> result``; it polls ``token`` (a :class:`~flexvox_app.gui.models.jobs.CancelToken`)
+and raises :class:`~flexvox_app.gui.models.jobs.Cancelled` to stop. Its :class:`JobHandle` carries Qt signals
 emitted from the worker thread and delivered, queued, on the GUI thread.
 
 Callbacks are given to :meth:`JobRunner.submit` so they are connected *before* the job starts: a
@@ -20,7 +20,7 @@ from collections.abc import Callable
 
 from PySide6.QtCore import QObject, QRunnable, QThreadPool, Signal
 
-from app.gui.models.jobs import Cancelled, CancelToken
+from flexvox_app.gui.models.jobs import Cancelled, CancelToken
 
 _logger = logging.getLogger(__name__)
 

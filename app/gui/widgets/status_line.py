@@ -44,7 +44,8 @@ class StatusLine(QLabel):
     Parameters
     ----------
     text : str
-        Rich text (escape plain text with :func:`html.escape`, or use :func:`~app.gui.widgets.rich_text.coloured`).
+        Rich text (escape plain text with :func:`html.escape`, or use
+        :func:`~flexvox_app.gui.widgets.rich_text.coloured`).
     lines : int
         Its height, in lines of its font.
     """

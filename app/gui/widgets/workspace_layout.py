@@ -1,7 +1,7 @@
 """The layout every workspace shares: a column of controls beside a large view.
 
 The column holds the workspace's primary actions at the top, never scrolled away, and its details
-below them in a scroll area (collapsible sections, see :mod:`app.gui.widgets.collapsible`), so the
+below them in a scroll area (collapsible sections, see :mod:`flexvox_app.gui.widgets.collapsible`), so the
 actions stay in view on a 1024×700 screen whatever the details hold. The column takes
 :data:`COLUMN_SHARE` of the workspace's width, between its minimum and ``max_width``, and the view the
 rest, until the operator drags the handle between them (then their choice holds).

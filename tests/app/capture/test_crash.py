@@ -28,7 +28,7 @@ def _frames_now(path) -> int:
 def test_sigkill_mid_capture_leaves_every_committed_frame(tmp_path):
     path = tmp_path / "killed.zarr"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "app.cli.capture", "--frames", "100000", "-o", str(path), "--size", "24x32",
+        [sys.executable, "-m", "flexvox_app.cli.capture", "--frames", "100000", "-o", str(path), "--size", "24x32",
          "--tile", "2x2", "--rate", "100", "--scene", "balls"],
         cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:

@@ -5,10 +5,10 @@ import threading
 
 import pytest
 
-from app.capture import CaptureService, Signal
-from app.capture.engine import AcquisitionEngine, CameraStopped
-from app.capture.settings import SyncSetting
-from calibration.capture_setup import CaptureCalibration
+from flexvox_app.capture import CaptureService, Signal
+from flexvox_app.capture.engine import AcquisitionEngine, CameraStopped
+from flexvox_app.capture.settings import SyncSetting
+from flexvox_calibration.capture_setup import CaptureCalibration
 from flexvox_core.recording import open_recording
 from rig_drivers.errors import DeviceTimeoutError
 
@@ -25,7 +25,7 @@ def test_a_signal_calls_its_callbacks_in_order_and_logs_one_that_raises(caplog):
     signal.connect(lambda x: calls.append(("a", x)))
     signal.connect(broken)
     second = signal.connect(lambda x: calls.append(("b", x)))
-    with caplog.at_level(logging.ERROR, logger="app.capture.events"):
+    with caplog.at_level(logging.ERROR, logger="flexvox_app.capture.events"):
         signal.emit(1)
     assert calls == [("a", 1), ("b", 1)] and len(signal) == 3
     assert "a subscriber to progress failed" in caplog.text and "a subscriber's bug" in caplog.text

@@ -9,10 +9,10 @@ homography, a trigger offset that is not a whole slot), so these tests fail when
 import numpy as np
 import pytest
 
-from app.capture import CapturePlan, CaptureService
-from app.capture.rig_setup import set_up_rig, stop_rig
-from app.cli import main as cli_main
-from calibration.capture_setup import (
+from flexvox_app.capture import CapturePlan, CaptureService
+from flexvox_app.capture.rig_setup import set_up_rig, stop_rig
+from flexvox_app.cli import main as cli_main
+from flexvox_calibration.capture_setup import (
     CalibrationRefused,
     CaptureCalibration,
     SyncTiming,
@@ -20,8 +20,8 @@ from calibration.capture_setup import (
     load_for_capture,
     load_sync_for_capture,
 )
-from calibration.pipeline import run_calibration
-from calibration.session import RigSession
+from flexvox_calibration.pipeline import run_calibration
+from flexvox_calibration.session import RigSession
 from flexvox_core.recording import open_recording
 from flexvox_core.slot_check import slot_accuracy
 from rig_drivers.dlpc350.bitplanes import pack_bitplanes
@@ -102,7 +102,7 @@ def test_the_raw_phase_or_no_calibration_visibly_fail(calibration_file, tmp_path
 def test_a_camera_without_a_trigger_delay_needs_the_operator(calibration_file, tmp_path, monkeypatch):
     from dataclasses import replace
 
-    from app.capture import CaptureError, SyncSetting
+    from flexvox_app.capture import CaptureError, SyncSetting
     from rig_drivers.simulated_camera import SimulatedCamera
 
     caps = SimulatedCamera.capabilities.fget
@@ -146,7 +146,7 @@ def test_the_patterns_calibration_verified_are_the_patterns_projected(tmp_path):
 def test_at_the_lightcrafters_size_too(tmp_path):
     """A 912x1140 DMD over a 640x480 camera: where OpenCV's warp and calibration's rounding parted (13-38
     projector pixels per seed on the old capture path), the projected masks are the verified ones."""
-    from calibration.shutter import make_shutter_patterns
+    from flexvox_calibration.shutter import make_shutter_patterns
 
     rig = open_rig("mock", scene="static", subframes=16, camera_size=(480, 640), projector_size=(1140, 912),
                    seed=SEED, clock=VirtualClock())
@@ -159,8 +159,8 @@ def test_at_the_lightcrafters_size_too(tmp_path):
 
 
 def test_a_sync_profile_replaces_the_calibrations_timing(calibration_file, tmp_path):
-    from calibration.files import write_versioned
-    from calibration.sync import SYNC_FORMAT, SYNC_VERSION
+    from flexvox_calibration.files import write_versioned
+    from flexvox_calibration.sync import SYNC_FORMAT, SYNC_VERSION
 
     rig = mock_rig()
     identity = RigSession.from_rig(rig).identity
@@ -184,12 +184,12 @@ def test_a_sync_profile_replaces_the_calibrations_timing(calibration_file, tmp_p
 
 
 def test_info_slots_needs_ground_truth(calibration_file, tmp_path):
-    from app.cli.errors import CliError
+    from flexvox_app.cli.errors import CliError
 
     out = tmp_path / "r.zarr"
     assert cli_main.main(["capture", "--rig", "mock", "--scene", "static", "--frames", "2", "--clock", "virtual",
                           "--calibration", str(calibration_file), "-o", str(out)]) == 0
     with pytest.raises(CliError, match=r"holds no ground truth: --slots needs a simulated recording"):
-        from app.cli import info
+        from flexvox_app.cli import info
 
         info.run(type("Args", (), {"recording": out, "repair": False, "slots": True, "json": False, "quick": False})())

@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from app.capture import CaptureError, CapturePlan, CaptureService, LatestFrame, QueuePolicy, SyncSetting
-from app.capture.pacing import PacedClock
-from calibration.capture_setup import CalibrationRefused, CaptureCalibration, SyncTiming
-from calibration.shutter import make_shutter_patterns
+from flexvox_app.capture import CaptureError, CapturePlan, CaptureService, LatestFrame, QueuePolicy, SyncSetting
+from flexvox_app.capture.pacing import PacedClock
+from flexvox_calibration.capture_setup import CalibrationRefused, CaptureCalibration, SyncTiming
+from flexvox_calibration.shutter import make_shutter_patterns
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture, tiled_code
 from flexvox_core.recording import RecordingWriter, open_recording

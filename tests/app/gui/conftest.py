@@ -51,7 +51,7 @@ def naive_psnr(recording):
 @pytest.fixture
 def settings(tmp_path):
     """Settings in a temporary INI file."""
-    from app.gui.widgets.settings import settings_at
+    from flexvox_app.gui.widgets.settings import settings_at
 
     return settings_at(tmp_path / "settings.ini")
 
@@ -59,8 +59,8 @@ def settings(tmp_path):
 @pytest.fixture
 def runner(qapp):
     """A job runner on its own thread pool, shut down after the test."""
-    from app.gui.application import configure_pyqtgraph
-    from app.gui.widgets.qt_jobs import JobRunner
+    from flexvox_app.gui.application import configure_pyqtgraph
+    from flexvox_app.gui.widgets.qt_jobs import JobRunner
 
     configure_pyqtgraph()
     r = JobRunner()
@@ -71,9 +71,9 @@ def runner(qapp):
 @pytest.fixture
 def review(qtbot, settings, runner):
     """A Review workspace with the shipped bench figures."""
-    from app.gui.models.expected_quality import load_table
-    from app.gui.models.machine_speed import SpeedModel, _version, settings_key
-    from app.gui.review.workspace import ReviewWorkspace
+    from flexvox_app.gui.models.expected_quality import load_table
+    from flexvox_app.gui.models.machine_speed import SpeedModel, _version, settings_key
+    from flexvox_app.gui.review.workspace import ReviewWorkspace
 
     # Motion-aware's calibration run takes seconds: tests that do not time this machine take a made-up model.
     settings.set(settings_key("motion-aware", 8), SpeedModel("motion-aware", 8, c=1e-6, p=1.0, points=(),
@@ -111,7 +111,7 @@ def write_calibration(path, identity, *, h=H_SHIFT, phase=3, K=16, period_us=104
     """A calibration file for the rig of ``identity`` (as flexvox calibrate writes it), made 2026-03-14."""
     import datetime as dt
 
-    from calibration.files import CALIBRATION_FORMAT, CALIBRATION_VERSION, write_versioned
+    from flexvox_calibration.files import CALIBRATION_FORMAT, CALIBRATION_VERSION, write_versioned
 
     body = {"homography": {"projector_to_camera": h.tolist(), "camera_to_projector": np.linalg.inv(h).tolist()},
             "quality": {"status": "ok", "rms_px": rms},

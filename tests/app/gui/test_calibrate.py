@@ -5,17 +5,17 @@ import re
 import numpy as np
 import pytest
 
-from app.gui.calibrate.workspace import CalibrateWorkspace
-from app.gui.models.calibration_model import (
+from flexvox_app.gui.calibrate.workspace import CalibrateWorkspace
+from flexvox_app.gui.models.calibration_model import (
     CalibrationTarget,
     run_workspace_calibration,
     summary_rows,
     target_for,
 )
-from app.gui.models.rig_service import RigService
-from app.gui.widgets.questions import Question, answering
-from calibration.files import load_calibration
-from calibration.sync import load_sync_profile
+from flexvox_app.gui.models.rig_service import RigService
+from flexvox_app.gui.widgets.questions import Question, answering
+from flexvox_calibration.files import load_calibration
+from flexvox_calibration.sync import load_sync_profile
 from rig_drivers.simulated_target import hidden_timing
 from tests.rig_drivers.mock_rigs import calibration_rig
 
@@ -229,8 +229,8 @@ def test_sync_wizard_end_to_end(qtbot, calibrate, tmp_path):
 
 
 def test_trigger_test_says_when_the_camera_is_not_triggered(qtbot, runner):
-    from app.gui.calibrate.sync_wizard import SyncWizard
-    from calibration.session import RigSession
+    from flexvox_app.gui.calibrate.sync_wizard import SyncWizard
+    from flexvox_calibration.session import RigSession
     from rig_drivers.interfaces import TriggerConfig, TriggerSource
 
     class Miswired(CalibrationTarget):

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from PySide6.QtCore import Qt
 
-from app.gui.capture.workspace import CaptureWorkspace
-from app.gui.models.rig_service import RigService
+from flexvox_app.gui.capture.workspace import CaptureWorkspace
+from flexvox_app.gui.models.rig_service import RigService
 from rig_drivers.interfaces import DeviceState, RunState
 
 from .conftest import small_rig

@@ -7,12 +7,12 @@ import re
 import numpy as np
 import pytest
 
-from app.gui.capture.workspace import CaptureWorkspace
-from app.gui.models.calibration_model import run_workspace_calibration, target_for
-from app.gui.models.capture_calibration import capture_identity
-from app.gui.models.rig_service import RigService
-from calibration.capture_setup import CalibrationRefused, file_sha256, from_run, load_for_capture
-from calibration.files import write_versioned
+from flexvox_app.gui.capture.workspace import CaptureWorkspace
+from flexvox_app.gui.models.calibration_model import run_workspace_calibration, target_for
+from flexvox_app.gui.models.capture_calibration import capture_identity
+from flexvox_app.gui.models.rig_service import RigService
+from flexvox_calibration.capture_setup import CalibrationRefused, file_sha256, from_run, load_for_capture
+from flexvox_calibration.files import write_versioned
 from flexvox_core.recording import open_recording
 
 from .conftest import H_SHIFT, small_rig
@@ -82,7 +82,7 @@ def test_a_file_for_another_resolution_or_rig_is_refused_in_words(capture, tmp_p
 
 
 def test_a_sync_profile_loads_into_capture_with_its_phase_and_delay(capture, tmp_path):
-    from calibration.sync import SYNC_FORMAT, SYNC_VERSION
+    from flexvox_calibration.sync import SYNC_FORMAT, SYNC_VERSION
 
     ws = capture
     identity = capture_identity(ws.service)
@@ -102,7 +102,7 @@ def test_a_sync_profile_loads_into_capture_with_its_phase_and_delay(capture, tmp
 def test_the_calibrate_workspaces_result_hands_over_to_capture(qtbot, settings, runner, tmp_path):
     """The simulated rig calibrates itself: "Use for capture" makes Capture record with the fresh result,
     the phase that goes with the recommended trigger delay, and that delay."""
-    from app.gui.application import build_window
+    from flexvox_app.gui.application import build_window
     from rig_drivers.profile import open_rig
     from rig_drivers.simulated_camera import VirtualClock
 

@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from app.gui.calibrate.colocation_view import ColocationView, apply_homography, projector_grid
-from app.gui.calibrate.workspace import CalibrateWorkspace
-from app.gui.models.rig_service import RigService
+from flexvox_app.gui.calibrate.colocation_view import ColocationView, apply_homography, projector_grid
+from flexvox_app.gui.calibrate.workspace import CalibrateWorkspace
+from flexvox_app.gui.models.rig_service import RigService
 from tests.rig_drivers.mock_rigs import calibration_rig
 
 # projector (x, y) -> camera: rotate 90°, scale 0.5, shift (40, 4)

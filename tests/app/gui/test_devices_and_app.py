@@ -4,10 +4,10 @@ import argparse
 
 import pytest
 
-from app.cli.errors import CliError
-from app.gui.main_window import WORKSPACES
-from app.gui.models.rig_service import RigService
-from app.gui.widgets.device_panel import DevicePanel
+from flexvox_app.cli.errors import CliError
+from flexvox_app.gui.main_window import WORKSPACES
+from flexvox_app.gui.models.rig_service import RigService
+from flexvox_app.gui.widgets.device_panel import DevicePanel
 from rig_drivers.errors import DevicePermissionError
 from rig_drivers.interfaces import DeviceState
 from rig_drivers.profile import MOCK_SPEC, ProfileRig
@@ -80,7 +80,7 @@ def test_led_currents_of_a_lightcrafter_from_the_device_panel(qtbot):
 
 
 def test_main_window_has_the_three_workspaces_and_closes_cleanly(qtbot, settings, runner, recording):
-    from app.gui.application import build_window
+    from flexvox_app.gui.application import build_window
 
     window = build_window(small_rig(), settings=settings, runner=runner, recording=recording)
     qtbot.addWidget(window)
@@ -97,7 +97,7 @@ def test_main_window_has_the_three_workspaces_and_closes_cleanly(qtbot, settings
 
 
 def test_a_recording_made_in_capture_opens_in_review(qtbot, settings, runner, tmp_path):
-    from app.gui.application import build_window
+    from flexvox_app.gui.application import build_window
 
     window = build_window(small_rig(), settings=settings, runner=runner)
     qtbot.addWidget(window)
@@ -122,9 +122,9 @@ APP_SCRIPT = """
 import argparse, sys
 from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QApplication
-from app.cli import app as cli_app
-from app.gui.application import ensure_application
-from app.gui.main_window import MainWindow
+from flexvox_app.cli import app as cli_app
+from flexvox_app.gui.application import ensure_application
+from flexvox_app.gui.main_window import MainWindow
 
 qapp = ensure_application()
 parser = argparse.ArgumentParser()
@@ -164,7 +164,7 @@ def test_flexvox_app_starts_and_quits(recording, tmp_path):
 
 
 def test_flexvox_app_refuses_bad_arguments(tmp_path):
-    from app.cli import app as cli_app
+    from flexvox_app.cli import app as cli_app
 
     parser = argparse.ArgumentParser()
     cli_app.register(parser.add_subparsers())
@@ -194,7 +194,7 @@ def test_a_job_that_ends_after_shutdown_does_not_call_back(qtbot, runner):
 def test_closing_the_window_while_review_plays_starts_no_preview_after_the_runner_shut_down(qtbot, settings, runner,
                                                                                            recording):
     """Closing during playback stops playback, and that must not schedule a preview after the runner has shut down."""
-    from app.gui.application import build_window
+    from flexvox_app.gui.application import build_window
 
     window = build_window(small_rig(), settings=settings, runner=runner, recording=recording)
     qtbot.addWidget(window)
@@ -215,8 +215,8 @@ def test_closing_the_window_while_review_plays_starts_no_preview_after_the_runne
 
 
 def test_a_status_line_keeps_its_height_and_cuts_a_long_text_with_the_whole_on_hover(qtbot):
-    from app.gui.widgets.rich_text import RED, coloured
-    from app.gui.widgets.status_line import StatusLine
+    from flexvox_app.gui.widgets.rich_text import RED, coloured
+    from flexvox_app.gui.widgets.status_line import StatusLine
 
     line = StatusLine("short", lines=2)
     qtbot.addWidget(line)
@@ -238,15 +238,15 @@ STARTUP_SCRIPT = """
 import sys, time
 from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QApplication
-from app.gui.application import StartupWindow, launch
-from app.gui.widgets.settings import settings_at
+from flexvox_app.gui.application import StartupWindow, launch
+from flexvox_app.gui.widgets.settings import settings_at
 
 seen = {}
 
 def open_the_rig():
     # what the operator sees while the rig opens: the start-up window, before any workspace was imported
     seen["startup shown"] = any(isinstance(w, StartupWindow) and w.isVisible() for w in QApplication.topLevelWidgets())
-    seen["workspaces not loaded yet"] = "app.gui.main_window" not in sys.modules
+    seen["workspaces not loaded yet"] = "flexvox_app.gui.main_window" not in sys.modules
     from rig_drivers.profile import open_rig
     return open_rig("mock", scene="balls", camera_size=(48, 64), subframes=64)
 

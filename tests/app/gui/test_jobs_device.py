@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from app.gui.models.jobs import run_reconstruction
+from flexvox_app.gui.models.jobs import run_reconstruction
 from flexvox_core import capture, code_from_order
 from flexvox_core.methods import Method
 

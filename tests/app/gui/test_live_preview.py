@@ -6,7 +6,7 @@ import re
 import numpy as np
 import pytest
 
-from app.capture.live_preview import (
+from flexvox_app.capture.live_preview import (
     FrameBuffer,
     PixelCost,
     PreviewReconstructor,
@@ -14,9 +14,9 @@ from app.capture.live_preview import (
     preview_region,
     reconstruct_preview,
 )
-from app.gui.capture.live_preview import LivePreview
-from app.gui.capture.workspace import CaptureWorkspace
-from app.gui.models.rig_service import RigService
+from flexvox_app.gui.capture.live_preview import LivePreview
+from flexvox_app.gui.capture.workspace import CaptureWorkspace
+from flexvox_app.gui.models.rig_service import RigService
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture as capture_frames
 from flexvox_core.forward import tiled_code
@@ -313,8 +313,8 @@ def test_on_the_gpu_the_preview_takes_the_whole_frame_every_run_and_says_so(qtbo
     no rest between runs, all of motion-aware's stages, and the words say it runs on the GPU."""
     import numpy as np
 
-    from app.capture.live_preview import PreviewResult, Region
-    from app.gui.capture.live_preview import LivePreview
+    from flexvox_app.capture.live_preview import PreviewResult, Region
+    from flexvox_app.gui.capture.live_preview import LivePreview
 
     preview = LivePreview(device="cuda")
     assert preview.device == "cuda" and preview.reconstructor.device == "cuda" and preview.rest_fraction == 0

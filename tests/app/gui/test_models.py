@@ -1,4 +1,4 @@
-"""The Qt-free models and services of app.gui: continuum, expected quality, jobs, capture plan, live stats."""
+"""The Qt-free models and services of flexvox_app.gui: continuum, expected quality, jobs, capture plan, live stats."""
 
 import json
 import math
@@ -10,11 +10,17 @@ import textwrap
 import numpy as np
 import pytest
 
-from app.capture.plan import CapturePlan
-from app.gui.models.continuum import continuum_division, continuum_tensor, describe, ordered_divisions, tensor_position
-from app.gui.models.expected_quality import BENCH_CSV, TABLE_PATH, build_table, expected, load_table
-from app.gui.models.jobs import Cancelled, CancelToken, chunk_frames_for, preview_window, run_reconstruction
-from app.gui.models.live_stats import LiveStats, histogram, saturation_level
+from flexvox_app.capture.plan import CapturePlan
+from flexvox_app.gui.models.continuum import (
+    continuum_division,
+    continuum_tensor,
+    describe,
+    ordered_divisions,
+    tensor_position,
+)
+from flexvox_app.gui.models.expected_quality import BENCH_CSV, TABLE_PATH, build_table, expected, load_table
+from flexvox_app.gui.models.jobs import Cancelled, CancelToken, chunk_frames_for, preview_window, run_reconstruction
+from flexvox_app.gui.models.live_stats import LiveStats, histogram, saturation_level
 from flexvox_core.design import design_code
 from flexvox_core.methods import Method
 from flexvox_core.reconstruct.rebin import supported_divisions
@@ -294,14 +300,14 @@ def test_live_stats_count_drops_fps_and_saturation():
 # ---------------------------------------------------------------- Qt stays out of the models
 
 def _qt_free_modules() -> list[str]:
-    """Every module of app.gui.models (found, not listed by hand), and the app.gui package file."""
+    """Every module of flexvox_app.gui.models (found, not listed by hand), and the flexvox_app.gui package file."""
     import pkgutil
 
-    import app.gui.models
+    import flexvox_app.gui.models
 
-    found = [m.name for m in pkgutil.walk_packages(app.gui.models.__path__, "app.gui.models.")]
+    found = [m.name for m in pkgutil.walk_packages(flexvox_app.gui.models.__path__, "flexvox_app.gui.models.")]
     assert len(found) >= 10, found  # the discovery itself must work
-    return ["app.gui", "app.gui.models", *found]
+    return ["flexvox_app.gui", "flexvox_app.gui.models", *found]
 
 
 QT_FREE = _qt_free_modules()
@@ -322,7 +328,7 @@ def test_models_and_services_import_with_qt_blocked():
         sys.meta_path.insert(0, BlockQt())
         for name in {QT_FREE!r}:
             importlib.import_module(name)
-        import app.cli.app
+        import flexvox_app.cli.app
         print("ok")
     """)
     out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
@@ -332,7 +338,7 @@ def test_models_and_services_import_with_qt_blocked():
 
 
 def test_processed_voxels_count_the_overlap_each_chunk_recomputes():
-    from app.gui.models.machine_speed import processed_voxels
+    from flexvox_app.gui.models.machine_speed import processed_voxels
     from flexvox_core.methods import Method
 
     m = Method("motion-aware", refine_time=0.0)  # overlap 3 frames each side
@@ -342,8 +348,14 @@ def test_processed_voxels_count_the_overlap_each_chunk_recomputes():
 
 
 def test_the_speed_model_scales_with_the_recording_and_the_options_and_survives_the_settings():
-    from app.gui.models.expected_quality import load_table
-    from app.gui.models.machine_speed import SpeedModel, _version, estimate_seconds, is_current, processed_voxels
+    from flexvox_app.gui.models.expected_quality import load_table
+    from flexvox_app.gui.models.machine_speed import (
+        SpeedModel,
+        _version,
+        estimate_seconds,
+        is_current,
+        processed_voxels,
+    )
     from flexvox_core.design import design_code
     from flexvox_core.methods import Method
 
@@ -359,7 +371,7 @@ def test_the_speed_model_scales_with_the_recording_and_the_options_and_survives_
     assert estimate_seconds(model, table, base, code, n_frames=16, H=120, W=160) > 1.9 * t8
     # Other options scale the calibrated time by the bench's relative cost of those options (whatever the
     # shipped table measured: on small captures nc's time is mostly overhead, so the ratio is near 1).
-    from app.gui.models.expected_quality import expected
+    from flexvox_app.gui.models.expected_quality import expected
 
     slow = Method("diffusion", time=8.0)
     voxels = processed_voxels(slow, 8, 16, 120, 160)
@@ -369,8 +381,8 @@ def test_the_speed_model_scales_with_the_recording_and_the_options_and_survives_
 
 
 def test_calibrate_times_a_method_on_two_clip_sizes():
-    from app.gui.models.jobs import Cancelled, CancelToken
-    from app.gui.models.machine_speed import P_RANGE, SIZES, calibrate
+    from flexvox_app.gui.models.jobs import Cancelled, CancelToken
+    from flexvox_app.gui.models.machine_speed import P_RANGE, SIZES, calibrate
     from flexvox_core.design import design_code
 
     code = design_code((2, 2)).code
@@ -399,9 +411,9 @@ def test_file_dialogs_start_in_the_last_folder_used(settings, tmp_path):
 
 def test_messages_from_below_are_said_in_the_window_s_words():
     """Point 8: no driver call, parameter in backticks or command-line flag in what the operator reads."""
-    from app.capture.rig_setup import delay_refusal
-    from app.gui.models.operator_words import in_gui_words
-    from calibration.capture_setup import CaptureCalibration
+    from flexvox_app.capture.rig_setup import delay_refusal
+    from flexvox_app.gui.models.operator_words import in_gui_words
+    from flexvox_calibration.capture_setup import CaptureCalibration
     from rig_drivers.errors import IncompatibleStateError
 
     said = {

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from PySide6.QtCore import Qt
 
-from app.gui.application import build_window
-from app.gui.widgets.questions import answering
+from flexvox_app.gui.application import build_window
+from flexvox_app.gui.widgets.questions import answering
 from flexvox_core.recording import open_recording
 from flexvox_core.slot_check import slot_accuracy
 from rig_drivers.profile import open_rig
@@ -92,7 +92,7 @@ def test_without_the_calibration_the_recording_visibly_fails(qtbot, window, tmp_
 
 
 def test_the_cli_and_the_workspace_record_the_same_phase_from_one_calibration_file(qtbot, window, tmp_path):
-    from app.cli.main import main
+    from flexvox_app.cli.main import main
 
     cal = tmp_path / "cal.json"
     assert main(["calibrate", "--rig", "mock", "--seed", "0", "-o", str(cal)]) == 0
@@ -123,7 +123,7 @@ def test_the_operator_s_whole_session_through_the_buttons_at_1280x800(qtbot, set
     does not move, the export equal to what is shown, and nothing left running."""
     import zarr
 
-    from app.gui.operator_session import SIZE, OperatorSession, clipped, flexvox_threads, outside_view
+    from flexvox_app.gui.operator_session import SIZE, OperatorSession, clipped, flexvox_threads, outside_view
     from flexvox_core.methods import Method
 
     rig = open_rig("mock", scene="drummer", camera_size=(60, 80), subframes=4 * SESSION_FRAMES * 16, seed=0,
@@ -168,7 +168,7 @@ def test_the_operator_s_whole_session_through_the_buttons_at_1280x800(qtbot, set
            panel.recording_label])
     assert "fps" in capture.live_panel.live_label.text() and "dropped" in capture.live_panel.live_label.text()
     s.record(SESSION_FRAMES)
-    from calibration.capture_setup import file_sha256
+    from flexvox_calibration.capture_setup import file_sha256
 
     named = open_recording(s.recording_path).attrs["calibration"]  # the recording names the file it used
     assert named["sha256"] == file_sha256(saved) and named["source"].startswith(f"{saved} (sha256 ")
@@ -306,8 +306,8 @@ def test_the_wheel_scrolls_the_column_and_changes_only_the_box_clicked_into(qtbo
 
 def test_a_plan_at_another_timing_says_so_on_top_and_record_asks(qtbot, window, tmp_path):
     """Point 1: the top line says "calibrated" only while the plan matches what the sync was measured at."""
-    from app.gui.models.capture_calibration import capture_identity
-    from app.gui.widgets.rich_text import AMBER
+    from flexvox_app.gui.models.capture_calibration import capture_identity
+    from flexvox_app.gui.widgets.rich_text import AMBER
 
     from .conftest import write_calibration
 
@@ -344,8 +344,8 @@ def test_a_restart_restores_the_calibration_file_checked_and_named_by_its_hash(q
     """Points 2 and 3: the calibration file in use comes back at the next start, checked against the rig and named
     by its path and content hash in the recording; one that cannot come back is named with the reason, and then
     Record asks once before recording uncalibrated."""
-    from app.gui.models.capture_calibration import capture_identity
-    from calibration.capture_setup import file_sha256
+    from flexvox_app.gui.models.capture_calibration import capture_identity
+    from flexvox_calibration.capture_setup import file_sha256
 
     from .conftest import write_calibration
 
@@ -445,7 +445,7 @@ def test_closing_asks_first_naming_what_would_stop_or_be_lost(qtbot, settings, t
 def test_at_1024x700_every_primary_action_the_tabs_and_the_scrubber_are_usable(qtbot, window, recording, folded):
     """Point 5: a 1024×700 window holds every workspace's primary actions in view, the Calibrate tabs without scroll
     arrows, images at least 300 px wide and a scrubber across the view that moves the player."""
-    from app.gui.operator_session import clipped, outside_view, too_wide
+    from flexvox_app.gui.operator_session import clipped, outside_view, too_wide
 
     window.device_dock.set_folded(folded)
     shown_window(qtbot, window, (1024, 700))
@@ -490,7 +490,7 @@ def test_the_devices_and_the_refusals_say_what_holds_now(qtbot, window):
     """Point 6: the Devices panel says who holds the devices while a calibration opens and closes them, and gives
     them back connected; a refusal leaves the screen once it no longer holds; a stopped preview does not claim to be
     reconstructing."""
-    from app.gui.widgets.rich_text import AMBER
+    from flexvox_app.gui.widgets.rich_text import AMBER
 
     shown_window(qtbot, window)
     panel, dock = window.devices, window.device_dock
@@ -551,7 +551,7 @@ def test_buttons_hold_still_while_status_lines_grow_and_the_method_changes(qtbot
     """Point 10: status lines keep their height (the whole text on hover), so no button moves under the pointer."""
     from PySide6.QtCore import QPoint
 
-    from app.gui.widgets.rich_text import RED, coloured
+    from flexvox_app.gui.widgets.rich_text import RED, coloured
 
     shown_window(qtbot, window)
     cal, capture, review = window.calibrate, window.capture, window.review

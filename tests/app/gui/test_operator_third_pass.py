@@ -6,7 +6,7 @@ import shutil
 
 import pytest
 
-from app.gui.widgets.questions import answering
+from flexvox_app.gui.widgets.questions import answering
 
 from .test_review import reconstruct
 
@@ -77,7 +77,7 @@ def test_a_refused_open_names_the_recording_still_open(qtbot, opened, recording,
     ("/d/cal.json: not valid JSON (Expecting value at line 1)", "not a file flexvox wrote", "Expecting value"),
 ])
 def test_messages_for_programmers_become_words_naming_what_to_open_instead(message, words, gone):
-    from app.gui.models.operator_words import in_gui_words
+    from flexvox_app.gui.models.operator_words import in_gui_words
 
     text = in_gui_words(message)
     assert words in text and gone not in text and "open" in text, text
@@ -85,7 +85,7 @@ def test_messages_for_programmers_become_words_naming_what_to_open_instead(messa
 
 # ---------------------------------------------------------------------- ground truth: its cost, its finish, remembered
 def truth_window(qtbot, settings):
-    from app.gui.application import build_window
+    from flexvox_app.gui.application import build_window
     from rig_drivers.profile import open_rig
     from rig_drivers.simulated_camera import VirtualClock
 
@@ -142,8 +142,8 @@ def test_while_a_recording_finishes_its_ground_truth_the_status_says_what_is_wri
 
 
 def test_the_sink_says_which_ground_truth_frame_it_writes(tmp_path):
-    from app.capture.plan import CapturePlan
-    from app.capture.service import CaptureService
+    from flexvox_app.capture.plan import CapturePlan
+    from flexvox_app.capture.service import CaptureService
     from rig_drivers.profile import open_rig
     from rig_drivers.simulated_camera import VirtualClock
 
@@ -162,7 +162,7 @@ def test_the_sink_says_which_ground_truth_frame_it_writes(tmp_path):
 
 # ---------------------------------------------------------------------- dropping a calibration asks; refusals after
 def calibrated_window(qtbot, settings, tmp_path):
-    from app.gui.models.capture_calibration import capture_identity
+    from flexvox_app.gui.models.capture_calibration import capture_identity
 
     from .conftest import write_calibration
 
@@ -209,7 +209,7 @@ def test_a_refused_load_follows_the_state_in_use_and_goes_once_live_view_starts(
 
 
 def test_a_calibration_file_changed_since_last_used_is_said_on_the_top_line(qtbot, settings, tmp_path):
-    from app.gui.models.capture_calibration import capture_identity
+    from flexvox_app.gui.models.capture_calibration import capture_identity
 
     from .conftest import write_calibration
 
@@ -250,7 +250,7 @@ def test_a_double_click_on_a_slow_start_does_not_stop_the_live_view(qtbot, setti
 # ---------------------------------------------------------------------- where each result ran
 def test_where_it_ran_names_the_gpu_the_simulator_and_why_a_gpu_is_unused(monkeypatch):
     import flexvox_core.gpu.device as device
-    from app.gui.models import device_words as words
+    from flexvox_app.gui.models import device_words as words
 
     monkeypatch.setattr(device, "simulator", lambda: False)
     monkeypatch.setattr(words, "gpu_name", lambda: "NVIDIA H200")
@@ -281,8 +281,8 @@ def test_review_s_result_line_and_the_compare_list_say_where_each_result_ran(qtb
 def test_the_live_preview_line_says_where_it_runs():
     import numpy as np
 
-    from app.capture.live_preview import PreviewResult, Region
-    from app.gui.capture.live_preview import LivePreview
+    from flexvox_app.capture.live_preview import PreviewResult, Region
+    from flexvox_app.gui.capture.live_preview import LivePreview
 
     preview = LivePreview(device="cpu")
     preview.enabled, preview.runs = True, 1
@@ -293,7 +293,7 @@ def test_the_live_preview_line_says_where_it_runs():
 
 # ---------------------------------------------------------------------- the live preview's region grows back
 def test_the_preview_region_shrunk_under_load_grows_back_when_runs_get_faster():
-    from app.capture.live_preview import PixelCost, preview_region
+    from flexvox_app.capture.live_preview import PixelCost, preview_region
 
     cost, budget, shape = PixelCost(), 0.6, (120, 160)
 
@@ -316,7 +316,7 @@ def test_the_preview_region_shrunk_under_load_grows_back_when_runs_get_faster():
 def test_the_qt_start_failure_names_the_libraries_missing_and_their_packages(monkeypatch):
     import subprocess
 
-    import app.qt_platform as qp
+    import flexvox_app.qt_platform as qp
 
     assert qp.debian_package("libxcb-icccm.so.4") == "libxcb-icccm4"
     assert qp.debian_package("libxcb-keysyms.so.1") == "libxcb-keysyms1"
@@ -332,7 +332,7 @@ def test_the_qt_start_failure_names_the_libraries_missing_and_their_packages(mon
 
 
 def test_the_drift_note_says_sub_second_drifts_in_milliseconds():
-    from app.capture.plan import CapturePlan
+    from flexvox_app.capture.plan import CapturePlan
 
     notes = " ".join(CapturePlan(camera_hz=200.0).timing().notes)
     assert "drifts one slot every" in notes and "every 0 s" not in notes, notes
@@ -370,7 +370,7 @@ def test_the_sync_wizard_asks_before_cancel_loses_work_has_browse_and_its_profil
 
 
 def test_the_phase_sweep_bar_only_goes_forward(qtbot, settings):
-    from app.gui.models.jobs import CancelToken
+    from flexvox_app.gui.models.jobs import CancelToken
 
     w = truth_window(qtbot, settings)
     wizard = w.calibrate.open_sync_wizard()
@@ -385,7 +385,7 @@ def test_the_phase_sweep_bar_only_goes_forward(qtbot, settings):
 
 
 def test_after_a_cancelled_calibration_the_steps_list_shows_the_run_the_results_show(qtbot, settings):
-    from app.gui.calibrate.workspace import STEPS, steps_html
+    from flexvox_app.gui.calibrate.workspace import STEPS, steps_html
 
     w = truth_window(qtbot, settings)
     cal = w.calibrate
@@ -414,8 +414,8 @@ def test_the_slider_s_default_step_gives_the_benched_default_tensor(review):
 
 
 def test_the_camera_rate_is_the_camera_s_own_not_its_delivery_bursts(tmp_path):
-    from app.capture.plan import CapturePlan
-    from app.capture.service import CaptureService
+    from flexvox_app.capture.plan import CapturePlan
+    from flexvox_app.capture.service import CaptureService
     from rig_drivers.profile import open_rig
     from rig_drivers.simulated_camera import VirtualClock
 
@@ -428,7 +428,7 @@ def test_the_camera_rate_is_the_camera_s_own_not_its_delivery_bursts(tmp_path):
 
 
 def test_the_close_question_s_text_follows_the_recording_while_it_is_open(qtbot):
-    from app.gui.widgets.questions import question_box
+    from flexvox_app.gui.widgets.questions import question_box
 
     frames = [3]
     box = question_box(None, "Quit flexvox?", "3 frames", accept="Quit", update=lambda: f"{frames[0]} frames")

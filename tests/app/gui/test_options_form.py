@@ -3,7 +3,7 @@
 import pytest
 from PySide6.QtWidgets import QCheckBox, QComboBox, QDoubleSpinBox, QLineEdit, QSpinBox
 
-from app.gui.widgets.options_form import OptionsForm
+from flexvox_app.gui.widgets.options_form import OptionsForm
 from flexvox_core.divisions import Division
 from flexvox_core.methods import Method, get
 

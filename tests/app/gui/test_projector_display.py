@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from PySide6.QtCore import Qt
 
-from app.gui.calibrate.workspace import CalibrateWorkspace
-from app.gui.models.rig_service import RigService
-from app.gui.projector.display import ProjectorDisplay, ScreenError, pick_screen
-from calibration.geometry import homography_error_px
+from flexvox_app.gui.calibrate.workspace import CalibrateWorkspace
+from flexvox_app.gui.models.rig_service import RigService
+from flexvox_app.gui.projector.display import ProjectorDisplay, ScreenError, pick_screen
+from flexvox_calibration.geometry import homography_error_px
 from rig_drivers.dlpc350.bitplanes import pack_bitplanes
 from tests.rig_drivers.display_rig import ScreenCamera, display_rig
 

@@ -12,10 +12,10 @@ import pytest
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QGuiApplication, QImage
 
-from app.gui.capture.workspace import CaptureWorkspace
-from app.gui.models.rig_service import RigService
-from app.gui.projector.window import ProjectorWindow, screen_label
-from app.gui.widgets.questions import answering
+from flexvox_app.gui.capture.workspace import CaptureWorkspace
+from flexvox_app.gui.models.rig_service import RigService
+from flexvox_app.gui.projector.window import ProjectorWindow, screen_label
+from flexvox_app.gui.widgets.questions import answering
 from rig_drivers.dlpc350.bitplanes import pack_bitplanes, unpack_bitplanes
 
 from .conftest import small_rig
@@ -67,7 +67,7 @@ def test_the_pattern_stays_one_image_pixel_per_device_pixel_on_a_scaled_screen(s
         import numpy as np
         from PySide6.QtGui import QImage
         from PySide6.QtWidgets import QApplication
-        from app.gui.projector.window import ProjectorWindow
+        from flexvox_app.gui.projector.window import ProjectorWindow
         from rig_drivers.dlpc350.bitplanes import pack_bitplanes
 
         app = QApplication([])

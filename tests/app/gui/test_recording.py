@@ -6,11 +6,11 @@ from functools import partial
 
 import pytest
 
-from app.capture.service import CaptureService
-from app.gui.capture.workspace import CaptureWorkspace
-from app.gui.models.recording import counters_text, result_text
-from app.gui.models.rig_service import RigService
-from app.gui.widgets.questions import Question, answering
+from flexvox_app.capture.service import CaptureService
+from flexvox_app.gui.capture.workspace import CaptureWorkspace
+from flexvox_app.gui.models.recording import counters_text, result_text
+from flexvox_app.gui.models.rig_service import RigService
+from flexvox_app.gui.widgets.questions import Question, answering
 from flexvox_core.recording import RecordingWriter, open_recording
 from rig_drivers.interfaces import DeviceState, RunState
 
@@ -172,7 +172,7 @@ def test_the_window_keeps_running_while_it_records(qtbot, capture, tmp_path):
 
 
 def test_counter_and_result_lines():
-    from app.capture.service import CaptureStats
+    from flexvox_app.capture.service import CaptureStats
 
     s = CaptureStats(frames_received=10, rows_written=9, drops=1, queue_drops=1, queue_depth=2, queue_capacity=64,
                      max_queue_depth=5, write_rate_hz=14.9, camera_rate_hz=15.0, elapsed_s=0.7)
@@ -225,8 +225,8 @@ def test_durable_and_a_second_writer_from_the_workspace(qtbot, settings, runner,
 def test_a_capture_s_events_reach_the_gui_thread_as_qt_signals(qtbot, tmp_path):
     import threading
 
-    from app.capture import CapturePlan
-    from app.gui.capture.capture_signals import CaptureSignals
+    from flexvox_app.capture import CapturePlan
+    from flexvox_app.gui.capture.capture_signals import CaptureSignals
 
     signals = CaptureSignals()
     threads, counters = set(), []

@@ -5,8 +5,8 @@ import pytest
 import tifffile
 from PySide6.QtCore import QTimer
 
-from app.gui.review.workspace import ReviewWorkspace
-from app.gui.widgets.questions import Question, answering
+from flexvox_app.gui.review.workspace import ReviewWorkspace
+from flexvox_app.gui.widgets.questions import Question, answering
 
 from .conftest import FRAMES, SIZE
 
@@ -157,7 +157,7 @@ def test_continuum_slider_changes_the_method_and_recomputes_the_preview(qtbot, o
 
 
 def test_the_slider_previews_a_fixed_tensor_beside_motion_aware_without_switching_method(qtbot, opened):
-    from app.gui.models.continuum import continuum_tensor
+    from flexvox_app.gui.models.continuum import continuum_tensor
 
     ws = opened
     ws.preview_check.setChecked(True)
@@ -211,7 +211,7 @@ def test_export_needs_something_shown(opened):
 def test_export_writes_the_shown_preview_s_method_over_every_frame(qtbot, opened, tmp_path):
     import zarr
 
-    from app.gui.models.continuum import continuum_tensor
+    from flexvox_app.gui.models.continuum import continuum_tensor
     from flexvox_core.methods import Method
 
     ws = opened
@@ -335,7 +335,7 @@ def test_dropped_frames_are_bridged_and_said(qtbot, review, tmp_path, rng):
 
 
 def test_the_method_form_is_built_from_the_registered_methods(qtbot, settings):
-    from app.gui.review.method_form import MethodForm
+    from flexvox_app.gui.review.method_form import MethodForm
     from flexvox_core.methods import Method
     from tests.flexvox_core.methods.tiny_method import frame_mean_registered
 
@@ -365,7 +365,7 @@ def test_the_method_form_is_built_from_the_registered_methods(qtbot, settings):
 
 
 def test_a_refinement_stored_before_the_default_was_in_words_does_not_come_back_as_a_number(qtbot, settings):
-    from app.gui.review.method_form import MethodForm
+    from flexvox_app.gui.review.method_form import MethodForm
 
     settings.set("review/motion-aware/refine_time", 1.0)  # where 1.0 used to stand for the default
     form = MethodForm(settings)
@@ -375,7 +375,7 @@ def test_a_refinement_stored_before_the_default_was_in_words_does_not_come_back_
     with pytest.raises(ValueError, match=r"motion-aware has no widget for 'tensor'"):
         form.widget("tensor")
     form.set_method_name("diffusion")
-    from app.gui.models.continuum import continuum_tensor
+    from flexvox_app.gui.models.continuum import continuum_tensor
 
     assert form.slider.isEnabled() and form.method().tensor == (0.15, 0.15, 1.0)  # the default step: the default
     form.set_position(0.3)
@@ -387,7 +387,7 @@ def test_a_refinement_stored_before_the_default_was_in_words_does_not_come_back_
 def test_the_expected_time_comes_from_timing_this_machine_and_is_logged_against_the_measured(qtbot, opened, caplog):
     import logging
 
-    from app.gui.models.machine_speed import SpeedModel, settings_key
+    from flexvox_app.gui.models.machine_speed import SpeedModel, settings_key
 
     ws = opened
     ws.form.set_method_name("diffusion")
@@ -398,7 +398,7 @@ def test_the_expected_time_comes_from_timing_this_machine_and_is_logged_against_
     assert "on this machine" in ws.expected_label.text() and "timing this machine" not in ws.expected_label.text()
     expected_s = ws.expected_seconds()
     assert expected_s > 0
-    with caplog.at_level(logging.INFO, logger="app.gui.models.review_model"):
+    with caplog.at_level(logging.INFO, logger="flexvox_app.gui.models.review_model"):
         r = reconstruct(qtbot, ws, "diffusion")
     assert "(expected ≈" in ws.result_label.text()
     assert any(f"measured {r.seconds:.3f} s, expected {expected_s:.3f} s" in m for m in caplog.messages)

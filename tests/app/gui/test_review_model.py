@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from app.gui.models.jobs import Cancelled, CancelToken
-from app.gui.models.review_model import Line, ReviewModel
+from flexvox_app.gui.models.jobs import Cancelled, CancelToken
+from flexvox_app.gui.models.review_model import Line, ReviewModel
 from flexvox_core.methods import Method
 
 from .conftest import FRAMES, SIZE

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from app.gui.models.review_session import ReviewSession
+from flexvox_app.gui.models.review_session import ReviewSession
 from flexvox_core.methods import Method
 from flexvox_core.multiplex import multiplexed_code
 from flexvox_core.recording import write_simulation

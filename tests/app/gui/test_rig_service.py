@@ -2,9 +2,9 @@
 
 import pytest
 
-from app.capture.rig_setup import StopError, stop_rig
-from app.gui.models.live_source import stop_live
-from app.gui.models.rig_service import RigService
+from flexvox_app.capture.rig_setup import StopError, stop_rig
+from flexvox_app.gui.models.live_source import stop_live
+from flexvox_app.gui.models.rig_service import RigService
 from rig_drivers.dlpc350 import DLPC350, FakeDLPC350Transport
 from rig_drivers.errors import DeviceError
 from rig_drivers.interfaces import DeviceState, DisplayInput, LedControl

@@ -9,8 +9,8 @@ SCRIPT = r"""
 import sys, time
 from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QApplication
-from app.gui.application import StartupWindow, launch
-from app.gui.widgets.settings import settings_at
+from flexvox_app.gui.application import StartupWindow, launch
+from flexvox_app.gui.widgets.settings import settings_at
 
 seen = {"pyqtgraph before the window": "pyqtgraph" in sys.modules}
 ticks = []
@@ -22,7 +22,7 @@ def open_the_rig():
     w = startup()
     seen["exposed"] = w.windowHandle().isExposed()
     seen["text while the rig opens"] = w.label.text()
-    seen["workspaces not loaded yet"] = "app.gui.main_window" not in sys.modules
+    seen["workspaces not loaded yet"] = "flexvox_app.gui.main_window" not in sys.modules
     QTimer.singleShot(0, w, lambda: ticks.append(time.perf_counter()))  # run by the GUI thread's event loop
     n = len(ticks)
     end = time.perf_counter() + 5

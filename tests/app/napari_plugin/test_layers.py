@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import zarr
 
-from app.napari_plugin import layers
+from flexvox_app.napari_plugin import layers
 from flexvox_core.methods import Method, reconstruct
 from flexvox_core.recording import open_recording
 from flexvox_core.video_io import write_video

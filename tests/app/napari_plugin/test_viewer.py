@@ -11,7 +11,7 @@ import pytest
 
 pytest.importorskip("napari", reason="the napari extra is not installed: pip install 'flexvox[napari]'")
 
-from app.napari_plugin.widgets import MotionWidget, ReconstructWidget  # noqa: E402
+from flexvox_app.napari_plugin.widgets import MotionWidget, ReconstructWidget  # noqa: E402
 from flexvox_core.methods import Method  # noqa: E402
 
 _NAPARI_GL_USERS = ("napari._vispy.layers.image", "napari._vispy.layers.base", "napari._vispy.layers.labels",

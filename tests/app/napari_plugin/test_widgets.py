@@ -12,7 +12,7 @@ napari = pytest.importorskip("napari", reason="the napari extra is not installed
 
 from napari.components import ViewerModel  # noqa: E402
 
-from app.napari_plugin.widgets import MotionWidget, ReconstructWidget  # noqa: E402
+from flexvox_app.napari_plugin.widgets import MotionWidget, ReconstructWidget  # noqa: E402
 from flexvox_core.methods import Method, names, specs  # noqa: E402
 
 
@@ -36,7 +36,7 @@ def test_the_manifest_is_valid_and_installed():
 
 
 def test_napari_opens_a_recording_and_a_reconstruction_with_the_plugin(viewer, recording, tmp_path):
-    from app.cli.main import main
+    from flexvox_app.cli.main import main
 
     assert main(["reconstruct", str(recording), "--method", "rebin", "-o", str(tmp_path / "v.zarr")]) == 0
     viewer.open(str(recording), plugin="flexvox")

@@ -1,7 +1,10 @@
 """Separable filters on stacks of planes (N, H, W) on the GPU, each the twin of the OpenCV or scipy call named.
 
 * :func:`blur` — ``cv2.GaussianBlur`` / ``cv2.sepFilter2D`` with given taps, reflecting (``BORDER_REFLECT``,
-  the edge repeated) or zero borders, one pass per axis;
+  the edge repeated) or zero borders, one pass per axis, on a stack of planes or a pair of stacks;
+* :func:`tap_sum` — the one separable blur of one pixel along one axis, in OpenCV's summation order, that
+  :func:`blur` and every GPU kernel fusing a blur with more work call (over :func:`reflected`, :func:`zeroed`
+  or a value computed where it is read);
 * :func:`dilate` — ``cv2.dilate`` with a square of ones (pixels outside the picture never count);
 * :func:`sobel_slopes` — :func:`flexvox_core.slopes.slopes` after its blur: Sobel's 3×3 derivatives / 8;
 * :func:`box_in_time` — ``scipy.ndimage.uniform_filter1d(v, K, axis=0, mode="nearest")``;

@@ -35,13 +35,16 @@ from flexvox_core.simulate.scenes import render_scene
 
 
 def gpu_memory_used() -> float:
-    """MiB in use on the current GPU, after numba frees what it holds for freeing later."""
+    """MiB in use on the current GPU, after numba frees what it holds for freeing later (0 under numba-cuda's
+    simulator, which has no card to ask)."""
     import gc
 
     from numba import cuda
 
     gc.collect()
     ctx = cuda.current_context()
+    if not hasattr(ctx, "deallocations"):
+        return 0.0
     ctx.deallocations.clear()
     free, total = ctx.get_memory_info()
     return (total - free) / 2**20

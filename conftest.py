@@ -2,8 +2,9 @@
 
 `make test` runs the docstring examples of ``flexvox_core`` and ``rig_drivers`` beside ``tests/``
 (``--doctest-modules``, ``testpaths`` in pyproject.toml); those of ``flexvox_app`` and ``flexvox_calibration``,
-which install under names other than their folders', run from ``tests/test_doctests.py``. Collecting them imports the ``flexvox_core.gpu`` modules too, so numba-cuda's simulator is
-chosen here, before anything imports numba's cuda module.
+which install under names other than their folders', run from ``tests/test_doctests.py``. Collecting them
+imports the ``flexvox_core.gpu`` modules too, so numba-cuda's simulator is chosen here, before anything imports
+numba's cuda module.
 """
 
 import os

@@ -3,7 +3,8 @@
 Part 1, throughput: a 1-s, 15 Hz, 640×480 clip of each scene with the 4×4 code (K = 16, 73.7 M voxels), through
 ``motion_aware(..., device="cuda")`` (the camera frames' upload and the result's download included) after one
 warm-up run that compiles the kernels; the median of ``--repeat`` runs, each stage's time, M voxels/s, the GPU
-memory the run held, and the CPU pipeline's time and PSNR on the same clip (``--no-cpu``: skip it). Real time at
+memory the run held (the card's and the workspace's, per voxel, next to the runner's estimate), and the CPU
+pipeline's time and PSNR on the same clip (``--no-cpu``: skip it). Real time at
 this size and rate is 73.7 M voxels/s.
 
 Part 2, accuracy: every motion-aware row of ``flexvox bench`` (its captures: the built-in scenes at K = 8 and 16,
@@ -25,6 +26,7 @@ import numpy as np
 
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture
+from flexvox_core.methods import Method
 from flexvox_core.metrics import psnr
 from flexvox_core.motion import motion_aware
 from flexvox_core.motion.stages import STAGES
@@ -33,27 +35,33 @@ from flexvox_core.simulate.scenes import render_scene
 
 
 def gpu_memory_used() -> float:
-    """MiB in use on the current GPU, after numba frees what it holds for freeing later."""
+    """MiB in use on the current GPU, after numba frees what it holds for freeing later (0 under numba-cuda's
+    simulator, which has no card to ask)."""
     import gc
 
     from numba import cuda
 
     gc.collect()
     ctx = cuda.current_context()
+    if not hasattr(ctx, "deallocations"):
+        return 0.0
     ctx.deallocations.clear()
     free, total = ctx.get_memory_info()
     return (total - free) / 2**20
 
 
 def on_gpu(frames, code, pairs: str):
-    """``motion_aware(frames, code, device="cuda")`` with the pairs' flow on ``pairs`` (gpu or cpu)."""
+    """``motion_aware(frames, code, device="cuda")`` with the pairs' flow on ``pairs`` (gpu or cpu), and the peak
+    of its workspace in bytes per voxel."""
     from flexvox_core.motion.gpu.engine import CudaStages
     from flexvox_core.motion.options import MotionOptions, sample_bounds
     from flexvox_core.motion.stages import Window, run_stages
 
     f = np.asarray(frames, np.float32)
     window = Window.plan(f, code, MotionOptions(), sample_bounds(f, None, None))
-    return run_stages(CudaStages(window, pairs=pairs))
+    stages = CudaStages(window, pairs=pairs)
+    result = run_stages(stages)
+    return result, stages.ws.peak_nbytes / (window.S * f.shape[1] * f.shape[2])
 
 
 def throughput(scenes, frames: int, repeat: int, cpu: bool, size=(480, 640), pairs: str = "gpu") -> None:
@@ -79,13 +87,14 @@ def throughput(scenes, frames: int, repeat: int, cpu: bool, size=(480, 640), pai
         for _ in range(repeat):
             base = gpu_memory_used()
             t0 = time.perf_counter()
-            g = on_gpu(f, code, pairs)
+            g, ws_bytes = on_gpu(f, code, pairs)
             runs.append((time.perf_counter() - t0, g))
             held = max(held, gpu_memory_used() - base)  # the run's workspace, alive with its result
         seconds = statistics.median(s for s, _ in runs)
         g = runs[0][1]
         same = all(np.array_equal(g.video, r.video) for _, r in runs[1:])
         row = {"scene": scene, "gpu_s": seconds, "warm_s": warm, "stages": g.stage_seconds, "held_mib": held,
+               "ws_bytes": ws_bytes, "estimate": Method("motion-aware").gpu_voxel_bytes(16, H, W),
                "gpu_psnr": psnr(truth, g.video), "same_bits": same, "voxels": truth.size}
         t0 = time.perf_counter()
         nc_gpu = diffuse_on_gpu(f, code, tensor=(0.05, 0.05, 1.0), time=4.0)
@@ -112,6 +121,13 @@ def throughput(scenes, frames: int, repeat: int, cpu: bool, size=(480, 640), pai
                     f"{r['cpu_s'] / r['gpu_s']:.0f}x") if "cpu_s" in r else "- | - | - | -"
         print(f"| {r['scene']} | {r['gpu_s'] * 1000:.0f} | {rate:.0f} | {rate / real_time:.1f} | {r['gpu_psnr']:.2f} | "
               f"{cpu_part} | {r['held_mib'] / 1024:.1f} | {r['same_bits']} |")
+    print("\nGPU memory per voxel (the window's sub-frames × H × W): the workspace's peak, the card's memory in use "
+          "after the run (held GiB above), and the estimate the runner sizes chunks with "
+          "(MotionAware.gpu_voxel_bytes):")
+    for r in rows:
+        card = r["held_mib"] * 2**20 / r["voxels"]
+        print(f"  {r['scene']}: workspace {r['ws_bytes']:.1f} B/voxel, card {card:.1f} B/voxel, estimate "
+              f"{r['estimate']:.1f} B/voxel" + ("" if r["ws_bytes"] <= r["estimate"] else "  EXCEEDS THE ESTIMATE"))
     print("\nGPU time per stage, ms (the first repeat; each stage synchronised):")
     print("| scene | " + " | ".join(s for s in (*STAGES, "download")) + " |")
     print("|---|" + "---|" * (len(STAGES) + 1))

@@ -110,11 +110,17 @@ def sanitize_flow(flow: np.ndarray, confidence: np.ndarray | None = None, *, max
     return flow.astype(np.float32, copy=False), conf
 
 
+def flow_size(H: int, W: int, scale: float) -> tuple[int, int]:
+    """The size (h, w) :func:`downscale` gives an H×W picture at ``scale``: never below :data:`MIN_FLOW_SIDE` px,
+    never above the picture."""
+    return min(H, max(MIN_FLOW_SIDE, round(H * scale))), min(W, max(MIN_FLOW_SIDE, round(W * scale)))
+
+
 def downscale(v: np.ndarray, scale: float) -> np.ndarray:
     """The video resized by ``scale`` (area average, never below :data:`MIN_FLOW_SIDE` px), float32.
     Flow runs at this size, and so does everything computed from the video before it."""
     S, H, W = v.shape
-    h, w = min(H, max(MIN_FLOW_SIDE, round(H * scale))), min(W, max(MIN_FLOW_SIDE, round(W * scale)))
+    h, w = flow_size(H, W, scale)
     if (h, w) == (H, W):
         return v.astype(np.float32, copy=False)
     out = np.empty((S, h, w), np.float32)

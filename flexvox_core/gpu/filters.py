@@ -1,7 +1,10 @@
 """Separable filters on stacks of planes (N, H, W) on the GPU, each the twin of the OpenCV or scipy call named.
 
 * :func:`blur` — ``cv2.GaussianBlur`` / ``cv2.sepFilter2D`` with given taps, reflecting (``BORDER_REFLECT``,
-  the edge repeated) or zero borders, one pass per axis;
+  the edge repeated) or zero borders, one pass per axis, on a stack of planes or a pair of stacks;
+* :func:`tap_sum` — the one separable blur of one pixel along one axis, in OpenCV's summation order, that
+  :func:`blur` and every GPU kernel fusing a blur with more work call (over :func:`reflected`, :func:`zeroed`
+  or a value computed where it is read);
 * :func:`dilate` — ``cv2.dilate`` with a square of ones (pixels outside the picture never count);
 * :func:`sobel_slopes` — :func:`flexvox_core.slopes.slopes` after its blur: Sobel's 3×3 derivatives / 8;
 * :func:`box_in_time` — ``scipy.ndimage.uniform_filter1d(v, K, axis=0, mode="nearest")``;
@@ -30,52 +33,111 @@ def gaussian_taps(sigma: float, size: int | None = None) -> np.ndarray:
 
 
 @device
-def _at(src, n, y, x, H, W, mirror):
-    """``src[n, y, x]`` with the picture reflected past its edges, or 0 there."""
-    if mirror:
-        return src[n, reflect(y, H), reflect(x, W)]
+def reflected(src, n, y, x, H, W):
+    """``src[n, y, x]`` with the picture reflected past its edges (the edge repeated: ``BORDER_REFLECT``)."""
+    return src[n, reflect(y, H), reflect(x, W)]
+
+
+@device
+def zeroed(src, n, y, x, H, W):
+    """``src[n, y, x]``, 0 past the picture's edges (``BORDER_CONSTANT``)."""
     if y < 0 or y >= H or x < 0 or x >= W:
         return np.float32(0)
     return src[n, y, x]
 
 
+@device
+def tap_sum(value, src, n, y, x, H, W, taps, axis):
+    """The blur of one pixel along one axis: the odd, symmetric float32 ``taps`` (h = len // 2 each side) centred
+    on (y, x) of plane n, over ``value(src, n, y', x', H, W)`` (:func:`reflected`, :func:`zeroed`, or a value
+    computed where it is read). Summed in float32 in OpenCV's order, the same in every kernel: along x (axis 2,
+    OpenCV's row pass) left to right, Σ taps[t]·v[x + t − h]; along y (axis 1, its column pass of a symmetric
+    kernel) the centre first, then taps[h + t]·(v[y − t] + v[y + t]) for t = 1 … h."""
+    h = taps.shape[0] // 2
+    if axis == 2:
+        acc = np.float32(0)
+        for t in range(taps.shape[0]):
+            acc += taps[t] * value(src, n, y, x + t - h, H, W)
+        return acc
+    acc = taps[h] * value(src, n, y, x, H, W)
+    for t in range(1, h + 1):
+        acc += taps[h + t] * (value(src, n, y - t, x, H, W) + value(src, n, y + t, x, H, W))
+    return acc
+
+
 @kernel("void(float32[:, :, ::1], float32[:, :, ::1], float32[::1], int32, uint8)")
 def _blur_pass(src, dst, taps, axis, mirror):
+    """One pass of :func:`blur` along y (axis 1) or x (axis 2), reflecting (``mirror``) or zero borders."""
     i = cuda.grid(1)
     N, H, W = src.shape
     if i >= N * H * W:
         return
     n, y, x = voxel(i, H, W)
-    r = taps.shape[0] // 2
-    acc = np.float32(0)
-    if axis == 1:
-        for t in range(-r, r + 1):
-            acc += taps[t + r] * _at(src, n, y + t, x, H, W, mirror)
+    if mirror:
+        dst[n, y, x] = tap_sum(reflected, src, n, y, x, H, W, taps, axis)
     else:
-        for t in range(-r, r + 1):
-            acc += taps[t + r] * _at(src, n, y, x + t, H, W, mirror)
-    dst[n, y, x] = acc
+        dst[n, y, x] = tap_sum(zeroed, src, n, y, x, H, W, taps, axis)
 
 
-def blur(ws, src, dst, taps_y, taps_x, *, reflect: bool = True, tag: str = "blur") -> None:
-    """``dst`` = ``src`` (N, H, W) float32 filtered along rows by ``taps_y`` then columns by ``taps_x`` (host
-    float32 arrays of odd length, None: not along that axis); ``dst`` may be ``src``."""
-    n = int(math.prod(src.shape))
-    passes = [(1, t) for t in (taps_y,) if t is not None] + [(2, t) for t in (taps_x,) if t is not None]
-    if not passes:
-        if dst is not src:
-            dst.copy_to_device(src)
+@kernel("void(float32[:, :, ::1], float32[:, :, ::1], float32[:, :, ::1], float32[:, :, ::1], float32[::1], int32, "
+        "uint8)")
+def _blur_pass2(src, src2, dst, dst2, taps, axis, mirror):
+    """One pass of :func:`blur` over two stacks of planes at once (one thread reads both)."""
+    i = cuda.grid(1)
+    N, H, W = src.shape
+    if i >= N * H * W:
         return
-    tmp = ws.get(f"{tag}.tmp", src.shape)
-    cur = src
+    n, y, x = voxel(i, H, W)
+    if mirror:
+        dst[n, y, x] = tap_sum(reflected, src, n, y, x, H, W, taps, axis)
+        dst2[n, y, x] = tap_sum(reflected, src2, n, y, x, H, W, taps, axis)
+    else:
+        dst[n, y, x] = tap_sum(zeroed, src, n, y, x, H, W, taps, axis)
+        dst2[n, y, x] = tap_sum(zeroed, src2, n, y, x, H, W, taps, axis)
+
+
+def symmetric_taps(taps, name: str = "taps") -> np.ndarray:
+    """``taps`` as a contiguous float32 array, checked odd in length and symmetric (what :func:`tap_sum` sums)."""
+    t = np.ascontiguousarray(taps, np.float32)
+    if t.ndim != 1 or t.size % 2 != 1 or not np.array_equal(t, t[::-1]):
+        raise ValueError(f"`{name}` must be a 1-D kernel of odd length, symmetric about its centre; got {t!r}")
+    return t
+
+
+def blur(ws, src, dst, taps_y, taps_x, *, reflect: bool = True, tag: str = "blur", scratch=None) -> None:
+    """``dst`` = ``src`` (N, H, W) float32 filtered along x by ``taps_x``, then along y by ``taps_y`` (host float32
+    arrays, odd and symmetric; None: not along that axis), as ``cv2.sepFilter2D(src, -1, taps_x, taps_y)`` with
+    ``BORDER_REFLECT`` (``reflect``) or ``BORDER_CONSTANT`` (0) and float32 sums in its order (:func:`tap_sum`).
+    ``dst`` may be ``src``. Two stacks at once: ``src`` and ``dst`` pairs of stacks of one shape. ``scratch``:
+    the plane stack (a pair with pairs) between the passes; None: the workspace's ``{tag}.tmp``."""
+    pair = isinstance(src, tuple)
+    srcs, dsts = (src, dst) if pair else ((src,), (dst,))
+    passes = [(2, t) for t in (taps_x,) if t is not None] + [(1, t) for t in (taps_y,) if t is not None]
+    if not passes:
+        for s, d in zip(srcs, dsts, strict=True):
+            if d is not s:
+                d.copy_to_device(s)
+        return
+    shape = tuple(srcs[0].shape)
+    if scratch is None:
+        tmps = tuple(ws.get(f"{tag}.tmp{'' if k == 0 else k + 1}", shape) for k in range(len(srcs)))
+    else:
+        tmps = tuple(scratch) if pair else (scratch,)
+    n = int(math.prod(shape))
+    cur = srcs
     for k, (axis, taps) in enumerate(passes):
-        out = dst if k == len(passes) - 1 else tmp
-        if out is cur:  # in place: through the scratch plane
-            out = tmp if cur is not tmp else dst
-        launch(_blur_pass, n, cur, out, ws.put(f"{tag}.taps{axis}", taps), np.int32(axis), np.uint8(reflect))
+        last = k == len(passes) - 1
+        out = dsts if last and dsts[0] is not cur[0] else tmps
+        if out[0] is cur[0]:  # one pass in place: through the scratch planes
+            out = tmps
+        args = (*cur, *out) if pair else (cur[0], out[0])
+        launch(_blur_pass2 if pair else _blur_pass, n, *args,
+               ws.put(f"{tag}.taps{axis}", symmetric_taps(taps, "taps_x" if axis == 2 else "taps_y")),
+               np.int32(axis), np.uint8(reflect))
         cur = out
-    if cur is not dst:
-        dst.copy_to_device(cur)
+    for c, d in zip(cur, dsts, strict=True):
+        if c is not d:
+            d.copy_to_device(c)
 
 
 @kernel("void(uint8[:, :, ::1], uint8[:, :, ::1], int32, int32)")

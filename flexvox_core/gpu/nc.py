@@ -7,11 +7,12 @@ r"""Normalized convolution with a constant tensor on the GPU: :func:`~flexvox_co
 
 with G the separable Gaussian of covariance 2·n·diag(cx, cy, ct), cut at 4 σ, reflecting ends (the edge
 repeated, as OpenCV's ``BORDER_REFLECT``), applied along time first (each pixel's own samples, with the
-weights :func:`~flexvox_core.reconstruct.diffusion.time_weights` computes on the host), then rows, then
-columns. The result is clipped to the samples' range and keeps the samples. Voxels whose blurred mask is
-at or below :data:`~flexvox_core.reconstruct.diffusion.NC_MIN_WEIGHT` of the kernel's peak (no sample in
-reach: rare, and only with tiny kernels) are counted; the caller then computes the volume on the CPU, which
-gives them their nearest sample.
+weights :func:`~flexvox_core.reconstruct.diffusion.time_weights` computes on the host), then along x and y
+(:func:`~flexvox_core.gpu.filters.blur` on the two volumes at once, OpenCV's order). The result is clipped to
+the samples' range and keeps the samples. Voxels whose blurred mask is at or below
+:data:`~flexvox_core.reconstruct.diffusion.NC_MIN_WEIGHT` of the kernel's peak (no sample in reach: rare, and
+only with tiny kernels) are counted; the caller then computes the volume on the CPU, which gives them their
+nearest sample.
 """
 
 from __future__ import annotations
@@ -21,7 +22,8 @@ import math
 import numpy as np
 from numba import cuda
 
-from flexvox_core.gpu.index import reflect, voxel
+from flexvox_core.gpu.filters import blur
+from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import kernel, launch
 from flexvox_core.reconstruct.diffusion import NC_MIN_WEIGHT, _peak, gaussian_kernel, sigmas, time_weights
 
@@ -45,34 +47,6 @@ def _time_pass(frames, order, weight, first, num, den):
             d += w
     num[s, y, x] = acc
     den[s, y, x] = d
-
-
-@kernel("void(float32[:, :, ::1], float32[:, :, ::1], float32[:, :, ::1], float32[:, :, ::1], float32[::1], "
-        "int32)")
-def _blur_axis(num, den, num_out, den_out, taps, axis):
-    """One separable pass along rows (axis 1) or columns (axis 2) of two volumes, reflecting ends."""
-    i = cuda.grid(1)
-    S, H, W = num.shape
-    if i >= S * H * W:
-        return
-    s, y, x = voxel(i, H, W)
-    r = taps.shape[0] // 2
-    a = np.float32(0)
-    b = np.float32(0)
-    if axis == 1:
-        for t in range(-r, r + 1):
-            yy = reflect(y + t, H)
-            w = taps[t + r]
-            a += w * num[s, yy, x]
-            b += w * den[s, yy, x]
-    else:
-        for t in range(-r, r + 1):
-            xx = reflect(x + t, W)
-            w = taps[t + r]
-            a += w * num[s, y, xx]
-            b += w * den[s, y, xx]
-    num_out[s, y, x] = a
-    den_out[s, y, x] = b
 
 
 @kernel("void(float32[:, :, ::1], float32[:, :, ::1], float32[:, :, ::1], int32[:, ::1], uint8[::1], float32, "
@@ -121,15 +95,9 @@ def nc(ws, frames_d, order_d, present_d, plan: NcPlan, lo: float, hi: float, out
     weight = ws.put(f"{tag}.weight", plan.weight)
     first = ws.put(f"{tag}.first", plan.first)
     launch(_time_pass, n, frames_d, order_d, weight, first, num, den)
-    for axis, taps in ((1, plan.gy), (2, plan.gx)):
-        if taps is None:
-            continue
-        num2 = ws.get(f"{tag}.num2", (S, H, W))
-        den2 = ws.get(f"{tag}.den2", (S, H, W))
-        launch(_blur_axis, n, num, den, num2, den2, ws.put(f"{tag}.taps{axis}", taps), np.int32(axis))
-        ws._buffers[f"{tag}.num"], ws._buffers[f"{tag}.num2"] = num2, num
-        ws._buffers[f"{tag}.den"], ws._buffers[f"{tag}.den2"] = den2, den
-        num, den = num2, den2
+    if plan.gx is not None or plan.gy is not None:
+        scratch = (ws.get(f"{tag}.num2", (S, H, W)), ws.get(f"{tag}.den2", (S, H, W)))
+        blur(ws, (num, den), (num, den), plan.gy, plan.gx, tag=tag, scratch=scratch)
     low = ws.put(f"{tag}.low", np.zeros(1, np.int32))
     launch(_finish, n, num, den, frames_d, order_d, present_d, np.float32(plan.floor), np.float32(lo),
            np.float32(hi), np.uint8(keep_samples), out, low)

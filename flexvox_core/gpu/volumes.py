@@ -24,6 +24,9 @@ class Workspace:
         self._held: dict[str, object] = {}
         self.generation = 0
         """How many windows have run on the workspace: a result whose buffers a later window overwrote knows it."""
+        self.peak_nbytes = 0
+        """The most device memory the workspace has held at once (:attr:`nbytes` after each allocation): what
+        :attr:`~flexvox_core.methods.spec.MethodSpec.gpu_bytes_per_voxel` is checked against."""
 
     def next_generation(self) -> int:
         """A new window starts on the workspace: its generation."""
@@ -38,6 +41,7 @@ class Workspace:
         if buf is None or tuple(buf.shape) != shape or np.dtype(buf.dtype) != dtype:
             buf = cuda.device_array(shape, dtype)
             self._buffers[name] = buf
+            self.peak_nbytes = max(self.peak_nbytes, self.nbytes)
         return buf
 
     def put(self, name: str, array: np.ndarray):
@@ -54,6 +58,7 @@ class Workspace:
         if obj is None or not fits(obj):
             self._held.pop(name, None)  # freed before its successor is made
             obj = self._held[name] = make()
+            self.peak_nbytes = max(self.peak_nbytes, self.nbytes)
         return obj
 
     def drop(self, *names: str) -> None:

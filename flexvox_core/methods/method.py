@@ -135,6 +135,11 @@ class Method:
         """The longest run of dropped camera frames it bridges for a code of K slots."""
         return self._spec.max_gap(self._options, K)
 
+    def gpu_voxel_bytes(self, K: int, H: int, W: int) -> float:
+        """Device memory a GPU run holds per voxel of a chunk of H×W pictures at K slots
+        (:meth:`MethodSpec.gpu_voxel_bytes <flexvox_core.methods.spec.MethodSpec.gpu_voxel_bytes>`; 0: not known)."""
+        return self._spec.gpu_voxel_bytes(self._options, K, H, W)
+
     def cpu_only(self, code) -> str | None:
         """Why it runs on the CPU with this code even when the GPU is asked for, or None
         (:meth:`MethodSpec.cpu_only <flexvox_core.methods.spec.MethodSpec.cpu_only>`)."""

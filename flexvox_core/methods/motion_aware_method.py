@@ -23,6 +23,21 @@ from flexvox_core.motion.stages import cuda_unsupported
 __all__ = ["MOTION_AWARE", "REFINE_SHOWN", "MotionAware"]
 
 
+GPU_VOLUME_BYTES = 140
+"""Bytes per voxel of the GPU engine's full-size volumes: 30 float32 (S, H, W) volumes, the flow (8 bytes) and
+9 uint8 ones (137), and the taps and tables (:meth:`MotionAware.gpu_voxel_bytes`)."""
+GPU_FRAME_BYTES = 24
+"""Bytes per pixel of each camera frame: the frames, the leave-one-out estimates, the local choice's weights and
+the other estimate, the noise's differences (5 float32 planes, 21 bytes)."""
+GPU_FLOW_BYTES = 96
+"""Bytes per voxel of the flow's grid: its shrunk videos, velocities and flows, and DIS's pyramids (86 fitted)."""
+GPU_FLOW_FRAME_BYTES = 128
+"""Bytes per pixel of the flow's grid per camera frame: the K-average's flows (a pair every K/4 sub-frames) and
+DIS's for them (121 fitted)."""
+GPU_FLOW_PAD = 24
+"""Pixels added to each side of the flow's grid: small flow images hold more per pixel (DIS's coarse levels)."""
+
+
 def _option(f) -> Option:
     """The motion-aware method's option for a field of :class:`MotionOptions`, from its declaration (its rule, kind
     and what a form shows are the field's metadata: one place for each)."""
@@ -53,8 +68,27 @@ class MotionAware(MethodSpec):
     takes_missing = True
     takes_multiplexed = True
 
-    gpu_bytes_per_voxel = 136
-    """About 30 float32 volumes and 9 byte volumes (flexvox_core.motion.gpu.engine's workspace)."""
+    def gpu_voxel_bytes(self, options: MotionOptions, K: int, H: int, W: int) -> float:
+        """Device memory per voxel of a window (S = F·K sub-frames of H×W) on the GPU: an upper bound of the
+        engine's :attr:`Workspace.peak_nbytes <flexvox_core.gpu.volumes.Workspace.peak_nbytes>` ÷ (S·H·W),
+
+        GPU_VOLUME_BYTES + GPU_FRAME_BYTES / K + a·(GPU_FLOW_BYTES + GPU_FLOW_FRAME_BYTES / K),
+
+        a = (max(h, 16) + GPU_FLOW_PAD)·(max(w, 16) + GPU_FLOW_PAD) / (H·W), h×w the flow's size
+        (:func:`~flexvox_core.flow.estimate.flow_size`; DIS's images are padded to 16 px and its coarsest levels
+        and patch grids weigh more on small ones). Derived from the workspace of every stage with two passes,
+        every branch taken (still and slow voxels, noise, the local choice), at 81 sizes from 8×8 to
+        1920×1080 at K = 4 and 16: the bound holds at each, with 3 % to spare at 1920×1080, 5 % at 640×480
+        (149.5 bytes measured at K = 16; 156.3 estimated), 23 % at 160×120 (232.3). One pass, the default,
+        holds 8 bytes less. Reproduce:
+        ``NUMBA_ENABLE_CUDASIM=1 python -m tests.flexvox_core.gpu.workspace_size`` (the table;
+        ``tests/flexvox_core/gpu/test_workspace_size.py`` fails where a run holds more); on a card
+        ``bench/bench_gpu.py`` prints the bytes a run held next to this figure."""
+        from flexvox_core.flow.estimate import MIN_FLOW_SIDE, flow_size
+
+        h, w = flow_size(H, W, auto_flow_scale(H, W) if options.flow_scale is None else options.flow_scale)
+        a = (max(h, MIN_FLOW_SIDE) + GPU_FLOW_PAD) * (max(w, MIN_FLOW_SIDE) + GPU_FLOW_PAD) / (H * W)
+        return GPU_VOLUME_BYTES + GPU_FRAME_BYTES / K + a * (GPU_FLOW_BYTES + GPU_FLOW_FRAME_BYTES / K)
 
     def cpu_only(self, options, code) -> str | None:
         if not is_identity_code(code):

@@ -134,12 +134,12 @@ GPU_MEMORY_SHARE = 0.8
 
 def gpu_chunk_frames(method: Method, K: int, H: int, W: int, n_frames: int, chunk_frames: int | None) -> int | None:
     """``chunk_frames`` shortened so that a chunk and its context fit the GPU's free memory (at most
-    :data:`GPU_MEMORY_SHARE` of it, :attr:`~flexvox_core.methods.spec.MethodSpec.gpu_bytes_per_voxel`); unchanged
+    :data:`GPU_MEMORY_SHARE` of it, :meth:`~flexvox_core.methods.method.Method.gpu_voxel_bytes`); unchanged
     when it fits or the free memory is not known. ``ValueError`` when not even one frame with its context fits."""
     from flexvox_core.gpu.device import free_memory
 
     free = free_memory()
-    per_voxel = method.spec.gpu_bytes_per_voxel
+    per_voxel = method.gpu_voxel_bytes(K, H, W)
     if free is None or not per_voxel:
         return chunk_frames
     overlap = method.overlap(K) or 0

@@ -156,7 +156,12 @@ class MethodSpec(ABC):
 
     gpu_bytes_per_voxel: int = 0
     """Device memory a GPU run holds per voxel of a chunk (its context included); the runner shortens chunks that
-    would not fit the card's free memory."""
+    would not fit the card's free memory (:meth:`gpu_voxel_bytes`)."""
+
+    def gpu_voxel_bytes(self, options, K: int, H: int, W: int) -> float:
+        """Device memory a GPU run holds per voxel of a chunk of H×W pictures at K slots (its context included);
+        0: not known. Default: :attr:`gpu_bytes_per_voxel`."""
+        return self.gpu_bytes_per_voxel
 
     def cpu_only(self, options, code) -> str | None:
         """Why this method runs on the CPU with these options and code even when the GPU is asked for (a short

@@ -28,7 +28,7 @@ import math
 import numpy as np
 from numba import cuda
 
-from flexvox_core.gpu.filters import gaussian_taps
+from flexvox_core.gpu.filters import blur, gaussian_taps, reflected, tap_sum
 from flexvox_core.gpu.index import reflect, voxel
 from flexvox_core.gpu.launch import device, kernel, launch
 from flexvox_core.gpu.resize import area_table, linear_table
@@ -71,6 +71,21 @@ def _weight(pa, pb, power):
     return np.float32(1)
 
 
+@device
+def _error_a(loo, f, r, c, H, W):
+    """e_a at (r, c) of frame f, c reflected: ``loo`` the pair (a, b) and the samples (a value
+    :func:`~flexvox_core.gpu.filters.tap_sum` reads)."""
+    ea, _ = _error(loo[0], loo[1], loo[2], f, r, reflect(c, W))
+    return ea
+
+
+@device
+def _error_b(loo, f, r, c, H, W):
+    """e_b at (r, c) of frame f, c reflected."""
+    _, eb = _error(loo[0], loo[1], loo[2], f, r, reflect(c, W))
+    return eb
+
+
 @kernel(f"void({F3}, {F3}, {F3}, float32[::1], {F3}, {F3})")
 def _errors_x(a, b, y, taps, ra, rb):
     """The errors of every frame blurred along x (reflecting)."""
@@ -79,15 +94,8 @@ def _errors_x(a, b, y, taps, ra, rb):
     if i >= F * H * W:
         return
     f, r, c = voxel(i, H, W)
-    h = taps.shape[0] // 2
-    sa = np.float32(0)
-    sb = np.float32(0)
-    for t in range(taps.shape[0]):
-        ea, eb = _error(a, b, y, f, r, reflect(c + t - h, W))
-        sa += taps[t] * ea
-        sb += taps[t] * eb
-    ra[f, r, c] = sa
-    rb[f, r, c] = sb
+    ra[f, r, c] = tap_sum(_error_a, (a, b, y), f, r, c, H, W, taps, 2)
+    rb[f, r, c] = tap_sum(_error_b, (a, b, y), f, r, c, H, W, taps, 2)
 
 
 @kernel(f"void({F3}, {F3}, {F3}, int32[::1], int32[::1], float32[:, ::1], int32[::1], int32[::1], "
@@ -114,51 +122,6 @@ def _area_errors(a, b, y, x0, xn, xw, y0, yn, yw, sa, sb):
     sb[f, dy, dx] = acc_b
 
 
-@kernel(f"void({F3}, {F3}, float32[::1], {F3}, {F3})")
-def _blur_x2(pa, pb, taps, oa, ob):
-    """Two stacks of planes blurred along x (reflecting)."""
-    i = cuda.grid(1)
-    F, H, W = oa.shape
-    if i >= F * H * W:
-        return
-    f, r, c = voxel(i, H, W)
-    h = taps.shape[0] // 2
-    sa = np.float32(0)
-    sb = np.float32(0)
-    for t in range(taps.shape[0]):
-        cc = reflect(c + t - h, W)
-        sa += taps[t] * pa[f, r, cc]
-        sb += taps[t] * pb[f, r, cc]
-    oa[f, r, c] = sa
-    ob[f, r, c] = sb
-
-
-@device
-def _blur_y_at(pa, pb, taps, f, r, c, H):
-    """Two stacks of planes blurred along y at one pixel (reflecting; OpenCV's symmetric column sums)."""
-    h = taps.shape[0] // 2
-    sa = taps[h] * pa[f, r, c]
-    sb = taps[h] * pb[f, r, c]
-    for t in range(1, h + 1):
-        up = reflect(r - t, H)
-        down = reflect(r + t, H)
-        sa += taps[h + t] * (pa[f, up, c] + pa[f, down, c])
-        sb += taps[h + t] * (pb[f, up, c] + pb[f, down, c])
-    return sa, sb
-
-
-@kernel(f"void({F3}, {F3}, float32[::1], {F3}, {F3})")
-def _blur_y2(pa, pb, taps, oa, ob):
-    i = cuda.grid(1)
-    F, H, W = oa.shape
-    if i >= F * H * W:
-        return
-    f, r, c = voxel(i, H, W)
-    sa, sb = _blur_y_at(pa, pb, taps, f, r, c, H)
-    oa[f, r, c] = sa
-    ob[f, r, c] = sb
-
-
 @kernel(f"void({F3}, {F3}, float32[::1], int32, {F3})")
 def _blur_y2_weights(pa, pb, taps, power, out):
     """The column pass of the full-size pooling, and the weight from it."""
@@ -167,7 +130,8 @@ def _blur_y2_weights(pa, pb, taps, power, out):
     if i >= F * H * W:
         return
     f, r, c = voxel(i, H, W)
-    sa, sb = _blur_y_at(pa, pb, taps, f, r, c, H)
+    sa = tap_sum(reflected, pa, f, r, c, H, W, taps, 1)
+    sb = tap_sum(reflected, pb, f, r, c, H, W, taps, 1)
     out[f, r, c] = _weight(sa, sb, power)
 
 
@@ -234,9 +198,8 @@ def local_weights(ws, loo_a, loo_b, samples, out, *, sigma: float, power: int = 
     launch(_area_errors, F * h * w, loo_a, loo_b, samples, ws.put("choice.pool.x0", x0),
            ws.put("choice.pool.xn", xn), ws.put("choice.pool.xw", xw), ws.put("choice.pool.y0", y0),
            ws.put("choice.pool.yn", yn), ws.put("choice.pool.yw", yw), sa, sb)
-    taps = ws.put("choice.pool.taps", gaussian_taps(sigma / step))
-    launch(_blur_x2, F * h * w, sa, sb, taps, ta, tb)
-    launch(_blur_y2, F * h * w, ta, tb, taps, sa, sb)
+    taps = gaussian_taps(sigma / step)
+    blur(ws, (sa, sb), (sa, sb), taps, taps, tag="choice.pool", scratch=(ta, tb))
     xl, xlw = linear_table(w, W)
     yl, ylw = linear_table(h, H)
     launch(_linear_weights, n, sa, sb, ws.put("choice.pool.xl", xl), ws.put("choice.pool.xlw", xlw),

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from numba import cuda
 
-from flexvox_core.gpu.filters import gaussian_taps
+from flexvox_core.gpu.filters import blur, gaussian_taps, reflected, tap_sum
 from flexvox_core.gpu.index import reflect, voxel
 from flexvox_core.gpu.launch import device, kernel, launch
 from flexvox_core.reconstruct.oriented_nc import _HIGH, _LOW, _TAN, PRE_SIGMA, RHO
@@ -27,36 +27,6 @@ from flexvox_core.reconstruct.oriented_nc_kernel import bank_of
 
 F3 = "float32[:, :, ::1]"
 U3 = "uint8[:, :, ::1]"
-
-
-@kernel(f"void({F3}, float32[::1], {F3})")
-def _blur_x(src, taps, dst):
-    """Every plane blurred along x (reflecting)."""
-    i = cuda.grid(1)
-    S, H, W = dst.shape
-    if i >= S * H * W:
-        return
-    s, y, x = voxel(i, H, W)
-    h = taps.shape[0] // 2
-    acc = np.float32(0)
-    for t in range(taps.shape[0]):
-        acc += taps[t] * src[s, y, reflect(x + t - h, W)]
-    dst[s, y, x] = acc
-
-
-@kernel(f"void({F3}, float32[::1], {F3})")
-def _blur_y(src, taps, dst):
-    """Every plane blurred along y (reflecting; OpenCV's symmetric column sums)."""
-    i = cuda.grid(1)
-    S, H, W = dst.shape
-    if i >= S * H * W:
-        return
-    s, y, x = voxel(i, H, W)
-    h = taps.shape[0] // 2
-    acc = taps[h] * src[s, y, x]
-    for t in range(1, h + 1):
-        acc += taps[h + t] * (src[s, reflect(y - t, H), x] + src[s, reflect(y + t, H), x])
-    dst[s, y, x] = acc
 
 
 @device
@@ -76,6 +46,27 @@ def _sobel_at(p, s, y, x, H, W):
     return gx, (bottom - top) * eighth
 
 
+@device
+def _gxx(p, s, y, x, H, W):
+    """∂x² of plane s at (y, x), x reflected (a value :func:`~flexvox_core.gpu.filters.tap_sum` reads)."""
+    gx, _ = _sobel_at(p, s, y, reflect(x, W), H, W)
+    return gx * gx
+
+
+@device
+def _gxy(p, s, y, x, H, W):
+    """∂x·∂y of plane s at (y, x), x reflected."""
+    gx, gy = _sobel_at(p, s, y, reflect(x, W), H, W)
+    return gx * gy
+
+
+@device
+def _gyy(p, s, y, x, H, W):
+    """∂y² of plane s at (y, x), x reflected."""
+    _, gy = _sobel_at(p, s, y, reflect(x, W), H, W)
+    return gy * gy
+
+
 @kernel(f"void({F3}, float32[::1], {F3}, {F3}, {F3})")
 def _products_x(p, taps, rxx, rxy, ryy):
     """The gradient products of every plane of the blurred guide ``p``, blurred along x (reflecting)."""
@@ -84,16 +75,9 @@ def _products_x(p, taps, rxx, rxy, ryy):
     if i >= S * H * W:
         return
     s, y, x = voxel(i, H, W)
-    h = taps.shape[0] // 2
-    axx = np.float32(0)
-    axy = np.float32(0)
-    ayy = np.float32(0)
-    for t in range(taps.shape[0]):
-        gx, gy = _sobel_at(p, s, y, reflect(x + t - h, W), H, W)
-        g = taps[t]
-        axx += g * (gx * gx)
-        axy += g * (gx * gy)
-        ayy += g * (gy * gy)
+    axx = tap_sum(_gxx, p, s, y, x, H, W, taps, 2)
+    axy = tap_sum(_gxy, p, s, y, x, H, W, taps, 2)
+    ayy = tap_sum(_gyy, p, s, y, x, H, W, taps, 2)
     rxx[s, y, x] = axx
     rxy[s, y, x] = axy
     ryy[s, y, x] = ayy
@@ -111,17 +95,9 @@ def _structure_y(rxx, rxy, ryy, taps, bank, j, keep):
     if i >= S * H * W:
         return
     s, y, x = voxel(i, H, W)
-    h = taps.shape[0] // 2
-    jxx = taps[h] * rxx[s, y, x]
-    jxy = taps[h] * rxy[s, y, x]
-    jyy = taps[h] * ryy[s, y, x]
-    for t in range(1, h + 1):
-        up = reflect(y - t, H)
-        down = reflect(y + t, H)
-        g = taps[h + t]
-        jxx += g * (rxx[s, up, x] + rxx[s, down, x])
-        jxy += g * (rxy[s, up, x] + rxy[s, down, x])
-        jyy += g * (ryy[s, up, x] + ryy[s, down, x])
+    jxx = tap_sum(reflected, rxx, s, y, x, H, W, taps, 1)
+    jxy = tap_sum(reflected, rxy, s, y, x, H, W, taps, 1)
+    jyy = tap_sum(reflected, ryy, s, y, x, H, W, taps, 1)
     bank[s, y, x] = _bank_index(float(jxx), float(jxy), float(jyy), _LOW, _HIGH, _TAN)
     if keep:
         j[0, s, y, x] = jxx
@@ -136,10 +112,9 @@ def structure_bank(ws, guide, bank, j=None) -> None:
     S, H, W = guide.shape
     n = S * H * W
     v0, v1, v2, v3 = (ws.get(f"choice.vol{k}", (S, H, W)) for k in range(4))
-    pre = ws.put("choice.taps.pre", gaussian_taps(PRE_SIGMA))
     rho = ws.put("choice.taps.rho", gaussian_taps(RHO))
-    launch(_blur_x, n, guide, pre, v0)
-    launch(_blur_y, n, v0, pre, v1)
+    pre = gaussian_taps(PRE_SIGMA)
+    blur(ws, guide, v1, pre, pre, tag="choice.pre", scratch=v0)
     launch(_products_x, n, v1, rho, v0, v2, v3)
     keep = j is not None
     if not keep:

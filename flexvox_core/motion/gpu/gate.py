@@ -17,7 +17,7 @@ import numpy as np
 from numba import cuda
 
 from flexvox_core.flow.baseline import blend, default_stride, measurements
-from flexvox_core.flow.estimate import MIN_FLOW_SIDE
+from flexvox_core.flow.estimate import MIN_FLOW_SIDE, flow_size
 from flexvox_core.gpu.filters import box_in_time
 from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import device, kernel, launch
@@ -26,12 +26,6 @@ from flexvox_core.motion.gated_flow import takes_slow
 
 PAIRS = ("gpu", "cpu")
 """Where the pairs' optical flow runs."""
-
-
-def flow_size(H: int, W: int, scale: float) -> tuple[int, int]:
-    """The size :func:`flexvox_core.flow.estimate.downscale` gives."""
-    h, w = min(H, max(MIN_FLOW_SIDE, round(H * scale))), min(W, max(MIN_FLOW_SIDE, round(W * scale)))
-    return h, w
 
 
 def shrink(ws, video, scale: float, tag: str):

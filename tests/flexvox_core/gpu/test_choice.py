@@ -295,7 +295,7 @@ def test_the_kernels_compile_for_a_gpu_without_one():
     done = subprocess.run([sys.executable, "-c", script], env=env, cwd=root, capture_output=True, text=True,
                           timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]
-    assert int(done.stdout.split()[-1]) >= 15
+    assert int(done.stdout.split()[-1]) >= 11
 
 
 # ------------------------------------------------------------------------------------------- on a card, full size

@@ -113,8 +113,8 @@ def test_chunks_shrink_to_fit_the_cards_free_memory(monkeypatch):
     from flexvox_core.methods.runner import gpu_chunk_frames
 
     method = Method("motion-aware")  # 4 frames of context each side at K = 16
-    per_frame = 136 * 16 * 480 * 640
-    monkeypatch.setattr(device, "free_memory", lambda: int(12 * per_frame / 0.8))
+    per_frame = method.gpu_voxel_bytes(16, 480, 640) * 16 * 480 * 640  # about 150 bytes per voxel at 640x480
+    monkeypatch.setattr(device, "free_memory", lambda: int(12 * per_frame / 0.8) + 1024)
     assert gpu_chunk_frames(method, 16, 480, 640, 100, 16) == 4  # 12 frames fit: 4 and 4 + 4 of context
     assert gpu_chunk_frames(method, 16, 480, 640, 4, None) is None  # the whole clip fits
     monkeypatch.setattr(device, "free_memory", lambda: int(8 * per_frame))

@@ -213,7 +213,8 @@ def test_closing_the_window_while_review_plays_starts_no_preview_after_the_runne
     window.close()
     assert not review.playing and not review.preview_timer.isActive() and not review.timer.isActive()
     preview_at_close = review.preview_job
-    assert preview_at_close is None or preview_at_close.token.cancelled  # a running preview was asked to stop
+    if preview_at_close is not None and preview_at_close.running:
+        assert preview_at_close.token.cancelled  # a preview still running was asked to stop
     assert review.request_preview() is None  # a late caller gets nothing scheduled
     refused = runner.submit("late", lambda token, progress: "ran")
     assert refused.outcome == "cancelled" and not refused.running

@@ -69,6 +69,8 @@ def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, ov
         else:
             import zarr
 
+            import flexvox_core.zarr_exit  # noqa: F401 - a quiet exit (see there)
+
             g = zarr.open_group(str(tmp), mode="w-", zarr_format=3)
             meta = provenance(attrs, time_step)
             if interpolated is not None:
@@ -135,6 +137,7 @@ def open_video_store(path) -> VideoStore:
     """
     import zarr
 
+    import flexvox_core.zarr_exit  # noqa: F401 - a quiet exit (see there)
     from flexvox_core import ngff
 
     path = Path(path)

@@ -4,9 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from tqdm import tqdm
-
-from flexvox_app.cli.errors import EXIT_OK, CliError
+from flexvox_app.cli.errors import EXIT_OK, CliError, defer
 
 
 def register(sub) -> None:
@@ -34,12 +32,14 @@ def register(sub) -> None:
                    help="replace an existing output (never the input; the old output stays until every chunk of "
                         "the new one is written)")
     add_pyramid_option(p)
-    add_method_options(p, chunk=32)
+    defer(p, lambda p: add_method_options(p, chunk=32))  # the methods' registry: only when this command is used
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     """Carry out ``flexvox batch``."""
+    from tqdm import tqdm
+
     from flexvox_app.cli.method_options import device_line, method_from_args, resolved_device
     from flexvox_core.batch import reconstruct_batch
     from flexvox_core.recording import RecordingError, open_recording

@@ -5,9 +5,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from tqdm import tqdm
-
-from flexvox_app.cli.errors import EXIT_OK
+from flexvox_app.cli.errors import EXIT_OK, defer
 from flexvox_app.cli.method_options import add_device_option, resolved_device
 
 
@@ -29,7 +27,7 @@ def register(sub) -> None:
     p.add_argument("-o", "--out", type=Path, default=Path("bench/results"), metavar="DIR",
                    help="where results go (default bench/results)")
     p.add_argument("--overwrite", action="store_true", help="replace the results an earlier run left in DIR")
-    add_device_option(p)
+    defer(p, add_device_option)  # the device module: only when this command is used
     p.set_defaults(func=run)
 
 OUTPUTS = ("results.csv", "results.json", "pareto.png")
@@ -37,6 +35,8 @@ OUTPUTS = ("results.csv", "results.json", "pareto.png")
 
 def run(args) -> int:
     """Carry out ``flexvox bench``."""
+    from tqdm import tqdm
+
     from flexvox_app.accuracy_bench import pareto, run_bench, summary
     from flexvox_app.cli.errors import CliError
     from flexvox_core.output_files import OutputError, check_writable

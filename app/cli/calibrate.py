@@ -7,8 +7,6 @@ import sys
 import time
 from pathlib import Path
 
-from tqdm import tqdm
-
 from flexvox_app.cli.app import add_screen_options, list_screens, with_projector_screen
 from flexvox_app.cli.errors import EXIT_FAILED, EXIT_OK, CliError, arg_type
 
@@ -81,6 +79,8 @@ class _Progress:
             raise CliError("interrupted: the devices were stopped and nothing was written")
 
     def __call__(self, desc: str):
+        from tqdm import tqdm
+
         self.check()
         bar = tqdm(desc=desc, unit="pattern", file=sys.stderr, leave=False, disable=self.quiet or None)
 

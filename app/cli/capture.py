@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 from flexvox_app.cli.app import add_screen_options, list_screens, with_projector_screen
-from flexvox_app.cli.errors import EXIT_FAILED, EXIT_OK, CliError, OneLineParser, arg_type
+from flexvox_app.cli.errors import EXIT_FAILED, EXIT_OK, CliError, OneLineParser, arg_type, defer
 from flexvox_core.tiles import parse_tile
 
 _SIZE_RE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
@@ -41,8 +41,6 @@ def _size(text: str) -> tuple[int, int]:
 
 def register(sub) -> None:
     """Add the ``capture`` subcommand."""
-    from flexvox_core.simulate.scenes import SCENES
-
     p = sub.add_parser(
         "capture",
         help="capture coded frames from the rig into a recording (headless)",
@@ -83,8 +81,14 @@ def register(sub) -> None:
                    help="the camera cannot be told a trigger delay, and you have set the calibration's delay on it "
                         "another way (its vendor's tool)")
     p.add_argument("--rate", type=float, default=15.0, metavar="HZ", help="camera frame rate (default 15)")
-    p.add_argument("--scene", default="drummer", metavar="NAME",
-                   help=f"mock rig: built-in scene ({', '.join(SCENES)}; default drummer)")
+    scene = p.add_argument("--scene", default="drummer", metavar="NAME", help="mock rig: built-in scene")
+
+    def name_the_scenes(p) -> None:  # the scenes' module: imported only when this command is used
+        from flexvox_core.simulate.scenes import SCENES
+
+        scene.help = f"mock rig: built-in scene ({', '.join(SCENES)}; default drummer)"
+
+    defer(p, name_the_scenes)
     p.add_argument("--size", type=arg_type(_size), metavar="HxW",
                    help="mock rig: camera size (default 120x160; the projector is twice as fine)")
     p.add_argument("--seed", type=int, default=0, metavar="S",

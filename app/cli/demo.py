@@ -4,8 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from tqdm import tqdm
-
 from flexvox_app.cli.errors import EXIT_OK, CliError
 
 HELP = "run the end-to-end demo on the simulated rig and write an HTML report"
@@ -40,6 +38,8 @@ def register(sub) -> None:
 
 def run(args) -> int:
     """Carry out ``flexvox demo``."""
+    from tqdm import tqdm
+
     from flexvox_app.demo.run import DemoConfig, run_demo
     from flexvox_core.simulate.scenes import SCENES
 

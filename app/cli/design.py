@@ -5,14 +5,13 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from flexvox_app.cli.errors import EXIT_FAILED, EXIT_OK, CliError, arg_type
-from flexvox_core.codes import code_from_order, verify
-from flexvox_core.divisions import enumerate_divisions, parse_division
-from flexvox_core.multiplex import multiplexed_code
 from flexvox_core.tiles import MAX_TILE_SIDE, parse_tile
+
+if TYPE_CHECKING:  # the command's own imports are in the functions that run it: parsing needs none of them
+    import numpy as np
 
 HELP = "design a shutter code for an MxN tile (the paper's Eq. 1), or verify a code file"
 
@@ -96,6 +95,7 @@ def _verify(args) -> int:
     (the same rules as ``capture --code``: an identity code whose order, code and tile agree, or the S-matrix code
     of ``design --multiplexed``, whose demultiplexed slots are then the ones verified)."""
     from flexvox_core.code_file import CodeFileError, load_shutter_code
+    from flexvox_core.codes import code_from_order, verify
     from flexvox_core.multiplex import MultiplexedCode
 
     code = _load_code(args.verify)
@@ -132,6 +132,10 @@ def _verify(args) -> int:
 
 def run(args) -> int:
     """Carry out ``flexvox design``."""
+    from flexvox_core.codes import code_from_order, verify
+    from flexvox_core.divisions import enumerate_divisions, parse_division
+    from flexvox_core.multiplex import multiplexed_code
+
     if args.output is not None:
         from flexvox_core.output_files import OutputError, check_output
 

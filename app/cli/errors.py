@@ -28,9 +28,42 @@ class OneLineParser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
         # argparse's own knob for "this looks like a negative number, not an option".
         self._negative_number_matcher = re.compile(r"^-\d")
+        self._deferred: list = []
 
     def error(self, message: str):  # noqa: D102 - argparse's hook
         self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
+
+    def defer(self, fill) -> None:
+        """Run ``fill(self)`` (it adds arguments or sets the description) only when this parser is used: when it
+        parses, or prints its help or usage. A subcommand whose arguments need heavy imports (the methods'
+        registry, numpy) defers them, so that another command, ``--help`` and the start-up window do not pay for
+        them."""
+        self._deferred.append(fill)
+
+    def complete(self) -> None:
+        """Run the deferred fills (see :meth:`defer`)."""
+        while self._deferred:
+            self._deferred.pop(0)(self)
+
+    def parse_known_args(self, args=None, namespace=None):  # noqa: D102 - argparse's
+        self.complete()
+        return super().parse_known_args(args, namespace)
+
+    def format_help(self) -> str:  # noqa: D102 - argparse's
+        self.complete()
+        return super().format_help()
+
+    def format_usage(self) -> str:  # noqa: D102 - argparse's
+        self.complete()
+        return super().format_usage()
+
+
+def defer(parser, fill) -> None:
+    """``parser.defer(fill)`` on a :class:`OneLineParser`; on another parser, ``fill(parser)`` at once."""
+    if isinstance(parser, OneLineParser):
+        parser.defer(fill)
+    else:
+        fill(parser)
 
 
 def fail(prog: str, message: str) -> int:

@@ -27,10 +27,9 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import numpy as np
-
-from flexvox_app.cli.errors import EXIT_OK, CliError, arg_type, positive_fps
+from flexvox_app.cli.errors import EXIT_OK, CliError, arg_type, defer, positive_fps
 from flexvox_app.cli.method_options import (
     add_method_options,
     device_line,
@@ -38,9 +37,9 @@ from flexvox_app.cli.method_options import (
     method_from_args,
     resolved_device,
 )
-from flexvox_core.ngff import check_levels
-from flexvox_core.output_files import OutputError, atomic_output, check_output
-from flexvox_core.recording import RecordingError, open_recording
+
+if TYPE_CHECKING:  # numpy and the recordings are imported where the export runs: parsing needs neither
+    import numpy as np
 
 WHAT = ("frames", "ground-truth", "reconstruction")
 _PNG_NAME = re.compile(r"frame_\d{5,}\.png")
@@ -69,7 +68,7 @@ def register(sub) -> None:
                    help="replace an existing output (never the input; a folder only when it holds nothing but an "
                         "earlier export's PNGs; the old output stays until the new one is complete)")
     add_pyramid_option(p)
-    add_method_options(p, chunk=16)
+    defer(p, lambda p: add_method_options(p, chunk=16))  # the methods' registry: only when this command is used
     p.set_defaults(func=run)
 
 
@@ -91,6 +90,8 @@ class _Source:
     """Rows to export: ``count`` rows of ``(H, W)``, raw (``row``) and in [0, 1] (``unit``)."""
 
     def __init__(self, rec, what: str, args):
+        import numpy as np
+
         self.rec = rec
         self.what = what
         self.interpolated = None
@@ -132,9 +133,13 @@ class _Source:
         self.shape = tuple(self.array.shape)
 
     def row(self, i: int) -> np.ndarray:
+        import numpy as np
+
         return np.asarray(self.array[i])
 
     def unit(self, i: int) -> np.ndarray:
+        import numpy as np
+
         if self.what == "frames":
             from flexvox_core.simulate.simulator import normalise_frames
 
@@ -143,6 +148,8 @@ class _Source:
 
 
 def _write(out: Path, src: _Source, fps: float, pyramid: int = 0) -> None:
+    import numpy as np
+
     n = src.shape[0]
     suffix = out.suffix.lower()
     if suffix in (".tif", ".tiff"):
@@ -182,6 +189,10 @@ def _write(out: Path, src: _Source, fps: float, pyramid: int = 0) -> None:
 
 def run(args) -> int:
     """Carry out ``flexvox export``."""
+    from flexvox_core.ngff import check_levels
+    from flexvox_core.output_files import OutputError, atomic_output, check_output
+    from flexvox_core.recording import RecordingError, open_recording
+
     out: Path = args.output
     suffix = out.suffix.lower()
     if suffix and suffix not in FORMATS:

@@ -5,11 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
-
 from flexvox_app.cli.errors import EXIT_FAILED, EXIT_OK, CliError
-from flexvox_core.output_files import OutputError
-from flexvox_core.recording import RecordingError, open_recording, recover_recording
 from flexvox_core.writer_lock import lock_holder
 
 
@@ -83,6 +79,8 @@ def check(rec, *, quick: bool = False, progress=None) -> tuple[dict, list[str]]:
     Unless ``quick``, every frame and ground-truth chunk is read and checked against its checksum
     (:meth:`~flexvox_core.recording.Recording.verify`; ``progress(done, total)`` follows it).
     """
+    import numpy as np
+
     problems = []
     ids = rec.per_frame("frame_id")
     dropped = rec.per_frame("dropped")
@@ -167,6 +165,7 @@ def _text(s: dict) -> list[str]:
 def _slots(rec) -> dict:
     """The slot check of a recording with ground truth (:mod:`flexvox_core.slot_check`)."""
     from flexvox_core.capture_reader import read_capture
+    from flexvox_core.recording import RecordingError
     from flexvox_core.slot_check import slot_accuracy
 
     if not rec.has_ground_truth:
@@ -184,6 +183,9 @@ def _slots(rec) -> dict:
 
 def run(args) -> int:
     """Carry out ``flexvox info``."""
+    from flexvox_core.output_files import OutputError
+    from flexvox_core.recording import RecordingError, open_recording, recover_recording
+
     if not args.recording.exists():
         raise CliError(f"{args.recording}: no such recording{_left_by_a_killed_write(args.recording)}")
     not_one = not_a_recording(args.recording)

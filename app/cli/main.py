@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import logging
 import sys
 
@@ -21,11 +22,20 @@ from flexvox_app.cli import (
     simulate,
 )
 from flexvox_app.cli.errors import EXIT_USAGE, CliError, OneLineParser
-from flexvox_core import __version__
 
 SUBCOMMANDS = (design, simulate, reconstruct, bench, devices, calibrate, capture, info, export, batch, app_cmd, demo,
                clean)
 """Each module has ``register(subparsers)`` that adds its parser with ``func=run``."""
+
+
+class _VersionAction(argparse._VersionAction):
+    """``--version``: the version is looked up (importlib.metadata, a tenth of a second) only when asked for."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        from flexvox_core import __version__
+
+        self.version = f"flexvox {__version__}"
+        super().__call__(parser, namespace, values, option_string)
 
 
 def build_parser() -> OneLineParser:
@@ -37,7 +47,7 @@ def build_parser() -> OneLineParser:
             "capture coded video, reconstruct it at any space-time resolution."
         ),
     )
-    parser.add_argument("--version", action="version", version=f"flexvox {__version__}")
+    parser.add_argument("--version", action=_VersionAction)
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv: debug)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=OneLineParser)
     for module in SUBCOMMANDS:

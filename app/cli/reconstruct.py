@@ -8,10 +8,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-import numpy as np
-from tqdm import tqdm
-
-from flexvox_app.cli.errors import EXIT_OK, CliError, arg_type, positive_fps
+from flexvox_app.cli.errors import EXIT_OK, CliError, arg_type, defer, positive_fps
 from flexvox_app.cli.method_options import (
     add_method_options,
     device_line,
@@ -19,11 +16,6 @@ from flexvox_app.cli.method_options import (
     method_from_args,
     resolved_device,
 )
-from flexvox_core.capture_reader import open_capture
-from flexvox_core.methods import specs
-from flexvox_core.output_files import check_output
-from flexvox_core.recording import RecordingError
-from flexvox_core.video_io import WRITABLE, write_video
 
 FIGURE_EXTRAS = ("flow", "tr")
 """What ``--figures`` draws: a method must return these extras."""
@@ -35,10 +27,13 @@ class _Abandoned(Exception):
 
 def register(sub) -> None:
     """Add the ``reconstruct`` subcommand."""
-    p = sub.add_parser(
-        "reconstruct",
-        help="reconstruct the high-speed video of a recording",
-        description=(
+    p = sub.add_parser("reconstruct", help="reconstruct the high-speed video of a recording")
+    p.add_argument("recording", type=Path, metavar="REC", help="a flexvox recording (.zarr)")
+
+    def fill(p) -> None:  # the methods' options and the output formats: imported only when this command is used
+        from flexvox_core.video_io import WRITABLE
+
+        p.description = (
             "Reconstruct the full (S, H, W) float32 video in [0, 1] (S = F*K) of a recording and "
             f"write it to OUT ({', '.join(WRITABLE)}). Methods: rebin (re-binning at a division), "
             "diffusion (constant tensor; the default nc solver is the fast normalized convolution), "
@@ -46,19 +41,19 @@ def register(sub) -> None:
             "along optical flow). Multiplexed recordings are demultiplexed first. Dropped camera frames are "
             "bridged from both sides (a line says which sub-frames; a .zarr output keeps them as the array "
             "`interpolated`); a run of them longer than the method's reach is refused, naming it."
-        ),
-    )
-    p.add_argument("recording", type=Path, metavar="REC", help="a flexvox recording (.zarr)")
-    add_method_options(p, chunk=16)
-    p.add_argument("--figures", type=Path, metavar="DIR",
-                   help="motion-aware: write flow (colour wheel, quiver), resolution map and a panel "
-                        "like the paper's Figs. 7-8 as PNGs")
-    p.add_argument("--fps", type=arg_type(positive_fps), default=30.0,
-                   help="playback rate of an .mp4 output (default 30)")
-    p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT", help="output file")
-    p.add_argument("--overwrite", action="store_true",
-                   help="replace an existing output (never the input recording; the old output stays until the "
-                        "new one is complete)")
+        )
+        add_method_options(p, chunk=16)
+        p.add_argument("--figures", type=Path, metavar="DIR",
+                       help="motion-aware: write flow (colour wheel, quiver), resolution map and a panel "
+                            "like the paper's Figs. 7-8 as PNGs")
+        p.add_argument("--fps", type=arg_type(positive_fps), default=30.0,
+                       help="playback rate of an .mp4 output (default 30)")
+        p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT", help="output file")
+        p.add_argument("--overwrite", action="store_true",
+                       help="replace an existing output (never the input recording; the old output stays until the "
+                            "new one is complete)")
+
+    defer(p, fill)
     p.set_defaults(func=run)
 
 
@@ -71,6 +66,8 @@ def interpolated_line(gaps, K: int) -> str:
 def psnr_words(per_frame) -> str:
     """The mean PSNR of the sub-frames ("26.04 dB"); sub-frames equal to the truth (an infinite PSNR) are
     counted apart instead of making the mean infinite ("exact on 3 of 48 sub-frames, 21.50 dB over the rest")."""
+    import numpy as np
+
     per = np.asarray(per_frame, np.float64)
     exact = np.isinf(per) & (per > 0)
     if not exact.any():
@@ -82,6 +79,14 @@ def psnr_words(per_frame) -> str:
 
 def run(args) -> int:
     """Carry out ``flexvox reconstruct``."""
+    from tqdm import tqdm
+
+    from flexvox_core.capture_reader import open_capture
+    from flexvox_core.methods import specs
+    from flexvox_core.output_files import check_output
+    from flexvox_core.recording import RecordingError
+    from flexvox_core.video_io import WRITABLE, write_video
+
     try:
         if args.output.suffix.lower() not in WRITABLE:
             raise ValueError(f"-o {args.output}: the output must end in {', '.join(WRITABLE)}")

@@ -6,16 +6,13 @@ import json
 import re
 import warnings
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from flexvox_app.cli.errors import EXIT_OK, CliError, arg_type
-from flexvox_core.output_files import check_output
-from flexvox_core.recording import RecordingError, write_simulation
-from flexvox_core.simulate.effects import EFFECTS, parse_effects
-from flexvox_core.simulate.scene_file import SceneSpec, load_scene
-from flexvox_core.simulate.scenes import SCENES
-from flexvox_core.simulate.simulator import simulate
-from flexvox_core.simulate.sources import SUFFIXES, TrimWarning, load_video
+from flexvox_app.cli.errors import EXIT_OK, CliError, arg_type, defer
 from flexvox_core.tiles import parse_tile
+
+if TYPE_CHECKING:  # the simulator is imported where it runs: parsing needs none of it
+    from flexvox_core.simulate.scene_file import SceneSpec
 
 _SIZE_RE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
 
@@ -33,6 +30,8 @@ def parse_effect_overrides(text: str, current: dict) -> dict:
     ``none`` removes every effect declared so far; ``name`` declares an effect with its
     defaults (or keeps its current parameters); ``name.param=value`` sets one parameter.
     """
+    from flexvox_core.simulate.effects import EFFECTS
+
     table = {k: dict(v) for k, v in current.items()}
     for item in (t.strip() for t in text.split(",")):
         if not item:
@@ -57,16 +56,20 @@ def parse_effect_overrides(text: str, current: dict) -> dict:
 
 def register(sub) -> None:
     """Add the ``simulate`` and ``scenes`` subcommands."""
-    p = sub.add_parser(
-        "simulate",
-        help="simulate what the rig's camera records of a scene, into a recording",
-        description=(
+    p = sub.add_parser("simulate", help="simulate what the rig's camera records of a scene, into a recording")
+
+    def describe(p) -> None:  # names the scenes and the video formats: imported only when this command is used
+        from flexvox_core.simulate.scenes import SCENES
+        from flexvox_core.simulate.sources import SUFFIXES
+
+        p.description = (
             "Simulate a scene into a Zarr recording. SCENE is a scene file (.toml), a built-in "
             f"scene name ({', '.join(SCENES)}), or a video file ({', '.join(SUFFIXES)}). Only the "
             "effects the scene declares (or --effects adds) are simulated; with none, the frames "
             "are the ideal forward model exactly."
-        ),
-    )
+        )
+
+    defer(p, describe)
     p.add_argument("scene", metavar="SCENE", help="scene file, built-in scene name, or video file")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="REC.zarr", help="recording to write")
     p.add_argument("--tile", type=arg_type(parse_tile), metavar="MxN", help="tile (overrides the scene; default 4x4)")
@@ -88,6 +91,10 @@ def register(sub) -> None:
 
 
 def _spec_from_argument(text: str) -> SceneSpec:
+    from flexvox_core.simulate.scene_file import SceneSpec, load_scene
+    from flexvox_core.simulate.scenes import SCENES
+    from flexvox_core.simulate.sources import SUFFIXES
+
     path = Path(text)
     if path.suffix.lower() == ".toml":
         return load_scene(path)
@@ -103,6 +110,12 @@ def _spec_from_argument(text: str) -> SceneSpec:
 
 def run_simulate(args) -> int:
     """Carry out ``flexvox simulate``."""
+    from flexvox_core.output_files import check_output
+    from flexvox_core.recording import RecordingError, write_simulation
+    from flexvox_core.simulate.effects import parse_effects
+    from flexvox_core.simulate.simulator import simulate
+    from flexvox_core.simulate.sources import TrimWarning, load_video
+
     try:
         spec = _spec_from_argument(args.scene)
         inputs = [Path(args.scene) if Path(args.scene).exists() else None, getattr(spec, "file", None)]
@@ -150,6 +163,9 @@ def run_simulate(args) -> int:
 
 def run_scenes(args) -> int:
     """Carry out ``flexvox scenes``."""
+    from flexvox_core.simulate.effects import EFFECTS
+    from flexvox_core.simulate.scenes import SCENES
+
     payload = {
         "scenes": {s.name: s.description for s in SCENES.values()},
         "effects": {

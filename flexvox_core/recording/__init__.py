@@ -41,6 +41,7 @@ The package's modules, one per part:
 Every name below is importable from the package itself (``from flexvox_core.recording import X``).
 """
 
+import flexvox_core.zarr_exit  # noqa: F401 - zarr's I/O thread stopped before its exit hook (see there)
 from flexvox_core.recording.errors import DamagedRecordingError, RecordingError
 from flexvox_core.recording.journal import JOURNAL, read_journal
 from flexvox_core.recording.reader import SNAPSHOT_TRIES, GroundTruthRows, Recording, open_recording

@@ -250,7 +250,7 @@ def test_a_failed_write_stops_the_psnr_at_its_next_block(recording, tmp_path, ca
     # The PSNR runs beside the write; when the write fails the truth is read no further (3 blocks of 16 here).
     import threading
 
-    import flexvox_app.cli.reconstruct as cli
+    import flexvox_core.video_io
     from flexvox_core.recording import GroundTruthRows
 
     real = GroundTruthRows.__getitem__
@@ -268,7 +268,7 @@ def test_a_failed_write_stops_the_psnr_at_its_next_block(recording, tmp_path, ca
             threading.Timer(0.05, written.set).start()
 
     monkeypatch.setattr(GroundTruthRows, "__getitem__", counted)
-    monkeypatch.setattr(cli, "write_video", failing_write)
+    monkeypatch.setattr(flexvox_core.video_io, "write_video", failing_write)  # `reconstruct` imports it as it runs
     out = tmp_path / "out.npy"
     assert main(["reconstruct", str(recording), "-o", str(out)]) != 0
     assert "cannot write" in capsys.readouterr().err

@@ -344,7 +344,8 @@ def test_a_second_capture_to_a_recording_being_written_is_refused(tmp_path):
     with open(stderr, "w") as err:
         first = subprocess.Popen([sys.executable, "-m", "flexvox_app.cli.main", "capture", "--frames", "100000", "-o",
                                   str(path), "--size", "24x32", "--tile", "2x2", "--rate", "100", "--scene", "balls"],
-                                 cwd=ROOT, env=ENV, stdout=subprocess.DEVNULL, stderr=err)
+                                 cwd=ROOT, env={**ENV, "PYTHONFAULTHANDLER": "1"}, stdout=subprocess.DEVNULL,
+                                 stderr=err)
     try:
         _wait_for_frames(path, 10, first, stderr)
         for extra in ((), ("--overwrite",)):
@@ -361,7 +362,14 @@ def test_a_second_capture_to_a_recording_being_written_is_refused(tmp_path):
         # It writes the frames still queued (up to 64 when the disk fell behind the camera), finalises and exits:
         # seconds here, tens of seconds on a loaded machine. The capture's own bound on stopping is 30 s
         # (`stop_timeout`, exit status 1 past it); this wait is longer, so that it is the bound that counts.
-        assert first.wait(timeout=180) == 0, stderr.read_text()
+        try:
+            code = first.wait(timeout=180)
+        except subprocess.TimeoutExpired:
+            first.send_signal(signal.SIGABRT)  # faulthandler writes every thread's stack to its stderr
+            first.wait(timeout=30)
+            raise AssertionError("the first capture did not stop within 180 s of Ctrl-C; its threads then:\n"
+                                 + stderr.read_text()[-20000:]) from None
+        assert code == 0, stderr.read_text()
     finally:
         if first.poll() is None:
             first.kill()

@@ -65,24 +65,11 @@ def tap_sum(value, src, n, y, x, H, W, taps, axis):
     return acc
 
 
-@kernel("void(float32[:, :, ::1], float32[:, :, ::1], float32[::1], int32, uint8)")
-def _blur_pass(src, dst, taps, axis, mirror):
-    """One pass of :func:`blur` along y (axis 1) or x (axis 2), reflecting (``mirror``) or zero borders."""
-    i = cuda.grid(1)
-    N, H, W = src.shape
-    if i >= N * H * W:
-        return
-    n, y, x = voxel(i, H, W)
-    if mirror:
-        dst[n, y, x] = tap_sum(reflected, src, n, y, x, H, W, taps, axis)
-    else:
-        dst[n, y, x] = tap_sum(zeroed, src, n, y, x, H, W, taps, axis)
-
-
 @kernel("void(float32[:, :, ::1], float32[:, :, ::1], float32[:, :, ::1], float32[:, :, ::1], float32[::1], int32, "
-        "uint8)")
-def _blur_pass2(src, src2, dst, dst2, taps, axis, mirror):
-    """One pass of :func:`blur` over two stacks of planes at once (one thread reads both)."""
+        "uint8, uint8)")
+def _blur_pass(src, src2, dst, dst2, taps, axis, mirror, pair):
+    """One pass of :func:`blur` along y (axis 1) or x (axis 2), reflecting (``mirror``) or zero borders; with
+    ``pair``, the second stack too (one thread reads both; without, ``src2`` and ``dst2`` are not touched)."""
     i = cuda.grid(1)
     N, H, W = src.shape
     if i >= N * H * W:
@@ -90,10 +77,12 @@ def _blur_pass2(src, src2, dst, dst2, taps, axis, mirror):
     n, y, x = voxel(i, H, W)
     if mirror:
         dst[n, y, x] = tap_sum(reflected, src, n, y, x, H, W, taps, axis)
-        dst2[n, y, x] = tap_sum(reflected, src2, n, y, x, H, W, taps, axis)
+        if pair:
+            dst2[n, y, x] = tap_sum(reflected, src2, n, y, x, H, W, taps, axis)
     else:
         dst[n, y, x] = tap_sum(zeroed, src, n, y, x, H, W, taps, axis)
-        dst2[n, y, x] = tap_sum(zeroed, src2, n, y, x, H, W, taps, axis)
+        if pair:
+            dst2[n, y, x] = tap_sum(zeroed, src2, n, y, x, H, W, taps, axis)
 
 
 def symmetric_taps(taps, name: str = "taps") -> np.ndarray:
@@ -130,10 +119,10 @@ def blur(ws, src, dst, taps_y, taps_x, *, reflect: bool = True, tag: str = "blur
         out = dsts if last and dsts[0] is not cur[0] else tmps
         if out[0] is cur[0]:  # one pass in place: through the scratch planes
             out = tmps
-        args = (*cur, *out) if pair else (cur[0], out[0])
-        launch(_blur_pass2 if pair else _blur_pass, n, *args,
+        src2, dst2 = (cur[1], out[1]) if pair else (cur[0], out[0])
+        launch(_blur_pass, n, cur[0], src2, out[0], dst2,
                ws.put(f"{tag}.taps{axis}", symmetric_taps(taps, "taps_x" if axis == 2 else "taps_y")),
-               np.int32(axis), np.uint8(reflect))
+               np.int32(axis), np.uint8(reflect), np.uint8(pair))
         cur = out
     for c, d in zip(cur, dsts, strict=True):
         if c is not d:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
+from typing import Any
 
 import cv2
 import numpy as np
@@ -100,7 +101,8 @@ def blur(ws, src, dst, taps_y, taps_x, *, reflect: bool = True, tag: str = "blur
     ``dst`` may be ``src``. Two stacks at once: ``src`` and ``dst`` pairs of stacks of one shape. ``scratch``:
     the plane stack (a pair with pairs) between the passes; None: the workspace's ``{tag}.tmp``."""
     pair = isinstance(src, tuple)
-    srcs, dsts = (src, dst) if pair else ((src,), (dst,))
+    srcs: tuple[Any, ...] = src if pair else (src,)
+    dsts: tuple[Any, ...] = dst if pair else (dst,)
     passes = [(2, t) for t in (taps_x,) if t is not None] + [(1, t) for t in (taps_y,) if t is not None]
     if not passes:
         for s, d in zip(srcs, dsts, strict=True):
@@ -113,7 +115,7 @@ def blur(ws, src, dst, taps_y, taps_x, *, reflect: bool = True, tag: str = "blur
     else:
         tmps = tuple(scratch) if pair else (scratch,)
     n = int(math.prod(shape))
-    cur = srcs
+    cur: tuple[Any, ...] = srcs
     for k, (axis, taps) in enumerate(passes):
         last = k == len(passes) - 1
         out = dsts if last and dsts[0] is not cur[0] else tmps

@@ -2,6 +2,12 @@
 (:meth:`MotionAware.gpu_voxel_bytes <flexvox_core.methods.motion_aware_method.MotionAware.gpu_voxel_bytes>`), with
 :mod:`tests.flexvox_core.gpu.workspace_size`."""
 
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -13,6 +19,7 @@ from tests.flexvox_core.gpu.tiny import CODE, tiny_capture
 from tests.flexvox_core.gpu.workspace_size import buffers, no_kernels, planned_peak, run_workspace
 
 METHOD = Method("motion-aware")
+ROOT = Path(__file__).resolve().parents[3]
 
 
 @pytest.mark.parametrize(("H", "W"), [(8, 8), (16, 16), (44, 44), (40, 80), (120, 160), (240, 320), (480, 640)])
@@ -64,3 +71,26 @@ def test_an_explicit_flow_scale_is_bounded_too():
     code = design_code((4, 4)).code
     peak, voxels = planned_peak(240, 320, 3, code, options)
     assert peak <= METHOD.spec.gpu_voxel_bytes(options, 16, 240, 320) * voxels
+
+
+def test_skipping_the_kernels_leaves_every_launch_as_it_was():
+    """In a fresh process (no kernel module imported yet), every module's ``launch`` after :func:`no_kernels` is
+    the real one: a module first imported inside it must not keep the stand-in."""
+    script = textwrap.dedent("""
+        import importlib
+        from tests.flexvox_core.gpu.workspace_size import no_kernels
+        with no_kernels():
+            pass
+        from flexvox_core.gpu import launch as L
+        from flexvox_core.motion.gpu import KERNEL_PACKAGES
+        modules = [importlib.import_module(n) for n in L.modules_of(KERNEL_PACKAGES)]
+        print(sum(hasattr(m, "launch") for m in modules),
+              [m.__name__ for m in modules if getattr(m, "launch", L.launch) is not L.launch])
+    """)
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1", PYTHONPATH=os.pathsep.join([str(ROOT),
+                                                                                  os.environ.get("PYTHONPATH", "")]))
+    done = subprocess.run([sys.executable, "-c", script], cwd=ROOT, env=env, capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    count, wrong = done.stdout.split(maxsplit=1)
+    assert int(count) >= 10 and wrong.strip() == "[]", done.stdout

@@ -41,8 +41,10 @@ def no_kernels():
 
     speed_classes, frame_noise, any_finite = gate.speed_classes, noise.frame_noise, choice.any_finite
     try:
-        for name in modules_of(KERNEL_PACKAGES):
-            module = importlib.import_module(name)
+        # Every module imported before any is patched: one imported after ``launch.launch`` was patched would take
+        # the stand-in as its own ``launch`` and keep it after the restore.
+        modules = [importlib.import_module(name) for name in modules_of(KERNEL_PACKAGES)]
+        for module in modules:
             if hasattr(module, "launch"):
                 patch(module, "launch", lambda *args: None)
         patch(gate, "speed_classes", lambda *a, **k: (speed_classes(*a, **k), (1, 1))[1])

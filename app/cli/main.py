@@ -28,14 +28,19 @@ SUBCOMMANDS = (design, simulate, reconstruct, bench, devices, calibrate, capture
 """Each module has ``register(subparsers)`` that adds its parser with ``func=run``."""
 
 
-class _VersionAction(argparse._VersionAction):
-    """``--version``: the version is looked up (importlib.metadata, a tenth of a second) only when asked for."""
+class _VersionAction(argparse.Action):
+    """``--version``: prints ``flexvox VERSION`` and exits; the version is looked up (importlib.metadata, a tenth of
+    a second) only when asked for."""
+
+    def __init__(self, option_strings, dest=argparse.SUPPRESS, default=argparse.SUPPRESS,
+                 help="show program's version number and exit"):
+        super().__init__(option_strings, dest=dest, default=default, nargs=0, help=help)
 
     def __call__(self, parser, namespace, values, option_string=None):
         from flexvox_core import __version__
 
-        self.version = f"flexvox {__version__}"
-        super().__call__(parser, namespace, values, option_string)
+        sys.stdout.write(f"flexvox {__version__}\n")
+        parser.exit()
 
 
 def build_parser() -> OneLineParser:

@@ -10,6 +10,7 @@ import tomllib
 from pathlib import Path
 
 import numpy as np
+import pytest
 import zarr
 
 import flexvox_app.cli.main as cli_main
@@ -31,6 +32,17 @@ def test_main_itself_leaves_the_collector_alone(capsys):
     assert cli_main.main(["scenes"]) == 0
     assert gc.get_freeze_count() == before
     assert "balls" in capsys.readouterr().out
+
+
+def test_version_prints_the_installed_version_and_exits_zero(capsys):
+    from flexvox_core import __version__
+
+    parser = cli_main.build_parser()
+    with pytest.raises(SystemExit) as stop:
+        parser.parse_args(["--version"])
+    assert stop.value.code in (0, None)
+    assert capsys.readouterr().out == f"flexvox {__version__}\n"
+    assert "--version" in parser.format_help() and "show program's version number and exit" in parser.format_help()
 
 
 def test_the_installed_script_is_the_console_entry():

@@ -3,7 +3,8 @@
 A kernel is a plain Python function decorated with :func:`kernel`, which names the argument types it is
 launched with (numba signature strings). On a GPU it compiles on its first launch; under numba-cuda's
 simulator it runs as Python, and :func:`launch` checks every argument against the declared types, so the
-tests prove that the declared types are the ones the pipeline passes. :func:`compile_all` compiles every
+tests prove that the declared types are the ones the pipeline passes; a kernel that never synchronises its block
+runs its simulated threads one after another (:mod:`flexvox_core.gpu.simulator`). :func:`compile_all` compiles every
 declared signature to PTX for a chosen compute capability with no GPU present (numba-cuda's deviceless
 compile; it needs NVVM, which the ``gpu`` and ``test`` extras install).
 
@@ -17,13 +18,15 @@ from __future__ import annotations
 import importlib
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 BLOCK = 256
 """Threads per block of every 1-D launch."""
 SIM_BLOCK = 32
-"""Threads per block under the simulator (each simulated thread is a Python thread: fewer per block is faster)."""
+"""Threads per block under the simulator (a kernel that synchronises its block runs each simulated thread as a
+Python thread: fewer per block is faster; the others run their threads in turn, :mod:`flexvox_core.gpu.simulator`)."""
 
 KERNEL_PACKAGES = ("flexvox_core.gpu",)
 """The packages whose modules declare this package's kernels (motion-aware's own: :mod:`flexvox_core.motion.gpu`,
@@ -95,11 +98,19 @@ def launch(dispatcher, count: int, *args) -> None:
     """Run ``dispatcher`` on ``count`` threads (1-D grid; threads past ``count`` return at once in the kernel)."""
     if count <= 0:
         return
-    sim = _sim()
-    block = SIM_BLOCK if sim else BLOCK
-    if sim:
-        check_arguments(REGISTRY[dispatcher.flexvox_name], args)
-    dispatcher[math.ceil(count / block), block](*args)
+    if not _sim():
+        dispatcher[math.ceil(count / BLOCK), BLOCK](*args)
+        return
+    from flexvox_core.gpu.simulator import needs_threads, sequential_blocks
+
+    k = REGISTRY[dispatcher.flexvox_name]
+    check_arguments(k, args)
+    grid = math.ceil(count / SIM_BLOCK)
+    if needs_threads(k.py_func):
+        dispatcher[grid, SIM_BLOCK](*args)
+        return
+    with sequential_blocks():
+        dispatcher[grid, SIM_BLOCK](*args)
 
 
 def _arg_type(value):
@@ -140,10 +151,21 @@ def _fits(want, got) -> bool:
     return want == got
 
 
-def compile_all(packages=KERNEL_PACKAGES, cc: tuple[int, int] = (9, 0)) -> dict[str, int]:
+class PtxStats(NamedTuple):
+    """What :func:`compile_all` found in one kernel's PTX, summed over its signatures."""
+
+    chars: int
+    """Characters of PTX."""
+    f64: int
+    """Double-precision instructions (``.f64``): nonzero only where a kernel computes in float64 on purpose."""
+
+
+def compile_all(packages=KERNEL_PACKAGES, cc: tuple[int, int] = (9, 0)) -> dict[str, PtxStats]:
     """Compile every declared signature of every kernel of the modules of ``packages`` (:func:`modules_of`) to PTX
-    for compute capability ``cc`` without a GPU (numba-cuda's deviceless compile). Returns {kernel name: PTX
-    characters}; raises on the first failure."""
+    for compute capability ``cc`` without a GPU (numba-cuda's deviceless compile). Returns {kernel name:
+    :class:`PtxStats`}; raises on the first failure."""
+    import re
+
     modules = modules_of(packages)
     for module in modules:
         importlib.import_module(module)
@@ -151,9 +173,10 @@ def compile_all(packages=KERNEL_PACKAGES, cc: tuple[int, int] = (9, 0)) -> dict[
     for name, k in sorted(REGISTRY.items()):
         if k.py_func.__module__ not in modules:
             continue
-        size = 0
+        chars = f64 = 0
         for sig in k.signatures:
             ptx, _ = cuda().compile_ptx(k.py_func, sig, cc=cc)
-            size += len(ptx)
-        out[name] = size
+            chars += len(ptx)
+            f64 += len(re.findall(r"\.f64\b", ptx))
+        out[name] = PtxStats(chars, f64)
     return out

@@ -2,10 +2,6 @@
 numpy reference (dis_reference.py), the reference against OpenCV's DIS, the parameters' validation, the
 deviceless compile, and (marked gpu) the real kernels at full size against OpenCV."""
 
-import importlib.util
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -197,33 +193,6 @@ def test_out_and_workspace_are_validated():
 
 
 # ------------------------------------------------------------------------------------- compile for a GPU
-
-_COMPILE = """
-import re
-from numba import cuda
-import flexvox_core.gpu.dis, flexvox_core.gpu.dis_pyramid, flexvox_core.gpu.dis_refine
-from flexvox_core.gpu.launch import REGISTRY
-for name, k in sorted(REGISTRY.items()):
-    for sig in k.signatures:
-        ptx, _ = cuda.compile_ptx(k.py_func, sig, cc=(9, 0))
-        print(name, len(re.findall(r"\\.f64", ptx)))
-"""
-
-
-@pytest.mark.skipif(importlib.util.find_spec("numba_cuda") is None, reason="numba-cuda is not installed")
-def test_kernels_compile_for_a_gpu_in_float32():
-    """Every kernel compiles to PTX for compute capability 9.0 with no GPU (numba-cuda's deviceless compile,
-    which the simulator lacks: hence a subprocess without NUMBA_ENABLE_CUDASIM). Only the resampling
-    kernels compute in float64 (OpenCV's coordinate and area-weight tables, in double there too)."""
-    env = {k: v for k, v in os.environ.items() if k != "NUMBA_ENABLE_CUDASIM"}
-    done = subprocess.run([sys.executable, "-c", _COMPILE], cwd=ROOT, env=env, capture_output=True, text=True,
-                          timeout=300)
-    assert done.returncode == 0, done.stderr[-3000:]
-    f64 = {line.split()[0].rsplit(".", 1)[1]: int(line.split()[1]) for line in done.stdout.splitlines()}
-    assert set(f64) == {"_area_down", "_sobel", "_tensor", "_search", "_densify", "_upsample", "_to_output",
-                        "_zero", "_warp", "_derivatives", "_smoothness", "_system", "_sor", "_add"}
-    assert {k for k, v in f64.items() if v} == {"_area_down", "_upsample", "_to_output"}
-
 
 # ------------------------------------------------------------------------------------- on a real GPU
 

@@ -24,14 +24,10 @@ def _both(frames, options, missing=None, keep=None, pairs="cpu"):
     return cpu, gpu
 
 
-# The quick run keeps the two routes a window can take (a dropped frame, kept sub-frames); the three option cases,
-# a whole GPU run each (40-100 s under the simulator), are in `make test-slow` with the parity cases of the same
-# options (passes=2, refine_time=0.0, and noise in every parity case).
 CASES = ("noisy", "dropped frame", "kept sub-frames", "two passes", "no refinement")
-QUICK = {"dropped frame", "kept sub-frames"}
 
 
-@pytest.mark.parametrize("case", [pytest.param(c, marks=() if c in QUICK else pytest.mark.slow_sim) for c in CASES])
+@pytest.mark.parametrize("case", CASES)
 def test_the_gpu_engine_follows_the_cpu_in_each_case(case):
     F = 3 if case in ("dropped frame", "kept sub-frames") else 2
     truth, frames = tiny_capture("balls", F, 12, 12, noise=0.02 if case == "noisy" else 0.0)

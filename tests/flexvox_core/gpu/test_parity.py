@@ -11,7 +11,7 @@ from tests.flexvox_core.gpu.parity_cases import FIELD_VALUES, ROUTES, TOLERANCE,
 
 FAST = {"flow='farneback'", "flow_consistency=True", "defaults", "multiplexed"}
 """The cases that stay in the quick run: the two routed to the CPU, the defaults and the multiplexed route; the
-rest (a whole GPU run each, minutes under the simulator) are marked ``slow_sim``."""
+rest (a whole GPU run each, 10-25 s under the simulator on one core) are marked ``slow_sim``."""
 
 
 def test_every_option_has_a_parity_case():

@@ -1,12 +1,12 @@
 """Kernels under numba-cuda's simulator, one simulated thread after another where a kernel allows it.
 
 The simulator runs every thread of a block as a Python thread, so that ``cuda.syncthreads()`` can hold them at a
-barrier; starting those threads and switching between them costs most of a simulated launch (motion-aware's
-kernels on a tiny window: 0.36 ms per simulated thread on the simulator's threads, 0.06 ms in turn). A kernel that never synchronises its block
-(no ``syncthreads``, no shared memory, in its own code or in a device function it calls) gives the same result
-whatever order its threads run in, so :func:`sequential_blocks` runs each block's threads in turn on the
-launching thread: the same kernel code, the same simulated arrays, the same ``cuda.grid`` and atomics, without
-the Python threads. :func:`needs_threads` tells the two kinds apart by reading each function's code;
+barrier; starting those threads and switching between them costs most of a simulated launch (motion-aware's kernels
+on a tiny window: 0.36 ms per simulated thread on the simulator's threads, 0.06 ms in turn). A kernel that never
+synchronises its block (no ``syncthreads``, no shared memory, in its own code or in a device function it calls)
+gives the same result whatever order its threads run in, so :func:`sequential_blocks` runs each block's threads in
+turn on the launching thread: the same kernel code, the same simulated arrays, the same ``cuda.grid`` and atomics,
+without the Python threads. :func:`needs_threads` tells the two kinds apart by reading each function's code;
 :func:`flexvox_core.gpu.launch.launch` uses it.
 
 This leans on the simulator's own classes (``BlockManager``, ``Dim3``, ``swapped_cuda_module``), which are not
@@ -26,10 +26,12 @@ from typing import Any
 
 import numpy as np
 
-BLOCK_SYNC_NAMES = frozenset({"syncthreads", "syncthreads_count", "syncthreads_and", "syncthreads_or",
-                              "syncwarp", "shared"})
-"""The ``cuda.`` attributes that tie a block's threads together: a kernel (or a device function it calls) that
-names any of them runs on the simulator's threads."""
+BLOCK_SYNC_NAMES = frozenset({"syncthreads", "syncthreads_count", "syncthreads_and", "syncthreads_or", "syncwarp",
+                              "shared", "shfl_sync", "shfl_up_sync", "shfl_down_sync", "shfl_xor_sync", "all_sync",
+                              "any_sync", "eq_sync", "ballot_sync", "match_any_sync", "match_all_sync"})
+"""The ``cuda.`` attributes that tie a block's (or a warp's) threads together: a kernel, or a device function it
+calls, that names any of them runs on the simulator's threads. A kernel misjudged fails loudly rather than wrongly:
+run in turn, its barrier finds no simulated thread to wait on (AttributeError)."""
 
 
 _THREAD_ATTRS = ("blockIdx", "threadIdx", "thread_id")

@@ -123,3 +123,17 @@ def test_every_kernel_on_threads_when_asked(monkeypatch):
         assert needs_threads(_blur_pass.py_func)
     finally:
         needs_threads.cache_clear()
+
+
+def test_a_barrier_run_in_turn_fails_loudly():
+    """A kernel with a barrier misjudged as free of one does not pass silently: its barrier raises."""
+    from numba import cuda
+
+    scope = {"cuda": cuda}
+    exec("def waits(a):\n    a[cuda.grid(1)] = 1\n    cuda.syncthreads()\n", scope)
+    waits = cuda.jit(scope["waits"])
+    assert needs_threads(scope["waits"])
+    out = cuda.to_device(np.zeros(4, np.float32))
+    waits[1, 4](out)  # on the simulator's threads: fine
+    with pytest.raises(AttributeError, match="syncthreads"), sequential_blocks():
+        waits[1, 4](out)

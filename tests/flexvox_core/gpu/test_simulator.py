@@ -137,3 +137,42 @@ def test_a_barrier_run_in_turn_fails_loudly():
     waits[1, 4](out)  # on the simulator's threads: fine
     with pytest.raises(AttributeError, match="syncthreads"), sequential_blocks():
         waits[1, 4](out)
+
+
+@pytest.mark.slow_sim  # a whole GPU run on the simulator's threads: about a minute
+def test_a_whole_window_in_turn_is_bit_for_bit_the_simulators_threads(tmp_path):
+    """Motion-aware's whole GPU engine on a tiny noisy window with a dropped frame: the video run in turn equals,
+    bit for bit, the one run on the simulator's threads (``FLEXVOX_SIM_THREADS=1``, in a fresh process)."""
+    import os
+    import subprocess
+    import sys
+    import textwrap
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[3]
+    script = textwrap.dedent("""
+        import sys
+        import numpy as np
+        from flexvox_core.motion.options import MotionOptions, sample_bounds
+        from flexvox_core.motion.pipeline import run_window
+        from tests.flexvox_core.gpu.tiny import CODE, tiny_capture
+
+        _, frames = tiny_capture("balls", 3, 8, 8, noise=0.01)
+        missing = np.array([False, True, False])
+        frames[1] = 0
+        run = run_window(frames, CODE, MotionOptions(), sample_bounds(frames, missing, None), missing=missing,
+                         device="cuda")
+        assert run.device == "cuda", run.device_note
+        np.save(sys.argv[1], run.video)
+    """)
+    videos = {}
+    for threads in ("1", "0"):
+        env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1", FLEXVOX_SIM_THREADS=threads,
+                   PYTHONPATH=os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")]))
+        out = tmp_path / f"threads-{threads}.npy"
+        done = subprocess.run([sys.executable, "-c", script, str(out)], cwd=root, env=env, capture_output=True,
+                              text=True, timeout=900)
+        assert done.returncode == 0, done.stderr[-3000:]
+        videos[threads] = np.load(out)
+    assert videos["1"].shape == (12, 8, 8) and np.isfinite(videos["1"]).all()
+    assert np.array_equal(videos["1"], videos["0"])

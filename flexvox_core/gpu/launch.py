@@ -101,16 +101,10 @@ def launch(dispatcher, count: int, *args) -> None:
     if not _sim():
         dispatcher[math.ceil(count / BLOCK), BLOCK](*args)
         return
-    from flexvox_core.gpu.simulator import needs_threads, sequential_blocks
+    from flexvox_core.gpu import simulator
 
-    k = REGISTRY[dispatcher.flexvox_name]
-    check_arguments(k, args)
-    grid = math.ceil(count / SIM_BLOCK)
-    if needs_threads(k.py_func):
-        dispatcher[grid, SIM_BLOCK](*args)
-        return
-    with sequential_blocks():
-        dispatcher[grid, SIM_BLOCK](*args)
+    check_arguments(REGISTRY[dispatcher.flexvox_name], args)
+    simulator.run(dispatcher, math.ceil(count / SIM_BLOCK), SIM_BLOCK, args)
 
 
 def _arg_type(value):

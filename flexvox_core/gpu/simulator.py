@@ -7,7 +7,8 @@ synchronises its block (no ``syncthreads``, no shared memory, in its own code or
 gives the same result whatever order its threads run in, so :func:`sequential_blocks` runs each block's threads in
 turn on the launching thread: the same kernel code, the same simulated arrays, the same ``cuda.grid`` and atomics,
 without the Python threads. :func:`needs_threads` tells the two kinds apart by reading each function's code;
-:func:`flexvox_core.gpu.launch.launch` uses it.
+:func:`run`, which :func:`flexvox_core.gpu.launch.launch` calls, launches each kind its way, one launch at a time
+across threads.
 
 This leans on the simulator's own classes (``BlockManager``, ``Dim3``, ``swapped_cuda_module``), which are not
 numba-cuda's public API; ``tests/flexvox_core/gpu/test_simulator.py`` fails when they change, and
@@ -82,7 +83,8 @@ def _module_representatives(fn: FunctionType) -> tuple[FunctionType, ...]:
 
 
 @cache
-def _sequential_manager() -> tuple[Any, type]:
+def _sequential_manager() -> tuple[Any, type, type]:
+    """(numba's simulator kernel module, the sequential block manager, the simulator's own)."""
     from numba.cuda.simulator import kernel as simkernel_module
     from numba.cuda.simulator import kernelapi
 
@@ -115,7 +117,7 @@ def _sequential_manager() -> tuple[Any, type]:
                     me.__dict__.pop(a, None)
                 me.__dict__.update(saved)
 
-    return simkernel, SequentialBlock
+    return simkernel, SequentialBlock, simkernel.BlockManager
 
 
 @contextmanager
@@ -130,13 +132,28 @@ def _plain_device_functions(module_globals: dict[str, Any]) -> Iterator[None]:
         module_globals.update(wrapped)
 
 
+_LAUNCH_LOCK = threading.Lock()
+"""Held for each simulated launch from :func:`run`: one thread's launch cannot see another's swap of numba's block
+manager or undo it (the simulator runs one launch at a time anyway)."""
+
+
 @contextmanager
 def sequential_blocks() -> Iterator[None]:
     """Within the block, a simulated launch runs each block's threads in turn on the calling thread."""
-    simkernel, manager = _sequential_manager()
-    threaded = simkernel.BlockManager
+    simkernel, manager, threaded = _sequential_manager()
     simkernel.BlockManager = manager
     try:
         yield
     finally:
         simkernel.BlockManager = threaded
+
+
+def run(dispatcher: Any, grid: int, block: int, args: tuple[Any, ...]) -> None:
+    """Launch ``dispatcher[grid, block](*args)`` under the simulator: in turn unless its kernel
+    :func:`needs_threads`, one launch at a time across threads."""
+    with _LAUNCH_LOCK:
+        if needs_threads(dispatcher.py_func):
+            dispatcher[grid, block](*args)
+            return
+        with sequential_blocks():
+            dispatcher[grid, block](*args)

@@ -176,3 +176,51 @@ def test_a_whole_window_in_turn_is_bit_for_bit_the_simulators_threads(tmp_path):
         videos[threads] = np.load(out)
     assert videos["1"].shape == (12, 8, 8) and np.isfinite(videos["1"]).all()
     assert np.array_equal(videos["1"], videos["0"])
+
+
+def test_launches_from_several_threads_take_turns(rng):
+    """Two threads launching in turn-run kernels and one launching a kernel with a barrier, at once: every launch
+    completes with its result, and numba's block manager is its own afterwards."""
+    from numba import cuda
+    from numba.cuda.simulator import kernel as simkernel
+
+    from flexvox_core.gpu import simulator
+    from flexvox_core.gpu.filters import _blur_pass
+
+    threaded = simkernel.BlockManager
+    scope = {"cuda": cuda}
+    exec("def waits(a):\n    a[cuda.grid(1)] += 1\n    cuda.syncthreads()\n", scope)
+    waits = cuda.jit(scope["waits"])
+    planes = rng.random((1, 4, 5)).astype(np.float32)
+    taps = np.array([0.25, 0.5, 0.25], np.float32)
+    scratch = np.empty_like(planes)
+    expected = _both_ways(_blur_pass, planes.size, planes, planes, scratch, scratch, taps, np.int32(2), np.uint8(1),
+                          np.uint8(0))[0][2]
+    errors, results = [], []
+
+    def blur_many():
+        try:
+            for _ in range(15):
+                src, dst = cuda.to_device(planes), cuda.to_device(np.empty_like(planes))
+                L.launch(_blur_pass, planes.size, src, src, dst, dst, cuda.to_device(taps), np.int32(2), np.uint8(1),
+                         np.uint8(0))
+                results.append(np.array_equal(dst.copy_to_host(), expected))
+        except Exception as exc:  # noqa: BLE001 - collected and asserted below
+            errors.append(exc)
+
+    def wait_many():
+        try:
+            for _ in range(5):
+                out = cuda.to_device(np.zeros(8, np.float32))
+                simulator.run(waits, 1, 8, (out,))
+                results.append(bool((out.copy_to_host() == 1).all()))
+        except Exception as exc:  # noqa: BLE001
+            errors.append(exc)
+
+    workers = [threading.Thread(target=f) for f in (blur_many, blur_many, wait_many)]
+    for t in workers:
+        t.start()
+    for t in workers:
+        t.join(timeout=300)
+    assert errors == [] and len(results) == 35 and all(results)
+    assert simkernel.BlockManager is threaded

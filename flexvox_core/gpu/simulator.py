@@ -1,14 +1,14 @@
 """Kernels under numba-cuda's simulator, one simulated thread after another where a kernel allows it.
 
 The simulator runs every thread of a block as a Python thread, so that ``cuda.syncthreads()`` can hold them at a
-barrier; starting those threads and switching between them costs most of a simulated launch (motion-aware's kernels
-on a tiny window: 0.36 ms per simulated thread on the simulator's threads, 0.06 ms in turn). A kernel that never
-synchronises its block (no ``syncthreads``, no shared memory, in its own code or in a device function it calls)
-gives the same result whatever order its threads run in, so :func:`sequential_blocks` runs each block's threads in
-turn on the launching thread: the same kernel code, the same simulated arrays, the same ``cuda.grid`` and atomics,
-without the Python threads. :func:`needs_threads` tells the two kinds apart by reading each function's code;
-:func:`run`, which :func:`flexvox_core.gpu.launch.launch` calls, launches each kind its way, one launch at a time
-across threads.
+barrier; starting those threads and switching between them costs most of a simulated launch (a tiny window's whole
+GPU run, ``bench/bench_simulator.py``: 48.4 s on the simulator's threads, 11.4 s in turn, on 2 quiet cores). A
+kernel that never synchronises its block (no ``syncthreads``, no shared memory, in its own code or in a device
+function it calls) gives the same result whatever order its threads run in, so :func:`sequential_blocks` runs each
+block's threads in turn on the launching thread: the same kernel code, the same simulated arrays, the same
+``cuda.grid`` and atomics, without the Python threads. :func:`needs_threads` tells the two kinds apart by reading
+each function's code; :func:`run`, which :func:`flexvox_core.gpu.launch.launch` calls, launches each kind its way,
+one launch at a time across threads.
 
 This leans on the simulator's own classes (``BlockManager``, ``Dim3``, ``swapped_cuda_module``), which are not
 numba-cuda's public API; ``tests/flexvox_core/gpu/test_simulator.py`` fails when they change, and

@@ -34,16 +34,14 @@ def _size(text: str) -> tuple[int, int]:
     return h, w
 
 
-def one_run(frames: np.ndarray, threads: bool) -> tuple[float, np.ndarray]:
+def one_run(frames: np.ndarray, code: np.ndarray, threads: bool) -> tuple[float, np.ndarray]:
     """(seconds, video) of one window through the GPU engine under the simulator, on threads or in turn."""
-    from flexvox_core import code_from_order
     from flexvox_core.gpu.simulator import needs_threads
     from flexvox_core.motion.options import MotionOptions, sample_bounds
     from flexvox_core.motion.pipeline import run_window
 
     os.environ["FLEXVOX_SIM_THREADS"] = "1" if threads else "0"
     needs_threads.cache_clear()
-    code = code_from_order([[0, 2], [3, 1]])
     start = time.perf_counter()
     run = run_window(frames, code, MotionOptions(), sample_bounds(frames, None, None), device="cuda")
     seconds = time.perf_counter() - start
@@ -73,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     videos: dict[bool, np.ndarray] = {}
     for r in range(args.rounds):
         for threads in ((True, False) if r % 2 == 0 else (False, True)):
-            seconds, video = one_run(frames, threads)
+            seconds, video = one_run(frames, code, threads)
             times[threads].append(seconds)
             videos[threads] = video
             print(f"  round {r + 1}, {'threads' if threads else 'in turn'}: {seconds:.1f} s", flush=True)

@@ -104,14 +104,10 @@ def test_an_error_in_a_kernel_leaves_the_simulator_and_the_thread_as_they_were()
     planes = cuda.to_device(np.zeros((1, 2, 2), np.float32))
     with pytest.raises(IndexError):
         L.launch(filters._blur_pass, 64, planes, planes, cuda.to_device(np.zeros((1, 1, 1), np.float32)), planes,
-                 cuda.to_device(gaussian_taps_3()), np.int32(2), np.uint8(1), np.uint8(0))
+                 cuda.to_device(np.array([0.25, 0.5, 0.25], np.float32)), np.int32(2), np.uint8(1), np.uint8(0))
     assert simkernel.BlockManager is threaded
     assert not hasattr(threading.current_thread(), "threadIdx")
     assert filters.reflected is wrapped and getattr(filters.reflected, "_device", False)
-
-
-def gaussian_taps_3():
-    return np.array([0.25, 0.5, 0.25], np.float32)
 
 
 def test_every_kernel_on_threads_when_asked(monkeypatch):

@@ -69,6 +69,7 @@ def test_stack_problem_names_both_versions_and_the_fix(numpy_version, numba_cuda
 
 def test_cuda_asked_for_on_a_broken_stack_raises_the_one_line(monkeypatch):
     monkeypatch.setattr(device, "stack_problem", lambda: "numba-cuda 0.30.4 does not work with numpy 2.5.0 (…)")
+    monkeypatch.setattr(device, "driver_library", lambda: "libcuda.so.1")
     assert device.cuda_status() == (False, "numba-cuda 0.30.4 does not work with numpy 2.5.0 (…)")
     with pytest.raises(device.DeviceUnavailable, match=re.escape("device='cuda': numba-cuda 0.30.4 does not work")):
         device.resolve_device("cuda")

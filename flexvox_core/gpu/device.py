@@ -99,16 +99,17 @@ def stack_problem(numpy_version: str | None = None, numba_cuda_version: str | No
 def cuda_status() -> tuple[bool, str]:
     """(usable, reason): whether kernels can run on a GPU here, and if not, the one thing that is missing.
     With the simulator on, (True, "numba-cuda's simulator (NUMBA_ENABLE_CUDASIM=1)"). A numba-cuda that does not
-    work with the installed numpy (:func:`stack_problem`) counts as unusable, simulator or not."""
+    work with the installed numpy (:func:`stack_problem`) counts as unusable, simulator or not; on a machine with
+    no NVIDIA driver the missing driver is named first."""
     if importlib.util.find_spec("numba_cuda") is None:
         return False, f"numba-cuda is not installed ({INSTALL_HINT})"
     problem = stack_problem()
-    if problem is not None:
-        return False, problem
     if simulator():
-        return True, "numba-cuda's simulator (NUMBA_ENABLE_CUDASIM=1)"
+        return (False, problem) if problem else (True, "numba-cuda's simulator (NUMBA_ENABLE_CUDASIM=1)")
     if not driver_library():  # without the driver, numba's CUDA module (half a second to import) can do nothing
         return False, "no NVIDIA driver found (libcuda)"
+    if problem is not None:
+        return False, problem
     try:
         from numba import cuda
 
@@ -164,6 +165,14 @@ def free_memory() -> int | None:
     return int(free)
 
 
+def broken_stack() -> str | None:
+    """:func:`stack_problem` where it costs a GPU: on a machine with an NVIDIA driver (the simulator aside); None
+    elsewhere, where ``auto`` would take the CPU anyway."""
+    if simulator() or not driver_library():
+        return None
+    return stack_problem()
+
+
 def resolve_device(requested: str = "auto") -> str:
     """``cpu`` or ``cuda`` for ``requested`` (one of :data:`DEVICES`); ``cuda`` unusable raises
     :class:`DeviceUnavailable`."""
@@ -178,7 +187,7 @@ def resolve_device(requested: str = "auto") -> str:
         return "cuda"
     if ok and not simulator():
         return "cuda"
-    if not ok and stack_problem() is not None:  # a GPU stack that is installed but broken: worth a warning
+    if broken_stack() is not None:  # a driver, and a GPU stack installed but broken: worth a warning
         _logger.warning("device auto: the CPU, because %s", reason)
     else:
         _logger.info("device auto: the CPU (%s)", reason if not ok else "the simulator is not picked by auto")

@@ -118,13 +118,13 @@ def device_for(method: Method, code, device: str = "cpu") -> tuple[str, str | No
     (:func:`flexvox_core.gpu.resolve_device`; ``cuda`` without a usable GPU raises
     :class:`~flexvox_core.gpu.DeviceUnavailable`), then the CPU for a method, values or code without a GPU path
     (:meth:`~flexvox_core.methods.spec.MethodSpec.cpu_only`), with that reason; ``auto`` that falls back to the CPU
-    because numba-cuda and numpy do not work together (:func:`flexvox_core.gpu.device.stack_problem`) says so too."""
+    because numba-cuda and numpy do not work together (:func:`flexvox_core.gpu.device.broken_stack`) says so too."""
     if device == "cpu":
         return "cpu", None
-    from flexvox_core.gpu.device import resolve_device, stack_problem
+    from flexvox_core.gpu.device import broken_stack, resolve_device
 
     if resolve_device(device) == "cpu":
-        return "cpu", stack_problem()  # auto on a broken GPU stack says why; None where there is simply no GPU
+        return "cpu", broken_stack()  # auto beside a GPU whose stack is broken says why; None where there is no GPU
     why = method.cpu_only(np.asarray(code, bool))
     return ("cpu", why) if why else ("cuda", None)
 

@@ -121,7 +121,17 @@ def test_a_broken_gpu_stack_is_refused_in_one_line(recording, tmp_path, capsys, 
     assert json.loads(capsys.readouterr().out)["gpus"]["reason"].startswith(BROKEN)
 
 
-def test_auto_on_a_broken_gpu_stack_takes_the_cpu_and_says_why(recording, tmp_path, capsys, caplog, broken_stack):
+@pytest.fixture
+def a_driver(monkeypatch):
+    """A machine with an NVIDIA driver, the simulator off (auto's case)."""
+    from flexvox_core.gpu import device
+
+    monkeypatch.setattr(device, "simulator", lambda: False)
+    monkeypatch.setattr(device, "driver_library", lambda: "libcuda.so.1")
+
+
+def test_auto_on_a_broken_gpu_stack_takes_the_cpu_and_says_why(recording, tmp_path, capsys, caplog, broken_stack,
+                                                               a_driver):
     with caplog.at_level("WARNING", logger="flexvox_core.gpu.device"):
         assert main(["reconstruct", str(recording), "--method", "diffusion", "-o", str(tmp_path / "o.npy")]) == 0
     assert "device: cpu" in capsys.readouterr().out.splitlines()
@@ -130,7 +140,20 @@ def test_auto_on_a_broken_gpu_stack_takes_the_cpu_and_says_why(recording, tmp_pa
         "flexvox, which caps it)"]
 
 
-def test_run_on_auto_with_a_broken_gpu_stack_notes_why_on_the_result(broken_stack):
+def test_without_a_driver_a_broken_gpu_stack_is_not_mentioned(recording, tmp_path, capsys, caplog, broken_stack,
+                                                               monkeypatch):
+    """No driver: auto would take the CPU anyway, so nothing warns; --device cuda names the driver first."""
+    from flexvox_core.gpu import device
+
+    monkeypatch.setattr(device, "simulator", lambda: False)
+    monkeypatch.setattr(device, "driver_library", lambda: None)
+    with caplog.at_level("WARNING", logger="flexvox_core.gpu.device"):
+        assert main(["reconstruct", str(recording), "--method", "diffusion", "-o", str(tmp_path / "o.npy")]) == 0
+    assert not [r for r in caplog.records if r.levelname == "WARNING"]
+    assert device.cuda_status() == (False, "no NVIDIA driver found (libcuda)")
+
+
+def test_run_on_auto_with_a_broken_gpu_stack_notes_why_on_the_result(broken_stack, a_driver):
     """From Python the result itself says why the CPU ran (`MethodOutput.device_note`)."""
     import numpy as np
 

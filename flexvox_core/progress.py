@@ -30,7 +30,8 @@ def check_progress(progress: object) -> None:
 
 
 @contextmanager
-def progress_callback(progress: bool | Progress | None, *, desc: str, unit: str, total: int | None = None) -> Iterator[Progress | None]:
+def progress_callback(progress: bool | Progress | None, *, desc: str, unit: str,
+                      total: int | None = None) -> Iterator[Progress | None]:
     """The callback ``progress(done, total)`` that ``progress`` stands for (see the module), or None for nothing.
 
     Parameters

@@ -260,6 +260,8 @@ def _unreadable(path: Path) -> str:
     """Why a store zarr cannot open is unreadable, in words (never an exception's class name)."""
     meta = path / "zarr.json"
     if not path.is_dir():
+        if path.suffix.lower() in (".npy", ".tif", ".tiff", ".mp4"):
+            return "it is a video file; a recording is a .zarr folder: fv.read_video(path) reads a video"
         return "it is a file; a recording is a .zarr folder"
     if not meta.is_file():
         return "its zarr.json is missing"

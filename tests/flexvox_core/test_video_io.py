@@ -56,3 +56,10 @@ def test_open_recording_on_a_reconstructed_video_says_what_it_is(tmp_path):
                                              r"fv.write_video.*not a recording of camera frames: read it with "
                                              r"fv.read_video\(path\), or lazily with fv.open_video_store\(path\)"):
         fv.open_recording(path)
+
+
+def test_open_recording_on_a_video_file_names_read_video(tmp_path):
+    path = fv.write_video(tmp_path / "v.tif", np.zeros((2, 4, 4), np.float32))
+    with pytest.raises(RecordingError, match=r"v.tif: not a readable Zarr store \(it is a video file; a recording is "
+                                             r"a .zarr folder: fv.read_video\(path\) reads a video\)"):
+        fv.open_recording(path)

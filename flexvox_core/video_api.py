@@ -29,7 +29,7 @@ def reconstruct_video(frames: Any, code: ArrayLike | None = None, method: Method
         divided by their dtype's largest value (uint8: 255, uint16: 65535) unless ``white`` gives the white level
         (:mod:`flexvox_core.intensity`). Or a :class:`~flexvox_core.recording.Recording`
         (``fv.open_recording(path)``) in place of frames and code: its code, its counts' normalisation and its
-        dropped frames come with it (``reconstruct_video(rec)``, ``reconstruct_video(rec, "nc")``).
+        dropped frames come with it (``reconstruct_video(rec)``, ``reconstruct_video(rec, "diffusion")``).
     code : ndarray (m, n, K)
         The code they were captured with: an identity code, or a multiplexed one for a method that takes it
         (any other code is refused: :func:`flexvox_core.codes.check_reconstructable`). Left out with a Recording.
@@ -76,7 +76,23 @@ def reconstruct_video(frames: Any, code: ArrayLike | None = None, method: Method
     >>> fv.reconstruct_video(frames, code, "diffusion", time=2).shape
     (8, 16, 16)
     """
-    from flexvox_core.methods import run
+    from flexvox_core.capture_reader import CaptureReader
+    from flexvox_core.methods import Method, run
+    from flexvox_core.methods.runner import as_method
+    from flexvox_core.recording import Recording
 
-    return run(frames, code, method, chunk_frames=chunk_frames, progress=progress, missing=missing, device=device,
-               origin=origin, white=white, **options).video
+    if not isinstance(frames, Recording | CaptureReader):
+        return run(frames, code, method, chunk_frames=chunk_frames, progress=progress, missing=missing,
+                   device=device, origin=origin, white=white, **options).video
+    if method is None and isinstance(code, str | Method):
+        code, method = None, code  # reconstruct_video(recording, "diffusion"): the method in the code's place
+    for name, value, why in (("code", code, "its code"), ("missing", missing, "its dropped frames"),
+                             ("white", white, "the normalisation of its counts (its `storage` attributes)"),
+                             ("origin", origin, "its whole camera frame (crop the reconstruction instead)")):
+        if value is not None:
+            raise TypeError(f"a Recording carries {why}: give the recording and the method alone, "
+                            f"reconstruct_video(recording, method); got `{name}` as well")
+    reader = frames if isinstance(frames, CaptureReader) else CaptureReader(frames)
+    video: np.ndarray = reader.run(as_method(method, options), chunk_frames=chunk_frames, progress=progress,
+                                   device=device).video
+    return video

@@ -266,50 +266,22 @@ def check_origin(origin) -> tuple[int, int]:
     return int(row), int(col)
 
 
-def _is_recording(frames) -> bool:
-    from flexvox_core.capture_reader import CaptureReader
-    from flexvox_core.recording import Recording
-
-    return isinstance(frames, Recording | CaptureReader)
-
-
-def _run_recording(recording, code, method, options, *, chunk_frames, progress, extras, missing, device, origin,
-                   white) -> MethodOutput:
-    """:func:`run` of a :class:`~flexvox_core.recording.Recording` (or a
-    :class:`~flexvox_core.capture_reader.CaptureReader`): its code, normalisation and dropped frames come with it."""
-    from flexvox_core.capture_reader import CaptureReader
-
-    if code is not None and method is None and isinstance(code, str | Method):
-        code, method = None, code  # reconstruct_video(recording, "nc"): the method in the code's place
-    for name, value, why in (("code", code, "its code"), ("missing", missing, "its dropped frames"),
-                             ("white", white, "the normalisation of its counts (its `storage` attributes)"),
-                             ("origin", origin, "its whole camera frame (crop the reconstruction instead)")):
-        if value is not None:
-            raise TypeError(f"a Recording carries {why}: give the recording and the method alone, "
-                            f"reconstruct_video(recording, method); got `{name}` as well")
-    reader = recording if isinstance(recording, CaptureReader) else CaptureReader(recording)
-    return reader.run(as_method(method, options), chunk_frames=chunk_frames, progress=progress, extras=extras,
-                      device=device)
-
-
-def run(frames, code=None, method: Method | str | None = None, *, chunk_frames: int | None = 16,
+def run(frames, code, method: Method | str | None = None, *, chunk_frames: int | None = 16,
         progress: bool | Progress | None = None, extras: bool = False, missing=None, device: str = "cpu",
         origin: tuple[int, int] | None = None, white: float | None = None, **options: Any) -> MethodOutput:
     """Reconstruct the full video ``(F·K, H, W)`` float32 in [0, 1] of a capture.
 
     Parameters
     ----------
-    frames : ndarray (F, H, W), or Recording
+    frames : ndarray (F, H, W)
         The camera frames: floats in relative units (white = 1), or integer counts, divided by the dtype's
         largest value (uint8: 255, uint16: 65535) unless ``white`` gives the white level
-        (:mod:`flexvox_core.intensity`). Or a :class:`~flexvox_core.recording.Recording`
-        (:func:`~flexvox_core.recording.open_recording`) in place of frames and code: its frames are
-        normalised, demultiplexed for a method that needs it, and its dropped frames bridged
-        (:meth:`~flexvox_core.capture_reader.CaptureReader.run`).
+        (:mod:`flexvox_core.intensity`). A recording: :meth:`flexvox_core.capture_reader.CaptureReader.run`, or
+        :func:`flexvox_core.reconstruct_video` with the recording in place of frames and code.
     code : ndarray (m, n, K)
         An identity code, or a multiplexed one (the frames then multiplexed, each value a sum of its open slots)
         for a method that :meth:`~flexvox_core.methods.method.Method.takes_multiplexed`; any other code is
-        refused (:func:`flexvox_core.codes.check_reconstructable`). Left out with a Recording.
+        refused (:func:`flexvox_core.codes.check_reconstructable`).
     method : Method or str, optional
         A :class:`Method`, or a method's name (``"gap-tv"``) with its options as keywords (``**options``).
         Default: motion-aware.
@@ -325,7 +297,7 @@ def run(frames, code=None, method: Method | str | None = None, *, chunk_frames: 
     missing : ndarray (F,) bool, optional
         Frames the camera dropped (zero rows): bridged from both sides, or refused
         (:class:`~flexvox_core.gaps.GapTooLongError`) when a gap is longer than the method's
-        :meth:`~flexvox_core.methods.method.Method.max_gap`. A Recording brings its own.
+        :meth:`~flexvox_core.methods.method.Method.max_gap`.
     device : {"cpu", "cuda", "auto"}
         Where it runs (:func:`device_for`): ``auto`` takes the GPU when one is usable and the method has a GPU
         path; the result's ``device`` and ``device_note`` say where it ran and why not on the GPU.
@@ -351,13 +323,10 @@ def run(frames, code=None, method: Method | str | None = None, *, chunk_frames: 
     ValueError
         Frames, a code, an origin or options that break their rules (the message names the value and the rule).
     """
-    if _is_recording(frames):
-        return _run_recording(frames, code, method, options, chunk_frames=chunk_frames, progress=progress,
-                              extras=extras, missing=missing, device=device, origin=origin, white=white)
     method = as_method(method, options)
     if code is None:
-        raise TypeError("run() needs the `code` the frames were captured with (or a Recording, which carries it, "
-                        "in place of both)")
+        raise TypeError("run() needs the `code` the frames were captured with (a recording: "
+                        "fv.reconstruct_video(recording) or fv.open_capture(recording).run(method))")
     row, col = check_origin(origin)
     f = as_relative(frames, white=white)
     with progress_callback(progress, desc="reconstruct", unit="frame", total=f.shape[0] if f.ndim else None
@@ -412,14 +381,14 @@ def _run(f: np.ndarray, code, method: Method, *, chunk_frames: int | None, progr
     return MethodOutput(video, arrays, None if missing is None else interpolated_subframes(missing, K), device, note)
 
 
-def reconstruct(frames, code=None, method: Method | str | None = None, *, chunk_frames: int | None = 16,
+def reconstruct(frames, code, method: Method | str | None = None, *, chunk_frames: int | None = 16,
                 progress: bool | Progress | None = None, missing=None, device: str = "cpu",
                 origin: tuple[int, int] | None = None, white: float | None = None, **options: Any) -> np.ndarray:
     """The video of :func:`run` alone: ``(F·K, H, W)`` float32 in [0, 1].
 
     Parameters
     ----------
-    frames : ndarray (F, H, W), or Recording
+    frames : ndarray (F, H, W)
         See :func:`run`.
     code : ndarray (m, n, K)
         See :func:`run`.

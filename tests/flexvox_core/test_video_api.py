@@ -79,7 +79,7 @@ def test_a_recording_in_place_of_frames_and_code_brings_its_dropped_frames(dropp
     expected = fv.reconstruct_video(frames, code, NC, missing=rec.dropped)
     np.testing.assert_array_equal(fv.reconstruct_video(rec, NC), expected)
     np.testing.assert_array_equal(fv.reconstruct_video(rec, "diffusion"), expected)
-    np.testing.assert_array_equal(fv.run(rec, method="diffusion", extras=False).video, expected)
+    np.testing.assert_array_equal(fv.open_capture(rec).run(NC).video, expected)
     assert not np.array_equal(fv.reconstruct_video(frames, code, NC), expected)  # drops forgotten: another answer
     with pytest.raises(TypeError, match=r"a Recording carries its code: .*got `code` as well"):
         fv.reconstruct_video(rec, code, NC)

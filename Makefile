@@ -1,6 +1,8 @@
 # flexvox — the two commands a new lab member needs: `make demo` and `make test`.
 # Each creates .venv when it is missing and installs the project into it (editable).
 
+# Supported and tested: Python 3.11, 3.12 and 3.13 (.ci/run tests 3.11 and 3.13). Another Python goes in a venv of
+# its own: `make test PYTHON=python3.13 VENV=.venv-3.13`.
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
@@ -8,17 +10,25 @@ STAMP := $(VENV)/.installed
 # Every extra: the Qt application (gui), the napari plugin, GenICam cameras, the tests. `pip install flexvox` alone has no Qt.
 EXTRAS := test,gui,genicam,napari
 
-.PHONY: demo test test-slow test-full docs-check lint bench screenshots napari-screenshot docs clean
+.PHONY: same-python demo test test-slow test-full docs-check lint bench screenshots napari-screenshot docs clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
-$(STAMP): $(BIN)/python pyproject.toml
+$(STAMP): $(BIN)/python pyproject.toml | same-python
 	$(BIN)/python -m pip install --quiet -e ".[$(EXTRAS)]"
 	touch $(STAMP)
 
-demo: $(STAMP)
+# A venv that another Python made is never reused in silence: `make test PYTHON=python3.13` beside a 3.11 .venv stops.
+same-python: $(BIN)/python
+	@want=$$($(PYTHON) -c 'import sys; print("%d.%d" % sys.version_info[:2])') && \
+	have=$$($(BIN)/python -c 'import sys; print("%d.%d" % sys.version_info[:2])') && \
+	if [ "$$want" != "$$have" ]; then \
+		echo "make: $(VENV) holds Python $$have but PYTHON=$(PYTHON) is $$want: give VENV=.venv-$$want" \
+		"(or remove $(VENV))" >&2; exit 2; fi
+
+demo: $(STAMP) same-python
 	$(BIN)/flexvox demo --overwrite
 
 # Two workers (pytest-xdist), whole test files kept together; tests/test_layering.py runs the import contracts;
@@ -26,13 +36,13 @@ demo: $(STAMP)
 # `make test` leaves out the tests marked slow_sim (the GPU path's larger cases under numba-cuda's simulator, and
 # a few long end-to-end runs); `make test-slow` runs only those, `make test-full` everything.
 # .ci/run runs test, test-slow, docs and docs-check.
-test: $(STAMP)
+test: $(STAMP) same-python
 	QT_QPA_PLATFORM=offscreen $(BIN)/python -m pytest -n 2 --dist loadfile -m "not slow_sim"
 
-test-slow: $(STAMP)
+test-slow: $(STAMP) same-python
 	QT_QPA_PLATFORM=offscreen $(BIN)/python -m pytest -n 2 --dist loadfile -m slow_sim
 
-test-full: $(STAMP)
+test-full: $(STAMP) same-python
 	QT_QPA_PLATFORM=offscreen $(BIN)/python -m pytest -n 2 --dist loadfile
 
 # Every shell line of README.md and docs/*.md, run in order in a scratch folder (tests/docs_check.py);

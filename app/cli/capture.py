@@ -244,6 +244,37 @@ def run(args) -> int:
     return with_projector_screen(args, spec, lambda display, interrupted: _capture(args, display, interrupted))
 
 
+class StopRequests:
+    """Ctrl-C (SIGINT) and SIGTERM, noted instead of raised, while a capture runs (a context manager).
+
+    Python raises KeyboardInterrupt in the main thread wherever it happens to be. Raised between a lock's
+    acquisition and the ``try`` that releases it (inside ``threading.Event.wait``, say), it leaves that lock held,
+    and the capture's own end (``Event.set``) and ``stop()`` then wait on it for ever. Here the handler only counts
+    (no lock, no exception); the capture's loop reads :attr:`count` between its waits. The previous handlers come
+    back on exit. Outside the main thread (a projector screen's worker) signals cannot be handled: nothing changes.
+    """
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self):
+        self.count = 0
+        self._previous: dict = {}
+
+    def _note(self, signum, frame) -> None:
+        self.count += 1
+
+    def __enter__(self) -> StopRequests:
+        if threading.current_thread() is threading.main_thread():
+            for sig in self.SIGNALS:
+                self._previous[sig] = signal.signal(sig, self._note)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+        self._previous.clear()
+
+
 def _capture(args, display=None, interrupted=None) -> int:
     """Build, start and follow the capture; ``interrupted`` (an Event) stops it like Ctrl-C."""
     from flexvox_app.capture import CaptureError
@@ -251,9 +282,18 @@ def _capture(args, display=None, interrupted=None) -> int:
 
     try:
         service = _build(args, display)
-        service.start()
     except (ValueError, CaptureError, DeviceError) as exc:
         raise CliError(str(exc)) from None
+    with StopRequests() as requests:  # from here Ctrl-C stops the capture and keeps what was captured
+        try:
+            service.start()
+        except (ValueError, CaptureError, DeviceError) as exc:
+            raise CliError(str(exc)) from None
+        return _follow(args, service, requests, interrupted)
+
+
+def _follow(args, service, requests: StopRequests, interrupted=None) -> int:
+    """Report a started capture until it ends or is stopped (``requests``, ``interrupted``); stop it; its result."""
     print(f"capturing to {args.output} at {1 / service.frame_period_s:.3f} Hz"
           f"{'' if args.frames is None else f', {args.frames} frames'} (Ctrl-C stops and keeps what was captured)",
           flush=True)
@@ -268,13 +308,11 @@ def _capture(args, display=None, interrupted=None) -> int:
     interactive = sys.stderr.isatty()
     lines = _ProgressLines(interactive)
     service.events.progress.connect(lines)
-    try:
-        while not service.wait(0.25):  # the end, or Ctrl-C
-            if interrupted is not None and interrupted.is_set():
-                raise KeyboardInterrupt
-    except KeyboardInterrupt:
-        lines.close()
-        print("\nstopping...", file=sys.stderr, flush=True)
+    while not service.wait(0.25):  # the end, or Ctrl-C
+        if requests.count or (interrupted is not None and interrupted.is_set()):
+            lines.close()
+            print("\nstopping...", file=sys.stderr, flush=True)
+            break
     lines.close()
     rows = service.stats().rows_written
     timeout = stop_timeout(rows, service.K, args.ground_truth)

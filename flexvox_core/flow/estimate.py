@@ -105,7 +105,7 @@ def sanitize_flow(flow: np.ndarray, confidence: np.ndarray | None = None, *, max
         over = mag > max_magnitude
         if over.any():
             flow = flow * np.where(over, max_magnitude / np.maximum(mag, 1e-12), 1)[..., None]
-    if conf.size and not (conf.min() >= 0 and conf.max() <= 1):  # NaN fails both: clipped (stays NaN)
+    if conf.size and not (np.min(conf) >= 0 and np.max(conf) <= 1):  # NaN fails both: clipped (stays NaN)
         conf = np.clip(conf, 0, 1)
     return flow.astype(np.float32, copy=False), conf
 

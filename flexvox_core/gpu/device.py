@@ -9,9 +9,11 @@ by name (the tests run the GPU path on it); ``auto`` never picks it.
 from __future__ import annotations
 
 import importlib.util
+import itertools
 import logging
 import os
 from dataclasses import dataclass
+from importlib import metadata
 
 _logger = logging.getLogger(__name__)
 
@@ -19,6 +21,15 @@ DEVICES = ("auto", "cpu", "cuda")
 """The values of every ``--device`` option."""
 
 INSTALL_HINT = "pip install '.[gpu]' in a clone of flexvox"
+
+NUMPY_LIMIT = (2, 5)
+"""The first numpy release that numba-cuda up to :data:`NUMBA_CUDA_CHECKED` does not work with. pyproject.toml's
+``gpu`` and ``test`` extras cap numpy below it (``numpy<2.5``); tests/test_dependencies.py checks the two agree."""
+
+NUMBA_CUDA_CHECKED = (0, 30, 4)
+"""The newest numba-cuda known to fail with numpy :data:`NUMPY_LIMIT` (its simulator warns that NumPy's 'generic'
+timedelta unit is deprecated; on a card it fails). A newer numba-cuda is given the benefit of the doubt, and
+tests/test_dependencies.py fails until someone checks it and lifts the cap or moves this version."""
 
 
 class DeviceUnavailable(RuntimeError):
@@ -52,11 +63,48 @@ def simulator() -> bool:
     return os.environ.get("NUMBA_ENABLE_CUDASIM", "0") not in ("", "0")
 
 
+def _version(text: str) -> tuple[int, ...]:
+    """The leading numeric parts of a version string ("2.5.0rc1" -> (2, 5, 0))."""
+    parts = []
+    for part in text.split("."):
+        digits = "".join(itertools.takewhile(str.isdigit, part))
+        if not digits:
+            break
+        parts.append(int(digits))
+        if digits != part:
+            break
+    return tuple(parts)
+
+
+def stack_problem(numpy_version: str | None = None, numba_cuda_version: str | None = None) -> str | None:
+    """Why the installed numba-cuda and numpy do not work together, in one line naming both versions and the fix;
+    None when they do (or numba-cuda is not installed). The versions default to the installed ones (read from the
+    packages' metadata, without importing numba-cuda)."""
+    if numba_cuda_version is None:
+        try:
+            numba_cuda_version = metadata.version("numba-cuda")
+        except metadata.PackageNotFoundError:
+            return None
+    if numpy_version is None:
+        import numpy
+
+        numpy_version = numpy.__version__
+    if _version(numpy_version)[:2] >= NUMPY_LIMIT and _version(numba_cuda_version) <= NUMBA_CUDA_CHECKED:
+        limit = ".".join(map(str, NUMPY_LIMIT))
+        return (f"numba-cuda {numba_cuda_version} does not work with numpy {numpy_version} (numpy {limit} and newer); "
+                f"pip install 'numpy<{limit}' (or pip install '.[gpu]' in a clone of flexvox, which caps it)")
+    return None
+
+
 def cuda_status() -> tuple[bool, str]:
     """(usable, reason): whether kernels can run on a GPU here, and if not, the one thing that is missing.
-    With the simulator on, (True, "numba-cuda's simulator (NUMBA_ENABLE_CUDASIM=1)")."""
+    With the simulator on, (True, "numba-cuda's simulator (NUMBA_ENABLE_CUDASIM=1)"). A numba-cuda that does not
+    work with the installed numpy (:func:`stack_problem`) counts as unusable, simulator or not."""
     if importlib.util.find_spec("numba_cuda") is None:
         return False, f"numba-cuda is not installed ({INSTALL_HINT})"
+    problem = stack_problem()
+    if problem is not None:
+        return False, problem
     if simulator():
         return True, "numba-cuda's simulator (NUMBA_ENABLE_CUDASIM=1)"
     if not driver_library():  # without the driver, numba's CUDA module (half a second to import) can do nothing
@@ -130,5 +178,8 @@ def resolve_device(requested: str = "auto") -> str:
         return "cuda"
     if ok and not simulator():
         return "cuda"
-    _logger.info("device auto: the CPU (%s)", reason if not ok else "the simulator is not picked by auto")
+    if not ok and stack_problem() is not None:  # a GPU stack that is installed but broken: worth a warning
+        _logger.warning("device auto: the CPU, because %s", reason)
+    else:
+        _logger.info("device auto: the CPU (%s)", reason if not ok else "the simulator is not picked by auto")
     return "cpu"

@@ -118,13 +118,14 @@ def device_for(method: Method, code, device: str = "cpu") -> tuple[str, str | No
     """(where ``method`` runs, why not on the GPU): ``device`` (``auto``, ``cpu`` or ``cuda``) resolved
     (:func:`flexvox_core.gpu.resolve_device`; ``cuda`` without a usable GPU raises
     :class:`~flexvox_core.gpu.DeviceUnavailable`), then the CPU for a method, values or code without a GPU path
-    (:meth:`~flexvox_core.methods.spec.MethodSpec.cpu_only`), with that reason."""
+    (:meth:`~flexvox_core.methods.spec.MethodSpec.cpu_only`), with that reason; ``auto`` that falls back to the CPU
+    because numba-cuda and numpy do not work together (:func:`flexvox_core.gpu.device.stack_problem`) says so too."""
     if device == "cpu":
         return "cpu", None
-    from flexvox_core.gpu.device import resolve_device
+    from flexvox_core.gpu.device import resolve_device, stack_problem
 
     if resolve_device(device) == "cpu":
-        return "cpu", None
+        return "cpu", stack_problem()  # auto on a broken GPU stack says why; None where there is simply no GPU
     why = method.cpu_only(np.asarray(code, bool))
     return ("cpu", why) if why else ("cuda", None)
 

@@ -140,3 +140,23 @@ def test_a_stopped_ground_truth_capture_is_given_the_time_its_truth_takes():
     assert stop_timeout(3675, 16, ground_truth=False) == 30.0
     assert stop_timeout(3675, 16, ground_truth=True) == 30.0 + 3675 * 16 / GROUND_TRUTH_RATE
     assert stop_timeout(3675, 16, ground_truth=True) > 3675 * 16 / 1330 * 2  # twice the measured rate's need
+
+
+def test_ctrl_c_and_sigterm_during_a_capture_are_noted_not_raised():
+    """A KeyboardInterrupt raised inside a lock's critical section left the lock held and hung the capture's stop
+    (the second-capture refusal test, under load): during a capture the signals are only counted."""
+    import os
+    import signal
+    import threading
+
+    from flexvox_app.cli.capture import StopRequests
+
+    before = {sig: signal.getsignal(sig) for sig in StopRequests.SIGNALS}
+    pause = threading.Event()
+    with StopRequests() as requests:
+        os.kill(os.getpid(), signal.SIGINT)
+        pause.wait(0.05)
+        os.kill(os.getpid(), signal.SIGTERM)
+        pause.wait(0.05)
+        assert requests.count == 2
+    assert {sig: signal.getsignal(sig) for sig in StopRequests.SIGNALS} == before

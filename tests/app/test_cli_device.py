@@ -98,3 +98,45 @@ def test_devices_describes_a_gpu_by_name_memory_and_driver(monkeypatch):
                      "driver": "13.0"}]}
     monkeypatch.setattr(device, "cuda_status", lambda: (False, "no NVIDIA driver found (libcuda)"))
     assert devices._gpus() == {"available": False, "devices": [], "reason": "no NVIDIA driver found (libcuda)"}
+
+
+BROKEN = "numba-cuda 0.30.4 does not work with numpy 2.5.0 (numpy 2.5 and newer)"
+
+
+@pytest.fixture
+def broken_stack(monkeypatch):
+    """numpy 2.5 beside numba-cuda 0.30.4, as pip gives on Python 3.12 without the cap."""
+    from flexvox_core.gpu import device
+
+    real = device.stack_problem
+    monkeypatch.setattr(device, "stack_problem", lambda: real("2.5.0", "0.30.4"))
+
+
+def test_a_broken_gpu_stack_is_refused_in_one_line(recording, tmp_path, capsys, broken_stack):
+    assert main(["reconstruct", str(recording), "--method", "diffusion", "--device", "cuda",
+                 "-o", str(tmp_path / "o.npy")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and f"error: --device cuda: {BROKEN}; pip install 'numpy<2.5'" in err
+    assert main(["devices", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["gpus"]["reason"].startswith(BROKEN)
+
+
+def test_auto_on_a_broken_gpu_stack_takes_the_cpu_and_says_why(recording, tmp_path, capsys, caplog, broken_stack):
+    with caplog.at_level("WARNING", logger="flexvox_core.gpu.device"):
+        assert main(["reconstruct", str(recording), "--method", "diffusion", "-o", str(tmp_path / "o.npy")]) == 0
+    assert "device: cpu" in capsys.readouterr().out.splitlines()
+    assert [r.getMessage() for r in caplog.records if r.levelname == "WARNING"] == [
+        f"device auto: the CPU, because {BROKEN}; pip install 'numpy<2.5' (or pip install '.[gpu]' in a clone of "
+        "flexvox, which caps it)"]
+
+
+def test_run_on_auto_with_a_broken_gpu_stack_notes_why_on_the_result(broken_stack):
+    """From Python the result itself says why the CPU ran (`MethodOutput.device_note`)."""
+    import numpy as np
+
+    import flexvox_core as fv
+
+    code = fv.code_from_order([[0, 1], [2, 3]])
+    frames = np.random.default_rng(0).random((2, 8, 8), dtype=np.float32)
+    out = fv.run(frames, code, fv.Method("diffusion"), device="auto")
+    assert out.device == "cpu" and out.device_note.startswith(BROKEN)

@@ -27,24 +27,32 @@ _logger = logging.getLogger(__name__)
 __all__ = ["calibrate_rig", "load_rig_calibration"]
 
 
-def _tqdm_steps(desc: str) -> Callable[[int, int], None]:
-    """One ``tqdm.auto`` bar per calibration step (a notebook widget in Jupyter, text in a terminal)."""
-    from tqdm.auto import tqdm
-
-    bar = tqdm(desc=desc, unit="pattern", leave=False)
-
-    def update(done: int, total: int) -> None:
-        if bar.total != total:
-            bar.reset(total=total)
-        bar.n = done
-        bar.refresh()
-        if done >= total:
-            bar.close()
-
-    return update
+def step_count(rig) -> int:
+    """The calibration steps :func:`calibrate_rig` reports on ``rig``: co-location, the parallax test's two
+    views (on the simulated rig only; a real rig's is skipped), homography, shutter and synchronisation."""
+    return 6 if rig.simulated is not None else 4
 
 
-def calibrate_rig(rig, *, tile=(4, 4), progress: bool | Callable = True, save=None,
+class _Steps:
+    """The pipeline's per-step progress (``step(desc)`` returns ``update(done, total)``) as one overall count of
+    steps, ``report(done_steps, total_steps)``."""
+
+    def __init__(self, report: Callable[[int, int], None], total: int):
+        self.report, self.total, self.started = report, total, 0
+
+    def __call__(self, desc: str) -> Callable[[int, int], None]:
+        index = self.started
+        self.started += 1
+        self.report(min(index, self.total), self.total)
+
+        def update(done: int, total: int) -> None:
+            if total and done >= total:
+                self.report(min(index + 1, self.total), self.total)
+
+        return update
+
+
+def calibrate_rig(rig, *, tile=(4, 4), progress: bool | Callable[[int, int], None] | None = True, save=None,
                   overwrite: bool = False) -> CaptureCalibration:
     """Calibrate ``rig`` (co-location, homography, shutter, synchronisation, frame check) for capture.
 
@@ -55,9 +63,10 @@ def calibrate_rig(rig, *, tile=(4, 4), progress: bool | Callable = True, save=No
         rig the calibration target is put in view and the scene comes back at the end.
     tile : (int, int), keyword-only
         The code's tile the shutter step checks.
-    progress : bool or callable, keyword-only
-        True: a ``tqdm.auto`` bar per step; False: none; a callable ``progress(step_name)`` returns
-        ``update(done, total)`` for each step.
+    progress : bool or callable(done_steps, total_steps), keyword-only
+        The rule of every long call (:mod:`flexvox_core.progress`): True: one ``tqdm.auto`` bar over the steps,
+        with its total (:func:`step_count`); False or None: nothing; a callable is called as each step starts
+        and ends.
     save : str or Path, optional, keyword-only
         Also write the calibration file (``flexvox calibrate -o``'s format) there.
     overwrite : bool, keyword-only
@@ -85,12 +94,16 @@ def calibrate_rig(rig, *, tile=(4, 4), progress: bool | Callable = True, save=No
     from flexvox_calibration.files import save_calibration
     from flexvox_calibration.pipeline import run_calibration
     from flexvox_calibration.session import RigSession
+    from flexvox_core.progress import progress_callback
+    from flexvox_core.tiles import validate_tile
 
-    steps = _tqdm_steps if progress is True else (None if progress is False else progress)
-    if steps is not None and not callable(steps):
-        raise TypeError(f"`progress` must be True, False or a callable; got {type(progress).__name__}")
-    session = RigSession.from_rig(rig)
-    run = run_calibration(rig, session, tile=tuple(tile), progress=steps)
+    total = step_count(rig)
+    with progress_callback(progress, desc="calibrate", unit="step", total=total) as report:
+        session = RigSession.from_rig(rig)
+        steps = None if report is None else _Steps(report, total)
+        run = run_calibration(rig, session, tile=validate_tile(tile), progress=steps)
+        if report is not None and run.success:
+            report(total, total)
     if not run.success:
         failed = run.report.get("failed")
         step = run.report.get(failed, {}) if failed else {}

@@ -16,8 +16,7 @@ import flexvox_core as fv
 path = sys.argv[1] if len(sys.argv) > 1 else sample_recording()
 out = sys.argv[2] if len(sys.argv) > 2 else "video.tif"
 rec = fv.open_recording(path)
-frames, code = fv.read_capture(path)
-video = fv.reconstruct_video(frames, code)
+video = fv.reconstruct_video(rec)                         # its code and dropped frames come with it
 step = 1 / (rec.camera_hz * rec.K)                        # seconds between sub-frames
 fv.write_video(out, video, time_step=step, overwrite=True)
 with tifffile.TiffFile(out) as tif:

@@ -37,4 +37,4 @@ from .metrics import psnr, psnr_per_frame, ssim, ssim_per_frame
 # Files: recordings, videos (OME-Zarr, TIFF, MP4, npy).
 from .recording import Recording, RecordingError, open_recording, write_simulation
 from .capture_reader import open_capture, read_capture
-from .video_io import open_video_store, write_video
+from .video_io import open_video_store, read_video, write_video

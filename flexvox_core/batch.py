@@ -18,8 +18,8 @@ own (:func:`_chunks`: a last chunk shorter than the overlap joins its neighbour,
 pass first). Peak memory is a few chunks per worker thread, whatever the recording's length.
 
 Scheduling: dask's local threaded scheduler by default; a ``dask.distributed`` scheduler
-address (``tcp://host:8786``) runs the chunks on that cluster (the workers must see the
-recording and the output path).
+address (``tcp://host:8786``), a ``distributed.Client`` or a cluster (``LocalCluster``) runs the chunks there
+(the workers must see the recording and the output path).
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -39,6 +40,7 @@ from flexvox_core.gaps import context, interpolated_subframes
 from flexvox_core.methods.method import Method
 from flexvox_core.methods.runner import check_method_reach, device_for, gpu_chunk_frames, run_chunk
 from flexvox_core.output_files import atomic_output, check_output
+from flexvox_core.progress import progress_callback
 from flexvox_core.recording import Recording, RecordingError, open_recording
 from flexvox_core.video_io import INTERPOLATED, VIDEO, provenance
 
@@ -127,7 +129,7 @@ def batch_video(rec: Recording, method: Method | None = None, *, chunk_frames: i
     H, W = reader.shape
     ov = method.overlap(K)
     if ov is None:
-        raise ValueError(f"{method.label()} is a global solve and cannot run in chunks; choose another solver")
+        raise ValueError(f"{method.label} is a global solve and cannot run in chunks; choose another solver")
     check_method_reach(reader.missing, method, K)
     if device == "cuda":  # chunks that fit the card's free memory
         chunk_frames = gpu_chunk_frames(method, K, H, W, F, chunk_frames) or chunk_frames
@@ -148,26 +150,31 @@ def batch_video(rec: Recording, method: Method | None = None, *, chunk_frames: i
                           dtype=np.float32, chunks=out_chunks, meta=np.empty((0, 0, 0), np.float32)), ov
 
 
-def reconstruct_batch(recording, output, method: Method | None = None, *, chunk_frames: int = 32,
-                      scheduler: str | None = None, overwrite: bool = False,
-                      progress: Callable[[int, int], None] | None = None,
-                      connect_timeout_s: float = 10.0, pyramid: int = 0, device: str = "cpu") -> BatchResult:
+def reconstruct_batch(recording, output, method: Method | str | None = None, *, chunk_frames: int = 32,
+                      scheduler: Any = None, overwrite: bool = False,
+                      progress: bool | Callable[[int, int], None] | None = None,
+                      connect_timeout_s: float = 10.0, pyramid: int = 0, device: str = "cpu",
+                      **options: Any) -> BatchResult:
     """Reconstruct a recording chunk by chunk into an OME-Zarr image (array ``video``, as ``reconstruct`` writes).
 
     Parameters
     ----------
-    recording : str or Path
+    recording : str, Path or Recording
     output : str or Path
         A ``.zarr`` store to create.
-    method : Method, optional
-        Default: ``Method()`` (diffusion, normalized convolution).
+    method : Method or str, optional
+        A :class:`~flexvox_core.methods.Method`, or a method's name with its options as keywords
+        (``**options``). Default: motion-aware (:data:`~flexvox_core.methods.registry.DEFAULT`, as everywhere).
     chunk_frames : int
         Camera frames per chunk (memory per task grows with it, not with the recording);
         raised to the method's overlap when smaller.
-    scheduler : str, optional
-        A ``dask.distributed`` scheduler address; default: dask's local threaded scheduler.
-    progress : callable(done_chunks, total_chunks), optional
-        Local scheduler only: called as chunks finish.
+    scheduler : str, distributed.Client or distributed cluster, optional
+        Where the chunks run: a ``dask.distributed`` scheduler's address (``"tcp://host:8786"``), a
+        ``distributed.Client`` (used as it is, left open), or a cluster (``distributed.LocalCluster()``: a
+        client is opened on it and closed after); default: dask's local threaded scheduler.
+    progress : bool or callable(done_chunks, total_chunks), optional
+        True: a ``tqdm.auto`` bar; False or None: nothing; a callable is called as chunks finish
+        (:mod:`flexvox_core.progress`). On a distributed scheduler the chunks are reported when the run ends.
     connect_timeout_s : float
         How long to wait for the distributed scheduler.
     pyramid : int
@@ -182,15 +189,22 @@ def reconstruct_batch(recording, output, method: Method | None = None, *, chunk_
     ValueError
         Bad arguments, an output that may not be written (onto the input, existing without
         ``overwrite``, a folder that refuses files), or a recording that cannot be reconstructed
-        (a damaged chunk found while reading included: the output is then not written).
+        (a damaged chunk found while reading included: the output is then not written), or an unknown method.
+    TypeError
+        A ``method`` that is neither a Method nor a name, or a ``progress`` that is neither a bool nor a callable.
     """
-    method = method or Method()
+    from flexvox_core.methods.runner import as_method
+    from flexvox_core.progress import check_progress
+
+    method = as_method(method, options)
+    check_progress(progress)
     output = Path(output)
     if output.suffix.lower() != ".zarr":
         raise ValueError(f"the batch output must be a .zarr store; got {output}")
-    check_output(output, overwrite=overwrite, inputs=[recording], hint="choose another path or allow overwriting")
+    source = recording.path if isinstance(recording, Recording) else recording
+    check_output(output, overwrite=overwrite, inputs=[source], hint="choose another path or allow overwriting")
     try:
-        rec = open_recording(recording)
+        rec = recording if isinstance(recording, Recording) else open_recording(recording)
     except RecordingError as exc:
         raise ValueError(str(exc)) from None
     device, note = device_for(method, CaptureReader(rec).code_for(method), device)
@@ -199,8 +213,9 @@ def reconstruct_batch(recording, output, method: Method | None = None, *, chunk_
     chunk_frames = max(chunk_frames, ov)
     # Written beside the output and moved into place when every chunk is stored: a failed or
     # cancelled run leaves an old output as it was, and never a store with chunks of zeros.
-    with atomic_output(output, overwrite=overwrite) as tmp:
-        seconds, used = _store(rec, video, ov, chunk_frames, method, tmp, scheduler, progress, connect_timeout_s,
+    with atomic_output(output, overwrite=overwrite) as tmp, \
+            progress_callback(progress, desc="batch", unit="chunk") as report:
+        seconds, used = _store(rec, video, ov, chunk_frames, method, tmp, scheduler, report, connect_timeout_s,
                                pyramid, {"device": device, **({"device_note": note} if note else {})})
     _logger.info("batch: %s -> %s, %d sub-frames in %.2f s (%s)", rec.path, output, video.shape[0], seconds, used)
     return BatchResult(output, tuple(int(v) for v in video.shape), chunk_frames, ov, seconds, used, device, note)
@@ -260,7 +275,22 @@ def _store(rec, video, ov, chunk_frames, method, output, scheduler, progress, co
     else:
         from distributed import Client
 
-        with Client(scheduler, timeout=connect_timeout_s) as client:
-            client.compute(store, sync=True)
-        used = scheduler
+        total = int(np.prod(video.numblocks))
+        if progress:
+            progress(0, total)
+        if isinstance(scheduler, Client):  # the caller's client: used, left open
+            scheduler.compute(store, sync=True)
+            used = _address(scheduler)
+        else:
+            with Client(scheduler, timeout=connect_timeout_s) as client:
+                client.compute(store, sync=True)
+                used = scheduler if isinstance(scheduler, str) else _address(client)
+        if progress:
+            progress(total, total)
     return time.perf_counter() - t0, used
+
+
+def _address(client) -> str:
+    """A distributed client's scheduler, in words (its address when it has one)."""
+    address = getattr(getattr(client, "scheduler", None), "address", None)
+    return str(address) if address else repr(client)

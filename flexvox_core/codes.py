@@ -48,6 +48,57 @@ def is_identity_code(code) -> bool:
     return bool(np.all(c.sum(axis=2) == 1) and np.all(c.reshape(m * n, K).sum(axis=0) == 1))
 
 
+def is_multiplexed_code(code) -> bool:
+    """True when ``code`` is a multiplexed code: not an identity code, and its tile's K×K open/closed matrix
+    (row r: tile pixel r in raster order, column s: slot s) is invertible, so that a tile's K measurements
+    determine its K slot values (an S-matrix code, :func:`flexvox_core.multiplex.multiplexed_code`, is one)."""
+    c = validate_code(code)
+    m, n, K = c.shape
+    if is_identity_code(c):
+        return False
+    return bool(np.linalg.matrix_rank(c.reshape(m * n, K).astype(np.float64)) == K)
+
+
+def check_reconstructable(code) -> bool:
+    """Check that a capture through ``code`` can be reconstructed; True for a multiplexed code, False for an
+    identity code.
+
+    A code must be an *identity* code (every tile pixel open in exactly one slot, every slot used once:
+    :func:`code_from_order`, :func:`flexvox_core.design_code`) or a *multiplexed* one (:func:`is_multiplexed_code`:
+    the tile's K×K open/closed matrix invertible, as an S-matrix code's, :func:`flexvox_core.multiplexed_code`).
+
+    Raises
+    ------
+    ValueError
+        Any other code (all pixels open in every slot, a slot no pixel uses, two pixels with the same
+        pattern ...), naming the rule.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> check_reconstructable(code_from_order(sequential_order((2, 2))))
+    False
+    >>> check_reconstructable(np.ones((2, 2, 4), bool))
+    Traceback (most recent call last):
+    ...
+    ValueError: `code` is neither an identity code ...
+    """
+    c = validate_code(code)
+    if is_identity_code(c):
+        return False
+    if is_multiplexed_code(c):
+        return True
+    m, n, K = c.shape
+    rank = int(np.linalg.matrix_rank(c.reshape(m * n, K).astype(np.float64)))
+    open_px = c.sum(axis=2)
+    raise ValueError(
+        f"`code` is neither an identity code (each tile pixel open in exactly one slot, each slot used once; "
+        f"fv.design_code, fv.code_from_order) nor a multiplexed one (the tile's {K}x{K} pixel-by-slot matrix "
+        f"invertible, as an S-matrix code's, fv.multiplexed_code): this {m}x{n} code opens its pixels in "
+        f"{int(open_px.min())} to {int(open_px.max())} of {K} slots and its matrix has rank {rank} of {K}, so "
+        "the slots cannot be told apart")
+
+
 def validate_order(order) -> np.ndarray:
     """Return ``order`` as an ``(m, n)`` int array holding each slot 0..K-1 once."""
     arr = np.asarray(order)

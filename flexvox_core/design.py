@@ -233,8 +233,8 @@ def design_code(
 
     Parameters
     ----------
-    tile : (int, int)
-        Tile rows and columns, each 1..8.
+    tile : (int, int) or str
+        Tile rows and columns, each 1..8: ``(4, 4)`` or ``"4x4"``.
     divisions : iterable of Division (or its spellings: "2x2x4", "2,2,4", (2, 2, 4)), optional
         Divisions the code must support; all of the tile's by default. ``1×1×K`` and
         ``m×n×1`` are always added: they make it an identity code (every pixel open in

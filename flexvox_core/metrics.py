@@ -5,6 +5,11 @@ r"""Image-quality metrics for reconstructed videos: PSNR and SSIM, averaged over
 snapshot-compressive-imaging literature (and of flexvox's benchmarks): frames are compared one by one,
 with an explicit data range (1 for videos in [0, 1]), and the per-frame scores are averaged.
 
+**Mixed dtypes.** An integer array against a float one (a uint16 ground truth against a reconstruction in
+[0, 1]) is compared in [0, 1]: the integer one is divided by its dtype's largest value (uint8: 255, uint16:
+65535), as ``skimage.util.img_as_float`` does for unsigned types, and ``data_range`` must be 1. Two integer
+arrays or two float arrays are compared as they are, with the ``data_range`` given.
+
 .. math::
 
     \mathrm{PSNR} = 10 \log_{10} \frac{L^2}{\mathrm{MSE}}, \qquad
@@ -114,9 +119,27 @@ def _check_pair(ref, x, data_range, *, convert: bool = True, check_finite: bool 
         if check_finite:
             _check_finite(name, a)
     L = positive_number("`data_range`", data_range)
+    r, v = _same_units(r, v, L)
     if not convert:
         return r, v, L
     return r.astype(np.float64), v.astype(np.float64), L
+
+
+def _same_units(r: np.ndarray, v: np.ndarray, L: float) -> tuple[np.ndarray, np.ndarray]:
+    """An integer array against a float one: the integer one in [0, 1], divided by its dtype's largest value
+    (:func:`flexvox_core.intensity.as_relative`, as ``skimage.util.img_as_float`` does for unsigned types); the
+    data range must then be 1. Two integer arrays, or two float ones, are compared as they are."""
+    kinds = {r.dtype.kind in "iu", v.dtype.kind in "iu"}
+    if kinds != {True, False} or "f" not in (r.dtype.kind, v.dtype.kind):
+        return r, v
+    integer = r.dtype if r.dtype.kind in "iu" else v.dtype
+    if L != 1:
+        raise ValueError(f"`ref` is {r.dtype} and `x` is {v.dtype}: the {integer} one is read in [0, 1] (divided by "
+                         f"{np.iinfo(integer).max}, as skimage.util.img_as_float does), so `data_range` must be 1; "
+                         f"got {L:g}. To compare in counts, give both as the same dtype")
+    from flexvox_core.intensity import as_relative
+
+    return tuple(as_relative(a) if a.dtype.kind in "iu" else a for a in (r, v))  # type: ignore[return-value]
 
 
 def _check_finite(name: str, a: np.ndarray) -> None:
@@ -147,7 +170,7 @@ def psnr(ref, x, *, data_range: float = 1.0) -> float:
     x : ndarray, same shape as ``ref``
         Estimate.
     data_range : float, keyword-only
-        Peak value L (1 for videos in [0, 1], 255 for 8-bit frames).
+        Peak value L (1 for videos in [0, 1], 255 for two 8-bit videos).
 
     Returns
     -------
@@ -174,7 +197,7 @@ def psnr_per_frame(ref, x, *, data_range: float = 1.0) -> np.ndarray:
     x : ndarray, same shape as ``ref``
         Estimate.
     data_range : float, keyword-only
-        Peak value L (1 for videos in [0, 1], 255 for 8-bit frames).
+        Peak value L (1 for videos in [0, 1], 255 for two 8-bit videos).
 
     Returns
     -------

@@ -19,9 +19,12 @@ def validate_tile(tile) -> tuple[int, int]:
 
     Parameters
     ----------
-    tile : tuple of two ints
-        Rows ``m`` and columns ``n`` of the tile, each in ``1 .. MAX_TILE_SIDE``.
+    tile : tuple of two ints, or str
+        Rows ``m`` and columns ``n`` of the tile, each in ``1 .. MAX_TILE_SIDE``; or the same written
+        ``"MxN"`` (``"4x4"``, :func:`parse_tile`), the one spelling of sizes everywhere.
     """
+    if isinstance(tile, str):
+        return parse_tile(tile)
     try:
         m, n = tile
     except (TypeError, ValueError):

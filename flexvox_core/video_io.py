@@ -1,5 +1,5 @@
 """Writing videos ``(S, H, W)`` in [0, 1] to files: ``.npy``, ``.tif`` (Fiji), ``.mp4``, ``.zarr`` (OME-Zarr);
-opening a ``.zarr`` video again."""
+reading them back (:func:`read_video`), opening a ``.zarr`` video lazily (:func:`open_video_store`)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,13 @@ WRITABLE = (".npy", ".tif", ".tiff", ".mp4", ".zarr")
 
 def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, overwrite: bool = False,
                 time_step: float | None = None, pyramid: int = 0, interpolated=None) -> Path:
-    """Write ``video`` (float, values in [0, 1]) by the path's suffix.
+    """Write ``video`` (values in [0, 1]) by the path's suffix; :func:`read_video` reads it back.
+
+    **Values.** A float video must hold finite values in [0, 1]: NaN or infinite values, and values outside
+    [0, 1] (0–255 data in a float array, a difference image), are refused with a ``ValueError`` that names the
+    range found (``np.clip(video, 0, 1)`` or ``video / 255`` first, as fits). An integer video is read as
+    :func:`flexvox_core.intensity.as_relative` reads it: divided by its dtype's largest value (uint8: 255,
+    uint16: 65535).
 
     ``.npy`` and ``.tif`` keep float32 (a TIFF stack with one page per sub-frame, which Fiji
     opens as a stack; with ``time_step`` its ImageJ metadata gives the frame interval in seconds,
@@ -41,9 +47,10 @@ def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, ov
     suffix = path.suffix.lower()
     if suffix not in WRITABLE:
         raise ValueError(f"cannot write {path}: the output must end in {', '.join(WRITABLE)}")
-    v = np.asarray(video, dtype=np.float32)
+    v = np.asarray(video)
     if v.ndim != 3:
         raise ValueError(f"`video` must have shape (S, H, W); got {v.shape}")
+    v = check_unit_values(v)
     if suffix == ".mp4":
         check_fps(fps)
     time_step = ngff.check_time_step(time_step)
@@ -79,6 +86,27 @@ def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, ov
             g.attrs["flexvox"] = meta
             ngff.write_pyramid(ngff.create_image(g, VIDEO, v.shape, time_step=time_step, levels=pyramid), v)
     return path
+
+
+def check_unit_values(video) -> np.ndarray:
+    """``video`` as float32 in [0, 1]: integers divided by their dtype's largest value
+    (:func:`~flexvox_core.intensity.as_relative`); floats checked. ``ValueError`` for NaN, infinite values or
+    values outside [0, 1], naming the frame and the range found."""
+    from flexvox_core.intensity import as_relative
+
+    v = np.asarray(as_relative(video, name="video"), dtype=np.float32)
+    if not v.size:
+        return v
+    finite = np.isfinite(v).all(axis=tuple(range(1, v.ndim)))
+    if not finite.all():
+        raise ValueError(f"`video` frame {int(np.flatnonzero(~finite)[0])} holds NaN or infinite values; a video "
+                         "holds finite values in [0, 1]")
+    lo, hi = float(v.min()), float(v.max())
+    if lo < 0 or hi > 1:
+        hint = ("8-bit values in a float array? divide by 255" if hi > 1 and hi <= 255 and lo >= 0
+                else "np.clip(video, 0, 1) keeps the range, or rescale it")
+        raise ValueError(f"`video` values must lie in [0, 1]; got {lo:g} to {hi:g} ({hint})")
+    return v
 
 
 VIDEO = "video"
@@ -146,7 +174,10 @@ def open_video_store(path) -> VideoStore:
     except (FileNotFoundError, ValueError, zarr.errors.NodeTypeValidationError) as exc:
         raise ValueError(f"{path}: not a Zarr store ({exc})") from None
     if VIDEO not in group:
-        raise ValueError(f"{path}: no `{VIDEO}` array: not a flexvox reconstruction")
+        what = ("a recording (camera frames): fv.open_recording opens it, "
+                "fv.reconstruct_video(fv.open_recording(path)) reconstructs it" if "frames" in group
+                else "not a flexvox reconstruction")
+        raise ValueError(f"{path}: no `{VIDEO}` array: {what}")
     attrs = dict(group.attrs)
     meta = dict(attrs.get("flexvox") or {})
     step = ngff.time_step(attrs, VIDEO)
@@ -157,6 +188,80 @@ def open_video_store(path) -> VideoStore:
         step = _source_time_step(meta.get("source"))
     levels = tuple(group[p] for p in paths) or (group[VIDEO],)
     return VideoStore(path, group[VIDEO], meta, step, levels)
+
+
+def read_video(path) -> np.ndarray:
+    """Read a video :func:`write_video` wrote (or any of its formats): ``(S, H, W)`` float32.
+
+    The counterpart of :func:`write_video`: ``.npy`` and ``.tif`` come back exactly, ``.zarr`` too (its
+    ``video`` array; :func:`open_video_store` opens it lazily, with its time step and attributes), ``.mp4`` as
+    its 8-bit grey values divided by 255.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    ndarray (S, H, W) float32
+
+    Raises
+    ------
+    ValueError
+        A path that does not exist, a suffix none of the formats has, a file that is not a video (a recording:
+        :func:`flexvox_core.recording.open_recording` opens it).
+
+    Examples
+    --------
+    >>> import numpy as np, tempfile, pathlib
+    >>> video = np.random.default_rng(0).random((4, 8, 8)).astype(np.float32)
+    >>> out = pathlib.Path(tempfile.mkdtemp()) / "v.tif"
+    >>> bool(np.array_equal(read_video(write_video(out, video)), video))
+    True
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in WRITABLE:
+        raise ValueError(f"cannot read {path} as a video: a video ends in {', '.join(WRITABLE)}")
+    if not path.exists():
+        raise ValueError(f"{path}: no such video")
+    if suffix == ".zarr":
+        return np.asarray(open_video_store(path).array[:], dtype=np.float32)
+    if suffix == ".npy":
+        v = np.load(path, allow_pickle=False)
+    elif suffix in (".tif", ".tiff"):
+        import tifffile
+
+        v = tifffile.imread(path)
+    else:
+        v = _read_mp4(path)
+    v = np.asarray(v)
+    if v.ndim == 2:
+        v = v[None]
+    if v.ndim != 3:
+        raise ValueError(f"{path}: a video has shape (S, H, W); this file holds an array of shape {v.shape}")
+    return v.astype(np.float32, copy=False) if v.dtype.kind == "f" else np.asarray(
+        check_unit_values(v), np.float32)
+
+
+def _read_mp4(path: Path) -> np.ndarray:
+    import cv2
+
+    cap = cv2.VideoCapture(str(path))
+    if not cap.isOpened():
+        raise ValueError(f"{path}: OpenCV cannot open it as an MP4 video")
+    frames = []
+    try:
+        while True:
+            ok, frame = cap.read()
+            if not ok:
+                break
+            frames.append(frame if frame.ndim == 2 else cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY))
+    finally:
+        cap.release()
+    if not frames:
+        raise ValueError(f"{path}: an MP4 with no frame OpenCV can read")
+    return np.stack(frames)
 
 
 def _source_time_step(source) -> float | None:

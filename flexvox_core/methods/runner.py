@@ -24,12 +24,12 @@ sub-frames were interpolated (:attr:`MethodOutput.interpolated`).
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
-from typing import NamedTuple
+from numbers import Integral
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from flexvox_core.codes import is_identity_code
+from flexvox_core.codes import check_reconstructable, validate_code
 from flexvox_core.gaps import (
     as_missing,
     bridge,
@@ -39,13 +39,13 @@ from flexvox_core.gaps import (
     fill_frames,
     interpolated_subframes,
 )
+from flexvox_core.intensity import as_relative
 from flexvox_core.memory_budget import check_fits, reconstruction_bytes
 from flexvox_core.methods.method import Method
 from flexvox_core.methods.spec import MethodOutput
+from flexvox_core.progress import Progress, progress_callback
 
 _logger = logging.getLogger(__name__)
-
-Progress = Callable[[int, int], None]
 
 
 class Chunk(NamedTuple):
@@ -101,10 +101,11 @@ def sample_range(frames, missing=None) -> tuple[float, float]:
 
 
 def check_code_for(code, method: Method) -> bool:
-    """True for a multiplexed (non-identity) ``code``, which ``method`` must take
-    (:meth:`Method.takes_multiplexed <flexvox_core.methods.method.Method.takes_multiplexed>`); ``ValueError``
-    otherwise, saying to demultiplex."""
-    if is_identity_code(code):
+    """True for a multiplexed ``code``, which ``method`` must take
+    (:meth:`Method.takes_multiplexed <flexvox_core.methods.method.Method.takes_multiplexed>`), False for an identity
+    code; ``ValueError`` for a multiplexed code ``method`` does not take (saying to demultiplex) and for a code that
+    is neither (:func:`flexvox_core.codes.check_reconstructable`)."""
+    if not check_reconstructable(code):
         return False
     if not method.takes_multiplexed():
         raise ValueError(f"{method.label} takes identity-code captures only; demultiplex this multiplexed capture "
@@ -215,22 +216,82 @@ def run_chunk(frames, code, method: Method, *, left: int = 0, count: int | None 
     return MethodOutput(video, {k: v[a:b] for k, v in out.extras.items()}, interpolated, out.device, note)
 
 
-def run(frames, code, method: Method | None = None, *, chunk_frames: int | None = 16,
-        progress: Progress | None = None, extras: bool = False, missing=None, device: str = "cpu") -> MethodOutput:
-    """Reconstruct the full video ``(F·K, H, W)`` float32 in [0, 1] of an identity-code capture.
+def as_method(method=None, options: dict | None = None) -> Method:
+    """The :class:`Method` that ``method`` and ``options`` name.
+
+    Parameters
+    ----------
+    method : Method, str or None
+        A :class:`Method`; a registered method's name (``"gap-tv"``); None: the default method
+        (:data:`~flexvox_core.methods.registry.DEFAULT`).
+    options : dict, optional
+        The method's options, with a name or None (``as_method("diffusion", {"time": 3})``).
+
+    Raises
+    ------
+    TypeError
+        ``method`` of another type, or options given beside a :class:`Method` (which holds its own).
+    ValueError
+        An unknown name or option, or a value that breaks its option's rule (:class:`Method`).
+    """
+    options = options or {}
+    if isinstance(method, Method):
+        if options:
+            given = ", ".join(f"{k}=..." for k in options)
+            raise TypeError(f"options ({given}) go into the method: fv.Method({method.name!r}, {given}), or name it "
+                            f"with its options as keywords: ({method.name!r}, {given}); got them beside {method!r}")
+        return method
+    if method is None:
+        return Method(**options)
+    if isinstance(method, str):
+        return Method(method, **options)
+    from flexvox_core.methods.registry import names
+
+    raise TypeError(f"`method` must be an fv.Method (fv.Method('gap-tv', iterations=40)) or a method's name "
+                    f"({', '.join(names())}) with its options as keywords; got {type(method).__name__} {method!r}")
+
+
+def check_origin(origin) -> tuple[int, int]:
+    """``origin`` as (row, col): two whole numbers >= 0 (None: (0, 0)); ``ValueError`` otherwise."""
+    if origin is None:
+        return 0, 0
+    try:
+        row, col = origin
+    except (TypeError, ValueError):
+        raise ValueError(f"`origin` must be (row, col), the crop's top-left pixel in the camera frame; got "
+                         f"{origin!r}") from None
+    for v in (row, col):
+        if isinstance(v, bool) or not isinstance(v, Integral) or v < 0:
+            raise ValueError(f"`origin` must be two whole numbers >= 0 (row, col), the crop's top-left pixel in the "
+                             f"camera frame; got {origin!r}")
+    return int(row), int(col)
+
+
+def run(frames, code, method: Method | str | None = None, *, chunk_frames: int | None = 16,
+        progress: bool | Progress | None = None, extras: bool = False, missing=None, device: str = "cpu",
+        origin: tuple[int, int] | None = None, white: float | None = None, **options: Any) -> MethodOutput:
+    """Reconstruct the full video ``(F·K, H, W)`` float32 in [0, 1] of a capture.
 
     Parameters
     ----------
     frames : ndarray (F, H, W)
-    code : ndarray (m, n, K), identity code, or a multiplexed one (the frames then multiplexed, each value a
-        sum of its open slots) for a method that :meth:`~flexvox_core.methods.method.Method.takes_multiplexed`
-    method : Method, optional
-        Default ``Method()`` (motion-aware).
+        The camera frames: floats in relative units (white = 1), or integer counts, divided by the dtype's
+        largest value (uint8: 255, uint16: 65535) unless ``white`` gives the white level
+        (:mod:`flexvox_core.intensity`). A recording: :meth:`flexvox_core.capture_reader.CaptureReader.run`, or
+        :func:`flexvox_core.reconstruct_video` with the recording in place of frames and code.
+    code : ndarray (m, n, K)
+        An identity code, or a multiplexed one (the frames then multiplexed, each value a sum of its open slots)
+        for a method that :meth:`~flexvox_core.methods.method.Method.takes_multiplexed`; any other code is
+        refused (:func:`flexvox_core.codes.check_reconstructable`).
+    method : Method or str, optional
+        A :class:`Method`, or a method's name (``"gap-tv"``) with its options as keywords (``**options``).
+        Default: motion-aware.
     chunk_frames : int or None
         Camera frames per chunk (None: all at once). Chunks overlap by the method's
         :meth:`~flexvox_core.methods.method.Method.overlap`, so the result does not depend on it.
-    progress : callable(done_frames, total_frames), optional
-        Called after each chunk; an exception it raises stops the run.
+    progress : bool or callable(done_frames, total_frames), optional
+        True: a ``tqdm.auto`` bar; False or None: nothing; a callable is called after each chunk (an exception it
+        raises stops the run) (:mod:`flexvox_core.progress`).
     extras : bool
         Also return the method's extras (:attr:`~flexvox_core.methods.spec.MethodSpec.extras`),
         e.g. motion-aware's flow and per-voxel TR, assembled like the video.
@@ -241,18 +302,49 @@ def run(frames, code, method: Method | None = None, *, chunk_frames: int | None 
     device : {"cpu", "cuda", "auto"}
         Where it runs (:func:`device_for`): ``auto`` takes the GPU when one is usable and the method has a GPU
         path; the result's ``device`` and ``device_note`` say where it ran and why not on the GPU.
+    origin : (int, int), optional
+        For frames cropped from the camera frame: the crop's top-left pixel ``(row, col)`` in the camera frame.
+        The code's phase follows it: pixel ``(y, x)`` of the crop uses ``code[(y + row) % m, (x + col) % n]``.
+        Default (0, 0), a crop on the tile grid.
+    white : float, optional
+        The count that stands for white in integer ``frames`` (a 12-bit camera's: 4095); with float frames, the
+        value they are divided by.
+    **options
+        The method's options when ``method`` is a name or None (``Method(name).spec.option_specs``).
 
     Returns
     -------
     MethodOutput
+
+    Raises
+    ------
+    TypeError
+        A ``method`` that is neither a :class:`Method` nor a name, options beside a :class:`Method`, or a
+        ``progress`` that is not a bool or a callable.
+    ValueError
+        Frames, a code, an origin or options that break their rules (the message names the value and the rule).
     """
-    method = Method() if method is None else method
-    f = np.asarray(frames)
+    method = as_method(method, options)
+    if code is None:
+        raise TypeError("run() needs the `code` the frames were captured with (a recording: "
+                        "fv.reconstruct_video(recording) or fv.open_capture(recording).run(method))")
+    row, col = check_origin(origin)
+    f = as_relative(frames, white=white)
+    with progress_callback(progress, desc="reconstruct", unit="frame", total=f.shape[0] if f.ndim else None
+                           ) as report:
+        return _run(f, code, method, chunk_frames=chunk_frames, progress=report, extras=extras, missing=missing,
+                    device=device, origin=(row, col))
+
+
+def _run(f: np.ndarray, code, method: Method, *, chunk_frames: int | None, progress: Progress | None, extras: bool,
+         missing, device: str, origin: tuple[int, int]) -> MethodOutput:
     if f.ndim != 3:
         raise ValueError(f"`frames` must have shape (F, H, W); got {f.ndim} dimensions {f.shape}")
     if chunk_frames is not None and chunk_frames < 1:
         raise ValueError(f"`chunk_frames` must be >= 1 or None; got {chunk_frames}")
-    code = np.asarray(code, dtype=bool)
+    code = validate_code(code)
+    if origin != (0, 0):  # the crop's pixel (y, x) is the camera's (y + row, x + col)
+        code = np.ascontiguousarray(np.roll(code, (-origin[0], -origin[1]), axis=(0, 1)))
     check_code_for(code, method)
     K = code.shape[2]
     F = f.shape[0]
@@ -290,24 +382,33 @@ def run(frames, code, method: Method | None = None, *, chunk_frames: int | None 
     return MethodOutput(video, arrays, None if missing is None else interpolated_subframes(missing, K), device, note)
 
 
-def reconstruct(frames, code, method: Method | None = None, *, chunk_frames: int | None = 16,
-                progress: Progress | None = None, missing=None, device: str = "cpu") -> np.ndarray:
+def reconstruct(frames, code, method: Method | str | None = None, *, chunk_frames: int | None = 16,
+                progress: bool | Progress | None = None, missing=None, device: str = "cpu",
+                origin: tuple[int, int] | None = None, white: float | None = None, **options: Any) -> np.ndarray:
     """The video of :func:`run` alone: ``(F·K, H, W)`` float32 in [0, 1].
 
     Parameters
     ----------
-    frames : ndarray (F, H, W), identity-code capture
-    code : ndarray (m, n, K), identity code
-    method : Method, optional
-        Default ``Method()`` (motion-aware).
+    frames : ndarray (F, H, W)
+        See :func:`run`.
+    code : ndarray (m, n, K)
+        See :func:`run`.
+    method : Method or str, optional
+        Default ``Method()`` (motion-aware); a name takes its options as keywords.
     chunk_frames : int or None
         Camera frames per chunk (None: all at once); the result does not depend on it.
-    progress : callable(done_frames, total_frames), optional
-        Called after each chunk.
+    progress : bool or callable(done_frames, total_frames), optional
+        See :func:`run`.
     missing : ndarray (F,) bool, optional
         Frames the camera dropped (see :func:`run`).
     device : {"cpu", "cuda", "auto"}
         Where it runs (see :func:`run`).
+    origin : (int, int), optional
+        A crop's top-left pixel in the camera frame (see :func:`run`).
+    white : float, optional
+        The white level of integer frames (see :func:`run`).
+    **options
+        The method's options when ``method`` is a name.
 
     Examples
     --------
@@ -318,4 +419,4 @@ def reconstruct(frames, code, method: Method | None = None, *, chunk_frames: int
     (8, 16, 16)
     """
     return run(frames, code, method, chunk_frames=chunk_frames, progress=progress, missing=missing,
-               device=device).video
+               device=device, origin=origin, white=white, **options).video

@@ -260,6 +260,8 @@ def _unreadable(path: Path) -> str:
     """Why a store zarr cannot open is unreadable, in words (never an exception's class name)."""
     meta = path / "zarr.json"
     if not path.is_dir():
+        if path.suffix.lower() in (".npy", ".tif", ".tiff", ".mp4"):
+            return "it is a video file; a recording is a .zarr folder: fv.read_video(path) reads a video"
         return "it is a file; a recording is a .zarr folder"
     if not meta.is_file():
         return "its zarr.json is missing"
@@ -286,6 +288,10 @@ def open_recording(path) -> Recording:
     except Exception as exc:  # zarr raises several types for a damaged store: say what is wrong in words
         raise RecordingError(f"{path}: not a readable Zarr store ({_unreadable(path)})") from exc
     attrs = dict(group.attrs).get("flexvox")
+    if "video" in group and "frames" not in group:
+        raise RecordingError(f"{path}: a reconstructed video (an OME-Zarr image that fv.write_video, `flexvox "
+                             "reconstruct` or `flexvox batch` writes), not a recording of camera frames: read it with "
+                             "fv.read_video(path), or lazily with fv.open_video_store(path)")
     if not isinstance(attrs, dict):
         raise RecordingError(f"{path}: not a flexvox recording (no `flexvox` attributes)")
     version = attrs.get("schema_version")

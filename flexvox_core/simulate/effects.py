@@ -321,3 +321,42 @@ def parse_effects(table) -> list[Effect]:
         out.append(EFFECTS[name](**values))
     rank = {name: i for i, name in enumerate(EFFECTS)}
     return sorted(out, key=lambda e: rank[e.name])
+
+
+def as_effects(effects) -> list[Effect]:
+    """The effects ``simulate_video`` takes, in pipeline order (the order of :data:`EFFECTS`).
+
+    Parameters
+    ----------
+    effects : list of str or Effect, mapping, str or None
+        Effect names at their defaults (``["photon_noise", "read_noise"]``), :class:`Effect` objects
+        (``ReadNoise(sigma=2)``), both mixed, a mapping ``{name: {param: value}}`` (:func:`parse_effects`), one
+        name, or None (none).
+
+    Raises
+    ------
+    ValueError
+        An unknown name (the message lists :data:`EFFECTS`) or an item that is neither a name nor an Effect.
+    """
+    if effects is None:
+        return []
+    if isinstance(effects, dict):
+        return parse_effects(effects)
+    if isinstance(effects, str):
+        effects = [effects]
+    out: list[Effect] = []
+    try:
+        items = list(effects)
+    except TypeError:
+        raise ValueError(f"`effects` must be a list of effect names ({', '.join(EFFECTS)}) or Effect objects, or a "
+                         f"table {{name: {{param: value}}}}; got {effects!r}") from None
+    for e in items:
+        if isinstance(e, str):
+            out.extend(parse_effects({e: {}}))
+        elif isinstance(e, Effect):
+            out.append(e)
+        else:
+            raise ValueError(f"`effects` items must be effect names ({', '.join(EFFECTS)}) or Effect objects; "
+                             f"got {e!r}")
+    rank = {name: i for i, name in enumerate(EFFECTS)}
+    return sorted(out, key=lambda e: rank.get(e.name, len(rank)))

@@ -227,7 +227,7 @@ def simulate_video(
     video,
     code,
     *,
-    effects: list[Effect] = (),
+    effects: list[Effect | str] | dict | str | None = (),
     seed: int = 0,
     rate_hz: float = 15.0,
     electrons_per_unit: float = 1000.0,
@@ -239,9 +239,11 @@ def simulate_video(
     video : ndarray, shape (S, H, W)
         Ground truth in [0, 1]; S a multiple of K.
     code : ndarray, shape (m, n, K)
-    effects : list of Effect, or mapping
-        Only these are simulated (see :mod:`flexvox_core.simulate.effects`); a mapping ``{name: {param:
-        value}}`` (a scene file's ``[effects]``) is read by :func:`~flexvox_core.simulate.parse_effects`.
+    effects : list of str or Effect, or mapping
+        Only these are simulated, in the pipeline's order (see :mod:`flexvox_core.simulate.effects`): effect
+        names at their defaults (``["photon_noise", "read_noise"]``, ``fv.EFFECTS`` lists them), Effect
+        objects, or a mapping ``{name: {param: value}}`` (a scene file's ``[effects]``, read by
+        :func:`~flexvox_core.simulate.parse_effects`).
     seed : int
         Seeds every effect's own generator.
     rate_hz : float
@@ -262,10 +264,9 @@ def simulate_video(
     >>> sim.frames.shape, list(sim.effects)
     ((2, 16, 16), ['read_noise'])
     """
-    if isinstance(effects, dict):
-        from flexvox_core.simulate.effects import parse_effects
+    from flexvox_core.simulate.effects import as_effects
 
-        effects = parse_effects(effects)
+    effects = as_effects(effects)
     code = validate_code(code)
     K = code.shape[2]
     video = check_video(video, K)

@@ -72,3 +72,41 @@ def test_chunks_and_refusals(rec_path, tmp_path):
     (tmp_path / "old.zarr").mkdir()
     with pytest.raises(ValueError, match=r"old.zarr already exists; choose another path or allow overwriting"):
         reconstruct_batch(rec_path, tmp_path / "old.zarr", Method())
+
+
+def test_batch_takes_a_distributed_client_and_a_cluster(rec_path, tmp_path):
+    from distributed import Client, LocalCluster
+
+    rec = open_recording(rec_path)
+    method = Method("diffusion")
+    expected = reconstruct(rec.normalised_frames(), rec.code, method, chunk_frames=None)
+    seen = []
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+        with Client(cluster) as client:
+            result = reconstruct_batch(rec_path, tmp_path / "c.zarr", method, chunk_frames=4, scheduler=client,
+                                       progress=lambda d, t: seen.append((d, t)))
+            assert client.status == "running"  # the caller's client is left open
+        assert result.scheduler == cluster.scheduler_address
+        reconstruct_batch(rec_path, tmp_path / "l.zarr", method, chunk_frames=4, scheduler=cluster)
+    assert seen == [(0, 3), (3, 3)]
+    for name in ("c.zarr", "l.zarr"):
+        np.testing.assert_allclose(zarr.open_group(str(tmp_path / name), mode="r")["video"][:], expected, atol=1e-5)
+
+
+def test_batch_takes_a_method_by_name_and_progress_true_false_or_a_callable(rec_path, tmp_path):
+    import inspect
+
+    from flexvox_core.methods.registry import DEFAULT
+
+    rec = open_recording(rec_path)
+    expected = reconstruct(rec.normalised_frames(), rec.code, Method("diffusion", time=2), chunk_frames=None)
+    for i, progress in enumerate((True, False, None)):
+        reconstruct_batch(rec, tmp_path / f"{i}.zarr", "diffusion", time=2, chunk_frames=4, progress=progress)
+        np.testing.assert_array_equal(zarr.open_group(str(tmp_path / f"{i}.zarr"), mode="r")["video"][:], expected)
+    with pytest.raises(TypeError, match=r"`progress` must be True \(a bar\), False or None \(nothing\), or a "
+                                        r"callable progress\(done, total\); got int 1"):
+        reconstruct_batch(rec_path, tmp_path / "x.zarr", "diffusion", progress=1)
+    with pytest.raises(TypeError, match=r"`method` must be an fv\.Method .*; got float 1.5"):
+        reconstruct_batch(rec_path, tmp_path / "x.zarr", 1.5)
+    # The default method is the one the docstring names.
+    assert DEFAULT == "motion-aware" and "Default: motion-aware" in inspect.getdoc(reconstruct_batch)

@@ -113,3 +113,10 @@ def test_require_names_the_tile_and_the_reason():
         design_code((2, 2), separation=2).require()
     with pytest.raises(ValueError, match=r"`separation` 5 is more than any 2x2 code can have: .* at most 2 apart"):
         design_code((2, 2), separation=5)
+
+
+def test_a_tile_is_written_mxn_too():
+    np.testing.assert_array_equal(design_code("4x4").code, design_code((4, 4)).code)
+    assert design_code("2x4").tile == (2, 4)
+    with pytest.raises(ValueError, match=r"tile must be written MxN with two whole numbers, e.g. 4x4; got '4 by 4'"):
+        design_code("4 by 4")

@@ -169,3 +169,22 @@ def test_old_frame_scores_fields_warn_for_one_release(rng):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert psnr(ref, x) + 0 == pytest.approx(40.0)  # plain use warns nothing
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
+def test_an_integer_truth_against_a_float_estimate_is_compared_in_0_1(rng, dtype):
+    white = np.iinfo(dtype).max
+    truth = rng.integers(0, white, (2, 16, 16), endpoint=True).astype(dtype)
+    estimate = np.clip(truth / white + rng.normal(0, 0.05, truth.shape), 0, 1).astype(np.float32)
+    as_float = truth.astype(np.float64) / white
+    assert psnr(truth, estimate) == pytest.approx(psnr(as_float, estimate), abs=1e-5)
+    assert psnr(estimate, truth) == pytest.approx(psnr(estimate, as_float), abs=1e-5)
+    assert 20 < psnr(truth, estimate) < 30
+    assert ssim(truth, estimate) == pytest.approx(ssim(as_float, estimate), abs=1e-6)
+    with pytest.raises(ValueError, match=rf"`ref` is {np.dtype(dtype)} and `x` is float32: the {np.dtype(dtype)} one "
+                                         rf"is read in \[0, 1\] \(divided by {white}, as skimage.util.img_as_float "
+                                         r"does\), so `data_range` must be 1; got 255"):
+        psnr(truth, estimate, data_range=255)
+    # Two integer arrays are compared as they are, with the data range given.
+    assert psnr(truth, truth // 2 * 2, data_range=white) == pytest.approx(
+        psnr(as_float, (truth // 2 * 2) / white), abs=1e-5)

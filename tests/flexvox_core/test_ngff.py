@@ -164,8 +164,12 @@ def test_an_old_store_takes_its_time_step_from_its_recording_when_it_is_there(tm
 
 
 def test_open_video_store_names_what_is_not_a_reconstruction(tmp_path, rec_path):
-    with pytest.raises(ValueError, match=r"r.zarr: no `video` array: not a flexvox reconstruction"):
+    with pytest.raises(ValueError, match=r"r.zarr: no `video` array: a recording \(camera frames\): fv.open_recording "
+                                         r"opens it"):
         open_video_store(rec_path)
+    zarr.open_group(str(tmp_path / "other.zarr"), mode="w", zarr_format=3)
+    with pytest.raises(ValueError, match=r"other.zarr: no `video` array: not a flexvox reconstruction"):
+        open_video_store(tmp_path / "other.zarr")
 
 
 def test_a_recordings_frames_are_a_valid_ngff_image_one_camera_frame_per_step(rec_path):

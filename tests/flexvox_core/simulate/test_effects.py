@@ -228,3 +228,20 @@ def test_render_exposures_with_arbitrary_light_and_streams(rng):
     assert not np.array_equal(a, b) and np.array_equal(b, c)
     with pytest.raises(ValueError, match=r"`light` .* does not match 3 frames of K = 8"):
         render_exposures(v, light[:, :5])
+
+
+def test_a_list_of_effect_names_is_simulated_at_their_defaults_in_pipeline_order(rng):
+    code = design_code((2, 2)).code
+    v = rng.random((3 * 4, 8, 8)).astype(np.float32)
+    table = simulate_video(v, code, effects={"photon_noise": {}, "read_noise": {}}, seed=2)
+    for effects in (["photon_noise", "read_noise"], ["read_noise", "photon_noise"],
+                    [EFFECTS["read_noise"](), "photon_noise"]):
+        sim = simulate_video(v, code, effects=effects, seed=2)
+        assert list(sim.effects) == ["photon_noise", "read_noise"]
+        np.testing.assert_array_equal(sim.frames, table.frames)
+    assert list(simulate_video(v, code, effects="read_noise").effects) == ["read_noise"]
+    with pytest.raises(ValueError, match=r"unknown effect 'photon'; effects: misregistration, .*photon_noise"):
+        simulate_video(v, code, effects=["photon"])
+    with pytest.raises(ValueError, match=r"`effects` items must be effect names \(misregistration, .*\) or Effect "
+                                         r"objects; got 3"):
+        simulate_video(v, code, effects=[3])

@@ -1,0 +1,71 @@
+"""Sample values in relative units: the one rule for integer arrays (camera counts, 8-bit videos).
+
+flexvox works in relative units, white = 1 (a video in [0, 1]). An integer array is read as
+``skimage.util.img_as_float`` reads an unsigned one: divided by its dtype's largest value
+(``np.iinfo(dtype).max``: 255 for uint8, 65535 for uint16), unless a white level is given (a 12-bit
+camera's counts in uint16: ``white=4095``). A float array is taken as relative units already, or divided
+by ``white`` when one is given. A bool array is 0 and 1.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from flexvox_core.numbers import positive_number
+
+__all__ = ["as_relative", "white_level"]
+
+
+def white_level(dtype: npt.DTypeLike, white: float | None = None) -> float | None:
+    """The value that stands for white in an array of ``dtype``: ``white`` when given (checked: a positive
+    finite number), the dtype's largest value for an integer dtype, None for floats and bool (no scaling)."""
+    if white is not None:
+        return positive_number("`white`", white, unit="counts")
+    dtype = np.dtype(dtype)
+    return float(np.iinfo(dtype).max) if dtype.kind in "iu" else None
+
+
+def as_relative(values: npt.ArrayLike, *, white: float | None = None, name: str = "frames") -> np.ndarray:
+    """``values`` in relative units (white = 1).
+
+    Parameters
+    ----------
+    values : array_like
+        Real numbers: integer counts, bool, or floats.
+    white : float, optional
+        The value that stands for white. Default: the dtype's largest value for integers (uint8: 255,
+        uint16: 65535), none for floats (taken as relative units already).
+    name : str
+        The argument's name, for messages.
+
+    Returns
+    -------
+    ndarray
+        Integers and bool as float32 divided by the white level; floats unchanged when ``white`` is None,
+        else divided by it (float32 stays float32).
+
+    Raises
+    ------
+    ValueError
+        Values that are not real numbers, or a ``white`` that is not a positive finite number.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> as_relative(np.array([0, 255], np.uint8)).tolist()
+    [0.0, 1.0]
+    >>> as_relative(np.array([0, 4095], np.uint16), white=4095).tolist()
+    [0.0, 1.0]
+    """
+    a = np.asarray(values)
+    if a.dtype.kind not in "biuf":
+        raise ValueError(f"`{name}` must hold real numbers (integer counts or floats in relative units); got "
+                         f"dtype {a.dtype}")
+    w = white_level(a.dtype, white)
+    if a.dtype.kind in "biu":
+        out = a.astype(np.float32)
+        return out if w is None else np.divide(out, np.float32(w), out=out)
+    if w is None:
+        return a
+    return np.asarray(a / np.asarray(w, a.dtype), dtype=a.dtype)

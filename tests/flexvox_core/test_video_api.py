@@ -1,0 +1,118 @@
+"""``fv.reconstruct_video`` and ``fv.run`` from Python: camera counts, crops off the tile grid, codes that are
+no code, recordings with their drops, methods by name, progress."""
+
+import numpy as np
+import pytest
+
+import flexvox_core as fv
+
+NC = fv.Method("diffusion")  # normalized convolution: linear, fast
+
+
+@pytest.fixture(scope="module")
+def scene():
+    code = fv.design_code((2, 4)).code
+    video = fv.render_scene("balls", 6 * 8, 24, 32, seed=0)
+    return video, code, fv.capture(video, code)
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
+def test_integer_counts_are_divided_by_their_dtype_s_largest_value(scene, dtype):
+    video, code, frames = scene
+    white = np.iinfo(dtype).max
+    counts = np.round(frames * white).astype(dtype)
+    got = fv.reconstruct_video(counts, code, NC)
+    np.testing.assert_allclose(got, fv.reconstruct_video(counts / np.float32(white), code, NC), atol=1e-6)
+    assert fv.psnr(video, got) > 20
+
+
+def test_white_gives_the_white_level_of_counts(scene):
+    video, code, frames = scene
+    counts = np.round(frames * 4095).astype(np.uint16)  # a 12-bit camera's counts in uint16
+    got = fv.run(counts, code, NC, white=4095).video
+    np.testing.assert_allclose(got, fv.reconstruct_video(counts / np.float32(4095), code, NC), atol=1e-6)
+    with pytest.raises(ValueError, match=r"`white` must be a positive finite number of counts; got 0"):
+        fv.reconstruct_video(counts, code, NC, white=0)
+    with pytest.raises(ValueError, match=r"`frames` must hold real numbers .*; got dtype <U1"):
+        fv.reconstruct_video(np.full((1, 4, 4), "a"), code, NC)
+
+
+def test_a_crop_off_the_tile_grid_follows_the_code_phase_given_by_origin(scene):
+    _, code, frames = scene
+    whole = fv.reconstruct_video(frames, code, NC)
+    row, col, h, w = 5, 7, 14, 20  # off the 2x4 tile grid in both directions
+    crop = frames[:, row:row + h, col:col + w]
+    inner = (slice(None), slice(3, h - 3), slice(3, w - 3))  # away from the crop's borders
+    region = whole[:, row:row + h, col:col + w][inner]
+    np.testing.assert_allclose(fv.reconstruct_video(crop, code, NC, origin=(row, col))[inner], region, atol=1e-5)
+    assert fv.psnr(region, fv.reconstruct_video(crop, code, NC)[inner]) < 30  # the wrong phase
+    on_grid = fv.reconstruct_video(frames[:, 4:4 + h, 8:8 + w], code, NC, origin=(4, 8))
+    np.testing.assert_allclose(on_grid[inner], whole[:, 4:4 + h, 8:8 + w][inner], atol=1e-5)
+    with pytest.raises(ValueError, match=r"`origin` must be two whole numbers >= 0 \(row, col\).*; got \(-1, 2\)"):
+        fv.reconstruct_video(crop, code, NC, origin=(-1, 2))
+
+
+def test_a_code_that_is_neither_an_identity_nor_a_multiplexed_code_is_refused(scene):
+    _, code, frames = scene
+    with pytest.raises(ValueError, match=r"`code` is neither an identity code \(each tile pixel open in exactly one "
+                                         r"slot.*nor a multiplexed one \(the tile's 8x8 pixel-by-slot matrix "
+                                         r"invertible.*opens its pixels in 8 to 8 of 8 slots.*rank 1 of 8"):
+        fv.reconstruct_video(frames, np.ones_like(code), NC)
+    mc = fv.multiplexed_code((1, 3))  # a multiplexed code is still taken
+    assert fv.codes.check_reconstructable(mc.code) and not fv.codes.check_reconstructable(code)
+    mux = fv.capture(np.full((6, 4, 6), 0.5, np.float32), mc.code)
+    assert fv.reconstruct_video(mux, mc.code, "gap-tv", iterations=3).shape == (6, 4, 6)
+
+
+@pytest.fixture(scope="module")
+def dropped(tmp_path_factory):
+    code = fv.design_code((2, 2)).code
+    video = fv.render_scene("balls", 16 * 4, 16, 24, seed=0)
+    sim = fv.simulate_video(video, code, effects={"dropped_frames": {"probability": 0.2}}, seed=3)
+    assert 0 < sim.dropped.sum() < 8
+    return fv.write_simulation(tmp_path_factory.mktemp("rec") / "d.zarr", sim)
+
+
+def test_a_recording_in_place_of_frames_and_code_brings_its_dropped_frames(dropped):
+    rec = fv.open_recording(dropped)
+    frames, code = fv.read_capture(dropped)
+    expected = fv.reconstruct_video(frames, code, NC, missing=rec.dropped)
+    np.testing.assert_array_equal(fv.reconstruct_video(rec, NC), expected)
+    np.testing.assert_array_equal(fv.reconstruct_video(rec, "diffusion"), expected)
+    np.testing.assert_array_equal(fv.open_capture(rec).run(NC).video, expected)
+    assert not np.array_equal(fv.reconstruct_video(frames, code, NC), expected)  # drops forgotten: another answer
+    with pytest.raises(TypeError, match=r"a Recording carries its code: .*got `code` as well"):
+        fv.reconstruct_video(rec, code, NC)
+    with pytest.raises(TypeError, match=r"a Recording carries its dropped frames: .*got `missing` as well"):
+        fv.reconstruct_video(rec, NC, missing=rec.dropped)
+
+
+def test_a_method_by_name_takes_its_options_as_keywords(scene):
+    _, code, frames = scene
+    by_name = fv.reconstruct_video(frames, code, "gap-tv", iterations=3)
+    np.testing.assert_array_equal(by_name, fv.reconstruct_video(frames, code, fv.Method("gap-tv", iterations=3)))
+    np.testing.assert_array_equal(fv.run(frames, code, "diffusion", time=2).video,
+                                  fv.reconstruct_video(frames, code, fv.Method("diffusion", time=2)))
+    with pytest.raises(TypeError, match=r"`method` must be an fv\.Method .* or a method's name \(rebin, diffusion, "
+                                        r"gap-tv, motion-aware.*; got int 3"):
+        fv.reconstruct_video(frames, code, 3)
+    with pytest.raises(TypeError, match=r"options \(iterations=\.\.\.\) go into the method: "
+                                        r"fv\.Method\('gap-tv', iterations=\.\.\.\)"):
+        fv.reconstruct_video(frames, code, fv.Method("gap-tv"), iterations=3)
+    with pytest.raises(ValueError, match=r"`method` must be one of rebin, diffusion, gap-tv, motion-aware.*'gaptv'"):
+        fv.reconstruct_video(frames, code, "gaptv")
+
+
+@pytest.mark.parametrize("call", [fv.reconstruct_video, fv.run], ids=["reconstruct_video", "run"])
+def test_progress_is_true_false_none_or_a_callable(scene, call, capsys):
+    _, code, frames = scene
+    expected = fv.reconstruct_video(frames, code, NC)
+    for progress in (True, False, None):
+        out = call(frames, code, NC, progress=progress, chunk_frames=2)
+        np.testing.assert_array_equal(getattr(out, "video", out), expected)
+    seen = []
+    call(frames, code, NC, progress=lambda done, total: seen.append((done, total)), chunk_frames=4)
+    assert seen == [(4, 6), (6, 6)]
+    with pytest.raises(TypeError, match=r"`progress` must be True \(a bar\), False or None \(nothing\), or a "
+                                        r"callable progress\(done, total\); got str 'yes'"):
+        call(frames, code, NC, progress="yes")

@@ -188,7 +188,7 @@ def reconstruct_batch(recording, output, method: Method | None = None, *, chunk_
     output = Path(output)
     if output.suffix.lower() != ".zarr":
         raise ValueError(f"the batch output must be a .zarr store; got {output}")
-    check_output(output, overwrite=overwrite, inputs=[recording], hint="choose another path or allow overwriting")
+    check_output(output, overwrite=overwrite, inputs=[recording])
     try:
         rec = open_recording(recording)
     except RecordingError as exc:

@@ -207,6 +207,9 @@ class CaptureCalibration:
                 "rms_px": self.rms_px, "created": self.created, "source": self.source,
                 "sha256": self.sha256 or None}
 
+    def __repr__(self) -> str:
+        return f"<CaptureCalibration {self.describe()}>"
+
     def describe(self) -> str:
         """One line: origin, date, RMS, phase and delay."""
         rms = "—" if self.rms_px is None else f"{self.rms_px:.3f} px"
@@ -256,8 +259,9 @@ def load_for_capture(path, identity) -> CaptureCalibration:
     path = Path(path).expanduser()
     if _format_of(path) == SYNC_FORMAT:
         raise CalibrationRefused(f"{path} is a sync profile (the synchronisation wizard's), not a calibration: it "
-                                 "has no homography. Give it as a sync profile (flexvox capture --sync-profile; "
-                                 "Capture: \"Load sync profile…\") and a calibration file as the calibration")
+                                 "has no homography. Give it as a sync profile (load_sync_for_capture; flexvox capture "
+                                 "--sync-profile; Capture: \"Load sync profile…\") and a calibration file as the "
+                                 "calibration")
     try:
         data = load_calibration(path, identity)  # also says what is wrong with any other file
     except CalibrationError as exc:
@@ -287,7 +291,7 @@ def load_sync_for_capture(path, identity, *, base: CaptureCalibration | None = N
     path = Path(path).expanduser()
     if _format_of(path) == CALIBRATION_FORMAT:
         raise CalibrationRefused(f"{path} is a calibration file, not a sync profile: give it as the calibration "
-                                 "(flexvox capture --calibration; Capture: \"Load calibration…\")")
+                                 "(load_for_capture; flexvox capture --calibration; Capture: \"Load calibration…\")")
     try:
         data = load_sync_profile(path, identity)
     except CalibrationError as exc:

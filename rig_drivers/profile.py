@@ -200,7 +200,8 @@ def load_profile(path) -> RigSpec:
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise SettingError(f"no rig profile {path}: give `--rig mock` or the path of a .toml rig profile") from None
+        raise SettingError(f"no rig profile {path}: a rig is \"mock\" (the simulated rig) or the path of a .toml "
+                          "rig profile") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise SettingError(f"cannot read the rig profile {path}: {exc}") from exc
     except tomllib.TOMLDecodeError as exc:
@@ -240,6 +241,11 @@ class ProfileRig:
     sync: SyncController | None
     spec: RigSpec
     simulated: SimulatedRig | None = None
+
+    def __repr__(self) -> str:
+        lines = [f"projector: {self.projector!r}", f"camera: {self.camera!r}",
+                 f"sync: {self.sync!r}" if self.sync is not None else "sync: the projector triggers the camera"]
+        return f"<ProfileRig {self.name!r}\n" + "\n".join(f"  {line}" for line in lines) + ">"
 
     @property
     def name(self) -> str:

@@ -9,10 +9,11 @@ keywords. A bad value is refused here, before any scene is rendered, with a
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
+from flexvox_core.reprs import describe_array
 from flexvox_core.simulate.effects import Effect, parse_effects
 from flexvox_core.simulate.scene_file import SceneSpec
 from flexvox_core.simulate.scenes import SCENES
@@ -133,6 +134,19 @@ class SimulatedRigSpec:
     clock: object | None = None
     buffer_frames: int = 16
     pixel_layout: str = "square"
+
+    def __repr__(self) -> str:
+        """The scene and the fields that differ from their defaults; an array as its shape and dtype."""
+
+        def shown(value) -> str:
+            return f"array {describe_array(value)}" if isinstance(value, np.ndarray) else repr(value)
+
+        parts = [f"scene={shown(self.scene)}"]
+        for f in fields(self)[1:]:
+            value = getattr(self, f.name)
+            if isinstance(value, np.ndarray) or value != f.default:
+                parts.append(f"{f.name}={shown(value)}")
+        return f"SimulatedRigSpec({', '.join(parts)})"
 
     def __post_init__(self):
         scene = self.scene

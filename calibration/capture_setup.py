@@ -259,9 +259,8 @@ def load_for_capture(path, identity) -> CaptureCalibration:
     path = Path(path).expanduser()
     if _format_of(path) == SYNC_FORMAT:
         raise CalibrationRefused(f"{path} is a sync profile (the synchronisation wizard's), not a calibration: it "
-                                 "has no homography. Give it as a sync profile (load_sync_for_capture; flexvox capture "
-                                 "--sync-profile; Capture: \"Load sync profile…\") and a calibration file as the "
-                                 "calibration")
+                                 "has no homography. Give it as a sync profile (flexvox capture --sync-profile; "
+                                 "Capture: \"Load sync profile…\") and a calibration file as the calibration")
     try:
         data = load_calibration(path, identity)  # also says what is wrong with any other file
     except CalibrationError as exc:
@@ -291,7 +290,7 @@ def load_sync_for_capture(path, identity, *, base: CaptureCalibration | None = N
     path = Path(path).expanduser()
     if _format_of(path) == CALIBRATION_FORMAT:
         raise CalibrationRefused(f"{path} is a calibration file, not a sync profile: give it as the calibration "
-                                 "(load_for_capture; flexvox capture --calibration; Capture: \"Load calibration…\")")
+                                 "(flexvox capture --calibration; Capture: \"Load calibration…\")")
     try:
         data = load_sync_profile(path, identity)
     except CalibrationError as exc:

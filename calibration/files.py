@@ -102,7 +102,7 @@ def check_identity(data: dict, identity, path) -> None:
         if have.get(key) != want[key]:
             hint = ""
             if key == "name" and all(str(n).startswith("simulated rig (mock") for n in (have.get(key), want[key])):
-                hint = " (or open the simulated rig with the seed it was made on)"
+                hint = " (or open the simulated rig with the seed it was made on: --seed)"
             raise CalibrationMismatchError(
                 f"{path} was made for {what} {have.get(key)!r}, not {want[key]!r}: calibrate this rig "
                 f"(flexvox calibrate) instead of reusing it{hint}")

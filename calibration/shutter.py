@@ -111,7 +111,7 @@ def make_shutter_patterns(code, homography, camera_size, projector_size, *, phas
         raise CalibrationError(f"`phase_slots` must be a whole number 0..{K - 1}; got {phase_slots!r}")
     check_fits(shutter_pattern_bytes(K, (Hp, Wp), (H, W)),
                f"making shutter patterns for a {Hp}x{Wp} projector at K = {K}",
-               "check the projector size (the capture's, or the rig profile's)")
+               "check the projector size (capture --projector-size, or the rig profile's)")
     cam_code = tiled_code(c, H, W)  # (K, H, W)
     cam_xy = geometry.apply(h, mirror_centres((Hp, Wp), layout))
     with np.errstate(invalid="ignore"):

@@ -106,8 +106,9 @@ class SimulatedRigSpec:
     electrons_per_unit : float, optional
         The camera's gain (> 0). Default: the scene file's, else 1000.
     clock : SimClock, optional
-        Default real time; pass a :class:`~rig_drivers.simulated_camera.VirtualClock`
-        in tests.
+        Default (None): real time (:class:`~rig_drivers.simulated_camera.MonotonicClock`): the camera delivers
+        a frame every frame period. A :class:`~rig_drivers.simulated_camera.VirtualClock` jumps ahead whenever a
+        device waits, so captures and calibrations run as fast as the scene renders (tests, notebooks).
     buffer_frames : int
         Frames the camera buffers (1..10000).
     pixel_layout : "square", "diamond" or "diamond-even"

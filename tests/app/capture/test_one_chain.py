@@ -175,10 +175,10 @@ def test_a_sync_profile_replaces_the_calibrations_timing(calibration_file, tmp_p
     assert not alone.calibrated and alone.phase_slots == 4
     # each kind of file is refused where the other is expected (a calibration's homography must not slip in)
     with pytest.raises(CalibrationRefused, match=r"sync.json is a sync profile .* not a calibration: it has no "
-                                                 r"homography\. Give it as a sync profile \(load_sync_for_capture; "):
+                                                 r"homography\. Give it as a sync profile \(flexvox capture --sync"):
         load_for_capture(profile, identity)
     with pytest.raises(CalibrationRefused, match=r"cal.json is a calibration file, not a sync profile: give it as "
-                                                 r"the calibration \(load_for_capture; flexvox capture --calibration"):
+                                                 r"the calibration \(flexvox capture --calibration"):
         load_sync_for_capture(calibration_file, identity, base=cal)
     assert CaptureCalibration().for_plan(16, 4166)[:2] == (0, 0.0)
 

@@ -423,10 +423,9 @@ def test_messages_from_below_are_said_in_the_window_s_words():
         "no delay": delay_refusal("the camera", 3, 441.0),
         "seed": "cal.json was made for rig 'simulated rig (mock, seed 1)', not 'simulated rig (mock, seed 0)': "
                 "calibrate this rig (flexvox calibrate) instead of reusing it (or open the simulated rig with the seed "
-                "it was made on)",
+                "it was made on: --seed)",
         "sync profile": "x.json is a sync profile (the synchronisation wizard's), not a calibration: it has no "
-                        "homography. Give it as a sync profile (load_sync_for_capture; flexvox capture --sync-profile; "
-                        "Capture: \"Load sync "
+                        "homography. Give it as a sync profile (flexvox capture --sync-profile; Capture: \"Load sync "
                         "profile…\") and a calibration file as the calibration",
     }
     said |= {f"warning {i}": w for i, w in enumerate(CaptureCalibration().for_plan(16, 1000)[2])}

@@ -115,6 +115,15 @@ class SimulatedRigSpec:
         How the projector's pixels sit (:mod:`rig_drivers.pixel_layout`): "diamond" staggers
         the odd rows by half a pixel, as the LightCrafter 4500's DMD does ("diamond-even": the even
         rows). Default square.
+
+    Examples
+    --------
+    ``open_rig("mock", **fields)`` builds the rig of ``SimulatedRigSpec(**fields)``; its repr lists what differs
+    from the defaults:
+
+    >>> from rig_drivers import SimulatedRigSpec, VirtualClock
+    >>> SimulatedRigSpec("balls", camera_size=(24, 32), seed=2, clock=VirtualClock())
+    SimulatedRigSpec(scene='balls', camera_size=(24, 32), seed=2, clock=<VirtualClock at 0 µs>)
     """
 
     scene: str | SceneSpec | np.ndarray = "drummer"

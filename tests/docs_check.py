@@ -325,9 +325,13 @@ def _cell_text(cell) -> str:
 
 def run_guide_notebook(scratch: Path, out=sys.stdout, keep: Path | None = None) -> list[str]:
     """Run :func:`guide_notebook` in a Jupyter kernel in ``scratch``; the problems found (none: it passed)."""
-    import nbformat
-    from nbclient import NotebookClient
-    from nbclient.exceptions import CellExecutionError
+    try:
+        import ipykernel  # noqa: F401 - the kernel nbclient starts
+        import nbformat
+        from nbclient import NotebookClient
+        from nbclient.exceptions import CellExecutionError
+    except ImportError as exc:
+        return [f"docs/python.md as a notebook needs the docs extra ({exc.name} is missing): `make docs` installs it"]
 
     scratch.mkdir(parents=True, exist_ok=True)
     notebook = guide_notebook()

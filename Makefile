@@ -7,6 +7,7 @@ PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+DOCS_STAMP := $(VENV)/.installed-docs
 # Every extra: the Qt application (gui), the napari plugin, GenICam cameras, the tests. `pip install flexvox` alone has no Qt.
 EXTRAS := test,gui,genicam,napari
 
@@ -47,7 +48,7 @@ test-full: $(STAMP) same-python
 
 # Every shell line of README.md and docs/*.md, run in order in a scratch folder (tests/docs_check.py);
 # `make test` runs its quick part (every line parsed, every named script's --help).
-docs-check: $(STAMP)
+docs-check: $(STAMP) $(DOCS_STAMP)
 	$(BIN)/python -m tests.docs_check
 
 lint: $(STAMP)
@@ -66,7 +67,6 @@ napari-screenshot: $(STAMP)
 
 # The Python guide, the examples and the API reference (Sphinx, numpydoc, MyST) into docs/_build/html; any warning
 # fails it. Installs the `docs` extra into .venv on first use (a fresh clone needs nothing else).
-DOCS_STAMP := $(VENV)/.installed-docs
 $(DOCS_STAMP): $(BIN)/python pyproject.toml
 	$(BIN)/python -m pip install --quiet -e ".[docs]"
 	touch $(DOCS_STAMP)

@@ -207,6 +207,9 @@ class CaptureCalibration:
                 "rms_px": self.rms_px, "created": self.created, "source": self.source,
                 "sha256": self.sha256 or None}
 
+    def __repr__(self) -> str:
+        return f"<CaptureCalibration {self.describe()}>"
+
     def describe(self) -> str:
         """One line: origin, date, RMS, phase and delay."""
         rms = "—" if self.rms_px is None else f"{self.rms_px:.3f} px"

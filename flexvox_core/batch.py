@@ -202,7 +202,7 @@ def reconstruct_batch(recording, output, method: Method | str | None = None, *, 
     if output.suffix.lower() != ".zarr":
         raise ValueError(f"the batch output must be a .zarr store; got {output}")
     source = recording.path if isinstance(recording, Recording) else recording
-    check_output(output, overwrite=overwrite, inputs=[source], hint="choose another path or allow overwriting")
+    check_output(output, overwrite=overwrite, inputs=[source])
     try:
         rec = recording if isinstance(recording, Recording) else open_recording(recording)
     except RecordingError as exc:

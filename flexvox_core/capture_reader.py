@@ -40,6 +40,7 @@ from flexvox_core.codes import code_from_order
 from flexvox_core.gaps import captured, find_gaps
 from flexvox_core.multiplex import MultiplexedCode, multiplexed_code
 from flexvox_core.recording import Recording, RecordingError, open_recording
+from flexvox_core.reprs import short_repr
 
 _logger = logging.getLogger(__name__)
 
@@ -140,6 +141,14 @@ class CaptureReader:
         self.preparation = Preparation(attrs["storage"], multiplexed)
         _logger.debug("%s: %d frames, K=%d%s", recording.path, self.n_frames, self.K,
                       ", multiplexed" if multiplexed is not None else "")
+
+    def __repr__(self) -> str:
+        H, W = self.shape
+        missing = 0 if self.missing is None else int(np.count_nonzero(self.missing))
+        m, n = self.code.shape[:2]
+        return short_repr(f"CaptureReader {self.recording.path.name}:", [
+            f"{self.n_frames} frames of {H}x{W}", f"tile {m}x{n} (K = {self.K})", f"{missing} missing",
+            "multiplexed" if self.multiplexed is not None else ""])
 
     @property
     def n_frames(self) -> int:

@@ -50,6 +50,7 @@ from flexvox_core.codes import (
     verify,
 )
 from flexvox_core.divisions import Division, enumerate_divisions, parse_division
+from flexvox_core.reprs import html_table, short_repr
 from flexvox_core.tiles import validate_tile
 
 _logger = logging.getLogger(__name__)
@@ -117,6 +118,29 @@ class DesignResult:
     def K(self) -> int:  # noqa: N802 - the paper's name
         """Slots per frame."""
         return self.tile[0] * self.tile[1]
+
+    def _facts(self) -> list[tuple[str, str]]:
+        m, n = self.tile
+        separation = ("none" if self.separation is None else
+                      f"{self.separation} slots (target {self.separation_target})")
+        return [("status", f"{self.status} ({'success' if self.success else 'no code'})"),
+                ("tile", f"{m}×{n} (K = {self.K})"), ("message", self.message),
+                ("divisions asked", ", ".join(d.label for d in self.divisions) or "none"),
+                ("divisions supported", ", ".join(d.label for d in self.supported) or "none"),
+                ("separation", separation), ("solve time", f"{self.solve_time_s:.2f} s")]
+
+    def __repr__(self) -> str:
+        m, n = self.tile
+        facts = [f"tile {m}x{n} (K = {self.K})"]
+        if self.success:
+            facts += [f"{len(self.supported)} divisions supported", f"separation {self.separation}",
+                      f"{self.solve_time_s:.2f} s"]
+        else:
+            facts.append(f"no code (status {self.status}): {self.message}")
+        return short_repr("DesignResult", facts)
+
+    def _repr_html_(self) -> str:
+        return html_table("DesignResult", self._facts())
 
     def require(self) -> np.ndarray:
         """The code ``(m, n, K)`` bool; ``ValueError`` naming the tile and the reason when none was found."""

@@ -149,6 +149,11 @@ class MultiplexedCode:
         """Slots per frame."""
         return self.tile[0] * self.tile[1]
 
+    def __repr__(self) -> str:
+        m, n = self.tile
+        return (f"<MultiplexedCode tile {m}x{n} (K = {self.K}), throughput {self.throughput:.2f}, SNR gain "
+                f"{self.snr_gain_read:.2f} under read noise, {self.snr_gain_photon:.2f} under photon noise>")
+
     def as_dict(self) -> dict:
         """JSON-ready form."""
         return {

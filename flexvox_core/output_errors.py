@@ -2,6 +2,12 @@
 
 from __future__ import annotations
 
+#: What a refusal of an existing output tells a Python caller (``write_video``, ``reconstruct_batch``, recordings,
+#: captures): the keyword to pass.
+OVERWRITE_HINT = "choose another path, or pass overwrite=True to replace it"
+#: The same for the command line, whose commands take ``--overwrite``.
+CLI_OVERWRITE_HINT = "use --overwrite to replace it"
+
 
 class OutputError(ValueError):
     """An output that may not be written; the message names the path and the rule."""

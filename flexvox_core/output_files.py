@@ -38,12 +38,12 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from flexvox_core.output_errors import OutputError
+from flexvox_core.output_errors import CLI_OVERWRITE_HINT, OVERWRITE_HINT, OutputError
 from flexvox_core.writer_lock import WriterLock, lock_holder
 
 _logger = logging.getLogger(__name__)
 
-OVERWRITE_HINT = "use --overwrite to replace it"
+__all__ = ["CLI_OVERWRITE_HINT", "OVERWRITE_HINT", "OutputError", "atomic_output", "check_output"]
 
 
 def _resolved(path) -> Path:
@@ -103,7 +103,9 @@ def check_output(path, *, overwrite: bool = False, inputs: Iterable = (), hint: 
     inputs : iterable of paths
         The command's inputs: the output may not be, hold or lie inside any of them.
     hint : str
-        How the user allows overwriting (a front end's own words).
+        How the user allows overwriting, in the caller's words: Python's ``overwrite=True`` by default
+        (:data:`~flexvox_core.output_errors.OVERWRITE_HINT`), the command line's ``--overwrite``
+        (:data:`~flexvox_core.output_errors.CLI_OVERWRITE_HINT`).
     kind : "file", "store", "folder", None or "auto"
         What will be written (default: :func:`output_kind` of the path). ``overwrite`` replaces only
         the same kind: a file with a file, a Zarr store with a Zarr store (a folder holding
@@ -135,13 +137,13 @@ def refuse_other_kind(path: Path, kind: str | None) -> None:
     """Refuse to replace a folder with a file, a file with a folder, or a non-store folder with a store."""
     is_folder = path.is_dir()
     if kind == "file" and is_folder:
-        raise OutputError(f"{path} is a folder; --overwrite replaces a file with a file, never a folder: choose "
+        raise OutputError(f"{path} is a folder; overwriting replaces a file with a file, never a folder: choose "
                           "another path")
     if kind in ("store", "folder") and not is_folder:
-        raise OutputError(f"{path} is a file, not a folder; --overwrite never replaces a file with a folder: "
+        raise OutputError(f"{path} is a file, not a folder; overwriting never replaces a file with a folder: "
                           "choose another path")
     if kind == "store" and not (path / "zarr.json").is_file():
-        raise OutputError(f"{path} is a folder but not a Zarr store; --overwrite replaces only a Zarr store: "
+        raise OutputError(f"{path} is a folder but not a Zarr store; overwriting replaces only a Zarr store: "
                           "choose another path")
 
 

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from flexvox_core.output_files import atomic_output, check_output
+from flexvox_core.reprs import describe_array, html_table, short_repr
 
 WRITABLE = (".npy", ".tif", ".tiff", ".mp4", ".zarr")
 
@@ -62,7 +63,7 @@ def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, ov
         if interpolated.shape != (v.shape[0],):
             raise ValueError(f"`interpolated` must hold one flag per sub-frame ({v.shape[0]}); "
                              f"got {interpolated.shape}")
-    check_output(path, overwrite=overwrite, hint="choose another path or allow overwriting")
+    check_output(path, overwrite=overwrite)
     with atomic_output(path, overwrite=overwrite) as tmp:
         if suffix == ".npy":
             with open(tmp, "wb") as fh:  # a file, not a name: np.save would add ".npy" to "OUT.NPY"'s temporary
@@ -149,6 +150,21 @@ class VideoStore:
     attrs: dict
     time_step: float | None
     levels: tuple
+
+    def _facts(self) -> list[tuple[str, str]]:
+        step = "unknown" if self.time_step is None else f"{self.time_step:g} s"
+        return [("path", str(self.path)), ("video", describe_array(self.array)), ("time step", step),
+                ("pyramid levels", str(len(self.levels))),
+                ("method", str(self.attrs.get("method", "unknown"))),
+                ("from", str(self.attrs.get("recording", self.attrs.get("source", "unknown"))))]
+
+    def __repr__(self) -> str:
+        step = "" if self.time_step is None else f"time step {self.time_step:g} s"
+        levels = f"{len(self.levels)} pyramid levels" if len(self.levels) > 1 else ""
+        return short_repr(f"VideoStore {self.path.name}:", [describe_array(self.array), step, levels])
+
+    def _repr_html_(self) -> str:
+        return html_table("VideoStore", self._facts())
 
 
 def open_video_store(path) -> VideoStore:

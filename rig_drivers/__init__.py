@@ -20,9 +20,10 @@ From Python (docs/python.md): ``from rig_drivers import open_rig``; each name be
 
 import importlib
 
-__all__ = ["DeviceError", "open_rig", "Rig"]
+__all__ = ["DeviceError", "open_rig", "Rig", "SimulatedRigSpec", "VirtualClock"]
 
-_WHERE = {"DeviceError": "rig_drivers.errors", "Rig": "rig_drivers.interfaces", "open_rig": "rig_drivers.profile"}
+_WHERE = {"DeviceError": "rig_drivers.errors", "Rig": "rig_drivers.interfaces", "open_rig": "rig_drivers.profile",
+          "SimulatedRigSpec": "rig_drivers.simulated_rig_spec", "VirtualClock": "rig_drivers.simulated_camera"}
 
 
 def __getattr__(name: str):

@@ -89,6 +89,9 @@ class Device(ABC):
         self._state = DeviceState.CLOSED
         self.name = name or type(self).__name__
 
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.name!r} ({self.kind}): {self._state.value}>"
+
     # -- state
     @property
     def state(self) -> DeviceState:

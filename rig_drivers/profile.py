@@ -200,7 +200,8 @@ def load_profile(path) -> RigSpec:
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise SettingError(f"no rig profile {path}: give `--rig mock` or the path of a .toml rig profile") from None
+        raise SettingError(f"no rig profile {path}: a rig is \"mock\" (the simulated rig) or the path of a .toml "
+                          "rig profile") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise SettingError(f"cannot read the rig profile {path}: {exc}") from exc
     except tomllib.TOMLDecodeError as exc:
@@ -240,6 +241,11 @@ class ProfileRig:
     sync: SyncController | None
     spec: RigSpec
     simulated: SimulatedRig | None = None
+
+    def __repr__(self) -> str:
+        lines = [f"projector: {self.projector!r}", f"camera: {self.camera!r}",
+                 f"sync: {self.sync!r}" if self.sync is not None else "sync: the projector triggers the camera"]
+        return f"<ProfileRig {self.name!r}\n" + "\n".join(f"  {line}" for line in lines) + ">"
 
     @property
     def name(self) -> str:
@@ -346,13 +352,32 @@ def open_rig(rig=MOCK, *, projector_display=None, **simulated_options) -> Profil
         :mod:`rig_drivers.dlpc350.driver`; the app's is :mod:`flexvox_app.gui.projector.display`).
         Ignored by ``mock``, whose simulated projector needs no video input.
     **simulated_options
-        For ``mock``: the fields of its :class:`~rig_drivers.simulated_rig_spec.SimulatedRigSpec` (scene,
-        sizes, seed, clock, ...).
+        For ``mock``: the fields of its :class:`~rig_drivers.simulated_rig_spec.SimulatedRigSpec` (``scene``,
+        ``camera_size``, ``seed``, ``clock``, ...). The one most often wanted is ``clock``:
+
+        - default (None): real time (:class:`~rig_drivers.simulated_camera.MonotonicClock`). The simulated
+          camera delivers a frame every frame period, as a real one does: 100 frames at 15 Hz take 6.7 s.
+        - ``clock=VirtualClock()`` (:class:`~rig_drivers.simulated_camera.VirtualClock`): simulated time that
+          jumps ahead whenever a device waits, so a capture or a calibration runs as fast as the computer
+          renders it. Tests, notebooks and the examples use it; the command line's ``--clock virtual``.
+
+    Returns
+    -------
+    ProfileRig
+        The projector, camera and sync box (None where the projector triggers the camera), not opened;
+        ``simulated`` holds the :class:`~rig_drivers.simulated_rig.SimulatedRig` behind ``mock``.
 
     Raises
     ------
     SettingError
-        For a bad profile, naming the file, table and key.
+        For a bad profile, naming the file, table and key; for options given to a real rig.
+
+    Examples
+    --------
+    >>> from rig_drivers import VirtualClock, open_rig
+    >>> rig = open_rig("mock", clock=VirtualClock(), camera_size=(24, 32), subframes=32)
+    >>> rig.camera.name, rig.simulated.clock
+    ('simulated camera', <VirtualClock at 0 µs>)
     """
     spec = resolve_rig(rig)
     if spec.simulated:

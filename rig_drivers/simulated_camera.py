@@ -138,6 +138,9 @@ class SimClock(Protocol):
 class MonotonicClock:
     """Real time: ``time.monotonic_ns`` and ``time.sleep``."""
 
+    def __repr__(self) -> str:
+        return "<MonotonicClock: real time>"
+
     def now_us(self) -> int:
         """The monotonic clock in µs."""
         return time.monotonic_ns() // 1000
@@ -160,6 +163,9 @@ class VirtualClock:
 
     def __init__(self, start_us: int = 0):
         self.now = int(start_us)
+
+    def __repr__(self) -> str:
+        return f"<VirtualClock at {self.now} µs>"
 
     def now_us(self) -> int:
         """The current virtual time."""

@@ -346,6 +346,11 @@ class SimulatedRig:
         self._target_effects = TARGET_EFFECTS if target_effects is None else target_effects
         self._viewing = "scene"
 
+    def __repr__(self) -> str:
+        lines = [f"projector: {self.projector!r}", f"camera: {self.camera!r}", f"sync: {self.sync!r}",
+                 f"clock: {self.clock!r}"]
+        return f"<SimulatedRig {self.name!r}\n" + "\n".join(f"  {line}" for line in lines) + ">"
+
     @classmethod
     def create(cls, scene: str | SceneSpec | np.ndarray = "drummer", **fields) -> SimulatedRig:
         """:meth:`build` the rig of ``SimulatedRigSpec(scene, **fields)`` (the spec's fields as keywords)."""
@@ -494,7 +499,7 @@ class SimulatedRig:
             subframes = (spec.camera_frames() or 16) * spec.K if spec is not None else 256
         S = check_int("subframes", subframes, 1, 1_000_000)
         name = spec.builtin if spec is not None else scene
-        advice = "use a smaller camera size (flexvox capture --size)"
+        advice = "use a smaller camera size"
         if name not in SCENES:
             raise SettingError(f"unknown scene {name!r}; built-in scenes: {', '.join(SCENES)}")
         check_fits(render_bytes(S, H, W), f"the {name} scene at {H}x{W} with {S} sub-frames", advice)

@@ -9,10 +9,11 @@ keywords. A bad value is refused here, before any scene is rendered, with a
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
+from flexvox_core.reprs import describe_array
 from flexvox_core.simulate.effects import Effect, parse_effects
 from flexvox_core.simulate.scene_file import SceneSpec
 from flexvox_core.simulate.scenes import SCENES
@@ -105,14 +106,24 @@ class SimulatedRigSpec:
     electrons_per_unit : float, optional
         The camera's gain (> 0). Default: the scene file's, else 1000.
     clock : SimClock, optional
-        Default real time; pass a :class:`~rig_drivers.simulated_camera.VirtualClock`
-        in tests.
+        Default (None): real time (:class:`~rig_drivers.simulated_camera.MonotonicClock`): the camera delivers
+        a frame every frame period. A :class:`~rig_drivers.simulated_camera.VirtualClock` jumps ahead whenever a
+        device waits, so captures and calibrations run as fast as the scene renders (tests, notebooks).
     buffer_frames : int
         Frames the camera buffers (1..10000).
     pixel_layout : "square", "diamond" or "diamond-even"
         How the projector's pixels sit (:mod:`rig_drivers.pixel_layout`): "diamond" staggers
         the odd rows by half a pixel, as the LightCrafter 4500's DMD does ("diamond-even": the even
         rows). Default square.
+
+    Examples
+    --------
+    ``open_rig("mock", **fields)`` builds the rig of ``SimulatedRigSpec(**fields)``; its repr lists what differs
+    from the defaults:
+
+    >>> from rig_drivers import SimulatedRigSpec, VirtualClock
+    >>> SimulatedRigSpec("balls", camera_size=(24, 32), seed=2, clock=VirtualClock())
+    SimulatedRigSpec(scene='balls', camera_size=(24, 32), seed=2, clock=<VirtualClock at 0 µs>)
     """
 
     scene: str | SceneSpec | np.ndarray = "drummer"
@@ -133,6 +144,19 @@ class SimulatedRigSpec:
     clock: object | None = None
     buffer_frames: int = 16
     pixel_layout: str = "square"
+
+    def __repr__(self) -> str:
+        """The scene and the fields that differ from their defaults; an array as its shape and dtype."""
+
+        def shown(value) -> str:
+            return f"array {describe_array(value)}" if isinstance(value, np.ndarray) else repr(value)
+
+        parts = [f"scene={shown(self.scene)}"]
+        for f in fields(self)[1:]:
+            value = getattr(self, f.name)
+            if isinstance(value, np.ndarray) or value != f.default:
+                parts.append(f"{f.name}={shown(value)}")
+        return f"SimulatedRigSpec({', '.join(parts)})"
 
     def __post_init__(self):
         scene = self.scene

@@ -16,6 +16,12 @@ failed.
   (:data:`SMALLER`): built-in scenes at 48×64 with 4 frames, the simulated rig's capture on its virtual clock
   and at most 32 frames, ``bench`` and ``demo`` in their quick modes.
 - ``make TARGET`` runs this checkout's Makefile with ``flexvox`` and ``python`` as above (no install).
+- **The Python guide as a notebook**: after the shell lines, docs/python.md's runnable ``python`` blocks (those
+  without a ``# needs ...`` first line) become the cells of a notebook that runs, in a scratch folder of its own,
+  in a real Jupyter kernel (nbclient and ipykernel: the ``docs`` extra), so reprs, progress bars and the order of
+  outputs are what a notebook shows. A cell that raises, or an output that prints a memory address
+  (``object at 0x...``), fails the check; each cell's seconds are printed (``--notebook`` runs only this part;
+  ``--keep`` keeps the run notebook as ``python-guide.ipynb``).
 - ``--quick`` (``make test``, a few seconds): every line of every file is *parsed*, not run: a ``flexvox`` line by
   the command line's own parser (an option renamed or removed fails), a ``make`` line by ``make -n``. The whole
   run (``make docs-check``, and ``.ci/run``) took 29 minutes, 15 of them the README's, on a busy 2-core machine
@@ -287,22 +293,96 @@ def named_scripts() -> list[Path]:
     return sorted(ROOT / n for n in named)
 
 
+GUIDE = ROOT / "docs" / "python.md"
+ADDRESS = re.compile(r"\bat 0x[0-9a-fA-F]{6,}")
+CELL_TIMEOUT_S = 900
+
+
+def guide_notebook(page: Path = GUIDE):
+    """docs/python.md's runnable ``python`` blocks as the cells of a notebook (nbformat v4), in order."""
+    import nbformat
+
+    from tests.docs.guide_blocks import python_blocks, skipped
+
+    cells = [nbformat.v4.new_markdown_cell(f"Run from {page.relative_to(ROOT)} by tests/docs_check.py.")]
+    for line, source in python_blocks(page):
+        if not skipped(source):
+            cells.append(nbformat.v4.new_code_cell(source.rstrip("\n"), metadata={"guide_line": line}))
+    return nbformat.v4.new_notebook(cells=cells, metadata={"kernelspec": {
+        "name": "python3", "display_name": "Python 3", "language": "python"}})
+
+
+def _cell_text(cell) -> str:
+    """Everything a code cell showed: its streams, results (plain text and HTML) and error."""
+    parts = []
+    for output in cell.get("outputs", []):
+        parts.append(output.get("text", ""))
+        data = output.get("data", {})
+        parts += [data.get("text/plain", ""), data.get("text/html", "")]
+        parts += output.get("traceback", [])
+    return "\n".join(str(p) for p in parts)
+
+
+def run_guide_notebook(scratch: Path, out=sys.stdout, keep: Path | None = None) -> list[str]:
+    """Run :func:`guide_notebook` in a Jupyter kernel in ``scratch``; the problems found (none: it passed)."""
+    try:
+        import ipykernel  # noqa: F401 - the kernel nbclient starts
+        import nbformat
+        from nbclient import NotebookClient
+        from nbclient.exceptions import CellExecutionError
+    except ImportError as exc:
+        return [f"docs/python.md as a notebook needs the docs extra ({exc.name} is missing): `make docs` installs it"]
+
+    scratch.mkdir(parents=True, exist_ok=True)
+    notebook = guide_notebook()
+    client = NotebookClient(notebook, timeout=CELL_TIMEOUT_S, kernel_name="python3",
+                            resources={"metadata": {"path": str(scratch)}})
+    problems, t0 = [], time.monotonic()
+    print(f"\n== {GUIDE.relative_to(ROOT)} as a notebook ({len(notebook.cells) - 1} cells, a Jupyter kernel)",
+          file=out, flush=True)
+    with client.setup_kernel(env={**os.environ, "MPLBACKEND": "module://matplotlib_inline.backend_inline",
+                                  "PYTHONPATH": str(ROOT)}):
+        for index, cell in enumerate(notebook.cells):
+            if cell.cell_type != "code":
+                continue
+            where = f"docs/python.md:{cell.metadata['guide_line']}"
+            started = time.monotonic()
+            try:
+                client.execute_cell(cell, index)
+            except CellExecutionError as exc:
+                problems.append(f"{where}: the cell raised: {str(exc).strip().splitlines()[-1]}")
+                print(f"  FAILED {where} ({time.monotonic() - started:.1f} s)", file=out, flush=True)
+                break
+            shown = _cell_text(cell)
+            if ADDRESS.search(shown):
+                problems.append(f"{where}: an output prints a memory address: {ADDRESS.search(shown).group(0)}")
+            print(f"  ok     {where} ({time.monotonic() - started:.1f} s)", file=out, flush=True)
+    print(f"  the guide's notebook: {len(problems)} problem(s), {time.monotonic() - t0:.0f} s", file=out, flush=True)
+    if keep is not None:
+        nbformat.write(notebook, str(keep / "python-guide.ipynb"))
+    return problems
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("files", nargs="*", type=Path, help="Markdown files (default: README.md and docs/*.md)")
     ap.add_argument("--quick", action="store_true", help="parse every line, run none (what make test runs)")
     ap.add_argument("--keep", type=Path, help="the scratch folder, kept (default: a temporary one, removed)")
+    ap.add_argument("--notebook", action="store_true", help="run only docs/python.md as a notebook in a kernel")
     args = ap.parse_args(argv)
     files = [f.resolve() for f in args.files] or documents()
     if args.keep is not None and args.keep.exists():
         ap.error(f"--keep {args.keep} already exists; name a new folder")
     top = args.keep.resolve() if args.keep else Path(tempfile.mkdtemp(prefix="flexvox-docs-check-"))
     t0 = time.monotonic()
+    problems: list[str] = []
     try:
         bin_dir = _shims(top / ".bin")
         outcomes = []
-        for f in files:
+        for f in files if not args.notebook else []:
             outcomes += run_file(f, top / f.stem, bin_dir, quick=args.quick)
+        if args.notebook or not (args.quick or args.files):
+            problems = run_guide_notebook(top / "python-guide", keep=top if args.keep else None)
     finally:
         if args.keep is None:
             shutil.rmtree(top, ignore_errors=True)
@@ -313,7 +393,9 @@ def main(argv=None) -> int:
     for o in outcomes:
         if o.status == "FAILED":
             print(f"FAILED {o.line.where}: {o.line.text}\n    {o.detail}")
-    return 1 if counts["FAILED"] else 0
+    for problem in problems:
+        print(f"FAILED {problem}")
+    return 1 if counts["FAILED"] or problems else 0
 
 
 if __name__ == "__main__":

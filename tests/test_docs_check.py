@@ -102,3 +102,18 @@ def test_the_quality_figure_is_not_replaced_by_a_partial_one_without_the_sci_dat
     err = capsys.readouterr().err
     assert "no SCI benchmark data for runner, drop" in err and "write another one with -o FILE.png" in err
     assert figure.read_bytes() == before
+
+
+def test_the_guide_becomes_a_notebook_of_its_runnable_blocks_in_order():
+    """``make docs-check`` runs this notebook in a Jupyter kernel (docs_check.run_guide_notebook); here only its
+    making is checked (no kernel). nbformat comes with the ``docs`` extra (``make docs`` installs it)."""
+    pytest.importorskip("nbformat", reason="the docs extra is not installed (make docs installs it)")
+    from tests.docs.guide_blocks import python_blocks, skipped
+
+    notebook = docs_check.guide_notebook()
+    code = [c for c in notebook.cells if c.cell_type == "code"]
+    runnable = [(line, src) for line, src in python_blocks(docs_check.GUIDE) if not skipped(src)]
+    assert [c.metadata["guide_line"] for c in code] == [line for line, _ in runnable]
+    assert [c.source for c in code] == [src.rstrip("\n") for _, src in runnable]
+    assert notebook.metadata["kernelspec"]["name"] == "python3" and len(code) >= 10
+    assert docs_check.ADDRESS.search("<Thing object at 0x7f3a2b1c9d00>") and not docs_check.ADDRESS.search("0x10")

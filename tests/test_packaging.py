@@ -24,13 +24,30 @@ def _installed_name(folder: Path) -> str:
     return ".".join(parts)
 
 
-def test_the_package_list_names_every_folder_that_holds_an_init_file():
-    found = sorted(
-        _installed_name(init.parent)
-        for top in ("app", "calibration", "flexvox_core", "rig_drivers")
-        for init in (ROOT / top).rglob("__init__.py")
-    )
+TOPS = ("app", "calibration", "flexvox_core", "rig_drivers")
+
+
+def _shipped_files() -> list[Path]:
+    """The files of the package folders that git tracks (no caches, no build leftovers)."""
+    out = subprocess.run(["git", "ls-files", "--", *TOPS], cwd=ROOT, capture_output=True, text=True, check=True)
+    return [ROOT / line for line in out.stdout.splitlines()]
+
+
+def test_the_package_list_names_every_folder_that_holds_an_init_file_or_a_data_file():
+    """A folder of data files only (``rig_drivers/examples``) is a package to setuptools too: unlisted, it warns
+    on every install and its files are installed by a deprecated path."""
+    found = sorted({_installed_name(f.parent) for f in _shipped_files()})
     assert sorted(SETUPTOOLS["packages"]) == found
+    assert {"rig_drivers.examples", "rig_drivers.firmware.syncbox"} <= set(found)
+
+
+def test_package_data_covers_every_file_that_is_not_python():
+    """Each data file is matched by its own package's ``package-data`` patterns (none reaches into a subfolder)."""
+    data = SETUPTOOLS["package-data"]
+    unmatched = [str(f.relative_to(ROOT)) for f in _shipped_files() if f.suffix != ".py"
+                 and not any(f.match(pattern) for pattern in data.get(_installed_name(f.parent), []))]
+    assert unmatched == []
+    assert all("/" not in pattern for patterns in data.values() for pattern in patterns)
 
 
 def test_the_generic_folder_names_install_under_flexvox_names():

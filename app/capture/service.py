@@ -48,7 +48,9 @@ Three worker threads::
   one never holds up the reader or the writer.
 
 Every wait has a timeout; :meth:`CaptureService.stop` sets an event that the reader and the
-writer check at least every ``read_slice_s`` / 0.1 s, so it returns promptly.
+writer check at least every ``read_slice_s`` / 0.1 s, so it returns promptly: after the recording is
+finalised and the last ``progress`` and ``finished`` have been delivered (:meth:`CaptureService.wait`
+waits for the same without stopping).
 
 Failures
 --------
@@ -200,6 +202,8 @@ class CaptureService:
         self._stop = threading.Event()
         self._reader_done = threading.Event()
         self._done = threading.Event()
+        self._events_done = threading.Event()  # the last progress and finished delivered
+        self._events_thread: threading.Thread | None = None
         self._lock = threading.Lock()
         self._state = CaptureState.IDLE
         self._threads: list[threading.Thread] = []
@@ -215,6 +219,14 @@ class CaptureService:
         self._first_stamp = self._last_stamp = None
         self._first_id: int | None = None
         self._last_seen_id: int | None = None
+
+    def __repr__(self) -> str:
+        target = f"{self.n_target} frames" if self.n_target is not None else "until stopped"
+        result = self._result
+        done = (f"; {result.reason}: {result.stats.rows_written} rows written ({result.stats.drops} dropped)"
+                if result is not None else "")
+        return (f"<CaptureService {self._state.value}: {target} of tile {self.plan.tile[0]}x{self.plan.tile[1]} "
+                f"(K = {self.K}) at {self.plan.camera_hz:g} Hz into {self.path.name}, rig {self.rig.name!r}{done}>")
 
     # ------------------------------------------------------------------ public
     @property
@@ -288,27 +300,62 @@ class CaptureService:
         self._threads = [threading.Thread(target=target, name=f"flexvox-capture-{name}", daemon=True)
                          for name, target in (("reader", self._read_loop), ("writer", self._write_loop),
                                               ("events", self._publish_loop))]
+        self._events_thread = self._threads[2]
         for thread in self._threads:
             thread.start()
 
-    def wait(self, timeout_s: float) -> bool:
-        """Wait up to ``timeout_s`` for the capture to end; True when it has."""
-        return self._done.wait(timeout_s)
+    def wait(self, timeout_s: float | None = None) -> bool:
+        """Wait until the capture has ended and its last ``progress`` and ``finished`` events have been delivered.
+
+        Parameters
+        ----------
+        timeout_s : float or None
+            The longest wait in seconds; None waits as long as it takes.
+
+        Returns
+        -------
+        bool
+            True when the capture ended and every subscriber to ``finished`` has returned; False when
+            ``timeout_s`` passed first, or the capture was not started (call it again later). Called from a
+            subscriber (on the event thread), it waits for the capture's end only: the events it is delivering
+            cannot wait for themselves.
+        """
+        deadline = None if timeout_s is None else time.monotonic() + timeout_s
+        if not self._done.wait(timeout_s):
+            return False
+        if threading.current_thread() is self._events_thread:
+            return True
+        remaining = None if deadline is None else max(0.0, deadline - time.monotonic())
+        return self._events_done.wait(remaining)
 
     def stop(self, timeout_s: float = 10.0) -> CaptureResult | None:
-        """Stop capturing, keep what was captured, and return the result.
+        """Stop capturing, keep what was captured, and return the result once ``finished`` was delivered.
 
-        Returns None only when the threads did not finish within ``timeout_s`` (the disk
-        hangs); call :meth:`wait` again later.
+        When :meth:`stop` returns, the last ``progress`` and the ``finished`` events have been emitted and
+        their subscribers have returned (in a notebook their output stays in the cell that stopped the capture).
+
+        Parameters
+        ----------
+        timeout_s : float
+            The longest wait in seconds, for the threads to finish and the events to be delivered.
+
+        Returns
+        -------
+        CaptureResult or None
+            None only when the threads did not finish within ``timeout_s`` (the disk hangs): call
+            :meth:`wait` later, then read :attr:`result`. When the capture ended but a subscriber still runs
+            after ``timeout_s``, the result is returned and a warning logged.
         """
         if self._state is CaptureState.IDLE:
             raise CaptureError("cannot stop: the capture was not started")
         if self._state is CaptureState.RUNNING:
             self._state = CaptureState.STOPPING
         self._stop.set()
-        if not self._done.wait(timeout_s):
-            _logger.error("capture threads did not finish within %g s", timeout_s)
-            return None
+        if not self.wait(timeout_s):
+            if self._result is None:
+                _logger.error("capture threads did not finish within %g s", timeout_s)
+                return None
+            _logger.warning("capture: a subscriber to its events still runs %g s after the stop", timeout_s)
         return self._result
 
     @property
@@ -327,7 +374,7 @@ class CaptureService:
         self.start()
         if timeout_s is None:
             timeout_s = 2 * self.n_target * self.frame_period_s + 30.0
-        self.wait(timeout_s)
+        self._done.wait(timeout_s)
         result = self.stop()
         if result is None:
             raise CaptureError("the capture threads did not finish; the disk may hang")
@@ -455,9 +502,12 @@ class CaptureService:
         """Emit ``started``, ``progress`` every ``progress_every_s`` until the end, then the last ``progress`` and
         ``finished``."""
         events = self.events
-        events.started.emit(self.setup)
-        while not self._done.wait(self._progress_every_s):
-            events.progress.emit(self.stats())
-        result = self._result
-        events.progress.emit(result.stats)
-        events.finished.emit(result)
+        try:
+            events.started.emit(self.setup)
+            while not self._done.wait(self._progress_every_s):
+                events.progress.emit(self.stats())
+            result = self._result
+            events.progress.emit(result.stats)
+            events.finished.emit(result)
+        finally:
+            self._events_done.set()

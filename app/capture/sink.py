@@ -28,7 +28,7 @@ from flexvox_calibration.capture_setup import CaptureCalibration
 from flexvox_core import output_files
 from flexvox_core._version import __version__
 from flexvox_core.multiplex import MultiplexedCode
-from flexvox_core.output_errors import OutputError
+from flexvox_core.output_errors import OVERWRITE_HINT, OutputError
 from flexvox_core.recording import RecordingError, RecordingWriter, open_recording, recording_attrs
 from flexvox_core.writer_lock import WriterLock
 from rig_drivers.interfaces import Frame
@@ -43,14 +43,15 @@ Writer = RecordingWriter
 ``count``, ``write_ground_truth_frames(rows)``, ``close(attrs_update=)``."""
 
 
-def check_output(path, *, overwrite: bool = False, inputs=()) -> Path:
+def check_output(path, *, overwrite: bool = False, inputs=(), hint: str = OVERWRITE_HINT) -> Path:
     """The recording path a capture may create (:func:`flexvox_core.output_files.check_output`): refused
     when it is one of ``inputs`` (a code, calibration or rig file), exists (without ``overwrite``), is
     being written by another capture, or its folder does not exist or refuses files. Front ends call
-    it before they open a rig, so the operator hears it at once."""
+    it before they open a rig, so the operator hears it at once. ``hint`` says how to allow overwriting, in the
+    front end's words (Python's ``overwrite=True`` by default)."""
     try:
         return output_files.check_output(path, overwrite=overwrite, inputs=inputs, kind="store",
-                                         hint="choose another path or allow overwriting")
+                                         hint=hint)
     except OutputError as exc:
         raise CaptureError(str(exc)) from None
 
@@ -144,7 +145,7 @@ class RecordingSink:
         try:
             self._lock_file.acquire()
             if self.path.exists() and not self._overwrite:  # it may have appeared since the check
-                raise CaptureError(f"{self.path} already exists; choose another path or allow overwriting")
+                raise CaptureError(f"{self.path} already exists; {OVERWRITE_HINT}")
         except (OutputError, CaptureError) as exc:
             self._lock_file.release()
             raise CaptureError(str(exc)) from None

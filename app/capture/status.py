@@ -6,6 +6,8 @@ import enum
 from dataclasses import dataclass
 from pathlib import Path
 
+from flexvox_core.reprs import html_table
+
 
 class CaptureState(enum.Enum):
     """Where a capture is."""
@@ -59,6 +61,20 @@ class CaptureStats:
     state: str = CaptureState.IDLE.value
     finishing: str = ""
 
+    def __repr__(self) -> str:
+        return (f"<CaptureStats {self.state}: {self.rows_written} rows written ({self.drops} dropped, "
+                f"{self.queue_drops} by the queue), {self.frames_received} frames received, camera "
+                f"{self.camera_rate_hz:.1f} Hz, writing {self.write_rate_hz:.1f} Hz, {self.elapsed_s:.1f} s>")
+
+    def _repr_html_(self) -> str:
+        return html_table("CaptureStats", [
+            ("state", self.state + (f" ({self.finishing})" if self.finishing else "")),
+            ("frames received", self.frames_received), ("rows written", self.rows_written),
+            ("dropped", f"{self.drops} ({self.queue_drops} by the queue)"),
+            ("queue", f"{self.queue_depth} of {self.queue_capacity} (most {self.max_queue_depth})"),
+            ("camera rate", f"{self.camera_rate_hz:.2f} Hz"), ("write rate", f"{self.write_rate_hz:.2f} Hz"),
+            ("writer capacity", f"{self.writer_capacity_hz:.2f} Hz"), ("elapsed", f"{self.elapsed_s:.2f} s")])
+
 
 @dataclass(frozen=True)
 class CaptureResult:
@@ -75,6 +91,9 @@ class CaptureResult:
     frames_in_recording: int | None
     stats: CaptureStats
     error: str | None = None
+
+    def __repr__(self) -> str:
+        return f"<CaptureResult {self.reason}: {self.message}>"
 
     @property
     def ok(self) -> bool:

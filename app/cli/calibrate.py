@@ -117,11 +117,11 @@ def run(args) -> int:
     if args.list_screens:
         return list_screens()
     if args.output is not None:
-        from flexvox_core.output_files import OutputError, check_output
+        from flexvox_core.output_files import CLI_OVERWRITE_HINT, OutputError, check_output
 
         rig_file = None if args.rig == "mock" else Path(args.rig)
         try:  # checked before calibrating, so the run is not lost
-            check_output(args.output, overwrite=args.overwrite, inputs=[rig_file])
+            check_output(args.output, overwrite=args.overwrite, inputs=[rig_file], hint=CLI_OVERWRITE_HINT)
         except OutputError as exc:
             raise CliError(f"{exc} (checked before calibrating, so no run is lost)") from None
     try:

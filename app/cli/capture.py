@@ -132,6 +132,7 @@ def _build(args, display=None):
     from flexvox_app.capture import CaptureService, QueuePolicy, SyncSetting
     from flexvox_app.capture.pacing import PacedClock
     from flexvox_app.capture.sink import check_output
+    from flexvox_core.output_errors import CLI_OVERWRITE_HINT
     from rig_drivers.profile import open_rig
     from rig_drivers.simulated_camera import VirtualClock
 
@@ -139,7 +140,7 @@ def _build(args, display=None):
         raise ValueError(f"--frames must be >= 1; got {args.frames}")
     rig_file = None if args.rig == "mock" else Path(args.rig)
     check_output(args.output, overwrite=args.overwrite,  # before the rig is built (a scene renders for seconds)
-                 inputs=[args.code, args.calibration, args.sync_profile, rig_file])
+                 inputs=[args.code, args.calibration, args.sync_profile, rig_file], hint=CLI_OVERWRITE_HINT)
     plan = _plan(args)
     plan.code  # noqa: B018 - refuse an impossible code before any device is opened
     if args.rig == "mock":

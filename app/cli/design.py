@@ -137,10 +137,10 @@ def run(args) -> int:
     from flexvox_core.multiplex import multiplexed_code
 
     if args.output is not None:
-        from flexvox_core.output_files import OutputError, check_output
+        from flexvox_core.output_files import CLI_OVERWRITE_HINT, OutputError, check_output
 
         try:  # before the solve, which can take seconds
-            check_output(args.output, overwrite=args.overwrite, inputs=[args.verify])
+            check_output(args.output, overwrite=args.overwrite, inputs=[args.verify], hint=CLI_OVERWRITE_HINT)
         except OutputError as exc:
             raise CliError(str(exc)) from None
     if args.verify is not None:

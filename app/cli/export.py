@@ -190,7 +190,7 @@ def _write(out: Path, src: _Source, fps: float, pyramid: int = 0) -> None:
 def run(args) -> int:
     """Carry out ``flexvox export``."""
     from flexvox_core.ngff import check_levels
-    from flexvox_core.output_files import OutputError, atomic_output, check_output
+    from flexvox_core.output_files import CLI_OVERWRITE_HINT, OutputError, atomic_output, check_output
     from flexvox_core.recording import RecordingError, open_recording
 
     out: Path = args.output
@@ -200,7 +200,8 @@ def run(args) -> int:
     if args.pyramid and suffix != ".zarr":
         raise CliError(f"--pyramid goes with a .zarr output (an OME-Zarr image); got -o {out}")
     try:
-        check_output(out, overwrite=args.overwrite, inputs=[args.recording], kind="folder" if suffix == "" else "auto")
+        check_output(out, overwrite=args.overwrite, inputs=[args.recording], kind="folder" if suffix == "" else "auto",
+                     hint=CLI_OVERWRITE_HINT)
         if suffix == "" and out.is_dir():
             others = sorted(p.name for p in out.iterdir() if not _PNG_NAME.fullmatch(p.name))
             if others:
@@ -219,7 +220,7 @@ def run(args) -> int:
         raise CliError(f"--pyramid: {exc}") from None
     fps = args.fps or (src.rate if args.what == "frames" else 30.0)
     try:
-        with atomic_output(out, overwrite=args.overwrite) as tmp:
+        with atomic_output(out, overwrite=args.overwrite, hint=CLI_OVERWRITE_HINT) as tmp:
             _write(tmp, src, fps, args.pyramid)
     except (RecordingError, OutputError) as exc:  # a damaged chunk found while writing: nothing was replaced
         raise CliError(f"{exc}; {out} was not written") from None

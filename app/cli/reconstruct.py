@@ -83,14 +83,14 @@ def run(args) -> int:
 
     from flexvox_core.capture_reader import open_capture
     from flexvox_core.methods import specs
-    from flexvox_core.output_files import check_output
+    from flexvox_core.output_files import CLI_OVERWRITE_HINT, check_output
     from flexvox_core.recording import RecordingError
     from flexvox_core.video_io import WRITABLE, write_video
 
     try:
         if args.output.suffix.lower() not in WRITABLE:
             raise ValueError(f"-o {args.output}: the output must end in {', '.join(WRITABLE)}")
-        check_output(args.output, overwrite=args.overwrite, inputs=[args.recording])
+        check_output(args.output, overwrite=args.overwrite, inputs=[args.recording], hint=CLI_OVERWRITE_HINT)
         if args.figures is not None:
             from flexvox_app.figures import check_figures_dir
 

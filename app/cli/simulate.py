@@ -110,7 +110,7 @@ def _spec_from_argument(text: str) -> SceneSpec:
 
 def run_simulate(args) -> int:
     """Carry out ``flexvox simulate``."""
-    from flexvox_core.output_files import check_output
+    from flexvox_core.output_files import CLI_OVERWRITE_HINT, check_output
     from flexvox_core.recording import RecordingError, write_simulation
     from flexvox_core.simulate.effects import parse_effects
     from flexvox_core.simulate.simulator import simulate
@@ -119,7 +119,8 @@ def run_simulate(args) -> int:
     try:
         spec = _spec_from_argument(args.scene)
         inputs = [Path(args.scene) if Path(args.scene).exists() else None, getattr(spec, "file", None)]
-        check_output(args.output, overwrite=args.overwrite, inputs=inputs, kind="store")  # before it runs
+        # before it runs
+        check_output(args.output, overwrite=args.overwrite, inputs=inputs, kind="store", hint=CLI_OVERWRITE_HINT)
         if args.tile:
             spec.tile, spec.order = args.tile, None
         if args.size:

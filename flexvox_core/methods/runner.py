@@ -150,7 +150,7 @@ def gpu_chunk_frames(method: Method, K: int, H: int, W: int, n_frames: int, chun
     if fit < 1:
         raise ValueError(f"{method.label} needs about {per_voxel * K * H * W * (1 + 2 * overlap) / 2**30:.1f} GiB "
                          f"of GPU memory for one {H}x{W} frame and its context; {free / 2**30:.1f} GiB are free: "
-                         "reconstruct on the CPU (--device cpu)")
+                         "reconstruct on the CPU")
     if fit < wanted:
         _logger.info("GPU: chunks of %d camera frames to fit %.1f GiB free", fit, free / 2**30)
         return fit
@@ -351,8 +351,8 @@ def _run(f: np.ndarray, code, method: Method, *, chunk_frames: int | None, progr
     H, W = f.shape[1:]
     check_fits(reconstruction_bytes(F, K, H, W, chunk_frames, method.overlap(K)),
                f"reconstructing {F} frames of {H}x{W} at K = {K} in memory ({F * K} sub-frames)",
-               "reconstruct it with `flexvox batch`, which writes chunk by chunk (its memory follows --chunk, "
-               "not the recording's length)")
+               "reconstruct it with reconstruct_batch (`flexvox batch` on the command line), which writes chunk by "
+               "chunk (its memory follows the chunk's length, not the recording's)")
     missing = as_missing(missing, F)
     check_method_reach(missing, method, K)
     value_range = sample_range(f, missing) if method.spec.needs_sample_range and F else None

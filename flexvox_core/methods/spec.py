@@ -37,6 +37,7 @@ import numpy as np
 
 from flexvox_core.gaps import max_gap
 from flexvox_core.methods.options import Option
+from flexvox_core.reprs import describe_array, html_table, short_repr
 
 
 @dataclass
@@ -65,6 +66,20 @@ class MethodOutput:
     interpolated: np.ndarray | None = None
     device: str = "cpu"
     device_note: str | None = None
+
+    def _facts(self) -> list[tuple[str, str]]:
+        filled = 0 if self.interpolated is None else int(np.count_nonzero(self.interpolated))
+        return [("video", describe_array(self.video)),
+                *((f"extras[{name!r}]", describe_array(a)) for name, a in self.extras.items()),
+                ("interpolated", f"{filled} sub-frames"),
+                ("device", self.device + (f" ({self.device_note})" if self.device_note else ""))]
+
+    def __repr__(self) -> str:
+        facts = self._facts()
+        return short_repr("MethodOutput", [f"{k} {v}" for k, v in facts[:-1]] + [f"on {facts[-1][1]}"])
+
+    def _repr_html_(self) -> str:
+        return html_table("MethodOutput", self._facts())
 
 
 class MethodSpec(ABC):

@@ -8,6 +8,7 @@ import numpy as np
 
 from flexvox_core.flow import FlowField
 from flexvox_core.motion.tensors import DEFAULT_C, resolution_map
+from flexvox_core.reprs import describe_array, html_table, short_repr
 
 
 class MotionAwareResult:
@@ -52,6 +53,20 @@ class MotionAwareResult:
         self.stage_seconds = dict(stage_seconds or {})
         self.device = device
         self.device_note = device_note
+
+    def _facts(self) -> list[tuple[str, str]]:
+        seconds = ", ".join(f"{k} {v:.2f} s" for k, v in self.seconds.items()) or "not timed"
+        return [("video", describe_array(self.video)), ("K", str(self.K)), ("c", ", ".join(f"{v:g}" for v in self.c)),
+                ("device", self.device + (f" ({self.device_note})" if self.device_note else "")),
+                ("seconds", seconds)]
+
+    def __repr__(self) -> str:
+        total = sum(self.seconds.values())
+        return short_repr("MotionAwareResult", [f"video {describe_array(self.video)}", f"K = {self.K}",
+                                                f"on {self.device}", f"{total:.2f} s" if self.seconds else ""])
+
+    def _repr_html_(self) -> str:
+        return html_table("MotionAwareResult", self._facts())
 
     @cached_property
     def high_tr(self) -> np.ndarray:

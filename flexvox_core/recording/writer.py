@@ -48,6 +48,7 @@ import numpy as np
 import zarr
 
 from flexvox_core.ngff import image_compressor
+from flexvox_core.output_errors import OVERWRITE_HINT
 from flexvox_core.recording.errors import RecordingError
 from flexvox_core.recording.journal import JOURNAL, journal_header, journal_record
 from flexvox_core.recording.schema import (
@@ -136,7 +137,7 @@ class RecordingWriter:
         self.store: Path | None = None
         try:
             if (self.path.exists() or self.path.is_symlink()) and not overwrite:
-                raise RecordingError(f"{self.path} already exists; choose another path or allow overwriting")
+                raise RecordingError(f"{self.path} already exists; {OVERWRITE_HINT}")
             if self.path.exists():
                 refuse_other_kind(self.path, "store")  # never a file, or a folder that is not a Zarr store
             if self._atomic:
@@ -147,7 +148,7 @@ class RecordingWriter:
                     os.rename(self.path, self._replaced)
                 store = self.path
             if store.exists() or store.is_symlink():  # appeared since the check (another program): not ours
-                raise RecordingError(f"{store} already exists; choose another path or allow overwriting")
+                raise RecordingError(f"{store} already exists; {OVERWRITE_HINT}")
             self.store = store  # from here on the store is this writer's own: a failed start removes it
             # The frames are also an OME-Zarr image (NGFF 0.5: axes t, y, x; t = one camera frame), so
             # generic OME-Zarr readers open the raw coded frames; flexvox's own block stays under "flexvox".

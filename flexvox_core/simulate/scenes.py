@@ -148,14 +148,45 @@ SCENES: dict[str, BuiltinScene] = {
                      "samples (flexvox info --slots)", _strobe),
     )
 }
+"""Every built-in scene by name (a :class:`BuiltinScene`: its name, what it shows, its renderer); render one with
+:func:`render_scene`."""
 
 
 def render_scene(name: str, subframes: int, height: int, width: int, *, seed: int = 0,
                  advice: str = "use a smaller size or fewer frames") -> np.ndarray:
     """Render built-in scene ``name`` as ``(subframes, height, width)`` float32 in [0, 1].
 
-    A video that would not fit in memory is refused first (:class:`~flexvox_core.memory_budget.MemoryBudgetError`,
-    ending with ``advice``: what the caller's user can change).
+    Parameters
+    ----------
+    name : str
+        A key of :data:`SCENES`: ``fan``, ``balls``, ``drummer``, ``pan``, ``static`` or ``strobe``.
+    subframes : int
+        S, the sub-frames (shutter slots) to render, >= 1: K per camera frame.
+    height, width : int
+        The frame size in pixels, each >= 8.
+    seed : int
+        Seeds the scene's textures and motion: the same seed renders the same video.
+    advice : str
+        How the caller's user can ask for less, ending the refusal of a video too large for memory.
+
+    Returns
+    -------
+    ndarray (subframes, height, width) float32
+        Values in [0, 1]; motion is in pixels per sub-frame.
+
+    Raises
+    ------
+    ValueError
+        An unknown scene, or a size that is not a whole number in range.
+    MemoryBudgetError
+        A video that would not fit in memory (:class:`~flexvox_core.memory_budget.MemoryBudgetError`), before
+        any of it is made.
+
+    Examples
+    --------
+    >>> from flexvox_core import render_scene
+    >>> render_scene("balls", 32, 24, 32, seed=1).shape
+    (32, 24, 32)
     """
     if name not in SCENES:
         raise ValueError(f"unknown scene {name!r}; built-in scenes: {', '.join(SCENES)}")

@@ -301,7 +301,7 @@ def code_for(spec: SceneSpec):
     return design_code(spec.tile).require(), False, None
 
 
-_FILE_ADVICE = "cut the video to fewer or smaller frames, or simulate fewer frames (--frames)"
+_FILE_ADVICE = "cut the video to fewer or smaller frames, or simulate fewer frames"
 
 
 def _check_file_fits(spec: SceneSpec, K: int) -> None:
@@ -336,7 +336,7 @@ def simulate(spec: SceneSpec, *, video: np.ndarray | None = None) -> SimulationR
             frames = spec.camera_frames() or 8
             check_fits(simulation_bytes(frames, K, spec.height, spec.width),
                        f"simulating {spec.height}x{spec.width} with {frames} frames of K = {K}",
-                       "use a smaller size (--size) or fewer frames (--frames)")
+                       "use a smaller size or fewer frames")
             video = render_scene(spec.builtin, frames * K, spec.height, spec.width, seed=spec.seed)
     video = trim_to_frames(video, K, frames=spec.camera_frames() if spec.file is not None else None,
                            source=spec.source_label())

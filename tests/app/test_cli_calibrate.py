@@ -62,7 +62,8 @@ def test_bad_options_exit_2_with_one_line(capsys, argv, message):
 
 def test_a_missing_rig_profile_is_a_cli_error(tmp_path):
     args = parse("--rig", str(tmp_path / "nope.toml"))
-    with pytest.raises(CliError, match=r"no rig profile .*nope.toml: give `--rig mock`"):
+    with pytest.raises(CliError, match=r"no rig profile .*nope.toml: a rig is \"mock\" \(the simulated rig\) or "
+                                       r"the path"):
         args.func(args)
 
 

@@ -70,7 +70,7 @@ def test_chunks_and_refusals(rec_path, tmp_path):
     with pytest.raises(ValueError, match=r"is the input .*: an output never replaces its input, whatever the flags"):
         reconstruct_batch(rec_path, rec_path, Method(), overwrite=True)
     (tmp_path / "old.zarr").mkdir()
-    with pytest.raises(ValueError, match=r"old.zarr already exists; choose another path or allow overwriting"):
+    with pytest.raises(ValueError, match=r"old.zarr already exists; choose another path, or pass overwrite=True"):
         reconstruct_batch(rec_path, tmp_path / "old.zarr", Method())
 
 

@@ -7,7 +7,7 @@ import textwrap
 
 import pytest
 
-from flexvox_core.output_errors import OutputBusyError, OutputError
+from flexvox_core.output_errors import CLI_OVERWRITE_HINT, OutputBusyError, OutputError
 from flexvox_core.output_files import (
     atomic_output,
     check_output,
@@ -39,8 +39,11 @@ def test_an_output_is_never_its_input_whatever_the_spelling(tmp_path):
 
 def test_check_output_rules(tmp_path):
     (tmp_path / "old.npy").write_bytes(b"x")
-    with pytest.raises(OutputError, match=r"old.npy already exists; use --overwrite to replace it"):
+    with pytest.raises(OutputError, match=r"old.npy already exists; choose another path, or pass overwrite=True to "
+                                          r"replace it"):
         check_output(tmp_path / "old.npy")
+    with pytest.raises(OutputError, match=r"old.npy already exists; use --overwrite to replace it"):
+        check_output(tmp_path / "old.npy", hint=CLI_OVERWRITE_HINT)  # the command line's words
     assert check_output(tmp_path / "old.npy", overwrite=True) == tmp_path / "old.npy"
     with pytest.raises(OutputError, match=r"cannot write .*x.npy: the folder .*nowhere does not exist"):
         check_output(tmp_path / "nowhere" / "x.npy")
@@ -187,7 +190,7 @@ def test_overwrite_replaces_only_the_same_kind(tmp_path):
     thesis = tmp_path / "thesis.tif"
     thesis.mkdir()
     (thesis / "chapter1.txt").write_text("years of work")
-    with pytest.raises(OutputError, match=r"thesis.tif is a folder; --overwrite replaces a file with a file"):
+    with pytest.raises(OutputError, match=r"thesis.tif is a folder; overwriting replaces a file with a file"):
         check_output(thesis, overwrite=True)
     notes = tmp_path / "proj.zarr"
     notes.mkdir()
@@ -204,3 +207,20 @@ def test_overwrite_replaces_only_the_same_kind(tmp_path):
     with pytest.raises(OutputError, match=r"thesis.tif is a folder"):
         RecordingWriter(thesis, height=4, width=4, dtype="float32", attrs={}, overwrite=True)
     assert (thesis / "chapter1.txt").read_text() == "years of work"
+
+
+def test_a_python_caller_is_told_the_keyword_and_never_a_command_line_flag(tmp_path):
+    """``write_video`` onto an existing file names ``overwrite=True``; no refusal from Python names ``--overwrite``."""
+    import numpy as np
+
+    from flexvox_core import write_video
+
+    video = np.zeros((2, 4, 4), np.float32)
+    write_video(tmp_path / "v.npy", video)
+    with pytest.raises(OutputError, match=r"v.npy already exists; choose another path, or pass overwrite=True to "
+                                          r"replace it") as refused:
+        write_video(tmp_path / "v.npy", video)
+    (tmp_path / "d.npy").mkdir()
+    with pytest.raises(OutputError, match=r"d.npy is a folder; overwriting replaces a file with a file") as folder:
+        write_video(tmp_path / "d.npy", video, overwrite=True)
+    assert "--" not in str(refused.value) + str(folder.value)

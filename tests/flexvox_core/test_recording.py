@@ -66,7 +66,7 @@ def test_counts_and_effects_metadata(tmp_path, rng):
 
 def test_refuses_to_overwrite(tmp_path, sim):
     write_simulation(tmp_path / "r.zarr", sim)
-    with pytest.raises(RecordingError, match=r"already exists"):
+    with pytest.raises(RecordingError, match=r"r.zarr already exists; choose another path, or pass overwrite=True"):
         write_simulation(tmp_path / "r.zarr", sim)
     write_simulation(tmp_path / "r.zarr", sim, overwrite=True)
 

@@ -98,7 +98,8 @@ def test_bad_profiles_are_explained(data, message):
 
 
 def test_missing_or_broken_files_are_explained(tmp_path):
-    with pytest.raises(SettingError, match=r"no rig profile .*nope.toml: give `--rig mock`"):
+    with pytest.raises(SettingError, match=r"no rig profile .*nope.toml: a rig is \"mock\" \(the simulated rig\) or "
+                                          r"the path of a \.toml rig profile"):
         open_rig(tmp_path / "nope.toml")
     bad = tmp_path / "bad.toml"
     bad.write_text("[camera\n")

@@ -2,6 +2,7 @@
 
 import logging
 import threading
+import time
 
 import pytest
 
@@ -62,23 +63,70 @@ def test_a_capture_publishes_started_progress_and_finished_in_order(tmp_path):
 def test_a_subscriber_that_never_returns_does_not_hold_the_capture_up(tmp_path):
     """Events run on a thread of their own: the reader and the writer never wait for a subscriber."""
     svc = CaptureService(make_rig(), PLAN, tmp_path / "r.zarr", frames=20, progress_every_s=0.01)
-    release = threading.Event()
     threads = set()
 
-    def stuck(stats):
+    def stuck(stats):  # returns only once the capture has ended: it holds the event thread for the whole capture
         threads.add(threading.current_thread().name)
-        release.wait(60)
+        deadline = time.monotonic() + 60
+        while svc.result is None and time.monotonic() < deadline:
+            time.sleep(0.01)
 
     svc.events.progress.connect(stuck)
     ended = threading.Event()
     svc.events.finished.connect(lambda result: ended.set())
-    try:
-        result = svc.run(timeout_s=30)
-    finally:
-        release.set()
-    assert ended.wait(10)
+    result = svc.run(timeout_s=30)
+    assert ended.is_set()  # run() returns once finished was delivered
     assert result.ok and result.stats.drops == 0 and open_recording(tmp_path / "r.zarr").n_frames == 20
     assert threads == {"flexvox-capture-events"}
+
+
+def test_stop_returns_after_the_last_progress_and_finished_were_delivered(tmp_path):
+    """In a notebook a subscriber prints: its output belongs to the cell that stopped the capture."""
+    svc = CaptureService(make_rig(), PLAN, tmp_path / "r.zarr", progress_every_s=0.01)
+    seen = []
+
+    def slow_finished(result):
+        time.sleep(0.2)  # a subscriber that takes a while (printing, drawing)
+        seen.append(("finished", result))
+
+    svc.events.progress.connect(lambda stats: seen.append(("progress", stats)))
+    svc.events.finished.connect(slow_finished)
+    svc.start()
+    result = svc.stop(timeout_s=30)
+    assert [name for name, _ in seen[-2:]] == ["progress", "finished"]
+    assert seen[-1][1] is result is svc.result and seen[-2][1] is result.stats and result.reason == "stopped"
+    assert svc.wait(0)  # ended, and every event delivered
+
+
+def test_wait_waits_for_the_events_and_stop_gives_the_result_when_a_subscriber_hangs(tmp_path, caplog):
+    svc = CaptureService(make_rig(), PLAN, tmp_path / "r.zarr", frames=5, progress_every_s=0.01)
+    release = threading.Event()
+    svc.events.finished.connect(lambda result: release.wait(60))
+    assert not svc.wait(0)  # not started
+    svc.start()
+    try:
+        deadline = time.monotonic() + 30
+        while svc.result is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert svc.result is not None and svc.result.reason == "done"
+        assert not svc.wait(0.05)  # the recording is finalised, but finished has not been delivered
+        with caplog.at_level(logging.WARNING, logger="flexvox_app.capture.service"):
+            result = svc.stop(timeout_s=0.05)
+        assert result is svc.result
+        assert "a subscriber to its events still runs 0.05 s after the stop" in caplog.text
+    finally:
+        release.set()
+    assert svc.wait(10)
+
+
+def test_a_subscriber_may_wait_for_the_capture_from_the_event_thread(tmp_path):
+    """``wait`` called from a subscriber waits for the capture's end only (the event it runs in cannot wait for
+    itself)."""
+    svc = CaptureService(make_rig(), PLAN, tmp_path / "r.zarr", frames=5, progress_every_s=0.01)
+    answers = []
+    svc.events.finished.connect(lambda result: answers.append(svc.wait(5)))
+    result = svc.run(timeout_s=30)
+    assert result.ok and answers == [True]
 
 
 def test_the_engine_reads_until_stopped_and_says_when_the_camera_stops_delivering(monkeypatch):

@@ -248,7 +248,7 @@ def test_no_frame_timeout_and_prompt_stop(tmp_path, monkeypatch):
 
 
 def test_setup_errors_are_clear(tmp_path):
-    with pytest.raises(CaptureError, match=r"already exists"):
+    with pytest.raises(CaptureError, match=r"r.zarr already exists; choose another path, or pass overwrite=True"):
         (tmp_path / "r.zarr").mkdir()
         CaptureService(make_rig(), PLAN, tmp_path / "r.zarr", frames=1)
     with pytest.raises(CaptureError, match=r"shortest is 235 µs"):

@@ -51,7 +51,7 @@ from flexvox_core.gaps import bridge, bridge_flow, interpolated_subframes
 from flexvox_core.motion import local_choice, noise_aware
 from flexvox_core.motion.gated_flow import gated_flow
 from flexvox_core.motion.longreach import long_reach_nc
-from flexvox_core.motion.mcnc import motion_compensated_nc
+from flexvox_core.motion.mcnc import default_reach, motion_compensated_nc
 from flexvox_core.motion.options import (
     LONG_REACH_RANGE,
     LONG_REACH_SIGMA_S,
@@ -184,14 +184,112 @@ class Window:
         lo, hi = self.bounds
         return LONG_REACH_RANGE * max(hi - lo, 1e-12)
 
+    # The options as the engines read them: every field of MotionOptions reaches the engines through one of
+    # these (OPTION_PLAN says which), never through ``options`` itself.
+
+    @property
+    def flow_backend(self) -> str:
+        """The optical flow's backend (the GPU's is DIS: another runs on the CPU, :func:`cuda_unsupported`)."""
+        return self.options.flow
+
+    @property
+    def flow_consistency(self) -> bool:
+        """Whether the flow is checked forward against backward (the CPU's alone)."""
+        return self.options.flow_consistency
+
+    @property
+    def flow_gate(self) -> tuple[float, float]:
+        """The motion detector's gate (:func:`~flexvox_core.motion.gated_flow.gated_flow`)."""
+        return self.options.gate
+
+    @property
+    def slow_speed(self) -> float | None:
+        """Below this speed (px per sub-frame) the gated flow measures over a long baseline, and a voxel not still
+        is slow (None: neither)."""
+        return self.options.slow_speed
+
+    @property
+    def still_speed(self) -> float | None:
+        """Below this speed a voxel is still (None: none is)."""
+        return self.options.still_speed
+
+    @property
+    def slow_class_speed(self) -> float | None:
+        """The speed classes' slow threshold: :attr:`slow_speed` where the slow voxels take the long reach
+        (:attr:`slow_class`), else None."""
+        return self.options.slow_speed if self.slow_class else None
+
+    @property
+    def passes(self) -> int:
+        """How many times the stages from the gated flow on run (each later pass measures the flow on the last
+        pass's result)."""
+        return self.options.passes
+
+    @property
+    def gather_time(self) -> float:
+        """Eq. 3's diffusion time n of the trajectory gather and of the guides."""
+        return self.options.time
+
+    @property
+    def gather_c(self) -> tuple[float, float, float]:
+        """Eq. 4's tensor eigenvalues (c1, c2, c3) of the trajectory gather."""
+        return self.options.c
+
+    @property
+    def refine_time(self) -> float:
+        """The refinement's diffusion time at this window's K (0: no refinement)."""
+        return self.options.refine(self.K)
+
+    @property
+    def leave_one_out(self) -> bool:
+        """Whether the last pass's gather gives each sample's leave-one-out estimate, for the local choice."""
+        return self.options.local_choice
+
+    @property
+    def noise_aware(self) -> bool:
+        """Whether the gather mixes in the wide kernel where the picture is flat against the capture's noise."""
+        return self.options.noise_aware
+
+    @property
+    def sampling_period(self) -> int:
+        """Sub-frames between a pixel's samples: S over the frames that hold samples (an identity code samples each
+        pixel once a frame; S when none does)."""
+        present = self.frames.shape[0] - (0 if self.missing is None else int(np.count_nonzero(self.missing)))
+        return self.S // present if present else self.S
+
+    @property
+    def gather_reach(self) -> int:
+        """The trajectory gather's largest offset |d| in sub-frames (:func:`~flexvox_core.motion.mcnc.default_reach`
+        of :attr:`gather_time`, c1 and :attr:`sampling_period`)."""
+        return default_reach(self.gather_time, self.gather_c[0], self.sampling_period, self.S)
+
     @property
     def scores_still_voxels(self) -> bool:
         """Whether the local choice scores the gather at gathered voxels slower than
         :data:`~flexvox_core.motion.local_choice.STILL_VOXEL_SPEED` by the pixel's own sample
         (:func:`~flexvox_core.motion.local_choice.still_voxel_loo`): such voxels exist unless the slow class takes
         every voxel below a ``slow_speed`` at least that speed."""
-        o = self.options
-        return not (o.slow_speed is not None and o.slow_speed >= local_choice.STILL_VOXEL_SPEED and self.slow_class)
+        s = self.slow_speed
+        return not (s is not None and s >= local_choice.STILL_VOXEL_SPEED and self.slow_class)
+
+
+OPTION_PLAN: dict[str, tuple[str, ...]] = {
+    "flow": ("flow_backend",),
+    "passes": ("passes",),
+    "time": ("gather_time", "gather_reach"),
+    "c": ("gather_c", "guide_tensor", "gather_reach"),
+    "refine_time": ("refine_time", "gathered"),
+    "gate": ("flow_gate",),
+    "flow_scale": ("flow_scale",),
+    "still_speed": ("still_speed",),
+    "flow_consistency": ("flow_consistency",),
+    "slow_speed": ("slow_speed", "slow_class_speed", "scores_still_voxels"),
+    "slow_reach": ("slow_class", "long_reach"),
+    "local_choice": ("leave_one_out",),
+    "noise_aware": ("noise_aware",),
+}
+"""Each field of :class:`~flexvox_core.motion.options.MotionOptions` and the :class:`Window` members that carry it
+to the engines (a test checks that every field has one, and a CPU/GPU parity case)."""
 
 
 def cuda_unsupported(options: MotionOptions) -> str | None:
@@ -296,7 +394,6 @@ class Stages(Protocol):
 def run_stages(engine: Stages, memo: FlowMemo | None = None) -> MotionAwareResult:
     """Run motion-aware's stages on ``engine`` (:class:`CpuStages` or its GPU twin); returns its result."""
     win = engine.window
-    o = win.options
     times = StageTimes(engine.sync)
     with times("high_tr"):
         high_tr = engine.high_tr()
@@ -304,8 +401,8 @@ def run_stages(engine: Stages, memo: FlowMemo | None = None) -> MotionAwareResul
         engine.samples()
     current = high_tr
     flow = None
-    for pass_ in range(o.passes):
-        last = pass_ + 1 == o.passes
+    for pass_ in range(win.passes):
+        last = pass_ + 1 == win.passes
         with times("gated_flow"):
             flow = engine.gated_flow(current, memo)
         with times("speed_classes"):
@@ -313,10 +410,10 @@ def run_stages(engine: Stages, memo: FlowMemo | None = None) -> MotionAwareResul
         with times("guides"):
             base = engine.guides(still)
         with times("noise"):
-            wide = engine.noise(current, still) if o.noise_aware else None
+            wide = engine.noise(current, still) if win.noise_aware else None
         with times("trajectory_gather"):
             video, loo, gathered = engine.trajectory_gather(flow, base, still, slow, high_tr, wide,
-                                                            leave_one_out=o.local_choice and last, last=last)
+                                                            leave_one_out=win.leave_one_out and last, last=last)
         del base
         with times("long_reach"):
             engine.long_reach(flow, video, slow)
@@ -375,16 +472,16 @@ class CpuStages:
             sparse[gap] = 0
 
     def gated_flow(self, current: Volume, memo: FlowMemo | None = None) -> Flow:
-        w, o = self.window, self.window.options
-        field_ = gated_flow(current, w.K, backend=o.flow, gate=o.gate, scale=w.flow_scale,
-                            consistency=o.flow_consistency, slow_speed=o.slow_speed, memo=memo)
+        w = self.window
+        field_ = gated_flow(current, w.K, backend=w.flow_backend, gate=w.flow_gate, scale=w.flow_scale,
+                            consistency=w.flow_consistency, slow_speed=w.slow_speed, memo=memo)
         if w.missing is not None:
             bridge_flow(field_.flow, w.missing, w.K, margin=w.bridge_margin)
         return field_
 
     def speed_classes(self, flow: Flow) -> tuple[Volume, Volume]:
-        w, o = self.window, self.window.options
-        still, slow = speed_classes(flow.flow, o.still_speed, o.slow_speed if w.slow_class else None)
+        w = self.window
+        still, slow = speed_classes(flow.flow, w.still_speed, w.slow_class_speed)
         if w.skip is not None:  # outside the gathered sub-frames nothing is gathered
             slow[w.skip] = False
         return still, slow
@@ -393,20 +490,20 @@ class CpuStages:
         """The value of the voxels no trajectory gather estimates: the fixed-tensor nc of Eq. 4's tensor at zero
         flow (``diag(c3, c2, c1)``), and at the still voxels their pixel's own samples averaged in time
         (Eq. 4's tensor in the limit c -> (0, 0, 1)): exact for a still scene, and its noise averages out."""
-        w, o = self.window, self.window.options
+        w = self.window
         fixed = self.fixed
         if fixed is None:  # computed once: every pass reads it
-            fixed = self.fixed = guide(w, w.guide_tensor, o.time)
+            fixed = self.fixed = guide(w, w.guide_tensor, w.gather_time)
         base = fixed
         if still.any():
-            if o.passes == 1 and w.skip is None:
+            if w.passes == 1 and w.skip is None:
                 # `fixed` serves this pass alone: the still voxels' values go straight into it (no volume of them).
                 diffuse_where(w.frames, w.code, base, still, tensor=STILL_TENSOR, time=w.still_time, missing=w.missing)
             else:
                 still_value = self.still_value
                 if still_value is None:
                     still_value = self.still_value = guide(w, STILL_TENSOR, w.still_time)
-                base = fixed.copy() if o.passes > 1 else fixed  # `fixed` serves every pass
+                base = fixed.copy() if w.passes > 1 else fixed  # `fixed` serves every pass
                 np.copyto(base, still_value, where=still)
         return base
 
@@ -427,17 +524,17 @@ class CpuStages:
                           wide: Volume | None, *, leave_one_out: bool, last: bool) -> tuple[Volume, Any, Any]:
         """(video, loo, gathered): the gather at the voxels neither still nor slow; ``loo`` (F, H, W) each sample's
         leave-one-out estimate (None unless asked for) and ``gathered`` the voxels gathered (with ``loo``)."""
-        w, o = self.window, self.window.options
+        w = self.window
         not_gathered = still | slow
         if w.skip is not None:
             not_gathered[w.skip] = True
         loo = np.full(w.frames.shape, np.nan, np.float32) if leave_one_out else None
         # The gather writes into `base` when no later pass reads it (one volume less).
-        into = base if o.passes == 1 or base is not self.fixed else None
+        into = base if w.passes == 1 or base is not self.fixed else None
         sparse, mask = self._samples()
-        video = motion_compensated_nc(sparse, mask, flow.flow, c=o.c, time=o.time, fallback=high_tr,
+        video = motion_compensated_nc(sparse, mask, flow.flow, c=w.gather_c, time=w.gather_time, fallback=high_tr,
                                       still=not_gathered, still_value=base, loo=loo, wide=wide,
-                                      wide_sigma=noise_aware.wide_sigma(w.K), out=into)
+                                      wide_sigma=noise_aware.wide_sigma(w.K), max_reach=w.gather_reach, out=into)
         gathered = ~not_gathered if loo is not None else None
         if last:
             self.fixed = self.still_value = None  # not needed again: free them before the local choice's volume
@@ -459,8 +556,8 @@ class CpuStages:
     def refinement(self, video: Volume, flow: Flow, slow: Volume, last: bool) -> None:
         """Along each trajectory; the slow voxels read their neighbours by clipped Catmull-Rom (a bilinear read
         a fraction of a pixel off is a blur, which would take the texture their long-reach gather kept)."""
-        w, o = self.window, self.window.options
-        refine_time = o.refine(w.K)
+        w = self.window
+        refine_time = w.refine_time
         if refine_time <= 0:
             return
         g0, g1 = w.gathered
@@ -496,7 +593,7 @@ class CpuStages:
         s0, s1 = w.keep
         if (s0, s1) != (0, w.S):
             video = np.ascontiguousarray(video[s0:s1])
-        return MotionAwareResult(video, high_tr, flow, w.K, w.options.c, times.summary(), dict(times.seconds),
+        return MotionAwareResult(video, high_tr, flow, w.K, w.gather_c, times.summary(), dict(times.seconds),
                                  self.device)
 
 

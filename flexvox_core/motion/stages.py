@@ -50,7 +50,7 @@ from flexvox_core.forward import sample_mask, sparse_volume
 from flexvox_core.gaps import bridge, bridge_flow, interpolated_subframes
 from flexvox_core.motion import local_choice, noise_aware
 from flexvox_core.motion.gated_flow import gated_flow
-from flexvox_core.motion.longreach import long_reach_nc
+from flexvox_core.motion.longreach import LongReachPlan, long_reach_nc
 from flexvox_core.motion.mcnc import default_reach, motion_compensated_nc
 from flexvox_core.motion.options import (
     LONG_REACH_RANGE,
@@ -184,6 +184,13 @@ class Window:
         lo, hi = self.bounds
         return LONG_REACH_RANGE * max(hi - lo, 1e-12)
 
+    @property
+    def long_reach_plan(self) -> LongReachPlan:
+        """The slow voxels' gather as both engines run it: :attr:`long_reach` each way and as σ_t,
+        :data:`LONG_REACH_SIGMA_S`, :attr:`range_weight`."""
+        return LongReachPlan.of(self.S, reach=self.long_reach, sigma_t=self.long_reach, sigma_s=LONG_REACH_SIGMA_S,
+                                h=self.range_weight)
+
     # The options as the engines read them: every field of MotionOptions reaches the engines through one of
     # these (OPTION_PLAN says which), never through ``options`` itself.
 
@@ -284,7 +291,7 @@ OPTION_PLAN: dict[str, tuple[str, ...]] = {
     "still_speed": ("still_speed",),
     "flow_consistency": ("flow_consistency",),
     "slow_speed": ("slow_speed", "slow_class_speed", "scores_still_voxels"),
-    "slow_reach": ("slow_class", "long_reach"),
+    "slow_reach": ("slow_class", "long_reach", "long_reach_plan"),
     "local_choice": ("leave_one_out",),
     "noise_aware": ("noise_aware",),
 }
@@ -355,8 +362,9 @@ class Stages(Protocol):
     def samples(self) -> None:
         """The sample volume and its mask, held by the engine."""
 
-    def gated_flow(self, current: Volume, memo: FlowMemo | None = None) -> Flow:
-        """The velocity of every voxel, from ``current`` (the high-TR video or the last pass's result)."""
+    def gated_flow(self, current: Volume) -> Flow:
+        """The velocity of every voxel, from ``current`` (the high-TR video or the last pass's result); a pass
+        starts here."""
 
     def speed_classes(self, flow: Flow) -> tuple[Volume, Volume]:
         """(still, slow) voxels."""
@@ -368,17 +376,16 @@ class Stages(Protocol):
         """The wide kernel's weight per voxel (None: none)."""
 
     def trajectory_gather(self, flow: Flow, base: Volume, still: Volume, slow: Volume, high_tr: Volume,
-                          wide: Volume | None, *, leave_one_out: bool, last: bool) -> tuple[Volume, Any, Any]:
+                          wide: Volume | None, *, leave_one_out: bool) -> tuple[Volume, Any, Any]:
         """(video, loo, gathered)."""
 
     def long_reach(self, flow: Flow, video: Volume, slow: Volume) -> None:
         """The slow voxels' range-weighted gather, into ``video``."""
 
-    def refinement(self, video: Volume, flow: Flow, slow: Volume, last: bool) -> None:
+    def refinement(self, video: Volume, flow: Flow, slow: Volume) -> None:
         """The monotone diffusion along the trajectories, in place."""
 
-    def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume,
-                     last: bool) -> None:
+    def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume) -> None:
         """Oriented nc blended in where it predicts the samples better, in place."""
 
     def gaps(self, video: Volume, flow: Flow) -> None:
@@ -391,7 +398,7 @@ class Stages(Protocol):
         """What the run gives back."""
 
 
-def run_stages(engine: Stages, memo: FlowMemo | None = None) -> MotionAwareResult:
+def run_stages(engine: Stages) -> MotionAwareResult:
     """Run motion-aware's stages on ``engine`` (:class:`CpuStages` or its GPU twin); returns its result."""
     win = engine.window
     times = StageTimes(engine.sync)
@@ -404,7 +411,7 @@ def run_stages(engine: Stages, memo: FlowMemo | None = None) -> MotionAwareResul
     for pass_ in range(win.passes):
         last = pass_ + 1 == win.passes
         with times("gated_flow"):
-            flow = engine.gated_flow(current, memo)
+            flow = engine.gated_flow(current)
         with times("speed_classes"):
             still, slow = engine.speed_classes(flow)
         with times("guides"):
@@ -413,15 +420,15 @@ def run_stages(engine: Stages, memo: FlowMemo | None = None) -> MotionAwareResul
             wide = engine.noise(current, still) if win.noise_aware else None
         with times("trajectory_gather"):
             video, loo, gathered = engine.trajectory_gather(flow, base, still, slow, high_tr, wide,
-                                                            leave_one_out=win.leave_one_out and last, last=last)
+                                                            leave_one_out=win.leave_one_out and last)
         del base
         with times("long_reach"):
             engine.long_reach(flow, video, slow)
         with times("refinement"):
-            engine.refinement(video, flow, slow, last)
+            engine.refinement(video, flow, slow)
         if loo is not None:
             with times("local_choice"):
-                engine.local_choice(video, loo, gathered, flow, high_tr, last)
+                engine.local_choice(video, loo, gathered, flow, high_tr)
         if win.missing is not None:
             with times("gaps"):
                 engine.gaps(video, flow)
@@ -432,12 +439,18 @@ def run_stages(engine: Stages, memo: FlowMemo | None = None) -> MotionAwareResul
 
 
 class CpuStages:
-    """The stages on the CPU (numpy, OpenCV and numba), for one :class:`Window`."""
+    """The stages on the CPU (numpy, OpenCV and numba), for one :class:`Window`.
+
+    ``memo``: a :class:`~flexvox_core.flow.memo.FlowMemo` the optical flow of pairs is looked up in and kept in
+    (a stream's, from window to window)."""
 
     device = "cpu"
 
-    def __init__(self, window: Window) -> None:
+    def __init__(self, window: Window, *, memo: FlowMemo | None = None) -> None:
         self.window = window
+        self.memo = memo
+        self.passes_run = 0  # gated_flow starts each pass
+        self.last = False  # the pass running is the last: what no later pass reads may be freed or overwritten
         self.sparse: npt.NDArray[np.float32] | None = None
         self.mask: npt.NDArray[np.bool_] | None = None
         self.fixed: npt.NDArray[np.float32] | None = None
@@ -471,10 +484,12 @@ class CpuStages:
             mask[gap] = False
             sparse[gap] = 0
 
-    def gated_flow(self, current: Volume, memo: FlowMemo | None = None) -> Flow:
+    def gated_flow(self, current: Volume) -> Flow:
         w = self.window
+        self.passes_run += 1
+        self.last = self.passes_run == w.passes
         field_ = gated_flow(current, w.K, backend=w.flow_backend, gate=w.flow_gate, scale=w.flow_scale,
-                            consistency=w.flow_consistency, slow_speed=w.slow_speed, memo=memo)
+                            consistency=w.flow_consistency, slow_speed=w.slow_speed, memo=self.memo)
         if w.missing is not None:
             bridge_flow(field_.flow, w.missing, w.K, margin=w.bridge_margin)
         return field_
@@ -521,7 +536,7 @@ class CpuStages:
         return noise_aware.SmoothWeights(current, np.repeat(noise, w.K))
 
     def trajectory_gather(self, flow: Flow, base: Volume, still: Volume, slow: Volume, high_tr: Volume,
-                          wide: Volume | None, *, leave_one_out: bool, last: bool) -> tuple[Volume, Any, Any]:
+                          wide: Volume | None, *, leave_one_out: bool) -> tuple[Volume, Any, Any]:
         """(video, loo, gathered): the gather at the voxels neither still nor slow; ``loo`` (F, H, W) each sample's
         leave-one-out estimate (None unless asked for) and ``gathered`` the voxels gathered (with ``loo``)."""
         w = self.window
@@ -536,7 +551,7 @@ class CpuStages:
                                       still=not_gathered, still_value=base, loo=loo, wide=wide,
                                       wide_sigma=noise_aware.wide_sigma(w.K), max_reach=w.gather_reach, out=into)
         gathered = ~not_gathered if loo is not None else None
-        if last:
+        if self.last:
             self.fixed = self.still_value = None  # not needed again: free them before the local choice's volume
         return video, loo, gathered
 
@@ -545,15 +560,16 @@ class CpuStages:
         if not slow.any():
             return
         sparse, mask = self._samples()
-        long_reach_nc(sparse, mask, flow.flow, video, slow, reach=w.long_reach, sigma_t=w.long_reach,
-                      sigma_s=LONG_REACH_SIGMA_S, h=w.range_weight, out=video)
+        p = w.long_reach_plan
+        long_reach_nc(sparse, mask, flow.flow, video, slow, reach=p.reach, sigma_t=p.sigma_t, sigma_s=p.sigma_s, h=p.h,
+                      out=video)
         np.copyto(video, sparse, where=mask)
 
-    def _spare(self, last: bool) -> npt.NDArray[np.float32] | None:
+    def _spare(self) -> npt.NDArray[np.float32] | None:
         """A volume the stages after the last pass's gathers may overwrite: the samples' (dead by then)."""
-        return self.sparse if last else None
+        return self.sparse if self.last else None
 
-    def refinement(self, video: Volume, flow: Flow, slow: Volume, last: bool) -> None:
+    def refinement(self, video: Volume, flow: Flow, slow: Volume) -> None:
         """Along each trajectory; the slow voxels read their neighbours by clipped Catmull-Rom (a bilinear read
         a fraction of a pixel off is a blur, which would take the texture their long-reach gather kept)."""
         w = self.window
@@ -561,14 +577,13 @@ class CpuStages:
         if refine_time <= 0:
             return
         g0, g1 = w.gathered
-        spare = self._spare(last)
+        spare = self._spare()
         mask = self._mask()
         variable_tensor_diffusion(video[g0:g1], mask[g0:g1], flow.flow[g0:g1], c=REFINE_C, time=refine_time,
                                   out=video[g0:g1], scratch=None if spare is None else spare[g0:g1],
                                   sharp=slow[g0:g1])
 
-    def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume,
-                     last: bool) -> None:
+    def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume) -> None:
         w = self.window
         if not np.isfinite(loo).any():
             return
@@ -576,7 +591,7 @@ class CpuStages:
             mask = self._mask()
             local_choice.still_voxel_loo(loo, video, w.frames, gathered, mask, flow.flow, w.K)
         other, other_loo = oriented_nc(w.frames, w.code, high_tr, where=gathered, fallback=video, missing=w.missing,
-                                       out=self._spare(last))
+                                       out=self._spare())
         local_choice.blend(video, other, local_choice.local_weights(loo, other_loo, w.frames), gathered, w.K)
 
     def gaps(self, video: Volume, flow: Flow) -> None:

@@ -41,6 +41,7 @@ from numba import cuda
 
 from flexvox_core.gpu.index import reflect, voxel
 from flexvox_core.gpu.launch import device, kernel, launch
+from flexvox_core.gpu.nc import time_pass
 from flexvox_core.motion.gpu.choice_pool import local_weights
 from flexvox_core.motion.gpu.choice_structure import structure_bank
 from flexvox_core.reconstruct.diffusion import NC_MIN_WEIGHT, gaussian_kernel, time_weights
@@ -129,27 +130,6 @@ def still_voxel_loo(loo, video, frames, gathered, mask, flow, *, speed: float) -
 
 
 # ------------------------------------------------------------------------------------------- oriented nc
-
-
-@kernel(f"void({F3}, int32[:, ::1], {F3}, int32[::1], uint8[::1], {F3}, {F3})")
-def _time_blur(frames, order, weight, first, present, vt, mt):
-    """The samples and their mask blurred in time: each pixel's own samples weighed by its slot's weights."""
-    i = cuda.grid(1)
-    S, H, W = vt.shape
-    if i >= S * H * W:
-        return
-    s, y, x = voxel(i, H, W)
-    k = order[y, x]
-    f0 = first[s]
-    acc = np.float32(0)
-    den = np.float32(0)
-    for b in range(weight.shape[2]):
-        w = weight[s, k, b]
-        if w != 0 and present[f0 + b]:
-            acc += w * frames[f0 + b, y, x]
-            den += w
-    vt[s, y, x] = acc
-    mt[s, y, x] = den
 
 
 @device
@@ -261,7 +241,7 @@ def time_blur(ws, frames, order, present, plan: OrientedPlan, S: int):
     _, H, W = frames.shape
     vt = ws.get("choice.vol1", (S, H, W))
     mt = ws.get("choice.vol0", (S, H, W))
-    launch(_time_blur, S * H * W, frames, order, plan.weight, plan.first, present, vt, mt)
+    launch(time_pass, S * H * W, frames, order, plan.weight, plan.first, present, vt, mt)
     return vt, mt
 
 

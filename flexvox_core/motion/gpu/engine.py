@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import logging
 from time import perf_counter
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numba import cuda
@@ -27,7 +27,6 @@ from flexvox_core.motion.gpu.gather import trajectory_gather
 from flexvox_core.motion.gpu.longreach import long_reach
 from flexvox_core.motion.gpu.refine import refine
 from flexvox_core.motion.options import (
-    LONG_REACH_SIGMA_S,
     PERIOD_GATE,
     REFINE_C,
     STEP1_TENSOR,
@@ -37,9 +36,6 @@ from flexvox_core.motion.options import (
 from flexvox_core.motion.result import MotionAwareResult
 from flexvox_core.motion.stages import Flow, StageTimes, Volume, Window
 from flexvox_core.reconstruct.diffusion import diffuse
-
-if TYPE_CHECKING:
-    from flexvox_core.flow.memo import FlowMemo
 
 _logger = logging.getLogger(__name__)
 
@@ -126,7 +122,7 @@ class CudaStages:
         self.mask = self._volume(Buffers.MASK, np.uint8)
         volumes.samples(self.frames_d, self.order_d, self.present_d, self.window.K, self.sparse, self.mask)
 
-    def gated_flow(self, current: Volume, memo: FlowMemo | None = None) -> Flow:
+    def gated_flow(self, current: Volume) -> Flow:
         w = self.window
         flow = self.ws.get(Buffers.FLOW, (w.S, *w.frames.shape[1:], 2))
         params = gate.gated_flow(self.ws, current, w.K, gate=w.flow_gate, scale=w.flow_scale, slow_speed=w.slow_speed,
@@ -171,7 +167,7 @@ class CudaStages:
         return g
 
     def trajectory_gather(self, flow: Flow, base: Volume, still: Volume, slow: Volume, high_tr: Volume,
-                          wide: Volume | None, *, leave_one_out: bool, last: bool) -> tuple[Volume, Any, Any]:
+                          wide: Volume | None, *, leave_one_out: bool) -> tuple[Volume, Any, Any]:
         w = self.window
         loo = None
         if leave_one_out:
@@ -188,10 +184,9 @@ class CudaStages:
         w = self.window
         if not self.n_slow:
             return
-        long_reach(self.ws, self.sparse, self.mask, flow, video, slow, reach=w.long_reach, sigma_t=w.long_reach,
-                   sigma_s=LONG_REACH_SIGMA_S, h=w.range_weight)
+        long_reach(self.ws, self.sparse, self.mask, flow, video, slow, w.long_reach_plan)
 
-    def refinement(self, video: Volume, flow: Flow, slow: Volume, last: bool) -> None:
+    def refinement(self, video: Volume, flow: Flow, slow: Volume) -> None:
         w = self.window
         t = w.refine_time
         if t <= 0:
@@ -199,8 +194,7 @@ class CudaStages:
         g0, g1 = w.gathered
         refine(self.ws, video[g0:g1], self.mask[g0:g1], flow[g0:g1], slow[g0:g1], c=REFINE_C, time=t)
 
-    def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume,
-                     last: bool) -> None:
+    def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume) -> None:
         w = self.window
         choice.local_choice(self.ws, video, loo, gathered, self.mask, flow, self.frames_d, self.order_d,
                             self.present_d, high_tr, w.K, score_still_voxels=w.scores_still_voxels,

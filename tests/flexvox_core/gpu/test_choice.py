@@ -88,7 +88,7 @@ def _cpu_stage(sc, score_still_voxels: bool):
     engine = CpuStages(win)
     engine.mask = sc.mask
     video, loo = sc.video.copy(), sc.loo.copy()
-    engine.local_choice(video, loo, sc.gathered, SimpleNamespace(flow=sc.flow), sc.high_tr, False)
+    engine.local_choice(video, loo, sc.gathered, SimpleNamespace(flow=sc.flow), sc.high_tr)
     return video, loo
 
 

@@ -6,7 +6,7 @@ import pytest
 from flexvox_core import capture, code_from_order
 from flexvox_core.forward import sample_mask, sparse_volume
 from flexvox_core.motion.gated_flow import gated_flow
-from flexvox_core.motion.longreach import long_reach_nc
+from flexvox_core.motion.longreach import LongReachPlan, long_reach_nc
 from flexvox_core.motion.mcnc import motion_compensated_nc
 from flexvox_core.motion.noise_aware import SmoothWeights, frame_noise, wide_sigma
 from flexvox_core.motion.options import PERIOD_GATE
@@ -82,7 +82,7 @@ def test_long_reach_is_the_cpus(rng, ws, clip):
     np.copyto(want, sparse, where=mask)
     video = _dev(guide)
     long_reach(ws, _dev(sparse), _dev(mask.astype(np.uint8)), _dev(flow), video, _dev(select.astype(np.uint8)),
-               reach=6, sigma_t=6, sigma_s=0.3, h=0.1)
+               LongReachPlan.of(sparse.shape[0], reach=6, sigma_t=6, sigma_s=0.3, h=0.1))
     got = video.copy_to_host()
     np.testing.assert_allclose(got, want, atol=5e-3)
     assert np.abs(got - want).mean() < 5e-4

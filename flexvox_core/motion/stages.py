@@ -455,6 +455,7 @@ class CpuStages:
         self.mask: npt.NDArray[np.bool_] | None = None
         self.fixed: npt.NDArray[np.float32] | None = None
         self.still_value: npt.NDArray[np.float32] | None = None
+        self.gathered: npt.NDArray[np.bool_] | None = None  # speed_classes: the voxels the gather estimates
 
     def sync(self) -> None:
         return None
@@ -496,9 +497,7 @@ class CpuStages:
 
     def speed_classes(self, flow: Flow) -> tuple[Volume, Volume]:
         w = self.window
-        still, slow = speed_classes(flow.flow, w.still_speed, w.slow_class_speed)
-        if w.skip is not None:  # outside the gathered sub-frames nothing is gathered
-            slow[w.skip] = False
+        still, slow, self.gathered = speed_classes(flow.flow, w.still_speed, w.slow_class_speed, w.skip)
         return still, slow
 
     def guides(self, still: Volume) -> Volume:
@@ -540,9 +539,8 @@ class CpuStages:
         """(video, loo, gathered): the gather at the voxels neither still nor slow; ``loo`` (F, H, W) each sample's
         leave-one-out estimate (None unless asked for) and ``gathered`` the voxels gathered (with ``loo``)."""
         w = self.window
-        not_gathered = still | slow
-        if w.skip is not None:
-            not_gathered[w.skip] = True
+        assert self.gathered is not None, "the speed classes run before the gather"
+        not_gathered = ~self.gathered
         loo = np.full(w.frames.shape, np.nan, np.float32) if leave_one_out else None
         # The gather writes into `base` when no later pass reads it (one volume less).
         into = base if w.passes == 1 or base is not self.fixed else None
@@ -550,7 +548,7 @@ class CpuStages:
         video = motion_compensated_nc(sparse, mask, flow.flow, c=w.gather_c, time=w.gather_time, fallback=high_tr,
                                       still=not_gathered, still_value=base, loo=loo, wide=wide,
                                       wide_sigma=noise_aware.wide_sigma(w.K), max_reach=w.gather_reach, out=into)
-        gathered = ~not_gathered if loo is not None else None
+        gathered = self.gathered if loo is not None else None
         if self.last:
             self.fixed = self.still_value = None  # not needed again: free them before the local choice's volume
         return video, loo, gathered
@@ -612,24 +610,40 @@ class CpuStages:
                                  self.device)
 
 
-def speed_classes(flow: np.ndarray, still_speed: float | None, slow_speed: float | None
-                  ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
-    """Bool volumes ``still`` (speed < ``still_speed``) and ``slow`` (not still, speed < ``slow_speed``),
-    a sub-frame at a time (no full-volume speed array); None: no such voxels."""
+def speed_class(speed: Any, still_below: Any, slow_below: Any, skipped: Any) -> tuple[Any, Any, Any]:
+    """(still, slow, gathered) of voxels moving at ``speed`` (px per sub-frame): still below ``still_below``, slow
+    below ``slow_below`` when not still and not ``skipped`` (a sub-frame outside the gathered ones), gathered when
+    none of these. The rule both engines classify by: numpy runs it on whole planes on the CPU, the GPU compiles
+    it as a device function (``x ^ True`` is the logical not of a bool there, in numpy and in Python)."""
+    still = speed < still_below
+    slow = (speed < slow_below) & (still ^ True) & (skipped ^ True)
+    return still, slow, (still | slow | skipped) ^ True
+
+
+def class_thresholds(still_speed: float | None, slow_speed: float | None) -> tuple[np.float32, np.float32]:
+    """:func:`speed_class`'s thresholds, float32 (as the speeds are): −∞ for a class that does not exist."""
+    return (np.float32(-np.inf if still_speed is None else still_speed),
+            np.float32(-np.inf if slow_speed is None else slow_speed))
+
+
+def speed_classes(flow: np.ndarray, still_speed: float | None, slow_speed: float | None,
+                  skip: np.ndarray | None = None
+                  ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """Bool volumes ``still``, ``slow`` and ``gathered`` (:func:`speed_class`; None: no such class; ``skip`` (S,)
+    bool: sub-frames outside the gathered ones), a sub-frame at a time (no full-volume speed array)."""
     S, H, W = flow.shape[:3]
-    still = np.zeros((S, H, W), bool)
-    slow = np.zeros((S, H, W), bool)
+    still = np.empty((S, H, W), bool)
+    slow = np.empty((S, H, W), bool)
+    gathered = np.empty((S, H, W), bool)
+    still_below, slow_below = class_thresholds(still_speed, slow_speed)
 
     def one(t: int) -> None:  # a sub-frame at a time, on every core
         speed = cv2.magnitude(flow[t, ..., 0], flow[t, ..., 1])
-        if still_speed is not None:
-            np.less(speed, still_speed, out=still[t])
-        if slow_speed is not None:
-            np.less(speed, slow_speed, out=slow[t])
-            slow[t] &= ~still[t]
+        still[t], slow[t], gathered[t] = speed_class(speed, still_below, slow_below,
+                                                     skip is not None and bool(skip[t]))
 
     for_each(one, S)
-    return still, slow
+    return still, slow, gathered
 
 
 def guide(window: Window, tensor: tuple[float, float, float], time: float) -> npt.NDArray[np.float32]:

@@ -116,15 +116,22 @@ def test_speed_classes_are_the_cpus(rng, ws, clip):
     S = len(flow)
     skip = np.zeros(S, bool)
     skip[-3:] = True
-    still, slow = speed_classes(flow, 0.2, 0.6)
-    slow[skip] = False
+    still, slow, gathered = speed_classes(flow, 0.2, 0.6, skip)
+    assert still.any() and slow.any() and gathered.any() and not (slow[skip].any() or gathered[skip].any())
+    np.testing.assert_array_equal(gathered, ~(still | slow | skip[:, None, None]))
     d = [_dev(np.zeros(still.shape, np.uint8)) for _ in range(3)]
     counts = gpu_classes(ws, _dev(flow), 0.2, 0.6, skip, *d)
     g_still, g_slow, g_gather = (a.copy_to_host().astype(bool) for a in d)
     np.testing.assert_array_equal(g_still, still)
     np.testing.assert_array_equal(g_slow, slow)
-    np.testing.assert_array_equal(g_gather, ~(still | slow | skip[:, None, None]))
+    np.testing.assert_array_equal(g_gather, gathered)
     assert counts == (int(still.sum()), int(slow.sum()))
+    for still_speed, slow_speed in ((None, 0.6), (0.2, None), (None, None)):  # a class that does not exist
+        still, slow, gathered = speed_classes(flow, still_speed, slow_speed)
+        counts = gpu_classes(ws, _dev(flow), still_speed, slow_speed, None, *d)
+        for want, got in zip((still, slow, gathered), d, strict=True):
+            np.testing.assert_array_equal(got.copy_to_host().astype(bool), want)
+        assert (still_speed is not None or not still.any()) and (slow_speed is not None or not slow.any())
 
 
 @pytest.mark.parametrize("pixels", ["all still", "some still", "too few"])

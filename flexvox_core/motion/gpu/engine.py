@@ -18,14 +18,17 @@ from flexvox_core.flow import FlowField
 from flexvox_core.forward import tiled_order
 from flexvox_core.gaps import captured
 from flexvox_core.gpu import volumes
-from flexvox_core.gpu.nc import NcPlan, nc
+from flexvox_core.gpu.diffusion import NcPlan, nc
 from flexvox_core.gpu.volumes import Workspace
 from flexvox_core.motion import local_choice, noise_aware
 from flexvox_core.motion.gated_flow import DIS_PARAMS
-from flexvox_core.motion.gpu import choice, gaps, gate, noise
-from flexvox_core.motion.gpu.gather import trajectory_gather
+from flexvox_core.motion.gpu import gaps
+from flexvox_core.motion.gpu import gated_flow as gate
+from flexvox_core.motion.gpu import local_choice as choice
+from flexvox_core.motion.gpu import noise_aware as noise
 from flexvox_core.motion.gpu.longreach import long_reach
-from flexvox_core.motion.gpu.refine import refine
+from flexvox_core.motion.gpu.mcnc import trajectory_gather
+from flexvox_core.motion.gpu.vardiff import refine
 from flexvox_core.motion.options import (
     PERIOD_GATE,
     REFINE_C,

@@ -21,7 +21,7 @@ from numba import cuda
 from flexvox_core.gpu.filters import blur, dilate, gaussian_taps
 from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import kernel, launch
-from flexvox_core.motion.gpu.gather import bilinear_zero, velocity
+from flexvox_core.motion.gpu.mcnc import bilinear_zero, velocity
 from flexvox_core.motion.longreach import MIN_WEIGHT, LongReachPlan
 
 

@@ -77,7 +77,7 @@ def test_every_kernel_compiles_for_a_gpu_without_one():
 
     stats = json.loads(done.stdout.splitlines()[-1])
     declared = _declared_kernels(KERNEL_PACKAGES)
-    assert "flexvox_core.motion.gpu.choice_structure._structure_y" in declared
+    assert "flexvox_core.motion.gpu.oriented_nc._structure_y" in declared
     assert set(stats) == declared
     assert min(chars for chars, _ in stats.values()) > 1000  # PTX with an entry point, not an empty module
     dis = {n.rsplit(".", 1)[1]: f64 for n, (_, f64) in stats.items() if n.startswith("flexvox_core.gpu.dis")}
@@ -162,7 +162,7 @@ def test_a_result_read_after_its_workspace_was_reused_says_so():
 
 
 def test_a_stream_on_the_gpu_reuses_its_workspace_and_follows_the_cpus(monkeypatch):
-    from flexvox_core.motion.gpu import gate
+    from flexvox_core.motion.gpu import gated_flow as gate
     from flexvox_core.motion.streaming import StreamingMotionAware
 
     class HostPairs(gate.PairFlow):  # OpenCV's DIS for the pairs: the simulator's DIS is tested on its own

@@ -45,7 +45,7 @@ def clip(rng):
 
 @pytest.mark.parametrize("noisy", [False, True])
 def test_trajectory_gather_is_the_cpus(rng, ws, clip, noisy):
-    from flexvox_core.motion.gpu.gather import trajectory_gather
+    from flexvox_core.motion.gpu.mcnc import trajectory_gather
     from flexvox_core.motion.mcnc import default_reach
 
     frames, sparse, mask, flow, truth = clip
@@ -89,7 +89,7 @@ def test_long_reach_is_the_cpus(rng, ws, clip):
 
 
 def test_refinement_is_the_cpus(rng, ws, clip):
-    from flexvox_core.motion.gpu.refine import refine
+    from flexvox_core.motion.gpu.vardiff import refine
     from flexvox_core.motion.options import REFINE_C
 
     frames, sparse, mask, flow, truth = clip
@@ -110,7 +110,7 @@ def test_refinement_is_the_cpus(rng, ws, clip):
 
 
 def test_speed_classes_are_the_cpus(rng, ws, clip):
-    from flexvox_core.motion.gpu.gate import speed_classes as gpu_classes
+    from flexvox_core.motion.gpu.gated_flow import speed_classes as gpu_classes
 
     flow = clip[3] * np.float32(0.5)
     S = len(flow)
@@ -136,7 +136,7 @@ def test_speed_classes_are_the_cpus(rng, ws, clip):
 
 @pytest.mark.parametrize("pixels", ["all still", "some still", "too few"])
 def test_the_noise_median_is_selected_exactly(rng, ws, pixels):
-    from flexvox_core.motion.gpu.noise import frame_noise as gpu_noise
+    from flexvox_core.motion.gpu.noise_aware import frame_noise as gpu_noise
 
     F, H, W = 4, 16, 16
     frames = rng.random((F, H, W)).astype(np.float32)
@@ -152,7 +152,7 @@ def test_the_noise_median_is_selected_exactly(rng, ws, pixels):
 
 
 def test_noise_weights_are_the_cpus(rng, ws, clip):
-    from flexvox_core.motion.gpu.noise import noise_weights
+    from flexvox_core.motion.gpu.noise_aware import noise_weights
 
     frames, sparse, mask, flow, truth = clip
     noisy = np.clip(frames + rng.normal(0, 0.03, frames.shape), 0, 1).astype(np.float32)
@@ -172,8 +172,8 @@ def test_noise_weights_are_the_cpus(rng, ws, clip):
 def test_gated_flow_is_the_cpus(ws):
     """The gate, the K-average's velocity and the resizes, with the pairs' DIS on the host as the CPU runs it."""
     from flexvox_core.motion.gated_flow import DIS_PARAMS
-    from flexvox_core.motion.gpu.gate import PairFlow
-    from flexvox_core.motion.gpu.gate import gated_flow as gpu_gated
+    from flexvox_core.motion.gpu.gated_flow import PairFlow
+    from flexvox_core.motion.gpu.gated_flow import gated_flow as gpu_gated
 
     video = render_scene("pan", 6 * K, 20, 24, seed=2)
     want = gated_flow(video, K, backend="dis", scale=0.8, slow_speed=0.6, period_gate=PERIOD_GATE).flow
@@ -184,7 +184,7 @@ def test_gated_flow_is_the_cpus(ws):
 
 
 def test_pair_flow_refuses_an_unknown_place(ws):
-    from flexvox_core.motion.gpu.gate import PairFlow
+    from flexvox_core.motion.gpu.gated_flow import PairFlow
 
     with pytest.raises(ValueError, match=r"`pairs` must be one of gpu, cpu; got 'tpu'"):
         PairFlow(ws, "tpu", {})

@@ -70,8 +70,8 @@ def _both_ways(dispatcher, count, *arrays_and_scalars):
 def test_in_turn_is_bit_for_bit_the_threads_result(rng):
     """A blur pass (device functions from two modules) and the normalized convolution's last step (an atomic
     counter, a NaN where no sample reaches) give the same bits both ways."""
+    from flexvox_core.gpu.diffusion import _finish
     from flexvox_core.gpu.filters import _blur_pass, gaussian_taps
-    from flexvox_core.gpu.nc import _finish
 
     planes = rng.random((2, 5, 7)).astype(np.float32)
     threads, turn = _both_ways(_blur_pass, planes.size, planes, planes, np.empty_like(planes), np.empty_like(planes),

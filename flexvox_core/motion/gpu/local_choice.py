@@ -9,7 +9,7 @@ Where the trajectory gather predicts the samples worse than oriented ``nc``
 2. oriented nc of the samples at the gathered voxels, its kernel from the bank of 17 chosen per voxel from the
    structure tensor of the high-TR video, and each sample's leave-one-out estimate;
 3. method a's (the gather's) weight per frame and pixel from the pooled leave-one-out errors
-   (:mod:`~flexvox_core.motion.gpu.choice_pool`);
+   (:mod:`~flexvox_core.motion.gpu.local_choice_weights`);
 4. the blend :math:`v \leftarrow v + (1 - w_f)(o - v)` at the gathered voxels, o oriented nc's value there.
 
 Oriented nc is a normalized convolution whose spatial kernel g follows the guide's edges:
@@ -25,7 +25,7 @@ weighed by :func:`~flexvox_core.reconstruct.diffusion.time_weights`), g_p the we
 onto the voxel itself and c the weight its own sample gives it in time. The leave-one-out sums leave the
 sample's term out instead of subtracting it, so float32 sums keep their relative precision where the sample
 outweighs the others. The kernel of each voxel comes from the structure tensor of its high-TR sub-frame
-(:mod:`~flexvox_core.motion.gpu.choice_structure`).
+(:mod:`~flexvox_core.motion.gpu.oriented_nc`).
 
 Every kernel runs over whole volumes (one thread per voxel, or per pixel of every frame). Reference: Pham,
 van Vliet & Schutte, "Robust fusion of irregularly sampled data using adaptive normalized convolution", 2006.
@@ -39,11 +39,11 @@ from functools import lru_cache
 import numpy as np
 from numba import cuda
 
+from flexvox_core.gpu.diffusion import time_pass
 from flexvox_core.gpu.index import reflect, voxel
 from flexvox_core.gpu.launch import device, kernel, launch
-from flexvox_core.gpu.nc import time_pass
-from flexvox_core.motion.gpu.choice_pool import local_weights
-from flexvox_core.motion.gpu.choice_structure import structure_bank
+from flexvox_core.motion.gpu.local_choice_weights import local_weights
+from flexvox_core.motion.gpu.oriented_nc import structure_bank
 from flexvox_core.reconstruct.diffusion import NC_MIN_WEIGHT, gaussian_kernel, time_weights
 from flexvox_core.reconstruct.oriented_nc import SIGMA, kernel_bank
 from flexvox_core.reconstruct.oriented_nc_kernel import tap_lists

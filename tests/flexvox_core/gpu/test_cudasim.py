@@ -1,5 +1,5 @@
 """Kernels under numba-cuda's simulator: the ones that never synchronise their block run their threads in turn
-(:mod:`flexvox_core.gpu.simulator`), with the same results as on the simulator's threads."""
+(:mod:`flexvox_core.gpu.cudasim`), with the same results as on the simulator's threads."""
 
 import importlib
 import math
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from flexvox_core.gpu import launch as L
-from flexvox_core.gpu.simulator import needs_threads, sequential_blocks
+from flexvox_core.gpu.cudasim import needs_threads, sequential_blocks
 
 pytestmark = pytest.mark.skipif(not L._sim(), reason="the simulator's execution only (FLEXVOX_TEST_GPU=1 is set)")
 
@@ -180,7 +180,7 @@ def test_launches_from_several_threads_take_turns(rng):
     from numba import cuda
     from numba.cuda.simulator import kernel as simkernel
 
-    from flexvox_core.gpu import simulator
+    from flexvox_core.gpu import cudasim
     from flexvox_core.gpu.filters import _blur_pass
 
     threaded = simkernel.BlockManager
@@ -208,7 +208,7 @@ def test_launches_from_several_threads_take_turns(rng):
         try:
             for _ in range(5):
                 out = cuda.to_device(np.zeros(8, np.float32))
-                simulator.run(waits, 1, 8, (out,))
+                cudasim.run(waits, 1, 8, (out,))
                 results.append(bool((out.copy_to_host() == 1).all()))
         except Exception as exc:  # noqa: BLE001
             errors.append(exc)

@@ -13,6 +13,11 @@ the samples' range and keeps the samples. Voxels whose blurred mask is at or bel
 :data:`~flexvox_core.reconstruct.diffusion.NC_MIN_WEIGHT` of the kernel's peak (no sample in reach: rare, and
 only with tiny kernels) are counted; the caller then computes the volume on the CPU, which gives them their
 nearest sample.
+
+References
+----------
+H. Knutsson, C.-F. Westin, "Normalized and differential convolution: methods for interpolation and filtering of
+incomplete and uncertain data", CVPR 1993, pp. 515–523.
 """
 
 from __future__ import annotations

@@ -19,6 +19,12 @@ g the guide at (x, t); then a spatial Gaussian blur σ_s across the trajectories
 Measured on the accuracy benchmark (96×128, K = 16, slow voxels only): the slow pan gains
 2 dB over the short-reach gather; without the range weight (h → ∞) the same reach *loses*
 0.5–0.9 dB on the bouncing balls and the drummer (samples from across the balls' edges).
+
+References
+----------
+C. Tomasi, R. Manduchi, "Bilateral filtering for gray and color images", ICCV 1998, pp. 839–846.
+M. Gupta, A. Agrawal, A. Veeraraghavan, S. G. Narasimhan, "Flexible voxels for motion-aware videography",
+ECCV 2010 (the paper).
 """
 
 from __future__ import annotations

@@ -9,6 +9,10 @@ picture) weighs
 
 g the guide at the voxel; the sums are blurred by a Gaussian of σ_s (3×3, zero borders) and divided. One thread
 per voxel within the blur's reach of a selected one.
+
+References
+----------
+C. Tomasi, R. Manduchi, "Bilateral filtering for gray and color images", ICCV 1998, pp. 839–846.
 """
 
 from __future__ import annotations

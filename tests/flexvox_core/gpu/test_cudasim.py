@@ -74,7 +74,8 @@ def test_in_turn_is_bit_for_bit_the_threads_result(rng):
     from flexvox_core.gpu.filters import _blur_pass, gaussian_taps
 
     planes = rng.random((2, 5, 7)).astype(np.float32)
-    threads, turn = _both_ways(_blur_pass, planes.size, planes, planes, np.empty_like(planes), np.empty_like(planes),
+    # Zeros, not np.empty: the pass leaves the second output alone, and uninitialised memory may hold a NaN.
+    threads, turn = _both_ways(_blur_pass, planes.size, planes, planes, np.zeros_like(planes), np.zeros_like(planes),
                                gaussian_taps(1.0), np.int32(2), np.uint8(1), np.uint8(0))
     assert all(np.array_equal(a, b) for a, b in zip(threads, turn, strict=True))
     assert not np.array_equal(turn[2], planes)  # it did blur

@@ -87,8 +87,8 @@ DEFAULT_CLIP = Clip()
 CLIPS = {
     "flow_scale": Clip(width=18),  # the flow never runs below 16 px a side: 8×18 at 0.5 is 8×16
     "flow_consistency": Clip(width=18),
-    "local_choice": Clip("static+drift", 2, 12, 24, noise=0.03),
-    "noise_aware": Clip("static+drift", 2, 12, 24, noise=0.03),
+    "local_choice": Clip("static+drift", 2, 8, 24, noise=0.03),
+    "noise_aware": Clip("static+drift", 2, 12, 20, noise=0.03),
 }
 """The clips of the options that give the default clip's video bit for bit (the rest run on
 :data:`DEFAULT_CLIP`)."""

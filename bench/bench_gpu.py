@@ -66,7 +66,7 @@ def on_gpu(frames, code, pairs: str):
 
 def throughput(scenes, frames: int, repeat: int, cpu: bool, size=(480, 640), pairs: str = "gpu") -> None:
     from flexvox_core.gpu.device import describe_gpus
-    from flexvox_core.gpu.nc import diffuse_on_gpu
+    from flexvox_core.gpu.diffusion import diffuse_on_gpu
 
     code = design_code((4, 4)).code
     gpus = describe_gpus()

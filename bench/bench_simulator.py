@@ -3,7 +3,7 @@
 One tiny window (``--frames`` frames of ``--size`` pixels at K = 4, noise 0.01) runs through the whole GPU engine
 twice per round under the simulator: once with every kernel on the simulator's Python threads
 (``FLEXVOX_SIM_THREADS=1``, as numba-cuda ships it), once with the kernels that never synchronise their block run
-one simulated thread after another (:mod:`flexvox_core.gpu.simulator`, the default). Printed: each run's seconds,
+one simulated thread after another (:mod:`flexvox_core.gpu.cudasim`, the default). Printed: each run's seconds,
 the median of each way, their ratio, and whether the two videos are the same bits (they must be).
 
 Figures only, never pass/fail. Usage (the simulator is chosen here; no GPU is needed)::
@@ -36,7 +36,7 @@ def _size(text: str) -> tuple[int, int]:
 
 def one_run(frames: np.ndarray, code: np.ndarray, threads: bool) -> tuple[float, np.ndarray]:
     """(seconds, video) of one window through the GPU engine under the simulator, on threads or in turn."""
-    from flexvox_core.gpu.simulator import needs_threads
+    from flexvox_core.gpu.cudasim import needs_threads
     from flexvox_core.motion.options import MotionOptions, sample_bounds
     from flexvox_core.motion.pipeline import run_window
 

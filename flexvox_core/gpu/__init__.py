@@ -2,7 +2,7 @@
 
 The kernels are written in Python with numba-cuda (the ``gpu`` extra: ``pip install '.[gpu]'`` in a clone of
 flexvox). This
-package holds the building blocks: normalized convolution (:mod:`~flexvox_core.gpu.nc`), resizing, the DIS
+package holds the building blocks: normalized convolution (:mod:`~flexvox_core.gpu.diffusion`), resizing, the DIS
 optical flow, device buffers, and how kernels are declared and launched (:mod:`~flexvox_core.gpu.launch`).
 Motion-aware's own stages are in :mod:`flexvox_core.motion.gpu`, built on these.
 

@@ -16,6 +16,12 @@ the result is OpenCV's, with no approximation of the propagation.
 
 :func:`dis_pairs` is the entry point; :class:`DisParams` holds the parameters (the "medium" preset by
 default) and :class:`DisWorkspace` the device buffers, reused from call to call for the same sizes.
+
+References
+----------
+T. Kroeger, R. Timofte, D. Dai, L. Van Gool, "Fast optical flow using dense inverse search", ECCV 2016.
+T. Brox, A. Bruhn, N. Papenberg, J. Weickert, "High accuracy optical flow estimation based on a theory for
+warping", ECCV 2004.
 """
 
 from __future__ import annotations

@@ -17,6 +17,12 @@ solve it approximately, red pixels ((i + j) even) first.
 
 The system's sums run in OpenCV's order (red pixels: right, left, lower, upper neighbour; black pixels:
 left, right, upper, lower), so the float32 results follow OpenCV's to rounding.
+
+References
+----------
+T. Brox, A. Bruhn, N. Papenberg, J. Weickert, "High accuracy optical flow estimation based on a theory for
+warping", ECCV 2004.
+T. Kroeger, R. Timofte, D. Dai, L. Van Gool, "Fast optical flow using dense inverse search", ECCV 2016.
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ A kernel is a plain Python function decorated with :func:`kernel`, which names t
 launched with (numba signature strings). On a GPU it compiles on its first launch; under numba-cuda's
 simulator it runs as Python, and :func:`launch` checks every argument against the declared types, so the
 tests prove that the declared types are the ones the pipeline passes; a kernel that never synchronises its block
-runs its simulated threads one after another (:mod:`flexvox_core.gpu.simulator`). :func:`compile_all` compiles every
+runs its simulated threads one after another (:mod:`flexvox_core.gpu.cudasim`). :func:`compile_all` compiles every
 declared signature to PTX for a chosen compute capability with no GPU present (numba-cuda's deviceless
 compile; it needs NVVM, which the ``gpu`` and ``test`` extras install).
 
@@ -26,7 +26,7 @@ BLOCK = 256
 """Threads per block of every 1-D launch."""
 SIM_BLOCK = 32
 """Threads per block under the simulator (a kernel that synchronises its block runs each simulated thread as a
-Python thread: fewer per block is faster; the others run their threads in turn, :mod:`flexvox_core.gpu.simulator`)."""
+Python thread: fewer per block is faster; the others run their threads in turn, :mod:`flexvox_core.gpu.cudasim`)."""
 
 KERNEL_PACKAGES = ("flexvox_core.gpu",)
 """The packages whose modules declare this package's kernels (motion-aware's own: :mod:`flexvox_core.motion.gpu`,
@@ -101,10 +101,10 @@ def launch(dispatcher, count: int, *args) -> None:
     if not _sim():
         dispatcher[math.ceil(count / BLOCK), BLOCK](*args)
         return
-    from flexvox_core.gpu import simulator
+    from flexvox_core.gpu import cudasim
 
     check_arguments(REGISTRY[dispatcher.flexvox_name], args)
-    simulator.run(dispatcher, math.ceil(count / SIM_BLOCK), SIM_BLOCK, args)
+    cudasim.run(dispatcher, math.ceil(count / SIM_BLOCK), SIM_BLOCK, args)
 
 
 def _arg_type(value):

@@ -76,7 +76,7 @@ class Diffusion(MethodSpec):
         return options.solver == "nc"  # GAP's denoiser is the Gaussian of Eq. 3, nc's one-pass form
 
     gpu_bytes_per_voxel = 28
-    """The result and nc's four working volumes (flexvox_core.gpu.nc), and the frames."""
+    """The result and nc's four working volumes (flexvox_core.gpu.diffusion), and the frames."""
 
     def cpu_only(self, options, code) -> str | None:
         if not is_identity_code(code):
@@ -91,7 +91,7 @@ class Diffusion(MethodSpec):
             return MethodOutput(gap_gaussian(frames, code, tensor=options.tensor,
                                              time=options.time * TIME_FRACTION))
         if device == "cuda":
-            from flexvox_core.gpu.nc import diffuse_on_gpu
+            from flexvox_core.gpu.diffusion import diffuse_on_gpu
 
             video = diffuse_on_gpu(frames, code, tensor=options.tensor, time=options.time, missing=missing)
         else:

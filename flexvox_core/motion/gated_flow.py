@@ -99,7 +99,7 @@ def takes_slow(slow, successive, slow_speed):
     """Whether a voxel's velocity is the K-average's: its speed there (``slow``) below ``slow_speed`` and its
     successive-sub-frame speed (``successive``, both in full-size px per sub-frame) below twice it (faster, the
     K-average blurred the motion away). Element-wise on arrays here; the GPU compiles it as a device function
-    (:mod:`flexvox_core.motion.gpu.gate`)."""
+    (:mod:`flexvox_core.motion.gpu.gated_flow`)."""
     return (slow < slow_speed) & (successive < 2 * slow_speed)
 
 

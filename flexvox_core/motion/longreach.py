@@ -19,11 +19,18 @@ g the guide at (x, t); then a spatial Gaussian blur σ_s across the trajectories
 Measured on the accuracy benchmark (96×128, K = 16, slow voxels only): the slow pan gains
 2 dB over the short-reach gather; without the range weight (h → ∞) the same reach *loses*
 0.5–0.9 dB on the bouncing balls and the drummer (samples from across the balls' edges).
+
+References
+----------
+C. Tomasi, R. Manduchi, "Bilateral filtering for gray and color images", ICCV 1998, pp. 839–846.
+M. Gupta, A. Agrawal, A. Veeraraghavan, S. G. Narasimhan, "Flexible voxels for motion-aware videography",
+ECCV 2010 (the paper).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -32,6 +39,33 @@ from flexvox_core.motion.subframes import flow_at, sample_planes
 from flexvox_core.threads import for_each
 
 MIN_WEIGHT = 1e-6
+
+
+@dataclass(frozen=True)
+class LongReachPlan:
+    """The long-reach gather's parameters, checked, as both engines run them (:meth:`of`)."""
+
+    reach: int
+    """Largest |d| in sub-frames, at most S − 1."""
+    sigma_t: float
+    sigma_s: float
+    h: float
+
+    @classmethod
+    def of(cls, S: int, *, reach: int, sigma_t: float, sigma_s: float = 0.3, h: float = 0.1) -> LongReachPlan:
+        """The plan over ``S`` sub-frames; a value out of its range raises ValueError naming it."""
+        for name, value, ok in (("reach", reach, isinstance(reach, int | np.integer) and reach >= 0),
+                                ("sigma_t", sigma_t, math.isfinite(sigma_t) and sigma_t > 0),
+                                ("sigma_s", sigma_s, math.isfinite(sigma_s) and sigma_s >= 0),
+                                ("h", h, math.isfinite(h) and h > 0)):
+            if not ok:
+                raise ValueError(f"`{name}` must be a finite number > 0 (`reach`, `sigma_s`: >= 0); got {value!r}")
+        return cls(min(int(reach), S - 1), float(sigma_t), float(sigma_s), float(h))
+
+    @property
+    def radius(self) -> int:
+        """The spatial blur's radius in pixels (0: no blur, for σ_s up to 0.05)."""
+        return int(math.ceil(3 * self.sigma_s)) if self.sigma_s > 0.05 else 0
 
 
 def long_reach_nc(sparse, mask, flow, guide, select, *, reach: int, sigma_t: float, sigma_s: float = 0.3,
@@ -72,15 +106,10 @@ def long_reach_nc(sparse, mask, flow, guide, select, *, reach: int, sigma_t: flo
     if m.shape != vals.shape or g_all.shape != vals.shape or sel.shape != vals.shape or f.shape != (S, H, W, 2):
         raise ValueError(f"`sparse`, `mask`, `guide`, `select` (S, H, W) and `flow` (S, H, W, 2) must match; got "
                          f"{vals.shape}, {m.shape}, {g_all.shape}, {sel.shape}, {f.shape}")
-    for name, value, ok in (("reach", reach, isinstance(reach, int | np.integer) and reach >= 0),
-                            ("sigma_t", sigma_t, math.isfinite(sigma_t) and sigma_t > 0),
-                            ("sigma_s", sigma_s, math.isfinite(sigma_s) and sigma_s >= 0),
-                            ("h", h, math.isfinite(h) and h > 0)):
-        if not ok:
-            raise ValueError(f"`{name}` must be a finite number > 0 (`reach`, `sigma_s`: >= 0); got {value!r}")
+    plan = LongReachPlan.of(S, reach=reach, sigma_t=sigma_t, sigma_s=sigma_s, h=h)
     if not np.isfinite(f.sum(dtype=np.float64)):  # one pass, no (S, H, W, 2) temporary
         f = np.where(np.isfinite(f), f, 0).astype(np.float32)
-    reach = min(int(reach), S - 1)
+    reach, sigma_t, sigma_s, h = plan.reach, plan.sigma_t, plan.sigma_s, plan.h
     # Value·mask and mask as separate planes: two one-channel remaps cost a third of one
     # two-channel remap and interpolate exactly (OpenCV 5, measured at 640×480).
     value, weight = sample_planes(vals, m)  # unsampled voxels may hold anything, even NaN
@@ -90,7 +119,7 @@ def long_reach_nc(sparse, mask, flow, guide, select, *, reach: int, sigma_t: flo
         if out.shape != vals.shape or out.dtype != np.float32:
             raise ValueError(f"`out` must be float32 of shape {vals.shape}; got {out.dtype} {out.shape}")
         np.copyto(out, g_all)
-    radius = int(math.ceil(3 * sigma_s)) if sigma_s > 0.05 else 0
+    radius = plan.radius
     kernel = np.ones((2 * radius + 1,) * 2, np.uint8)
     scale = -0.5 / (h * h)
     gx, gy = np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32))

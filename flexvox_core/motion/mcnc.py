@@ -12,6 +12,13 @@ trajectory), weighted by the Gaussian of Eq. 3 along λ,
 (the step d·(u, v, 1) has length d·|(u, v, 1)|), then blurred in space with variance
 2 n c2 for the directions across λ (isotropic: exact for c2 = c3 and zero flow). Where
 the blurred mask is too small to trust (no sample nearby), ``fallback`` fills in.
+
+References
+----------
+M. Gupta, A. Agrawal, A. Veeraraghavan, S. G. Narasimhan, "Flexible voxels for motion-aware videography",
+ECCV 2010 (the paper).
+H. Knutsson, C.-F. Westin, "Normalized and differential convolution: methods for interpolation and filtering of
+incomplete and uncertain data", CVPR 1993, pp. 515–523.
 """
 
 from __future__ import annotations

@@ -189,7 +189,7 @@ def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: 
         from flexvox_core.motion.gpu.engine import CudaStages
 
         return run_stages(CudaStages(window, ws=workspace))
-    result = run_stages(CpuStages(window), memo)
+    result = run_stages(CpuStages(window, memo=memo))
     result.device_note = note
     return result
 

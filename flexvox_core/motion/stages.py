@@ -50,8 +50,8 @@ from flexvox_core.forward import sample_mask, sparse_volume
 from flexvox_core.gaps import bridge, bridge_flow, interpolated_subframes
 from flexvox_core.motion import local_choice, noise_aware
 from flexvox_core.motion.gated_flow import gated_flow
-from flexvox_core.motion.longreach import long_reach_nc
-from flexvox_core.motion.mcnc import motion_compensated_nc
+from flexvox_core.motion.longreach import LongReachPlan, long_reach_nc
+from flexvox_core.motion.mcnc import default_reach, motion_compensated_nc
 from flexvox_core.motion.options import (
     LONG_REACH_RANGE,
     LONG_REACH_SIGMA_S,
@@ -185,13 +185,118 @@ class Window:
         return LONG_REACH_RANGE * max(hi - lo, 1e-12)
 
     @property
+    def long_reach_plan(self) -> LongReachPlan:
+        """The slow voxels' gather as both engines run it: :attr:`long_reach` each way and as σ_t,
+        :data:`LONG_REACH_SIGMA_S`, :attr:`range_weight`."""
+        return LongReachPlan.of(self.S, reach=self.long_reach, sigma_t=self.long_reach, sigma_s=LONG_REACH_SIGMA_S,
+                                h=self.range_weight)
+
+    # The options as the engines read them: every field of MotionOptions reaches the engines through one of
+    # these (OPTION_PLAN says which), never through ``options`` itself.
+
+    @property
+    def flow_backend(self) -> str:
+        """The optical flow's backend (the GPU's is DIS: another runs on the CPU, :func:`cuda_unsupported`)."""
+        return self.options.flow
+
+    @property
+    def flow_consistency(self) -> bool:
+        """Whether the flow is checked forward against backward (the CPU's alone)."""
+        return self.options.flow_consistency
+
+    @property
+    def flow_gate(self) -> tuple[float, float]:
+        """The motion detector's gate (:func:`~flexvox_core.motion.gated_flow.gated_flow`)."""
+        return self.options.gate
+
+    @property
+    def slow_speed(self) -> float | None:
+        """Below this speed (px per sub-frame) the gated flow measures over a long baseline, and a voxel not still
+        is slow (None: neither)."""
+        return self.options.slow_speed
+
+    @property
+    def still_speed(self) -> float | None:
+        """Below this speed a voxel is still (None: none is)."""
+        return self.options.still_speed
+
+    @property
+    def slow_class_speed(self) -> float | None:
+        """The speed classes' slow threshold: :attr:`slow_speed` where the slow voxels take the long reach
+        (:attr:`slow_class`), else None."""
+        return self.options.slow_speed if self.slow_class else None
+
+    @property
+    def passes(self) -> int:
+        """How many times the stages from the gated flow on run (each later pass measures the flow on the last
+        pass's result)."""
+        return self.options.passes
+
+    @property
+    def gather_time(self) -> float:
+        """Eq. 3's diffusion time n of the trajectory gather and of the guides."""
+        return self.options.time
+
+    @property
+    def gather_c(self) -> tuple[float, float, float]:
+        """Eq. 4's tensor eigenvalues (c1, c2, c3) of the trajectory gather."""
+        return self.options.c
+
+    @property
+    def refine_time(self) -> float:
+        """The refinement's diffusion time at this window's K (0: no refinement)."""
+        return self.options.refine(self.K)
+
+    @property
+    def leave_one_out(self) -> bool:
+        """Whether the last pass's gather gives each sample's leave-one-out estimate, for the local choice."""
+        return self.options.local_choice
+
+    @property
+    def noise_aware(self) -> bool:
+        """Whether the gather mixes in the wide kernel where the picture is flat against the capture's noise."""
+        return self.options.noise_aware
+
+    @property
+    def sampling_period(self) -> int:
+        """Sub-frames between a pixel's samples: S over the frames that hold samples (an identity code samples each
+        pixel once a frame; S when none does)."""
+        present = self.frames.shape[0] - (0 if self.missing is None else int(np.count_nonzero(self.missing)))
+        return self.S // present if present else self.S
+
+    @property
+    def gather_reach(self) -> int:
+        """The trajectory gather's largest offset |d| in sub-frames (:func:`~flexvox_core.motion.mcnc.default_reach`
+        of :attr:`gather_time`, c1 and :attr:`sampling_period`)."""
+        return default_reach(self.gather_time, self.gather_c[0], self.sampling_period, self.S)
+
+    @property
     def scores_still_voxels(self) -> bool:
         """Whether the local choice scores the gather at gathered voxels slower than
         :data:`~flexvox_core.motion.local_choice.STILL_VOXEL_SPEED` by the pixel's own sample
         (:func:`~flexvox_core.motion.local_choice.still_voxel_loo`): such voxels exist unless the slow class takes
         every voxel below a ``slow_speed`` at least that speed."""
-        o = self.options
-        return not (o.slow_speed is not None and o.slow_speed >= local_choice.STILL_VOXEL_SPEED and self.slow_class)
+        s = self.slow_speed
+        return not (s is not None and s >= local_choice.STILL_VOXEL_SPEED and self.slow_class)
+
+
+OPTION_PLAN: dict[str, tuple[str, ...]] = {
+    "flow": ("flow_backend",),
+    "passes": ("passes",),
+    "time": ("gather_time", "gather_reach"),
+    "c": ("gather_c", "guide_tensor", "gather_reach"),
+    "refine_time": ("refine_time", "gathered"),
+    "gate": ("flow_gate",),
+    "flow_scale": ("flow_scale",),
+    "still_speed": ("still_speed",),
+    "flow_consistency": ("flow_consistency",),
+    "slow_speed": ("slow_speed", "slow_class_speed", "scores_still_voxels"),
+    "slow_reach": ("slow_class", "long_reach", "long_reach_plan"),
+    "local_choice": ("leave_one_out",),
+    "noise_aware": ("noise_aware",),
+}
+"""Each field of :class:`~flexvox_core.motion.options.MotionOptions` and the :class:`Window` members that carry it
+to the engines (a test checks that every field has one, and a CPU/GPU parity case)."""
 
 
 def cuda_unsupported(options: MotionOptions) -> str | None:
@@ -257,8 +362,9 @@ class Stages(Protocol):
     def samples(self) -> None:
         """The sample volume and its mask, held by the engine."""
 
-    def gated_flow(self, current: Volume, memo: FlowMemo | None = None) -> Flow:
-        """The velocity of every voxel, from ``current`` (the high-TR video or the last pass's result)."""
+    def gated_flow(self, current: Volume) -> Flow:
+        """The velocity of every voxel, from ``current`` (the high-TR video or the last pass's result); a pass
+        starts here."""
 
     def speed_classes(self, flow: Flow) -> tuple[Volume, Volume]:
         """(still, slow) voxels."""
@@ -270,17 +376,16 @@ class Stages(Protocol):
         """The wide kernel's weight per voxel (None: none)."""
 
     def trajectory_gather(self, flow: Flow, base: Volume, still: Volume, slow: Volume, high_tr: Volume,
-                          wide: Volume | None, *, leave_one_out: bool, last: bool) -> tuple[Volume, Any, Any]:
+                          wide: Volume | None, *, leave_one_out: bool) -> tuple[Volume, Any, Any]:
         """(video, loo, gathered)."""
 
     def long_reach(self, flow: Flow, video: Volume, slow: Volume) -> None:
         """The slow voxels' range-weighted gather, into ``video``."""
 
-    def refinement(self, video: Volume, flow: Flow, slow: Volume, last: bool) -> None:
+    def refinement(self, video: Volume, flow: Flow, slow: Volume) -> None:
         """The monotone diffusion along the trajectories, in place."""
 
-    def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume,
-                     last: bool) -> None:
+    def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume) -> None:
         """Oriented nc blended in where it predicts the samples better, in place."""
 
     def gaps(self, video: Volume, flow: Flow) -> None:
@@ -293,10 +398,9 @@ class Stages(Protocol):
         """What the run gives back."""
 
 
-def run_stages(engine: Stages, memo: FlowMemo | None = None) -> MotionAwareResult:
+def run_stages(engine: Stages) -> MotionAwareResult:
     """Run motion-aware's stages on ``engine`` (:class:`CpuStages` or its GPU twin); returns its result."""
     win = engine.window
-    o = win.options
     times = StageTimes(engine.sync)
     with times("high_tr"):
         high_tr = engine.high_tr()
@@ -304,27 +408,27 @@ def run_stages(engine: Stages, memo: FlowMemo | None = None) -> MotionAwareResul
         engine.samples()
     current = high_tr
     flow = None
-    for pass_ in range(o.passes):
-        last = pass_ + 1 == o.passes
+    for pass_ in range(win.passes):
+        last = pass_ + 1 == win.passes
         with times("gated_flow"):
-            flow = engine.gated_flow(current, memo)
+            flow = engine.gated_flow(current)
         with times("speed_classes"):
             still, slow = engine.speed_classes(flow)
         with times("guides"):
             base = engine.guides(still)
         with times("noise"):
-            wide = engine.noise(current, still) if o.noise_aware else None
+            wide = engine.noise(current, still) if win.noise_aware else None
         with times("trajectory_gather"):
             video, loo, gathered = engine.trajectory_gather(flow, base, still, slow, high_tr, wide,
-                                                            leave_one_out=o.local_choice and last, last=last)
+                                                            leave_one_out=win.leave_one_out and last)
         del base
         with times("long_reach"):
             engine.long_reach(flow, video, slow)
         with times("refinement"):
-            engine.refinement(video, flow, slow, last)
+            engine.refinement(video, flow, slow)
         if loo is not None:
             with times("local_choice"):
-                engine.local_choice(video, loo, gathered, flow, high_tr, last)
+                engine.local_choice(video, loo, gathered, flow, high_tr)
         if win.missing is not None:
             with times("gaps"):
                 engine.gaps(video, flow)
@@ -335,16 +439,23 @@ def run_stages(engine: Stages, memo: FlowMemo | None = None) -> MotionAwareResul
 
 
 class CpuStages:
-    """The stages on the CPU (numpy, OpenCV and numba), for one :class:`Window`."""
+    """The stages on the CPU (numpy, OpenCV and numba), for one :class:`Window`.
+
+    ``memo``: a :class:`~flexvox_core.flow.memo.FlowMemo` the optical flow of pairs is looked up in and kept in
+    (a stream's, from window to window)."""
 
     device = "cpu"
 
-    def __init__(self, window: Window) -> None:
+    def __init__(self, window: Window, *, memo: FlowMemo | None = None) -> None:
         self.window = window
+        self.memo = memo
+        self.passes_run = 0  # gated_flow starts each pass
+        self.last = False  # the pass running is the last: what no later pass reads may be freed or overwritten
         self.sparse: npt.NDArray[np.float32] | None = None
         self.mask: npt.NDArray[np.bool_] | None = None
         self.fixed: npt.NDArray[np.float32] | None = None
         self.still_value: npt.NDArray[np.float32] | None = None
+        self.gathered: npt.NDArray[np.bool_] | None = None  # speed_classes: the voxels the gather estimates
 
     def sync(self) -> None:
         return None
@@ -374,39 +485,39 @@ class CpuStages:
             mask[gap] = False
             sparse[gap] = 0
 
-    def gated_flow(self, current: Volume, memo: FlowMemo | None = None) -> Flow:
-        w, o = self.window, self.window.options
-        field_ = gated_flow(current, w.K, backend=o.flow, gate=o.gate, scale=w.flow_scale,
-                            consistency=o.flow_consistency, slow_speed=o.slow_speed, memo=memo)
+    def gated_flow(self, current: Volume) -> Flow:
+        w = self.window
+        self.passes_run += 1
+        self.last = self.passes_run == w.passes
+        field_ = gated_flow(current, w.K, backend=w.flow_backend, gate=w.flow_gate, scale=w.flow_scale,
+                            consistency=w.flow_consistency, slow_speed=w.slow_speed, memo=self.memo)
         if w.missing is not None:
             bridge_flow(field_.flow, w.missing, w.K, margin=w.bridge_margin)
         return field_
 
     def speed_classes(self, flow: Flow) -> tuple[Volume, Volume]:
-        w, o = self.window, self.window.options
-        still, slow = speed_classes(flow.flow, o.still_speed, o.slow_speed if w.slow_class else None)
-        if w.skip is not None:  # outside the gathered sub-frames nothing is gathered
-            slow[w.skip] = False
+        w = self.window
+        still, slow, self.gathered = speed_classes(flow.flow, w.still_speed, w.slow_class_speed, w.skip)
         return still, slow
 
     def guides(self, still: Volume) -> Volume:
         """The value of the voxels no trajectory gather estimates: the fixed-tensor nc of Eq. 4's tensor at zero
         flow (``diag(c3, c2, c1)``), and at the still voxels their pixel's own samples averaged in time
         (Eq. 4's tensor in the limit c -> (0, 0, 1)): exact for a still scene, and its noise averages out."""
-        w, o = self.window, self.window.options
+        w = self.window
         fixed = self.fixed
         if fixed is None:  # computed once: every pass reads it
-            fixed = self.fixed = guide(w, w.guide_tensor, o.time)
+            fixed = self.fixed = guide(w, w.guide_tensor, w.gather_time)
         base = fixed
         if still.any():
-            if o.passes == 1 and w.skip is None:
+            if w.passes == 1 and w.skip is None:
                 # `fixed` serves this pass alone: the still voxels' values go straight into it (no volume of them).
                 diffuse_where(w.frames, w.code, base, still, tensor=STILL_TENSOR, time=w.still_time, missing=w.missing)
             else:
                 still_value = self.still_value
                 if still_value is None:
                     still_value = self.still_value = guide(w, STILL_TENSOR, w.still_time)
-                base = fixed.copy() if o.passes > 1 else fixed  # `fixed` serves every pass
+                base = fixed.copy() if w.passes > 1 else fixed  # `fixed` serves every pass
                 np.copyto(base, still_value, where=still)
         return base
 
@@ -424,22 +535,21 @@ class CpuStages:
         return noise_aware.SmoothWeights(current, np.repeat(noise, w.K))
 
     def trajectory_gather(self, flow: Flow, base: Volume, still: Volume, slow: Volume, high_tr: Volume,
-                          wide: Volume | None, *, leave_one_out: bool, last: bool) -> tuple[Volume, Any, Any]:
+                          wide: Volume | None, *, leave_one_out: bool) -> tuple[Volume, Any, Any]:
         """(video, loo, gathered): the gather at the voxels neither still nor slow; ``loo`` (F, H, W) each sample's
         leave-one-out estimate (None unless asked for) and ``gathered`` the voxels gathered (with ``loo``)."""
-        w, o = self.window, self.window.options
-        not_gathered = still | slow
-        if w.skip is not None:
-            not_gathered[w.skip] = True
+        w = self.window
+        assert self.gathered is not None, "the speed classes run before the gather"
+        not_gathered = ~self.gathered
         loo = np.full(w.frames.shape, np.nan, np.float32) if leave_one_out else None
         # The gather writes into `base` when no later pass reads it (one volume less).
-        into = base if o.passes == 1 or base is not self.fixed else None
+        into = base if w.passes == 1 or base is not self.fixed else None
         sparse, mask = self._samples()
-        video = motion_compensated_nc(sparse, mask, flow.flow, c=o.c, time=o.time, fallback=high_tr,
+        video = motion_compensated_nc(sparse, mask, flow.flow, c=w.gather_c, time=w.gather_time, fallback=high_tr,
                                       still=not_gathered, still_value=base, loo=loo, wide=wide,
-                                      wide_sigma=noise_aware.wide_sigma(w.K), out=into)
-        gathered = ~not_gathered if loo is not None else None
-        if last:
+                                      wide_sigma=noise_aware.wide_sigma(w.K), max_reach=w.gather_reach, out=into)
+        gathered = self.gathered if loo is not None else None
+        if self.last:
             self.fixed = self.still_value = None  # not needed again: free them before the local choice's volume
         return video, loo, gathered
 
@@ -448,30 +558,30 @@ class CpuStages:
         if not slow.any():
             return
         sparse, mask = self._samples()
-        long_reach_nc(sparse, mask, flow.flow, video, slow, reach=w.long_reach, sigma_t=w.long_reach,
-                      sigma_s=LONG_REACH_SIGMA_S, h=w.range_weight, out=video)
+        p = w.long_reach_plan
+        long_reach_nc(sparse, mask, flow.flow, video, slow, reach=p.reach, sigma_t=p.sigma_t, sigma_s=p.sigma_s, h=p.h,
+                      out=video)
         np.copyto(video, sparse, where=mask)
 
-    def _spare(self, last: bool) -> npt.NDArray[np.float32] | None:
+    def _spare(self) -> npt.NDArray[np.float32] | None:
         """A volume the stages after the last pass's gathers may overwrite: the samples' (dead by then)."""
-        return self.sparse if last else None
+        return self.sparse if self.last else None
 
-    def refinement(self, video: Volume, flow: Flow, slow: Volume, last: bool) -> None:
+    def refinement(self, video: Volume, flow: Flow, slow: Volume) -> None:
         """Along each trajectory; the slow voxels read their neighbours by clipped Catmull-Rom (a bilinear read
         a fraction of a pixel off is a blur, which would take the texture their long-reach gather kept)."""
-        w, o = self.window, self.window.options
-        refine_time = o.refine(w.K)
+        w = self.window
+        refine_time = w.refine_time
         if refine_time <= 0:
             return
         g0, g1 = w.gathered
-        spare = self._spare(last)
+        spare = self._spare()
         mask = self._mask()
         variable_tensor_diffusion(video[g0:g1], mask[g0:g1], flow.flow[g0:g1], c=REFINE_C, time=refine_time,
                                   out=video[g0:g1], scratch=None if spare is None else spare[g0:g1],
                                   sharp=slow[g0:g1])
 
-    def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume,
-                     last: bool) -> None:
+    def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume) -> None:
         w = self.window
         if not np.isfinite(loo).any():
             return
@@ -479,7 +589,7 @@ class CpuStages:
             mask = self._mask()
             local_choice.still_voxel_loo(loo, video, w.frames, gathered, mask, flow.flow, w.K)
         other, other_loo = oriented_nc(w.frames, w.code, high_tr, where=gathered, fallback=video, missing=w.missing,
-                                       out=self._spare(last))
+                                       out=self._spare())
         local_choice.blend(video, other, local_choice.local_weights(loo, other_loo, w.frames), gathered, w.K)
 
     def gaps(self, video: Volume, flow: Flow) -> None:
@@ -496,28 +606,44 @@ class CpuStages:
         s0, s1 = w.keep
         if (s0, s1) != (0, w.S):
             video = np.ascontiguousarray(video[s0:s1])
-        return MotionAwareResult(video, high_tr, flow, w.K, w.options.c, times.summary(), dict(times.seconds),
+        return MotionAwareResult(video, high_tr, flow, w.K, w.gather_c, times.summary(), dict(times.seconds),
                                  self.device)
 
 
-def speed_classes(flow: np.ndarray, still_speed: float | None, slow_speed: float | None
-                  ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
-    """Bool volumes ``still`` (speed < ``still_speed``) and ``slow`` (not still, speed < ``slow_speed``),
-    a sub-frame at a time (no full-volume speed array); None: no such voxels."""
+def speed_class(speed: Any, still_below: Any, slow_below: Any, skipped: Any) -> tuple[Any, Any, Any]:
+    """(still, slow, gathered) of voxels moving at ``speed`` (px per sub-frame): still below ``still_below``, slow
+    below ``slow_below`` when not still and not ``skipped`` (a sub-frame outside the gathered ones), gathered when
+    none of these. The rule both engines classify by: numpy runs it on whole planes on the CPU, the GPU compiles
+    it as a device function (``x ^ True`` is the logical not of a bool there, in numpy and in Python)."""
+    still = speed < still_below
+    slow = (speed < slow_below) & (still ^ True) & (skipped ^ True)
+    return still, slow, (still | slow | skipped) ^ True
+
+
+def class_thresholds(still_speed: float | None, slow_speed: float | None) -> tuple[np.float32, np.float32]:
+    """:func:`speed_class`'s thresholds, float32 (as the speeds are): −∞ for a class that does not exist."""
+    return (np.float32(-np.inf if still_speed is None else still_speed),
+            np.float32(-np.inf if slow_speed is None else slow_speed))
+
+
+def speed_classes(flow: np.ndarray, still_speed: float | None, slow_speed: float | None,
+                  skip: np.ndarray | None = None
+                  ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
+    """Bool volumes ``still``, ``slow`` and ``gathered`` (:func:`speed_class`; None: no such class; ``skip`` (S,)
+    bool: sub-frames outside the gathered ones), a sub-frame at a time (no full-volume speed array)."""
     S, H, W = flow.shape[:3]
-    still = np.zeros((S, H, W), bool)
-    slow = np.zeros((S, H, W), bool)
+    still = np.empty((S, H, W), bool)
+    slow = np.empty((S, H, W), bool)
+    gathered = np.empty((S, H, W), bool)
+    still_below, slow_below = class_thresholds(still_speed, slow_speed)
 
     def one(t: int) -> None:  # a sub-frame at a time, on every core
         speed = cv2.magnitude(flow[t, ..., 0], flow[t, ..., 1])
-        if still_speed is not None:
-            np.less(speed, still_speed, out=still[t])
-        if slow_speed is not None:
-            np.less(speed, slow_speed, out=slow[t])
-            slow[t] &= ~still[t]
+        still[t], slow[t], gathered[t] = speed_class(speed, still_below, slow_below,
+                                                     skip is not None and bool(skip[t]))
 
     for_each(one, S)
-    return still, slow
+    return still, slow, gathered
 
 
 def guide(window: Window, tensor: tuple[float, float, float], time: float) -> npt.NDArray[np.float32]:

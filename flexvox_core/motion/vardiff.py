@@ -22,6 +22,12 @@ clipped to the range of the four pixels the bilinear read would take. Such a rea
 in the pixels (raising a pixel two taps away can lower it), but it stays within the range of those
 four, so each step remains a convex combination of values within the data's range: the maximum
 principle holds, and stability with it.
+
+References
+----------
+M. Gupta, A. Agrawal, A. Veeraraghavan, S. G. Narasimhan, "Flexible voxels for motion-aware videography",
+ECCV 2010 (the paper).
+J. Weickert, *Anisotropic Diffusion in Image Processing*, Teubner, Stuttgart, 1998.
 """
 
 from __future__ import annotations

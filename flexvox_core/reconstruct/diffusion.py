@@ -53,7 +53,9 @@ changes ``nc``, the other two solvers never move a sample. Every solver's output
 
 References
 ----------
-H. Knutsson, C.-F. Westin, "Normalized and differential convolution", CVPR 1993.
+H. Knutsson, C.-F. Westin, "Normalized and differential convolution: methods for interpolation and filtering of
+incomplete and uncertain data", CVPR 1993, pp. 515–523.
+J. Weickert, *Anisotropic Diffusion in Image Processing*, Teubner, Stuttgart, 1998.
 D. Tschumperlé, R. Deriche, "Vector-valued image regularization with PDEs", PAMI 2005.
 """
 

@@ -26,6 +26,14 @@ estimate is a normalized convolution of the samples, within their range, and kee
 The sums run in a compiled kernel (:mod:`~flexvox_core.reconstruct.oriented_nc_kernel`), one sub-frame
 per call, at the voxels asked for; the tests compare it with a plain numpy form that computes each kernel
 weight from the formula above (``tests/flexvox_core/reconstruct/oriented_reference.py``).
+
+References
+----------
+T. Q. Pham, L. J. van Vliet, K. Schutte, "Robust fusion of irregularly sampled data using adaptive normalized
+convolution", EURASIP J. Adv. Signal Process. 2006, 083268.
+J. Bigün, G. H. Granlund, "Optimal orientation detection of linear symmetry", ICCV 1987, pp. 433–438.
+H. Knutsson, C.-F. Westin, "Normalized and differential convolution: methods for interpolation and filtering of
+incomplete and uncertain data", CVPR 1993, pp. 515–523.
 """
 
 from __future__ import annotations

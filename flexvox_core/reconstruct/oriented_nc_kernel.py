@@ -30,7 +30,7 @@ def bank_of(jxx, jxy, jyy, low, high, tan1):
     """As :func:`~flexvox_core.reconstruct.oriented_nc.bank_index` (the same comparisons), for one voxel;
     ``low``, ``high``: where the anisotropy rounds up to the next level; ``tan1``: the sectors' edge slope.
     Written once, compiled for the CPU here (:func:`_bank_index`) and for the GPU as a device function
-    (:mod:`flexvox_core.motion.gpu.choice_structure`)."""
+    (:mod:`flexvox_core.motion.gpu.oriented_nc`)."""
     a = jxx - jyy
     b = 2.0 * jxy
     trace = jxx + jyy

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import logging
 from time import perf_counter
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numba import cuda
@@ -18,17 +18,18 @@ from flexvox_core.flow import FlowField
 from flexvox_core.forward import tiled_order
 from flexvox_core.gaps import captured
 from flexvox_core.gpu import volumes
-from flexvox_core.gpu.nc import NcPlan, nc
+from flexvox_core.gpu.diffusion import NcPlan, nc
 from flexvox_core.gpu.volumes import Workspace
 from flexvox_core.motion import local_choice, noise_aware
 from flexvox_core.motion.gated_flow import DIS_PARAMS
-from flexvox_core.motion.gpu import choice, gaps, gate, noise
-from flexvox_core.motion.gpu.gather import trajectory_gather
+from flexvox_core.motion.gpu import gaps
+from flexvox_core.motion.gpu import gated_flow as gate
+from flexvox_core.motion.gpu import local_choice as choice
+from flexvox_core.motion.gpu import noise_aware as noise
 from flexvox_core.motion.gpu.longreach import long_reach
-from flexvox_core.motion.gpu.refine import refine
-from flexvox_core.motion.mcnc import default_reach
+from flexvox_core.motion.gpu.mcnc import trajectory_gather
+from flexvox_core.motion.gpu.vardiff import refine
 from flexvox_core.motion.options import (
-    LONG_REACH_SIGMA_S,
     PERIOD_GATE,
     REFINE_C,
     STEP1_TENSOR,
@@ -38,9 +39,6 @@ from flexvox_core.motion.options import (
 from flexvox_core.motion.result import MotionAwareResult
 from flexvox_core.motion.stages import Flow, StageTimes, Volume, Window
 from flexvox_core.reconstruct.diffusion import diffuse
-
-if TYPE_CHECKING:
-    from flexvox_core.flow.memo import FlowMemo
 
 _logger = logging.getLogger(__name__)
 
@@ -127,10 +125,10 @@ class CudaStages:
         self.mask = self._volume(Buffers.MASK, np.uint8)
         volumes.samples(self.frames_d, self.order_d, self.present_d, self.window.K, self.sparse, self.mask)
 
-    def gated_flow(self, current: Volume, memo: FlowMemo | None = None) -> Flow:
-        w, o = self.window, self.window.options
+    def gated_flow(self, current: Volume) -> Flow:
+        w = self.window
         flow = self.ws.get(Buffers.FLOW, (w.S, *w.frames.shape[1:], 2))
-        params = gate.gated_flow(self.ws, current, w.K, gate=o.gate, scale=w.flow_scale, slow_speed=o.slow_speed,
+        params = gate.gated_flow(self.ws, current, w.K, gate=w.flow_gate, scale=w.flow_scale, slow_speed=w.slow_speed,
                                  period_gate=PERIOD_GATE, pair_flow=self.pair_flow, out=flow)
         self.flow_params = {"backend": "dis", **DIS_PARAMS, **params, "pairs": self.pair_flow.where}
         if w.missing is not None:
@@ -138,22 +136,21 @@ class CudaStages:
         return flow
 
     def speed_classes(self, flow: Flow) -> tuple[Volume, Volume]:
-        w, o = self.window, self.window.options
+        w = self.window
         still, slow, gather = (self._volume(n, np.uint8) for n in (Buffers.STILL, Buffers.SLOW, Buffers.GATHER))
-        self.n_still, self.n_slow = gate.speed_classes(self.ws, flow, o.still_speed,
-                                                       o.slow_speed if w.slow_class else None, w.skip, still, slow,
-                                                       gather)
+        self.n_still, self.n_slow = gate.speed_classes(self.ws, flow, w.still_speed, w.slow_class_speed, w.skip,
+                                                       still, slow, gather)
         self.gather_mask = gather
         return still, slow
 
     def guides(self, still: Volume) -> Volume:
-        w, o = self.window, self.window.options
+        w = self.window
         fixed = self._volume(Buffers.FIXED)
         if not self.fixed_ready:
-            self._nc(w.guide_tensor, o.time, fixed, Buffers.NC)
-            self.fixed_ready = o.passes > 1  # a later pass reads it again
+            self._nc(w.guide_tensor, w.gather_time, fixed, Buffers.NC)
+            self.fixed_ready = w.passes > 1  # a later pass reads it again
         base = fixed
-        if o.passes > 1:  # `fixed` serves every pass; two volumes in turn, so as not to overwrite the last pass's
+        if w.passes > 1:  # `fixed` serves every pass; two volumes in turn, so as not to overwrite the last pass's
             self.passes_run += 1
             base = self._volume(Buffers.BASE[self.passes_run % 2])
             volumes.copy(base, fixed)
@@ -161,7 +158,7 @@ class CudaStages:
             still_value = self._volume(Buffers.STILL_VALUE)
             if not self.still_ready:
                 self._nc(STILL_TENSOR, w.still_time, still_value, Buffers.NC)
-                self.still_ready = o.passes > 1
+                self.still_ready = w.passes > 1
             volumes.copy_where(base, still_value, still)
         return base
 
@@ -173,37 +170,34 @@ class CudaStages:
         return g
 
     def trajectory_gather(self, flow: Flow, base: Volume, still: Volume, slow: Volume, high_tr: Volume,
-                          wide: Volume | None, *, leave_one_out: bool, last: bool) -> tuple[Volume, Any, Any]:
-        w, o = self.window, self.window.options
+                          wide: Volume | None, *, leave_one_out: bool) -> tuple[Volume, Any, Any]:
+        w = self.window
         loo = None
         if leave_one_out:
             loo = self.ws.get(Buffers.LOO, w.frames.shape)
             volumes.fill(loo, np.nan)
-        c1, c2, _ = o.c
-        per_pixel = int(self.present.sum())  # an identity code samples each pixel once a frame
-        reach = default_reach(o.time, c1, w.S // per_pixel if per_pixel else w.S, w.S)
+        c1, c2, _ = w.gather_c
         # The gather writes into the guides' volume: the voxels it does not gather keep their value there.
-        trajectory_gather(self.ws, self.sparse, self.mask, flow, self.gather_mask, base, high_tr, time=o.time, c1=c1,
-                          c2=c2, reach=reach, wide=wide, wide_sigma=noise_aware.wide_sigma(w.K), loo=loo)
+        trajectory_gather(self.ws, self.sparse, self.mask, flow, self.gather_mask, base, high_tr, time=w.gather_time,
+                          c1=c1, c2=c2, reach=w.gather_reach, wide=wide, wide_sigma=noise_aware.wide_sigma(w.K),
+                          loo=loo)
         return base, loo, (self.gather_mask if loo is not None else None)
 
     def long_reach(self, flow: Flow, video: Volume, slow: Volume) -> None:
         w = self.window
         if not self.n_slow:
             return
-        long_reach(self.ws, self.sparse, self.mask, flow, video, slow, reach=w.long_reach, sigma_t=w.long_reach,
-                   sigma_s=LONG_REACH_SIGMA_S, h=w.range_weight)
+        long_reach(self.ws, self.sparse, self.mask, flow, video, slow, w.long_reach_plan)
 
-    def refinement(self, video: Volume, flow: Flow, slow: Volume, last: bool) -> None:
-        w, o = self.window, self.window.options
-        t = o.refine(w.K)
+    def refinement(self, video: Volume, flow: Flow, slow: Volume) -> None:
+        w = self.window
+        t = w.refine_time
         if t <= 0:
             return
         g0, g1 = w.gathered
         refine(self.ws, video[g0:g1], self.mask[g0:g1], flow[g0:g1], slow[g0:g1], c=REFINE_C, time=t)
 
-    def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume,
-                     last: bool) -> None:
+    def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume) -> None:
         w = self.window
         choice.local_choice(self.ws, video, loo, gathered, self.mask, flow, self.frames_d, self.order_d,
                             self.present_d, high_tr, w.K, score_still_voxels=w.scores_still_voxels,
@@ -238,5 +232,5 @@ class CudaStages:
             return FlowField(fresh(flow), np.broadcast_to(np.float32(1), shape), params,
                              times.seconds.get("gated_flow", 0.0))
 
-        return MotionAwareResult(video, lambda: fresh(high_tr), flow_field, w.K, w.options.c, times.summary(),
+        return MotionAwareResult(video, lambda: fresh(high_tr), flow_field, w.K, w.gather_c, times.summary(),
                                  dict(times.seconds), self.device)

@@ -14,7 +14,7 @@ from numba import cuda
 
 from flexvox_core.gaps import find_gaps
 from flexvox_core.gpu.launch import kernel, launch
-from flexvox_core.motion.gpu.refine import _clamped_bilinear
+from flexvox_core.motion.gpu.vardiff import _clamped_bilinear
 
 
 @kernel("void(float32[:, :, :, ::1], int32, int32, int32, int32)")

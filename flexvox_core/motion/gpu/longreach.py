@@ -9,6 +9,10 @@ picture) weighs
 
 g the guide at the voxel; the sums are blurred by a Gaussian of σ_s (3×3, zero borders) and divided. One thread
 per voxel within the blur's reach of a selected one.
+
+References
+----------
+C. Tomasi, R. Manduchi, "Bilateral filtering for gray and color images", ICCV 1998, pp. 839–846.
 """
 
 from __future__ import annotations
@@ -21,8 +25,8 @@ from numba import cuda
 from flexvox_core.gpu.filters import blur, dilate, gaussian_taps
 from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import kernel, launch
-from flexvox_core.motion.gpu.gather import bilinear_zero, velocity
-from flexvox_core.motion.longreach import MIN_WEIGHT
+from flexvox_core.motion.gpu.mcnc import bilinear_zero, velocity
+from flexvox_core.motion.longreach import MIN_WEIGHT, LongReachPlan
 
 
 @kernel("void(float32[:, :, ::1], uint8[:, :, ::1], float32[:, :, :, ::1], float32[:, :, ::1], uint8[:, :, ::1], "
@@ -89,14 +93,13 @@ def _finish(num, den, select, value, mask, out):
         out[t, y, x] = num[t, y, x] / den[t, y, x]
 
 
-def long_reach(ws, sparse, mask, flow, video, select, *, reach: int, sigma_t: float, sigma_s: float, h: float
-               ) -> None:
+def long_reach(ws, sparse, mask, flow, video, select, plan: LongReachPlan) -> None:
     """The range-weighted gather at the voxels ``select`` (S, H, W) uint8, guided by ``video`` and written into
-    it; the samples are written back everywhere (``video`` = ``sparse`` at ``mask``)."""
+    it; the samples are written back everywhere (``video`` = ``sparse`` at ``mask``). ``plan``: its reach, σ_t,
+    σ_s and h, as the CPU's (:class:`~flexvox_core.motion.longreach.LongReachPlan`)."""
     S, H, W = sparse.shape
     n = S * H * W
-    reach = min(int(reach), S - 1)
-    radius = int(math.ceil(3 * sigma_s)) if sigma_s > 0.05 else 0
+    reach, sigma_t, sigma_s, h, radius = plan.reach, plan.sigma_t, plan.sigma_s, plan.h, plan.radius
     act = ws.get("longreach.act", (S, H, W), np.uint8)
     dilate(ws, select, act, radius, tag="longreach.dilate")
     num = ws.get("longreach.num", (S, H, W))

@@ -1,8 +1,8 @@
-"""The GPU local choice (flexvox_core/motion/gpu/choice.py, choice_pool.py) against the CPU's stage and its parts: the
-still-voxel correction, the structure tensor and kernel choice, oriented nc and its leave-one-out, the pooled
-weights (full size and on the coarse grid) and the whole stage, with dropped frames and empty, partial and full
-gathered sets. Under the simulator the kernels run as Python on pictures of a few pixels; the tests marked
-``gpu`` run them at 480×640 on a card.
+"""The GPU local choice (flexvox_core/motion/gpu/local_choice.py, local_choice_weights.py, oriented_nc.py) against
+the CPU's stage and its parts: the still-voxel correction, the structure tensor and kernel choice, oriented nc and
+its leave-one-out, the pooled weights (full size and on the coarse grid) and the whole stage, with dropped frames
+and empty, partial and full gathered sets. Under the simulator the kernels run as Python on pictures of a few
+pixels; the tests marked ``gpu`` run them at 480×640 on a card.
 
 Tolerances: float32 sums on the GPU against the CPU's float32 (OpenCV, numpy) and float64 (oriented nc's
 compiled kernel) in another order, with fused multiply-adds: a few units in the last place of values near 1."""
@@ -88,13 +88,13 @@ def _cpu_stage(sc, score_still_voxels: bool):
     engine = CpuStages(win)
     engine.mask = sc.mask
     video, loo = sc.video.copy(), sc.loo.copy()
-    engine.local_choice(video, loo, sc.gathered, SimpleNamespace(flow=sc.flow), sc.high_tr, False)
+    engine.local_choice(video, loo, sc.gathered, SimpleNamespace(flow=sc.flow), sc.high_tr)
     return video, loo
 
 
 def _gpu_stage(sc, score_still_voxels: bool):
     from flexvox_core.gpu.volumes import Workspace
-    from flexvox_core.motion.gpu.choice import local_choice
+    from flexvox_core.motion.gpu.local_choice import local_choice
 
     d = _device(sc)
     H, W = sc.frames.shape[1:]
@@ -113,7 +113,7 @@ def _close(got, want, tol=TOL):
 
 
 def test_the_still_voxel_correction_matches_the_cpu(rng):
-    from flexvox_core.motion.gpu.choice import still_voxel_loo
+    from flexvox_core.motion.gpu.local_choice import still_voxel_loo
 
     sc = _scene(rng, 3, 10, 12, dropped=1)
     want = sc.loo.copy()
@@ -129,7 +129,7 @@ def test_the_structure_tensor_and_the_kernel_choice_match_the_cpu(rng, shape):
     from numba import cuda
 
     from flexvox_core.gpu.volumes import Workspace
-    from flexvox_core.motion.gpu.choice_structure import structure_bank
+    from flexvox_core.motion.gpu.oriented_nc import structure_bank
 
     sc = _scene(rng, 2, *shape)
     S = sc.high_tr.shape[0]
@@ -151,7 +151,7 @@ def test_oriented_nc_and_its_leave_one_out_match_the_cpu(rng, F, dropped, gather
     from numba import cuda
 
     from flexvox_core.gpu.volumes import Workspace
-    from flexvox_core.motion.gpu.choice import OrientedPlan, oriented_blend, oriented_loo, time_blur
+    from flexvox_core.motion.gpu.local_choice import OrientedPlan, oriented_blend, oriented_loo, time_blur
 
     sc = _scene(rng, F, dropped=dropped, gathered=gathered)
     want_video, want_loo = oriented_nc(sc.frames, sc.code, sc.high_tr, where=sc.gathered, fallback=sc.video,
@@ -190,7 +190,7 @@ def test_the_pooled_weights_match_the_cpu(rng, shape, sigma):
     from numba import cuda
 
     from flexvox_core.gpu.volumes import Workspace
-    from flexvox_core.motion.gpu.choice_pool import coarse_step, local_weights
+    from flexvox_core.motion.gpu.local_choice_weights import coarse_step, local_weights
 
     y = rng.uniform(0.1, 0.9, shape).astype(np.float32)
     a = (y + rng.normal(0, 0.05, shape) * np.linspace(0.2, 2, shape[2])).astype(np.float32)
@@ -245,8 +245,8 @@ def test_inputs_of_the_wrong_type_or_shape_are_refused(rng):
     from numba import cuda
 
     from flexvox_core.gpu.volumes import Workspace
-    from flexvox_core.motion.gpu.choice import local_choice
-    from flexvox_core.motion.gpu.choice_pool import local_weights
+    from flexvox_core.motion.gpu.local_choice import local_choice
+    from flexvox_core.motion.gpu.local_choice_weights import local_weights
 
     sc = _scene(rng, 2, 6, 8)
     d = _device(sc)
@@ -268,7 +268,7 @@ def test_inputs_of_the_wrong_type_or_shape_are_refused(rng):
 def test_the_gpu_constants_are_the_cpus():
     """flexvox_core.gpu does not import flexvox_core.motion (which imports it to pick the device): its copies of
     the pooling's constants must be the CPU's."""
-    from flexvox_core.motion.gpu import choice_pool
+    from flexvox_core.motion.gpu import local_choice_weights as choice_pool
 
     assert choice_pool.COARSE_SIGMA == cpu_choice.COARSE_SIGMA
     assert choice_pool.POWER == cpu_choice.POWER
@@ -304,8 +304,8 @@ def test_full_size_kernel_choice_and_weights_match_the_cpu(rng):
     from numba import cuda
 
     from flexvox_core.gpu.volumes import Workspace
-    from flexvox_core.motion.gpu.choice_pool import local_weights
-    from flexvox_core.motion.gpu.choice_structure import structure_bank
+    from flexvox_core.motion.gpu.local_choice_weights import local_weights
+    from flexvox_core.motion.gpu.oriented_nc import structure_bank
 
     sc = _full_size(rng)
     ws = Workspace()

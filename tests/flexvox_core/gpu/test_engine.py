@@ -1,6 +1,7 @@
-"""The GPU engine end to end against the CPU pipeline, the device choice, and the deviceless compile.
+"""The GPU engine around the parity matrix (``test_parity.py``): the device choice, the deviceless compile, the
+memory a chunk may take, the routes to the CPU, a workspace reused by a stream.
 
-Under numba-cuda's simulator every kernel runs as Python: the windows here are tiny (a few frames of 12×16
+Under numba-cuda's simulator every kernel runs as Python: the windows here are tiny (a few frames of 8×8 to 12×16
 pixels at K = 4). The same comparisons at full size, on a GPU, are marked ``gpu``.
 """
 
@@ -16,23 +17,10 @@ import pytest
 from flexvox_core import capture
 from flexvox_core.design import design_code
 from flexvox_core.metrics import psnr
+from flexvox_core.motion.options import MotionOptions
 from flexvox_core.motion.pipeline import motion_aware
 from flexvox_core.simulate.scenes import render_scene
 from tests.flexvox_core.gpu.tiny import CODE, tiny_capture
-
-
-def test_the_whole_pipeline_on_the_gpu_is_the_cpus():
-    """motion_aware(device="cuda"): every stage on the device, DIS included; the same video within float
-    rounding, and ``auto`` never takes the simulator."""
-    truth, frames = tiny_capture("balls", 2, 16, 16)
-    cpu = motion_aware(frames, CODE)
-    gpu = motion_aware(frames, CODE, device="cuda")
-    assert gpu.device == "cuda" and cpu.device == "cpu"
-    np.testing.assert_allclose(gpu.video, cpu.video, atol=2e-5)
-    np.testing.assert_allclose(gpu.high_tr, cpu.high_tr, atol=2e-6)
-    np.testing.assert_allclose(gpu.flow.flow, cpu.flow.flow, atol=1e-3)
-    assert gpu.flow.params["pairs"] == "gpu"
-    assert set(gpu.stage_seconds) >= {"high_tr", "gated_flow", "trajectory_gather", "local_choice", "download"}
 
 
 def test_device_choice(monkeypatch):
@@ -89,7 +77,7 @@ def test_every_kernel_compiles_for_a_gpu_without_one():
 
     stats = json.loads(done.stdout.splitlines()[-1])
     declared = _declared_kernels(KERNEL_PACKAGES)
-    assert "flexvox_core.motion.gpu.choice_structure._structure_y" in declared
+    assert "flexvox_core.motion.gpu.oriented_nc._structure_y" in declared
     assert set(stats) == declared
     assert min(chars for chars, _ in stats.values()) > 1000  # PTX with an entry point, not an empty module
     dis = {n.rsplit(".", 1)[1]: f64 for n, (_, f64) in stats.items() if n.startswith("flexvox_core.gpu.dis")}
@@ -156,3 +144,44 @@ def test_options_the_gpu_does_not_run_go_to_the_cpu_with_a_note():
     stream = StreamingMotionAware(CODE, device="cuda", flow="tvl1")
     assert (stream.device, stream.device_note) == ("cpu", "flow='tvl1' runs on the CPU (the GPU's optical flow is DIS)")
     assert StreamingMotionAware(CODE, device="cuda").device_note is None
+
+
+def test_a_result_read_after_its_workspace_was_reused_says_so():
+    from flexvox_core.gpu.volumes import Workspace
+    from flexvox_core.motion.gpu.engine import CudaStages
+    from flexvox_core.motion.stages import Window, run_stages
+
+    truth, frames = tiny_capture("balls", 2, 8, 8)
+    ws = Workspace()
+    window = Window.plan(frames, CODE, MotionOptions(refine_time=0.0, local_choice=False, noise_aware=False),
+                         (0.0, 1.0))
+    first = run_stages(CudaStages(window, ws=ws, pairs="cpu"))
+    run_stages(CudaStages(window, ws=ws, pairs="cpu"))
+    with pytest.raises(RuntimeError, match="overwritten by a later window of the same workspace"):
+        first.high_tr  # noqa: B018
+
+
+def test_a_stream_on_the_gpu_reuses_its_workspace_and_follows_the_cpus(monkeypatch):
+    from flexvox_core.motion.gpu import gated_flow as gate
+    from flexvox_core.motion.streaming import StreamingMotionAware
+
+    class HostPairs(gate.PairFlow):  # OpenCV's DIS for the pairs: the simulator's DIS is tested on its own
+        def __init__(self, ws, where, params):
+            super().__init__(ws, "cpu", params)
+
+    monkeypatch.setattr(gate, "PairFlow", HostPairs)
+    truth, frames = tiny_capture("balls", 3, 8, 8)
+    options = {"refine_time": 0.0, "local_choice": False, "noise_aware": False}
+    cpu, gpu = StreamingMotionAware(CODE, **options), StreamingMotionAware(CODE, device="cuda", **options)
+    assert gpu.device == "cuda" and cpu.device == "cpu"
+    got, want = [], []
+    for frame in frames:
+        got += gpu.push(frame)
+        want += cpu.push(frame)
+    got += gpu.finish()
+    want += cpu.finish()
+    assert [g.index for g in got] == [w.index for w in want] == [0, 1, 2]
+    buffers = gpu._workspace.nbytes
+    assert buffers > 0  # one workspace served every window
+    for g, w in zip(got, want, strict=True):
+        np.testing.assert_allclose(g.video, w.video, atol=2e-4)

@@ -6,7 +6,7 @@ import pytest
 from flexvox_core import capture, code_from_order
 from flexvox_core.forward import sample_mask, sparse_volume
 from flexvox_core.motion.gated_flow import gated_flow
-from flexvox_core.motion.longreach import long_reach_nc
+from flexvox_core.motion.longreach import LongReachPlan, long_reach_nc
 from flexvox_core.motion.mcnc import motion_compensated_nc
 from flexvox_core.motion.noise_aware import SmoothWeights, frame_noise, wide_sigma
 from flexvox_core.motion.options import PERIOD_GATE
@@ -45,7 +45,7 @@ def clip(rng):
 
 @pytest.mark.parametrize("noisy", [False, True])
 def test_trajectory_gather_is_the_cpus(rng, ws, clip, noisy):
-    from flexvox_core.motion.gpu.gather import trajectory_gather
+    from flexvox_core.motion.gpu.mcnc import trajectory_gather
     from flexvox_core.motion.mcnc import default_reach
 
     frames, sparse, mask, flow, truth = clip
@@ -82,14 +82,14 @@ def test_long_reach_is_the_cpus(rng, ws, clip):
     np.copyto(want, sparse, where=mask)
     video = _dev(guide)
     long_reach(ws, _dev(sparse), _dev(mask.astype(np.uint8)), _dev(flow), video, _dev(select.astype(np.uint8)),
-               reach=6, sigma_t=6, sigma_s=0.3, h=0.1)
+               LongReachPlan.of(sparse.shape[0], reach=6, sigma_t=6, sigma_s=0.3, h=0.1))
     got = video.copy_to_host()
     np.testing.assert_allclose(got, want, atol=5e-3)
     assert np.abs(got - want).mean() < 5e-4
 
 
 def test_refinement_is_the_cpus(rng, ws, clip):
-    from flexvox_core.motion.gpu.refine import refine
+    from flexvox_core.motion.gpu.vardiff import refine
     from flexvox_core.motion.options import REFINE_C
 
     frames, sparse, mask, flow, truth = clip
@@ -110,26 +110,33 @@ def test_refinement_is_the_cpus(rng, ws, clip):
 
 
 def test_speed_classes_are_the_cpus(rng, ws, clip):
-    from flexvox_core.motion.gpu.gate import speed_classes as gpu_classes
+    from flexvox_core.motion.gpu.gated_flow import speed_classes as gpu_classes
 
     flow = clip[3] * np.float32(0.5)
     S = len(flow)
     skip = np.zeros(S, bool)
     skip[-3:] = True
-    still, slow = speed_classes(flow, 0.2, 0.6)
-    slow[skip] = False
+    still, slow, gathered = speed_classes(flow, 0.2, 0.6, skip)
+    assert still.any() and slow.any() and gathered.any() and not (slow[skip].any() or gathered[skip].any())
+    np.testing.assert_array_equal(gathered, ~(still | slow | skip[:, None, None]))
     d = [_dev(np.zeros(still.shape, np.uint8)) for _ in range(3)]
     counts = gpu_classes(ws, _dev(flow), 0.2, 0.6, skip, *d)
     g_still, g_slow, g_gather = (a.copy_to_host().astype(bool) for a in d)
     np.testing.assert_array_equal(g_still, still)
     np.testing.assert_array_equal(g_slow, slow)
-    np.testing.assert_array_equal(g_gather, ~(still | slow | skip[:, None, None]))
+    np.testing.assert_array_equal(g_gather, gathered)
     assert counts == (int(still.sum()), int(slow.sum()))
+    for still_speed, slow_speed in ((None, 0.6), (0.2, None), (None, None)):  # a class that does not exist
+        still, slow, gathered = speed_classes(flow, still_speed, slow_speed)
+        counts = gpu_classes(ws, _dev(flow), still_speed, slow_speed, None, *d)
+        for want, got in zip((still, slow, gathered), d, strict=True):
+            np.testing.assert_array_equal(got.copy_to_host().astype(bool), want)
+        assert (still_speed is not None or not still.any()) and (slow_speed is not None or not slow.any())
 
 
 @pytest.mark.parametrize("pixels", ["all still", "some still", "too few"])
 def test_the_noise_median_is_selected_exactly(rng, ws, pixels):
-    from flexvox_core.motion.gpu.noise import frame_noise as gpu_noise
+    from flexvox_core.motion.gpu.noise_aware import frame_noise as gpu_noise
 
     F, H, W = 4, 16, 16
     frames = rng.random((F, H, W)).astype(np.float32)
@@ -145,7 +152,7 @@ def test_the_noise_median_is_selected_exactly(rng, ws, pixels):
 
 
 def test_noise_weights_are_the_cpus(rng, ws, clip):
-    from flexvox_core.motion.gpu.noise import noise_weights
+    from flexvox_core.motion.gpu.noise_aware import noise_weights
 
     frames, sparse, mask, flow, truth = clip
     noisy = np.clip(frames + rng.normal(0, 0.03, frames.shape), 0, 1).astype(np.float32)
@@ -165,8 +172,8 @@ def test_noise_weights_are_the_cpus(rng, ws, clip):
 def test_gated_flow_is_the_cpus(ws):
     """The gate, the K-average's velocity and the resizes, with the pairs' DIS on the host as the CPU runs it."""
     from flexvox_core.motion.gated_flow import DIS_PARAMS
-    from flexvox_core.motion.gpu.gate import PairFlow
-    from flexvox_core.motion.gpu.gate import gated_flow as gpu_gated
+    from flexvox_core.motion.gpu.gated_flow import PairFlow
+    from flexvox_core.motion.gpu.gated_flow import gated_flow as gpu_gated
 
     video = render_scene("pan", 6 * K, 20, 24, seed=2)
     want = gated_flow(video, K, backend="dis", scale=0.8, slow_speed=0.6, period_gate=PERIOD_GATE).flow
@@ -177,7 +184,7 @@ def test_gated_flow_is_the_cpus(ws):
 
 
 def test_pair_flow_refuses_an_unknown_place(ws):
-    from flexvox_core.motion.gpu.gate import PairFlow
+    from flexvox_core.motion.gpu.gated_flow import PairFlow
 
     with pytest.raises(ValueError, match=r"`pairs` must be one of gpu, cpu; got 'tpu'"):
         PairFlow(ws, "tpu", {})

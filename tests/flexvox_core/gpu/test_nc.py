@@ -11,7 +11,7 @@ from flexvox_core.reconstruct.diffusion import diffuse
 def _gpu_nc(frames, code, tensor, time, missing=None):
     from numba import cuda
 
-    from flexvox_core.gpu.nc import NcPlan, nc
+    from flexvox_core.gpu.diffusion import NcPlan, nc
     from flexvox_core.gpu.volumes import Workspace
 
     F, H, W = frames.shape

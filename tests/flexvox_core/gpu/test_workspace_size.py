@@ -80,7 +80,7 @@ def test_skipping_the_kernels_leaves_every_launch_as_it_was():
         import importlib
         from tests.flexvox_core.gpu.workspace_size import no_kernels
         with no_kernels():
-            inside = importlib.import_module("flexvox_core.gpu.nc").launch
+            inside = importlib.import_module("flexvox_core.gpu.diffusion").launch
         from flexvox_core.gpu import launch as L
         assert inside is not L.launch  # the stand-in while inside
         from flexvox_core.motion.gpu import KERNEL_PACKAGES

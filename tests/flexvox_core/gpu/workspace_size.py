@@ -31,7 +31,10 @@ def no_kernels():
     that allocates the most: still and slow voxels exist, every frame is noisy, a leave-one-out estimate is
     finite."""
     from flexvox_core.gpu.launch import modules_of
-    from flexvox_core.motion.gpu import KERNEL_PACKAGES, choice, gate, noise
+    from flexvox_core.motion.gpu import KERNEL_PACKAGES
+    from flexvox_core.motion.gpu import gated_flow as gate
+    from flexvox_core.motion.gpu import local_choice as choice
+    from flexvox_core.motion.gpu import noise_aware as noise
 
     saved = []
 

@@ -249,7 +249,7 @@ def test_motion_aware_refines_its_slow_voxels_with_sharp_reads(monkeypatch):
     truth = render_scene("pan", 6 * 16, 48, 64, seed=0)
     code = design_code((4, 4)).code
     motion_aware(capture(truth, code), code)
-    still, slow = seen["classes"]
+    still, slow, _ = seen["classes"]
     assert slow.any()
     np.testing.assert_array_equal(seen["sharp"], slow)
 

@@ -1,4 +1,5 @@
-"""Kernels under numba-cuda's simulator, one simulated thread after another where a kernel allows it.
+"""Kernels under numba-cuda's simulator (``NUMBA_ENABLE_CUDASIM``), one simulated thread after another where a kernel
+allows it. (The simulated *rig* is another thing: :mod:`flexvox_core.simulate` and ``rig_drivers/simulated_rig.py``.)
 
 The simulator runs every thread of a block as a Python thread, so that ``cuda.syncthreads()`` can hold them at a
 barrier; starting those threads and switching between them costs most of a simulated launch (a tiny window's whole
@@ -11,7 +12,7 @@ each function's code; :func:`run`, which :func:`flexvox_core.gpu.launch.launch` 
 one launch at a time across threads.
 
 This leans on the simulator's own classes (``BlockManager``, ``Dim3``, ``swapped_cuda_module``), which are not
-numba-cuda's public API; ``tests/flexvox_core/gpu/test_simulator.py`` fails when they change, and
+numba-cuda's public API; ``tests/flexvox_core/gpu/test_cudasim.py`` fails when they change, and
 ``FLEXVOX_SIM_THREADS=1`` runs every kernel on the simulator's threads as it ships.
 """
 

@@ -9,7 +9,7 @@ Where the trajectory gather predicts the samples worse than oriented ``nc``
 2. oriented nc of the samples at the gathered voxels, its kernel from the bank of 17 chosen per voxel from the
    structure tensor of the high-TR video, and each sample's leave-one-out estimate;
 3. method a's (the gather's) weight per frame and pixel from the pooled leave-one-out errors
-   (:mod:`~flexvox_core.motion.gpu.choice_pool`);
+   (:mod:`~flexvox_core.motion.gpu.local_choice_weights`);
 4. the blend :math:`v \leftarrow v + (1 - w_f)(o - v)` at the gathered voxels, o oriented nc's value there.
 
 Oriented nc is a normalized convolution whose spatial kernel g follows the guide's edges:
@@ -25,7 +25,7 @@ weighed by :func:`~flexvox_core.reconstruct.diffusion.time_weights`), g_p the we
 onto the voxel itself and c the weight its own sample gives it in time. The leave-one-out sums leave the
 sample's term out instead of subtracting it, so float32 sums keep their relative precision where the sample
 outweighs the others. The kernel of each voxel comes from the structure tensor of its high-TR sub-frame
-(:mod:`~flexvox_core.motion.gpu.choice_structure`).
+(:mod:`~flexvox_core.motion.gpu.oriented_nc`).
 
 Every kernel runs over whole volumes (one thread per voxel, or per pixel of every frame). Reference: Pham,
 van Vliet & Schutte, "Robust fusion of irregularly sampled data using adaptive normalized convolution", 2006.
@@ -39,10 +39,11 @@ from functools import lru_cache
 import numpy as np
 from numba import cuda
 
+from flexvox_core.gpu.diffusion import time_pass
 from flexvox_core.gpu.index import reflect, voxel
 from flexvox_core.gpu.launch import device, kernel, launch
-from flexvox_core.motion.gpu.choice_pool import local_weights
-from flexvox_core.motion.gpu.choice_structure import structure_bank
+from flexvox_core.motion.gpu.local_choice_weights import local_weights
+from flexvox_core.motion.gpu.oriented_nc import structure_bank
 from flexvox_core.reconstruct.diffusion import NC_MIN_WEIGHT, gaussian_kernel, time_weights
 from flexvox_core.reconstruct.oriented_nc import SIGMA, kernel_bank
 from flexvox_core.reconstruct.oriented_nc_kernel import tap_lists
@@ -129,27 +130,6 @@ def still_voxel_loo(loo, video, frames, gathered, mask, flow, *, speed: float) -
 
 
 # ------------------------------------------------------------------------------------------- oriented nc
-
-
-@kernel(f"void({F3}, int32[:, ::1], {F3}, int32[::1], uint8[::1], {F3}, {F3})")
-def _time_blur(frames, order, weight, first, present, vt, mt):
-    """The samples and their mask blurred in time: each pixel's own samples weighed by its slot's weights."""
-    i = cuda.grid(1)
-    S, H, W = vt.shape
-    if i >= S * H * W:
-        return
-    s, y, x = voxel(i, H, W)
-    k = order[y, x]
-    f0 = first[s]
-    acc = np.float32(0)
-    den = np.float32(0)
-    for b in range(weight.shape[2]):
-        w = weight[s, k, b]
-        if w != 0 and present[f0 + b]:
-            acc += w * frames[f0 + b, y, x]
-            den += w
-    vt[s, y, x] = acc
-    mt[s, y, x] = den
 
 
 @device
@@ -261,7 +241,7 @@ def time_blur(ws, frames, order, present, plan: OrientedPlan, S: int):
     _, H, W = frames.shape
     vt = ws.get("choice.vol1", (S, H, W))
     mt = ws.get("choice.vol0", (S, H, W))
-    launch(_time_blur, S * H * W, frames, order, plan.weight, plan.first, present, vt, mt)
+    launch(time_pass, S * H * W, frames, order, plan.weight, plan.first, present, vt, mt)
     return vt, mt
 
 

@@ -1,5 +1,5 @@
 """Kernels under numba-cuda's simulator: the ones that never synchronise their block run their threads in turn
-(:mod:`flexvox_core.gpu.simulator`), with the same results as on the simulator's threads."""
+(:mod:`flexvox_core.gpu.cudasim`), with the same results as on the simulator's threads."""
 
 import importlib
 import math
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from flexvox_core.gpu import launch as L
-from flexvox_core.gpu.simulator import needs_threads, sequential_blocks
+from flexvox_core.gpu.cudasim import needs_threads, sequential_blocks
 
 pytestmark = pytest.mark.skipif(not L._sim(), reason="the simulator's execution only (FLEXVOX_TEST_GPU=1 is set)")
 
@@ -70,11 +70,12 @@ def _both_ways(dispatcher, count, *arrays_and_scalars):
 def test_in_turn_is_bit_for_bit_the_threads_result(rng):
     """A blur pass (device functions from two modules) and the normalized convolution's last step (an atomic
     counter, a NaN where no sample reaches) give the same bits both ways."""
+    from flexvox_core.gpu.diffusion import _finish
     from flexvox_core.gpu.filters import _blur_pass, gaussian_taps
-    from flexvox_core.gpu.nc import _finish
 
     planes = rng.random((2, 5, 7)).astype(np.float32)
-    threads, turn = _both_ways(_blur_pass, planes.size, planes, planes, np.empty_like(planes), np.empty_like(planes),
+    # Zeros, not np.empty: the pass leaves the second output alone, and uninitialised memory may hold a NaN.
+    threads, turn = _both_ways(_blur_pass, planes.size, planes, planes, np.zeros_like(planes), np.zeros_like(planes),
                                gaussian_taps(1.0), np.int32(2), np.uint8(1), np.uint8(0))
     assert all(np.array_equal(a, b) for a, b in zip(threads, turn, strict=True))
     assert not np.array_equal(turn[2], planes)  # it did blur
@@ -180,7 +181,7 @@ def test_launches_from_several_threads_take_turns(rng):
     from numba import cuda
     from numba.cuda.simulator import kernel as simkernel
 
-    from flexvox_core.gpu import simulator
+    from flexvox_core.gpu import cudasim
     from flexvox_core.gpu.filters import _blur_pass
 
     threaded = simkernel.BlockManager
@@ -208,7 +209,7 @@ def test_launches_from_several_threads_take_turns(rng):
         try:
             for _ in range(5):
                 out = cuda.to_device(np.zeros(8, np.float32))
-                simulator.run(waits, 1, 8, (out,))
+                cudasim.run(waits, 1, 8, (out,))
                 results.append(bool((out.copy_to_host() == 1).all()))
         except Exception as exc:  # noqa: BLE001
             errors.append(exc)

@@ -13,6 +13,11 @@ the samples' range and keeps the samples. Voxels whose blurred mask is at or bel
 :data:`~flexvox_core.reconstruct.diffusion.NC_MIN_WEIGHT` of the kernel's peak (no sample in reach: rare, and
 only with tiny kernels) are counted; the caller then computes the volume on the CPU, which gives them their
 nearest sample.
+
+References
+----------
+H. Knutsson, C.-F. Westin, "Normalized and differential convolution: methods for interpolation and filtering of
+incomplete and uncertain data", CVPR 1993, pp. 515–523.
 """
 
 from __future__ import annotations
@@ -28,9 +33,13 @@ from flexvox_core.gpu.launch import kernel, launch
 from flexvox_core.reconstruct.diffusion import NC_MIN_WEIGHT, _peak, gaussian_kernel, sigmas, time_weights
 
 
-@kernel("void(float32[:, :, ::1], int32[:, ::1], float32[:, :, ::1], int32[::1], float32[:, :, ::1], "
+@kernel("void(float32[:, :, ::1], int32[:, ::1], float32[:, :, ::1], int32[::1], uint8[::1], float32[:, :, ::1], "
         "float32[:, :, ::1])")
-def _time_pass(frames, order, weight, first, num, den):
+def time_pass(frames, order, weight, first, present, num, den):
+    """The samples and their mask blurred along time: at voxel (s, y, x), Σ_b w·frames[first[s] + b, y, x] into
+    ``num`` and Σ_b w into ``den``, w = ``weight[s, order[y, x], b]`` over the frames that hold samples
+    (``present``): each pixel's own samples, weighed by its slot's time weights. Normalized convolution's time
+    pass and oriented nc's (the local choice) both launch it."""
     i = cuda.grid(1)
     S, H, W = num.shape
     if i >= S * H * W:
@@ -42,7 +51,7 @@ def _time_pass(frames, order, weight, first, num, den):
     d = np.float32(0)
     for b in range(weight.shape[2]):
         w = weight[s, k, b]
-        if w != 0:
+        if w != 0 and present[f0 + b]:
             acc += w * frames[f0 + b, y, x]
             d += w
     num[s, y, x] = acc
@@ -94,7 +103,7 @@ def nc(ws, frames_d, order_d, present_d, plan: NcPlan, lo: float, hi: float, out
     den = ws.get(f"{tag}.den", (S, H, W))
     weight = ws.put(f"{tag}.weight", plan.weight)
     first = ws.put(f"{tag}.first", plan.first)
-    launch(_time_pass, n, frames_d, order_d, weight, first, num, den)
+    launch(time_pass, n, frames_d, order_d, weight, first, present_d, num, den)
     if plan.gx is not None or plan.gy is not None:
         scratch = (ws.get(f"{tag}.num2", (S, H, W)), ws.get(f"{tag}.den2", (S, H, W)))
         blur(ws, (num, den), (num, den), plan.gy, plan.gx, tag=tag, scratch=scratch)

@@ -12,6 +12,13 @@ values and of weights are then blurred in space (σ = √(2 n c₂), reflecting 
 wide blur by the noise-aware weight g, and divided. Each sample the gather estimates also gets its
 leave-one-out estimate (N − c·y) / (D − c). One thread per voxel; the CPU gathers a list of voxels per
 sub-frame instead, with OpenCV's remap (which rounds positions to 1/32 px): the same sums up to that rounding.
+
+References
+----------
+M. Gupta, A. Agrawal, A. Veeraraghavan, S. G. Narasimhan, "Flexible voxels for motion-aware videography",
+ECCV 2010 (the paper).
+H. Knutsson, C.-F. Westin, "Normalized and differential convolution: methods for interpolation and filtering of
+incomplete and uncertain data", CVPR 1993, pp. 515–523.
 """
 
 from __future__ import annotations

@@ -12,6 +12,12 @@ G OpenCV's Gaussian blur (:func:`~flexvox_core.gpu.filters.gaussian_taps`, rows 
 The bank index rounds the anisotropy A = √((J_xx − J_yy)² + 4 J_xy²) / (J_xx + J_yy) to the nearest level and the
 direction ½ atan2(2 J_xy, J_xx − J_yy) to one of 8, with the CPU kernel's float64 comparisons. Four launches over
 every voxel of every sub-frame; float32 sums.
+
+References
+----------
+T. Q. Pham, L. J. van Vliet, K. Schutte, "Robust fusion of irregularly sampled data using adaptive normalized
+convolution", EURASIP J. Adv. Signal Process. 2006, 083268.
+J. Bigün, G. H. Granlund, "Optimal orientation detection of linear symmetry", ICCV 1987, pp. 433–438.
 """
 
 from __future__ import annotations

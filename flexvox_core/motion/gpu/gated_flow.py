@@ -23,6 +23,7 @@ from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import device, kernel, launch
 from flexvox_core.gpu.resize import resize_area, resize_linear, to_uint8
 from flexvox_core.motion.gated_flow import takes_slow
+from flexvox_core.motion.stages import class_thresholds, speed_class
 
 PAIRS = ("gpu", "cpu")
 """Where the pairs' optical flow runs."""
@@ -315,9 +316,12 @@ def _to_full(ws, vel, out, *, max_mag: float) -> None:
     _resize_flow(ws, vel, out)
 
 
-@kernel("void(float32[:, :, :, ::1], float32, float32, uint8, uint8, uint8[::1], uint8[:, :, ::1], "
-        "uint8[:, :, ::1], uint8[:, :, ::1], int32[::1])")
-def _classes(flow, still_speed, slow_speed, has_still, has_slow, skip, still, slow, gather, counts):
+_speed_class = device(speed_class)
+
+
+@kernel("void(float32[:, :, :, ::1], float32, float32, uint8[::1], uint8[:, :, ::1], uint8[:, :, ::1], "
+        "uint8[:, :, ::1], int32[::1])")
+def _classes(flow, still_below, slow_below, skip, still, slow, gather, counts):
     i = cuda.grid(1)
     S, H, W, _ = flow.shape
     if i >= S * H * W:
@@ -326,11 +330,10 @@ def _classes(flow, still_speed, slow_speed, has_still, has_slow, skip, still, sl
     u = flow[t, y, x, 0]
     v = flow[t, y, x, 1]
     speed = math.sqrt(u * u + v * v)
-    is_still = has_still and speed < still_speed
-    is_slow = has_slow and speed < slow_speed and not is_still and not skip[t]
+    is_still, is_slow, is_gathered = _speed_class(speed, still_below, slow_below, skip[t] != 0)
     still[t, y, x] = is_still
     slow[t, y, x] = is_slow
-    gather[t, y, x] = not (is_still or is_slow or skip[t])
+    gather[t, y, x] = is_gathered
     if is_still:
         cuda.atomic.add(counts, 0, 1)
     if is_slow:
@@ -338,13 +341,13 @@ def _classes(flow, still_speed, slow_speed, has_still, has_slow, skip, still, sl
 
 
 def speed_classes(ws, flow, still_speed, slow_speed, skip: np.ndarray | None, still, slow, gather) -> tuple[int, int]:
-    """``still`` (speed < ``still_speed``), ``slow`` (not still, < ``slow_speed``, not in ``skip``) and
-    ``gather`` (neither, not in ``skip``), uint8 (S, H, W); returns the counts of still and slow voxels."""
+    """``still``, ``slow`` and ``gather``, uint8 (S, H, W), by the CPU's rule
+    (:func:`~flexvox_core.motion.stages.speed_class`: still below ``still_speed``, slow below ``slow_speed`` and
+    not still nor in ``skip``, gathered when none of these); returns the counts of still and slow voxels."""
     S = flow.shape[0]
     counts = ws.put("classes.counts", np.zeros(2, np.int32))
     skip_d = ws.put("classes.skip", np.zeros(S, np.uint8) if skip is None else skip.astype(np.uint8))
-    launch(_classes, int(math.prod(flow.shape[:3])), flow, np.float32(still_speed or 0.0),
-           np.float32(slow_speed or 0.0), np.uint8(still_speed is not None), np.uint8(slow_speed is not None),
-           skip_d, still, slow, gather, counts)
+    launch(_classes, int(math.prod(flow.shape[:3])), flow, *class_thresholds(still_speed, slow_speed), skip_d, still,
+           slow, gather, counts)
     c = counts.copy_to_host()
     return int(c[0]), int(c[1])

@@ -4,6 +4,12 @@
 The step is :func:`~flexvox_core.motion.vardiff_kernel.vardiff_step` line for line: exact bilinear reads
 clamped at the border, clipped Catmull-Rom reads for the ``sharp`` voxels, the samples held. Steps alternate
 between two volumes; each reads only the previous step, so the result does not depend on the launch order.
+
+References
+----------
+M. Gupta, A. Agrawal, A. Veeraraghavan, S. G. Narasimhan, "Flexible voxels for motion-aware videography",
+ECCV 2010 (the paper).
+J. Weickert, *Anisotropic Diffusion in Image Processing*, Teubner, Stuttgart, 1998.
 """
 
 from __future__ import annotations

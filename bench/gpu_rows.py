@@ -6,9 +6,9 @@ motion-aware row runs on the CPU and twice on the GPU (``flexvox_core.methods.ru
 both PSNRs, their difference, where the GPU run ran (a row the GPU does not take runs on the CPU and says so), and
 whether the GPU's two runs gave the same bits; then the largest difference against the 0.1-dB target.
 
-``--crop``, ``--frames``, ``--cases`` and ``--rows`` shrink the work for a dry run under numba-cuda's simulator
-(``bench/gpu_check.sh`` with ``GPU_CHECK_SMALL=1``). Figures only, never pass/fail. Usage:
-``python bench/gpu_rows.py [--crop WxH] [--frames N] [--cases N] [--rows N]``
+``--crop``, ``--frames``, ``--cases``, ``--sci`` and ``--rows`` shrink the work for a dry run under numba-cuda's
+simulator (``bench/gpu_check.sh`` with ``GPU_CHECK_SMALL=1``). Figures only, never pass/fail. Usage:
+``python bench/gpu_rows.py [--crop WxH] [--frames N] [--cases N] [--sci N] [--rows N]``
 """
 
 from __future__ import annotations
@@ -41,7 +41,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--crop", metavar="WxH", help="each capture's top-left WxH pixels only")
     ap.add_argument("--frames", type=int, help="each capture's first N camera frames only")
-    ap.add_argument("--cases", type=int, help="the first N built-in captures only (the SCI clips stay)")
+    ap.add_argument("--cases", type=int, help="the first N built-in captures only")
+    ap.add_argument("--sci", type=int, help="the first N SCI clips only")
     ap.add_argument("--rows", type=int, help="the first N motion-aware rows of each capture only")
     args = ap.parse_args()
     from flexvox_app.accuracy_bench import cases, methods_for, sci_data_dir
@@ -53,6 +54,9 @@ def main() -> None:
     built_in = [c for c in every if "(SCI)" not in c.name]
     sci = [c for c in every if "(SCI)" in c.name]
     chosen = built_in[: args.cases] if args.cases is not None else built_in
+    sci = sci[: args.sci] if args.sci is not None else sci
+    if not chosen and not sci:
+        chosen = built_in[:1]  # no SCI clips here: one built-in capture rather than none
     folder = sci_data_dir()
     print(f"SCI clips: {folder if folder else 'not found (copy ../shared/data/sci_benchmark into $FLEXVOX_DATA)'}")
     print("\n| capture | method | CPU dB | GPU dB | GPU − CPU | GPU ran on | same bits on a rerun | CPU s | GPU s |")

@@ -52,6 +52,7 @@ def _count_transfers(cuda) -> None:
     from numba.cuda.simulator.cudadrv.devicearray import FakeCUDAArray
 
     to_device, copy_to_host = cuda.to_device, FakeCUDAArray.copy_to_host
+    copy_to_device = FakeCUDAArray.copy_to_device
 
     def counted_to_device(ary, *args, **kwargs):
         COUNTS["h2d_bytes"] += _nbytes(ary)
@@ -61,7 +62,13 @@ def _count_transfers(cuda) -> None:
         COUNTS["d2h_bytes"] += _nbytes(self)
         return copy_to_host(self, *args, **kwargs)
 
+    def counted_copy_to_device(self, ary, *args, **kwargs):
+        if not isinstance(ary, FakeCUDAArray):
+            COUNTS["h2d_bytes"] += _nbytes(ary)
+        return copy_to_device(self, ary, *args, **kwargs)
+
     cuda.to_device = counted_to_device
+    FakeCUDAArray.copy_to_device = counted_copy_to_device
     FakeCUDAArray.copy_to_host = counted_copy_to_host
 
 

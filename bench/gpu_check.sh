@@ -121,8 +121,10 @@ cat "$OUT/versions.log"
 # The project's warning filters name pydantic's (a napari plugin's); without pydantic, warnings are errors alone.
 FILTERS=()
 "$PY" -c "import pydantic" 2>/dev/null || FILTERS=(-o filterwarnings=error)
-# Each test's own limit where pytest-timeout is there (the image has it).
-"$PY" -c "import pytest_timeout" 2>/dev/null && FILTERS+=(--timeout 120)
+# No plugin loads by itself (the image's and a venv's differ, and a venv's napari or Qt plugin imports what the
+# dry run blocks); each test's own limit where pytest-timeout is there (the image has it).
+export PYTEST_DISABLE_PLUGIN_AUTOLOAD=1
+"$PY" -c "import pytest_timeout" 2>/dev/null && FILTERS+=(-p pytest_timeout --timeout 120)
 step tests 120 "$PY" -m pytest -q -p no:cacheprovider -o addopts="" "${FILTERS[@]}" "${TESTS[@]}"
 [[ -f "$OUT/tests.log" ]] && { grep -E "^(FAILED|ERROR)" "$OUT/tests.log" | head -8; tail -2 "$OUT/tests.log"; }
 step engine 110 "$PY" bench/bench_gpu.py "${BENCH[@]}"

@@ -100,12 +100,13 @@ def test_the_checks_entry_points_import_nothing_the_image_lacks():
 
 @pytest.mark.slow_sim
 def test_the_check_runs_small_with_the_image_lacking_its_packages(tmp_path):
-    """gpu_check.sh's engine, rows and preview stages at tiny sizes under the simulator, with this venv's
+    """gpu_check.sh's tests, engine, rows and preview stages at tiny sizes under the simulator, with this venv's
     packages but what the image lacks blocked (the script blocks them itself with GPU_CHECK_SMALL=1)."""
     env = {**os.environ, "PYTHON": sys.executable, "OUT": str(tmp_path), "GPU_CHECK_SMALL": "1",
-           "GPU_CHECK_ONLY": "engine,rows,preview", "FLEXVOX_DATA": str(tmp_path / "none")}
+           "GPU_CHECK_ONLY": "tests,engine,rows,preview", "FLEXVOX_DATA": str(tmp_path / "none")}
     done = subprocess.run(["bash", str(ROOT / "bench" / "gpu_check.sh")], env=env, capture_output=True, text=True,
                           cwd=ROOT)
     stages = (tmp_path / "stages.txt").read_text().split("\n")
-    assert [s.split()[:2] for s in stages if s] == [["engine", "0"], ["rows", "0"], ["preview", "0"]], done.stdout
+    assert [s.split()[:2] for s in stages if s] == [["tests", "0"], ["engine", "0"], ["rows", "0"],
+                                                         ["preview", "0"]], done.stdout
     assert done.returncode == 0

@@ -58,6 +58,13 @@ lint: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/flexvox bench --quick --overwrite
 
+# bench/gpu_check.sh dry-run against the GPU machine's image, on a machine without a GPU (bench/gpu_dry_run.sh): a
+# Python 3.12 venv of that image's packages alone (.gpu-venv, bench/image_packages.txt; built once, ~4 min), the
+# wheels the check carries (.whl), tiny sizes under numba-cuda's simulator, each stage's launches and bytes counted.
+.PHONY: gpu-dry-run
+gpu-dry-run:
+	bench/gpu_dry_run.sh
+
 screenshots: $(STAMP)
 	QT_QPA_PLATFORM=offscreen $(BIN)/python -m flexvox_app.gui.screenshots docs/screenshots
 

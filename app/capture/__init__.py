@@ -11,13 +11,28 @@ timing and queue settings, :mod:`flexvox_app.capture.status` the state, counters
 :mod:`flexvox_app.capture.pacing` paces the simulated rig's clock to the wall clock.
 """
 
-from flexvox_app.capture.events import CaptureEvents, Signal
-from flexvox_app.capture.plan import CapturePlan, TimingCheck, pattern_period_us
-from flexvox_app.capture.rig_setup import CaptureError
-from flexvox_app.capture.service import CaptureService, LatestFrame
-from flexvox_app.capture.settings import QueuePolicy, SyncSetting
-from flexvox_app.capture.sink import default_storage
-from flexvox_app.capture.status import CaptureResult, CaptureState, CaptureStats
+import importlib
+
+# Each name from its module when first used, so that importing one Qt-free part (the live preview on the GPU machine,
+# whose image has no zarr) does not import the recording's writer through the service.
+_HOME = {
+    "CaptureEvents": "events", "Signal": "events",
+    "CapturePlan": "plan", "TimingCheck": "plan", "pattern_period_us": "plan",
+    "CaptureError": "rig_setup",
+    "CaptureService": "service", "LatestFrame": "service",
+    "QueuePolicy": "settings", "SyncSetting": "settings",
+    "default_storage": "sink",
+    "CaptureResult": "status", "CaptureState": "status", "CaptureStats": "status",
+}
+
+
+def __getattr__(name: str):
+    if name not in _HOME:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{_HOME[name]}"), name)
+    globals()[name] = value
+    return value
+
 
 __all__ = [
     "CaptureError", "CaptureEvents", "CapturePlan", "CaptureResult", "CaptureService", "CaptureState",

@@ -67,8 +67,8 @@ CLUSTER = 4
 
 REFUSED = {
     "motion-aware": ("motion-aware estimates its flow from the samples, so moving any sample moves the flow and "
-                     "the whole result: a sample's own influence cannot be taken out by linearisation (measured on "
-                     "the built-in scenes: 3.0 to 7.7 dB too low)"),
+                     "the whole result: a sample's own influence cannot be taken out by linearisation (measured: "
+                     "3.0 to 7.7 dB too low on the 8 built-in runs of bench/bench_accuracy.py)"),
     "gap-tv": ("the estimate misses GAP-TV's true PSNR by more than 1 dB on 2 of 8 built-in runs (up to +1.12 dB, "
                "bench/bench_accuracy.py): its sub-frames are reconstructed apart, so the two temporal neighbours "
                "that predict a held-out sample err independently of it, and one voxel's error lies between the "

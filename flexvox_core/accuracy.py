@@ -62,6 +62,10 @@ CONFIDENCE = 0.95
 """The confidence of the interval."""
 INDEPENDENT = 0.02
 """Below this summed response of a sample's two temporal neighbours, they are taken as independent of it."""
+COPIED = 0.9
+"""A neighbour's response to a sample at or above which the sample cannot be taken out (``1 − A`` too small)."""
+MAX_COPIED = 0.1
+"""The largest share of probed samples copied onto a neighbour (:data:`COPIED`) an estimate is made with."""
 CLUSTER = 4
 """Probed pixels per cluster side (clusters of ``CLUSTER²`` probed pixels in one camera frame)."""
 
@@ -338,7 +342,7 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     v1 = np.asarray(run(probed, code, method, chunk_frames=chunk_frames, missing=gaps, device=device).video,
                     np.float64)
     probe = _Probe(v0, v1, frames, dropped, np.argmax(tiled_code(code, H, W), axis=0), K, delta)
-    rows: list[np.ndarray] = []  # per probed sample: frame, cluster, MSE bounds, voxels it stands for, response
+    rows: list[np.ndarray] = []  # per probed sample: frame, cluster, MSE bounds, voxels, response, copied
     for f in range(F):
         if dropped[f]:
             continue
@@ -346,10 +350,16 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
         var = variance_map[f, ys, xs] if variance_map is not None else noise.variance(frames[f, ys, xs])
         cl = (ys // (step * CLUSTER)) * (W // (step * CLUSTER) + 1) + xs // (step * CLUSTER)
         rows.append(probe.frame_rows(f, ys, xs, signs[f, ys, xs], var, cl))
-    arr = np.concatenate(rows, axis=0) if rows else np.zeros((0, 6))
+    arr = np.concatenate(rows, axis=0) if rows else np.zeros((0, 7))
     if arr.shape[0] < 8:
         raise NotEstimable(f"only {arr.shape[0]} probed samples could be held out (too few frames or pixels)")
-    fr, clus, mlo, mhi, w, pull = arr.T
+    fr, clus, mlo, mhi, w, pull, copied = arr.T
+    _logger.debug("%s: %.1f %% of the probed samples copied onto a neighbour", method.label, 100 * np.mean(copied))
+    if np.mean(copied) > MAX_COPIED:
+        raise NotEstimable(f"cannot estimate the accuracy of {method.label}: it copies {np.mean(copied):.0%} of the "
+                           f"probed samples onto a temporal neighbour (response >= {COPIED}; at most "
+                           f"{MAX_COPIED:.0%} can be taken out), so what it predicts without them is not known (a "
+                           "nearest-sample fill, as nc's at short diffusion times)")
     if np.mean(pull) < INDEPENDENT:
         # The temporal neighbours do not respond to the sample (each sub-frame is reconstructed from its own
         # samples, as GAP-TV's 2-D TV does): their mean is a prediction made without the sample, but its two
@@ -436,7 +446,9 @@ class _Probe:
             hi += np.where(ok, hi_d, 0.0)
             count += ok
         keep = inside & (count > 0)
-        out = np.stack([np.full(ys.size, f, np.float64), cluster, lo, hi, count, a_before + a_after], axis=1)
+        copied = np.maximum(a_before, a_after) >= COPIED  # a neighbour that takes the sample's value: no way back
+        out = np.stack([np.full(ys.size, f, np.float64), cluster, lo, hi, count, a_before + a_after, copied],
+                       axis=1)
         kept: np.ndarray = out[keep]
         return kept
 

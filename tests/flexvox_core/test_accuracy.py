@@ -200,6 +200,12 @@ def test_methods_it_cannot_estimate_are_refused(method, match):
         estimate_accuracy(frames, CODE, method)
 
 
+def test_a_method_that_copies_its_samples_onto_their_neighbours_is_refused():
+    _, frames = scene(False)  # nc at a short time fills from the nearest sample: no prediction without it
+    with pytest.raises(NotEstimable, match=r"copies 100% of the probed samples onto a temporal neighbour"):
+        estimate_accuracy(frames, CODE, Method("diffusion", time=0.25))
+
+
 def test_a_capture_too_small_to_probe_is_refused():
     with pytest.raises(NotEstimable, match="too small to probe"):
         estimate_accuracy(np.zeros((2, 8, 8), np.float32), CODE, Method("diffusion"))

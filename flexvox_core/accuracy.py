@@ -327,7 +327,7 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     f32 = frames.astype(np.float32)
     if reconstruction is None:
         reconstruction = run(f32, code, method, chunk_frames=chunk_frames, missing=gaps, device=device).video
-    v0 = np.asarray(reconstruction, np.float64)
+    v0 = np.asarray(reconstruction, np.float32)  # read in float64 where used (the probe's columns)
     if v0.shape != (S, H, W):
         raise ValueError(f"`reconstruction` must have shape {(S, H, W)}; got {v0.shape}")
     lattices = []  # alternate frames probe lattices offset by half a step: a pixel is probed every other frame
@@ -340,7 +340,7 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     signs[dropped] = 0.0
     probed = f32 + np.float32(delta) * signs.astype(np.float32)
     v1 = np.asarray(run(probed, code, method, chunk_frames=chunk_frames, missing=gaps, device=device).video,
-                    np.float64)
+                    np.float32)
     probe = _Probe(v0, v1, frames, dropped, np.argmax(tiled_code(code, H, W), axis=0), K, delta)
     rows: list[np.ndarray] = []  # per probed sample: frame, cluster, MSE bounds, voxels, response, copied
     for f in range(F):
@@ -406,7 +406,7 @@ class _Probe:
         """At voxels ``(t, ys, xs)``: the value without the sample ``y`` (moved by ``b·delta`` in the probe), the
         voxels' response to it, and their value with it."""
         tc = np.clip(t, 0, self.S - 1)
-        u0, u1 = self.v0[tc, ys, xs], self.v1[tc, ys, xs]
+        u0, u1 = self.v0[tc, ys, xs].astype(np.float64), self.v1[tc, ys, xs].astype(np.float64)
         a = b * (u1 - u0) / self.delta
         ac = np.clip(a, 0.0, 0.9)
         return (u0 - ac * y) / (1.0 - ac), a, u0

@@ -275,8 +275,8 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     device : str
         Where the method runs (:func:`~flexvox_core.methods.run`).
     unchecked : bool
-        Estimate a method :func:`refusal` refuses all the same (benchmarks that measure how far off it is);
-        the scheme then says ``unchecked``.
+        Estimate a method :func:`refusal` refuses, or one that copies its samples onto their neighbours, all the
+        same (benchmarks that measure how far off it is); the scheme then says ``unchecked``.
 
     Returns
     -------
@@ -305,7 +305,7 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
         raise NotEstimable(f"cannot estimate the accuracy of {method.label}: {why}")
     noise = noise or NoiseModel()
     frames = np.asarray(frames)
-    scheme = "leave-one-out by probe" + (", unchecked" if why else "")
+    scheme = "leave-one-out by probe" + (", unchecked" if unchecked else "")
     variance_map = None
     if isinstance(code, MultiplexedCode) or not is_identity_code(validate_code(getattr(code, "code", code))):
         frames, code, variance_map = _demultiplexed(frames, code, noise)
@@ -355,7 +355,7 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
         raise NotEstimable(f"only {arr.shape[0]} probed samples could be held out (too few frames or pixels)")
     fr, clus, mlo, mhi, w, pull, copied = arr.T
     _logger.debug("%s: %.1f %% of the probed samples copied onto a neighbour", method.label, 100 * np.mean(copied))
-    if np.mean(copied) > MAX_COPIED:
+    if np.mean(copied) > MAX_COPIED and not unchecked:
         raise NotEstimable(f"cannot estimate the accuracy of {method.label}: it copies {np.mean(copied):.0%} of the "
                            f"probed samples onto a temporal neighbour (response >= {COPIED}; at most "
                            f"{MAX_COPIED:.0%} can be taken out), so what it predicts without them is not known (a "

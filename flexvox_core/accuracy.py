@@ -46,6 +46,7 @@ from numpy.typing import ArrayLike
 
 from flexvox_core.codes import is_identity_code, validate_code
 from flexvox_core.forward import tiled_code
+from flexvox_core.gaps import find_gaps
 
 if TYPE_CHECKING:
     from flexvox_core.methods import Method
@@ -62,6 +63,8 @@ CONFIDENCE = 0.95
 """The confidence of the interval."""
 INDEPENDENT = 0.02
 """Below this summed response of a sample's two temporal neighbours, they are taken as independent of it."""
+GAP_BLOCKS = 4
+"""Captured runs held out per length of a recording's gaps, to score its dropped frames."""
 COPIED = 0.9
 """A neighbour's response to a sample at or above which the sample cannot be taken out (``1 − A`` too small)."""
 MAX_COPIED = 0.1
@@ -258,8 +261,10 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     noise : NoiseModel, optional
         The measurement noise; none: taken as zero, so the estimate includes the noise (low when it is not).
     missing : ndarray (F,) bool, optional
-        Dropped frames: they hold no samples; their per-frame estimate is NaN and the clip's covers the
-        captured frames.
+        Dropped frames. They hold no samples; their voxels' error is that of captured runs of the same length
+        held out as if dropped (one more reconstruction; up to :data:`GAP_BLOCKS` per length), which needs a
+        captured run of that length clear of the gaps and the clip's ends, else they are not scored (the
+        scheme says so, their per-frame estimate is NaN and the clip's covers the captured frames).
     reconstruction : ndarray (F·K, H, W), optional
         ``method``'s reconstruction of ``frames``, when already made (saves one run).
     step : int
@@ -380,17 +385,77 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
         centre = float(np.sum(weights * means))
         se = math.sqrt(np.sum(weights**2 * (means - centre) ** 2) * groups.size / (groups.size - 1))
     z = _z(confidence)
-    lo_mse = mse - z * se
-    hi_mse = max(m_hi, mse + z * se)  # down to the pessimistic bound
     per_frame = np.full(F, np.nan)
     for f in np.unique(fr).astype(int):
         sel = fr == f
         per_frame[f] = db(float(np.sum(mlo[sel]) / np.sum(w[sel])))
+    if dropped.any():
+        held_out = _gap_errors(f32, code, method, dropped, variance_map, noise, chunk_frames, device)
+        if held_out is None:
+            scheme += ", dropped frames not scored (no captured run long enough to hold out like them)"
+        else:
+            # Voxels of dropped frames hold no sample: their error is that of captured frames held out the same way.
+            share = float(np.mean(dropped))
+            gap_mse = sum(held_out[g.frames][0] * g.frames for g in find_gaps(dropped)) / max(int(dropped.sum()), 1)
+            gap_var = sum((held_out[g.frames][1] * g.frames) ** 2 for g in find_gaps(dropped)) / max(
+                int(dropped.sum()), 1) ** 2
+            for g in find_gaps(dropped):
+                per_frame[g.start:g.stop] = db(held_out[g.frames][0])
+            mse = (1 - share) * mse + share * gap_mse
+            m_hi = (1 - share) * m_hi + share * gap_mse
+            se = math.sqrt(((1 - share) * se) ** 2 + share**2 * gap_var)
+            scheme += ", dropped frames scored by captured runs held out like them"
+    lo_mse = mse - z * se
+    hi_mse = max(m_hi, mse + z * se)  # down to the pessimistic bound
     est = AccuracyEstimate(psnr=db(mse), low=db(hi_mse), high=db(max(lo_mse, 1e-10)), per_frame=per_frame,
                            mse=max(mse, 0.0), scheme=scheme, samples=int(arr.shape[0]), noise=noise,
                            confidence=confidence)
     _logger.info("%s: %s", method.label, est.line())
     return est
+
+
+def _gap_errors(frames: np.ndarray, code: np.ndarray, method: Method, dropped: np.ndarray,
+                variance_map: np.ndarray | None, noise: NoiseModel, chunk_frames: int | None,
+                device: str) -> dict[int, tuple[float, float]] | None:
+    """{gap length: (MSE, its standard error)} of captured runs of that length held out as if dropped (one more
+    reconstruction), or None when no captured run can be held out without touching a gap or the clip's ends."""
+    from flexvox_core.methods import run
+
+    F = frames.shape[0]
+    K = code.shape[2]
+    held = np.zeros(F, bool)
+    blocks: list[tuple[int, int]] = []
+    for g in sorted({gap.frames for gap in find_gaps(dropped)}):
+        found = 0
+        f = 1
+        while f + g < F and found < GAP_BLOCKS:
+            # the run, and one captured frame on each side, clear of every gap and held run
+            if not (dropped[f - 1:f + g + 1].any() or held[max(0, f - 2):f + g + 2].any()):
+                held[f:f + g] = True
+                blocks.append((f, g))
+                found += 1
+                f += g + 2
+            else:
+                f += 1
+        if not found:
+            return None
+    v = run(frames, code, method, chunk_frames=chunk_frames, missing=dropped | held, device=device).video
+    _, H, W = frames.shape
+    slot = np.argmax(tiled_code(code, H, W), axis=0)
+    yy, xx = np.mgrid[0:H, 0:W]
+    out: dict[int, list[float]] = {}
+    for f0, g in blocks:
+        for f in range(f0, f0 + g):
+            y = frames[f].astype(np.float64)
+            s2 = variance_map[f] if variance_map is not None else noise.variance(y)
+            pred = v[f * K + slot, yy, xx].astype(np.float64)
+            out.setdefault(g, []).append(float(np.mean((pred - y) ** 2 - s2)))
+    result = {}
+    for g, errs in out.items():
+        e = np.asarray(errs)
+        se = float(np.std(e, ddof=1) / math.sqrt(e.size)) if e.size > 1 else float(e[0])
+        result[g] = (max(float(np.mean(e)), 1e-10), se)
+    return result
 
 
 class _Probe:

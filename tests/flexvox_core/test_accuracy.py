@@ -154,15 +154,26 @@ def test_ground_truth_is_never_read(tmp_path, monkeypatch):
     assert after.noise.floor == pytest.approx((2.0 / 1000) ** 2)
 
 
-def test_dropped_frames_are_left_out():
-    truth = render_scene("balls", 6 * 4, 24, 28, seed=0)
+def test_dropped_frames_are_scored_by_captured_frames_held_out_like_them():
+    truth = render_scene("balls", 8 * 4, 24, 28, seed=0)
     frames = capture(truth, CODE)
-    missing = np.zeros(6, bool)
-    missing[3] = True
-    frames[3] = 0
+    missing = np.zeros(8, bool)
+    missing[5] = True
+    frames[5] = 0
     est = estimate_accuracy(frames, CODE, Method("diffusion"), missing=missing)
-    assert np.isnan(est.per_frame[3]) and np.all(np.isfinite(np.delete(est.per_frame, 3)))
+    assert "dropped frames scored by captured runs held out like them" in est.scheme
+    assert np.all(np.isfinite(est.per_frame)) and est.per_frame[5] < np.median(est.per_frame)  # no samples: worse
     assert est.low <= est.psnr <= est.high
+
+
+def test_dropped_frames_with_no_run_to_hold_out_are_left_out():
+    truth = render_scene("balls", 5 * 4, 24, 28, seed=0)
+    frames = capture(truth, CODE)
+    missing = np.array([False, True, False, True, False])
+    frames[missing] = 0
+    est = estimate_accuracy(frames, CODE, Method("diffusion"), missing=missing)
+    assert "dropped frames not scored" in est.scheme
+    assert np.all(np.isnan(est.per_frame[missing])) and np.all(np.isfinite(est.per_frame[~missing]))
 
 
 def test_a_multiplexed_capture_is_estimated_after_demultiplexing():

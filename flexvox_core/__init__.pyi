@@ -34,6 +34,9 @@ from .batch import BatchResult, reconstruct_batch
 # Scores against a ground truth.
 from .metrics import psnr, psnr_per_frame, ssim, ssim_per_frame
 
+# Accuracy without ground truth: an estimated PSNR from the recording alone.
+from .accuracy import AccuracyEstimate, NoiseModel, NotEstimable, estimate_accuracy, estimate_recording
+
 # Files: recordings, videos (OME-Zarr, TIFF, MP4, npy).
 from .recording import Recording, RecordingError, open_recording, write_simulation
 from .capture_reader import open_capture, read_capture

@@ -48,6 +48,10 @@ def register(sub) -> None:
                             "like the paper's Figs. 7-8 as PNGs")
         p.add_argument("--fps", type=arg_type(positive_fps), default=30.0,
                        help="playback rate of an .mp4 output (default 30)")
+        p.add_argument("--estimate", action="store_true",
+                       help="also estimate the result's PSNR from the recording alone (no ground truth: each probed "
+                            "sample predicted without itself; one more reconstruction) and print "
+                            "'estimated PSNR NN.NN dB (± ...)'; methods it cannot estimate say why")
         p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT", help="output file")
         p.add_argument("--overwrite", action="store_true",
                        help="replace an existing output (never the input recording; the old output stays until the "
@@ -75,6 +79,19 @@ def psnr_words(per_frame) -> str:
     if exact.all():
         return f"exact on all {per.size} sub-frames"
     return f"exact on {int(exact.sum())} of {per.size} sub-frames, {float(np.mean(per[~exact])):.2f} dB over the rest"
+
+
+def estimate_line(recording, method, video, chunk: int | None, device: str) -> str:
+    """``estimated PSNR NN.NN dB (± ...)`` of ``video``, ``method``'s reconstruction of ``recording``
+    (:func:`flexvox_core.accuracy.estimate_recording`; None: reconstructed again), or why there is none."""
+    from flexvox_core.accuracy import NotEstimable, estimate_recording
+
+    t0 = time.perf_counter()
+    try:
+        est = estimate_recording(recording, method, reconstruction=video, chunk_frames=chunk, device=device)
+    except NotEstimable as exc:
+        return f"estimated PSNR: none ({exc})"
+    return f"{est.line()} in {time.perf_counter() - t0:.2f} s"
 
 
 def run(args) -> int:
@@ -152,6 +169,9 @@ def run(args) -> int:
         except (RecordingError, ValueError) as exc:  # the video is written: a bad truth costs only its PSNR
             print(f"warning: no PSNR: {exc}", file=sys.stderr)
     print(line)
+    if args.estimate:
+        print(estimate_line(args.recording, method, video if reader.multiplexed is None else None, args.chunk,
+                            device))
     print(device_line(out))
     if reader.missing is not None:
         print(interpolated_line(reader.gaps(), reader.K))

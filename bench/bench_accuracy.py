@@ -1,0 +1,144 @@
+"""Accuracy without ground truth: the estimate (:mod:`flexvox_core.accuracy`) against the truth.
+
+On the built-in moving scenes (4×4 designed code, K = 16, 64×96, 4 frames), clean and with photon and
+read noise (1000 e⁻ per unit, 3 e⁻ read noise), and on the SCI clips Runner and Drop (2×4 code, K = 8)
+when ``../shared/data/sci_benchmark`` (or ``$FLEXVOX_DATA``) holds them, for diffusion (nc), GAP-TV,
+re-binning at the default division (2×2×4 at K = 16) and motion-aware (and diffusion at times 0.5 and 4,
+for the order check among the settings the API estimates), prints per run: the estimate, its
+interval, the true PSNR (read only after the estimate), the error, whether the interval covers the truth,
+and the time of the estimate with its reconstruction over the reconstruction's alone. A method the API
+refuses is estimated all the same here (``unchecked=True``) and marked, as the evidence for the refusal.
+Then per method: runs within 1 dB, the interval's coverage; and the order by estimate against the order
+by truth wherever the truths differ by more than 1 dB (methods the API estimates). Last, diffusion on
+captures with two dropped frames.
+
+Figures only, never pass/fail. Usage: ``python bench/bench_accuracy.py [--quick]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from flexvox_core.accuracy import NoiseModel, NotEstimable, estimate_accuracy
+from flexvox_core.design import design_code
+from flexvox_core.forward import capture
+from flexvox_core.methods import Method, run
+from flexvox_core.metrics import psnr
+from flexvox_core.reconstruct.rebin import default_block
+from flexvox_core.simulate import render_scene, simulate_video
+
+NOISE = {"photon_noise": {}, "read_noise": {"sigma": 3.0}}
+
+
+def cases(quick: bool):
+    """(name, truth, frames, code, noise model) of every run."""
+    H, W, F = (48, 64, 4) if quick else (64, 96, 4)
+    code = design_code((4, 4)).code
+    scenes = ("balls", "fan") if quick else ("balls", "fan", "drummer", "pan")
+    out = []
+    for scene in scenes:
+        truth = render_scene(scene, F * 16, H, W, seed=0)
+        out.append((f"{scene} clean", truth, capture(truth, code), code, NoiseModel()))
+        sim = simulate_video(truth, code, effects=NOISE, seed=1)
+        out.append((f"{scene} noisy", truth, sim.frames, code, NoiseModel.from_effects(NOISE)))
+    from flexvox_app.accuracy_bench import sci_data_dir
+
+    folder = sci_data_dir()
+    if folder is not None:
+        from flexvox_core.simulate.sources import load_video
+
+        code8 = design_code((2, 4)).code
+        for name in ("runner",) if quick else ("runner", "drop"):
+            truth = load_video(folder / f"{name}40_cacti.mat")[:8 if quick else 16]
+            out.append((f"{name} (SCI) clean", truth, capture(truth, code8), code8, NoiseModel()))
+            sim = simulate_video(truth, code8, effects=NOISE, seed=1)
+            out.append((f"{name} (SCI) noisy", truth, sim.frames, code8, NoiseModel.from_effects(NOISE)))
+    return out
+
+
+def methods(code):
+    return [Method("diffusion"), Method("diffusion", time=0.5), Method("diffusion", time=4.0), Method("gap-tv"),
+            Method("rebin", block=default_block(code), interpolate=True),
+            Method("motion-aware")]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="two scenes, smaller frames, Runner only")
+    args = ap.parse_args()
+    rows = []
+    refused = {}
+    print(f"{'case':22s} {'method':34s} {'estimate':>9s} {'interval':>15s} {'truth':>7s} {'error':>6s} cover "
+          f"{'cost (runs)':>11s}")
+    for name, truth, frames, code, noise in cases(args.quick):
+        for method in methods(code):
+            t0 = time.perf_counter()
+            video = run(frames, code, method, chunk_frames=None).video
+            t_rec = time.perf_counter() - t0
+            why = None
+            t0 = time.perf_counter()
+            try:
+                est = estimate_accuracy(frames, code, method, noise=noise, reconstruction=video)
+            except NotEstimable as exc:  # what the API says; then the same estimate unchecked, as the evidence
+                why = refused[method.label] = str(exc)
+                t0 = time.perf_counter()
+                est = estimate_accuracy(frames, code, method, noise=noise, reconstruction=video, unchecked=True)
+            t_est = time.perf_counter() - t0 + t_rec  # the probe and the reconstruction it needs
+            true = float(psnr(truth, video))  # the truth, read only now, for the comparison
+            err = est.psnr - true
+            cover = est.low <= true <= est.high
+            rows.append((name, method.name, est.psnr, true, err, cover, bool(why)))
+            flag = " (refused by the API)" if why else ""
+            print(f"{name:22s} {method.label:34s} {est.psnr:9.2f} {est.low:7.2f}-{est.high:<7.2f} {true:7.2f} "
+                  f"{err:+6.2f} {'yes' if cover else 'NO ':5s} {t_est / max(t_rec, 1e-9):11.2f}{flag}", flush=True)
+    print()
+    for m in sorted({(r[1], r[6]) for r in rows}):
+        errs = np.array([r[4] for r in rows if (r[1], r[6]) == m])
+        cov = np.mean([r[5] for r in rows if (r[1], r[6]) == m])
+        name = m[0] + (" (refused)" if m[1] else "")
+        print(f"{name:24s} runs {errs.size:3d}  within 1 dB {np.mean(np.abs(errs) <= 1):5.0%}  "
+              f"mean error {errs.mean():+.2f}  worst {errs[np.argmax(np.abs(errs))]:+.2f}  interval covers {cov:5.0%}")
+    groups = (("methods the API estimates", lambda r: not r[6]),
+              ("those and GAP-TV and re-binning, unchecked", lambda r: not r[6] or r[1] in ("gap-tv", "rebin")),
+              ("every method, unchecked included", lambda r: True))
+    for label, chosen in groups:
+        pairs = agree = 0
+        for case in sorted({r[0] for r in rows}):
+            rs = [r for r in rows if r[0] == case and chosen(r)]
+            for i in range(len(rs)):
+                for j in range(i + 1, len(rs)):
+                    if abs(rs[i][3] - rs[j][3]) > 1.0:
+                        pairs += 1
+                        agree += (rs[i][2] > rs[j][2]) == (rs[i][3] > rs[j][3])
+        print(f"order ({label}): {agree} of {pairs} pairs whose truths differ by more than 1 dB are in the "
+              "truth's order")
+    for why in dict.fromkeys(refused.values()):
+        print(f"refused: {why}")
+    dropped_frames(args.quick)
+
+
+def dropped_frames(quick: bool) -> None:
+    """Diffusion on captures with frames 3 and 7 of 12 dropped (their rows zero): the dropped frames are scored by
+    captured frames held out like them."""
+    print("\ndropped frames 3 and 7 of 12 (diffusion, clean):")
+    code = design_code((4, 4)).code
+    H, W = (48, 64) if quick else (64, 96)
+    for scene in ("balls", "fan") if quick else ("balls", "fan", "drummer", "pan"):
+        truth = render_scene(scene, 12 * 16, H, W, seed=0)
+        frames = capture(truth, code)
+        missing = np.zeros(12, bool)
+        missing[[3, 7]] = True
+        frames[missing] = 0
+        method = Method("diffusion")
+        video = run(frames, code, method, chunk_frames=None, missing=missing).video
+        est = estimate_accuracy(frames, code, method, missing=missing, reconstruction=video)
+        true = float(psnr(truth, video))
+        print(f"  {scene:8s} estimate {est.psnr:6.2f} ({est.low:.2f}-{est.high:.2f})  truth {true:6.2f}  error "
+              f"{est.psnr - true:+.2f}  covers {'yes' if est.low <= true <= est.high else 'NO'}", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,580 @@
+"""How good is a reconstruction, from the recording alone: an estimated PSNR with its uncertainty.
+
+The estimate never reads a ground truth. It asks the reconstruction method, through its public entry
+point (:func:`flexvox_core.methods.run`), how each probed camera sample would be predicted without that
+sample, and compares the prediction with the sample (leave-one-out cross-validation):
+
+1. **Reconstruct** the capture, ``v = f(y)`` (the reconstruction being scored).
+2. **Probe**: reconstruct again with a sparse lattice of samples moved by ``±delta`` (Rademacher signs;
+   one pixel in ``step × step``, the lattice shifted by half a step in every other frame, so a probed
+   pixel's next probed sample is two frames away). The change at voxel ``u`` over ``delta·b_i`` is its
+   response ``A_u = ∂v_u/∂y_i`` to the nearest-in-time sample ``i`` of its pixel.
+3. **Take the sample out** by the local linearisation: ``v_u⁻ = (v_u − A_u·y_i) / (1 − A_u)`` is what
+   the method gives at ``u`` without sample ``i`` (exact for a linear smoother that renormalises its
+   weights, as normalized convolution does; tested against a float64 reference).
+4. **Leave-one-out error**: the sample is predicted by the mean of ``v_u⁻`` at its two temporal
+   neighbours (the truth's linear change across them cancels); ``L = (pred − y_i)² − σ²``. The
+   measurement noise variance ``σ²`` (:class:`NoiseModel`, from the camera model the recording states) is
+   subtracted: a sample's noise is independent of a prediction made without it.
+5. **From held-out samples to every voxel.** The true PSNR is over all voxels; a held-out voxel has
+   lost its own sample, an unsampled voxel at lag ``d`` from its pixel's sample has not. With
+   ``v_u = (1 − A)·v_u⁻ + A·y_i`` the error at ``u`` is ``(1 − A)²·L_d + A²·(σ² + V_d) − 2A(1 − A)·C_d``
+   (``V_d``: the truth's squared change over the lag, ``C_d``: its covariance with the leave-one-out
+   error). The data give ``(v_u⁻ − y_i)² − σ² − L = V_d + 2·C_d`` (taking ``L_d = L``), not the two apart.
+   Two bounds follow: *optimistic*, ``C_d = 0`` (the sample's pull counted in full); *pessimistic*, the
+   voxel no better than one that lost its sample (``L``). The sampled voxel's own error is Stein's
+   unbiased risk estimate ``(v_i − y_i)² − σ² + 2·A_i·σ²``. A method whose temporal neighbours do not
+   respond to the sample (each sub-frame reconstructed apart, as GAP-TV's 2-D TV) gets the bounds ``L``
+   (the two neighbours' errors equal) and ``2·L`` (independent).
+6. The estimate is the middle of the two bounds in dB; the interval spans both bounds, widened by the
+   spread over clusters of probed samples (a normal interval of the cluster means).
+
+The cost is one extra reconstruction. The estimate is only offered for methods whose estimates were
+checked against the truth (``bench/bench_accuracy.py``); :func:`refusal` says why the others are not.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from flexvox_core.codes import is_identity_code, validate_code
+from flexvox_core.forward import tiled_code
+from flexvox_core.gaps import find_gaps
+
+if TYPE_CHECKING:
+    from flexvox_core.methods import Method
+    from flexvox_core.multiplex import MultiplexedCode
+    from flexvox_core.recording import Recording
+
+_logger = logging.getLogger(__name__)
+
+PROBE_STEP = 4
+"""Probed pixels: one in ``PROBE_STEP × PROBE_STEP``."""
+PROBE_DELTA = 0.05
+"""How far each probed sample is moved (relative units, 1 = white in one slot)."""
+CONFIDENCE = 0.95
+"""The confidence of the interval."""
+INDEPENDENT = 0.02
+"""Below this summed response of a sample's two temporal neighbours, they are taken as independent of it."""
+GAP_BLOCKS = 4
+"""Captured runs held out per length of a recording's gaps, to score its dropped frames."""
+COPIED = 0.9
+"""A neighbour's response to a sample at or above which the sample cannot be taken out (``1 − A`` too small)."""
+MAX_COPIED = 0.1
+"""The largest share of probed samples copied onto a neighbour (:data:`COPIED`) an estimate is made with."""
+CLUSTER = 4
+"""Probed pixels per cluster side (clusters of ``CLUSTER²`` probed pixels in one camera frame)."""
+
+REFUSED = {
+    "motion-aware": ("motion-aware estimates its flow from the samples, so moving any sample moves the flow and "
+                     "the whole result: a sample's own influence cannot be taken out by linearisation (measured: "
+                     "3.0 to 7.7 dB too low on the 8 built-in runs of bench/bench_accuracy.py)"),
+    "gap-tv": ("the estimate misses GAP-TV's true PSNR by more than 1 dB on 2 of 8 built-in runs (up to +1.12 dB, "
+               "bench/bench_accuracy.py): its sub-frames are reconstructed apart, so the two temporal neighbours "
+               "that predict a held-out sample err independently of it, and one voxel's error lies between the "
+               "two bounds the data give"),
+    "rebin": ("the estimate of re-binning lies within 1 dB of the truth on the built-in runs (-0.35 to -0.71 dB) "
+              "but its interval covers the truth on only 4 of 8 (bench/bench_accuracy.py): the sample's pull on "
+              "its block is not pinned down by the data"),
+}
+"""Methods the estimate refuses, with why (the figures: ``bench/bench_accuracy.py``)."""
+
+
+def refusal(method: Method) -> str | None:
+    """Why ``method`` (a :class:`~flexvox_core.methods.Method`) cannot be estimated, or None when it can."""
+    why = REFUSED.get(method.name)
+    if why is None and method.name == "diffusion" and method.solver != "nc":
+        why = (f"diffusion's {method.solver} solver has not been checked against the truth (only the nc solver "
+               "has); estimate with solver='nc'")
+    if why is None and method.name not in ("diffusion", "rebin", "gap-tv"):
+        why = f"{method.name} has not been checked against the truth"
+    return why
+
+
+class NotEstimable(ValueError):
+    """The method, or the recording, cannot be estimated; the message says why.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from flexvox_core import Method, estimate_accuracy
+    >>> from flexvox_core.design import design_code
+    >>> try:
+    ...     estimate_accuracy(np.zeros((2, 24, 24)), design_code((2, 2)).code, Method("motion-aware"))
+    ... except NotEstimable as exc:
+    ...     print(str(exc)[:66])
+    cannot estimate the accuracy of motion-aware dis n=5: motion-aware
+    """
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """The measurement noise of one sample: variance ``photon·y + floor`` in relative units (1 = white in one
+    slot).
+
+    Parameters
+    ----------
+    photon : float
+        Variance per unit of signal (shot noise: ``1 / electrons_per_unit``).
+    floor : float
+        Variance at zero signal (read noise, dark current, quantisation).
+    source : str
+        Where the figures came from.
+
+    Examples
+    --------
+    >>> nm = NoiseModel.from_effects({"photon_noise": {}, "read_noise": {"sigma": 3.0}})
+    >>> round(float(nm.variance(0.5)), 7)  # 0.5/1000 + (3/1000)²
+    0.000509
+    """
+
+    photon: float = 0.0
+    floor: float = 0.0
+    source: str = "none given"
+
+    def variance(self, y: ArrayLike) -> np.ndarray:
+        """The noise variance of samples ``y`` (their own values stand in for the unknown signal)."""
+        return self.photon * np.maximum(np.asarray(y, np.float64), 0.0) + self.floor
+
+    @classmethod
+    def from_effects(cls, effects: dict[str, Any], storage: dict[str, Any] | None = None, *, rate_hz: float = 15.0,
+                     electrons_per_unit: float | None = None) -> NoiseModel:
+        """The noise a simulated recording states: its ``effects`` (``{name: {param: value}}``) and ``storage``.
+
+        Shot noise gives ``1/e`` per unit, read noise ``(σ/e)²``, dark current ``rate/(hz·e²)`` with shot noise,
+        the ADC ``(1/(gain·e))²/12``, where ``e`` is the electrons per unit (the storage's, else the
+        simulator's default 1000)."""
+        storage = storage or {}
+        e = float(electrons_per_unit or storage.get("electrons_per_unit") or 1000.0)
+        photon = floor = 0.0
+        parts = []
+        if "photon_noise" in effects:
+            photon = 1.0 / e
+            parts.append("shot")
+            if "dark_current" in effects:
+                floor += float(effects["dark_current"].get("rate", 10.0)) / rate_hz / e**2
+        if "read_noise" in effects:
+            floor += (float(effects["read_noise"].get("sigma", 3.0)) / e) ** 2
+            parts.append("read")
+        if "adc" in effects:
+            gain = float(effects["adc"].get("gain", storage.get("gain", 0.25)))
+            floor += (1.0 / (gain * e)) ** 2 / 12.0
+            parts.append("quantisation")
+        return cls(photon, floor, "recording's effects: " + (", ".join(parts) or "noiseless"))
+
+
+@dataclass(frozen=True)
+class AccuracyEstimate:
+    """An estimated PSNR of a reconstruction, from the recording alone.
+
+    Attributes
+    ----------
+    psnr : float
+        Estimated PSNR over the clip, dB (data range 1: ``10·log10(1 / MSE)``).
+    low, high : float
+        The confidence interval, dB.
+    per_frame : ndarray (F,)
+        Estimated PSNR per camera frame (its K sub-frames); NaN for a dropped frame.
+    mse : float
+        Estimated mean squared error.
+    scheme : str
+        How it was made.
+    samples : int
+        Held-out (probed) samples it rests on.
+    noise : NoiseModel
+    confidence : float
+
+    Examples
+    --------
+    >>> from flexvox_core import Method, capture, estimate_accuracy, render_scene
+    >>> from flexvox_core.design import design_code
+    >>> code = design_code((2, 2)).code
+    >>> est = estimate_accuracy(capture(render_scene("balls", 16, 24, 32), code), code, Method("diffusion"))
+    >>> est.line().startswith("estimated PSNR")
+    True
+    """
+
+    psnr: float
+    low: float
+    high: float
+    per_frame: np.ndarray = field(repr=False)
+    mse: float
+    scheme: str
+    samples: int
+    noise: NoiseModel
+    confidence: float = CONFIDENCE
+
+    @property
+    def half_width(self) -> float:
+        """Half the interval's width, dB."""
+        return 0.5 * (self.high - self.low)
+
+    def line(self) -> str:
+        """``estimated PSNR NN.NN dB (± W.WW dB, 95 % interval LL.LL–HH.HH dB)``."""
+        return (f"estimated PSNR {self.psnr:.2f} dB (± {self.half_width:.2f} dB, {self.confidence:.0%} interval "
+                f"{self.low:.2f}–{self.high:.2f} dB; {self.scheme}, {self.samples} samples)")
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready form."""
+        return {"psnr": self.psnr, "low": self.low, "high": self.high, "mse": self.mse,
+                "per_frame": [None if not np.isfinite(p) else float(p) for p in self.per_frame],
+                "scheme": self.scheme, "samples": self.samples, "confidence": self.confidence,
+                "noise": {"photon": self.noise.photon, "floor": self.noise.floor, "source": self.noise.source}}
+
+
+def db(mse: float) -> float:
+    """PSNR (data range 1) of a mean squared error; 100 dB for an error at or below 1e-10."""
+    return 10.0 * math.log10(1.0 / max(mse, 1e-10))
+
+
+def _z(confidence: float) -> float:
+    from statistics import NormalDist
+
+    return NormalDist().inv_cdf(0.5 + confidence / 2)
+
+
+def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method, *,
+                      noise: NoiseModel | None = None, missing: ArrayLike | None = None,
+                      reconstruction: ArrayLike | None = None, step: int = PROBE_STEP,
+                      delta: float = PROBE_DELTA, seed: int = 0,
+                      confidence: float = CONFIDENCE, chunk_frames: int | None = None,
+                      device: str = "cpu", unchecked: bool = False) -> AccuracyEstimate:
+    """Estimate the PSNR of ``method``'s reconstruction of a capture without its ground truth.
+
+    Parameters
+    ----------
+    frames : ndarray (F, H, W)
+        The capture, in relative units (:meth:`Recording.normalised_frames
+        <flexvox_core.recording.Recording.normalised_frames>`).
+    code : ndarray (m, n, K) or MultiplexedCode
+        The capture's code. A multiplexed capture is demultiplexed per tile first (the noise is carried
+        through the demultiplexing) and the estimate is of the method's reconstruction of that identity
+        capture.
+    method : Method
+    noise : NoiseModel, optional
+        The measurement noise; none: taken as zero, so the estimate includes the noise (low when it is not).
+    missing : ndarray (F,) bool, optional
+        Dropped frames. They hold no samples; their voxels' error is that of captured runs of the same length
+        held out as if dropped (one more reconstruction; up to :data:`GAP_BLOCKS` per length), which needs a
+        captured run of that length clear of the gaps and the clip's ends, else they are not scored (the
+        scheme says so, their per-frame estimate is NaN and the clip's covers the captured frames).
+    reconstruction : ndarray (F·K, H, W), optional
+        ``method``'s reconstruction of ``frames``, when already made (saves one run).
+    step : int
+        One probed pixel in ``step × step``.
+    delta : float
+        How far each probed sample is moved.
+    seed : int
+        Seeds the probe's signs.
+    confidence : float
+        Of the interval.
+    chunk_frames : int, optional
+        Passed to :func:`~flexvox_core.methods.run`.
+    device : str
+        Where the method runs (:func:`~flexvox_core.methods.run`).
+    unchecked : bool
+        Estimate a method :func:`refusal` refuses, or one that copies its samples onto their neighbours, all the
+        same (benchmarks that measure how far off it is); the scheme then says ``unchecked``.
+
+    Returns
+    -------
+    AccuracyEstimate
+
+    Raises
+    ------
+    NotEstimable
+        A method the estimate cannot serve (:func:`refusal`), or a capture too small to probe.
+
+    Examples
+    --------
+    >>> from flexvox_core import Method, capture, render_scene
+    >>> from flexvox_core.design import design_code
+    >>> code = design_code((2, 2)).code
+    >>> truth = render_scene("balls", 16, 24, 32)
+    >>> est = estimate_accuracy(capture(truth, code), code, Method("diffusion"))
+    >>> est.samples > 0, est.low <= est.psnr <= est.high
+    (True, True)
+    """
+    from flexvox_core.methods import run
+    from flexvox_core.multiplex import MultiplexedCode
+
+    why = refusal(method)
+    if why and not unchecked:
+        raise NotEstimable(f"cannot estimate the accuracy of {method.label}: {why}")
+    noise = noise or NoiseModel()
+    frames = np.asarray(frames)
+    scheme = "leave-one-out by probe" + (", unchecked" if unchecked else "")
+    variance_map = None
+    if isinstance(code, MultiplexedCode) or not is_identity_code(validate_code(getattr(code, "code", code))):
+        frames, code, variance_map = _demultiplexed(frames, code, noise)
+        scheme += ", multiplexed capture demultiplexed per tile"
+        reconstruction = None
+    code = validate_code(code)
+    if frames.ndim != 3:
+        raise ValueError(f"`frames` must have shape (F, H, W); got {frames.shape}")
+    F, H, W = frames.shape
+    K = code.shape[2]
+    S = F * K
+    if min(H, W) < 3 * step or F < 1:
+        raise NotEstimable(f"a capture of {F}x{H}x{W} is too small to probe one pixel in {step}x{step} "
+                           f"(needs {3 * step} pixels a side)")
+    if not 0 < confidence < 1:
+        raise ValueError(f"`confidence` must lie in (0, 1); got {confidence}")
+    dropped = np.zeros(F, bool) if missing is None else np.asarray(missing, bool)
+    gaps = None if missing is None else dropped
+    f32 = frames.astype(np.float32)
+    if reconstruction is None:
+        reconstruction = run(f32, code, method, chunk_frames=chunk_frames, missing=gaps, device=device).video
+    v0 = np.asarray(reconstruction, np.float32)  # read in float64 where used (the probe's columns)
+    if v0.shape != (S, H, W):
+        raise ValueError(f"`reconstruction` must have shape {(S, H, W)}; got {v0.shape}")
+    lattices = []  # alternate frames probe lattices offset by half a step: a pixel is probed every other frame
+    for shift in (0, step // 2):
+        lat = np.zeros((H, W), bool)
+        lat[1 + shift:H - 1:step, 1 + shift:W - 1:step] = True
+        lattices.append(lat)
+    rng = np.random.default_rng(seed)
+    signs = rng.choice(np.array([-1.0, 1.0]), size=(F, H, W)) * np.stack([lattices[f % 2] for f in range(F)])
+    signs[dropped] = 0.0
+    probed = f32 + np.float32(delta) * signs.astype(np.float32)
+    v1 = np.asarray(run(probed, code, method, chunk_frames=chunk_frames, missing=gaps, device=device).video,
+                    np.float32)
+    probe = _Probe(v0, v1, frames, dropped, np.argmax(tiled_code(code, H, W), axis=0), K, delta)
+    rows: list[np.ndarray] = []  # per probed sample: frame, cluster, MSE bounds, voxels, response, copied
+    for f in range(F):
+        if dropped[f]:
+            continue
+        ys, xs = np.nonzero(lattices[f % 2])
+        var = variance_map[f, ys, xs] if variance_map is not None else noise.variance(frames[f, ys, xs])
+        cl = (ys // (step * CLUSTER)) * (W // (step * CLUSTER) + 1) + xs // (step * CLUSTER)
+        rows.append(probe.frame_rows(f, ys, xs, signs[f, ys, xs], var, cl))
+    arr = np.concatenate(rows, axis=0) if rows else np.zeros((0, 7))
+    if arr.shape[0] < 8:
+        raise NotEstimable(f"only {arr.shape[0]} probed samples could be held out (too few frames or pixels)")
+    fr, clus, mlo, mhi, w, pull, copied = arr.T
+    _logger.debug("%s: %.1f %% of the probed samples copied onto a neighbour", method.label, 100 * np.mean(copied))
+    if np.mean(copied) > MAX_COPIED and not unchecked:
+        raise NotEstimable(f"cannot estimate the accuracy of {method.label}: it copies {np.mean(copied):.0%} of the "
+                           f"probed samples onto a temporal neighbour (response >= {COPIED}; at most "
+                           f"{MAX_COPIED:.0%} can be taken out), so what it predicts without them is not known (a "
+                           "nearest-sample fill, as nc's at short diffusion times)")
+    if np.mean(pull) < INDEPENDENT:
+        # The temporal neighbours do not respond to the sample (each sub-frame is reconstructed from its own
+        # samples, as GAP-TV's 2-D TV does): their mean is a prediction made without the sample, but its two
+        # errors are not one voxel's; the error of one voxel lies between the mean's (errors equal) and twice
+        # it (errors independent).
+        mhi = 2.0 * mlo
+        scheme += ", sub-frames independent"
+    sum_w = float(np.sum(w))
+    m_lo, m_hi = float(np.sum(mlo) / sum_w), float(np.sum(mhi) / sum_w)
+    mse = m_lo  # the estimate: errors uncorrelated with the truth's change; the other bound is the worst case
+    keys = fr * 1e6 + clus
+    groups = np.unique(keys)
+    se = 0.0
+    if groups.size > 1:
+        sums = np.array([[mlo[keys == g].sum(), w[keys == g].sum()] for g in groups])
+        means = sums[:, 0] / sums[:, 1]
+        weights = sums[:, 1] / sum_w
+        centre = float(np.sum(weights * means))
+        se = math.sqrt(np.sum(weights**2 * (means - centre) ** 2) * groups.size / (groups.size - 1))
+    z = _z(confidence)
+    per_frame = np.full(F, np.nan)
+    for f in np.unique(fr).astype(int):
+        sel = fr == f
+        per_frame[f] = db(float(np.sum(mlo[sel]) / np.sum(w[sel])))
+    if dropped.any():
+        held_out = _gap_errors(f32, code, method, dropped, variance_map, noise, chunk_frames, device)
+        if held_out is None:
+            scheme += ", dropped frames not scored (no captured run long enough to hold out like them)"
+        else:
+            # Voxels of dropped frames hold no sample: their error is that of captured frames held out the same way.
+            share = float(np.mean(dropped))
+            gap_mse = sum(held_out[g.frames][0] * g.frames for g in find_gaps(dropped)) / max(int(dropped.sum()), 1)
+            gap_var = sum((held_out[g.frames][1] * g.frames) ** 2 for g in find_gaps(dropped)) / max(
+                int(dropped.sum()), 1) ** 2
+            for g in find_gaps(dropped):
+                per_frame[g.start:g.stop] = db(held_out[g.frames][0])
+            mse = (1 - share) * mse + share * gap_mse
+            m_hi = (1 - share) * m_hi + share * gap_mse
+            se = math.sqrt(((1 - share) * se) ** 2 + share**2 * gap_var)
+            scheme += ", dropped frames scored by captured runs held out like them"
+    lo_mse = mse - z * se
+    hi_mse = max(m_hi, mse + z * se)  # down to the pessimistic bound
+    est = AccuracyEstimate(psnr=db(mse), low=db(hi_mse), high=db(max(lo_mse, 1e-10)), per_frame=per_frame,
+                           mse=max(mse, 0.0), scheme=scheme, samples=int(arr.shape[0]), noise=noise,
+                           confidence=confidence)
+    _logger.info("%s: %s", method.label, est.line())
+    return est
+
+
+def _gap_errors(frames: np.ndarray, code: np.ndarray, method: Method, dropped: np.ndarray,
+                variance_map: np.ndarray | None, noise: NoiseModel, chunk_frames: int | None,
+                device: str) -> dict[int, tuple[float, float]] | None:
+    """{gap length: (MSE, its standard error)} of captured runs of that length held out as if dropped (one more
+    reconstruction), or None when no captured run can be held out without touching a gap or the clip's ends."""
+    from flexvox_core.methods import run
+
+    F = frames.shape[0]
+    K = code.shape[2]
+    held = np.zeros(F, bool)
+    blocks: list[tuple[int, int]] = []
+    for g in sorted({gap.frames for gap in find_gaps(dropped)}):
+        found = 0
+        f = 1
+        while f + g < F and found < GAP_BLOCKS:
+            # the run, and one captured frame on each side, clear of every gap and held run
+            if not (dropped[f - 1:f + g + 1].any() or held[max(0, f - 2):f + g + 2].any()):
+                held[f:f + g] = True
+                blocks.append((f, g))
+                found += 1
+                f += g + 2
+            else:
+                f += 1
+        if not found:
+            return None
+    v = run(frames, code, method, chunk_frames=chunk_frames, missing=dropped | held, device=device).video
+    _, H, W = frames.shape
+    slot = np.argmax(tiled_code(code, H, W), axis=0)
+    yy, xx = np.mgrid[0:H, 0:W]
+    out: dict[int, list[float]] = {}
+    for f0, g in blocks:
+        for f in range(f0, f0 + g):
+            y = frames[f].astype(np.float64)
+            s2 = variance_map[f] if variance_map is not None else noise.variance(y)
+            pred = v[f * K + slot, yy, xx].astype(np.float64)
+            out.setdefault(g, []).append(float(np.mean((pred - y) ** 2 - s2)))
+    result = {}
+    for g, errs in out.items():
+        e = np.asarray(errs)
+        se = float(np.std(e, ddof=1) / math.sqrt(e.size)) if e.size > 1 else float(e[0])
+        result[g] = (max(float(np.mean(e)), 1e-10), se)
+    return result
+
+
+class _Probe:
+    """The two runs (``v0`` the reconstruction, ``v1`` the probed one) read along probed pixels' columns."""
+
+    def __init__(self, v0: np.ndarray, v1: np.ndarray, frames: np.ndarray, dropped: np.ndarray, slot: np.ndarray,
+                 K: int, delta: float):
+        self.v0, self.v1, self.frames, self.dropped, self.slot = v0, v1, frames, dropped, slot
+        self.K, self.delta, self.S = K, delta, v0.shape[0]
+
+    def removed(self, t: np.ndarray, ys: np.ndarray, xs: np.ndarray, y: np.ndarray, b: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """At voxels ``(t, ys, xs)``: the value without the sample ``y`` (moved by ``b·delta`` in the probe), the
+        voxels' response to it, and their value with it."""
+        tc = np.clip(t, 0, self.S - 1)
+        u0, u1 = self.v0[tc, ys, xs].astype(np.float64), self.v1[tc, ys, xs].astype(np.float64)
+        a = b * (u1 - u0) / self.delta
+        ac = np.clip(a, 0.0, 0.9)
+        return (u0 - ac * y) / (1.0 - ac), a, u0
+
+    def usable(self, t: np.ndarray) -> np.ndarray:
+        """Voxels inside the clip and outside dropped frames."""
+        ok: np.ndarray = (t >= 0) & (t < self.S) & ~self.dropped[np.clip(t, 0, self.S - 1) // self.K]
+        return ok
+
+    def frame_rows(self, f: int, ys: np.ndarray, xs: np.ndarray, b: np.ndarray, s2: np.ndarray,
+                   cluster: np.ndarray) -> np.ndarray:
+        """Rows (frame, cluster, MSE with C_d = 0, MSE no better than held out, voxels, response of the two
+        temporal neighbours) of frame ``f``'s probed samples."""
+        K = self.K
+        t0 = f * K + self.slot[ys, xs]
+        y = self.frames[f, ys, xs].astype(np.float64)
+        inside = self.usable(t0 - 1) & self.usable(t0 + 1)
+        before, a_before, _ = self.removed(t0 - 1, ys, xs, y, b)
+        after, a_after, _ = self.removed(t0 + 1, ys, xs, y, b)
+        loo = (0.5 * (before + after) - y) ** 2 - s2  # the held-out sample's error, its noise taken out
+        _, a_self, v_self = self.removed(t0, ys, xs, y, b)
+        sampled = (v_self - y) ** 2 - s2 + 2.0 * np.clip(a_self, 0.0, 1.0) * s2  # SURE at the sample's voxel
+        lo = np.zeros(ys.size)
+        hi = np.zeros(ys.size)
+        count = np.zeros(ys.size)
+        for d in range(-(K // 2), K - K // 2):  # the voxels of the pixel's column nearest to this sample
+            ok = self.usable(t0 + d)
+            if d == 0:
+                lo_d = hi_d = sampled
+            else:
+                vm, a, _ = self.removed(t0 + d, ys, xs, y, b)
+                a = np.clip(a, 0.0, 0.9)
+                e_d = (vm - y) ** 2 - s2 - loo  # = V_d + 2 C_d
+                lo_d = (1 - a) ** 2 * loo + a**2 * (s2 + e_d)  # C_d = 0: the sample's pull counted in full
+                hi_d = loo  # the voxel no better than one that lost its sample
+            lo += np.where(ok, lo_d, 0.0)
+            hi += np.where(ok, hi_d, 0.0)
+            count += ok
+        keep = inside & (count > 0)
+        copied = np.maximum(a_before, a_after) >= COPIED  # a neighbour that takes the sample's value: no way back
+        out = np.stack([np.full(ys.size, f, np.float64), cluster, lo, hi, count, a_before + a_after, copied],
+                       axis=1)
+        kept: np.ndarray = out[keep]
+        return kept
+
+
+def _demultiplexed(frames: ArrayLike, code: object, noise: NoiseModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(identity frames, identity code, per-sample noise variance) of a multiplexed capture."""
+    from flexvox_core.multiplex import MultiplexedCode, demultiplex
+
+    if not isinstance(code, MultiplexedCode):
+        raise NotEstimable("a multiplexed capture needs its MultiplexedCode (the S-matrix and placement) to be "
+                           "estimated")
+    f64 = np.asarray(frames, np.float64)
+    out = demultiplex(f64, code)
+    m, n = code.tile
+    K = m * n
+    F, H, W = f64.shape
+    Hp, Wp = -(-H // m) * m, -(-W // n) * n
+    var = noise.variance(np.pad(f64, ((0, 0), (0, Hp - H), (0, Wp - W)),
+                                mode="symmetric"))
+    tiles = var.reshape(F, Hp // m, m, Wp // n, n).transpose(0, 1, 3, 2, 4).reshape(F, Hp // m, Wp // n, K)
+    slots = tiles @ (np.asarray(code.demux, np.float64) ** 2).T  # independent samples: variances add, squared
+    placed = slots[..., code.placement.ravel()]
+    v = placed.reshape(F, Hp // m, Wp // n, m, n).transpose(0, 1, 3, 2, 4).reshape(F, Hp, Wp)[:, :H, :W]
+    from flexvox_core.codes import code_from_order
+
+    return out, code_from_order(code.placement), v
+
+
+def noise_of(recording: Recording) -> NoiseModel:
+    """The noise a recording states (a simulated one's effects; a captured one states none: zero)."""
+    attrs = recording.attrs
+    effects = attrs.get("effects") or {}
+    if not effects:
+        return NoiseModel(source="the recording states no noise")
+    rate = float((attrs.get("rates") or {}).get("camera_hz", 15.0))
+    return NoiseModel.from_effects(effects, attrs.get("storage"), rate_hz=rate)
+
+
+def estimate_recording(recording: str | os.PathLike[str] | Recording, method: Method, *,
+                       noise: NoiseModel | None = None, reconstruction: ArrayLike | None = None,
+                       **options: Any) -> AccuracyEstimate:
+    """:func:`estimate_accuracy` of a recording (a path or an open :class:`~flexvox_core.recording.Recording`):
+    its normalised frames, its code (a multiplexed one demultiplexed), its dropped frames and the noise it states
+    (:func:`noise_of`, unless ``noise`` is given). Its ground truth, if any, is never read.
+
+    Other keywords go to :func:`estimate_accuracy`.
+
+    Examples
+    --------
+    >>> from flexvox_core import Method, render_scene, simulate_video, write_simulation
+    >>> from flexvox_core.design import design_code
+    >>> sim = simulate_video(render_scene("balls", 16, 24, 32), design_code((2, 2)).code)
+    >>> path = write_simulation("rec.zarr", sim)
+    >>> estimate_recording(path, Method("diffusion")).samples > 0
+    True
+    """
+    from flexvox_core.capture_reader import open_capture
+
+    reader = open_capture(recording)
+    rec = reader.recording
+    frames = rec.normalised_frames()
+    code = reader.multiplexed if reader.multiplexed is not None else reader.code
+    return estimate_accuracy(frames, code, method, noise=noise or noise_of(rec), missing=reader.missing,
+                             reconstruction=reconstruction if reader.multiplexed is None else None, **options)

@@ -1,0 +1,222 @@
+"""The accuracy estimate without ground truth (flexvox_core.accuracy)."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.ndimage import gaussian_filter
+
+import flexvox_core.methods as methods_pkg
+from flexvox_core.accuracy import (
+    NoiseModel,
+    NotEstimable,
+    _demultiplexed,
+    estimate_accuracy,
+    estimate_recording,
+    refusal,
+)
+from flexvox_core.design import design_code
+from flexvox_core.forward import capture, tiled_code
+from flexvox_core.methods import Method, MethodOutput
+from flexvox_core.multiplex import multiplexed_code
+from flexvox_core.recording import Recording, write_simulation
+from flexvox_core.simulate import render_scene, simulate_video
+
+CODE = design_code((2, 2)).code
+SIGMA = (1.5, 1.0, 1.0)  # the toy smoother's Gaussian (t, y, x)
+
+
+def toy_nc(frames, code, mask_out=None):
+    """Float64 normalized convolution that keeps its samples: the linear smoother the probe is exact for.
+    ``mask_out`` (S, H, W) bool: samples taken out (the exact leave-one-out)."""
+    F, H, W = frames.shape
+    K = code.shape[2]
+    m = np.tile(tiled_code(code, H, W), (F, 1, 1)).astype(np.float64)
+    vals = np.repeat(np.asarray(frames, np.float64), K, axis=0) * m
+    if mask_out is not None:
+        m[mask_out] = 0.0
+        vals[mask_out] = 0.0
+    num = gaussian_filter(vals, SIGMA, mode="nearest")
+    den = gaussian_filter(m, SIGMA, mode="nearest")
+    return np.where(m > 0, vals, num / den)
+
+
+@pytest.fixture
+def toy(monkeypatch):
+    def run(frames, code, method, **kw):
+        return MethodOutput(toy_nc(frames, code).astype(np.float32))
+
+    monkeypatch.setattr(methods_pkg, "run", run)
+
+
+def reference_bounds(frames, code, step=4):
+    """The two MSE bounds from exact leave-one-out (each probed sample taken out for real), float64, and how many
+    samples were held out."""
+    F, H, W = frames.shape
+    K = code.shape[2]
+    S = F * K
+    v0 = toy_nc(frames, code)
+    slot = np.argmax(tiled_code(code, H, W), axis=0)
+    lo_sum = hi_sum = n = 0.0
+    probed = 0
+    for f in range(F):
+        shift = (f % 2) * (step // 2)
+        for yy in range(1 + shift, H - 1, step):
+            for xx in range(1 + shift, W - 1, step):
+                t0 = f * K + slot[yy, xx]
+                if t0 - 1 < 0 or t0 + 1 >= S:
+                    continue
+                probed += 1
+                out = np.zeros((S, H, W), bool)
+                out[t0, yy, xx] = True
+                vm = toy_nc(frames, code, out)
+                y = float(frames[f, yy, xx])
+                loo = (0.5 * (vm[t0 - 1, yy, xx] + vm[t0 + 1, yy, xx]) - y) ** 2
+                for d in range(-(K // 2), K - K // 2):
+                    t = t0 + d
+                    if not 0 <= t < S:
+                        continue
+                    n += 1
+                    if d == 0:
+                        continue  # the sampled voxel keeps its sample: no error without noise
+                    a = (v0[t, yy, xx] - vm[t, yy, xx]) / (y - vm[t, yy, xx])  # its response to the sample
+                    e_d = (vm[t, yy, xx] - y) ** 2 - loo
+                    lo_sum += (1 - a) ** 2 * loo + a**2 * e_d
+                    hi_sum += loo
+    return lo_sum / n, hi_sum / n, probed
+
+
+def test_the_probe_gives_exact_leave_one_out_for_a_linear_smoother(toy):
+    truth = render_scene("balls", 4 * 4, 16, 20, seed=0).astype(np.float64)
+    frames = capture(truth, CODE)
+    est = estimate_accuracy(frames, CODE, Method("diffusion"), confidence=1e-9)
+    lo, hi, probed = reference_bounds(frames, CODE)
+    assert est.high == pytest.approx(10 * math.log10(1 / lo), abs=0.02)
+    assert est.low == pytest.approx(10 * math.log10(1 / hi), abs=0.02)
+    assert est.psnr == pytest.approx(10 * math.log10(1 / lo), abs=0.02)  # the estimate: the C_d = 0 bound
+    assert est.samples == probed == 64
+
+
+def scene(noisy: bool, seed: int = 1):
+    truth = render_scene("balls", 4 * 4, 32, 40, seed=0)
+    if not noisy:
+        return truth, capture(truth, CODE)
+    effects = {"photon_noise": {}, "read_noise": {"sigma": 3.0}}
+    return truth, simulate_video(truth, CODE, effects=effects, seed=seed).frames
+
+
+def test_the_noise_term_takes_the_noise_out():
+    _, clean = scene(False)
+    _, noisy = scene(True)
+    m = Method("diffusion")
+    noise = NoiseModel.from_effects({"photon_noise": {}, "read_noise": {"sigma": 3.0}})
+    e_clean = estimate_accuracy(clean, CODE, m)
+    e_noisy = estimate_accuracy(noisy, CODE, m, noise=noise)
+    e_blind = estimate_accuracy(noisy, CODE, m)
+    assert abs(e_noisy.psnr - e_clean.psnr) < abs(e_blind.psnr - e_clean.psnr)
+    assert e_blind.psnr < e_noisy.psnr
+
+
+def test_the_noise_model_of_stated_effects():
+    nm = NoiseModel.from_effects({"photon_noise": {}, "read_noise": {"sigma": 3.0}, "adc": {"gain": 0.5}},
+                                 {"electrons_per_unit": 2000.0})
+    assert nm.photon == pytest.approx(1 / 2000)
+    assert nm.floor == pytest.approx((3 / 2000) ** 2 + (1 / (0.5 * 2000)) ** 2 / 12)
+    np.testing.assert_allclose(nm.variance([0.5, -1.0]), [0.5 / 2000 + nm.floor, nm.floor])
+    assert NoiseModel.from_effects({}).variance(0.7) == 0.0
+
+
+def test_the_estimate_lies_near_the_truth_on_a_small_case():
+    truth, frames = scene(False)
+    m = Method("diffusion")
+    est = estimate_accuracy(frames, CODE, m)
+    video = methods_pkg.run(frames, CODE, m, chunk_frames=None).video
+    true = 10 * np.log10(1 / np.mean((video.astype(np.float64) - truth) ** 2))
+    assert est.low <= true <= est.high
+    assert abs(est.psnr - true) < 1.5
+    assert est.per_frame.shape == (4,) and np.all(np.isfinite(est.per_frame))
+    assert est.line().startswith(f"estimated PSNR {est.psnr:.2f} dB (± ")
+
+
+def test_ground_truth_is_never_read(tmp_path, monkeypatch):
+    truth = render_scene("balls", 4 * 4, 24, 28, seed=0)
+    sim = simulate_video(truth, CODE, effects={"read_noise": {"sigma": 2.0}}, seed=2)
+    path = write_simulation(tmp_path / "r.zarr", sim)
+    before = estimate_recording(path, Method("diffusion"))
+
+    def poisoned(self):
+        raise AssertionError("the estimate read the ground truth")
+
+    monkeypatch.setattr(Recording, "ground_truth", property(poisoned))
+    monkeypatch.setattr(Recording, "has_ground_truth", property(poisoned))
+    after = estimate_recording(path, Method("diffusion"))
+    assert after.psnr == before.psnr and after.low == before.low
+    assert after.noise.floor == pytest.approx((2.0 / 1000) ** 2)
+
+
+def test_dropped_frames_are_scored_by_captured_frames_held_out_like_them():
+    truth = render_scene("balls", 8 * 4, 24, 28, seed=0)
+    frames = capture(truth, CODE)
+    missing = np.zeros(8, bool)
+    missing[5] = True
+    frames[5] = 0
+    est = estimate_accuracy(frames, CODE, Method("diffusion"), missing=missing)
+    assert "dropped frames scored by captured runs held out like them" in est.scheme
+    assert np.all(np.isfinite(est.per_frame)) and est.per_frame[5] < np.median(est.per_frame)  # no samples: worse
+    assert est.low <= est.psnr <= est.high
+
+
+def test_dropped_frames_with_no_run_to_hold_out_are_left_out():
+    truth = render_scene("balls", 5 * 4, 24, 28, seed=0)
+    frames = capture(truth, CODE)
+    missing = np.array([False, True, False, True, False])
+    frames[missing] = 0
+    est = estimate_accuracy(frames, CODE, Method("diffusion"), missing=missing)
+    assert "dropped frames not scored" in est.scheme
+    assert np.all(np.isnan(est.per_frame[missing])) and np.all(np.isfinite(est.per_frame[~missing]))
+
+
+def test_a_multiplexed_capture_is_estimated_after_demultiplexing():
+    mc = multiplexed_code((1, 3))
+    truth = render_scene("balls", 4 * 3, 24, 27, seed=0)
+    est = estimate_accuracy(capture(truth, mc.code), mc, Method("diffusion"))
+    assert "demultiplexed" in est.scheme and est.low <= est.psnr <= est.high
+
+
+def test_demultiplexing_carries_the_noise_float64():
+    mc = multiplexed_code((1, 3))
+    rng = np.random.default_rng(0)
+    frames = rng.random((2, 4, 6))
+    nm = NoiseModel(photon=0.01, floor=0.001)
+    _, code, var = _demultiplexed(frames, mc, nm)
+    tiles = frames.reshape(2, 4, 2, 3)
+    for f, r, tx in [(0, 0, 0), (1, 3, 1)]:
+        v = 0.01 * tiles[f, r, tx] + 0.001
+        slots = (mc.demux.astype(np.float64) ** 2) @ v
+        for j in range(3):
+            assert var[f, r, 3 * tx + j] == pytest.approx(slots[mc.placement[0, j]])
+    assert code.shape == (1, 3, 3)
+
+
+@pytest.mark.parametrize(("method", "match"), [
+    (Method("motion-aware"), "estimates its flow from the samples"),
+    (Method("gap-tv"), "misses GAP-TV's true PSNR"),
+    (Method("rebin"), "interval covers the truth on only 4 of 8"),
+    (Method("diffusion", solver="explicit"), "explicit solver has not been checked"),
+])
+def test_methods_it_cannot_estimate_are_refused(method, match):
+    assert refusal(method) is not None
+    _, frames = scene(False)
+    with pytest.raises(NotEstimable, match=match):
+        estimate_accuracy(frames, CODE, method)
+
+
+def test_a_method_that_copies_its_samples_onto_their_neighbours_is_refused():
+    _, frames = scene(False)  # nc at a short time fills from the nearest sample: no prediction without it
+    with pytest.raises(NotEstimable, match=r"copies 100% of the probed samples onto a temporal neighbour"):
+        estimate_accuracy(frames, CODE, Method("diffusion", time=0.25))
+
+
+def test_a_capture_too_small_to_probe_is_refused():
+    with pytest.raises(NotEstimable, match="too small to probe"):
+        estimate_accuracy(np.zeros((2, 8, 8), np.float32), CODE, Method("diffusion"))

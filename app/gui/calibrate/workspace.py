@@ -343,7 +343,7 @@ class CalibrateWorkspace(QWidget):
             is not None and self.outcome.homography.success else None
         reference = self.outcome.sync if self.outcome is not None else None
         wizard = SyncWizard(target_for(self.service), self.runner, tile=self.tile(), homography=hom,
-                            reference=reference, parent=self)
+                            reference=reference, settings=self.settings, parent=self)
         wizard.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
         wizard.finished.connect(self._wizard_finished)
         wizard.show()

@@ -32,7 +32,7 @@ from flexvox_app.gui.models.expected_quality import format_seconds
 from flexvox_app.gui.models.jobs import ReconstructionResult
 from flexvox_app.gui.models.machine_speed import SpeedModel
 from flexvox_app.gui.models.review_model import Line, ReviewModel
-from flexvox_app.gui.models.review_session import ReviewSession
+from flexvox_app.gui.models.review_session import ReviewSession, not_a_recording
 from flexvox_app.gui.review.compare_view import CompareView
 from flexvox_app.gui.review.method_form import MethodForm
 from flexvox_app.gui.review.motion_view import MotionView
@@ -51,7 +51,7 @@ def export_slug(method) -> str:
     return re.sub(r"[^A-Za-z0-9.+-]+", "-", method.label()).strip("-")
 
 
-EXPORT_FILTER = "TIFF stack (*.tif);;MP4 video, 8-bit (*.mp4);;NumPy array (*.npy);;Zarr store (*.zarr)"
+EXPORT_FILTER = "TIFF stack (*.tif);;MP4 video, 8-bit (*.mp4);;NumPy array (*.npy);;Zarr folder (*.zarr)"
 PREVIEW_DELAY_MS = 250
 """Knob changes within this time make one preview, not many."""
 
@@ -298,9 +298,13 @@ class ReviewWorkspace(QWidget):
     def open_recording(self, path) -> JobHandle | None:
         """Open ``path`` off the GUI thread; ``session_opened`` fires when it is ready. When opening it would stop
         a reconstruction or lose results not exported, ask first, naming them, as closing the window does; None
-        when the operator keeps working."""
-        losses = self.model.closing_losses()
+        when the operator keeps working, or when ``path`` is plainly no recording (refused before any question)."""
         name = Path(path).name
+        refusal = not_a_recording(path)
+        if refusal is not None:
+            self.model._open_failed(Path(path), refusal)
+            return None
+        losses = self.model.closing_losses()
         if losses and not ask(self, f"Open {name}?", f"Opening {name} now:\n\n" + "\n".join(
                 f"• {line}" for line in losses) + f"\n\nOpen {name} anyway?", accept=f"Open {name}",
                 reject="Keep working"):

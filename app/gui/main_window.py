@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import logging
 
-from PySide6.QtCore import Qt
-from PySide6.QtGui import QAction, QKeySequence
+from PySide6.QtCore import QMargins, QRect, Qt, QTimer
+from PySide6.QtGui import QAction, QGuiApplication, QKeySequence
 from PySide6.QtWidgets import QMainWindow, QTabWidget
 
 from flexvox_app.gui.calibrate.workspace import CalibrateWorkspace
@@ -94,6 +94,7 @@ class MainWindow(QMainWindow):
             self.restoreGeometry(geometry)
         else:
             self.resize(*DEFAULT_SIZE)
+        self.fit_to_screen()
         # The first start opens where the operator's path starts (Calibrate), never on an empty Review.
         self.tabs.setCurrentIndex(min(max(settings.get_int("window/tab", 0), 0), len(WORKSPACES) - 1))
         self.statusBar().showMessage("simulated rig: every device is a simulation" if service.simulated
@@ -101,6 +102,40 @@ class MainWindow(QMainWindow):
         # The wheel scrolls the columns; it changes a value only in the widget the operator clicked into.
         install_wheel_guard()
         guard_value_widgets(self)
+
+    def fit_to_screen(self, available: QRect | None = None, frame: QMargins | None = None) -> None:
+        """Keep the whole window, its title bar and its status bar, inside ``available`` (default: its screen's
+        available geometry, without the desktop's panels): shrink it and move it in where it does not fit.
+
+        ``frame``: the window manager's decoration around the window (default: as it is now; nothing before
+        the window is shown, so it is fitted again once it is). Qt's offscreen platform has no screen to fit:
+        there only an explicit ``available`` is fitted.
+        """
+        if available is None:
+            screen = self.screen()
+            if screen is None or QGuiApplication.platformName() == "offscreen":  # no screen there: nothing to fit
+                return
+            available = screen.availableGeometry()
+        if frame is None:
+            outer, inner = self.frameGeometry(), self.geometry()
+            frame = QMargins(inner.left() - outer.left(), inner.top() - outer.top(), outer.right() - inner.right(),
+                             outer.bottom() - inner.bottom())
+        width = min(self.width(), available.width() - frame.left() - frame.right())
+        height = min(self.height(), available.height() - frame.top() - frame.bottom())
+        if (width, height) != (self.width(), self.height()):
+            _logger.info("window %dx%d does not fit the screen's %dx%d: %dx%d", self.width(), self.height(),
+                         available.width(), available.height(), width, height)
+            self.resize(width, height)
+        outer_w, outer_h = width + frame.left() + frame.right(), height + frame.top() + frame.bottom()
+        x = min(max(self.frameGeometry().x(), available.left()), available.left() + available.width() - outer_w)
+        y = min(max(self.frameGeometry().y(), available.top()), available.top() + available.height() - outer_h)
+        if (x, y) != (self.frameGeometry().x(), self.frameGeometry().y()):
+            self.move(x, y)  # move() places the frame
+
+    def showEvent(self, event) -> None:  # noqa: N802 - Qt's name
+        """Fit the screen again once the window manager has framed the window."""
+        super().showEvent(event)
+        QTimer.singleShot(0, self.fit_to_screen)
 
     def _capture_busy(self) -> str | None:
         """What keeps the Calibrate workspace off the rig: a recording (a live view is stopped for it)."""

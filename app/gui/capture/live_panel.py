@@ -24,7 +24,7 @@ import time
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import QObject, QRectF, Qt, QTimer
-from PySide6.QtWidgets import QCheckBox, QComboBox, QGroupBox, QPushButton, QVBoxLayout, QWidget
+from PySide6.QtWidgets import QCheckBox, QComboBox, QGroupBox, QHBoxLayout, QPushButton, QVBoxLayout, QWidget
 
 from flexvox_app.gui.capture.live_preview import LivePreview
 from flexvox_app.gui.capture.live_view import LiveStream
@@ -96,11 +96,12 @@ class LivePanel(QObject):
         self.live_button.setCheckable(True)
         self.saturation_check = QCheckBox("show saturated pixels in red")
         self.saturation_check.setChecked(True)
-        self.preview_check = QCheckBox("preview the newest frames, reconstructed with")
+        self.preview_check = QCheckBox("preview with")
+        self.preview_check.setToolTip("reconstruct the newest frames as they come, with the method beside")
         self.preview_check.setChecked(self.settings.get_bool("capture/preview", True))
         self.preview_method = QComboBox()
-        for name, text in (("motion-aware", "motion-aware (a region if need be)"),
-                           ("nc", "nc (fast: the whole frame)")):
+        for name, text in (("motion-aware", "motion-aware (a region)"),
+                           ("nc", "nc (fast: whole frame)")):
             self.preview_method.addItem(text, name)
         self.preview_method.setToolTip("motion-aware shows motion best but takes about a second per run at "
                                        "640×480, so it previews a region you drag; nc (constant-tensor "
@@ -111,8 +112,10 @@ class LivePanel(QObject):
         v = QVBoxLayout(live)
         v.addWidget(self.live_button)
         v.addWidget(self.saturation_check)
-        v.addWidget(self.preview_check)
-        v.addWidget(self.preview_method)
+        preview = QHBoxLayout()  # one row: the check and its method
+        preview.addWidget(self.preview_check)
+        preview.addWidget(self.preview_method, 1)
+        v.addLayout(preview)
         v.addWidget(self.live_label)
         self.controls = live
 

@@ -102,12 +102,20 @@ def test_ground_truth_says_what_it_costs_and_the_choice_survives_a_restart(qtbot
     w.show()
     w.show_workspace("Capture")
     panel.frames_box.setValue(300)
+    panel.options.set_expanded(True)  # the cost is said beside its box, among the options
+    for _ in range(3):
+        qtbot.wait(10)
+    review_y = panel.review_button.mapTo(w, panel.review_button.rect().topLeft()).y()
     assert panel.truth_check.isChecked() and panel.truth_cost.isVisible()
     cost = panel.truth_cost.text()  # 4x4 code on a 120x160 camera at 15 Hz: 16 float32 pictures per frame
     assert "ground truth adds 1.2 MB per frame (18 MB per second at 15 Hz, about 32× the frames' size)" in cost, cost
     assert "369 MB for 300 frames" in cost and "finishing takes longer" in cost
     panel.truth_check.setChecked(False)
     assert not panel.truth_cost.isVisible()
+    for _ in range(3):
+        qtbot.wait(10)
+    # "Open in Review" holds still (it jumped 34 px): the cost's room stays when it is hidden
+    assert panel.review_button.mapTo(w, panel.review_button.rect().topLeft()).y() == review_y
     with answering(default=True):
         w.close()
     again = truth_window(qtbot, settings)

@@ -282,3 +282,34 @@ def test_the_sync_wizard_s_finish_with_an_unsaved_sweep_asks_as_cancel_does(qtbo
     assert not wizard.isVisible()
     with answering(default=True):
         w.close()
+
+
+def test_run_calibration_says_what_it_pauses_before_and_restores_both_after(qtbot, settings, runner):
+    from flexvox_app.gui.application import build_window
+    from flexvox_app.gui.widgets.questions import answering
+    from rig_drivers.profile import open_rig
+    from rig_drivers.simulated_camera import VirtualClock
+
+    w = build_window(open_rig("mock", scene="balls", subframes=64, clock=VirtualClock()), settings=settings,
+                     runner=runner)
+    qtbot.addWidget(w)
+    cal, capture = w.calibrate, w.capture
+    capture.live_panel.preview_check.setChecked(False)
+    assert cal.pause_note.text() == ""
+    assert capture.start_live()
+    assert cal.pause_note.text() == "Run pauses Capture's live view; it resumes when it ends"  # said before
+    assert cal.run_calibration() and not capture.live
+    assert cal.pause_note.text() == "paused: Capture's live view (resumed when it ends)"
+    qtbot.waitUntil(lambda: not cal.running, timeout=30_000)
+    qtbot.waitUntil(lambda: capture.live, timeout=5000)  # restored
+    capture.stop_live()
+    cal.live_panel.check.setChecked(True)  # "measure continuously"
+    assert "Run pauses “measure continuously”; it resumes" in cal.pause_note.text()
+    qtbot.waitUntil(lambda: not cal.live_panel.measuring, timeout=10_000)
+    assert cal.run_calibration() and not cal.live_panel.check.isChecked()
+    qtbot.waitUntil(lambda: not cal.running, timeout=30_000)
+    qtbot.waitUntil(cal.live_panel.check.isChecked, timeout=5000)  # ticked again
+    cal.live_panel.check.setChecked(False)
+    qtbot.waitUntil(lambda: not cal.live_panel.measuring, timeout=10_000)
+    with answering(default=True):
+        w.close()

@@ -69,6 +69,13 @@ class MainWindow(QMainWindow):
         self.calibrate.status.connect(lambda text: self.statusBar().showMessage(text, 8000))
         self.calibrate.use_for_capture.connect(self._use_for_capture)
         self.calibrate.sync_profile_saved.connect(self.capture.calibration_panel.offer_sync_profile)
+        self.capture.calibration_panel.file_replaced.connect(lambda text: self.statusBar().showMessage(text, 15000))
+        self._live_paused = False
+        """Capture's live view was stopped for a calibration or the wizard (it starts again when they end)."""
+        self.calibrate.pauses_elsewhere = lambda: ["Capture's live view"] if self.capture.live else []
+        self.capture.live_panel.shown_running.connect(lambda _: self.calibrate.refresh_pause_note())
+        self.calibrate.rig_released.connect(self._resume_live)
+        self.calibrate.refresh_pause_note()
         self.calibrate.save_panel.saved.connect(
             lambda path: self.capture.outcome_saved(self.calibrate.save_panel.outcome, path))
 
@@ -143,7 +150,18 @@ class MainWindow(QMainWindow):
             return "a recording is running in the Capture workspace"
         if self.capture.live:
             self.capture.stop_live()
+            self._live_paused = True
         return None
+
+    def _resume_live(self) -> None:
+        """A calibration or the wizard ended: start Capture's live view again when it stopped it."""
+        if not self._live_paused or self._closed:
+            return
+        self._live_paused = False
+        if self.calibrate.live_panel.live or self.capture.recording:
+            return  # the rig is taken again: the operator starts it when it is free
+        if self.capture.start_live():
+            self.statusBar().showMessage("Capture's live view runs again", 8000)
 
     def _calibrate_busy(self) -> str | None:
         """What keeps the Capture workspace off the rig: a calibration using the real rig's devices."""

@@ -85,6 +85,8 @@ class CalibrationPanel(QGroupBox):
 
     changed = Signal(object)
     """The :class:`~flexvox_calibration.capture_setup.CaptureCalibration` now used (None: uncalibrated)."""
+    file_replaced = Signal(str)
+    """The calibration file in use changed on disk: a line for the status bar."""
 
     def __init__(self, service: RigService, settings: AppSettings, parent=None):
         super().__init__("Calibration", parent)
@@ -311,6 +313,9 @@ class CalibrationPanel(QGroupBox):
         if replaced != self.replaced:
             self.replaced = replaced
             if replaced:
+                self.file_replaced.emit(f"the calibration file in use {'changed on disk' if now else 'was removed'}: "
+                                        f"{path.name}" + (" — Capture offers the new calibration" if now else
+                                                          " — Capture keeps the one loaded"))
                 _logger.warning("the calibration file in use %s on disk: %s (loaded: sha256 %s, now %s)", replaced,
                                 path, cal.sha256[:16], now[:16] or "no file")
             self._show()

@@ -241,6 +241,8 @@ def test_calibrate_saving_over_the_file_in_use_is_said_in_capture_at_once(qtbot,
     panel = capture.calibration_panel
     assert panel.replaced == "changed" and panel.use_new_button.isVisibleTo(capture)  # at once: no event loop
     assert "its file changed on disk" in panel.status_label.text() and capture.calibration.sha256 == old
+    assert window.statusBar().currentMessage() == ("the calibration file in use changed on disk: rig-calibration.json "
+                                                   "— Capture offers the new calibration")
     capture.record_panel.path_edit.setText(str(tmp_path / "after.zarr"))
     capture.record_panel.frames_box.setValue(2)
     with answering(default=True) as asked, qtbot.waitSignal(capture.recording_finished, timeout=30_000):

@@ -28,6 +28,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from flexvox_app.gui.models.device_words import short_where
 from flexvox_app.gui.models.expected_quality import format_seconds
 from flexvox_app.gui.models.jobs import ReconstructionResult
 from flexvox_app.gui.models.machine_speed import SpeedModel
@@ -467,13 +468,14 @@ class ReviewWorkspace(QWidget):
             i = s - r.first_frame * K
             self.recon_panel.set_image(r.video[i], levels=(0, 1))
             kind = "preview" if r.extra.get("preview") else "reconstruction"
-            self.recon_panel.set_title(f"{kind}: {r.method.label()} · sub-frame {s + 1}")
+            self.recon_panel.set_title(f"{kind}: {r.method.label()} {short_where(r.device)} · sub-frame {s + 1}")
         elif r is not None:
             self.recon_panel.clear("outside the preview window: pause to recompute it here")
         c = m.comparison
         if m.covers(c, s):
             self.slider_panel.set_image(c.video[s - c.first_frame * K], levels=(0, 1))
-            self.slider_panel.set_title(f"slider preview: {c.method.label()} · sub-frame {s + 1}")
+            self.slider_panel.set_title(f"slider preview: {c.method.label()} {short_where(c.device)} · sub-frame "
+                                        f"{s + 1}")
         elif c is not None:
             self.slider_panel.clear("outside the preview window: pause to recompute it here")
         self.motion_view.show_subframe(s)

@@ -286,6 +286,12 @@ def test_review_s_result_line_and_the_compare_list_say_where_each_result_ran(qtb
     assert "sub-frames in" in review.result_label.text() and " on the CPU" in review.result_label.text()
     items = [review.compare_view.box_a.itemText(i) for i in range(review.compare_view.box_a.count())]
     assert len(items) == 2 and all(" on the CPU" in item for item in items), items
+    # the preview's title says where it ran too
+    review.form.set_method_name("diffusion")
+    review.preview_check.setChecked(True)
+    review.form.set_position(0.0)  # settings no result has: the preview is shown
+    qtbot.waitUntil(lambda: review.recon_panel.title.text().startswith("preview: "), timeout=20_000)
+    assert " on the CPU · sub-frame " in review.recon_panel.title.text()
 
 
 def test_the_live_preview_line_says_where_it_runs():
@@ -373,6 +379,7 @@ def test_the_sync_wizard_asks_before_cancel_loses_work_has_browse_and_its_profil
     assert asked == []
     assert any(str(profile) in s and "Load sync profile" in s for s in statuses), statuses
     assert str(profile) in w.calibrate.wizard_button.toolTip()
+    assert f"sync profile saved by the wizard: {profile}" in w.calibrate.profile_label.text()  # the panel says it
     assert f"the synchronisation wizard saved {profile}" in w.capture.calibration_panel.label.text()
     assert "sync profile is not loaded" in w.capture.calibration_panel.status_label.text()
     with answering(default=True):
@@ -418,6 +425,9 @@ def test_the_slider_s_default_step_gives_the_benched_default_tensor(review):
     review.form.set_method_name("diffusion")
     review.form.set_position(0.18)
     assert tuple(review.form.method().tensor) == tuple(DEFAULT_TENSOR) == (0.15, 0.15, 1.0)
+    # one rounding everywhere: the line under the slider says what the method's label says
+    assert "tensor (0.15, 0.15, 1)" in review.form.slider_text.text() and "0.147" not in review.form.slider_text.text()
+    assert "(0.15,0.15,1)" in review.form.method().label()
     assert "not benched" not in review.expected_label.text()
     review.form.set_position(0.25)
     assert tuple(review.form.method().tensor) != tuple(DEFAULT_TENSOR)

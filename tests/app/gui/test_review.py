@@ -346,8 +346,8 @@ def test_the_method_form_is_built_from_the_registered_methods(qtbot, settings):
         form.widget("radius").setValue(3)
         assert form.method() == Method("frame-mean", radius=3)
         assert form.slider.isEnabled() and not form.comparing  # no tensor or division option: it compares
-        assert "frame-mean keeps space and gives up time; the slider previews a fixed tensor for comparison" in \
-            form.slider_text.text()
+        assert "frame-mean keeps space and gives up time; moving the slider previews diffusion at its tensor beside " \
+            "frame-mean, for comparison" in form.slider_text.text()
     form.set_method_name("motion-aware")
     form.widget("slow_reach").setValue(0.75)  # the pipeline's default is shown, and stands for None
     assert form.method().slow_reach is None and form.slider.isEnabled()

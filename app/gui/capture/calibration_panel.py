@@ -322,10 +322,13 @@ class CalibrationPanel(QGroupBox):
         return bool(replaced)
 
     def use_new_file(self) -> bool:
-        """Load the calibration file in use again (its new content, checked against this rig); False when refused
-        (the reason is shown and the calibration loaded before stays)."""
+        """Load the calibration file in use again (its new content, checked against this rig; a sync profile loaded
+        on top stays on top); False when refused (the reason is shown and the calibration loaded before stays)."""
+        sync = self.settings.get_str(SYNC_PROFILE_FILE, "")
         if self.file_in_use is None or not self.load_calibration(self.file_in_use):
             return False
+        if sync:  # the sync profile loaded on top stays on top
+            self.load_sync_profile(sync)
         _logger.info("Capture now uses the new content of %s", self.file_in_use)
         return True
 

@@ -202,17 +202,31 @@ def test_a_file_in_use_changed_on_disk_is_said_at_once_offered_and_record_asks(q
 
 
 def test_the_new_calibration_button_takes_the_file_and_a_removed_file_is_said(qtbot, capture, tmp_path):
+    from flexvox_calibration.sync import SYNC_FORMAT, SYNC_VERSION
+
     ws, panel = capture, capture.calibration_panel
-    path = _write(tmp_path / "cal.json", capture_identity(ws.service))
+    identity = capture_identity(ws.service)
+    path = _write(tmp_path / "cal.json", identity)
     assert ws.load_calibration(path)
-    _write(path, capture_identity(ws.service), phase=6, overwrite=True)
+    _write(path, identity, h=np.eye(3), overwrite=True)
     assert panel.check_file()  # (what the watcher calls) at once
     panel.use_new_button.click()
-    assert ws.capture_calibration().phase_slots == 6 and ws.capture_calibration().sha256 == file_sha256(path)
+    np.testing.assert_allclose(ws.capture_calibration().homography, np.eye(3))
+    assert ws.capture_calibration().sha256 == file_sha256(path)
+    # a sync profile loaded on top stays on top when the new calibration is taken
+    sync = {"status": "ok", "K": 16, "period_us": 1041, "phase_slots": 6, "delay_us": 600.0,
+            "recommended_camera_delay_us": 441.0, "effective_phase_slots": 7}
+    assert ws.load_sync_profile(write_versioned(tmp_path / "sync.json", SYNC_FORMAT, SYNC_VERSION, identity,
+                                                {"sync": sync}))
+    _write(path, identity, phase=6, overwrite=True)
+    assert panel.check_file()
+    panel.use_new_button.click()
+    assert ws.capture_calibration().phase_slots == 7 and ws.capture_calibration().sha256 == file_sha256(path)
+    np.testing.assert_allclose(ws.capture_calibration().homography, H_SHIFT)
     path.unlink()
     qtbot.waitUntil(lambda: panel.replaced == "removed", timeout=5000)
     assert "its file was removed: recordings use the one loaded" in panel.status_label.text()
-    assert not panel.use_new_button.isVisibleTo(ws) and ws.capture_calibration().phase_slots == 6
+    assert not panel.use_new_button.isVisibleTo(ws) and ws.capture_calibration().phase_slots == 7
 
 
 def test_calibrate_saving_over_the_file_in_use_is_said_in_capture_at_once(qtbot, settings, runner, tmp_path,

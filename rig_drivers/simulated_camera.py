@@ -206,6 +206,9 @@ class LightPath(Protocol):
         """Light per exposure slot, ``(K, H, W)`` float32 in [0, 1], for an exposure
         starting at ``start_us``; None when no projected light reaches the camera."""
 
+    def warm_up(self) -> None:
+        """Compute now what the first exposure would otherwise compute (the patterns in camera pixels)."""
+
 
 class DarkLightPath:
     """No projector: no hardware triggers and no projected light (only ambient effects)."""
@@ -221,6 +224,9 @@ class DarkLightPath:
     def exposure_light(self, start_us, now_us, K, height, width) -> np.ndarray | None:
         """Dark."""
         return None
+
+    def warm_up(self) -> None:
+        """Nothing to compute."""
 
 
 # --------------------------------------------------------------------------- the camera
@@ -334,10 +340,30 @@ class SimulatedCamera(Camera):
                       settings.trigger.source.value)
 
     def _do_start_acquisition(self) -> None:
+        self._warm_up()
         now = self._clock.now_us()
         self._next_start_us = now
         self._hw_cursor_us = now
         self._soft_triggers.clear()
+
+    def _warm_up(self) -> None:
+        """Before the first trigger can come: compute what the first exposure would (the loaded patterns in camera
+        pixels, the renderer's first pass), so the simulation's own start-up costs the capture no frame. A clock
+        paced to the wall (one with ``resync()``: its time stands still between sleeps) is then brought up to the
+        wall, so the warm-up does not look like frames the camera overran."""
+        t0 = time.perf_counter()
+        warm_up = getattr(self._light_path, "warm_up", None)
+        if warm_up is not None:
+            warm_up()
+        H, W = self.sensor_shape
+        K = self._light_path.slots() or self._default_slots
+        render_exposures(self._scene.array[self.subframes_of(0, K)], np.zeros((K, H, W), np.float32),
+                         effects=self._effects, seed=self._seed, stream=0, rate_hz=15.0,
+                         electrons_per_unit=self._electrons_per_unit)
+        resync = getattr(self._clock, "resync", None)
+        if resync is not None:
+            resync()
+        _logger.debug("%s: warmed up in %.3f s", self.name, time.perf_counter() - t0)
 
     def _do_stop_acquisition(self) -> None:
         self._next_start_us = None

@@ -259,6 +259,11 @@ class ProjectorLightPath:
             self._warped_for = seq
         return self._warped
 
+    def warm_up(self) -> None:
+        """Warp the loaded patterns into camera pixels now (seconds at VGA), not at the first exposure."""
+        if self._sequence() is not None:
+            self.warped()
+
     def _elapsed_at(self, t_us: int, now_us: int) -> int:
         """The projector's display time (µs since start, pauses excluded) at wall time t."""
         # Ask for the display time at the caller's clock reading, not at a fresh one: with a

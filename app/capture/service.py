@@ -244,6 +244,13 @@ class CaptureService:
         """The camera frame period set up on the rig (K projector periods)."""
         return self.engine.frame_period_s
 
+    @property
+    def first_frame_id(self) -> int | None:
+        """The camera's id of the recording's first frame (None before it arrives): row ``r`` holds id
+        ``first_frame_id + r``."""
+        with self._lock:
+            return self._first_id
+
     def latest(self) -> tuple[Frame | None, int]:
         """The newest frame for display and its sequence number (never blocks capture)."""
         return self._latest.get()

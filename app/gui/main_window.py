@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import logging
 
-from PySide6.QtCore import Qt
-from PySide6.QtGui import QAction, QKeySequence
+from PySide6.QtCore import QMargins, QRect, Qt, QTimer
+from PySide6.QtGui import QAction, QGuiApplication, QKeySequence
 from PySide6.QtWidgets import QMainWindow, QTabWidget
 
 from flexvox_app.gui.calibrate.workspace import CalibrateWorkspace
@@ -69,6 +69,13 @@ class MainWindow(QMainWindow):
         self.calibrate.status.connect(lambda text: self.statusBar().showMessage(text, 8000))
         self.calibrate.use_for_capture.connect(self._use_for_capture)
         self.calibrate.sync_profile_saved.connect(self.capture.calibration_panel.offer_sync_profile)
+        self.capture.calibration_panel.file_replaced.connect(lambda text: self.statusBar().showMessage(text, 15000))
+        self._live_paused = False
+        """Capture's live view was stopped for a calibration or the wizard (it starts again when they end)."""
+        self.calibrate.pauses_elsewhere = lambda: ["Capture's live view"] if self.capture.live else []
+        self.capture.live_panel.shown_running.connect(lambda _: self.calibrate.refresh_pause_note())
+        self.calibrate.rig_released.connect(self._resume_live)
+        self.calibrate.refresh_pause_note()
         self.calibrate.save_panel.saved.connect(
             lambda path: self.capture.outcome_saved(self.calibrate.save_panel.outcome, path))
 
@@ -94,6 +101,7 @@ class MainWindow(QMainWindow):
             self.restoreGeometry(geometry)
         else:
             self.resize(*DEFAULT_SIZE)
+        self.fit_to_screen()
         # The first start opens where the operator's path starts (Calibrate), never on an empty Review.
         self.tabs.setCurrentIndex(min(max(settings.get_int("window/tab", 0), 0), len(WORKSPACES) - 1))
         self.statusBar().showMessage("simulated rig: every device is a simulation" if service.simulated
@@ -102,13 +110,58 @@ class MainWindow(QMainWindow):
         install_wheel_guard()
         guard_value_widgets(self)
 
+    def fit_to_screen(self, available: QRect | None = None, frame: QMargins | None = None) -> None:
+        """Keep the whole window, its title bar and its status bar, inside ``available`` (default: its screen's
+        available geometry, without the desktop's panels): shrink it and move it in where it does not fit.
+
+        ``frame``: the window manager's decoration around the window (default: as it is now; nothing before
+        the window is shown, so it is fitted again once it is). Qt's offscreen platform has no screen to fit:
+        there only an explicit ``available`` is fitted.
+        """
+        if available is None:
+            screen = self.screen()
+            if screen is None or QGuiApplication.platformName() == "offscreen":  # no screen there: nothing to fit
+                return
+            available = screen.availableGeometry()
+        if frame is None:
+            outer, inner = self.frameGeometry(), self.geometry()
+            frame = QMargins(inner.left() - outer.left(), inner.top() - outer.top(), outer.right() - inner.right(),
+                             outer.bottom() - inner.bottom())
+        width = min(self.width(), available.width() - frame.left() - frame.right())
+        height = min(self.height(), available.height() - frame.top() - frame.bottom())
+        if (width, height) != (self.width(), self.height()):
+            _logger.info("window %dx%d does not fit the screen's %dx%d: %dx%d", self.width(), self.height(),
+                         available.width(), available.height(), width, height)
+            self.resize(width, height)
+        outer_w, outer_h = width + frame.left() + frame.right(), height + frame.top() + frame.bottom()
+        x = min(max(self.frameGeometry().x(), available.left()), available.left() + available.width() - outer_w)
+        y = min(max(self.frameGeometry().y(), available.top()), available.top() + available.height() - outer_h)
+        if (x, y) != (self.frameGeometry().x(), self.frameGeometry().y()):
+            self.move(x, y)  # move() places the frame
+
+    def showEvent(self, event) -> None:  # noqa: N802 - Qt's name
+        """Fit the screen again once the window manager has framed the window."""
+        super().showEvent(event)
+        QTimer.singleShot(0, self.fit_to_screen)
+
     def _capture_busy(self) -> str | None:
         """What keeps the Calibrate workspace off the rig: a recording (a live view is stopped for it)."""
         if self.capture.recording:
             return "a recording is running in the Capture workspace"
         if self.capture.live:
             self.capture.stop_live()
+            self._live_paused = True
         return None
+
+    def _resume_live(self) -> None:
+        """A calibration or the wizard ended: start Capture's live view again when it stopped it."""
+        if not self._live_paused or self._closed:
+            return
+        self._live_paused = False
+        if self.calibrate.live_panel.live or self.capture.recording:
+            return  # the rig is taken again: the operator starts it when it is free
+        if self.capture.start_live():
+            self.statusBar().showMessage("Capture's live view runs again", 8000)
 
     def _calibrate_busy(self) -> str | None:
         """What keeps the Capture workspace off the rig: a calibration using the real rig's devices."""

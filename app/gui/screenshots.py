@@ -11,8 +11,10 @@ top-left corner, where the packed pattern sits at its native size, magnified ×4
 in Review, after diffusion and motion-aware reconstructions, ``review.png`` (the slider's diffusion
 preview beside the motion-aware result), ``review_motion.png`` (the flow and the TR map of the
 motion-aware result) and ``review_compare.png``; then at 1024×700 with the Devices dock folded,
-``calibrate_1024x700.png``, ``capture_1024x700.png`` and ``review_1024x700.png``. Settings go to a
-temporary INI file, never the user's.
+``calibrate_1024x700.png``, ``capture_1024x700.png`` and ``review_1024x700.png``; last the whole window at
+1024×700 with its status bar, after Calibrate saved over the calibration file Capture uses
+(``window_1024x700.png``: Capture says so and offers the new one). Settings go to a temporary INI
+file, never the user's.
 """
 
 from __future__ import annotations
@@ -51,6 +53,7 @@ def render(out_dir) -> list[Path]:
 
     from flexvox_app.gui.application import build_window, ensure_application
     from flexvox_app.gui.operator_session import OperatorSession
+    from flexvox_app.gui.widgets.questions import answering
     from flexvox_app.gui.widgets.settings import settings_at
     from rig_drivers.profile import open_rig
 
@@ -110,6 +113,14 @@ def render(out_dir) -> list[Path]:
                 window.show_workspace(name)
                 s.settle()
                 shot(f"{name.lower()}_1024x700.png")
+            # The calibration in use saved over again from Calibrate: Capture says so and offers it, and the status
+            # bar (in view at 1024×700) says so too; the whole window.
+            window.show_workspace("Calibrate")
+            with answering(True):  # "Replace the existing calibration?"
+                window.calibrate.save_panel.save(window.calibrate.save_panel.saved_path)
+            window.show_workspace("Capture")
+            s.settle()
+            shot("window_1024x700.png")
             s.quit()
         finally:
             if window.isVisible():  # a step failed: stop the devices and the jobs all the same

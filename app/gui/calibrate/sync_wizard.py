@@ -39,6 +39,8 @@ from flexvox_app.gui.widgets.rich_text import AMBER, GREEN, RED
 from flexvox_app.gui.widgets.status_line import StatusLine
 
 _logger = logging.getLogger(__name__)
+PROFILE_PATH = "calibrate/sync_profile_path"
+"""Settings key: the last sync profile the wizard saved (its Save page offers the path again)."""
 
 
 WIRING = (
@@ -299,9 +301,10 @@ class SavePage(QWizardPage):
     def __init__(self, wizard: SyncWizard):
         super().__init__()
         self.owner = wizard
+        self.settings = wizard.settings
         self.setTitle("Save")
         self.setSubTitle("Writes the sync profile (phase, delay, drop/drift verdict) tied to this rig.")
-        self.path = QLineEdit()
+        self.path = QLineEdit(self.settings.get_str(PROFILE_PATH, "") if self.settings is not None else "")
         self.path.setPlaceholderText("folder/sync-profile.json")
         self.browse_button = QPushButton("Browse…")
         self.button = QPushButton("Save sync profile")
@@ -350,6 +353,8 @@ class SavePage(QWizardPage):
             _say(self.label, f"not saved: {in_gui_words(str(exc))}", RED)
             return None
         self.written = written
+        if self.settings is not None:
+            self.settings.set(PROFILE_PATH, str(written))
         _say(self.label, f"saved {written}", GREEN)
         return written
 
@@ -368,11 +373,14 @@ class SyncWizard(QWizard):
         From the Calibrate workspace's last run; measured on the phase page when None.
     reference : SyncResult, optional
         The Calibrate workspace's last sync measurement: the phase page says how its own compares.
+    settings : AppSettings, optional
+        Remembers the last profile saved: the Save page offers its path again.
     """
 
     def __init__(self, target: CalibrationTarget, runner: JobRunner, *, tile=(4, 4), homography=None,
-                 reference=None, parent: QWidget | None = None):
+                 reference=None, settings=None, parent: QWidget | None = None):
         super().__init__(parent)
+        self.settings = settings
         self.reference = reference
         self.target = target
         self.runner = runner
@@ -414,14 +422,22 @@ class SyncWizard(QWizard):
             out.append("the drop/drift test's verdict")
         return out
 
+    def _may_close(self) -> bool:
+        """Ask first when closing would lose finished measurements; True when the wizard may close."""
+        lost = self.unsaved_work()
+        return not lost or ask(self, "Close the synchronisation wizard?", "Closing the wizard now loses, not saved "
+                               "as a sync profile:\n\n" + "\n".join(f"• {w}" for w in lost) + "\n\nClose anyway?",
+                               accept="Close and lose them", reject="Keep working")
+
     def reject(self) -> None:
         """Cancel (or Esc, or the window's close box): ask first when finished measurements would be lost."""
-        lost = self.unsaved_work()
-        if lost and not ask(self, "Close the synchronisation wizard?", "Closing the wizard now loses, not saved as a "
-                            "sync profile:\n\n" + "\n".join(f"• {w}" for w in lost) + "\n\nClose anyway?",
-                            accept="Close and lose them", reject="Keep working"):
-            return
-        super().reject()
+        if self._may_close():
+            super().reject()
+
+    def accept(self) -> None:
+        """Finish: ask first, as Cancel does, when the sweep or the drop/drift test is not saved."""
+        if self._may_close():
+            super().accept()
 
     def done(self, result: int) -> None:
         """Closing the wizard cancels what it measures."""

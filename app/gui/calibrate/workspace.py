@@ -24,7 +24,7 @@ from __future__ import annotations
 import html
 import logging
 
-from PySide6.QtCore import Qt, Signal
+from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtWidgets import (
     QComboBox,
     QFormLayout,
@@ -101,6 +101,8 @@ class CalibrateWorkspace(QWidget):
     use_for_capture = Signal(object)
     sync_profile_saved = Signal(object)
     """``(path)``: the synchronisation wizard finished with a profile saved there."""
+    rig_released = Signal()
+    """A calibration or the wizard ended: what it paused elsewhere may start again."""
     """The successful outcome the operator hands to the Capture workspace."""
 
     def __init__(self, service: RigService, settings: AppSettings, runner: JobRunner, *, rig_guard=None,
@@ -119,6 +121,12 @@ class CalibrateWorkspace(QWidget):
         """The sync profile the wizard last saved (None: none since flexvox started)."""
         self._before_refusal: str | None = None
         """The step line before a refusal took its place (None: no refusal shown)."""
+        self.pauses_elsewhere = None
+        """``() -> list[str]``: what a calibration would pause outside this workspace (the main window's: Capture's
+        live view), said before Run."""
+        self._resume_colocation = False
+        self._holding = False
+        self._shut = False
         self.results_view = ResultsView()
         self.screen = ProjectorScreen(service, settings, parent=self)
         self.save_panel = SavePanel(settings)
@@ -152,6 +160,9 @@ class CalibrateWorkspace(QWidget):
         self.progress.setRange(0, 1)
         self.progress.setValue(0)
         self.step_label = StatusLine("not run", lines=2)
+        self.pause_note = StatusLine("", lines=1)
+        """What Run calibration pauses (Capture's live view, “measure continuously”), said before it does."""
+        self.pause_note.setStyleSheet("color: gray")
         self.steps_label = QLabel(steps_html(-1))
         self.steps_label.setTextFormat(Qt.TextFormat.RichText)
         f = QFormLayout(run)
@@ -160,12 +171,18 @@ class CalibrateWorkspace(QWidget):
             f.addRow("projector screen", self.screen.screen_box)
             f.addRow(self.screen.label)
         f.addRow(buttons)
+        f.addRow(self.pause_note)
         f.addRow(self.progress)
         f.addRow(self.step_label)
         steps = QGroupBox("Steps")
         sv = QVBoxLayout(steps)
         sv.addWidget(self.steps_label)
         sv.addWidget(self.rig_label)
+        self.profile_label = QLabel()
+        """Which sync profile the wizard saved (this calibration's file holds its own sync)."""
+        self.profile_label.setWordWrap(True)
+        sv.addWidget(self.profile_label)
+        self._show_profile()
 
         # Run, Cancel, Save, Use for capture and the wizard stay in view; the steps, the rig and co-location scroll.
         self.wizard_button = QPushButton("Synchronisation wizard…")
@@ -175,6 +192,7 @@ class CalibrateWorkspace(QWidget):
 
         self.run_button.clicked.connect(self.run_calibration)
         self.cancel_button.clicked.connect(self.cancel)
+        self.live_panel.check.toggled.connect(lambda _: self.refresh_pause_note())
         self.wizard_button.clicked.connect(self.open_sync_wizard)
         self.tile_box.currentIndexChanged.connect(
             lambda _: self.settings.set("calibrate/tile", self.tile_box.currentText().split(" ")[0]))
@@ -203,11 +221,49 @@ class CalibrateWorkspace(QWidget):
     def _claim_rig(self, user: str) -> str | None:
         """Take the rig for ``user``: refuse while Capture uses it, stop the live numbers, attach the
         projector display on a real rig. Returns the reason it cannot, or None."""
+        paused = self.paused_by_run()
+        self._holding = True  # the note says what this run paused until it ends
         busy = self.rig_guard() if self.rig_guard is not None else None
         if busy:
+            self._holding = False
             return busy
+        self._resume_colocation = self.live_panel.live
         self.live_panel.set_live(False)
-        return self.screen.attach(user)
+        refused = self.screen.attach(user)
+        if refused:
+            self._resume_paused()
+        elif paused:
+            self.pause_note.setText("paused: " + " and ".join(paused) + " (resumed when it ends)")
+            self.status.emit(f"{'the calibration' if user == 'calibration' else 'the wizard'} pauses "
+                             + " and ".join(paused) + " until it ends")
+        return refused
+
+    def paused_by_run(self) -> list[str]:
+        """What Run calibration (or the wizard) pauses now, in words; it resumes when they end."""
+        out = list(self.pauses_elsewhere()) if self.pauses_elsewhere is not None else []
+        if self.live_panel.live:
+            out.append("“measure continuously”")
+        return out
+
+    def refresh_pause_note(self) -> None:
+        """Say under Run what it would pause (nothing when nothing runs)."""
+        if self._holding:
+            return
+        paused = self.paused_by_run()
+        self.pause_note.setText("" if not paused else "Run pauses " + " and ".join(paused) + "; "
+                                + ("both resume" if len(paused) > 1 else "it resumes") + " when it ends")
+
+    def _resume_paused(self) -> None:
+        """Start again what the run paused here (“measure continuously”), and tell the window (Capture's live
+        view)."""
+        resume, self._resume_colocation = self._resume_colocation, False
+        self._holding = False
+        if self._shut:
+            return
+        if resume and not self.live_panel.live:
+            self.live_panel.set_live(True)
+        self.rig_released.emit()
+        self.refresh_pause_note()
 
     def tile(self) -> tuple[int, int]:
         """The shutter code's tile."""
@@ -323,6 +379,7 @@ class CalibrateWorkspace(QWidget):
         self.progress.setRange(0, 1)
         self.progress.setValue(1 if finished else 0)
         self._set_running(False)
+        QTimer.singleShot(0, self, self._resume_paused)  # once the job is forgotten: the rig is free then
 
     def show_outcome(self, outcome: CalibrationOutcome) -> None:
         """Show a run's figures, maps and plots, and offer its result to save."""
@@ -343,7 +400,7 @@ class CalibrateWorkspace(QWidget):
             is not None and self.outcome.homography.success else None
         reference = self.outcome.sync if self.outcome is not None else None
         wizard = SyncWizard(target_for(self.service), self.runner, tile=self.tile(), homography=hom,
-                            reference=reference, parent=self)
+                            reference=reference, settings=self.settings, parent=self)
         wizard.setAttribute(Qt.WidgetAttribute.WA_DeleteOnClose)
         wizard.finished.connect(self._wizard_finished)
         wizard.show()
@@ -351,16 +408,30 @@ class CalibrateWorkspace(QWidget):
         self.service.begin_use(WIZARD_USER)
         return wizard
 
+    def _show_profile(self) -> None:
+        last = self.settings.get_str("calibrate/sync_profile_path", "")
+        if self.sync_profile is not None:
+            text = (f"sync profile saved by the wizard: {self.sync_profile} — Capture takes it with “Load sync "
+                    "profile…” (its phase and trigger delay replace the calibration's)")
+        elif last:
+            text = f"last sync profile the wizard saved: {last} (the synchronisation wizard measures a new one)"
+        else:
+            text = "no sync profile saved yet: the calibration's own sync is used (the synchronisation wizard " \
+                   "measures one in detail)"
+        self.profile_label.setText(text)
+
     def _wizard_finished(self, _result: int) -> None:
         written = self.wizard.save_page.written if self.wizard is not None else None
         if written is not None:
             self.sync_profile = written
             self.wizard_button.setToolTip(f"last sync profile saved: {written}")
+            self._show_profile()
             self.status.emit(f"sync profile saved: {written}; Capture offers it (“Load sync profile…”)")
             self.sync_profile_saved.emit(written)
         self.wizard = None
         self.screen.release("wizard")
         self.service.end_use(WIZARD_USER)
+        QTimer.singleShot(0, self, self._resume_paused)
 
     def recheck_refusals(self) -> None:
         """The rig was freed (a recording ended): take the refusals that said it was busy off the screen."""
@@ -386,7 +457,9 @@ class CalibrateWorkspace(QWidget):
         return out
 
     def shutdown(self) -> None:
-        """Stop the live numbers and cancel a running calibration (window closing)."""
+        """Stop the live numbers and cancel a running calibration (window closing): nothing paused resumes."""
+        self._resume_colocation = False
+        self._shut = True
         self.live_panel.set_live(False)
         if self.job is not None and self.job.running:
             self.job.cancel()

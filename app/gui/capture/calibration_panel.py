@@ -16,6 +16,11 @@ loaded again at the next start, checked against the rig like any file; a file th
 is named with the reason. Before a recording, :meth:`CalibrationPanel.confirm_record` asks once
 about what would spoil it: no calibration at all (the operator's explicit "Record uncalibrated"
 counts as the answer), or a plan at another timing than the sync was measured at.
+
+The calibration file in use is watched: when it changes on disk (the Calibrate workspace saved over
+it, or anything else wrote it), the top line says so at once and "Use the new calibration" takes
+the new content; until then recordings keep the calibration loaded (its hash names it), and Record
+asks first.
 """
 
 from __future__ import annotations
@@ -24,8 +29,17 @@ import html
 import logging
 from pathlib import Path
 
-from PySide6.QtCore import Qt, Signal
-from PySide6.QtWidgets import QCheckBox, QFileDialog, QGridLayout, QGroupBox, QLabel, QPushButton, QVBoxLayout
+from PySide6.QtCore import QFileSystemWatcher, Qt, Signal
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QFileDialog,
+    QGridLayout,
+    QGroupBox,
+    QLabel,
+    QPushButton,
+    QVBoxLayout,
+    QWidget,
+)
 
 from flexvox_app.capture.plan import CapturePlan
 from flexvox_app.capture.rig_setup import trigger_delay_by
@@ -39,6 +53,7 @@ from flexvox_app.gui.widgets.status_line import StatusLine
 from flexvox_calibration.capture_setup import (
     CalibrationRefused,
     CaptureCalibration,
+    file_sha256,
     from_run,
     load_for_capture,
     load_sync_for_capture,
@@ -53,6 +68,8 @@ _logger = logging.getLogger(__name__)
 
 UNCALIBRATED = "uncalibrated"
 """The risk of recording without a calibration (see :meth:`CalibrationPanel.record_risks`)."""
+REPLACED = "replaced"
+"""The risk of recording with a calibration whose file was replaced on disk since it was loaded."""
 
 
 class CalibrationPanel(QGroupBox):
@@ -68,6 +85,8 @@ class CalibrationPanel(QGroupBox):
 
     changed = Signal(object)
     """The :class:`~flexvox_calibration.capture_setup.CaptureCalibration` now used (None: uncalibrated)."""
+    file_replaced = Signal(str)
+    """The calibration file in use changed on disk: a line for the status bar."""
 
     def __init__(self, service: RigService, settings: AppSettings, parent=None):
         super().__init__("Calibration", parent)
@@ -88,6 +107,14 @@ class CalibrationPanel(QGroupBox):
         """The calibration file restored at start differs from the one last used (its hash changed)."""
         self.offered_profile: Path | None = None
         """The sync profile the wizard saved since flexvox started, until it is loaded."""
+        self.file_in_use: Path | None = None
+        """The calibration file the calibration in use was loaded from (None: a run, or uncalibrated)."""
+        self.replaced = ""
+        """How the file in use changed on disk since it was loaded ("" when it did not): "changed" or
+        "removed"."""
+        self.watcher = QFileSystemWatcher(self)
+        self.watcher.fileChanged.connect(lambda _: self.check_file())
+        self.watcher.directoryChanged.connect(lambda _: self.check_file())
         self.label = QLabel()
         self.label.setWordWrap(True)
         self.label.setTextFormat(Qt.TextFormat.RichText)
@@ -103,6 +130,18 @@ class CalibrationPanel(QGroupBox):
         self.delay_check = QCheckBox("trigger delay set on the camera (it cannot be told one)")
         self.delay_check.setToolTip("this camera has no trigger-delay feature: set the delay shown above in its "
                                     "vendor's tool, then tick this")
+        self.use_new_button = QPushButton("Use the new calibration")
+        self.use_new_button.setToolTip("the calibration file in use changed on disk: load it again, checked against "
+                                       "this rig")
+        self.use_new_button.setVisible(False)
+        self.use_new_button.clicked.connect(self.use_new_file)
+        self.top = QWidget()
+        """The line that stays in view: :attr:`status_label` and, when the file in use changed, the offer."""
+        t = QVBoxLayout(self.top)
+        t.setContentsMargins(0, 0, 0, 0)
+        t.setSpacing(2)
+        t.addWidget(self.status_label)
+        t.addWidget(self.use_new_button)
         row = QGridLayout()  # two a line: the controls column is narrow
         for i, b in enumerate((self.load_button, self.sync_button, self.clear_button)):
             row.addWidget(b, i // 2, i % 2)
@@ -125,9 +164,9 @@ class CalibrationPanel(QGroupBox):
         except (DeviceError, OSError) as exc:
             raise CalibrationRefused(f"cannot read this rig's camera and projector sizes: {exc}") from exc
 
-    def _ask(self, title: str, key: str) -> str:
+    def _ask(self, title: str, key: str, kind: str = "flexvox calibration") -> str:
         start = self.settings.last_folder(key)
-        path, _ = QFileDialog.getOpenFileName(self, title, start, "flexvox calibration (*.json)")
+        path, _ = QFileDialog.getOpenFileName(self, title, start, f"{kind} (*.json)")
         if path:
             self.settings.remember_folder(path, key)
         return path
@@ -138,7 +177,7 @@ class CalibrationPanel(QGroupBox):
             self.load_calibration(path)
 
     def _ask_sync_profile(self) -> None:
-        path = self._ask("Load sync profile", "capture/calibration_dir")
+        path = self._ask("Load sync profile", "capture/calibration_dir", "flexvox sync profile")
         if path:
             self.load_sync_profile(path)
 
@@ -155,6 +194,7 @@ class CalibrationPanel(QGroupBox):
         self.accepted.clear()
         if calibration_file is not None:
             self._remember(calibration_file, "")
+            self._watch(Path(calibration_file).expanduser().resolve() if calibration_file else None)
         if sync_file is not None:
             self.settings.set(SYNC_PROFILE_FILE, str(sync_file))
         self._show()
@@ -205,6 +245,7 @@ class CalibrationPanel(QGroupBox):
         self.file_changed = False
         self.accepted = {UNCALIBRATED}
         self._remember("", "")
+        self._watch(None)
         self._show()
         self.changed.emit(None)
 
@@ -245,6 +286,52 @@ class CalibrationPanel(QGroupBox):
         self.offered_profile = Path(path)
         self._show()
 
+    # ------------------------------------------------------------------ the file in use, on disk
+    def _watch(self, path: Path | None) -> None:
+        """Watch ``path`` (the file just loaded; None: no file) and its folder (a save replaces the file by a
+        rename, which ends a watch on the file itself)."""
+        old = self.watcher.files() + self.watcher.directories()
+        if old:
+            self.watcher.removePaths(old)
+        self.file_in_use, self.replaced = path, ""
+        if path is not None:
+            self.watcher.addPaths([str(path), str(path.parent)])
+
+    def check_file(self) -> bool:
+        """Compare the file in use with what was loaded from it; say so on the top line and offer "Use the new
+        calibration" when it changed on disk. True when it did."""
+        path, cal = self.file_in_use, self.calibration
+        if path is None or cal is None or not cal.sha256:
+            return False
+        try:
+            now = file_sha256(path)
+        except OSError:
+            now = ""
+        replaced = "" if now == cal.sha256 else ("changed" if now else "removed")
+        if now and str(path) not in self.watcher.files():
+            self.watcher.addPath(str(path))  # written anew: watch the new file
+        if replaced != self.replaced:
+            self.replaced = replaced
+            if replaced:
+                self.file_replaced.emit(f"the calibration file in use {'changed on disk' if now else 'was removed'}: "
+                                        f"{path.name}" + (" — Capture offers the new calibration" if now else
+                                                          " — Capture keeps the one loaded"))
+                _logger.warning("the calibration file in use %s on disk: %s (loaded: sha256 %s, now %s)", replaced,
+                                path, cal.sha256[:16], now[:16] or "no file")
+            self._show()
+        return bool(replaced)
+
+    def use_new_file(self) -> bool:
+        """Load the calibration file in use again (its new content, checked against this rig; a sync profile loaded
+        on top stays on top); False when refused (the reason is shown and the calibration loaded before stays)."""
+        sync = self.settings.get_str(SYNC_PROFILE_FILE, "")
+        if self.file_in_use is None or not self.load_calibration(self.file_in_use):
+            return False
+        if sync:  # the sync profile loaded on top stays on top
+            self.load_sync_profile(sync)
+        _logger.info("Capture now uses the new content of %s", self.file_in_use)
+        return True
+
     def forget_refusal(self) -> None:
         """The last refused load is old news once the live view or a recording starts with what is in use."""
         if self.error:
@@ -253,7 +340,7 @@ class CalibrationPanel(QGroupBox):
 
     def set_locked(self, locked: bool) -> None:
         """Grey the buttons out while a recording runs (Drop has nothing to drop when uncalibrated)."""
-        for w in (self.load_button, self.sync_button, self.clear_button, self.delay_check):
+        for w in (self.load_button, self.sync_button, self.clear_button, self.delay_check, self.use_new_button):
             w.setEnabled(not locked)
         self.clear_button.setEnabled(not locked and self.calibration is not None)
 
@@ -273,11 +360,13 @@ class CalibrationPanel(QGroupBox):
         self._show()
 
     def record_risks(self, plan: CapturePlan) -> list[str]:
-        """What would spoil a recording of ``plan``, in words: no calibration (:data:`UNCALIBRATED`), or a
-        sync measured at another timing. Empty when nothing does."""
+        """What would spoil a recording of ``plan``, in words: no calibration (:data:`UNCALIBRATED`), its file
+        changed on disk since it was loaded (:data:`REPLACED`), or a sync measured at another timing. Empty when
+        nothing does."""
         if self.calibration is None:
             return [UNCALIBRATED]
-        return [in_gui_words(w) for w in self.calibration.for_plan(plan.K, plan.period_us)[2]]
+        replaced = [REPLACED] if self.check_file() else []
+        return replaced + [in_gui_words(w) for w in self.calibration.for_plan(plan.K, plan.period_us)[2]]
 
     def confirm_record(self, plan: CapturePlan, parent=None) -> bool:
         """Ask once about each risk of :meth:`record_risks` the operator has not accepted; False when one was
@@ -285,6 +374,13 @@ class CalibrationPanel(QGroupBox):
         for risk in self.record_risks(plan):
             if risk in self.accepted:
                 continue
+            if risk == REPLACED:
+                if not self._confirm_replaced(parent):
+                    return False
+                if self.replaced == "removed":
+                    self.accepted.add(REPLACED)
+                    continue
+                return self.confirm_record(plan, parent)  # the new calibration's own risks
             if risk == UNCALIBRATED:
                 title = "Record uncalibrated?"
                 text = ("No calibration is in use: the shutter patterns assume the identity projector-to-camera map, "
@@ -300,6 +396,22 @@ class CalibrationPanel(QGroupBox):
                 return False
             self.accepted.add(risk)
         return True
+
+    def _confirm_replaced(self, parent) -> bool:
+        """Record asks before it uses a calibration whose file changed on disk: yes takes the new content."""
+        gone = self.replaced == "removed"
+        text = (f"The calibration file in use, {self.file_in_use}, "
+                + ("was removed" if gone else "changed on disk") + " since Capture loaded it. Recordings still use "
+                f"the calibration loaded then (sha256 {self.calibration.sha256[:16]})"
+                + ("." if gone else ", not the new one.\n\nUse the new calibration (checked against this rig) and "
+                   "record?"))
+        if gone:
+            return ask(parent or self, "Record with a calibration whose file is gone?", text + "\n\nRecord anyway?",
+                       accept="Record anyway", reject="Cancel")
+        if not ask(parent or self, "Use the new calibration?", text, accept="Use the new calibration and record",
+                   reject="Cancel"):
+            return False
+        return self.use_new_file()
 
     def _show(self) -> None:
         cal = self.capture_calibration()
@@ -348,6 +460,14 @@ class CalibrationPanel(QGroupBox):
         self.label.setText("<br>".join(lines))
         if self.calibration is not None and self.file_changed:
             short += coloured(" — the file changed since it was last used", AMBER)
+        if self.calibration is not None and self.replaced:
+            what = "was removed" if self.replaced == "removed" else "changed on disk"
+            offer = "" if self.replaced == "removed" else ": “Use the new calibration” takes it"
+            line = f"the calibration file in use {what}; recordings still use the one loaded{offer}"
+            lines.append(coloured(html.escape(line), AMBER))
+            short += " — " + coloured(html.escape(f"its file {what}: recordings use the one loaded"
+                                                  + (" until “Use the new calibration”" if offer else "")), AMBER)
+        self.use_new_button.setVisible(self.replaced == "changed")
         if self.error:  # after what is in use: the refusal changed nothing
             short += " · " + coloured(f"not loaded: {self.error}", RED)
         self.clear_button.setEnabled(self.calibration is not None and self.load_button.isEnabled())

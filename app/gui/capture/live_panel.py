@@ -23,8 +23,8 @@ import time
 
 import numpy as np
 import pyqtgraph as pg
-from PySide6.QtCore import QObject, QRectF, Qt, QTimer
-from PySide6.QtWidgets import QCheckBox, QComboBox, QGroupBox, QPushButton, QVBoxLayout, QWidget
+from PySide6.QtCore import QObject, QRectF, Qt, QTimer, Signal
+from PySide6.QtWidgets import QCheckBox, QComboBox, QGroupBox, QHBoxLayout, QPushButton, QVBoxLayout, QWidget
 
 from flexvox_app.gui.capture.live_preview import LivePreview
 from flexvox_app.gui.capture.live_view import LiveStream
@@ -61,6 +61,9 @@ class LivePanel(QObject):
         ``() -> str | None``: why the rig cannot be used now.
     """
 
+    shown_running = Signal(bool)
+    """The button now says the live view runs (True) or is stopped (False)."""
+
     def __init__(self, service: RigService, settings: AppSettings, *, plan, calibration, busy,
                  delay_set_by_hand=lambda: False, parent: QWidget):
         super().__init__(parent)
@@ -96,11 +99,12 @@ class LivePanel(QObject):
         self.live_button.setCheckable(True)
         self.saturation_check = QCheckBox("show saturated pixels in red")
         self.saturation_check.setChecked(True)
-        self.preview_check = QCheckBox("preview the newest frames, reconstructed with")
+        self.preview_check = QCheckBox("preview with")
+        self.preview_check.setToolTip("reconstruct the newest frames as they come, with the method beside")
         self.preview_check.setChecked(self.settings.get_bool("capture/preview", True))
         self.preview_method = QComboBox()
-        for name, text in (("motion-aware", "motion-aware (a region if need be)"),
-                           ("nc", "nc (fast: the whole frame)")):
+        for name, text in (("motion-aware", "motion-aware (a region)"),
+                           ("nc", "nc (fast: whole frame)")):
             self.preview_method.addItem(text, name)
         self.preview_method.setToolTip("motion-aware shows motion best but takes about a second per run at "
                                        "640×480, so it previews a region you drag; nc (constant-tensor "
@@ -111,8 +115,10 @@ class LivePanel(QObject):
         v = QVBoxLayout(live)
         v.addWidget(self.live_button)
         v.addWidget(self.saturation_check)
-        v.addWidget(self.preview_check)
-        v.addWidget(self.preview_method)
+        preview = QHBoxLayout()  # one row: the check and its method
+        preview.addWidget(self.preview_check)
+        preview.addWidget(self.preview_method, 1)
+        v.addLayout(preview)
         v.addWidget(self.live_label)
         self.controls = live
 
@@ -243,6 +249,7 @@ class LivePanel(QObject):
         self.live_button.setChecked(on)
         self.live_button.setText("Stop live view" if on else "Start live view")
         self.live_button.blockSignals(False)
+        self.shown_running.emit(on)
 
     def _on_frame(self, frame) -> None:
         self.stats.update(frame)
@@ -270,9 +277,19 @@ class LivePanel(QObject):
         self._redraw()
         self.display_timer.stop()
         self.stop_preview()
+        last = None if self.last_shown_id is None else self.frame_words(self.last_shown_id)
         self._capture = None
-        self.image_panel.set_title("recording ended" if self.last_shown_id is None
-                                   else f"recording ended · last frame shown: {self.last_shown_id}")
+        self.image_panel.set_title("recording ended" if last is None else f"recording ended · last shown: {last}")
+
+    def frame_words(self, frame_id: int) -> str:
+        """A frame as the counters count it: during a recording its row ("frame 288 of 300"), else the camera's
+        own number ("camera frame 3453")."""
+        capture = self._capture
+        first = None if capture is None else getattr(capture, "first_frame_id", None)
+        if first is None:
+            return f"camera frame {frame_id}"
+        target = getattr(capture, "n_target", None)
+        return f"frame {frame_id - first + 1}" + (f" of {target}" if target else "")
 
     # ------------------------------------------------------------------ drawing
     def _redraw(self) -> None:
@@ -307,7 +324,9 @@ class LivePanel(QObject):
         self.hist_curve.setData(edges, counts)
         self.sat_line.setValue(top)
         self.last_shown_id = f.frame_id
-        self.image_panel.set_title(f"{what}: frame {f.frame_id}")
+        words = self.frame_words(f.frame_id)
+        self.image_panel.set_title(f"{what}: {words.removeprefix('camera ')}" if what == "camera" else
+                                   f"{what}: {words}")
 
     # ------------------------------------------------------------------ preview
     def _on_preview_toggled(self, on: bool) -> None:
@@ -386,7 +405,8 @@ class LivePanel(QObject):
         self._preview_index = k + 1
         self.preview_panel.set_image(r.video[k], levels=r.levels)
         where = "" if r.whole_frame else f" · region at ({r.region.x0}, {r.region.y0})"
-        self.preview_panel.set_title(f"{r.method} preview: frame {r.frame_id}, sub-frame {k + 1}/{K}{where}")
+        frame = self.frame_words(r.frame_id)
+        self.preview_panel.set_title(f"{r.method} preview: {frame}, sub-frame {k + 1}/{K}{where}")
 
     def shutdown(self) -> bool:
         """Stop everything; False when the preview's worker did not stop within 5 s."""

@@ -125,7 +125,7 @@ class RecordPanel(QObject):
         self.frames_box.setSpecialValueText("until Stop")
         self.frames_box.setValue(self.settings.get_int("capture/frames", 150))
         self.durable_check = QCheckBox("flush each frame to disk (slower)")
-        self.durable_check.setToolTip("survives a power cut (flexvox capture --durable): each frame's chunk and "
+        self.durable_check.setToolTip("survives a power cut: each frame's chunk and "
                                       "journal record reach the disk before the next frame, so a power cut loses at "
                                       "most the frame in flight. Without it, a killed program still loses nothing.")
         self.durable_check.setChecked(self.settings.get_bool("capture/durable", False))
@@ -134,6 +134,9 @@ class RecordPanel(QObject):
         self.truth_check.setVisible(self.service.simulated)
         self.truth_cost = StatusLine("", lines=2)  # what the ground truth costs, shown while it is ticked
         self.truth_cost.setStyleSheet("color: gray")
+        keep = self.truth_cost.sizePolicy()  # its room stays when hidden: Record and Open in Review never move
+        keep.setRetainSizeWhenHidden(True)
+        self.truth_cost.setSizePolicy(keep)
         self._finish_started: float | None = None
         self._with_truth = False
         self.record_button = QPushButton("● Record")
@@ -153,14 +156,13 @@ class RecordPanel(QObject):
         options = QWidget()
         ov = QVBoxLayout(options)
         ov.setContentsMargins(12, 0, 0, 0)
-        for w in (self.durable_check, self.truth_check):
+        for w in (self.durable_check, self.truth_check, self.truth_cost):
             ov.addWidget(w)
         self.options = Collapsible("options", options, settings=self.settings, key="capture/show_record_options")
         rv = QVBoxLayout(rec)  # word-wrapped labels get their full height in a box layout, not a form
         rv.addLayout(f)
         rv.addWidget(self.options)
         rv.addLayout(buttons)
-        rv.addWidget(self.truth_cost)
         for w in (self.counters_label, self.recording_label, self.review_button):
             rv.addWidget(w)
         self.box = rec

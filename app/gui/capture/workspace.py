@@ -22,6 +22,7 @@ first, and the live panel then shows the capture's newest frames.
 from __future__ import annotations
 
 import logging
+from pathlib import Path
 
 from PySide6.QtCore import Signal
 from PySide6.QtWidgets import QWidget
@@ -102,7 +103,7 @@ class CaptureWorkspace(QWidget):
         # the code, timing, calibration details and projector output scroll below them.
         self.controls_scroll = controls_beside_view(
             self, (self.code, self.calibration_panel, self.projector), self.live_panel.views,
-            actions=(self.calibration_panel.status_label, self.live_panel.controls, self.record_panel.box),
+            actions=(self.calibration_panel.top, self.live_panel.controls, self.record_panel.box),
             min_width=350, max_width=420)
 
     # ------------------------------------------------------------------ what everything uses
@@ -176,6 +177,9 @@ class CaptureWorkspace(QWidget):
     def outcome_saved(self, outcome, path) -> bool:
         """The Calibrate workspace saved ``outcome`` to ``path``: when recordings use that run, they now use the
         file (its path and content hash). True when Capture switched to the file."""
+        if self.calibration_panel.file_in_use is not None and path is not None and \
+                Path(path).expanduser().resolve() == self.calibration_panel.file_in_use:
+            self.calibration_panel.check_file()  # saved over the file in use: said at once, the new one offered
         if outcome is None or self.calibration_panel.run_outcome is not outcome or self.record_panel.recording:
             return False
         return self.calibration_panel.load_calibration(path)

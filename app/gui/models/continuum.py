@@ -70,9 +70,10 @@ def continuum_division(p, divisions) -> Division:
     return ordered[min(len(ordered) - 1, int(round(p * (len(ordered) - 1))))]
 
 
-def describe(p) -> str:
-    """Words for the slider position: which way it leans and its tensor."""
+def describe(p, tensor=None) -> str:
+    """Words for the slider position: which way it leans and its tensor (``tensor``: the one used there, when it
+    is not :func:`continuum_tensor`'s, e.g. the benched default at its step; written as method labels write it)."""
     p = _check_p(p)
-    t = continuum_tensor(p)
+    t = continuum_tensor(p) if tensor is None else tuple(tensor)
     lean = "high SR" if p < 0.4 else "high TR" if p > 0.6 else "balanced"
     return f"{lean}: tensor ({t[0]:g}, {t[1]:g}, {t[2]:g})"

@@ -37,19 +37,18 @@ _RULES: tuple[tuple[re.Pattern, str], ...] = tuple((re.compile(p), r) for p, r i
      "run the calibration or the synchronisation wizard in Calibrate at this timing"),
     (r"check the projector size \(capture --projector-size, or the rig profile's\)",
      "check the projector size in the rig profile"),
-    (r"\(check it with flexvox design --verify\)", "(check it with the command flexvox design --verify)"),
-    (r"\(write it again with flexvox design --multiplexed\)",
-     "(write it again with the command flexvox design --multiplexed)"),
+    (r"\s*\(check it with flexvox design --verify\)", " (the code file may be damaged: write it again)"),
+    (r"\(write it again with flexvox design --multiplexed\)", "(write it again as a multiplexed code)"),
     # what a file is not, and what to open instead (no exception names, no parser positions)
     (r"not a readable Zarr store \([^()]*(?:\([^()]*\)[^()]*)*\)",
-     "is not a recording: no Zarr store there (a recording is the .zarr folder the Capture workspace or "
-     "flexvox capture wrote; open that folder)"),
+     "is not a recording (a recording is the .zarr folder a recording in the Capture workspace wrote; open that "
+     "folder)"),
     (r"not a flexvox recording \(no `flexvox` attributes\)",
-     "is not a recording flexvox wrote (a Zarr store of another program; open the .zarr folder the Capture "
-     "workspace or flexvox capture wrote)"),
+     "is not a recording flexvox wrote (another program's data; open the .zarr folder a recording in the Capture "
+     "workspace wrote)"),
     (r"not valid JSON \([^()]*\)",
-     "not a file flexvox wrote: its text is not JSON (open the .json file Calibrate saved, or a code file of "
-     "flexvox design -o)"),
+     "not a file flexvox wrote: its text is not JSON (open the .json file Calibrate saved, or a code file flexvox "
+     "designed)"),
     # a parameter's name before the reason
     (r"^`\w+`:\s*", ""),
 ))

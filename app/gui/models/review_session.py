@@ -25,6 +25,19 @@ from flexvox_core.recording import Recording, RecordingError, open_recording
 _logger = logging.getLogger(__name__)
 
 
+def not_a_recording(path) -> str | None:
+    """Why ``path`` is plainly no recording, from the file system alone (no data read); None when it may be one
+    (:meth:`ReviewSession.open` checks the rest). Asked before anything is given up for it."""
+    p = Path(path)
+    if not p.exists():
+        return f"{p}: no such recording"
+    if not p.is_dir():
+        return f"{p}: a file, not a recording (a recording is a .zarr folder)"
+    if not (p / "zarr.json").is_file() and not (p / ".zgroup").is_file():
+        return f"{p}: not a readable Zarr store (nothing in it says it is one)"
+    return None
+
+
 @dataclass
 class ReviewSession:
     """A recording opened for review.

@@ -146,11 +146,19 @@ class MethodForm(QWidget):
     def _method_for(self, name: str) -> Method:
         spec = get(name)
         values = self.pages[spec.name].values()
-        along = {TRIPLE: lambda o: tuple(o.default) if self.slider.value() == DEFAULT_STEP else
-                 continuum_tensor(self.position),  # one default tensor: the benched one, at its step
+        along = {TRIPLE: lambda o: self.tensor(tuple(o.default)),
                  DIVISION: lambda o: continuum_division(self.position, self._divisions) if self._divisions else None}
         values.update({o.name: along[o.kind](o) for o in spec.option_specs if o.kind in along})
         return Method(spec.name, **values)
+
+    def tensor(self, default=None) -> tuple[float, float, float]:
+        """The diffusion tensor at the slider's position: at :data:`DEFAULT_STEP` the benched default (one default
+        tensor everywhere), else :func:`continuum_tensor`'s."""
+        if self.slider.value() == DEFAULT_STEP:
+            if default is None:
+                default = tuple(next(o.default for o in get("diffusion").option_specs if o.kind == TRIPLE))
+            return tuple(float(c) for c in default)
+        return continuum_tensor(self.position)
 
     # ------------------------------------------------------------------ reactions
     def _has_slider(self) -> bool:
@@ -201,12 +209,14 @@ class MethodForm(QWidget):
             else:
                 self.slider_text.setText("open a recording to see its divisions")
         elif TRIPLE in kinds:
-            self.slider_text.setText(describe(self.position))
+            self.slider_text.setText(describe(self.position, self.tensor()))
         elif self._comparing and self._beside:
-            self.slider_text.setText(f"previewing diffusion, {describe(self.position)}, beside the {spec.name} "
-                                     f"result for comparison; Reconstruct runs {spec.name}")
+            self.slider_text.setText(f"previewing diffusion, {describe(self.position, self.tensor())}, beside the "
+                                     f"{spec.name} result for comparison; Reconstruct runs {spec.name}")
         elif self._comparing:
-            self.slider_text.setText(f"previewing diffusion, {describe(self.position)}, in place of {spec.name} (no "
-                                     f"{spec.name} result to set it beside yet); Reconstruct runs {spec.name}")
+            self.slider_text.setText(f"previewing diffusion, {describe(self.position, self.tensor())}, in place of "
+                                     f"{spec.name} (no {spec.name} result to set it beside yet); Reconstruct runs "
+                                     f"{spec.name}")
         else:
-            self.slider_text.setText(f"{spec.trade}; the slider previews a fixed tensor for comparison")
+            self.slider_text.setText(f"{spec.trade}; moving the slider previews diffusion at its tensor beside "
+                                     f"{spec.name}, for comparison")

@@ -28,11 +28,12 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from flexvox_app.gui.models.device_words import short_where
 from flexvox_app.gui.models.expected_quality import format_seconds
 from flexvox_app.gui.models.jobs import ReconstructionResult
 from flexvox_app.gui.models.machine_speed import SpeedModel
 from flexvox_app.gui.models.review_model import Line, ReviewModel
-from flexvox_app.gui.models.review_session import ReviewSession
+from flexvox_app.gui.models.review_session import ReviewSession, not_a_recording
 from flexvox_app.gui.review.compare_view import CompareView
 from flexvox_app.gui.review.method_form import MethodForm
 from flexvox_app.gui.review.motion_view import MotionView
@@ -51,7 +52,7 @@ def export_slug(method) -> str:
     return re.sub(r"[^A-Za-z0-9.+-]+", "-", method.label()).strip("-")
 
 
-EXPORT_FILTER = "TIFF stack (*.tif);;MP4 video, 8-bit (*.mp4);;NumPy array (*.npy);;Zarr store (*.zarr)"
+EXPORT_FILTER = "TIFF stack (*.tif);;MP4 video, 8-bit (*.mp4);;NumPy array (*.npy);;Zarr folder (*.zarr)"
 PREVIEW_DELAY_MS = 250
 """Knob changes within this time make one preview, not many."""
 
@@ -298,9 +299,13 @@ class ReviewWorkspace(QWidget):
     def open_recording(self, path) -> JobHandle | None:
         """Open ``path`` off the GUI thread; ``session_opened`` fires when it is ready. When opening it would stop
         a reconstruction or lose results not exported, ask first, naming them, as closing the window does; None
-        when the operator keeps working."""
-        losses = self.model.closing_losses()
+        when the operator keeps working, or when ``path`` is plainly no recording (refused before any question)."""
         name = Path(path).name
+        refusal = not_a_recording(path)
+        if refusal is not None:
+            self.model._open_failed(Path(path), refusal)
+            return None
+        losses = self.model.closing_losses()
         if losses and not ask(self, f"Open {name}?", f"Opening {name} now:\n\n" + "\n".join(
                 f"• {line}" for line in losses) + f"\n\nOpen {name} anyway?", accept=f"Open {name}",
                 reject="Keep working"):
@@ -463,13 +468,14 @@ class ReviewWorkspace(QWidget):
             i = s - r.first_frame * K
             self.recon_panel.set_image(r.video[i], levels=(0, 1))
             kind = "preview" if r.extra.get("preview") else "reconstruction"
-            self.recon_panel.set_title(f"{kind}: {r.method.label()} · sub-frame {s + 1}")
+            self.recon_panel.set_title(f"{kind}: {r.method.label()} {short_where(r.device)} · sub-frame {s + 1}")
         elif r is not None:
             self.recon_panel.clear("outside the preview window: pause to recompute it here")
         c = m.comparison
         if m.covers(c, s):
             self.slider_panel.set_image(c.video[s - c.first_frame * K], levels=(0, 1))
-            self.slider_panel.set_title(f"slider preview: {c.method.label()} · sub-frame {s + 1}")
+            self.slider_panel.set_title(f"slider preview: {c.method.label()} {short_where(c.device)} · sub-frame "
+                                        f"{s + 1}")
         elif c is not None:
             self.slider_panel.clear("outside the preview window: pause to recompute it here")
         self.motion_view.show_subframe(s)

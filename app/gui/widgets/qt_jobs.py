@@ -69,7 +69,11 @@ class _Runnable(QRunnable):
             h.outcome = "cancelled"
             h.cancelled.emit()
         except Exception as exc:  # a worker must report every failure to the GUI, never die silently
-            _logger.exception("job %s failed", h.name)
+            if isinstance(exc, ValueError | OSError):  # the operator's input (a wrong file): one line, as shown
+                _logger.warning("job %s failed: %s", h.name, exc)
+                _logger.debug("job %s failed", h.name, exc_info=True)
+            else:  # a bug: its traceback
+                _logger.exception("job %s failed", h.name)
             h.message = str(exc) if isinstance(exc, ValueError) else f"{type(exc).__name__}: {exc}"
             h.outcome = "failed"
             h.failed.emit(h.message)

@@ -2,40 +2,46 @@
 
 A word-wrapped label grows with its text, and everything under it moves (a button the operator was
 about to click moved 28 px). :class:`StatusLine` has a fixed height of ``lines`` lines: a text that
-fits is shown as it is (rich text, colours kept); a longer one is shown as plain text cut to the
-lines with "…" at the end, in the text's first colour, and the whole text is the tooltip.
-:meth:`StatusLine.text` returns the whole text.
+fits is shown as it is (rich text, colours kept); a longer one is cut to the lines with "…" at the
+end, each part keeping its own colour and weight (a red refusal at the end never reddens what comes
+before it), and the whole text is the tooltip. :meth:`StatusLine.text` returns the whole text.
 """
 
 from __future__ import annotations
 
 import html
-import re
 
 from PySide6.QtCore import Qt
-from PySide6.QtGui import QFontMetrics, QTextDocument, QTextLayout
+from PySide6.QtGui import QFont, QTextDocument
 from PySide6.QtWidgets import QLabel, QSizePolicy, QWidget
 
-_COLOUR = re.compile(r"color:\s*(#[0-9a-fA-F]{3,8}|[a-z]+)")
 
-
-def plain_lines(text: str, width: int, metrics: QFontMetrics, font) -> list[str]:
-    """``text`` (plain, with newlines) broken into the lines a label ``width`` pixels wide shows."""
-    out = []
-    for paragraph in text.split("\n"):
-        if not paragraph:
-            out.append("")
-            continue
-        layout = QTextLayout(paragraph, font)
-        layout.beginLayout()
-        while True:
-            line = layout.createLine()
-            if not line.isValid():
+def rich_prefix(doc: QTextDocument, n: int) -> str:
+    """The first ``n`` characters of ``doc``'s text as rich text, each run keeping its colour and weight."""
+    out: list[str] = []
+    left = int(n)
+    block = doc.begin()
+    while block.isValid() and left > 0:
+        if out:
+            out.append("<br>")
+            left -= 1
+        for it in block:
+            fragment = it.fragment()
+            if left <= 0:
                 break
-            line.setLineWidth(width)
-            out.append(paragraph[line.textStart(): line.textStart() + line.textLength()].rstrip())
-        layout.endLayout()
-    return out
+            if not fragment.isValid():
+                continue
+            text = fragment.text()[:left]
+            left -= len(text)
+            fmt = fragment.charFormat()
+            piece = html.escape(text).replace("\u2028", "<br>")
+            if fmt.fontWeight() >= QFont.Weight.Bold:
+                piece = f"<b>{piece}</b>"
+            if fmt.foreground().style() != Qt.BrushStyle.NoBrush:
+                piece = f"<span style='color:{fmt.foreground().color().name()}'>{piece}</span>"
+            out.append(piece)
+        block = block.next()
+    return "".join(out)
 
 
 class StatusLine(QLabel):
@@ -98,13 +104,14 @@ class StatusLine(QLabel):
             return
         doc = QTextDocument()
         doc.setHtml(full)
-        plain = doc.toPlainText().replace("\u2028", "\n")
-        lines = plain_lines(plain, max(1, width - 4), self.fontMetrics(), self.font())
-        kept = lines[: self.lines]
-        if len(lines) > self.lines:
-            rest = " ".join(lines[self.lines - 1:])
-            kept[-1] = self.fontMetrics().elidedText(rest, Qt.TextElideMode.ElideRight, max(1, width - 4))
-        colour = _COLOUR.search(full)
-        body = "<br>".join(html.escape(line) for line in kept)
-        super().setText(f"<span style='color:{colour.group(1)}'>{body}</span>" if colour else body)
+        # The longest start of the text that fits with "…" after it (binary search on its length).
+        lo, hi = 0, doc.characterCount()
+        while lo < hi:
+            mid = (lo + hi + 1) // 2
+            super().setText(rich_prefix(doc, mid).rstrip() + "…")
+            if super().heightForWidth(self.width()) <= self.height():
+                lo = mid
+            else:
+                hi = mid - 1
+        super().setText(rich_prefix(doc, lo).rstrip() + "…")
         self.setToolTip(full)

@@ -322,3 +322,31 @@ def test_capture_refuses_a_sync_box_with_a_video_port_projector(tmp_path):
     service = CaptureService(rig, CapturePlan(tile=(2, 4)), tmp_path / "r.zarr", frames=2, projector_size=(48, 64))
     with pytest.raises(CaptureError, match=r"a sync box cannot clock it.*kind = \"projector-trigger\""):
         service.run(timeout_s=20.0)
+
+
+def test_the_simulated_camera_warms_up_before_the_first_trigger_and_charges_the_capture_no_frame(tmp_path,
+                                                                                                 monkeypatch):
+    """The VGA case (frames 1–38 lost): the patterns' warp into camera pixels took a second at the first
+    exposure, on a paced clock that stood still through the set-up. Now the camera warps them when its
+    acquisition starts, before the projector triggers it, and brings the paced clock up to the wall after."""
+    import time
+
+    import rig_drivers.simulated_rig as simulated_rig
+
+    warp = simulated_rig.warp_patterns
+    warped_at = []
+
+    def slow_warp(*args, **kw):  # as slow as VGA's warp, at a size a test renders quickly
+        time.sleep(1.5)
+        warped_at.append(rig.projector.run_state.value)
+        return warp(*args, **kw)
+
+    monkeypatch.setattr(simulated_rig, "warp_patterns", slow_warp)
+    clock = PacedClock()
+    rig = SimulatedRig.create("balls", camera_size=(48, 64), subframes=64, clock=clock)
+    plan = CapturePlan(tile=(4, 4), camera_hz=15.0)
+    result = CaptureService(rig, plan, tmp_path / "first.zarr", frames=8, calibration=CaptureCalibration()).run()
+    assert warped_at == ["stopped"]  # once, before the projector ran
+    assert rig.camera.dropped_ids == [] and result.stats.drops == 0 and result.ok, result.message
+    assert open_recording(tmp_path / "first.zarr").per_frame("frame_id").tolist() == list(range(8))
+    rig.close()

@@ -226,6 +226,9 @@ def test_sync_wizard_end_to_end(qtbot, calibrate, tmp_path):
     assert f"not saved: {path} is kept" in wizard.save_page.label.text()
     with qtbot.waitSignal(wizard.destroyed, timeout=5000):
         wizard.accept()
+    again = ws.open_sync_wizard()  # the Save page offers the last profile's path
+    assert again.save_page.path.text() == str(path)
+    again.reject()
 
 
 def test_trigger_test_says_when_the_camera_is_not_triggered(qtbot, runner):
@@ -255,3 +258,58 @@ def test_target_for_the_simulated_rig_is_the_rig_capture_uses():
     assert target.rig.simulated.truth.phase_slots == hidden_timing(3)[0]
     target.session()  # a calibration session puts the calibration target in view
     assert service.rig.simulated.viewing == "target"
+
+
+def test_the_sync_wizard_s_finish_with_an_unsaved_sweep_asks_as_cancel_does(qtbot, settings):
+    from types import SimpleNamespace
+
+    from flexvox_app.gui.application import build_window
+    from flexvox_app.gui.widgets.questions import answering
+    from rig_drivers.profile import open_rig
+    from rig_drivers.simulated_camera import VirtualClock
+
+    w = build_window(open_rig("mock", scene="balls", subframes=64, clock=VirtualClock()), settings=settings)
+    qtbot.addWidget(w)
+    w.show_workspace("Calibrate")
+    wizard = w.calibrate.open_sync_wizard()
+    wizard.sync = SimpleNamespace(success=True, effective_phase_slots=6, recommended_camera_delay_us=412.0)
+    with answering(False) as asked:  # Finish on the Save page, the sweep not saved
+        wizard.accept()
+    assert wizard.isVisible() and asked[0].title == "Close the synchronisation wizard?"
+    assert "the phase sweep's result (phase 6, camera trigger delay 412 µs)" in asked[0].text
+    with answering(True):
+        wizard.accept()
+    assert not wizard.isVisible()
+    with answering(default=True):
+        w.close()
+
+
+def test_run_calibration_says_what_it_pauses_before_and_restores_both_after(qtbot, settings, runner):
+    from flexvox_app.gui.application import build_window
+    from flexvox_app.gui.widgets.questions import answering
+    from rig_drivers.profile import open_rig
+    from rig_drivers.simulated_camera import VirtualClock
+
+    w = build_window(open_rig("mock", scene="balls", subframes=64, clock=VirtualClock()), settings=settings,
+                     runner=runner)
+    qtbot.addWidget(w)
+    cal, capture = w.calibrate, w.capture
+    capture.live_panel.preview_check.setChecked(False)
+    assert cal.pause_note.text() == ""
+    assert capture.start_live()
+    assert cal.pause_note.text() == "Run pauses Capture's live view; it resumes when it ends"  # said before
+    assert cal.run_calibration() and not capture.live
+    assert cal.pause_note.text() == "paused: Capture's live view (resumed when it ends)"
+    qtbot.waitUntil(lambda: not cal.running, timeout=30_000)
+    qtbot.waitUntil(lambda: capture.live, timeout=5000)  # restored
+    capture.stop_live()
+    cal.live_panel.check.setChecked(True)  # "measure continuously"
+    assert "Run pauses “measure continuously”; it resumes" in cal.pause_note.text()
+    qtbot.waitUntil(lambda: not cal.live_panel.measuring, timeout=10_000)
+    assert cal.run_calibration() and not cal.live_panel.check.isChecked()
+    qtbot.waitUntil(lambda: not cal.running, timeout=30_000)
+    qtbot.waitUntil(cal.live_panel.check.isChecked, timeout=5000)  # ticked again
+    cal.live_panel.check.setChecked(False)
+    qtbot.waitUntil(lambda: not cal.live_panel.measuring, timeout=10_000)
+    with answering(default=True):
+        w.close()

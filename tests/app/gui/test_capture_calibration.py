@@ -159,3 +159,111 @@ def test_another_simulated_rigs_calibration_is_refused(qtbot, settings, runner):
     ws.shutdown()
     service.close()
     other.close()
+
+
+# ---------------------------------------------------------------------- the file in use changes on disk
+def _info(path, capsys) -> str:
+    from flexvox_app.cli.main import main
+
+    capsys.readouterr()
+    assert main(["info", str(path)]) == 0
+    return capsys.readouterr().out
+
+
+def test_a_file_in_use_changed_on_disk_is_said_at_once_offered_and_record_asks(qtbot, capture, tmp_path, capsys):
+    from flexvox_app.gui.widgets.questions import answering
+
+    ws, panel = capture, capture.calibration_panel
+    path = _write(tmp_path / "cal.json", capture_identity(ws.service))
+    old = file_sha256(path)
+    assert ws.load_calibration(path) and not panel.use_new_button.isVisibleTo(ws)
+    _write(path, capture_identity(ws.service), phase=5, overwrite=True)  # another program writes it (a rename)
+    new = file_sha256(path)
+    qtbot.waitUntil(lambda: panel.replaced == "changed", timeout=5000)  # the watcher, no click
+    top = html.unescape(panel.status_label.text())
+    assert top.startswith("<b>calibrated</b>: phase 3") and "its file changed on disk: recordings use the one " \
+        "loaded until “Use the new calibration”" in top
+    assert panel.use_new_button.isVisibleTo(ws) and ws.capture_calibration().sha256 == old
+    ws.record_panel.path_edit.setText(str(tmp_path / "kept.zarr"))
+    ws.record_panel.frames_box.setValue(2)
+    with answering(False) as asked:  # Record asks; Cancel records nothing
+        assert not ws.record()
+    assert asked[0].title == "Use the new calibration?" and f"{path}, changed on disk" in asked[0].text
+    assert f"(sha256 {old[:16]}), not the new one" in asked[0].text
+    assert not (tmp_path / "kept.zarr").exists()
+    with answering(True) as asked, qtbot.waitSignal(ws.recording_finished, timeout=20_000):
+        assert ws.record()
+    assert [q.accept for q in asked] == ["Use the new calibration and record"]
+    assert ws.capture_calibration().sha256 == new and ws.capture_calibration().phase_slots == 5
+    assert not panel.replaced and not panel.use_new_button.isVisibleTo(ws)
+    stored = open_recording(tmp_path / "kept.zarr").attrs["calibration"]
+    assert stored["sha256"] == new and stored["phase_slots"] == 5
+    assert f"calibration: {path} (sha256 {new[:16]}), phase 5 slot(s)" in _info(tmp_path / "kept.zarr", capsys)
+
+
+def test_the_new_calibration_button_takes_the_file_and_a_removed_file_is_said(qtbot, capture, tmp_path):
+    from flexvox_calibration.sync import SYNC_FORMAT, SYNC_VERSION
+
+    ws, panel = capture, capture.calibration_panel
+    identity = capture_identity(ws.service)
+    path = _write(tmp_path / "cal.json", identity)
+    assert ws.load_calibration(path)
+    _write(path, identity, h=np.eye(3), overwrite=True)
+    assert panel.check_file()  # (what the watcher calls) at once
+    panel.use_new_button.click()
+    np.testing.assert_allclose(ws.capture_calibration().homography, np.eye(3))
+    assert ws.capture_calibration().sha256 == file_sha256(path)
+    # a sync profile loaded on top stays on top when the new calibration is taken
+    sync = {"status": "ok", "K": 16, "period_us": 1041, "phase_slots": 6, "delay_us": 600.0,
+            "recommended_camera_delay_us": 441.0, "effective_phase_slots": 7}
+    assert ws.load_sync_profile(write_versioned(tmp_path / "sync.json", SYNC_FORMAT, SYNC_VERSION, identity,
+                                                {"sync": sync}))
+    _write(path, identity, phase=6, overwrite=True)
+    assert panel.check_file()
+    panel.use_new_button.click()
+    assert ws.capture_calibration().phase_slots == 7 and ws.capture_calibration().sha256 == file_sha256(path)
+    np.testing.assert_allclose(ws.capture_calibration().homography, H_SHIFT)
+    path.unlink()
+    qtbot.waitUntil(lambda: panel.replaced == "removed", timeout=5000)
+    assert "its file was removed: recordings use the one loaded" in panel.status_label.text()
+    assert not panel.use_new_button.isVisibleTo(ws) and ws.capture_calibration().phase_slots == 7
+
+
+def test_calibrate_saving_over_the_file_in_use_is_said_in_capture_at_once(qtbot, settings, runner, tmp_path,
+                                                                            capsys):
+    """The operator's repro: Capture uses rig-calibration.json; Calibrate runs and saves over it; the next
+    recording (after Record's question) holds the new calibration, and `flexvox info` names its hash."""
+    from flexvox_app.gui.application import build_window
+    from flexvox_app.gui.widgets.questions import answering
+    from rig_drivers.profile import open_rig
+    from rig_drivers.simulated_camera import VirtualClock
+
+    rig = open_rig("mock", scene="balls", subframes=64, clock=VirtualClock())
+    window = build_window(rig, settings=settings, runner=runner)
+    qtbot.addWidget(window)
+    capture, cal = window.capture, window.calibrate
+    capture.live_panel.preview_check.setChecked(False)
+    path = _write(tmp_path / "rig-calibration.json", capture_identity(window.service))
+    assert capture.load_calibration(path)
+    old = file_sha256(path)
+    cal.run_calibration()
+    qtbot.waitUntil(lambda: not cal.running, timeout=30_000)
+    with answering(True) as asked:  # "Replace the existing calibration?"
+        assert cal.save_panel.save(path) == path
+    assert asked[0].accept == "Replace"
+    new = file_sha256(path)
+    panel = capture.calibration_panel
+    assert panel.replaced == "changed" and panel.use_new_button.isVisibleTo(capture)  # at once: no event loop
+    assert "its file changed on disk" in panel.status_label.text() and capture.calibration.sha256 == old
+    assert window.statusBar().currentMessage() == ("the calibration file in use changed on disk: rig-calibration.json "
+                                                   "— Capture offers the new calibration")
+    capture.record_panel.path_edit.setText(str(tmp_path / "after.zarr"))
+    capture.record_panel.frames_box.setValue(2)
+    with answering(default=True) as asked, qtbot.waitSignal(capture.recording_finished, timeout=30_000):
+        assert capture.record()
+    assert asked[0].accept == "Use the new calibration and record"
+    stored = open_recording(tmp_path / "after.zarr").attrs["calibration"]
+    assert stored["sha256"] == new != old
+    assert f"(sha256 {new[:16]})" in _info(tmp_path / "after.zarr", capsys)
+    with answering(default=True):
+        window.close()

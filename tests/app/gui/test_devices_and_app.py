@@ -237,8 +237,14 @@ def test_a_status_line_keeps_its_height_and_cuts_a_long_text_with_the_whole_on_h
     line.setText(long)
     assert line.height() == height and line.elided and line.text() == long and line.toolTip() == long
     shown = line.shown_text()
-    assert shown.count("<br>") == 1 and shown.endswith("…</span>") and RED in shown  # two lines, its colour kept
+    assert shown.endswith("…") and RED in shown  # cut to its lines, its colour kept
     assert line.heightForWidth(line.width()) <= height  # what it shows fits
+    # Red only on the refusal: what comes before it keeps its own colour and bold.
+    mixed = "<b>calibrated</b>: phase 6, 441 µs trigger delay · " + coloured("not loaded: " + "a reason, " * 30, RED)
+    line.setText(mixed)
+    shown = line.shown_text()
+    assert line.elided and shown.startswith("<b>calibrated</b>: phase 6, 441 µs trigger delay · <span style='color:")
+    assert RED.lower() in shown.lower() and shown.count("<span") == 1 and "not loaded: a reason" in shown
     with pytest.raises(ValueError, match="`lines` must be at least 1; got 0"):
         StatusLine(lines=0)
 

@@ -78,7 +78,7 @@ def test_the_preview_method_is_chosen_in_the_panel_and_kept(qtbot, capture):
     qtbot.waitUntil(lambda: panel.preview.result is not None, timeout=20_000)
     assert panel.preview.result.method == "nc" and panel.preview.result.whole_frame
     assert panel.preview_label.text().startswith("nc preview on the CPU: 64×48 (the whole frame)")
-    assert panel.preview_panel.title.text().startswith("nc preview: frame")
+    assert panel.preview_panel.title.text().startswith("nc preview: camera frame")
     ws.stop_live()
     with pytest.raises(ValueError, match=r"`method` must be one of motion-aware, nc; got 'rebin'"):
         panel.preview.set_method("rebin")
@@ -249,7 +249,8 @@ def test_the_preview_updates_during_live_view_without_costing_frames(qtbot, capt
     assert first.video.shape == (16, 48, 64)
     qtbot.waitUntil(lambda: ws.live_panel.preview.result is not first, timeout=10_000)  # keeps updating
     assert ws.live_panel.preview_panel.has_image() and ws.live_panel.preview_panel.image.image.shape == (48, 64)
-    assert re.match(r"motion-aware preview: frame \d+, sub-frame \d+/16", ws.live_panel.preview_panel.title.text())
+    title = ws.live_panel.preview_panel.title.text()
+    assert re.match(r"motion-aware preview: camera frame \d+, sub-frame \d+/16", title)
     # What holds at any speed: the whole frame, a rate, a time per run, how many frames were previewed; how far
     # behind the camera it is shows only while the newest run's frame is known (the next run may be under way).
     line = re.match(r"motion-aware preview on the CPU: 64×48 \(the whole frame\), [123] frames?, \d+\.\d Hz, "
@@ -281,6 +282,9 @@ def test_a_recording_with_the_preview_on_drops_nothing(qtbot, capture, tmp_path)
     result = finished.args[0]
     assert ws.live_panel.preview.runs >= 1, "the preview ran during the recording"
     assert result.ok and result.frames_in_recording == 60
+    # titles count the recording's frames as the counters do ("frame 12 of 60"), not the camera's own numbers
+    assert re.match(r"recording ended · last shown: frame \d+ of 60$", ws.live_panel.image_panel.title.text())
+    assert re.match(r"motion-aware preview: frame \d+ of 60, sub-frame", ws.live_panel.preview_panel.title.text())
     assert result.stats.drops == 0 and result.stats.queue_drops == 0
     assert not ws.live_panel.preview.enabled
 

@@ -440,3 +440,18 @@ def test_messages_from_below_are_said_in_the_window_s_words():
     assert in_gui_words(said["sync profile"]).endswith("Give it as a sync profile (“Load sync profile…”) and a "
                                                        "calibration file as the calibration")
     assert "tick \"trigger delay set on the camera\")" in in_gui_words(said["no delay"])
+
+
+@pytest.mark.parametrize("message", [
+    "/d/x.zarr: not a readable Zarr store (GroupNotFoundError: No group found in store /d/x.zarr at path '')",
+    "/d/x.zarr: not a flexvox recording (no `flexvox` attributes)",
+    "/d/cal.json: not valid JSON (Expecting value at line 1)",
+    "/d/code.json: the code's checksum does not match (check it with flexvox design --verify)",
+    "/d/code.json: no multiplexed layout (write it again with flexvox design --multiplexed)",
+    "no sync profile in use (flexvox capture --sync-profile; Capture: \"Load sync profile…\")",
+])
+def test_gui_messages_name_no_zarr_store_and_no_command_line_flag(message):
+    from flexvox_app.gui.models.operator_words import in_gui_words
+
+    text = in_gui_words(message)
+    assert "Zarr store" not in text and " --" not in text and " -o" not in text, text

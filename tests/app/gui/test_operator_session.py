@@ -587,3 +587,27 @@ def test_buttons_hold_still_while_status_lines_grow_and_the_method_changes(qtbot
         assert where(name) == before, name
         for line in lines[name]:
             assert line.text() == long and line.elided and line.toolTip() == long  # all of it on hover
+
+
+def test_the_window_s_frame_fits_a_1024x700_screen_with_its_status_bar_and_capture_s_details_get_room(qtbot, window):
+    """A 1280×800 window (or one restored so) on a 1024×700 screen whose window manager adds a title bar: the
+    whole frame fits, the status bar is on screen, and Capture's scrolled details keep a useful height."""
+    from PySide6.QtCore import QMargins, QPoint, QRect
+
+    shown_window(qtbot, window, (1280, 800))
+    window.move(40, 60)
+    window.device_dock.set_folded(True)
+    screen, frame = QRect(0, 0, 1024, 700), QMargins(1, 29, 1, 1)  # a title bar and a border
+    window.fit_to_screen(screen, frame)
+    outer = QRect(window.frameGeometry().topLeft(), window.size().grownBy(frame))
+    assert screen.contains(outer), (outer, screen)
+    assert window.size().toTuple() == (1022, 670) and window.minimumSizeHint().height() <= 670
+    bar = window.statusBar()
+    assert bar.isVisible() and bar.mapTo(window, QPoint(0, bar.height())).y() <= window.height()
+    window.show_workspace("Capture")
+    for _ in range(5):
+        qtbot.wait(10)
+    details = window.capture.controls_scroll.viewport().height()
+    assert details >= 120, f"Capture's details get {details} px at 1024×700"
+    window.fit_to_screen(screen, frame)  # fitting again changes nothing
+    assert window.size().toTuple() == (1022, 670)

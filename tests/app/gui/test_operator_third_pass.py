@@ -102,12 +102,20 @@ def test_ground_truth_says_what_it_costs_and_the_choice_survives_a_restart(qtbot
     w.show()
     w.show_workspace("Capture")
     panel.frames_box.setValue(300)
+    panel.options.set_expanded(True)  # the cost is said beside its box, among the options
+    for _ in range(3):
+        qtbot.wait(10)
+    review_y = panel.review_button.mapTo(w, panel.review_button.rect().topLeft()).y()
     assert panel.truth_check.isChecked() and panel.truth_cost.isVisible()
     cost = panel.truth_cost.text()  # 4x4 code on a 120x160 camera at 15 Hz: 16 float32 pictures per frame
     assert "ground truth adds 1.2 MB per frame (18 MB per second at 15 Hz, about 32× the frames' size)" in cost, cost
     assert "369 MB for 300 frames" in cost and "finishing takes longer" in cost
     panel.truth_check.setChecked(False)
     assert not panel.truth_cost.isVisible()
+    for _ in range(3):
+        qtbot.wait(10)
+    # "Open in Review" holds still (it jumped 34 px): the cost's room stays when it is hidden
+    assert panel.review_button.mapTo(w, panel.review_button.rect().topLeft()).y() == review_y
     with answering(default=True):
         w.close()
     again = truth_window(qtbot, settings)
@@ -278,6 +286,12 @@ def test_review_s_result_line_and_the_compare_list_say_where_each_result_ran(qtb
     assert "sub-frames in" in review.result_label.text() and " on the CPU" in review.result_label.text()
     items = [review.compare_view.box_a.itemText(i) for i in range(review.compare_view.box_a.count())]
     assert len(items) == 2 and all(" on the CPU" in item for item in items), items
+    # the preview's title says where it ran too
+    review.form.set_method_name("diffusion")
+    review.preview_check.setChecked(True)
+    review.form.set_position(0.0)  # settings no result has: the preview is shown
+    qtbot.waitUntil(lambda: review.recon_panel.title.text().startswith("preview: "), timeout=20_000)
+    assert " on the CPU · sub-frame " in review.recon_panel.title.text()
 
 
 def test_the_live_preview_line_says_where_it_runs():
@@ -365,6 +379,7 @@ def test_the_sync_wizard_asks_before_cancel_loses_work_has_browse_and_its_profil
     assert asked == []
     assert any(str(profile) in s and "Load sync profile" in s for s in statuses), statuses
     assert str(profile) in w.calibrate.wizard_button.toolTip()
+    assert f"sync profile saved by the wizard: {profile}" in w.calibrate.profile_label.text()  # the panel says it
     assert f"the synchronisation wizard saved {profile}" in w.capture.calibration_panel.label.text()
     assert "sync profile is not loaded" in w.capture.calibration_panel.status_label.text()
     with answering(default=True):
@@ -410,6 +425,9 @@ def test_the_slider_s_default_step_gives_the_benched_default_tensor(review):
     review.form.set_method_name("diffusion")
     review.form.set_position(0.18)
     assert tuple(review.form.method().tensor) == tuple(DEFAULT_TENSOR) == (0.15, 0.15, 1.0)
+    # one rounding everywhere: the line under the slider says what the method's label says
+    assert "tensor (0.15, 0.15, 1)" in review.form.slider_text.text() and "0.147" not in review.form.slider_text.text()
+    assert "(0.15,0.15,1)" in review.form.method().label()
     assert "not benched" not in review.expected_label.text()
     review.form.set_position(0.25)
     assert tuple(review.form.method().tensor) != tuple(DEFAULT_TENSOR)

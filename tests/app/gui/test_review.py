@@ -67,7 +67,7 @@ def test_open_failure_is_said_in_words(qtbot, review, tmp_path):
     (tmp_path / "junk.zarr").mkdir()
     review.open_recording(tmp_path / "junk.zarr")
     qtbot.waitUntil(lambda: "cannot open" in review.path_label.text(), timeout=5000)
-    assert "not a flexvox recording" in review.path_label.text() or "Zarr" in review.path_label.text()
+    assert "is not a recording" in review.path_label.text()
     assert review.session is None and not review.reconstruct_button.isEnabled()
 
 
@@ -346,8 +346,8 @@ def test_the_method_form_is_built_from_the_registered_methods(qtbot, settings):
         form.widget("radius").setValue(3)
         assert form.method() == Method("frame-mean", radius=3)
         assert form.slider.isEnabled() and not form.comparing  # no tensor or division option: it compares
-        assert "frame-mean keeps space and gives up time; the slider previews a fixed tensor for comparison" in \
-            form.slider_text.text()
+        assert "frame-mean keeps space and gives up time; moving the slider previews diffusion at its tensor beside " \
+            "frame-mean, for comparison" in form.slider_text.text()
     form.set_method_name("motion-aware")
     form.widget("slow_reach").setValue(0.75)  # the pipeline's default is shown, and stands for None
     assert form.method().slow_reach is None and form.slider.isEnabled()
@@ -402,3 +402,39 @@ def test_the_expected_time_comes_from_timing_this_machine_and_is_logged_against_
         r = reconstruct(qtbot, ws, "diffusion")
     assert "(expected ≈" in ws.result_label.text()
     assert any(f"measured {r.seconds:.3f} s, expected {expected_s:.3f} s" in m for m in caplog.messages)
+
+
+def test_a_folder_that_is_no_recording_is_refused_before_asking_about_an_unexported_result(qtbot, opened,
+                                                                                           recording, tmp_path):
+    from flexvox_app.gui.widgets.questions import answering
+
+    review = opened
+    reconstruct(qtbot, review, "diffusion")
+    (tmp_path / "junk").mkdir()
+    (tmp_path / "notes.txt").write_text("x")
+    for path in (tmp_path / "junk", tmp_path / "notes.txt", tmp_path / "missing.zarr"):
+        with answering() as asked:  # no question: nothing would be lost
+            assert review.open_recording(path) is None
+        assert asked == []
+        text = review.path_label.text()
+        assert f"{recording} (still open)" in text and f"cannot open {path.name}" in text, text
+        assert "Zarr store" not in text
+    assert len(review.results) == 1 and review.session.path == recording
+
+
+def test_a_wrong_pick_logs_one_line_and_keeps_the_traceback_for_the_debug_level(qtbot, opened, recording, tmp_path,
+                                                                                 caplog):
+    import logging
+
+    import zarr
+
+    review = opened
+    zarr.open_group(str(tmp_path / "other.zarr"), mode="w")  # a Zarr folder of another program
+    with caplog.at_level(logging.DEBUG, logger="flexvox_app.gui.widgets.qt_jobs"):
+        review.open_recording(tmp_path / "other.zarr")
+        qtbot.waitUntil(lambda: "cannot open other.zarr" in review.path_label.text(), timeout=10_000)
+    failed = [r for r in caplog.records if r.name == "flexvox_app.gui.widgets.qt_jobs" and "failed" in r.getMessage()]
+    shown = [r for r in failed if r.levelno >= logging.WARNING]
+    assert len(shown) == 1 and shown[0].exc_info is None and "\n" not in shown[0].getMessage()
+    assert "not a flexvox recording" in shown[0].getMessage()
+    assert [r.levelno for r in failed if r.exc_info] == [logging.DEBUG]

@@ -51,7 +51,7 @@ if mode == "batch":
     reconstruct_batch(rec, out, Method(method), chunk_frames=chunk)
 else:
     from flexvox_core.capture_reader import read_capture
-    from flexvox_core.methods import reconstruct
+    from flexvox_core.video_api import reconstruct_video as reconstruct
     frames, code = read_capture(rec)
     video = reconstruct(frames, code, Method(method), chunk_frames=chunk)
 print(json.dumps({{"seconds": time.perf_counter() - t,

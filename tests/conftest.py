@@ -25,8 +25,20 @@ def rng():
     return np.random.default_rng(20261121)
 
 
+# Two callers in the application still use deprecated names (issue #51, point 5), while they are being edited by
+# others: app/gui/models/review_session.py calls CaptureReader.takes_raw (now takes_multiplexed) and
+# app/capture/live_preview.py calls motion_aware(value_range=...) (now sample_range=). The application's tests let
+# those two warnings pass until the callers use the new names; then this goes.
+_STILL_OLD_NAMES = [pytest.mark.filterwarnings("ignore:CaptureReader.takes_raw is deprecated:DeprecationWarning"),
+                    pytest.mark.filterwarnings("ignore:`value_range` of motion_aware is deprecated:DeprecationWarning")]
+
+
 def pytest_collection_modifyitems(config, items):
     """Tests marked ``gpu`` need a real NVIDIA GPU: skipped unless FLEXVOX_TEST_GPU=1 (bench/gpu_check.sh)."""
+    for item in items:
+        if item.nodeid.startswith("tests/app/"):
+            for mark in _STILL_OLD_NAMES:
+                item.add_marker(mark)
     if os.environ.get("FLEXVOX_TEST_GPU") == "1":
         return
     skip = pytest.mark.skip(reason="needs an NVIDIA GPU: run bench/gpu_check.sh on a machine with one "

@@ -66,7 +66,9 @@ class MotionAware(MethodSpec):
         return options.overlap(K)
 
     takes_missing = True
-    takes_multiplexed = True
+
+    def takes_multiplexed(self, options: MotionOptions) -> bool:
+        return True
 
     def gpu_voxel_bytes(self, options: MotionOptions, K: int, H: int, W: int) -> float:
         """Device memory per voxel of a window (S = F·K sub-frames of H×W) on the GPU: an upper bound of the
@@ -95,11 +97,11 @@ class MotionAware(MethodSpec):
             return "a multiplexed capture's motion-aware runs on the CPU"
         return cuda_unsupported(options)
 
-    def run(self, frames, code, options: MotionOptions, *, value_range=None, extras=False, missing=None,
+    def run(self, frames, code, options: MotionOptions, *, sample_range=None, extras=False, missing=None,
             device="cpu") -> MethodOutput:
         if not is_identity_code(code):
             return self._run_multiplexed(frames, code, options, extras)
-        r = run_clip(frames, code, options, value_range=value_range, missing=missing, device=device)
+        r = run_clip(frames, code, options, sample_range=sample_range, missing=missing, device=device)
         return MethodOutput(r.video, {"flow": r.flow.flow, "tr": r.tr} if extras else {}, device=r.device,
                             device_note=r.device_note)
 

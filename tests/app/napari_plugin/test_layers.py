@@ -11,8 +11,9 @@ import pytest
 import zarr
 
 from flexvox_app.napari_plugin import layers
-from flexvox_core.methods import Method, reconstruct
+from flexvox_core.methods import Method
 from flexvox_core.recording import open_recording
+from flexvox_core.video_api import reconstruct_video
 from flexvox_core.video_io import write_video
 
 
@@ -92,7 +93,7 @@ def test_the_steps_yield_after_each_chunk_and_return_the_runners_result(recordin
     done, out = _drain(layers.reconstruction_steps(str(recording), method, chunk_frames=2))
     assert done == [2, 2, 2]  # camera frames per chunk, 6 frames in chunks of 2
     rec = open_recording(recording)
-    np.testing.assert_allclose(out.video, reconstruct(rec.normalised_frames(), rec.code, method, chunk_frames=2),
+    np.testing.assert_allclose(out.video, reconstruct_video(rec.normalised_frames(), rec.code, method, chunk_frames=2),
                                atol=1e-6)
 
 

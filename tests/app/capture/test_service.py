@@ -17,22 +17,8 @@ from flexvox_core.forward import capture, tiled_code
 from flexvox_core.recording import RecordingWriter, open_recording
 from rig_drivers.errors import DeviceError, DeviceTimeoutError
 from rig_drivers.interfaces import DeviceState, Frame
-from rig_drivers.simulated_camera import VirtualClock
-from rig_drivers.simulated_rig import SimulatedRig
 
-CODE = design_code((2, 2)).code  # K = 4: small and fast
-PLAN = CapturePlan.from_code(CODE)
-PERIOD = PLAN.period_us  # 16666 µs at 15 Hz
-
-
-def make_rig(**kw):
-    """The textbook rig (projector = camera, identity map, no trigger offset): these tests are about the capture
-    path's mechanics; tests/app/capture/test_one_chain.py captures through a calibration of the real one."""
-    kw.setdefault("camera_size", (16, 24))
-    kw.setdefault("subframes", 32)
-    kw.setdefault("ideal", True)
-    kw.setdefault("clock", VirtualClock())
-    return SimulatedRig.create(kw.pop("scene", "balls"), **kw)
+from .simulated_rig_helpers import CODE, PERIOD, PLAN, make_rig
 
 
 def phase(p: int) -> CaptureCalibration:

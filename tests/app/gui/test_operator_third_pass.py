@@ -8,7 +8,7 @@ import pytest
 
 from flexvox_app.gui.widgets.questions import answering
 
-from .test_review import reconstruct
+from .widget_helpers import reconstruct
 
 
 # ---------------------------------------------------------------------- opening another recording asks first

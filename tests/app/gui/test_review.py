@@ -9,21 +9,9 @@ from flexvox_app.gui.review.workspace import ReviewWorkspace
 from flexvox_app.gui.widgets.questions import Question, answering
 
 from .conftest import FRAMES, SIZE
+from .widget_helpers import reconstruct
 
 S = FRAMES * 8  # sub-frames of the test recording (K = 8)
-
-
-def reconstruct(qtbot, ws, method: str, position: float | None = None, **knobs):
-    ws.form.set_method_name(method)
-    if position is not None:
-        ws.form.set_position(position)
-    for name, value in knobs.items():
-        ws.form.widget(name).setValue(value)
-    n = len(ws.results)
-    with qtbot.waitSignal(ws.result_added, timeout=30_000):
-        ws.reconstruct_button.click()
-    assert len(ws.results) == n + 1
-    return ws.results[-1]
 
 
 def test_open_shows_the_recording_and_plays_it(qtbot, opened):

@@ -80,9 +80,8 @@ class MotionAware(MethodSpec):
         (:func:`~flexvox_core.flow.estimate.flow_size`; DIS's images are padded to 16 px and its coarsest levels
         and patch grids weigh more on small ones). Derived from the workspace of every stage with two passes,
         every branch taken (still and slow voxels, noise, the local choice), at 81 sizes from 8×8 to
-        1920×1080 at K = 4 and 16: the bound holds at each, with 3 % to spare at 1920×1080, 5 % at 640×480
-        (149.5 bytes measured at K = 16; 156.3 estimated), 23 % at 160×120 (232.3). One pass, the default,
-        holds 8 bytes less. Reproduce:
+        1920×1080 at K = 4 and 16: the bound holds at each (the margins: docs/benchmarks.md, "Figures behind
+        the code"). One pass, the default, holds less. Reproduce:
         ``NUMBA_ENABLE_CUDASIM=1 python -m tests.flexvox_core.gpu.workspace_size`` (the table;
         ``tests/flexvox_core/gpu/test_workspace_size.py`` fails where a run holds more); on a card
         ``bench/bench_gpu.py`` prints the bytes a run held next to this figure."""

@@ -26,14 +26,7 @@ def cli(argv):
     return args.func(args)
 
 
-@pytest.fixture
-def recording(tmp_path, capsys):
-    from flexvox_app.cli.main import main
-
-    path = tmp_path / "r.zarr"
-    assert main(["simulate", "balls", "--size", "16x24", "--frames", "5", "--tile", "2x2", "-o", str(path)]) == 0
-    capsys.readouterr()
-    return path
+pytestmark = pytest.mark.recording(frames=5, size=(16, 24), tile=(2, 2), name="r.zarr")
 
 
 def test_info_summarises_a_sound_recording(recording, capsys):

@@ -9,13 +9,7 @@ from flexvox_app.cli.main import main
 from flexvox_core.metrics import psnr
 from flexvox_core.recording import open_recording
 
-
-@pytest.fixture
-def recording(tmp_path, capsys):
-    path = tmp_path / "r.zarr"
-    assert main(["simulate", "balls", "--size", "24x32", "--frames", "3", "-o", str(path)]) == 0
-    capsys.readouterr()
-    return path
+pytestmark = pytest.mark.recording(frames=3, size=(24, 32), tile=(4, 4), name="r.zarr")
 
 
 @pytest.mark.parametrize("suffix", [".npy", ".tif", ".mp4", ".zarr", ".NPY", ".TIF", ".ZARR"])

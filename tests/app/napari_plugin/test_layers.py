@@ -16,6 +16,8 @@ from flexvox_core.recording import open_recording
 from flexvox_core.video_api import reconstruct_video
 from flexvox_core.video_io import write_video
 
+pytestmark = pytest.mark.recording("fan", size=(24, 32), tile=(2, 2), scene_seed=3, noise_seed=1)
+
 
 def test_a_recording_opens_as_coded_frames_and_ground_truth_with_time_in_seconds(recording):
     assert layers.get_reader(str(recording)) is layers.read and layers.get_reader([str(recording)]) is layers.read
@@ -152,10 +154,11 @@ def test_a_recording_that_cannot_be_reconstructed_says_why(tmp_path):
         next(layers.reconstruction_steps(str(tmp_path / "missing.zarr"), Method()))
 
 
-def test_motion_aware_results_become_video_flow_wheel_and_tr_map_layers(moving_recording):
+@pytest.mark.recording(frames=3, size=(32, 40), tile=(4, 4), scene_seed=2, noise_seed=1, name="moving.zarr")
+def test_motion_aware_results_become_video_flow_wheel_and_tr_map_layers(recording):
     method = Method("motion-aware")
-    _, out = _drain(layers.reconstruction_steps(str(moving_recording), method, extras=True, chunk_frames=8))
-    video, flow, tr = layers.result_layers(out, method=method, recording=str(moving_recording), subframe_hz=240.0, K=16)
+    _, out = _drain(layers.reconstruction_steps(str(recording), method, extras=True, chunk_frames=8))
+    video, flow, tr = layers.result_layers(out, method=method, recording=str(recording), subframe_hz=240.0, K=16)
     assert video[0].shape == (48, 32, 40) and video[1]["name"] == f"moving: {method.label()}"
     assert flow[0].shape == (48, 32, 40, 3) and flow[0].dtype == np.uint8 and flow[1]["rgb"]
     assert flow[1]["name"].startswith("moving: flow (colour wheel, full = ")

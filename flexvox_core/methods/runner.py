@@ -404,9 +404,8 @@ def reconstruct(frames, code, method: Method | str | None = None, *, chunk_frame
                 origin: tuple[int, int] | None = None, white: float | None = None, **options: Any) -> np.ndarray:
     """Deprecated: the video of :func:`run` alone; call :func:`flexvox_core.reconstruct_video`, which does the same.
 
-    .. deprecated:: 0.1
-       ``flexvox_core.methods.reconstruct`` will be removed in the next release: it is
-       :func:`flexvox_core.reconstruct_video` (which also takes a recording) under a second name.
+    It warns (``DeprecationWarning``) and will be removed in the next release: it is
+    :func:`flexvox_core.reconstruct_video` (which also takes a recording) under a second name.
 
     Parameters
     ----------

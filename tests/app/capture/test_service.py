@@ -308,3 +308,43 @@ def test_capture_refuses_a_sync_box_with_a_video_port_projector(tmp_path):
     service = CaptureService(rig, CapturePlan(tile=(2, 4)), tmp_path / "r.zarr", frames=2, projector_size=(48, 64))
     with pytest.raises(CaptureError, match=r"a sync box cannot clock it.*kind = \"projector-trigger\""):
         service.run(timeout_s=20.0)
+
+
+def test_the_sink_says_which_ground_truth_frame_it_writes(tmp_path):
+    from flexvox_app.capture.plan import CapturePlan
+    from flexvox_app.capture.service import CaptureService
+    from rig_drivers.profile import open_rig
+    from rig_drivers.simulated_camera import VirtualClock
+
+    rig = open_rig("mock", scene="strobe", subframes=17 * 16, seed=0, clock=VirtualClock())
+    svc = CaptureService(rig, CapturePlan(), tmp_path / "r.zarr", frames=4, ground_truth=True)
+    seen = []
+    truth = svc.sink._ground_truth
+    svc.sink._ground_truth = lambda i, K: (seen.append(svc.stats().finishing), truth(i, K))[1]
+    svc.start()
+    assert svc.wait(30)
+    result = svc.result() if callable(svc.result) else svc.result
+    assert result is not None and result.ok, result
+    assert seen == [f"writing the scene's ground truth: frame {i} of 4" for i in range(1, 5)]
+    assert svc.stats().finishing == ""
+
+
+def test_the_drift_note_says_sub_second_drifts_in_milliseconds():
+    from flexvox_app.capture.plan import CapturePlan
+
+    notes = " ".join(CapturePlan(camera_hz=200.0).timing().notes)
+    assert "drifts one slot every" in notes and "every 0 s" not in notes, notes
+
+
+def test_the_camera_rate_is_the_camera_s_own_not_its_delivery_bursts(tmp_path):
+    from flexvox_app.capture.plan import CapturePlan
+    from flexvox_app.capture.service import CaptureService
+    from rig_drivers.profile import open_rig
+    from rig_drivers.simulated_camera import VirtualClock
+
+    # the virtual clock delivers every frame at once in real time: only the camera's timestamps say 15 Hz
+    rig = open_rig("mock", scene="strobe", subframes=17 * 16, seed=0, clock=VirtualClock())
+    svc = CaptureService(rig, CapturePlan(camera_hz=15.0), tmp_path / "r.zarr", frames=17)
+    svc.start()
+    assert svc.wait(30)
+    assert svc.stats().camera_rate_hz == pytest.approx(15.0, rel=0.01)

@@ -24,3 +24,16 @@ def reconstruct(qtbot, ws, method: str, position: float | None = None, **knobs):
         ws.reconstruct_button.click()
     assert len(ws.results) == n + 1
     return ws.results[-1]
+
+
+def truth_window(qtbot, settings):
+    """The main window on a mock rig of the strobe scene (4x4 code, 120x160 at 15 Hz), its live preview off."""
+    from flexvox_app.gui.application import build_window
+    from rig_drivers.profile import open_rig
+    from rig_drivers.simulated_camera import VirtualClock
+
+    rig = open_rig("mock", scene="strobe", subframes=17 * 16, seed=0, clock=VirtualClock())
+    w = build_window(rig, settings=settings)
+    qtbot.addWidget(w)
+    w.capture.live_panel.preview_check.setChecked(False)
+    return w

@@ -2,7 +2,7 @@
 
 Each run is a fresh subprocess (``flexvox_core.batch.reconstruct_batch`` on dask's local
 threads); its peak RSS comes from ``resource.getrusage(RUSAGE_CHILDREN).ru_maxrss`` in the
-parent. For contrast, the in-memory ``reconstruct`` of the short recording is measured too
+parent. For contrast, the in-memory ``reconstruct_video`` of the short recording is measured too
 (it holds the whole (F*K, H, W) video). The recordings are synthetic (a looping coded
 capture of random video), written frame by frame. Each child reports its own peak
 (``RUSAGE_SELF``), so the rows do not depend on their order.
@@ -10,15 +10,8 @@ capture of random video), written frame by frame. Each child reports its own pea
     python bench/bench_batch_memory.py [--frames 60] [--factor 10] [--size 120x160] [--chunk 16]
                                        [--method diffusion|motion-aware|...]
 
-What nc's peak holds (60 frames of 120x160, K = 16, chunks of 16; one run each way, 2026-11-29): the
-interpreter and the imports (NumPy, SciPy, OpenCV, Zarr, flexvox) about 109 MiB; numba, which nc's time
-blur is compiled with (``flexvox_core/reconstruct/nc_time_kernel.py``), about 100 MiB more once its first
-call ran (52 MiB to import numba and llvmlite, 48 MiB to load the cached kernels through LLVM: a fixed cost
-that does not grow with the recording or the chunk); the reconstruction's own arrays (tracemalloc's peak
-during the run, dask's imports included) about 110 MiB. So the peak rose from 281 MiB (before nc's time
-blur was compiled) to 335-351 MiB: numba's fixed 100 MiB, less the volumes the compiled pass no longer
-builds (the run's own memory, peak minus what the process held before it, went from about 170 to about
-130 MiB). Nothing is held after the run (tracemalloc: 21 MiB, imports).
+What nc's peak holds, and how it moved when nc's time blur was compiled: docs/benchmarks.md, "Figures behind the
+code".
 """
 
 from __future__ import annotations
@@ -51,7 +44,7 @@ if mode == "batch":
     reconstruct_batch(rec, out, Method(method), chunk_frames=chunk)
 else:
     from flexvox_core.capture_reader import read_capture
-    from flexvox_core.methods import reconstruct
+    from flexvox_core.video_api import reconstruct_video as reconstruct
     frames, code = read_capture(rec)
     video = reconstruct(frames, code, Method(method), chunk_frames=chunk)
 print(json.dumps({{"seconds": time.perf_counter() - t,

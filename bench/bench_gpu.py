@@ -54,11 +54,11 @@ def on_gpu(frames, code, pairs: str):
     """``motion_aware(frames, code, device="cuda")`` with the pairs' flow on ``pairs`` (gpu or cpu), and the peak
     of its workspace in bytes per voxel."""
     from flexvox_core.motion.gpu.engine import CudaStages
-    from flexvox_core.motion.options import MotionOptions, sample_bounds
+    from flexvox_core.motion.options import MotionOptions, check_sample_range
     from flexvox_core.motion.stages import Window, run_stages
 
     f = np.asarray(frames, np.float32)
-    window = Window.plan(f, code, MotionOptions(), sample_bounds(f, None, None))
+    window = Window.plan(f, code, MotionOptions(), check_sample_range(f, None, None))
     stages = CudaStages(window, pairs=pairs)
     result = run_stages(stages)
     return result, stages.ws.peak_nbytes / (window.S * f.shape[1] * f.shape[2])

@@ -37,13 +37,13 @@ def _size(text: str) -> tuple[int, int]:
 def one_run(frames: np.ndarray, code: np.ndarray, threads: bool) -> tuple[float, np.ndarray]:
     """(seconds, video) of one window through the GPU engine under the simulator, on threads or in turn."""
     from flexvox_core.gpu.cudasim import needs_threads
-    from flexvox_core.motion.options import MotionOptions, sample_bounds
+    from flexvox_core.motion.options import MotionOptions, check_sample_range
     from flexvox_core.motion.pipeline import run_window
 
     os.environ["FLEXVOX_SIM_THREADS"] = "1" if threads else "0"
     needs_threads.cache_clear()
     start = time.perf_counter()
-    run = run_window(frames, code, MotionOptions(), sample_bounds(frames, None, None), device="cuda")
+    run = run_window(frames, code, MotionOptions(), check_sample_range(frames, None, None), device="cuda")
     seconds = time.perf_counter() - start
     if run.device != "cuda":
         raise RuntimeError(f"the window ran on {run.device}: {run.device_note}")

@@ -55,7 +55,7 @@ def main() -> None:
             res = simulate_video(truth, code, effects=effects, seed=0, electrons_per_unit=1000.0)
             frames = np.clip(np.asarray(res.frames, np.float32), 0, 1)
         t0 = time.perf_counter()
-        offline = motion_aware(frames, code, value_range=(0, 1)).video
+        offline = motion_aware(frames, code, sample_range=(0, 1)).video
         t_off = (time.perf_counter() - t0) / args.frames
         stream = StreamingMotionAware(code, back=args.back)
         out = []

@@ -36,11 +36,12 @@ import numpy as np
 from flexvox_app.accuracy_bench import sci_data_dir
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture
-from flexvox_core.methods import Method, reconstruct
+from flexvox_core.methods import Method
 from flexvox_core.metrics import psnr
 from flexvox_core.output_errors import OutputError
 from flexvox_core.output_files import atomic_output, check_output
 from flexvox_core.simulate.scenes import render_scene
+from flexvox_core.video_api import reconstruct_video as reconstruct
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_OUT = Path("docs/motion/quality.png")

@@ -81,7 +81,7 @@ def _run_chunk_on_gpu(*args, **kwargs):
         return run_chunk(*args, **kwargs, device="cuda")
 
 
-def _chunk_kernel(code, K: int, ov: int, F: int, method: Method, preparation: Preparation, value_range=None,
+def _chunk_kernel(code, K: int, ov: int, F: int, method: Method, preparation: Preparation, sample_range=None,
                   missing=None, device: str = "cpu"):
     """The dask kernel: one chunk of raw rows (with its context) prepared, then :func:`run_chunk`
     (``missing``: the recording's dropped frames, or None; ``device``: ``cpu`` or ``cuda``)."""
@@ -96,7 +96,7 @@ def _chunk_kernel(code, K: int, ov: int, F: int, method: Method, preparation: Pr
         lost = None if missing is None else missing[start - left: stop + right]
         frames = preparation(block)
         run = _run_chunk_on_gpu if device == "cuda" else run_chunk
-        return run(frames, code, method, left=left, count=stop - start, value_range=value_range, missing=lost).video
+        return run(frames, code, method, left=left, count=stop - start, sample_range=sample_range, missing=lost).video
 
     return kernel
 
@@ -142,8 +142,8 @@ def batch_video(rec: Recording, method: Method | None = None, *, chunk_frames: i
     frames = da.from_array(reader.raw, chunks=(_chunks(F, chunk_frames, ov), H, W), asarray=True, lock=False,
                            fancy=False)
     # Methods that scale by the samples' range get the whole recording's in every chunk.
-    value_range = reader.sample_range(chunk_frames, method) if method.spec.needs_sample_range else None
-    kernel = _chunk_kernel(reader.code_for(method), K, ov, F, method, reader.preparation_for(method), value_range,
+    sample_range = reader.sample_range(chunk_frames, method) if method.spec.needs_sample_range else None
+    kernel = _chunk_kernel(reader.code_for(method), K, ov, F, method, reader.preparation_for(method), sample_range,
                            reader.missing, device)
     out_chunks = (tuple(c * K for c in frames.chunks[0]), (H,), (W,))
     return da.map_overlap(kernel, frames, depth={0: ov, 1: 0, 2: 0}, boundary="none", trim=False,

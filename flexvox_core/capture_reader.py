@@ -31,6 +31,7 @@ recording's range a chunk at a time). :func:`read_capture` is the one-call form.
 from __future__ import annotations
 
 import logging
+import warnings
 from dataclasses import dataclass
 from numbers import Integral
 
@@ -202,19 +203,25 @@ class CaptureReader:
         """The S-matrix code of a multiplexed recording (None: an identity code)."""
         return self.preparation.multiplexed
 
-    def takes_raw(self, method) -> bool:
+    def takes_multiplexed(self, method) -> bool:
         """True when ``method`` gets this recording's multiplexed frames as they are (a multiplexed
         recording and a method that :meth:`~flexvox_core.methods.method.Method.takes_multiplexed`)."""
         return self.multiplexed is not None and method.takes_multiplexed()
 
+    def takes_raw(self, method) -> bool:
+        """Deprecated name of :meth:`takes_multiplexed` (removed in the next release)."""
+        warnings.warn("CaptureReader.takes_raw is deprecated and will be removed in the next release: call "
+                      "CaptureReader.takes_multiplexed(method)", DeprecationWarning, stacklevel=2)
+        return self.takes_multiplexed(method)
+
     def code_for(self, method) -> np.ndarray:
         """The code ``method``'s input is captured with: the S-matrix code (m, n, K) when it
-        :meth:`takes_raw`, else :attr:`code`."""
-        return self.multiplexed.code if self.takes_raw(method) else self.code
+        :meth:`takes_multiplexed`, else :attr:`code`."""
+        return self.multiplexed.code if self.takes_multiplexed(method) else self.code
 
     def preparation_for(self, method) -> Preparation:
-        """How raw rows become ``method``'s input (no demultiplexing when it :meth:`takes_raw`)."""
-        return self.preparation.without_demultiplexing() if self.takes_raw(method) else self.preparation
+        """How raw rows become ``method``'s input (no demultiplexing when it :meth:`takes_multiplexed`)."""
+        return self.preparation.without_demultiplexing() if self.takes_multiplexed(method) else self.preparation
 
     def input(self, method, start: int = 0, stop: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``method``'s input for camera frames ``[start, stop)``: ``(frames, code)``.

@@ -29,13 +29,11 @@ def workers() -> int:
 def for_each(fn: Callable[[int], None], count: int) -> None:
     """Call ``fn(i)`` for i in range(count) on :func:`workers` threads (each call writes its own output).
 
-    OpenCV releases the GIL and runs most element-wise operations on one thread: two sub-frames
-    at a time nearly halve a trajectory gather's time on two cores (39 -> 21 ms per 640×480
-    sub-frame, measured). OpenCV's own thread pool is switched off meanwhile
-    (``cv2.setNumThreads(1)``, restored after): its idle workers wait for work by spinning, and
-    beside these threads that cost time in system calls (measured at 640×480, K = 16, 2 cores:
-    a gather 1.52 -> 1.35 s, the clip's successive-sub-frame flow 1.7 -> 1.0 s). An exception in
-    any call is raised here.
+    OpenCV releases the GIL and runs most element-wise operations on one thread, so sub-frames run
+    side by side. OpenCV's own thread pool is switched off meanwhile (``cv2.setNumThreads(1)``,
+    restored after): its idle workers wait for work by spinning, which beside these threads costs
+    time in system calls (the figures: docs/benchmarks.md, "Figures behind the code"). An exception
+    in any call is raised here.
     """
     n = workers()
     if n == 1 or count < 2:

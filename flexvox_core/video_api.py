@@ -3,11 +3,12 @@ subpackage of the algorithms, :mod:`flexvox_core.reconstruct`)."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
+
+from flexvox_core.progress import Progress
 
 if TYPE_CHECKING:
     from flexvox_core.methods import Method
@@ -17,7 +18,7 @@ __all__ = ["reconstruct_video"]
 
 def reconstruct_video(frames: Any, code: ArrayLike | None = None, method: Method | str | None = None, *,
                       chunk_frames: int | None = 16,
-                      progress: bool | Callable[[int, int], None] | None = False, missing: ArrayLike | None = None,
+                      progress: bool | Progress | None = False, missing: ArrayLike | None = None,
                       device: str = "cpu", origin: tuple[int, int] | None = None, white: float | None = None,
                       **options: Any) -> np.ndarray:
     """The high-speed video ``(F·K, H, W)`` float32 in [0, 1] of a capture (:func:`flexvox_core.methods.run`).

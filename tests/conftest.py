@@ -19,6 +19,23 @@ settings.register_profile(
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "flexvox"))
 
 
+def pytest_configure(config):
+    config.addinivalue_line("markers", "recording(**shape): the shape of the `recording` fixture's simulated "
+                                       "recording (the keywords of tests/recordings.py's simulate_recording)")
+
+
+@pytest.fixture
+def recording(request, tmp_path):
+    """The path of the tests' one simulated recording with ground truth: by default balls, 2x4 tile (K = 8), 6 frames
+    of 32x48 at 15 Hz; a ``@pytest.mark.recording(frames=..., size=..., tile=..., ...)`` mark on the test or its
+    module gives another shape (:func:`tests.recordings.simulate_recording`). Made afresh for each test: a test may
+    damage it."""
+    from tests.recordings import simulate_recording
+
+    mark = request.node.get_closest_marker("recording")
+    return simulate_recording(tmp_path, *(mark.args if mark else ()), **(mark.kwargs if mark else {}))
+
+
 @pytest.fixture
 def rng():
     """A seeded generator; tests never use global numpy randomness."""

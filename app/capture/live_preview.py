@@ -340,7 +340,7 @@ class PreviewReconstructor:
             self._stream = None
             from flexvox_core.motion import motion_aware
 
-            return motion_aware(stack, identity, value_range=(0.0, 1.0), device=self.device,
+            return motion_aware(stack, identity, sample_range=(0.0, 1.0), device=self.device,
                                 **self._options()).video, ids[0], 1
         target = ids[-1] - 1 - self._first_id  # the frame before the newest, as the stream counts
         out = []

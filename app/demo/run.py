@@ -23,12 +23,13 @@ import numpy as np
 from flexvox_app.demo import figures
 from flexvox_core.design import design_code
 from flexvox_core.divisions import Division
-from flexvox_core.methods import Method, reconstruct
+from flexvox_core.methods import Method
 from flexvox_core.metrics import psnr
 from flexvox_core.motion import motion_aware
 from flexvox_core.output_files import OutputError, atomic_output, write_text_atomic
 from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR, DEFAULT_TIME, diffuse
 from flexvox_core.reconstruct.rebin import rebin
+from flexvox_core.video_api import reconstruct_video
 from flexvox_core.video_io import write_video
 
 _logger = logging.getLogger(__name__)
@@ -268,7 +269,7 @@ def _run_demo(cfg: DemoConfig, out: Path, step) -> DemoResult:
         videos[label], timings[label] = _timed(diffuse, frames, code, tensor=tensor, time=n)
     gap_it = 10 if cfg.quick else 40
     videos[f"GAP-TV ({gap_it} iterations)"], timings[f"GAP-TV ({gap_it} iterations)"] = _timed(
-        reconstruct, frames, code, Method("gap-tv", iterations=gap_it), chunk_frames=None)
+        reconstruct_video, frames, code, Method("gap-tv", iterations=gap_it), chunk_frames=None)
     ma, t = _timed(motion_aware, frames, code)
     videos["motion-aware"], timings["motion-aware"] = ma.video, t
     for name, v in videos.items():

@@ -9,7 +9,7 @@
   package);
 - :mod:`~flexvox_core.methods.registry` — the methods by name (adding one: a module and a line there);
 - :mod:`~flexvox_core.methods.method` — :class:`Method`, a method and its values (what callers hold);
-- :mod:`~flexvox_core.methods.runner` — :func:`run` / :func:`reconstruct` in time chunks with the
+- :mod:`~flexvox_core.methods.runner` — :func:`run` in time chunks with the
   overlap each method needs, and :func:`run_chunk`, the per-chunk function the batch shares.
 """
 

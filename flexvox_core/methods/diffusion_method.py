@@ -70,9 +70,7 @@ class Diffusion(MethodSpec):
         return max(1, math.ceil(reach / K))
 
     takes_missing = True
-    takes_multiplexed = True
-
-    def accepts_multiplexed(self, options) -> bool:
+    def takes_multiplexed(self, options) -> bool:
         return options.solver == "nc"  # GAP's denoiser is the Gaussian of Eq. 3, nc's one-pass form
 
     gpu_bytes_per_voxel = 28
@@ -85,7 +83,7 @@ class Diffusion(MethodSpec):
             return f"diffusion's {options.solver} solver runs on the CPU"
         return None
 
-    def run(self, frames, code, options, *, value_range=None, extras=False, missing=None, device="cpu"
+    def run(self, frames, code, options, *, sample_range=None, extras=False, missing=None, device="cpu"
             ) -> MethodOutput:
         if not is_identity_code(code):  # a multiplexed capture: GAP with this tensor's Gaussian as denoiser
             return MethodOutput(gap_gaussian(frames, code, tensor=options.tensor,

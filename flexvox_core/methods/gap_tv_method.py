@@ -24,12 +24,14 @@ class GapTv(MethodSpec):
     )
     bench_axis = "iterations"
 
-    takes_multiplexed = True  # GAP-TV takes any 0/1 code
+    def takes_multiplexed(self, options) -> bool:
+        return True  # GAP-TV takes any 0/1 code
 
     def overlap(self, options, K: int) -> int:
         return 0  # each measurement is reconstructed on its own
 
-    def run(self, frames, code, options, *, value_range=None, extras=False, missing=None, device="cpu") -> MethodOutput:
+    def run(self, frames, code, options, *, sample_range=None, extras=False, missing=None,
+            device="cpu") -> MethodOutput:
         # One measurement at a time, as the SCI literature (and its reference figures) does; the options are
         # gap_tv's keywords.
         kw = keywords(options)

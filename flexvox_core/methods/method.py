@@ -127,9 +127,9 @@ class Method:
 
     def takes_multiplexed(self) -> bool:
         """True when it reconstructs a multiplexed capture from its own forward model with these values
-        (:meth:`MethodSpec.accepts_multiplexed <flexvox_core.methods.spec.MethodSpec.accepts_multiplexed>`);
+        (:meth:`MethodSpec.takes_multiplexed <flexvox_core.methods.spec.MethodSpec.takes_multiplexed>`);
         False: a multiplexed recording is demultiplexed per tile for it."""
-        return self._spec.accepts_multiplexed(self._options)
+        return self._spec.takes_multiplexed(self._options)
 
     def max_gap(self, K: int) -> int:
         """The longest run of dropped camera frames it bridges for a code of K slots."""

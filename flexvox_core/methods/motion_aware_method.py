@@ -66,7 +66,9 @@ class MotionAware(MethodSpec):
         return options.overlap(K)
 
     takes_missing = True
-    takes_multiplexed = True
+
+    def takes_multiplexed(self, options: MotionOptions) -> bool:
+        return True
 
     def gpu_voxel_bytes(self, options: MotionOptions, K: int, H: int, W: int) -> float:
         """Device memory per voxel of a window (S = F·K sub-frames of H×W) on the GPU: an upper bound of the
@@ -78,9 +80,8 @@ class MotionAware(MethodSpec):
         (:func:`~flexvox_core.flow.estimate.flow_size`; DIS's images are padded to 16 px and its coarsest levels
         and patch grids weigh more on small ones). Derived from the workspace of every stage with two passes,
         every branch taken (still and slow voxels, noise, the local choice), at 81 sizes from 8×8 to
-        1920×1080 at K = 4 and 16: the bound holds at each, with 3 % to spare at 1920×1080, 5 % at 640×480
-        (149.5 bytes measured at K = 16; 156.3 estimated), 23 % at 160×120 (232.3). One pass, the default,
-        holds 8 bytes less. Reproduce:
+        1920×1080 at K = 4 and 16: the bound holds at each (the margins: docs/benchmarks.md, "Figures behind
+        the code"). One pass, the default, holds less. Reproduce:
         ``NUMBA_ENABLE_CUDASIM=1 python -m tests.flexvox_core.gpu.workspace_size`` (the table;
         ``tests/flexvox_core/gpu/test_workspace_size.py`` fails where a run holds more); on a card
         ``bench/bench_gpu.py`` prints the bytes a run held next to this figure."""
@@ -95,11 +96,11 @@ class MotionAware(MethodSpec):
             return "a multiplexed capture's motion-aware runs on the CPU"
         return cuda_unsupported(options)
 
-    def run(self, frames, code, options: MotionOptions, *, value_range=None, extras=False, missing=None,
+    def run(self, frames, code, options: MotionOptions, *, sample_range=None, extras=False, missing=None,
             device="cpu") -> MethodOutput:
         if not is_identity_code(code):
             return self._run_multiplexed(frames, code, options, extras)
-        r = run_clip(frames, code, options, value_range=value_range, missing=missing, device=device)
+        r = run_clip(frames, code, options, sample_range=sample_range, missing=missing, device=device)
         return MethodOutput(r.video, {"flow": r.flow.flow, "tr": r.tr} if extras else {}, device=r.device,
                             device_note=r.device_note)
 

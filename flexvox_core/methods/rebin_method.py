@@ -34,7 +34,8 @@ class Rebin(MethodSpec):
     def overlap(self, options, K: int) -> int:
         return 1 if options.interpolate else 0
 
-    def run(self, frames, code, options, *, value_range=None, extras=False, missing=None, device="cpu") -> MethodOutput:
+    def run(self, frames, code, options, *, sample_range=None, extras=False, missing=None,
+            device="cpu") -> MethodOutput:
         block = options.block or default_block(code)
         return MethodOutput(rebin(frames, code, block, interpolate=options.interpolate))
 

@@ -16,20 +16,23 @@ out of its samples and fills them itself, and any other (and every multiplexed c
 interpolated from their neighbours and its result's gap sub-frames bridged from both sides.
 
 A multiplexed capture (a non-identity code) goes only to methods that take it
-(:attr:`~flexvox_core.methods.spec.MethodSpec.takes_multiplexed`); the reader demultiplexes per tile
+(:meth:`~flexvox_core.methods.spec.MethodSpec.takes_multiplexed`); the reader demultiplexes per tile
 for the others (:meth:`flexvox_core.capture_reader.CaptureReader.input`). The result says which
 sub-frames were interpolated (:attr:`MethodOutput.interpolated`).
 """
 
 from __future__ import annotations
 
+import inspect
 import logging
+import warnings
 from numbers import Integral
 from typing import Any, NamedTuple
 
 import numpy as np
 
 from flexvox_core.codes import check_reconstructable, validate_code
+from flexvox_core.deprecations import renamed_keyword, warn_renamed
 from flexvox_core.gaps import (
     as_missing,
     bridge,
@@ -100,6 +103,15 @@ def sample_range(frames, missing=None) -> tuple[float, float]:
     return float(np.min(f)), float(np.max(f))
 
 
+def _range_keyword(spec) -> str:
+    """The keyword ``spec.run`` takes the sample range by: ``sample_range``, or (warned) its deprecated name."""
+    params = inspect.signature(spec.run).parameters
+    if "sample_range" in params or "value_range" not in params:
+        return "sample_range"
+    warn_renamed(f"the `value_range` keyword of {type(spec).__name__}.run", "it `sample_range`", stacklevel=4)
+    return "value_range"
+
+
 def check_code_for(code, method: Method) -> bool:
     """True for a multiplexed ``code``, which ``method`` must take
     (:meth:`Method.takes_multiplexed <flexvox_core.methods.method.Method.takes_multiplexed>`), False for an identity
@@ -157,8 +169,8 @@ def gpu_chunk_frames(method: Method, K: int, H: int, W: int, n_frames: int, chun
     return chunk_frames
 
 
-def run_chunk(frames, code, method: Method, *, left: int = 0, count: int | None = None, value_range=None,
-              extras: bool = False, missing=None, device: str = "cpu") -> MethodOutput:
+def run_chunk(frames, code, method: Method, *, left: int = 0, count: int | None = None, sample_range=None,
+              extras: bool = False, missing=None, device: str = "cpu", **deprecated: Any) -> MethodOutput:
     """Reconstruct one chunk with its context and keep the chunk's own sub-frames.
 
     Parameters
@@ -172,8 +184,9 @@ def run_chunk(frames, code, method: Method, *, left: int = 0, count: int | None 
         Frames of context before the chunk.
     count : int or None
         Camera frames of the chunk (None: all after ``left``).
-    value_range : (lo, hi) or None
-        The whole recording's sample range, for methods that need it.
+    sample_range : (lo, hi) or None
+        The whole recording's sample range, for methods that need it (``value_range``, its deprecated name, still
+        works for one release).
     extras : bool
         Also return the method's extras (trimmed like the video).
     missing : ndarray (F,) bool or None
@@ -187,19 +200,23 @@ def run_chunk(frames, code, method: Method, *, left: int = 0, count: int | None 
         ``video`` (count·K, H, W) float32 clipped to [0, 1], the extras, which sub-frames
         were interpolated across dropped frames, and where it ran.
     """
+    sample_range = renamed_keyword(deprecated, "value_range", "sample_range", sample_range, "run_chunk")
+    if deprecated:
+        raise TypeError(f"run_chunk() got unexpected keywords {', '.join(deprecated)}")
     K = code.shape[2]
     count = frames.shape[0] - left if count is None else count
     m = as_missing(missing, frames.shape[0])
     spec, options = method.spec, method.options
+    on: dict[str, Any] = {_range_keyword(spec): sample_range}
     multiplexed = check_code_for(code, method)
     device, note = device_for(method, code, device)
-    on = {"device": device} if device == "cuda" else {}  # only a method with a GPU path takes `device`
+    on.update({"device": device} if device == "cuda" else {})  # only a method with a GPU path takes `device`
     if m is None:
-        out = spec.run(frames, code, options, value_range=value_range, extras=extras, **on)
+        out = spec.run(frames, code, options, extras=extras, **on)
     elif spec.takes_missing and not multiplexed:
-        out = spec.run(frames, code, options, value_range=value_range, extras=extras, missing=m, **on)
+        out = spec.run(frames, code, options, extras=extras, missing=m, **on)
     else:
-        out = spec.run(fill_frames(frames, m), code, options, value_range=value_range, extras=extras, **on)
+        out = spec.run(fill_frames(frames, m), code, options, extras=extras, **on)
         bridge(out.video, m, K)
     a, b = left * K, (left + count) * K
     whole = out.video
@@ -355,13 +372,13 @@ def _run(f: np.ndarray, code, method: Method, *, chunk_frames: int | None, progr
                "chunk (its memory follows the chunk's length, not the recording's)")
     missing = as_missing(missing, F)
     check_method_reach(missing, method, K)
-    value_range = sample_range(f, missing) if method.spec.needs_sample_range and F else None
+    whole = sample_range(f, missing) if method.spec.needs_sample_range and F else None
     device, note = device_for(method, code, device)
     if device == "cuda":
         chunk_frames = gpu_chunk_frames(method, K, H, W, F, chunk_frames)
     chunks = chunk_plan(F, chunk_frames, context(method.overlap(K), missing))
     if len(chunks) == 1:
-        out = run_chunk(f, code, method, value_range=value_range, extras=extras, missing=missing, device=device)
+        out = run_chunk(f, code, method, sample_range=whole, extras=extras, missing=missing, device=device)
         out.device_note = note
         if progress:
             progress(F, F)
@@ -370,7 +387,7 @@ def _run(f: np.ndarray, code, method: Method, *, chunk_frames: int | None, progr
     arrays: dict[str, np.ndarray] = {}
     for c in chunks:
         part = run_chunk(f[c.lo:c.hi], code, method, left=c.start - c.lo, count=c.stop - c.start,
-                         value_range=value_range, extras=extras,
+                         sample_range=whole, extras=extras,
                          missing=None if missing is None else missing[c.lo:c.hi], device=device)
         video[c.start * K: c.stop * K] = part.video
         for name, v in part.extras.items():
@@ -385,7 +402,10 @@ def _run(f: np.ndarray, code, method: Method, *, chunk_frames: int | None, progr
 def reconstruct(frames, code, method: Method | str | None = None, *, chunk_frames: int | None = 16,
                 progress: bool | Progress | None = None, missing=None, device: str = "cpu",
                 origin: tuple[int, int] | None = None, white: float | None = None, **options: Any) -> np.ndarray:
-    """The video of :func:`run` alone: ``(F·K, H, W)`` float32 in [0, 1].
+    """Deprecated: the video of :func:`run` alone; call :func:`flexvox_core.reconstruct_video`, which does the same.
+
+    It warns (``DeprecationWarning``) and will be removed in the next release: it is
+    :func:`flexvox_core.reconstruct_video` (which also takes a recording) under a second name.
 
     Parameters
     ----------
@@ -394,29 +414,24 @@ def reconstruct(frames, code, method: Method | str | None = None, *, chunk_frame
     code : ndarray (m, n, K)
         See :func:`run`.
     method : Method or str, optional
-        Default ``Method()`` (motion-aware); a name takes its options as keywords.
+        See :func:`run`.
     chunk_frames : int or None
-        Camera frames per chunk (None: all at once); the result does not depend on it.
+        See :func:`run`.
     progress : bool or callable(done_frames, total_frames), optional
         See :func:`run`.
     missing : ndarray (F,) bool, optional
-        Frames the camera dropped (see :func:`run`).
+        See :func:`run`.
     device : {"cpu", "cuda", "auto"}
-        Where it runs (see :func:`run`).
+        See :func:`run`.
     origin : (int, int), optional
-        A crop's top-left pixel in the camera frame (see :func:`run`).
+        See :func:`run`.
     white : float, optional
-        The white level of integer frames (see :func:`run`).
+        See :func:`run`.
     **options
-        The method's options when ``method`` is a name.
-
-    Examples
-    --------
-    >>> from flexvox_core import Method, capture, code_from_order, render_scene, sequential_order
-    >>> code = code_from_order(sequential_order((2, 2)))
-    >>> frames = capture(render_scene("balls", 8, 16, 16), code)
-    >>> reconstruct(frames, code, Method("diffusion")).shape
-    (8, 16, 16)
+        See :func:`run`.
     """
+    warnings.warn("flexvox_core.methods.reconstruct is deprecated and will be removed in the next release: call "
+                  "flexvox_core.reconstruct_video (the same arguments, the same video)", DeprecationWarning,
+                  stacklevel=2)
     return run(frames, code, method, chunk_frames=chunk_frames, progress=progress, missing=missing,
                device=device, origin=origin, white=white, **options).video

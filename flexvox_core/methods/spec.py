@@ -12,7 +12,7 @@ A method is one subclass of :class:`MethodSpec` in its own module of
   (None: it cannot run in chunks);
 - its capabilities: :attr:`~MethodSpec.needs_sample_range` (every chunk gets the whole
   recording's sample range), :attr:`~MethodSpec.takes_missing` (dropped frames),
-  :attr:`~MethodSpec.takes_multiplexed` (multiplexed captures from their own forward model)
+  :meth:`~MethodSpec.takes_multiplexed` (multiplexed captures from their own forward model)
   and :attr:`~MethodSpec.extras` (per-sub-frame arrays it can return beside the video, trimmed to a
   chunk like the video);
 - :meth:`~MethodSpec.label` (a short description), :meth:`~MethodSpec.as_dict` (what metadata records and
@@ -29,6 +29,7 @@ users hold.
 from __future__ import annotations
 
 import json
+import warnings
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field, fields, make_dataclass
 from functools import cache
@@ -98,7 +99,7 @@ class MethodSpec(ABC):
     option_specs: tuple[Option, ...] = ()
     """Its knobs, in the order forms show them."""
     needs_sample_range: bool = False
-    """True: :meth:`run` takes ``value_range``, the whole recording's (lo, hi) sample range,
+    """True: :meth:`run` takes ``sample_range``, the whole recording's (lo, hi) sample range,
     so that a run in chunks equals the whole."""
     extras: tuple[str, ...] = ()
     """Names of the per-sub-frame arrays :meth:`run` returns when ``extras=True``."""
@@ -108,13 +109,6 @@ class MethodSpec(ABC):
     """True: :meth:`run` takes ``missing`` (dropped frames) itself, leaves them out of its samples
     and fills their sub-frames from both sides (:mod:`flexvox_core.gaps`). False: the runner gives
     it the dropped frames interpolated from their neighbours and bridges their sub-frames after."""
-    takes_multiplexed: bool = False
-    """True: :meth:`run` also takes a multiplexed capture (the normalised camera frames, each a sum of
-    its open slots, and their 0/1 code) and reconstructs it from that forward model
-    (:mod:`flexvox_core.reconstruct.multiplexed`); see :meth:`accepts_multiplexed`. False: the reader
-    demultiplexes a multiplexed recording per tile for it (the fallback, which assumes the scene constant
-    over a tile). Dropped frames of a multiplexed capture are always interpolated by the runner."""
-
     # ------------------------------------------------------------------ options
     def option(self, name: str) -> Option:
         """The option called ``name``; ``ValueError`` naming this method's options otherwise."""
@@ -161,9 +155,35 @@ class MethodSpec(ABC):
     def overlap(self, options, K: int) -> int | None:
         """Camera frames of context a chunk needs on each side (None: cannot run in chunks)."""
 
+    def takes_multiplexed(self, options) -> bool:
+        """True: :meth:`run` also takes a multiplexed capture with these options (the normalised camera frames, each
+        a sum of its open slots, and their 0/1 code) and reconstructs it from that forward model
+        (:mod:`flexvox_core.reconstruct.multiplexed`). False (the default): the reader demultiplexes a multiplexed
+        recording per tile for it (the fallback, which assumes the scene constant over a tile). Dropped frames of a
+        multiplexed capture are always interpolated by the runner."""
+        return False
+
     def accepts_multiplexed(self, options) -> bool:
-        """Whether :meth:`run` takes a multiplexed capture with these options (default: :attr:`takes_multiplexed`)."""
-        return self.takes_multiplexed
+        """Deprecated name of :meth:`takes_multiplexed` (removed in the next release)."""
+        warnings.warn("MethodSpec.accepts_multiplexed is deprecated and will be removed in the next release: call "
+                      "takes_multiplexed(options)", DeprecationWarning, stacklevel=2)
+        return self.takes_multiplexed(options)
+
+    def __init_subclass__(cls, **kwargs) -> None:
+        """Adapt a subclass written against the deprecated names: a ``takes_multiplexed = True`` class flag, or an
+        ``accepts_multiplexed(options)`` method, becomes :meth:`takes_multiplexed` (with a ``DeprecationWarning``)."""
+        super().__init_subclass__(**kwargs)
+        own = vars(cls)
+        if "accepts_multiplexed" in own:
+            warnings.warn(f"{cls.__name__}.accepts_multiplexed is deprecated and will be removed in the next release: "
+                          "name the method takes_multiplexed(self, options)", DeprecationWarning, stacklevel=2)
+            cls.takes_multiplexed = own["accepts_multiplexed"]  # type: ignore[method-assign]
+        elif isinstance(own.get("takes_multiplexed"), bool):
+            flag = own["takes_multiplexed"]
+            warnings.warn(f"{cls.__name__}.takes_multiplexed as a class flag ({flag}) is deprecated and will be "
+                          "removed in the next release: define takes_multiplexed(self, options) returning it",
+                          DeprecationWarning, stacklevel=2)
+            cls.takes_multiplexed = lambda self, options: flag  # type: ignore[method-assign]
 
     def max_gap(self, options, K: int) -> int:
         """The longest run of dropped frames it bridges (:func:`flexvox_core.gaps.max_gap`)."""
@@ -184,18 +204,19 @@ class MethodSpec(ABC):
         return f"{self.name} has no GPU path"
 
     @abstractmethod
-    def run(self, frames: np.ndarray, code: np.ndarray, options, *, value_range=None,
+    def run(self, frames: np.ndarray, code: np.ndarray, options, *, sample_range=None,
             extras: bool = False, missing=None, device: str = "cpu") -> MethodOutput:
-        """Reconstruct an identity-code capture (or, when :meth:`accepts_multiplexed`, a multiplexed one).
+        """Reconstruct an identity-code capture (or, when :meth:`takes_multiplexed`, a multiplexed one).
 
         Parameters
         ----------
         frames : ndarray (F, H, W)
-        code : ndarray (m, n, K) bool, identity code (or any 0/1 code, see :attr:`takes_multiplexed`)
+        code : ndarray (m, n, K) bool, identity code (or any 0/1 code, see :meth:`takes_multiplexed`)
         options
             What :meth:`build` made of every option's value.
-        value_range : (lo, hi) or None
-            Methods with :attr:`needs_sample_range`: the whole recording's sample range.
+        sample_range : (lo, hi) or None
+            Methods with :attr:`needs_sample_range`: the whole recording's sample range. (A method written with
+            ``value_range``, its deprecated name, still gets it for one release, with a ``DeprecationWarning``.)
         extras : bool
             Also return the arrays named in :attr:`extras`.
         missing : ndarray (F,) bool or None

@@ -197,14 +197,22 @@ def offered() -> tuple:
     return tuple(f for f in fields(MotionOptions) if f.metadata["kind"] is not None)
 
 
-def sample_bounds(frames: np.ndarray, missing, value_range) -> tuple[float, float]:
-    """The samples' range: ``value_range`` checked to contain the captured frames' values, or theirs."""
+def check_sample_range(frames: np.ndarray, missing, sample_range) -> tuple[float, float]:
+    """The samples' range: ``sample_range`` checked to contain the captured frames' values, or theirs (None)."""
     samples = captured(frames, missing)
     lo, hi = float(samples.min()), float(samples.max())
-    if value_range is None:
+    if sample_range is None:
         return lo, hi
-    r_lo, r_hi = number_pair("value_range", value_range, "two numbers (lo, hi) or None")
+    r_lo, r_hi = number_pair("sample_range", sample_range, "two numbers (lo, hi) or None")
     if not (np.isfinite(r_lo) and np.isfinite(r_hi) and r_lo <= lo and hi <= r_hi):
-        raise ValueError(f"`value_range` {value_range!r} must be finite and contain the frames' values "
+        raise ValueError(f"`sample_range` {sample_range!r} must be finite and contain the frames' values "
                          f"[{lo:g}, {hi:g}]")
     return r_lo, r_hi
+
+
+def sample_bounds(frames: np.ndarray, missing, value_range) -> tuple[float, float]:
+    """Deprecated name of :func:`check_sample_range` (removed in the next release)."""
+    from flexvox_core.deprecations import warn_renamed
+
+    warn_renamed("flexvox_core.motion.options.sample_bounds", "check_sample_range")
+    return check_sample_range(frames, missing, value_range)

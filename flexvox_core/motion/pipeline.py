@@ -21,6 +21,7 @@ from dataclasses import fields
 
 import numpy as np
 
+from flexvox_core.deprecations import renamed_keyword
 from flexvox_core.gaps import as_missing
 from flexvox_core.motion.gated_flow import DIS_PARAMS, gated_flow
 from flexvox_core.motion.options import (
@@ -41,6 +42,7 @@ from flexvox_core.motion.options import (
     STILL_TENSOR,
     MotionOptions,
     auto_flow_scale,
+    check_sample_range,
     sample_bounds,
 )
 from flexvox_core.motion.result import MotionAwareResult
@@ -53,11 +55,11 @@ __all__ = [
     "DEFAULT_GATE", "DEFAULT_TIME", "DIS_PARAMS", "FLOW_SIDE", "LONG_REACH_RANGE", "LONG_REACH_SIGMA_S",
     "MAX_REFINE_TIME", "MAX_SLOW_REACH", "PERIOD_GATE", "REFINE_C", "SLOW_REACH", "SLOW_SPEED", "STEP1_TENSOR",
     "STEP1_TIME", "STILL_SPEED", "STILL_TENSOR", "MotionAwareResult", "MotionOptions", "auto_flow_scale",
-    "engine_for", "gated_flow", "motion_aware", "run_clip", "run_window", "sample_bounds",
+    "check_sample_range", "engine_for", "gated_flow", "motion_aware", "run_clip", "run_window", "sample_bounds",
 ]
 
 
-def motion_aware(frames, code, *, value_range: tuple[float, float] | None = None, missing=None, device: str = "cpu",
+def motion_aware(frames, code, *, sample_range: tuple[float, float] | None = None, missing=None, device: str = "cpu",
                  **options) -> MotionAwareResult:
     """Motion-aware reconstruction of an identity-code capture.
 
@@ -100,7 +102,7 @@ def motion_aware(frames, code, *, value_range: tuple[float, float] | None = None
         (:func:`~flexvox_core.motion.longreach.long_reach_nc`); 0: the short gather of the fast
         voxels; None: :data:`SLOW_REACH`. The accuracy knob that costs most time where the whole picture drifts
         slowly.
-    value_range : (lo, hi) or None
+    sample_range : (lo, hi) or None
         Range of the whole recording's samples: it scales the slow voxels' range weight and
         bounds the result. None: this clip's own range. A run in time chunks passes the whole
         recording's, so that the result does not depend on the chunking; it must contain
@@ -134,7 +136,8 @@ def motion_aware(frames, code, *, value_range: tuple[float, float] | None = None
         Its ``video`` in [0, 1] (the pipeline bounds it by the samples' range, which noise may take past [0, 1];
         :func:`run_clip` and :func:`run_window` leave it there).
     """
-    result = run_clip(frames, code, MotionOptions(**options), value_range=value_range, missing=missing,
+    sample_range = renamed_keyword(options, "value_range", "sample_range", sample_range, "motion_aware")
+    result = run_clip(frames, code, MotionOptions(**options), sample_range=sample_range, missing=missing,
                       device=device)
     np.clip(result.video, 0.0, 1.0, out=result.video)
     return result
@@ -143,37 +146,37 @@ def motion_aware(frames, code, *, value_range: tuple[float, float] | None = None
 def _signature():
     """``motion_aware``'s signature as ``help()`` and ``inspect`` show it: the frames and code, every field of
     :class:`MotionOptions` with its default (the keywords are its fields: they are not listed twice), then
-    ``value_range``, ``missing`` and ``device``."""
+    ``sample_range``, ``missing`` and ``device``."""
     import inspect
 
     own = inspect.signature(motion_aware)
     kw = inspect.Parameter.KEYWORD_ONLY
     params = [own.parameters["frames"], own.parameters["code"],
               *(inspect.Parameter(f.name, kw, default=f.default, annotation=f.type) for f in fields(MotionOptions)),
-              *(p for n, p in own.parameters.items() if n in ("value_range", "missing", "device"))]
+              *(p for n, p in own.parameters.items() if n in ("sample_range", "missing", "device"))]
     return own.replace(parameters=params)
 
 
 motion_aware.__signature__ = _signature()  # type: ignore[attr-defined]
 
 
-def run_clip(frames, code, options: MotionOptions, *, value_range: tuple[float, float] | None = None, missing=None,
+def run_clip(frames, code, options: MotionOptions, *, sample_range: tuple[float, float] | None = None, missing=None,
              device: str = "cpu") -> MotionAwareResult:
     """:func:`motion_aware` with its options already checked (the motion-aware method's): the frames, code,
-    ``missing`` and ``value_range`` checked, then :func:`run_window` over the whole clip."""
+    ``missing`` and ``sample_range`` checked, then :func:`run_window` over the whole clip."""
     f = check_frames(frames)
     code = check_identity_code(code)
     missing = as_missing(missing, f.shape[0])
-    lo, hi = sample_bounds(f, missing, value_range)
+    lo, hi = check_sample_range(f, missing, sample_range)
     return run_window(f, code, options, (lo, hi), missing=missing, device=device)
 
 
-def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: tuple[float, float], *,
+def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, sample_range: tuple[float, float], *,
                missing=None, keep: tuple[int, int] | None = None, memo=None, device: str = "cpu",
                workspace=None) -> MotionAwareResult:
     """The motion-aware stages on checked ``frames`` (F, H, W) float32 and identity ``code``.
 
-    ``bounds``: the samples' range (:func:`sample_bounds`). ``keep`` = (s0, s1): only these
+    ``sample_range``: the samples' range (:func:`check_sample_range`). ``keep`` = (s0, s1): only these
     sub-frames are wanted (a streaming run's window, :mod:`~flexvox_core.motion.streaming`): the
     trajectory gathers and the refinement run over them (and the refinement's reach around them)
     alone, and the result's ``video`` holds them alone — the same values as the whole run's (with
@@ -183,7 +186,7 @@ def run_window(f: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: 
     ``auto`` (:func:`flexvox_core.gpu.resolve_device`); ``workspace``: the GPU's device buffers
     (:class:`~flexvox_core.gpu.volumes.Workspace`) to reuse, as a streaming run does from window to window.
     """
-    window = Window.plan(f, code, options, bounds, missing=missing, keep=keep)
+    window = Window.plan(f, code, options, sample_range, missing=missing, keep=keep)
     device, note = engine_for(options, device)
     if device == "cuda":
         from flexvox_core.motion.gpu.engine import CudaStages

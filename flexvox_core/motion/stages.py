@@ -87,8 +87,8 @@ class Window:
     frames : ndarray (F, H, W) float32
         Camera frames of an identity ``code`` (m, n, K).
     options : MotionOptions
-    bounds : (lo, hi)
-        The samples' range (:func:`~flexvox_core.motion.options.sample_bounds`).
+    sample_range : (lo, hi)
+        The samples' range (:func:`~flexvox_core.motion.options.check_sample_range`).
     missing : ndarray (F,) bool or None
         Dropped frames.
     keep : (s0, s1)
@@ -105,7 +105,7 @@ class Window:
     frames: np.ndarray
     code: np.ndarray
     options: MotionOptions
-    bounds: tuple[float, float]
+    sample_range: tuple[float, float]
     missing: np.ndarray | None
     keep: tuple[int, int]
     gathered: tuple[int, int]
@@ -113,7 +113,7 @@ class Window:
     flow_scale: float
 
     @classmethod
-    def plan(cls, frames: np.ndarray, code: np.ndarray, options: MotionOptions, bounds: tuple[float, float], *,
+    def plan(cls, frames: np.ndarray, code: np.ndarray, options: MotionOptions, sample_range: tuple[float, float], *,
              missing: np.ndarray | None = None, keep: tuple[int, int] | None = None) -> Window:
         """The window of ``frames`` (checked) with ``keep`` = (s0, s1) or None (every sub-frame)."""
         K = code.shape[2]
@@ -130,8 +130,8 @@ class Window:
         else:
             g0, g1 = 0, S
         scale = auto_flow_scale(*frames.shape[1:]) if options.flow_scale is None else options.flow_scale
-        return cls(frames, code, options, (float(bounds[0]), float(bounds[1])), missing, (s0, s1), (g0, g1), skip,
-                   scale)
+        lo, hi = float(sample_range[0]), float(sample_range[1])
+        return cls(frames, code, options, (lo, hi), missing, (s0, s1), (g0, g1), skip, scale)
 
     @property
     def K(self) -> int:
@@ -181,7 +181,7 @@ class Window:
     @property
     def range_weight(self) -> float:
         """The slow voxels' gather's range-weight scale: :data:`LONG_REACH_RANGE` of the samples' range."""
-        lo, hi = self.bounds
+        lo, hi = self.sample_range
         return LONG_REACH_RANGE * max(hi - lo, 1e-12)
 
     @property
@@ -597,7 +597,7 @@ class CpuStages:
         bridge(video, w.missing, w.K, flow=flow.flow)
 
     def clip(self, video: Volume) -> Volume:
-        lo, hi = self.window.bounds
+        lo, hi = self.window.sample_range
         return np.clip(video, lo, hi, out=video)
 
     def result(self, current: Volume, high_tr: Volume, flow: Flow, times: StageTimes) -> MotionAwareResult:

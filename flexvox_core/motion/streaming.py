@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from flexvox_core.deprecations import renamed_keyword, warn_renamed
 from flexvox_core.flow.memo import FlowMemo
 from flexvox_core.gaps import GapTooLongError, max_gap
 from flexvox_core.motion.pipeline import MotionOptions, engine_for, run_window
@@ -85,7 +86,7 @@ class StreamingMotionAware:
     code : ndarray (m, n, K)
     back, ahead : int
         Frames of context before and after each reconstructed frame (``ahead`` >= 1: the latency).
-    value_range : (lo, hi) or None
+    sample_range : (lo, hi) or None
         Range every sample lies in: it scales the slow voxels' range weight and bounds the result, as the whole
         recording's range does offline; a frame outside it is refused. None (default): normalised frames, [0, 1],
         and a frame that sensor noise takes out of it by at most :data:`NOISE_MARGIN` is clipped into it (logged
@@ -108,7 +109,7 @@ class StreamingMotionAware:
     ...     show(out.video)
     """
 
-    def __init__(self, code, *, back: int = BACK, ahead: int = AHEAD, value_range=None, device: str = "cpu",
+    def __init__(self, code, *, back: int = BACK, ahead: int = AHEAD, sample_range=None, device: str = "cpu",
                  **options):
         self.code = check_identity_code(code)
         self.K = int(self.code.shape[2])
@@ -116,14 +117,16 @@ class StreamingMotionAware:
             if isinstance(value, bool) or not isinstance(value, int) or value < least:
                 raise ValueError(f"`{name}` must be a whole number >= {least} (frames); got {value!r}")
         self.back, self.ahead = back, ahead
+        sample_range = renamed_keyword(options, "value_range", "sample_range", sample_range, "StreamingMotionAware")
         self.options = MotionOptions(**options)
-        self._noise_margin = NOISE_MARGIN if value_range is None else 0.0
-        lo, hi = number_pair("value_range", (0.0, 1.0) if value_range is None else value_range)
+        self._noise_margin = NOISE_MARGIN if sample_range is None else 0.0
+        lo, hi = number_pair("sample_range", (0.0, 1.0) if sample_range is None else sample_range)
         if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
-            raise ValueError(f"`value_range` must be two finite numbers lo < hi; got {value_range!r}")
-        self.value_range = (lo, hi)
+            raise ValueError(f"`sample_range` must be two finite numbers lo < hi; got {sample_range!r}")
+        self.sample_range = (lo, hi)
+        """The range every sample lies in (``sample_range``, or [0, 1])."""
         self.clipped = 0
-        """Frames clipped into [0, 1] (``value_range`` None: values sensor noise took out of it)."""
+        """Frames clipped into [0, 1] (``sample_range`` None: values sensor noise took out of it)."""
         # The longest run of dropped frames bridged: as the offline method with its chunk overlap.
         self.max_gap = max_gap(self.options.overlap(self.K))
         self.memo = FlowMemo(max_pairs=max(64, 8 * self.K))
@@ -143,6 +146,12 @@ class StreamingMotionAware:
         self._failed = ""  # why the stream stopped (a gap too long), or empty
         self._run = 0  # dropped frames in a row at the end of the stream
         self._captured = 0  # frames pushed that the camera did not drop
+
+    @property
+    def value_range(self) -> tuple[float, float]:
+        """Deprecated name of :attr:`sample_range` (removed in the next release)."""
+        warn_renamed("StreamingMotionAware.value_range", "StreamingMotionAware.sample_range")
+        return self.sample_range
 
     @property
     def pushed(self) -> int:
@@ -210,7 +219,7 @@ class StreamingMotionAware:
             raise ValueError(f"frame {self._pushed} is {img.shape[0]}x{img.shape[1]}; the stream's frames are "
                              f"{self._shape[0]}x{self._shape[1]}")
         img = img.astype(np.float32)
-        lo, hi = self.value_range
+        lo, hi = self.sample_range
         if not np.isfinite(img).all():
             raise ValueError(f"frame {self._pushed} holds NaN or infinite values")
         f_lo, f_hi = float(img.min()), float(img.max())
@@ -218,7 +227,7 @@ class StreamingMotionAware:
             margin = self._noise_margin
             if not (lo - margin <= f_lo and f_hi <= hi + margin):
                 raise ValueError(f"frame {self._pushed} has values in [{f_lo:g}, {f_hi:g}], outside the stream's "
-                                 f"value_range [{lo:g}, {hi:g}]")
+                                 f"sample_range [{lo:g}, {hi:g}]")
             if not self.clipped:
                 _logger.info("stream: frame %d has values in [%g, %g] (sensor noise): clipped into [%g, %g], as are "
                              "the later frames outside it", self._pushed, f_lo, f_hi, lo, hi)
@@ -280,7 +289,7 @@ class StreamingMotionAware:
         frames = np.stack([np.zeros(shape, np.float32) if r is None else r for r in rows])
         K = self.K
         keep = ((f - a) * K, (f - a + 1) * K)
-        result = run_window(frames, self.code, self.options, self.value_range,
+        result = run_window(frames, self.code, self.options, self.sample_range,
                             missing=missing if missing.any() else None, keep=keep, memo=self.memo, device=self.device,
                             workspace=self._workspace)
         seconds = time.perf_counter() - t0

@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from tests.app.test_cli_faults import assert_refused, flexvox
+from tests.app.command_line import assert_refused, flexvox
 
 
 def dead_pid() -> int:

@@ -12,13 +12,7 @@ import zarr
 from flexvox_app.cli.main import main
 from flexvox_app.cli.method_options import SIMULATOR
 
-
-@pytest.fixture
-def recording(tmp_path, capsys):
-    path = tmp_path / "r.zarr"
-    assert main(["simulate", "balls", "--size", "8x12", "--frames", "2", "--tile", "2x2", "-o", str(path)]) == 0
-    capsys.readouterr()
-    return path
+pytestmark = pytest.mark.recording(frames=2, size=(8, 12), tile=(2, 2), name="r.zarr")
 
 
 def _provenance(path):

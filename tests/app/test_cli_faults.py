@@ -21,21 +21,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.app.command_line import ENV, ROOT, assert_refused, flexvox, stderr_lines
 from tests.app.no_display import unserved_display
-
-ROOT = Path(__file__).resolve().parents[2]
-ENV = {**os.environ, "QT_QPA_PLATFORM": "offscreen", "PYTHONPATH": str(ROOT)}
-
-
-def flexvox(*args, env=None, timeout=120, **kw) -> subprocess.CompletedProcess:
-    """Run the real command line; text stdout and stderr."""
-    return subprocess.run([sys.executable, "-m", "flexvox_app.cli.main", *map(str, args)], cwd=ROOT, env=env or ENV,
-                          capture_output=True, text=True, timeout=timeout, **kw)
-
-
-def stderr_lines(proc) -> list[str]:
-    """Lines a user sees on stderr (a progress bar's carriage-return redraws collapsed)."""
-    return [line.split("\r")[-1] for line in proc.stderr.splitlines() if line.split("\r")[-1].strip()]
 
 
 def digest(path: Path) -> dict:
@@ -43,14 +30,6 @@ def digest(path: Path) -> dict:
     path = Path(path)
     files = [path] if path.is_file() else sorted(p for p in path.rglob("*") if p.is_file())
     return {str(p.relative_to(path.parent)): hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
-
-
-def assert_refused(proc, status: int, pattern: str) -> None:
-    assert "Traceback" not in proc.stderr, proc.stderr
-    lines = stderr_lines(proc)
-    assert proc.returncode == status, (proc.returncode, proc.stdout, proc.stderr)
-    assert len(lines) == 1, lines
-    assert re.search(pattern, lines[0]), lines[0]
 
 
 @pytest.fixture(scope="module")

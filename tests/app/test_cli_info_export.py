@@ -11,8 +11,9 @@ import zarr
 
 from flexvox_app.cli import batch, export, info
 from flexvox_app.cli.errors import CliError, OneLineParser
-from flexvox_core.methods import Method, reconstruct
+from flexvox_core.methods import Method
 from flexvox_core.recording import JOURNAL, RecordingWriter, open_recording, recording_attrs
+from flexvox_core.video_api import reconstruct_video
 from tests.killed_writer import kill
 
 
@@ -25,14 +26,7 @@ def cli(argv):
     return args.func(args)
 
 
-@pytest.fixture
-def recording(tmp_path, capsys):
-    from flexvox_app.cli.main import main
-
-    path = tmp_path / "r.zarr"
-    assert main(["simulate", "balls", "--size", "16x24", "--frames", "5", "--tile", "2x2", "-o", str(path)]) == 0
-    capsys.readouterr()
-    return path
+pytestmark = pytest.mark.recording(frames=5, size=(16, 24), tile=(2, 2), name="r.zarr")
 
 
 def test_info_summarises_a_sound_recording(recording, capsys):
@@ -124,7 +118,7 @@ def test_export_ground_truth_and_reconstruction(recording, tmp_path):
     np.testing.assert_array_equal(tifffile.imread(tmp_path / "g.tif"), rec.ground_truth[:])
     assert cli(["export", str(recording), "--what", "reconstruction", "--method", "rebin",
                 "-o", str(tmp_path / "r.npy")]) == 0
-    expected = reconstruct(rec.normalised_frames(), rec.code, Method("rebin"))
+    expected = reconstruct_video(rec.normalised_frames(), rec.code, Method("rebin"))
     np.testing.assert_allclose(np.load(tmp_path / "r.npy"), expected, atol=1e-6)
 
 
@@ -146,7 +140,7 @@ def test_batch_cli_equals_reconstruct(recording, tmp_path, capsys):
     assert cli(["batch", str(recording), "-o", str(tmp_path / "b.zarr"), "--chunk", "2"]) == 0
     assert "on local threads (chunks of 4 frames, overlap 4)" in capsys.readouterr().out  # raised to the overlap
     rec = open_recording(recording)
-    expected = reconstruct(rec.normalised_frames(), rec.code, Method(), chunk_frames=None)
+    expected = reconstruct_video(rec.normalised_frames(), rec.code, Method(), chunk_frames=None)
     np.testing.assert_allclose(zarr.open_group(str(tmp_path / "b.zarr"))["video"][:], expected, atol=1e-5)
     with pytest.raises(CliError, match=r"the batch output must be a .zarr store"):
         cli(["batch", str(recording), "-o", str(tmp_path / "b.npy")])
@@ -157,7 +151,7 @@ def test_batch_cli_motion_aware_options(recording, tmp_path, capsys):
                 "--flow", "farneback", "--slow-reach", "0"]) == 0
     rec = open_recording(recording)
     method = Method("motion-aware", flow="farneback", slow_reach=0.0)
-    expected = reconstruct(rec.normalised_frames(), rec.code, method, chunk_frames=None)
+    expected = reconstruct_video(rec.normalised_frames(), rec.code, method, chunk_frames=None)
     np.testing.assert_array_equal(zarr.open_group(str(tmp_path / "m.zarr"))["video"][:], expected)
     with pytest.raises(CliError, match=r"--passes, --refine, --slow-reach, --no-local-choice and --no-noise-aware "
                                        r"go with --method motion-aware"):

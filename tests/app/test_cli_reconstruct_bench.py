@@ -9,13 +9,7 @@ from flexvox_app.cli.main import main
 from flexvox_core.metrics import psnr
 from flexvox_core.recording import open_recording
 
-
-@pytest.fixture
-def recording(tmp_path, capsys):
-    path = tmp_path / "r.zarr"
-    assert main(["simulate", "balls", "--size", "24x32", "--frames", "3", "-o", str(path)]) == 0
-    capsys.readouterr()
-    return path
+pytestmark = pytest.mark.recording(frames=3, size=(24, 32), tile=(4, 4), name="r.zarr")
 
 
 @pytest.mark.parametrize("suffix", [".npy", ".tif", ".mp4", ".zarr", ".NPY", ".TIF", ".ZARR"])
@@ -190,7 +184,8 @@ def test_an_option_of_another_method_is_refused_naming_its_methods(recording, tm
 
 def test_a_registered_method_is_on_the_command_line_with_its_options(recording, tmp_path, capsys):
     from flexvox_core.capture_reader import read_capture
-    from flexvox_core.methods import Method, reconstruct
+    from flexvox_core.methods import Method
+    from flexvox_core.video_api import reconstruct_video
     from tests.flexvox_core.methods.tiny_method import frame_mean_registered
 
     with frame_mean_registered():
@@ -198,7 +193,7 @@ def test_a_registered_method_is_on_the_command_line_with_its_options(recording, 
                      "-o", str(tmp_path / "t.npy")]) == 0
         assert "frame-mean r=2" in capsys.readouterr().out
         frames, code = read_capture(recording)
-        expected = reconstruct(frames, code, Method("frame-mean", radius=2), chunk_frames=None)
+        expected = reconstruct_video(frames, code, Method("frame-mean", radius=2), chunk_frames=None)
     np.testing.assert_array_equal(np.load(tmp_path / "t.npy"), expected)
     with pytest.raises(SystemExit):  # gone with its registration
         main(["reconstruct", str(recording), "--radius", "2", "-o", str(tmp_path / "u.npy")])

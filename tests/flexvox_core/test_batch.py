@@ -6,9 +6,10 @@ import zarr
 
 from flexvox_core.batch import _chunks, batch_video, reconstruct_batch
 from flexvox_core.design import design_code
-from flexvox_core.methods import Method, reconstruct
+from flexvox_core.methods import Method
 from flexvox_core.recording import open_recording, write_simulation
 from flexvox_core.simulate.simulator import simulate_video
+from flexvox_core.video_api import reconstruct_video
 
 
 @pytest.fixture
@@ -23,7 +24,7 @@ METHODS = [Method(), Method("rebin"), Method("diffusion", solver="explicit"), Me
 @pytest.mark.parametrize("method", METHODS, ids=lambda m: m.label())
 def test_batch_equals_in_memory(rec_path, tmp_path, method):
     rec = open_recording(rec_path)
-    expected = reconstruct(rec.normalised_frames(), rec.code, method, chunk_frames=None)
+    expected = reconstruct_video(rec.normalised_frames(), rec.code, method, chunk_frames=None)
     done = []
     result = reconstruct_batch(rec_path, tmp_path / "o.zarr", method, chunk_frames=3,
                                progress=lambda d, t: done.append((d, t)))
@@ -41,7 +42,7 @@ def test_motion_aware_batch_equals_in_memory_with_slow_voxels(tmp_path):
     path = write_simulation(tmp_path / "pan.zarr", simulate_video(render_scene("pan", 10 * 8, 24, 32), code, seed=1))
     rec = open_recording(path)
     method = Method("motion-aware", time=2.0)
-    expected = reconstruct(rec.normalised_frames(), rec.code, method, chunk_frames=None)
+    expected = reconstruct_video(rec.normalised_frames(), rec.code, method, chunk_frames=None)
     reconstruct_batch(path, tmp_path / "o.zarr", method, chunk_frames=3)
     np.testing.assert_array_equal(zarr.open_group(str(tmp_path / "o.zarr"), mode="r")["video"][:], expected)
 
@@ -50,7 +51,7 @@ def test_batch_on_a_distributed_cluster(rec_path, tmp_path):
     from distributed import LocalCluster
 
     rec = open_recording(rec_path)
-    expected = reconstruct(rec.normalised_frames(), rec.code, Method(), chunk_frames=None)
+    expected = reconstruct_video(rec.normalised_frames(), rec.code, Method(), chunk_frames=None)
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
         result = reconstruct_batch(rec_path, tmp_path / "d.zarr", Method(), chunk_frames=4,
                                    scheduler=cluster.scheduler_address)
@@ -79,7 +80,7 @@ def test_batch_takes_a_distributed_client_and_a_cluster(rec_path, tmp_path):
 
     rec = open_recording(rec_path)
     method = Method("diffusion")
-    expected = reconstruct(rec.normalised_frames(), rec.code, method, chunk_frames=None)
+    expected = reconstruct_video(rec.normalised_frames(), rec.code, method, chunk_frames=None)
     seen = []
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
         with Client(cluster) as client:
@@ -99,7 +100,7 @@ def test_batch_takes_a_method_by_name_and_progress_true_false_or_a_callable(rec_
     from flexvox_core.methods.registry import DEFAULT
 
     rec = open_recording(rec_path)
-    expected = reconstruct(rec.normalised_frames(), rec.code, Method("diffusion", time=2), chunk_frames=None)
+    expected = reconstruct_video(rec.normalised_frames(), rec.code, Method("diffusion", time=2), chunk_frames=None)
     for i, progress in enumerate((True, False, None)):
         reconstruct_batch(rec, tmp_path / f"{i}.zarr", "diffusion", time=2, chunk_frames=4, progress=progress)
         np.testing.assert_array_equal(zarr.open_group(str(tmp_path / f"{i}.zarr"), mode="r")["video"][:], expected)

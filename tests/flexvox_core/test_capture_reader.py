@@ -6,6 +6,7 @@ import pytest
 
 from flexvox_core.capture_reader import CaptureReader, NotReconstructableError, open_capture, read_capture
 from flexvox_core.design import design_code
+from flexvox_core.methods import Method
 from flexvox_core.multiplex import multiplexed_code
 from flexvox_core.reconstruct import as_identity_capture
 from flexvox_core.recording import RecordingError, open_recording, write_simulation
@@ -98,8 +99,16 @@ def test_the_sample_range_is_taken_on_the_input_the_method_gets(mux_path):
 
     reader = open_capture(mux_path)
     method = Method("diffusion")
-    assert reader.takes_raw(method)
+    assert reader.takes_multiplexed(method)
     frames, _ = reader.input(method)
     assert reader.sample_range(2, method) == (float(frames.min()), float(frames.max()))
     demux = reader.read()
     assert reader.sample_range(2) == (float(demux.min()), float(demux.max()))
+
+
+def test_the_deprecated_takes_raw_warns_and_answers_as_takes_multiplexed(mux_path):
+    reader = open_capture(mux_path)
+    with pytest.warns(DeprecationWarning, match=r"CaptureReader\.takes_raw is deprecated .* "
+                                                r"CaptureReader\.takes_multiplexed\(method\)"):
+        assert reader.takes_raw(Method("gap-tv")) is reader.takes_multiplexed(Method("gap-tv")) is True
+    assert not reader.takes_multiplexed(Method("rebin"))

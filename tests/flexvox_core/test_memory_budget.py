@@ -52,14 +52,14 @@ def test_a_huge_render_is_refused(small_machine):
 
 
 def test_an_in_memory_reconstruction_too_large_points_to_batch(small_machine):
-    from flexvox_core.methods import reconstruct
+    from flexvox_core.video_api import reconstruct_video
 
     code = design_code((4, 4)).code
     frames = np.zeros((400, 240, 320), np.float32)  # 400 frames -> 6400 sub-frames of 240x320: 2 GiB out
     with pytest.raises(MemoryBudgetError, match=r"reconstructing 400 frames of 240x320 at K = 16 in memory .*"
                                                  r"`flexvox batch`"):
-        reconstruct(frames, code)
-    assert reconstruct(frames[:4, :24, :32], code).shape == (64, 24, 32)
+        reconstruct_video(frames, code)
+    assert reconstruct_video(frames[:4, :24, :32], code).shape == (64, 24, 32)
 
 
 def _sparse_npy(path, shape, descr="|u1"):

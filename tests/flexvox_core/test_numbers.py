@@ -15,11 +15,11 @@ def test_checked_number_takes_real_numbers_that_meet_the_rule():
 
 
 def test_number_pair_names_the_value_and_the_rule():
-    assert number_pair("value_range", (0, 1)) == (0.0, 1.0)
-    with pytest.raises(ValueError, match=r"`value_range` must be two numbers \(lo, hi\); got 3"):
-        number_pair("value_range", 3)
-    with pytest.raises(ValueError, match=r"`value_range` must be two numbers \(lo, hi\) or None; got \(1, 2, 3\)"):
-        number_pair("value_range", (1, 2, 3), "two numbers (lo, hi) or None")
+    assert number_pair("sample_range", (0, 1)) == (0.0, 1.0)
+    with pytest.raises(ValueError, match=r"`sample_range` must be two numbers \(lo, hi\); got 3"):
+        number_pair("sample_range", 3)
+    with pytest.raises(ValueError, match=r"`sample_range` must be two numbers \(lo, hi\) or None; got \(1, 2, 3\)"):
+        number_pair("sample_range", (1, 2, 3), "two numbers (lo, hi) or None")
 
 
 def test_positive_number_still_converts_text():

@@ -10,7 +10,7 @@ from rig_drivers.interfaces import PatternSequence, ProjectorTrigger, RunState
 from rig_drivers.profile import open_rig
 
 from .display_rig import RecordingScreen
-from .test_dlpc350_session import hexrow, k16_sequence
+from .dlpc350_helpers import hexrow, k16_sequence
 
 
 def _session_bytes(display, seq):

@@ -57,7 +57,7 @@ class ReviewSession:
         The frames the camera dropped (zero rows), None when none was.
     reader : CaptureReader or None
         The one reader's view of it (None when it refused the recording): which input each method
-        takes is its rule (:meth:`~flexvox_core.capture_reader.CaptureReader.takes_raw`).
+        takes is its rule (:meth:`~flexvox_core.capture_reader.CaptureReader.takes_multiplexed`).
     """
 
     path: Path
@@ -91,7 +91,7 @@ class ReviewSession:
     def input(self, method) -> tuple[np.ndarray | None, np.ndarray]:
         """``method``'s input ``(frames, code)``: the multiplexed frames and their code for a method that
         :meth:`~flexvox_core.methods.method.Method.takes_multiplexed`, else :attr:`frames` and :attr:`code`."""
-        if self.reader is not None and self.frames is not None and self.reader.takes_raw(method):
+        if self.reader is not None and self.frames is not None and self.reader.takes_multiplexed(method):
             return self.raw, self.reader.code_for(method)
         return self.frames, self.code
 

@@ -86,7 +86,7 @@ class CudaStages:
         self.order_d = self.ws.put(Buffers.ORDER, np.ascontiguousarray(tiled_order(w.code, H, W), np.int32))
         self.present_d = self.ws.put(Buffers.PRESENT, self.present.astype(np.uint8))
         kept = captured(w.frames, w.missing)
-        self.sample_range = (float(kept.min()), float(kept.max()))
+        self.captured_range = (float(kept.min()), float(kept.max()))  # this window's own samples'
         self.fixed_ready = self.still_ready = False
         self.generation = self.ws.next_generation()
         # What the stages set, for the stages after them.
@@ -106,7 +106,7 @@ class CudaStages:
     def _nc(self, tensor, time: float, out, tag: str) -> None:
         """Normalized convolution into ``out``; the rare voxels with no sample in reach take the CPU's value."""
         w = self.window
-        lo, hi = self.sample_range
+        lo, hi = self.captured_range
         low = nc(self.ws, self.frames_d, self.order_d, self.present_d, NcPlan(w.frames.shape[0], w.K, tensor, time,
                  None if w.missing is None else self.present), lo, hi, out, tag=tag)
         if low:
@@ -209,7 +209,7 @@ class CudaStages:
         gaps.bridge(video, flow, w.missing, w.K)
 
     def clip(self, video: Volume) -> Volume:
-        lo, hi = self.window.bounds
+        lo, hi = self.window.sample_range
         volumes.clip(video, lo, hi)
         return video
 

@@ -13,7 +13,7 @@ from flexvox_calibration.capture_setup import CaptureCalibration
 from flexvox_core.recording import open_recording
 from rig_drivers.errors import DeviceTimeoutError
 
-from .test_service import PLAN, make_rig
+from .simulated_rig_helpers import PLAN, make_rig
 
 
 def test_a_signal_calls_its_callbacks_in_order_and_logs_one_that_raises(caplog):

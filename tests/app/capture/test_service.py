@@ -17,22 +17,8 @@ from flexvox_core.forward import capture, tiled_code
 from flexvox_core.recording import RecordingWriter, open_recording
 from rig_drivers.errors import DeviceError, DeviceTimeoutError
 from rig_drivers.interfaces import DeviceState, Frame
-from rig_drivers.simulated_camera import VirtualClock
-from rig_drivers.simulated_rig import SimulatedRig
 
-CODE = design_code((2, 2)).code  # K = 4: small and fast
-PLAN = CapturePlan.from_code(CODE)
-PERIOD = PLAN.period_us  # 16666 µs at 15 Hz
-
-
-def make_rig(**kw):
-    """The textbook rig (projector = camera, identity map, no trigger offset): these tests are about the capture
-    path's mechanics; tests/app/capture/test_one_chain.py captures through a calibration of the real one."""
-    kw.setdefault("camera_size", (16, 24))
-    kw.setdefault("subframes", 32)
-    kw.setdefault("ideal", True)
-    kw.setdefault("clock", VirtualClock())
-    return SimulatedRig.create(kw.pop("scene", "balls"), **kw)
+from .simulated_rig_helpers import CODE, PERIOD, PLAN, make_rig
 
 
 def phase(p: int) -> CaptureCalibration:
@@ -350,3 +336,43 @@ def test_the_simulated_camera_warms_up_before_the_first_trigger_and_charges_the_
     assert rig.camera.dropped_ids == [] and result.stats.drops == 0 and result.ok, result.message
     assert open_recording(tmp_path / "first.zarr").per_frame("frame_id").tolist() == list(range(8))
     rig.close()
+
+
+def test_the_sink_says_which_ground_truth_frame_it_writes(tmp_path):
+    from flexvox_app.capture.plan import CapturePlan
+    from flexvox_app.capture.service import CaptureService
+    from rig_drivers.profile import open_rig
+    from rig_drivers.simulated_camera import VirtualClock
+
+    rig = open_rig("mock", scene="strobe", subframes=17 * 16, seed=0, clock=VirtualClock())
+    svc = CaptureService(rig, CapturePlan(), tmp_path / "r.zarr", frames=4, ground_truth=True)
+    seen = []
+    truth = svc.sink._ground_truth
+    svc.sink._ground_truth = lambda i, K: (seen.append(svc.stats().finishing), truth(i, K))[1]
+    svc.start()
+    assert svc.wait(30)
+    result = svc.result() if callable(svc.result) else svc.result
+    assert result is not None and result.ok, result
+    assert seen == [f"writing the scene's ground truth: frame {i} of 4" for i in range(1, 5)]
+    assert svc.stats().finishing == ""
+
+
+def test_the_drift_note_says_sub_second_drifts_in_milliseconds():
+    from flexvox_app.capture.plan import CapturePlan
+
+    notes = " ".join(CapturePlan(camera_hz=200.0).timing().notes)
+    assert "drifts one slot every" in notes and "every 0 s" not in notes, notes
+
+
+def test_the_camera_rate_is_the_camera_s_own_not_its_delivery_bursts(tmp_path):
+    from flexvox_app.capture.plan import CapturePlan
+    from flexvox_app.capture.service import CaptureService
+    from rig_drivers.profile import open_rig
+    from rig_drivers.simulated_camera import VirtualClock
+
+    # the virtual clock delivers every frame at once in real time: only the camera's timestamps say 15 Hz
+    rig = open_rig("mock", scene="strobe", subframes=17 * 16, seed=0, clock=VirtualClock())
+    svc = CaptureService(rig, CapturePlan(camera_hz=15.0), tmp_path / "r.zarr", frames=17)
+    svc.start()
+    assert svc.wait(30)
+    assert svc.stats().camera_rate_hz == pytest.approx(15.0, rel=0.01)

@@ -26,16 +26,11 @@ SIZE = (32, 48)
 
 @pytest.fixture(scope="session")
 def recording(tmp_path_factory):
-    """A simulated recording with ground truth: balls, 2×4 code (K = 8), 6 frames of 32×48."""
-    from flexvox_core.design import design_code
-    from flexvox_core.recording import write_simulation
-    from flexvox_core.simulate.scenes import render_scene
-    from flexvox_core.simulate.simulator import simulate_video
+    """The tests' one simulated recording (tests/conftest.py's ``recording``, balls, 2×4 code (K = 8), 6 frames of
+    32×48), made once for the GUI's tests: they only read it."""
+    from tests.recordings import simulate_recording
 
-    code = design_code(TILE).code
-    video = render_scene("balls", FRAMES * 8, *SIZE, seed=0)
-    path = tmp_path_factory.mktemp("rec") / "balls.zarr"
-    return write_simulation(path, simulate_video(video, code, rate_hz=15.0))
+    return simulate_recording(tmp_path_factory.mktemp("rec"), frames=FRAMES, size=SIZE, tile=TILE, name="balls.zarr")
 
 
 @pytest.fixture(scope="session")

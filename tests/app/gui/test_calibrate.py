@@ -20,6 +20,7 @@ from rig_drivers.simulated_target import hidden_timing
 from tests.rig_drivers.mock_rigs import calibration_rig
 
 from .conftest import small_rig
+from .widget_helpers import truth_window
 
 SEED = 0
 
@@ -284,6 +285,37 @@ def test_the_sync_wizard_s_finish_with_an_unsaved_sweep_asks_as_cancel_does(qtbo
         w.close()
 
 
+def test_the_sync_wizard_asks_before_cancel_loses_work_has_browse_and_its_profile_reaches_capture(
+        qtbot, settings, tmp_path):
+    from types import SimpleNamespace
+
+    w = truth_window(qtbot, settings)
+    w.show_workspace("Calibrate")
+    wizard = w.calibrate.open_sync_wizard()
+    assert wizard.save_page.browse_button.text() == "Browse…"
+    wizard.sync = SimpleNamespace(success=True, effective_phase_slots=6, recommended_camera_delay_us=412.0)
+    wizard.frame_check = object()
+    with answering(False) as asked:
+        wizard.reject()
+    assert wizard.isVisible() and asked[0].title == "Close the synchronisation wizard?"
+    assert "the phase sweep's result (phase 6, camera trigger delay 412 µs)" in asked[0].text
+    assert "the drop/drift test's verdict" in asked[0].text
+    profile = tmp_path / "sync.json"
+    wizard.save_page.written = profile  # as a save would leave it
+    statuses = []
+    w.calibrate.status.connect(statuses.append)
+    with answering() as asked:  # saved: nothing to lose, no question
+        wizard.accept()
+    assert asked == []
+    assert any(str(profile) in s and "Load sync profile" in s for s in statuses), statuses
+    assert str(profile) in w.calibrate.wizard_button.toolTip()
+    assert f"sync profile saved by the wizard: {profile}" in w.calibrate.profile_label.text()  # the panel says it
+    assert f"the synchronisation wizard saved {profile}" in w.capture.calibration_panel.label.text()
+    assert "sync profile is not loaded" in w.capture.calibration_panel.status_label.text()
+    with answering(default=True):
+        w.close()
+
+
 def test_run_calibration_says_what_it_pauses_before_and_restores_both_after(qtbot, settings, runner):
     from flexvox_app.gui.application import build_window
     from flexvox_app.gui.widgets.questions import answering
@@ -311,5 +343,38 @@ def test_run_calibration_says_what_it_pauses_before_and_restores_both_after(qtbo
     qtbot.waitUntil(cal.live_panel.check.isChecked, timeout=5000)  # ticked again
     cal.live_panel.check.setChecked(False)
     qtbot.waitUntil(lambda: not cal.live_panel.measuring, timeout=10_000)
+    with answering(default=True):
+        w.close()
+
+
+def test_the_phase_sweep_bar_only_goes_forward(qtbot, settings):
+    from flexvox_app.gui.models.jobs import CancelToken
+
+    w = truth_window(qtbot, settings)
+    wizard = w.calibrate.open_sync_wizard()
+    wizard.homography = None  # measured on the page first: two parts on one bar
+    seen = []
+    h, sync, _ = wizard.phase.work(CancelToken(), lambda done, total: seen.append(done / total))
+    assert h is not None and sync.success
+    assert seen == sorted(seen) and seen[-1] == 1.0 and seen[0] < 0.5, seen
+    with answering(default=True):
+        wizard.reject()
+        w.close()
+
+
+def test_after_a_cancelled_calibration_the_steps_list_shows_the_run_the_results_show(qtbot, settings):
+    from flexvox_app.gui.calibrate.workspace import STEPS, steps_html
+
+    w = truth_window(qtbot, settings)
+    cal = w.calibrate
+    assert cal.run_calibration()
+    qtbot.waitUntil(lambda: not cal.running, timeout=120_000)
+    assert cal.outcome.success
+    assert cal.run_calibration()
+    qtbot.waitUntil(lambda: "▶" in cal.steps_label.text() and steps_html(0) != cal.steps_label.text(),
+                    timeout=60_000)
+    cal.cancel()
+    qtbot.waitUntil(lambda: not cal.running, timeout=60_000)
+    assert cal.steps_label.text() == steps_html(len(STEPS), finished=True)  # the earlier run's, as the results
     with answering(default=True):
         w.close()

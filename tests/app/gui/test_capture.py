@@ -1,5 +1,6 @@
 """The Capture workspace on the simulated rig: code choice, timing check, live view start/stop."""
 
+import html
 import itertools
 
 import numpy as np
@@ -8,9 +9,11 @@ from PySide6.QtCore import Qt
 
 from flexvox_app.gui.capture.workspace import CaptureWorkspace
 from flexvox_app.gui.models.rig_service import RigService
+from flexvox_app.gui.widgets.questions import answering
 from rig_drivers.interfaces import DeviceState, RunState
 
 from .conftest import small_rig
+from .widget_helpers import truth_window
 
 
 @pytest.fixture
@@ -175,3 +178,80 @@ def test_a_double_click_on_start_live_view_does_not_stop_it_after_one_frame(qtbo
     now[0] += 1.0
     ws.live_panel.live_button.click()
     assert not ws.live and ws.live_panel.live_button.text() == "Start live view"
+
+
+def test_ground_truth_says_what_it_costs_and_the_choice_survives_a_restart(qtbot, settings):
+    w = truth_window(qtbot, settings)
+    panel = w.capture.record_panel
+    w.show()
+    w.show_workspace("Capture")
+    panel.frames_box.setValue(300)
+    panel.options.set_expanded(True)  # the cost is said beside its box, among the options
+    for _ in range(3):
+        qtbot.wait(10)
+    review_y = panel.review_button.mapTo(w, panel.review_button.rect().topLeft()).y()
+    assert panel.truth_check.isChecked() and panel.truth_cost.isVisible()
+    cost = panel.truth_cost.text()  # 4x4 code on a 120x160 camera at 15 Hz: 16 float32 pictures per frame
+    assert "ground truth adds 1.2 MB per frame (18 MB per second at 15 Hz, about 32× the frames' size)" in cost, cost
+    assert "369 MB for 300 frames" in cost and "finishing takes longer" in cost
+    panel.truth_check.setChecked(False)
+    assert not panel.truth_cost.isVisible()
+    for _ in range(3):
+        qtbot.wait(10)
+    # "Open in Review" holds still (it jumped 34 px): the cost's room stays when it is hidden
+    assert panel.review_button.mapTo(w, panel.review_button.rect().topLeft()).y() == review_y
+    with answering(default=True):
+        w.close()
+    again = truth_window(qtbot, settings)
+    assert not again.capture.record_panel.truth_check.isChecked()  # unticked stays unticked
+    with answering(default=True):
+        again.close()
+
+
+def test_while_a_recording_finishes_its_ground_truth_the_status_says_what_is_written_and_stop_is_off(
+        qtbot, settings, tmp_path):
+    from dataclasses import replace
+
+    w = truth_window(qtbot, settings)
+    panel = w.capture.record_panel
+    panel.path_edit.setText(str(tmp_path / "t.zarr"))
+    panel.frames_box.setValue(17)
+    with answering(default=True), qtbot.waitSignal(panel.started, timeout=20_000):
+        assert panel.record()
+    # Stop is on while it records. The virtual clock runs ahead of a loaded GUI thread: the capture may already
+    # have its 17 frames and be finishing when `started` is handled, and then Stop is already off.
+    assert panel.stop_button.isEnabled() != panel.finishing
+    stats = replace(panel.capture.stats(), finishing="writing the scene's ground truth: frame 3 of 17",
+                    queue_depth=0)
+    panel._on_progress(panel.capture, stats)  # as the capture's progress event says it
+    said = html.unescape(panel.recording_label.text())
+    assert "finishing t.zarr: writing the scene's ground truth: frame 3 of 17 …" in said, said
+    assert not panel.stop_button.isEnabled()
+    with qtbot.waitSignal(panel.finished, timeout=30_000) as done:
+        pass
+    assert done.args[0].ok and settings.get_float("capture/truth_finish_s_per_frame", -1) > 0
+    assert "measured on the last such recording" in panel.truth_cost.text()
+    with answering(default=True):
+        w.close()
+
+
+def test_a_double_click_on_a_slow_start_does_not_stop_the_live_view(qtbot, settings):
+    w = truth_window(qtbot, settings)
+    live = w.capture.live_panel
+    now = [100.0]
+    live.clock = lambda: now[0]
+    start = live.start
+
+    def slow_start():  # a loaded machine: starting takes longer than the double-click time
+        ok = start()
+        now[0] += 2.0
+        return ok
+
+    live.start = slow_start
+    with answering(default=True):
+        live.live_button.click()
+        live.live_button.click()  # the second click, handled only after the start returned
+    assert live.running and live.live_button.isChecked()
+    w.capture.stop_live()
+    with answering(default=True):
+        w.close()

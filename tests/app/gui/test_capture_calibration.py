@@ -11,12 +11,14 @@ from flexvox_app.gui.capture.workspace import CaptureWorkspace
 from flexvox_app.gui.models.calibration_model import run_workspace_calibration, target_for
 from flexvox_app.gui.models.capture_calibration import capture_identity
 from flexvox_app.gui.models.rig_service import RigService
+from flexvox_app.gui.widgets.questions import answering
 from flexvox_calibration.capture_setup import CalibrationRefused, file_sha256, from_run, load_for_capture
 from flexvox_calibration.files import write_versioned
 from flexvox_core.recording import open_recording
 
 from .conftest import H_SHIFT, small_rig
 from .conftest import write_calibration as _write
+from .widget_helpers import truth_window
 
 
 @pytest.fixture
@@ -267,3 +269,67 @@ def test_calibrate_saving_over_the_file_in_use_is_said_in_capture_at_once(qtbot,
     assert f"(sha256 {new[:16]})" in _info(tmp_path / "after.zarr", capsys)
     with answering(default=True):
         window.close()
+
+
+def calibrated_window(qtbot, settings, tmp_path):
+    from flexvox_app.gui.models.capture_calibration import capture_identity
+
+    from .conftest import write_calibration
+
+    w = truth_window(qtbot, settings)
+    plan = w.capture.plan()
+    path = write_calibration(tmp_path / "cal.json", capture_identity(w.service), K=plan.K, period_us=plan.period_us)
+    assert w.capture.load_calibration(path)
+    return w, path
+
+
+def test_drop_the_calibration_says_what_it_does_and_asks_before_dropping_one(qtbot, settings, tmp_path):
+    w, path = calibrated_window(qtbot, settings, tmp_path)
+    panel = w.capture.calibration_panel
+    button = panel.clear_button
+    assert button.text() == "Drop the calibration…" and "identity homography, phase 0" in button.toolTip()
+    assert button.isEnabled()
+    with answering(False) as asked:
+        button.click()
+    assert asked[0].title == "Drop the calibration?" and str(path) in asked[0].text
+    assert "phase 0 and no trigger delay" in asked[0].text and asked[0].accept == "Drop the calibration"
+    assert w.capture.calibration is not None  # kept
+    with answering(True):
+        button.click()
+    assert w.capture.calibration is None and not button.isEnabled()  # nothing left to drop
+    with answering(default=True):
+        w.close()
+
+
+def test_a_refused_load_follows_the_state_in_use_and_goes_once_live_view_starts(qtbot, settings, tmp_path):
+    w, path = calibrated_window(qtbot, settings, tmp_path)
+    panel = w.capture.calibration_panel
+    junk = tmp_path / "junk.json"
+    junk.write_text("{not json")
+    assert not w.capture.load_calibration(junk)
+    top = panel.status_label.text()
+    assert top.startswith("<b>calibrated</b>: phase") and "not loaded:" in top and "GroupNotFound" not in top
+    assert top.index("calibrated") < top.index("not loaded")
+    w.show_workspace("Capture")
+    w.capture.live_panel.live_button.setChecked(True)
+    assert "not loaded" not in panel.status_label.text()
+    w.capture.stop_live()
+    with answering(default=True):
+        w.close()
+
+
+def test_a_calibration_file_changed_since_last_used_is_said_on_the_top_line(qtbot, settings, tmp_path):
+    from flexvox_app.gui.models.capture_calibration import capture_identity
+
+    from .conftest import write_calibration
+
+    w, path = calibrated_window(qtbot, settings, tmp_path)
+    plan = w.capture.plan()
+    with answering(default=True):
+        w.close()
+    write_calibration(path, capture_identity(w.service), K=plan.K, period_us=plan.period_us, rms=0.2, overwrite=True)
+    again = truth_window(qtbot, settings)
+    top = again.capture.calibration_panel.status_label.text()
+    assert "calibrated" in top and "the file changed since it was last used" in top
+    with answering(default=True):
+        again.close()

@@ -310,3 +310,14 @@ def test_the_docs_say_what_the_application_does():
     assert f'"default ({REFINE_SHOWN})"' in app_doc and "TIFF, NPY and MP4 files carry no attributes" not in app_doc
     meta = imagej_metadata(1 / 240, {"method": "m"})
     assert {"finterval", "Info"} <= set(meta) and "ImageJ Info" in app_doc and "`finterval`" in app_doc
+
+
+def test_the_close_question_s_text_follows_the_recording_while_it_is_open(qtbot):
+    from flexvox_app.gui.widgets.questions import question_box
+
+    frames = [3]
+    box = question_box(None, "Quit flexvox?", "3 frames", accept="Quit", update=lambda: f"{frames[0]} frames")
+    qtbot.addWidget(box)
+    frames[0] = 40  # the recording went on while the operator read
+    qtbot.waitUntil(lambda: box.text() == "40 frames", timeout=3000)
+    assert box.yes.text() == "Quit" and box.defaultButton() is not box.yes

@@ -330,3 +330,36 @@ def test_on_the_gpu_the_preview_takes_the_whole_frame_every_run_and_says_so(qtbo
     assert preview.text().startswith("motion-aware preview on numba-cuda's simulator (NUMBA_ENABLE_CUDASIM=1: no GPU, "
                                      "slower than the CPU): 64×48 (the whole frame)")
     assert LivePreview().device == "cpu"  # auto never takes the simulator
+
+
+def test_the_live_preview_line_says_where_it_runs():
+    import numpy as np
+
+    from flexvox_app.capture.live_preview import PreviewResult, Region
+    from flexvox_app.gui.capture.live_preview import LivePreview
+
+    preview = LivePreview(device="cpu")
+    preview.enabled, preview.runs = True, 1
+    preview.result = PreviewResult(np.zeros((16, 48, 64), np.float32), 3, 3, Region(0, 48, 0, 64), (48, 64), 0.01,
+                                   (0.0, 1.0), "motion-aware", "cpu")
+    assert preview.text().startswith("motion-aware preview on the CPU: 64×48 (the whole frame)"), preview.text()
+
+
+def test_the_preview_region_shrunk_under_load_grows_back_when_runs_get_faster():
+    from flexvox_app.capture.live_preview import PixelCost, preview_region
+
+    cost, budget, shape = PixelCost(), 0.6, (120, 160)
+
+    def run(pixels, load):  # a run: a large fixed part and a part per pixel, both slowed by the load
+        return load * (0.45 + 5e-6 * pixels)  # idle, the whole 160×120 frame takes 0.55 s: it fits 0.6 s
+
+    region = preview_region(shape, (4, 4), 160 * 120)
+    for _ in range(6):  # under load the region shrinks
+        cost.add(run(region.pixels, 3.0), region.pixels)
+        region = preview_region(shape, (4, 4), cost.pixels_for(budget, 160 * 120))
+    small = region.pixels
+    assert small < 160 * 120 / 8
+    for _ in range(8):  # the load falls: runs are quick again
+        cost.add(run(region.pixels, 1.0), region.pixels)
+        region = preview_region(shape, (4, 4), cost.pixels_for(budget, 160 * 120))
+    assert region.covers(shape), (small, region)

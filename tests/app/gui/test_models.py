@@ -455,3 +455,36 @@ def test_gui_messages_name_no_zarr_store_and_no_command_line_flag(message):
 
     text = in_gui_words(message)
     assert "Zarr store" not in text and " --" not in text and " -o" not in text, text
+
+
+@pytest.mark.parametrize("message, words, gone", [
+    ("/d/x.zarr: not a readable Zarr store (GroupNotFoundError: No group found in store /d/x.zarr at path '')",
+     "is not a recording", "GroupNotFoundError"),
+    ("/d/cal.json: not valid JSON (Expecting value at line 1)", "not a file flexvox wrote", "Expecting value"),
+])
+def test_messages_for_programmers_become_words_naming_what_to_open_instead(message, words, gone):
+    from flexvox_app.gui.models.operator_words import in_gui_words
+
+    text = in_gui_words(message)
+    assert words in text and gone not in text and "open" in text, text
+
+
+def test_where_it_ran_names_the_gpu_the_simulator_and_why_a_gpu_is_unused(monkeypatch):
+    import flexvox_core.gpu.device as device
+    from flexvox_app.gui.models import device_words as words
+
+    monkeypatch.setattr(device, "simulator", lambda: False)
+    monkeypatch.setattr(words, "gpu_name", lambda: "NVIDIA H200")
+    monkeypatch.setattr(words, "gpu_status", lambda: (True, "CUDA", True))
+    assert words.where_it_ran("cuda") == "on the GPU (NVIDIA H200)"
+    assert words.where_it_ran("cpu", "gap-tv has no GPU path") == "on the CPU (gap-tv has no GPU path)"
+    assert words.where_it_ran("cpu") == "on the CPU (the GPU was not asked for)"
+    monkeypatch.setattr(words, "gpu_status", lambda: (False, "numba-cuda is not installed (pip install "
+                                                             "'flexvox[gpu]')", True))
+    assert words.where_it_ran("cpu") == ("on the CPU (a GPU is here but unused: numba-cuda is not installed "
+                                         "(pip install 'flexvox[gpu]'))")
+    monkeypatch.setattr(words, "gpu_status", lambda: (False, "no NVIDIA driver found (libcuda)", False))
+    assert words.where_it_ran("cpu") == "on the CPU"
+    monkeypatch.setattr(device, "simulator", lambda: True)
+    simulated = words.where_it_ran("cuda")
+    assert simulated.startswith("on numba-cuda's simulator (") and "no GPU" in simulated

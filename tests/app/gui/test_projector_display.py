@@ -15,7 +15,7 @@ from flexvox_calibration.geometry import homography_error_px
 from rig_drivers.dlpc350.bitplanes import pack_bitplanes
 from tests.rig_drivers.display_rig import ScreenCamera, display_rig
 
-from .test_projector_window import _grab
+from .widget_helpers import grab
 
 
 def _frames(K=24, shape=(57, 91), seed=0):
@@ -54,10 +54,10 @@ def test_a_frame_sent_from_a_worker_thread_is_on_screen_pixel_exactly_before_the
     assert _call_from_worker(qtbot, display, first) == {"painted": True}
     win = display.window
     assert win.isFullScreen() and win.windowFlags() & Qt.WindowType.FramelessWindowHint
-    np.testing.assert_array_equal(_grab(win)[:57, :91], first[0])
+    np.testing.assert_array_equal(grab(win)[:57, :91], first[0])
     assert _call_from_worker(qtbot, display, second) == {"painted": True}
     assert display.window is win and display.frames_shown == 2  # the same window, new frame
-    shot = _grab(win)
+    shot = grab(win)
     np.testing.assert_array_equal(shot[:57, :91], second[0])
     assert not shot[57:].any() and not shot[:, 91:].any()
 
@@ -67,7 +67,7 @@ def test_the_gui_thread_shows_at_once(qtbot, display):
     with qtbot.waitSignal(display.shown, timeout=2000) as shown:
         display(frames)
     assert shown.args == [1] and display.window.on_screen()
-    np.testing.assert_array_equal(_grab(display.window)[:57, :91], frames[0])
+    np.testing.assert_array_equal(grab(display.window)[:57, :91], frames[0])
 
 
 def test_a_gui_thread_that_does_not_answer_times_out(qtbot):

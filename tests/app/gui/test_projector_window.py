@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PySide6.QtCore import Qt
-from PySide6.QtGui import QGuiApplication, QImage
+from PySide6.QtGui import QGuiApplication
 
 from flexvox_app.gui.capture.workspace import CaptureWorkspace
 from flexvox_app.gui.models.rig_service import RigService
@@ -19,14 +19,7 @@ from flexvox_app.gui.widgets.questions import answering
 from rig_drivers.dlpc350.bitplanes import pack_bitplanes, unpack_bitplanes
 
 from .conftest import small_rig
-
-
-def _grab(widget) -> np.ndarray:
-    """The widget as painted, (H, W, 3) uint8 RGB."""
-    image = widget.grab().toImage().convertToFormat(QImage.Format.Format_RGB888)
-    h, w = image.height(), image.width()
-    buf = np.frombuffer(image.constBits(), np.uint8, count=image.bytesPerLine() * h)
-    return buf.reshape(h, image.bytesPerLine())[:, : 3 * w].reshape(h, w, 3).copy()
+from .widget_helpers import grab
 
 
 def _random_frames(K: int, shape=(57, 91), seed: int = 0) -> np.ndarray:
@@ -49,7 +42,7 @@ def window(qtbot):
 def test_the_window_shows_exactly_the_packed_frame_unscaled(window):
     frames = _random_frames(24)  # every bit-plane used: any blending or scaling changes some bit
     w = window(frames)
-    shot = _grab(w)
+    shot = grab(w)
     screen = QGuiApplication.primaryScreen().geometry()
     assert (shot.shape[1], shot.shape[0]) == (screen.width(), screen.height())  # full-screen
     H, W = frames.shape[1:3]
@@ -100,10 +93,10 @@ def test_more_than_24_masks_cycle_through_the_packed_frames(qtbot, window):
     assert w.timer.isActive()
     w.timer.stop()  # step by hand: the timer's pace is not under test
     w.show_frame(1)
-    np.testing.assert_array_equal(_grab(w)[:57, :91], frames[1])
+    np.testing.assert_array_equal(grab(w)[:57, :91], frames[1])
     w.next_frame()
     assert w.index == 0
-    np.testing.assert_array_equal(_grab(w)[:57, :91], frames[0])
+    np.testing.assert_array_equal(grab(w)[:57, :91], frames[0])
 
 
 def test_escape_closes_the_window(qtbot, window):
@@ -157,7 +150,7 @@ def test_capture_shows_the_plans_patterns_full_screen_and_esc_closes(qtbot, capt
     # what a recording loads into the projector (96x128: the simulated projector is twice as fine)
     expected = ws.plan().patterns((48, 64), (96, 128), ws.capture_calibration()).packed
     assert expected.shape == (1, 96, 128, 3)
-    np.testing.assert_array_equal(_grab(win)[:96, :128], expected[0])
+    np.testing.assert_array_equal(grab(win)[:96, :128], expected[0])
     assert win.screen() is ws.projector.chosen_screen()
     assert re.search(r"showing on .*: 128×96 pixels, 1 frame: K = 8 masks in its bit-planes; Esc closes",
                      ws.projector.label.text())

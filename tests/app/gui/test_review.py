@@ -1,5 +1,7 @@
 """The Review workspace driven through its widgets on a simulated recording."""
 
+import shutil
+
 import numpy as np
 import pytest
 import tifffile
@@ -9,21 +11,9 @@ from flexvox_app.gui.review.workspace import ReviewWorkspace
 from flexvox_app.gui.widgets.questions import Question, answering
 
 from .conftest import FRAMES, SIZE
+from .widget_helpers import reconstruct
 
 S = FRAMES * 8  # sub-frames of the test recording (K = 8)
-
-
-def reconstruct(qtbot, ws, method: str, position: float | None = None, **knobs):
-    ws.form.set_method_name(method)
-    if position is not None:
-        ws.form.set_position(position)
-    for name, value in knobs.items():
-        ws.form.widget(name).setValue(value)
-    n = len(ws.results)
-    with qtbot.waitSignal(ws.result_added, timeout=30_000):
-        ws.reconstruct_button.click()
-    assert len(ws.results) == n + 1
-    return ws.results[-1]
 
 
 def test_open_shows_the_recording_and_plays_it(qtbot, opened):
@@ -438,3 +428,90 @@ def test_a_wrong_pick_logs_one_line_and_keeps_the_traceback_for_the_debug_level(
     assert len(shown) == 1 and shown[0].exc_info is None and "\n" not in shown[0].getMessage()
     assert "not a flexvox recording" in shown[0].getMessage()
     assert [r.levelno for r in failed if r.exc_info] == [logging.DEBUG]
+
+
+def test_opening_another_recording_during_a_run_asks_naming_it_and_keeping_it_says_so(qtbot, opened, recording,
+                                                                                        tmp_path):
+    review = opened
+    other = tmp_path / "other.zarr"
+    shutil.copytree(recording, other)
+    review.form.set_method_name("diffusion")
+    assert review.reconstruct() is not None and review.model.busy
+    with answering(False) as asked:
+        assert review.open_recording(other) is None
+    assert [q.accept for q in asked] == ["Open other.zarr"]
+    assert asked[0].text.startswith("Opening other.zarr now:\n\n• the reconstruction running stops; what it "
+                                    "computed is lost")
+    # The run ends on its worker (busy goes False there); its result reaches the list on the GUI thread after.
+    qtbot.waitUntil(lambda: len(review.results) == 1, timeout=30_000)
+    assert review.session.path == recording and not review.model.busy  # the run went on and was kept
+
+
+def test_opening_another_recording_with_a_result_not_exported_asks_and_then_shows_only_the_new_one(
+        qtbot, opened, recording, tmp_path):
+    review = opened
+    other = tmp_path / "other.zarr"
+    shutil.copytree(recording, other)
+    reconstruct(qtbot, review, "diffusion")
+    with answering(True) as asked:
+        review.open_recording(other)
+    assert "1 reconstruction not exported is lost: diffusion" in asked[0].text
+    qtbot.waitUntil(lambda: review.session.path == other, timeout=10_000)
+    assert review.results == [] and review.model.result_line.text == ""
+    with answering() as asked:  # nothing to lose now: no question
+        review.open_recording(recording)
+    assert asked == []
+    qtbot.waitUntil(lambda: review.session.path == recording, timeout=10_000)
+
+
+def test_a_run_cancelled_by_opening_another_recording_leaves_no_cancelled_line_on_the_new_one(
+        qtbot, opened, recording, tmp_path):
+    review = opened
+    other = tmp_path / "other.zarr"
+    shutil.copytree(recording, other)
+    review.form.set_method_name("motion-aware")
+    review.reconstruct()
+    with answering(True):
+        review.open_recording(other)
+    qtbot.waitUntil(lambda: review.session.path == other and not review.model.busy, timeout=30_000)
+    qtbot.wait(50)
+    assert "cancelled" not in review.result_label.text() and review.results == []
+
+
+def test_a_refused_open_names_the_recording_still_open(qtbot, opened, recording, tmp_path):
+    review = opened
+    (tmp_path / "junk.zarr").mkdir()
+    review.open_recording(tmp_path / "junk.zarr")
+    qtbot.waitUntil(lambda: "cannot open" in review.path_label.text(), timeout=5000)
+    text = review.path_label.text()
+    assert f"{recording} (still open)" in text and "cannot open junk.zarr" in text
+    assert review.session.path == recording and review.reconstruct_button.isEnabled()
+
+
+def test_review_s_result_line_and_the_compare_list_say_where_each_result_ran(qtbot, opened):
+    review = opened
+    reconstruct(qtbot, review, "diffusion")
+    reconstruct(qtbot, review, "rebin")
+    assert "sub-frames in" in review.result_label.text() and " on the CPU" in review.result_label.text()
+    items = [review.compare_view.box_a.itemText(i) for i in range(review.compare_view.box_a.count())]
+    assert len(items) == 2 and all(" on the CPU" in item for item in items), items
+    # the preview's title says where it ran too
+    review.form.set_method_name("diffusion")
+    review.preview_check.setChecked(True)
+    review.form.set_position(0.0)  # settings no result has: the preview is shown
+    qtbot.waitUntil(lambda: review.recon_panel.title.text().startswith("preview: "), timeout=20_000)
+    assert " on the CPU · sub-frame " in review.recon_panel.title.text()
+
+
+def test_the_slider_s_default_step_gives_the_benched_default_tensor(review):
+    from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR
+
+    review.form.set_method_name("diffusion")
+    review.form.set_position(0.18)
+    assert tuple(review.form.method().tensor) == tuple(DEFAULT_TENSOR) == (0.15, 0.15, 1.0)
+    # one rounding everywhere: the line under the slider says what the method's label says
+    assert "tensor (0.15, 0.15, 1)" in review.form.slider_text.text() and "0.147" not in review.form.slider_text.text()
+    assert "(0.15,0.15,1)" in review.form.method().label()
+    assert "not benched" not in review.expected_label.text()
+    review.form.set_position(0.25)
+    assert tuple(review.form.method().tensor) != tuple(DEFAULT_TENSOR)

@@ -64,3 +64,21 @@ def test_the_start_up_window_paints_at_once_lists_each_step_and_keeps_running_wh
                                        "loading the numerics (NumPy, SciPy, Zarr, OpenCV) and designing the code …",
                                        "loading the Calibrate, Capture and Review workspaces …"]), lines["steps done"]
     assert "status 0" in out.stdout
+
+
+def test_the_qt_start_failure_names_the_libraries_missing_and_their_packages(monkeypatch):
+    import subprocess
+
+    import flexvox_app.qt_platform as qp
+
+    assert qp.debian_package("libxcb-icccm.so.4") == "libxcb-icccm4"
+    assert qp.debian_package("libxcb-keysyms.so.1") == "libxcb-keysyms1"
+    assert qp.debian_package("libfoo2.so.1") == "libfoo2-1"
+    monkeypatch.setattr(qp, "missing_xcb_libraries", lambda: ["libxcb-icccm.so.4", "libxcb-keysyms.so.1"])
+    monkeypatch.setattr(qp.sys, "platform", "linux")
+    monkeypatch.setattr(subprocess, "run", lambda *a, **k: subprocess.CompletedProcess(
+        a, 134, "", "qt.qpa.plugin: From 6.5.0, xcb-cursor0 or libxcb-cursor0 is needed to load the Qt xcb platform "
+                    "plugin.\nCould not load the Qt platform plugin \"xcb\""))
+    text = qp.display_problem({"DISPLAY": ":0"})
+    assert "lacks libxcb-icccm.so.4, libxcb-keysyms.so.1" in text and "cursor" not in text
+    assert "sudo apt install libxcb-icccm4 libxcb-keysyms1" in text and "README" in text

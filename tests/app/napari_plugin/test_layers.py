@@ -11,9 +11,12 @@ import pytest
 import zarr
 
 from flexvox_app.napari_plugin import layers
-from flexvox_core.methods import Method, reconstruct
+from flexvox_core.methods import Method
 from flexvox_core.recording import open_recording
+from flexvox_core.video_api import reconstruct_video
 from flexvox_core.video_io import write_video
+
+pytestmark = pytest.mark.recording("fan", size=(24, 32), tile=(2, 2), scene_seed=3, noise_seed=1)
 
 
 def test_a_recording_opens_as_coded_frames_and_ground_truth_with_time_in_seconds(recording):
@@ -92,7 +95,7 @@ def test_the_steps_yield_after_each_chunk_and_return_the_runners_result(recordin
     done, out = _drain(layers.reconstruction_steps(str(recording), method, chunk_frames=2))
     assert done == [2, 2, 2]  # camera frames per chunk, 6 frames in chunks of 2
     rec = open_recording(recording)
-    np.testing.assert_allclose(out.video, reconstruct(rec.normalised_frames(), rec.code, method, chunk_frames=2),
+    np.testing.assert_allclose(out.video, reconstruct_video(rec.normalised_frames(), rec.code, method, chunk_frames=2),
                                atol=1e-6)
 
 
@@ -151,10 +154,11 @@ def test_a_recording_that_cannot_be_reconstructed_says_why(tmp_path):
         next(layers.reconstruction_steps(str(tmp_path / "missing.zarr"), Method()))
 
 
-def test_motion_aware_results_become_video_flow_wheel_and_tr_map_layers(moving_recording):
+@pytest.mark.recording(frames=3, size=(32, 40), tile=(4, 4), scene_seed=2, noise_seed=1, name="moving.zarr")
+def test_motion_aware_results_become_video_flow_wheel_and_tr_map_layers(recording):
     method = Method("motion-aware")
-    _, out = _drain(layers.reconstruction_steps(str(moving_recording), method, extras=True, chunk_frames=8))
-    video, flow, tr = layers.result_layers(out, method=method, recording=str(moving_recording), subframe_hz=240.0, K=16)
+    _, out = _drain(layers.reconstruction_steps(str(recording), method, extras=True, chunk_frames=8))
+    video, flow, tr = layers.result_layers(out, method=method, recording=str(recording), subframe_hz=240.0, K=16)
     assert video[0].shape == (48, 32, 40) and video[1]["name"] == f"moving: {method.label()}"
     assert flow[0].shape == (48, 32, 40, 3) and flow[0].dtype == np.uint8 and flow[1]["rgb"]
     assert flow[1]["name"].startswith("moving: flow (colour wheel, full = ")

@@ -14,6 +14,8 @@ pytest.importorskip("napari", reason="the napari extra is not installed: pip ins
 from flexvox_app.napari_plugin.widgets import MotionWidget, ReconstructWidget  # noqa: E402
 from flexvox_core.methods import Method  # noqa: E402
 
+pytestmark = pytest.mark.recording("fan", size=(24, 32), tile=(2, 2), scene_seed=3, noise_seed=1)
+
 _NAPARI_GL_USERS = ("napari._vispy.layers.image", "napari._vispy.layers.base", "napari._vispy.layers.labels",
                     "napari._vispy.canvas")
 

@@ -15,6 +15,8 @@ from napari.components import ViewerModel  # noqa: E402
 from flexvox_app.napari_plugin.widgets import MotionWidget, ReconstructWidget  # noqa: E402
 from flexvox_core.methods import Method, names, specs  # noqa: E402
 
+pytestmark = pytest.mark.recording("fan", size=(24, 32), tile=(2, 2), scene_seed=3, noise_seed=1)
+
 
 @pytest.fixture
 def viewer(qtbot):
@@ -130,12 +132,13 @@ def test_a_failure_is_shown_not_raised(viewer, qtbot, recording):
     assert widget.status.text().startswith("failed: ") and "rec.zarr" in widget.status.text()
 
 
-def test_the_motion_widget_adds_the_flow_wheel_and_the_tr_map(viewer, qtbot, moving_recording):
+@pytest.mark.recording(frames=3, size=(32, 40), tile=(4, 4), scene_seed=2, noise_seed=1, name="moving.zarr")
+def test_the_motion_widget_adds_the_flow_wheel_and_the_tr_map(viewer, qtbot, recording):
     widget = MotionWidget(viewer)
     qtbot.addWidget(widget)
     offered = [widget.method_box.itemText(i) for i in range(widget.method_box.count())]
     assert offered == [s.name for s in specs() if {"flow", "tr"} <= set(s.extras)] and offered
-    viewer.open(str(moving_recording), plugin="flexvox")
+    viewer.open(str(recording), plugin="flexvox")
     worker = widget.start(start_thread=False)
     with qtbot.waitSignal(worker.finished, timeout=120_000):
         worker.start()

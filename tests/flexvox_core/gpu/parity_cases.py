@@ -113,7 +113,7 @@ def run_case(case: str) -> tuple[float | None, str | None]:
     (the CPU's video then checked equal to a CPU run's, bit for bit). A field's case first checks that its value
     changes the CPU's video on its clip."""
     from flexvox_core.motion.gpu.engine import CudaStages
-    from flexvox_core.motion.options import MotionOptions, sample_bounds
+    from flexvox_core.motion.options import MotionOptions, check_sample_range
     from flexvox_core.motion.pipeline import engine_for, run_window
     from flexvox_core.motion.stages import Window, run_stages
 
@@ -133,20 +133,20 @@ def run_case(case: str) -> tuple[float | None, str | None]:
     elif name is not None:
         options = {name: FIELD_VALUES[name]}
     o = MotionOptions(**options)
-    bounds = sample_bounds(frames, missing, None)
-    cpu = run_window(frames, CODE, o, bounds, missing=missing, keep=keep)
+    sample_range = check_sample_range(frames, missing, None)
+    cpu = run_window(frames, CODE, o, sample_range, missing=missing, keep=keep)
     assert cpu.device == "cpu" and cpu.device_note is None
     if name is not None:
-        default = run_window(frames, CODE, MotionOptions(), bounds)
+        default = run_window(frames, CODE, MotionOptions(), sample_range)
         assert not np.array_equal(cpu.video, default.video), f"{case} gives the default video on its clip"
     device, note = engine_for(o, "cuda")
     if device == "cpu":
         assert note
-        gpu = run_window(frames, CODE, o, bounds, missing=missing, keep=keep, device="cuda")
+        gpu = run_window(frames, CODE, o, sample_range, missing=missing, keep=keep, device="cuda")
         assert (gpu.device, gpu.device_note) == ("cpu", note)
         np.testing.assert_array_equal(gpu.video, cpu.video)
         return None, note
-    window = Window.plan(frames, CODE, o, bounds, missing=missing, keep=keep)
+    window = Window.plan(frames, CODE, o, sample_range, missing=missing, keep=keep)
     gpu = run_stages(CudaStages(window, pairs="cpu"))
     assert gpu.device == "cuda" and gpu.video.shape == cpu.video.shape
     return _diff(gpu.video, cpu.video), None

@@ -150,14 +150,14 @@ def test_a_whole_window_in_turn_is_bit_for_bit_the_simulators_threads(tmp_path):
     script = textwrap.dedent("""
         import sys
         import numpy as np
-        from flexvox_core.motion.options import MotionOptions, sample_bounds
+        from flexvox_core.motion.options import MotionOptions, check_sample_range
         from flexvox_core.motion.pipeline import run_window
         from tests.flexvox_core.gpu.tiny import CODE, tiny_capture
 
         _, frames = tiny_capture("balls", 3, 8, 8, noise=0.01)
         missing = np.array([False, True, False])
         frames[1] = 0
-        run = run_window(frames, CODE, MotionOptions(), sample_bounds(frames, missing, None), missing=missing,
+        run = run_window(frames, CODE, MotionOptions(), check_sample_range(frames, missing, None), missing=missing,
                          device="cuda")
         assert run.device == "cuda", run.device_note
         np.save(sys.argv[1], run.video)

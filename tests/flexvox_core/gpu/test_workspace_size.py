@@ -13,7 +13,7 @@ import pytest
 
 from flexvox_core.design import design_code
 from flexvox_core.methods import Method
-from flexvox_core.motion.options import MotionOptions, sample_bounds
+from flexvox_core.motion.options import MotionOptions, check_sample_range
 from flexvox_core.motion.stages import Window
 from tests.flexvox_core.gpu.tiny import CODE, tiny_capture
 from tests.flexvox_core.gpu.workspace_size import buffers, no_kernels, planned_peak, run_workspace
@@ -53,7 +53,7 @@ def test_a_real_run_holds_what_the_plan_holds_and_fits_the_estimate():
     missing = np.array([False, True, False])
     frames[1] = 0
     options = MotionOptions(passes=2)
-    w = Window.plan(frames, CODE, options, sample_bounds(frames, missing, None), missing=missing)
+    w = Window.plan(frames, CODE, options, check_sample_range(frames, missing, None), missing=missing)
     real = run_workspace(w)
     with no_kernels():
         plan = run_workspace(w)

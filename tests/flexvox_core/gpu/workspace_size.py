@@ -61,12 +61,12 @@ def no_kernels():
 
 
 def window(H: int, W: int, F: int, code, options, frames=None):
-    from flexvox_core.motion.options import sample_bounds
+    from flexvox_core.motion.options import check_sample_range
     from flexvox_core.motion.stages import Window
 
     if frames is None:
         frames = np.random.default_rng(0).random((F, H, W), np.float32)
-    return Window.plan(frames, code, options, sample_bounds(frames, None, None))
+    return Window.plan(frames, code, options, check_sample_range(frames, None, None))
 
 
 def run_workspace(w):

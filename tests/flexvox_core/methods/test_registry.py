@@ -190,7 +190,7 @@ def test_motion_aware_function_shows_every_option_in_its_signature():
     from flexvox_core.motion.pipeline import motion_aware
 
     params = inspect.signature(motion_aware).parameters
-    assert list(params) == ["frames", "code", *(f.name for f in dataclasses.fields(MotionOptions)), "value_range",
+    assert list(params) == ["frames", "code", *(f.name for f in dataclasses.fields(MotionOptions)), "sample_range",
                             "missing", "device"]
     assert params["slow_speed"].default == MotionOptions.__dataclass_fields__["slow_speed"].default
     with pytest.raises(TypeError, match="slow_sped"):

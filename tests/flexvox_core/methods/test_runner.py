@@ -6,8 +6,9 @@ import pytest
 from flexvox_core.design import design_code
 from flexvox_core.divisions import Division
 from flexvox_core.forward import capture
-from flexvox_core.methods import Method, default_block, overlap_frames, reconstruct
+from flexvox_core.methods import Method, default_block, overlap_frames
 from flexvox_core.motion.options import SLOW_REACH
+from flexvox_core.video_api import reconstruct_video
 
 CODE = design_code((2, 4)).code
 
@@ -32,8 +33,8 @@ def case(rng):
 )
 def test_chunking_does_not_change_the_result(case, method):
     _, frames = case
-    whole = reconstruct(frames, CODE, method, chunk_frames=None)
-    chunked = reconstruct(frames, CODE, method, chunk_frames=2)
+    whole = reconstruct_video(frames, CODE, method, chunk_frames=None)
+    chunked = reconstruct_video(frames, CODE, method, chunk_frames=2)
     assert whole.shape == (72, 10, 12) and whole.dtype == np.float32
     assert np.array_equal(whole, chunked)
     assert whole.min() >= 0 and whole.max() <= 1
@@ -42,7 +43,7 @@ def test_chunking_does_not_change_the_result(case, method):
 def test_progress_is_reported_per_chunk(case):
     _, frames = case
     calls = []
-    reconstruct(frames, CODE, Method("diffusion"), chunk_frames=4, progress=lambda d, t: calls.append((d, t)))
+    reconstruct_video(frames, CODE, Method("diffusion"), chunk_frames=4, progress=lambda d, t: calls.append((d, t)))
     assert calls == [(4, 9), (8, 9), (9, 9)]
 
 
@@ -73,7 +74,7 @@ def test_bad_methods(kwargs, match):
 
 def test_bad_chunk(case):
     with pytest.raises(ValueError, match=r"`chunk_frames` must be >= 1 or None; got 0"):
-        reconstruct(case[1], CODE, Method(), chunk_frames=0)
+        reconstruct_video(case[1], CODE, Method(), chunk_frames=0)
 
 
 def test_motion_aware_chunking_matches_the_whole(rng):
@@ -82,8 +83,8 @@ def test_motion_aware_chunking_matches_the_whole(rng):
     truth = render_scene("balls", 8 * 10, 24, 32)
     frames = capture(truth, CODE)
     m = Method("motion-aware", time=2.0)
-    whole = reconstruct(frames, CODE, m, chunk_frames=None)
-    chunked = reconstruct(frames, CODE, m, chunk_frames=4)
+    whole = reconstruct_video(frames, CODE, m, chunk_frames=None)
+    chunked = reconstruct_video(frames, CODE, m, chunk_frames=4)
     assert np.allclose(whole, chunked, atol=1e-5)
 
 
@@ -97,8 +98,8 @@ def test_motion_aware_chunking_matches_the_whole_with_slow_voxels(slow_reach):
     truth = render_scene("pan", 8 * 10, 24, 32)
     frames = capture(truth, CODE)
     m = Method("motion-aware", time=2.0, slow_reach=slow_reach)
-    whole = reconstruct(frames, CODE, m, chunk_frames=None)
-    chunked = reconstruct(frames, CODE, m, chunk_frames=3)
+    whole = reconstruct_video(frames, CODE, m, chunk_frames=None)
+    chunked = reconstruct_video(frames, CODE, m, chunk_frames=3)
     assert np.array_equal(whole, chunked)
 
 
@@ -133,7 +134,7 @@ class _Echo:
             def overlap(self, values, K):
                 return 0
 
-            def run(self, frames, code, values, *, value_range=None, extras=False, missing=None):
+            def run(self, frames, code, values, *, sample_range=None, extras=False, missing=None):
                 from flexvox_core.methods import MethodOutput
 
                 video, extra = make(frames, code.shape[2])
@@ -185,3 +186,54 @@ def test_run_chunk_copies_a_chunk_cut_from_its_context(rng):
     got = run_chunk(frames, CODE, _Echo(lambda f, K: (own, {})), left=1, count=1)
     assert got.video.shape == (8, 4, 8) and not np.shares_memory(got.video, own)
     np.testing.assert_array_equal(got.video, np.clip(own[8:16], 0, 1))
+
+
+def test_the_deprecated_methods_reconstruct_warns_and_gives_reconstruct_videos_video(rng):
+    from flexvox_core.methods import reconstruct
+
+    frames = rng.random((3, 8, 8), dtype=np.float32)
+    with pytest.warns(DeprecationWarning, match=r"flexvox_core\.methods\.reconstruct is deprecated .* "
+                                                r"call flexvox_core\.reconstruct_video"):
+        video = reconstruct(frames, CODE, "diffusion")
+    np.testing.assert_array_equal(video, reconstruct_video(frames, CODE, "diffusion"))
+
+
+def test_the_deprecated_value_range_keyword_of_run_chunk_warns_and_still_works(rng):
+    from flexvox_core.methods import run_chunk
+
+    frames = rng.random((2, 8, 8), dtype=np.float32)
+    with pytest.warns(DeprecationWarning, match=r"`value_range` of run_chunk is deprecated .* call it `sample_range`"):
+        old = run_chunk(frames, CODE, Method("diffusion"), value_range=(0.0, 1.0)).video
+    np.testing.assert_array_equal(old, run_chunk(frames, CODE, Method("diffusion"), sample_range=(0.0, 1.0)).video)
+    with pytest.raises(TypeError, match=r"run_chunk got `sample_range` and its deprecated name `value_range`"):
+        with pytest.warns(DeprecationWarning):
+            run_chunk(frames, CODE, Method("diffusion"), sample_range=(0, 1), value_range=(0, 1))
+
+
+def test_a_method_whose_run_takes_the_old_value_range_keyword_gets_the_range_with_a_warning(rng):
+    from flexvox_core.methods import MethodOutput, MethodSpec, register, run_chunk, unregister
+
+    seen = []
+
+    class OldSpec(MethodSpec):
+        name = "old-range"
+        needs_sample_range = True
+
+        def overlap(self, options, K):
+            return 0
+
+        def run(self, frames, code, options, *, value_range=None, extras=False):
+            seen.append(value_range)
+            return MethodOutput(np.zeros((frames.shape[0] * code.shape[2], *frames.shape[1:]), np.float32))
+
+        def label(self, values):
+            return "old"
+
+    register(OldSpec())
+    try:
+        frames = rng.random((2, 8, 8), dtype=np.float32)
+        with pytest.warns(DeprecationWarning, match=r"the `value_range` keyword of OldSpec\.run is deprecated"):
+            run_chunk(frames, CODE, Method("old-range"), sample_range=(0.0, 2.0))
+    finally:
+        unregister("old-range")
+    assert seen == [(0.0, 2.0)]

@@ -24,9 +24,9 @@ class FrameMean(MethodSpec):
     def overlap(self, options, K):
         return options.radius
 
-    def run(self, frames, code, options, *, value_range=None, extras=False):
+    def run(self, frames, code, options, *, sample_range=None, extras=False):
         F, K, r = frames.shape[0], code.shape[2], options.radius
-        lo, hi = value_range if value_range is not None else (float(frames.min()), float(frames.max()))
+        lo, hi = sample_range if sample_range is not None else (float(frames.min()), float(frames.max()))
         means = np.stack([frames[max(0, f - r): f + r + 1].mean(axis=0) for f in range(F)])
         video = np.repeat((means - lo) / max(hi - lo, 1e-12), K, axis=0)
         # The camera frame of each sub-frame, counted from this chunk's first frame.

@@ -123,10 +123,10 @@ def test_resolution_map_limits():
         ({"flow": "magic"}, r"`flow` must be one of dis, deepflow, farneback, tvl1; got 'magic'"),
         ({"gate": (0.5, 0.1)}, r"`gate` must be two thresholds"),
         ({"flow_scale": 0}, r"`flow_scale` must be in \(0, 1\] or None; got 0"),
-        ({"value_range": (0.6, 1.0)},
-         r"`value_range` \(0.6, 1.0\) must be finite and contain the frames' values \[0.5, 0.5\]"),
-        ({"value_range": (0.0, np.inf)}, r"`value_range` .* must be finite"),
-        ({"value_range": "ab"}, r"`value_range` must be two numbers \(lo, hi\) or None; got 'ab'"),
+        ({"sample_range": (0.6, 1.0)},
+         r"`sample_range` \(0.6, 1.0\) must be finite and contain the frames' values \[0.5, 0.5\]"),
+        ({"sample_range": (0.0, np.inf)}, r"`sample_range` .* must be finite"),
+        ({"sample_range": "ab"}, r"`sample_range` must be two numbers \(lo, hi\) or None; got 'ab'"),
     ],
 )
 def test_bad_arguments(kwargs, match):

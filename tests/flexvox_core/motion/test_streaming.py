@@ -43,7 +43,7 @@ def test_each_frame_equals_its_windows_offline_run(balls):
     assert [o.window for o in out] == [(0, 2), (0, 3), (1, 4), (2, 5), (3, 5)]
     for o in out:
         a, b = o.window
-        ref = motion_aware(frames[a:b], CODE, value_range=(0, 1)).video[(o.index - a) * K:(o.index - a + 1) * K]
+        ref = motion_aware(frames[a:b], CODE, sample_range=(0, 1)).video[(o.index - a) * K:(o.index - a + 1) * K]
         # Only the work whose result is cut was left out: the same values up to float rounding.
         np.testing.assert_allclose(o.video, ref, rtol=0, atol=1e-5)
         assert o.video.dtype == np.float32 and not o.interpolated
@@ -56,7 +56,7 @@ def test_whole_clip_within_0_3_db_of_offline(scene):
     frames = capture(truth, CODE)
     _, out = _stream(frames)
     video = np.concatenate([o.video for o in out])
-    offline = motion_aware(frames, CODE, value_range=(0, 1)).video
+    offline = motion_aware(frames, CODE, sample_range=(0, 1)).video
     assert video.shape == offline.shape
     assert abs(psnr(truth, video) - psnr(truth, offline)) < 0.3
 
@@ -161,7 +161,7 @@ def test_skip_to_gives_up_older_frames(balls):
 @pytest.mark.parametrize(("kw", "message"), [
     ({"back": -1}, r"`back` must be a whole number >= 0 \(frames\); got -1"),
     ({"ahead": 0}, r"`ahead` must be a whole number >= 1 \(frames\); got 0"),
-    ({"value_range": (1, 0)}, r"`value_range` must be two finite numbers lo < hi; got \(1, 0\)"),
+    ({"sample_range": (1, 0)}, r"`sample_range` must be two finite numbers lo < hi; got \(1, 0\)"),
     ({"time": -1.0}, r"`time` must be a finite number > 0; got -1.0"),
     ({"flow_scale": 2.0}, r"`flow_scale` must be in \(0, 1\] or None; got 2.0"),
     ({"flow": "dsi"}, r"`flow` must be one of dis, deepflow, farneback, tvl1; got 'dsi'"),
@@ -186,7 +186,7 @@ def test_bad_frames_are_refused_by_name():
     stream.push(np.zeros((16, 16), np.float32))
     with pytest.raises(ValueError, match=r"frame 1 is 16x20; the stream's frames are 16x16"):
         stream.push(np.zeros((16, 20), np.float32))
-    with pytest.raises(ValueError, match=r"frame 1 has values in \[2, 2\], outside the stream's value_range \[0, 1\]"):
+    with pytest.raises(ValueError, match=r"frame 1 has values in \[2, 2\], outside the stream's sample_range \[0, 1\]"):
         stream.push(np.full((16, 16), 2.0, np.float32))
     with pytest.raises(ValueError, match=r"frame 1 holds NaN"):
         stream.push(np.full((16, 16), np.nan, np.float32))
@@ -231,7 +231,7 @@ def test_flow_memo_forgets_the_oldest_pairs():
 
 def test_a_noisy_frame_is_clipped_by_default_and_refused_outside_a_given_range(caplog):
     """Sensor noise takes a normalised frame a little past [0, 1]: the default stream clips it into [0, 1] (logged
-    once, counted); a stream given its ``value_range`` refuses it."""
+    once, counted); a stream given its ``sample_range`` refuses it."""
     rng = np.random.default_rng(0)
     frame = np.clip(rng.random((16, 16)), 0, 1).astype(np.float32) + rng.normal(0, 0.02, (16, 16)).astype(np.float32)
     assert frame.min() < 0 and frame.max() > 1
@@ -242,9 +242,9 @@ def test_a_noisy_frame_is_clipped_by_default_and_refused_outside_a_given_range(c
     assert stream.clipped == 2 and stream.pushed == 2
     assert sum("clipped into [0, 1]" in r.getMessage() for r in caplog.records) == 1
     assert stream._frames[0].min() == 0 and stream._frames[0].max() == 1
-    strict = StreamingMotionAware(CODE, value_range=(0, 1))
+    strict = StreamingMotionAware(CODE, sample_range=(0, 1))
     with pytest.raises(ValueError, match=r"frame 0 has values in \[-0\.0\d+, 1\.0\d+\], outside the stream's "
-                                         r"value_range \[0, 1\]"):
+                                         r"sample_range \[0, 1\]"):
         strict.push(frame)
 
 
@@ -262,3 +262,19 @@ def test_motion_aware_returns_values_in_0_1_on_a_noisy_capture():
     video = motion_aware(frames, CODE).video
     assert video.min() == 0 and video.max() == 1
     np.testing.assert_array_equal(video, np.clip(inner, 0, 1))
+
+
+def test_the_deprecated_value_range_names_warn_and_still_work(rng):
+    from flexvox_core.motion.options import check_sample_range, sample_bounds
+
+    frames = rng.random((3, 8, 8), dtype=np.float32)
+    with pytest.warns(DeprecationWarning, match=r"`value_range` of motion_aware is deprecated .* `sample_range`"):
+        old = motion_aware(frames, CODE, value_range=(0, 1)).video
+    np.testing.assert_array_equal(old, motion_aware(frames, CODE, sample_range=(0, 1)).video)
+    with pytest.warns(DeprecationWarning, match=r"`value_range` of StreamingMotionAware is deprecated"):
+        stream = StreamingMotionAware(CODE, value_range=(0, 2))
+    with pytest.warns(DeprecationWarning, match=r"StreamingMotionAware\.value_range is deprecated .* "
+                                                r"StreamingMotionAware\.sample_range"):
+        assert stream.value_range == stream.sample_range == (0.0, 2.0)
+    with pytest.warns(DeprecationWarning, match=r"motion\.options\.sample_bounds is deprecated .* check_sample_range"):
+        assert sample_bounds(frames, None, (0, 1)) == check_sample_range(frames, None, (0, 1)) == (0.0, 1.0)

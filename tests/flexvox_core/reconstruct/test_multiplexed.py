@@ -8,7 +8,7 @@ from scipy.ndimage import gaussian_filter
 
 from flexvox_core.capture_reader import CaptureReader
 from flexvox_core.forward import capture
-from flexvox_core.methods import Method, reconstruct, run
+from flexvox_core.methods import Method, run
 from flexvox_core.metrics import psnr
 from flexvox_core.motion.multiplexed import motion_aware_multiplexed
 from flexvox_core.multiplex import multiplexed_code
@@ -18,6 +18,7 @@ from flexvox_core.reconstruct.multiplexed import gap_gaussian
 from flexvox_core.recording import open_recording, write_simulation
 from flexvox_core.simulate.scenes import render_scene
 from flexvox_core.simulate.simulator import simulate_video
+from flexvox_core.video_api import reconstruct_video
 
 MC = multiplexed_code((1, 3))
 
@@ -50,7 +51,7 @@ def test_random_scenes_give_finite_output_near_the_range(seed):
     out = gap_gaussian(capture(video, MC.code), MC.code, iterations=10)
     assert np.isfinite(out).all()
     assert out.min() > -0.5 and out.max() < 1.5  # unclipped GAP overshoots little; the runner clips to [0, 1]
-    clipped = reconstruct(capture(video, MC.code), MC.code, Method("diffusion"))
+    clipped = reconstruct_video(capture(video, MC.code), MC.code, Method("diffusion"))
     assert clipped.min() >= 0 and clipped.max() <= 1
 
 
@@ -87,8 +88,8 @@ def test_motion_aware_multiplexed_reconstructs_a_still_scene_exactly():
                                     Method("motion-aware", time=2.0)], ids=lambda m: m.name)
 def test_chunked_equals_whole_for_multiplexed_captures(method):
     _, mc, frames = _balls((1, 3), frames=7)
-    whole = reconstruct(frames, mc.code, method, chunk_frames=None)
-    chunked = reconstruct(frames, mc.code, method, chunk_frames=2)
+    whole = reconstruct_video(frames, mc.code, method, chunk_frames=None)
+    chunked = reconstruct_video(frames, mc.code, method, chunk_frames=2)
     assert whole.shape == (21, 30, 40)
     np.testing.assert_array_equal(whole, chunked)
 
@@ -155,4 +156,33 @@ def test_batch_equals_the_in_memory_run_on_a_multiplexed_recording(mux_path):
     rec = open_recording(mux_path)
     m = Method("diffusion")
     video, _ = batch_video(rec, m, chunk_frames=2)
-    np.testing.assert_array_equal(video.compute(scheduler="synchronous"), reconstruct(*CaptureReader(rec).input(m), m))
+    expected = reconstruct_video(*CaptureReader(rec).input(m), m)
+    np.testing.assert_array_equal(video.compute(scheduler="synchronous"), expected)
+
+
+def test_the_deprecated_multiplexed_names_warn_and_still_answer():
+    from flexvox_core.methods import MethodSpec
+
+    diffusion = Method("diffusion")
+    with pytest.warns(DeprecationWarning, match=r"MethodSpec\.accepts_multiplexed is deprecated .* "
+                                                r"call takes_multiplexed\(options\)"):
+        assert diffusion.spec.accepts_multiplexed(diffusion.spec.build(diffusion.spec.resolve({})))
+
+    class Flagged(MethodSpec):
+        def overlap(self, options, K):
+            return 0
+
+        def run(self, frames, code, options, **kw):
+            raise NotImplementedError
+
+        def label(self, values):
+            return "flagged"
+
+    with pytest.warns(DeprecationWarning, match=r"Old\.takes_multiplexed as a class flag \(True\) is deprecated"):
+        Old = type("Old", (Flagged,), {"takes_multiplexed": True})
+    with pytest.warns(DeprecationWarning, match=r"Older\.accepts_multiplexed is deprecated .* "
+                                                r"name the method takes_multiplexed\(self, options\)"):
+        Older = type("Older", (Flagged,), {"accepts_multiplexed": lambda self, options: options == "yes"})
+    assert Old().takes_multiplexed(None) and not Flagged().takes_multiplexed(None)
+    assert Older().takes_multiplexed("yes") and not Older().takes_multiplexed("no")
+

@@ -17,6 +17,7 @@ from flexvox_core.forward import capture, tiled_code
 from flexvox_core.recording import RecordingWriter, open_recording
 from rig_drivers.errors import DeviceError, DeviceTimeoutError
 from rig_drivers.interfaces import DeviceState, Frame
+from rig_drivers.simulated_rig import SimulatedRig
 
 from .simulated_rig_helpers import CODE, PERIOD, PLAN, make_rig
 

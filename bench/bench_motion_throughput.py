@@ -58,9 +58,27 @@ def _refinement_without_still() -> Iterator[None]:
         stages.variable_tensor_diffusion = kept
 
 
+@contextlib.contextmanager
+def _gather_given_its_complement() -> Iterator[None]:
+    """Before the trajectory gather took the gathered voxels: it took a new bool volume of their complement."""
+    from flexvox_core.motion import stages
+
+    kept = stages.motion_compensated_nc
+
+    def before(*args, gathered=None, **kwargs):
+        return kept(*args, still=~gathered, **kwargs)
+
+    stages.motion_compensated_nc = before
+    try:
+        yield
+    finally:
+        stages.motion_compensated_nc = kept
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "no-still-snap": _refinement_without_still,
+    "complement-volume": _gather_given_its_complement,
 }
 """The code as it was before each change (``kept``: as it is), for ``--ab``."""
 

@@ -382,8 +382,8 @@ class Stages(Protocol):
     def long_reach(self, flow: Flow, video: Volume, slow: Volume) -> None:
         """The slow voxels' range-weighted gather, into ``video``."""
 
-    def refinement(self, video: Volume, flow: Flow, still: Volume, slow: Volume) -> None:
-        """The monotone diffusion along the trajectories, in place; the ``still`` voxels at zero flow."""
+    def refinement(self, video: Volume, flow: Flow, slow: Volume) -> None:
+        """The monotone diffusion along the trajectories, in place."""
 
     def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume) -> None:
         """Oriented nc blended in where it predicts the samples better, in place."""
@@ -425,7 +425,7 @@ def run_stages(engine: Stages) -> MotionAwareResult:
         with times("long_reach"):
             engine.long_reach(flow, video, slow)
         with times("refinement"):
-            engine.refinement(video, flow, still, slow)
+            engine.refinement(video, flow, slow)
         if loo is not None:
             with times("local_choice"):
                 engine.local_choice(video, loo, gathered, flow, high_tr)
@@ -566,11 +566,9 @@ class CpuStages:
         """A volume the stages after the last pass's gathers may overwrite: the samples' (dead by then)."""
         return self.sparse if self.last else None
 
-    def refinement(self, video: Volume, flow: Flow, still: Volume, slow: Volume) -> None:
+    def refinement(self, video: Volume, flow: Flow, slow: Volume) -> None:
         """Along each trajectory; the slow voxels read their neighbours by clipped Catmull-Rom (a bilinear read
-        a fraction of a pixel off is a blur, which would take the texture their long-reach gather kept), the still
-        ones their own pixel in the neighbouring sub-frames (zero flow: the speed classes' rule, whatever tiny
-        speed the interpolated flow holds there)."""
+        a fraction of a pixel off is a blur, which would take the texture their long-reach gather kept)."""
         w = self.window
         refine_time = w.refine_time
         if refine_time <= 0:
@@ -580,7 +578,7 @@ class CpuStages:
         mask = self._mask()
         variable_tensor_diffusion(video[g0:g1], mask[g0:g1], flow.flow[g0:g1], c=REFINE_C, time=refine_time,
                                   out=video[g0:g1], scratch=None if spare is None else spare[g0:g1],
-                                  sharp=slow[g0:g1], still=still[g0:g1])
+                                  sharp=slow[g0:g1])
 
     def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume) -> None:
         w = self.window

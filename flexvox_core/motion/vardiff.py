@@ -83,7 +83,6 @@ def variable_tensor_diffusion(
     out: np.ndarray | None = None,
     scratch: np.ndarray | None = None,
     sharp: np.ndarray | None = None,
-    still: np.ndarray | None = None,
 ) -> np.ndarray:
     """Diffuse ``init`` for diffusion time ``time`` with the motion tensor field of ``flow``.
 
@@ -111,10 +110,6 @@ def variable_tensor_diffusion(
         combination of them: the result stays within the data's range), instead of bilinear. A
         bilinear read at a fractional offset is a blur: along a slow trajectory (a fraction of a
         pixel per sub-frame) every step blurs the texture a long-reach gather has kept.
-    still : ndarray of bool, shape (S, H, W), optional
-        Voxels taken at zero flow whatever ``flow`` holds there (motion-aware's still voxels: the speed
-        classes' rule, :func:`~flexvox_core.motion.stages.speed_class`). Their tiny interpolated speeds
-        would otherwise cost two bilinear reads each for a change far below the noise.
 
     Returns
     -------
@@ -127,7 +122,6 @@ def variable_tensor_diffusion(
 
     (c1, c2, c3), vol, m, f, steps, dt = _check(init, mask, flow, time, c)
     sh = _check_sharp(sharp, vol.shape)
-    st = _check_sharp(still, vol.shape, "still")
     vol = np.ascontiguousarray(vol)
     m = np.ascontiguousarray(m)
     f = np.ascontiguousarray(f)
@@ -164,8 +158,7 @@ def variable_tensor_diffusion(
     with _KERNEL_LOCK:
         for k in range(steps):
             dst = x if (steps - 1 - k) % 2 == 0 else y
-            vardiff_step(src, dst, f, m, bool(keep_samples), c1, c2, c3, dt, sh, sharp is not None, st,
-                         still is not None)
+            vardiff_step(src, dst, f, m, bool(keep_samples), c1, c2, c3, dt, sh, sharp is not None)
             src = dst
     if out is not None and src is not out:
         np.copyto(out, src)
@@ -173,12 +166,11 @@ def variable_tensor_diffusion(
     return src
 
 
-def _check_sharp(sharp, shape, name: str = "sharp") -> np.ndarray:
-    """``sharp`` (or another bool volume, ``name``) as a C-contiguous bool volume of ``shape`` (None: a 1x1x1
-    placeholder the kernel never reads)."""
+def _check_sharp(sharp, shape) -> np.ndarray:
+    """``sharp`` as a C-contiguous bool volume of ``shape`` (None: a 1x1x1 placeholder the kernel never reads)."""
     if sharp is None:
         return np.zeros((1, 1, 1), bool)
     sh = np.ascontiguousarray(sharp, dtype=bool)
     if sh.shape != shape:
-        raise ValueError(f"`{name}` {sh.shape} must match `init` {shape}")
+        raise ValueError(f"`sharp` {sh.shape} must match `init` {shape}")
     return sh

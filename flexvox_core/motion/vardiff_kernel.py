@@ -68,11 +68,10 @@ def _clamped_bicubic(plane, y, x):
 
 
 @numba.njit(parallel=True, nogil=True, cache=True)
-def vardiff_step(vol, new, flow, mask, keep_samples, c1, c2, c3, dt, sharp, use_sharp, still, use_still):
+def vardiff_step(vol, new, flow, mask, keep_samples, c1, c2, c3, dt, sharp, use_sharp):
     """``new`` = one explicit step of ``vol`` (S, H, W) float32 under the Eq. 4 tensors of ``flow``
     (S, H, W, 2); voxels in ``mask`` stay as they are when ``keep_samples``. With ``use_sharp``, the
-    voxels in ``sharp`` (S, H, W) read their trajectory neighbours by :func:`_clamped_bicubic`; with
-    ``use_still``, the voxels in ``still`` (S, H, W) take zero flow whatever ``flow`` holds there."""
+    voxels in ``sharp`` (S, H, W) read their trajectory neighbours by :func:`_clamped_bicubic`."""
     S, H, W = vol.shape
     b = c2 - c3
     for t in numba.prange(S):
@@ -93,9 +92,6 @@ def vardiff_step(vol, new, flow, mask, keep_samples, c1, c2, c3, dt, sharp, use_
                 if not math.isfinite(u):  # no flow measured there: still
                     u = 0.0
                 if not math.isfinite(v):
-                    v = 0.0
-                if use_still and still[t, y, x]:  # classed still: zero flow (the fast path below)
-                    u = 0.0
                     v = 0.0
                 speed2 = u * u + v * v
                 # Along λ: the neighbouring sub-frames, read at x ± (u, v); at zero flow (most

@@ -189,14 +189,13 @@ class CudaStages:
             return
         long_reach(self.ws, self.sparse, self.mask, flow, video, slow, w.long_reach_plan)
 
-    def refinement(self, video: Volume, flow: Flow, still: Volume, slow: Volume) -> None:
+    def refinement(self, video: Volume, flow: Flow, slow: Volume) -> None:
         w = self.window
         t = w.refine_time
         if t <= 0:
             return
         g0, g1 = w.gathered
-        refine(self.ws, video[g0:g1], self.mask[g0:g1], flow[g0:g1], still[g0:g1], slow[g0:g1], c=REFINE_C,
-               time=t)
+        refine(self.ws, video[g0:g1], self.mask[g0:g1], flow[g0:g1], slow[g0:g1], c=REFINE_C, time=t)
 
     def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume) -> None:
         w = self.window

@@ -80,8 +80,8 @@ def _clamped_bicubic(plane, t, y, x, H, W):
 
 
 @kernel("void(float32[:, :, ::1], float32[:, :, ::1], float32[:, :, :, ::1], uint8[:, :, ::1], uint8[:, :, ::1], "
-        "uint8[:, :, ::1], float32, float32, float32, float32)")
-def _step(vol, new, flow, mask, still, sharp, c1, c2, c3, dt):
+        "float32, float32, float32, float32)")
+def _step(vol, new, flow, mask, sharp, c1, c2, c3, dt):
     i = cuda.grid(1)
     S, H, W = vol.shape
     if i >= S * H * W:
@@ -96,9 +96,6 @@ def _step(vol, new, flow, mask, still, sharp, c1, c2, c3, dt):
     if not math.isfinite(u):
         u = np.float32(0)
     if not math.isfinite(v):
-        v = np.float32(0)
-    if still[t, y, x]:  # classed still: zero flow
-        u = np.float32(0)
         v = np.float32(0)
     speed2 = u * u + v * v
     fy = np.float32(y)
@@ -141,10 +138,9 @@ def _step(vol, new, flow, mask, still, sharp, c1, c2, c3, dt):
     new[t, y, x] = cur + dt * acc
 
 
-def refine(ws, video, mask, flow, still, sharp, *, c, time: float) -> None:
+def refine(ws, video, mask, flow, sharp, *, c, time: float) -> None:
     """``video`` (S, H, W) float32 diffused for ``time`` under Eq. 4's tensors of ``flow`` with eigenvalues ``c``,
-    in place; ``mask`` (uint8) voxels held, ``still`` (uint8) voxels at zero flow, ``sharp`` (uint8) voxels read
-    along the trajectory by clipped
+    in place; ``mask`` (uint8) voxels held, ``sharp`` (uint8) voxels read along the trajectory by clipped
     Catmull-Rom. Device arrays (views of a window's sub-frames will do)."""
     c1, c2, c3 = (float(v) for v in c)
     steps = explicit_steps(time, (c1, c2, c3))
@@ -155,7 +151,7 @@ def refine(ws, video, mask, flow, still, sharp, *, c, time: float) -> None:
     other = ws.get("refine.other", (S, H, W))
     src, dst = video, other
     for _ in range(steps):
-        launch(_step, S * H * W, src, dst, flow, mask, still, sharp, np.float32(c1), np.float32(c2), np.float32(c3),
+        launch(_step, S * H * W, src, dst, flow, mask, sharp, np.float32(c1), np.float32(c2), np.float32(c3),
                np.float32(dt))
         src, dst = dst, src
     if src is not video:

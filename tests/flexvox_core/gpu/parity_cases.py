@@ -86,7 +86,7 @@ _SMOOTH = {"flat": _flat, "drift": _drift}
 DEFAULT_CLIP = Clip()
 CLIPS = {
     "flow_scale": Clip(width=18),  # the flow never runs below 16 px a side: 8×18 at 0.5 is 8×16
-    "flow_consistency": Clip(width=20),  # at 18 px the check changes only still voxels, which take zero flow
+    "flow_consistency": Clip(width=18),
     "local_choice": Clip("static+drift", 2, 8, 24, noise=0.03),
     "noise_aware": Clip("static+drift", 2, 12, 20, noise=0.03),
 }

@@ -95,19 +95,17 @@ def test_refinement_is_the_cpus(rng, ws, clip):
     frames, sparse, mask, flow, truth = clip
     init = rng.random(sparse.shape).astype(np.float32)
     sharp = rng.random(sparse.shape) > 0.5
-    still = (rng.random(sparse.shape) > 0.6) & ~sharp  # at zero flow whatever the flow holds
-    want = variable_tensor_diffusion(init, mask, flow, c=REFINE_C, time=1.0, sharp=sharp, still=still)
+    want = variable_tensor_diffusion(init, mask, flow, c=REFINE_C, time=1.0, sharp=sharp)
     video = _dev(init)
-    refine(ws, video, _dev(mask.astype(np.uint8)), _dev(flow), _dev(still.astype(np.uint8)),
-           _dev(sharp.astype(np.uint8)), c=REFINE_C, time=1.0)
+    refine(ws, video, _dev(mask.astype(np.uint8)), _dev(flow), _dev(sharp.astype(np.uint8)), c=REFINE_C, time=1.0)
     np.testing.assert_allclose(video.copy_to_host(), want, atol=2e-6)
     # A window of the volume, as the engine refines only the gathered sub-frames.
     video = _dev(init)
-    refine(ws, video[4:8], _dev(mask.astype(np.uint8))[4:8], _dev(flow)[4:8], _dev(still.astype(np.uint8))[4:8],
-           _dev(sharp.astype(np.uint8))[4:8], c=(0.95, 0.05, 0.02), time=0.5)
+    refine(ws, video[4:8], _dev(mask.astype(np.uint8))[4:8], _dev(flow)[4:8], _dev(sharp.astype(np.uint8))[4:8],
+           c=(0.95, 0.05, 0.02), time=0.5)
     want = init.copy()
     want[4:8] = variable_tensor_diffusion(init[4:8], mask[4:8], flow[4:8], c=(0.95, 0.05, 0.02), time=0.5,
-                                          sharp=sharp[4:8], still=still[4:8])
+                                          sharp=sharp[4:8])
     np.testing.assert_allclose(video.copy_to_host(), want, atol=2e-6)
 
 

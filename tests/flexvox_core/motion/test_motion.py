@@ -171,8 +171,8 @@ def test_automatic_flow_scale_puts_the_shorter_side_near_160_px():
 @settings(max_examples=20, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1), speed=st.floats(0, 4), time=st.floats(0, 2),
        c=st.sampled_from([(0.95, 0.05, 0.05), (0.95, 0.3, 0.0), (1.0, 0.0, 0.0), (0.5, 0.5, 0.5)]),
-       keep=st.booleans(), sharp=st.sampled_from([None, 0.5, 1.0]), still=st.sampled_from([None, 0.3]))
-def test_the_compiled_variable_diffusion_is_the_numpy_reference(seed, speed, time, c, keep, sharp, still):
+       keep=st.booleans(), sharp=st.sampled_from([None, 0.5, 1.0]))
+def test_the_compiled_variable_diffusion_is_the_numpy_reference(seed, speed, time, c, keep, sharp):
     from tests.flexvox_core.motion.vardiff_reference import variable_tensor_diffusion_reference
 
     rng = np.random.default_rng(seed)
@@ -182,30 +182,13 @@ def test_the_compiled_variable_diffusion_is_the_numpy_reference(seed, speed, tim
     flow[0, 0, 0, 1] = np.nan  # an unmeasured vector counts as no motion
     if sharp is not None:  # these voxels read their trajectory neighbours by clipped Catmull-Rom
         sharp = rng.random(init.shape) < sharp
-    if still is not None:  # these voxels take zero flow (in motion-aware, disjoint from the sharp ones: not here)
-        still = rng.random(init.shape) < still
-    got = variable_tensor_diffusion(init, mask, flow, c=c, time=time, keep_samples=keep, sharp=sharp, still=still)
-    expected = variable_tensor_diffusion_reference(init, mask, flow, c=c, time=time, keep_samples=keep, sharp=sharp,
-                                                   still=still)
+    got = variable_tensor_diffusion(init, mask, flow, c=c, time=time, keep_samples=keep, sharp=sharp)
+    expected = variable_tensor_diffusion_reference(init, mask, flow, c=c, time=time, keep_samples=keep, sharp=sharp)
     np.testing.assert_allclose(got, expected, atol=2e-6)
     # Monotone: every value stays within the starting range (maximum principle).
     assert got.min() >= init.min() - 1e-6 and got.max() <= init.max() + 1e-6
     if keep:
         np.testing.assert_array_equal(got[mask], init[mask])
-
-
-def test_still_voxels_diffuse_as_at_zero_flow():
-    rng = np.random.default_rng(11)
-    init = rng.uniform(0.2, 0.8, (7, 10, 13)).astype(np.float32)
-    mask = rng.random(init.shape) < 0.2
-    flow = rng.normal(0, 0.01, (*init.shape, 2)).astype(np.float32)  # tiny speeds, as the gated flow's still voxels
-    still = rng.random(init.shape) < 0.5
-    zeroed = np.where(still[..., None], np.float32(0), flow)
-    got = variable_tensor_diffusion(init, mask, flow, c=(0.95, 0.0, 0.0), time=1.0, still=still)
-    np.testing.assert_array_equal(got, variable_tensor_diffusion(init, mask, zeroed, c=(0.95, 0.0, 0.0), time=1.0))
-    assert not np.array_equal(got, variable_tensor_diffusion(init, mask, flow, c=(0.95, 0.0, 0.0), time=1.0))
-    with pytest.raises(ValueError, match=r"`still` \(7, 10, 12\) must match `init` \(7, 10, 13\)"):
-        variable_tensor_diffusion(init, mask, flow, time=1.0, still=still[..., :12])
 
 
 @pytest.mark.parametrize("time", [0.0, 0.5, 1.0, 1.5, 2.5])  # 0-5 explicit steps: odd and even counts

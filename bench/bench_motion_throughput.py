@@ -42,23 +42,6 @@ from flexvox_core.simulate.scenes import render_scene
 
 
 @contextlib.contextmanager
-def _refinement_without_still() -> Iterator[None]:
-    """Before the still voxels' zero flow in the refinement: they took the interpolated flow's tiny speeds."""
-    from flexvox_core.motion import stages
-
-    kept = stages.variable_tensor_diffusion
-
-    def before(*args, still=None, **kwargs):
-        return kept(*args, **kwargs)
-
-    stages.variable_tensor_diffusion = before
-    try:
-        yield
-    finally:
-        stages.variable_tensor_diffusion = kept
-
-
-@contextlib.contextmanager
 def _gather_given_its_complement() -> Iterator[None]:
     """Before the trajectory gather took the gathered voxels: it took a new bool volume of their complement."""
     from flexvox_core.motion import stages
@@ -77,7 +60,6 @@ def _gather_given_its_complement() -> Iterator[None]:
 
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
-    "no-still-snap": _refinement_without_still,
     "complement-volume": _gather_given_its_complement,
 }
 """The code as it was before each change (``kept``: as it is), for ``--ab``."""
@@ -168,7 +150,7 @@ def main() -> None:
     ap.add_argument("--ab", choices=[v for v in VARIANTS if v != "kept"], default=None,
                     help="the kept code against this variant, alternating in one process, per stage, with peak memory")
     ap.add_argument("--rounds", type=int, default=3, help="--ab's runs of each")
-    ap.add_argument("--focus", default="refinement", help="--ab: the stage whose every run is printed too")
+    ap.add_argument("--focus", default="trajectory_gather", help="--ab: the stage whose every run is printed too")
     ap.add_argument("--child", nargs=2, metavar=("VARIANT", "FRAMES"), help=argparse.SUPPRESS)
     ap.add_argument("--extra", default="{}", help=argparse.SUPPRESS)
     args = ap.parse_args()

@@ -10,12 +10,28 @@ Figures only, never pass/fail. Usage:
 ``python bench/bench_motion_throughput.py [SCENES] [--frames F] [--flow-scale S] [--slow-reach R] [--refine n]
 [--no-local-choice]``
 (default: balls,drummer; F = 15; S: automatic, a third at 640×480; R: motion_aware's default).
+
+``--ab VARIANT [--rounds N]``: instead, the kept code against VARIANT (one of :data:`VARIANTS`: the code as it was
+before one change, patched back in), alternating in one process after a warm-up call of each, N rounds: each
+stage's seconds (``stage_seconds``), the total and the PSNR per run, then the medians; and each one's peak memory
+(``ru_maxrss``) in a child process that loads only the frames and runs ``motion_aware`` once, cold.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
 import time
+from collections.abc import Callable, Iterator
+
+import numpy as np
 
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture
@@ -23,6 +39,101 @@ from flexvox_core.metrics import psnr
 from flexvox_core.motion import motion_aware
 from flexvox_core.reconstruct import diffuse
 from flexvox_core.simulate.scenes import render_scene
+
+
+@contextlib.contextmanager
+def _gather_given_its_complement() -> Iterator[None]:
+    """Before the trajectory gather took the gathered voxels: it took a new bool volume of their complement."""
+    from flexvox_core.motion import stages
+
+    kept = stages.motion_compensated_nc
+
+    def before(*args, gathered=None, **kwargs):
+        return kept(*args, still=~gathered, **kwargs)
+
+    stages.motion_compensated_nc = before
+    try:
+        yield
+    finally:
+        stages.motion_compensated_nc = kept
+
+
+VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
+    "kept": contextlib.nullcontext,
+    "complement-volume": _gather_given_its_complement,
+}
+"""The code as it was before each change (``kept``: as it is), for ``--ab``."""
+
+
+def _status_mb(field: str) -> float:
+    """A field of /proc/self/status (VmRSS, VmHWM) in MB."""
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith(field + ":"):
+                return int(line.split()[1]) / 1024
+    raise LookupError(field)
+
+
+def _child(variant: str, frames_path: str, extra: dict) -> None:
+    """Print the peak resident memory of one cold ``motion_aware`` call of ``variant`` (MB), and the rise over
+    the resident memory before the call (the frames loaded and the code compiled)."""
+    code = design_code((4, 4)).code
+    frames = np.load(frames_path)
+    motion_aware(frames[:1, :16, :16], code)  # load and compile what the call needs, on a tiny clip
+    try:  # the peak so far (after fork a child's starts at its parent's): reset to the current resident size
+        with open("/proc/self/clear_refs", "w") as f:
+            f.write("5")
+        before = _status_mb("VmRSS")
+        with VARIANTS[variant]():
+            motion_aware(frames, code, **extra)
+        peak = _status_mb("VmHWM")
+    except OSError:  # not Linux, or no clear_refs: the process's peak, the parent's included
+        before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        with VARIANTS[variant]():
+            motion_aware(frames, code, **extra)
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(json.dumps({"peak_mb": peak, "above_mb": peak - before}))
+
+
+def _ab(args, extra: dict) -> None:
+    code = design_code((4, 4)).code
+    variants = ["kept", args.ab]
+    for scene in args.scenes.split(","):
+        truth = render_scene(scene, args.frames * 16, 480, 640)
+        frames = capture(truth, code)
+        rows: dict[str, list[tuple[dict, float, float]]] = {v: [] for v in variants}
+        for v in variants:  # warm-up: numba's compilation and the first touch of the process's memory
+            with VARIANTS[v]():
+                motion_aware(frames, code, **extra)
+        for _ in range(args.rounds):
+            for v in variants:
+                with VARIANTS[v]():
+                    t0 = time.perf_counter()
+                    result = motion_aware(frames, code, **extra)
+                    total = time.perf_counter() - t0
+                rows[v].append((result.stage_seconds, total, psnr(truth, result.video)))
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "frames.npy")
+            np.save(path, frames)
+            peaks = {}
+            for v in variants:
+                out = subprocess.run([sys.executable, __file__, scene, "--frames", str(args.frames),
+                                      "--child", v, path, "--extra", json.dumps(extra)],
+                                     capture_output=True, text=True, check=True).stdout
+                peaks[v] = json.loads(out.strip().splitlines()[-1])
+        stages = list(rows["kept"][0][0])
+        print(f"\n{scene}, 640x480, {args.frames} frames, {args.rounds} rounds alternating, load "
+              f"{os.getloadavg()[0]:.1f} (1-min average at the end); medians, s")
+        print("| variant | " + " | ".join(stages) + " | total | PSNR dB | peak MB (above the warm process) |")
+        print("|---" * (len(stages) + 4) + "|")
+        for v in variants:
+            med = [statistics.median(r[0].get(k, 0.0) for r in rows[v]) for k in stages]
+            total = statistics.median(r[1] for r in rows[v])
+            print(f"| {v} | " + " | ".join(f"{m:.2f}" for m in med) + f" | {total:.2f} | {rows[v][0][2]:.3f} "
+                  f"| {peaks[v]['peak_mb']:.0f} ({peaks[v]['above_mb']:.0f}) |")
+        print("runs, total s: " + "; ".join(f"{v} " + ", ".join(f"{r[1]:.2f}" for r in rows[v]) for v in variants))
+        print(f"runs, {args.focus} s: " + "; ".join(
+            f"{v} " + ", ".join(f"{r[0].get(args.focus, 0.0):.2f}" for r in rows[v]) for v in variants), flush=True)
 
 
 def main() -> None:
@@ -36,7 +147,26 @@ def main() -> None:
                     help="the trajectory gather alone, without blending in isotropic nc (motion_aware's local_choice)")
     ap.add_argument("--slow-reach", type=float, default=None,
                     help="slow voxels' reach in sampling periods (default: motion_aware's, 0.75; 0: short gather)")
+    ap.add_argument("--ab", choices=[v for v in VARIANTS if v != "kept"], default=None,
+                    help="the kept code against this variant, alternating in one process, per stage, with peak memory")
+    ap.add_argument("--rounds", type=int, default=3, help="--ab's runs of each")
+    ap.add_argument("--focus", default="trajectory_gather", help="--ab: the stage whose every run is printed too")
+    ap.add_argument("--child", nargs=2, metavar=("VARIANT", "FRAMES"), help=argparse.SUPPRESS)
+    ap.add_argument("--extra", default="{}", help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.child:
+        _child(args.child[0], args.child[1], json.loads(args.extra))
+        return
+    if args.ab:
+        ab_extra: dict = {"flow_scale": args.flow_scale}
+        if args.slow_reach is not None:
+            ab_extra["slow_reach"] = args.slow_reach
+        if args.refine is not None:
+            ab_extra["refine_time"] = args.refine
+        if args.no_local_choice:
+            ab_extra["local_choice"] = False
+        _ab(args, ab_extra)
+        return
     code = design_code((4, 4)).code
     scale = args.flow_scale or 'auto'
     reach = "default" if args.slow_reach is None else args.slow_reach

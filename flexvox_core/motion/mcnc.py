@@ -54,6 +54,7 @@ def motion_compensated_nc(
     max_reach: int | None = None,
     still=None,
     still_value=None,
+    gathered=None,
     loo: np.ndarray | None = None,
     wide=None,
     wide_sigma: float = 0.0,
@@ -83,6 +84,9 @@ def motion_compensated_nc(
         its still and slow voxels' own values). The trajectory gather then runs only over the
         other voxels and their neighbours within the spatial blur's reach, as a list — that is
         where the time goes (a still scene costs almost nothing).
+    gathered : ndarray of bool (S, H, W), optional
+        The voxels to gather, given instead of ``still`` (its complement; ``still_value`` then goes with it):
+        the same result without a volume of the complement (``motion_aware`` holds the gathered voxels).
     loo : ndarray (F, H, W) float32, optional
         Filled, at every sample the gather reaches (its voxel not in ``still``), with the sample's
         **leave-one-out** estimate: the gather's value there from all the *other* samples,
@@ -116,13 +120,18 @@ def motion_compensated_nc(
     # Value·mask and mask as separate planes (two one-channel remaps cost a third of one
     # two-channel remap, and interpolate exactly: see :mod:`~flexvox_core.motion.longreach`).
     value, weight = sample_planes(vals, m)
-    if (still is None) != (still_value is None):
-        raise ValueError("`still` and `still_value` go together")
-    if still is not None:
-        still = np.asarray(still, dtype=bool)
+    if still is not None and gathered is not None:
+        raise ValueError("`still` and `gathered` say the same (one is the other's complement): give one")
+    invert = gathered is None  # `select` holds the voxels not gathered
+    select = still if invert else gathered
+    if (select is None) != (still_value is None):
+        raise ValueError("`still` and `still_value` go together" if invert else
+                         "`gathered` and `still_value` go together")
+    if select is not None:
+        select = np.asarray(select, dtype=bool)
         still_value = np.asarray(still_value, dtype=np.float32)
-        if still.shape != vals.shape or still_value.shape != vals.shape:
-            raise ValueError(f"`still` and `still_value` must have shape {vals.shape}")
+        if select.shape != vals.shape or still_value.shape != vals.shape:
+            raise ValueError(f"`{'still' if invert else 'gathered'}` and `still_value` must have shape {vals.shape}")
     if loo is not None and (loo.ndim != 3 or loo.shape[1:] != (H, W) or not len(loo) or S % len(loo)):
         raise ValueError(f"`loo` must be (F, H, W) with F dividing the {S} sub-frames; got {loo.shape}")
     per_frame = S // len(loo) if loo is not None else 0
@@ -141,8 +150,8 @@ def motion_compensated_nc(
     everything = np.ones((H, W), bool)
 
     def one(t):
-        moving = everything if still is None else ~still[t]
-        if still is not None and out is not still_value:
+        moving = everything if select is None else ~select[t] if invert else select[t]
+        if select is not None and out is not still_value:
             out[t] = still_value[t]
         rows = np.flatnonzero(moving.any(axis=1))
         if not len(rows):
@@ -152,7 +161,7 @@ def motion_compensated_nc(
         x0, x1 = max(0, cols[0] - pad), min(W, cols[-1] + 1 + pad)
         box = (slice(y0, y1), slice(x0, x1))
         inside = moving[box]
-        near = inside if still is None else cv2.dilate(inside.view(np.uint8), kernel) > 0
+        near = inside if select is None else cv2.dilate(inside.view(np.uint8), kernel) > 0
         ys, xs = np.nonzero(near)
         ys += y0
         xs += x0

@@ -540,13 +540,12 @@ class CpuStages:
         leave-one-out estimate (None unless asked for) and ``gathered`` the voxels gathered (with ``loo``)."""
         w = self.window
         assert self.gathered is not None, "the speed classes run before the gather"
-        not_gathered = ~self.gathered
         loo = np.full(w.frames.shape, np.nan, np.float32) if leave_one_out else None
         # The gather writes into `base` when no later pass reads it (one volume less).
         into = base if w.passes == 1 or base is not self.fixed else None
         sparse, mask = self._samples()
         video = motion_compensated_nc(sparse, mask, flow.flow, c=w.gather_c, time=w.gather_time, fallback=high_tr,
-                                      still=not_gathered, still_value=base, loo=loo, wide=wide,
+                                      gathered=self.gathered, still_value=base, loo=loo, wide=wide,
                                       wide_sigma=noise_aware.wide_sigma(w.K), max_reach=w.gather_reach, out=into)
         gathered = self.gathered if loo is not None else None
         if self.last:

@@ -146,6 +146,18 @@ def test_still_voxels_shortcut_keeps_the_moving_ones_exact(capture_case, rng):
     assert np.array_equal(fast[still & ~mask], still_value[still & ~mask])
     with pytest.raises(ValueError, match=r"`still` and `still_value` go together"):
         motion_compensated_nc(sparse, mask, flow, time=2.0, still=still)
+    # The gathered voxels instead of their complement: the same bits.
+    loo_still, loo_gathered = (np.full(frames.shape, np.nan, np.float32) for _ in range(2))
+    want = motion_compensated_nc(sparse, mask, flow, time=2.0, still=still, still_value=still_value, loo=loo_still)
+    got = motion_compensated_nc(sparse, mask, flow, time=2.0, gathered=~still, still_value=still_value,
+                                loo=loo_gathered)
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(loo_gathered, loo_still)
+    assert np.isfinite(loo_still).any()
+    with pytest.raises(ValueError, match=r"`gathered` and `still_value` go together"):
+        motion_compensated_nc(sparse, mask, flow, time=2.0, gathered=~still)
+    with pytest.raises(ValueError, match=r"`still` and `gathered` say the same .*: give one"):
+        motion_compensated_nc(sparse, mask, flow, time=2.0, still=still, gathered=~still, still_value=still_value)
 
 
 def test_automatic_flow_scale_puts_the_shorter_side_near_160_px():

@@ -78,11 +78,11 @@ import importlib, sys
 import numpy as np
 for name in ("bench.bench_gpu", "bench.gpu_rows", "bench.bench_live_preview", "bench.bench_cpu_scaling",
              "flexvox_app.accuracy_bench", "flexvox_app.capture.live_preview", "flexvox_core.methods",
-             "flexvox_core.motion.streaming", "flexvox_core.motion.gpu.engine", "flexvox_core.gpu.nc",
+             "flexvox_core.motion.streaming", "flexvox_core.motion.gpu.engine", "flexvox_core.gpu.diffusion",
              "flexvox_core.simulate.sources", "tests.flexvox_core.gpu.conftest"):
     importlib.import_module(name)
 from flexvox_core.design import design_code
-from flexvox_core.gpu.nc import diffuse_on_gpu
+from flexvox_core.gpu.diffusion import diffuse_on_gpu
 code = design_code((2, 2)).code
 frames = np.random.default_rng(0).random((1, 4, 4), dtype=np.float32)
 video = diffuse_on_gpu(frames, code, tensor=(1.0, 1.0, 1.0), time=1.0)

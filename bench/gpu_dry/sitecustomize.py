@@ -4,7 +4,7 @@ of it because the script puts this folder first on ``PYTHONPATH``. It does nothi
 - ``GPU_CHECK_ABSENT=zarr,dask,...``: importing one of these top-level packages (or anything under it) raises
   ``ModuleNotFoundError``, as it would on the GPU machine's image, which lacks them, even where this machine's
   Python has them.
-- ``GPU_CHECK_COUNTS=DIR``: counts numba-cuda simulator launches (through ``flexvox_core.gpu.simulator.run``,
+- ``GPU_CHECK_COUNTS=DIR``: counts numba-cuda simulator launches (through ``flexvox_core.gpu.cudasim.run``,
   which every launch under the simulator goes through), their threads, the bytes of the arrays each is passed
   (a launch reads or writes each of its arrays about once: the traffic a card would move), and the bytes copied
   between host and device; writes ``DIR/<GPU_CHECK_STAGE>-<pid>.json`` at exit. ``bench/gpu_dry_counts.py``
@@ -72,7 +72,7 @@ def _count_transfers(cuda) -> None:
     FakeCUDAArray.copy_to_host = counted_copy_to_host
 
 
-_AFTER_IMPORT = {"flexvox_core.gpu.simulator": _count_run, "numba.cuda": _count_transfers}
+_AFTER_IMPORT = {"flexvox_core.gpu.cudasim": _count_run, "numba.cuda": _count_transfers}
 
 
 class _Patch(importlib.abc.MetaPathFinder):

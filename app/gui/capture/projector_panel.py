@@ -114,13 +114,21 @@ class ProjectorPanel(QGroupBox):
             self.label.setText(coloured(f"cannot make the patterns: {in_gui_words(message)}", RED))
             self._set_button(False)
 
+        name = screen.name()
         self._job = self.runner.submit("projector patterns", job,
-                                       on_finished=lambda frames: self._show(frames, screen, plan.K), on_failed=failed)
+                                       on_finished=lambda frames: self._show(frames, name, plan.K), on_failed=failed)
         return True
 
-    def _show(self, frames, screen, K: int) -> None:
+    def _show(self, frames, screen_name: str, K: int) -> None:
         if not self.button.isChecked():
             return  # closed while packing
+        # The screen is looked up again: one unplugged (or re-created by the platform) while the patterns were packed
+        # leaves a deleted QScreen behind.
+        screen = next((s for s in QGuiApplication.screens() if s.name() == screen_name), None)
+        if screen is None:
+            self.label.setText(coloured(f"not shown: the screen {html.escape(screen_name or '?')} is gone", RED))
+            self._set_button(False)
+            return
         self.close_window(keep_text=True)
         window = ProjectorWindow(frames, screen=screen)
         window.closed.connect(self._on_closed)

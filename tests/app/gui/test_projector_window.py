@@ -158,3 +158,13 @@ def test_capture_shows_the_plans_patterns_full_screen_and_esc_closes(qtbot, capt
     qtbot.keyClick(win, Qt.Key.Key_Escape)
     qtbot.waitUntil(lambda: ws.projector.window is None, timeout=2000)
     assert not ws.projector.button.isChecked() and ws.projector.label.text() == "closed (Esc)"
+
+
+def test_a_screen_gone_while_the_patterns_were_packed_is_said_not_shown(qtbot, capture):
+    """The packing job ends after the screen went away (unplugged): no window, a line that says so."""
+    ws = capture
+    ws.projector._set_button(True)  # as open() leaves it while the job runs
+    frames = np.zeros((1, 96, 128, 3), np.uint8)
+    ws.projector._show(frames, "HDMI-unplugged", 8)
+    assert ws.projector.window is None and not ws.projector.button.isChecked()
+    assert "not shown: the screen HDMI-unplugged is gone" in ws.projector.label.text()

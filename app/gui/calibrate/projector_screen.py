@@ -63,7 +63,7 @@ class ProjectorScreen(QObject):
         screen = self.chosen_screen()
         if screen is None:
             return "no screen to show the patterns on: connect the projector's video input (HDMI) as a screen"
-        if self.display is None or self.display.screen is not screen:
+        if self.display is None or self.display.screen_name != screen.name():
             self._close_sink()
             self.display = ProjectorDisplay(screen, parent=self._parent)
             self.display.shown.connect(self._on_shown)

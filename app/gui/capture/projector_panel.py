@@ -17,7 +17,7 @@ from PySide6.QtWidgets import QFormLayout, QGroupBox, QLabel, QPushButton
 from flexvox_app.gui.models.live_source import projector_size
 from flexvox_app.gui.models.operator_words import in_gui_words
 from flexvox_app.gui.models.rig_service import RigService
-from flexvox_app.gui.projector.window import ProjectorWindow, ScreenPicker
+from flexvox_app.gui.projector.window import ProjectorWindow, ScreenPicker, live_screen
 from flexvox_app.gui.widgets.qt_jobs import JobRunner
 from flexvox_app.gui.widgets.questions import ask
 from flexvox_app.gui.widgets.rich_text import AMBER, RED, coloured
@@ -124,7 +124,7 @@ class ProjectorPanel(QGroupBox):
             return  # closed while packing
         # The screen is looked up again: one unplugged (or re-created by the platform) while the patterns were packed
         # leaves a deleted QScreen behind.
-        screen = next((s for s in QGuiApplication.screens() if s.name() == screen_name), None)
+        screen = live_screen(screen_name)
         if screen is None:
             self.label.setText(coloured(f"not shown: the screen {html.escape(screen_name or '?')} is gone", RED))
             self._set_button(False)

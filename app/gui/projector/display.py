@@ -38,7 +38,14 @@ from collections.abc import Callable
 import numpy as np
 from PySide6.QtCore import QCoreApplication, QEventLoop, QObject, Qt, QThread, QTimer, Signal
 
-from flexvox_app.gui.projector.window import CYCLE_MS, ProjectorWindow, check_frames, screen_label
+from flexvox_app.gui.projector.window import (
+    CYCLE_MS,
+    ProjectorWindow,
+    ScreenGone,
+    check_frames,
+    live_screen,
+    screen_label,
+)
 
 _logger = logging.getLogger(__name__)
 
@@ -85,7 +92,7 @@ class ProjectorDisplay(QObject):
         super().__init__(parent)
         if isinstance(timeout_s, bool) or not isinstance(timeout_s, int | float) or not 0 < timeout_s <= 600:
             raise ValueError(f"`timeout_s` must be between 0 and 600 s; got {timeout_s!r}")
-        self.screen = screen
+        self.screen_name: str | None = screen.name() if screen is not None else None  # looked up when shown
         self.timeout_s = float(timeout_s)
         self.cycle_ms = int(cycle_ms)
         self.window: ProjectorWindow | None = None
@@ -158,7 +165,11 @@ class ProjectorDisplay(QObject):
             raise RuntimeError("the projector output window was closed (Esc): the patterns cannot reach the "
                                "projector")
         if self.window is None:
-            window = ProjectorWindow(frames, screen=self.screen, cycle_ms=self.cycle_ms)
+            screen = live_screen(self.screen_name)
+            if screen is None:
+                raise ScreenGone(f"the screen {self.screen_name!r} is gone (unplugged?): the patterns cannot reach "
+                                 "the projector")
+            window = ProjectorWindow(frames, screen=screen, cycle_ms=self.cycle_ms)
             window.closed.connect(self._on_closed)
             window.view.painted_now.connect(self._on_painted)
             self.window = window

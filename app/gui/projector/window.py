@@ -49,6 +49,20 @@ CYCLE_MS = 1000 // 60
 """Frame interval when K > 24 (the video input's 60 Hz), best effort."""
 
 
+class ScreenGone(RuntimeError):
+    """The screen a projector window was made for is no longer listed (unplugged, or re-created by the platform)."""
+
+
+def live_screen(name: str | None):
+    """The screen called ``name`` as Qt lists it now (the primary screen for None; None when none has that name).
+
+    A QScreen kept across an event loop can be deleted under its Python wrapper (a screen unplugged, or re-created
+    by the platform), so the projector's windows keep the name and look the screen up where they use it."""
+    if name is None:
+        return QGuiApplication.primaryScreen()
+    return next((s for s in QGuiApplication.screens() if s.name() == name), None)
+
+
 def screen_label(screen) -> str:
     """``name — W×H at (x, y)`` (and the scale when it is not 1) for the screen combo box."""
     g = screen.geometry()
@@ -158,7 +172,8 @@ class ProjectorWindow(QWidget):
         self.setWindowTitle("flexvox — projector output")
         self.setCursor(Qt.CursorShape.BlankCursor)
         self.frames = frames
-        self.target_screen = screen or QGuiApplication.primaryScreen()
+        chosen = screen or QGuiApplication.primaryScreen()
+        self.screen_name: str | None = chosen.name() if chosen is not None else None
         self.view = _PatternView()
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
@@ -176,6 +191,14 @@ class ProjectorWindow(QWidget):
     def frame_size(self) -> tuple[int, int]:
         """(H, W) of the pattern frames."""
         return int(self.frames.shape[1]), int(self.frames.shape[2])
+
+    @property
+    def target_screen(self):
+        """The screen it shows on, looked up by name now (:func:`live_screen`); :class:`ScreenGone` when it is gone."""
+        screen = live_screen(self.screen_name)
+        if screen is None:
+            raise ScreenGone(f"the screen {self.screen_name!r} is gone (unplugged?)")
+        return screen
 
     def size_warning(self) -> str:
         """Why the pattern will not cover the screen one-to-one ("" when it does)."""

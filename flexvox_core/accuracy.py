@@ -566,7 +566,8 @@ def estimate_recording(recording: str | os.PathLike[str] | Recording, method: Me
     >>> from flexvox_core import Method, render_scene, simulate_video, write_simulation
     >>> from flexvox_core.design import design_code
     >>> sim = simulate_video(render_scene("balls", 16, 24, 32), design_code((2, 2)).code)
-    >>> path = write_simulation("rec.zarr", sim)
+    >>> import pathlib, tempfile
+    >>> path = write_simulation(pathlib.Path(tempfile.mkdtemp()) / "rec.zarr", sim)
     >>> estimate_recording(path, Method("diffusion")).samples > 0
     True
     """

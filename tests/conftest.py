@@ -2,6 +2,7 @@
 conftest.py)."""
 
 import os
+import sys
 
 import numpy as np
 import pytest
@@ -51,3 +52,28 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if item.get_closest_marker("gpu") is not None:
             item.add_marker(skip)
+
+
+@pytest.fixture(scope="session")
+def qapp(qapp_args, qapp_cls):
+    """pytest-qt's QApplication, made through the application's own ``ensure_application``: Python's garbage is then
+    collected on the GUI thread only (a collection in a worker thread destroyed Qt widgets there and hung the
+    process; flexvox_app.gui.widgets.qapp.GuiThreadGarbageCollector)."""
+    from PySide6.QtWidgets import QApplication
+
+    app = QApplication.instance()
+    if app is None:
+        app = qapp_cls(qapp_args)
+    from flexvox_app.gui.widgets.qapp import ensure_application
+
+    return ensure_application()
+
+
+@pytest.fixture(autouse=True)
+def _collect_on_the_main_thread():
+    """Where the GUI-thread collector has switched automatic collection off, each test ends with its check, on the
+    main thread (tests that run no event loop would otherwise never collect)."""
+    yield
+    collector = sys.modules.get("flexvox_app.gui.widgets.qapp")
+    if collector is not None and collector._COLLECTOR is not None:
+        collector._COLLECTOR.check()

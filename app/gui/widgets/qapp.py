@@ -7,8 +7,11 @@ QApplication; they get it here, so neither imports the other.
 
 from __future__ import annotations
 
+import gc
 import sys
+import threading
 
+from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QApplication
 
 DEFAULT_SIZE = (1280, 800)
@@ -24,11 +27,53 @@ def configure_pyqtgraph() -> None:
     pg.setConfigOptions(imageAxisOrder="row-major", antialias=True)
 
 
+class GuiThreadGarbageCollector:
+    """Python's cyclic garbage collection, run on the GUI thread only (pyqtgraph's GarbageCollector pattern).
+
+    Left automatic, a collection runs in whichever thread happens to allocate: zarr's I/O thread, a job's worker.
+    When it frees the Python side of a Qt widget, the widget is destroyed in that thread: its destructor holds a Qt
+    lock while it waits for the GIL, and the GUI thread, holding the GIL while it deletes another widget, waits
+    for that lock. The process hangs (seen in `make test`: zarr's I/O thread in ``QObject::~QObject``, the GUI
+    thread in ``BindingManager::runDeletionInMainThread``). So automatic collection is switched off and this timer
+    collects, on the GUI thread, by the thresholds the automatic collector would use.
+    """
+
+    def __init__(self, interval_ms: int = 500):
+        if threading.current_thread() is not threading.main_thread():
+            raise RuntimeError("the garbage collector's timer must start on the GUI (main) thread")
+        self.threshold = gc.get_threshold()
+        gc.disable()
+        self.timer = QTimer()
+        self.timer.timeout.connect(self.check)
+        self.timer.start(interval_ms)
+
+    def check(self) -> None:
+        """Collect the generations whose counts passed their thresholds, youngest first (on the calling thread)."""
+        counts = gc.get_count()
+        for generation in range(3):
+            if counts[generation] <= self.threshold[generation]:
+                break
+            gc.collect(generation)
+
+
+_COLLECTOR: GuiThreadGarbageCollector | None = None
+
+
+def collect_garbage_on_gui_thread() -> GuiThreadGarbageCollector:
+    """Start :class:`GuiThreadGarbageCollector` once per process (a QApplication must exist); the running one."""
+    global _COLLECTOR
+    if _COLLECTOR is None:
+        _COLLECTOR = GuiThreadGarbageCollector()
+    return _COLLECTOR
+
+
 def ensure_application() -> QApplication:
-    """The running QApplication, or a new one named flexvox."""
+    """The running QApplication, or a new one named flexvox; Python's garbage is collected on its thread only
+    (:class:`GuiThreadGarbageCollector`)."""
     app = QApplication.instance()
     if app is None:
         app = QApplication(sys.argv[:1])
         app.setOrganizationName("flexvox")
         app.setApplicationName("flexvox")
+    collect_garbage_on_gui_thread()
     return app

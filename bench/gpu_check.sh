@@ -21,7 +21,7 @@
 # GPU_CHECK_SMALL=1: tiny sizes under numba-cuda's simulator; `make gpu-dry-run` runs it so in a venv holding only
 # the image's packages plus the carried wheels (bench/gpu_dry_run.sh), with what the image lacks blocked.
 # GPU_CHECK_ONLY=tests,engine: those stages alone. GPU_CHECK_SOAK: the preview's soak in seconds (default 30;
-# the 5-minute soak of issue 53 needs a call of its own: GPU_CHECK_ONLY=preview GPU_CHECK_SOAK=300).
+# a 5-minute soak needs a call of its own: GPU_CHECK_ONLY=preview GPU_CHECK_SOAK=300).
 set -uo pipefail
 if [[ "${1:-}" == "-h" || "${1:-}" == "--help" ]]; then
     sed -n '2,/^set -uo/p' "$0" | sed '$d; s/^# \{0,1\}//'

@@ -19,7 +19,7 @@ import time
 import numpy as np
 
 TARGET_DB = 0.1
-"""The GPU's PSNR within this of the CPU's on every row (issue 53's correctness target)."""
+"""The GPU's PSNR within this of the CPU's on every row."""
 
 
 def shrink(case, crop: tuple[int, int] | None, frames: int | None):

@@ -240,7 +240,7 @@ def _z(confidence: float) -> float:
     return NormalDist().inv_cdf(0.5 + confidence / 2)
 
 
-def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method, *,
+def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method | str, *,
                       noise: NoiseModel | None = None, missing: ArrayLike | None = None,
                       reconstruction: ArrayLike | None = None, step: int = PROBE_STEP,
                       delta: float = PROBE_DELTA, seed: int = 0,
@@ -257,7 +257,7 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
         The capture's code. A multiplexed capture is demultiplexed per tile first (the noise is carried
         through the demultiplexing) and the estimate is of the method's reconstruction of that identity
         capture.
-    method : Method
+    method : Method or str
     noise : NoiseModel, optional
         The measurement noise; none: taken as zero, so the estimate includes the noise (low when it is not).
     missing : ndarray (F,) bool, optional
@@ -303,8 +303,10 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     (True, True)
     """
     from flexvox_core.methods import run
+    from flexvox_core.methods.runner import as_method
     from flexvox_core.multiplex import MultiplexedCode
 
+    method = as_method(method)  # a method's name too; anything else a TypeError naming fv.Method
     why = refusal(method)
     if why and not unchecked:
         raise NotEstimable(f"cannot estimate the accuracy of {method.label}: {why}")

@@ -220,3 +220,14 @@ def test_a_method_that_copies_its_samples_onto_their_neighbours_is_refused():
 def test_a_capture_too_small_to_probe_is_refused():
     with pytest.raises(NotEstimable, match="too small to probe"):
         estimate_accuracy(np.zeros((2, 8, 8), np.float32), CODE, Method("diffusion"))
+
+
+def test_a_method_is_named_or_given_and_anything_else_is_refused_naming_fv_method():
+    import flexvox_core as fv
+
+    code = fv.design_code((2, 2)).code
+    frames = fv.capture(fv.render_scene("balls", 16, 24, 32), code)
+    by_name = fv.estimate_accuracy(frames, code, "diffusion")
+    assert by_name.psnr == fv.estimate_accuracy(frames, code, fv.Method("diffusion")).psnr
+    with pytest.raises(TypeError, match=r"`method` must be an fv.Method"):
+        fv.estimate_accuracy(frames, code, 3)

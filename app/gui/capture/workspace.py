@@ -56,9 +56,9 @@ class CaptureWorkspace(QWidget):
         Starts and stops recordings off the GUI thread (default: one of its own).
     capture_factory : callable, optional
         ``(rig, plan, path, **options) -> CaptureService`` (default the capture service itself).
-    rig_guard : callable, optional
-        ``() -> str | None``: why the Calibrate workspace holds the rig (None: it does not); the model's
-        ``held_elsewhere``, asked before the live view or a recording starts.
+    held_elsewhere : callable, optional
+        ``() -> str | None``: why the Calibrate workspace holds the rig (None: it does not), asked before the live
+        view or a recording starts; while it names a reason the model's holder is ``Holder.CALIBRATING``.
     """
 
     recording_finished = Signal(object)
@@ -69,12 +69,12 @@ class CaptureWorkspace(QWidget):
     """The :class:`~flexvox_calibration.capture_setup.CaptureCalibration` now used (None: uncalibrated)."""
 
     def __init__(self, service: RigService, settings: AppSettings, runner: JobRunner | None = None, *,
-                 capture_factory=None, rig_guard=None, parent: QWidget | None = None):
+                 capture_factory=None, held_elsewhere=None, parent: QWidget | None = None):
         super().__init__(parent)
         self.service = service
         self.settings = settings
         self.runner = runner or JobRunner(parent=self)
-        self.model = CaptureModel(held_elsewhere=rig_guard)
+        self.model = CaptureModel(held_elsewhere=held_elsewhere)
         """The plan, the calibration, who holds the devices and the refusals."""
         self.code = CodePanel(settings, self.model)
         self.calibration_panel = CalibrationPanel(service, settings, self.model)

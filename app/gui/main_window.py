@@ -38,8 +38,8 @@ class MainWindow(QMainWindow):
     capture_factory : callable, optional
         Builds capture services for the Capture workspace (tests inject failing writers).
 
-    The Calibrate and Capture workspaces share the rig: each asks the other (``rig_guard``)
-    before it uses the devices, so a calibration never starts during a recording and the
+    The Calibrate and Capture workspaces share the rig: each asks the other (Calibrate's ``rig_guard``, Capture's
+    ``held_elsewhere``) before it uses the devices, so a calibration never starts during a recording and the
     reverse.
     """
 
@@ -54,7 +54,7 @@ class MainWindow(QMainWindow):
         self.setWindowTitle(f"flexvox — {rig}")
         self.calibrate = CalibrateWorkspace(service, settings, runner, rig_guard=self._capture_busy)
         self.capture = CaptureWorkspace(service, settings, runner, capture_factory=capture_factory,
-                                        rig_guard=self._calibrate_busy)
+                                        held_elsewhere=self._calibrate_busy)
         self.review = ReviewWorkspace(settings, runner, quality_table)
         self.tabs = QTabWidget()
         for name, w in zip(WORKSPACES, (self.calibrate, self.capture, self.review), strict=True):

@@ -45,10 +45,10 @@ def test_the_speed_says_sub_frames_per_second_and_real_time_plays_the_recording_
     assert ws.speed() == 120.0 and not ws.fps.isEnabled()
     ws.frame_slider.setValue(0)
     ws.set_playing(True)
-    start = ws.model.last_tick
-    ws.model.tick(start + 0.5)  # half a second at 15 Hz: 7 whole frames of 8 sub-frames (half carried), wrapped at 6
-    assert ws.subframe == 56 % 48 and ws.model.carried == pytest.approx(4.0)
-    ws.model.tick(start + 1.0)
+    start = ws.model.playback.last_tick
+    ws.model.playback.tick(start + 0.5)  # half a second at 15 Hz: 7 whole frames of 8 (half carried), wrapped at 6
+    assert ws.subframe == 56 % 48 and ws.model.playback.carried == pytest.approx(4.0)
+    ws.model.playback.tick(start + 1.0)
     assert ws.subframe == 120 % 48  # a second: 15 frames
     ws.set_playing(False)
 
@@ -93,7 +93,7 @@ def test_reconstruct_each_method_beats_the_raw_frames(qtbot, opened, naive_psnr,
     # The reconstruction panel now shows the result at the current sub-frame, and playback steps sub-frames.
     opened.frame_slider.setValue(13)
     np.testing.assert_array_equal(opened.recon_panel.image.image, r.video[13])
-    opened.model.tick(opened.model.last_tick + 1.5 / opened.speed())  # one sub-frame's time and a half
+    opened.model.playback.tick(opened.model.playback.last_tick + 1.5 / opened.speed())  # one sub-frame's time and a half
     assert opened.subframe == 14
 
 
@@ -388,7 +388,7 @@ def test_the_expected_time_comes_from_timing_this_machine_and_is_logged_against_
     assert "on this machine" in ws.expected_label.text() and "timing this machine" not in ws.expected_label.text()
     expected_s = ws.expected_seconds()
     assert expected_s > 0
-    with caplog.at_level(logging.INFO, logger="flexvox_app.gui.models.review_model"):
+    with caplog.at_level(logging.INFO, logger="flexvox_app.gui.models.review_jobs"):
         r = reconstruct(qtbot, ws, "diffusion")
     assert "(expected ≈" in ws.result_label.text()
     assert any(f"measured {r.seconds:.3f} s, expected {expected_s:.3f} s" in m for m in caplog.messages)
@@ -436,7 +436,7 @@ def test_opening_another_recording_during_a_run_asks_naming_it_and_keeping_it_sa
     other = tmp_path / "other.zarr"
     shutil.copytree(recording, other)
     review.form.set_method_name("diffusion")
-    assert review.reconstruct() is not None and review.model.busy
+    assert review.reconstruct() is not None and review.model.jobs.busy
     with answering(False) as asked:
         assert review.open_recording(other) is None
     assert [q.accept for q in asked] == ["Open other.zarr"]
@@ -444,7 +444,7 @@ def test_opening_another_recording_during_a_run_asks_naming_it_and_keeping_it_sa
                                     "computed is lost")
     # The run ends on its worker (busy goes False there); its result reaches the list on the GUI thread after.
     qtbot.waitUntil(lambda: len(review.results) == 1, timeout=30_000)
-    assert review.session.path == recording and not review.model.busy  # the run went on and was kept
+    assert review.session.path == recording and not review.model.jobs.busy  # the run went on and was kept
 
 
 def test_opening_another_recording_with_a_result_not_exported_asks_and_then_shows_only_the_new_one(
@@ -457,7 +457,7 @@ def test_opening_another_recording_with_a_result_not_exported_asks_and_then_show
         review.open_recording(other)
     assert "1 reconstruction not exported is lost: diffusion" in asked[0].text
     qtbot.waitUntil(lambda: review.session.path == other, timeout=10_000)
-    assert review.results == [] and review.model.result_line.text == ""
+    assert review.results == [] and review.model.jobs.result_line.text == ""
     with answering() as asked:  # nothing to lose now: no question
         review.open_recording(recording)
     assert asked == []
@@ -473,7 +473,7 @@ def test_a_run_cancelled_by_opening_another_recording_leaves_no_cancelled_line_o
     review.reconstruct()
     with answering(True):
         review.open_recording(other)
-    qtbot.waitUntil(lambda: review.session.path == other and not review.model.busy, timeout=30_000)
+    qtbot.waitUntil(lambda: review.session.path == other and not review.model.jobs.busy, timeout=30_000)
     qtbot.wait(50)
     assert "cancelled" not in review.result_label.text() and review.results == []
 

@@ -3,7 +3,12 @@
 :class:`JobsModel` runs the full reconstructions of the recording open (off the GUI thread, cancellable between
 chunks), keeps them (:attr:`JobsModel.results`, oldest first), writes what the reconstruction panel shows over
 every frame (:meth:`JobsModel.export`: a preview is reconstructed in full first), and times each method on this
-machine once, where the expected time of a reconstruction comes from. It says what it did on its two lines
+machine once, where the expected time of a reconstruction comes from. A full reconstruction of a recording without
+ground truth is scored from the recording alone (:func:`flexvox_core.accuracy.estimate_recording`, one more job off
+the GUI thread; about one more reconstruction's time): the result line and the result's label then say
+``estimated PSNR NN.NN dB (± …)``; a method the estimate refuses (:func:`flexvox_core.accuracy.refusal`) keeps why
+in the result's ``no_estimate``, and the lines say nothing of it. Where the recording has a ground truth, the line
+says the true PSNR and nothing is estimated. It says what it did on its two lines
 (:attr:`JobsModel.result_line`, :attr:`JobsModel.export_line`) and the progress bar's ``(done, total)``; each
 has its own :class:`~flexvox_app.capture.events.Signal`, emitted on the thread that drives the model.
 
@@ -26,6 +31,7 @@ from flexvox_app.gui.models.machine_speed import SpeedModel, calibrate, estimate
 from flexvox_app.gui.models.operator_words import in_gui_words
 from flexvox_app.gui.models.review_playback import PlaybackModel
 from flexvox_app.gui.models.review_session import ReviewSession
+from flexvox_core.accuracy import estimate_recording, refusal
 from flexvox_core.output_files import OutputError, check_output
 from flexvox_core.video_io import write_video
 
@@ -70,6 +76,8 @@ class JobsModel:
         ``()``: a method was timed on this machine (the expected time can be said now).
     result_added : Signal
         ``(result)``: a full reconstruction was added to :attr:`results`.
+    estimate_changed : Signal
+        ``(result)``: a result of :attr:`results` got its estimate, or why it has none.
     status : Signal
         ``(text)``: one line for the window's status bar.
     """
@@ -91,6 +99,10 @@ class JobsModel:
         self.job = None
         """The handle of the full reconstruction (or the export reconstructing one) running or last run."""
         self._expected_for_job: float | None = None
+        self._said: tuple[ReconstructionResult, str] | None = None
+        """The result the result line speaks of and its text without the estimate."""
+        self._estimates: list = []
+        """The handles of the estimates running or run for the recording open."""
         self._speed_jobs: dict[str, object] = {}
         self.closed = False
         """The window closes: no job is submitted any more."""
@@ -104,10 +116,12 @@ class JobsModel:
         self.jobs_changed = Signal("jobs changed", contain=False)
         self.expected_changed = Signal("expected changed", contain=False)
         self.result_added = Signal("result added", contain=False)
+        self.estimate_changed = Signal("estimate changed", contain=False)
         self.status = Signal("status", contain=False)
 
     def set_session(self, session: ReviewSession) -> None:
         """A recording was opened: no results, empty lines (they spoke of the recording before), no progress."""
+        self.cancel_estimates()
         self.session = session
         self.results = []
         self._written = []
@@ -184,10 +198,57 @@ class JobsModel:
         _logger.info("reconstruction %s of %d sub-frames of %dx%d: measured %.3f s, expected %s", result.method.label(),
                      result.video.shape[0], W, H, result.seconds,
                      "unknown (not timed yet)" if expected_s is None else f"{expected_s:.3f} s")
-        self.set_result_line(Line(text))
+        estimating = self._estimate(result)
+        self.set_result_line(Line(text + ("; estimating its PSNR from the recording …" if estimating else "")))
+        self._said = (result, text)
         self.playback.set_shown(result)
         self.result_added.emit(result)
         self.status.emit(text)
+
+    # ------------------------------------------------------------------ accuracy without ground truth
+    def _estimate(self, result: ReconstructionResult) -> bool:
+        """Start estimating ``result``'s PSNR when the recording has no ground truth and the method is offered;
+        True when an estimate job started (a refused method's reason goes to ``result.no_estimate``)."""
+        s = self.session
+        if s is None or self.truth is not None or self.closed:
+            return False
+        why = refusal(result.method)
+        if why is not None:
+            result.no_estimate = in_gui_words(why)
+            return False
+        chunk = chunk_frames_for(result.method, s.n_frames, s.K)
+
+        def work(token, progress):
+            token.check()
+            est = estimate_recording(s.path, result.method, reconstruction=result.video, chunk_frames=chunk,
+                                     device=result.device)
+            token.check()  # the estimate itself cannot stop midway: what it gives is dropped once cancelled
+            return est
+
+        self._estimates.append(self.runner.submit(
+            "estimate", work, on_finished=lambda est: s is self.session and self._estimated(result, est),
+            on_failed=lambda msg: s is self.session and self._not_estimated(result, msg)))
+        return True
+
+    def _estimated(self, result: ReconstructionResult, estimate) -> None:
+        result.estimate = estimate
+        _logger.info("%s: %s", result.method.label(), estimate.line())
+        if self._said is not None and self._said[0] is result:
+            self.set_result_line(Line(f"{self._said[1]}; {estimate.line()}"))
+        self.estimate_changed.emit(result)
+
+    def _not_estimated(self, result: ReconstructionResult, message: str) -> None:
+        result.no_estimate = in_gui_words(message)
+        if self._said is not None and self._said[0] is result:
+            self.set_result_line(Line(self._said[1]))
+        self.estimate_changed.emit(result)
+
+    def cancel_estimates(self) -> None:
+        """Drop the estimates running (another recording opens, or the window closes); each ends its run first."""
+        for h in self._estimates:
+            if h.running:
+                h.cancel()
+        self._estimates = []
 
     def full_result_of(self, method) -> ReconstructionResult | None:
         """The newest full reconstruction made with exactly ``method`` (None: none yet)."""
@@ -353,10 +414,12 @@ class JobsModel:
         """The window closes: cancel the jobs; after this no job is submitted."""
         self.closed = True
         self.cancel()
+        self.cancel_estimates()
 
     # ------------------------------------------------------------------ the lines
     def set_result_line(self, line: Line) -> None:
         """Say ``line`` on the result line."""
+        self._said = None
         self.result_line = line
         self.result_changed.emit(line)
 

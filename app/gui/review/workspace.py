@@ -111,6 +111,7 @@ class ReviewWorkspace(QWidget):
         j.expected_changed.connect(self._refresh_expected)
         j.jobs_changed.connect(self._refresh_enabled)
         j.result_added.connect(self._result_added)
+        j.estimate_changed.connect(lambda result: self.compare_view.update_labels())
         self._refresh_enabled()
 
     # ------------------------------------------------------------------ layout
@@ -135,7 +136,7 @@ class ReviewWorkspace(QWidget):
         self.progress = QProgressBar()
         self.progress.setRange(0, 1)
         self.progress.setValue(0)
-        self.result_label = StatusLine(lines=2)
+        self.result_label = StatusLine(lines=3)  # an estimate (recordings without ground truth) adds a line
         buttons = QHBoxLayout()
         buttons.addWidget(self.reconstruct_button, 1)
         buttons.addWidget(self.cancel_button)

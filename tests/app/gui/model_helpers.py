@@ -22,10 +22,13 @@ class TurnedRunner:
 
     def __init__(self):
         self.waiting = []
+        self.handles = []
+        """Every handle submitted, in order."""
 
     def submit(self, name, fn, *, on_progress=None, on_finished=None, on_failed=None, on_cancelled=None,
                on_done=None):
         handle = Handle(name)
+        self.handles.append(handle)
         self.waiting.append((handle, fn, on_progress, on_finished, on_failed, on_cancelled, on_done))
         return handle
 
@@ -70,3 +73,15 @@ class Settings(dict):
 
     def remember_folder(self, path, key=""):
         self[key or "files/last_folder"] = str(path)
+
+
+def without_ground_truth(recording, folder):
+    """A copy of ``recording`` in ``folder`` without its ground truth, as a captured recording is; its path."""
+    import shutil
+    from pathlib import Path
+
+    copy = Path(folder) / f"{Path(recording).stem}-captured.zarr"
+    shutil.copytree(recording, copy)
+    for name in ("ground_truth", "ground_truth_crc"):
+        shutil.rmtree(copy / name)
+    return copy

@@ -5,12 +5,13 @@ import shutil
 import numpy as np
 import pytest
 import tifffile
-from PySide6.QtCore import QTimer
+from PySide6.QtCore import Qt, QTimer
 
 from flexvox_app.gui.review.workspace import ReviewWorkspace
 from flexvox_app.gui.widgets.questions import Question, answering
 
 from .conftest import FRAMES, SIZE
+from .model_helpers import without_ground_truth
 from .widget_helpers import reconstruct
 
 S = FRAMES * 8  # sub-frames of the test recording (K = 8)
@@ -93,7 +94,7 @@ def test_reconstruct_each_method_beats_the_raw_frames(qtbot, opened, naive_psnr,
     # The reconstruction panel now shows the result at the current sub-frame, and playback steps sub-frames.
     opened.frame_slider.setValue(13)
     np.testing.assert_array_equal(opened.recon_panel.image.image, r.video[13])
-    opened.model.playback.tick(opened.model.playback.last_tick + 1.5 / opened.speed())  # one sub-frame's time and a half
+    opened.model.playback.tick(opened.model.playback.last_tick + 1.5 / opened.speed())  # a sub-frame and a half
     assert opened.subframe == 14
 
 
@@ -501,6 +502,27 @@ def test_review_s_result_line_and_the_compare_list_say_where_each_result_ran(qtb
     review.form.set_position(0.0)  # settings no result has: the preview is shown
     qtbot.waitUntil(lambda: review.recon_panel.title.text().startswith("preview: "), timeout=20_000)
     assert " on the CPU · sub-frame " in review.recon_panel.title.text()
+
+
+def test_without_ground_truth_the_result_line_and_the_compare_list_show_the_estimate(qtbot, review, recording,
+                                                                                     tmp_path):
+    review.preview_check.setChecked(False)
+    review.open_recording(without_ground_truth(recording, tmp_path))
+    qtbot.waitUntil(lambda: review.session is not None, timeout=10_000)
+    diffusion = reconstruct(qtbot, review, "diffusion")
+    qtbot.waitUntil(lambda: diffusion.estimate is not None, timeout=30_000)
+    est = diffusion.estimate
+    assert review.result_label.text().endswith(f"; {est.line()}") and "estimated PSNR " in est.line()
+    cv = review.compare_view
+    assert f"estimated PSNR {est.psnr:.2f} dB (± {est.half_width:.2f} dB)" in cv.box_a.itemText(0)
+    assert est.line() in cv.box_a.itemData(0, Qt.ItemDataRole.ToolTipRole)
+    review.frame_slider.setValue(13)  # camera frame 1: its own estimate in the panel's title
+    assert cv.panel_b.title.text().endswith(f" · this frame estimated PSNR {est.per_frame[1]:.2f} dB")
+    rebin = reconstruct(qtbot, review, "rebin")  # refused: nothing on the line, why in the list's tooltip
+    assert rebin.estimate is None and "estimat" not in review.result_label.text()
+    assert "estimat" not in cv.box_b.itemText(1)
+    assert f"no estimate: {rebin.no_estimate}" in cv.box_b.itemData(1, Qt.ItemDataRole.ToolTipRole)
+    assert cv.box_a.currentIndex() == 0 and "estimated PSNR" in cv.box_a.itemText(0)
 
 
 def test_the_slider_s_default_step_gives_the_benched_default_tensor(review):

@@ -7,8 +7,10 @@
 - the **calibration** recordings, the live view and the projector window use
   (:class:`~flexvox_calibration.capture_setup.CaptureCalibration`, None: uncalibrated):
   :attr:`CaptureModel.calibration_changed`;
-- **who holds the devices**, one :class:`Holder`: nobody, Capture's live view, a recording, or a calibration
-  (the Calibrate workspace, told by ``held_elsewhere``): :attr:`CaptureModel.holder_changed`;
+- **who holds the devices**, one :class:`~flexvox_app.gui.models.holder.Holder` (defined in
+  :mod:`flexvox_app.gui.models.holder`, shared with Calibrate and the device panel, and importable from here):
+  nobody, Capture's live view, a recording, or a calibration (the Calibrate workspace, told by
+  ``held_elsewhere``): :attr:`CaptureModel.holder_changed`;
 - **the refusals**, one state machine for what may start (:class:`Action`) given who holds the rig, each
   :class:`Refusal` with its words, shown until it no longer holds (:meth:`CaptureModel.recheck`):
   :attr:`CaptureModel.refusal_changed`.
@@ -27,22 +29,10 @@ from dataclasses import dataclass
 
 from flexvox_app.capture.events import Signal
 from flexvox_app.capture.plan import CapturePlan
+from flexvox_app.gui.models.holder import Holder
 from flexvox_calibration.capture_setup import CaptureCalibration
 
 _logger = logging.getLogger(__name__)
-
-
-class Holder(enum.Enum):
-    """Who holds the rig's devices now."""
-
-    IDLE = "idle"
-    """Nobody: the live view or a recording may start."""
-    LIVE = "live"
-    """Capture's live view reads the camera."""
-    RECORDING = "recording"
-    """A recording owns the devices, from Record until the capture has ended."""
-    CALIBRATING = "calibrating"
-    """The Calibrate workspace uses the devices (a calibration, its live numbers, the synchronisation wizard)."""
 
 
 class Action(enum.Enum):

@@ -223,7 +223,7 @@ def test_an_unknown_action_is_refused():
         CaptureModel().refusal("record")
 
 
-def test_the_model_imports_and_runs_without_qt():
+def test_the_model_and_the_holder_it_shares_with_the_device_service_import_and_run_without_qt():
     code = ("import sys\n"
             "class Block:\n"
             "    def find_spec(self, name, path=None, target=None):\n"
@@ -231,6 +231,8 @@ def test_the_model_imports_and_runs_without_qt():
             "            raise ImportError(name)\n"
             "sys.meta_path.insert(0, Block())\n"
             "from flexvox_app.gui.models.capture_model import CaptureModel, Holder\n"
+            "from flexvox_app.gui.models import holder, rig_service\n"
+            "assert holder.Holder is Holder and rig_service.Holder is Holder\n"  # one Holder, shared
             "m = CaptureModel()\n"
             "m.take(Holder.LIVE)\n"
             "assert not [n for n in sys.modules if n.split('.')[0] in ('PySide6', 'pyqtgraph')]\n"

@@ -210,13 +210,16 @@ class RigService:
             self.notify(role)
 
     def end_use(self, user: str) -> list[str]:
-        """``user`` is done with the devices: connect again those the operator had connected before it began
-        (its own session closed them). Returns the roles connected again."""
+        """``user`` is done with the devices: connect again those the operator had connected before the first
+        holder began (its own session closed them), once no one holds them; while another still does, that one
+        connects them when it is done, whichever of the two began first. Returns the roles connected again."""
         if user not in self._users:
             return []
         connected = self._users.pop(user)
         again = []
-        if not self._users:
+        if self._users:  # another still holds the devices: it connects them again when it is done
+            next(iter(self._users.values())).update(connected)
+        else:
             for role in ROLES:
                 dev = self.device(role)
                 if role in connected and dev is not None and dev.state is not DeviceState.ENABLED:

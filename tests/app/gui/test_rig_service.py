@@ -52,6 +52,22 @@ def test_who_holds_the_devices_is_the_holder_in_words_and_the_old_name_warns():
     assert service.rig.camera.state is DeviceState.ENABLED
 
 
+@pytest.mark.parametrize("first_done", ["the live numbers", "the calibration"])
+def test_overlapping_holders_give_the_devices_back_connected_whichever_ends_first(first_done):
+    """The operator's connected devices are remembered by the first holder; when it ends while another still
+    holds them, the other gives them back (they were lost: neither connected the camera again)."""
+    service = RigService(small_rig())
+    assert service.connect("camera")
+    service.begin_use("the live numbers")
+    service.begin_use("the calibration")
+    assert service.disconnect("camera")
+    other = "the calibration" if first_done == "the live numbers" else "the live numbers"
+    assert service.end_use(first_done) == []  # still held: nothing is connected yet
+    assert service.rig.camera.state is not DeviceState.ENABLED
+    assert service.end_use(other) == ["camera"]
+    assert service.rig.camera.state is DeviceState.ENABLED and service.holder is Holder.IDLE
+
+
 def test_leds_and_the_video_input_are_declared_capabilities_none_where_absent():
     sim = small_rig()
     assert sim.projector.led_control is None and sim.projector.display_input is None

@@ -4,7 +4,7 @@
 The options are the registered methods' own (:mod:`flexvox_core.methods.registry`): one flag per
 option name, typed by the option's kind, its help naming each method's default. A flag the
 chosen method has no option for is refused, naming the methods it goes with. Where a command
-offers it (``reconstruct``), a knob with default candidates (:data:`flexvox_core.choose.AUTO_KNOBS`:
+offers it (``reconstruct``), a knob with default candidates (:data:`flexvox_core.choice.AUTO_KNOBS`:
 ``--time``, ``--block``) also takes ``auto``: chosen by the estimated PSNR (:func:`auto_knob`).
 """
 
@@ -67,7 +67,7 @@ def _chunk(text: str) -> int:
 
 def _auto_owners(name: str) -> list[str]:
     """The methods whose option ``name`` can be chosen by the estimate (``auto``)."""
-    from flexvox_core.choose import AUTO_KNOBS
+    from flexvox_core.choice import AUTO_KNOBS
 
     return [m for m, knobs in AUTO_KNOBS.items() if name in knobs]
 
@@ -178,7 +178,7 @@ def _foreign(given: list[str], method: str) -> str:
 
 
 def _candidates_words(name: str) -> str:
-    from flexvox_core.choose import TIMES
+    from flexvox_core.choice import TIMES
 
     if name == "time":
         return "n = " + ", ".join(f"{t:g}" for t in TIMES)

@@ -102,11 +102,11 @@ def estimate_line(recording, method, video, chunk: int | None, device: str) -> s
 
 def _choose(reader, method, knob: str, args, device: str):
     """``knob`` of ``method`` chosen by the estimated PSNR on the recording
-    (:func:`flexvox_core.choose.choose_recording`); a refusal is a :class:`CliError` naming the method and why."""
+    (:func:`flexvox_core.choice.choose_recording`); a refusal is a :class:`CliError` naming the method and why."""
     from tqdm import tqdm
 
     from flexvox_core.accuracy import NotEstimable
-    from flexvox_core.choose import choose_recording
+    from flexvox_core.choice import choose_recording
     from flexvox_core.recording import RecordingError
 
     bars = []  # the bar starts with the first candidate's result: a refusal comes before it

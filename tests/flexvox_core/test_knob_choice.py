@@ -1,4 +1,4 @@
-"""Choosing a knob by the estimated accuracy (flexvox_core.choose)."""
+"""Choosing a knob by the estimated accuracy (flexvox_core.choice)."""
 
 import re
 
@@ -8,7 +8,7 @@ import pytest
 import flexvox_core.accuracy as accuracy
 import flexvox_core.methods as methods_pkg
 from flexvox_core.accuracy import NoiseModel, NotEstimable, refusal
-from flexvox_core.choose import AUTO_KNOBS, TIMES, Choice, candidates_for, choose, choose_recording
+from flexvox_core.choice import AUTO_KNOBS, TIMES, Choice, candidates_for, choose, choose_recording
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture
 from flexvox_core.methods import Method

@@ -10,7 +10,7 @@ import flexvox_core.methods as methods_pkg
 from flexvox_app.cli.main import main
 from flexvox_core.accuracy import refusal
 from flexvox_core.capture_reader import open_capture
-from flexvox_core.choose import TIMES
+from flexvox_core.choice import TIMES
 from flexvox_core.methods import Method
 
 

@@ -9,7 +9,7 @@ moving it previews the fixed diffusion tensor at that position beside the chosen
 (:meth:`MethodForm.preview_method`), for comparison, without switching method; Reconstruct still runs the
 chosen method.
 
-Below the slider, "choose … by the estimate" offers ``auto`` for a knob with default candidates
+Below the slider, "choose … by the estimate" (with ``offer_auto``) offers ``auto`` for a knob with default candidates
 (:data:`flexvox_core.choice.AUTO_KNOBS`: diffusion's time, re-binning's division): checked, Reconstruct is to try
 each candidate and keep the one with the best PSNR estimated from the recording alone (:meth:`MethodForm.auto_knob`,
 :func:`flexvox_app.gui.models.choice_job.run_choice`, off the GUI thread as every job). It is enabled only where
@@ -56,14 +56,18 @@ class MethodForm(QWidget):
     ----------
     settings : AppSettings
         Where the choices persist (``review/...`` keys).
+    offer_auto : bool
+        Show "choose … by the estimated PSNR (auto)" (:meth:`auto_knob`): for a workspace whose Reconstruct runs the
+        choice (:func:`~flexvox_app.gui.models.choice_job.run_choice`) when it names a knob.
     """
 
     changed = Signal()
     """Any knob changed (the Review workspace re-plans its preview and expectation)."""
 
-    def __init__(self, settings: AppSettings, parent: QWidget | None = None):
+    def __init__(self, settings: AppSettings, parent: QWidget | None = None, *, offer_auto: bool = False):
         super().__init__(parent)
         self.settings = settings
+        self.offer_auto = offer_auto
         self._divisions: list = []
         self._comparing = False
         self._beside = False
@@ -148,7 +152,7 @@ class MethodForm(QWidget):
         """The knob Reconstruct is to choose by the estimated PSNR (``time``, ``block``), or None: the box is
         unchecked, the method has no knob to choose, or the estimate refuses it (:meth:`auto_refusal`)."""
         knob = self._auto_candidate()
-        if knob is None or not self.auto_box.isChecked() or self.auto_refusal() is not None:
+        if knob is None or not self.offer_auto or not self.auto_box.isChecked() or self.auto_refusal() is not None:
             return None
         return knob
 
@@ -249,7 +253,7 @@ class MethodForm(QWidget):
                     page.widgets[k].setEnabled(not (name == spec.name and chosen == k))
         self.slider.setEnabled(not (chosen is not None and spec.option(chosen).kind is DIVISION))
         knob = self._auto_candidate()
-        self.auto_box.setVisible(knob is not None)
+        self.auto_box.setVisible(knob is not None and self.offer_auto)
         if knob is None:
             return
         option = spec.option(knob)

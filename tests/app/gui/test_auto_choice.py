@@ -14,9 +14,19 @@ from flexvox_core.methods import Method
 def form(qtbot, settings):
     from flexvox_app.gui.review.method_form import MethodForm
 
-    f = MethodForm(settings)
+    f = MethodForm(settings, offer_auto=True)
     qtbot.addWidget(f)
     return f
+
+
+def test_auto_is_offered_only_by_a_workspace_that_runs_it(qtbot, settings):
+    from flexvox_app.gui.review.method_form import MethodForm
+
+    settings.set("review/auto", True)
+    plain = MethodForm(settings)
+    qtbot.addWidget(plain)
+    plain.set_method_name("diffusion")
+    assert plain.auto_box.isHidden() and plain.auto_knob() is None and plain.widget("time").isEnabled()
 
 
 def test_auto_is_offered_where_the_estimate_offers_the_method_and_chooses_the_time(form, settings):

@@ -178,11 +178,12 @@ def _foreign(given: list[str], method: str) -> str:
 
 
 def _candidates_words(name: str) -> str:
-    from flexvox_core.choice import TIMES
+    from flexvox_core.choice import candidates_for
 
-    if name == "time":
-        return "n = " + ", ".join(f"{t:g}" for t in TIMES)
-    return "every division the code supports"
+    if name != "time":
+        return "every division the code supports"
+    return "; ".join(f"n = {', '.join(f'{t:g}' for t in candidates_for(m, name, None))} for {m}"
+                     for m in _auto_owners(name))
 
 
 def auto_knob(args) -> str | None:

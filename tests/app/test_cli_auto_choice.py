@@ -81,6 +81,7 @@ def test_help_says_what_auto_does(capsys):
         main(["reconstruct", "--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert "--time X|auto" in text and "--block a,b,c|auto" in text
-    assert "auto (diffusion and motion-aware): try each candidate (n = 1.5, 2, 3, 4, 6), estimate each" in text
+    assert ("auto (diffusion and motion-aware): try each candidate (n = 1.5, 2, 3, 4, 6 for diffusion; n = 1.5, 3, "
+            "5, 8, 12 for motion-aware), estimate each") in text
     assert ("--time auto (diffusion, motion-aware) and --block auto (rebin) choose the knob by the PSNR estimated"
             in text)

@@ -8,7 +8,7 @@ import pytest
 import flexvox_core.accuracy as accuracy
 import flexvox_core.methods as methods_pkg
 from flexvox_core.accuracy import NoiseModel, NotEstimable, refusal
-from flexvox_core.choice import AUTO_KNOBS, TIMES, Choice, candidates_for, choose, choose_recording
+from flexvox_core.choice import AUTO_KNOBS, MOTION_TIMES, TIMES, Choice, candidates_for, choose, choose_recording
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture
 from flexvox_core.methods import Method
@@ -125,7 +125,8 @@ def test_a_solver_the_estimate_refuses_is_refused_naming_it(counted):
 
 
 def test_default_candidates_per_knob():
-    assert candidates_for("diffusion", "time", CODE) == TIMES == candidates_for("motion-aware", "time", CODE)
+    assert candidates_for("diffusion", "time", CODE) == TIMES == (1.5, 2.0, 3.0, 4.0, 6.0)
+    assert candidates_for("motion-aware", "time", CODE) == MOTION_TIMES == (1.5, 3.0, 5.0, 8.0, 12.0)
     assert candidates_for("rebin", "block", CODE) == tuple(supported_divisions(CODE))
     assert [d.label for d in candidates_for("rebin", "block", CODE)] == ["1x1x4", "1x2x2", "2x1x2", "2x2x1"]
     mux = multiplexed_code((1, 3))  # by the placement of its demultiplexed slots

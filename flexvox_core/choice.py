@@ -133,7 +133,8 @@ class Choice:
     def cost(self) -> str:
         """What choosing cost, in words: candidates, reconstructions, seconds."""
         k = sum(c.runs > 0 for c in self.candidates)
-        return (f"choosing cost {self.seconds:.2f} s: {k} candidates x (a reconstruction and its estimate's probe), "
+        return (f"choosing cost {self.seconds:.2f} s: {k} candidate{'' if k == 1 else 's'} x (a reconstruction and its "
+                f"estimate's probe), "
                 f"{self.runs} reconstructions in all")
 
     def lines(self) -> list[str]:

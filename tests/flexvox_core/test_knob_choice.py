@@ -117,11 +117,20 @@ def test_a_knob_of_a_method_the_estimate_refuses_is_refused_with_its_reason_befo
     assert counted == []
 
 
-def test_a_solver_the_estimate_refuses_is_refused_naming_it(counted):
-    with pytest.raises(NotEstimable, match=re.escape(f"cannot choose diffusion's time by the estimated accuracy: "
-                                                     f"{refusal(Method('diffusion', solver='explicit'))}")):
-        choose(np.zeros((2, 24, 24), np.float32), CODE, Method("diffusion", solver="explicit"), "time")
-    assert counted == []
+def test_a_candidate_value_the_estimate_refuses_keeps_the_reason_and_costs_nothing(scene, counted, monkeypatch):
+    import flexvox_core.choice as choice_mod
+
+    def refusing(method):  # as accuracy.refusal would refuse one setting (a solver, a time) and not the others
+        return "n = 3 refused here" if method.time == 3.0 else None
+
+    monkeypatch.setattr(choice_mod, "refusal", refusing)
+    _, frames, noise = scene
+    choice = choose(frames, CODE, "diffusion", "time", (2.0, 3.0), noise=noise)
+    refused = choice.candidates[1]
+    assert refused.estimate is None and refused.why == "n = 3 refused here" and refused.runs == 0
+    assert choice.value == 2.0 and choice.runs == 2 == len(counted)
+    assert re.fullmatch(r"choosing cost \d+\.\d\d s: 1 candidate x \(a reconstruction and its estimate's probe\), "
+                        r"2 reconstructions in all", choice.cost())
 
 
 def test_default_candidates_per_knob():

@@ -6,7 +6,6 @@ import pytest
 import flexvox_core.accuracy as accuracy
 from flexvox_app.gui.models.choice_job import choice_lines, run_choice
 from flexvox_app.gui.models.jobs import Cancelled, CancelToken
-from flexvox_core.accuracy import refusal
 from flexvox_core.methods import Method
 
 
@@ -48,10 +47,10 @@ def test_auto_is_offered_where_the_estimate_offers_the_method_and_chooses_the_ti
 def test_auto_for_a_method_the_estimate_refuses_is_greyed_with_why(form, monkeypatch):
     form.set_method_name("diffusion")
     form.auto_box.setChecked(True)
-    form.widget("solver").setCurrentText("steady")
-    why = refusal(Method("diffusion", solver="steady"))
+    monkeypatch.setitem(accuracy.REFUSED, "diffusion", "made up for diffusion")
+    form.widget("solver").setCurrentText("steady")  # any change of a knob asks the estimate again
     assert not form.auto_box.isEnabled() and form.auto_knob() is None
-    assert form.auto_box.toolTip() == f"the estimate refuses diffusion: {why}"
+    assert form.auto_box.toolTip() == "the estimate refuses diffusion: made up for diffusion"
     assert form.widget("time").isEnabled()  # not chosen: the operator sets it
     monkeypatch.setitem(accuracy.REFUSED, "rebin", "made up here")
     form.set_method_name("rebin")

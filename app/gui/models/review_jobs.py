@@ -25,13 +25,15 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from flexvox_app.capture.events import Signal
+from flexvox_app.gui.models.choice_job import choice_lines, run_choice
 from flexvox_app.gui.models.expected_quality import Expectation, expected, format_seconds
 from flexvox_app.gui.models.jobs import ReconstructionResult, chunk_frames_for, run_reconstruction
 from flexvox_app.gui.models.machine_speed import SpeedModel, calibrate, estimate_seconds, is_current, settings_key
 from flexvox_app.gui.models.operator_words import in_gui_words
 from flexvox_app.gui.models.review_playback import PlaybackModel
 from flexvox_app.gui.models.review_session import ReviewSession
-from flexvox_core.accuracy import estimate_recording, refusal
+from flexvox_core.accuracy import estimate_recording, noise_of, refusal
+from flexvox_core.choice import candidates_for
 from flexvox_core.output_files import OutputError, check_output
 from flexvox_core.video_io import write_video
 
@@ -131,22 +133,39 @@ class JobsModel:
         self.set_export_line(Line())
 
     # ------------------------------------------------------------------ full reconstruction
-    def reconstruct(self, method):
+    def reconstruct(self, method, *, auto_knob: str | None = None):
         """Reconstruct every frame with ``method`` (off-thread, cancellable); the job's handle, or None when it
-        cannot start now."""
+        cannot start now.
+
+        ``auto_knob`` (``time``, ``block``): choose that knob by the estimated PSNR first
+        (:func:`~flexvox_app.gui.models.choice_job.run_choice`: each candidate reconstructed and estimated, the
+        progress counting candidates); the result keeps the chosen method, the choice in ``extra["choice"]`` and
+        the chosen candidate's estimate, and the result line says what was chosen and what choosing cost."""
         s = self.session
         if s is None or s.frames is None or self.busy or self.closed:
             return None
         chunk = chunk_frames_for(method, s.n_frames, s.K)
         (frames, code), truth, missing = s.input(method), self.truth, s.missing
 
-        def work(token, progress):
-            return run_reconstruction(frames, code, method, cancel=token, progress=progress, chunk_frames=chunk,
-                                      truth=truth, missing=missing)
+        if auto_knob is None:
+            def work(token, progress):
+                return run_reconstruction(frames, code, method, cancel=token, progress=progress, chunk_frames=chunk,
+                                          truth=truth, missing=missing)
 
-        self._set_progress(0, s.n_frames)
-        self._expected_for_job = self.expected_seconds(method)
-        self.set_result_line(Line(f"reconstructing with {method.label()} …"))
+            self._set_progress(0, s.n_frames)
+            self._expected_for_job = self.expected_seconds(method)
+            self.set_result_line(Line(f"reconstructing with {method.label()} …"))
+        else:
+            noise = noise_of(s.recording)
+            frames, code = s.frames, s.code  # the estimate reads the identity-code capture
+
+            def work(token, progress):
+                return run_choice(frames, code, method, auto_knob, cancel=token, progress=progress,
+                                  chunk_frames=chunk, truth=truth, missing=missing, noise=noise)
+
+            self._set_progress(0, len(candidates_for(method, auto_knob, code)))
+            self._expected_for_job = None
+            self.set_result_line(Line(f"choosing {method.name}'s {auto_knob} by the estimated PSNR …"))
         self.job = self.runner.submit(
             "reconstruct", work, on_progress=self._progressed,
             on_finished=lambda result: s is self.session and self._reconstructed(result),
@@ -198,7 +217,18 @@ class JobsModel:
         _logger.info("reconstruction %s of %d sub-frames of %dx%d: measured %.3f s, expected %s", result.method.label(),
                      result.video.shape[0], W, H, result.seconds,
                      "unknown (not timed yet)" if expected_s is None else f"{expected_s:.3f} s")
-        estimating = self._estimate(result)
+        choice = result.extra.get("choice")
+        if choice is not None:  # chosen by the estimate: it has one already
+            result.estimate = choice.estimate
+            head, *_ = choice_lines(result)
+            text += f"; {head}; {choice.cost()}"
+            estimating = False
+            if self.truth is None:
+                text += f"; {choice.estimate.line()}"
+            for line in choice_lines(result)[1:-1]:
+                _logger.info("%s", line)
+        else:
+            estimating = self._estimate(result)
         self.set_result_line(Line(text + ("; estimating its PSNR from the recording …" if estimating else "")))
         self._said = (result, text)
         self.playback.set_shown(result)

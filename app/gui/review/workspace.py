@@ -127,7 +127,7 @@ class ReviewWorkspace(QWidget):
         v.addWidget(self.summary_label)
 
         box = QGroupBox("Reconstruction")
-        self.form = MethodForm(self.settings)
+        self.form = MethodForm(self.settings, offer_auto=True)
         self.preview_check = QCheckBox("live preview around the current frame")
         self.preview_check.setChecked(self.model.preview.preview_on)
         self.expected_label = StatusLine(lines=3)
@@ -350,7 +350,7 @@ class ReviewWorkspace(QWidget):
 
     def reconstruct(self) -> JobHandle | None:
         """Reconstruct every frame with the form's settings (off-thread, cancellable)."""
-        return self.model.jobs.reconstruct(self.form.method())
+        return self.model.jobs.reconstruct(self.form.method(), auto_knob=self.form.auto_knob())
 
     def cancel(self) -> None:
         """Cancel a running reconstruction (the preview is cancelled too); it stops after its current chunk."""

@@ -537,3 +537,18 @@ def test_the_slider_s_default_step_gives_the_benched_default_tensor(review):
     assert "not benched" not in review.expected_label.text()
     review.form.set_position(0.25)
     assert tuple(review.form.method().tensor) != tuple(DEFAULT_TENSOR)
+
+
+def test_the_auto_box_makes_reconstruct_choose_the_time_by_the_estimate(qtbot, review, recording, tmp_path):
+    review.preview_check.setChecked(False)
+    review.open_recording(without_ground_truth(recording, tmp_path))
+    qtbot.waitUntil(lambda: review.session is not None, timeout=10_000)
+    review.form.set_method_name("diffusion")
+    review.form.auto_box.setChecked(True)
+    chosen = reconstruct(qtbot, review, "diffusion")
+    choice = chosen.extra["choice"]
+    assert chosen.method.time == choice.value and chosen.estimate is choice.estimate
+    assert f"chose time {choice.value:g} for diffusion" in review.result_label.text()
+    review.form.auto_box.setChecked(False)
+    plain = reconstruct(qtbot, review, "diffusion")
+    assert "choice" not in plain.extra

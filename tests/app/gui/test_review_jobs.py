@@ -133,3 +133,30 @@ def test_an_estimate_refused_by_the_recording_says_why_and_one_left_running_is_d
     assert waiting.name == "estimate" and not waiting.token.cancelled
     jobs.set_session(jobs.session)  # a recording opens
     assert waiting.token.cancelled
+
+
+def test_reconstruct_with_an_auto_knob_runs_the_choice_and_says_what_it_chose_and_cost(captured):
+    jobs = jobs_on(captured)
+    method = Method("diffusion")
+    jobs.events.clear()
+    handle = jobs.reconstruct(method, auto_knob="time")
+    assert lines(jobs) == ["choosing diffusion's time by the estimated PSNR …"]
+    jobs.runner.turn()
+    r = handle.result
+    choice = r.extra["choice"]
+    assert [h.name for h in jobs.runner.handles] == ["reconstruct"]  # the choice's estimate: no second job
+    assert r.method == choice.method and r.method.time == choice.value and r.estimate is choice.estimate
+    text = jobs.result_line.text
+    assert text.startswith(f"{r.method.label()}: 48 sub-frames in ")
+    assert f"; chose time {choice.value:g} for diffusion by the estimated PSNR" in text
+    assert choice.cost() in text and text.endswith(choice.estimate.line())
+    assert jobs.progress[0] == jobs.progress[1] == len(choice.candidates)  # the progress counted candidates
+
+
+def test_an_auto_knob_with_ground_truth_keeps_the_true_psnr_and_chooses_without_reading_it(jobs):
+    handle = jobs.reconstruct(Method("diffusion"), auto_knob="time")
+    jobs.runner.turn()
+    r = handle.result
+    assert f"; PSNR vs ground truth {r.psnr:.2f} dB" in jobs.result_line.text
+    assert "chose time" in jobs.result_line.text and "estimated PSNR NN" not in jobs.result_line.text
+    assert not jobs.result_line.text.endswith(r.extra["choice"].estimate.line())

@@ -199,7 +199,7 @@ def test_demultiplexing_carries_the_noise_float64():
 
 
 @pytest.mark.parametrize(("method", "match"), [
-    (Method("motion-aware"), "estimates its flow from the samples"),
+    (Method("motion-aware"), "even with the first run.s flow held"),
     (Method("gap-tv"), "misses GAP-TV's true PSNR"),
     (Method("rebin"), "interval covers the truth on only 4 of 8"),
     (Method("diffusion", solver="explicit"), "explicit solver has not been checked"),
@@ -231,3 +231,38 @@ def test_a_method_is_named_or_given_and_anything_else_is_refused_naming_fv_metho
     assert by_name.psnr == fv.estimate_accuracy(frames, code, fv.Method("diffusion")).psnr
     with pytest.raises(TypeError, match=r"`method` must be an fv.Method"):
         fv.estimate_accuracy(frames, code, 3)
+
+
+def test_motion_aware_runs_for_the_estimate_equal_the_method_and_hold_the_first_flow(monkeypatch):
+    from flexvox_core.accuracy_runs import HeldRuns
+    from flexvox_core.motion import stages
+
+    truth = render_scene("fan", 4 * 4, 24, 28, seed=0)
+    frames = capture(truth, CODE).astype(np.float32)
+    m = Method("motion-aware")
+    runs = HeldRuns(frames, CODE, m)
+    np.testing.assert_allclose(runs(frames), methods_pkg.run(frames, CODE, m, chunk_frames=None).video, atol=1e-6)
+    assert len(runs.flows) == m.options.passes
+
+    def no_flow(*args, **kwargs):
+        raise AssertionError("the probe computed the flow again")
+
+    monkeypatch.setattr(stages, "gated_flow", no_flow)
+    probed = frames.copy()
+    probed[:, 5, 5] += 0.05
+    moved = runs(probed)
+    assert moved.shape == (16, 24, 28) and not np.array_equal(moved, runs(frames))
+
+
+def test_a_given_motion_aware_reconstruction_needs_the_flow_alone(monkeypatch):
+    from flexvox_core.accuracy_runs import HeldRuns
+
+    truth = render_scene("fan", 4 * 4, 24, 28, seed=0)
+    frames = capture(truth, CODE).astype(np.float32)
+    m = Method("motion-aware")
+    full = HeldRuns(frames, CODE, m)
+    video = full(frames)
+    flow_only = HeldRuns(frames, CODE, m)
+    flow_only.flow_only(frames)
+    np.testing.assert_array_equal(flow_only.flows[0].flow, full.flows[0].flow)
+    np.testing.assert_array_equal(flow_only(frames), video)

@@ -68,13 +68,19 @@ def methods(code):
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="two scenes, smaller frames, Runner only")
+    ap.add_argument("--methods", default=None,
+                    help="comma-separated method names to run (default: all), e.g. gap-tv,rebin")
+    ap.add_argument("--no-dropped", action="store_true", help="skip the dropped-frames runs")
     args = ap.parse_args()
+    chosen = None if args.methods is None else set(args.methods.split(","))
     rows = []
     refused = {}
     print(f"{'case':22s} {'method':34s} {'estimate':>9s} {'interval':>15s} {'truth':>7s} {'error':>6s} cover "
           f"{'cost (runs)':>11s}")
     for name, truth, frames, code, noise in cases(args.quick):
         for method in methods(code):
+            if chosen is not None and method.name not in chosen:
+                continue
             t0 = time.perf_counter()
             video = run(frames, code, method, chunk_frames=None).video
             t_rec = time.perf_counter() - t0
@@ -117,7 +123,8 @@ def main() -> None:
               "truth's order")
     for why in dict.fromkeys(refused.values()):
         print(f"refused: {why}")
-    dropped_frames(args.quick)
+    if not args.no_dropped:
+        dropped_frames(args.quick)
 
 
 def dropped_frames(quick: bool) -> None:

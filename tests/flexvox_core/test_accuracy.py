@@ -200,7 +200,7 @@ def test_demultiplexing_carries_the_noise_float64():
 
 @pytest.mark.parametrize(("method", "match"), [
     (Method("motion-aware"), "even with the first run.s flow held"),
-    (Method("gap-tv"), "misses GAP-TV's true PSNR"),
+    (Method("gap-tv"), "3 of the 4 runs on the SCI clips"),
     (Method("rebin"), "interval covers the truth on only 4 of 8"),
     (Method("diffusion", solver="explicit"), "explicit solver has not been checked"),
 ])
@@ -266,3 +266,57 @@ def test_a_given_motion_aware_reconstruction_needs_the_flow_alone(monkeypatch):
     flow_only.flow_only(frames)
     np.testing.assert_array_equal(flow_only.flows[0].flow, full.flows[0].flow)
     np.testing.assert_array_equal(flow_only(frames), video)
+
+
+def gap_tv_reference(frames, code, video):
+    """Float64 ((K − 1)·L + SURE)/K over every sample whose temporal neighbours lie in the clip (noiseless), and
+    their count."""
+    F, H, W = frames.shape
+    K = code.shape[2]
+    v = np.asarray(video, np.float64)
+    slot = np.argmax(tiled_code(code, H, W), axis=0)
+    total, count = 0.0, 0
+    for f in range(F):
+        for yy in range(H):
+            for xx in range(W):
+                t0 = f * K + slot[yy, xx]
+                if t0 - 1 < 0 or t0 + 1 >= F * K:
+                    continue
+                y = float(frames[f, yy, xx])
+                loo = (0.5 * (v[t0 - 1, yy, xx] + v[t0 + 1, yy, xx]) - y) ** 2
+                total += ((K - 1) * loo + (v[t0, yy, xx] - y) ** 2) / K
+                count += 1
+    return total / count, count
+
+
+def test_gap_tv_holds_out_every_sample_by_its_temporal_neighbours():
+    truth, frames = scene(False)
+    m = Method("gap-tv", iterations=10)
+    est = estimate_accuracy(frames, CODE, m, unchecked=True)  # refused by the API: measured here all the same
+    video = methods_pkg.run(frames, CODE, m, chunk_frames=None).video
+    ref, count = gap_tv_reference(frames, CODE, video)
+    assert est.mse == pytest.approx(ref, rel=1e-4)
+    assert est.samples == count
+    assert "exact leave-one-out of every sample" in est.scheme and "4-fold hold-out" in est.scheme
+    assert est.low < est.psnr <= est.high
+
+
+def test_the_k_fold_hold_out_against_a_float64_reference():
+    from flexvox_core.accuracy_folds import folds, held_out_error, masked_run
+    from flexvox_core.reconstruct.gaptv import gap_tv_masks
+
+    _, frames = scene(False)
+    F, H, W = frames.shape
+    got = held_out_error(frames, CODE, masked_run(Method("gap-tv", iterations=10)), np.zeros(F, bool),
+                         np.zeros(frames.shape))
+    masks = tiled_code(CODE, H, W).astype(np.float64)
+    slot = np.argmax(masks, axis=0)
+    yy, xx = np.mgrid[0:H, 0:W]
+    errs = []
+    for fold in folds(CODE, H, W):
+        for f in range(F):
+            y = np.where(fold, 0.0, frames[f].astype(np.float64))
+            v = gap_tv_masks(y[None], masks * ~fold, iterations=10, dtype=np.float64)
+            errs.append(((v[slot, yy, xx] - frames[f]) ** 2)[fold])
+    assert got == pytest.approx(float(np.mean(np.concatenate(errs))), rel=1e-3)
+    assert [int(f.sum()) for f in folds(CODE, H, W)] == [320] * 4  # 32x40: 16x20 tiles of 2x2, a quarter each

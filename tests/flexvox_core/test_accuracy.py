@@ -320,3 +320,27 @@ def test_the_k_fold_hold_out_against_a_float64_reference():
             errs.append(((v[slot, yy, xx] - frames[f]) ** 2)[fold])
     assert got == pytest.approx(float(np.mean(np.concatenate(errs))), rel=1e-3)
     assert [int(f.sum()) for f in folds(CODE, H, W)] == [320] * 4  # 32x40: 16x20 tiles of 2x2, a quarter each
+
+
+def test_the_gpu_engine_holds_the_first_flow_too(monkeypatch):
+    from flexvox_core.accuracy_runs import HeldRuns
+    from flexvox_core.motion.gpu import engine
+    from flexvox_core.motion.gpu.engine import CudaStages
+    from flexvox_core.motion.stages import Window, run_stages
+    from tests.flexvox_core.gpu.tiny import CODE as TINY
+    from tests.flexvox_core.gpu.tiny import tiny_capture
+
+    _, frames = tiny_capture("balls", 2, 8, 8)
+    m = Method("motion-aware", refine_time=0.0, local_choice=False, noise_aware=False)
+    runs = HeldRuns(frames, TINY, m, device="cuda")
+    assert runs.device == "cuda"
+    first = runs(frames)
+    window = Window.plan(frames, TINY, m.options, (float(frames.min()), float(frames.max())))
+    np.testing.assert_allclose(first, run_stages(CudaStages(window)).video, atol=1e-6)
+    assert len(runs.flows) == 1 and isinstance(runs.flows[0], np.ndarray)
+
+    def no_flow(*args, **kwargs):
+        raise AssertionError("the probe computed the flow again")
+
+    monkeypatch.setattr(engine.gate, "gated_flow", no_flow)
+    np.testing.assert_allclose(runs(frames), first, atol=1e-6)

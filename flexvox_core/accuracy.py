@@ -6,9 +6,10 @@ sample, and compares the prediction with the sample (leave-one-out cross-validat
 
 1. **Reconstruct** the capture, ``v = f(y)`` (the reconstruction being scored).
 2. **Probe**: reconstruct again with a sparse lattice of samples moved by ``±delta`` (Rademacher signs;
-   one pixel in ``step × step``, the lattice shifted by half a step in every other frame, so a probed
-   pixel's next probed sample is two frames away). The change at voxel ``u`` over ``delta·b_i`` is its
-   response ``A_u = ∂v_u/∂y_i`` to the nearest-in-time sample ``i`` of its pixel.
+   one pixel in ``step × step``, sheared to land on every place of the code's tile (:func:`probe_lattice`),
+   shifted by half a step in every other frame, so a probed pixel's next probed sample is two frames away).
+   The change at voxel ``u`` over ``delta·b_i`` is its response ``A_u = ∂v_u/∂y_i`` to the nearest-in-time
+   sample ``i`` of its pixel.
 3. **Take the sample out** by the local linearisation: ``v_u⁻ = (v_u − A_u·y_i) / (1 − A_u)`` is what
    the method gives at ``u`` without sample ``i`` (exact for a linear smoother that renormalises its
    weights, as normalized convolution does; tested against a float64 reference).
@@ -350,11 +351,8 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     v0 = np.asarray(reconstruction, np.float32)  # read in float64 where used (the probe's columns)
     if v0.shape != (S, H, W):
         raise ValueError(f"`reconstruction` must have shape {(S, H, W)}; got {v0.shape}")
-    lattices = []  # alternate frames probe lattices offset by half a step: a pixel is probed every other frame
-    for shift in (0, step // 2):
-        lat = np.zeros((H, W), bool)
-        lat[1 + shift:H - 1:step, 1 + shift:W - 1:step] = True
-        lattices.append(lat)
+    # alternate frames probe lattices offset by half a step: a pixel is probed every other frame
+    lattices = [probe_lattice(H, W, step, shift) for shift in (0, step // 2)]
     rng = np.random.default_rng(seed)
     signs = rng.choice(np.array([-1.0, 1.0]), size=(F, H, W)) * np.stack([lattices[f % 2] for f in range(F)])
     signs[dropped] = 0.0
@@ -419,6 +417,24 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
                            confidence=confidence)
     _logger.info("%s: %s", method.label, est.line())
     return est
+
+
+def probe_lattice(H: int, W: int, step: int, shift: int = 0) -> np.ndarray:
+    """The probed pixels (H, W) bool: one in ``step × step``, sheared so that they land on every place of a code's
+    tile. Cell ``(i, j)`` probes row ``1 + shift + step·i + (j mod step)`` and column ``1 + shift + step·j +
+    (i mod step)`` (the border rows and columns left out): a lattice of step ``step`` would land on one place of a
+    tile whose sides divide it, and the estimate would rest on that place's neighbours alone (on the 16 origins of
+    such a lattice, diffusion's estimate ranged from 1.4 dB low to 3.9 dB high). Neighbouring probed pixels lie
+    about ``step`` pixels apart, a few diagonal neighbours where the shear wraps (their random signs keep their
+    pulls on each other out of the mean); for a step of 4 or more the lattices of ``shift`` 0 and ``step // 2``
+    (alternate frames) share no pixel."""
+    lat = np.zeros((H, W), bool)
+    ii, jj = np.mgrid[0:H // step + 1, 0:W // step + 1]
+    yy = 1 + shift + step * ii + jj % step
+    xx = 1 + shift + step * jj + ii % step
+    ok = (yy < H - 1) & (xx < W - 1)
+    lat[yy[ok], xx[ok]] = True
+    return lat
 
 
 def _cluster_se(keys: np.ndarray, values: np.ndarray, weights: np.ndarray) -> float:

@@ -13,6 +13,7 @@ from flexvox_core.accuracy import (
     _demultiplexed,
     estimate_accuracy,
     estimate_recording,
+    probe_lattice,
     refusal,
 )
 from flexvox_core.design import design_code
@@ -61,28 +62,27 @@ def reference_bounds(frames, code, step=4):
     probed = 0
     for f in range(F):
         shift = (f % 2) * (step // 2)
-        for yy in range(1 + shift, H - 1, step):
-            for xx in range(1 + shift, W - 1, step):
-                t0 = f * K + slot[yy, xx]
-                if t0 - 1 < 0 or t0 + 1 >= S:
+        for yy, xx in np.argwhere(probe_lattice(H, W, step, shift)):
+            t0 = f * K + slot[yy, xx]
+            if t0 - 1 < 0 or t0 + 1 >= S:
+                continue
+            probed += 1
+            out = np.zeros((S, H, W), bool)
+            out[t0, yy, xx] = True
+            vm = toy_nc(frames, code, out)
+            y = float(frames[f, yy, xx])
+            loo = (0.5 * (vm[t0 - 1, yy, xx] + vm[t0 + 1, yy, xx]) - y) ** 2
+            for d in range(-(K // 2), K - K // 2):
+                t = t0 + d
+                if not 0 <= t < S:
                     continue
-                probed += 1
-                out = np.zeros((S, H, W), bool)
-                out[t0, yy, xx] = True
-                vm = toy_nc(frames, code, out)
-                y = float(frames[f, yy, xx])
-                loo = (0.5 * (vm[t0 - 1, yy, xx] + vm[t0 + 1, yy, xx]) - y) ** 2
-                for d in range(-(K // 2), K - K // 2):
-                    t = t0 + d
-                    if not 0 <= t < S:
-                        continue
-                    n += 1
-                    if d == 0:
-                        continue  # the sampled voxel keeps its sample: no error without noise
-                    a = (v0[t, yy, xx] - vm[t, yy, xx]) / (y - vm[t, yy, xx])  # its response to the sample
-                    e_d = (vm[t, yy, xx] - y) ** 2 - loo
-                    lo_sum += (1 - a) ** 2 * loo + a**2 * e_d
-                    hi_sum += loo
+                n += 1
+                if d == 0:
+                    continue  # the sampled voxel keeps its sample: no error without noise
+                a = (v0[t, yy, xx] - vm[t, yy, xx]) / (y - vm[t, yy, xx])  # its response to the sample
+                e_d = (vm[t, yy, xx] - y) ** 2 - loo
+                lo_sum += (1 - a) ** 2 * loo + a**2 * e_d
+                hi_sum += loo
     return lo_sum / n, hi_sum / n, probed
 
 
@@ -94,7 +94,17 @@ def test_the_probe_gives_exact_leave_one_out_for_a_linear_smoother(toy):
     assert est.high == pytest.approx(10 * math.log10(1 / lo), abs=0.02)
     assert est.low == pytest.approx(10 * math.log10(1 / hi), abs=0.02)
     assert est.psnr == pytest.approx(10 * math.log10(1 / lo), abs=0.02)  # the estimate: the C_d = 0 bound
-    assert est.samples == probed == 64
+    assert est.samples == probed == 51
+
+
+def test_the_probe_lattice_lands_on_every_place_of_the_tile():
+    for (m, n), (H, W) in [((4, 4), (64, 96)), ((2, 4), (40, 48)), ((2, 2), (16, 20))]:
+        for shift in (0, 2):
+            ys, xs = np.nonzero(probe_lattice(H, W, 4, shift))
+            assert len({(y % m, x % n) for y, x in zip(ys, xs, strict=True)}) == m * n
+            assert ys.min() >= 1 and xs.min() >= 1 and ys.max() < H - 1 and xs.max() < W - 1
+    assert not np.any(probe_lattice(64, 96, 4, 0) & probe_lattice(64, 96, 4, 2))
+    assert abs(probe_lattice(64, 96, 4).mean() - 1 / 16) < 0.005
 
 
 def scene(noisy: bool, seed: int = 1):

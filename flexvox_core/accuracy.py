@@ -80,7 +80,7 @@ CLUSTER = 4
 
 REFUSED = {
     "motion-aware": ("even with the first run's flow held for the probe (the rest is then nearly linear: the same "
-                     "estimate at a move of 0.01 and 0.05), the estimate misses the truth by -4.70 to +2.76 dB (5 of "
+                     "estimate at a move of 0.01 and 0.05), the estimate misses the truth by -3.29 to +3.18 dB (6 of "
                      "12 runs within 1 dB, on the built-in scenes and the SCI clips; bench/bench_accuracy.py): "
                      "motion-aware keeps a pixel's sample far along its column (response 0.35 to 0.75 at lags 1 to 8 "
                      "on fan) while its error grows with the lag, so the error of a sample predicted from its "
@@ -91,10 +91,11 @@ REFUSED = {
                "bench/bench_accuracy.py): the neighbours sit at fixed places in the code's tile, where the next slots' "
                "samples lie far, and their errors correlate only partly (0.46 on Runner), so their error is not the "
                "mean unsampled voxel's"),
-    "rebin": ("the estimate of re-binning is 0.34 to 0.52 dB low on the 8 built-in runs (interval covers 6) and 0.88 "
-              "to 2.01 dB low on the SCI clips at 2x2x2 (1 of 4 within 1 dB; bench/bench_accuracy.py): its block "
-              "copies the sample, so the probe's linearisation cannot take it out, and re-binning runs on no masked "
-              "code (a block without its sample is not defined), so no k-fold hold-out can replace it"),
+    "rebin": ("the estimate of re-binning lies within 0.57 dB of the truth on the 8 built-in runs (interval covers "
+              "8) but is 0.53 to 1.30 dB low on the SCI clips at 2x2x2 (interval covers 1 of 4; "
+              "bench/bench_accuracy.py): its block copies the sample, so the probe's linearisation cannot take it "
+              "out exactly, and re-binning runs on no masked code (a block without its sample is not defined), so "
+              "no k-fold hold-out can replace it"),
 }
 """Methods the estimate refuses, with why (the figures: ``bench/bench_accuracy.py``)."""
 

@@ -22,13 +22,15 @@ sample, and compares the prediction with the sample (leave-one-out cross-validat
    ``v_u = (1 − A)·v_u⁻ + A·y_i`` the error at ``u`` is ``(1 − A)²·L_d + A²·(σ² + V_d) − 2A(1 − A)·C_d``
    (``V_d``: the truth's squared change over the lag, ``C_d``: its covariance with the leave-one-out
    error). The data give ``(v_u⁻ − y_i)² − σ² − L = V_d + 2·C_d`` (taking ``L_d = L``), not the two apart.
-   Two bounds follow: *optimistic*, ``C_d = 0`` (the sample's pull counted in full); *pessimistic*, the
-   voxel no better than one that lost its sample (``L``). The sampled voxel's own error is Stein's
+   The estimate takes ``C_d = 0`` (the sample's pull counted in full). Two bounds follow: *pessimistic*, the
+   voxel no better than one that lost its sample (``L``); *optimistic*, ``C_d`` at its largest,
+   Cauchy-Schwarz's ``C_d² ≤ L·V_d`` with ``V_d = e_d − 2C_d ≥ 0`` (``e_d`` what the data give):
+   ``C_d = min(e_d/2, −L + √(L² + L·e_d))``, the error ``2·A·C_d`` less. The sampled voxel's own error is Stein's
    unbiased risk estimate ``(v_i − y_i)² − σ² + 2·A_i·σ²``. A method whose temporal neighbours do not
    respond to the sample (each sub-frame reconstructed apart, as GAP-TV's 2-D TV) has every sample held out
    exactly, and its pessimistic end from a k-fold hold-out (:mod:`flexvox_core.accuracy_folds`).
-6. The estimate is the middle of the two bounds in dB; the interval spans both bounds, widened by the
-   spread over clusters of probed samples (a normal interval of the cluster means).
+6. The interval spans both bounds, widened by the spread over clusters of probed samples (a normal interval
+   of the cluster means) where that reaches further.
 
 Motion-aware is run with its flow held (:mod:`flexvox_core.accuracy_runs`): the probe reuses the first run's
 flow and sample range, so the change it sees is the sample's own pull along fixed trajectories.
@@ -368,10 +370,10 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
         var = variance_map[f, ys, xs] if variance_map is not None else noise.variance(frames[f, ys, xs])
         cl = (ys // (step * CLUSTER)) * (W // (step * CLUSTER) + 1) + xs // (step * CLUSTER)
         rows.append(probe.frame_rows(f, ys, xs, signs[f, ys, xs], var, cl))
-    arr = np.concatenate(rows, axis=0) if rows else np.zeros((0, 7))
+    arr = np.concatenate(rows, axis=0) if rows else np.zeros((0, 8))
     if arr.shape[0] < 8:
         raise NotEstimable(f"only {arr.shape[0]} probed samples could be held out (too few frames or pixels)")
-    fr, clus, mlo, mhi, w, pull, copied = arr.T
+    fr, clus, mlo, mhi, w, pull, copied, mop = arr.T
     _logger.debug("%s: %.1f %% of the probed samples copied onto a neighbour", method.label, 100 * np.mean(copied))
     if np.mean(copied) > MAX_COPIED and not unchecked:
         raise NotEstimable(f"cannot estimate the accuracy of {method.label}: it copies {np.mean(copied):.0%} of the "
@@ -382,6 +384,7 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     if np.mean(pull) < INDEPENDENT:
         # The temporal neighbours do not respond to the sample (each sub-frame is reconstructed from its own
         # samples, as GAP-TV's 2-D TV does): every sample is held out exactly (flexvox_core.accuracy_folds).
+        m_opt = None
         mse, m_hi, se, per_frame, samples, how = _independent(v0, v1, f32, code, method, dropped, signs, delta,
                                                                 variance_map, noise)
         scheme = scheme.replace("leave-one-out by probe", how)
@@ -389,6 +392,7 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
         sum_w = float(np.sum(w))
         m_lo, m_hi = float(np.sum(mlo) / sum_w), float(np.sum(mhi) / sum_w)
         mse = m_lo  # the estimate: errors uncorrelated with the truth's change; the other bound is the worst case
+        m_opt = float(np.sum(mop) / sum_w)  # the best case the data allow
         se = _cluster_se(fr * 1e6 + clus, mlo, w)
         per_frame = np.full(F, np.nan)
         for f in np.unique(fr).astype(int):
@@ -409,9 +413,10 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
                 per_frame[g.start:g.stop] = db(held_out[g.frames][0])
             mse = (1 - share) * mse + share * gap_mse
             m_hi = (1 - share) * m_hi + share * gap_mse
+            m_opt = None if m_opt is None else (1 - share) * m_opt + share * gap_mse
             se = math.sqrt(((1 - share) * se) ** 2 + share**2 * gap_var)
             scheme += ", dropped frames scored by captured runs held out like them"
-    lo_mse = mse - z * se
+    lo_mse = mse - z * se if m_opt is None else min(mse - z * se, m_opt)  # up to the optimistic bound
     hi_mse = max(m_hi, mse + z * se)  # down to the pessimistic bound
     est = AccuracyEstimate(psnr=db(mse), low=db(hi_mse), high=db(max(lo_mse, 1e-10)), per_frame=per_frame,
                            mse=max(mse, 0.0), scheme=scheme, samples=samples, noise=noise,
@@ -436,6 +441,17 @@ def probe_lattice(H: int, W: int, step: int, shift: int = 0) -> np.ndarray:
     ok = (yy < H - 1) & (xx < W - 1)
     lat[yy[ok], xx[ok]] = True
     return lat
+
+
+def _largest_covariance(loo: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """The largest ``C`` (``≥ 0``) the data allow, of the covariance of a voxel's leave-one-out error (mean square
+    ``L``) with the truth's change from the sample (mean square ``V``), given ``e = V + 2C``: Cauchy-Schwarz,
+    ``C² ≤ L·V = L·(e − 2C)``, so ``C ≤ −L + √(L² + L·e)``, and ``V ≥ 0`` gives ``C ≤ e/2``."""
+    lp = np.maximum(loo, 0.0)
+    disc = lp * lp + lp * e
+    bound = np.minimum(np.maximum(e, 0.0) / 2.0, -lp + np.sqrt(np.maximum(disc, 0.0)))
+    out: np.ndarray = np.where(disc > 0, np.maximum(bound, 0.0), 0.0)
+    return out
 
 
 def _cluster_se(keys: np.ndarray, values: np.ndarray, weights: np.ndarray) -> float:
@@ -569,7 +585,7 @@ class _Probe:
     def frame_rows(self, f: int, ys: np.ndarray, xs: np.ndarray, b: np.ndarray, s2: np.ndarray,
                    cluster: np.ndarray) -> np.ndarray:
         """Rows (frame, cluster, MSE with C_d = 0, MSE no better than held out, voxels, response of the two
-        temporal neighbours) of frame ``f``'s probed samples."""
+        temporal neighbours, copied, MSE with C_d at its Cauchy-Schwarz bound) of frame ``f``'s probed samples."""
         K = self.K
         t0 = f * K + self.slot[ys, xs]
         y = self.frames[f, ys, xs].astype(np.float64)
@@ -582,22 +598,25 @@ class _Probe:
         lo = np.zeros(ys.size)
         hi = np.zeros(ys.size)
         count = np.zeros(ys.size)
+        op = np.zeros(ys.size)
         for d in range(-(K // 2), K - K // 2):  # the voxels of the pixel's column nearest to this sample
             ok = self.usable(t0 + d)
             if d == 0:
-                lo_d = hi_d = sampled
+                lo_d = hi_d = op_d = sampled
             else:
                 vm, a, _ = self.removed(t0 + d, ys, xs, y, b)
                 a = np.clip(a, 0.0, 0.9)
                 e_d = (vm - y) ** 2 - s2 - loo  # = V_d + 2 C_d
                 lo_d = (1 - a) ** 2 * loo + a**2 * (s2 + e_d)  # C_d = 0: the sample's pull counted in full
                 hi_d = loo  # the voxel no better than one that lost its sample
+                op_d = lo_d - 2.0 * a * _largest_covariance(loo, e_d)  # C_d at its Cauchy-Schwarz bound
             lo += np.where(ok, lo_d, 0.0)
             hi += np.where(ok, hi_d, 0.0)
+            op += np.where(ok, op_d, 0.0)
             count += ok
         keep = inside & (count > 0)
         copied = np.maximum(a_before, a_after) >= COPIED  # a neighbour that takes the sample's value: no way back
-        out = np.stack([np.full(ys.size, f, np.float64), cluster, lo, hi, count, a_before + a_after, copied],
+        out = np.stack([np.full(ys.size, f, np.float64), cluster, lo, hi, count, a_before + a_after, copied, op],
                        axis=1)
         kept: np.ndarray = out[keep]
         return kept

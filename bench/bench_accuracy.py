@@ -24,7 +24,8 @@ import time
 
 import numpy as np
 
-from flexvox_core.accuracy import NoiseModel, NotEstimable, db, estimate_accuracy
+from flexvox_core import metrics
+from flexvox_core.accuracy import NoiseModel, NotEstimable, estimate_accuracy
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture
 from flexvox_core.methods import Method, run
@@ -62,9 +63,9 @@ def cases(quick: bool):
 
 
 def clip_psnr(truth, video) -> float:
-    """The PSNR the estimate estimates: of the clip's mean squared error (``flexvox_core.metrics.psnr`` is the mean
-    of the sub-frames' PSNRs, higher where their errors differ: printed beside it as "frames mean")."""
-    return db(float(np.mean((np.asarray(video, np.float64) - truth) ** 2)))
+    """The PSNR the estimate estimates: of the clip's mean squared error (:func:`flexvox_core.metrics.clip_psnr`;
+    ``flexvox_core.metrics.psnr`` is the mean of the sub-frames' PSNRs, printed beside it as "frames mean")."""
+    return metrics.clip_psnr(truth, video)
 
 
 def methods(code):

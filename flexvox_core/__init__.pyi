@@ -32,7 +32,7 @@ from .motion import motion_aware
 from .batch import BatchResult, reconstruct_batch
 
 # Scores against a ground truth.
-from .metrics import psnr, psnr_per_frame, ssim, ssim_per_frame
+from .metrics import clip_psnr, psnr, psnr_per_frame, ssim, ssim_per_frame
 
 # Accuracy without ground truth: an estimated PSNR from the recording alone.
 from .accuracy import AccuracyEstimate, NoiseModel, NotEstimable, estimate_accuracy, estimate_recording

@@ -216,7 +216,10 @@ def run(args) -> int:
     line += f" ({video.size / max(seconds, 1e-9) / 1e6:.0f} M voxels/s)"
     if score is not None:
         try:
-            line += f"; PSNR vs ground truth {psnr_words(score.result().per_frame)}"
+            scores = score.result()
+            line += f"; PSNR vs ground truth {psnr_words(scores.per_frame)}"
+            if args.estimate:  # beside the estimate: the PSNR it estimates, of the clip's mean squared error
+                line += f" (of the clip's MSE, as estimated: {scores.clip:.2f} dB)"
         except (RecordingError, ValueError) as exc:  # the video is written: a bad truth costs only its PSNR
             print(f"warning: no PSNR: {exc}", file=sys.stderr)
     print(line)

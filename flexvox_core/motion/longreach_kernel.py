@@ -41,7 +41,7 @@ def corner_table(order: np.ndarray) -> np.ndarray:
     return table
 
 
-@numba.njit(inline="always", nogil=True, cache=True)
+@numba.njit(inline="always", nogil=True, cache=True, error_model="numpy")
 def _velocity(flow: Any, t: int, y: int, x: int) -> tuple[Any, Any]:
     """(u, v) of the voxel, NaN or infinity read as still (as the GPU's ``velocity``)."""
     u = flow[t, y, x, 0]
@@ -51,32 +51,42 @@ def _velocity(flow: Any, t: int, y: int, x: int) -> tuple[Any, Any]:
     return u, v
 
 
-@numba.njit(inline="always", nogil=True, cache=True)
-def _sums(frames: Any, lat: Any, flow: Any, guide: Any, t: int, y: int, x: int, time_w: Any,
-          scale: Any) -> tuple[Any, Any]:
-    """Range-weighted (numerator, weight) along the trajectory of voxel (t, y, x). ``lat``: the lattice's
-    tables (:func:`_lattice`): no division in the loop."""
+@numba.njit(nogil=True, cache=True, error_model="numpy")
+def _row_sums(frames: Any, lat: Any, flow: Any, guide: Any, t: int, y: int, xs: Any, count: int, time_w: Any,
+              scale: Any, num: Any, den: Any, scratch: Any) -> None:
+    """Range-weighted sums (into ``num``, ``den``: row y of sub-frame t) along the trajectories of the voxels
+    (t, y, xs[:count]). ``lat``: the lattice's tables (:func:`_lattice`: no division in the loops). The offsets
+    d run outside the voxels: along a row the cells' slots repeat, so whether a cell holds the sample is a branch
+    the processor predicts."""
     cells, row_base, col_base, slot_of, frame_of, single = lat
     S, H, W = guide.shape
     zero = np.float32(0)
     one = np.float32(1)
-    u, v = _velocity(flow, t, y, x)
-    g = guide[t, y, x]
-    acc_n = zero
-    acc_d = zero
+    us, vs, gs, acc_n, acc_d = scratch[0], scratch[1], scratch[2], scratch[3], scratch[4]
     k = slot_of[t]
-    if k >= 0 and cells[row_base[y + 1] + col_base[x + 1] + k] & 1:  # d = 0: the voxel's own sample
-        s = frames[frame_of[t], y, x]
-        r = s - g
-        e = np.float32(math.exp(scale * r * r)) * time_w[0]
-        acc_n += s * e
-        acc_d += e
-    fy0 = np.float32(y)
-    fx0 = np.float32(x)
+    f = frame_of[t]
+    own = row_base[y + 1] + k
+    for i in range(count):
+        x = xs[i]
+        u, v = _velocity(flow, t, y, x)
+        us[i] = u
+        vs[i] = v
+        g = guide[t, y, x]
+        gs[i] = g
+        acc_n[i] = zero
+        acc_d[i] = zero
+        if k >= 0 and cells[own + col_base[x + 1]] & 1:  # d = 0: the voxel's own sample
+            s = frames[f, y, x]
+            r = s - g
+            e = np.float32(math.exp(scale * r * r)) * time_w[0]
+            acc_n[i] = s * e
+            acc_d[i] = e
+    fy = np.float32(y)
     hi_y = np.float32(H)
     hi_x = np.float32(W)
     lo = np.float32(-1)
     for d in range(1, len(time_w)):
+        tw = time_w[d]
         for side in range(2):
             step = d if side == 0 else -d
             tt = t + step
@@ -85,45 +95,49 @@ def _sums(frames: Any, lat: Any, flow: Any, guide: Any, t: int, y: int, x: int, 
             kk = slot_of[tt]
             if kk < 0:  # a dropped frame
                 continue
-            py = fy0 + np.float32(step) * v
-            px = fx0 + np.float32(step) * u
-            if not (lo < py < hi_y and lo < px < hi_x):  # no pixel of the cell in the picture (or NaN)
-                continue
-            y0 = int(py + one) - 1  # the floor (py > -1)
-            x0 = int(px + one) - 1
-            bits = cells[row_base[y0 + 1] + col_base[x0 + 1] + kk]
-            if bits == 0:
-                continue
-            ay = py - np.float32(y0)
-            ax = px - np.float32(x0)
             ff = frame_of[tt]
-            num = zero
-            den = zero
-            b = single[bits]
-            if b >= 0:  # one pixel of the cell holds the sample (a tile of at least 2×2: always)
-                yy = y0 + (b >> 1)
-                xx = x0 + (b & 1)
-                if 0 <= yy < H and 0 <= xx < W:
-                    den = (ay if b >> 1 else one - ay) * (ax if b & 1 else one - ax)
-                    num = den * frames[ff, yy, xx]
-            else:
-                for b in range(4):
-                    if bits & (1 << b):
-                        yy = y0 + (b >> 1)
-                        xx = x0 + (b & 1)
-                        if 0 <= yy < H and 0 <= xx < W:
-                            w = (ay if b >> 1 else one - ay) * (ax if b & 1 else one - ax)
-                            num += w * frames[ff, yy, xx]
-                            den += w
-            if den > zero:
-                r = num / den - g
-                e = np.float32(math.exp(scale * r * r)) * time_w[d]
-                acc_n += num * e
-                acc_d += den * e
-    return acc_n, acc_d
+            fstep = np.float32(step)
+            for i in range(count):
+                py = fy + fstep * vs[i]
+                px = np.float32(xs[i]) + fstep * us[i]
+                if not (lo < py < hi_y and lo < px < hi_x):  # no pixel of the cell in the picture (or NaN)
+                    continue
+                y0 = int(py + one) - 1  # the floor (py > -1)
+                x0 = int(px + one) - 1
+                bits = cells[row_base[y0 + 1] + col_base[x0 + 1] + kk]
+                if bits == 0:
+                    continue
+                ay = py - np.float32(y0)
+                ax = px - np.float32(x0)
+                n1 = zero
+                d1 = zero
+                b = single[bits]
+                if b >= 0:  # one pixel of the cell holds the sample (a tile of at least 2×2: always)
+                    yy = y0 + (b >> 1)
+                    xx = x0 + (b & 1)
+                    if 0 <= yy < H and 0 <= xx < W:
+                        d1 = (ay if b >> 1 else one - ay) * (ax if b & 1 else one - ax)
+                        n1 = d1 * frames[ff, yy, xx]
+                else:
+                    for b in range(4):
+                        if bits & (1 << b):
+                            yy = y0 + (b >> 1)
+                            xx = x0 + (b & 1)
+                            if 0 <= yy < H and 0 <= xx < W:
+                                w = (ay if b >> 1 else one - ay) * (ax if b & 1 else one - ax)
+                                n1 += w * frames[ff, yy, xx]
+                                d1 += w
+                if d1 > zero:
+                    r = n1 / d1 - gs[i]
+                    e = np.float32(math.exp(scale * r * r)) * tw
+                    acc_n[i] += n1 * e
+                    acc_d[i] += d1 * e
+    for i in range(count):
+        num[xs[i]] = acc_n[i]
+        den[xs[i]] = acc_d[i]
 
 
-@numba.njit(nogil=True, cache=True)
+@numba.njit(nogil=True, cache=True, error_model="numpy")
 def _lattice(corners: Any, present: Any, S: int, H: int, W: int) -> tuple[Any, Any, Any, Any, Any, Any]:
     """Lookup tables of the lattice: the flat corner table, its offsets for a cell's top-left row y0 (at y0 + 1,
     y0 from −1) and column, each sub-frame's slot (−1 where its frame was dropped) and frame, and the corner that
@@ -147,10 +161,10 @@ def _lattice(corners: Any, present: Any, S: int, H: int, W: int) -> tuple[Any, A
     return cells, row_base, col_base, slot_of, frame_of, single
 
 
-@numba.njit(nogil=True, cache=True)
+@numba.njit(nogil=True, cache=True, error_model="numpy")
 def _subframe(frames: Any, order: Any, lat: Any, flow: Any, guide: Any, select: Any, t: int, time_w: Any,
               scale: Any, taps: Any, min_weight: Any, out: Any, num: Any, den: Any, rows: Any, cols: Any,
-              write_samples: bool) -> None:
+              xs: Any, scratch: Any, write_samples: bool) -> None:
     """Sub-frame ``t``: the sums at the voxels within the blur's reach of ``select[t]`` (into ``num``, ``den``),
     blurred and divided at the selected ones into ``out[t]``, then (``write_samples``) the samples written."""
     S, H, W = guide.shape
@@ -180,6 +194,7 @@ def _subframe(frames: Any, order: Any, lat: Any, flow: Any, guide: Any, select: 
                     for x in range(W):
                         if sel[yy, x]:
                             cols[x] = True
+            count = 0
             for x in range(W):
                 act = False
                 for xx in range(max(0, x - r), min(W, x + r + 1)):
@@ -187,7 +202,9 @@ def _subframe(frames: Any, order: Any, lat: Any, flow: Any, guide: Any, select: 
                         act = True
                         break
                 if act:
-                    num[y, x], den[y, x] = _sums(frames, lat, flow, guide, t, y, x, time_w, scale)
+                    xs[count] = x
+                    count += 1
+            _row_sums(frames, lat, flow, guide, t, y, xs, count, time_w, scale, num[y], den[y], scratch)
         # Blurred (zero outside the picture; every neighbour of a selected voxel was summed) and divided.
         for y in range(H):
             if not rows[y]:
@@ -222,7 +239,7 @@ def _subframe(frames: Any, order: Any, lat: Any, flow: Any, guide: Any, select: 
                         out[t, y, x] = frames[f, y, x]
 
 
-@numba.njit(parallel=True, nogil=True, cache=True)
+@numba.njit(parallel=True, nogil=True, cache=True, error_model="numpy")
 def long_reach_kernel(frames: Any, order: Any, corners: Any, present: Any, flow: Any, guide: Any, select: Any,
                       time_w: Any, scale: Any, taps: Any, min_weight: Any, out: Any, num: Any, den: Any,
                       write_samples: bool) -> None:
@@ -240,6 +257,8 @@ def long_reach_kernel(frames: Any, order: Any, corners: Any, present: Any, flow:
     for c in numba.prange(chunks):
         rows = np.empty(H, np.bool_)
         cols = np.empty(W, np.bool_)
+        xs = np.empty(W, np.int64)
+        scratch = np.empty((5, W), np.float32)
         for t in range(c, S, chunks):  # interleaved: a run of busy sub-frames is shared out
             _subframe(frames, order, lat, flow, guide, select, t, time_w, scale, taps, min_weight, out, num[c],
-                      den[c], rows, cols, write_samples)
+                      den[c], rows, cols, xs, scratch, write_samples)

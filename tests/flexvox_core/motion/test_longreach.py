@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from flexvox_core.codes import code_from_order
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture, sample_mask, sparse_volume
 from flexvox_core.metrics import psnr
@@ -177,7 +178,7 @@ def test_writing_into_the_guide_gives_the_same_result(rng):
 def _lattice_case(rng, tile, F, H, W, missing=None, speed=0.6):
     from flexvox_core.gaps import interpolated_subframes
 
-    code = design_code(tile).code
+    code = design_code(tile).code if isinstance(tile, tuple) else code_from_order(tile)
     K = code.shape[2]
     truth = rng.uniform(0.2, 0.8, (F * K, H, W)).astype(np.float32)
     frames = capture(truth, code)
@@ -199,6 +200,7 @@ def _lattice_case(rng, tile, F, H, W, missing=None, speed=0.6):
     ((4, 4), 3, 15, 13, None, 0.3),
     ((4, 4), 4, 9, 21, [True, False, True, False], 0.6),
     ((4, 4), 3, 10, 11, None, 0.0),
+    ([[0, 2, 1, 3]], 6, 9, 10, [False, False, True, False, False, False], 0.3),  # 1×4: two pixels of a cell hold k
 ])
 def test_compiled_gather_is_the_reference(rng, tile, F, H, W, missing, sigma_s):
     from flexvox_core.motion.longreach import LongReachPlan, long_reach

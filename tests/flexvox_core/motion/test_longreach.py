@@ -239,6 +239,11 @@ def test_compiled_gather_writes_into_the_guide(rng):
         long_reach(frames, code, flow, guide[:8], sel, plan)
     with pytest.raises(ValueError, match=r"`missing` must be one flag per frame, shape \(3,\); got \(2,\)"):
         long_reach(frames, code, flow, guide, sel, plan, missing=np.zeros(2, bool))
+    # A multiplexed capture is demultiplexed before motion-aware: the long reach takes identity codes alone.
+    mcode = code.copy()
+    mcode[0, 0] = True  # every slot open at one pixel of the tile
+    with pytest.raises(ValueError, match=r"`code` is not an identity code"):
+        long_reach(frames, mcode, flow, guide, sel, plan)
 
 
 @pytest.mark.parametrize("tile, missing", [((2, 4), None), ((4, 4), [False, True, False])])

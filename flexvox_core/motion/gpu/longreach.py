@@ -72,15 +72,13 @@ def _range_weighted_sums(frames, order, corners, present, flow, guide, act, time
             px = np.float32(x) + step * u
             if not (np.float32(-1) < py < np.float32(H) and np.float32(-1) < px < np.float32(W)):
                 continue
-            y0f = math.floor(py)
-            x0f = math.floor(px)
-            y0 = int(y0f)
-            x0 = int(x0f)
+            y0 = int(py + one) - 1  # the floor (py > -1), in float32 as the CPU's
+            x0 = int(px + one) - 1
             bits = corners[(y0 + m) % m, (x0 + n) % n, tt % K]  # y0, x0 >= -1
             if bits == 0:
                 continue
-            ay = np.float32(py - y0f)
-            ax = np.float32(px - x0f)
+            ay = py - np.float32(y0)
+            ax = px - np.float32(x0)
             n1 = zero
             d1 = zero
             for b in range(4):
@@ -114,7 +112,7 @@ def _finish(num, den, select, frames, order, present, out):
     f = t // K
     if present[f] and order[y, x] == t % K:
         out[t, y, x] = frames[f, y, x]
-    elif select[t, y, x] and den[t, y, x] > MIN_WEIGHT:
+    elif select[t, y, x] and den[t, y, x] > np.float32(MIN_WEIGHT):  # in float32, as the CPU compares
         out[t, y, x] = num[t, y, x] / den[t, y, x]
 
 

@@ -16,6 +16,12 @@ d the sub-frame offset, s the sample read at x + d·(u, v) (bilinear: with an id
 at most one of the four pixels read holds a sample of sub-frame t + d, so s is that sample),
 g the guide at (x, t); then a spatial Gaussian blur σ_s across the trajectories.
 
+Two implementations compute it: :func:`long_reach`, which the engines run, reads the camera frames and
+the code and, for each read, only the pixel that can hold its sample (compiled:
+:mod:`~flexvox_core.motion.longreach_kernel`); :func:`long_reach_nc` remaps a sample volume and its
+mask (OpenCV, positions rounded to 1/32 px), as the engines did before, and stays as a second
+reference for the tests and the benchmarks' "before".
+
 Measured on the accuracy benchmark (96×128, K = 16, slow voxels only): the slow pan gains
 2 dB over the short-reach gather; without the range weight (h → ∞) the same reach *loses*
 0.5–0.9 dB on the bouncing balls and the drummer (samples from across the balls' edges).

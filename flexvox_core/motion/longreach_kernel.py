@@ -249,7 +249,8 @@ def long_reach_kernel(frames: Any, order: Any, corners: Any, present: Any, flow:
     :func:`corner_table`; ``present`` (F,) bool; ``flow`` (S, H, W, 2), ``guide`` (S, H, W) float32; ``select``
     (S, H, W) bool; ``time_w`` (reach + 1,) the trajectory weights exp(−d²/2σ_t²); ``scale`` −1/2h²; ``taps`` the
     blur's (odd length); ``num``, ``den`` (C, H, W) float32 scratch, one plane pair per chunk of sub-frames run
-    side by side (any content). ``write_samples``: write each sub-frame's samples into ``out`` after it.
+    side by side (any content). ``write_samples``: write each sub-frame's samples into ``out`` after it. Each
+    voxel's sums are made in one order by one thread: the output bits do not depend on the thread count.
     """
     S, H, W = guide.shape
     chunks = num.shape[0]

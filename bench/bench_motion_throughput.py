@@ -11,10 +11,11 @@ Figures only, never pass/fail. Usage:
 [--no-local-choice]``
 (default: balls,drummer; F = 15; S: automatic, a third at 640×480; R: motion_aware's default).
 
-``--ab VARIANT [--rounds N]``: instead, the kept code against VARIANT (one of :data:`VARIANTS`: the code as it was
-before one change, patched back in), alternating in one process after a warm-up call of each, N rounds: each
-stage's seconds (``stage_seconds``), the total and the PSNR per run, then the medians; and each one's peak memory
-(``ru_maxrss``) in a child process that loads only the frames and runs ``motion_aware`` once, cold.
+``--ab VARIANT [--rounds N] [--size HxW] [--noise σ]``: instead, the kept code against VARIANT (one of
+:data:`VARIANTS`: the code as it was before one change, patched back in) on a clip of that size (default 480x640)
+with that Gaussian noise added to the frames (default none), alternating in one process after a warm-up call of
+each, N rounds: each stage's seconds (``stage_seconds``), the total and the PSNR per run, then the medians; and each
+one's peak memory (``ru_maxrss``) in a child process that loads only the frames and runs ``motion_aware`` once, cold.
 """
 
 from __future__ import annotations
@@ -58,9 +59,45 @@ def _gather_given_its_complement() -> Iterator[None]:
         stages.motion_compensated_nc = kept
 
 
+@contextlib.contextmanager
+def _long_reach_on_sample_planes() -> Iterator[None]:
+    """Before the long reach read the frames: ``long_reach_nc``, two ``cv2.remap`` (four pixels each) of the sample
+    volume's planes and its mask per read, then the samples copied back from the volume."""
+    from flexvox_core.forward import sample_mask, sparse_volume
+    from flexvox_core.gaps import interpolated_subframes
+    from flexvox_core.motion import stages
+    from flexvox_core.motion.longreach import long_reach_nc
+
+    kept = stages.CpuStages.long_reach
+
+    def before(self, flow, video, slow):
+        w = self.window
+        if not slow.any():
+            return
+        sparse, mask = getattr(self, "sparse", None), getattr(self, "mask", None)
+        if sparse is None or mask is None:  # an engine without the sample volume: made here, as it was
+            sparse = sparse_volume(np.asarray(w.frames, np.float32), w.code)
+            mask = sample_mask(sparse.shape, w.code)
+            if w.missing is not None:
+                gap = interpolated_subframes(w.missing, w.K)
+                mask[gap] = False
+                sparse[gap] = 0
+        p = w.long_reach_plan
+        long_reach_nc(sparse, mask, flow.flow, video, slow, reach=p.reach, sigma_t=p.sigma_t, sigma_s=p.sigma_s,
+                      h=p.h, out=video)
+        np.copyto(video, sparse, where=mask)
+
+    stages.CpuStages.long_reach = before
+    try:
+        yield
+    finally:
+        stages.CpuStages.long_reach = kept
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "complement-volume": _gather_given_its_complement,
+    "long-reach-remap": _long_reach_on_sample_planes,
 }
 """The code as it was before each change (``kept``: as it is), for ``--ab``."""
 
@@ -79,7 +116,8 @@ def _child(variant: str, frames_path: str, extra: dict) -> None:
     the resident memory before the call (the frames loaded and the code compiled)."""
     code = design_code((4, 4)).code
     frames = np.load(frames_path)
-    motion_aware(frames[:1, :16, :16], code)  # load and compile what the call needs, on a tiny clip
+    motion_aware(frames[:2, :16, :16], code)  # load and compile what the call needs, on a tiny clip (two frames:
+    # one frame takes no long reach)
     try:  # the peak so far (after fork a child's starts at its parent's): reset to the current resident size
         with open("/proc/self/clear_refs", "w") as f:
             f.write("5")
@@ -98,9 +136,12 @@ def _child(variant: str, frames_path: str, extra: dict) -> None:
 def _ab(args, extra: dict) -> None:
     code = design_code((4, 4)).code
     variants = ["kept", args.ab]
+    H, W = (int(v) for v in args.size.split("x"))
     for scene in args.scenes.split(","):
-        truth = render_scene(scene, args.frames * 16, 480, 640)
+        truth = render_scene(scene, args.frames * 16, H, W)
         frames = capture(truth, code)
+        if args.noise:
+            frames = (frames + np.random.default_rng(0).normal(0, args.noise, frames.shape)).astype(np.float32)
         rows: dict[str, list[tuple[dict, float, float]]] = {v: [] for v in variants}
         for v in variants:  # warm-up: numba's compilation and the first touch of the process's memory
             with VARIANTS[v]():
@@ -122,7 +163,7 @@ def _ab(args, extra: dict) -> None:
                                      capture_output=True, text=True, check=True).stdout
                 peaks[v] = json.loads(out.strip().splitlines()[-1])
         stages = list(rows["kept"][0][0])
-        print(f"\n{scene}, 640x480, {args.frames} frames, {args.rounds} rounds alternating, load "
+        print(f"\n{scene}, {W}x{H}, noise {args.noise}, {args.frames} frames, {args.rounds} rounds alternating, load "
               f"{os.getloadavg()[0]:.1f} (1-min average at the end); medians, s")
         print("| variant | " + " | ".join(stages) + " | total | PSNR dB | peak MB (above the warm process) |")
         print("|---" * (len(stages) + 4) + "|")
@@ -150,6 +191,8 @@ def main() -> None:
     ap.add_argument("--ab", choices=[v for v in VARIANTS if v != "kept"], default=None,
                     help="the kept code against this variant, alternating in one process, per stage, with peak memory")
     ap.add_argument("--rounds", type=int, default=3, help="--ab's runs of each")
+    ap.add_argument("--size", default="480x640", help="--ab: HxW of the clip")
+    ap.add_argument("--noise", type=float, default=0.0, help="--ab: σ of Gaussian noise added to the frames")
     ap.add_argument("--focus", default="trajectory_gather", help="--ab: the stage whose every run is printed too")
     ap.add_argument("--child", nargs=2, metavar=("VARIANT", "FRAMES"), help=argparse.SUPPRESS)
     ap.add_argument("--extra", default="{}", help=argparse.SUPPRESS)

@@ -48,9 +48,9 @@ import numpy.typing as npt
 
 from flexvox_core.forward import sample_mask, sparse_volume
 from flexvox_core.gaps import bridge, bridge_flow, interpolated_subframes
-from flexvox_core.motion import local_choice, noise_aware
+from flexvox_core.motion import local_choice, longreach, noise_aware
 from flexvox_core.motion.gated_flow import gated_flow
-from flexvox_core.motion.longreach import LongReachPlan, long_reach_nc
+from flexvox_core.motion.longreach import LongReachPlan
 from flexvox_core.motion.mcnc import default_reach, motion_compensated_nc
 from flexvox_core.motion.options import (
     LONG_REACH_RANGE,
@@ -556,11 +556,9 @@ class CpuStages:
         w = self.window
         if not slow.any():
             return
-        sparse, mask = self._samples()
-        p = w.long_reach_plan
-        long_reach_nc(sparse, mask, flow.flow, video, slow, reach=p.reach, sigma_t=p.sigma_t, sigma_s=p.sigma_s, h=p.h,
-                      out=video)
-        np.copyto(video, sparse, where=mask)
+        # From the frames and the code (no sample volume); the samples are written back as it goes.
+        longreach.long_reach(w.frames, w.code, flow.flow, video, slow, w.long_reach_plan, missing=w.missing, out=video,
+                             write_samples=True)
 
     def _spare(self) -> npt.NDArray[np.float32] | None:
         """A volume the stages after the last pass's gathers may overwrite: the samples' (dead by then)."""

@@ -102,6 +102,10 @@ class MethodForm(QWidget):
         self.auto_box = QCheckBox()
         """Checked: the knob :meth:`auto_knob` names is chosen by the estimate when Reconstruct runs."""
         self.auto_box.setChecked(settings.get_bool("review/auto", False))
+        if offer_auto:  # hidden for a method with no knob to choose, it keeps its room: no button below it moves
+            policy = self.auto_box.sizePolicy()
+            policy.setRetainSizeWhenHidden(True)
+            self.auto_box.setSizePolicy(policy)
         layout.addWidget(self.auto_box)
         self.options = Collapsible("method options", self.stack, settings=settings, key="review/show_options")
         """The chosen method's knobs, folded (the workspace places it below its actions)."""

@@ -51,7 +51,7 @@ from flexvox_core.gaps import bridge, bridge_flow, interpolated_subframes
 from flexvox_core.motion import local_choice, noise_aware
 from flexvox_core.motion.gated_flow import gated_flow
 from flexvox_core.motion.longreach import LongReachPlan, long_reach_nc
-from flexvox_core.motion.mcnc import default_reach, motion_compensated_nc
+from flexvox_core.motion.mcnc import default_reach, trajectory_gather
 from flexvox_core.motion.options import (
     LONG_REACH_RANGE,
     LONG_REACH_SIGMA_S,
@@ -421,7 +421,7 @@ def run_stages(engine: Stages) -> MotionAwareResult:
         with times("trajectory_gather"):
             video, loo, gathered = engine.trajectory_gather(flow, base, still, slow, high_tr, wide,
                                                             leave_one_out=win.leave_one_out and last)
-        del base
+        del base, still  # read by no later stage: the CPU's volumes go now
         with times("long_reach"):
             engine.long_reach(flow, video, slow)
         with times("refinement"):
@@ -461,9 +461,15 @@ class CpuStages:
         return None
 
     def _samples(self) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.bool_]]:
-        """The sample volume and its mask (:meth:`samples` sets them, before every later stage)."""
-        assert self.sparse is not None, "the samples stage runs first"
-        return self.sparse, self._mask()
+        """The sample volume and its mask, the volume made at the first call (the long reach's: the trajectory
+        gather reads the frames and the code, so no stage before it holds the volume)."""
+        mask = self._mask()
+        if self.sparse is None:
+            w = self.window
+            self.sparse = sparse = sparse_volume(np.asarray(w.frames, np.float32), w.code)
+            if w.missing is not None:  # a dropped frame's sub-frames hold no samples
+                sparse[interpolated_subframes(w.missing, w.K)] = 0
+        return self.sparse, mask
 
     def _mask(self) -> npt.NDArray[np.bool_]:
         """The samples' mask (:meth:`samples` sets it, before every later stage)."""
@@ -477,13 +483,11 @@ class CpuStages:
         return diffuse(w.frames, w.code, tensor=STEP1_TENSOR, time=STEP1_TIME, missing=w.missing)
 
     def samples(self) -> None:
+        """The samples' mask (the sample volume is made where it is first read: :meth:`_samples`)."""
         w = self.window
-        self.sparse = sparse = sparse_volume(np.asarray(w.frames, np.float32), w.code)
-        self.mask = mask = sample_mask(sparse.shape, w.code)
+        self.mask = mask = sample_mask((w.S, *w.frames.shape[1:]), w.code)
         if w.missing is not None:  # a dropped frame's sub-frames hold no samples
-            gap = interpolated_subframes(w.missing, w.K)
-            mask[gap] = False
-            sparse[gap] = 0
+            mask[interpolated_subframes(w.missing, w.K)] = False
 
     def gated_flow(self, current: Volume) -> Flow:
         w = self.window
@@ -543,10 +547,9 @@ class CpuStages:
         loo = np.full(w.frames.shape, np.nan, np.float32) if leave_one_out else None
         # The gather writes into `base` when no later pass reads it (one volume less).
         into = base if w.passes == 1 or base is not self.fixed else None
-        sparse, mask = self._samples()
-        video = motion_compensated_nc(sparse, mask, flow.flow, c=w.gather_c, time=w.gather_time, fallback=high_tr,
-                                      gathered=self.gathered, still_value=base, loo=loo, wide=wide,
-                                      wide_sigma=noise_aware.wide_sigma(w.K), max_reach=w.gather_reach, out=into)
+        video = trajectory_gather(w.frames, w.code, flow.flow, missing=w.missing, c=w.gather_c, time=w.gather_time,
+                                  fallback=high_tr, gathered=self.gathered, still_value=base, loo=loo, wide=wide,
+                                  wide_sigma=noise_aware.wide_sigma(w.K), max_reach=w.gather_reach, out=into)
         gathered = self.gathered if loo is not None else None
         if self.last:
             self.fixed = self.still_value = None  # not needed again: free them before the local choice's volume
@@ -563,7 +566,8 @@ class CpuStages:
         np.copyto(video, sparse, where=mask)
 
     def _spare(self) -> npt.NDArray[np.float32] | None:
-        """A volume the stages after the last pass's gathers may overwrite: the samples' (dead by then)."""
+        """A volume the stages after the last pass's gathers may overwrite: the samples' (dead by then; None when
+        no stage made it)."""
         return self.sparse if self.last else None
 
     def refinement(self, video: Volume, flow: Flow, slow: Volume) -> None:

@@ -314,10 +314,11 @@ def test_still_values_written_in_place_give_the_volumes_result(monkeypatch, pass
         return out
 
     def fresh_out(*args, out=None, **kwargs):
-        return motion_compensated_nc(*args, **kwargs)
+        return gather(*args, **kwargs)
 
+    gather = P.trajectory_gather
     monkeypatch.setattr(P, "diffuse_where", volume_then_copy)
-    monkeypatch.setattr(P, "motion_compensated_nc", fresh_out)
+    monkeypatch.setattr(P, "trajectory_gather", fresh_out)
     np.testing.assert_array_equal(got, motion_aware(frames, code, passes=passes).video)
 
 

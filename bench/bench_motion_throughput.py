@@ -78,9 +78,28 @@ def _gather_by_remap() -> Iterator[None]:
         stages.CpuStages.trajectory_gather = kept  # type: ignore[method-assign]
 
 
+@contextlib.contextmanager
+def _scratch_per_stage() -> Iterator[None]:
+    """Before a window without a sample volume lent one scratch volume to the refinement and the local choice:
+    each made its own (the sample volume, when the long reach made one, served both)."""
+    from flexvox_core.motion import stages
+
+    kept = stages.CpuStages._spare
+
+    def before(self):
+        return self.sparse if self.last else None
+
+    stages.CpuStages._spare = before  # type: ignore[method-assign]
+    try:
+        yield
+    finally:
+        stages.CpuStages._spare = kept  # type: ignore[method-assign]
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
+    "scratch-per-stage": _scratch_per_stage,
 }
 """The code as it was before each change (``kept``: as it is), for ``--ab``."""
 

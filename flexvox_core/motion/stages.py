@@ -451,7 +451,8 @@ class CpuStages:
         self.memo = memo
         self.passes_run = 0  # gated_flow starts each pass
         self.last = False  # the pass running is the last: what no later pass reads may be freed or overwritten
-        self.sparse: npt.NDArray[np.float32] | None = None
+        self.sparse: npt.NDArray[np.float32] | None = None  # the long reach's, made there
+        self.scratch: npt.NDArray[np.float32] | None = None  # _spare's where the long reach made no sample volume
         self.mask: npt.NDArray[np.bool_] | None = None
         self.fixed: npt.NDArray[np.float32] | None = None
         self.still_value: npt.NDArray[np.float32] | None = None
@@ -566,9 +567,17 @@ class CpuStages:
         np.copyto(video, sparse, where=mask)
 
     def _spare(self) -> npt.NDArray[np.float32] | None:
-        """A volume the stages after the last pass's gathers may overwrite: the samples' (dead by then; None when
-        no stage made it)."""
-        return self.sparse if self.last else None
+        """A volume the stages after the last pass's gathers may overwrite (None before the last pass): the samples'
+        (dead by then) where the long reach made it, else one made here once, for the refinement and then the local
+        choice."""
+        if not self.last:
+            return None
+        if self.sparse is not None:
+            return self.sparse
+        if self.scratch is None:
+            w = self.window
+            self.scratch = np.empty((w.S, *w.frames.shape[1:]), np.float32)
+        return self.scratch
 
     def refinement(self, video: Volume, flow: Flow, slow: Volume) -> None:
         """Along each trajectory; the slow voxels read their neighbours by clipped Catmull-Rom (a bilinear read
@@ -600,6 +609,8 @@ class CpuStages:
         bridge(video, w.missing, w.K, flow=flow.flow)
 
     def clip(self, video: Volume) -> Volume:
+        if self.last:  # the samples' volume and the scratch are read no more
+            self.sparse = self.scratch = None
         lo, hi = self.window.sample_range
         return np.clip(video, lo, hi, out=video)
 

@@ -11,10 +11,11 @@ Figures only, never pass/fail. Usage:
 [--no-local-choice]``
 (default: balls,drummer; F = 15; S: automatic, a third at 640×480; R: motion_aware's default).
 
-``--ab VARIANT [--rounds N]``: instead, the kept code against VARIANT (one of :data:`VARIANTS`: the code as it was
-before one change, patched back in), alternating in one process after a warm-up call of each, N rounds: each
-stage's seconds (``stage_seconds``), the total and the PSNR per run, then the medians; and each one's peak memory
-(``ru_maxrss``) in a child process that loads only the frames and runs ``motion_aware`` once, cold.
+``--ab VARIANT [--rounds N] [--size HxW] [--noise σ]``: instead, the kept code against VARIANT (one of
+:data:`VARIANTS`: the code as it was before one change, patched back in) on a clip of that size (default 480x640)
+with that Gaussian noise added to the frames (default none), alternating in one process after a warm-up call of
+each, N rounds: each stage's seconds (``stage_seconds``), the total and the PSNR per run, then the medians; and each
+one's peak memory (``ru_maxrss``) in a child process that loads only the frames and runs ``motion_aware`` once, cold.
 
 ``--quality VARIANT [--size HxW] [--noise σ]``: the kept code's PSNR against VARIANT's on every moving built-in
 scene, clean and with Gaussian noise of σ (default 240x320, σ = 0.01), and the difference (the issue's rule: within
@@ -51,8 +52,10 @@ from flexvox_core.simulate.scenes import render_scene
 
 @contextlib.contextmanager
 def _gather_by_remap() -> Iterator[None]:
-    """Before the trajectory gather read the frames and the code: it remapped the sample volume (made in the
-    gather, where the long reach then finds it) and its mask, a list of voxels per sub-frame."""
+    """Before the trajectory gather read the frames and the code: it remapped the sample volume (made here: no
+    stage makes it now) and its mask, a list of voxels per sub-frame."""
+    from flexvox_core.forward import sample_mask, sparse_volume
+    from flexvox_core.gaps import interpolated_subframes
     from flexvox_core.motion import noise_aware, stages
     from flexvox_core.motion.mcnc import motion_compensated_nc
 
@@ -62,7 +65,12 @@ def _gather_by_remap() -> Iterator[None]:
         w = self.window
         loo = np.full(w.frames.shape, np.nan, np.float32) if leave_one_out else None
         into = base if w.passes == 1 or base is not self.fixed else None
-        sparse, mask = self._samples()
+        sparse = sparse_volume(np.asarray(w.frames, np.float32), w.code)  # made here, as it was in `samples`
+        mask = sample_mask(sparse.shape, w.code)
+        if w.missing is not None:
+            gap = interpolated_subframes(w.missing, w.K)
+            mask[gap] = False
+            sparse[gap] = 0
         video = motion_compensated_nc(sparse, mask, flow.flow, c=w.gather_c, time=w.gather_time, fallback=high_tr,
                                       gathered=self.gathered, still_value=base, loo=loo, wide=wide,
                                       wide_sigma=noise_aware.wide_sigma(w.K), max_reach=w.gather_reach, out=into)
@@ -96,10 +104,46 @@ def _scratch_per_stage() -> Iterator[None]:
         stages.CpuStages._spare = kept  # type: ignore[method-assign]
 
 
+@contextlib.contextmanager
+def _long_reach_on_sample_planes() -> Iterator[None]:
+    """Before the long reach read the frames: ``long_reach_nc``, two ``cv2.remap`` (four pixels each) of the sample
+    volume's planes and its mask per read, then the samples copied back from the volume."""
+    from flexvox_core.forward import sample_mask, sparse_volume
+    from flexvox_core.gaps import interpolated_subframes
+    from flexvox_core.motion import stages
+    from flexvox_core.motion.longreach import long_reach_nc
+
+    kept = stages.CpuStages.long_reach
+
+    def before(self, flow, video, slow):
+        w = self.window
+        if not slow.any():
+            return
+        sparse, mask = getattr(self, "sparse", None), getattr(self, "mask", None)
+        if sparse is None or mask is None:  # an engine without the sample volume: made here, as it was
+            sparse = sparse_volume(np.asarray(w.frames, np.float32), w.code)
+            mask = sample_mask(sparse.shape, w.code)
+            if w.missing is not None:
+                gap = interpolated_subframes(w.missing, w.K)
+                mask[gap] = False
+                sparse[gap] = 0
+        p = w.long_reach_plan
+        long_reach_nc(sparse, mask, flow.flow, video, slow, reach=p.reach, sigma_t=p.sigma_t, sigma_s=p.sigma_s,
+                      h=p.h, out=video)
+        np.copyto(video, sparse, where=mask)
+
+    stages.CpuStages.long_reach = before
+    try:
+        yield
+    finally:
+        stages.CpuStages.long_reach = kept
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
     "scratch-per-stage": _scratch_per_stage,
+    "long-reach-remap": _long_reach_on_sample_planes,
 }
 """The code as it was before each change (``kept``: as it is), for ``--ab``."""
 
@@ -118,7 +162,8 @@ def _child(variant: str, frames_path: str, extra: dict) -> None:
     the resident memory before the call (the frames loaded and the code compiled)."""
     code = design_code((4, 4)).code
     frames = np.load(frames_path)
-    motion_aware(frames[:1, :16, :16], code)  # load and compile what the call needs, on a tiny clip
+    motion_aware(frames[:2, :16, :16], code)  # load and compile what the call needs, on a tiny clip (two frames:
+    # one frame takes no long reach)
     try:  # the peak so far (after fork a child's starts at its parent's): reset to the current resident size
         with open("/proc/self/clear_refs", "w") as f:
             f.write("5")
@@ -165,7 +210,7 @@ def _memory_child(variant: str, frames_path: str, extra: dict) -> None:
     """Print each stage's (start, peak, end) resident MB in one cold ``motion_aware`` call of ``variant``."""
     code = design_code((4, 4)).code
     frames = np.load(frames_path)
-    motion_aware(frames[:1, :16, :16], code)
+    motion_aware(frames[:2, :16, :16], code)  # two frames: one takes no long reach
     table: dict[str, list[float]] = {}
     before = _status_mb("VmRSS")
     with VARIANTS[variant](), _stage_memory(table):
@@ -202,16 +247,17 @@ MOVING = ("fan", "balls", "drummer", "pan", "static", "strobe")
 
 def _quality(args, extra: dict) -> None:
     code = design_code((4, 4)).code
-    H, W = (int(v) for v in args.size.split("x"))
+    H, W = (int(v) for v in (args.size or "240x320").split("x"))
+    noise = 0.01 if args.noise is None else args.noise
     print(f"\nkept against {args.quality}, {H}x{W}, {args.frames} frames, PSNR dB (kept / {args.quality} / "
-          f"difference); noisy: sigma {args.noise}")
+          f"difference); noisy: sigma {noise}")
     print("| scene | clean | noisy |")
     print("|---|---|---|")
     worst = 0.0
     for scene in MOVING:
         truth = render_scene(scene, args.frames * 16, H, W)
         clean = capture(truth, code)
-        noisy = np.clip(clean + np.random.default_rng(0).normal(0, args.noise, clean.shape), 0, 1).astype(np.float32)
+        noisy = np.clip(clean + np.random.default_rng(0).normal(0, noise, clean.shape), 0, 1).astype(np.float32)
         cells = []
         for frames in (clean, noisy):
             got = []
@@ -228,9 +274,12 @@ def _quality(args, extra: dict) -> None:
 def _ab(args, extra: dict) -> None:
     code = design_code((4, 4)).code
     variants = ["kept", args.ab]
+    H, W = (int(v) for v in (args.size or "480x640").split("x"))
     for scene in args.scenes.split(","):
-        truth = render_scene(scene, args.frames * 16, 480, 640)
+        truth = render_scene(scene, args.frames * 16, H, W)
         frames = capture(truth, code)
+        if args.noise:
+            frames = (frames + np.random.default_rng(0).normal(0, args.noise, frames.shape)).astype(np.float32)
         rows: dict[str, list[tuple[dict, float, float]]] = {v: [] for v in variants}
         for v in variants:  # warm-up: numba's compilation and the first touch of the process's memory
             with VARIANTS[v]():
@@ -252,7 +301,7 @@ def _ab(args, extra: dict) -> None:
                                      capture_output=True, text=True, check=True).stdout
                 peaks[v] = json.loads(out.strip().splitlines()[-1])
         stages = list(rows["kept"][0][0])
-        print(f"\n{scene}, 640x480, {args.frames} frames, {args.rounds} rounds alternating, load "
+        print(f"\n{scene}, {W}x{H}, noise {args.noise or 0}, {args.frames} frames, {args.rounds} rounds alternating, load "
               f"{os.getloadavg()[0]:.1f} (1-min average at the end); medians, s")
         print("| variant | " + " | ".join(stages) + " | total | PSNR dB | peak MB (above the warm process) |")
         print("|---" * (len(stages) + 4) + "|")
@@ -280,11 +329,12 @@ def main() -> None:
     ap.add_argument("--ab", choices=[v for v in VARIANTS if v != "kept"], default=None,
                     help="the kept code against this variant, alternating in one process, per stage, with peak memory")
     ap.add_argument("--rounds", type=int, default=3, help="--ab's runs of each")
+    ap.add_argument("--size", default=None, help="HxW of --ab's clip (default 480x640) and --quality's (240x320)")
+    ap.add_argument("--noise", type=float, default=None,
+                    help="σ of Gaussian noise added to --ab's frames (default none) and --quality's noisy ones (0.01)")
     ap.add_argument("--focus", default="trajectory_gather", help="--ab: the stage whose every run is printed too")
     ap.add_argument("--quality", choices=[v for v in VARIANTS if v != "kept"], default=None,
                     help="the kept code's PSNR against this variant's on every moving built-in scene, clean and noisy")
-    ap.add_argument("--size", default="240x320", help="--quality's picture size, HxW")
-    ap.add_argument("--noise", type=float, default=0.01, help="--quality's noise sigma")
     ap.add_argument("--memory", nargs="?", const="kept", default=None, choices=list(VARIANTS),
                     help="each stage's resident memory (start, peak, end) in one cold call in a child process; "
                          "with a VARIANT, that variant's too")

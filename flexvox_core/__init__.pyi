@@ -32,10 +32,12 @@ from .motion import motion_aware
 from .batch import BatchResult, reconstruct_batch
 
 # Scores against a ground truth.
-from .metrics import psnr, psnr_per_frame, ssim, ssim_per_frame
+from .metrics import clip_psnr, psnr, psnr_per_frame, ssim, ssim_per_frame
 
 # Accuracy without ground truth: an estimated PSNR from the recording alone.
 from .accuracy import AccuracyEstimate, NoiseModel, NotEstimable, estimate_accuracy, estimate_recording
+# A knob (diffusion time, division) chosen by the estimate; the module is `choice`, so `fv.choose` stays the function.
+from .choice import Choice, choose, choose_recording
 
 # Files: recordings, videos (OME-Zarr, TIFF, MP4, npy).
 from .recording import Recording, RecordingError, open_recording, write_simulation

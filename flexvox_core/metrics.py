@@ -40,7 +40,7 @@ from flexvox_core.numbers import positive_number
 
 _logger = logging.getLogger(__name__)
 
-__all__ = ["FrameScores", "psnr", "psnr_per_frame", "ssim", "ssim_per_frame"]
+__all__ = ["FrameScores", "clip_psnr", "psnr", "psnr_per_frame", "ssim", "ssim_per_frame"]
 
 _SSIM_SIGMA = 1.5
 _SSIM_TRUNCATE = 3.5
@@ -59,6 +59,12 @@ class FrameScores(NamedTuple):
 
     per_frame: np.ndarray
     mean: float
+
+    @property
+    def clip(self) -> float:
+        """The PSNR of the whole clip's mean squared error (:func:`clip_psnr`), from the frames' PSNRs (every
+        frame the same size)."""
+        return _clip_of(self.per_frame)
 
 
 class _Score(float):
@@ -185,6 +191,46 @@ def psnr(ref, x, *, data_range: float = 1.0) -> float:
     20.0
     """
     return _Score(psnr_per_frame(ref, x, data_range=data_range), "psnr")
+
+
+def clip_psnr(ref, x, *, data_range: float = 1.0) -> float:
+    """Peak signal-to-noise ratio of the whole clip's mean squared error, in dB: ``10·log10(L² / MSE)``.
+
+    The accuracy estimate (:mod:`flexvox_core.accuracy`) estimates this one. :func:`psnr` (the mean of the
+    frames' PSNRs, as the benchmarks report it) is higher where the frames' errors differ: by up to about 0.4 dB
+    on the built-in scenes.
+
+    Parameters
+    ----------
+    ref : ndarray, shape (S, H, W) or (H, W)
+        Ground truth.
+    x : ndarray, same shape as ``ref``
+        Estimate.
+    data_range : float, keyword-only
+        Peak value L (1 for videos in [0, 1], 255 for two 8-bit videos).
+
+    Returns
+    -------
+    float
+        ``inf`` when ``x`` equals ``ref``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> ref = np.zeros((2, 4, 4)); x = ref + [[[0.1]], [[0.01]]]
+    >>> round(psnr(ref, x), 3), round(clip_psnr(ref, x), 3)
+    (30.0, 22.967)
+    """
+    return _clip_of(psnr_per_frame(ref, x, data_range=data_range))
+
+
+def _clip_of(per_frame: np.ndarray) -> float:
+    """The clip's PSNR from its frames' (same-size frames: the clip's MSE is the mean of theirs)."""
+    per = np.asarray(per_frame, np.float64)
+    if per.size == 0:
+        return float("nan")
+    mse = float(np.mean(10.0 ** (-per / 10.0)))  # inf (an exact frame) gives 0
+    return float("inf") if mse == 0 else float(-10.0 * np.log10(mse))
 
 
 def psnr_per_frame(ref, x, *, data_range: float = 1.0) -> np.ndarray:

@@ -9,8 +9,9 @@ The service emits every event on one thread of its own (``flexvox-capture-events
 threads that read the camera or write the disk, so a slow subscriber (a terminal nobody reads, a
 busy window) never holds a frame up. A callback runs on that thread: a Qt window hands the event to
 its GUI thread (``flexvox_app.gui.capture.capture_signals``). What a callback raises is logged and
-ignored: a subscriber cannot stop a capture. Qt-free models driven on the GUI thread (Review's,
-``flexvox_app.gui.models.review_model``) use the same :class:`Signal`, letting their callbacks' errors through.
+ignored: a subscriber cannot stop a capture. Qt-free models driven on the GUI thread (Capture's
+``flexvox_app.gui.models.capture_model``, Review's ``review_model`` and its parts) use the same :class:`Signal`,
+letting their callbacks' errors through.
 """
 
 from __future__ import annotations

@@ -3,7 +3,9 @@
 
 The options are the registered methods' own (:mod:`flexvox_core.methods.registry`): one flag per
 option name, typed by the option's kind, its help naming each method's default. A flag the
-chosen method has no option for is refused, naming the methods it goes with.
+chosen method has no option for is refused, naming the methods it goes with. Where a command
+offers it (``reconstruct``), a knob with default candidates (:data:`flexvox_core.choice.AUTO_KNOBS`:
+``--time``, ``--block``) also takes ``auto``: chosen by the estimated PSNR (:func:`auto_knob`).
 """
 
 from __future__ import annotations
@@ -12,6 +14,9 @@ from flexvox_app.cli.errors import CliError, arg_type
 
 _FLAG_NAMES = {"refine_time": "--refine"}
 """Flags whose name is not the option's (``--refine`` is older than ``refine_time``)."""
+
+AUTO = "auto"
+"""The value of a knob flag that asks for the knob to be chosen by the estimated PSNR."""
 
 
 def _options():
@@ -29,6 +34,11 @@ def _options():
 
 def _flag(option) -> str:
     return _FLAG_NAMES.get(option.name) or option.kind.flag(option)
+
+
+def flag_of(name: str) -> str:
+    """The command-line flag of option ``name`` (``--time``, ``--refine``)."""
+    return _flag(_options()[name][0])
 
 
 def _help(option, owners) -> str:
@@ -55,17 +65,43 @@ def _chunk(text: str) -> int:
     return int(text)
 
 
-def add_method_options(p, *, chunk: int) -> None:
+def _auto_owners(name: str) -> list[str]:
+    """The methods whose option ``name`` can be chosen by the estimate (``auto``)."""
+    from flexvox_core.choice import AUTO_KNOBS
+
+    return [m for m, knobs in AUTO_KNOBS.items() if name in knobs]
+
+
+def _or_auto(parse):
+    """``parse``, with ``auto`` read as :data:`AUTO`."""
+    def read(text):
+        return AUTO if str(text).strip() == AUTO else parse(text)
+
+    return read
+
+
+def add_method_options(p, *, chunk: int, auto: bool = False) -> None:
     """Add ``--method``, every registered method's options and ``--chunk F`` (default ``chunk``
-    camera frames) to parser ``p``."""
+    camera frames) to parser ``p``; ``auto``: the knobs with default candidates also take ``auto``
+    (:func:`auto_knob`)."""
     from flexvox_core.methods import DEFAULT, names
 
     p.add_argument("--method", choices=names(), default=DEFAULT, help=f"default: {DEFAULT}")
     for name, (o, owners) in _options().items():
         kw = o.kind.arguments(o, _flag(o))
+        words = _help(o, owners)
+        choosable = auto and _auto_owners(name)
+        if choosable:
+            if "type" in kw:
+                kw["type"] = _or_auto(kw["type"])
+            kw["metavar"] = f"{kw.get('metavar') or 'X'}|auto"
+            words += (f"; auto ({' and '.join(choosable)}): try each candidate "
+                      f"({_candidates_words(name)}), estimate each result's PSNR from the recording alone and keep "
+                      "the best; prints every candidate's estimate and what choosing cost (each candidate: a "
+                      "reconstruction and the estimate's probe run)")
         if "type" in kw:
             kw["type"] = arg_type(kw["type"])
-        p.add_argument(_flag(o), dest=name, default=None, help=_help(o, owners), **kw)
+        p.add_argument(_flag(o), dest=name, default=None, help=words, **kw)
     p.add_argument("--chunk", type=arg_type(_chunk), default=chunk, metavar="F",
                    help=f"camera frames per chunk (default {chunk})")
     add_device_option(p)
@@ -141,8 +177,41 @@ def _foreign(given: list[str], method: str) -> str:
             f"--method {' or '.join(owners)} only)")
 
 
-def method_from_args(args, tile):
-    """The :class:`~flexvox_core.methods.Method` the options describe.
+def _candidates_words(name: str) -> str:
+    from flexvox_core.choice import candidates_for
+
+    if name != "time":
+        return "every division the code supports"
+    return "; ".join(f"n = {', '.join(f'{t:g}' for t in candidates_for(m, name, None))} for {m}"
+                     for m in _auto_owners(name))
+
+
+def auto_knob(args) -> str | None:
+    """The option given as ``auto`` (to be chosen by the estimated PSNR), or None.
+
+    Raises
+    ------
+    ValueError
+        More than one knob given as ``auto``, or ``auto`` for a knob of ``--method`` that has no candidates to
+        choose from (naming the methods whose knob has).
+    """
+    table = _options()
+    autos = [name for name in table if getattr(args, name, None) == AUTO]
+    if len(autos) > 1:
+        raise ValueError(f"only one knob can be auto; got {' and '.join(_flag(table[n][0]) + ' auto' for n in autos)}")
+    if not autos:
+        return None
+    name = autos[0]
+    owners = _auto_owners(name)
+    if args.method not in owners and any(s.name == args.method for s in table[name][1]):
+        raise ValueError(f"{_flag(table[name][0])} auto goes with --method {' or '.join(owners)}, not {args.method} "
+                         "(no candidates to choose from)")
+    return name
+
+
+def method_from_args(args, tile, *, auto: bool = False):
+    """The :class:`~flexvox_core.methods.Method` the options describe (``auto``: a knob given as ``auto`` is left
+    at its default, for :func:`auto_knob`'s choice; else ``auto`` is read as any other value, and refused).
 
     Raises
     ------
@@ -157,6 +226,8 @@ def method_from_args(args, tile):
     foreign = [name for name in given if not spec.has_option(name)]
     if foreign:
         raise ValueError(_foreign(foreign, spec.name))
+    if auto:
+        given = {name: value for name, value in given.items() if value != AUTO}
     for name, value in given.items():
         o = spec.option(name)
         if o.kind.needs_tile:  # kept as typed: read with the recording's tile

@@ -11,8 +11,10 @@ from pathlib import Path
 from flexvox_app.cli.errors import EXIT_OK, CliError, arg_type, defer, positive_fps
 from flexvox_app.cli.method_options import (
     add_method_options,
+    auto_knob,
     device_line,
     device_record,
+    flag_of,
     method_from_args,
     resolved_device,
 )
@@ -40,9 +42,13 @@ def register(sub) -> None:
             "gap-tv (the classical peer), motion-aware (the paper's Section 4: diffusion tensors oriented "
             "along optical flow). Multiplexed recordings are demultiplexed first. Dropped camera frames are "
             "bridged from both sides (a line says which sub-frames; a .zarr output keeps them as the array "
-            "`interpolated`); a run of them longer than the method's reach is refused, naming it."
+            "`interpolated`); a run of them longer than the method's reach is refused, naming it. "
+            "--time auto (diffusion, motion-aware) and --block auto (rebin) choose the knob by the PSNR estimated "
+            "from the recording alone: each candidate is reconstructed and estimated, the best is written, and every "
+            "candidate's estimate and what choosing cost are printed; a method the estimate refuses is refused "
+            "with the reason."
         )
-        add_method_options(p, chunk=16)
+        add_method_options(p, chunk=16, auto=True)
         p.add_argument("--figures", type=Path, metavar="DIR",
                        help="motion-aware: write flow (colour wheel, quiver), resolution map and a panel "
                             "like the paper's Figs. 7-8 as PNGs")
@@ -94,6 +100,34 @@ def estimate_line(recording, method, video, chunk: int | None, device: str) -> s
     return f"{est.line()} in {time.perf_counter() - t0:.2f} s"
 
 
+def _choose(reader, method, knob: str, args, device: str):
+    """``knob`` of ``method`` chosen by the estimated PSNR on the recording
+    (:func:`flexvox_core.choice.choose_recording`); a refusal is a :class:`CliError` naming the method and why."""
+    from tqdm import tqdm
+
+    from flexvox_core.accuracy import NotEstimable
+    from flexvox_core.choice import choose_recording
+    from flexvox_core.recording import RecordingError
+
+    bars = []  # the bar starts with the first candidate's result: a refusal comes before it
+
+    def progress(done, total):
+        if not bars:
+            bars.append(tqdm(total=total, unit="candidate", desc=f"choosing {knob}", leave=False))
+        bars[0].update(done - bars[0].n)
+
+    try:
+        return choose_recording(reader.recording, method, knob, chunk_frames=args.chunk, device=device,
+                                progress=progress)
+    except NotEstimable as exc:
+        raise CliError(f"{flag_of(knob)} auto: {exc}") from None
+    except (ValueError, RecordingError) as exc:
+        raise CliError(str(exc)) from None
+    finally:
+        for bar in bars:
+            bar.close()
+
+
 def run(args) -> int:
     """Carry out ``flexvox reconstruct``."""
     from tqdm import tqdm
@@ -114,7 +148,8 @@ def run(args) -> int:
             check_figures_dir(args.figures, overwrite=args.overwrite, inputs=[args.recording])
         reader = open_capture(args.recording)
         rec = reader.recording
-        method = method_from_args(args, rec.attrs["tile"])
+        knob = auto_knob(args)
+        method = method_from_args(args, rec.attrs["tile"], auto=True)
         device = resolved_device(args)
         if args.figures and not set(FIGURE_EXTRAS) <= set(method.spec.extras):
             drawable = " or ".join(s.name for s in specs() if set(FIGURE_EXTRAS) <= set(s.extras))
@@ -122,17 +157,33 @@ def run(args) -> int:
     except (ValueError, RecordingError) as exc:
         raise CliError(str(exc)) from None
     F, (H, W) = reader.n_frames, reader.shape
+    choice = None
+    if knob is not None:
+        choice = _choose(reader, method, knob, args, device)
+        method = choice.method
+        for line in choice.lines():
+            print(line)
     t0 = time.perf_counter()
-    with tqdm(total=F, unit="frame", desc=method.label(), disable=F <= args.chunk, leave=False) as bar:
-        def progress(done, total):
-            bar.update(done - bar.n)
-        try:
-            out = reader.run(method, chunk_frames=args.chunk, progress=progress, device=device)
-        except (ValueError, RecordingError) as exc:
-            raise CliError(str(exc)) from None
+    if choice is not None and choice.output is not None:
+        out = choice.output  # made while choosing: not run again
+        seconds = next(c.run_seconds for c in choice.candidates if c.value == choice.value)
+    else:
+        with tqdm(total=F, unit="frame", desc=method.label(), disable=F <= args.chunk, leave=False) as bar:
+            def progress(done, total):
+                bar.update(done - bar.n)
+            try:
+                out = reader.run(method, chunk_frames=args.chunk, progress=progress, device=device)
+            except (ValueError, RecordingError) as exc:
+                raise CliError(str(exc)) from None
+        seconds = time.perf_counter() - t0  # the reconstruction itself (reading the ground truth is not)
     video = out.video
-    seconds = time.perf_counter() - t0  # the reconstruction itself (reading the ground truth is not)
     attrs = {"source": str(args.recording), "method": method.as_dict(), "seconds": seconds, **device_record(out)}
+    if choice is not None:
+        attrs["chosen_by_estimate"] = {
+            "knob": choice.knob, "seconds": choice.seconds, "reconstructions": choice.runs,
+            "candidates": [{"method": c.method.as_dict(), "seconds": c.seconds, "why": c.why,
+                            "estimate": None if c.estimate is None else c.estimate.as_dict()}
+                           for c in choice.candidates]}
     score = None
     stop = threading.Event()  # set when the write fails or is interrupted: the PSNR gives up at its next block
     pool = ThreadPoolExecutor(max_workers=1)
@@ -165,11 +216,16 @@ def run(args) -> int:
     line += f" ({video.size / max(seconds, 1e-9) / 1e6:.0f} M voxels/s)"
     if score is not None:
         try:
-            line += f"; PSNR vs ground truth {psnr_words(score.result().per_frame)}"
+            scores = score.result()
+            line += f"; PSNR vs ground truth {psnr_words(scores.per_frame)}"
+            if args.estimate:  # beside the estimate: the PSNR it estimates, of the clip's mean squared error
+                line += f" (of the clip's MSE, as estimated: {scores.clip:.2f} dB)"
         except (RecordingError, ValueError) as exc:  # the video is written: a bad truth costs only its PSNR
             print(f"warning: no PSNR: {exc}", file=sys.stderr)
     print(line)
-    if args.estimate:
+    if args.estimate and choice is not None:
+        print(choice.estimate.line() + " (made while choosing)")
+    elif args.estimate:
         print(estimate_line(args.recording, method, video if reader.multiplexed is None else None, args.chunk,
                             device))
     print(device_line(out))

@@ -38,9 +38,9 @@ class MainWindow(QMainWindow):
     capture_factory : callable, optional
         Builds capture services for the Capture workspace (tests inject failing writers).
 
-    The Calibrate and Capture workspaces share the rig: each asks the other (``rig_guard``)
-    before it uses the devices, so a calibration never starts during a recording and the
-    reverse.
+    The Calibrate and Capture workspaces share the rig: each is given ``held_elsewhere``, which asks the other
+    before it uses the devices (who holds them: :mod:`flexvox_app.gui.models.holder`), so a calibration never
+    starts during a recording and the reverse.
     """
 
     def __init__(self, service: RigService, settings: AppSettings, runner: JobRunner, quality_table: dict | None,
@@ -52,9 +52,9 @@ class MainWindow(QMainWindow):
         self._closed = False
         rig = "simulated rig" if service.simulated else service.name
         self.setWindowTitle(f"flexvox — {rig}")
-        self.calibrate = CalibrateWorkspace(service, settings, runner, rig_guard=self._capture_busy)
+        self.calibrate = CalibrateWorkspace(service, settings, runner, held_elsewhere=self._held_by_capture)
         self.capture = CaptureWorkspace(service, settings, runner, capture_factory=capture_factory,
-                                        rig_guard=self._calibrate_busy)
+                                        held_elsewhere=self._held_by_calibrate)
         self.review = ReviewWorkspace(settings, runner, quality_table)
         self.tabs = QTabWidget()
         for name, w in zip(WORKSPACES, (self.calibrate, self.capture, self.review), strict=True):
@@ -144,8 +144,9 @@ class MainWindow(QMainWindow):
         super().showEvent(event)
         QTimer.singleShot(0, self.fit_to_screen)
 
-    def _capture_busy(self) -> str | None:
-        """What keeps the Calibrate workspace off the rig: a recording (a live view is stopped for it)."""
+    def _held_by_capture(self) -> str | None:
+        """Why the Capture workspace holds the rig, keeping the Calibrate workspace off it: a recording (a live view
+        is stopped for it)."""
         if self.capture.recording:
             return "a recording is running in the Capture workspace"
         if self.capture.live:
@@ -163,9 +164,10 @@ class MainWindow(QMainWindow):
         if self.capture.start_live():
             self.statusBar().showMessage("Capture's live view runs again", 8000)
 
-    def _calibrate_busy(self) -> str | None:
-        """What keeps the Capture workspace off the rig: a calibration using the real rig's devices."""
-        return self.calibrate.rig_busy_reason()
+    def _held_by_calibrate(self) -> str | None:
+        """Why the Calibrate workspace holds the rig, keeping the Capture workspace off it: a calibration, its
+        live numbers or the wizard using the devices."""
+        return self.calibrate.held_here()
 
     def _use_for_capture(self, outcome) -> None:
         """Hand the Calibrate workspace's result to Capture (as its file when it was saved); say in the status bar

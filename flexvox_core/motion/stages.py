@@ -5,7 +5,8 @@ stage                  what it computes
 =====================  ==========================================================================================
 ``high_tr``            normalized convolution with ``diag(1, 1, 0.05)``, n = 2 (the paper's Step 1): sharp in
                        time, so fast motion survives for the flow
-``samples``            the sample volume (0 off the samples) and its mask; a dropped frame's sub-frames hold none
+``samples``            the samples' mask; a dropped frame's sub-frames hold none (no stage reads a sample volume: the
+                       gathers read the frames and the code)
 ``gated_flow``         velocity of every voxel: the high-TR video's flow, gated by a motion detector that cannot
                        swim, slow motion measured over a long baseline (:mod:`~flexvox_core.motion.gated_flow`);
                        bridged across dropped frames
@@ -46,11 +47,11 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from flexvox_core.forward import sample_mask, sparse_volume
+from flexvox_core.forward import sample_mask
 from flexvox_core.gaps import bridge, bridge_flow, interpolated_subframes
-from flexvox_core.motion import local_choice, noise_aware
+from flexvox_core.motion import local_choice, longreach, noise_aware
 from flexvox_core.motion.gated_flow import gated_flow
-from flexvox_core.motion.longreach import LongReachPlan, long_reach_nc
+from flexvox_core.motion.longreach import LongReachPlan
 from flexvox_core.motion.mcnc import default_reach, trajectory_gather
 from flexvox_core.motion.options import (
     LONG_REACH_RANGE,
@@ -451,8 +452,7 @@ class CpuStages:
         self.memo = memo
         self.passes_run = 0  # gated_flow starts each pass
         self.last = False  # the pass running is the last: what no later pass reads may be freed or overwritten
-        self.sparse: npt.NDArray[np.float32] | None = None  # the long reach's, made there
-        self.scratch: npt.NDArray[np.float32] | None = None  # _spare's where the long reach made no sample volume
+        self.scratch: npt.NDArray[np.float32] | None = None  # _spare's
         self.mask: npt.NDArray[np.bool_] | None = None
         self.fixed: npt.NDArray[np.float32] | None = None
         self.still_value: npt.NDArray[np.float32] | None = None
@@ -460,17 +460,6 @@ class CpuStages:
 
     def sync(self) -> None:
         return None
-
-    def _samples(self) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.bool_]]:
-        """The sample volume and its mask, the volume made at the first call (the long reach's: the trajectory
-        gather reads the frames and the code, so no stage before it holds the volume)."""
-        mask = self._mask()
-        if self.sparse is None:
-            w = self.window
-            self.sparse = sparse = sparse_volume(np.asarray(w.frames, np.float32), w.code)
-            if w.missing is not None:  # a dropped frame's sub-frames hold no samples
-                sparse[interpolated_subframes(w.missing, w.K)] = 0
-        return self.sparse, mask
 
     def _mask(self) -> npt.NDArray[np.bool_]:
         """The samples' mask (:meth:`samples` sets it, before every later stage)."""
@@ -484,7 +473,7 @@ class CpuStages:
         return diffuse(w.frames, w.code, tensor=STEP1_TENSOR, time=STEP1_TIME, missing=w.missing)
 
     def samples(self) -> None:
-        """The samples' mask (the sample volume is made where it is first read: :meth:`_samples`)."""
+        """The samples' mask (no stage reads a sample volume: the gathers read the frames and the code)."""
         w = self.window
         self.mask = mask = sample_mask((w.S, *w.frames.shape[1:]), w.code)
         if w.missing is not None:  # a dropped frame's sub-frames hold no samples
@@ -560,20 +549,15 @@ class CpuStages:
         w = self.window
         if not slow.any():
             return
-        sparse, mask = self._samples()
-        p = w.long_reach_plan
-        long_reach_nc(sparse, mask, flow.flow, video, slow, reach=p.reach, sigma_t=p.sigma_t, sigma_s=p.sigma_s, h=p.h,
-                      out=video)
-        np.copyto(video, sparse, where=mask)
+        # From the frames and the code (no sample volume); the samples are written back as it goes.
+        longreach.long_reach(w.frames, w.code, flow.flow, video, slow, w.long_reach_plan, missing=w.missing, out=video,
+                             write_samples=True)
 
     def _spare(self) -> npt.NDArray[np.float32] | None:
-        """A volume the stages after the last pass's gathers may overwrite (None before the last pass): the samples'
-        (dead by then) where the long reach made it, else one made here once, for the refinement and then the local
-        choice."""
+        """A volume the stages after the last pass's gathers may overwrite (None before the last pass): one made
+        here once, for the refinement and then the local choice."""
         if not self.last:
             return None
-        if self.sparse is not None:
-            return self.sparse
         if self.scratch is None:
             w = self.window
             self.scratch = np.empty((w.S, *w.frames.shape[1:]), np.float32)
@@ -609,8 +593,8 @@ class CpuStages:
         bridge(video, w.missing, w.K, flow=flow.flow)
 
     def clip(self, video: Volume) -> Volume:
-        if self.last:  # the samples' volume and the scratch are read no more
-            self.sparse = self.scratch = None
+        if self.last:  # the scratch is read no more
+            self.scratch = None
         lo, hi = self.window.sample_range
         return np.clip(video, lo, hi, out=video)
 

@@ -22,6 +22,17 @@ def test_reconstruct_prints_the_estimate_beside_the_true_psnr(recording, tmp_pat
     out = capsys.readouterr().out
     assert re.search(r"^estimated PSNR \d+\.\d\d dB \(± \d+\.\d\d dB, 95% interval", out, re.M), out
     assert "PSNR vs ground truth" in out
+    # beside the estimate, the truth it estimates: the PSNR of the clip's MSE (not the frames' mean)
+    clip = re.search(r"\(of the clip's MSE, as estimated: (\d+\.\d\d) dB\)", out)
+    assert clip, out
+    import numpy as np
+
+    from flexvox_core.metrics import clip_psnr
+    from flexvox_core.recording import open_recording
+
+    video = np.load(tmp_path / "o.npy")
+    assert float(clip.group(1)) == pytest.approx(clip_psnr(open_recording(recording).ground_truth[:], video),
+                                                 abs=0.006)
 
 
 def test_reconstruct_says_why_a_method_has_no_estimate(recording, tmp_path, capsys):
@@ -40,6 +51,7 @@ def test_bench_on_a_recording_writes_the_estimates_and_the_truth(recording, tmp_
     short, *diffusion = [r for r in rows if r["family"] == "diffusion"]  # n = 0.5, 1.5, 4
     assert short["estimate"] is None and "copies" in short["why"] and short["truth"] is not None
     assert len(diffusion) == 2 and all(r["estimate"] is not None and r["truth"] is not None for r in diffusion)
+    assert all(r["truth"] <= r["truth_frames_mean"] for r in diffusion)  # the clip's PSNR, the frames' mean beside
     assert all(r["low"] <= r["estimate"] <= r["high"] for r in diffusion)
     assert [r["why"] for r in rows if r["family"] == "motion-aware"][0].startswith("cannot estimate")
     assert (out_dir / "pareto.png").stat().st_size > 0 and (out_dir / "results.csv").exists()

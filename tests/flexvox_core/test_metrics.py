@@ -188,3 +188,16 @@ def test_an_integer_truth_against_a_float_estimate_is_compared_in_0_1(rng, dtype
     # Two integer arrays are compared as they are, with the data range given.
     assert psnr(truth, truth // 2 * 2, data_range=white) == pytest.approx(
         psnr(as_float, (truth // 2 * 2) / white), abs=1e-5)
+
+
+def test_clip_psnr_is_of_the_clip_mse_in_float64_and_from_the_frames_scores(rng):
+    from flexvox_core.metrics import clip_psnr, psnr_of_rows
+
+    ref = rng.random((5, 7, 9))
+    x = ref + rng.normal(0, 1, (5, 1, 1)) * 0.05 * rng.random((5, 7, 9))  # errors that differ frame to frame
+    want = 10 * np.log10(1.0 / np.mean((x - ref) ** 2))
+    assert clip_psnr(ref, x) == pytest.approx(want, abs=1e-9)
+    assert clip_psnr(ref, x) < psnr(ref, x)  # the frames' mean is higher where their errors differ
+    assert psnr_of_rows(lambda a, b: ref[a:b], x, rows=2).clip == pytest.approx(want, abs=1e-9)
+    assert clip_psnr(255 * ref, 255 * x, data_range=255) == pytest.approx(want, abs=1e-9)
+    assert clip_psnr(ref, ref) == np.inf

@@ -38,18 +38,19 @@ class LiveColocation(QObject):
         Shows the patterns on a video-input projector while measuring.
     view : ResultsView
         Its "Co-location live" tab shows the camera and the grid.
-    guard : callable
-        ``() -> str | None``: why the rig cannot be used now.
+    held_elsewhere : callable
+        ``() -> str | None``: why something other than the live numbers holds the rig now (a calibration, a
+        recording), None when nothing does.
     """
 
     def __init__(self, service: RigService, runner: JobRunner, screen: ProjectorScreen, view: ResultsView, *,
-                 guard, parent: QWidget):
+                 held_elsewhere, parent: QWidget):
         super().__init__(parent)
         self.service = service
         self.runner = runner
         self.screen = screen
         self.view = view
-        self._guard = guard
+        self._held_elsewhere = held_elsewhere
         self.job: JobHandle | None = None
         self.alignment = None
         """The newest co-location result."""
@@ -93,9 +94,9 @@ class LiveColocation(QObject):
     def set_live(self, on: bool, *, blocked: str | None = None) -> None:
         """Start or stop the live numbers (``blocked``: a reason they may not start now)."""
         if on:
-            busy = blocked or self._guard() or self.screen.attach("live")
-            if busy:
-                self.label.setText(coloured(f"cannot measure: {busy}", RED))
+            held = blocked or self._held_elsewhere() or self.screen.attach("live")
+            if held:
+                self.label.setText(coloured(f"cannot measure: {held}", RED))
                 self.refused = True
                 on = False
             else:

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import html
 import logging
+from collections.abc import Callable
 
 from PySide6.QtCore import Qt, QTimer, Signal
 from PySide6.QtWidgets import (
@@ -48,6 +49,7 @@ from flexvox_app.gui.models.calibration_model import (
     run_workspace_calibration,
     target_for,
 )
+from flexvox_app.gui.models.holder import Holder
 from flexvox_app.gui.models.jobs import CancelToken
 from flexvox_app.gui.models.operator_words import in_gui_words
 from flexvox_app.gui.models.rig_service import RigService
@@ -56,6 +58,7 @@ from flexvox_app.gui.widgets.rich_text import GREEN, GREY, RED, coloured
 from flexvox_app.gui.widgets.settings import AppSettings
 from flexvox_app.gui.widgets.status_line import StatusLine
 from flexvox_app.gui.widgets.workspace_layout import controls_beside_view
+from flexvox_core.deprecations import renamed_keyword, warn_renamed
 
 _logger = logging.getLogger(__name__)
 
@@ -89,9 +92,16 @@ class CalibrateWorkspace(QWidget):
     service : RigService
     settings : AppSettings
     runner : JobRunner
-    rig_guard : callable, optional
-        ``() -> str | None``: a reason the rig is busy elsewhere (a recording), asked before a
-        calibration or a live measurement starts.
+    held_elsewhere : callable, optional
+        ``() -> str | None``: why another workspace holds the rig now (a recording), None when it does not; asked
+        before a calibration, the live numbers or the wizard starts (the main window's also stops Capture's live
+        view, which yields to them). The deprecated keyword ``rig_guard`` still works, with a
+        ``DeprecationWarning``, until the next release.
+
+    Notes
+    -----
+    Who holds the rig has one name across the GUI (:mod:`flexvox_app.gui.models.holder`): :attr:`holder` and
+    :meth:`held_here` say what this workspace holds, :meth:`held_elsewhere` what another does.
     """
 
     status = Signal(str)
@@ -105,13 +115,18 @@ class CalibrateWorkspace(QWidget):
     """A calibration or the wizard ended: what it paused elsewhere may start again."""
     """The successful outcome the operator hands to the Capture workspace."""
 
-    def __init__(self, service: RigService, settings: AppSettings, runner: JobRunner, *, rig_guard=None,
-                 parent: QWidget | None = None):
+    def __init__(self, service: RigService, settings: AppSettings, runner: JobRunner, *,
+                 held_elsewhere: Callable[[], str | None] | None = None, parent: QWidget | None = None,
+                 **deprecated):
+        held_elsewhere = renamed_keyword(deprecated, "rig_guard", "held_elsewhere", held_elsewhere,
+                                         "CalibrateWorkspace")
+        if deprecated:
+            raise TypeError(f"CalibrateWorkspace() got unexpected keywords {', '.join(deprecated)}")
         super().__init__(parent)
         self.service = service
         self.settings = settings
         self.runner = runner
-        self.rig_guard = rig_guard
+        self._held_elsewhere = held_elsewhere
         self.outcome: CalibrationOutcome | None = None
         self.job: JobHandle | None = None
         self.tracker: StepTracker | None = None
@@ -130,8 +145,8 @@ class CalibrateWorkspace(QWidget):
         self.results_view = ResultsView()
         self.screen = ProjectorScreen(service, settings, parent=self)
         self.save_panel = SavePanel(settings)
-        self.live_panel = LiveColocation(service, runner, self.screen, self.results_view, guard=self._guard,
-                                         parent=self)
+        self.live_panel = LiveColocation(service, runner, self.screen, self.results_view,
+                                         held_elsewhere=self._held_for_live, parent=self)
         self._build()
         self.save_panel.use_for_capture.connect(self.use_for_capture)
         self.save_panel.saved.connect(lambda path: self.status.emit(f"saved {path}"))
@@ -203,30 +218,60 @@ class CalibrateWorkspace(QWidget):
         """True while a calibration job runs."""
         return self.job is not None and self.job.running
 
-    def rig_busy_reason(self) -> str | None:
-        """Why the Capture workspace may not use the rig now (a calibration or a live measurement runs on it)."""
+    def held_here(self) -> str | None:
+        """Why this workspace holds the rig now, in words (a calibration, a live measurement or the wizard uses
+        it; the reason the Capture workspace is refused), None when it does not."""
         if self.running:
             return "a calibration is running in the Calibrate workspace"
         if self.live_panel.measuring:
             return "the co-location live numbers are measuring in the Calibrate workspace"
-        if self.service.in_use_by:
-            return f"{self.service.in_use_by} uses the devices (Calibrate workspace)"
+        if self.service.held_by:
+            return f"{self.service.held_by} uses the devices (Calibrate workspace)"
         return None
 
-    def _guard(self) -> str | None:
+    @property
+    def holder(self) -> Holder:
+        """:attr:`~flexvox_app.gui.models.holder.Holder.CALIBRATING` while :meth:`held_here` names a reason, else
+        :attr:`~flexvox_app.gui.models.holder.Holder.IDLE` (Capture's holds are its own model's)."""
+        return Holder.CALIBRATING if self.held_here() else Holder.IDLE
+
+    def held_elsewhere(self) -> str | None:
+        """Why another workspace holds the rig now (a recording), None when it does not (asks ``held_elsewhere``
+        as given; the main window's also stops Capture's live view, which yields to the Calibrate workspace)."""
+        return self._held_elsewhere() if self._held_elsewhere is not None else None
+
+    def rig_busy_reason(self) -> str | None:
+        """Deprecated name of :meth:`held_here` (removed in the next release)."""
+        warn_renamed("CalibrateWorkspace.rig_busy_reason()", "CalibrateWorkspace.held_here()")
+        return self.held_here()
+
+    @property
+    def rig_guard(self) -> Callable[[], str | None] | None:
+        """Deprecated: the ``held_elsewhere`` callable given (removed in the next release; call
+        :meth:`held_elsewhere`)."""
+        warn_renamed("CalibrateWorkspace.rig_guard", "CalibrateWorkspace.held_elsewhere()")
+        return self._held_elsewhere
+
+    @rig_guard.setter
+    def rig_guard(self, held_elsewhere: Callable[[], str | None] | None) -> None:
+        warn_renamed("CalibrateWorkspace.rig_guard", "CalibrateWorkspace(held_elsewhere=)")
+        self._held_elsewhere = held_elsewhere
+
+    def _held_for_live(self) -> str | None:
+        """Why the live numbers may not measure now: a calibration runs, or another workspace holds the rig."""
         if self.running:
             return "a calibration is running"
-        return self.rig_guard() if self.rig_guard is not None else None
+        return self.held_elsewhere()
 
     def _claim_rig(self, user: str) -> str | None:
         """Take the rig for ``user``: refuse while Capture uses it, stop the live numbers, attach the
         projector display on a real rig. Returns the reason it cannot, or None."""
         paused = self.paused_by_run()
         self._holding = True  # the note says what this run paused until it ends
-        busy = self.rig_guard() if self.rig_guard is not None else None
-        if busy:
+        held = self.held_elsewhere()
+        if held:
             self._holding = False
-            return busy
+            return held
         self._resume_colocation = self.live_panel.live
         self.live_panel.set_live(False)
         refused = self.screen.attach(user)
@@ -434,7 +479,7 @@ class CalibrateWorkspace(QWidget):
         QTimer.singleShot(0, self, self._resume_paused)
 
     def recheck_refusals(self) -> None:
-        """The rig was freed (a recording ended): take the refusals that said it was busy off the screen."""
+        """The rig was freed (a recording ended): take the refusals that said it was held off the screen."""
         if self._before_refusal is not None and not self.running:
             self.step_label.setText(self._before_refusal)
             self._before_refusal = None

@@ -6,7 +6,9 @@ synchronisation wizard's; its phase and trigger delay replace the calibration's)
 Calibrate workspace's fresh run ("Use for capture"). A file or run made for another rig, camera
 or resolution is refused, in words, and the previous calibration is kept.
 
-The box says what recordings use: the homography's origin (a file by its path and content hash),
+The calibration in use lives in the :class:`~flexvox_app.gui.models.capture_model.CaptureModel`: the panel sets
+it (:meth:`~flexvox_app.gui.models.capture_model.CaptureModel.set_calibration`, refused in words while a recording
+runs) and shows it. The box says what recordings use: the homography's origin (a file by its path and content hash),
 the phase of the shutter patterns and the camera trigger delay that goes with it, and whether the
 camera applies the delay itself (a camera with a trigger-delay feature) or the operator must set it
 and tick "trigger delay set on the camera".
@@ -44,6 +46,7 @@ from PySide6.QtWidgets import (
 from flexvox_app.capture.plan import CapturePlan
 from flexvox_app.capture.rig_setup import trigger_delay_by
 from flexvox_app.gui.models.capture_calibration import capture_identity
+from flexvox_app.gui.models.capture_model import Action, CaptureModel
 from flexvox_app.gui.models.operator_words import in_gui_words
 from flexvox_app.gui.models.rig_service import RigService
 from flexvox_app.gui.widgets.questions import ask
@@ -81,19 +84,18 @@ class CalibrationPanel(QGroupBox):
         The capture rig (a calibration must match its identity).
     settings : AppSettings
         Remembers the calibration file in use; :meth:`restore` loads it again.
+    model : CaptureModel
+        Holds the calibration in use (its ``calibration_changed`` says when it changed) and the plan shown.
     """
 
-    changed = Signal(object)
-    """The :class:`~flexvox_calibration.capture_setup.CaptureCalibration` now used (None: uncalibrated)."""
     file_replaced = Signal(str)
     """The calibration file in use changed on disk: a line for the status bar."""
 
-    def __init__(self, service: RigService, settings: AppSettings, parent=None):
+    def __init__(self, service: RigService, settings: AppSettings, model: CaptureModel, parent=None):
         super().__init__("Calibration", parent)
         self.service = service
         self.settings = settings
-        self.calibration: CaptureCalibration | None = None
-        """The calibration recordings use (None: uncalibrated, the identity map and phase 0)."""
+        self.model = model
         self.error = ""
         """Why the last calibration offered was refused ("" when it was taken)."""
         self.note = ""
@@ -102,7 +104,6 @@ class CalibrationPanel(QGroupBox):
         """The Calibrate workspace's outcome in use when it came from a run not (yet) saved, else None."""
         self.accepted: set[str] = set()
         """The risks the operator already accepted for this calibration (see :meth:`record_risks`)."""
-        self._plan: CapturePlan | None = None
         self.file_changed = False
         """The calibration file restored at start differs from the one last used (its hash changed)."""
         self.offered_profile: Path | None = None
@@ -152,7 +153,17 @@ class CalibrationPanel(QGroupBox):
         self.load_button.clicked.connect(self._ask_calibration)
         self.sync_button.clicked.connect(self._ask_sync_profile)
         self.clear_button.clicked.connect(self.ask_clear)
-        self.delay_check.toggled.connect(lambda _: self._show())
+        self.delay_check.toggled.connect(self._on_delay_toggled)
+        model.plan_changed.connect(lambda _plan: self._show())
+        self._show()
+
+    @property
+    def calibration(self) -> CaptureCalibration | None:
+        """The calibration recordings use (None: uncalibrated, the identity map and phase 0): the model's."""
+        return self.model.calibration
+
+    def _on_delay_toggled(self, on: bool) -> None:
+        self.model.delay_set_by_hand = on
         self._show()
 
     # ------------------------------------------------------------------ choosing
@@ -181,31 +192,40 @@ class CalibrationPanel(QGroupBox):
         if path:
             self.load_sync_profile(path)
 
+    def _held(self) -> bool:
+        """True (with the model's words shown) while the calibration may not change (a recording runs)."""
+        refusal = self.model.refusal(Action.CALIBRATION)
+        if refusal is not None:
+            self.refuse(refusal.text)
+        return refusal is not None
+
     def _take(self, make, *, calibration_file=None, sync_file=None, outcome=None) -> bool:
+        if self._held():
+            return False
         try:
             calibration = make()
         except CalibrationRefused as exc:
             self.error = in_gui_words(str(exc))
             self._show()
             return False
-        self.calibration, self.error, self.note = calibration, "", ""
+        self.error, self.note = "", ""
         self.file_changed = False
         self.run_outcome = outcome
         self.accepted.clear()
         if calibration_file is not None:
-            self._remember(calibration_file, "")
+            self._remember(calibration_file, "", calibration)
             self._watch(Path(calibration_file).expanduser().resolve() if calibration_file else None)
         if sync_file is not None:
             self.settings.set(SYNC_PROFILE_FILE, str(sync_file))
+        self.model.set_calibration(calibration)  # calibration_changed: the workspace follows
         self._show()
-        self.changed.emit(calibration)
         return True
 
-    def _remember(self, calibration_file, sync_file) -> None:
+    def _remember(self, calibration_file, sync_file, calibration: CaptureCalibration | None) -> None:
         """Keep the files in use for the next start ("" forgets them)."""
         path = str(Path(calibration_file).expanduser().resolve()) if calibration_file else ""
         self.settings.set(CALIBRATION_FILE, path)
-        self.settings.set(CALIBRATION_SHA256, self.calibration.sha256 if path and self.calibration else "")
+        self.settings.set(CALIBRATION_SHA256, calibration.sha256 if path and calibration else "")
         self.settings.set(SYNC_PROFILE_FILE, str(sync_file))
 
     def load_calibration(self, path) -> bool:
@@ -239,15 +259,19 @@ class CalibrationPanel(QGroupBox):
         self.clear()
         return True
 
-    def clear(self) -> None:
-        """Record uncalibrated (the operator's choice: Record does not ask about it again)."""
-        self.calibration, self.error, self.note, self.run_outcome = None, "", "", None
+    def clear(self) -> bool:
+        """Record uncalibrated (the operator's choice: Record does not ask about it again); False (with the reason
+        shown) while a recording runs."""
+        if self._held():
+            return False
+        self.error, self.note, self.run_outcome = "", "", None
         self.file_changed = False
         self.accepted = {UNCALIBRATED}
-        self._remember("", "")
+        self._remember("", "", None)
         self._watch(None)
+        self.model.set_calibration(None)
         self._show()
-        self.changed.emit(None)
+        return True
 
     def restore(self) -> bool:
         """Load the calibration file (and sync profile) in use at the last start, checked against this rig.
@@ -346,18 +370,13 @@ class CalibrationPanel(QGroupBox):
 
     # ------------------------------------------------------------------ what recordings use
     def capture_calibration(self) -> CaptureCalibration:
-        """What recordings use (uncalibrated when none was chosen)."""
-        return self.calibration or CaptureCalibration()
+        """What recordings use (uncalibrated when none was chosen): the model's."""
+        return self.model.capture_calibration
 
     @property
     def delay_set_by_hand(self) -> bool:
         """The operator confirmed the trigger delay is set on a camera that cannot be told it."""
-        return self.delay_check.isChecked()
-
-    def show_plan(self, plan: CapturePlan) -> None:
-        """Say what a recording of ``plan`` uses (phase and delay at its timing)."""
-        self._plan = plan
-        self._show()
+        return self.model.delay_set_by_hand
 
     def record_risks(self, plan: CapturePlan) -> list[str]:
         """What would spoil a recording of ``plan``, in words: no calibration (:data:`UNCALIBRATED`), its file
@@ -426,28 +445,27 @@ class CalibrationPanel(QGroupBox):
             lines.append(f"<b>active</b>: {html.escape(cal.describe())}")
         if self.note:
             lines.append(html.escape(self.note))
-        needs_hand = False
-        if self._plan is not None:
-            phase, delay, warnings = cal.for_plan(self._plan.K, self._plan.period_us)
-            by = trigger_delay_by(self.service.rig.camera.capabilities, delay, self.delay_set_by_hand)
-            needs_hand = by in ("operator", None)
-            if by == "none":
-                lines.append(f"recordings use phase <b>{phase}</b>, no camera trigger delay")
+        plan = self.model.plan
+        phase, delay, warnings = cal.for_plan(plan.K, plan.period_us)
+        by = trigger_delay_by(self.service.rig.camera.capabilities, delay, self.delay_set_by_hand)
+        needs_hand = by in ("operator", None)
+        if by == "none":
+            lines.append(f"recordings use phase <b>{phase}</b>, no camera trigger delay")
+        else:
+            how = {"camera": "set by the camera", "operator": "set by you on the camera ✓"}.get(
+                by, "this camera cannot be told it: set it in the camera's own tool and tick the box below")
+            lines.append(f"recordings use phase <b>{phase}</b> and a <b>{delay:.0f} µs</b> camera trigger delay "
+                         f"({html.escape(how)})")
+        warnings = [in_gui_words(w) for w in warnings]
+        lines += [coloured(f"• {w}", AMBER) for w in warnings if self.calibration is not None]
+        if self.calibration is not None:
+            numbers = f"phase {phase}" + (f", {delay:.0f} µs trigger delay" if by != "none" else "")
+            if warnings:  # the timing changed since the sync was measured: not what "calibrated" promises
+                short = coloured(f"calibrated at another timing: {numbers} is a guess — {warnings[0]}", AMBER)
             else:
-                how = {"camera": "set by the camera", "operator": "set by you on the camera ✓"}.get(
-                    by, "this camera cannot be told it: set it in the camera's own tool and tick the box below")
-                lines.append(f"recordings use phase <b>{phase}</b> and a <b>{delay:.0f} µs</b> camera trigger delay "
-                             f"({html.escape(how)})")
-            warnings = [in_gui_words(w) for w in warnings]
-            lines += [coloured(f"• {w}", AMBER) for w in warnings if self.calibration is not None]
-            if self.calibration is not None:
-                numbers = f"phase {phase}" + (f", {delay:.0f} µs trigger delay" if by != "none" else "")
-                if warnings:  # the timing changed since the sync was measured: not what "calibrated" promises
-                    short = coloured(f"calibrated at another timing: {numbers} is a guess — {warnings[0]}", AMBER)
-                else:
-                    short += f": {html.escape(numbers)}"
-                if needs_hand and not self.delay_set_by_hand:
-                    short += coloured(" — set the delay on the camera (Calibration below)", AMBER)
+                short += f": {html.escape(numbers)}"
+            if needs_hand and not self.delay_set_by_hand:
+                short += coloured(" — set the delay on the camera (Calibration below)", AMBER)
         self.delay_check.setVisible(needs_hand)
         if self.offered_profile is not None and self.settings.get_str(SYNC_PROFILE_FILE, "") != str(
                 self.offered_profile.expanduser().resolve()):

@@ -1,9 +1,10 @@
 """The Capture workspace's code and timing: which code, how fast, and whether the projector accepts it.
 
-Its model is :class:`flexvox_app.capture.plan.CapturePlan` (the one ``flexvox capture`` builds): a tile's
+The plan is a :class:`flexvox_app.capture.plan.CapturePlan` (the one ``flexvox capture`` builds): a tile's
 designed identity code, its S-matrix multiplexed code, or a ``flexvox design -o`` file; the
-camera rate and exposure; the pattern exposure. :meth:`CodePanel.plan` returns the plan the
-controls describe and :attr:`CodePanel.changed` says when it changed.
+camera rate and exposure; the pattern exposure. The panel is a view over the
+:class:`~flexvox_app.gui.models.capture_model.CaptureModel`: each change of its controls sets the model's plan
+(:meth:`~flexvox_app.gui.models.capture_model.CaptureModel.set_plan`, which says so through ``plan_changed``).
 """
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ import html
 from functools import cache
 from pathlib import Path
 
-from PySide6.QtCore import Qt, Signal
+from PySide6.QtCore import Qt
 from PySide6.QtWidgets import (
     QCheckBox,
     QComboBox,
@@ -29,6 +30,7 @@ from PySide6.QtWidgets import (
 )
 
 from flexvox_app.capture.plan import TILES, CapturePlan
+from flexvox_app.gui.models.capture_model import CaptureModel
 from flexvox_app.gui.models.operator_words import in_gui_words
 from flexvox_app.gui.widgets.collapsible import Collapsible
 from flexvox_app.gui.widgets.rich_text import AMBER, GREEN, RED
@@ -60,14 +62,14 @@ class CodePanel(QWidget):
     ----------
     settings : AppSettings
         Remembers the choices between sessions.
+    model : CaptureModel
+        Holds the plan the controls describe.
     """
 
-    changed = Signal()
-    """The plan changed (code, rate or exposures)."""
-
-    def __init__(self, settings: AppSettings, parent: QWidget | None = None):
+    def __init__(self, settings: AppSettings, model: CaptureModel, parent: QWidget | None = None):
         super().__init__(parent)
         self.settings = settings
+        self.model = model
         self.code_file: Path | None = None
         """The ``flexvox design -o`` file in use (None: the tile's code)."""
         self._file_code = None
@@ -149,6 +151,10 @@ class CodePanel(QWidget):
 
     # ------------------------------------------------------------------ the plan
     def plan(self) -> CapturePlan:
+        """The plan in use (the model's, which the controls describe)."""
+        return self.model.plan
+
+    def _described(self) -> CapturePlan:
         """The plan the controls describe."""
         pe = int(self.projector_exposure.value())
         timing = dict(camera_hz=self.rate.value(),
@@ -231,7 +237,7 @@ class CodePanel(QWidget):
         s.set("capture/exposure_us", self.exposure.value())
         s.set("capture/projector_exposure_us", self.projector_exposure.value())
         self.set_locked(False)
-        plan = self.plan()
+        plan = self._described()
         lines = []
         try:
             lines.append(html.escape(plan.code_summary()))
@@ -259,4 +265,4 @@ class CodePanel(QWidget):
             lines.insert(1, f"<span style='color:{GREEN}'>✓ the projector accepts this timing "
                             "(exposure = period, or ≤ period − 230 µs)</span>")
         self.timing_label.setText("<br>".join(lines))
-        self.changed.emit()
+        self.model.set_plan(plan)

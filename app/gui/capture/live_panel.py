@@ -7,7 +7,10 @@ the histogram with the saturation level, and the motion-aware preview of the new
 (:mod:`flexvox_app.gui.capture.live_preview`: its own worker, newest wins, a bounded duty cycle, full resolution
 over the whole frame or a region the operator drags on the live view).
 
-While a recording runs the capture service owns the devices; the panel then shows
+The panel is a view over the :class:`~flexvox_app.gui.models.capture_model.CaptureModel`: it reads the plan and
+the calibration there, takes the devices there (:attr:`~flexvox_app.gui.models.capture_model.Holder.LIVE`), and
+shows the model's refusal of the live view. When a recording takes the devices the panel stops its live view; while
+the recording runs the capture service owns them, and the panel shows
 ``capture.latest()`` (the newest frame, a reference swap that never slows capture) through
 :meth:`LivePanel.follow_capture`.
 
@@ -28,6 +31,7 @@ from PySide6.QtWidgets import QCheckBox, QComboBox, QGroupBox, QHBoxLayout, QPus
 
 from flexvox_app.gui.capture.live_preview import LivePreview
 from flexvox_app.gui.capture.live_view import LiveStream
+from flexvox_app.gui.models.capture_model import Action, CaptureModel, Holder
 from flexvox_app.gui.models.live_source import LiveStartError, start_live, stop_live
 from flexvox_app.gui.models.live_stats import LiveStats, histogram, saturation_level, saturation_mask
 from flexvox_app.gui.models.operator_words import in_gui_words
@@ -53,32 +57,22 @@ class LivePanel(QObject):
     ----------
     service : RigService
     settings : AppSettings
-    plan, calibration : callable
-        ``() -> CapturePlan`` and ``() -> CaptureCalibration``: what the live view shows.
-    delay_set_by_hand : callable
-        ``() -> bool``: the operator confirmed the trigger delay is set on the camera.
-    busy : callable
-        ``() -> str | None``: why the rig cannot be used now.
+    model : CaptureModel
+        The plan and calibration the live view shows, who holds the devices, and the live view's refusal.
     """
 
     shown_running = Signal(bool)
     """The button now says the live view runs (True) or is stopped (False)."""
 
-    def __init__(self, service: RigService, settings: AppSettings, *, plan, calibration, busy,
-                 delay_set_by_hand=lambda: False, parent: QWidget):
+    def __init__(self, service: RigService, settings: AppSettings, model: CaptureModel, *, parent: QWidget):
         super().__init__(parent)
         self.service = service
         self.settings = settings
-        self._plan = plan
-        self._calibration = calibration
-        self._delay_set_by_hand = delay_set_by_hand
-        self._busy = busy
+        self.model = model
         self.stats = LiveStats()
         self.clock = time.monotonic
         """The clock the button's debounce reads (tests set their own)."""
         self._toggled_at = -math.inf
-        self.refused: str | None = None
-        """Why the last start was refused, while that is shown: "busy" (the rig) or "settings"; None otherwise."""
         self.stream = LiveStream(self)
         self._latest = None
         self._capture = None
@@ -92,6 +86,8 @@ class LivePanel(QObject):
             coloured(f"preview stopped: {in_gui_words(message)}", RED)))
         self.stream.frame.connect(self._on_frame)
         self.stream.failed.connect(self._on_failed)
+        model.refusal_changed.connect(self._on_refusal)
+        model.holder_changed.connect(self._on_holder)
 
     def _build(self, parent) -> None:
         live = QGroupBox("Live view", parent)
@@ -191,17 +187,16 @@ class LivePanel(QObject):
         """Start the live view; False (with the reason shown) when it cannot start."""
         if self.stream.running:
             return True
-        busy = self._busy()
-        if busy:
-            self._refuse(f"cannot start: {busy}", busy=True)
+        if not self.model.check(Action.LIVE):
             return False
-        plan = self._plan()
+        plan = self.model.plan
         try:
-            note = start_live(self.service, plan, self._calibration(), delay_set_by_hand=self._delay_set_by_hand())
+            note = start_live(self.service, plan, self.model.capture_calibration,
+                              delay_set_by_hand=self.model.delay_set_by_hand)
         except LiveStartError as exc:
-            self._refuse(f"cannot start: {in_gui_words(str(exc))}", busy=False)
+            self.model.refuse(Action.LIVE, f"cannot start: {in_gui_words(str(exc))}")
             return False
-        self.refused = None
+        self.model.take(Holder.LIVE)  # its refusal goes
         self.stats = LiveStats()
         self._latest = None
         self.stream.start(self.service.rig.camera, timeout_s=max(1.0, 3 / plan.camera_hz))
@@ -212,19 +207,21 @@ class LivePanel(QObject):
         self.set_button(True)
         return True
 
-    def _refuse(self, text: str, *, busy: bool) -> None:
-        self.live_label.setText(coloured(text, RED))
-        self.refused = "busy" if busy else "settings"
-        self.set_button(False)
-
-    def recheck(self, *, settings_changed: bool = False) -> None:
-        """Take a refusal off the screen once it no longer holds: the rig is free again, or (``settings_changed``)
-        the plan or calibration it was about changed."""
-        if self.refused is None or self.running:
+    def _on_refusal(self, action: Action, refusal) -> None:
+        """Show the model's refusal of the live view; "stopped" once it no longer holds."""
+        if action is not Action.LIVE:
             return
-        if (self.refused == "busy" and not self._busy()) or (self.refused == "settings" and settings_changed):
-            self.refused = None
+        if refusal is not None:
+            self.live_label.setText(coloured(refusal.text, RED))
+            self.set_button(False)
+        elif not self.running:
             self.live_label.setText("stopped")
+
+    def _on_holder(self, holder: Holder) -> None:
+        """A recording takes the devices: the live view stops first (its reader and the capture's must not both read
+        the camera)."""
+        if holder is Holder.RECORDING and self.running:
+            self.stop()
 
     def stop(self) -> None:
         """Stop the live view (devices stay connected)."""
@@ -232,6 +229,7 @@ class LivePanel(QObject):
         self.stop_preview()
         stopped = self.stream.stop()
         stop_live(self.service)
+        self.model.release(Holder.LIVE)
         if stopped:
             self.live_label.setText(f"stopped · {self.stats.text()}")
         self.image_panel.set_title("camera: live view stopped")
@@ -347,7 +345,7 @@ class LivePanel(QObject):
         if not self.preview_check.isChecked():
             self.preview_label.setText("preview: off")
             return
-        plan = self._plan()
+        plan = self.model.plan
         try:
             code = plan.shutter_code
         except ValueError as exc:

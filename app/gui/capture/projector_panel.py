@@ -14,6 +14,7 @@ from PySide6.QtCore import Qt
 from PySide6.QtGui import QGuiApplication
 from PySide6.QtWidgets import QFormLayout, QGroupBox, QLabel, QPushButton
 
+from flexvox_app.gui.models.capture_model import CaptureModel
 from flexvox_app.gui.models.live_source import projector_size
 from flexvox_app.gui.models.operator_words import in_gui_words
 from flexvox_app.gui.models.rig_service import RigService
@@ -31,16 +32,15 @@ class ProjectorPanel(QGroupBox):
     service : RigService
     runner : JobRunner
         Packs the patterns off the GUI thread.
-    plan, calibration : callable
-        ``() -> CapturePlan`` and ``() -> CaptureCalibration``: what is shown.
+    model : CaptureModel
+        The plan and the calibration shown.
     """
 
-    def __init__(self, service: RigService, runner: JobRunner, *, plan, calibration, parent=None):
+    def __init__(self, service: RigService, runner: JobRunner, model: CaptureModel, parent=None):
         super().__init__("Projector output (video input)", parent)
         self.service = service
         self.runner = runner
-        self._plan = plan
-        self._calibration = calibration
+        self.model = model
         self.window: ProjectorWindow | None = None
         """The open window, or None."""
         self._job = None
@@ -93,7 +93,7 @@ class ProjectorPanel(QGroupBox):
             self.label.setText("not shown: it is the only screen")
             self._set_button(False)
             return False
-        plan = self._plan()
+        plan = self.model.plan
         try:
             plan.code  # noqa: B018 - refuse an impossible code before packing
             camera_size = tuple(int(v) for v in self.service.rig.camera.sensor_shape)
@@ -103,7 +103,7 @@ class ProjectorPanel(QGroupBox):
             return False
         psize = projector_size(self.service.rig.projector)
         layout = self.service.rig.projector.pixel_layout
-        calibration = self._calibration()
+        calibration = self.model.capture_calibration
         self.label.setText(f"packing {plan.K} masks of {psize[1]}×{psize[0]} …")
         self._set_button(True)
 

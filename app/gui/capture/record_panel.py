@@ -2,12 +2,13 @@
 
 Recording runs through :class:`flexvox_app.capture.service.CaptureService` (built by
 :func:`flexvox_app.gui.models.recording.make_capture`, or the ``capture_factory`` given), the service
-``flexvox capture`` drives, with the plan and calibration the workspace shows.
+``flexvox capture`` drives, with the plan and calibration of the workspace's
+:class:`~flexvox_app.gui.models.capture_model.CaptureModel`, whose refusal of a recording the panel shows.
 
-Device ownership: a recording *owns* the devices. :meth:`RecordPanel.record` asks the workspace
-to stop its live view first (``before_record``: its reader thread and the capture's must not both
-read the camera); the capture service sets up the projector, sync box and camera, reads and
-writes on its own threads, and stops the devices at the end. Starting (a real projector's
+Device ownership: a recording *owns* the devices. :meth:`RecordPanel.record` takes them in the model
+(:attr:`~flexvox_app.gui.models.capture_model.Holder.RECORDING`), which stops the live view first (its reader
+thread and the capture's must not both read the camera); the capture service sets up the projector, sync box and
+camera, reads and writes on its own threads, and stops the devices at the end. Starting (a real projector's
 pattern upload takes seconds) and stopping (the writer drains its queue) run on the job runner,
 so the window never waits on them. The counters and the end come as the capture's events
 (``progress``, ``finished``), handed to the GUI thread by
@@ -36,6 +37,7 @@ from PySide6.QtWidgets import (
 )
 
 from flexvox_app.gui.capture.capture_signals import CaptureSignals
+from flexvox_app.gui.models.capture_model import Action, CaptureModel, Holder
 from flexvox_app.gui.models.operator_words import in_gui_words
 from flexvox_app.gui.models.recording import counters_text, ground_truth_cost, make_capture, result_text
 from flexvox_app.gui.models.rig_service import RigService
@@ -60,12 +62,9 @@ class RecordPanel(QObject):
     service : RigService
     settings : AppSettings
     runner : JobRunner
-    plan, calibration, delay_set_by_hand : callable
-        ``() -> CapturePlan``, ``() -> CaptureCalibration``, ``() -> bool``: what a recording uses.
-    busy : callable
-        ``() -> str | None``: why the rig cannot be used now (a calibration).
-    before_record : callable
-        Called before the capture takes the devices (stops the live view).
+    model : CaptureModel
+        What a recording uses (the plan, the calibration, the trigger delay set by hand), who holds the devices,
+        and the recording's refusal.
     confirm : callable
         ``(plan) -> bool``: asks the operator about what would spoil the recording (no calibration); False
         records nothing.
@@ -82,35 +81,33 @@ class RecordPanel(QObject):
     open_requested = Signal(object)
     """A recording's path the operator wants to review."""
 
-    def __init__(self, service: RigService, settings: AppSettings, runner: JobRunner, *, plan, calibration,
-                 delay_set_by_hand, busy, before_record, confirm=lambda plan: True, capture_factory=None,
-                 parent: QWidget):
+    def __init__(self, service: RigService, settings: AppSettings, runner: JobRunner, model: CaptureModel, *,
+                 confirm=lambda plan: True, capture_factory=None, parent: QWidget):
         super().__init__(parent)
         self.service = service
         self.settings = settings
         self.runner = runner
-        self._plan = plan
-        self._calibration = calibration
-        self._delay_set_by_hand = delay_set_by_hand
-        self._busy = busy
-        self._before_record = before_record
+        self.model = model
         self._confirm = confirm
         self.capture_factory = capture_factory
         self.capture = None
         """The running (or last) :class:`CaptureService`, None before the first recording."""
         self.last_result = None
-        self.recording = False
-        """True from Record until the capture has ended."""
         self._stop_job = None
         self._start_job = None
-        self.refused: str | None = None
-        """Why the last Record did nothing, while that is shown: "busy" (the rig) or "settings"; None otherwise."""
-        self._before_refusal = ""
+        self._before_refusal: str | None = None
+        """The result line a refusal covers (None: no refusal is shown); it comes back when the refusal goes."""
         self.signals = CaptureSignals(self)
         """The running capture's events, on the GUI thread."""
         self.signals.progress.connect(self._on_progress)
         self.signals.finished.connect(self._on_finished)
         self._build(parent)
+        model.refusal_changed.connect(self._on_refusal)
+
+    @property
+    def recording(self) -> bool:
+        """True from Record until the capture has ended (the model's holder is a recording)."""
+        return self.model.recording
 
     def _build(self, parent) -> None:
         rec = QGroupBox("Recording", parent)
@@ -190,7 +187,7 @@ class RecordPanel(QObject):
         if not on:
             return
         try:
-            plan = self._plan()
+            plan = self.model.plan
             K, hz = plan.K, plan.camera_hz
         except ValueError:
             return
@@ -221,25 +218,21 @@ class RecordPanel(QObject):
             self.path_edit.setText(path if path.endswith(".zarr") else path + ".zarr")
 
     def say(self, text: str, colour: str | None = None) -> None:
-        """Put ``text`` in the result line."""
-        self.refused = None
+        """Put ``text`` in the result line (a refusal shown there goes)."""
+        self.model.clear(Action.RECORD)
         self.recording_label.setText(coloured(text, colour) if colour else html.escape(text))
 
-    def _refuse(self, text: str, *, busy: bool) -> None:
-        """Say why Record did nothing; the line before comes back once the reason is gone (:meth:`recheck`)."""
-        if self.refused is None:
-            self._before_refusal = self.recording_label.text()
-        self.recording_label.setText(coloured(text, RED))
-        self.refused = "busy" if busy else "settings"
-
-    def recheck(self, *, settings_changed: bool = False) -> None:
-        """Take a refusal off the screen once it no longer holds: the rig is free again, or (``settings_changed``)
-        the plan, calibration or path it was about changed."""
-        if self.refused is None or self.recording:
+    def _on_refusal(self, action: Action, refusal) -> None:
+        """Show the model's refusal of a recording; the line before comes back once it no longer holds."""
+        if action is not Action.RECORD:
             return
-        if (self.refused == "busy" and not self._busy()) or (self.refused == "settings" and settings_changed):
-            self.refused = None
+        if refusal is not None:
+            if self._before_refusal is None:
+                self._before_refusal = self.recording_label.text()
+            self.recording_label.setText(coloured(refusal.text, RED))
+        elif self._before_refusal is not None:
             self.recording_label.setText(self._before_refusal)
+            self._before_refusal = None
 
     # ------------------------------------------------------------------ recording
     def record(self) -> bool:
@@ -250,41 +243,37 @@ class RecordPanel(QObject):
             return False
         text = self.path_edit.text().strip()
         if not text:
-            self._refuse("choose a recording path first (folder/name.zarr)", busy=False)
+            self.model.refuse(Action.RECORD, "choose a recording path first (folder/name.zarr)")
             return False
-        plan = self._plan()
-        if not plan.timing().ok:
-            self._refuse("cannot record: " + "; ".join(plan.timing().errors), busy=False)
+        if not self.model.check(Action.RECORD):  # the plan's timing, the rig held elsewhere
             return False
-        busy = self._busy()
-        if busy:
-            self._refuse(f"cannot record: {busy}", busy=True)
-            return False
+        plan = self.model.plan
         path = Path(text).expanduser()
         overwrite = path.exists()
         if overwrite and not replace_question(self.box, path, "recording"):
-            self._refuse(f"not recording: {path} is kept (choose another path)", busy=False)
+            self.model.refuse(Action.RECORD, f"not recording: {path} is kept (choose another path)")
             return False
         if not self._confirm(plan):
-            self._refuse("not recording: you chose not to record with this calibration", busy=False)
+            self.model.refuse(Action.RECORD, "not recording: you chose not to record with this calibration")
             return False
-        self._before_record()
+        self.model.take(Holder.RECORDING)  # the live view stops
         frames = self.frames_box.value() or None
         options = {} if self.capture_factory is None else {"factory": self.capture_factory}
         with_truth = self.service.simulated and self.truth_check.isChecked()
         try:
             capture = make_capture(self.service, plan, path, frames=frames,
-                                   calibration=self._calibration(), delay_set_by_hand=self._delay_set_by_hand(),
+                                   calibration=self.model.capture_calibration,
+                                   delay_set_by_hand=self.model.delay_set_by_hand,
                                    overwrite=overwrite, durable=self.durable_check.isChecked(),
                                    ground_truth=with_truth, **options)
         except (CaptureError, ValueError) as exc:
-            self._refuse(f"cannot record: {in_gui_words(str(exc))}", busy=False)
+            self.model.release(Holder.RECORDING)
+            self.model.refuse(Action.RECORD, f"cannot record: {in_gui_words(str(exc))}")
             return False
         self.capture = capture
         self.signals.follow(capture)  # before it starts: no event is missed
         self.settings.remember_folder(capture.path)
         self.last_result = None
-        self.recording = True
         self._stop_job = None
         self._finish_started = None
         self._with_truth = with_truth
@@ -314,7 +303,7 @@ class RecordPanel(QObject):
     def _on_start_failed(self, capture, message: str) -> None:
         if capture is not self.capture:
             return
-        self.recording = False
+        self.model.release(Holder.RECORDING)
         self.signals.release()
         self.counters_label.setText("not recording")
         self.say(f"cannot record: {in_gui_words(message)}", RED)
@@ -364,7 +353,7 @@ class RecordPanel(QObject):
         if capture is not self.capture or not self.recording:
             return
         self.signals.release()
-        self.recording = False
+        self.model.release(Holder.RECORDING)
         self._stop_job = None
         self.last_result = result
         if self._finish_started is not None and self._with_truth and result is not None and result.ok \
@@ -401,5 +390,5 @@ class RecordPanel(QObject):
                 _logger.info("recording stopped at shutdown: %s",
                              "did not stop in time" if result is None else result.message)
                 self.last_result = result
-            self.recording = False
+            self.model.release(Holder.RECORDING)
         self.signals.release()

@@ -1,10 +1,13 @@
 """The Capture workspace: code and timing, calibration, live view, recording, projector output.
 
-It only composes and wires its panels; each holds its own part:
+What Capture holds and decides is its :class:`~flexvox_app.gui.models.capture_model.CaptureModel` (Qt-free): the
+plan, the calibration, who holds the devices (:class:`~flexvox_app.gui.models.capture_model.Holder`: nobody, the
+live view, a recording, a calibration) and the refusals. The workspace composes its panels, views over that model,
+and wires them:
 
-- :class:`~flexvox_app.gui.capture.code_panel.CodePanel`: the :class:`~flexvox_app.capture.plan.CapturePlan`
+- :class:`~flexvox_app.gui.capture.code_panel.CodePanel`: chooses the :class:`~flexvox_app.capture.plan.CapturePlan`
   (tile, multiplexed or a ``flexvox design -o`` file; rate and exposures; the timing check);
-- :class:`~flexvox_app.gui.capture.calibration_panel.CalibrationPanel`: the
+- :class:`~flexvox_app.gui.capture.calibration_panel.CalibrationPanel`: chooses the
   :class:`~flexvox_calibration.capture_setup.CaptureCalibration` (a calibration file, a sync profile or
   the Calibrate workspace's run), the phase and the camera trigger delay in use;
 - :class:`~flexvox_app.gui.capture.live_panel.LivePanel`: the live view, histogram, saturation and the
@@ -13,10 +16,9 @@ It only composes and wires its panels; each holds its own part:
   service ``flexvox capture`` drives, counters, the end, "Open in Review";
 - :class:`~flexvox_app.gui.capture.projector_panel.ProjectorPanel`: the packed patterns full-screen.
 
-The plan and the calibration are read from their panels whenever something needs them, so the
-live view, a recording and the projector window always use the same two (and the same
-patterns: :meth:`CapturePlan.patterns`). A recording owns the devices: it stops the live view
-first, and the live panel then shows the capture's newest frames.
+The live view, a recording and the projector window read the plan and the calibration from the model, so they
+always use the same two (and the same patterns: :meth:`CapturePlan.patterns`). A recording owns the devices: taking
+them in the model stops the live view first, and the live panel then shows the capture's newest frames.
 """
 
 from __future__ import annotations
@@ -33,6 +35,7 @@ from flexvox_app.gui.capture.code_panel import CodePanel
 from flexvox_app.gui.capture.live_panel import LivePanel
 from flexvox_app.gui.capture.projector_panel import ProjectorPanel
 from flexvox_app.gui.capture.record_panel import RecordPanel
+from flexvox_app.gui.models.capture_model import Action, CaptureModel, Holder
 from flexvox_app.gui.models.rig_service import RigService
 from flexvox_app.gui.widgets.qt_jobs import JobRunner
 from flexvox_app.gui.widgets.settings import AppSettings
@@ -53,9 +56,9 @@ class CaptureWorkspace(QWidget):
         Starts and stops recordings off the GUI thread (default: one of its own).
     capture_factory : callable, optional
         ``(rig, plan, path, **options) -> CaptureService`` (default the capture service itself).
-    rig_guard : callable, optional
-        ``() -> str | None``: a reason the rig is busy elsewhere (a calibration), checked before
-        the live view or a recording starts.
+    held_elsewhere : callable, optional
+        ``() -> str | None``: why the Calibrate workspace holds the rig (None: it does not), asked before the live
+        view or a recording starts; while it names a reason the model's holder is ``Holder.CALIBRATING``.
     """
 
     recording_finished = Signal(object)
@@ -66,33 +69,31 @@ class CaptureWorkspace(QWidget):
     """The :class:`~flexvox_calibration.capture_setup.CaptureCalibration` now used (None: uncalibrated)."""
 
     def __init__(self, service: RigService, settings: AppSettings, runner: JobRunner | None = None, *,
-                 capture_factory=None, rig_guard=None, parent: QWidget | None = None):
+                 capture_factory=None, held_elsewhere=None, parent: QWidget | None = None):
         super().__init__(parent)
         self.service = service
         self.settings = settings
         self.runner = runner or JobRunner(parent=self)
-        self.rig_guard = rig_guard
-        self.code = CodePanel(settings)
-        self.calibration_panel = CalibrationPanel(service, settings)
-        self.live_panel = LivePanel(service, settings, plan=self.plan, calibration=self.capture_calibration,
-                                    busy=self._busy_reason,
-                                    delay_set_by_hand=lambda: self.calibration_panel.delay_set_by_hand, parent=self)
-        self.record_panel = RecordPanel(service, settings, self.runner, plan=self.plan,
-                                        calibration=self.capture_calibration,
-                                        delay_set_by_hand=lambda: self.calibration_panel.delay_set_by_hand,
-                                        busy=self._guard, before_record=self._before_record,
-                                        confirm=self._confirm_record, capture_factory=capture_factory, parent=self)
-        self.projector = ProjectorPanel(service, self.runner, plan=self.plan, calibration=self.capture_calibration)
+        self.model = CaptureModel(held_elsewhere=held_elsewhere)
+        """The plan, the calibration, who holds the devices and the refusals."""
+        self.code = CodePanel(settings, self.model)
+        self.calibration_panel = CalibrationPanel(service, settings, self.model)
+        self.live_panel = LivePanel(service, settings, self.model, parent=self)
+        self.record_panel = RecordPanel(service, settings, self.runner, self.model, confirm=self._confirm_record,
+                                        capture_factory=capture_factory, parent=self)
+        self.projector = ProjectorPanel(service, self.runner, self.model)
         self._layout()
-        self.code.changed.connect(self._plan_changed)
-        self.calibration_panel.changed.connect(self._calibration_changed)
+        self.model.plan_changed.connect(lambda _plan: self._plan_changed())
+        self.model.calibration_changed.connect(self._calibration_changed)
+        self.model.holder_changed.connect(lambda _holder: self._update_buttons())
         self.record_panel.started.connect(self.live_panel.follow_capture)
         self.record_panel.started.connect(lambda _: self.calibration_panel.forget_refusal())
         self.live_panel.live_button.toggled.connect(lambda on: on and self.calibration_panel.forget_refusal())
         self.record_panel.finished.connect(self._recording_ended)
         self.record_panel.changed.connect(self._update_buttons)
         self.record_panel.open_requested.connect(self.open_requested)
-        self.record_panel.path_edit.textChanged.connect(lambda _: self.record_panel.recheck(settings_changed=True))
+        self.record_panel.path_edit.textChanged.connect(
+            lambda _: self.model.recheck(settings_changed=True, actions=(Action.RECORD,)))
         service.subscribe(self._on_devices)
         self.destroyed.connect(lambda *_: service.unsubscribe(self._on_devices))
         self._plan_changed()
@@ -108,24 +109,23 @@ class CaptureWorkspace(QWidget):
 
     # ------------------------------------------------------------------ what everything uses
     def plan(self) -> CapturePlan:
-        """The plan the controls describe."""
-        return self.code.plan()
+        """The plan the controls describe (the model's)."""
+        return self.model.plan
 
     @property
     def calibration(self) -> CaptureCalibration | None:
         """The calibration chosen (None: uncalibrated)."""
-        return self.calibration_panel.calibration
+        return self.model.calibration
 
     def capture_calibration(self) -> CaptureCalibration:
         """What recordings, the live view and the projector window use (uncalibrated when none was chosen)."""
-        return self.calibration_panel.capture_calibration()
+        return self.model.capture_calibration
 
     def set_tile(self, tile: tuple[int, int]) -> None:
         """Choose a tile offered in the list."""
         self.code.set_tile(tile)
 
     def _plan_changed(self) -> None:
-        self.calibration_panel.show_plan(self.plan())
         self.projector.patterns_changed()
         self._update_buttons()
         self.recheck_refusals(settings_changed=True)
@@ -137,17 +137,16 @@ class CaptureWorkspace(QWidget):
         self.recheck_refusals(settings_changed=True)
 
     def _on_devices(self, _role: str) -> None:
-        self.recheck_refusals()
+        self.model.refresh()  # who holds the rig may have changed; refusals that said it was held may go
 
     def recheck_refusals(self, *, settings_changed: bool = False) -> None:
         """Take refusals off the screen that no longer hold (the rig is free again; the plan or calibration they
         were about changed)."""
-        self.live_panel.recheck(settings_changed=settings_changed)
-        self.record_panel.recheck(settings_changed=settings_changed)
+        self.model.recheck(settings_changed=settings_changed)
 
     def _update_buttons(self) -> None:
         ok = self.plan().timing().ok
-        recording = self.record_panel.recording
+        recording = self.model.recording
         self.live_panel.live_button.setEnabled((ok and not recording) or self.live_panel.running)
         self.record_panel.update_buttons(ok)
         self.code.set_locked(recording)
@@ -155,12 +154,13 @@ class CaptureWorkspace(QWidget):
 
     # ------------------------------------------------------------------ calibration
     def load_calibration(self, path) -> bool:
-        """Use the calibration file at ``path``; False (with the reason shown, the previous one kept) when refused."""
-        return self._unless_recording() and self.calibration_panel.load_calibration(path)
+        """Use the calibration file at ``path``; False (with the reason shown, the previous one kept) when refused
+        (also while a recording runs)."""
+        return self.calibration_panel.load_calibration(path)
 
     def load_sync_profile(self, path) -> bool:
         """Use a sync profile's phase and trigger delay; False (with the reason shown) when refused."""
-        return self._unless_recording() and self.calibration_panel.load_sync_profile(path)
+        return self.calibration_panel.load_sync_profile(path)
 
     def use_outcome(self, outcome, saved_path=None) -> bool:
         """Use the Calibrate workspace's result; False (with the reason shown) when refused.
@@ -172,7 +172,7 @@ class CaptureWorkspace(QWidget):
             return self.load_calibration(saved_path)
         run = None if outcome is None else outcome.run
         identity = None if outcome is None else outcome.identity
-        return self._unless_recording() and self.calibration_panel.use_run(run, identity, outcome=outcome)
+        return self.calibration_panel.use_run(run, identity, outcome=outcome)
 
     def outcome_saved(self, outcome, path) -> bool:
         """The Calibrate workspace saved ``outcome`` to ``path``: when recordings use that run, they now use the
@@ -180,31 +180,30 @@ class CaptureWorkspace(QWidget):
         if self.calibration_panel.file_in_use is not None and path is not None and \
                 Path(path).expanduser().resolve() == self.calibration_panel.file_in_use:
             self.calibration_panel.check_file()  # saved over the file in use: said at once, the new one offered
-        if outcome is None or self.calibration_panel.run_outcome is not outcome or self.record_panel.recording:
+        if outcome is None or self.calibration_panel.run_outcome is not outcome or self.model.recording:
             return False
         return self.calibration_panel.load_calibration(path)
 
-    def clear_calibration(self) -> None:
-        """Record uncalibrated (identity homography, phase 0, no trigger delay)."""
-        if self._unless_recording():
-            self.calibration_panel.clear()
+    def clear_calibration(self) -> bool:
+        """Record uncalibrated (identity homography, phase 0, no trigger delay); False (with the reason shown) while
+        a recording runs."""
+        return self.calibration_panel.clear()
 
     @property
     def calibration_error(self) -> str:
         """Why the last calibration offered was refused ("" when it was taken)."""
         return self.calibration_panel.error
 
-    def _unless_recording(self) -> bool:
-        if self.record_panel.recording:
-            self.calibration_panel.refuse("a recording is running: the calibration changes after it")
-            return False
-        return True
-
     # ------------------------------------------------------------------ live view and recording
     @property
     def live(self) -> bool:
         """True while the live view runs."""
         return self.live_panel.running
+
+    @property
+    def holder(self) -> Holder:
+        """Who holds the devices now (the model's)."""
+        return self.model.holder
 
     def start_live(self) -> bool:
         """Start the live view; False (with the reason shown) when it cannot start."""
@@ -217,7 +216,7 @@ class CaptureWorkspace(QWidget):
     @property
     def recording(self) -> bool:
         """True from Record until the capture has ended."""
-        return self.record_panel.recording
+        return self.model.recording
 
     @property
     def capture(self):
@@ -237,20 +236,8 @@ class CaptureWorkspace(QWidget):
         """Stop the recording early (it keeps every frame captured)."""
         self.record_panel.stop()
 
-    def _busy_reason(self) -> str | None:
-        if self.record_panel.recording:
-            return "a recording is running"
-        return self._guard()
-
-    def _guard(self) -> str | None:
-        return self.rig_guard() if self.rig_guard is not None else None
-
     def _confirm_record(self, plan) -> bool:
         return self.calibration_panel.confirm_record(plan, self)
-
-    def _before_record(self) -> None:
-        if self.live_panel.running:
-            self.live_panel.stop()
 
     def _recording_ended(self, result) -> None:
         self.live_panel.end_capture()

@@ -14,11 +14,15 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from flexvox_app.gui.models.device_words import short_where, where_it_ran
 from flexvox_core.methods import Method, run
+
+if TYPE_CHECKING:
+    from flexvox_core.accuracy import AccuracyEstimate
 
 Progress = Callable[[int, int], None]
 
@@ -69,6 +73,11 @@ class ReconstructionResult:
         Where it ran: ``cpu`` or ``cuda`` (an NVIDIA GPU: jobs take it when one is usable).
     device_note : str or None
         Why it ran on the CPU although a GPU was there (its method has no GPU path).
+    estimate : AccuracyEstimate or None
+        Its PSNR estimated from the recording alone (:func:`flexvox_core.accuracy.estimate_recording`), for a
+        full reconstruction of a recording without ground truth once the estimate is made.
+    no_estimate : str or None
+        Why it has no estimate (the method is refused, or the recording cannot be probed), in words.
     """
 
     video: np.ndarray
@@ -81,6 +90,8 @@ class ReconstructionResult:
     extra: dict = field(default_factory=dict)
     device: str = "cpu"
     device_note: str | None = None
+    estimate: AccuracyEstimate | None = None
+    no_estimate: str | None = None
 
     @property
     def where(self) -> str:
@@ -90,9 +101,23 @@ class ReconstructionResult:
 
     def label(self) -> str:
         """Method, time, where it ran (the CPU or the GPU by name; why not the GPU stays in :attr:`where`) and
-        score, for lists and titles."""
-        score = f", {self.psnr:.2f} dB" if self.psnr is not None else ""
+        score (the PSNR against the ground truth, else the estimate's short form, :func:`short_estimate`), for
+        lists and titles."""
+        if self.psnr is not None:
+            score = f", {self.psnr:.2f} dB"
+        elif self.estimate is not None:
+            score = f", {short_estimate(self.estimate)}"
+        else:
+            score = ""
         return f"{self.method.label()} ({self.seconds:.2f} s {short_where(self.device)}{score})"
+
+
+def short_estimate(estimate: AccuracyEstimate) -> str:
+    """The estimate's line (:meth:`~flexvox_core.accuracy.AccuracyEstimate.line`) up to its half-width:
+    ``estimated PSNR NN.NN dB (± W.WW dB)``."""
+    line = estimate.line()
+    head, sep, _ = line.partition(", ")
+    return f"{head})" if sep and "(" in head and ")" not in head else line
 
 
 def run_reconstruction(frames, code, method: Method, *, cancel: CancelToken | None = None,

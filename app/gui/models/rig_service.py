@@ -1,10 +1,11 @@
 """The rig's devices as the device panel sees them (Qt-free service).
 
 Wraps a :class:`rig_drivers.interfaces.Rig`: each device's role, name, state, whether it is
-simulated, the last error in words, and who is using the devices (a calibration, co-location live,
+simulated, the last error in words, and who holds the devices (a calibration, co-location live,
 the synchronisation wizard: they open and close the devices themselves, so their state flickers
-while they run; :meth:`RigService.begin_use` says who holds them, and :meth:`RigService.end_use`
-connects again what the operator had connected before). :meth:`RigService.connect` opens and enables a device,
+while they run; :meth:`RigService.begin_use` says who holds them (:attr:`RigService.holder`,
+:attr:`RigService.held_by`), and :meth:`RigService.end_use` connects again what the operator had connected
+before). :meth:`RigService.connect` opens and enables a device,
 :meth:`RigService.disconnect` closes it; failures are caught *as results* (kept in
 ``last_error`` and logged at warning level), never swallowed. Views subscribe with
 :meth:`RigService.subscribe` (a plain callback, napari-style events without Qt).
@@ -16,6 +17,8 @@ import logging
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from flexvox_app.gui.models.holder import Holder
+from flexvox_core.deprecations import warn_renamed
 from rig_drivers.errors import DeviceError
 from rig_drivers.interfaces import Device, DeviceState, LedControl, Rig
 
@@ -176,9 +179,23 @@ class RigService:
         return self._attempt("projector", "setting the LED currents", lambda: leds.set_led_currents(red, green, blue))
 
     @property
-    def in_use_by(self) -> str | None:
-        """Who uses the devices now ("the calibration"), None when nobody does."""
+    def held_by(self) -> str | None:
+        """Who holds the devices now, in words ("the calibration"), None when nobody does."""
         return next(iter(self._users), None)
+
+    @property
+    def holder(self) -> Holder:
+        """:attr:`~flexvox_app.gui.models.holder.Holder.CALIBRATING` while a user holds the devices (those of
+        :meth:`begin_use` are the Calibrate workspace's: the calibration, its live numbers, the synchronisation
+        wizard), else :attr:`~flexvox_app.gui.models.holder.Holder.IDLE`. Capture's live view and recordings
+        are held in :class:`~flexvox_app.gui.models.capture_model.CaptureModel`, not here."""
+        return Holder.CALIBRATING if self._users else Holder.IDLE
+
+    @property
+    def in_use_by(self) -> str | None:
+        """Deprecated name of :attr:`held_by` (removed in the next release)."""
+        warn_renamed("RigService.in_use_by", "RigService.held_by", stacklevel=3)
+        return self.held_by
 
     def begin_use(self, user: str) -> None:
         """``user`` opens and closes the devices from now on (they are held: the panel says so)."""
@@ -188,18 +205,21 @@ class RigService:
         if self._users:  # a user before this one remembers what the operator had connected
             connected = set()
         self._users[user] = connected
-        _logger.info("devices in use by %s", user)
+        _logger.info("devices held by %s", user)
         for role in ROLES:
             self.notify(role)
 
     def end_use(self, user: str) -> list[str]:
-        """``user`` is done with the devices: connect again those the operator had connected before it began
-        (its own session closed them). Returns the roles connected again."""
+        """``user`` is done with the devices: connect again those the operator had connected before the first
+        holder began (its own session closed them), once no one holds them; while another still does, that one
+        connects them when it is done, whichever of the two began first. Returns the roles connected again."""
         if user not in self._users:
             return []
         connected = self._users.pop(user)
         again = []
-        if not self._users:
+        if self._users:  # another still holds the devices: it connects them again when it is done
+            next(iter(self._users.values())).update(connected)
+        else:
             for role in ROLES:
                 dev = self.device(role)
                 if role in connected and dev is not None and dev.state is not DeviceState.ENABLED:

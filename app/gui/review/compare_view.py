@@ -1,7 +1,14 @@
-"""Compare tab of the Review workspace: two reconstructions side by side, views linked."""
+"""Compare tab of the Review workspace: two reconstructions side by side, views linked.
+
+Each result in the lists is named by its label: method, time, where it ran and its score, the PSNR against the
+ground truth where the recording has one, else the estimate from the recording alone once it is made
+(``estimated PSNR NN.NN dB (± …)``; the whole estimate line is the item's tooltip, and a method the estimate does
+not serve says ``no estimate: <why>`` there).
+"""
 
 from __future__ import annotations
 
+import numpy as np
 from PySide6.QtCore import Qt
 from PySide6.QtWidgets import QComboBox, QFormLayout, QGridLayout, QWidget
 
@@ -47,14 +54,21 @@ class CompareView(QWidget):
         for box in (self.box_a, self.box_b):
             box.blockSignals(True)
             box.clear()
-            box.addItems([f"{i + 1}. {r.label()}" for i, r in enumerate(self._results)])
-            for i, r in enumerate(self._results):
-                box.setItemData(i, r.label(), Qt.ItemDataRole.ToolTipRole)
+            box.addItems([""] * len(self._results))
             box.blockSignals(False)
+        self.update_labels()
         n = len(self._results)
         if n:
             self.box_a.setCurrentIndex(max(0, n - 2))
             self.box_b.setCurrentIndex(n - 1)
+        self.show_subframe(self._s)
+
+    def update_labels(self) -> None:
+        """Name each result again (an estimate came in), keeping A and B as chosen."""
+        for box in (self.box_a, self.box_b):
+            for i, r in enumerate(self._results):
+                box.setItemText(i, f"{i + 1}. {r.label()}")
+                box.setItemData(i, tooltip(r), Qt.ItemDataRole.ToolTipRole)
         self.show_subframe(self._s)
 
     def select(self, a: int, b: int) -> None:
@@ -79,4 +93,15 @@ class CompareView(QWidget):
                 from flexvox_core.metrics import psnr
 
                 score = f" · this sub-frame {psnr(self._truth[j], r.video[j]):.2f} dB"
+            elif r.estimate is not None and np.isfinite(r.estimate.per_frame[j // self._K]):
+                score = f" · this frame estimated PSNR {r.estimate.per_frame[j // self._K]:.2f} dB"
             panel.set_title(f"{name}: {r.label()}{score}")
+
+
+def tooltip(r: ReconstructionResult) -> str:
+    """A result's label, and its whole estimate line or why it has none."""
+    if r.estimate is not None:
+        return f"{r.label()}\n{r.estimate.line()}"
+    if r.no_estimate:
+        return f"{r.label()}\nno estimate: {r.no_estimate}"
+    return r.label()

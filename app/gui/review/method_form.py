@@ -8,12 +8,19 @@ For a method without one (motion-aware chooses the trade per voxel, GAP-TV has n
 moving it previews the fixed diffusion tensor at that position beside the chosen method
 (:meth:`MethodForm.preview_method`), for comparison, without switching method; Reconstruct still runs the
 chosen method.
+
+Below the slider, "choose … by the estimate" (with ``offer_auto``) offers ``auto`` for a knob with default candidates
+(:data:`flexvox_core.choice.AUTO_KNOBS`: diffusion's time, re-binning's division): checked, Reconstruct is to try
+each candidate and keep the one with the best PSNR estimated from the recording alone (:meth:`MethodForm.auto_knob`,
+:func:`flexvox_app.gui.models.choice_job.run_choice`, off the GUI thread as every job). It is enabled only where
+the estimate offers the method (:func:`flexvox_core.accuracy.refusal`); elsewhere its tool tip says why.
 """
 
 from __future__ import annotations
 
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
+    QCheckBox,
     QComboBox,
     QFormLayout,
     QHBoxLayout,
@@ -49,14 +56,18 @@ class MethodForm(QWidget):
     ----------
     settings : AppSettings
         Where the choices persist (``review/...`` keys).
+    offer_auto : bool
+        Show "choose … by the estimated PSNR (auto)" (:meth:`auto_knob`): for a workspace whose Reconstruct runs the
+        choice (:func:`~flexvox_app.gui.models.choice_job.run_choice`) when it names a knob.
     """
 
     changed = Signal()
     """Any knob changed (the Review workspace re-plans its preview and expectation)."""
 
-    def __init__(self, settings: AppSettings, parent: QWidget | None = None):
+    def __init__(self, settings: AppSettings, parent: QWidget | None = None, *, offer_auto: bool = False):
         super().__init__(parent)
         self.settings = settings
+        self.offer_auto = offer_auto
         self._divisions: list = []
         self._comparing = False
         self._beside = False
@@ -88,6 +99,10 @@ class MethodForm(QWidget):
         layout.addLayout(top)
         layout.addLayout(ends)
         layout.addWidget(self.slider_text)
+        self.auto_box = QCheckBox()
+        """Checked: the knob :meth:`auto_knob` names is chosen by the estimate when Reconstruct runs."""
+        self.auto_box.setChecked(settings.get_bool("review/auto", False))
+        layout.addWidget(self.auto_box)
         self.options = Collapsible("method options", self.stack, settings=settings, key="review/show_options")
         """The chosen method's knobs, folded (the workspace places it below its actions)."""
 
@@ -95,6 +110,7 @@ class MethodForm(QWidget):
         self.stack.setCurrentIndex(self.method_box.currentIndex())
         self.method_box.currentIndexChanged.connect(self._on_method)
         self.slider.valueChanged.connect(self._on_slider)
+        self.auto_box.toggled.connect(self._on_knob)
         for page in self.pages.values():
             page.changed.connect(self._on_knob)
         self._refresh()
@@ -131,6 +147,34 @@ class MethodForm(QWidget):
     def method(self) -> Method:
         """The :class:`Method` the form describes (what Reconstruct runs)."""
         return self._method_for(self.method_box.currentText())
+
+    def auto_knob(self) -> str | None:
+        """The knob Reconstruct is to choose by the estimated PSNR (``time``, ``block``), or None: the box is
+        unchecked, the method has no knob to choose, or the estimate refuses it (:meth:`auto_refusal`)."""
+        knob = self._auto_candidate()
+        if knob is None or not self.offer_auto or not self.auto_box.isChecked() or self.auto_refusal() is not None:
+            return None
+        return knob
+
+    def auto_refusal(self) -> str | None:
+        """Why the chosen method's knob cannot be chosen by the estimate now, or None when it can."""
+        from flexvox_core.accuracy import refusal
+
+        name = self.method_box.currentText()
+        knob = self._auto_candidate()
+        if knob is None:
+            return f"{name} has no knob to choose by the estimate"
+        try:
+            why = refusal(self.method())
+        except ValueError as exc:  # a value the method refuses: Reconstruct says so
+            return str(exc)
+        return None if why is None else f"the estimate refuses {name}: {why}"
+
+    def _auto_candidate(self) -> str | None:
+        from flexvox_core.choice import AUTO_KNOBS
+
+        knobs = AUTO_KNOBS.get(self.method_box.currentText(), ())
+        return knobs[0] if knobs else None
 
     @property
     def comparing(self) -> bool:
@@ -192,14 +236,38 @@ class MethodForm(QWidget):
     def _on_change(self, *_):
         self.stack.setCurrentIndex(self.method_box.currentIndex())
         self.settings.set("review/method", self.method_box.currentText())
+        self.settings.set("review/auto", self.auto_box.isChecked())
         self.settings.set("review/continuum", self.position)
         for page in self.pages.values():
             page.save()
         self._refresh()
         self.changed.emit()
 
+    def _refresh_auto(self, spec) -> None:
+        from flexvox_core.choice import AUTO_KNOBS
+
+        chosen = self.auto_knob()
+        for name, page in self.pages.items():  # a knob being chosen is greyed on its page; the others stay usable
+            for k in AUTO_KNOBS.get(name, ()):
+                if k in page.widgets:
+                    page.widgets[k].setEnabled(not (name == spec.name and chosen == k))
+        self.slider.setEnabled(not (chosen is not None and spec.option(chosen).kind is DIVISION))
+        knob = self._auto_candidate()
+        self.auto_box.setVisible(knob is not None and self.offer_auto)
+        if knob is None:
+            return
+        option = spec.option(knob)
+        what = "division" if option.kind is DIVISION else option.label or knob
+        self.auto_box.setText(f"choose the {what} by the estimated PSNR (auto)")
+        why = self.auto_refusal()
+        self.auto_box.setEnabled(why is None)
+        self.auto_box.setToolTip(why or (f"Reconstruct tries each candidate {what}, estimates each result's PSNR "
+                                         "from the recording alone and keeps the best (each candidate costs a "
+                                         "reconstruction and the estimate's probe run)"))
+
     def _refresh(self) -> None:
         spec = get(self.method_box.currentText())
+        self._refresh_auto(spec)
         kinds = {o.kind for o in spec.option_specs}
         if DIVISION in kinds:
             if self._divisions:

@@ -1,7 +1,8 @@
 """The Review workspace: open a recording, play it, reconstruct, preview, compare and export.
 
-The widget shows a :class:`~flexvox_app.gui.models.review_model.ReviewModel` (Qt-free: the recording open, playback,
-preview scheduling, the jobs and the export) and forwards the operator's actions to it. It keeps what needs Qt:
+The widget shows a :class:`~flexvox_app.gui.models.review_model.ReviewModel` (Qt-free: the recording open, and its
+parts: playback, preview scheduling, the jobs and the export), connected to each part's signals, and forwards the
+operator's actions to the part they concern. It keeps what needs Qt:
 the controls and the views, the file dialogs and the questions, the playback timer and the short wait that
 gathers knob changes into one preview, and the method form, whose choices it hands to the model.
 """
@@ -94,11 +95,23 @@ class ReviewWorkspace(QWidget):
         self._build()
         self.form.changed.connect(self._on_form_changed)
         m = self.model
-        m.changed.connect(self._on_changed)
-        m.preview_wanted.connect(self.preview_timer.start)
+        p, j = m.playback, m.jobs
+        m.path_changed.connect(lambda line: self.path_label.setText(rich(line)))
         m.opened.connect(self._opened)
-        m.result_added.connect(self._result_added)
         m.status.connect(self.status.emit)
+        p.frame_changed.connect(self._show_frame)
+        p.shown_changed.connect(self._show_shown)
+        p.comparison_changed.connect(self._show_comparison)
+        p.playing_changed.connect(self._show_playing)
+        p.speed_changed.connect(self._speed_changed)
+        m.preview.preview_wanted.connect(self.preview_timer.start)
+        j.result_changed.connect(lambda line: self.result_label.setText(rich(line)))
+        j.export_changed.connect(lambda line: self.export_label.setText(rich(line)))
+        j.progress_changed.connect(self._show_progress)
+        j.expected_changed.connect(self._refresh_expected)
+        j.jobs_changed.connect(self._refresh_enabled)
+        j.result_added.connect(self._result_added)
+        j.estimate_changed.connect(lambda result: self.compare_view.update_labels())
         self._refresh_enabled()
 
     # ------------------------------------------------------------------ layout
@@ -114,16 +127,16 @@ class ReviewWorkspace(QWidget):
         v.addWidget(self.summary_label)
 
         box = QGroupBox("Reconstruction")
-        self.form = MethodForm(self.settings)
+        self.form = MethodForm(self.settings, offer_auto=True)
         self.preview_check = QCheckBox("live preview around the current frame")
-        self.preview_check.setChecked(self.model.preview_on)
+        self.preview_check.setChecked(self.model.preview.preview_on)
         self.expected_label = StatusLine(lines=3)
         self.reconstruct_button = QPushButton("Reconstruct")
         self.cancel_button = QPushButton("Cancel")
         self.progress = QProgressBar()
         self.progress.setRange(0, 1)
         self.progress.setValue(0)
-        self.result_label = StatusLine(lines=2)
+        self.result_label = StatusLine(lines=3)  # an estimate (recordings without ground truth) adds a line
         buttons = QHBoxLayout()
         buttons.addWidget(self.reconstruct_button, 1)
         buttons.addWidget(self.cancel_button)
@@ -163,13 +176,13 @@ class ReviewWorkspace(QWidget):
         self.frame_label = QLabel("")
         self.fps = QSpinBox()
         self.fps.setRange(1, 10_000)
-        self.fps.setValue(self.model.fps)
+        self.fps.setValue(self.model.playback.fps)
         self.fps.setSuffix(" sub-frames/s")
         self.fps.setToolTip("playback speed in sub-frames per second (a camera frame is K sub-frames; raw frames "
                             "advance a whole frame at a time)")
         self.real_time = QCheckBox("real time")
         self.real_time.setToolTip("play at the recording's own speed: its sub-frame rate (camera rate × K)")
-        self.real_time.setChecked(self.model.real_time)
+        self.real_time.setChecked(self.model.playback.real_time)
         # The scrubber has the view's whole width, whatever the window's; Play, the position and the speed sit under it.
         player = QHBoxLayout()
         player.addWidget(self.play_button)
@@ -191,7 +204,7 @@ class ReviewWorkspace(QWidget):
                                                     max_width=400)
 
         self.timer = QTimer(self)
-        self.timer.timeout.connect(self.model.tick)
+        self.timer.timeout.connect(self.model.playback.tick)
         self.preview_timer = QTimer(self)
         self.preview_timer.setSingleShot(True)
         self.preview_timer.setInterval(PREVIEW_DELAY_MS)
@@ -202,11 +215,11 @@ class ReviewWorkspace(QWidget):
         self.cancel_button.clicked.connect(self.cancel)
         self.export_button.clicked.connect(self._ask_export)
         self.play_button.toggled.connect(self.set_playing)
-        self.frame_slider.valueChanged.connect(self.model.set_subframe)
-        self.fps.valueChanged.connect(self.model.set_fps)
+        self.frame_slider.valueChanged.connect(self.model.playback.set_subframe)
+        self.fps.valueChanged.connect(self.model.playback.set_fps)
         self.real_time.toggled.connect(self._on_real_time)
         self.fps.setEnabled(not self.real_time.isChecked())
-        self.preview_check.toggled.connect(self.model.set_preview_on)
+        self.preview_check.toggled.connect(self.model.preview.set_preview_on)
         self.raw_panel.clear("open a recording (File ▸ Open, or flexvox app REC.zarr)")
         self.recon_panel.clear("")
 
@@ -219,75 +232,78 @@ class ReviewWorkspace(QWidget):
     @property
     def results(self) -> list[ReconstructionResult]:
         """The full reconstructions, oldest first."""
-        return self.model.results
+        return self.model.jobs.results
 
     @property
     def shown(self) -> ReconstructionResult | None:
         """What the reconstruction panel shows: a full result or a preview."""
-        return self.model.shown
+        return self.model.playback.shown
 
     @property
     def comparison(self) -> ReconstructionResult | None:
         """The slider's preview shown beside :attr:`shown`, or None."""
-        return self.model.comparison
+        return self.model.playback.comparison
 
     @property
     def exported(self) -> tuple[Path, ReconstructionResult] | None:
         """The last export: its path and the full result written."""
-        return self.model.exported
+        return self.model.jobs.exported
 
     @property
     def job(self) -> JobHandle | None:
         """The full reconstruction (or the export reconstructing one) running or last run."""
-        return self.model.job
+        return self.model.jobs.job
 
     @property
     def preview_job(self) -> JobHandle | None:
         """The preview running or last run."""
-        return self.model.preview_job
+        return self.model.preview.preview_job
 
     @property
     def busy(self) -> bool:
         """True while a full reconstruction runs."""
-        return self.model.busy
+        return self.model.jobs.busy
 
     @property
     def subframe(self) -> int:
         """The current sub-frame index s (camera frame s // K)."""
-        return self.model.subframe
+        return self.model.playback.subframe
 
     @property
     def playing(self) -> bool:
         """True while playback runs."""
-        return self.model.playing
+        return self.model.playback.playing
 
     def speed(self) -> float:
-        """Playback speed in sub-frames per second (:meth:`ReviewModel.speed`)."""
-        return self.model.speed()
+        """Playback speed in sub-frames per second (the playback's
+        :meth:`~flexvox_app.gui.models.review_playback.PlaybackModel.speed`)."""
+        return self.model.playback.speed()
 
     def full_result_of(self, method) -> ReconstructionResult | None:
         """The newest full reconstruction made with exactly ``method`` (None: none yet)."""
-        return self.model.full_result_of(method)
+        return self.model.jobs.full_result_of(method)
 
     def flow_result(self) -> ReconstructionResult | None:
-        """The result whose flow and TR map the Motion tab shows (:meth:`ReviewModel.flow_result`)."""
-        return self.model.flow_result()
+        """The result whose flow and TR map the Motion tab shows (the jobs'
+        :meth:`~flexvox_app.gui.models.review_jobs.JobsModel.flow_result`)."""
+        return self.model.jobs.flow_result()
 
     def export_candidate(self) -> ReconstructionResult | None:
         """What an export writes: the result shown, else the newest full result."""
-        return self.model.export_candidate()
+        return self.model.jobs.export_candidate()
 
     def speed_model(self, name: str, K: int) -> SpeedModel | None:
         """This machine's calibrated speed of method ``name`` at K slots (None: not measured by this version)."""
-        return self.model.speed_model(name, K)
+        return self.model.jobs.speed_model(name, K)
 
     def expected_seconds(self) -> float | None:
         """Expected seconds of a full reconstruction with the form's method on this machine (None: not known yet)."""
-        return self.model.expected_seconds(self.form.method())
+        return self.model.jobs.expected_seconds(self.form.method())
 
     def closing_losses(self) -> list[str]:
-        """What closing the window would stop or lose now (:meth:`ReviewModel.closing_losses`)."""
-        return self.model.closing_losses()
+        """What closing the window would stop or lose now (the jobs'
+        :meth:`~flexvox_app.gui.models.review_jobs.JobsModel.closing_losses`)."""
+        return self.model.jobs.closing_losses()
 
     # ------------------------------------------------------------------ the operator's actions
     def _ask_open(self) -> None:
@@ -303,9 +319,9 @@ class ReviewWorkspace(QWidget):
         name = Path(path).name
         refusal = not_a_recording(path)
         if refusal is not None:
-            self.model._open_failed(Path(path), refusal)
+            self.model.open_refused(path, refusal)
             return None
-        losses = self.model.closing_losses()
+        losses = self.model.jobs.closing_losses()
         if losses and not ask(self, f"Open {name}?", f"Opening {name} now:\n\n" + "\n".join(
                 f"• {line}" for line in losses) + f"\n\nOpen {name} anyway?", accept=f"Open {name}",
                 reject="Keep working"):
@@ -316,32 +332,32 @@ class ReviewWorkspace(QWidget):
 
     def set_playing(self, playing: bool) -> None:
         """Start or stop playback."""
-        self.model.set_playing(playing)
+        self.model.playback.set_playing(playing)
 
     def _on_real_time(self, on: bool) -> None:
         self.fps.setEnabled(not on)
-        self.model.set_real_time(on)
+        self.model.playback.set_real_time(on)
 
     def _on_form_changed(self) -> None:
-        self.form.set_beside(self.model.full_result_of(self.form.method()) is not None)
+        self.form.set_beside(self.model.jobs.full_result_of(self.form.method()) is not None)
         self._refresh_expected()
         self._refresh_enabled()
-        self.model.want_preview()
+        self.model.preview.want_preview()
 
     def request_preview(self) -> JobHandle | None:
         """Recompute the form's settings on a small window of frames around the current one."""
-        return self.model.request_preview(self.form.preview_method(), self.form.method(), self.form.comparing)
+        return self.model.preview.request_preview(self.form.preview_method(), self.form.method(), self.form.comparing)
 
     def reconstruct(self) -> JobHandle | None:
         """Reconstruct every frame with the form's settings (off-thread, cancellable)."""
-        return self.model.reconstruct(self.form.method())
+        return self.model.jobs.reconstruct(self.form.method(), auto_knob=self.form.auto_knob())
 
     def cancel(self) -> None:
         """Cancel a running reconstruction (the preview is cancelled too); it stops after its current chunk."""
         self.model.cancel()
 
     def _ask_export(self) -> None:
-        r = self.model.export_candidate()
+        r = self.model.jobs.export_candidate()
         if r is None:
             return
         start = self.settings.last_folder("review/export_dir")
@@ -352,10 +368,11 @@ class ReviewWorkspace(QWidget):
             self.export(path)
 
     def export(self, path, *, overwrite: bool | None = None) -> JobHandle | None:
-        """Write what the panel shows, over every frame, to ``path`` (:meth:`ReviewModel.export`); an existing
+        """Write what the panel shows, over every frame, to ``path`` (the jobs'
+        :meth:`~flexvox_app.gui.models.review_jobs.JobsModel.export`); an existing
         ``path`` is replaced when ``overwrite`` is True, kept when it is False, and otherwise when the operator
         says so (the question names it)."""
-        return self.model.export(path, overwrite=overwrite, ask=lambda p: replace_question(self, p, "export"))
+        return self.model.jobs.export(path, overwrite=overwrite, ask=lambda p: replace_question(self, p, "export"))
 
     def shutdown(self) -> None:
         """The window closes: stop playback and the preview timer for good, and cancel the jobs.
@@ -367,45 +384,34 @@ class ReviewWorkspace(QWidget):
         self.preview_timer.stop()
 
     # ------------------------------------------------------------------ showing the model
-    def _on_changed(self, part: str) -> None:
-        m = self.model
-        if part == "path":
-            self.path_label.setText(rich(m.path_line))
-        elif part == "result":
-            self.result_label.setText(rich(m.result_line))
-        elif part == "export":
-            self.export_label.setText(rich(m.export_line))
-        elif part == "progress":
-            done, total = m.progress
-            self.progress.setRange(0, total)
-            self.progress.setValue(done)
-        elif part == "session":
-            self._show_session()
-        elif part == "frame":
-            self.frame_slider.blockSignals(True)
-            self.frame_slider.setValue(m.subframe)
-            self.frame_slider.blockSignals(False)
-            self._show(m.subframe)
-        elif part == "shown":
-            if m.session is not None:
-                self.motion_view.set_result(m.flow_result(), m.session.K, shown=m.shown)
-                self._show(m.subframe)
-            self._refresh_enabled()
-        elif part == "comparison":
-            self.slider_panel.setVisible(m.comparison is not None)
-            if m.comparison is None:
-                self.slider_panel.clear("")
-            elif m.session is not None:
-                self._show(m.subframe)
-        elif part == "expected":
-            self._refresh_expected()
-        elif part == "jobs":
-            self._refresh_enabled()
-        elif part == "playing":
-            self._show_playing()
-        elif part == "speed":
-            if m.playing:
-                self.timer.setInterval(m.interval_ms())
+    def _show_progress(self, done: int, total: int) -> None:
+        self.progress.setRange(0, total)
+        self.progress.setValue(done)
+
+    def _show_frame(self, s: int) -> None:
+        self.frame_slider.blockSignals(True)
+        self.frame_slider.setValue(s)
+        self.frame_slider.blockSignals(False)
+        self._show(s)
+
+    def _show_shown(self, result: ReconstructionResult | None) -> None:
+        p = self.model.playback
+        if p.session is not None:
+            self.motion_view.set_result(self.model.jobs.flow_result(), p.session.K, shown=result)
+            self._show(p.subframe)
+        self._refresh_enabled()
+
+    def _show_comparison(self, result: ReconstructionResult | None) -> None:
+        self.slider_panel.setVisible(result is not None)
+        if result is None:
+            self.slider_panel.clear("")
+        elif self.model.session is not None:
+            self._show(self.model.playback.subframe)
+
+    def _speed_changed(self) -> None:
+        p = self.model.playback
+        if p.playing:
+            self.timer.setInterval(p.interval_ms())
 
     def _show_session(self) -> None:
         session = self.model.session
@@ -414,47 +420,48 @@ class ReviewWorkspace(QWidget):
         if session.blocked:
             text += "<br>" + coloured(f"cannot reconstruct: {session.blocked}", RED)
         self.summary_label.setText(text)
-        rate = self.model.subframe_hz()
+        rate = self.model.playback.subframe_hz()
         self.real_time.setText(f"real time ({rate:.4g}/s)" if rate else "real time")
         self.real_time.setEnabled(rate is not None)
         self.form.set_divisions(session.divisions())
         self._levels = session.raw_levels()
         self.frame_slider.blockSignals(True)
         self.frame_slider.setRange(0, session.n_subframes - 1)
-        self.frame_slider.setValue(self.model.subframe)
+        self.frame_slider.setValue(self.model.playback.subframe)
         self.frame_slider.blockSignals(False)
         self.recon_panel.clear("")
         self.slider_panel.setVisible(False)
         self.slider_panel.clear("")
         self.motion_view.set_length(session.n_subframes)
         self.motion_view.set_result(None, session.K)
-        self.compare_view.set_results([], session.K, self.model.truth)
-        self._show(self.model.subframe)
+        self.compare_view.set_results([], session.K, self.model.jobs.truth)
+        self._show(self.model.playback.subframe)
         self._refresh_expected()
         self._refresh_enabled()
 
     def _opened(self, session: ReviewSession) -> None:
+        self._show_session()
         self.session_opened.emit(session)
 
     def _result_added(self, result: ReconstructionResult) -> None:
-        self.form.set_beside(self.model.full_result_of(self.form.method()) is not None)
-        self.compare_view.set_results(self.model.results, self.model.session.K, self.model.truth)
+        j = self.model.jobs
+        self.form.set_beside(j.full_result_of(self.form.method()) is not None)
+        self.compare_view.set_results(j.results, self.model.session.K, j.truth)
         self.result_added.emit(result)
 
-    def _show_playing(self) -> None:
-        playing = self.model.playing
+    def _show_playing(self, playing: bool) -> None:
         if self.play_button.isChecked() != playing:
             self.play_button.blockSignals(True)
             self.play_button.setChecked(playing)
             self.play_button.blockSignals(False)
         self.play_button.setText("Pause" if playing else "Play")
         if playing:
-            self.timer.start(self.model.interval_ms())
+            self.timer.start(self.model.playback.interval_ms())
         else:
             self.timer.stop()
 
     def _show(self, s: int) -> None:
-        m = self.model
+        m = self.model.playback
         if m.session is None:
             return
         session = m.session
@@ -485,7 +492,7 @@ class ReviewWorkspace(QWidget):
         if self.model.session is None:
             self.expected_label.setText("open a recording to see the expected time and quality")
             return
-        e, seconds = self.model.expected(self.form.method())
+        e, seconds = self.model.jobs.expected(self.form.method())
         time_text = "timing this machine …" if seconds is None else f"≈ {format_seconds(seconds)} on this machine"
         if e is None:
             self.expected_label.setText(f"<b>expected</b> {time_text}; no bench figures for the quality")
@@ -497,14 +504,14 @@ class ReviewWorkspace(QWidget):
                                        "built-in scenes, not on this recording")
 
     def _refresh_enabled(self) -> None:
-        m = self.model
+        m, j = self.model, self.model.jobs
         can = m.session is not None and m.session.frames is not None
-        self.reconstruct_button.setEnabled(can and not m.busy)
+        self.reconstruct_button.setEnabled(can and not j.busy)
         name = self.form.method().name
         self.reconstruct_button.setText(f"Reconstruct: {name}")
         self.reconstruct_button.setToolTip(f"reconstruct every frame of the recording with {name}")
-        self.cancel_button.setEnabled(m.cancellable)
-        self.export_button.setEnabled(m.export_candidate() is not None)
+        self.cancel_button.setEnabled(j.cancellable)
+        self.export_button.setEnabled(j.export_candidate() is not None)
         self.play_button.setEnabled(m.session is not None)
         if m.session is None:
             self._refresh_expected()

@@ -115,5 +115,5 @@ class DeviceDock(QDockWidget):
                 dot.setToolTip(f"{role}: none")
                 continue
             dot.setText("●")
-            dot.setStyleSheet(f"color: {AMBER if self.service.in_use_by else STATE_COLOUR[st.state]}")
+            dot.setStyleSheet(f"color: {AMBER if self.service.held_by else STATE_COLOUR[st.state]}")
             dot.setToolTip(f"{role}: {self.panel.state_text(role).lstrip('● ')}")

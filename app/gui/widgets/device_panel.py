@@ -139,11 +139,11 @@ class DevicePanel(QWidget):
                 row["state"].setStyleSheet("")
                 row["button"].setEnabled(False)
                 row["button"].setText("Connect")
-            elif self.service.in_use_by:  # opened and closed by its user: held, whatever the moment's state
-                row["state"].setText(f"● in use by {self.service.in_use_by}")
+            elif self.service.held_by:  # opened and closed by its holder: held, whatever the moment's state
+                row["state"].setText(f"● in use by {self.service.held_by}")
                 row["state"].setStyleSheet(f"color: {AMBER}")
                 row["button"].setEnabled(False)
-                row["button"].setToolTip(f"in use by {self.service.in_use_by}: wait for it to end")
+                row["button"].setToolTip(f"in use by {self.service.held_by}: wait for it to end")
             else:
                 colour = STATE_COLOUR[st.state]
                 state = f"{st.state.value}{_detail(self.service, r)}"

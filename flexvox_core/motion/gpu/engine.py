@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 from numba import cuda
 
+from flexvox_core.codes import order_from_code
 from flexvox_core.flow import FlowField
 from flexvox_core.forward import tiled_order
 from flexvox_core.gaps import captured
@@ -29,6 +30,7 @@ from flexvox_core.motion.gpu import noise_aware as noise
 from flexvox_core.motion.gpu.longreach import long_reach
 from flexvox_core.motion.gpu.mcnc import trajectory_gather
 from flexvox_core.motion.gpu.vardiff import refine
+from flexvox_core.motion.longreach_kernel import corner_table
 from flexvox_core.motion.options import (
     PERIOD_GATE,
     REFINE_C,
@@ -84,6 +86,7 @@ class CudaStages:
         self.present = np.ones(F, bool) if w.missing is None else ~np.asarray(w.missing, bool)
         self.frames_d = self.ws.put(Buffers.FRAMES, np.ascontiguousarray(w.frames, np.float32))
         self.order_d = self.ws.put(Buffers.ORDER, np.ascontiguousarray(tiled_order(w.code, H, W), np.int32))
+        self.corners = corner_table(order_from_code(w.code))  # the long reach's cells
         self.present_d = self.ws.put(Buffers.PRESENT, self.present.astype(np.uint8))
         kept = captured(w.frames, w.missing)
         self.captured_range = (float(kept.min()), float(kept.max()))  # this window's own samples'
@@ -187,7 +190,8 @@ class CudaStages:
         w = self.window
         if not self.n_slow:
             return
-        long_reach(self.ws, self.sparse, self.mask, flow, video, slow, w.long_reach_plan)
+        long_reach(self.ws, self.frames_d, self.order_d, self.present_d, self.corners, flow, video, slow,
+                   w.long_reach_plan)
 
     def refinement(self, video: Volume, flow: Flow, slow: Volume) -> None:
         w = self.window

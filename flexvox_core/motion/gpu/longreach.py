@@ -1,7 +1,8 @@
-r"""The slow voxels' long-reach gather on the GPU: :func:`~flexvox_core.motion.longreach.long_reach_nc`.
+r"""The slow voxels' long-reach gather on the GPU: :func:`~flexvox_core.motion.longreach.long_reach`.
 
 Along each trajectory over ±``reach`` sub-frames, every sample s read at x + d·(u, v) (bilinear, 0 outside the
-picture) weighs
+picture; only the pixel of the cell that holds sub-frame t + d's slot is read, from the camera frames:
+:mod:`~flexvox_core.motion.longreach_kernel`) weighs
 
 .. math::
 
@@ -22,18 +23,18 @@ import math
 import numpy as np
 from numba import cuda
 
-from flexvox_core.gpu.filters import blur, dilate, gaussian_taps
+from flexvox_core.gpu.filters import blur, dilate
 from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import kernel, launch
-from flexvox_core.motion.gpu.mcnc import bilinear_zero, velocity
+from flexvox_core.motion.gpu.mcnc import velocity
 from flexvox_core.motion.longreach import MIN_WEIGHT, LongReachPlan
 
 
-@kernel("void(float32[:, :, ::1], uint8[:, :, ::1], float32[:, :, :, ::1], float32[:, :, ::1], uint8[:, :, ::1], "
-        "int32, float32, float32, float32[:, :, ::1], float32[:, :, ::1])")
-def _range_weighted_sums(value, weight, flow, guide, act, reach, inv_2st2, scale, num, den):
+@kernel("void(float32[:, :, ::1], int32[:, ::1], uint8[:, :, ::1], uint8[::1], float32[:, :, :, ::1], "
+        "float32[:, :, ::1], uint8[:, :, ::1], float32[::1], float32, float32[:, :, ::1], float32[:, :, ::1])")
+def _range_weighted_sums(frames, order, corners, present, flow, guide, act, time_w, scale, num, den):
     i = cuda.grid(1)
-    S, H, W = value.shape
+    S, H, W = guide.shape
     if i >= S * H * W:
         return
     t, y, x = voxel(i, H, W)
@@ -41,73 +42,99 @@ def _range_weighted_sums(value, weight, flow, guide, act, reach, inv_2st2, scale
         num[t, y, x] = 0
         den[t, y, x] = 0
         return
+    m = corners.shape[0]
+    n = corners.shape[1]
+    K = corners.shape[2]
+    zero = np.float32(0)
+    one = np.float32(1)
     u, v = velocity(flow, t, y, x)
     g = guide[t, y, x]
-    tiny = np.float32(1e-12)
-    # d = 0: the voxel's own sample (if any).
-    n0 = value[t, y, x]
-    d0 = np.float32(weight[t, y, x])
-    r = n0 / max(d0, tiny) - g
-    w = math.exp(scale * r * r)
-    acc_n = n0 * w
-    acc_d = d0 * w
-    fx = np.float32(x)
-    fy = np.float32(y)
-    bx = np.float32(x)
-    by = np.float32(y)
-    for d in range(1, reach + 1):
-        fx += u
-        fy += v
-        bx -= u
-        by -= v
-        log_w = -np.float32(d * d) * inv_2st2
-        if t + d < S:
-            n1 = bilinear_zero(value, t + d, fy, fx, H, W)
-            d1 = bilinear_zero(weight, t + d, fy, fx, H, W)
-            r = n1 / max(d1, tiny) - g
-            w = math.exp(scale * r * r + log_w)
-            acc_n += n1 * w
-            acc_d += d1 * w
-        if t - d >= 0:
-            n1 = bilinear_zero(value, t - d, by, bx, H, W)
-            d1 = bilinear_zero(weight, t - d, by, bx, H, W)
-            r = n1 / max(d1, tiny) - g
-            w = math.exp(scale * r * r + log_w)
-            acc_n += n1 * w
-            acc_d += d1 * w
+    acc_n = zero
+    acc_d = zero
+    f = t // K
+    if present[f] and order[y, x] == t % K:  # d = 0: the voxel's own sample
+        s = frames[f, y, x]
+        r = s - g
+        e = math.exp(scale * r * r) * time_w[0]
+        acc_n += s * e
+        acc_d += e
+    for d in range(1, time_w.shape[0]):
+        for side in range(2):
+            sign = 1 - 2 * side
+            tt = t + sign * d
+            if tt < 0 or tt >= S:
+                continue
+            ff = tt // K
+            if not present[ff]:
+                continue
+            step = np.float32(sign * d)
+            py = np.float32(y) + step * v
+            px = np.float32(x) + step * u
+            if not (np.float32(-1) < py < np.float32(H) and np.float32(-1) < px < np.float32(W)):
+                continue
+            y0 = int(py + one) - 1  # the floor (py > -1), in float32 as the CPU's
+            x0 = int(px + one) - 1
+            bits = corners[(y0 + m) % m, (x0 + n) % n, tt % K]  # y0, x0 >= -1
+            if bits == 0:
+                continue
+            ay = py - np.float32(y0)
+            ax = px - np.float32(x0)
+            n1 = zero
+            d1 = zero
+            for b in range(4):
+                if bits & (1 << b):
+                    yy = y0 + (b >> 1)
+                    xx = x0 + (b & 1)
+                    if 0 <= yy < H and 0 <= xx < W:
+                        wy = ay if b >> 1 else one - ay
+                        wx = ax if b & 1 else one - ax
+                        w = wy * wx
+                        n1 += w * frames[ff, yy, xx]
+                        d1 += w
+            if d1 > zero:
+                r = n1 / d1 - g
+                e = math.exp(scale * r * r) * time_w[d]
+                acc_n += n1 * e
+                acc_d += d1 * e
     num[t, y, x] = acc_n
     den[t, y, x] = acc_d
 
 
-@kernel("void(float32[:, :, ::1], float32[:, :, ::1], uint8[:, :, ::1], float32[:, :, ::1], uint8[:, :, ::1], "
-        "float32[:, :, ::1])")
-def _finish(num, den, select, value, mask, out):
+@kernel("void(float32[:, :, ::1], float32[:, :, ::1], uint8[:, :, ::1], float32[:, :, ::1], int32[:, ::1], "
+        "uint8[::1], float32[:, :, ::1])")
+def _finish(num, den, select, frames, order, present, out):
     i = cuda.grid(1)
     S, H, W = num.shape
     if i >= S * H * W:
         return
     t, y, x = voxel(i, H, W)
-    if mask[t, y, x]:
-        out[t, y, x] = value[t, y, x]
-    elif select[t, y, x] and den[t, y, x] > MIN_WEIGHT:
+    K = S // frames.shape[0]
+    f = t // K
+    if present[f] and order[y, x] == t % K:
+        out[t, y, x] = frames[f, y, x]
+    elif select[t, y, x] and den[t, y, x] > np.float32(MIN_WEIGHT):  # in float32, as the CPU compares
         out[t, y, x] = num[t, y, x] / den[t, y, x]
 
 
-def long_reach(ws, sparse, mask, flow, video, select, plan: LongReachPlan) -> None:
+def long_reach(ws, frames, order, present, corners, flow, video, select, plan: LongReachPlan) -> None:
     """The range-weighted gather at the voxels ``select`` (S, H, W) uint8, guided by ``video`` and written into
-    it; the samples are written back everywhere (``video`` = ``sparse`` at ``mask``). ``plan``: its reach, σ_t,
-    σ_s and h, as the CPU's (:class:`~flexvox_core.motion.longreach.LongReachPlan`)."""
-    S, H, W = sparse.shape
+    it; the samples are written back everywhere. ``frames`` (F, H, W) float32, ``order`` (H, W) int32 each pixel's
+    slot, ``present`` (F,) uint8 the frames captured, on the device; ``corners`` the host's
+    :func:`~flexvox_core.motion.longreach_kernel.corner_table` of the code. ``plan``: its reach, σ_t, σ_s and h,
+    as the CPU's (:class:`~flexvox_core.motion.longreach.LongReachPlan`)."""
+    S, H, W = video.shape
     n = S * H * W
-    reach, sigma_t, sigma_s, h, radius = plan.reach, plan.sigma_t, plan.sigma_s, plan.h, plan.radius
+    radius = plan.radius
     act = ws.get("longreach.act", (S, H, W), np.uint8)
     dilate(ws, select, act, radius, tag="longreach.dilate")
     num = ws.get("longreach.num", (S, H, W))
     den = ws.get("longreach.den", (S, H, W))
-    launch(_range_weighted_sums, n, sparse, mask, flow, video, act, np.int32(reach),
-           np.float32(1 / (2 * sigma_t * sigma_t)), np.float32(-0.5 / (h * h)), num, den)
+    corners_d = ws.put("longreach.corners", np.ascontiguousarray(corners, np.uint8))
+    time_w = ws.put("longreach.time_w", plan.time_weights)
+    launch(_range_weighted_sums, n, frames, order, corners_d, present, flow, video, act, time_w,
+           np.float32(plan.range_scale), num, den)
     if radius:
-        taps = gaussian_taps(sigma_s, 2 * radius + 1)
+        taps = plan.taps
         blur(ws, num, num, taps, taps, reflect=False, tag="longreach.blur")
         blur(ws, den, den, taps, taps, reflect=False, tag="longreach.blur")
-    launch(_finish, n, num, den, select, sparse, mask, video)
+    launch(_finish, n, num, den, select, frames, order, present, video)

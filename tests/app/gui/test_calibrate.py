@@ -12,6 +12,7 @@ from flexvox_app.gui.models.calibration_model import (
     summary_rows,
     target_for,
 )
+from flexvox_app.gui.models.holder import Holder
 from flexvox_app.gui.models.rig_service import RigService
 from flexvox_app.gui.widgets.questions import Question, answering
 from flexvox_calibration.files import load_calibration
@@ -33,6 +34,50 @@ def calibrate(qtbot, settings, runner):
     ws.resize(1300, 850)
     yield ws
     ws.shutdown()
+
+
+def test_who_holds_the_rig_has_one_name_and_the_old_names_warn(qtbot, settings, runner):
+    """``held_elsewhere`` (what ``rig_guard`` was) refuses a run and the live numbers in its words; ``held_here`` and
+    ``holder`` say what this workspace holds; the old names work one more release, warned."""
+    recording = "a recording is running in the Capture workspace"
+    asked = []
+
+    def held_elsewhere():
+        asked.append(1)
+        return recording
+
+    with pytest.warns(DeprecationWarning, match=r"`rig_guard` of CalibrateWorkspace is deprecated and will be removed "
+                                                r"in the next release: call it `held_elsewhere`"):
+        ws = CalibrateWorkspace(RigService(calibration_rig(SEED)), settings, runner, rig_guard=held_elsewhere)
+    qtbot.addWidget(ws)
+    assert ws.held_elsewhere() == recording and ws.held_here() is None and ws.holder is Holder.IDLE
+    assert not ws.run_calibration() and ws.step_label.text() == f"<span style='color:#c0392b'>cannot start: " \
+                                                                f"{recording}</span>"
+    ws.live_panel.set_live(True)
+    assert not ws.live_panel.live and ws.live_panel.label.text().endswith(f"cannot measure: {recording}</span>")
+    assert len(asked) == 3 and ws.service.holder is Holder.IDLE
+    with pytest.warns(DeprecationWarning, match=r"CalibrateWorkspace\.rig_busy_reason\(\) is deprecated .*: call "
+                                                r"CalibrateWorkspace\.held_here\(\)$"):
+        assert ws.rig_busy_reason() is None
+    with pytest.warns(DeprecationWarning, match=r"CalibrateWorkspace\.rig_guard is deprecated .*: call "
+                                                r"CalibrateWorkspace\.held_elsewhere\(\)$"):
+        assert ws.rig_guard is held_elsewhere
+    with pytest.warns(DeprecationWarning, match=r"CalibrateWorkspace\.rig_guard is deprecated .*: call "
+                                                r"CalibrateWorkspace\(held_elsewhere=\)$"):
+        ws.rig_guard = None
+    assert ws.held_elsewhere() is None
+    ws.service.begin_use("the synchronisation wizard")  # as the wizard holds the devices
+    assert ws.held_here() == "the synchronisation wizard uses the devices (Calibrate workspace)"
+    assert ws.holder is Holder.CALIBRATING and ws.service.holder is Holder.CALIBRATING
+    ws.service.end_use("the synchronisation wizard")
+    assert ws.held_here() is None and ws.holder is Holder.IDLE
+    ws.shutdown()
+    with pytest.warns(DeprecationWarning, match=r"`rig_guard` of CalibrateWorkspace"), \
+            pytest.raises(TypeError, match=r"CalibrateWorkspace got `held_elsewhere` and its deprecated name "
+                                           r"`rig_guard`: give `held_elsewhere` alone"):
+        CalibrateWorkspace(ws.service, settings, runner, held_elsewhere=held_elsewhere, rig_guard=held_elsewhere)
+    with pytest.raises(TypeError, match=r"CalibrateWorkspace\(\) got unexpected keywords guard$"):
+        CalibrateWorkspace(ws.service, settings, runner, guard=held_elsewhere)
 
 
 def _run(qtbot, ws):

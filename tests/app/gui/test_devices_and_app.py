@@ -6,6 +6,7 @@ import pytest
 
 from flexvox_app.cli.errors import CliError
 from flexvox_app.gui.main_window import WORKSPACES
+from flexvox_app.gui.models.holder import Holder
 from flexvox_app.gui.models.rig_service import RigService
 from flexvox_app.gui.widgets.device_panel import DevicePanel
 from rig_drivers.errors import DevicePermissionError
@@ -102,7 +103,8 @@ def test_a_recording_made_in_capture_opens_in_review(qtbot, settings, runner, tm
     window = build_window(small_rig(), settings=settings, runner=runner)
     qtbot.addWidget(window)
     window.show_workspace("Calibrate")
-    assert window.calibrate.rig_busy_reason() is None  # the simulated rig calibrates its own target
+    assert window.calibrate.held_here() is None  # the simulated rig calibrates its own target
+    assert window.calibrate.holder is Holder.IDLE and window.capture.holder is Holder.IDLE
     capture = window.capture
     capture.code.rate.setValue(60.0)
     capture.clear_calibration()  # “Record uncalibrated”
@@ -110,7 +112,10 @@ def test_a_recording_made_in_capture_opens_in_review(qtbot, settings, runner, tm
     capture.record_panel.frames_box.setValue(6)
     with qtbot.waitSignal(capture.recording_finished, timeout=20_000):
         assert capture.record()
-        assert window._capture_busy() == "a recording is running in the Capture workspace"
+        assert window._held_by_capture() == "a recording is running in the Capture workspace"
+        assert window.calibrate.held_elsewhere() == "a recording is running in the Capture workspace"
+        assert window.capture.holder is Holder.RECORDING and window.calibrate.holder is Holder.IDLE
+        assert window.service.holder is Holder.IDLE  # the service holds the Calibrate workspace's users only
     capture.record_panel.review_button.click()
     assert window.tabs.currentWidget() is window.review
     qtbot.waitUntil(lambda: window.review.session is not None, timeout=10_000)

@@ -8,6 +8,7 @@ import pytest
 
 from flexvox_app.capture.service import CaptureService
 from flexvox_app.gui.capture.workspace import CaptureWorkspace
+from flexvox_app.gui.models.capture_model import Action, Holder
 from flexvox_app.gui.models.recording import counters_text, result_text
 from flexvox_app.gui.models.rig_service import RigService
 from flexvox_app.gui.widgets.questions import Question, answering
@@ -241,3 +242,22 @@ def test_a_capture_s_events_reach_the_gui_thread_as_qt_signals(qtbot, tmp_path):
     assert threads == {threading.main_thread()} and counters[-1] is capture.result.stats
     signals.release()
     assert len(capture.events.progress) == len(capture.events.finished) == 0
+
+
+def test_the_holder_follows_the_live_view_and_the_recording_and_what_waits_is_refused_in_words(qtbot, capture,
+                                                                                               tmp_path):
+    ws = capture
+    held = []
+    ws.model.holder_changed.connect(held.append)
+    assert ws.holder is Holder.IDLE and ws.start_live()
+    ws.record_panel.path_edit.setText(str(tmp_path / "run.zarr"))
+    ws.record_panel.frames_box.setValue(6)
+    with qtbot.waitSignal(ws.recording_finished, timeout=20_000):
+        assert ws.record()
+        assert ws.holder is Holder.RECORDING and not ws.live
+        assert not ws.load_calibration(tmp_path / "any.json") and not ws.clear_calibration()
+        assert ws.calibration_error == "a recording is running: the calibration changes after it"
+        assert not ws.start_live()
+        assert ws.live_panel.live_label.text().endswith("cannot start: a recording is running</span>")
+    assert ws.holder is Holder.IDLE and held == [Holder.LIVE, Holder.RECORDING, Holder.IDLE]
+    assert ws.model.shown(Action.LIVE) is None and ws.live_panel.live_label.text() == "stopped"

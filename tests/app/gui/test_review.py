@@ -5,12 +5,13 @@ import shutil
 import numpy as np
 import pytest
 import tifffile
-from PySide6.QtCore import QTimer
+from PySide6.QtCore import Qt, QTimer
 
 from flexvox_app.gui.review.workspace import ReviewWorkspace
 from flexvox_app.gui.widgets.questions import Question, answering
 
 from .conftest import FRAMES, SIZE
+from .model_helpers import without_ground_truth
 from .widget_helpers import reconstruct
 
 S = FRAMES * 8  # sub-frames of the test recording (K = 8)
@@ -45,10 +46,10 @@ def test_the_speed_says_sub_frames_per_second_and_real_time_plays_the_recording_
     assert ws.speed() == 120.0 and not ws.fps.isEnabled()
     ws.frame_slider.setValue(0)
     ws.set_playing(True)
-    start = ws.model.last_tick
-    ws.model.tick(start + 0.5)  # half a second at 15 Hz: 7 whole frames of 8 sub-frames (half carried), wrapped at 6
-    assert ws.subframe == 56 % 48 and ws.model.carried == pytest.approx(4.0)
-    ws.model.tick(start + 1.0)
+    start = ws.model.playback.last_tick
+    ws.model.playback.tick(start + 0.5)  # half a second at 15 Hz: 7 whole frames of 8 (half carried), wrapped at 6
+    assert ws.subframe == 56 % 48 and ws.model.playback.carried == pytest.approx(4.0)
+    ws.model.playback.tick(start + 1.0)
     assert ws.subframe == 120 % 48  # a second: 15 frames
     ws.set_playing(False)
 
@@ -93,7 +94,7 @@ def test_reconstruct_each_method_beats_the_raw_frames(qtbot, opened, naive_psnr,
     # The reconstruction panel now shows the result at the current sub-frame, and playback steps sub-frames.
     opened.frame_slider.setValue(13)
     np.testing.assert_array_equal(opened.recon_panel.image.image, r.video[13])
-    opened.model.tick(opened.model.last_tick + 1.5 / opened.speed())  # one sub-frame's time and a half
+    opened.model.playback.tick(opened.model.playback.last_tick + 1.5 / opened.speed())  # a sub-frame and a half
     assert opened.subframe == 14
 
 
@@ -388,7 +389,7 @@ def test_the_expected_time_comes_from_timing_this_machine_and_is_logged_against_
     assert "on this machine" in ws.expected_label.text() and "timing this machine" not in ws.expected_label.text()
     expected_s = ws.expected_seconds()
     assert expected_s > 0
-    with caplog.at_level(logging.INFO, logger="flexvox_app.gui.models.review_model"):
+    with caplog.at_level(logging.INFO, logger="flexvox_app.gui.models.review_jobs"):
         r = reconstruct(qtbot, ws, "diffusion")
     assert "(expected ≈" in ws.result_label.text()
     assert any(f"measured {r.seconds:.3f} s, expected {expected_s:.3f} s" in m for m in caplog.messages)
@@ -436,7 +437,7 @@ def test_opening_another_recording_during_a_run_asks_naming_it_and_keeping_it_sa
     other = tmp_path / "other.zarr"
     shutil.copytree(recording, other)
     review.form.set_method_name("diffusion")
-    assert review.reconstruct() is not None and review.model.busy
+    assert review.reconstruct() is not None and review.model.jobs.busy
     with answering(False) as asked:
         assert review.open_recording(other) is None
     assert [q.accept for q in asked] == ["Open other.zarr"]
@@ -444,7 +445,7 @@ def test_opening_another_recording_during_a_run_asks_naming_it_and_keeping_it_sa
                                     "computed is lost")
     # The run ends on its worker (busy goes False there); its result reaches the list on the GUI thread after.
     qtbot.waitUntil(lambda: len(review.results) == 1, timeout=30_000)
-    assert review.session.path == recording and not review.model.busy  # the run went on and was kept
+    assert review.session.path == recording and not review.model.jobs.busy  # the run went on and was kept
 
 
 def test_opening_another_recording_with_a_result_not_exported_asks_and_then_shows_only_the_new_one(
@@ -457,7 +458,7 @@ def test_opening_another_recording_with_a_result_not_exported_asks_and_then_show
         review.open_recording(other)
     assert "1 reconstruction not exported is lost: diffusion" in asked[0].text
     qtbot.waitUntil(lambda: review.session.path == other, timeout=10_000)
-    assert review.results == [] and review.model.result_line.text == ""
+    assert review.results == [] and review.model.jobs.result_line.text == ""
     with answering() as asked:  # nothing to lose now: no question
         review.open_recording(recording)
     assert asked == []
@@ -473,7 +474,7 @@ def test_a_run_cancelled_by_opening_another_recording_leaves_no_cancelled_line_o
     review.reconstruct()
     with answering(True):
         review.open_recording(other)
-    qtbot.waitUntil(lambda: review.session.path == other and not review.model.busy, timeout=30_000)
+    qtbot.waitUntil(lambda: review.session.path == other and not review.model.jobs.busy, timeout=30_000)
     qtbot.wait(50)
     assert "cancelled" not in review.result_label.text() and review.results == []
 
@@ -503,6 +504,27 @@ def test_review_s_result_line_and_the_compare_list_say_where_each_result_ran(qtb
     assert " on the CPU · sub-frame " in review.recon_panel.title.text()
 
 
+def test_without_ground_truth_the_result_line_and_the_compare_list_show_the_estimate(qtbot, review, recording,
+                                                                                     tmp_path):
+    review.preview_check.setChecked(False)
+    review.open_recording(without_ground_truth(recording, tmp_path))
+    qtbot.waitUntil(lambda: review.session is not None, timeout=10_000)
+    diffusion = reconstruct(qtbot, review, "diffusion")
+    qtbot.waitUntil(lambda: diffusion.estimate is not None, timeout=30_000)
+    est = diffusion.estimate
+    assert review.result_label.text().endswith(f"; {est.line()}") and "estimated PSNR " in est.line()
+    cv = review.compare_view
+    assert f"estimated PSNR {est.psnr:.2f} dB (± {est.half_width:.2f} dB)" in cv.box_a.itemText(0)
+    assert est.line() in cv.box_a.itemData(0, Qt.ItemDataRole.ToolTipRole)
+    review.frame_slider.setValue(13)  # camera frame 1: its own estimate in the panel's title
+    assert cv.panel_b.title.text().endswith(f" · this frame estimated PSNR {est.per_frame[1]:.2f} dB")
+    rebin = reconstruct(qtbot, review, "rebin")  # refused: nothing on the line, why in the list's tooltip
+    assert rebin.estimate is None and "estimat" not in review.result_label.text()
+    assert "estimat" not in cv.box_b.itemText(1)
+    assert f"no estimate: {rebin.no_estimate}" in cv.box_b.itemData(1, Qt.ItemDataRole.ToolTipRole)
+    assert cv.box_a.currentIndex() == 0 and "estimated PSNR" in cv.box_a.itemText(0)
+
+
 def test_the_slider_s_default_step_gives_the_benched_default_tensor(review):
     from flexvox_core.reconstruct.diffusion import DEFAULT_TENSOR
 
@@ -515,3 +537,18 @@ def test_the_slider_s_default_step_gives_the_benched_default_tensor(review):
     assert "not benched" not in review.expected_label.text()
     review.form.set_position(0.25)
     assert tuple(review.form.method().tensor) != tuple(DEFAULT_TENSOR)
+
+
+def test_the_auto_box_makes_reconstruct_choose_the_time_by_the_estimate(qtbot, review, recording, tmp_path):
+    review.preview_check.setChecked(False)
+    review.open_recording(without_ground_truth(recording, tmp_path))
+    qtbot.waitUntil(lambda: review.session is not None, timeout=10_000)
+    review.form.set_method_name("diffusion")
+    review.form.auto_box.setChecked(True)
+    chosen = reconstruct(qtbot, review, "diffusion")
+    choice = chosen.extra["choice"]
+    assert chosen.method.time == choice.value and chosen.estimate is choice.estimate
+    assert f"chose time {choice.value:g} for diffusion" in review.result_label.text()
+    review.form.auto_box.setChecked(False)
+    plain = reconstruct(qtbot, review, "diffusion")
+    assert "choice" not in plain.extra

@@ -3,6 +3,7 @@
 import pytest
 
 from flexvox_app.capture.rig_setup import StopError, stop_rig
+from flexvox_app.gui.models.holder import Holder
 from flexvox_app.gui.models.live_source import stop_live
 from flexvox_app.gui.models.rig_service import RigService
 from rig_drivers.dlpc350 import DLPC350, FakeDLPC350Transport
@@ -31,6 +32,40 @@ def test_devices_by_role_and_a_role_that_is_none():
     assert no_sync.device("sync") is None and not no_sync.status("sync").present
     with pytest.raises(ValueError, match=r"`role` must be one of projector, camera, sync; got 'lamp'"):
         service.device("lamp")
+
+
+def test_who_holds_the_devices_is_the_holder_in_words_and_the_old_name_warns():
+    service = RigService(small_rig())
+    assert service.holder is Holder.IDLE and service.held_by is None
+    assert service.connect("camera")
+    heard = []
+    service.subscribe(heard.append)
+    service.begin_use("the calibration")
+    assert service.holder is Holder.CALIBRATING and service.held_by == "the calibration"
+    assert heard == ["projector", "camera", "sync"]  # the panel redraws each row as held
+    with pytest.warns(DeprecationWarning, match=r"RigService\.in_use_by is deprecated and will be removed in the next "
+                                                r"release: call RigService\.held_by$"):
+        assert service.in_use_by == "the calibration"
+    assert service.disconnect("camera")  # the calibration closes what it opened
+    assert service.end_use("the calibration") == ["camera"]  # given back connected
+    assert service.holder is Holder.IDLE and service.held_by is None
+    assert service.rig.camera.state is DeviceState.ENABLED
+
+
+@pytest.mark.parametrize("first_done", ["the live numbers", "the calibration"])
+def test_overlapping_holders_give_the_devices_back_connected_whichever_ends_first(first_done):
+    """The operator's connected devices are remembered by the first holder; when it ends while another still
+    holds them, the other gives them back (they were lost: neither connected the camera again)."""
+    service = RigService(small_rig())
+    assert service.connect("camera")
+    service.begin_use("the live numbers")
+    service.begin_use("the calibration")
+    assert service.disconnect("camera")
+    other = "the calibration" if first_done == "the live numbers" else "the live numbers"
+    assert service.end_use(first_done) == []  # still held: nothing is connected yet
+    assert service.rig.camera.state is not DeviceState.ENABLED
+    assert service.end_use(other) == ["camera"]
+    assert service.rig.camera.state is DeviceState.ENABLED and service.holder is Holder.IDLE
 
 
 def test_leds_and_the_video_input_are_declared_capabilities_none_where_absent():

@@ -6,7 +6,7 @@ import pytest
 from flexvox_core import capture, code_from_order
 from flexvox_core.forward import sample_mask, sparse_volume
 from flexvox_core.motion.gated_flow import gated_flow
-from flexvox_core.motion.longreach import LongReachPlan, long_reach_nc
+from flexvox_core.motion.longreach import LongReachPlan, long_reach, long_reach_nc
 from flexvox_core.motion.mcnc import motion_compensated_nc
 from flexvox_core.motion.noise_aware import SmoothWeights, frame_noise, wide_sigma
 from flexvox_core.motion.options import PERIOD_GATE
@@ -101,21 +101,33 @@ def test_trajectory_gather_is_the_cpus_from_the_frames(rng, ws, clip, noisy):
     assert np.isfinite(loo).any()
 
 
-def test_long_reach_is_the_cpus(rng, ws, clip):
-    from flexvox_core.motion.gpu.longreach import long_reach
+@pytest.mark.parametrize("missing", [None, [False, True, False]])
+def test_long_reach_is_the_cpus(rng, ws, clip, missing):
+    from flexvox_core.codes import order_from_code
+    from flexvox_core.forward import tiled_order
+    from flexvox_core.motion.gpu.longreach import long_reach as gpu_long_reach
+    from flexvox_core.motion.longreach_kernel import corner_table
 
     frames, sparse, mask, flow, truth = clip
     flow = flow * np.float32(0.3)
     select = (rng.random(sparse.shape) > 0.5) & ~mask
     guide = np.clip(truth + rng.normal(0, 0.05, truth.shape), 0, 1).astype(np.float32)
-    want = long_reach_nc(sparse, mask, flow, guide, select, reach=6, sigma_t=6, sigma_s=0.3, h=0.1)
-    np.copyto(want, sparse, where=mask)
+    plan = LongReachPlan.of(sparse.shape[0], reach=6, sigma_t=6, sigma_s=0.3, h=0.1)
+    miss = None if missing is None else np.array(missing)
+    want = long_reach(frames, CODE, flow, guide, select, plan, missing=miss, write_samples=True)
+    present = np.ones(len(frames), np.uint8) if miss is None else (~miss).astype(np.uint8)
     video = _dev(guide)
-    long_reach(ws, _dev(sparse), _dev(mask.astype(np.uint8)), _dev(flow), video, _dev(select.astype(np.uint8)),
-               LongReachPlan.of(sparse.shape[0], reach=6, sigma_t=6, sigma_s=0.3, h=0.1))
+    gpu_long_reach(ws, _dev(frames), _dev(tiled_order(CODE, *frames.shape[1:]).astype(np.int32)), _dev(present),
+                   corner_table(order_from_code(CODE)), _dev(flow), video, _dev(select.astype(np.uint8)), plan)
     got = video.copy_to_host()
-    np.testing.assert_allclose(got, want, atol=5e-3)
-    assert np.abs(got - want).mean() < 5e-4
+    np.testing.assert_allclose(got, want, atol=2e-6, rtol=0)  # the same reads and sums; float32 rounding
+    assert np.abs(got - guide)[select].max() > 0.01  # the gather did something
+    # and the remap gather it replaced, to that one's 1/32 px rounding of the positions
+    old = long_reach_nc(sparse, mask, flow, guide, select, reach=6, sigma_t=6, sigma_s=0.3, h=0.1)
+    np.copyto(old, sparse, where=mask)
+    if miss is None:
+        np.testing.assert_allclose(got, old, atol=5e-3)
+        assert np.abs(got - old).mean() < 5e-4
 
 
 def test_refinement_is_the_cpus(rng, ws, clip):

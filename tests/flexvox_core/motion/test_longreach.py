@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from flexvox_core.codes import code_from_order
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture, sample_mask, sparse_volume
 from flexvox_core.metrics import psnr
@@ -170,3 +171,129 @@ def test_writing_into_the_guide_gives_the_same_result(rng):
     np.testing.assert_array_equal(got, expected)
     with pytest.raises(ValueError, match="`out` must be float32 of shape"):
         long_reach_nc(sparse, mask, flow, guide, sel, out=np.empty((3, 12, 16), np.float32), **kw)
+
+
+# The compiled gather that reads the frames (long_reach) against its numpy reference and the remap version.
+
+def _lattice_case(rng, tile, F, H, W, missing=None, speed=0.6):
+    from flexvox_core.gaps import interpolated_subframes
+
+    code = design_code(tile).code if isinstance(tile, tuple) else code_from_order(tile)
+    K = code.shape[2]
+    truth = rng.uniform(0.2, 0.8, (F * K, H, W)).astype(np.float32)
+    frames = capture(truth, code)
+    flow = rng.normal(0, speed, (F * K, H, W, 2)).astype(np.float32)
+    guide = (truth + rng.normal(0, 0.05, truth.shape)).astype(np.float32)
+    sel = rng.random(truth.shape) < 0.3
+    sparse, mask = sparse_volume(frames, code), sample_mask(truth.shape, code)
+    if missing is not None:
+        frames[np.asarray(missing)] = np.nan  # a dropped frame's values must not be read
+        gap = interpolated_subframes(missing, K)
+        mask[gap] = False
+        sparse[gap] = 0
+    return code, frames, flow, guide, sel, sparse, mask
+
+
+@pytest.mark.parametrize("tile, F, H, W, missing, sigma_s", [
+    ((2, 4), 4, 13, 17, None, 0.3),
+    ((2, 4), 5, 11, 19, [False, True, False, False, True], 0.3),
+    ((4, 4), 3, 15, 13, None, 0.3),
+    ((4, 4), 4, 9, 21, [True, False, True, False], 0.6),
+    ((4, 4), 3, 10, 11, None, 0.0),
+    ([[0, 2, 1, 3]], 6, 9, 10, [False, False, True, False, False, False], 0.3),  # 1×4: two pixels of a cell hold k
+])
+def test_compiled_gather_is_the_reference(rng, tile, F, H, W, missing, sigma_s):
+    from flexvox_core.motion.longreach import LongReachPlan, long_reach
+    from tests.flexvox_core.motion.longreach_reference import long_reach_reference
+
+    code, frames, flow, guide, sel, _, _ = _lattice_case(rng, tile, F, H, W, missing)
+    K = code.shape[2]
+    flow[0, :3, :3] = np.nan  # read as still
+    flow[1, -2:, -3:] = 40.0  # every read beyond the picture
+    plan = LongReachPlan.of(F * K, reach=K, sigma_t=K * 0.75, sigma_s=sigma_s, h=0.1)
+    miss = None if missing is None else np.array(missing)
+    for write_samples in (False, True):
+        want = long_reach_reference(frames, code, flow, guide, sel, plan, miss, write_samples)
+        got = long_reach(frames, code, flow, guide, sel, plan, missing=miss, write_samples=write_samples)
+        assert got.dtype == np.float32
+        np.testing.assert_allclose(got, want, atol=2e-5, rtol=0)
+        assert np.isfinite(got).all()
+    changed = sel & (np.abs(got - guide) > 1e-3)
+    assert changed.mean() > 0.5 * sel.mean()  # the gather did something
+
+
+def test_compiled_gather_writes_into_the_guide(rng):
+    from flexvox_core.motion.longreach import LongReachPlan, long_reach
+
+    code, frames, flow, guide, sel, sparse, mask = _lattice_case(rng, (2, 4), 3, 12, 16)
+    plan = LongReachPlan.of(24, reach=6, sigma_t=6, sigma_s=0.3, h=0.1)
+    want = long_reach(frames, code, flow, guide, sel, plan, write_samples=True)
+    inplace = guide.copy()
+    got = long_reach(frames, code, flow, inplace, sel, plan, out=inplace, write_samples=True)
+    assert got is inplace
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(got[mask], sparse[mask])
+    with pytest.raises(ValueError, match=r"`out` must be C-contiguous float32 of shape \(24, 12, 16\)"):
+        long_reach(frames, code, flow, guide, sel, plan, out=np.empty((3, 12, 16), np.float32))
+    with pytest.raises(ValueError, match=r"`guide`, `select` \(S, H, W\) = \(24, 12, 16\)"):
+        long_reach(frames, code, flow, guide[:8], sel, plan)
+    with pytest.raises(ValueError, match=r"`missing` must be one flag per frame, shape \(3,\); got \(2,\)"):
+        long_reach(frames, code, flow, guide, sel, plan, missing=np.zeros(2, bool))
+    # A multiplexed capture is demultiplexed before motion-aware: the long reach takes identity codes alone.
+    mcode = code.copy()
+    mcode[0, 0] = True  # every slot open at one pixel of the tile
+    with pytest.raises(ValueError, match=r"`code` is not an identity code"):
+        long_reach(frames, mcode, flow, guide, sel, plan)
+
+
+@pytest.mark.parametrize("tile, missing", [((2, 4), None), ((4, 4), [False, True, False])])
+def test_compiled_gather_is_the_remap_gather_to_its_1_32_px_rounding(rng, tile, missing):
+    # cv2.remap rounds each read's position to 1/32 px: the results agree to that, not to float32 rounding.
+    from flexvox_core.motion.longreach import LongReachPlan, long_reach
+
+    code, frames, flow, guide, sel, sparse, mask = _lattice_case(rng, tile, 3, 14, 18, missing, speed=0.3)
+    K = code.shape[2]
+    plan = LongReachPlan.of(3 * K, reach=K, sigma_t=K, sigma_s=0.3, h=0.1)
+    old = long_reach_nc(sparse, mask, flow, guide, sel, reach=plan.reach, sigma_t=plan.sigma_t,
+                        sigma_s=plan.sigma_s, h=plan.h)
+    new = long_reach(frames, code, flow, guide, sel, plan, missing=None if missing is None else np.array(missing))
+    assert np.abs(new - old).max() < 0.02
+    assert np.abs(new - old).mean() < 1e-3
+    zero = np.zeros_like(flow)  # integer positions: no rounding, the same sums
+    old = long_reach_nc(sparse, mask, zero, guide, sel, reach=plan.reach, sigma_t=plan.sigma_t,
+                        sigma_s=plan.sigma_s, h=plan.h)
+    new = long_reach(frames, code, zero, guide, sel, plan, missing=None if missing is None else np.array(missing))
+    np.testing.assert_allclose(new, old, atol=2e-6, rtol=0)
+
+
+def test_corner_table_names_the_pixels_that_hold_each_slot():
+    from flexvox_core.codes import order_from_code
+    from flexvox_core.motion.longreach_kernel import CORNERS, corner_table
+
+    order = order_from_code(design_code((2, 4)).code)
+    table = corner_table(order)
+    assert table.shape == (2, 4, 8)
+    for i in range(2):
+        for j in range(4):
+            for k in range(8):
+                want = sum(1 << b for b, (dy, dx) in enumerate(CORNERS) if order[(i + dy) % 2, (j + dx) % 4] == k)
+                assert table[i, j, k] == want
+            assert sorted(int(v).bit_count() for v in table[i, j]) == [0] * 4 + [1] * 4  # one pixel per slot
+
+
+def test_compiled_gather_bits_do_not_depend_on_the_thread_count(rng):
+    import numba
+
+    from flexvox_core.motion.longreach import LongReachPlan, long_reach
+
+    code, frames, flow, guide, sel, _, _ = _lattice_case(rng, (4, 4), 3, 12, 14)
+    plan = LongReachPlan.of(48, reach=12, sigma_t=12, sigma_s=0.3, h=0.1)
+    many = long_reach(frames, code, flow, guide, sel, plan, write_samples=True)
+    saved = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        one = long_reach(frames, code, flow, guide, sel, plan, write_samples=True)
+    finally:
+        numba.set_num_threads(saved)
+    np.testing.assert_array_equal(one, many)
+    assert not np.array_equal(many[sel], guide[sel])

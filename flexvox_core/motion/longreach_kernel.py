@@ -1,0 +1,265 @@
+"""The long-reach gather compiled (numba): each trajectory read indexes the one pixel that can hold its sample.
+
+An identity code samples sub-frame s = f·K + k at the pixels whose slot is k, from frame f unless that frame was
+dropped. A bilinear read at (y, x) of sub-frame s touches the four pixels of the cell at (⌊y⌋, ⌊x⌋); which of them
+hold slot k follows from (⌊y⌋ mod m, ⌊x⌋ mod n, k) alone (:func:`corner_table`): with a tile of at least 2×2 at
+most one does, and with K = 16 none does three times in four. The kernel therefore reads the frames and the code
+(no sample volume, no weight planes) and, for a cell that holds no sample, nothing at all. The sums are those of
+the bilinear reads of the sample planes and their 0/1 mask, with exact bilinear weights (OpenCV's remap, which
+:func:`~flexvox_core.motion.longreach.long_reach_nc` uses, rounds the position to 1/32 px).
+
+``tests/flexvox_core/motion/longreach_reference.py`` is the same gather in plain numpy, which the tests compare
+this against.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numba
+import numpy as np
+
+CORNERS = ((0, 0), (0, 1), (1, 0), (1, 1))
+"""The cell's pixels (dy, dx) in the bit order of :func:`corner_table`."""
+
+
+def corner_table(order: np.ndarray) -> np.ndarray:
+    """Which pixels of a bilinear cell hold slot k: uint8 ``(m, n, K)``, bit i set when the pixel
+    ``CORNERS[i]`` of the cell whose top-left pixel is at (y, x) ≡ (i, j) mod (m, n) has slot k.
+
+    ``order``: the slot of each pixel of the tile, int ``(m, n)`` (:func:`~flexvox_core.codes.order_from_code`).
+    """
+    order = np.asarray(order)
+    m, n = order.shape
+    K = m * n
+    table = np.zeros((m, n, K), np.uint8)
+    i, j = np.meshgrid(np.arange(m), np.arange(n), indexing="ij")
+    for bit, (dy, dx) in enumerate(CORNERS):
+        slot = order[(i + dy) % m, (j + dx) % n]
+        table[i, j, slot] |= np.uint8(1 << bit)
+    return table
+
+
+@numba.njit(inline="always", nogil=True, cache=True, error_model="numpy")
+def _velocity(flow: Any, t: int, y: int, x: int) -> tuple[Any, Any]:
+    """(u, v) of the voxel, NaN or infinity read as still (as the GPU's ``velocity``)."""
+    u = flow[t, y, x, 0]
+    v = flow[t, y, x, 1]
+    if not (math.isfinite(u) and math.isfinite(v)):
+        return np.float32(0), np.float32(0)
+    return u, v
+
+
+@numba.njit(nogil=True, cache=True, error_model="numpy")
+def _row_sums(frames: Any, lat: Any, flow: Any, guide: Any, t: int, y: int, xs: Any, count: int, time_w: Any,
+              scale: Any, num: Any, den: Any, scratch: Any) -> None:
+    """Range-weighted sums (into ``num``, ``den``: row y of sub-frame t) along the trajectories of the voxels
+    (t, y, xs[:count]). ``lat``: the lattice's tables (:func:`_lattice`: no division in the loops). The offsets
+    d run outside the voxels: along a row the cells' slots repeat, so whether a cell holds the sample is a branch
+    the processor predicts."""
+    cells, row_base, col_base, slot_of, frame_of, single = lat
+    S, H, W = guide.shape
+    zero = np.float32(0)
+    one = np.float32(1)
+    us, vs, gs, acc_n, acc_d = scratch[0], scratch[1], scratch[2], scratch[3], scratch[4]
+    k = slot_of[t]
+    f = frame_of[t]
+    own = row_base[y + 1] + k
+    for i in range(count):
+        x = xs[i]
+        u, v = _velocity(flow, t, y, x)
+        us[i] = u
+        vs[i] = v
+        g = guide[t, y, x]
+        gs[i] = g
+        acc_n[i] = zero
+        acc_d[i] = zero
+        if k >= 0 and cells[own + col_base[x + 1]] & 1:  # d = 0: the voxel's own sample
+            s = frames[f, y, x]
+            r = s - g
+            e = np.float32(math.exp(scale * r * r)) * time_w[0]
+            acc_n[i] = s * e
+            acc_d[i] = e
+    fy = np.float32(y)
+    hi_y = np.float32(H)
+    hi_x = np.float32(W)
+    lo = np.float32(-1)
+    for d in range(1, len(time_w)):
+        tw = time_w[d]
+        for side in range(2):
+            step = d if side == 0 else -d
+            tt = t + step
+            if tt < 0 or tt >= S:
+                continue
+            kk = slot_of[tt]
+            if kk < 0:  # a dropped frame
+                continue
+            ff = frame_of[tt]
+            fstep = np.float32(step)
+            for i in range(count):
+                py = fy + fstep * vs[i]
+                px = np.float32(xs[i]) + fstep * us[i]
+                if not (lo < py < hi_y and lo < px < hi_x):  # no pixel of the cell in the picture (or NaN)
+                    continue
+                y0 = int(py + one) - 1  # the floor (py > -1)
+                x0 = int(px + one) - 1
+                bits = cells[row_base[y0 + 1] + col_base[x0 + 1] + kk]
+                if bits == 0:
+                    continue
+                ay = py - np.float32(y0)
+                ax = px - np.float32(x0)
+                n1 = zero
+                d1 = zero
+                b = single[bits]
+                if b >= 0:  # one pixel of the cell holds the sample (a tile of at least 2×2: always)
+                    yy = y0 + (b >> 1)
+                    xx = x0 + (b & 1)
+                    if 0 <= yy < H and 0 <= xx < W:
+                        d1 = (ay if b >> 1 else one - ay) * (ax if b & 1 else one - ax)
+                        n1 = d1 * frames[ff, yy, xx]
+                else:
+                    for b in range(4):
+                        if bits & (1 << b):
+                            yy = y0 + (b >> 1)
+                            xx = x0 + (b & 1)
+                            if 0 <= yy < H and 0 <= xx < W:
+                                w = (ay if b >> 1 else one - ay) * (ax if b & 1 else one - ax)
+                                n1 += w * frames[ff, yy, xx]
+                                d1 += w
+                if d1 > zero:
+                    r = n1 / d1 - gs[i]
+                    e = np.float32(math.exp(scale * r * r)) * tw
+                    acc_n[i] += n1 * e
+                    acc_d[i] += d1 * e
+    for i in range(count):
+        num[xs[i]] = acc_n[i]
+        den[xs[i]] = acc_d[i]
+
+
+@numba.njit(nogil=True, cache=True, error_model="numpy")
+def _lattice(corners: Any, present: Any, S: int, H: int, W: int) -> tuple[Any, Any, Any, Any, Any, Any]:
+    """Lookup tables of the lattice: the flat corner table, its offsets for a cell's top-left row y0 (at y0 + 1,
+    y0 from −1) and column, each sub-frame's slot (−1 where its frame was dropped) and frame, and the corner that
+    each one-bit cell names."""
+    m, n, K = corners.shape
+    cells = corners.ravel().copy()
+    row_base = np.empty(H + 1, np.int64)
+    for i in range(H + 1):
+        row_base[i] = ((i - 1 + m) % m) * n * K
+    col_base = np.empty(W + 1, np.int64)
+    for i in range(W + 1):
+        col_base[i] = ((i - 1 + n) % n) * K
+    slot_of = np.empty(S, np.int64)
+    frame_of = np.empty(S, np.int64)
+    for tt in range(S):
+        frame_of[tt] = tt // K
+        slot_of[tt] = tt % K if present[tt // K] else -1
+    single = np.full(16, -1, np.int64)  # the corner a cell's bits name when they name one (−1: none, or several)
+    for b in range(4):
+        single[1 << b] = b
+    return cells, row_base, col_base, slot_of, frame_of, single
+
+
+@numba.njit(nogil=True, cache=True, error_model="numpy")
+def _subframe(frames: Any, order: Any, lat: Any, flow: Any, guide: Any, select: Any, t: int, time_w: Any,
+              scale: Any, taps: Any, min_weight: Any, out: Any, num: Any, den: Any, rows: Any, cols: Any,
+              xs: Any, scratch: Any, write_samples: bool) -> None:
+    """Sub-frame ``t``: the sums at the voxels within the blur's reach of ``select[t]`` (into ``num``, ``den``),
+    blurred and divided at the selected ones into ``out[t]``, then (``write_samples``) the samples written."""
+    S, H, W = guide.shape
+    m, n = order.shape
+    r = (len(taps) - 1) // 2
+    sel = select[t]
+    found = False
+    for y in range(H):
+        rows[y] = False
+        for x in range(W):
+            if sel[y, x]:
+                rows[y] = True
+                found = True
+                break
+    if found:
+        for y in range(H):
+            y_lo = max(0, y - r)
+            y_hi = min(H, y + r + 1)
+            near = False
+            for yy in range(y_lo, y_hi):
+                near |= rows[yy]
+            if not near:
+                continue
+            cols[:] = False
+            for yy in range(y_lo, y_hi):
+                if rows[yy]:
+                    for x in range(W):
+                        if sel[yy, x]:
+                            cols[x] = True
+            count = 0
+            for x in range(W):
+                act = False
+                for xx in range(max(0, x - r), min(W, x + r + 1)):
+                    if cols[xx]:
+                        act = True
+                        break
+                if act:
+                    xs[count] = x
+                    count += 1
+            _row_sums(frames, lat, flow, guide, t, y, xs, count, time_w, scale, num[y], den[y], scratch)
+        # Blurred (zero outside the picture; every neighbour of a selected voxel was summed) and divided.
+        for y in range(H):
+            if not rows[y]:
+                continue
+            for x in range(W):
+                if not sel[y, x]:
+                    continue
+                bn = np.float32(0)
+                bd = np.float32(0)
+                for i in range(len(taps)):
+                    yy = y + i - r
+                    if yy < 0 or yy >= H:
+                        continue
+                    rn = np.float32(0)
+                    rd = np.float32(0)
+                    for j in range(len(taps)):
+                        xx = x + j - r
+                        if 0 <= xx < W:
+                            rn += taps[j] * num[yy, xx]
+                            rd += taps[j] * den[yy, xx]
+                    bn += taps[i] * rn
+                    bd += taps[i] * rd
+                if bd > min_weight:
+                    out[t, y, x] = bn / bd
+    f = lat[4][t]
+    k = lat[3][t]
+    if write_samples and k >= 0:
+        for y in range(H):
+            for j in range(n):
+                if order[y % m, j] == k:
+                    for x in range(j, W, n):
+                        out[t, y, x] = frames[f, y, x]
+
+
+@numba.njit(parallel=True, nogil=True, cache=True, error_model="numpy")
+def long_reach_kernel(frames: Any, order: Any, corners: Any, present: Any, flow: Any, guide: Any, select: Any,
+                      time_w: Any, scale: Any, taps: Any, min_weight: Any, out: Any, num: Any, den: Any,
+                      write_samples: bool) -> None:
+    """The long-reach gather of every sub-frame (see the module's docstring) into ``out`` (may be ``guide``).
+
+    ``frames`` (F, H, W) float32; ``order`` (m, n) int the tile's slots, ``corners`` their
+    :func:`corner_table`; ``present`` (F,) bool; ``flow`` (S, H, W, 2), ``guide`` (S, H, W) float32; ``select``
+    (S, H, W) bool; ``time_w`` (reach + 1,) the trajectory weights exp(−d²/2σ_t²); ``scale`` −1/2h²; ``taps`` the
+    blur's (odd length); ``num``, ``den`` (C, H, W) float32 scratch, one plane pair per chunk of sub-frames run
+    side by side (any content). ``write_samples``: write each sub-frame's samples into ``out`` after it. Each
+    voxel's sums are made in one order by one thread: the output bits do not depend on the thread count.
+    """
+    S, H, W = guide.shape
+    chunks = num.shape[0]
+    lat = _lattice(corners, present, S, H, W)
+    for c in numba.prange(chunks):
+        rows = np.empty(H, np.bool_)
+        cols = np.empty(W, np.bool_)
+        xs = np.empty(W, np.int64)
+        scratch = np.empty((5, W), np.float32)
+        for t in range(c, S, chunks):  # interleaved: a run of busy sub-frames is shared out
+            _subframe(frames, order, lat, flow, guide, select, t, time_w, scale, taps, min_weight, out, num[c],
+                      den[c], rows, cols, xs, scratch, write_samples)

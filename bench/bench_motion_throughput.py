@@ -301,7 +301,8 @@ def _ab(args, extra: dict) -> None:
                                      capture_output=True, text=True, check=True).stdout
                 peaks[v] = json.loads(out.strip().splitlines()[-1])
         stages = list(rows["kept"][0][0])
-        print(f"\n{scene}, {W}x{H}, noise {args.noise or 0}, {args.frames} frames, {args.rounds} rounds alternating, load "
+        print(f"\n{scene}, {W}x{H}, noise {args.noise or 0}, {args.frames} frames, {args.rounds} rounds alternating, "
+              f"load "
               f"{os.getloadavg()[0]:.1f} (1-min average at the end); medians, s")
         print("| variant | " + " | ".join(stages) + " | total | PSNR dB | peak MB (above the warm process) |")
         print("|---" * (len(stages) + 4) + "|")

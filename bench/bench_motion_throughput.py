@@ -16,6 +16,14 @@ Figures only, never pass/fail. Usage:
 with that Gaussian noise added to the frames (default none), alternating in one process after a warm-up call of
 each, N rounds: each stage's seconds (``stage_seconds``), the total and the PSNR per run, then the medians; and each
 one's peak memory (``ru_maxrss``) in a child process that loads only the frames and runs ``motion_aware`` once, cold.
+
+``--quality VARIANT [--size HxW] [--noise σ]``: the kept code's PSNR against VARIANT's on every moving built-in
+scene, clean and with Gaussian noise of σ (default 240x320, σ = 0.01), and the difference (the issue's rule: within
+0.05 dB).
+
+``--memory``: where the memory goes, one cold ``motion_aware`` call in a child process (as ``--ab``'s peak):
+the resident MB at each stage's start, its peak within the stage (the peak reset at its start:
+``/proc/self/clear_refs``, Linux) and at its end.
 """
 
 from __future__ import annotations
@@ -43,20 +51,57 @@ from flexvox_core.simulate.scenes import render_scene
 
 
 @contextlib.contextmanager
-def _gather_given_its_complement() -> Iterator[None]:
-    """Before the trajectory gather took the gathered voxels: it took a new bool volume of their complement."""
-    from flexvox_core.motion import stages
+def _gather_by_remap() -> Iterator[None]:
+    """Before the trajectory gather read the frames and the code: it remapped the sample volume (made here: no
+    stage makes it now) and its mask, a list of voxels per sub-frame."""
+    from flexvox_core.forward import sample_mask, sparse_volume
+    from flexvox_core.gaps import interpolated_subframes
+    from flexvox_core.motion import noise_aware, stages
+    from flexvox_core.motion.mcnc import motion_compensated_nc
 
-    kept = stages.motion_compensated_nc
+    kept = stages.CpuStages.trajectory_gather
 
-    def before(*args, gathered=None, **kwargs):
-        return kept(*args, still=~gathered, **kwargs)
+    def before(self, flow, base, still, slow, high_tr, wide, *, leave_one_out):
+        w = self.window
+        loo = np.full(w.frames.shape, np.nan, np.float32) if leave_one_out else None
+        into = base if w.passes == 1 or base is not self.fixed else None
+        sparse = sparse_volume(np.asarray(w.frames, np.float32), w.code)  # made here, as it was in `samples`
+        mask = sample_mask(sparse.shape, w.code)
+        if w.missing is not None:
+            gap = interpolated_subframes(w.missing, w.K)
+            mask[gap] = False
+            sparse[gap] = 0
+        video = motion_compensated_nc(sparse, mask, flow.flow, c=w.gather_c, time=w.gather_time, fallback=high_tr,
+                                      gathered=self.gathered, still_value=base, loo=loo, wide=wide,
+                                      wide_sigma=noise_aware.wide_sigma(w.K), max_reach=w.gather_reach, out=into)
+        gathered = self.gathered if loo is not None else None
+        if self.last:
+            self.fixed = self.still_value = None
+        return video, loo, gathered
 
-    stages.motion_compensated_nc = before
+    stages.CpuStages.trajectory_gather = before  # type: ignore[method-assign]
     try:
         yield
     finally:
-        stages.motion_compensated_nc = kept
+        stages.CpuStages.trajectory_gather = kept  # type: ignore[method-assign]
+
+
+@contextlib.contextmanager
+def _scratch_per_stage() -> Iterator[None]:
+    """Before a window without a sample volume lent one scratch volume to the refinement and the local choice:
+    each made its own (the sample volume, when the long reach made one, served both)."""
+    from flexvox_core.motion import stages
+
+    kept = stages.CpuStages._spare
+
+    def before(self):
+        return self.sparse if self.last else None
+
+    stages.CpuStages._spare = before  # type: ignore[method-assign]
+    try:
+        yield
+    finally:
+        stages.CpuStages._spare = kept  # type: ignore[method-assign]
 
 
 @contextlib.contextmanager
@@ -96,7 +141,8 @@ def _long_reach_on_sample_planes() -> Iterator[None]:
 
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
-    "complement-volume": _gather_given_its_complement,
+    "remap-gather": _gather_by_remap,
+    "scratch-per-stage": _scratch_per_stage,
     "long-reach-remap": _long_reach_on_sample_planes,
 }
 """The code as it was before each change (``kept``: as it is), for ``--ab``."""
@@ -133,10 +179,102 @@ def _child(variant: str, frames_path: str, extra: dict) -> None:
     print(json.dumps({"peak_mb": peak, "above_mb": peak - before}))
 
 
+@contextlib.contextmanager
+def _stage_memory(table: dict[str, list[float]]) -> Iterator[None]:
+    """Record (start, peak, end) resident MB of every stage ``run_stages`` times into ``table`` (the peak reset at
+    each stage's start; summed stages keep their first start, highest peak and last end)."""
+    from flexvox_core.motion import stages
+
+    kept = stages.StageTimes.__call__
+
+    @contextlib.contextmanager
+    def measured(self, stage: str) -> Iterator[None]:
+        with open("/proc/self/clear_refs", "w") as f:
+            f.write("5")
+        start = _status_mb("VmRSS")
+        with kept(self, stage):
+            yield
+        peak, end = _status_mb("VmHWM"), _status_mb("VmRSS")
+        if stage in table:
+            start, peak = table[stage][0], max(peak, table[stage][1])
+        table[stage] = [start, peak, end]
+
+    stages.StageTimes.__call__ = measured  # type: ignore[method-assign]
+    try:
+        yield
+    finally:
+        stages.StageTimes.__call__ = kept  # type: ignore[method-assign]
+
+
+def _memory_child(variant: str, frames_path: str, extra: dict) -> None:
+    """Print each stage's (start, peak, end) resident MB in one cold ``motion_aware`` call of ``variant``."""
+    code = design_code((4, 4)).code
+    frames = np.load(frames_path)
+    motion_aware(frames[:2, :16, :16], code)  # two frames: one takes no long reach
+    table: dict[str, list[float]] = {}
+    before = _status_mb("VmRSS")
+    with VARIANTS[variant](), _stage_memory(table):
+        motion_aware(frames, code, **extra)
+    print(json.dumps({"before_mb": before, "stages": table}))
+
+
+def _memory(args, extra: dict) -> None:
+    code = design_code((4, 4)).code
+    variants = ["kept"] if args.memory == "kept" else ["kept", args.memory]
+    for scene in args.scenes.split(","):
+        frames = capture(render_scene(scene, args.frames * 16, 480, 640), code)
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "frames.npy")
+            np.save(path, frames)
+            for v in variants:
+                out = subprocess.run([sys.executable, __file__, scene, "--frames", str(args.frames),
+                                      "--memory-child", v, path, "--extra", json.dumps(extra)],
+                                     capture_output=True, text=True, check=True).stdout
+                got = json.loads(out.strip().splitlines()[-1])
+                table = got["stages"]
+                peak = max(r[1] for r in table.values())
+                print(f"\n{scene}, 640x480, {args.frames} frames, {v}: resident MB at each stage's start / its peak "
+                      f"within it / its end (before the call {got['before_mb']:.0f}; the call's peak {peak:.0f})")
+                print("| stage | " + " | ".join(table) + " |")
+                print("|---" * (len(table) + 1) + "|")
+                print("| start / peak / end | " + " | ".join(
+                    " / ".join(f"{x:.0f}" for x in r) for r in table.values()) + " |", flush=True)
+
+
+MOVING = ("fan", "balls", "drummer", "pan", "static", "strobe")
+"""The built-in scenes (``static`` holds a moving part too) ``--quality`` runs."""
+
+
+def _quality(args, extra: dict) -> None:
+    code = design_code((4, 4)).code
+    H, W = (int(v) for v in (args.size or "240x320").split("x"))
+    noise = 0.01 if args.noise is None else args.noise
+    print(f"\nkept against {args.quality}, {H}x{W}, {args.frames} frames, PSNR dB (kept / {args.quality} / "
+          f"difference); noisy: sigma {noise}")
+    print("| scene | clean | noisy |")
+    print("|---|---|---|")
+    worst = 0.0
+    for scene in MOVING:
+        truth = render_scene(scene, args.frames * 16, H, W)
+        clean = capture(truth, code)
+        noisy = np.clip(clean + np.random.default_rng(0).normal(0, noise, clean.shape), 0, 1).astype(np.float32)
+        cells = []
+        for frames in (clean, noisy):
+            got = []
+            for v in ("kept", args.quality):
+                with VARIANTS[v]():
+                    got.append(psnr(truth, motion_aware(frames, code, **extra).video))
+            diff = 0.0 if got[0] == got[1] else got[0] - got[1]  # both inf: an exact reconstruction
+            worst = max(worst, abs(diff))
+            cells.append(f"{got[0]:.3f} / {got[1]:.3f} / {diff:+.3f}")
+        print(f"| {scene} | " + " | ".join(cells) + " |", flush=True)
+    print(f"largest |difference|: {worst:.3f} dB")
+
+
 def _ab(args, extra: dict) -> None:
     code = design_code((4, 4)).code
     variants = ["kept", args.ab]
-    H, W = (int(v) for v in args.size.split("x"))
+    H, W = (int(v) for v in (args.size or "480x640").split("x"))
     for scene in args.scenes.split(","):
         truth = render_scene(scene, args.frames * 16, H, W)
         frames = capture(truth, code)
@@ -163,7 +301,8 @@ def _ab(args, extra: dict) -> None:
                                      capture_output=True, text=True, check=True).stdout
                 peaks[v] = json.loads(out.strip().splitlines()[-1])
         stages = list(rows["kept"][0][0])
-        print(f"\n{scene}, {W}x{H}, noise {args.noise}, {args.frames} frames, {args.rounds} rounds alternating, load "
+        print(f"\n{scene}, {W}x{H}, noise {args.noise or 0}, {args.frames} frames, {args.rounds} rounds alternating, "
+              f"load "
               f"{os.getloadavg()[0]:.1f} (1-min average at the end); medians, s")
         print("| variant | " + " | ".join(stages) + " | total | PSNR dB | peak MB (above the warm process) |")
         print("|---" * (len(stages) + 4) + "|")
@@ -191,16 +330,26 @@ def main() -> None:
     ap.add_argument("--ab", choices=[v for v in VARIANTS if v != "kept"], default=None,
                     help="the kept code against this variant, alternating in one process, per stage, with peak memory")
     ap.add_argument("--rounds", type=int, default=3, help="--ab's runs of each")
-    ap.add_argument("--size", default="480x640", help="--ab: HxW of the clip")
-    ap.add_argument("--noise", type=float, default=0.0, help="--ab: σ of Gaussian noise added to the frames")
+    ap.add_argument("--size", default=None, help="HxW of --ab's clip (default 480x640) and --quality's (240x320)")
+    ap.add_argument("--noise", type=float, default=None,
+                    help="σ of Gaussian noise added to --ab's frames (default none) and --quality's noisy ones (0.01)")
     ap.add_argument("--focus", default="trajectory_gather", help="--ab: the stage whose every run is printed too")
+    ap.add_argument("--quality", choices=[v for v in VARIANTS if v != "kept"], default=None,
+                    help="the kept code's PSNR against this variant's on every moving built-in scene, clean and noisy")
+    ap.add_argument("--memory", nargs="?", const="kept", default=None, choices=list(VARIANTS),
+                    help="each stage's resident memory (start, peak, end) in one cold call in a child process; "
+                         "with a VARIANT, that variant's too")
+    ap.add_argument("--memory-child", nargs=2, metavar=("VARIANT", "FRAMES"), help=argparse.SUPPRESS)
     ap.add_argument("--child", nargs=2, metavar=("VARIANT", "FRAMES"), help=argparse.SUPPRESS)
     ap.add_argument("--extra", default="{}", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
         _child(args.child[0], args.child[1], json.loads(args.extra))
         return
-    if args.ab:
+    if args.memory_child:
+        _memory_child(args.memory_child[0], args.memory_child[1], json.loads(args.extra))
+        return
+    if args.ab or args.memory or args.quality:
         ab_extra: dict = {"flow_scale": args.flow_scale}
         if args.slow_reach is not None:
             ab_extra["slow_reach"] = args.slow_reach
@@ -208,7 +357,12 @@ def main() -> None:
             ab_extra["refine_time"] = args.refine
         if args.no_local_choice:
             ab_extra["local_choice"] = False
-        _ab(args, ab_extra)
+        if args.quality:
+            _quality(args, ab_extra)
+        if args.memory:
+            _memory(args, ab_extra)
+        if args.ab:
+            _ab(args, ab_extra)
         return
     code = design_code((4, 4)).code
     scale = args.flow_scale or 'auto'

@@ -134,7 +134,6 @@ def motion_compensated_nc(
             raise ValueError(f"`{'still' if invert else 'gathered'}` and `still_value` must have shape {vals.shape}")
     if loo is not None and (loo.ndim != 3 or loo.shape[1:] != (H, W) or not len(loo) or S % len(loo)):
         raise ValueError(f"`loo` must be (F, H, W) with F dividing the {S} sub-frames; got {loo.shape}")
-    per_frame = S // len(loo) if loo is not None else 0
     if out is None:
         out = np.empty((S, H, W), np.float32)
     elif not isinstance(out, np.ndarray) or out.shape != vals.shape or out.dtype != np.float32:
@@ -144,6 +143,110 @@ def motion_compensated_nc(
     if wide is not None and (len(wide) != S or not (math.isfinite(wide_sigma) and wide_sigma > 0)):
         raise ValueError(f"`wide` must give a weight plane or None for each of the {S} sub-frames, and "
                          f"`wide_sigma` must be > 0; got {len(wide)} and {wide_sigma!r}")
+
+    def sums(t, box, near):
+        ys, xs = np.nonzero(near)
+        ys += box[0].start
+        xs += box[1].start
+        ys, xs, num, den = _gather_list(t, ys, xs, value, weight, f, reach, time, c1)
+        planes = np.zeros((2, *near.shape), np.float32)
+        planes[0, ys - box[0].start, xs - box[1].start] = num
+        planes[1, ys - box[0].start, xs - box[1].start] = den
+        return planes
+
+    def samples_of(t):
+        return m[t], vals[t]
+
+    return _gather(S, H, W, sums, samples_of, select=select, invert=invert, still_value=still_value,
+                   fallback=fallback, wide=wide, wide_sigma=wide_sigma, sig_space=sig_space, loo=loo, out=out,
+                   keep_samples=keep_samples)
+
+
+def trajectory_gather(frames, code, flow, *, missing=None, c=DEFAULT_C, time: float = 2.0, fallback,
+                      gathered, still_value, loo: np.ndarray | None = None, wide=None, wide_sigma: float = 0.0,
+                      max_reach: int | None = None, out: np.ndarray | None = None) -> np.ndarray:
+    """:func:`motion_compensated_nc` at the ``gathered`` voxels of an identity code's capture, read from the camera
+    frames and the code (no sample volume, no mask volume): the same result but for the positions, which are
+    read exactly here (OpenCV's remap rounds them to 1/32 px), as the GPU's gather reads them.
+
+    Parameters
+    ----------
+    frames : ndarray (F, H, W)
+        Camera frames of the identity ``code`` (m, n, K); a dropped frame's values are not read.
+    code : ndarray (m, n, K) bool
+    flow : ndarray (F·K, H, W, 2)
+    missing : ndarray (F,) bool, optional
+        Dropped frames: their sub-frames hold no samples.
+    c, time, fallback, gathered, still_value, loo, wide, wide_sigma, max_reach, out
+        As :func:`motion_compensated_nc`'s (``gathered``, ``still_value`` and ``fallback`` required); the samples
+        are kept. ``max_reach`` defaults to :func:`default_reach` of the sampling period S / (frames present).
+    """
+    from flexvox_core.forward import tiled_code, validate_code
+    from flexvox_core.motion.mcnc_kernel import lattice_sums, slot_tables
+
+    c1, c2, _ = check_c(c)
+    code = validate_code(code)
+    fr = np.ascontiguousarray(frames, dtype=np.float32)
+    if fr.ndim != 3:
+        raise ValueError(f"`frames` must have shape (F, H, W); got {fr.shape}")
+    F, H, W = fr.shape
+    m, n, K = code.shape
+    if (code.sum(axis=2) != 1).any():
+        raise ValueError("`code` must be an identity code (each pixel open in one slot); demultiplex first")
+    S = F * K
+    f = np.asarray(flow, dtype=np.float32)
+    if f.shape != (S, H, W, 2):
+        raise ValueError(f"`flow` must have shape {(S, H, W, 2)} (F·K sub-frames of the frames); got {f.shape}")
+    present = np.ones(F, bool) if missing is None else ~np.asarray(missing, bool)
+    if present.shape != (F,):
+        raise ValueError(f"`missing` must be ({F},) bool; got shape {present.shape}")
+    if not math.isfinite(time) or time <= 0:
+        raise ValueError(f"`time` must be a finite number > 0; got {time!r}")
+    select = np.asarray(gathered, dtype=bool)
+    still_value = np.asarray(still_value, dtype=np.float32)
+    if select.shape != (S, H, W) or still_value.shape != (S, H, W) or np.shape(fallback) != (S, H, W):
+        raise ValueError(f"`gathered`, `still_value` and `fallback` must have shape {(S, H, W)}")
+    if loo is not None and loo.shape != (F, H, W):
+        raise ValueError(f"`loo` must be (F, H, W) = {(F, H, W)}; got {loo.shape}")
+    if out is None:
+        out = np.empty((S, H, W), np.float32)
+    elif not isinstance(out, np.ndarray) or out.shape != (S, H, W) or out.dtype != np.float32:
+        raise ValueError(f"`out` must be a float32 array of shape {(S, H, W)}")
+    elif np.may_share_memory(out, fallback):
+        raise ValueError("`out` must not share memory with `fallback`")
+    if wide is not None and (len(wide) != S or not (math.isfinite(wide_sigma) and wide_sigma > 0)):
+        raise ValueError(f"`wide` must give a weight plane or None for each of the {S} sub-frames, and "
+                         f"`wide_sigma` must be > 0; got {len(wide)} and {wide_sigma!r}")
+    count = int(present.sum())
+    period = S // count if count else S
+    reach = default_reach(time, c1, period, S) if max_reach is None else max(0, min(int(max_reach), S - 1))
+    row_hit, col_hit = slot_tables(code, H, W)
+    slots = tiled_code(code, H, W)  # (K, H, W): a slot's samples, a sixteenth of a volume at K = 16
+    none = np.zeros((H, W), bool)
+    inv_4nc1 = np.float32(1 / (4 * time * c1))
+
+    def sums(t, box, near):
+        planes = np.empty((2, *near.shape), np.float32)
+        flow_t = f[t] if f[t].flags.c_contiguous else np.ascontiguousarray(f[t])
+        lattice_sums(fr, present, row_hit, col_hit, flow_t, np.ascontiguousarray(near), box[0].start, box[1].start,
+                     t, S, inv_4nc1, reach, planes[0], planes[1])
+        return planes
+
+    def samples_of(t):
+        return (slots[t % K] if present[t // K] else none), fr[t // K]
+
+    return _gather(S, H, W, sums, samples_of, select=select, invert=False, still_value=still_value,
+                   fallback=fallback, wide=wide, wide_sigma=wide_sigma, sig_space=math.sqrt(2 * time * c2), loo=loo,
+                   out=out, keep_samples=True)
+
+
+def _gather(S, H, W, sums, samples_of, *, select, invert, still_value, fallback, wide, wide_sigma, sig_space, loo,
+            out, keep_samples):
+    """The gather's frame around its sums, a sub-frame at a time on every core: the box of the voxels to gather
+    and their neighbours within the spatial blur's reach, ``sums(t, box, near)`` (the unblurred (numerator,
+    weight) planes of the box, 0 off ``near``), the blurs, the leave-one-out, the division and the fallback;
+    ``samples_of(t)`` gives the sub-frame's (mask, values) planes (the samples kept, the leave-one-out's)."""
+    per_frame = S // len(loo) if loo is not None else 0
     # The spatial blur mixes in trajectories up to `pad` away: those are gathered in full too.
     pad = int(math.ceil(max(sig_space, wide_sigma if wide is not None else 0.0) * 4)) + 1
     kernel = np.ones((2 * pad + 1,) * 2, np.uint8)
@@ -154,44 +257,44 @@ def motion_compensated_nc(
         if select is not None and out is not still_value:
             out[t] = still_value[t]
         rows = np.flatnonzero(moving.any(axis=1))
-        if not len(rows):
-            return
-        cols = np.flatnonzero(moving[rows[0]: rows[-1] + 1].any(axis=0))
-        y0, y1 = max(0, rows[0] - pad), min(H, rows[-1] + 1 + pad)
-        x0, x1 = max(0, cols[0] - pad), min(W, cols[-1] + 1 + pad)
-        box = (slice(y0, y1), slice(x0, x1))
-        inside = moving[box]
-        near = inside if select is None else cv2.dilate(inside.view(np.uint8), kernel) > 0
-        ys, xs = np.nonzero(near)
-        ys += y0
-        xs += x0
-        ys, xs, num, den = _gather_list(t, ys, xs, value, weight, f, reach, time, c1)
-        planes = np.zeros((2, y1 - y0, x1 - x0), np.float32)
-        planes[0, ys - y0, xs - x0] = num
-        planes[1, ys - y0, xs - x0] = den
-        g = wide[t] if wide is not None else None
-        if g is not None:
-            g = g[box]
-            broad = np.empty_like(planes)
-            for plane, dst in zip(planes, broad, strict=True):
-                cv2.GaussianBlur(plane, (0, 0), wide_sigma, dst=dst, borderType=cv2.BORDER_REFLECT)
-        if sig_space > 0.05:  # neighbours outside `near` are beyond the blur's reach of `moving`
-            for plane in planes:
-                cv2.GaussianBlur(plane, (0, 0), sig_space, dst=plane, borderType=cv2.BORDER_REFLECT)
-        if g is not None:  # the mixture of the two kernels, per voxel
-            planes += g * (broad - planes)
-        if loo is not None:
-            _leave_one_out(loo[t // per_frame][box], planes, inside & m[t][box], vals[t][box], sig_space,
-                           g, wide_sigma)
-        ok = planes[1] > MIN_WEIGHT
-        est = np.divide(planes[0], planes[1], out=np.zeros_like(planes[0]), where=ok)
-        region = np.float32(0) if fallback is None else np.asarray(fallback[t][box], np.float32)
-        np.copyto(out[t][box], np.where(ok, est, region), where=inside)
+        if len(rows):
+            cols = np.flatnonzero(moving[rows[0]: rows[-1] + 1].any(axis=0))
+            y0, y1 = max(0, rows[0] - pad), min(H, rows[-1] + 1 + pad)
+            x0, x1 = max(0, cols[0] - pad), min(W, cols[-1] + 1 + pad)
+            box = (slice(y0, y1), slice(x0, x1))
+            inside = moving[box]
+            near = inside if select is None else cv2.dilate(inside.view(np.uint8), kernel) > 0
+            _finish(t, box, inside, sums(t, box, near), samples_of, wide, wide_sigma, sig_space, fallback,
+                    loo[t // per_frame] if loo is not None else None, out)
+        if keep_samples:
+            m_t, vals_t = samples_of(t)
+            np.copyto(out[t], vals_t, where=m_t)
 
     for_each(one, S)
-    if keep_samples:
-        np.copyto(out, vals, where=m)
     return out
+
+
+def _finish(t, box, inside, planes, samples_of, wide, wide_sigma, sig_space, fallback, loo_f, out):
+    """Blur a box's sums, write its leave-one-out into ``loo_f`` (the frame's plane) and N / D (the fallback
+    where D is tiny) at the voxels ``inside`` of ``out[t]``."""
+    g = wide[t] if wide is not None else None
+    if g is not None:
+        g = g[box]
+        broad = np.empty_like(planes)
+        for plane, dst in zip(planes, broad, strict=True):
+            cv2.GaussianBlur(plane, (0, 0), wide_sigma, dst=dst, borderType=cv2.BORDER_REFLECT)
+    if sig_space > 0.05:  # neighbours outside `near` are beyond the blur's reach of `moving`
+        for plane in planes:
+            cv2.GaussianBlur(plane, (0, 0), sig_space, dst=plane, borderType=cv2.BORDER_REFLECT)
+    if g is not None:  # the mixture of the two kernels, per voxel
+        planes += g * (broad - planes)
+    if loo_f is not None:
+        m_t, vals_t = samples_of(t)
+        _leave_one_out(loo_f[box], planes, inside & m_t[box], vals_t[box], sig_space, g, wide_sigma)
+    ok = planes[1] > MIN_WEIGHT
+    est = np.divide(planes[0], planes[1], out=np.zeros_like(planes[0]), where=ok)
+    region = np.float32(0) if fallback is None else np.asarray(fallback[t][box], np.float32)
+    np.copyto(out[t][box], np.where(ok, est, region), where=inside)
 
 
 def _leave_one_out(dst: np.ndarray, planes: np.ndarray, sampled: np.ndarray, y: np.ndarray, sig_space: float,

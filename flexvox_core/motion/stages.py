@@ -5,7 +5,8 @@ stage                  what it computes
 =====================  ==========================================================================================
 ``high_tr``            normalized convolution with ``diag(1, 1, 0.05)``, n = 2 (the paper's Step 1): sharp in
                        time, so fast motion survives for the flow
-``samples``            the sample volume (0 off the samples) and its mask; a dropped frame's sub-frames hold none
+``samples``            the samples' mask; a dropped frame's sub-frames hold none (no stage reads a sample volume: the
+                       gathers read the frames and the code)
 ``gated_flow``         velocity of every voxel: the high-TR video's flow, gated by a motion detector that cannot
                        swim, slow motion measured over a long baseline (:mod:`~flexvox_core.motion.gated_flow`);
                        bridged across dropped frames
@@ -46,12 +47,12 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from flexvox_core.forward import sample_mask, sparse_volume
+from flexvox_core.forward import sample_mask
 from flexvox_core.gaps import bridge, bridge_flow, interpolated_subframes
 from flexvox_core.motion import local_choice, longreach, noise_aware
 from flexvox_core.motion.gated_flow import gated_flow
 from flexvox_core.motion.longreach import LongReachPlan
-from flexvox_core.motion.mcnc import default_reach, motion_compensated_nc
+from flexvox_core.motion.mcnc import default_reach, trajectory_gather
 from flexvox_core.motion.options import (
     LONG_REACH_RANGE,
     LONG_REACH_SIGMA_S,
@@ -421,7 +422,7 @@ def run_stages(engine: Stages) -> MotionAwareResult:
         with times("trajectory_gather"):
             video, loo, gathered = engine.trajectory_gather(flow, base, still, slow, high_tr, wide,
                                                             leave_one_out=win.leave_one_out and last)
-        del base
+        del base, still  # read by no later stage: the CPU's volumes go now
         with times("long_reach"):
             engine.long_reach(flow, video, slow)
         with times("refinement"):
@@ -451,7 +452,7 @@ class CpuStages:
         self.memo = memo
         self.passes_run = 0  # gated_flow starts each pass
         self.last = False  # the pass running is the last: what no later pass reads may be freed or overwritten
-        self.sparse: npt.NDArray[np.float32] | None = None
+        self.scratch: npt.NDArray[np.float32] | None = None  # _spare's
         self.mask: npt.NDArray[np.bool_] | None = None
         self.fixed: npt.NDArray[np.float32] | None = None
         self.still_value: npt.NDArray[np.float32] | None = None
@@ -459,11 +460,6 @@ class CpuStages:
 
     def sync(self) -> None:
         return None
-
-    def _samples(self) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.bool_]]:
-        """The sample volume and its mask (:meth:`samples` sets them, before every later stage)."""
-        assert self.sparse is not None, "the samples stage runs first"
-        return self.sparse, self._mask()
 
     def _mask(self) -> npt.NDArray[np.bool_]:
         """The samples' mask (:meth:`samples` sets it, before every later stage)."""
@@ -477,13 +473,11 @@ class CpuStages:
         return diffuse(w.frames, w.code, tensor=STEP1_TENSOR, time=STEP1_TIME, missing=w.missing)
 
     def samples(self) -> None:
+        """The samples' mask (no stage reads a sample volume: the gathers read the frames and the code)."""
         w = self.window
-        self.sparse = sparse = sparse_volume(np.asarray(w.frames, np.float32), w.code)
-        self.mask = mask = sample_mask(sparse.shape, w.code)
+        self.mask = mask = sample_mask((w.S, *w.frames.shape[1:]), w.code)
         if w.missing is not None:  # a dropped frame's sub-frames hold no samples
-            gap = interpolated_subframes(w.missing, w.K)
-            mask[gap] = False
-            sparse[gap] = 0
+            mask[interpolated_subframes(w.missing, w.K)] = False
 
     def gated_flow(self, current: Volume) -> Flow:
         w = self.window
@@ -543,10 +537,9 @@ class CpuStages:
         loo = np.full(w.frames.shape, np.nan, np.float32) if leave_one_out else None
         # The gather writes into `base` when no later pass reads it (one volume less).
         into = base if w.passes == 1 or base is not self.fixed else None
-        sparse, mask = self._samples()
-        video = motion_compensated_nc(sparse, mask, flow.flow, c=w.gather_c, time=w.gather_time, fallback=high_tr,
-                                      gathered=self.gathered, still_value=base, loo=loo, wide=wide,
-                                      wide_sigma=noise_aware.wide_sigma(w.K), max_reach=w.gather_reach, out=into)
+        video = trajectory_gather(w.frames, w.code, flow.flow, missing=w.missing, c=w.gather_c, time=w.gather_time,
+                                  fallback=high_tr, gathered=self.gathered, still_value=base, loo=loo, wide=wide,
+                                  wide_sigma=noise_aware.wide_sigma(w.K), max_reach=w.gather_reach, out=into)
         gathered = self.gathered if loo is not None else None
         if self.last:
             self.fixed = self.still_value = None  # not needed again: free them before the local choice's volume
@@ -561,8 +554,14 @@ class CpuStages:
                              write_samples=True)
 
     def _spare(self) -> npt.NDArray[np.float32] | None:
-        """A volume the stages after the last pass's gathers may overwrite: the samples' (dead by then)."""
-        return self.sparse if self.last else None
+        """A volume the stages after the last pass's gathers may overwrite (None before the last pass): one made
+        here once, for the refinement and then the local choice."""
+        if not self.last:
+            return None
+        if self.scratch is None:
+            w = self.window
+            self.scratch = np.empty((w.S, *w.frames.shape[1:]), np.float32)
+        return self.scratch
 
     def refinement(self, video: Volume, flow: Flow, slow: Volume) -> None:
         """Along each trajectory; the slow voxels read their neighbours by clipped Catmull-Rom (a bilinear read
@@ -594,6 +593,8 @@ class CpuStages:
         bridge(video, w.missing, w.K, flow=flow.flow)
 
     def clip(self, video: Volume) -> Volume:
+        if self.last:  # the scratch is read no more
+            self.scratch = None
         lo, hi = self.window.sample_range
         return np.clip(video, lo, hi, out=video)
 

@@ -71,6 +71,36 @@ def test_trajectory_gather_is_the_cpus(rng, ws, clip, noisy):
     np.testing.assert_allclose(got_loo[np.isfinite(loo)], loo[np.isfinite(loo)], atol=5e-3)
 
 
+@pytest.mark.parametrize("noisy", [False, True])
+def test_trajectory_gather_is_the_cpus_from_the_frames(rng, ws, clip, noisy):
+    """The CPU's gather from the frames and the code reads positions exactly, as the GPU does: the same video and
+    leave-one-out up to float32 sums in another order."""
+    from flexvox_core.motion.gpu.mcnc import trajectory_gather
+    from flexvox_core.motion.mcnc import default_reach
+    from flexvox_core.motion.mcnc import trajectory_gather as cpu_gather
+
+    frames, sparse, mask, flow, truth = clip
+    S = len(sparse)
+    gather = rng.random(sparse.shape) > 0.4
+    base = rng.random(sparse.shape).astype(np.float32)
+    fallback = rng.random(sparse.shape).astype(np.float32)
+    wide = rng.random(sparse.shape).astype(np.float32) if noisy else None
+    reach = default_reach(5.0, 0.95, K, S)
+    loo = np.full(frames.shape, np.nan, np.float32)
+    want = cpu_gather(frames, CODE, flow, time=5.0, fallback=fallback, gathered=gather, still_value=base, loo=loo,
+                      wide=list(wide) if noisy else None, wide_sigma=wide_sigma(K), max_reach=reach)
+    out = _dev(base)
+    loo_d = _dev(np.full(frames.shape, np.nan, np.float32))
+    trajectory_gather(ws, _dev(sparse), _dev(mask.astype(np.uint8)), _dev(flow), _dev(gather.astype(np.uint8)), out,
+                      _dev(fallback), time=5.0, c1=0.95, c2=0.05, reach=reach, wide=_dev(wide) if noisy else None,
+                      wide_sigma=wide_sigma(K), loo=loo_d)
+    np.testing.assert_allclose(out.copy_to_host(), want, atol=5e-6)
+    got_loo = loo_d.copy_to_host()
+    np.testing.assert_array_equal(np.isnan(got_loo), np.isnan(loo))
+    np.testing.assert_allclose(got_loo[np.isfinite(loo)], loo[np.isfinite(loo)], atol=2e-5)
+    assert np.isfinite(loo).any()
+
+
 @pytest.mark.parametrize("missing", [None, [False, True, False]])
 def test_long_reach_is_the_cpus(rng, ws, clip, missing):
     from flexvox_core.codes import order_from_code

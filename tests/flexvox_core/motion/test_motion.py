@@ -314,10 +314,11 @@ def test_still_values_written_in_place_give_the_volumes_result(monkeypatch, pass
         return out
 
     def fresh_out(*args, out=None, **kwargs):
-        return motion_compensated_nc(*args, **kwargs)
+        return gather(*args, **kwargs)
 
+    gather = P.trajectory_gather
     monkeypatch.setattr(P, "diffuse_where", volume_then_copy)
-    monkeypatch.setattr(P, "motion_compensated_nc", fresh_out)
+    monkeypatch.setattr(P, "trajectory_gather", fresh_out)
     np.testing.assert_array_equal(got, motion_aware(frames, code, passes=passes).video)
 
 
@@ -340,3 +341,25 @@ def test_motion_aware_measures_its_flow_with_two_variational_iterations(monkeypa
     measuring = [params for name, params in built if name == "dis" and params]
     assert len(measuring) == 2 and all(p == {"variational_iterations": 2} for p in measuring)
     assert result.flow.params["variational_iterations"] == 2
+
+
+def test_a_window_without_slow_voxels_lends_one_scratch_volume_and_gives_the_same_bits(monkeypatch):
+    # No long reach, so no sample volume: the refinement and the local choice share one scratch volume made for
+    # them, and give the bits of their own fresh volumes.
+    import flexvox_core.motion.stages as P
+
+    code = design_code((4, 4)).code
+    frames = capture(render_scene("balls", 16 * 3, 40, 52), code)
+    made = []
+    spare = P.CpuStages._spare
+
+    def recorded(self):
+        got = spare(self)
+        made.append(None if got is None else id(got))
+        return got
+
+    monkeypatch.setattr(P.CpuStages, "_spare", recorded)
+    got = motion_aware(frames, code, slow_speed=None).video
+    assert len(made) == 2 and made[0] is not None and made[0] == made[1]
+    monkeypatch.setattr(P.CpuStages, "_spare", lambda self: None)
+    np.testing.assert_array_equal(got, motion_aware(frames, code, slow_speed=None).video)

@@ -1,0 +1,172 @@
+"""The trajectory gather read from the frames and the code (:func:`flexvox_core.motion.mcnc.trajectory_gather` and
+its kernel :func:`flexvox_core.motion.mcnc_kernel.lattice_sums`) against a plain numpy reference and against the
+sample-volume gather (:func:`flexvox_core.motion.mcnc.motion_compensated_nc`)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from flexvox_core.design import design_code
+from flexvox_core.forward import capture, sample_mask, sparse_volume
+from flexvox_core.motion.mcnc import default_reach, motion_compensated_nc, reaches, trajectory_gather
+from flexvox_core.motion.noise_aware import wide_sigma
+from flexvox_core.simulate.scenes import render_scene
+
+TILES = [(2, 4), (4, 4)]
+
+
+def _volumes(frames, code, missing):
+    """The sample volume and its mask, a dropped frame's sub-frames without samples."""
+    sparse = sparse_volume(frames, code).astype(np.float64)
+    mask = sample_mask(sparse.shape, code)
+    K = code.shape[2]
+    if missing is not None:
+        for f in np.flatnonzero(missing):
+            sparse[f * K:(f + 1) * K] = 0
+            mask[f * K:(f + 1) * K] = False
+    return sparse, mask.astype(np.float64)
+
+
+def _bilinear(plane, y, x):
+    """Bilinear reads (float64) of ``plane`` at (y, x), 0 outside the picture."""
+    H, W = plane.shape
+    y0, x0 = np.floor(y).astype(int), np.floor(x).astype(int)
+    ay, ax = y - y0, x - x0
+    acc = np.zeros(y.shape)
+    for dy, wy in ((0, 1 - ay), (1, ay)):
+        for dx, wx in ((0, 1 - ax), (1, ax)):
+            yy, xx = y0 + dy, x0 + dx
+            inside = (yy >= 0) & (yy < H) & (xx >= 0) & (xx < W)
+            acc += np.where(inside, wy * wx * plane[np.clip(yy, 0, H - 1), np.clip(xx, 0, W - 1)], 0)
+    return acc
+
+
+def reference_sums(sparse, mask, flow, t, time, c1, reach):
+    """The unblurred (numerator, weight) planes of sub-frame ``t`` from the sample volume, every pixel, float64:
+    w_d = e^(d²) over d up to each voxel's own reach (e as the kernel computes it, float32)."""
+    S, H, W = sparse.shape
+    u = np.nan_to_num(flow[t, ..., 0], nan=0, posinf=0, neginf=0).astype(np.float32)
+    v = np.nan_to_num(flow[t, ..., 1], nan=0, posinf=0, neginf=0).astype(np.float32)
+    bad = ~(np.isfinite(flow[t, ..., 0]) & np.isfinite(flow[t, ..., 1]))
+    u[bad], v[bad] = 0, 0
+    e = np.exp(-(1 + u * u + v * v) * np.float32(1 / (4 * time * c1))).astype(np.float32)
+    r = reaches(e, reach)
+    y, x = np.mgrid[:H, :W].astype(np.float64)
+    num, den = sparse[t].copy(), mask[t].copy()
+    e64, u64, v64 = e.astype(np.float64), u.astype(np.float64), v.astype(np.float64)
+    for d in range(1, reach + 1):
+        w = np.where(r >= d, e64 ** (d * d), 0)
+        for sd in (d, -d):
+            if 0 <= t + sd < S:
+                py, px = y + sd * v64, x + sd * u64
+                num += w * _bilinear(sparse[t + sd], py, px)
+                den += w * _bilinear(mask[t + sd], py, px)
+    return num, den
+
+
+@pytest.mark.parametrize("tile", TILES)
+@pytest.mark.parametrize("dropped", [False, True])
+def test_lattice_sums_are_the_numpy_reference(rng, tile, dropped):
+    from flexvox_core.motion.mcnc_kernel import lattice_sums, slot_tables
+
+    code = design_code(tile).code
+    K = code.shape[2]
+    F, H, W = 3, 11, 13  # odd sizes: partial tiles at the right and bottom
+    frames = rng.uniform(0.1, 0.9, (F, H, W)).astype(np.float32)
+    missing = np.array([False, True, False]) if dropped else None
+    S = F * K
+    flow = rng.normal(0, 1.2, (S, H, W, 2)).astype(np.float32)
+    flow[:, :3] = 0  # a still band: its own samples
+    flow[::5, 7, 2] = np.nan  # no flow measured: still
+    time, c1, reach = 2.0, 0.95, default_reach(2.0, 0.95, K, S)
+    sparse, mask = _volumes(frames, code, missing)
+    present = np.ones(F, bool) if missing is None else ~missing
+    rows, cols = slot_tables(code, H, W)
+    box = (slice(2, 10), slice(1, 12))
+    for t in (0, K - 1, K + 3, S - 1):
+        near = rng.random((8, 11)) > 0.3
+        num, den = np.full((2, 8, 11), 7, np.float32)
+        lattice_sums(frames, present, rows, cols, flow[t], near, box[0].start, box[1].start, t, S,
+                     np.float32(1 / (4 * time * c1)), reach, num, den)
+        want_n, want_d = reference_sums(sparse, mask, flow, t, time, c1, reach)
+        np.testing.assert_allclose(num, np.where(near, want_n[box], 0), atol=2e-5)
+        np.testing.assert_allclose(den, np.where(near, want_d[box], 0), atol=2e-5)
+        assert den[near].max() > 0  # samples were read
+
+
+@pytest.fixture(params=TILES, ids=lambda t: f"{t[0]}x{t[1]}")
+def clip(request, rng):
+    """(code, frames, flow) of a small moving scene at an odd size, the flow from still to 2 px per sub-frame."""
+    code = design_code(request.param).code
+    K = code.shape[2]
+    truth = render_scene("balls", 3 * K, 15, 17, seed=2)
+    frames = capture(truth, code).astype(np.float32)
+    flow = rng.normal(0, 1.0, (*truth.shape, 2)).astype(np.float32)
+    flow[:, :5] = 0
+    return code, frames, flow
+
+
+@pytest.mark.parametrize("noisy", [False, True])
+@pytest.mark.parametrize("dropped", [False, True])
+def test_gather_from_the_frames_is_the_sample_volumes(rng, clip, noisy, dropped):
+    """Integer flows (OpenCV's remap reads whole pixels exactly): the same video and leave-one-out as the
+    sample-volume gather, up to float32 sums in another order."""
+    code, frames, flow = clip
+    K = code.shape[2]
+    S = len(flow)
+    flow = np.round(flow)
+    missing = np.array([False, True, False]) if dropped else None
+    sparse, mask = _volumes(frames, code, missing)
+    gathered = rng.random(sparse.shape) > 0.4  # samples among them: their leave-one-out
+    base = rng.random(sparse.shape).astype(np.float32)
+    fallback = rng.random(sparse.shape).astype(np.float32)
+    wide = list(rng.random(sparse.shape).astype(np.float32)) if noisy else None
+    reach = default_reach(3.0, 0.95, S // (3 - int(dropped)), S)
+    kw = dict(time=3.0, fallback=fallback, still_value=base, wide=wide, wide_sigma=wide_sigma(K), max_reach=reach)
+    loo_want = np.full(frames.shape, np.nan, np.float32)
+    want = motion_compensated_nc(sparse.astype(np.float32), mask > 0, flow, gathered=gathered, loo=loo_want, **kw)
+    loo = np.full(frames.shape, np.nan, np.float32)
+    got = trajectory_gather(frames, code, flow, missing=missing, gathered=gathered, loo=loo, **kw)
+    np.testing.assert_allclose(got, want, atol=2e-5)
+    np.testing.assert_array_equal(np.isnan(loo), np.isnan(loo_want))
+    np.testing.assert_allclose(loo[np.isfinite(loo)], loo_want[np.isfinite(loo)], atol=1e-4)
+    assert np.isfinite(loo).any() and (got != base).any()
+
+
+def test_gather_from_the_frames_reads_exact_positions(rng, clip):
+    """Fractional flows: within OpenCV's 1/32 px rounding of the sample-volume gather; in place of ``still_value``
+    alike."""
+    code, frames, flow = clip
+    sparse, mask = _volumes(frames, code, None)
+    gathered = rng.random(sparse.shape) > 0.3
+    base = rng.random(sparse.shape).astype(np.float32)
+    high_tr = rng.random(sparse.shape).astype(np.float32)
+    want = motion_compensated_nc(sparse.astype(np.float32), mask > 0, flow, time=2.0, fallback=high_tr,
+                                 gathered=gathered, still_value=base)
+    got = trajectory_gather(frames, code, flow, time=2.0, fallback=high_tr, gathered=gathered, still_value=base,
+                            out=base)
+    assert got is base
+    np.testing.assert_allclose(got, want, atol=3e-3)
+    assert np.abs(got - want).mean() < 3e-4
+    np.testing.assert_array_equal(got[mask > 0], sparse[mask > 0].astype(np.float32))
+
+
+def test_gather_from_the_frames_refuses_what_it_cannot_read(rng):
+    code = design_code((2, 2)).code
+    frames = rng.random((2, 5, 6)).astype(np.float32)
+    S = 2 * 4
+    vol = np.zeros((S, 5, 6), np.float32)
+    kw = dict(fallback=vol, gathered=vol > 0, still_value=vol)
+    flow = np.zeros((S, 5, 6, 2), np.float32)
+    with pytest.raises(ValueError, match=r"`flow` must have shape \(8, 5, 6, 2\)"):
+        trajectory_gather(frames, code, flow[:4], **kw)
+    with pytest.raises(ValueError, match="must be an identity code"):
+        trajectory_gather(frames, np.ones((2, 2, 4), bool), flow, **kw)
+    with pytest.raises(ValueError, match=r"`missing` must be \(2,\) bool"):
+        trajectory_gather(frames, code, flow, missing=np.zeros(3, bool), **kw)
+    with pytest.raises(ValueError, match=r"`loo` must be \(F, H, W\)"):
+        trajectory_gather(frames, code, flow, loo=np.zeros((1, 5, 6), np.float32), **kw)
+    with pytest.raises(ValueError, match="must not share memory with `fallback`"):
+        trajectory_gather(frames, code, flow, out=vol, **kw)
+    assert math.isfinite(float(trajectory_gather(frames, code, flow, **kw).sum()))

@@ -102,12 +102,27 @@ REFUSED = {
 """Methods the estimate refuses, with why (the figures: ``bench/bench_accuracy.py``)."""
 
 
+_SOLVERS_HIGH = ("it never moves a sample and fills between them with the samples held, not by a renormalised "
+                 "smoother, for which the probe's take-out is exact, and where samples are few (K = 4) the estimate "
+                 "runs high; estimate with solver='nc' (within 0.36 dB on the same runs)")
+REFUSED_SOLVERS = {
+    "explicit": ("the estimate lies within 1 dB of the truth on 34 of 36 runs on the built-in scenes and the SCI "
+                 "clips at K = 16 and 8 (n = 0.5, 1.5 and 4; worst +1.19 dB, at n = 0.5; interval covers 36 of 36) "
+                 "but is up to 1.86 dB high at a 2x2 code (K = 4; 6 of 8 within 1 dB; bench/bench_accuracy.py): "
+                 + _SOLVERS_HIGH),
+    "steady": ("the estimate lies within 1 dB of the truth on 12 of 12 runs on the built-in scenes and the SCI clips "
+               "at K = 16 and 8 (worst +0.96 dB; interval covers 12 of 12) but is up to 1.99 dB high at a 2x2 code "
+               "(K = 4; 6 of 8 within 1 dB; bench/bench_accuracy.py): " + _SOLVERS_HIGH),
+}
+"""Diffusion's solvers the estimate refuses (every one but ``nc``), with why."""
+
+
 def refusal(method: Method) -> str | None:
     """Why ``method`` (a :class:`~flexvox_core.methods.Method`) cannot be estimated, or None when it can."""
     why = REFUSED.get(method.name)
     if why is None and method.name == "diffusion" and method.solver != "nc":
-        why = (f"diffusion's {method.solver} solver has not been checked against the truth (only the nc solver "
-               "has); estimate with solver='nc'")
+        why = REFUSED_SOLVERS.get(method.solver, f"diffusion's {method.solver} solver has not been checked against "
+                                                 "the truth")
     if why is None and method.name not in ("diffusion", "rebin", "gap-tv"):
         why = f"{method.name} has not been checked against the truth"
     return why

@@ -361,3 +361,53 @@ def test_the_gpu_engine_holds_the_first_flow_too(monkeypatch):
 
     monkeypatch.setattr(engine.gate, "gated_flow", no_flow)
     np.testing.assert_allclose(runs(frames), first, atol=1e-6)
+
+
+class Stop(Exception):
+    """What a progress callback raises to stop (as Review's cancel token's Cancelled)."""
+
+
+def test_a_progress_that_raises_after_the_first_run_stops_before_the_probe(monkeypatch):
+    runs = []
+
+    def run(frames, code, method, **kw):
+        runs.append(frames.copy())
+        return MethodOutput(toy_nc(frames, code).astype(np.float32))
+
+    monkeypatch.setattr(methods_pkg, "run", run)
+    seen = []
+
+    def progress(done, total):
+        seen.append((done, total))
+        if done >= 4:  # the first run (4 frames) is done: cancel
+            raise Stop("cancelled")
+
+    _, frames = scene(False)
+    with pytest.raises(Stop, match="cancelled"):
+        estimate_accuracy(frames, CODE, Method("diffusion"), progress=progress)
+    assert len(runs) == 1  # the reconstruction ran; the probe did not
+    assert seen == [(4, 8)]  # two runs planned, four frames each
+
+
+def test_the_progress_counts_each_runs_chunks_and_leaves_the_estimate_as_it_was():
+    _, frames = scene(False)
+    m = Method("diffusion")
+    seen = []
+    est = estimate_accuracy(frames, CODE, m, chunk_frames=2, progress=lambda done, total: seen.append((done, total)))
+    assert seen == [(2, 8), (4, 8), (4, 8), (6, 8), (8, 8), (8, 8)]  # each chunk of each run, then the run
+    assert est.as_dict() == estimate_accuracy(frames, CODE, m, chunk_frames=2).as_dict()
+
+
+def test_the_folds_runs_report_progress_too():
+    seen = []
+    _, frames = scene(False)
+    est = estimate_accuracy(frames, CODE, Method("gap-tv"), unchecked=True,
+                            progress=lambda done, total: seen.append((done, total)))
+    assert seen[-1] == (24, 24)  # the reconstruction, the probe and 4 folds, 4 frames each
+    assert "4-fold" in est.scheme
+
+
+def test_a_progress_that_is_no_callback_is_refused():
+    _, frames = scene(False)
+    with pytest.raises(TypeError, match=r"`progress` must be True \(a bar\), False or None \(nothing\), or a callable"):
+        estimate_accuracy(frames, CODE, Method("diffusion"), progress=3)

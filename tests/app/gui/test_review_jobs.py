@@ -103,7 +103,7 @@ def test_a_refused_method_is_not_estimated_and_keeps_why(captured):
     jobs.runner.turn()
     r = jobs.results[0]
     assert [h.name for h in jobs.runner.handles] == ["reconstruct"] and r.estimate is None
-    assert r.no_estimate.startswith("the estimate of re-binning lies within 1 dB")
+    assert r.no_estimate.startswith("the estimate of re-binning lies within 0.57 dB")
     assert "estimat" not in jobs.result_line.text and "estimat" not in r.label()
 
 
@@ -133,6 +133,28 @@ def test_an_estimate_refused_by_the_recording_says_why_and_one_left_running_is_d
     assert waiting.name == "estimate" and not waiting.token.cancelled
     jobs.set_session(jobs.session)  # a recording opens
     assert waiting.token.cancelled
+
+
+def test_an_estimate_cancelled_while_it_runs_stops_at_its_next_check(captured, monkeypatch):
+    jobs = jobs_on(captured)
+    seen = []
+
+    def cancelled_midway(*args, progress, **kwargs):
+        def report(done, total):
+            seen.append((done, total))
+            jobs.cancel_estimates()  # a recording opens, or the window closes, while the probe runs
+            progress(done, total)
+
+        return estimate_recording(*args, progress=report, **kwargs)
+
+    monkeypatch.setattr("flexvox_app.gui.models.review_jobs.estimate_recording", cancelled_midway)
+    monkeypatch.setattr("flexvox_app.gui.models.review_jobs.chunk_frames_for", lambda *args: 1)  # a check a frame
+    jobs.reconstruct(Method("diffusion"))
+    jobs.runner.turn()
+    handle = jobs.runner.handles[-1]
+    assert handle.name == "estimate" and handle.outcome == "cancelled" and handle.token.cancelled
+    assert seen == [(1, FRAMES)]  # stopped after the probe's first chunk (the reconstruction given: one run)
+    assert jobs.results[0].estimate is None
 
 
 def test_reconstruct_with_an_auto_knob_runs_the_choice_and_says_what_it_chose_and_cost(captured):

@@ -93,6 +93,7 @@ def main() -> None:
     ap.add_argument("--no-dropped", action="store_true", help="skip the dropped-frames runs")
     args = ap.parse_args()
     chosen = None if args.methods is None else set(args.methods.split(","))
+    solvers = chosen is None or any(c == "diffusion" or c.startswith("diffusion:") for c in chosen)
     rows = []
     refused = {}
     print(f"{'case':22s} {'method':34s} {'estimate':>9s} {'interval':>15s} {'truth':>7s} {'error':>6s} cover "
@@ -145,7 +146,7 @@ def main() -> None:
               "truth's order")
     for why in dict.fromkeys(refused.values()):
         print(f"refused: {why}")
-    if chosen is None or "diffusion" in chosen or any(c.startswith("diffusion:") for c in chosen):
+    if solvers:
         solvers_at_k4(args.quick)
     if not args.no_dropped:
         dropped_frames(args.quick)

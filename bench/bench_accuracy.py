@@ -2,17 +2,17 @@
 
 On the built-in moving scenes (4×4 designed code, K = 16, 64×96, 4 frames), clean and with photon and
 read noise (1000 e⁻ per unit, 3 e⁻ read noise), and on the SCI clips Runner and Drop (2×4 code, K = 8)
-when ``../shared/data/sci_benchmark`` (or ``$FLEXVOX_DATA``) holds them, for diffusion (nc), GAP-TV,
-re-binning at the default division (2×2×4 at K = 16) and motion-aware (and diffusion at times 0.5 and 4,
-for the order check among the settings the API estimates), prints per run: the estimate, its
-interval, the true PSNR of the clip (``10·log10(1/MSE)``, what the estimate estimates; read only after the
-estimate), the error, whether the interval covers the truth,
-the time of the estimate with its reconstruction over the reconstruction's alone, and the mean of the
-sub-frames' PSNRs (``flexvox_core.metrics.psnr``, what ``flexvox bench`` reports) for reference. A method the API
-refuses is estimated all the same here (``unchecked=True``) and marked, as the evidence for the refusal.
+when ``../shared/data/sci_benchmark`` (or ``$FLEXVOX_DATA``) holds them, for diffusion (its nc, explicit and
+steady solvers), GAP-TV, re-binning at the default division (2×2×4 at K = 16) and motion-aware (and diffusion's
+nc and explicit solvers at times 0.5 and 4, for the order check among the settings the API estimates), prints
+per run: the estimate, its interval, the true PSNR of the clip (``10·log10(1/MSE)``, what the estimate
+estimates; read only after the estimate), the error, whether the interval covers the truth, the time of the
+estimate with its reconstruction over the reconstruction's alone, and the mean of the sub-frames' PSNRs
+(``flexvox_core.metrics.psnr``, what ``flexvox bench`` reports) for reference. A method the API refuses is
+estimated all the same here (``unchecked=True``) and marked, as the evidence for the refusal.
 Then per method: runs within 1 dB, the interval's coverage; and the order by estimate against the order
-by truth wherever the truths differ by more than 1 dB (methods the API estimates). Last, diffusion on
-captures with two dropped frames.
+by truth wherever the truths differ by more than 1 dB (methods the API estimates). Then diffusion's three
+solvers at a 2×2 code (K = 4), and last, diffusion on captures with two dropped frames.
 
 Figures only, never pass/fail. Usage: ``python bench/bench_accuracy.py [--quick]``.
 """
@@ -69,26 +69,38 @@ def clip_psnr(truth, video) -> float:
 
 
 def methods(code):
-    return [Method("diffusion"), Method("diffusion", time=0.5), Method("diffusion", time=4.0), Method("gap-tv"),
+    return [Method("diffusion"), Method("diffusion", time=0.5), Method("diffusion", time=4.0),
+            Method("diffusion", solver="explicit"), Method("diffusion", solver="explicit", time=0.5),
+            Method("diffusion", solver="explicit", time=4.0), Method("diffusion", solver="steady"), Method("gap-tv"),
             Method("rebin", block=default_block(code), interpolate=True),
             Method("motion-aware")]
+
+
+def key(method: Method) -> str:
+    """The method's name in ``--methods`` and the summary: its name, diffusion's other solvers as
+    ``diffusion:SOLVER``."""
+    if method.name == "diffusion" and method.solver != "nc":
+        return f"diffusion:{method.solver}"
+    return method.name
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="two scenes, smaller frames, Runner only")
     ap.add_argument("--methods", default=None,
-                    help="comma-separated method names to run (default: all), e.g. gap-tv,rebin")
+                    help="comma-separated method names to run (default: all), e.g. gap-tv,rebin; diffusion's "
+                         "other solvers as diffusion:explicit, diffusion:steady")
     ap.add_argument("--no-dropped", action="store_true", help="skip the dropped-frames runs")
     args = ap.parse_args()
     chosen = None if args.methods is None else set(args.methods.split(","))
+    solvers = chosen is None or any(c == "diffusion" or c.startswith("diffusion:") for c in chosen)
     rows = []
     refused = {}
     print(f"{'case':22s} {'method':34s} {'estimate':>9s} {'interval':>15s} {'truth':>7s} {'error':>6s} cover "
           f"{'cost (runs)':>11s} {'frames mean':>11s}")
     for name, truth, frames, code, noise in cases(args.quick):
         for method in methods(code):
-            if chosen is not None and method.name not in chosen:
+            if chosen is not None and key(method) not in chosen:
                 continue
             t0 = time.perf_counter()
             video = run(frames, code, method, chunk_frames=None).video
@@ -106,7 +118,7 @@ def main() -> None:
             frames_mean = float(psnr(truth, video))
             err = est.psnr - true
             cover = est.low <= true <= est.high
-            rows.append((name, method.name, est.psnr, true, err, cover, bool(why)))
+            rows.append((name, key(method), est.psnr, true, err, cover, bool(why)))
             flag = " (refused by the API)" if why else ""
             print(f"{name:22s} {method.label:34s} {est.psnr:9.2f} {est.low:7.2f}-{est.high:<7.2f} {true:7.2f} "
                   f"{err:+6.2f} {'yes' if cover else 'NO ':5s} {t_est / max(t_rec, 1e-9):11.2f} "
@@ -134,8 +146,37 @@ def main() -> None:
               "truth's order")
     for why in dict.fromkeys(refused.values()):
         print(f"refused: {why}")
+    if solvers:
+        solvers_at_k4(args.quick)
     if not args.no_dropped:
         dropped_frames(args.quick)
+
+
+def solvers_at_k4(quick: bool) -> None:
+    """Diffusion's three solvers at a 2×2 code (K = 4, 16 frames: the same 64 sub-frames), clean and noisy: where
+    the explicit and steady solvers' estimates run high."""
+    print("\ndiffusion's solvers at a 2x2 code (K = 4):")
+    code = design_code((2, 2)).code
+    H, W = (48, 64) if quick else (64, 96)
+    errors: dict[str, list[float]] = {}
+    for scene in ("balls", "fan") if quick else ("balls", "fan", "drummer", "pan"):
+        truth = render_scene(scene, 16 * 4, H, W, seed=0)
+        sim = simulate_video(truth, code, effects=NOISE, seed=1)
+        for label, frames, noise in (("clean", capture(truth, code), NoiseModel()),
+                                     ("noisy", sim.frames, NoiseModel.from_effects(NOISE))):
+            for solver in ("nc", "explicit", "steady"):
+                method = Method("diffusion", solver=solver)
+                video = run(frames, code, method, chunk_frames=None).video
+                est = estimate_accuracy(frames, code, method, noise=noise, reconstruction=video, unchecked=True)
+                true = clip_psnr(truth, video)
+                errors.setdefault(solver, []).append(est.psnr - true)
+                print(f"  {scene:8s} {label} {solver:9s} estimate {est.psnr:6.2f} ({est.low:.2f}-{est.high:.2f})  "
+                      f"truth {true:6.2f}  error {est.psnr - true:+.2f}  covers "
+                      f"{'yes' if est.low <= true <= est.high else 'NO'}", flush=True)
+    for solver, errs in errors.items():
+        e = np.array(errs)
+        worst = e[np.argmax(np.abs(e))]
+        print(f"  {solver:9s} within 1 dB {int(np.sum(np.abs(e) <= 1))} of {e.size}, worst {worst:+.2f}")
 
 
 def dropped_frames(quick: bool) -> None:

@@ -51,10 +51,11 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from flexvox_core.accuracy_folds import FOLDS, held_out_error, independent_rows, masked_run
-from flexvox_core.accuracy_runs import HeldRuns, Run, holds_flow
+from flexvox_core.accuracy_runs import HeldRuns, Run, Steps, holds_flow
 from flexvox_core.codes import is_identity_code, validate_code
 from flexvox_core.forward import tiled_code
 from flexvox_core.gaps import find_gaps
+from flexvox_core.progress import Progress, progress_callback
 
 if TYPE_CHECKING:
     from flexvox_core.methods import Method
@@ -101,13 +102,27 @@ REFUSED = {
 }
 """Methods the estimate refuses, with why (the figures: ``bench/bench_accuracy.py``)."""
 
+_SOLVERS_HIGH = ("it never moves a sample and fills between them with the samples held, not by a renormalised "
+                 "smoother, for which the probe's take-out is exact, and where samples are few (K = 4) the estimate "
+                 "runs high; estimate with solver='nc' (within 0.36 dB on the same runs)")
+REFUSED_SOLVERS = {
+    "explicit": ("the estimate lies within 1 dB of the truth on 34 of 36 runs on the built-in scenes and the SCI "
+                 "clips at K = 16 and 8 (n = 0.5, 1.5 and 4; worst +1.19 dB, at n = 0.5; interval covers 36 of 36) "
+                 "but is up to 1.86 dB high at a 2x2 code (K = 4; 6 of 8 within 1 dB; bench/bench_accuracy.py): "
+                 + _SOLVERS_HIGH),
+    "steady": ("the estimate lies within 1 dB of the truth on 12 of 12 runs on the built-in scenes and the SCI clips "
+               "at K = 16 and 8 (worst +0.96 dB; interval covers 12 of 12) but is up to 1.99 dB high at a 2x2 code "
+               "(K = 4; 6 of 8 within 1 dB; bench/bench_accuracy.py): " + _SOLVERS_HIGH),
+}
+"""Diffusion's solvers the estimate refuses (every one but ``nc``), with why."""
+
 
 def refusal(method: Method) -> str | None:
     """Why ``method`` (a :class:`~flexvox_core.methods.Method`) cannot be estimated, or None when it can."""
     why = REFUSED.get(method.name)
     if why is None and method.name == "diffusion" and method.solver != "nc":
-        why = (f"diffusion's {method.solver} solver has not been checked against the truth (only the nc solver "
-               "has); estimate with solver='nc'")
+        why = REFUSED_SOLVERS.get(method.solver, f"diffusion's {method.solver} solver has not been checked against "
+                                                 "the truth")
     if why is None and method.name not in ("diffusion", "rebin", "gap-tv"):
         why = f"{method.name} has not been checked against the truth"
     return why
@@ -260,7 +275,8 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
                       reconstruction: ArrayLike | None = None, step: int = PROBE_STEP,
                       delta: float = PROBE_DELTA, seed: int = 0,
                       confidence: float = CONFIDENCE, chunk_frames: int | None = None,
-                      device: str = "cpu", unchecked: bool = False) -> AccuracyEstimate:
+                      device: str = "cpu", unchecked: bool = False,
+                      progress: bool | Progress | None = None) -> AccuracyEstimate:
     """Estimate the PSNR of ``method``'s reconstruction of a capture without its ground truth.
 
     Parameters
@@ -297,6 +313,11 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     unchecked : bool
         Estimate a method :func:`refusal` refuses, or one that copies its samples onto their neighbours, all the
         same (benchmarks that measure how far off it is); the scheme then says ``unchecked``.
+    progress : bool or callable(done_frames, total_frames), optional
+        As :func:`~flexvox_core.methods.run`'s (:mod:`flexvox_core.progress`), over the estimate's
+        reconstructions (``total`` counts each run's camera frames, and grows when a run is found needed): a
+        callable is called after each chunk of a run and after each run, and an exception it raises stops the
+        estimate there (Review's Cancel).
 
     Returns
     -------
@@ -317,6 +338,17 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     >>> est.samples > 0, est.low <= est.psnr <= est.high
     (True, True)
     """
+    with progress_callback(progress, desc="accuracy estimate", unit="frame") as report:
+        return _estimate(frames, code, method, noise=noise, missing=missing, reconstruction=reconstruction,
+                         step=step, delta=delta, seed=seed, confidence=confidence, chunk_frames=chunk_frames,
+                         device=device, unchecked=unchecked, report=report)
+
+
+def _estimate(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method | str, *,
+              noise: NoiseModel | None, missing: ArrayLike | None, reconstruction: ArrayLike | None, step: int,
+              delta: float, seed: int, confidence: float, chunk_frames: int | None, device: str, unchecked: bool,
+              report: Progress | None) -> AccuracyEstimate:
+    """:func:`estimate_accuracy`, its progress a callback or None."""
     from flexvox_core.methods.runner import as_method
     from flexvox_core.multiplex import MultiplexedCode
 
@@ -346,9 +378,11 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     dropped = np.zeros(F, bool) if missing is None else np.asarray(missing, bool)
     gaps = None if missing is None else dropped
     f32 = frames.astype(np.float32)
-    run_method = _runs(f32, code, method, gaps, chunk_frames, device)
+    steps = Steps(report, F, int(reconstruction is None) + 1 + int(dropped.any()))
+    run_method = _runs(f32, code, method, gaps, chunk_frames, device, steps)
     if reconstruction is None:
         reconstruction = run_method(f32)
+        steps.finished()
     elif isinstance(run_method, HeldRuns):
         run_method.flow_only(f32)  # the flow the given reconstruction was made with, held for the probe
     v0 = np.asarray(reconstruction, np.float32)  # read in float64 where used (the probe's columns)
@@ -361,6 +395,7 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     signs[dropped] = 0.0
     probed = f32 + np.float32(delta) * signs.astype(np.float32)
     v1 = np.asarray(run_method(probed), np.float32)
+    steps.finished()
     probe = _Probe(v0, v1, frames, dropped, np.argmax(tiled_code(code, H, W), axis=0), K, delta)
     rows: list[np.ndarray] = []  # per probed sample: frame, cluster, MSE bounds, voxels, response, copied
     for f in range(F):
@@ -386,7 +421,7 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
         # samples, as GAP-TV's 2-D TV does): every sample is held out exactly (flexvox_core.accuracy_folds).
         m_opt = None
         mse, m_hi, se, per_frame, samples, how = _independent(v0, v1, f32, code, method, dropped, signs, delta,
-                                                                variance_map, noise)
+                                                                variance_map, noise, steps)
         scheme = scheme.replace("leave-one-out by probe", how)
     else:
         sum_w = float(np.sum(w))
@@ -400,7 +435,7 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
             per_frame[f] = db(float(np.sum(mlo[sel]) / np.sum(w[sel])))
     z = _z(confidence)
     if dropped.any():
-        held_out = _gap_errors(f32, code, method, dropped, variance_map, noise, chunk_frames, device)
+        held_out = _gap_errors(f32, code, method, dropped, variance_map, noise, chunk_frames, device, steps)
         if held_out is None:
             scheme += ", dropped frames not scored (no captured run long enough to hold out like them)"
         else:
@@ -469,7 +504,7 @@ def _cluster_se(keys: np.ndarray, values: np.ndarray, weights: np.ndarray) -> fl
 
 def _independent(v0: np.ndarray, v1: np.ndarray, frames: np.ndarray, code: np.ndarray, method: Method,
                  dropped: np.ndarray, signs: np.ndarray, delta: float, variance_map: np.ndarray | None,
-                 noise: NoiseModel) -> tuple[float, float, float, np.ndarray, int, str]:
+                 noise: NoiseModel, steps: Steps) -> tuple[float, float, float, np.ndarray, int, str]:
     """(MSE, pessimistic MSE, standard error, per-frame PSNR, samples, scheme) of a method whose sub-frames are
     reconstructed apart (:mod:`flexvox_core.accuracy_folds`)."""
     F, H, W = frames.shape
@@ -487,7 +522,8 @@ def _independent(v0: np.ndarray, v1: np.ndarray, frames: np.ndarray, code: np.nd
     mse = float(np.mean(vals))
     masked = masked_run(method)
     if masked is not None:
-        held = held_out_error(frames, code, masked, dropped, variance)
+        steps.more(FOLDS)
+        held = held_out_error(frames, code, masked, dropped, variance, between=steps.finished)
         m_hi = mse + (K - 1) / K * (held - float(np.mean(loo)))
         how = (f"exact leave-one-out of every sample by its temporal neighbours (sub-frames independent), "
                f"interval to a {FOLDS}-fold hold-out")
@@ -501,23 +537,25 @@ def _independent(v0: np.ndarray, v1: np.ndarray, frames: np.ndarray, code: np.nd
 
 
 def _runs(frames: np.ndarray, code: np.ndarray, method: Method, missing: np.ndarray | None,
-          chunk_frames: int | None, device: str) -> Run:
+          chunk_frames: int | None, device: str, steps: Steps) -> Run:
     """How ``method`` is run on the capture and its probe: with the first run's flow held for motion-aware
-    (:class:`~flexvox_core.accuracy_runs.HeldRuns`), else through :func:`~flexvox_core.methods.run`."""
+    (:class:`~flexvox_core.accuracy_runs.HeldRuns`), else through :func:`~flexvox_core.methods.run` (its
+    progress the estimate's, ``steps``)."""
     if holds_flow(method):
         return HeldRuns(frames, code, method, missing=missing, device=device)
 
     def plain(f: np.ndarray) -> np.ndarray:
         from flexvox_core.methods import run
 
-        return np.asarray(run(f, code, method, chunk_frames=chunk_frames, missing=missing, device=device).video)
+        return np.asarray(run(f, code, method, chunk_frames=chunk_frames, missing=missing, device=device,
+                              progress=steps.during()).video)
 
     return plain
 
 
 def _gap_errors(frames: np.ndarray, code: np.ndarray, method: Method, dropped: np.ndarray,
                 variance_map: np.ndarray | None, noise: NoiseModel, chunk_frames: int | None,
-                device: str) -> dict[int, tuple[float, float]] | None:
+                device: str, steps: Steps) -> dict[int, tuple[float, float]] | None:
     """{gap length: (MSE, its standard error)} of captured runs of that length held out as if dropped (one more
     reconstruction), or None when no captured run can be held out without touching a gap or the clip's ends."""
     from flexvox_core.methods import run
@@ -539,8 +577,11 @@ def _gap_errors(frames: np.ndarray, code: np.ndarray, method: Method, dropped: n
             else:
                 f += 1
         if not found:
+            steps.more(-1)  # the run planned for the gaps is not made
             return None
-    v = run(frames, code, method, chunk_frames=chunk_frames, missing=dropped | held, device=device).video
+    v = run(frames, code, method, chunk_frames=chunk_frames, missing=dropped | held, device=device,
+            progress=steps.during()).video
+    steps.finished()
     _, H, W = frames.shape
     slot = np.argmax(tiled_code(code, H, W), axis=0)
     yy, xx = np.mgrid[0:H, 0:W]

@@ -73,9 +73,11 @@ def folds(code: np.ndarray, H: int, W: int) -> list[np.ndarray]:
 
 
 def held_out_error(frames: np.ndarray, code: np.ndarray, run: Callable[[np.ndarray, np.ndarray, np.ndarray],
-                   np.ndarray], dropped: np.ndarray, variance: np.ndarray) -> float:
+                   np.ndarray], dropped: np.ndarray, variance: np.ndarray,
+                   between: Callable[[], None] | None = None) -> float:
     """``H``: the mean squared error of every captured sample predicted by the fold that held it out (its noise
-    variance, ``variance`` (F, H, W), taken out)."""
+    variance, ``variance`` (F, H, W), taken out). ``between`` is called after each fold's run (an exception it
+    raises stops there)."""
     F, H, W = frames.shape
     K = code.shape[2]
     slot = np.argmax(tiled_code(code, H, W), axis=0)
@@ -83,6 +85,8 @@ def held_out_error(frames: np.ndarray, code: np.ndarray, run: Callable[[np.ndarr
     total = count = 0.0
     for fold in folds(code, H, W):
         v = run(frames, code, ~fold)
+        if between is not None:
+            between()
         for f in np.nonzero(~dropped)[0]:
             y = frames[f].astype(np.float64)
             err = (v[f * K + slot, yy, xx].astype(np.float64) - y) ** 2 - variance[f]

@@ -20,9 +20,48 @@ import numpy as np
 if TYPE_CHECKING:
     from flexvox_core.methods import Method
     from flexvox_core.motion.stages import Window
+    from flexvox_core.progress import Progress
 
 Run = Callable[[np.ndarray], np.ndarray]
 """A method's run: camera frames (F, H, W) float32 to the video (F·K, H, W)."""
+
+
+class Steps:
+    """The estimate's progress over its reconstructions, in camera frames (``runs × F`` in all).
+
+    ``report`` (``progress(done, total)``, :mod:`flexvox_core.progress`) is called as a run advances (through
+    :func:`flexvox_core.methods.run`'s own progress, after each chunk) and after each run; an exception it raises
+    stops the estimate there, as it stops the runner.
+
+    Parameters
+    ----------
+    report : callable(done, total) or None
+    frames : int
+        Camera frames per run.
+    runs : int
+        The runs planned (:meth:`more` adds the ones found needed later).
+    """
+
+    def __init__(self, report: Progress | None, frames: int, runs: int) -> None:
+        self.report, self.frames, self.runs, self.done = report, frames, runs, 0
+
+    def more(self, runs: int) -> None:
+        """``runs`` more runs are needed."""
+        self.runs += runs
+
+    def during(self) -> Progress | None:
+        """The progress callback of the next run (its ``(done, total)`` scaled to its share of the estimate)."""
+        report = self.report
+        if report is None:
+            return None
+        base, F, total = self.done * self.frames, self.frames, self.runs * self.frames
+        return lambda done, of: report(base + min(F, done * F // max(of, 1)), total)
+
+    def finished(self) -> None:
+        """One run done: say so (the check between runs)."""
+        self.done += 1
+        if self.report is not None:
+            self.report(self.done * self.frames, self.runs * self.frames)
 
 
 def holds_flow(method: Method) -> bool:

@@ -144,6 +144,7 @@ def test_the_noise_model_of_stated_effects():
 def test_the_estimate_lies_near_the_truth_on_a_small_case():
     truth, frames = scene(False)
     m = Method("diffusion")
+    assert refusal(m) is None
     est = estimate_accuracy(frames, CODE, m)
     video = methods_pkg.run(frames, CODE, m, chunk_frames=None).video
     true = 10 * np.log10(1 / np.mean((video.astype(np.float64) - truth) ** 2))
@@ -217,7 +218,8 @@ def test_demultiplexing_carries_the_noise_float64():
     (Method("motion-aware"), "even with the first run.s flow held"),
     (Method("gap-tv"), "3 of the 4 runs on the SCI clips"),
     (Method("rebin"), "re-binning runs on no masked code"),
-    (Method("diffusion", solver="explicit"), "explicit solver has not been checked"),
+    (Method("diffusion", solver="explicit"), r"up to 1\.86 dB high at a 2x2 code \(K = 4; 6 of 8 within 1 dB"),
+    (Method("diffusion", solver="steady"), r"up to 1\.99 dB high at a 2x2 code \(K = 4; 6 of 8 within 1 dB"),
 ])
 def test_methods_it_cannot_estimate_are_refused(method, match):
     assert refusal(method) is not None
@@ -359,3 +361,53 @@ def test_the_gpu_engine_holds_the_first_flow_too(monkeypatch):
 
     monkeypatch.setattr(engine.gate, "gated_flow", no_flow)
     np.testing.assert_allclose(runs(frames), first, atol=1e-6)
+
+
+class Stop(Exception):
+    """What a progress callback raises to stop (as Review's cancel token's Cancelled)."""
+
+
+def test_a_progress_that_raises_after_the_first_run_stops_before_the_probe(monkeypatch):
+    runs = []
+
+    def run(frames, code, method, **kw):
+        runs.append(frames.copy())
+        return MethodOutput(toy_nc(frames, code).astype(np.float32))
+
+    monkeypatch.setattr(methods_pkg, "run", run)
+    seen = []
+
+    def progress(done, total):
+        seen.append((done, total))
+        if done >= 4:  # the first run (4 frames) is done: cancel
+            raise Stop("cancelled")
+
+    _, frames = scene(False)
+    with pytest.raises(Stop, match="cancelled"):
+        estimate_accuracy(frames, CODE, Method("diffusion"), progress=progress)
+    assert len(runs) == 1  # the reconstruction ran; the probe did not
+    assert seen == [(4, 8)]  # two runs planned, four frames each
+
+
+def test_the_progress_counts_each_runs_chunks_and_leaves_the_estimate_as_it_was():
+    _, frames = scene(False)
+    m = Method("diffusion")
+    seen = []
+    est = estimate_accuracy(frames, CODE, m, chunk_frames=2, progress=lambda done, total: seen.append((done, total)))
+    assert seen == [(2, 8), (4, 8), (4, 8), (6, 8), (8, 8), (8, 8)]  # each chunk of each run, then the run
+    assert est.as_dict() == estimate_accuracy(frames, CODE, m, chunk_frames=2).as_dict()
+
+
+def test_the_folds_runs_report_progress_too():
+    seen = []
+    _, frames = scene(False)
+    est = estimate_accuracy(frames, CODE, Method("gap-tv"), unchecked=True,
+                            progress=lambda done, total: seen.append((done, total)))
+    assert seen[-1] == (24, 24)  # the reconstruction, the probe and 4 folds, 4 frames each
+    assert "4-fold" in est.scheme
+
+
+def test_a_progress_that_is_no_callback_is_refused():
+    _, frames = scene(False)
+    with pytest.raises(TypeError, match=r"`progress` must be True \(a bar\), False or None \(nothing\), or a callable"):
+        estimate_accuracy(frames, CODE, Method("diffusion"), progress=3)

@@ -249,11 +249,9 @@ class JobsModel:
         chunk = chunk_frames_for(result.method, s.n_frames, s.K)
 
         def work(token, progress):
-            token.check()
-            est = estimate_recording(s.path, result.method, reconstruction=result.video, chunk_frames=chunk,
-                                     device=result.device)
-            token.check()  # the estimate itself cannot stop midway: what it gives is dropped once cancelled
-            return est
+            token.check()  # and after each chunk of its runs: Cancel stops the estimate there
+            return estimate_recording(s.path, result.method, reconstruction=result.video, chunk_frames=chunk,
+                                      device=result.device, progress=lambda done, total: token.check())
 
         self._estimates.append(self.runner.submit(
             "estimate", work, on_finished=lambda est: s is self.session and self._estimated(result, est),
@@ -274,7 +272,8 @@ class JobsModel:
         self.estimate_changed.emit(result)
 
     def cancel_estimates(self) -> None:
-        """Drop the estimates running (another recording opens, or the window closes); each ends its run first."""
+        """Drop the estimates running (another recording opens, or the window closes); each stops after its current
+        chunk."""
         for h in self._estimates:
             if h.running:
                 h.cancel()

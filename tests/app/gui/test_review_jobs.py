@@ -136,6 +136,28 @@ def test_an_estimate_refused_by_the_recording_says_why_and_one_left_running_is_d
     assert waiting.token.cancelled
 
 
+def test_an_estimate_cancelled_while_it_runs_stops_at_its_next_check(captured, monkeypatch):
+    jobs = jobs_on(captured)
+    seen = []
+
+    def cancelled_midway(*args, progress, **kwargs):
+        def report(done, total):
+            seen.append((done, total))
+            jobs.cancel_estimates()  # a recording opens, or the window closes, while the probe runs
+            progress(done, total)
+
+        return estimate_recording(*args, progress=report, **kwargs)
+
+    monkeypatch.setattr("flexvox_app.gui.models.review_jobs.estimate_recording", cancelled_midway)
+    monkeypatch.setattr("flexvox_app.gui.models.review_jobs.chunk_frames_for", lambda *args: 1)  # a check a frame
+    jobs.reconstruct(Method("diffusion"))
+    jobs.runner.turn()
+    handle = jobs.runner.handles[-1]
+    assert handle.name == "estimate" and handle.outcome == "cancelled" and handle.token.cancelled
+    assert seen == [(1, FRAMES)]  # stopped after the probe's first chunk (the reconstruction given: one run)
+    assert jobs.results[0].estimate is None
+
+
 def test_reconstruct_with_an_auto_knob_runs_the_choice_and_says_what_it_chose_and_cost(captured):
     jobs = jobs_on(captured)
     method = Method("diffusion")

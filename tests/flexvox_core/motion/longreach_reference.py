@@ -14,7 +14,8 @@ from flexvox_core.gaps import interpolated_subframes
 from flexvox_core.motion.longreach import MIN_WEIGHT, LongReachPlan
 
 
-def _bilinear_zero(plane: np.ndarray, y: np.ndarray, x: np.ndarray) -> np.ndarray:
+def bilinear_zero(plane: np.ndarray, y: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Bilinear reads (float64) of ``plane`` at (y, x), 0 outside the picture."""
     H, W = plane.shape
     y0, x0 = np.floor(y), np.floor(x)
     ay, ax = y - y0, x - x0
@@ -56,8 +57,8 @@ def long_reach_reference(frames, code, flow, guide, select, plan: LongReachPlan,
         for d in range(-plan.reach, plan.reach + 1):
             if not 0 <= t + d < S:
                 continue
-            num = _bilinear_zero(value[t + d], yy + d * v[t], xx + d * u[t])
-            den = _bilinear_zero(mask[t + d], yy + d * v[t], xx + d * u[t])
+            num = bilinear_zero(value[t + d], yy + d * v[t], xx + d * u[t])
+            den = bilinear_zero(mask[t + d], yy + d * v[t], xx + d * u[t])
             s = np.where(den > 0, num / np.where(den > 0, den, 1), 0)
             e = np.exp(plan.range_scale * (s - guide[t]) ** 2 - d * d / (2 * plan.sigma_t**2))
             acc_n += np.where(den > 0, num * e, 0)

@@ -13,6 +13,8 @@ from flexvox_core.motion.mcnc import default_reach, motion_compensated_nc, reach
 from flexvox_core.motion.noise_aware import wide_sigma
 from flexvox_core.simulate.scenes import render_scene
 
+from .longreach_reference import bilinear_zero
+
 TILES = [(2, 4), (4, 4)]
 
 
@@ -26,20 +28,6 @@ def _volumes(frames, code, missing):
             sparse[f * K:(f + 1) * K] = 0
             mask[f * K:(f + 1) * K] = False
     return sparse, mask.astype(np.float64)
-
-
-def _bilinear(plane, y, x):
-    """Bilinear reads (float64) of ``plane`` at (y, x), 0 outside the picture."""
-    H, W = plane.shape
-    y0, x0 = np.floor(y).astype(int), np.floor(x).astype(int)
-    ay, ax = y - y0, x - x0
-    acc = np.zeros(y.shape)
-    for dy, wy in ((0, 1 - ay), (1, ay)):
-        for dx, wx in ((0, 1 - ax), (1, ax)):
-            yy, xx = y0 + dy, x0 + dx
-            inside = (yy >= 0) & (yy < H) & (xx >= 0) & (xx < W)
-            acc += np.where(inside, wy * wx * plane[np.clip(yy, 0, H - 1), np.clip(xx, 0, W - 1)], 0)
-    return acc
 
 
 def reference_sums(sparse, mask, flow, t, time, c1, reach):
@@ -60,8 +48,8 @@ def reference_sums(sparse, mask, flow, t, time, c1, reach):
         for sd in (d, -d):
             if 0 <= t + sd < S:
                 py, px = y + sd * v64, x + sd * u64
-                num += w * _bilinear(sparse[t + sd], py, px)
-                den += w * _bilinear(mask[t + sd], py, px)
+                num += w * bilinear_zero(sparse[t + sd], py, px)
+                den += w * bilinear_zero(mask[t + sd], py, px)
     return num, den
 
 

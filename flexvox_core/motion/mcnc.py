@@ -28,18 +28,11 @@ import math
 import cv2
 import numpy as np
 
+from flexvox_core.motion.gather_weights import CUTOFF, MIN_WEIGHT
 from flexvox_core.motion.subframes import flow_at, sample_planes, sampling_period
 from flexvox_core.motion.tensors import DEFAULT_C, check_c
 from flexvox_core.reconstruct.diffusion import self_weights
 from flexvox_core.threads import for_each
-
-MIN_WEIGHT = 1e-6
-CUTOFF = 1e-3
-"""Trajectory weights below this (relative to 1 at the voxel's own sub-frame) are not gathered: they
-change no PSNR of ``flexvox bench`` by 0.001 dB and cost a quarter of the gather's time. Each voxel stops
-at its own cutoff (a fast voxel's weights fall off sooner than a slow neighbour's), so a box of voxels
-reads about half the samples it would with one cutoff for all."""
-
 
 
 def motion_compensated_nc(

@@ -19,7 +19,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from flexvox_core.motion.mcnc import CUTOFF
+from flexvox_core.motion.gather_weights import CUTOFF
 
 
 @numba.njit(inline="always", nogil=True, cache=True)

@@ -7,7 +7,7 @@ x ± d·(u, v) (bilinear, 0 outside the picture) with the weights of Eq. 3 along
 
     w_d = e^{d^2}, \qquad e = \exp\left(-\frac{1 + u^2 + v^2}{4 n c_1}\right),
 
-each voxel reaching as far as its own weights stay above :data:`~flexvox_core.motion.mcnc.CUTOFF`; the sums of
+each voxel reaching as far as its own weights stay above :data:`~flexvox_core.motion.gather_weights.CUTOFF`; the sums of
 values and of weights are then blurred in space (σ = √(2 n c₂), reflecting borders), mixed per voxel with a
 wide blur by the noise-aware weight g, and divided. Each sample the gather estimates also gets its
 leave-one-out estimate (N − c·y) / (D − c). One thread per voxel; the CPU gathers a list of voxels per
@@ -31,7 +31,7 @@ from numba import cuda
 from flexvox_core.gpu.filters import blur, dilate, gaussian_taps
 from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import device, kernel, launch
-from flexvox_core.motion.mcnc import CUTOFF, MIN_WEIGHT
+from flexvox_core.motion.gather_weights import CUTOFF, MIN_WEIGHT
 from flexvox_core.reconstruct.diffusion import self_weights
 
 

@@ -31,6 +31,7 @@ if TYPE_CHECKING:
 
     from flexvox_core.methods import Method
     from flexvox_core.multiplex import MultiplexedCode
+    from flexvox_core.progress import Progress
     from flexvox_core.recording import Recording
 
 _logger = logging.getLogger(__name__)
@@ -194,11 +195,24 @@ def _refused(method: Method, knob: str, why: str) -> NotEstimable:
     return NotEstimable(f"cannot choose {method.name}'s {knob} by the estimated accuracy: {why}")
 
 
-def _choose(method: Method | str, knob: str, candidates: Any, code: Any, reconstruct: Callable[[Method], Any],
-            estimate: Callable[[Method, Any], AccuracyEstimate], *, reusable: bool, estimate_runs: int,
-            keep_video: bool, progress: Callable[[int, int], object] | None) -> Choice:
-    """The loop :func:`choose` and :func:`choose_recording` share: ``reconstruct(method)`` gives a MethodOutput (called
-    only when ``reusable``), ``estimate(method, video or None)`` its estimate."""
+def _so_far(progress: Callable[[int, int], object] | None, done: int, total: int) -> Progress | None:
+    """A progress callback for the runs of one candidate: it reports the ``done`` candidates of ``total``."""
+    if progress is None:
+        return None
+
+    def within(_done: int, _total: int) -> None:
+        progress(done, total)
+
+    return within
+
+
+def _choose(method: Method | str, knob: str, candidates: Any, code: Any,
+            reconstruct: Callable[[Method, Progress | None], Any],
+            estimate: Callable[[Method, Any, Progress | None], AccuracyEstimate], *, reusable: bool,
+            estimate_runs: int, keep_video: bool, progress: Callable[[int, int], object] | None) -> Choice:
+    """The loop :func:`choose` and :func:`choose_recording` share: ``reconstruct(method, within)`` gives a
+    MethodOutput (called only when ``reusable``), ``estimate(method, video or None, within)`` its estimate; both
+    call ``within`` between their chunks and runs, which calls ``progress`` with the candidates done so far."""
     from flexvox_core.methods.runner import as_method
 
     method = as_method(method)
@@ -217,6 +231,7 @@ def _choose(method: Method | str, knob: str, candidates: Any, code: Any, reconst
     runs = 0
     for i, (value, m) in enumerate(zip(values, methods, strict=True)):
         t0 = time.perf_counter()
+        within = _so_far(progress, i, len(values))
         why = refusal(m)
         if why is not None:
             tried.append(Candidate(value, m, None, 0.0, why))
@@ -225,11 +240,11 @@ def _choose(method: Method | str, knob: str, candidates: Any, code: Any, reconst
         made = 0
         run_seconds = 0.0
         if reusable:
-            out = reconstruct(m)
+            out = reconstruct(m, within)
             made = 1
             run_seconds = time.perf_counter() - t0
         try:
-            est = estimate(m, None if out is None else out.video)
+            est = estimate(m, None if out is None else out.video, within)
         except NotEstimable as exc:  # refused after its probe (a method that copies its samples)
             made += 1 if reusable else 2
             tried.append(Candidate(value, m, None, time.perf_counter() - t0, str(exc), made, run_seconds))
@@ -286,7 +301,8 @@ def choose(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method 
     keep_video : bool
         Keep the chosen candidate's reconstruction (:attr:`Choice.output`); False holds only the one being made.
     progress : callable(done, total), optional
-        Called after each candidate; an exception it raises stops the choice.
+        Called with the candidates done after each one, and with the count so far between the chunks and runs
+        of each (its reconstruction and its estimate): an exception it raises stops the choice there.
 
     Returns
     -------
@@ -321,12 +337,12 @@ def choose(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method 
 
         reusable = is_identity_code(validate_code(code))
 
-    def reconstruct(m: Method) -> Any:
-        return run(f32, code, m, chunk_frames=chunk_frames, missing=gaps, device=device)
+    def reconstruct(m: Method, within: Progress | None) -> Any:
+        return run(f32, code, m, chunk_frames=chunk_frames, missing=gaps, device=device, progress=within)
 
-    def estimate(m: Method, video: Any) -> AccuracyEstimate:
+    def estimate(m: Method, video: Any, within: Progress | None) -> AccuracyEstimate:
         return estimate_accuracy(f32, code, m, noise=noise, missing=gaps, reconstruction=video, seed=seed,
-                                 chunk_frames=chunk_frames, device=device)
+                                 chunk_frames=chunk_frames, device=device, progress=within)
 
     extra = 1 + int(gaps is not None and bool(gaps.any()))
     return _choose(method, knob, candidates, code, reconstruct, estimate, reusable=reusable, estimate_runs=extra,
@@ -361,12 +377,12 @@ def choose_recording(recording: str | os.PathLike[str] | Recording, method: Meth
     reusable = reader.multiplexed is None
     code = reader.multiplexed if reader.multiplexed is not None else reader.code
 
-    def reconstruct(m: Method) -> Any:
-        return reader.run(m, chunk_frames=chunk_frames, device=device)
+    def reconstruct(m: Method, within: Progress | None) -> Any:
+        return reader.run(m, chunk_frames=chunk_frames, device=device, progress=within)
 
-    def estimate(m: Method, video: Any) -> AccuracyEstimate:
+    def estimate(m: Method, video: Any, within: Progress | None) -> AccuracyEstimate:
         return estimate_recording(rec, m, noise=noise, reconstruction=video, seed=seed, chunk_frames=chunk_frames,
-                                  device=device)
+                                  device=device, progress=within)
 
     extra = 1 + int(reader.missing is not None and bool(np.any(reader.missing)))
     return _choose(method, knob, candidates, code, reconstruct, estimate, reusable=reusable, estimate_runs=extra,

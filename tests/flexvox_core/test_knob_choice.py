@@ -166,8 +166,29 @@ def test_a_recording_is_chosen_on_without_reading_its_ground_truth(tmp_path, mon
     monkeypatch.setattr(Recording, "has_ground_truth", property(poisoned))
     done = []
     choice = choose_recording(path, "diffusion", "time", (2.0, 4.0), progress=lambda d, t: done.append((d, t)))
-    assert done == [(1, 2), (2, 2)]
+    assert list(dict.fromkeys(done)) == [(0, 2), (1, 2), (2, 2)]  # within each candidate, and after it
     assert choice.candidates[0].estimate.noise.floor == pytest.approx((2.0 / 1000) ** 2)  # the recording's noise
     framed = choose(sim.frames, CODE, "diffusion", "time", (2.0, 4.0), noise=choice.estimate.noise, chunk_frames=16)
     assert [c.estimate.psnr for c in choice.candidates] == pytest.approx([c.estimate.psnr for c in framed.candidates])
     assert isinstance(choice, Choice) and choice.video.shape == truth.shape
+
+
+def test_progress_is_called_within_each_candidate_so_that_raising_stops_the_choice_there(scene, counted):
+    _, frames, noise = scene
+    seen = []
+    choose(frames, CODE, "diffusion", "time", (2.0, 4.0), noise=noise, progress=lambda d, t: seen.append((d, t)))
+    done = [d for d, _ in seen]
+    assert set(t for _, t in seen) == {2} and done == sorted(done) and done[-1] == 2
+    assert done.count(0) > 1 and done.count(1) > 1  # between the chunks and runs of each, not only after it
+
+    class Stop(Exception):
+        pass
+
+    def stop(done, total):
+        if len(counted) == 5:  # inside the second candidate's probe (2 runs a candidate, a third call)
+            raise Stop
+
+    counted.clear()
+    with pytest.raises(Stop):
+        choose(frames, CODE, "diffusion", "time", (2.0, 4.0, 6.0), noise=noise, progress=stop)
+    assert len(counted) == 5  # no candidate after it started

@@ -2,7 +2,7 @@
 by the estimated PSNR" is checked (:meth:`flexvox_app.gui.review.method_form.MethodForm.auto_knob`).
 
 :func:`run_choice` runs on a worker thread like :func:`~flexvox_app.gui.models.jobs.run_reconstruction`: it
-tries each candidate (:func:`flexvox_core.choice.choose`), checks the cancel token after each, and returns the
+tries each candidate (:func:`flexvox_core.choice.choose`), checks the cancel token between the chunks and runs of each, and returns the
 chosen reconstruction as a :class:`~flexvox_app.gui.models.jobs.ReconstructionResult` whose ``extra["choice"]``
 holds the :class:`~flexvox_core.choice.Choice` (every candidate's estimate and what choosing cost;
 :func:`choice_lines` words it for the result line).
@@ -31,7 +31,7 @@ def run_choice(frames, code, method: Method, knob: str, *, cancel: CancelToken |
         Its other options are kept; ``knob`` takes each candidate (:func:`flexvox_core.choice.candidates_for`).
     knob : str
     cancel : CancelToken, optional
-        Checked after each candidate.
+        Checked between the chunks and runs of each candidate (its reconstruction and its estimate).
     progress : callable(done_candidates, total_candidates), optional
     chunk_frames : int
     truth : ndarray (F·K, H, W), optional

@@ -68,7 +68,7 @@ def test_the_choice_job_returns_the_chosen_reconstruction_with_the_choice(record
     result = run_choice(frames, code, Method("diffusion"), "time", truth=truth, device="cpu",
                         progress=lambda d, t: done.append((d, t)))
     choice = result.extra["choice"]
-    assert done == [(i + 1, 5) for i in range(5)]
+    assert list(dict.fromkeys(done)) == [(i, 5) for i in range(6)]  # within each candidate, and after it
     assert result.method == choice.method and result.method.time == choice.value
     assert np.array_equal(result.video, reader.run(choice.method).video) and result.psnr > 15
     lines = choice_lines(result)

@@ -2,10 +2,11 @@
 by the estimated PSNR" is checked (:meth:`flexvox_app.gui.review.method_form.MethodForm.auto_knob`).
 
 :func:`run_choice` runs on a worker thread like :func:`~flexvox_app.gui.models.jobs.run_reconstruction`: it
-tries each candidate (:func:`flexvox_core.choice.choose`), checks the cancel token between the chunks and runs of each, and returns the
-chosen reconstruction as a :class:`~flexvox_app.gui.models.jobs.ReconstructionResult` whose ``extra["choice"]``
-holds the :class:`~flexvox_core.choice.Choice` (every candidate's estimate and what choosing cost;
-:func:`choice_lines` words it for the result line).
+tries each candidate (:func:`flexvox_core.choice.choose`), checks the cancel token between the chunks and runs
+of each, and returns the chosen reconstruction as a
+:class:`~flexvox_app.gui.models.jobs.ReconstructionResult` whose ``extra["choice"]`` holds the
+:class:`~flexvox_core.choice.Choice` (every candidate's estimate and what choosing cost; :func:`choice_lines`
+words it for the result line).
 """
 
 from __future__ import annotations

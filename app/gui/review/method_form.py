@@ -57,7 +57,7 @@ class MethodForm(QWidget):
     settings : AppSettings
         Where the choices persist (``review/...`` keys).
     offer_auto : bool
-        Show "choose … by the estimated PSNR (auto)" (:meth:`auto_knob`): for a workspace whose Reconstruct runs the
+        Show "choose … by the estimate (auto)" (:meth:`auto_knob`): for a workspace whose Reconstruct runs the
         choice (:func:`~flexvox_app.gui.models.choice_job.run_choice`) when it names a knob.
     """
 
@@ -262,7 +262,7 @@ class MethodForm(QWidget):
             return
         option = spec.option(knob)
         what = "division" if option.kind is DIVISION else option.label or knob
-        self.auto_box.setText(f"choose the {what} by the estimated PSNR (auto)")
+        self.auto_box.setText(f"choose the {what} by the estimate (auto)")
         why = self.auto_refusal()
         self.auto_box.setEnabled(why is None)
         self.auto_box.setToolTip(why or (f"Reconstruct tries each candidate {what}, estimates each result's PSNR "

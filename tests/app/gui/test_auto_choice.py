@@ -31,7 +31,7 @@ def test_auto_is_offered_only_by_a_workspace_that_runs_it(qtbot, settings):
 def test_auto_is_offered_where_the_estimate_offers_the_method_and_chooses_the_time(form, settings):
     form.set_method_name("diffusion")
     assert not form.auto_box.isHidden() and form.auto_box.isEnabled()
-    assert form.auto_box.text() == "choose the diffusion time n by the estimated PSNR (auto)"
+    assert form.auto_box.text() == "choose the diffusion time n by the estimate (auto)"
     assert form.auto_knob() is None  # unchecked
     form.auto_box.setChecked(True)
     assert form.auto_knob() == "time" and not form.widget("time").isEnabled()
@@ -54,7 +54,7 @@ def test_auto_for_a_method_the_estimate_refuses_is_greyed_with_why(form, monkeyp
     assert form.widget("time").isEnabled()  # not chosen: the operator sets it
     monkeypatch.setitem(accuracy.REFUSED, "rebin", "made up here")
     form.set_method_name("rebin")
-    assert form.auto_box.text() == "choose the division by the estimated PSNR (auto)"
+    assert form.auto_box.text() == "choose the division by the estimate (auto)"
     assert form.auto_box.toolTip() == "the estimate refuses rebin: made up here" and form.slider.isEnabled()
 
 

@@ -55,6 +55,7 @@ from flexvox_core.accuracy_runs import HeldRuns, Run, Steps, holds_flow
 from flexvox_core.codes import is_identity_code, validate_code
 from flexvox_core.forward import tiled_code
 from flexvox_core.gaps import find_gaps
+from flexvox_core.intensity import as_relative
 from flexvox_core.progress import Progress, progress_callback
 
 if TYPE_CHECKING:
@@ -276,14 +277,16 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
                       delta: float = PROBE_DELTA, seed: int = 0,
                       confidence: float = CONFIDENCE, chunk_frames: int | None = None,
                       device: str = "cpu", unchecked: bool = False,
-                      progress: bool | Progress | None = None) -> AccuracyEstimate:
+                      progress: bool | Progress | None = None, white: float | None = None) -> AccuracyEstimate:
     """Estimate the PSNR of ``method``'s reconstruction of a capture without its ground truth.
 
     Parameters
     ----------
     frames : ndarray (F, H, W)
-        The capture, in relative units (:meth:`Recording.normalised_frames
-        <flexvox_core.recording.Recording.normalised_frames>`).
+        The capture: floats in relative units (white = 1; :meth:`Recording.normalised_frames
+        <flexvox_core.recording.Recording.normalised_frames>`), or integer counts, divided by the dtype's largest
+        value (uint8: 255, uint16: 65535) unless ``white`` gives the white level, as
+        :func:`~flexvox_core.methods.run` reads them. The noise model is in the same relative units.
     code : ndarray (m, n, K) or MultiplexedCode
         The capture's code. A multiplexed capture is demultiplexed per tile first (the noise is carried
         through the demultiplexing) and the estimate is of the method's reconstruction of that identity
@@ -318,6 +321,9 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
         reconstructions (``total`` counts each run's camera frames, and grows when a run is found needed): a
         callable is called after each chunk of a run and after each run, and an exception it raises stops the
         estimate there (Review's Cancel).
+    white : float, optional
+        The count that stands for white in integer ``frames`` (a 12-bit camera's: 4095), as
+        :func:`~flexvox_core.methods.run`'s.
 
     Returns
     -------
@@ -338,6 +344,7 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     >>> est.samples > 0, est.low <= est.psnr <= est.high
     (True, True)
     """
+    frames = as_relative(frames, white=white)
     with progress_callback(progress, desc="accuracy estimate", unit="frame") as report:
         return _estimate(frames, code, method, noise=noise, missing=missing, reconstruction=reconstruction,
                          step=step, delta=delta, seed=seed, confidence=confidence, chunk_frames=chunk_frames,

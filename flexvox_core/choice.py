@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from flexvox_core.accuracy import AccuracyEstimate, NoiseModel, NotEstimable, refusal
+from flexvox_core.intensity import as_relative
 
 if TYPE_CHECKING:
     import os
@@ -272,13 +273,14 @@ def _choose(method: Method | str, knob: str, candidates: Any, code: Any,
 def choose(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method | str, knob: str,
            candidates: Any = None, *, noise: NoiseModel | None = None, missing: ArrayLike | None = None,
            chunk_frames: int | None = None, device: str = "cpu", seed: int = 0, keep_video: bool = True,
-           progress: Callable[[int, int], object] | None = None) -> Choice:
+           progress: Callable[[int, int], object] | None = None, white: float | None = None) -> Choice:
     """Reconstruct a capture at each candidate value of ``knob`` and keep the one with the best estimated PSNR.
 
     Parameters
     ----------
     frames : ndarray (F, H, W)
-        The capture, in relative units (as :func:`~flexvox_core.accuracy.estimate_accuracy` takes it).
+        The capture: floats in relative units, or integer counts divided by the dtype's largest value unless
+        ``white`` gives the white level (as :func:`~flexvox_core.accuracy.estimate_accuracy` takes it).
     code : ndarray (m, n, K) or MultiplexedCode
     method : Method or str
         The method; its other options are kept, ``knob`` is set to each candidate.
@@ -303,6 +305,8 @@ def choose(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method 
     progress : callable(done, total), optional
         Called with the candidates done after each one, and with the count so far between the chunks and runs
         of each (its reconstruction and its estimate): an exception it raises stops the choice there.
+    white : float, optional
+        The count that stands for white in integer ``frames`` (a 12-bit camera's: 4095).
 
     Returns
     -------
@@ -329,7 +333,7 @@ def choose(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method 
     from flexvox_core.methods import run
     from flexvox_core.multiplex import MultiplexedCode
 
-    f32 = np.asarray(frames, np.float32)
+    f32 = np.asarray(as_relative(frames, white=white), np.float32)
     gaps = None if missing is None else np.asarray(missing, bool)
     reusable = not isinstance(code, MultiplexedCode)
     if reusable:

@@ -411,3 +411,18 @@ def test_a_progress_that_is_no_callback_is_refused():
     _, frames = scene(False)
     with pytest.raises(TypeError, match=r"`progress` must be True \(a bar\), False or None \(nothing\), or a callable"):
         estimate_accuracy(frames, CODE, Method("diffusion"), progress=3)
+
+
+def test_integer_counts_are_read_as_the_runner_reads_them_not_as_relative_units():
+    from flexvox_core import capture, render_scene
+    from flexvox_core.design import design_code
+
+    code = design_code((2, 2)).code
+    f = capture(render_scene("balls", 16, 24, 32), code)
+    est = estimate_accuracy(f, code, "diffusion")
+    u16 = np.round(f * 65535).astype(np.uint16)  # counts: 65535 is white
+    assert estimate_accuracy(u16, code, "diffusion").psnr == pytest.approx(est.psnr, abs=0.01)
+    twelve = np.round(f * 4095).astype(np.uint16)  # a 12-bit camera's counts in uint16
+    assert estimate_accuracy(twelve, code, "diffusion", white=4095).psnr == pytest.approx(est.psnr, abs=0.05)
+    with pytest.raises(ValueError, match=r"`white` must be"):
+        estimate_accuracy(u16, code, "diffusion", white=-1)

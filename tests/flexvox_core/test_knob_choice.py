@@ -192,3 +192,12 @@ def test_progress_is_called_within_each_candidate_so_that_raising_stops_the_choi
     with pytest.raises(Stop):
         choose(frames, CODE, "diffusion", "time", (2.0, 4.0, 6.0), noise=noise, progress=stop)
     assert len(counted) == 5  # no candidate after it started
+
+
+def test_integer_counts_are_chosen_on_as_relative_units(scene):
+    _, frames, noise = scene
+    relative = choose(frames, CODE, "diffusion", "time", (2.0, 4.0), noise=noise)
+    counts = choose(np.round(frames * 4095).astype(np.uint16), CODE, "diffusion", "time", (2.0, 4.0), noise=noise,
+                    white=4095)
+    assert counts.value == relative.value
+    assert counts.estimate.psnr == pytest.approx(relative.estimate.psnr, abs=0.05)

@@ -360,17 +360,23 @@ class JobsModel:
             self.set_export_line(Line(f"writing {path.name}: {what} …"))
         handle = self.runner.submit(
             "export", work, on_progress=self._progressed,
-            on_finished=lambda out: self._exported(out, full is None, what),
-            on_cancelled=lambda: self.set_export_line(Line("export cancelled; nothing was written")),
-            on_failed=lambda msg: self.set_export_line(Line(f"export failed: {in_gui_words(msg)}", error=True)),
+            on_finished=lambda out: self._exported(out, full is None, what, s),
+            on_cancelled=lambda: s is self.session and self.set_export_line(
+                Line("export cancelled; nothing was written")),
+            on_failed=lambda msg: self.status.emit(f"export of {s.path.name} failed: {in_gui_words(msg)}")
+            if s is not self.session else self.set_export_line(
+                Line(f"export failed: {in_gui_words(msg)}", error=True)),
             on_done=self.jobs_changed.emit)
         if full is None:
             self.job = handle  # Cancel stops it; Reconstruct waits for it
             self.jobs_changed.emit()
         return handle
 
-    def _exported(self, out, reconstructed: bool, what: str) -> None:
+    def _exported(self, out, reconstructed: bool, what: str, session: ReviewSession) -> None:
         result, path = out
+        if session is not self.session:  # another recording opened meanwhile: the file is written, say so only
+            self.status.emit(f"exported {path.name}: {what} of {session.path.name}")
+            return
         if reconstructed:
             self._reconstructed(result)
         self.exported = (path, result)

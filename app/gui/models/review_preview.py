@@ -85,7 +85,6 @@ class PreviewModel:
         if s is None or s.frames is None or self.closed:
             return None
         self.cancel()
-        self._generation += 1
         gen = self._generation
         full = self.jobs.full_result_of(chosen)
         beside = comparing and full is not None
@@ -109,19 +108,22 @@ class PreviewModel:
 
         self.preview_job = self.runner.submit(
             "preview", work, on_finished=lambda r, g=gen: self._preview_done(r, g, beside),
-            on_failed=lambda msg: self.jobs.set_result_line(Line(f"preview failed: {in_gui_words(msg)}")))
+            on_failed=lambda msg, g=gen: g == self._generation and self.jobs.set_result_line(
+                Line(f"preview failed: {in_gui_words(msg)}")))
         return self.preview_job
 
     def _preview_done(self, result: ReconstructionResult, generation: int, beside: bool) -> None:
         if generation != self._generation:
-            return  # a newer request superseded it
+            return  # a newer request, or cancel (another recording opened), superseded it
         if beside:
             self.playback.set_comparison(result)
         else:
             self.playback.set_shown(result)
 
     def cancel(self) -> None:
-        """Cancel the preview running (its result is not shown)."""
+        """Cancel the preview running: its result is not shown, even one that finished and is on its way to the
+        GUI thread (another recording may have opened)."""
+        self._generation += 1
         if self.preview_job is not None and self.preview_job.running:
             self.preview_job.cancel()
 

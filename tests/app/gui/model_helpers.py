@@ -85,3 +85,23 @@ def without_ground_truth(recording, folder):
     for name in ("ground_truth", "ground_truth_crc"):
         shutil.rmtree(copy / name)
     return copy
+
+
+class QueuedRunner:
+    """As the Qt job runner behaves at its worst: the worker runs to its end at once, and its ``finished`` waits in
+    the GUI thread's queue (the handle still running) until :meth:`deliver`."""
+
+    def __init__(self):
+        self.queue = []
+
+    def submit(self, name, fn, *, on_progress=None, on_finished=None, on_failed=None, on_cancelled=None,
+               on_done=None):
+        handle = Handle(name)
+        result = fn(handle.token, lambda done, total: None)
+        self.queue.append(lambda: on_finished and on_finished(result))
+        return handle
+
+    def deliver(self):
+        queue, self.queue = self.queue, []
+        for callback in queue:
+            callback()

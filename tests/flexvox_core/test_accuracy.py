@@ -192,11 +192,15 @@ def test_dropped_frames_with_no_run_to_hold_out_are_left_out():
     assert np.all(np.isnan(est.per_frame[missing])) and np.all(np.isfinite(est.per_frame[~missing]))
 
 
-def test_a_multiplexed_capture_is_estimated_after_demultiplexing():
+def test_a_multiplexed_capture_is_refused_and_estimated_unchecked_after_demultiplexing():
     mc = multiplexed_code((1, 3))
     truth = render_scene("balls", 4 * 3, 24, 27, seed=0)
-    est = estimate_accuracy(capture(truth, mc.code), mc, Method("diffusion"))
-    assert "demultiplexed" in est.scheme and est.low <= est.psnr <= est.high
+    frames = capture(truth, mc.code)
+    with pytest.raises(NotEstimable, match=r"on a multiplexed capture: the estimate of a demultiplexed capture has "
+                                           r"not met the acceptance: .* a 3x5 tile 4\.1 dB low"):
+        estimate_accuracy(frames, mc, Method("diffusion"))
+    est = estimate_accuracy(frames, mc, Method("diffusion"), unchecked=True)
+    assert "demultiplexed" in est.scheme and "unchecked" in est.scheme and est.low <= est.psnr <= est.high
 
 
 def test_demultiplexing_carries_the_noise_float64():
@@ -426,3 +430,18 @@ def test_integer_counts_are_read_as_the_runner_reads_them_not_as_relative_units(
     assert estimate_accuracy(twelve, code, "diffusion", white=4095).psnr == pytest.approx(est.psnr, abs=0.05)
     with pytest.raises(ValueError, match=r"`white` must be"):
         estimate_accuracy(u16, code, "diffusion", white=-1)
+
+
+def test_a_noise_model_larger_than_the_samples_error_is_refused_not_scored_100_db():
+    from flexvox_core import capture, render_scene
+    from flexvox_core.choice import choose
+    from flexvox_core.design import design_code
+
+    code = design_code((2, 2)).code
+    f = capture(render_scene("balls", 32, 48, 64), code)  # noiseless
+    overstated = NoiseModel(photon=0.05, floor=0.0)
+    with pytest.raises(NotEstimable, match=r"the held-out samples' error less the noise the capture states "
+                                           r"\(photon 0\.05, floor 0: .*\) is .*, not above zero"):
+        estimate_accuracy(f, code, "diffusion", noise=overstated)
+    with pytest.raises(NotEstimable, match=r"no candidate could be estimated"):
+        choose(f, code, "diffusion", "time", (1.5, 6.0), noise=overstated)

@@ -32,7 +32,7 @@ from flexvox_app.gui.models.machine_speed import SpeedModel, calibrate, estimate
 from flexvox_app.gui.models.operator_words import in_gui_words
 from flexvox_app.gui.models.review_playback import PlaybackModel
 from flexvox_app.gui.models.review_session import ReviewSession
-from flexvox_core.accuracy import estimate_recording, noise_of, refusal
+from flexvox_core.accuracy import REFUSED_MULTIPLEXED, estimate_recording, noise_of, refusal
 from flexvox_core.choice import candidates_for
 from flexvox_core.output_files import OutputError, check_output
 from flexvox_core.video_io import write_video
@@ -156,6 +156,11 @@ class JobsModel:
             self._expected_for_job = self.expected_seconds(method)
             self.set_result_line(Line(f"reconstructing with {method.label()} …"))
         else:
+            if s.reader is not None and s.reader.multiplexed is not None:  # the estimate refuses such captures
+                self.set_result_line(Line(in_gui_words(
+                    f"cannot choose {method.name}'s {auto_knob} by the estimate on a multiplexed recording: "
+                    f"{REFUSED_MULTIPLEXED}"), error=True))
+                return None
             noise = noise_of(s.recording)
             frames, code = s.frames, s.code  # the estimate reads the identity-code capture
 

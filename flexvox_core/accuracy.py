@@ -54,7 +54,7 @@ from flexvox_core.accuracy_folds import FOLDS, held_out_error, independent_rows,
 from flexvox_core.accuracy_runs import HeldRuns, Run, Steps, holds_flow
 from flexvox_core.codes import is_identity_code, validate_code
 from flexvox_core.forward import tiled_code
-from flexvox_core.gaps import find_gaps
+from flexvox_core.gaps import as_missing, find_gaps
 from flexvox_core.intensity import as_relative
 from flexvox_core.progress import Progress, progress_callback
 
@@ -393,8 +393,9 @@ def _estimate(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Meth
                            f"(needs {3 * step} pixels a side)")
     if not 0 < confidence < 1:
         raise ValueError(f"`confidence` must lie in (0, 1); got {confidence}")
-    dropped = np.zeros(F, bool) if missing is None else np.asarray(missing, bool)
-    gaps = None if missing is None else dropped
+    checked = as_missing(missing, F)  # the shape and the rule, in words
+    dropped = np.zeros(F, bool) if checked is None else checked
+    gaps = checked
     f32 = frames.astype(np.float32)
     steps = Steps(report, F, int(reconstruction is None) + 1 + int(dropped.any()))
     run_method = _runs(f32, code, method, gaps, chunk_frames, device, steps)

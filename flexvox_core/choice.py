@@ -222,6 +222,8 @@ def _choose(method: Method | str, knob: str, candidates: Any, code: Any,
     why = refusal(method)
     if why is not None:
         raise _refused(method, knob, why)
+    if candidates is not None and (isinstance(candidates, (str, bytes)) or not hasattr(candidates, "__iter__")):
+        raise TypeError(f"`candidates` must be a sequence of {knob} values (e.g. (2.0, 4.0)); got {candidates!r}")
     values = candidates_for(method, knob, code) if candidates is None else tuple(candidates)
     if not values:
         raise ValueError(f"`candidates` for {method.name}'s {knob} must hold at least one value; got none")

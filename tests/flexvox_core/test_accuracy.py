@@ -445,3 +445,13 @@ def test_a_noise_model_larger_than_the_samples_error_is_refused_not_scored_100_d
         estimate_accuracy(f, code, "diffusion", noise=overstated)
     with pytest.raises(NotEstimable, match=r"no candidate could be estimated"):
         choose(f, code, "diffusion", "time", (1.5, 6.0), noise=overstated)
+
+
+def test_missing_of_the_wrong_length_is_refused_in_words():
+    from flexvox_core import capture, render_scene
+    from flexvox_core.design import design_code
+
+    code = design_code((2, 2)).code
+    f = capture(render_scene("balls", 32, 24, 32), code)
+    with pytest.raises(ValueError, match=r"`missing` must be 8 booleans, one per camera frame; got bool \(7,\)"):
+        estimate_accuracy(f, code, "diffusion", missing=np.zeros(7, bool), reconstruction=np.zeros((32, 24, 32)))

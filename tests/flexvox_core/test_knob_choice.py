@@ -201,3 +201,10 @@ def test_integer_counts_are_chosen_on_as_relative_units(scene):
                     white=4095)
     assert counts.value == relative.value
     assert counts.estimate.psnr == pytest.approx(relative.estimate.psnr, abs=0.05)
+
+
+def test_a_single_value_for_candidates_is_refused_in_words(scene):
+    _, frames, noise = scene
+    with pytest.raises(TypeError, match=r"`candidates` must be a sequence of time values \(e\.g\. \(2\.0, 4\.0\)\); "
+                                        r"got 2\.0"):
+        choose(frames, CODE, "diffusion", "time", 2.0, noise=noise)

@@ -45,8 +45,8 @@ def register(sub) -> None:
             "`interpolated`); a run of them longer than the method's reach is refused, naming it. "
             "--time auto (diffusion, motion-aware) and --block auto (rebin) choose the knob by the PSNR estimated "
             "from the recording alone: each candidate is reconstructed and estimated, the best is written, and every "
-            "candidate's estimate and what choosing cost are printed; a method the estimate refuses is refused "
-            "with the reason."
+            "candidate's estimate and what choosing cost are printed; a method the estimate refuses (today every "
+            "one but diffusion's nc solver) is refused with the reason."
         )
         add_method_options(p, chunk=16, auto=True)
         p.add_argument("--figures", type=Path, metavar="DIR",

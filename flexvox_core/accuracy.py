@@ -188,9 +188,10 @@ class NoiseModel:
 
         Shot noise gives ``1/e`` per unit, read noise ``(σ/e)²``, dark current ``rate/(hz·e²)`` with shot noise,
         the ADC ``(1/(gain·e))²/12``, where ``e`` is the electrons per unit (the storage's, else the
-        simulator's default 1000)."""
+        simulator's default 1000, which the source then says is assumed)."""
         storage = storage or {}
-        e = float(electrons_per_unit or storage.get("electrons_per_unit") or 1000.0)
+        stated = electrons_per_unit or storage.get("electrons_per_unit")
+        e = float(stated or 1000.0)
         photon = floor = 0.0
         parts = []
         if "photon_noise" in effects:
@@ -205,7 +206,8 @@ class NoiseModel:
             gain = float(effects["adc"].get("gain", storage.get("gain", 0.25)))
             floor += (1.0 / (gain * e)) ** 2 / 12.0
             parts.append("quantisation")
-        return cls(photon, floor, "recording's effects: " + (", ".join(parts) or "noiseless"))
+        scale = "" if stated or not parts else " at 1000 electrons per unit (the simulator's default: not stated)"
+        return cls(photon, floor, "recording's effects: " + (", ".join(parts) or "noiseless") + scale)
 
 
 @dataclass(frozen=True)

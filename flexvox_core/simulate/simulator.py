@@ -209,6 +209,7 @@ def _sensor_and_drops(frames, effects, seed, stream, rate_hz, electrons_per_unit
         adc = next((e for e in sensor if isinstance(e, Adc)), None)
         if adc is None:
             frames = (electrons / electrons_per_unit).astype(np.float32)
+            storage = {**storage, "electrons_per_unit": electrons_per_unit}  # the noise's scale, stated
         else:
             frames = electrons  # uint16 counts from Adc.apply
             storage = {

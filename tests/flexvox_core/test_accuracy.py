@@ -455,3 +455,19 @@ def test_missing_of_the_wrong_length_is_refused_in_words():
     f = capture(render_scene("balls", 32, 24, 32), code)
     with pytest.raises(ValueError, match=r"`missing` must be 8 booleans, one per camera frame; got bool \(7,\)"):
         estimate_accuracy(f, code, "diffusion", missing=np.zeros(7, bool), reconstruction=np.zeros((32, 24, 32)))
+
+
+def test_the_noise_of_a_recording_is_at_the_electrons_per_unit_it_was_simulated_at(tmp_path):
+    from flexvox_core import render_scene, simulate_video, write_simulation
+    from flexvox_core.accuracy import noise_of
+    from flexvox_core.design import design_code
+    from flexvox_core.recording import open_recording
+
+    code = design_code((2, 2)).code
+    sim = simulate_video(render_scene("balls", 8, 12, 16), code, effects={"photon_noise": {}}, seed=1,
+                         electrons_per_unit=30.0)
+    noise = noise_of(open_recording(write_simulation(tmp_path / "r.zarr", sim)))
+    assert noise.photon == pytest.approx(1 / 30) and "not stated" not in noise.source
+    old = NoiseModel.from_effects({"photon_noise": {}}, {"kind": "float"})  # a recording that does not say
+    assert old.photon == pytest.approx(1e-3) and old.source.endswith(
+        "at 1000 electrons per unit (the simulator's default: not stated)")

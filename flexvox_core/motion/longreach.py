@@ -126,9 +126,9 @@ def long_reach(frames, code, flow, guide, select, plan: LongReachPlan, *, missin
     ndarray (S, H, W) float32: the estimate in ``select``, ``guide`` elsewhere (and the samples, with
     ``write_samples``).
     """
+    from flexvox_core import threads
     from flexvox_core.codes import order_from_code
     from flexvox_core.motion.longreach_kernel import corner_table, long_reach_kernel
-    from flexvox_core.threads import cores
 
     fr = np.ascontiguousarray(frames, np.float32)
     order = order_from_code(code)
@@ -151,20 +151,13 @@ def long_reach(frames, code, flow, guide, select, plan: LongReachPlan, *, missin
         np.copyto(out, g)
     elif out is not g:
         raise ValueError("`out` may be `guide` only when `guide` is C-contiguous float32")
-    chunks = max(1, min(S, cores(), numba_threads()))
+    chunks = max(1, min(S, threads.workers()))
     num = np.empty((chunks, H, W), np.float32)
     den = np.empty((chunks, H, W), np.float32)
     long_reach_kernel(fr, order, corner_table(order), present, f, g, sel, plan.time_weights,
                       np.float32(plan.range_scale), plan.taps, np.float32(MIN_WEIGHT), out, num, den,
                       bool(write_samples))
     return out
-
-
-def numba_threads() -> int:
-    """numba's thread count (the chunks of sub-frames run side by side)."""
-    import numba
-
-    return int(numba.get_num_threads())
 
 
 def long_reach_nc(sparse, mask, flow, guide, select, *, reach: int, sigma_t: float, sigma_s: float = 0.3,

@@ -239,7 +239,6 @@ def _subframe(frames: Any, order: Any, lat: Any, flow: Any, guide: Any, select: 
                         out[t, y, x] = frames[f, y, x]
 
 
-@numba.njit(parallel=True, nogil=True, cache=True, error_model="numpy")
 def long_reach_kernel(frames: Any, order: Any, corners: Any, present: Any, flow: Any, guide: Any, select: Any,
                       time_w: Any, scale: Any, taps: Any, min_weight: Any, out: Any, num: Any, den: Any,
                       write_samples: bool) -> None:
@@ -249,17 +248,37 @@ def long_reach_kernel(frames: Any, order: Any, corners: Any, present: Any, flow:
     :func:`corner_table`; ``present`` (F,) bool; ``flow`` (S, H, W, 2), ``guide`` (S, H, W) float32; ``select``
     (S, H, W) bool; ``time_w`` (reach + 1,) the trajectory weights exp(−d²/2σ_t²); ``scale`` −1/2h²; ``taps`` the
     blur's (odd length); ``num``, ``den`` (C, H, W) float32 scratch, one plane pair per chunk of sub-frames run
-    side by side (any content). ``write_samples``: write each sub-frame's samples into ``out`` after it. Each
-    voxel's sums are made in one order by one thread: the output bits do not depend on the thread count.
+    side by side (any content) by :func:`flexvox_core.threads.for_each`, each chunk one compiled call that
+    releases the GIL (:func:`long_reach_chunk`). ``write_samples``: write each sub-frame's samples into ``out``
+    after it. Each voxel's sums are made in one order by one thread: the output bits do not depend on the
+    number of chunks or threads.
+
+    The chunks run on Python's threads rather than numba's ``parallel=True``: the parallel kernel took about
+    10 s to compile on first use (a fresh install, or a new numba cache) against about 1 s for this one.
     """
-    S, H, W = guide.shape
+    from flexvox_core.threads import for_each
+
     chunks = num.shape[0]
+
+    def chunk(c: int) -> None:
+        long_reach_chunk(frames, order, corners, present, flow, guide, select, time_w, scale, taps, min_weight,
+                         out, num[c], den[c], write_samples, c, chunks)
+
+    for_each(chunk, chunks)
+
+
+@numba.njit(nogil=True, cache=True, error_model="numpy")
+def long_reach_chunk(frames: Any, order: Any, corners: Any, present: Any, flow: Any, guide: Any, select: Any,
+                     time_w: Any, scale: Any, taps: Any, min_weight: Any, out: Any, num: Any, den: Any,
+                     write_samples: bool, c: int, chunks: int) -> None:
+    """Sub-frames ``c``, ``c + chunks``, … of :func:`long_reach_kernel` (interleaved: a run of busy sub-frames is
+    shared out), with this chunk's scratch planes ``num``, ``den`` (H, W)."""
+    S, H, W = guide.shape
     lat = _lattice(corners, present, S, H, W)
-    for c in numba.prange(chunks):
-        rows = np.empty(H, np.bool_)
-        cols = np.empty(W, np.bool_)
-        xs = np.empty(W, np.int64)
-        scratch = np.empty((5, W), np.float32)
-        for t in range(c, S, chunks):  # interleaved: a run of busy sub-frames is shared out
-            _subframe(frames, order, lat, flow, guide, select, t, time_w, scale, taps, min_weight, out, num[c],
-                      den[c], rows, cols, xs, scratch, write_samples)
+    rows = np.empty(H, np.bool_)
+    cols = np.empty(W, np.bool_)
+    xs = np.empty(W, np.int64)
+    scratch = np.empty((5, W), np.float32)
+    for t in range(c, S, chunks):
+        _subframe(frames, order, lat, flow, guide, select, t, time_w, scale, taps, min_weight, out, num, den,
+                  rows, cols, xs, scratch, write_samples)

@@ -224,8 +224,22 @@ def test_bad_preview_settings_are_refused_when_made(qtbot, kw, message):
         LivePreview(**kw)
 
 
+@pytest.fixture(scope="session")
+def compiled_motion_kernels():
+    """Motion-aware's compiled kernels, compiled (or loaded from numba's cache) before a live view starts: in a
+    fresh clone the first run compiles them for several seconds beside the camera's thread, a one-time cost
+    that is not what the live view's tests measure."""
+    from flexvox_core.design import design_code
+    from flexvox_core.forward import capture as coded
+    from flexvox_core.motion import motion_aware
+    from flexvox_core.simulate.scenes import render_scene
+
+    code = design_code((4, 4)).code
+    motion_aware(coded(render_scene("balls", 48, 48, 64), code), code)
+
+
 @pytest.fixture
-def capture(qtbot, settings, runner):
+def capture(qtbot, settings, runner, compiled_motion_kernels):
     service = RigService(small_rig())
     ws = CaptureWorkspace(service, settings, runner)
     qtbot.addWidget(ws)

@@ -281,19 +281,17 @@ def test_corner_table_names_the_pixels_that_hold_each_slot():
             assert sorted(int(v).bit_count() for v in table[i, j]) == [0] * 4 + [1] * 4  # one pixel per slot
 
 
-def test_compiled_gather_bits_do_not_depend_on_the_thread_count(rng):
-    import numba
-
+@pytest.mark.parametrize("threads", [1, 3])
+def test_compiled_gather_bits_do_not_depend_on_the_thread_count(rng, monkeypatch, threads):
+    from flexvox_core import threads as threads_module
     from flexvox_core.motion.longreach import LongReachPlan, long_reach
 
     code, frames, flow, guide, sel, _, _ = _lattice_case(rng, (4, 4), 3, 12, 14)
     plan = LongReachPlan.of(48, reach=12, sigma_t=12, sigma_s=0.3, h=0.1)
     many = long_reach(frames, code, flow, guide, sel, plan, write_samples=True)
-    saved = numba.get_num_threads()
-    numba.set_num_threads(1)
-    try:
-        one = long_reach(frames, code, flow, guide, sel, plan, write_samples=True)
-    finally:
-        numba.set_num_threads(saved)
+    calls = []
+    monkeypatch.setattr(threads_module, "workers", lambda: calls.append(threads) or threads)
+    one = long_reach(frames, code, flow, guide, sel, plan, write_samples=True)
+    assert calls  # the chunks and their threads came from the patched count
     np.testing.assert_array_equal(one, many)
     assert not np.array_equal(many[sel], guide[sel])

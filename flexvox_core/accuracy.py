@@ -390,6 +390,7 @@ def _estimate(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Meth
     F, H, W = frames.shape
     K = code.shape[2]
     S = F * K
+    probe_lattice(0, 0, step)  # `step` checked before anything runs (a whole number >= 1)
     if min(H, W) < 3 * step or F < 1:
         raise NotEstimable(f"a capture of {F}x{H}x{W} is too small to probe one pixel in {step}x{step} "
                            f"(needs {3 * step} pixels a side)")
@@ -495,7 +496,16 @@ def probe_lattice(H: int, W: int, step: int, shift: int = 0) -> np.ndarray:
     such a lattice, diffusion's estimate ranged from 1.4 dB low to 3.9 dB high). Neighbouring probed pixels lie
     about ``step`` pixels apart, a few diagonal neighbours where the shear wraps (their random signs keep their
     pulls on each other out of the mean); for a step of 4 or more the lattices of ``shift`` 0 and ``step // 2``
-    (alternate frames) share no pixel."""
+    (alternate frames) share no pixel.
+
+    Raises
+    ------
+    ValueError
+        ``step`` not a whole number >= 1, or ``shift`` not a whole number >= 0, or ``H``, ``W`` negative.
+    """
+    for name, value, least in (("step", step, 1), ("shift", shift, 0), ("H", H, 0), ("W", W, 0)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
+            raise ValueError(f"`{name}` must be a whole number >= {least}; got {value!r}")
     lat = np.zeros((H, W), bool)
     ii, jj = np.mgrid[0:H // step + 1, 0:W // step + 1]
     yy = 1 + shift + step * ii + jj % step

@@ -471,3 +471,19 @@ def test_the_noise_of_a_recording_is_at_the_electrons_per_unit_it_was_simulated_
     old = NoiseModel.from_effects({"photon_noise": {}}, {"kind": "float"})  # a recording that does not say
     assert old.photon == pytest.approx(1e-3) and old.source.endswith(
         "at 1000 electrons per unit (the simulator's default: not stated)")
+
+
+@pytest.mark.parametrize(("kw", "message"), [
+    ({"step": 0}, r"`step` must be a whole number >= 1; got 0"),
+    ({"step": 2.5}, r"`step` must be a whole number >= 1; got 2\.5"),
+])
+def test_a_bad_probe_step_is_refused_in_words(kw, message):
+    from flexvox_core import capture, render_scene
+    from flexvox_core.design import design_code
+
+    code = design_code((2, 2)).code
+    f = capture(render_scene("balls", 16, 24, 32), code)
+    with pytest.raises(ValueError, match=message):
+        estimate_accuracy(f, code, "diffusion", **kw)
+    with pytest.raises(ValueError, match=r"`shift` must be a whole number >= 0; got -1"):
+        probe_lattice(8, 8, 4, -1)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import gc
 import logging
 import sys
 
@@ -96,8 +97,6 @@ def console() -> int:
     ``weakref.finalize`` callbacks) still run. Only the console script does this: :func:`main` called in a
     process that goes on (the tests) leaves the collector alone.
     """
-    import gc
-
     status = main()
     gc.collect()
     gc.freeze()

@@ -137,7 +137,8 @@ def refusal(method: Method) -> str | None:
 
 
 class NotEstimable(ValueError):
-    """The method, or the recording, cannot be estimated; the message says why.
+    """The method, or the recording, cannot be estimated; the message says why. ``runs``: the reconstructions made
+    before it was refused (0 when it was refused before any ran).
 
     Examples
     --------
@@ -150,6 +151,8 @@ class NotEstimable(ValueError):
     ...     print(str(exc)[:73])
     cannot estimate the accuracy of motion-aware dis n=5: even with the first
     """
+
+    runs: int = 0
 
 
 @dataclass(frozen=True)
@@ -230,6 +233,8 @@ class AccuracyEstimate:
         Held-out (probed) samples it rests on.
     noise : NoiseModel
     confidence : float
+    runs : int
+        Reconstructions the estimate made (a reconstruction given to it is not counted).
 
     Examples
     --------
@@ -250,6 +255,7 @@ class AccuracyEstimate:
     samples: int
     noise: NoiseModel
     confidence: float = CONFIDENCE
+    runs: int = 0
 
     @property
     def half_width(self) -> float:
@@ -401,91 +407,95 @@ def _estimate(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Meth
     gaps = checked
     f32 = frames.astype(np.float32)
     steps = Steps(report, F, int(reconstruction is None) + 1 + int(dropped.any()))
-    run_method = _runs(f32, code, method, gaps, chunk_frames, device, steps)
-    if reconstruction is None:
-        reconstruction = run_method(f32)
+    try:
+        run_method = _runs(f32, code, method, gaps, chunk_frames, device, steps)
+        if reconstruction is None:
+            reconstruction = run_method(f32)
+            steps.finished()
+        elif isinstance(run_method, HeldRuns):
+            run_method.flow_only(f32)  # the flow the given reconstruction was made with, held for the probe
+        v0 = np.asarray(reconstruction, np.float32)  # read in float64 where used (the probe's columns)
+        if v0.shape != (S, H, W):
+            raise ValueError(f"`reconstruction` must have shape {(S, H, W)}; got {v0.shape}")
+        # alternate frames probe lattices offset by half a step: a pixel is probed every other frame
+        lattices = [probe_lattice(H, W, step, shift) for shift in (0, step // 2)]
+        rng = np.random.default_rng(seed)
+        signs = rng.choice(np.array([-1.0, 1.0]), size=(F, H, W)) * np.stack([lattices[f % 2] for f in range(F)])
+        signs[dropped] = 0.0
+        probed = f32 + np.float32(delta) * signs.astype(np.float32)
+        v1 = np.asarray(run_method(probed), np.float32)
         steps.finished()
-    elif isinstance(run_method, HeldRuns):
-        run_method.flow_only(f32)  # the flow the given reconstruction was made with, held for the probe
-    v0 = np.asarray(reconstruction, np.float32)  # read in float64 where used (the probe's columns)
-    if v0.shape != (S, H, W):
-        raise ValueError(f"`reconstruction` must have shape {(S, H, W)}; got {v0.shape}")
-    # alternate frames probe lattices offset by half a step: a pixel is probed every other frame
-    lattices = [probe_lattice(H, W, step, shift) for shift in (0, step // 2)]
-    rng = np.random.default_rng(seed)
-    signs = rng.choice(np.array([-1.0, 1.0]), size=(F, H, W)) * np.stack([lattices[f % 2] for f in range(F)])
-    signs[dropped] = 0.0
-    probed = f32 + np.float32(delta) * signs.astype(np.float32)
-    v1 = np.asarray(run_method(probed), np.float32)
-    steps.finished()
-    probe = _Probe(v0, v1, frames, dropped, np.argmax(tiled_code(code, H, W), axis=0), K, delta)
-    rows: list[np.ndarray] = []  # per probed sample: frame, cluster, MSE bounds, voxels, response, copied
-    for f in range(F):
-        if dropped[f]:
-            continue
-        ys, xs = np.nonzero(lattices[f % 2])
-        var = variance_map[f, ys, xs] if variance_map is not None else noise.variance(frames[f, ys, xs])
-        cl = (ys // (step * CLUSTER)) * (W // (step * CLUSTER) + 1) + xs // (step * CLUSTER)
-        rows.append(probe.frame_rows(f, ys, xs, signs[f, ys, xs], var, cl))
-    arr = np.concatenate(rows, axis=0) if rows else np.zeros((0, 8))
-    if arr.shape[0] < 8:
-        raise NotEstimable(f"only {arr.shape[0]} probed samples could be held out (too few frames or pixels)")
-    fr, clus, mlo, mhi, w, pull, copied, mop = arr.T
-    _logger.debug("%s: %.1f %% of the probed samples copied onto a neighbour", method.label, 100 * np.mean(copied))
-    if np.mean(copied) > MAX_COPIED and not unchecked:
-        raise NotEstimable(f"cannot estimate the accuracy of {method.label}: it copies {np.mean(copied):.0%} of the "
-                           f"probed samples onto a temporal neighbour (response >= {COPIED}; at most "
-                           f"{MAX_COPIED:.0%} can be taken out), so what it predicts without them is not known (a "
-                           "nearest-sample fill, as nc's at short diffusion times)")
-    samples = int(arr.shape[0])
-    if np.mean(pull) < INDEPENDENT:
-        # The temporal neighbours do not respond to the sample (each sub-frame is reconstructed from its own
-        # samples, as GAP-TV's 2-D TV does): every sample is held out exactly (flexvox_core.accuracy_folds).
-        m_opt = None
-        mse, m_hi, se, per_frame, samples, how = _independent(v0, v1, f32, code, method, dropped, signs, delta,
-                                                                variance_map, noise, steps)
-        scheme = scheme.replace("leave-one-out by probe", how)
-    else:
-        sum_w = float(np.sum(w))
-        m_lo, m_hi = float(np.sum(mlo) / sum_w), float(np.sum(mhi) / sum_w)
-        mse = m_lo  # the estimate: errors uncorrelated with the truth's change; the other bound is the worst case
-        m_opt = float(np.sum(mop) / sum_w)  # the best case the data allow
-        se = _cluster_se(fr * 1e6 + clus, mlo, w)
-        per_frame = np.full(F, np.nan)
-        for f in np.unique(fr).astype(int):
-            sel = fr == f
-            per_frame[f] = db(float(np.sum(mlo[sel]) / np.sum(w[sel])))
-    z = _z(confidence)
-    if dropped.any():
-        held_out = _gap_errors(f32, code, method, dropped, variance_map, noise, chunk_frames, device, steps)
-        if held_out is None:
-            scheme += ", dropped frames not scored (no captured run long enough to hold out like them)"
+        probe = _Probe(v0, v1, frames, dropped, np.argmax(tiled_code(code, H, W), axis=0), K, delta)
+        rows: list[np.ndarray] = []  # per probed sample: frame, cluster, MSE bounds, voxels, response, copied
+        for f in range(F):
+            if dropped[f]:
+                continue
+            ys, xs = np.nonzero(lattices[f % 2])
+            var = variance_map[f, ys, xs] if variance_map is not None else noise.variance(frames[f, ys, xs])
+            cl = (ys // (step * CLUSTER)) * (W // (step * CLUSTER) + 1) + xs // (step * CLUSTER)
+            rows.append(probe.frame_rows(f, ys, xs, signs[f, ys, xs], var, cl))
+        arr = np.concatenate(rows, axis=0) if rows else np.zeros((0, 8))
+        if arr.shape[0] < 8:
+            raise NotEstimable(f"only {arr.shape[0]} probed samples could be held out (too few frames or pixels)")
+        fr, clus, mlo, mhi, w, pull, copied, mop = arr.T
+        _logger.debug("%s: %.1f %% of the probed samples copied onto a neighbour", method.label, 100 * np.mean(copied))
+        if np.mean(copied) > MAX_COPIED and not unchecked:
+            raise NotEstimable(f"cannot estimate the accuracy of {method.label}: it copies {np.mean(copied):.0%} of "
+                               f"the probed samples onto a temporal neighbour (response >= {COPIED}; at most "
+                               f"{MAX_COPIED:.0%} can be taken out), so what it predicts without them is not known (a "
+                               "nearest-sample fill, as nc's at short diffusion times)")
+        samples = int(arr.shape[0])
+        if np.mean(pull) < INDEPENDENT:
+            # The temporal neighbours do not respond to the sample (each sub-frame is reconstructed from its own
+            # samples, as GAP-TV's 2-D TV does): every sample is held out exactly (flexvox_core.accuracy_folds).
+            m_opt = None
+            mse, m_hi, se, per_frame, samples, how = _independent(v0, v1, f32, code, method, dropped, signs, delta,
+                                                                    variance_map, noise, steps)
+            scheme = scheme.replace("leave-one-out by probe", how)
         else:
-            # Voxels of dropped frames hold no sample: their error is that of captured frames held out the same way.
-            share = float(np.mean(dropped))
-            gap_mse = sum(held_out[g.frames][0] * g.frames for g in find_gaps(dropped)) / max(int(dropped.sum()), 1)
-            gap_var = sum((held_out[g.frames][1] * g.frames) ** 2 for g in find_gaps(dropped)) / max(
-                int(dropped.sum()), 1) ** 2
-            for g in find_gaps(dropped):
-                per_frame[g.start:g.stop] = db(held_out[g.frames][0])
-            mse = (1 - share) * mse + share * gap_mse
-            m_hi = (1 - share) * m_hi + share * gap_mse
-            m_opt = None if m_opt is None else (1 - share) * m_opt + share * gap_mse
-            se = math.sqrt(((1 - share) * se) ** 2 + share**2 * gap_var)
-            scheme += ", dropped frames scored by captured runs held out like them"
-    if not mse > 1e-10:  # db() would say 100 dB: the noise taken out exceeds the error the samples show
-        raise NotEstimable(
-            f"the held-out samples' error less the noise the capture states (photon {noise.photon:g}, floor "
-            f"{noise.floor:g}: {noise.source}) is {mse:.3g}, not above zero: the stated noise is larger than the "
-            "samples' own error; estimate with the noise measured on this camera, or with none (the estimate then "
-            "includes the noise)")
-    lo_mse = mse - z * se if m_opt is None else min(mse - z * se, m_opt)  # up to the optimistic bound
-    hi_mse = max(m_hi, mse + z * se)  # down to the pessimistic bound
-    est = AccuracyEstimate(psnr=db(mse), low=db(hi_mse), high=db(max(lo_mse, 1e-10)), per_frame=per_frame,
-                           mse=max(mse, 0.0), scheme=scheme, samples=samples, noise=noise,
-                           confidence=confidence)
-    _logger.info("%s: %s", method.label, est.line())
-    return est
+            sum_w = float(np.sum(w))
+            m_lo, m_hi = float(np.sum(mlo) / sum_w), float(np.sum(mhi) / sum_w)
+            mse = m_lo  # the estimate: errors uncorrelated with the truth's change; the other bound is the worst case
+            m_opt = float(np.sum(mop) / sum_w)  # the best case the data allow
+            se = _cluster_se(fr * 1e6 + clus, mlo, w)
+            per_frame = np.full(F, np.nan)
+            for f in np.unique(fr).astype(int):
+                sel = fr == f
+                per_frame[f] = db(float(np.sum(mlo[sel]) / np.sum(w[sel])))
+        z = _z(confidence)
+        if dropped.any():
+            held_out = _gap_errors(f32, code, method, dropped, variance_map, noise, chunk_frames, device, steps)
+            if held_out is None:
+                scheme += ", dropped frames not scored (no captured run long enough to hold out like them)"
+            else:
+                # Voxels of dropped frames hold no sample: their error is that of captured frames held out the same way.
+                share = float(np.mean(dropped))
+                gap_mse = sum(held_out[g.frames][0] * g.frames for g in find_gaps(dropped)) / max(int(dropped.sum()), 1)
+                gap_var = sum((held_out[g.frames][1] * g.frames) ** 2 for g in find_gaps(dropped)) / max(
+                    int(dropped.sum()), 1) ** 2
+                for g in find_gaps(dropped):
+                    per_frame[g.start:g.stop] = db(held_out[g.frames][0])
+                mse = (1 - share) * mse + share * gap_mse
+                m_hi = (1 - share) * m_hi + share * gap_mse
+                m_opt = None if m_opt is None else (1 - share) * m_opt + share * gap_mse
+                se = math.sqrt(((1 - share) * se) ** 2 + share**2 * gap_var)
+                scheme += ", dropped frames scored by captured runs held out like them"
+        if not mse > 1e-10:  # db() would say 100 dB: the noise taken out exceeds the error the samples show
+            raise NotEstimable(
+                f"the held-out samples' error less the noise the capture states (photon {noise.photon:g}, floor "
+                f"{noise.floor:g}: {noise.source}) is {mse:.3g}, not above zero: the stated noise is larger than the "
+                "samples' own error; estimate with the noise measured on this camera, or with none (the estimate then "
+                "includes the noise)")
+        lo_mse = mse - z * se if m_opt is None else min(mse - z * se, m_opt)  # up to the optimistic bound
+        hi_mse = max(m_hi, mse + z * se)  # down to the pessimistic bound
+        est = AccuracyEstimate(psnr=db(mse), low=db(hi_mse), high=db(max(lo_mse, 1e-10)), per_frame=per_frame,
+                               mse=max(mse, 0.0), scheme=scheme, samples=samples, noise=noise,
+                               confidence=confidence, runs=steps.done)
+        _logger.info("%s: %s", method.label, est.line())
+        return est
+    except NotEstimable as exc:  # refused after some runs: say how many (fv.choose counts them)
+        exc.runs = steps.done
+        raise
 
 
 def probe_lattice(H: int, W: int, step: int, shift: int = 0) -> np.ndarray:

@@ -210,7 +210,7 @@ def _so_far(progress: Callable[[int, int], object] | None, done: int, total: int
 def _choose(method: Method | str, knob: str, candidates: Any, code: Any,
             reconstruct: Callable[[Method, Progress | None], Any],
             estimate: Callable[[Method, Any, Progress | None], AccuracyEstimate], *, reusable: bool,
-            estimate_runs: int, keep_video: bool, progress: Callable[[int, int], object] | None) -> Choice:
+            keep_video: bool, progress: Callable[[int, int], object] | None) -> Choice:
     """The loop :func:`choose` and :func:`choose_recording` share: ``reconstruct(method, within)`` gives a
     MethodOutput (called only when ``reusable``), ``estimate(method, video or None, within)`` its estimate; both
     call ``within`` between their chunks and runs, which calls ``progress`` with the candidates done so far."""
@@ -248,11 +248,11 @@ def _choose(method: Method | str, knob: str, candidates: Any, code: Any,
             run_seconds = time.perf_counter() - t0
         try:
             est = estimate(m, None if out is None else out.video, within)
-        except NotEstimable as exc:  # refused after its probe (a method that copies its samples)
-            made += 1 if reusable else 2
+        except NotEstimable as exc:  # refused, before its runs or after them (a method that copies its samples)
+            made += exc.runs
             tried.append(Candidate(value, m, None, time.perf_counter() - t0, str(exc), made, run_seconds))
         else:
-            made += estimate_runs + (0 if reusable else 1)
+            made += est.runs
             tried.append(Candidate(value, m, est, time.perf_counter() - t0, None, made, run_seconds))
             chosen = tried[best[0]].estimate if best is not None else None
             if chosen is None or est.psnr > chosen.psnr:
@@ -350,9 +350,8 @@ def choose(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method 
         return estimate_accuracy(f32, code, m, noise=noise, missing=gaps, reconstruction=video, seed=seed,
                                  chunk_frames=chunk_frames, device=device, progress=within)
 
-    extra = 1 + int(gaps is not None and bool(gaps.any()))
-    return _choose(method, knob, candidates, code, reconstruct, estimate, reusable=reusable, estimate_runs=extra,
-                   keep_video=keep_video, progress=progress)
+    return _choose(method, knob, candidates, code, reconstruct, estimate, reusable=reusable, keep_video=keep_video,
+                   progress=progress)
 
 
 def choose_recording(recording: str | os.PathLike[str] | Recording, method: Method | str, knob: str,
@@ -390,6 +389,5 @@ def choose_recording(recording: str | os.PathLike[str] | Recording, method: Meth
         return estimate_recording(rec, m, noise=noise, reconstruction=video, seed=seed, chunk_frames=chunk_frames,
                                   device=device, progress=within)
 
-    extra = 1 + int(reader.missing is not None and bool(np.any(reader.missing)))
-    return _choose(method, knob, candidates, code, reconstruct, estimate, reusable=reusable, estimate_runs=extra,
-                   keep_video=keep_video, progress=progress)
+    return _choose(method, knob, candidates, code, reconstruct, estimate, reusable=reusable, keep_video=keep_video,
+                   progress=progress)

@@ -7,7 +7,7 @@ import pytest
 
 import flexvox_core.accuracy as accuracy
 import flexvox_core.methods as methods_pkg
-from flexvox_core.accuracy import NoiseModel, NotEstimable, refusal
+from flexvox_core.accuracy import NoiseModel, NotEstimable, estimate_accuracy, refusal
 from flexvox_core.choice import AUTO_KNOBS, MOTION_TIMES, TIMES, Choice, candidates_for, choose, choose_recording
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture
@@ -208,3 +208,31 @@ def test_a_single_value_for_candidates_is_refused_in_words(scene):
     with pytest.raises(TypeError, match=r"`candidates` must be a sequence of time values \(e\.g\. \(2\.0, 4\.0\)\); "
                                         r"got 2\.0"):
         choose(frames, CODE, "diffusion", "time", 2.0, noise=noise)
+
+
+def test_a_candidate_refused_before_its_probe_counts_only_its_reconstruction(scene, counted, monkeypatch):
+    real = accuracy.estimate_accuracy
+
+    def refusing_early(frames, code, method, **kw):  # as a capture too small to probe is refused: before any run
+        if method.time == 3.0:
+            raise NotEstimable("refused before its probe")
+        return real(frames, code, method, **kw)
+
+    monkeypatch.setattr(accuracy, "estimate_accuracy", refusing_early)
+    _, frames, noise = scene
+    choice = choose(frames, CODE, "diffusion", "time", (2.0, 3.0), noise=noise)
+    refused = choice.candidates[1]
+    assert refused.why == "refused before its probe" and refused.runs == 1  # its reconstruction, no probe
+    assert choice.runs == 3 == len(counted)
+
+
+def test_the_estimate_says_how_many_reconstructions_it_made(scene, counted):
+    _, frames, noise = scene
+    alone = estimate_accuracy(frames, CODE, "diffusion", noise=noise)
+    assert alone.runs == 2 == len(counted)  # the reconstruction and the probe
+    given = estimate_accuracy(frames, CODE, "diffusion", noise=noise,
+                              reconstruction=methods_pkg.run(frames, CODE, Method("diffusion")).video)
+    assert given.runs == 1 and len(counted) == 4  # the probe alone (the given one was run here, not by it)
+    with pytest.raises(NotEstimable, match="copies") as refused:
+        estimate_accuracy(frames, CODE, Method("diffusion", time=0.25), noise=noise)
+    assert refused.value.runs == 2

@@ -93,7 +93,8 @@ class JobsModel:
         self.results: list[ReconstructionResult] = []
         """The full reconstructions, oldest first."""
         self.truth = None
-        """The ground truth of the recording open, when it has one."""
+        """The ground truth of the recording open, when it has one: an array-like read where it is used (a job reads
+        it whole off the GUI thread; the Compare view a sub-frame at a time), never at open."""
         self.exported: tuple[Path, ReconstructionResult] | None = None
         """The last export: its path and the full result written."""
         self._written: list[ReconstructionResult] = []
@@ -127,7 +128,7 @@ class JobsModel:
         self.session = session
         self.results = []
         self._written = []
-        self.truth = session.truth() if session.has_ground_truth else None
+        self.truth = session.recording.ground_truth if session.has_ground_truth else None  # read where used
         self._set_progress(0, 1)
         self.set_result_line(Line())
         self.set_export_line(Line())

@@ -1,5 +1,6 @@
 """Review's jobs model alone, without Qt: full reconstructions, their lines, what closing would lose."""
 
+import numpy as np
 import pytest
 
 from flexvox_app.gui.models.jobs import short_estimate
@@ -43,6 +44,23 @@ def jobs(recording):
 def test_a_new_session_empties_the_lines_and_the_progress_each_with_its_signal(jobs):
     assert jobs.events == [("progress_changed", 0, 1), ("result_changed", Line()), ("export_changed", Line())]
     assert jobs.truth is not None and jobs.results == [] and not jobs.busy
+
+
+def test_opening_reads_none_of_the_ground_truth_and_the_job_reads_it_for_its_psnr(recording, monkeypatch):
+    from flexvox_core.metrics import psnr
+    from flexvox_core.recording.verified_rows import VerifiedRows
+
+    reads = []
+    real = VerifiedRows.read
+    monkeypatch.setattr(VerifiedRows, "read", lambda self, a, b: reads.append((self.label, a, b)) or real(self, a, b))
+    jobs = jobs_on(recording)  # a 1-s VGA recording's truth is 295 MB: not read on the GUI thread at open
+    assert not any("ground truth" in label for label, *_ in reads), reads
+    handle = jobs.reconstruct(Method("rebin"))
+    assert not any("ground truth" in label for label, *_ in reads)  # submitted, not yet run
+    jobs.runner.turn()  # the job, off the GUI thread in the app
+    assert any("ground truth" in label for label, *_ in reads)
+    truth = ReviewSession.open(recording).recording.ground_truth
+    assert handle.result.psnr == pytest.approx(psnr(np.asarray(truth), handle.result.video), abs=1e-9)
 
 
 def test_a_reconstruction_says_its_progress_and_ends_shown_with_its_jobs_signal(jobs):

@@ -31,7 +31,7 @@ from PySide6.QtWidgets import QCheckBox, QComboBox, QGroupBox, QHBoxLayout, QPus
 
 from flexvox_app.gui.capture.live_preview import LivePreview
 from flexvox_app.gui.capture.live_view import LiveStream
-from flexvox_app.gui.models.capture_model import Action, CaptureModel, Holder
+from flexvox_app.gui.models.capture_model import Action, CaptureModel, Cause, Holder
 from flexvox_app.gui.models.live_source import LiveStartError, start_live, stop_live
 from flexvox_app.gui.models.live_stats import LiveStats, histogram, saturation_level, saturation_mask
 from flexvox_app.gui.models.operator_words import in_gui_words
@@ -194,7 +194,7 @@ class LivePanel(QObject):
             note = start_live(self.service, plan, self.model.capture_calibration,
                               delay_set_by_hand=self.model.delay_set_by_hand)
         except LiveStartError as exc:
-            self.model.refuse(Action.LIVE, f"cannot start: {in_gui_words(str(exc))}")
+            self.model.refuse(Action.LIVE, f"cannot start: {in_gui_words(str(exc))}", Cause.DEVICE)
             return False
         self.model.take(Holder.LIVE)  # its refusal goes
         self.stats = LiveStats()

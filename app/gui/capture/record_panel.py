@@ -37,7 +37,7 @@ from PySide6.QtWidgets import (
 )
 
 from flexvox_app.gui.capture.capture_signals import CaptureSignals
-from flexvox_app.gui.models.capture_model import Action, CaptureModel, Holder
+from flexvox_app.gui.models.capture_model import Action, CaptureModel, Cause, Holder
 from flexvox_app.gui.models.operator_words import in_gui_words
 from flexvox_app.gui.models.recording import counters_text, ground_truth_cost, make_capture, result_text
 from flexvox_app.gui.models.rig_service import RigService
@@ -268,7 +268,8 @@ class RecordPanel(QObject):
                                    ground_truth=with_truth, **options)
         except (CaptureError, ValueError) as exc:
             self.model.release(Holder.RECORDING)
-            self.model.refuse(Action.RECORD, f"cannot record: {in_gui_words(str(exc))}")
+            self.model.refuse(Action.RECORD, f"cannot record: {in_gui_words(str(exc))}",
+                              Cause.DEVICE if isinstance(exc, CaptureError) else Cause.SETTINGS)
             return False
         self.capture = capture
         self.signals.follow(capture)  # before it starts: no event is missed

@@ -50,6 +50,9 @@ class Cause(enum.Enum):
     """The rig is held: the refusal goes once it is free."""
     SETTINGS = "settings"
     """The plan, the calibration or a recording setting: the refusal goes once they change."""
+    DEVICE = "device"
+    """A device's own error (or a setting it refused): the refusal goes once a device changes state (reconnected,
+    reopened, taken or released) or the settings change."""
 
 
 @dataclass(frozen=True)
@@ -202,16 +205,17 @@ class CaptureModel:
 
     def refresh(self) -> None:
         """Ask ``held_elsewhere`` again (a device changed state): :attr:`holder_changed` when the holder changed,
-        and refusals that said the rig was held go once it is free."""
-        self._holder_may_have_changed()
+        and refusals that said the rig was held go once it is free; a device's own error goes too (it spoke of the
+        state before)."""
+        self._holder_may_have_changed(devices_changed=True)
 
-    def _holder_may_have_changed(self) -> None:
+    def _holder_may_have_changed(self, *, devices_changed: bool = False) -> None:
         holder = self.holder
         if holder is not self._holder:
             _logger.info("the rig's devices: %s → %s", self._holder.value, holder.value)
             self._holder = holder
             self.holder_changed.emit(holder)
-        self.recheck()
+        self.recheck(devices_changed=devices_changed)
 
     # ------------------------------------------------------------------ the refusals
     def refusal(self, action: Action, *, timing: bool = True) -> Refusal | None:
@@ -259,10 +263,12 @@ class CaptureModel:
         if self._shown.pop(action, None) is not None:
             self.refusal_changed.emit(action, None)
 
-    def recheck(self, *, settings_changed: bool = False, actions: tuple[Action, ...] = tuple(Action)) -> None:
+    def recheck(self, *, settings_changed: bool = False, devices_changed: bool = False,
+                actions: tuple[Action, ...] = tuple(Action)) -> None:
         """Take refusals off that no longer hold: one that said the rig was held once it is free; any other once
-        (``settings_changed``) the plan, the calibration or the setting it was about changed. An action that now
-        runs keeps its refusal until it clears it."""
+        (``settings_changed``) the plan, the calibration or the setting it was about changed; a device's own error
+        (:attr:`Cause.DEVICE`) also once a device changed state (``devices_changed``). An action that now runs
+        keeps its refusal until it clears it."""
         running = {Action.LIVE: self.live, Action.RECORD: self.recording}
         for action in actions:
             shown = self._shown.get(action)
@@ -270,6 +276,8 @@ class CaptureModel:
                 continue
             if shown.cause is Cause.HELD:
                 gone = self.refusal(action, timing=False) is None
+            elif shown.cause is Cause.DEVICE:
+                gone = settings_changed or devices_changed
             else:
                 gone = settings_changed
             if gone:

@@ -204,6 +204,19 @@ def test_a_settings_refusal_stays_until_the_settings_change(model):
     assert model.shown(Action.RECORD) is None
 
 
+def test_a_device_error_goes_once_a_device_changes_state_and_a_settings_refusal_does_not(model):
+    model.refuse(Action.LIVE, "cannot start: the camera is not connected", Cause.DEVICE)
+    model.refuse(Action.RECORD, "choose a recording path first (folder/name.zarr)")
+    model.recheck()  # nothing changed: both stay
+    assert model.shown(Action.LIVE) is not None and model.shown(Action.RECORD) is not None
+    model.refresh()  # a device changed state (the camera reconnected): its error spoke of the state before
+    assert model.shown(Action.LIVE) is None
+    assert model.shown(Action.RECORD).cause is Cause.SETTINGS  # the path is still missing
+    model.refuse(Action.LIVE, "cannot start: the camera is not connected", Cause.DEVICE)
+    model.recheck(settings_changed=True)  # the settings changed: a device error goes too
+    assert model.shown(Action.LIVE) is None
+
+
 def test_starting_clears_the_refusal_and_a_running_action_keeps_what_it_shows(model):
     model.refuse(Action.LIVE, "cannot start: the camera is not connected")
     model.take(Holder.LIVE)

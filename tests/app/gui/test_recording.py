@@ -261,3 +261,21 @@ def test_the_holder_follows_the_live_view_and_the_recording_and_what_waits_is_re
         assert ws.live_panel.live_label.text().endswith("cannot start: a recording is running</span>")
     assert ws.holder is Holder.IDLE and held == [Holder.LIVE, Holder.RECORDING, Holder.IDLE]
     assert ws.model.shown(Action.LIVE) is None and ws.live_panel.live_label.text() == "stopped"
+
+
+def test_a_device_error_at_live_start_goes_once_the_devices_change_state(capture, monkeypatch):
+    import flexvox_app.gui.capture.live_panel as live_panel
+    from flexvox_app.gui.models.capture_model import Action, Cause
+    from flexvox_app.gui.models.live_source import LiveStartError
+
+    def failing(*_args, **_kw):
+        raise LiveStartError("the camera did not answer within 2 s")
+
+    monkeypatch.setattr(live_panel, "start_live", failing)
+    ws = capture
+    assert not ws.start_live()
+    shown = ws.model.shown(Action.LIVE)
+    assert shown.cause is Cause.DEVICE and "the camera did not answer" in shown.text
+    assert "the camera did not answer" in ws.live_panel.live_label.text()
+    ws._on_devices("camera")  # the device panel says a device changed state (reconnected)
+    assert ws.model.shown(Action.LIVE) is None and "did not answer" not in ws.live_panel.live_label.text()

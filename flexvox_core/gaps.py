@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from typing import Any
 
 import cv2
 import numpy as np
@@ -147,7 +148,11 @@ def fill_frames(frames: np.ndarray, missing) -> np.ndarray:
 def bridge_flow(flow: np.ndarray, missing, K: int, margin: int) -> None:
     """Replace, in place, the flow ``(S, H, W, 2)`` of each gap's sub-frames and of ``margin``
     sub-frames on each side of it (measured on frames that were interpolated, or across them)
-    by the straight line between the flows just outside that span (held at the video's ends)."""
+    by the straight line between the flows just outside that span (held at the video's ends).
+
+    ``flow`` may be held at its own scale (``(S, h, w, 2)``, :class:`~flexvox_core.flow.estimate.ScaledFlow`'s
+    ``small``): the line in time commutes with the resize (both linear), so its full-size planes are those of
+    the full-size flow bridged, to float32 rounding."""
     S = flow.shape[0]
     for g in find_gaps(missing):
         a, b = g.start * K - 1 - margin, g.stop * K + margin
@@ -162,7 +167,13 @@ def bridge_flow(flow: np.ndarray, missing, K: int, margin: int) -> None:
                 flow[t] = (1 - w) * flow[a] + w * flow[b]
 
 
-def bridge(video: np.ndarray, missing, K: int, flow: np.ndarray | None = None) -> np.ndarray:
+def _plane(flow: Any, t: int) -> np.ndarray:
+    """Sub-frame ``t`` of ``flow``: an array's plane, or a band's (``motion`` is not imported here: it imports this)."""
+    plane: np.ndarray = flow[t] if isinstance(flow, np.ndarray) else flow.band(t, t + 1)[0]
+    return plane
+
+
+def bridge(video: np.ndarray, missing, K: int, flow: Any = None) -> np.ndarray:
     """Fill the sub-frames of the missing frames of ``video`` (S, H, W) from both sides, in place.
 
     Sub-frame t of a gap between the reconstructed sub-frames a (just before it) and b (just
@@ -171,6 +182,10 @@ def bridge(video: np.ndarray, missing, K: int, flow: np.ndarray | None = None) -
     is the same blend of the flows at a and b, A is sub-frame a read at x − (t − a)·velocity and
     B sub-frame b at x + (b − t)·velocity; the gap's flow is set to that velocity. At the start
     or end of the video the one side is held. Returns :func:`interpolated_subframes`.
+
+    ``flow`` may also be a volume read a band at a time (``band(t0, t1)``, as
+    :func:`flexvox_core.motion.planes.band` reads it) with a ``put(t, plane)`` that sets a sub-frame's velocity
+    (:class:`~flexvox_core.flow.estimate.FlowField`, :class:`~flexvox_core.flow.estimate.ScaledFlow`).
     """
     m = np.asarray(missing, bool)
     S = video.shape[0]
@@ -190,7 +205,7 @@ def bridge(video: np.ndarray, missing, K: int, flow: np.ndarray | None = None) -
             if flow is None:
                 video[t] = (1 - w) * (video[a] if a is not None else 0) + w * (video[b] if b is not None else 0)
                 continue
-            vel = (1 - w) * (flow[a] if a is not None else 0) + w * (flow[b] if b is not None else 0)
+            vel = (1 - w) * (_plane(flow, a) if a is not None else 0) + w * (_plane(flow, b) if b is not None else 0)
             vel = np.asarray(vel, np.float32)
             out = np.zeros((H, W), np.float32)
             for side, weight, steps in ((a, 1 - w, None if a is None else t - a),
@@ -202,7 +217,10 @@ def bridge(video: np.ndarray, missing, K: int, flow: np.ndarray | None = None) -
                                   cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
                 out += np.float32(weight) * moved
             video[t] = out
-            flow[t] = vel
+            if isinstance(flow, np.ndarray):
+                flow[t] = vel
+            else:
+                flow.put(t, vel)
     gaps = find_gaps(m)
     if gaps:
         _logger.info("bridged %s", ", ".join(g.describe(K) for g in gaps))

@@ -22,6 +22,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -54,6 +55,134 @@ class FlowField:
     confidence: np.ndarray
     params: dict = field(default_factory=dict)
     seconds: float = 0.0
+
+    @property
+    def magnitude(self) -> np.ndarray:
+        """Speed ``(S, H, W)`` in pixels per sub-frame."""
+        return np.hypot(self.flow[..., 0], self.flow[..., 1])
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """``flow``'s shape (S, H, W, 2)."""
+        shape: tuple[int, ...] = self.flow.shape
+        return shape
+
+    @property
+    def held(self) -> np.ndarray:
+        """The velocity array held: ``flow`` itself (as :attr:`ScaledFlow.held`)."""
+        return self.flow
+
+    def band(self, t0: int, t1: int) -> np.ndarray:
+        """``flow[t0:t1]`` (a view): the :class:`~flexvox_core.motion.planes.Bands` protocol."""
+        return self.flow[t0:t1]
+
+    def put(self, t: int, plane: np.ndarray) -> None:
+        """Set sub-frame ``t``'s velocity (H, W, 2)."""
+        self.flow[t] = plane
+
+
+class ScaledFlow:
+    """Velocity and confidence of every voxel, held at the flow's own (smaller) scale; full-size planes are made
+    when read (:meth:`band`), each exactly as :func:`upsample_flow` makes it: ``cv2.resize(small[t] * ratio)``,
+    bilinear.
+
+    A :class:`FlowField` in what it offers (``flow``, ``confidence``, ``params``, ``seconds``, ``magnitude``;
+    the full-size arrays made when first read, and kept), and a :class:`~flexvox_core.motion.planes.Bands`
+    (``shape``, ``band``): a reader of a few sub-frames at a time never makes the whole volume (at 640×480 ×
+    240 sub-frames it is 590 MB; at a third of the size, 66 MB).
+
+    Parameters
+    ----------
+    small : ndarray (S, h, w, 2) float32
+        The velocity at its own scale, in its own pixels per sub-frame (sanitised: :func:`sanitize_flow`).
+    small_confidence : ndarray (S, h, w) float32
+    size : (H, W)
+        The full size.
+    params : dict
+    seconds : float
+    """
+
+    def __init__(self, small: np.ndarray, small_confidence: np.ndarray, size: tuple[int, int],
+                 params: dict | None = None, seconds: float = 0.0) -> None:
+        S, h, w = small.shape[:3]
+        if small.shape != (S, h, w, 2) or small.dtype != np.float32 or small_confidence.shape != (S, h, w):
+            raise ValueError(f"`small` must be float32 (S, h, w, 2) and `small_confidence` (S, h, w); got "
+                             f"{small.dtype} {small.shape} and {small_confidence.shape}")
+        H, W = (int(v) for v in size)
+        self.small = small
+        self.small_confidence = small_confidence
+        self.size = (H, W)
+        self.params = dict(params or {})
+        self.seconds = seconds
+        self.ratio = np.array([W / w, H / h], np.float32)
+        self._put: dict[int, np.ndarray] = {}  # full-size planes set by put()
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        """The full-size flow's shape (S, H, W, 2)."""
+        return (len(self.small), *self.size, 2)
+
+    @property
+    def held(self) -> np.ndarray:
+        """The velocity array held: ``small``."""
+        return self.small
+
+    def plane(self, t: int, out: np.ndarray | None = None) -> np.ndarray:
+        """Sub-frame ``t``'s full-size velocity (H, W, 2), into ``out`` when given."""
+        if out is None:
+            out = np.empty((*self.size, 2), np.float32)
+        put = self._put.get(t)
+        if put is not None:
+            out[...] = put
+        else:
+            cv2.resize(self.small[t] * self.ratio, self.size[::-1], dst=out, interpolation=cv2.INTER_LINEAR)
+        return out
+
+    def band(self, t0: int, t1: int) -> np.ndarray:
+        """Full-size sub-frames ``t0`` to ``t1`` (exclusive; clipped to the sub-frames, as a slice is)."""
+        if "flow" in self.__dict__:
+            return self.flow[t0:t1]
+        t0, t1, _ = slice(t0, t1).indices(len(self.small))
+        out = np.empty((max(0, t1 - t0), *self.size, 2), np.float32)
+        for t in range(t0, t1):
+            self.plane(t, out[t - t0])
+        return out
+
+    def put(self, t: int, plane: np.ndarray) -> None:
+        """Set sub-frame ``t``'s full-size velocity (H, W, 2): read from here on instead of the resized one."""
+        plane = np.array(plane, np.float32)
+        if plane.shape != (*self.size, 2):
+            raise ValueError(f"`plane` must have shape {(*self.size, 2)}; got {plane.shape}")
+        self._put[t] = plane
+        if "flow" in self.__dict__:
+            self.flow[t] = plane
+
+    @cached_property
+    def flow(self) -> np.ndarray:
+        """The full-size velocity (S, H, W, 2) float32, made when first read."""
+        out = np.empty(self.shape, np.float32)
+
+        def one(t: int) -> None:
+            self.plane(t, out[t])
+
+        for_each(one, len(self.small))
+        return out
+
+    @cached_property
+    def confidence(self) -> np.ndarray:
+        """The full-size confidence (S, H, W), resized as :func:`to_full_size` does (a read-only view of 1 where
+        it is 1 everywhere)."""
+        conf = self.small_confidence
+        S, h, w = conf.shape
+        H, W = self.size
+        if (h, w) == (H, W):
+            return conf
+        if conf.min() == 1:
+            return np.broadcast_to(np.float32(1), (S, H, W))
+        full = np.empty((S, H, W), np.float32)
+        for i, c in enumerate(conf):
+            cv2.resize(c, (W, H), dst=full[i], interpolation=cv2.INTER_LINEAR)
+        return full
 
     @property
     def magnitude(self) -> np.ndarray:

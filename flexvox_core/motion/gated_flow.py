@@ -13,7 +13,14 @@ import numpy as np
 from flexvox_core.flow import FlowField
 from flexvox_core.flow.backends import backend_params, make_backend
 from flexvox_core.flow.baseline import KAverageFlow, default_stride, kaverage
-from flexvox_core.flow.estimate import check_video, downscale, sanitize_flow, successive_flow, to_full_size
+from flexvox_core.flow.estimate import (
+    ScaledFlow,
+    check_video,
+    downscale,
+    sanitize_flow,
+    successive_flow,
+    to_full_size,
+)
 from flexvox_core.motion.options import DEFAULT_GATE, PERIOD_GATE, SLOW_SPEED
 from flexvox_core.threads import for_each
 
@@ -27,7 +34,7 @@ lose on still scenes. ``flexvox bench`` and ``bench/bench_motion_margin.py`` mea
 
 def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, scale: float = 0.5,
                consistency: bool = False, slow_speed: float | None = SLOW_SPEED,
-               period_gate=PERIOD_GATE, memo=None) -> FlowField:
+               period_gate=PERIOD_GATE, memo=None) -> FlowField | ScaledFlow:
     """Flow of ``video`` with still regions set to zero and slow motion measured over a long baseline.
 
     The motion detector looks only at the K-average, which holds every sampling phase once and
@@ -89,10 +96,11 @@ def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, sc
         mean = uniform_filter1d(vel, K, axis=0, mode="nearest")
         params["period_gate"] = tuple(period_gate)
     params["gate"] = (lo, hi)
-    out = _GatedFlow(vel, conf, slow, use_slow, slow_speed, steps, mean, (lo, hi), period_gate, px,
-                     video.shape[1:])
+    out = _GatedFlow(vel, conf, slow, use_slow, slow_speed, steps, mean, (lo, hi), period_gate, px)
     for_each(out.one, len(vel))
-    return FlowField(out.flow, out.full_confidence(), params, perf_counter() - t0)
+    if vel.shape[1:3] == video.shape[1:]:  # at full size already: held as it is
+        return FlowField(vel, conf, params, perf_counter() - t0)
+    return ScaledFlow(vel, conf, video.shape[1:], params, perf_counter() - t0)
 
 
 def takes_slow(slow, successive, slow_speed):
@@ -104,25 +112,24 @@ def takes_slow(slow, successive, slow_speed):
 
 
 class _GatedFlow:
-    """:func:`gated_flow`'s gate and resize, a sub-frame at a time (:meth:`one`): every step
-    element-wise on small planes that stay in cache, each sub-frame's gated velocity resized
-    straight into the full-size flow. The same operations, in the same order, as on whole
-    volumes (the same values), without a dozen volumes at flow size (fresh memory is dear: at
-    640x480 they would cost about a second of page faults, docs/benchmarks.md)."""
+    """:func:`gated_flow`'s gate, a sub-frame at a time (:meth:`one`): every step element-wise on small planes
+    that stay in cache, each sub-frame's gated velocity written over its successive-sub-frame one (the flow's
+    own scale: :class:`~flexvox_core.flow.estimate.ScaledFlow` makes the full-size planes when they are read).
+    The same operations, in the same order, as on whole volumes (the same values), without a dozen volumes at
+    flow size (fresh memory is dear: at 640x480 they would cost about a second of page faults,
+    docs/benchmarks.md)."""
 
-    def __init__(self, successive, conf, slow, use_slow, slow_speed, steps, mean, gate, period_gate, px, size):
+    def __init__(self, successive, conf, slow, use_slow, slow_speed, steps, mean, gate, period_gate, px):
         self.successive, self.conf, self.slow = successive, conf, slow
         self.use_slow, self.slow_speed, self.steps, self.mean = use_slow, slow_speed, steps, mean
         self.gate, self.period_gate, self.px = gate, period_gate, np.float32(px)
-        S, h, w = conf.shape
-        H, W = size
-        self.size = size
-        self.flow = np.empty((S, H, W, 2), np.float32)
+        h, w = conf.shape[1:]
         self.max_magnitude = 0.5 * max(h, w)
-        self.ratio = np.array([W / w, H / h], np.float32)
         self.step_ratio = np.array([w / steps.shape[2], h / steps.shape[1]], np.float32)
 
     def one(self, t: int) -> None:
+        """Gate sub-frame ``t``: its plane of ``successive`` (read by no other sub-frame) becomes the gated,
+        sanitised velocity, and its confidence is sanitised."""
         lo, hi = self.gate
         px = self.px
         vel = self.successive[t]
@@ -144,23 +151,5 @@ class _GatedFlow:
             mean_speed = np.hypot(mean[..., 0], mean[..., 1]) * px
             ramp = np.maximum(ramp, np.clip((mean_speed - plo) / (phi - plo), 0, 1))
         vel *= ramp[..., None]
-        # to_full_size's sanitising (element-wise, so the same a plane at a time), then its resize.
-        vel, self.conf[t] = sanitize_flow(vel, self.conf[t], max_magnitude=self.max_magnitude)
-        if (h, w) == self.size:
-            self.flow[t] = vel
-        else:
-            cv2.resize(vel * self.ratio, self.size[::-1], dst=self.flow[t], interpolation=cv2.INTER_LINEAR)
-
-    def full_confidence(self) -> np.ndarray:
-        """The confidence resized as :func:`~flexvox_core.flow.estimate.to_full_size` does."""
-        conf = self.conf
-        S, h, w = conf.shape
-        H, W = self.size
-        if (h, w) == (H, W):
-            return conf
-        if conf.min() == 1:  # the usual case without a round-trip check: a read-only view of 1
-            return np.broadcast_to(np.float32(1), (S, H, W))
-        full = np.empty((S, H, W), np.float32)
-        for i, c in enumerate(conf):
-            cv2.resize(c, (W, H), dst=full[i], interpolation=cv2.INTER_LINEAR)
-        return full
+        # to_full_size's sanitising (element-wise, so the same a plane at a time); its resize is ScaledFlow's.
+        self.successive[t], self.conf[t] = sanitize_flow(vel, self.conf[t], max_magnitude=self.max_magnitude)

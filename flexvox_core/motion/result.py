@@ -7,6 +7,7 @@ from functools import cached_property
 import numpy as np
 
 from flexvox_core.flow import FlowField
+from flexvox_core.flow.estimate import ScaledFlow
 from flexvox_core.motion.tensors import DEFAULT_C, resolution_map
 from flexvox_core.reprs import describe_array, html_table, short_repr
 
@@ -18,8 +19,10 @@ class MotionAwareResult:
     ----------
     video : ndarray (S, H, W) float32 in the samples' range
     high_tr : ndarray (S, H, W) float32, the Step-1 reconstruction
-    flow : FlowField
-        The gated flow that drove the tensors (confidence from the high-TR flow).
+    flow : FlowField or ScaledFlow
+        The gated flow that drove the tensors (confidence from the high-TR flow); a
+        :class:`~flexvox_core.flow.estimate.ScaledFlow` (held at the flow's own scale) makes its full-size
+        ``flow`` when first read.
     K : int
         Slots of the code.
     c : (c1, c2, c3)
@@ -73,7 +76,7 @@ class MotionAwareResult:
         return self._high_tr() if callable(self._high_tr) else self._high_tr
 
     @cached_property
-    def flow(self) -> FlowField:
+    def flow(self) -> FlowField | ScaledFlow:
         return self._flow() if callable(self._flow) else self._flow
 
     @cached_property

@@ -485,8 +485,8 @@ class CpuStages:
         self.last = self.passes_run == w.passes
         field_ = gated_flow(current, w.K, backend=w.flow_backend, gate=w.flow_gate, scale=w.flow_scale,
                             consistency=w.flow_consistency, slow_speed=w.slow_speed, memo=self.memo)
-        if w.missing is not None:
-            bridge_flow(field_.flow, w.missing, w.K, margin=w.bridge_margin)
+        if w.missing is not None:  # bridged at the flow's own scale (ScaledFlow's `held`: its small flow)
+            bridge_flow(field_.held, w.missing, w.K, margin=w.bridge_margin)
         return field_
 
     def speed_classes(self, flow: Flow) -> tuple[Volume, Volume]:
@@ -590,7 +590,7 @@ class CpuStages:
 
     def gaps(self, video: Volume, flow: Flow) -> None:
         w = self.window
-        bridge(video, w.missing, w.K, flow=flow.flow)
+        bridge(video, w.missing, w.K, flow=flow)
 
     def clip(self, video: Volume) -> Volume:
         if self.last:  # the scratch is read no more

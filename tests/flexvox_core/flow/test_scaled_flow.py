@@ -1,0 +1,91 @@
+"""A flow held at its own scale gives the full-size flow's planes, bit for bit, a band at a time."""
+
+import numpy as np
+import pytest
+
+from flexvox_core.flow.estimate import FlowField, ScaledFlow, to_full_size
+from flexvox_core.gaps import bridge, bridge_flow
+from flexvox_core.motion.planes import band
+
+
+def _small(S=6, h=5, w=7, seed=0):
+    rng = np.random.default_rng(seed)
+    return (rng.normal(0, 0.5, (S, h, w, 2)).astype(np.float32),
+            rng.uniform(0.2, 1, (S, h, w)).astype(np.float32))
+
+
+def test_bands_and_the_whole_flow_are_to_full_sizes_values():
+    vel, conf = _small()
+    want_flow, want_conf = to_full_size(vel, conf, (16, 21))
+    held = ScaledFlow(vel.copy(), conf.copy(), (16, 21))
+    assert held.shape == (6, 16, 21, 2)
+    np.testing.assert_array_equal(held.band(1, 4), want_flow[1:4])
+    np.testing.assert_array_equal(band(held, 4, 99), want_flow[4:])  # clipped as a slice is
+    assert "flow" not in held.__dict__  # no band made the whole volume
+    np.testing.assert_array_equal(held.flow, want_flow)
+    np.testing.assert_array_equal(held.confidence, want_conf)
+    np.testing.assert_array_equal(held.band(2, 3), want_flow[2:3])  # from the whole flow, once made
+    np.testing.assert_array_equal(held.magnitude, np.hypot(want_flow[..., 0], want_flow[..., 1]))
+
+
+def test_confidence_of_one_is_a_read_only_view():
+    vel, _ = _small()
+    held = ScaledFlow(vel, np.ones(vel.shape[:3], np.float32), (10, 14))
+    assert held.confidence.shape == (6, 10, 14) and not held.confidence.flags.writeable
+    assert float(held.confidence.min()) == 1
+
+
+def test_a_plane_put_is_read_before_and_after_the_whole_flow_is_made():
+    vel, conf = _small()
+    held = ScaledFlow(vel, conf, (16, 21))
+    plane = np.full((16, 21, 2), 3.5, np.float32)
+    held.put(2, plane)
+    np.testing.assert_array_equal(held.band(2, 3)[0], plane)
+    np.testing.assert_array_equal(held.flow[2], plane)
+    held.put(3, plane + 1)
+    np.testing.assert_array_equal(held.band(3, 4)[0], plane + 1)
+    with pytest.raises(ValueError, match=r"`plane` must have shape \(16, 21, 2\)"):
+        held.put(0, plane[:3])
+
+
+def test_a_small_flow_of_the_wrong_shape_is_refused():
+    vel, conf = _small()
+    with pytest.raises(ValueError, match="`small` must be float32"):
+        ScaledFlow(vel[..., 0], conf, (16, 21))
+
+
+def test_a_full_flow_field_reads_as_bands_of_its_array():
+    vel, conf = _small()
+    field_ = FlowField(vel, conf)
+    assert field_.shape == vel.shape and field_.held is vel
+    np.testing.assert_array_equal(band(field_, 1, 3), vel[1:3])
+    field_.put(0, np.zeros(vel.shape[1:], np.float32))
+    assert not vel[0].any()
+
+
+def test_the_flow_bridged_at_its_own_scale_is_the_full_flow_bridged_to_rounding():
+    vel, conf = _small(S=8 * 4)
+    missing = np.array([False, True, False, False, True, True, False, True])  # gaps inside and at the end
+    full, _ = to_full_size(vel, conf, (16, 21))
+    bridge_flow(full, missing, 4, margin=2)
+    held = ScaledFlow(vel.copy(), conf, (16, 21))
+    bridge_flow(held.held, missing, 4, margin=2)
+    changed = ~np.all(held.flow == to_full_size(vel, conf, (16, 21))[0], axis=(1, 2, 3))
+    assert changed.sum() >= 4 * 4  # the gaps' sub-frames and their margins were bridged
+    np.testing.assert_allclose(held.flow, full, rtol=0, atol=1e-5)
+
+
+def test_bridge_sets_a_held_flows_gap_planes_as_an_arrays():
+    vel, conf = _small(S=4 * 4)
+    missing = np.array([False, True, False, False])
+    rng = np.random.default_rng(1)
+    video = rng.uniform(0, 1, (16, 16, 21)).astype(np.float32)
+    full = to_full_size(vel, conf, (16, 21))[0]
+    want_video = video.copy()
+    bridge(want_video, missing, 4, flow=full)
+    held = ScaledFlow(vel, conf, (16, 21))
+    got_video = video.copy()
+    bridge(got_video, missing, 4, flow=held)
+    np.testing.assert_array_equal(got_video, want_video)
+    assert sorted(held._put) == [4, 5, 6, 7]  # the gap's velocity, set
+    np.testing.assert_array_equal(held.flow, full)

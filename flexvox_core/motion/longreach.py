@@ -106,12 +106,13 @@ def long_reach(frames, code, flow, guide, select, plan: LongReachPlan, *, missin
     code : ndarray (m, n, K)
         Identity code (a multiplexed one raises ValueError).
     flow : ndarray (S, H, W, 2)
-        Velocity, pixels per sub-frame; NaN or infinity reads as still.
+        Velocity, pixels per sub-frame; NaN or infinity reads as still. Or a volume read a sub-frame at a time
+        (:class:`~flexvox_core.motion.planes.Bands`: ``shape`` and ``band``).
     guide : ndarray (S, H, W)
         Short-reach estimate the samples are compared with; the value wherever no sample is in reach
         and outside ``select``.
     select : ndarray (S, H, W) bool
-        Voxels to estimate.
+        Voxels to estimate (or a :class:`~flexvox_core.motion.planes.Bands` of them).
     plan : LongReachPlan
         Reach, σ_t, σ_s and h.
     missing : ndarray (F,) bool, optional
@@ -135,11 +136,13 @@ def long_reach(frames, code, flow, guide, select, plan: LongReachPlan, *, missin
     F, H, W = fr.shape
     S = F * order.size
     g = np.ascontiguousarray(guide, np.float32)
-    sel = np.ascontiguousarray(select, bool)
-    f = np.ascontiguousarray(flow, np.float32)
-    if g.shape != (S, H, W) or sel.shape != g.shape or f.shape != (S, H, W, 2):
+    # Arrays, or volumes made a sub-frame at a time (planes.band): the kernel reads one sub-frame's at a time.
+    sel = select if hasattr(select, "band") else np.ascontiguousarray(select, bool)
+    f = flow if hasattr(flow, "band") else np.ascontiguousarray(flow, np.float32)
+    if g.shape != (S, H, W) or tuple(sel.shape) != g.shape or tuple(f.shape) != (S, H, W, 2):
         raise ValueError(f"`guide`, `select` (S, H, W) = {(S, H, W)} and `flow` (S, H, W, 2) must match the frames "
-                         f"{fr.shape} of a K = {order.size} code; got {g.shape}, {sel.shape}, {f.shape}")
+                         f"{fr.shape} of a K = {order.size} code; got {g.shape}, {tuple(sel.shape)}, "
+                         f"{tuple(f.shape)}")
     present = np.ones(F, bool) if missing is None else ~np.asarray(missing, bool)
     if present.shape != (F,):
         raise ValueError(f"`missing` must be one flag per frame, shape ({F},); got {present.shape}")

@@ -42,22 +42,23 @@ def corner_table(order: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(inline="always", nogil=True, cache=True, error_model="numpy")
-def _velocity(flow: Any, t: int, y: int, x: int) -> tuple[Any, Any]:
-    """(u, v) of the voxel, NaN or infinity read as still (as the GPU's ``velocity``)."""
-    u = flow[t, y, x, 0]
-    v = flow[t, y, x, 1]
+def _velocity(flow_t: Any, y: int, x: int) -> tuple[Any, Any]:
+    """(u, v) of the voxel (``flow_t``: its sub-frame's plane), NaN or infinity read as still (as the GPU's
+    ``velocity``)."""
+    u = flow_t[y, x, 0]
+    v = flow_t[y, x, 1]
     if not (math.isfinite(u) and math.isfinite(v)):
         return np.float32(0), np.float32(0)
     return u, v
 
 
 @numba.njit(nogil=True, cache=True, error_model="numpy")
-def _row_sums(frames: Any, lat: Any, flow: Any, guide: Any, t: int, y: int, xs: Any, count: int, time_w: Any,
+def _row_sums(frames: Any, lat: Any, flow_t: Any, guide: Any, t: int, y: int, xs: Any, count: int, time_w: Any,
               scale: Any, num: Any, den: Any, scratch: Any) -> None:
     """Range-weighted sums (into ``num``, ``den``: row y of sub-frame t) along the trajectories of the voxels
-    (t, y, xs[:count]). ``lat``: the lattice's tables (:func:`_lattice`: no division in the loops). The offsets
-    d run outside the voxels: along a row the cells' slots repeat, so whether a cell holds the sample is a branch
-    the processor predicts."""
+    (t, y, xs[:count]), whose velocity is ``flow_t`` (H, W, 2) at them. ``lat``: the lattice's tables
+    (:func:`_lattice`: no division in the loops). The offsets d run outside the voxels: along a row the cells'
+    slots repeat, so whether a cell holds the sample is a branch the processor predicts."""
     cells, row_base, col_base, slot_of, frame_of, single = lat
     S, H, W = guide.shape
     zero = np.float32(0)
@@ -68,7 +69,7 @@ def _row_sums(frames: Any, lat: Any, flow: Any, guide: Any, t: int, y: int, xs: 
     own = row_base[y + 1] + k
     for i in range(count):
         x = xs[i]
-        u, v = _velocity(flow, t, y, x)
+        u, v = _velocity(flow_t, y, x)
         us[i] = u
         vs[i] = v
         g = guide[t, y, x]
@@ -162,15 +163,15 @@ def _lattice(corners: Any, present: Any, S: int, H: int, W: int) -> tuple[Any, A
 
 
 @numba.njit(nogil=True, cache=True, error_model="numpy")
-def _subframe(frames: Any, order: Any, lat: Any, flow: Any, guide: Any, select: Any, t: int, time_w: Any,
+def _subframe(frames: Any, order: Any, lat: Any, flow_t: Any, guide: Any, sel: Any, t: int, time_w: Any,
               scale: Any, taps: Any, min_weight: Any, out: Any, num: Any, den: Any, rows: Any, cols: Any,
               xs: Any, scratch: Any, write_samples: bool) -> None:
-    """Sub-frame ``t``: the sums at the voxels within the blur's reach of ``select[t]`` (into ``num``, ``den``),
-    blurred and divided at the selected ones into ``out[t]``, then (``write_samples``) the samples written."""
+    """Sub-frame ``t``, its flow ``flow_t`` (H, W, 2) and selection ``sel`` (H, W): the sums at the voxels within
+    the blur's reach of ``sel`` (into ``num``, ``den``), blurred and divided at the selected ones into ``out[t]``,
+    then (``write_samples``) the samples written."""
     S, H, W = guide.shape
     m, n = order.shape
     r = (len(taps) - 1) // 2
-    sel = select[t]
     found = False
     for y in range(H):
         rows[y] = False
@@ -204,7 +205,7 @@ def _subframe(frames: Any, order: Any, lat: Any, flow: Any, guide: Any, select: 
                 if act:
                     xs[count] = x
                     count += 1
-            _row_sums(frames, lat, flow, guide, t, y, xs, count, time_w, scale, num[y], den[y], scratch)
+            _row_sums(frames, lat, flow_t, guide, t, y, xs, count, time_w, scale, num[y], den[y], scratch)
         # Blurred (zero outside the picture; every neighbour of a selected voxel was summed) and divided.
         for y in range(H):
             if not rows[y]:
@@ -245,40 +246,49 @@ def long_reach_kernel(frames: Any, order: Any, corners: Any, present: Any, flow:
     """The long-reach gather of every sub-frame (see the module's docstring) into ``out`` (may be ``guide``).
 
     ``frames`` (F, H, W) float32; ``order`` (m, n) int the tile's slots, ``corners`` their
-    :func:`corner_table`; ``present`` (F,) bool; ``flow`` (S, H, W, 2), ``guide`` (S, H, W) float32; ``select``
-    (S, H, W) bool; ``time_w`` (reach + 1,) the trajectory weights exp(−d²/2σ_t²); ``scale`` −1/2h²; ``taps`` the
-    blur's (odd length); ``num``, ``den`` (C, H, W) float32 scratch, one plane pair per chunk of sub-frames run
-    side by side (any content) by :func:`flexvox_core.threads.for_each`, each chunk one compiled call that
-    releases the GIL (:func:`long_reach_chunk`). ``write_samples``: write each sub-frame's samples into ``out``
-    after it. Each voxel's sums are made in one order by one thread: the output bits do not depend on the
-    number of chunks or threads.
+    :func:`corner_table`; ``present`` (F,) bool; ``flow`` (S, H, W, 2) float32 and ``select`` (S, H, W) bool,
+    arrays or volumes read a sub-frame at a time (:func:`flexvox_core.motion.planes.band`); ``guide`` (S, H, W)
+    float32; ``time_w`` (reach + 1,) the trajectory weights exp(−d²/2σ_t²); ``scale`` −1/2h²; ``taps`` the blur's
+    (odd length); ``num``, ``den`` (C, H, W) float32 scratch, one plane pair per chunk of sub-frames run side by
+    side (any content) by :func:`flexvox_core.threads.for_each`, each sub-frame one compiled call that releases
+    the GIL (:func:`long_reach_subframe`) with its own planes of ``flow`` and ``select``. ``write_samples``: write
+    each sub-frame's samples into ``out`` after it. Each voxel's sums are made in one order by one thread: the
+    output bits do not depend on the number of chunks or threads.
 
     The chunks run on Python's threads rather than numba's ``parallel=True``: the parallel kernel took about
     10 s to compile on first use (a fresh install, or a new numba cache) against about 1 s for this one.
     """
+    from flexvox_core.motion.planes import band
     from flexvox_core.threads import for_each
 
     chunks = num.shape[0]
+    S, H, W = guide.shape
+    lat = _lattice(corners, present, S, H, W)
 
-    def chunk(c: int) -> None:
-        long_reach_chunk(frames, order, corners, present, flow, guide, select, time_w, scale, taps, min_weight,
-                         out, num[c], den[c], write_samples, c, chunks)
+    def chunk(c: int) -> None:  # sub-frames c, c + chunks, ... (interleaved: a run of busy ones is shared out)
+        rows = np.empty(H, np.bool_)
+        cols = np.empty(W, np.bool_)
+        xs = np.empty(W, np.int64)
+        scratch = np.empty((5, W), np.float32)
+        for t in range(c, S, chunks):
+            sel = np.ascontiguousarray(band(select, t, t + 1)[0], np.bool_)
+            flow_t = np.ascontiguousarray(band(flow, t, t + 1)[0], np.float32) if sel.any() else _NO_FLOW
+            long_reach_subframe(frames, order, lat, flow_t, guide, sel, t, time_w, scale, taps, min_weight, out,
+                                num[c], den[c], rows, cols, xs, scratch, write_samples)
 
     for_each(chunk, chunks)
 
 
+_NO_FLOW = np.zeros((1, 1, 2), np.float32)
+"""The flow plane passed for a sub-frame without a selected voxel (not read)."""
+
+
 @numba.njit(nogil=True, cache=True, error_model="numpy")
-def long_reach_chunk(frames: Any, order: Any, corners: Any, present: Any, flow: Any, guide: Any, select: Any,
-                     time_w: Any, scale: Any, taps: Any, min_weight: Any, out: Any, num: Any, den: Any,
-                     write_samples: bool, c: int, chunks: int) -> None:
-    """Sub-frames ``c``, ``c + chunks``, … of :func:`long_reach_kernel` (interleaved: a run of busy sub-frames is
-    shared out), with this chunk's scratch planes ``num``, ``den`` (H, W)."""
-    S, H, W = guide.shape
-    lat = _lattice(corners, present, S, H, W)
-    rows = np.empty(H, np.bool_)
-    cols = np.empty(W, np.bool_)
-    xs = np.empty(W, np.int64)
-    scratch = np.empty((5, W), np.float32)
-    for t in range(c, S, chunks):
-        _subframe(frames, order, lat, flow, guide, select, t, time_w, scale, taps, min_weight, out, num, den,
-                  rows, cols, xs, scratch, write_samples)
+def long_reach_subframe(frames: Any, order: Any, lat: Any, flow_t: Any, guide: Any, sel: Any, t: int,
+                        time_w: Any, scale: Any, taps: Any, min_weight: Any, out: Any, num: Any, den: Any,
+                        rows: Any, cols: Any, xs: Any, scratch: Any, write_samples: bool) -> None:
+    """Sub-frame ``t`` of :func:`long_reach_kernel`: its flow ``flow_t`` (H, W, 2) and selection ``sel`` (H, W),
+    the lattice's tables ``lat`` (:func:`_lattice`), scratch ``num``, ``den`` (H, W), ``rows``, ``cols``, ``xs``
+    and ``scratch`` (5, W)."""
+    _subframe(frames, order, lat, flow_t, guide, sel, t, time_w, scale, taps, min_weight, out, num, den,
+              rows, cols, xs, scratch, write_samples)

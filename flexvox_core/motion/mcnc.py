@@ -29,6 +29,7 @@ import cv2
 import numpy as np
 
 from flexvox_core.motion.gather_weights import CUTOFF, MIN_WEIGHT
+from flexvox_core.motion.planes import band
 from flexvox_core.motion.subframes import flow_at, sample_planes, sampling_period
 from flexvox_core.motion.tensors import DEFAULT_C, check_c
 from flexvox_core.reconstruct.diffusion import self_weights
@@ -168,6 +169,8 @@ def trajectory_gather(frames, code, flow, *, missing=None, c=DEFAULT_C, time: fl
         Camera frames of the identity ``code`` (m, n, K); a dropped frame's values are not read.
     code : ndarray (m, n, K) bool
     flow : ndarray (F·K, H, W, 2)
+        Or a volume read a sub-frame at a time (:class:`~flexvox_core.motion.planes.Bands`), as ``gathered`` may
+        be: each sub-frame reads its own plane of each, the flow only where it gathers.
     missing : ndarray (F,) bool, optional
         Dropped frames: their sub-frames hold no samples.
     c, time, fallback, gathered, still_value, loo, wide, wide_sigma, max_reach, out
@@ -187,17 +190,19 @@ def trajectory_gather(frames, code, flow, *, missing=None, c=DEFAULT_C, time: fl
     if (code.sum(axis=2) != 1).any():
         raise ValueError("`code` must be an identity code (each pixel open in one slot); demultiplex first")
     S = F * K
-    f = np.asarray(flow, dtype=np.float32)
-    if f.shape != (S, H, W, 2):
-        raise ValueError(f"`flow` must have shape {(S, H, W, 2)} (F·K sub-frames of the frames); got {f.shape}")
+    # Arrays, or volumes made a sub-frame at a time (planes.band): each sub-frame reads its own plane alone.
+    f = flow if hasattr(flow, "band") else np.asarray(flow, dtype=np.float32)
+    if tuple(f.shape) != (S, H, W, 2):
+        raise ValueError(f"`flow` must have shape {(S, H, W, 2)} (F·K sub-frames of the frames); got "
+                         f"{tuple(f.shape)}")
     present = np.ones(F, bool) if missing is None else ~np.asarray(missing, bool)
     if present.shape != (F,):
         raise ValueError(f"`missing` must be ({F},) bool; got shape {present.shape}")
     if not math.isfinite(time) or time <= 0:
         raise ValueError(f"`time` must be a finite number > 0; got {time!r}")
-    select = np.asarray(gathered, dtype=bool)
+    select = gathered if hasattr(gathered, "band") else np.asarray(gathered, dtype=bool)
     still_value = np.asarray(still_value, dtype=np.float32)
-    if select.shape != (S, H, W) or still_value.shape != (S, H, W) or np.shape(fallback) != (S, H, W):
+    if tuple(select.shape) != (S, H, W) or still_value.shape != (S, H, W) or np.shape(fallback) != (S, H, W):
         raise ValueError(f"`gathered`, `still_value` and `fallback` must have shape {(S, H, W)}")
     if loo is not None and loo.shape != (F, H, W):
         raise ValueError(f"`loo` must be (F, H, W) = {(F, H, W)}; got {loo.shape}")
@@ -220,7 +225,7 @@ def trajectory_gather(frames, code, flow, *, missing=None, c=DEFAULT_C, time: fl
 
     def sums(t, box, near):
         planes = np.empty((2, *near.shape), np.float32)
-        flow_t = f[t] if f[t].flags.c_contiguous else np.ascontiguousarray(f[t])
+        flow_t = np.ascontiguousarray(band(f, t, t + 1)[0], np.float32)
         lattice_sums(fr, present, row_hit, col_hit, flow_t, np.ascontiguousarray(near), box[0].start, box[1].start,
                      t, S, inv_4nc1, reach, planes[0], planes[1])
         return planes
@@ -246,7 +251,8 @@ def _gather(S, H, W, sums, samples_of, *, select, invert, still_value, fallback,
     everything = np.ones((H, W), bool)
 
     def one(t):
-        moving = everything if select is None else ~select[t] if invert else select[t]
+        sel = None if select is None else band(select, t, t + 1)[0]
+        moving = everything if sel is None else ~sel if invert else sel
         if select is not None and out is not still_value:
             out[t] = still_value[t]
         rows = np.flatnonzero(moving.any(axis=1))

@@ -36,6 +36,7 @@ import math
 import cv2
 import numpy as np
 
+from flexvox_core.motion.planes import band
 from flexvox_core.slopes import slopes
 
 KAPPA = 2.0
@@ -63,7 +64,8 @@ def frame_noise(frames: np.ndarray, still: np.ndarray, mask: np.ndarray, K: int)
     frames : ndarray (F, H, W)
         The camera frames of an identity code (one sample per pixel and frame).
     still : ndarray (F·K, H, W) bool
-        Voxels the motion gate found still.
+        Voxels the motion gate found still (or a volume read a band of sub-frames at a time,
+        :class:`~flexvox_core.motion.planes.Bands`, as ``mask`` may be).
     mask : ndarray (F·K, H, W) bool
         Where the samples are (a dropped frame's sub-frames hold none).
     K : int
@@ -73,11 +75,12 @@ def frame_noise(frames: np.ndarray, still: np.ndarray, mask: np.ndarray, K: int)
     samples; with fewer than :data:`MIN_PIXELS` of them its noise is 0.
     """
     F = np.shape(frames)[0]
-    if still.shape != mask.shape or still.shape != (F * K, *np.shape(frames)[1:]):
-        raise ValueError(f"`still` {still.shape} and `mask` {mask.shape} must be (F·K, H, W) for {F} frames "
-                         f"{np.shape(frames)[1:]} at K = {K}")
-    # Whether each pixel's sample of each frame is still (a frame without samples: nowhere).
-    still_at = np.stack([(still[i * K:(i + 1) * K] & mask[i * K:(i + 1) * K]).any(axis=0) for i in range(F)])
+    if tuple(still.shape) != tuple(mask.shape) or tuple(still.shape) != (F * K, *np.shape(frames)[1:]):
+        raise ValueError(f"`still` {tuple(still.shape)} and `mask` {tuple(mask.shape)} must be (F·K, H, W) for {F} "
+                         f"frames {np.shape(frames)[1:]} at K = {K}")
+    # Whether each pixel's sample of each frame is still (a frame without samples: nowhere), a frame at a time.
+    still_at = np.stack([(band(still, i * K, (i + 1) * K) & band(mask, i * K, (i + 1) * K)).any(axis=0)
+                         for i in range(F)])
     return noise_from_still(frames, still_at)
 
 

@@ -63,6 +63,7 @@ from flexvox_core.motion.options import (
     MotionOptions,
     auto_flow_scale,
 )
+from flexvox_core.motion.planes import Bands, band
 from flexvox_core.motion.result import MotionAwareResult
 from flexvox_core.motion.vardiff import variable_tensor_diffusion
 from flexvox_core.reconstruct.diffusion import diffuse, diffuse_where
@@ -491,7 +492,7 @@ class CpuStages:
 
     def speed_classes(self, flow: Flow) -> tuple[Volume, Volume]:
         w = self.window
-        still, slow, self.gathered = speed_classes(flow.flow, w.still_speed, w.slow_class_speed, w.skip)
+        still, slow, self.gathered = speed_classes(flow, w.still_speed, w.slow_class_speed, w.skip)
         return still, slow
 
     def guides(self, still: Volume) -> Volume:
@@ -537,7 +538,7 @@ class CpuStages:
         loo = np.full(w.frames.shape, np.nan, np.float32) if leave_one_out else None
         # The gather writes into `base` when no later pass reads it (one volume less).
         into = base if w.passes == 1 or base is not self.fixed else None
-        video = trajectory_gather(w.frames, w.code, flow.flow, missing=w.missing, c=w.gather_c, time=w.gather_time,
+        video = trajectory_gather(w.frames, w.code, flow, missing=w.missing, c=w.gather_c, time=w.gather_time,
                                   fallback=high_tr, gathered=self.gathered, still_value=base, loo=loo, wide=wide,
                                   wide_sigma=noise_aware.wide_sigma(w.K), max_reach=w.gather_reach, out=into)
         gathered = self.gathered if loo is not None else None
@@ -550,7 +551,7 @@ class CpuStages:
         if not slow.any():
             return
         # From the frames and the code (no sample volume); the samples are written back as it goes.
-        longreach.long_reach(w.frames, w.code, flow.flow, video, slow, w.long_reach_plan, missing=w.missing, out=video,
+        longreach.long_reach(w.frames, w.code, flow, video, slow, w.long_reach_plan, missing=w.missing, out=video,
                              write_samples=True)
 
     def _spare(self) -> npt.NDArray[np.float32] | None:
@@ -573,7 +574,8 @@ class CpuStages:
         g0, g1 = w.gathered
         spare = self._spare()
         mask = self._mask()
-        variable_tensor_diffusion(video[g0:g1], mask[g0:g1], flow.flow[g0:g1], c=REFINE_C, time=refine_time,
+        # The flow's band, made whole here: the refinement reads it a band at a time once it takes a Bands.
+        variable_tensor_diffusion(video[g0:g1], mask[g0:g1], band(flow, g0, g1), c=REFINE_C, time=refine_time,
                                   out=video[g0:g1], scratch=None if spare is None else spare[g0:g1],
                                   sharp=slow[g0:g1])
 
@@ -583,7 +585,10 @@ class CpuStages:
             return
         if w.scores_still_voxels:  # at gathered voxels slower than STILL_VOXEL_SPEED the pixel's own sample scores
             mask = self._mask()
-            local_choice.still_voxel_loo(loo, video, w.frames, gathered, mask, flow.flow, w.K)
+            # It reads flow[t], a sub-frame at a time: the planes made on demand (its annotation says ndarray); a
+            # flow without bands (any object with a whole `flow` array) is read as that array.
+            planes = Planes(flow if hasattr(flow, "band") else flow.flow)
+            local_choice.still_voxel_loo(loo, video, w.frames, gathered, mask, planes, w.K)  # type: ignore[arg-type]
         other, other_loo = oriented_nc(w.frames, w.code, high_tr, where=gathered, fallback=video, missing=w.missing,
                                        out=self._spare())
         local_choice.blend(video, other, local_choice.local_weights(loo, other_loo, w.frames), gathered, w.K)
@@ -624,11 +629,12 @@ def class_thresholds(still_speed: float | None, slow_speed: float | None) -> tup
             np.float32(-np.inf if slow_speed is None else slow_speed))
 
 
-def speed_classes(flow: np.ndarray, still_speed: float | None, slow_speed: float | None,
+def speed_classes(flow: np.ndarray | Bands, still_speed: float | None, slow_speed: float | None,
                   skip: np.ndarray | None = None
                   ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
     """Bool volumes ``still``, ``slow`` and ``gathered`` (:func:`speed_class`; None: no such class; ``skip`` (S,)
-    bool: sub-frames outside the gathered ones), a sub-frame at a time (no full-volume speed array)."""
+    bool: sub-frames outside the gathered ones), a sub-frame at a time (no full-volume speed array); ``flow`` an
+    array or a volume read a band at a time (:func:`~flexvox_core.motion.planes.band`)."""
     S, H, W = flow.shape[:3]
     still = np.empty((S, H, W), bool)
     slow = np.empty((S, H, W), bool)
@@ -636,12 +642,32 @@ def speed_classes(flow: np.ndarray, still_speed: float | None, slow_speed: float
     still_below, slow_below = class_thresholds(still_speed, slow_speed)
 
     def one(t: int) -> None:  # a sub-frame at a time, on every core
-        speed = cv2.magnitude(flow[t, ..., 0], flow[t, ..., 1])
+        plane = band(flow, t, t + 1)[0]
+        speed = cv2.magnitude(plane[..., 0], plane[..., 1])
         still[t], slow[t], gathered[t] = speed_class(speed, still_below, slow_below,
                                                      skip is not None and bool(skip[t]))
 
     for_each(one, S)
     return still, slow, gathered
+
+
+class Planes:
+    """A volume's sub-frames as ``volume[t]`` (one plane, made on demand: :func:`~flexvox_core.motion.planes.band`),
+    for readers that index one sub-frame at a time."""
+
+    def __init__(self, volume: np.ndarray | Bands) -> None:
+        self.volume = volume
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return tuple(self.volume.shape)
+
+    def __len__(self) -> int:
+        return int(self.volume.shape[0])
+
+    def __getitem__(self, t: int) -> np.ndarray:
+        plane: np.ndarray = band(self.volume, t, t + 1)[0]
+        return plane
 
 
 def guide(window: Window, tensor: tuple[float, float, float], time: float) -> npt.NDArray[np.float32]:

@@ -63,6 +63,7 @@ from flexvox_core.motion.options import (
     MotionOptions,
     auto_flow_scale,
 )
+from flexvox_core.motion.packed import PackedVolume
 from flexvox_core.motion.planes import Bands, band
 from flexvox_core.motion.result import MotionAwareResult
 from flexvox_core.motion.vardiff import variable_tensor_diffusion
@@ -457,7 +458,7 @@ class CpuStages:
         self.mask: npt.NDArray[np.bool_] | None = None
         self.fixed: npt.NDArray[np.float32] | None = None
         self.still_value: npt.NDArray[np.float32] | None = None
-        self.gathered: npt.NDArray[np.bool_] | None = None  # speed_classes: the voxels the gather estimates
+        self.gathered: PackedVolume | None = None  # speed_classes: the voxels the gather estimates
 
     def sync(self) -> None:
         return None
@@ -492,7 +493,7 @@ class CpuStages:
 
     def speed_classes(self, flow: Flow) -> tuple[Volume, Volume]:
         w = self.window
-        still, slow, self.gathered = speed_classes(flow, w.still_speed, w.slow_class_speed, w.skip)
+        still, slow, self.gathered = packed_speed_classes(flow, w.still_speed, w.slow_class_speed, w.skip)
         return still, slow
 
     def guides(self, still: Volume) -> Volume:
@@ -506,14 +507,19 @@ class CpuStages:
         base = fixed
         if still.any():
             if w.passes == 1 and w.skip is None:
-                # `fixed` serves this pass alone: the still voxels' values go straight into it (no volume of them).
-                diffuse_where(w.frames, w.code, base, still, tensor=STILL_TENSOR, time=w.still_time, missing=w.missing)
+                # `fixed` serves this pass alone: the still voxels' values go straight into it (no volume of them);
+                # diffuse_where takes a whole bool volume: the still voxels unpacked for it, here alone.
+                diffuse_where(w.frames, w.code, base, band(still, 0, w.S), tensor=STILL_TENSOR, time=w.still_time,
+                              missing=w.missing)
             else:
                 still_value = self.still_value
                 if still_value is None:
                     still_value = self.still_value = guide(w, STILL_TENSOR, w.still_time)
                 base = fixed.copy() if w.passes > 1 else fixed  # `fixed` serves every pass
-                np.copyto(base, still_value, where=still)
+                for t in range(w.S):  # a sub-frame of the still voxels at a time
+                    where = band(still, t, t + 1)[0]
+                    if where.any():
+                        np.copyto(base[t], still_value[t], where=where)
         return base
 
     def noise(self, current: Volume, still: Volume) -> Volume | None:
@@ -541,7 +547,8 @@ class CpuStages:
         video = trajectory_gather(w.frames, w.code, flow, missing=w.missing, c=w.gather_c, time=w.gather_time,
                                   fallback=high_tr, gathered=self.gathered, still_value=base, loo=loo, wide=wide,
                                   wide_sigma=noise_aware.wide_sigma(w.K), max_reach=w.gather_reach, out=into)
-        gathered = self.gathered if loo is not None else None
+        # The local choice reads the gathered voxels as a whole bool volume: unpacked for it.
+        gathered = band(self.gathered, 0, w.S) if loo is not None else None
         if self.last:
             self.fixed = self.still_value = None  # not needed again: free them before the local choice's volume
         return video, loo, gathered
@@ -577,7 +584,7 @@ class CpuStages:
         # The flow's band, made whole here: the refinement reads it a band at a time once it takes a Bands.
         variable_tensor_diffusion(video[g0:g1], mask[g0:g1], band(flow, g0, g1), c=REFINE_C, time=refine_time,
                                   out=video[g0:g1], scratch=None if spare is None else spare[g0:g1],
-                                  sharp=slow[g0:g1])
+                                  sharp=band(slow, g0, g1))
 
     def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume) -> None:
         w = self.window
@@ -668,6 +675,26 @@ class Planes:
     def __getitem__(self, t: int) -> np.ndarray:
         plane: np.ndarray = band(self.volume, t, t + 1)[0]
         return plane
+
+
+def packed_speed_classes(flow: np.ndarray | Bands, still_speed: float | None, slow_speed: float | None,
+                         skip: np.ndarray | None = None) -> tuple[PackedVolume, PackedVolume, PackedVolume]:
+    """:func:`speed_classes` held a bit per voxel (:class:`~flexvox_core.motion.packed.PackedVolume`, read a band
+    at a time; each sub-frame's count of each class kept): ``still``, ``slow`` and ``gathered``, the same bits."""
+    S, H, W = flow.shape[:3]
+    still, slow, gathered = (PackedVolume((S, H, W)) for _ in range(3))
+    still_below, slow_below = class_thresholds(still_speed, slow_speed)
+
+    def one(t: int) -> None:  # a sub-frame at a time, on every core (each writes its own rows)
+        plane = band(flow, t, t + 1)[0]
+        speed = cv2.magnitude(plane[..., 0], plane[..., 1])
+        for volume, cls in zip((still, slow, gathered),
+                               speed_class(speed, still_below, slow_below, skip is not None and bool(skip[t])),
+                               strict=True):
+            volume.put(t, cls)
+
+    for_each(one, S)
+    return still, slow, gathered
 
 
 def guide(window: Window, tensor: tuple[float, float, float], time: float) -> npt.NDArray[np.float32]:

@@ -144,8 +144,14 @@ class ScaledFlow:
             return self.flow[t0:t1]
         t0, t1, _ = slice(t0, t1).indices(len(self.small))
         out = np.empty((max(0, t1 - t0), *self.size, 2), np.float32)
-        for t in range(t0, t1):
-            self.plane(t, out[t - t0])
+
+        def one(i: int) -> None:
+            self.plane(t0 + i, out[i])
+
+        if len(out) > 1:
+            for_each(one, len(out))  # OpenCV releases the GIL: planes side by side
+        elif len(out):
+            one(0)
         return out
 
     def put(self, t: int, plane: np.ndarray) -> None:

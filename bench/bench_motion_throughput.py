@@ -71,10 +71,11 @@ def _gather_by_remap() -> Iterator[None]:
             gap = interpolated_subframes(w.missing, w.K)
             mask[gap] = False
             sparse[gap] = 0
+        gathered = stages.band(self.gathered, 0, w.S)  # held a bit per voxel now: made whole, as it was
         video = motion_compensated_nc(sparse, mask, flow.flow, c=w.gather_c, time=w.gather_time, fallback=high_tr,
-                                      gathered=self.gathered, still_value=base, loo=loo, wide=wide,
+                                      gathered=gathered, still_value=base, loo=loo, wide=wide,
                                       wide_sigma=noise_aware.wide_sigma(w.K), max_reach=w.gather_reach, out=into)
-        gathered = self.gathered if loo is not None else None
+        gathered = gathered if loo is not None else None
         if self.last:
             self.fixed = self.still_value = None
         return video, loo, gathered
@@ -128,8 +129,8 @@ def _long_reach_on_sample_planes() -> Iterator[None]:
                 mask[gap] = False
                 sparse[gap] = 0
         p = w.long_reach_plan
-        long_reach_nc(sparse, mask, flow.flow, video, slow, reach=p.reach, sigma_t=p.sigma_t, sigma_s=p.sigma_s,
-                      h=p.h, out=video)
+        long_reach_nc(sparse, mask, flow.flow, video, stages.band(slow, 0, w.S), reach=p.reach, sigma_t=p.sigma_t,
+                      sigma_s=p.sigma_s, h=p.h, out=video)
         np.copyto(video, sparse, where=mask)
 
     stages.CpuStages.long_reach = before

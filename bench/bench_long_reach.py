@@ -40,7 +40,8 @@ def main() -> None:
     saved: dict = {}
 
     def record(self, flow, video, slow):
-        saved.update(engine=self, flow=flow, video=video.copy(), slow=slow.copy())
+        # The slow voxels made whole (held a bit per voxel): the stage reads an array as well.
+        saved.update(engine=self, flow=flow, video=video.copy(), slow=stages.band(slow, 0, self.window.S).copy())
         return kept(self, flow, video, slow)
 
     stages.CpuStages.long_reach = record

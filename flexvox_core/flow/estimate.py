@@ -96,6 +96,7 @@ class ScaledFlow:
     small : ndarray (S, h, w, 2) float32
         The velocity at its own scale, in its own pixels per sub-frame (sanitised: :func:`sanitize_flow`).
     small_confidence : ndarray (S, h, w) float32
+        Held as a read-only view of 1 where it is 1 everywhere (the flow without a round-trip check).
     size : (H, W)
         The full size.
     params : dict
@@ -109,6 +110,8 @@ class ScaledFlow:
             raise ValueError(f"`small` must be float32 (S, h, w, 2) and `small_confidence` (S, h, w); got "
                              f"{small.dtype} {small.shape} and {small_confidence.shape}")
         H, W = (int(v) for v in size)
+        if small_confidence.size and small_confidence.min() == 1:  # the usual case: a read-only view of 1, no memory
+            small_confidence = np.broadcast_to(np.float32(1), small_confidence.shape)
         self.small = small
         self.small_confidence = small_confidence
         self.size = (H, W)

@@ -33,6 +33,7 @@ def test_confidence_of_one_is_a_read_only_view():
     held = ScaledFlow(vel, np.ones(vel.shape[:3], np.float32), (10, 14))
     assert held.confidence.shape == (6, 10, 14) and not held.confidence.flags.writeable
     assert float(held.confidence.min()) == 1
+    assert held.small_confidence.strides == (0, 0, 0)  # held as a view of one value: no memory
 
 
 def test_a_plane_put_is_read_before_and_after_the_whole_flow_is_made():

@@ -555,7 +555,7 @@ class CpuStages:
 
     def _spare(self) -> npt.NDArray[np.float32] | None:
         """A volume the stages after the last pass's gathers may overwrite (None before the last pass): one made
-        here once, for the refinement and then the local choice."""
+        here once, for the local choice."""
         if not self.last:
             return None
         if self.scratch is None:
@@ -571,11 +571,9 @@ class CpuStages:
         if refine_time <= 0:
             return
         g0, g1 = w.gathered
-        spare = self._spare()
-        mask = self._mask()
-        variable_tensor_diffusion(video[g0:g1], mask[g0:g1], flow.flow[g0:g1], c=REFINE_C, time=refine_time,
-                                  out=video[g0:g1], scratch=None if spare is None else spare[g0:g1],
-                                  sharp=slow[g0:g1])
+        # A band of sub-frames at a time: the mask, the flow and the classes are read by bands (planes.band).
+        variable_tensor_diffusion(video[g0:g1], self._mask(), flow.flow, c=REFINE_C, time=refine_time,
+                                  out=video[g0:g1], sharp=slow, start=g0)
 
     def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume) -> None:
         w = self.window

@@ -35,6 +35,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from flexvox_core.motion import planes
 from flexvox_core.motion.subframes import flow_at
 from flexvox_core.threads import for_each
 
@@ -126,39 +127,46 @@ def still_voxel_loo(loo: np.ndarray, video: np.ndarray, samples: np.ndarray, gat
         The gather's result (after the refinement), samples kept.
     samples : ndarray (F, H, W)
         The camera frames of the identity code.
-    gathered, mask : ndarray (F·K, H, W) bool
-        The voxels the gather estimated, and the sample voxels.
-    flow : ndarray (F·K, H, W, 2)
+    gathered, mask : ndarray (F·K, H, W) bool, or volumes read by bands
+        The voxels the gather estimated, and the sample voxels (read a frame's sub-frames at a time,
+        :func:`~flexvox_core.motion.planes.band`).
+    flow : ndarray (F·K, H, W, 2), or a volume read by bands
         The flow the gather followed.
     K : int
         Sub-frames per frame.
     """
     F, H, W = loo.shape
     limit = np.float32(speed) ** 2
-    count = np.zeros((F, H * W), np.float32)  # gathered voxels without a sample, per frame and pixel
-    slow = np.zeros((F, H * W), np.float32)  # of them slower than `speed`
-    seen = np.zeros((F, H * W), np.float32)  # their summed (v - y)²
+    flat = loo.reshape(F, -1)
 
-    def frame(f):  # a frame's sub-frames add into its own rows alone: the frames run side by side, the same sums
-        for t in range(f * K, (f + 1) * K):
-            idx = np.flatnonzero(gathered[t] & ~mask[t])
+    def frame(f):  # a frame's sub-frames correct its own row alone: the frames run side by side, the same bits
+        count = np.zeros(H * W, np.float32)  # gathered voxels without a sample, per pixel
+        slow = np.zeros(H * W, np.float32)  # of them slower than `speed`
+        seen = np.zeros(H * W, np.float32)  # their summed (v - y)²
+        s0, s1 = f * K, (f + 1) * K
+        chosen, sampled = planes.band(gathered, s0, s1), planes.band(mask, s0, s1)
+        motion = None
+        for i in range(K):
+            idx = np.flatnonzero(chosen[i] & ~sampled[i])
             if not len(idx):
                 continue
-            count[f, idx] += 1
-            u, v = flow_at(flow[t], idx)
+            count[idx] += 1
+            if motion is None:  # the frame's flow, read once it is needed
+                motion = planes.band(flow, s0, s1)
+            u, v = flow_at(motion[i], idx)
             idx = idx[u * u + v * v < limit]
             if len(idx):
-                slow[f, idx] += 1
-                seen[f, idx] += (video[t].reshape(-1)[idx] - samples[f].reshape(-1)[idx]) ** 2
+                slow[idx] += 1
+                seen[idx] += (video[s0 + i].reshape(-1)[idx] - samples[f].reshape(-1)[idx]) ** 2
+        row = flat[f]
+        use = (slow > 0) & np.isfinite(row)
+        if not use.any():
+            return
+        y = np.asarray(samples[f], np.float32).reshape(-1)
+        err = (seen + (count - slow) * (row - y) ** 2) / np.maximum(count, 1)
+        np.copyto(row, y + np.sqrt(err, dtype=np.float32), where=use)
 
     for_each(frame, F)
-    flat = loo.reshape(F, -1)
-    y = np.asarray(samples, np.float32).reshape(F, -1)
-    use = (slow > 0) & np.isfinite(flat)
-    if not use.any():
-        return
-    err = (seen + (count - slow) * (flat - y) ** 2) / np.maximum(count, 1)
-    np.copyto(flat, y + np.sqrt(err, dtype=np.float32), where=use)
 
 
 COARSE_SIGMA = 8.0

@@ -49,7 +49,7 @@ import numpy.typing as npt
 
 from flexvox_core.forward import sample_mask
 from flexvox_core.gaps import bridge, bridge_flow, interpolated_subframes
-from flexvox_core.motion import local_choice, longreach, noise_aware
+from flexvox_core.motion import local_choice, longreach, noise_aware, planes
 from flexvox_core.motion.gated_flow import gated_flow
 from flexvox_core.motion.longreach import LongReachPlan
 from flexvox_core.motion.mcnc import default_reach, trajectory_gather
@@ -67,7 +67,7 @@ from flexvox_core.motion.result import MotionAwareResult
 from flexvox_core.motion.vardiff import variable_tensor_diffusion
 from flexvox_core.reconstruct.diffusion import diffuse, diffuse_where
 from flexvox_core.reconstruct.oriented_nc import oriented_nc
-from flexvox_core.threads import for_each
+from flexvox_core.threads import for_each, workers
 
 if TYPE_CHECKING:
     from flexvox_core.flow.memo import FlowMemo
@@ -452,7 +452,6 @@ class CpuStages:
         self.memo = memo
         self.passes_run = 0  # gated_flow starts each pass
         self.last = False  # the pass running is the last: what no later pass reads may be freed or overwritten
-        self.scratch: npt.NDArray[np.float32] | None = None  # _spare's
         self.mask: npt.NDArray[np.bool_] | None = None
         self.fixed: npt.NDArray[np.float32] | None = None
         self.still_value: npt.NDArray[np.float32] | None = None
@@ -542,7 +541,7 @@ class CpuStages:
                                   wide_sigma=noise_aware.wide_sigma(w.K), max_reach=w.gather_reach, out=into)
         gathered = self.gathered if loo is not None else None
         if self.last:
-            self.fixed = self.still_value = None  # not needed again: free them before the local choice's volume
+            self.fixed = self.still_value = None  # not needed again: free them before the later stages
         return video, loo, gathered
 
     def long_reach(self, flow: Flow, video: Volume, slow: Volume) -> None:
@@ -552,16 +551,6 @@ class CpuStages:
         # From the frames and the code (no sample volume); the samples are written back as it goes.
         longreach.long_reach(w.frames, w.code, flow.flow, video, slow, w.long_reach_plan, missing=w.missing, out=video,
                              write_samples=True)
-
-    def _spare(self) -> npt.NDArray[np.float32] | None:
-        """A volume the stages after the last pass's gathers may overwrite (None before the last pass): one made
-        here once, for the local choice."""
-        if not self.last:
-            return None
-        if self.scratch is None:
-            w = self.window
-            self.scratch = np.empty((w.S, *w.frames.shape[1:]), np.float32)
-        return self.scratch
 
     def refinement(self, video: Volume, flow: Flow, slow: Volume) -> None:
         """Along each trajectory; the slow voxels read their neighbours by clipped Catmull-Rom (a bilinear read
@@ -582,17 +571,28 @@ class CpuStages:
         if w.scores_still_voxels:  # at gathered voxels slower than STILL_VOXEL_SPEED the pixel's own sample scores
             mask = self._mask()
             local_choice.still_voxel_loo(loo, video, w.frames, gathered, mask, flow.flow, w.K)
-        other, other_loo = oriented_nc(w.frames, w.code, high_tr, where=gathered, fallback=video, missing=w.missing,
-                                       out=self._spare())
-        local_choice.blend(video, other, local_choice.local_weights(loo, other_loo, w.frames), gathered, w.K)
+        # A band of frames at a time: a frame's weights pool its own samples' leave-one-out alone, so each band's
+        # oriented nc (at its gathered voxels) is blended in before the next band's is made.
+        F, H, W = w.frames.shape
+        per_band = max(1, -(-2 * workers() // w.K))  # two sub-frames a thread
+        other = np.empty((min(F, per_band) * w.K, H, W), np.float32)
+        other_loo = np.full(w.frames.shape, np.nan, np.float32)
+        for f0 in range(0, F, per_band):
+            f1 = min(F, f0 + per_band)
+            s0, s1 = f0 * w.K, f1 * w.K
+            where = planes.band(gathered, s0, s1)
+            if not where.any():
+                continue
+            got, _ = oriented_nc(w.frames, w.code, high_tr, where=gathered, fallback=video, missing=w.missing,
+                                 out=other[:s1 - s0], subframes=(s0, s1), loo=other_loo)
+            weights = local_choice.local_weights(loo[f0:f1], other_loo[f0:f1], w.frames[f0:f1])
+            local_choice.blend(video[s0:s1], got, weights, where, w.K)
 
     def gaps(self, video: Volume, flow: Flow) -> None:
         w = self.window
         bridge(video, w.missing, w.K, flow=flow.flow)
 
     def clip(self, video: Volume) -> Volume:
-        if self.last:  # the scratch is read no more
-            self.scratch = None
         lo, hi = self.window.sample_range
         return np.clip(video, lo, hi, out=video)
 

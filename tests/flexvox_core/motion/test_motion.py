@@ -334,23 +334,68 @@ def test_motion_aware_measures_its_flow_with_two_variational_iterations(monkeypa
     assert result.flow.params["variational_iterations"] == 2
 
 
-def test_a_window_without_slow_voxels_lends_one_scratch_volume_and_gives_the_same_bits(monkeypatch):
-    # The local choice writes into one scratch volume made for it (the refinement runs in band-sized buffers), and
-    # gives the bits of its own fresh volume.
+def _whole_volume_local_choice(self, video, loo, gathered, flow, high_tr):
+    """The local choice as it ran before it ran in bands: oriented nc into a whole volume, then one blend."""
+    from flexvox_core.motion import local_choice
+    from flexvox_core.reconstruct.oriented_nc import oriented_nc
+
+    w = self.window
+    if not np.isfinite(loo).any():
+        return
+    if w.scores_still_voxels:
+        local_choice.still_voxel_loo(loo, video, w.frames, gathered, self._mask(), flow.flow, w.K)
+    other, other_loo = oriented_nc(w.frames, w.code, high_tr, where=gathered, fallback=video, missing=w.missing)
+    local_choice.blend(video, other, local_choice.local_weights(loo, other_loo, w.frames), gathered, w.K)
+
+
+@pytest.mark.parametrize("dropped", [False, True])
+def test_the_local_choice_in_bands_gives_the_whole_volumes_bits(monkeypatch, dropped):
     import flexvox_core.motion.stages as P
 
     code = design_code((4, 4)).code
-    frames = capture(render_scene("balls", 16 * 3, 40, 52), code)
-    made = []
-    spare = P.CpuStages._spare
+    frames = capture(render_scene("balls", 16 * 5, 40, 52, seed=1), code)
+    missing = np.array([False, False, True, False, False]) if dropped else None
+    banded = []
+    for threads in (1, 8):  # a frame a band, and every frame in one
+        monkeypatch.setattr(P, "workers", lambda threads=threads: threads)
+        banded.append(motion_aware(frames, code, missing=missing).video)
+    monkeypatch.setattr(P.CpuStages, "local_choice", _whole_volume_local_choice)
+    whole = motion_aware(frames, code, missing=missing).video
+    for got in banded:
+        np.testing.assert_array_equal(got, whole)
+    monkeypatch.setattr(P.CpuStages, "local_choice", lambda *args: None)
+    assert not np.array_equal(motion_aware(frames, code, missing=missing).video, whole)  # the choice blended
 
-    def recorded(self):
-        got = spare(self)
-        made.append(None if got is None else id(got))
-        return got
 
-    monkeypatch.setattr(P.CpuStages, "_spare", recorded)
-    got = motion_aware(frames, code, slow_speed=None).video
-    assert len(made) == 1 and made[0] is not None
-    monkeypatch.setattr(P.CpuStages, "_spare", lambda self: None)
-    np.testing.assert_array_equal(got, motion_aware(frames, code, slow_speed=None).video)
+def test_the_refinement_and_the_local_choice_make_no_volume(monkeypatch):
+    # Their working memory is band-sized: below half of one (S, H, W) float32 volume here (they took a whole one,
+    # the scratch volume, before).
+    import tracemalloc
+
+    import flexvox_core.motion.stages as P
+    import flexvox_core.motion.vardiff as V
+    import flexvox_core.threads
+
+    monkeypatch.setattr(V, "band_length", lambda steps, threads: 4)
+    monkeypatch.setattr(P, "workers", lambda: 1)  # a frame a band
+    monkeypatch.setattr(flexvox_core.threads, "workers", lambda: 2)
+    peaks = {}
+    def measured(name, real):
+        def stage(self, *args):
+            tracemalloc.start()
+            try:
+                real(self, *args)
+                peaks[name] = tracemalloc.get_traced_memory()[1]
+            finally:
+                tracemalloc.stop()
+        return stage
+
+    for name in ("refinement", "local_choice"):
+        monkeypatch.setattr(P.CpuStages, name, measured(name, getattr(P.CpuStages, name)))
+    code = design_code((4, 4)).code
+    F, H, W = 10, 40, 52
+    frames = capture(render_scene("balls", 16 * F, H, W, seed=1), code)
+    motion_aware(frames, code)
+    volume = 16 * F * H * W * 4
+    assert set(peaks) == {"refinement", "local_choice"}
+    assert max(peaks.values()) < volume / 2, (peaks, volume)

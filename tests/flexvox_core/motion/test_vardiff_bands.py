@@ -5,6 +5,7 @@ import pytest
 
 from flexvox_core.motion.vardiff import explicit_steps, variable_tensor_diffusion
 from flexvox_core.motion.vardiff_kernel import vardiff_step
+from tests.flexvox_core.motion.band_volumes import Counted
 from tests.flexvox_core.motion.vardiff_reference import variable_tensor_diffusion_reference
 
 C = (0.95, 0.05, 0.05)  # every term of the step: along λ, ψ and the Laplacian
@@ -29,23 +30,6 @@ def whole_volume(init, mask, flow, *, time, keep_samples=True, sharp=None):
         vardiff_step(src, dst, flow, mask, keep_samples, c1, c2, c3, dt, sh, sharp is not None, 0, len(src))
         src = dst
     return src
-
-
-class Counted:
-    """A volume read by bands (``planes.Bands``) that counts what it hands out and refuses a band longer than
-    ``longest`` sub-frames."""
-
-    def __init__(self, array: np.ndarray, longest: int):
-        self.array, self.longest, self.handed = array, longest, 0
-
-    @property
-    def shape(self) -> tuple[int, ...]:
-        return self.array.shape
-
-    def band(self, t0: int, t1: int) -> np.ndarray:
-        assert 0 <= t0 < t1 <= len(self.array) and t1 - t0 <= self.longest, (t0, t1)
-        self.handed += t1 - t0
-        return np.ascontiguousarray(self.array[t0:t1])
 
 
 def case(S, seed=3, H=9, W=11):

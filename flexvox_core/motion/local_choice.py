@@ -100,8 +100,9 @@ the pixel's sample is no longer the truth at its other voxels; ``bench/bench_cho
 ``flexvox bench`` measure the choice at this threshold."""
 
 
-def still_voxel_loo(loo: np.ndarray, video: np.ndarray, samples: np.ndarray, gathered: np.ndarray,
-                    mask: np.ndarray, flow: np.ndarray, K: int, *, speed: float = STILL_VOXEL_SPEED) -> None:
+def still_voxel_loo(loo: np.ndarray, video: np.ndarray, samples: np.ndarray, gathered: np.ndarray | planes.Bands,
+                    mask: np.ndarray | planes.Bands, flow: np.ndarray | planes.Bands, K: int, *,
+                    speed: float = STILL_VOXEL_SPEED) -> None:
     r"""Correct the gather's leave-one-out ``loo`` (F, H, W), in place, for the pixels it leans on.
 
     The choice needs each method's error at a pixel's gathered voxels, and a sample's leave-one-out takes

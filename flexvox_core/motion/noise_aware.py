@@ -36,6 +36,7 @@ import math
 import cv2
 import numpy as np
 
+from flexvox_core.motion import planes
 from flexvox_core.slopes import slopes
 
 KAPPA = 2.0
@@ -55,7 +56,7 @@ def wide_sigma(K: int) -> float:
     return math.sqrt(K) / 2
 
 
-def frame_noise(frames: np.ndarray, still: np.ndarray, mask: np.ndarray, K: int) -> np.ndarray:
+def frame_noise(frames: np.ndarray, still: np.ndarray, mask: np.ndarray | planes.Bands, K: int) -> np.ndarray:
     """Noise standard deviation per frame (F,) float32, from the still pixels' successive samples.
 
     Parameters
@@ -64,8 +65,9 @@ def frame_noise(frames: np.ndarray, still: np.ndarray, mask: np.ndarray, K: int)
         The camera frames of an identity code (one sample per pixel and frame).
     still : ndarray (F·K, H, W) bool
         Voxels the motion gate found still.
-    mask : ndarray (F·K, H, W) bool
-        Where the samples are (a dropped frame's sub-frames hold none).
+    mask : ndarray (F·K, H, W) bool, or a volume read by bands
+        Where the samples are (a dropped frame's sub-frames hold none), read a frame's sub-frames at a time
+        (:func:`~flexvox_core.motion.planes.band`).
     K : int
         Slots of the code.
 
@@ -73,11 +75,12 @@ def frame_noise(frames: np.ndarray, still: np.ndarray, mask: np.ndarray, K: int)
     samples; with fewer than :data:`MIN_PIXELS` of them its noise is 0.
     """
     F = np.shape(frames)[0]
-    if still.shape != mask.shape or still.shape != (F * K, *np.shape(frames)[1:]):
-        raise ValueError(f"`still` {still.shape} and `mask` {mask.shape} must be (F·K, H, W) for {F} frames "
+    if still.shape != tuple(mask.shape) or still.shape != (F * K, *np.shape(frames)[1:]):
+        raise ValueError(f"`still` {still.shape} and `mask` {tuple(mask.shape)} must be (F·K, H, W) for {F} frames "
                          f"{np.shape(frames)[1:]} at K = {K}")
     # Whether each pixel's sample of each frame is still (a frame without samples: nowhere).
-    still_at = np.stack([(still[i * K:(i + 1) * K] & mask[i * K:(i + 1) * K]).any(axis=0) for i in range(F)])
+    still_at = np.stack([(still[i * K:(i + 1) * K] & planes.band(mask, i * K, (i + 1) * K)).any(axis=0)
+                         for i in range(F)])
     return noise_from_still(frames, still_at)
 
 

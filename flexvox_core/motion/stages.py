@@ -47,8 +47,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from flexvox_core.forward import sample_mask
-from flexvox_core.gaps import bridge, bridge_flow, interpolated_subframes
+from flexvox_core.gaps import bridge, bridge_flow
 from flexvox_core.motion import local_choice, longreach, noise_aware, planes
 from flexvox_core.motion.gated_flow import gated_flow
 from flexvox_core.motion.longreach import LongReachPlan
@@ -64,6 +63,7 @@ from flexvox_core.motion.options import (
     auto_flow_scale,
 )
 from flexvox_core.motion.result import MotionAwareResult
+from flexvox_core.motion.sample_bands import SampleMask
 from flexvox_core.motion.vardiff import variable_tensor_diffusion
 from flexvox_core.reconstruct.diffusion import diffuse, diffuse_where
 from flexvox_core.reconstruct.oriented_nc import oriented_nc
@@ -452,7 +452,7 @@ class CpuStages:
         self.memo = memo
         self.passes_run = 0  # gated_flow starts each pass
         self.last = False  # the pass running is the last: what no later pass reads may be freed or overwritten
-        self.mask: npt.NDArray[np.bool_] | None = None
+        self.mask: SampleMask | None = None
         self.fixed: npt.NDArray[np.float32] | None = None
         self.still_value: npt.NDArray[np.float32] | None = None
         self.gathered: npt.NDArray[np.bool_] | None = None  # speed_classes: the voxels the gather estimates
@@ -460,8 +460,9 @@ class CpuStages:
     def sync(self) -> None:
         return None
 
-    def _mask(self) -> npt.NDArray[np.bool_]:
-        """The samples' mask (:meth:`samples` sets it, before every later stage)."""
+    def _mask(self) -> SampleMask:
+        """The samples' mask, read a band of sub-frames at a time (:meth:`samples` sets it, before every later
+        stage)."""
         assert self.mask is not None, "the samples stage runs first"
         return self.mask
 
@@ -472,11 +473,10 @@ class CpuStages:
         return diffuse(w.frames, w.code, tensor=STEP1_TENSOR, time=STEP1_TIME, missing=w.missing)
 
     def samples(self) -> None:
-        """The samples' mask (no stage reads a sample volume: the gathers read the frames and the code)."""
+        """The samples' mask, made a band at a time from the code and the dropped frames (a dropped frame's
+        sub-frames hold no samples); no stage reads a sample volume: the gathers read the frames and the code."""
         w = self.window
-        self.mask = mask = sample_mask((w.S, *w.frames.shape[1:]), w.code)
-        if w.missing is not None:  # a dropped frame's sub-frames hold no samples
-            mask[interpolated_subframes(w.missing, w.K)] = False
+        self.mask = SampleMask(w.code, (w.S, *w.frames.shape[1:]), w.missing)
 
     def gated_flow(self, current: Volume) -> Flow:
         w = self.window

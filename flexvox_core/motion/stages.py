@@ -577,6 +577,7 @@ class CpuStages:
         per_band = max(1, -(-2 * workers() // w.K))  # two sub-frames a thread
         other = np.empty((min(F, per_band) * w.K, H, W), np.float32)
         other_loo = np.full(w.frames.shape, np.nan, np.float32)
+        workspace: list[Any] = []  # the threads' planes, kept from band to band
         for f0 in range(0, F, per_band):
             f1 = min(F, f0 + per_band)
             s0, s1 = f0 * w.K, f1 * w.K
@@ -584,7 +585,7 @@ class CpuStages:
             if not where.any():
                 continue
             got, _ = oriented_nc(w.frames, w.code, high_tr, where=gathered, fallback=video, missing=w.missing,
-                                 out=other[:s1 - s0], subframes=(s0, s1), loo=other_loo)
+                                 out=other[:s1 - s0], subframes=(s0, s1), loo=other_loo, workspace=workspace)
             weights = local_choice.local_weights(loo[f0:f1], other_loo[f0:f1], w.frames[f0:f1])
             local_choice.blend(video[s0:s1], got, weights, where, w.K)
 

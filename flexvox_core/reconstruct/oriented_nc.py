@@ -175,8 +175,8 @@ def _check_subframes(subframes, S: int) -> tuple[int, int]:
     return s0, s1
 
 
-def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None, out=None, subframes=None, loo=None
-                ) -> tuple[np.ndarray, np.ndarray]:
+def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None, out=None, subframes=None, loo=None,
+                workspace: list | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The oriented normalized convolution of an identity-code capture, and each sample's leave-one-out estimate.
 
     Parameters
@@ -201,6 +201,9 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
     loo : ndarray (F, H, W) float32 C-contiguous, optional
         Where the leave-one-out estimates go (default: a new array of NaN); only the samples of the frames these
         sub-frames belong to are written.
+    workspace : list, optional
+        Where the planes each thread works in are kept for the next call (pass one list to the calls on
+        ``subframes`` of one video: fresh planes cost page faults each call); empty at first.
 
     Returns
     -------
@@ -254,7 +257,9 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
                          f"{chosen.dtype}")
     present_f = np.ones(F, bool) if present is None else present
     everywhere = np.ones((H, W), bool)
-    scratch = threading.local()  # planes each thread reuses: fresh memory costs page faults every time
+    # Planes a thread works in, taken from the pool and given back (fresh memory costs page faults every time).
+    pool = [] if workspace is None else workspace
+    lock = threading.Lock()
 
     def one(i):
         s = s0 + i
@@ -263,15 +268,18 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
         if not len(rows):
             return
         y0, y1 = int(rows[0]), int(rows[-1]) + 1
-        if not hasattr(scratch, "j"):
-            scratch.j = np.zeros((3, H, W), np.float32)
-            scratch.vt = np.empty((H, W))
-            scratch.mt = np.empty((H, W))
+        with lock:
+            planes = pool.pop() if pool else None
+        if planes is None or planes[0].shape != (3, H, W):
+            planes = (np.zeros((3, H, W), np.float32), np.empty((H, W)), np.empty((H, W)))
+        j, vt, mt = planes
         b0, b1 = max(0, y0 - _PAD), min(H, y1 + _PAD)
-        structure(g[s, b0:b1], out=scratch.j[:, b0:b1])
+        structure(g[s, b0:b1], out=j[:, b0:b1])
         oriented_plane(samples, order, weight[s], int(first[s]), s % K, s // K, bool(present_f[s // K]),
-                       scratch.j, wanted, offsets, weights, counts, bank.shape[1] // 2, floor, y0, y1,
-                       scratch.vt, scratch.mt, video[i], loo, _LOW, _HIGH, _TAN)
+                       j, wanted, offsets, weights, counts, bank.shape[1] // 2, floor, y0, y1, vt, mt, video[i],
+                       loo, _LOW, _HIGH, _TAN)
+        with lock:
+            pool.append(planes)
 
     for_each(one, n)
     return video, loo

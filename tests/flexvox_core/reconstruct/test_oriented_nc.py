@@ -301,3 +301,21 @@ def test_bad_sub_frames_are_refused(rng, code24):
     with pytest.raises(ValueError, match=r"`out` must be a writable C-contiguous float32 array of shape "
                                          r"\(4, 10, 12\)"):
         oriented_nc(frames, code24, truth, subframes=(0, 4), out=np.zeros((16, 10, 12), np.float32))
+
+
+def test_a_workspace_keeps_the_threads_planes_from_call_to_call(rng, code24):
+    truth = smooth_video(rng, 24, 10, 12)
+    frames = capture(truth, code24)
+    where = rng.random(truth.shape) < 0.6
+    want, want_loo = oriented_nc(frames, code24, truth, where=where)
+    workspace = [(np.zeros((3, 5, 5), np.float32), np.empty((5, 5)), np.empty((5, 5)))]  # another size: not used
+    loo = np.full(frames.shape, np.nan, np.float32)
+    for s0 in range(0, 24, 8):
+        got, _ = oriented_nc(frames, code24, truth, where=where, subframes=(s0, s0 + 8), loo=loo, workspace=workspace)
+        np.testing.assert_array_equal(got, want[s0:s0 + 8])
+        if s0 == 0:
+            kept = {id(planes[0]) for planes in workspace}
+            assert workspace and all(planes[0].shape == (3, 10, 12) for planes in workspace)
+        else:
+            assert kept <= {id(planes[0]) for planes in workspace}  # the planes are kept, not made again
+    np.testing.assert_array_equal(loo, want_loo)

@@ -573,7 +573,8 @@ class CpuStages:
             local_choice.still_voxel_loo(loo, video, w.frames, gathered, mask, flow.flow, w.K)
         # A band of frames at a time: a frame's weights pool its own samples' leave-one-out alone, so each band's
         # oriented nc (at its gathered voxels) is blended in before the next band's is made.
-        F, H, W = w.frames.shape
+        frames = np.ascontiguousarray(w.frames, np.float32)  # as oriented nc reads them: made once, not per band
+        F, H, W = frames.shape
         per_band = max(1, -(-2 * workers() // w.K))  # two sub-frames a thread
         other = np.empty((min(F, per_band) * w.K, H, W), np.float32)
         other_loo = np.full(w.frames.shape, np.nan, np.float32)
@@ -584,9 +585,9 @@ class CpuStages:
             where = planes.band(gathered, s0, s1)
             if not where.any():
                 continue
-            got, _ = oriented_nc(w.frames, w.code, high_tr, where=gathered, fallback=video, missing=w.missing,
+            got, _ = oriented_nc(frames, w.code, high_tr, where=gathered, fallback=video, missing=w.missing,
                                  out=other[:s1 - s0], subframes=(s0, s1), loo=other_loo, workspace=workspace)
-            weights = local_choice.local_weights(loo[f0:f1], other_loo[f0:f1], w.frames[f0:f1])
+            weights = local_choice.local_weights(loo[f0:f1], other_loo[f0:f1], frames[f0:f1])
             local_choice.blend(video[s0:s1], got, weights, where, w.K)
 
     def gaps(self, video: Volume, flow: Flow) -> None:

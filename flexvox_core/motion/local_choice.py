@@ -93,6 +93,10 @@ def local_weights(loo_a: np.ndarray, loo_b: np.ndarray, samples: np.ndarray, *, 
     return out
 
 
+BAND = 32
+"""The fewest sub-frames motion-aware's local choice makes oriented nc for at a time (whole frames; more with more
+threads: two sub-frames a thread). Each band's call checks its inputs again, some milliseconds at 640×480."""
+
 STILL_VOXEL_SPEED = 0.15
 """Below this flow speed (px per sub-frame; the motion gate's "trusted as moving" threshold) a gathered voxel
 is scored by :func:`still_voxel_loo` against its pixel's own sample. Above it the flow may be real motion, so

@@ -575,7 +575,7 @@ class CpuStages:
         # oriented nc (at its gathered voxels) is blended in before the next band's is made.
         frames = np.ascontiguousarray(w.frames, np.float32)  # as oriented nc reads them: made once, not per band
         F, H, W = frames.shape
-        per_band = max(1, -(-2 * workers() // w.K))  # two sub-frames a thread
+        per_band = max(1, -(-max(local_choice.BAND, 2 * workers()) // w.K))  # whole frames, two sub-frames a thread
         other = np.empty((min(F, per_band) * w.K, H, W), np.float32)
         other_loo = np.full(w.frames.shape, np.nan, np.float32)
         workspace: list[Any] = []  # the threads' planes, kept from band to band

@@ -356,7 +356,8 @@ def test_the_local_choice_in_bands_gives_the_whole_volumes_bits(monkeypatch, dro
     frames = capture(render_scene("balls", 16 * 5, 40, 52, seed=1), code)
     missing = np.array([False, False, True, False, False]) if dropped else None
     banded = []
-    for threads in (1, 8):  # a frame a band, and every frame in one
+    for least, threads in ((1, 1), (32, 1), (1, 40)):  # a frame a band; two frames (the last band one); all in one
+        monkeypatch.setattr(P.local_choice, "BAND", least)
         monkeypatch.setattr(P, "workers", lambda threads=threads: threads)
         banded.append(motion_aware(frames, code, missing=missing).video)
     monkeypatch.setattr(P.CpuStages, "local_choice", _whole_volume_local_choice)
@@ -377,7 +378,8 @@ def test_the_refinement_and_the_local_choice_make_no_volume(monkeypatch):
     import flexvox_core.threads
 
     monkeypatch.setattr(V, "band_length", lambda steps, threads: 4)
-    monkeypatch.setattr(P, "workers", lambda: 1)  # a frame a band
+    monkeypatch.setattr(P, "workers", lambda: 1)
+    monkeypatch.setattr(P.local_choice, "BAND", 1)  # a frame a band
     monkeypatch.setattr(flexvox_core.threads, "workers", lambda: 2)
     peaks = {}
     def measured(name, real):

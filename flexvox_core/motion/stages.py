@@ -541,7 +541,7 @@ class CpuStages:
                                   wide_sigma=noise_aware.wide_sigma(w.K), max_reach=w.gather_reach, out=into)
         gathered = self.gathered if loo is not None else None
         if self.last:
-            self.fixed = self.still_value = None  # not needed again: free them before the later stages
+            self.fixed = self.still_value = None  # not needed again: free them before the local choice's volume
         return video, loo, gathered
 
     def long_reach(self, flow: Flow, video: Volume, slow: Volume) -> None:

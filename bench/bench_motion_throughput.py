@@ -88,21 +88,65 @@ def _gather_by_remap() -> Iterator[None]:
 
 
 @contextlib.contextmanager
-def _scratch_per_stage() -> Iterator[None]:
-    """Before a window without a sample volume lent one scratch volume to the refinement and the local choice:
-    each made its own (the sample volume, when the long reach made one, served both)."""
-    from flexvox_core.motion import stages
+def _scratch_volume() -> Iterator[None]:
+    """Before the refinement and the local choice ran a band at a time: one (S, H, W) scratch volume for both, freed
+    at the pass's end; the refinement's explicit steps over the whole volume, oriented nc made whole, then one blend."""
+    from flexvox_core.motion import local_choice, planes, stages
+    from flexvox_core.motion.options import REFINE_C
+    from flexvox_core.motion.vardiff import _KERNEL_LOCK, explicit_steps
+    from flexvox_core.motion.vardiff_kernel import vardiff_step
+    from flexvox_core.reconstruct.oriented_nc import oriented_nc
 
-    kept = stages.CpuStages._spare
+    kept = stages.CpuStages.refinement, stages.CpuStages.local_choice, stages.CpuStages.clip
 
-    def before(self):
-        return self.sparse if self.last else None
+    def spare(self):
+        if getattr(self, "bench_scratch", None) is None:
+            self.bench_scratch = np.empty((self.window.S, *self.window.frames.shape[1:]), np.float32)
+        return self.bench_scratch
 
-    stages.CpuStages._spare = before  # type: ignore[method-assign]
+    def refinement(self, video, flow, slow):
+        w = self.window
+        time = w.refine_time
+        if time <= 0:
+            return
+        g0, g1 = w.gathered
+        c1, c2, c3 = REFINE_C
+        steps = explicit_steps(time, REFINE_C)
+        f = np.ascontiguousarray(planes.band(flow.flow, g0, g1))
+        m = np.ascontiguousarray(planes.band(self._mask(), g0, g1))
+        sh = np.ascontiguousarray(planes.band(slow, g0, g1))
+        out, other = video[g0:g1], spare(self)[g0:g1]
+        x, y = (out, other) if steps % 2 == 0 else (other, out)
+        src = out
+        with _KERNEL_LOCK:
+            for k in range(steps):
+                dst = x if (steps - 1 - k) % 2 == 0 else y
+                vardiff_step(src, dst, f, m, True, c1, c2, c3, time / steps, sh, True, 0, g1 - g0)
+                src = dst
+        if src is not out:
+            np.copyto(out, src)
+
+    def local_choice_(self, video, loo, gathered, flow, high_tr):
+        w = self.window
+        if not np.isfinite(loo).any():
+            return
+        if w.scores_still_voxels:
+            local_choice.still_voxel_loo(loo, video, w.frames, gathered, self._mask(), flow.flow, w.K)
+        other, other_loo = oriented_nc(w.frames, w.code, high_tr, where=gathered, fallback=video, missing=w.missing,
+                                       out=spare(self))
+        local_choice.blend(video, other, local_choice.local_weights(loo, other_loo, w.frames), gathered, w.K)
+
+    def clip(self, video):
+        if self.last:
+            self.bench_scratch = None
+        return kept[2](self, video)
+
+    stages.CpuStages.refinement, stages.CpuStages.local_choice, stages.CpuStages.clip = (  # type: ignore[method-assign]
+        refinement, local_choice_, clip)
     try:
         yield
     finally:
-        stages.CpuStages._spare = kept  # type: ignore[method-assign]
+        stages.CpuStages.refinement, stages.CpuStages.local_choice, stages.CpuStages.clip = kept  # type: ignore
 
 
 @contextlib.contextmanager
@@ -143,7 +187,7 @@ def _long_reach_on_sample_planes() -> Iterator[None]:
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
-    "scratch-per-stage": _scratch_per_stage,
+    "scratch-volume": _scratch_volume,
     "long-reach-remap": _long_reach_on_sample_planes,
 }
 """The code as it was before each change (``kept``: as it is), for ``--ab``."""

@@ -35,6 +35,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from flexvox_core.motion import planes
 from flexvox_core.motion.subframes import flow_at
 from flexvox_core.threads import for_each
 
@@ -92,6 +93,10 @@ def local_weights(loo_a: np.ndarray, loo_b: np.ndarray, samples: np.ndarray, *, 
     return out
 
 
+BAND = 32
+"""The fewest sub-frames motion-aware's local choice makes oriented nc for at a time (whole frames; more with more
+threads: two sub-frames a thread). Each band's call checks its inputs again, some milliseconds at 640×480."""
+
 STILL_VOXEL_SPEED = 0.15
 """Below this flow speed (px per sub-frame; the motion gate's "trusted as moving" threshold) a gathered voxel
 is scored by :func:`still_voxel_loo` against its pixel's own sample. Above it the flow may be real motion, so
@@ -99,8 +104,9 @@ the pixel's sample is no longer the truth at its other voxels; ``bench/bench_cho
 ``flexvox bench`` measure the choice at this threshold."""
 
 
-def still_voxel_loo(loo: np.ndarray, video: np.ndarray, samples: np.ndarray, gathered: np.ndarray,
-                    mask: np.ndarray, flow: np.ndarray, K: int, *, speed: float = STILL_VOXEL_SPEED) -> None:
+def still_voxel_loo(loo: np.ndarray, video: np.ndarray, samples: np.ndarray, gathered: np.ndarray | planes.Bands,
+                    mask: np.ndarray | planes.Bands, flow: np.ndarray | planes.Bands, K: int, *,
+                    speed: float = STILL_VOXEL_SPEED) -> None:
     r"""Correct the gather's leave-one-out ``loo`` (F, H, W), in place, for the pixels it leans on.
 
     The choice needs each method's error at a pixel's gathered voxels, and a sample's leave-one-out takes
@@ -126,39 +132,46 @@ def still_voxel_loo(loo: np.ndarray, video: np.ndarray, samples: np.ndarray, gat
         The gather's result (after the refinement), samples kept.
     samples : ndarray (F, H, W)
         The camera frames of the identity code.
-    gathered, mask : ndarray (F·K, H, W) bool
-        The voxels the gather estimated, and the sample voxels.
-    flow : ndarray (F·K, H, W, 2)
+    gathered, mask : ndarray (F·K, H, W) bool, or volumes read by bands
+        The voxels the gather estimated, and the sample voxels (read a frame's sub-frames at a time,
+        :func:`~flexvox_core.motion.planes.band`).
+    flow : ndarray (F·K, H, W, 2), or a volume read by bands
         The flow the gather followed.
     K : int
         Sub-frames per frame.
     """
     F, H, W = loo.shape
     limit = np.float32(speed) ** 2
-    count = np.zeros((F, H * W), np.float32)  # gathered voxels without a sample, per frame and pixel
-    slow = np.zeros((F, H * W), np.float32)  # of them slower than `speed`
-    seen = np.zeros((F, H * W), np.float32)  # their summed (v - y)²
+    flat = loo.reshape(F, -1)
 
-    def frame(f):  # a frame's sub-frames add into its own rows alone: the frames run side by side, the same sums
-        for t in range(f * K, (f + 1) * K):
-            idx = np.flatnonzero(gathered[t] & ~mask[t])
+    def frame(f):  # a frame's sub-frames correct its own row alone: the frames run side by side, the same bits
+        count = np.zeros(H * W, np.float32)  # gathered voxels without a sample, per pixel
+        slow = np.zeros(H * W, np.float32)  # of them slower than `speed`
+        seen = np.zeros(H * W, np.float32)  # their summed (v - y)²
+        s0, s1 = f * K, (f + 1) * K
+        chosen, sampled = planes.band(gathered, s0, s1), planes.band(mask, s0, s1)
+        motion = None
+        for i in range(K):
+            idx = np.flatnonzero(chosen[i] & ~sampled[i])
             if not len(idx):
                 continue
-            count[f, idx] += 1
-            u, v = flow_at(flow[t], idx)
+            count[idx] += 1
+            if motion is None:  # the frame's flow, read once it is needed
+                motion = planes.band(flow, s0, s1)
+            u, v = flow_at(motion[i], idx)
             idx = idx[u * u + v * v < limit]
             if len(idx):
-                slow[f, idx] += 1
-                seen[f, idx] += (video[t].reshape(-1)[idx] - samples[f].reshape(-1)[idx]) ** 2
+                slow[idx] += 1
+                seen[idx] += (video[s0 + i].reshape(-1)[idx] - samples[f].reshape(-1)[idx]) ** 2
+        row = flat[f]
+        use = (slow > 0) & np.isfinite(row)
+        if not use.any():
+            return
+        y = np.asarray(samples[f], np.float32).reshape(-1)
+        err = (seen + (count - slow) * (row - y) ** 2) / np.maximum(count, 1)
+        np.copyto(row, y + np.sqrt(err, dtype=np.float32), where=use)
 
     for_each(frame, F)
-    flat = loo.reshape(F, -1)
-    y = np.asarray(samples, np.float32).reshape(F, -1)
-    use = (slow > 0) & np.isfinite(flat)
-    if not use.any():
-        return
-    err = (seen + (count - slow) * (flat - y) ** 2) / np.maximum(count, 1)
-    np.copyto(flat, y + np.sqrt(err, dtype=np.float32), where=use)
 
 
 COARSE_SIGMA = 8.0

@@ -36,7 +36,7 @@ import math
 import cv2
 import numpy as np
 
-from flexvox_core.motion.planes import band
+from flexvox_core.motion.planes import Bands, band
 from flexvox_core.slopes import slopes
 
 KAPPA = 2.0
@@ -56,7 +56,7 @@ def wide_sigma(K: int) -> float:
     return math.sqrt(K) / 2
 
 
-def frame_noise(frames: np.ndarray, still: np.ndarray, mask: np.ndarray, K: int) -> np.ndarray:
+def frame_noise(frames: np.ndarray, still: np.ndarray | Bands, mask: np.ndarray | Bands, K: int) -> np.ndarray:
     """Noise standard deviation per frame (F,) float32, from the still pixels' successive samples.
 
     Parameters
@@ -66,8 +66,9 @@ def frame_noise(frames: np.ndarray, still: np.ndarray, mask: np.ndarray, K: int)
     still : ndarray (F·K, H, W) bool
         Voxels the motion gate found still (or a volume read a band of sub-frames at a time,
         :class:`~flexvox_core.motion.planes.Bands`, as ``mask`` may be).
-    mask : ndarray (F·K, H, W) bool
-        Where the samples are (a dropped frame's sub-frames hold none).
+    mask : ndarray (F·K, H, W) bool, or a volume read by bands
+        Where the samples are (a dropped frame's sub-frames hold none), read a frame's sub-frames at a time
+        (:func:`~flexvox_core.motion.planes.band`).
     K : int
         Slots of the code.
 

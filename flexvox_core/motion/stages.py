@@ -47,8 +47,7 @@ import cv2
 import numpy as np
 import numpy.typing as npt
 
-from flexvox_core.forward import sample_mask
-from flexvox_core.gaps import bridge, bridge_flow, interpolated_subframes
+from flexvox_core.gaps import bridge, bridge_flow
 from flexvox_core.motion import local_choice, longreach, noise_aware
 from flexvox_core.motion.gated_flow import gated_flow
 from flexvox_core.motion.longreach import LongReachPlan
@@ -66,10 +65,11 @@ from flexvox_core.motion.options import (
 from flexvox_core.motion.packed import PackedVolume
 from flexvox_core.motion.planes import Bands, band
 from flexvox_core.motion.result import MotionAwareResult
+from flexvox_core.motion.sample_bands import SampleMask
 from flexvox_core.motion.vardiff import variable_tensor_diffusion
 from flexvox_core.reconstruct.diffusion import diffuse, diffuse_where
 from flexvox_core.reconstruct.oriented_nc import oriented_nc
-from flexvox_core.threads import for_each
+from flexvox_core.threads import for_each, workers
 
 if TYPE_CHECKING:
     from flexvox_core.flow.memo import FlowMemo
@@ -454,8 +454,7 @@ class CpuStages:
         self.memo = memo
         self.passes_run = 0  # gated_flow starts each pass
         self.last = False  # the pass running is the last: what no later pass reads may be freed or overwritten
-        self.scratch: npt.NDArray[np.float32] | None = None  # _spare's
-        self.mask: npt.NDArray[np.bool_] | None = None
+        self.mask: SampleMask | None = None
         self.fixed: npt.NDArray[np.float32] | None = None
         self.still_value: npt.NDArray[np.float32] | None = None
         self.gathered: PackedVolume | None = None  # speed_classes: the voxels the gather estimates
@@ -463,8 +462,9 @@ class CpuStages:
     def sync(self) -> None:
         return None
 
-    def _mask(self) -> npt.NDArray[np.bool_]:
-        """The samples' mask (:meth:`samples` sets it, before every later stage)."""
+    def _mask(self) -> SampleMask:
+        """The samples' mask, read a band of sub-frames at a time (:meth:`samples` sets it, before every later
+        stage)."""
         assert self.mask is not None, "the samples stage runs first"
         return self.mask
 
@@ -475,11 +475,10 @@ class CpuStages:
         return diffuse(w.frames, w.code, tensor=STEP1_TENSOR, time=STEP1_TIME, missing=w.missing)
 
     def samples(self) -> None:
-        """The samples' mask (no stage reads a sample volume: the gathers read the frames and the code)."""
+        """The samples' mask, made a band at a time from the code and the dropped frames (a dropped frame's
+        sub-frames hold no samples); no stage reads a sample volume: the gathers read the frames and the code."""
         w = self.window
-        self.mask = mask = sample_mask((w.S, *w.frames.shape[1:]), w.code)
-        if w.missing is not None:  # a dropped frame's sub-frames hold no samples
-            mask[interpolated_subframes(w.missing, w.K)] = False
+        self.mask = SampleMask(w.code, (w.S, *w.frames.shape[1:]), w.missing)
 
     def gated_flow(self, current: Volume) -> Flow:
         w = self.window
@@ -547,10 +546,9 @@ class CpuStages:
         video = trajectory_gather(w.frames, w.code, flow, missing=w.missing, c=w.gather_c, time=w.gather_time,
                                   fallback=high_tr, gathered=self.gathered, still_value=base, loo=loo, wide=wide,
                                   wide_sigma=noise_aware.wide_sigma(w.K), max_reach=w.gather_reach, out=into)
-        # The local choice reads the gathered voxels as a whole bool volume: unpacked for it.
-        gathered = band(self.gathered, 0, w.S) if loo is not None else None
+        gathered = self.gathered if loo is not None else None  # the local choice reads it a band at a time
         if self.last:
-            self.fixed = self.still_value = None  # not needed again: free them before the local choice's volume
+            self.fixed = self.still_value = None  # read no more (what the video is written into stays as the video)
         return video, loo, gathered
 
     def long_reach(self, flow: Flow, video: Volume, slow: Volume) -> None:
@@ -561,16 +559,6 @@ class CpuStages:
         longreach.long_reach(w.frames, w.code, flow, video, slow, w.long_reach_plan, missing=w.missing, out=video,
                              write_samples=True)
 
-    def _spare(self) -> npt.NDArray[np.float32] | None:
-        """A volume the stages after the last pass's gathers may overwrite (None before the last pass): one made
-        here once, for the refinement and then the local choice."""
-        if not self.last:
-            return None
-        if self.scratch is None:
-            w = self.window
-            self.scratch = np.empty((w.S, *w.frames.shape[1:]), np.float32)
-        return self.scratch
-
     def refinement(self, video: Volume, flow: Flow, slow: Volume) -> None:
         """Along each trajectory; the slow voxels read their neighbours by clipped Catmull-Rom (a bilinear read
         a fraction of a pixel off is a blur, which would take the texture their long-reach gather kept)."""
@@ -579,12 +567,9 @@ class CpuStages:
         if refine_time <= 0:
             return
         g0, g1 = w.gathered
-        spare = self._spare()
-        mask = self._mask()
-        # The flow's band, made whole here: the refinement reads it a band at a time once it takes a Bands.
-        variable_tensor_diffusion(video[g0:g1], mask[g0:g1], band(flow, g0, g1), c=REFINE_C, time=refine_time,
-                                  out=video[g0:g1], scratch=None if spare is None else spare[g0:g1],
-                                  sharp=band(slow, g0, g1))
+        # A band of sub-frames at a time: the mask, the flow and the classes are read by bands (planes.band).
+        variable_tensor_diffusion(video[g0:g1], self._mask(), flow, c=REFINE_C, time=refine_time,
+                                  out=video[g0:g1], sharp=slow, start=g0)
 
     def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume) -> None:
         w = self.window
@@ -592,21 +577,33 @@ class CpuStages:
             return
         if w.scores_still_voxels:  # at gathered voxels slower than STILL_VOXEL_SPEED the pixel's own sample scores
             mask = self._mask()
-            # It reads flow[t], a sub-frame at a time: the planes made on demand (its annotation says ndarray); a
-            # flow without bands (any object with a whole `flow` array) is read as that array.
-            planes = Planes(flow if hasattr(flow, "band") else flow.flow)
-            local_choice.still_voxel_loo(loo, video, w.frames, gathered, mask, planes, w.K)  # type: ignore[arg-type]
-        other, other_loo = oriented_nc(w.frames, w.code, high_tr, where=gathered, fallback=video, missing=w.missing,
-                                       out=self._spare())
-        local_choice.blend(video, other, local_choice.local_weights(loo, other_loo, w.frames), gathered, w.K)
+            # A flow without bands (any object with a whole `flow` array) is read as that array.
+            local_choice.still_voxel_loo(loo, video, w.frames, gathered, mask,
+                                         flow if hasattr(flow, "band") else flow.flow, w.K)
+        # A band of frames at a time: a frame's weights pool its own samples' leave-one-out alone, so each band's
+        # oriented nc (at its gathered voxels) is blended in before the next band's is made.
+        frames = np.ascontiguousarray(w.frames, np.float32)  # as oriented nc reads them: made once, not per band
+        F, H, W = frames.shape
+        per_band = max(1, -(-max(local_choice.BAND, 2 * workers()) // w.K))  # whole frames, two sub-frames a thread
+        other = np.empty((min(F, per_band) * w.K, H, W), np.float32)
+        other_loo = np.full(w.frames.shape, np.nan, np.float32)
+        workspace: list[Any] = []  # the threads' planes, kept from band to band
+        for f0 in range(0, F, per_band):
+            f1 = min(F, f0 + per_band)
+            s0, s1 = f0 * w.K, f1 * w.K
+            where = band(gathered, s0, s1)
+            if not where.any():
+                continue
+            got, _ = oriented_nc(frames, w.code, high_tr, where=gathered, fallback=video, missing=w.missing,
+                                 out=other[:s1 - s0], subframes=(s0, s1), loo=other_loo, workspace=workspace)
+            weights = local_choice.local_weights(loo[f0:f1], other_loo[f0:f1], frames[f0:f1])
+            local_choice.blend(video[s0:s1], got, weights, where, w.K)
 
     def gaps(self, video: Volume, flow: Flow) -> None:
         w = self.window
         bridge(video, w.missing, w.K, flow=flow)
 
     def clip(self, video: Volume) -> Volume:
-        if self.last:  # the scratch is read no more
-            self.scratch = None
         lo, hi = self.window.sample_range
         return np.clip(video, lo, hi, out=video)
 
@@ -658,25 +655,6 @@ def speed_classes(flow: np.ndarray | Bands, still_speed: float | None, slow_spee
     return still, slow, gathered
 
 
-class Planes:
-    """A volume's sub-frames as ``volume[t]`` (one plane, made on demand: :func:`~flexvox_core.motion.planes.band`),
-    for readers that index one sub-frame at a time."""
-
-    def __init__(self, volume: np.ndarray | Bands) -> None:
-        self.volume = volume
-
-    @property
-    def shape(self) -> tuple[int, ...]:
-        return tuple(self.volume.shape)
-
-    def __len__(self) -> int:
-        return int(self.volume.shape[0])
-
-    def __getitem__(self, t: int) -> np.ndarray:
-        plane: np.ndarray = band(self.volume, t, t + 1)[0]
-        return plane
-
-
 def packed_speed_classes(flow: np.ndarray | Bands, still_speed: float | None, slow_speed: float | None,
                          skip: np.ndarray | None = None) -> tuple[PackedVolume, PackedVolume, PackedVolume]:
     """:func:`speed_classes` held a bit per voxel (:class:`~flexvox_core.motion.packed.PackedVolume`, read a band
@@ -707,5 +685,3 @@ def guide(window: Window, tensor: tuple[float, float, float], time: float) -> np
     out = np.zeros((w.S, *w.frames.shape[1:]), np.float32)
     out[rows[0]:rows[1]] = diffuse(w.frames, w.code, tensor=tensor, time=time, missing=w.missing, subframes=rows)
     return out
-
-

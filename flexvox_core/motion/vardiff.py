@@ -34,15 +34,21 @@ from __future__ import annotations
 
 import math
 import threading
+import warnings
+from typing import Any
 
 import numpy as np
 
+from flexvox_core.motion import planes
 from flexvox_core.motion.tensors import DEFAULT_C, check_c
 
 _KERNEL_LOCK = threading.Lock()
 """One call of the parallel kernel at a time: numba's fallback threading layer (``workqueue``, where
 neither OpenMP nor TBB is installed) aborts the process when two threads enter a parallel region at
 once (the dask batch, napari's worker and Review's jobs may). Each call uses every core anyway."""
+
+MIN_BAND = 16
+"""The fewest output sub-frames of a band (:func:`band_length`)."""
 
 
 def explicit_steps(time: float, c) -> int:
@@ -52,18 +58,33 @@ def explicit_steps(time: float, c) -> int:
     return math.ceil(time / (1.0 / (2 * (c1 + c2 + c3))))
 
 
-def _check(init, mask, flow, time, c):
+def band_length(steps: int, threads: int) -> int:
+    """Output sub-frames per band of :func:`variable_tensor_diffusion` at ``steps`` explicit steps on ``threads``
+    threads: two sub-frames a thread (each step spreads a band's sub-frames over the threads), at least
+    :data:`MIN_BAND` and 8 per step (a band's halo of ``steps`` sub-frames each side is stepped too, a share of
+    about ``steps / band`` of the work)."""
+    return max(MIN_BAND, 2 * threads, 8 * steps)
+
+
+def _as_volume(x: Any) -> Any:
+    """``x`` itself when it is read by bands (an array or a :class:`~flexvox_core.motion.planes.Bands`), else as
+    an array."""
+    return x if isinstance(x, np.ndarray) or hasattr(x, "band") else np.asarray(x)
+
+
+def _check(init, mask, flow, time, c, start: int = 0):
     c1, c2, c3 = check_c(c)
     vol = np.asarray(init, dtype=np.float32)  # read only: the steps write to new volumes
     if vol.ndim != 3:
         raise ValueError(f"`init` must have shape (S, H, W); got {vol.shape}")
     S, H, W = vol.shape
-    m = np.asarray(mask, dtype=bool)
-    f = np.asarray(flow, dtype=np.float32)
-    if m.shape != vol.shape or f.shape != (S, H, W, 2):
+    m, f = _as_volume(mask), _as_volume(flow)
+    ms, fs = tuple(m.shape), tuple(f.shape)
+    if (len(ms) != 3 or ms[1:] != (H, W) or len(fs) != 4 or fs[1:] != (H, W, 2) or ms[0] != fs[0]
+            or not 0 <= start <= ms[0] - S):
         raise ValueError(
-            f"`mask` {m.shape} and `flow` {f.shape} must match `init` {vol.shape} (flow with a last axis of 2)"
-        )
+            f"`mask` {ms} and `flow` {fs} must match `init` {vol.shape} (flow with a last axis of 2)"
+            + (f" from sub-frame `start` = {start} on" if start else ""))
     if not np.isfinite(vol.sum(dtype=np.float64)):  # one pass, no boolean volume
         raise ValueError("`init` holds NaN or infinite values")
     if not math.isfinite(time) or time < 0:
@@ -81,8 +102,10 @@ def variable_tensor_diffusion(
     time: float = 1.0,
     keep_samples: bool = True,
     out: np.ndarray | None = None,
-    scratch: np.ndarray | None = None,
-    sharp: np.ndarray | None = None,
+    sharp: Any = None,
+    start: int = 0,
+    band: int | None = None,
+    **deprecated: Any,
 ) -> np.ndarray:
     """Diffuse ``init`` for diffusion time ``time`` with the motion tensor field of ``flow``.
 
@@ -90,87 +113,109 @@ def variable_tensor_diffusion(
     ----------
     init : ndarray, shape (S, H, W)
         Starting volume (for example the motion-compensated normalized convolution).
-    mask : ndarray of bool, shape (S, H, W)
+    mask : ndarray of bool, shape (S, H, W), or a volume read by bands
         Measured voxels; kept fixed when ``keep_samples`` (data consistency).
-    flow : ndarray, shape (S, H, W, 2)
+    flow : ndarray, shape (S, H, W, 2), or a volume read by bands
         (u, v) per voxel in pixels per sub-frame; NaN/inf are treated as zero flow.
     c : (c1, c2, c3)
         Eigenvalues along λ, ψ, γ, with c1 ≥ c2 ≥ c3 ≥ 0.
     time : float
         Diffusion time n ≥ 0 (the accuracy knob). Steps: ``ceil(n / dt_max)``, dt_max = 1/(2 trace T).
     out : ndarray (S, H, W) float32 C-contiguous, optional
-        Where the result goes; may be ``init`` itself (a step never writes the volume it reads:
-        with ``out`` = ``init`` one new volume is made instead of two — fresh memory is dear).
-    scratch : ndarray (S, H, W) float32 C-contiguous, optional
-        A volume the caller no longer needs (its values are overwritten), used instead of the new one:
-        no fresh memory at all. It must not share memory with ``init``, ``out``, ``mask`` or ``flow``.
-    sharp : ndarray of bool, shape (S, H, W), optional
+        Where the result goes: ``init`` itself, or an array that shares no memory with it.
+    sharp : ndarray of bool, shape (S, H, W), or a volume read by bands, optional
         Voxels that read their neighbours along the trajectory by Catmull-Rom bicubic interpolation,
         clipped to the range of the four pixels the bilinear read would take (still a convex
         combination of them: the result stays within the data's range), instead of bilinear. A
         bilinear read at a fractional offset is a blur: along a slow trajectory (a fraction of a
         pixel per sub-frame) every step blurs the texture a long-reach gather has kept.
+    start : int
+        ``mask``, ``flow`` and ``sharp`` may be longer volumes: their sub-frames ``start`` to ``start + S`` are
+        ``init``'s. The ends of time are ``init``'s.
+    band : int, optional
+        Output sub-frames per band (default :func:`band_length`); the result does not depend on it.
 
     Returns
     -------
     ndarray, shape (S, H, W), float32 (``out`` when given)
 
-    Each step is one compiled pass (:func:`~flexvox_core.motion.vardiff_kernel.vardiff_step`);
+    The volume is diffused a band of sub-frames at a time: with ``steps`` explicit steps, the band's output
+    sub-frames [a, b) depend only on the input over [a − steps, b + steps) (each step reads one sub-frame
+    either side), so each band is stepped in two band-sized buffers from that input and written to
+    ``out[a:b]``, the same bits as stepping the whole volume. ``mask``, ``flow`` and ``sharp`` are read a
+    band at a time (:func:`~flexvox_core.motion.planes.band`): they may be volumes made on demand. No
+    volume-sized memory is taken beyond the result (none with ``out``). Each step is one compiled pass
+    (:func:`~flexvox_core.motion.vardiff_kernel.vardiff_step`);
     ``tests/flexvox_core/motion/vardiff_reference.py`` is the same in plain numpy (the tests' reference).
+
+    The keyword ``scratch`` (a working volume) is deprecated and ignored: no working volume is needed.
     """
     from flexvox_core.motion.vardiff_kernel import vardiff_step
 
-    (c1, c2, c3), vol, m, f, steps, dt = _check(init, mask, flow, time, c)
-    sh = _check_sharp(sharp, vol.shape)
-    vol = np.ascontiguousarray(vol)
-    m = np.ascontiguousarray(m)
-    f = np.ascontiguousarray(f)
+    if "scratch" in deprecated:
+        deprecated.pop("scratch")
+        warnings.warn("`scratch` of variable_tensor_diffusion is deprecated and will be removed in the next "
+                      "release: it is ignored (the diffusion runs in band-sized buffers): call it without",
+                      DeprecationWarning, stacklevel=2)
+    if deprecated:
+        raise TypeError(f"variable_tensor_diffusion() got unexpected keyword arguments {sorted(deprecated)}")
+    if isinstance(start, bool) or not isinstance(start, (int, np.integer)):
+        raise ValueError(f"`start` must be a whole number of sub-frames; got {start!r}")
+    (c1, c2, c3), vol, m, f, steps, dt = _check(init, mask, flow, time, c, int(start))
+    start = int(start)
+    S, H, W = vol.shape
+    sh = None if sharp is None else _as_volume(sharp)
+    if sh is not None and (tuple(sh.shape) != tuple(m.shape)):
+        raise ValueError(f"`sharp` {tuple(sh.shape)} must match `init` {vol.shape}"
+                         + (f" from sub-frame `start` = {start} on" if start else ""))
     if out is not None and (not isinstance(out, np.ndarray) or out.shape != vol.shape or out.dtype != np.float32
                             or not out.flags.c_contiguous or not out.flags.writeable):
         raise ValueError(f"`out` must be a writable C-contiguous float32 array of shape {vol.shape}")
-    others = [vol, m, f] + ([out] if out is not None else [])
-    if scratch is not None and (not isinstance(scratch, np.ndarray) or scratch.shape != vol.shape
-                                or scratch.dtype != np.float32 or not scratch.flags.c_contiguous
-                                or not scratch.flags.writeable or any(np.may_share_memory(scratch, a) for a in others)):
-        raise ValueError(f"`scratch` must be a writable C-contiguous float32 array of shape {vol.shape} that shares "
-                         "no memory with `init`, `out`, `mask` or `flow`")
+    in_place = out is not None and np.may_share_memory(out, vol)
+    if in_place and not (out.__array_interface__["data"][0] == vol.__array_interface__["data"][0]
+                         and out.strides == vol.strides):
+        raise ValueError("`out` must be `init` itself or share no memory with it")
+    if band is None:
+        import numba
+
+        band = band_length(steps, numba.get_num_threads())
+    if isinstance(band, bool) or not isinstance(band, (int, np.integer)) or band < 1:
+        raise ValueError(f"`band` must be a whole number of sub-frames >= 1; got {band!r}")
+    result = out if out is not None else np.empty_like(vol)
     if not steps:
-        if out is None:
-            return vol.copy()
-        np.copyto(out, vol)
-        return out
-    # Steps alternate between two volumes X and Y, the first reading ``init`` itself (no copy of
-    # it) and the last writing X; step k writes X when steps - 1 - k is even. ``out`` is X when it
-    # is not ``init``; when it is (or overlaps it), it can be written from the second step on: X
-    # for an even count of steps, else Y (X then copied into it).
-    spare = [scratch] if scratch is not None else []
-
-    def new_volume():
-        return spare.pop() if spare else np.empty_like(vol)
-
-    overlaps = out is not None and np.may_share_memory(out, vol)
-    if out is None or not overlaps or steps % 2 == 0:
-        x = out if out is not None else new_volume()
-        y = new_volume() if steps > 1 else None
-    else:
-        x, y = new_volume(), out if steps > 1 else None
-    src = vol
+        if result is not vol:
+            np.copyto(result, vol)
+        return result
+    L = min(int(band), S)
+    vol = np.ascontiguousarray(vol)
+    bufs = np.empty((2, min(S, L + 2 * steps), H, W), np.float32)
+    saved = np.empty((min(S, steps), H, W), np.float32) if in_place else None  # input a later band still reads
+    no_sharp = np.zeros((1, 1, 1), bool)  # the kernel never reads it
     with _KERNEL_LOCK:
-        for k in range(steps):
-            dst = x if (steps - 1 - k) % 2 == 0 else y
-            vardiff_step(src, dst, f, m, bool(keep_samples), c1, c2, c3, dt, sh, sharp is not None)
-            src = dst
-    if out is not None and src is not out:
-        np.copyto(out, src)
-        return out
-    return src
-
-
-def _check_sharp(sharp, shape) -> np.ndarray:
-    """``sharp`` as a C-contiguous bool volume of ``shape`` (None: a 1x1x1 placeholder the kernel never reads)."""
-    if sharp is None:
-        return np.zeros((1, 1, 1), bool)
-    sh = np.ascontiguousarray(sharp, dtype=bool)
-    if sh.shape != shape:
-        raise ValueError(f"`sharp` {sh.shape} must match `init` {shape}")
-    return sh
+        for a in range(0, S, L):
+            b = min(a + L, S)
+            c0, c1_ = max(0, a - steps), min(S, b + steps)
+            n = c1_ - c0
+            x = bufs[0, :n]
+            if saved is not None and c0 < a:  # sub-frames [c0, a) of `init` are written: their input was kept
+                x[:a - c0] = saved[:a - c0]
+                x[a - c0:] = vol[a:c1_]
+            else:
+                x[:] = vol[c0:c1_]
+            if saved is not None:  # the next band's halo: input [max(0, b - steps), b)
+                k0 = max(c0, b - steps)
+                saved[:b - k0] = x[k0 - c0:b - c0]
+            fb = np.ascontiguousarray(planes.band(f, start + c0, start + c1_), dtype=np.float32)
+            mb = np.ascontiguousarray(planes.band(m, start + c0, start + c1_), dtype=bool)
+            sb = no_sharp if sh is None else np.ascontiguousarray(planes.band(sh, start + c0, start + c1_),
+                                                                     dtype=bool)
+            src, dst = x, bufs[1, :n]
+            for j in range(1, steps + 1):
+                # Step j is exact over the band's output widened by steps − j (where the ends of time are not
+                # the buffer's own, each step reads one more sub-frame in).
+                lo = max(0, a - c0 - (steps - j))
+                hi = min(n, b - c0 + (steps - j))
+                vardiff_step(src, dst, fb, mb, bool(keep_samples), c1, c2, c3, dt, sb, sh is not None, lo, hi)
+                src, dst = dst, src
+            result[a:b] = src[a - c0:b - c0]
+    return result

@@ -68,13 +68,16 @@ def _clamped_bicubic(plane, y, x):
 
 
 @numba.njit(parallel=True, nogil=True, cache=True)
-def vardiff_step(vol, new, flow, mask, keep_samples, c1, c2, c3, dt, sharp, use_sharp):
-    """``new`` = one explicit step of ``vol`` (S, H, W) float32 under the Eq. 4 tensors of ``flow``
-    (S, H, W, 2); voxels in ``mask`` stay as they are when ``keep_samples``. With ``use_sharp``, the
-    voxels in ``sharp`` (S, H, W) read their trajectory neighbours by :func:`_clamped_bicubic`."""
+def vardiff_step(vol, new, flow, mask, keep_samples, c1, c2, c3, dt, sharp, use_sharp, t0, t1):
+    """``new[t0:t1]`` = one explicit step of ``vol`` (S, H, W) float32 under the Eq. 4 tensors of ``flow``
+    (S, H, W, 2) at sub-frames ``t0`` to ``t1`` (the rest of ``new`` is not written); voxels in ``mask`` stay
+    as they are when ``keep_samples``. With ``use_sharp``, the voxels in ``sharp`` (S, H, W) read their
+    trajectory neighbours by :func:`_clamped_bicubic`. Sub-frames 0 and S − 1 are the ends of time (the
+    neighbour beyond them is the voxel itself): a band of a longer volume is stepped exactly where its
+    neighbours were, one sub-frame in from each end that is not the longer volume's."""
     S, H, W = vol.shape
     b = c2 - c3
-    for t in numba.prange(S):
+    for t in numba.prange(t0, t1):
         here = vol[t]  # the planes read, taken once per sub-frame
         after = vol[min(t + 1, S - 1)]
         before = vol[max(t - 1, 0)]

@@ -135,8 +135,10 @@ def bank_index(jxx, jxy, jyy) -> np.ndarray:
     return np.where(level == 0, 0, 1 + (level - 1) * ANGLES + angle)
 
 
-def check_inputs(frames, code, guide, where, fallback, missing):
-    """The checked (frames, code, guide, where, missing) of :func:`oriented_nc` (see there)."""
+def check_inputs(frames, code, guide, where, fallback, missing, subframes=None):
+    """The checked (frames, code, guide, where, missing) of :func:`oriented_nc` (see there); ``where`` an array or
+    a volume read by bands (its bands' type is checked as they are read), the guide's values checked at
+    ``subframes`` (s0, s1) alone when given."""
     f = check_frames(frames)
     c = check_identity_code(code)
     F, H, W = f.shape
@@ -145,21 +147,36 @@ def check_inputs(frames, code, guide, where, fallback, missing):
     if g.shape != (S, H, W):
         raise ValueError(f"`guide` must be the (S, H, W) = {(S, H, W)} video whose edges orient the kernel; "
                          f"got {g.shape}")
-    if not np.isfinite(g.sum(dtype=np.float64)):  # one pass, no boolean volume
-        bad = next(s for s in range(S) if not np.isfinite(g[s]).all())
+    s0, s1 = _check_subframes(subframes, S)
+    if not np.isfinite(g[s0:s1].sum(dtype=np.float64)):  # one pass, no boolean volume
+        bad = next(s for s in range(s0, s1) if not np.isfinite(g[s]).all())
         raise ValueError(f"`guide` sub-frame {bad} holds NaN or infinite values")
     if where is not None:
-        where = np.asarray(where)
-        if where.shape != (S, H, W) or where.dtype != bool:
-            raise ValueError(f"`where` must be a bool (S, H, W) = {(S, H, W)} array; got {where.dtype} "
-                             f"{where.shape}")
+        if not (isinstance(where, np.ndarray) or hasattr(where, "band")):
+            where = np.asarray(where)
+        if tuple(where.shape) != (S, H, W) or (isinstance(where, np.ndarray) and where.dtype != bool):
+            raise ValueError(f"`where` must be a bool (S, H, W) = {(S, H, W)} array; got "
+                             f"{getattr(where, 'dtype', 'a volume of')} {tuple(where.shape)}")
     if fallback is not None and np.shape(fallback) != (S, H, W):
         raise ValueError(f"`fallback` must be an (S, H, W) = {(S, H, W)} array; got {np.shape(fallback)}")
     return f, c, g, where, as_missing(missing, F)
 
 
-def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None, out=None
-                ) -> tuple[np.ndarray, np.ndarray]:
+def _check_subframes(subframes, S: int) -> tuple[int, int]:
+    if subframes is None:
+        return 0, S
+    try:
+        s0, s1 = (int(v) for v in subframes)
+        ok = all(int(v) == v and not isinstance(v, bool) for v in subframes) and 0 <= s0 < s1 <= S
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise ValueError(f"`subframes` must be (s0, s1), whole numbers with 0 <= s0 < s1 <= {S}; got {subframes!r}")
+    return s0, s1
+
+
+def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None, out=None, subframes=None, loo=None,
+                workspace: list | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The oriented normalized convolution of an identity-code capture, and each sample's leave-one-out estimate.
 
     Parameters
@@ -168,31 +185,42 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
     code : ndarray (m, n, K), identity code
     guide : ndarray (F·K, H, W)
         The picture whose structure orients the kernel at each voxel (finite values).
-    where : ndarray (F·K, H, W) bool, optional
+    where : ndarray (F·K, H, W) bool, or a volume read by bands, optional
         The voxels to estimate (default: all); elsewhere the result is ``fallback``.
-    fallback : ndarray (F·K, H, W), optional
+    fallback : ndarray (F·K, H, W), or a volume read by bands, optional
         The values outside ``where`` and where no sample is in reach (default: NaN).
     missing : ndarray (F,) bool, optional
         Dropped frames: they hold no samples.
-    out : ndarray (F·K, H, W) float32 C-contiguous, optional
+    out : ndarray (s1 − s0, H, W) float32 C-contiguous, optional
         Where the video goes (a volume the caller no longer needs: no fresh memory); it must not share
         memory with the other inputs.
+    subframes : (s0, s1), optional
+        Estimate these sub-frames alone (default: all, (0, F·K)): the video returned is theirs, equal to the
+        whole one's ``[s0:s1]``; ``where`` and ``fallback`` are read over them alone
+        (:func:`~flexvox_core.motion.planes.band`).
+    loo : ndarray (F, H, W) float32 C-contiguous, optional
+        Where the leave-one-out estimates go (default: a new array of NaN); only the samples of the frames these
+        sub-frames belong to are written.
+    workspace : list, optional
+        Where the planes each thread works in are kept for the next call (pass one list to the calls on
+        ``subframes`` of one video: fresh planes cost page faults each call); empty at first.
 
     Returns
     -------
-    video : ndarray (F·K, H, W) float32 (``out`` when given)
+    video : ndarray (s1 − s0, H, W) float32 (``out`` when given)
         Samples kept exactly; each estimate is a weighted mean of samples, so within their range.
-    loo : ndarray (F, H, W) float32
+    loo : ndarray (F, H, W) float32 (``loo`` when given)
         At each sample whose voxel is in ``where``, its leave-one-out estimate (N − c·y)/(D − c), c the weight
         it gives itself (as :func:`~flexvox_core.reconstruct.diffusion.nc_leave_one_out`); NaN elsewhere,
         where no other sample is in reach, and in missing frames.
     """
+    from flexvox_core.motion.planes import band
     from flexvox_core.reconstruct.oriented_nc_kernel import oriented_plane, tap_lists
 
-    f, c, g, where, missing = check_inputs(frames, code, guide, where, fallback, missing)
+    f, c, g, where, missing = check_inputs(frames, code, guide, where, fallback, missing, subframes)
     F, H, W = f.shape
     K = c.shape[2]
-    S = F * K
+    s0, s1 = _check_subframes(subframes, F * K)
     present = None if missing is None else ~missing
     gt = gaussian_kernel(SIGMA, np.float64)
     weight, first = time_weights(gt, K, F, present)
@@ -202,39 +230,56 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
     m = c.shape[0]
     order = tiled_order(c, min(H, m), W).astype(np.int64)  # repeats every m rows
     samples = np.ascontiguousarray(f, dtype=np.float32)
+    n = s1 - s0
+    fall = None if fallback is None else band(fallback, s0, s1)
     if out is not None:
-        if (not isinstance(out, np.ndarray) or out.shape != (S, H, W) or out.dtype != np.float32
+        if (not isinstance(out, np.ndarray) or out.shape != (n, H, W) or out.dtype != np.float32
                 or not out.flags.c_contiguous or not out.flags.writeable
-                or any(np.may_share_memory(out, a) for a in (frames, guide, where, fallback) if a is not None)):
-            raise ValueError(f"`out` must be a writable C-contiguous float32 array of shape {(S, H, W)} that shares "
+                or any(np.may_share_memory(out, a) for a in (frames, guide, where, fall)
+                       if isinstance(a, np.ndarray))):
+            raise ValueError(f"`out` must be a writable C-contiguous float32 array of shape {(n, H, W)} that shares "
                              "no memory with the other inputs")
         video = out
-        if fallback is None:
+        if fall is None:
             video.fill(np.nan)
         else:
-            np.copyto(video, fallback, casting="unsafe")
+            np.copyto(video, fall, casting="unsafe")
     else:
-        video = np.full((S, H, W), np.nan, np.float32) if fallback is None else np.array(fallback, np.float32)
-    loo = np.full((F, H, W), np.nan, np.float32)
+        video = np.full((n, H, W), np.nan, np.float32) if fall is None else np.array(fall, np.float32)
+    if loo is None:
+        loo = np.full((F, H, W), np.nan, np.float32)
+    elif (not isinstance(loo, np.ndarray) or loo.shape != (F, H, W) or loo.dtype != np.float32
+          or not loo.flags.c_contiguous or not loo.flags.writeable):
+        raise ValueError(f"`loo` must be a writable C-contiguous float32 array of shape {(F, H, W)}")
+    chosen = None if where is None else band(where, s0, s1)
+    if chosen is not None and chosen.dtype != bool:
+        raise ValueError(f"`where` must be a bool (S, H, W) = {(F * K, H, W)} array; its sub-frames {s0} to {s1} are "
+                         f"{chosen.dtype}")
     present_f = np.ones(F, bool) if present is None else present
     everywhere = np.ones((H, W), bool)
-    scratch = threading.local()  # planes each thread reuses: fresh memory costs page faults every time
+    # Planes a thread works in, taken from the pool and given back (fresh memory costs page faults every time).
+    pool = [] if workspace is None else workspace
+    lock = threading.Lock()
 
-    def one(s):
-        wanted = everywhere if where is None else where[s]
+    def one(i):
+        s = s0 + i
+        wanted = everywhere if chosen is None else chosen[i]
         rows = np.flatnonzero(wanted.any(axis=1))
         if not len(rows):
             return
         y0, y1 = int(rows[0]), int(rows[-1]) + 1
-        if not hasattr(scratch, "j"):
-            scratch.j = np.zeros((3, H, W), np.float32)
-            scratch.vt = np.empty((H, W))
-            scratch.mt = np.empty((H, W))
+        with lock:
+            planes = pool.pop() if pool else None
+        if planes is None or planes[0].shape != (3, H, W):
+            planes = (np.zeros((3, H, W), np.float32), np.empty((H, W)), np.empty((H, W)))
+        j, vt, mt = planes
         b0, b1 = max(0, y0 - _PAD), min(H, y1 + _PAD)
-        structure(g[s, b0:b1], out=scratch.j[:, b0:b1])
+        structure(g[s, b0:b1], out=j[:, b0:b1])
         oriented_plane(samples, order, weight[s], int(first[s]), s % K, s // K, bool(present_f[s // K]),
-                       scratch.j, wanted, offsets, weights, counts, bank.shape[1] // 2, floor, y0, y1,
-                       scratch.vt, scratch.mt, video[s], loo, _LOW, _HIGH, _TAN)
+                       j, wanted, offsets, weights, counts, bank.shape[1] // 2, floor, y0, y1, vt, mt, video[i],
+                       loo, _LOW, _HIGH, _TAN)
+        with lock:
+            pool.append(planes)
 
-    for_each(one, S)
+    for_each(one, n)
     return video, loo

@@ -14,6 +14,7 @@ from flexvox_core.motion import (
     tensor_field,
     variable_tensor_diffusion,
 )
+from flexvox_core.motion.planes import band
 from flexvox_core.reconstruct.diffusion import diffuse
 from flexvox_core.simulate.scenes import render_scene
 
@@ -204,15 +205,6 @@ def test_the_variable_diffusion_may_write_into_its_own_input(time):
     same = init.copy()
     variable_tensor_diffusion(same, mask, flow, time=time, out=same)  # what motion_aware does
     np.testing.assert_array_equal(same, expected)
-    # With a dead volume as scratch (motion_aware passes its sample volume): the same bits, no new volume.
-    same, scratch = init.copy(), np.full_like(init, -5.0)
-    variable_tensor_diffusion(same, mask, flow, time=time, out=same, scratch=scratch)
-    np.testing.assert_array_equal(same, expected)
-    if time >= 0.5:  # at least two steps: the scratch was a working volume
-        assert not (scratch == -5.0).all()
-    with pytest.raises(ValueError, match=r"`scratch` must be a writable C-contiguous float32 array of shape "
-                                         r"\(6, 9, 11\) that shares no memory"):
-        variable_tensor_diffusion(same, mask, flow, time=time, out=same, scratch=same)
 
 
 def test_sharp_reads_keep_a_slowly_drifting_texture():
@@ -263,7 +255,7 @@ def test_motion_aware_refines_its_slow_voxels_with_sharp_reads(monkeypatch):
     motion_aware(capture(truth, code), code)
     still, slow, _ = seen["classes"]
     assert slow.any()
-    np.testing.assert_array_equal(seen["sharp"], slow.band(0, slow.shape[0]))
+    np.testing.assert_array_equal(band(seen["sharp"], 0, slow.shape[0]), slow.band(0, slow.shape[0]))
 
 
 def test_the_compiled_variable_diffusion_gives_the_same_bits_on_any_thread_count():
@@ -343,23 +335,71 @@ def test_motion_aware_measures_its_flow_with_two_variational_iterations(monkeypa
     assert result.flow.params["variational_iterations"] == 2
 
 
-def test_a_window_without_slow_voxels_lends_one_scratch_volume_and_gives_the_same_bits(monkeypatch):
-    # No long reach, so no sample volume: the refinement and the local choice share one scratch volume made for
-    # them, and give the bits of their own fresh volumes.
+def _whole_volume_local_choice(self, video, loo, gathered, flow, high_tr):
+    """The local choice as it ran before it ran in bands: oriented nc into a whole volume, then one blend."""
+    from flexvox_core.motion import local_choice
+    from flexvox_core.reconstruct.oriented_nc import oriented_nc
+
+    w = self.window
+    if not np.isfinite(loo).any():
+        return
+    gathered = band(gathered, 0, w.S)  # the whole bool volume, as it was held then
+    if w.scores_still_voxels:
+        local_choice.still_voxel_loo(loo, video, w.frames, gathered, self._mask(), flow.flow, w.K)
+    other, other_loo = oriented_nc(w.frames, w.code, high_tr, where=gathered, fallback=video, missing=w.missing)
+    local_choice.blend(video, other, local_choice.local_weights(loo, other_loo, w.frames), gathered, w.K)
+
+
+@pytest.mark.parametrize("dropped", [False, True])
+def test_the_local_choice_in_bands_gives_the_whole_volumes_bits(monkeypatch, dropped):
     import flexvox_core.motion.stages as P
 
     code = design_code((4, 4)).code
-    frames = capture(render_scene("balls", 16 * 3, 40, 52), code)
-    made = []
-    spare = P.CpuStages._spare
+    frames = capture(render_scene("balls", 16 * 5, 40, 52, seed=1), code)
+    missing = np.array([False, False, True, False, False]) if dropped else None
+    banded = []
+    for least, threads in ((1, 1), (32, 1), (1, 40)):  # a frame a band; two frames (the last band one); all in one
+        monkeypatch.setattr(P.local_choice, "BAND", least)
+        monkeypatch.setattr(P, "workers", lambda threads=threads: threads)
+        banded.append(motion_aware(frames, code, missing=missing).video)
+    monkeypatch.setattr(P.CpuStages, "local_choice", _whole_volume_local_choice)
+    whole = motion_aware(frames, code, missing=missing).video
+    for got in banded:
+        np.testing.assert_array_equal(got, whole)
+    monkeypatch.setattr(P.CpuStages, "local_choice", lambda *args: None)
+    assert not np.array_equal(motion_aware(frames, code, missing=missing).video, whole)  # the choice blended
 
-    def recorded(self):
-        got = spare(self)
-        made.append(None if got is None else id(got))
-        return got
 
-    monkeypatch.setattr(P.CpuStages, "_spare", recorded)
-    got = motion_aware(frames, code, slow_speed=None).video
-    assert len(made) == 2 and made[0] is not None and made[0] == made[1]
-    monkeypatch.setattr(P.CpuStages, "_spare", lambda self: None)
-    np.testing.assert_array_equal(got, motion_aware(frames, code, slow_speed=None).video)
+def test_the_refinement_and_the_local_choice_make_no_volume(monkeypatch):
+    # Their working memory is band-sized: below half of one (S, H, W) float32 volume here (they took a whole one,
+    # the scratch volume, before).
+    import tracemalloc
+
+    import flexvox_core.motion.stages as P
+    import flexvox_core.motion.vardiff as V
+    import flexvox_core.threads
+
+    monkeypatch.setattr(V, "band_length", lambda steps, threads: 4)
+    monkeypatch.setattr(P, "workers", lambda: 1)
+    monkeypatch.setattr(P.local_choice, "BAND", 1)  # a frame a band
+    monkeypatch.setattr(flexvox_core.threads, "workers", lambda: 2)
+    peaks = {}
+    def measured(name, real):
+        def stage(self, *args):
+            tracemalloc.start()
+            try:
+                real(self, *args)
+                peaks[name] = tracemalloc.get_traced_memory()[1]
+            finally:
+                tracemalloc.stop()
+        return stage
+
+    for name in ("refinement", "local_choice"):
+        monkeypatch.setattr(P.CpuStages, name, measured(name, getattr(P.CpuStages, name)))
+    code = design_code((4, 4)).code
+    F, H, W = 10, 40, 52
+    frames = capture(render_scene("balls", 16 * F, H, W, seed=1), code)
+    motion_aware(frames, code)
+    volume = 16 * F * H * W * 4
+    assert set(peaks) == {"refinement", "local_choice"}
+    assert max(peaks.values()) < volume / 2, (peaks, volume)

@@ -4,7 +4,7 @@
 import numpy as np
 
 from flexvox_core.motion.tensors import DEFAULT_C
-from flexvox_core.motion.vardiff import _check, _check_sharp
+from flexvox_core.motion.vardiff import _check
 
 
 def _sample(img: np.ndarray, gy, gx) -> np.ndarray:
@@ -39,7 +39,8 @@ def variable_tensor_diffusion_reference(init, mask, flow, *, c=DEFAULT_C, time: 
                                         keep_samples: bool = True, sharp=None) -> np.ndarray:
     """:func:`variable_tensor_diffusion` in plain numpy and scipy, float64 (slow; the tests' reference)."""
     (c1, c2, c3), vol, m, f, steps, dt = _check(init, mask, flow, time, c)
-    sh = None if sharp is None else _check_sharp(sharp, vol.shape)
+    m, f = np.asarray(m, bool), np.asarray(f)
+    sh = None if sharp is None else np.asarray(sharp, bool)
     vol = vol.astype(np.float64)
     S, H, W = vol.shape
     f = np.where(np.isfinite(f), f, 0).astype(np.float64)

@@ -255,3 +255,67 @@ def test_the_video_can_go_into_a_dead_volume(rng, code24):
     with pytest.raises(ValueError, match=r"`out` must be a writable C-contiguous float32 array of shape "
                                          r"\(16, 10, 12\) that shares no memory with the other inputs"):
         oriented_nc(frames, code24, truth, fallback=fallback, out=fallback)
+
+
+@pytest.mark.parametrize(("s0", "s1"), [(0, 8), (8, 24), (5, 11), (23, 24)])
+def test_some_sub_frames_are_the_whole_ones_and_read_only_theirs(rng, code24, s0, s1):
+    from tests.flexvox_core.motion.band_volumes import Counted
+
+    truth = smooth_video(rng, 24, 10, 12)
+    frames = capture(truth, code24)
+    where = rng.random(truth.shape) < 0.6
+    fallback = rng.uniform(0.1, 0.9, truth.shape).astype(np.float32)
+    guide = truth.copy()
+    guide[:s0] = np.nan  # the guide is read at these sub-frames alone
+    guide[s1:] = np.nan
+    want, want_loo = oriented_nc(frames, code24, truth, where=where, fallback=fallback)
+    loo = np.full(frames.shape, np.nan, np.float32)
+    chosen, fall = Counted(where, s1 - s0), Counted(fallback, s1 - s0)
+    out = np.full((s1 - s0, 10, 12), -1.0, np.float32)
+    got, got_loo = oriented_nc(frames, code24, guide, where=chosen, fallback=fall, subframes=(s0, s1), loo=loo,
+                               out=out)
+    assert got is out and got_loo is loo
+    np.testing.assert_array_equal(got, want[s0:s1])
+    f0, f1 = s0 // 8, -(-s1 // 8)  # the frames these sub-frames belong to: theirs alone are written
+    assert np.isfinite(want_loo[f0:f1]).any()
+    assert not np.isfinite(got_loo[:f0]).any() and not np.isfinite(got_loo[f1:]).any()
+    # A sample's leave-one-out is written at its own sub-frame: those of [s0, s1) are the whole run's.
+    mask = sample_mask(truth.shape, code24)[s0:s1]
+    for i in range(s1 - s0):
+        f = (s0 + i) // 8
+        mine = mask[i]
+        np.testing.assert_array_equal(got_loo[f][mine], want_loo[f][mine])
+    assert chosen.handed == s1 - s0 and fall.handed == s1 - s0
+
+
+def test_bad_sub_frames_are_refused(rng, code24):
+    truth = smooth_video(rng, 16, 10, 12)
+    frames = capture(truth, code24)
+    for bad in ((4, 4), (-1, 3), (0, 17), (1.5, 3), "ab"):
+        with pytest.raises(ValueError, match=r"`subframes` must be \(s0, s1\), whole numbers with "
+                                             r"0 <= s0 < s1 <= 16; got"):
+            oriented_nc(frames, code24, truth, subframes=bad)
+    with pytest.raises(ValueError, match=r"`loo` must be a writable C-contiguous float32 array of shape "
+                                         r"\(2, 10, 12\)"):
+        oriented_nc(frames, code24, truth, loo=np.zeros((2, 10, 12)))
+    with pytest.raises(ValueError, match=r"`out` must be a writable C-contiguous float32 array of shape "
+                                         r"\(4, 10, 12\)"):
+        oriented_nc(frames, code24, truth, subframes=(0, 4), out=np.zeros((16, 10, 12), np.float32))
+
+
+def test_a_workspace_keeps_the_threads_planes_from_call_to_call(rng, code24):
+    truth = smooth_video(rng, 24, 10, 12)
+    frames = capture(truth, code24)
+    where = rng.random(truth.shape) < 0.6
+    want, want_loo = oriented_nc(frames, code24, truth, where=where)
+    workspace = [(np.zeros((3, 5, 5), np.float32), np.empty((5, 5)), np.empty((5, 5)))]  # another size: not used
+    loo = np.full(frames.shape, np.nan, np.float32)
+    for s0 in range(0, 24, 8):
+        got, _ = oriented_nc(frames, code24, truth, where=where, subframes=(s0, s0 + 8), loo=loo, workspace=workspace)
+        np.testing.assert_array_equal(got, want[s0:s0 + 8])
+        if s0 == 0:
+            kept = {id(planes[0]) for planes in workspace}
+            assert workspace and all(planes[0].shape == (3, 10, 12) for planes in workspace)
+        else:
+            assert kept <= {id(planes[0]) for planes in workspace}  # the planes are kept, not made again
+    np.testing.assert_array_equal(loo, want_loo)

@@ -1,0 +1,130 @@
+"""The variable-tensor diffusion a band of sub-frames at a time: the bits of stepping the whole volume."""
+
+import numpy as np
+import pytest
+
+from flexvox_core.motion.vardiff import explicit_steps, variable_tensor_diffusion
+from flexvox_core.motion.vardiff_kernel import vardiff_step
+from tests.flexvox_core.motion.band_volumes import Counted
+from tests.flexvox_core.motion.vardiff_reference import variable_tensor_diffusion_reference
+
+C = (0.95, 0.05, 0.05)  # every term of the step: along λ, ψ and the Laplacian
+
+
+def time_of(steps: int) -> float:
+    """A diffusion time of exactly ``steps`` explicit steps at C."""
+    t = steps * 0.47
+    assert explicit_steps(t, C) == steps
+    return t
+
+
+def whole_volume(init, mask, flow, *, time, keep_samples=True, sharp=None):
+    """Each explicit step over the whole volume into a new one (the diffusion before it ran in bands)."""
+    c1, c2, c3 = C
+    steps = explicit_steps(time, C)
+    dt = time / steps if steps else 0.0
+    src = np.ascontiguousarray(init, np.float32)
+    sh = np.zeros((1, 1, 1), bool) if sharp is None else np.ascontiguousarray(sharp)
+    for _ in range(steps):
+        dst = np.empty_like(src)
+        vardiff_step(src, dst, flow, mask, keep_samples, c1, c2, c3, dt, sh, sharp is not None, 0, len(src))
+        src = dst
+    return src
+
+
+def case(S, seed=3, H=9, W=11):
+    rng = np.random.default_rng(seed)
+    init = rng.uniform(0.2, 0.8, (S, H, W)).astype(np.float32)
+    mask = rng.random(init.shape) < 0.2
+    flow = rng.normal(0, 1.5, (*init.shape, 2)).astype(np.float32)
+    flow[0, 0, 0, 0] = np.nan  # an unmeasured vector counts as no motion
+    sharp = rng.random(init.shape) < 0.5
+    return init, mask, flow, sharp
+
+
+@pytest.mark.parametrize("S", [1, 2, 7, 13])
+@pytest.mark.parametrize("steps", [1, 2, 3, 4])
+@pytest.mark.parametrize("band", [1, 3, 5, None])  # None: the default, longer than S
+@pytest.mark.parametrize("use_sharp", [False, True])
+def test_bands_give_the_whole_volumes_bits(S, steps, band, use_sharp):
+    init, mask, flow, sharp = case(S)
+    sharp = sharp if use_sharp else None
+    time = time_of(steps)
+    for keep in (True, False):
+        expected = whole_volume(init, mask, flow, time=time, keep_samples=keep, sharp=sharp)
+        got = variable_tensor_diffusion(init, mask, flow, c=C, time=time, keep_samples=keep, sharp=sharp, band=band)
+        assert np.array_equal(got, expected)
+        same = init.copy()  # in place: the input a later band's halo reads is kept before it is written
+        assert variable_tensor_diffusion(same, mask, flow, c=C, time=time, keep_samples=keep, sharp=sharp,
+                                         band=band, out=same) is same
+        assert np.array_equal(same, expected)
+        other = np.full_like(init, -1.0)
+        variable_tensor_diffusion(init, mask, flow, c=C, time=time, keep_samples=keep, sharp=sharp, band=band,
+                                  out=other)
+        assert np.array_equal(other, expected)
+    reference = variable_tensor_diffusion_reference(init, mask, flow, c=C, time=time, keep_samples=False,
+                                                    sharp=sharp)
+    np.testing.assert_allclose(got, reference, atol=2e-6)  # keep_samples False, the loop's last
+    assert not np.array_equal(got, init)
+
+
+@pytest.mark.parametrize("band", [1, 4, 6])
+@pytest.mark.parametrize("steps", [1, 3])
+def test_mask_flow_and_sharp_are_read_a_band_at_a_time(band, steps):
+    init, mask, flow, sharp = case(11, seed=4)
+    time = time_of(steps)
+    expected = whole_volume(init, mask, flow, time=time, sharp=sharp)
+    longest = band + 2 * steps  # a band's output and its halo each side
+    volumes = [Counted(v, longest) for v in (mask, flow, sharp)]
+    got = variable_tensor_diffusion(init, volumes[0], volumes[1], c=C, time=time, sharp=volumes[2], band=band)
+    assert np.array_equal(got, expected)
+    bands = -(-11 // band)
+    for v in volumes:
+        assert 11 <= v.handed <= 11 + bands * 2 * steps
+
+
+def test_start_reads_the_sub_frames_of_longer_volumes():
+    # What the refinement does on the gathered sub-frames [g0, g1) of a window: their ends are the ends of time.
+    init, mask, flow, sharp = case(17, seed=5)
+    g0, g1 = 4, 13
+    time = time_of(2)
+    expected = whole_volume(init[g0:g1], mask[g0:g1], flow[g0:g1], time=time, sharp=sharp[g0:g1])
+    video = init.copy()
+    variable_tensor_diffusion(video[g0:g1], Counted(mask, 99), Counted(flow, 99), c=C, time=time,
+                              sharp=Counted(sharp, 99), start=g0, band=3, out=video[g0:g1])
+    assert np.array_equal(video[g0:g1], expected)
+    assert np.array_equal(video[:g0], init[:g0]) and np.array_equal(video[g1:], init[g1:])
+    with pytest.raises(ValueError, match=r"`mask` \(17, 9, 11\) and `flow` \(17, 9, 11, 2\) must match `init` "
+                                         r"\(9, 9, 11\) .* from sub-frame `start` = 9 on"):
+        variable_tensor_diffusion(init[g0:g1], mask, flow, time=time, start=9)
+    with pytest.raises(ValueError, match=r"`mask` \(9, 9, 11\) and `flow` \(9, 9, 11, 2\) must match `init` "
+                                         r"\(17, 9, 11\) \(flow with a last axis of 2\)$"):
+        variable_tensor_diffusion(init, mask[g0:g1], flow[g0:g1], time=time)
+    # From sub-frame 0 of longer volumes: the first sub-frames' bits.
+    assert np.array_equal(variable_tensor_diffusion(init[:g1], mask, flow, c=C, time=time, sharp=sharp),
+                          whole_volume(init[:g1], mask[:g1], flow[:g1], time=time, sharp=sharp[:g1]))
+    with pytest.raises(ValueError, match=r"`sharp` \(9, 9, 11\) must match `init` \(9, 9, 11\) from sub-frame "
+                                         r"`start` = 4 on"):
+        variable_tensor_diffusion(init[g0:g1], mask, flow, time=time, sharp=sharp[g0:g1], start=g0)
+
+
+def test_out_is_init_or_apart_from_it():
+    init, mask, flow, _ = case(6)
+    video = np.concatenate([init, init[:1]])
+    with pytest.raises(ValueError, match=r"`out` must be `init` itself or share no memory with it"):
+        variable_tensor_diffusion(video[:6], mask, flow, time=1.0, out=video[1:])
+    with pytest.raises(ValueError, match=r"`band` must be a whole number of sub-frames >= 1; got 0"):
+        variable_tensor_diffusion(init, mask, flow, time=1.0, band=0)
+
+
+def test_a_scratch_volume_is_deprecated_and_ignored():
+    init, mask, flow, _ = case(6)
+    expected = variable_tensor_diffusion(init, mask, flow, time=1.0)
+    scratch = np.full_like(init, -5.0)
+    with pytest.warns(DeprecationWarning, match=r"`scratch` of variable_tensor_diffusion is deprecated and will "
+                                                r"be removed in the next release"):
+        got = variable_tensor_diffusion(init, mask, flow, time=1.0, scratch=scratch)
+    assert np.array_equal(got, expected)
+    assert (scratch == -5.0).all()
+    with pytest.raises(TypeError, match=r"unexpected keyword arguments \['scrach'\]"):
+        variable_tensor_diffusion(init, mask, flow, time=1.0, scrach=scratch)

@@ -147,6 +147,19 @@ class ScaledFlow:
             return self.flow[t0:t1]
         t0, t1, _ = slice(t0, t1).indices(len(self.small))
         out = np.empty((max(0, t1 - t0), *self.size, 2), np.float32)
+        self.band_into(t0, t1, out)
+        return out
+
+    def band_into(self, t0: int, t1: int, out: np.ndarray) -> np.ndarray:
+        """Full-size sub-frames ``t0`` to ``t1`` (exclusive, within the sub-frames) into ``out``
+        (``t1 − t0``, H, W, 2) float32, whose planes are C-contiguous; returns ``out``."""
+        S = len(self.small)
+        if not 0 <= t0 <= t1 <= S or out.shape != (t1 - t0, *self.size, 2) or out.dtype != np.float32:
+            raise ValueError(f"sub-frames {t0} to {t1} of {S} into `out` {out.dtype} {out.shape}: they must be "
+                             f"within the sub-frames, and `out` float32 of shape {(t1 - t0, *self.size, 2)}")
+        if "flow" in self.__dict__:
+            out[...] = self.flow[t0:t1]
+            return out
 
         def one(i: int) -> None:
             self.plane(t0 + i, out[i])

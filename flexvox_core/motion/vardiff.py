@@ -72,6 +72,16 @@ def _as_volume(x: Any) -> Any:
     return x if isinstance(x, np.ndarray) or hasattr(x, "band") else np.asarray(x)
 
 
+def _read_into(volume: Any, t0: int, t1: int, out: np.ndarray) -> None:
+    """Sub-frames ``t0`` to ``t1`` of ``volume`` (an array or read by bands) into ``out``; a volume with
+    ``band_into(t0, t1, out)`` makes them there."""
+    into = getattr(volume, "band_into", None)
+    if into is not None:
+        into(t0, t1, out)
+    else:
+        out[...] = planes.band(volume, t0, t1)
+
+
 def _check(init, mask, flow, time, c, start: int = 0):
     c1, c2, c3 = check_c(c)
     vol = np.asarray(init, dtype=np.float32)  # read only: the steps write to new volumes
@@ -187,35 +197,35 @@ def variable_tensor_diffusion(
             np.copyto(result, vol)
         return result
     L = min(int(band), S)
-    vol = np.ascontiguousarray(vol)
-    bufs = np.empty((2, min(S, L + 2 * steps), H, W), np.float32)
-    saved = np.empty((min(S, steps), H, W), np.float32) if in_place else None  # input a later band still reads
-    no_sharp = np.zeros((1, 1, 1), bool)  # the kernel never reads it
+    n_max = min(S, L + steps + 1)  # the window: the planes carried from the band before, and the band's own
+    bufs = np.empty((2, n_max, H, W), np.float32)  # the steps in turn: even ones in bufs[0], odd ones in bufs[1]
+    fb = np.empty((n_max, H, W, 2), np.float32)
+    mb = np.empty((n_max, H, W), bool)
+    sb = np.zeros((1, 1, 1), bool) if sh is None else np.empty((n_max, H, W), bool)  # the kernel never reads it
+    use_sharp = sh is not None
+    c0 = 0  # the window's first sub-frame
     with _KERNEL_LOCK:
-        for a in range(0, S, L):
-            b = min(a + L, S)
-            c0, c1_ = max(0, a - steps), min(S, b + steps)
-            n = c1_ - c0
-            x = bufs[0, :n]
-            if saved is not None and c0 < a:  # sub-frames [c0, a) of `init` are written: their input was kept
-                x[:a - c0] = saved[:a - c0]
-                x[a - c0:] = vol[a:c1_]
-            else:
-                x[:] = vol[c0:c1_]
-            if saved is not None:  # the next band's halo: input [max(0, b - steps), b)
-                k0 = max(c0, b - steps)
-                saved[:b - k0] = x[k0 - c0:b - c0]
-            fb = np.ascontiguousarray(planes.band(f, start + c0, start + c1_), dtype=np.float32)
-            mb = np.ascontiguousarray(planes.band(m, start + c0, start + c1_), dtype=bool)
-            sb = no_sharp if sh is None else np.ascontiguousarray(planes.band(sh, start + c0, start + c1_),
-                                                                     dtype=bool)
-            src, dst = x, bufs[1, :n]
+        for e0 in range(0, S, L):  # the band: input sub-frames [e0, e1)
+            e1 = min(e0 + L, S)
+            k0 = max(0, e0 - steps - 1)  # from here on, each step's planes are still read
+            if k0 > c0:
+                for buf in (bufs[0], bufs[1], fb, mb) + ((sb,) if use_sharp else ()):
+                    buf[:e0 - k0] = buf[k0 - c0:e0 - c0]
+                c0 = k0
+            n = e1 - c0
+            bufs[0, e0 - c0:n] = vol[e0:e1]
+            _read_into(f, start + e0, start + e1, fb[e0 - c0:n])
+            _read_into(m, start + e0, start + e1, mb[e0 - c0:n])
+            if use_sharp:
+                _read_into(sh, start + e0, start + e1, sb[e0 - c0:n])
             for j in range(1, steps + 1):
-                # Step j is exact over the band's output widened by steps − j (where the ends of time are not
-                # the buffer's own, each step reads one more sub-frame in).
-                lo = max(0, a - c0 - (steps - j))
-                hi = min(n, b - c0 + (steps - j))
-                vardiff_step(src, dst, fb, mb, bool(keep_samples), c1, c2, c3, dt, sb, sh is not None, lo, hi)
-                src, dst = dst, src
-            result[a:b] = src[a - c0:b - c0]
+                # Step j is known up to sub-frame e0 − j (each step reads one sub-frame either side); now to e1 − j,
+                # or to the end of time. The buffers end at the window's end: where that is not the end of time,
+                # no step is taken at the window's last plane.
+                lo, hi = max(0, e0 - j), (e1 - j if e1 < S else S)
+                vardiff_step(bufs[(j - 1) % 2, :n], bufs[j % 2, :n], fb[:n], mb[:n], bool(keep_samples), c1, c2, c3,
+                             dt, sb if not use_sharp else sb[:n], use_sharp, lo - c0, hi - c0)
+            lo, hi = max(0, e0 - steps), (e1 - steps if e1 < S else S)
+            if hi > lo:
+                result[lo:hi] = bufs[steps % 2, lo - c0:hi - c0]
     return result

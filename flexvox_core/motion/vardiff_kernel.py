@@ -4,7 +4,7 @@ The paper's §4 step 3: Eq. 2 with, at each voxel, the tensor of Eq. 4 oriented 
 
 Written with OpenCV and numpy, each step cost four remaps and some twenty element-wise passes over
 full-size temporaries per sub-frame, on one core. Here each voxel reads its neighbours, forms its
-tensor's weights from its own flow and writes its update in one pass, the sub-frames spread over
+tensor's weights from its own flow and writes its update in one pass, the rows spread over
 the cores. Each voxel's update depends only on the previous step, so the output bits do not depend
 on the number of threads.
 
@@ -77,61 +77,62 @@ def vardiff_step(vol, new, flow, mask, keep_samples, c1, c2, c3, dt, sharp, use_
     neighbours were, one sub-frame in from each end that is not the longer volume's."""
     S, H, W = vol.shape
     b = c2 - c3
-    for t in numba.prange(t0, t1):
-        here = vol[t]  # the planes read, taken once per sub-frame
+    for row in numba.prange(max(t1 - t0, 0) * H):  # rows, not sub-frames: a band of a few sub-frames fills the cores
+        t = t0 + row // H
+        y = row % H
+        here = vol[t]  # the planes read
         after = vol[min(t + 1, S - 1)]
         before = vol[max(t - 1, 0)]
         vel = flow[t]
         fixed = mask[t]
         dst = new[t]
-        for y in range(H):
-            for x in range(W):
-                cur = float(here[y, x])
-                if keep_samples and fixed[y, x]:
-                    dst[y, x] = here[y, x]
-                    continue
-                u = float(vel[y, x, 0])
-                v = float(vel[y, x, 1])
-                if not math.isfinite(u):  # no flow measured there: still
-                    u = 0.0
-                if not math.isfinite(v):
-                    v = 0.0
-                speed2 = u * u + v * v
-                # Along λ: the neighbouring sub-frames, read at x ± (u, v); at zero flow (most
-                # voxels: the gated flow of still regions) the bilinear read is the pixel itself.
-                if u == 0.0 and v == 0.0:
-                    nxt = float(after[y, x]) if t + 1 < S else cur
-                    prv = float(before[y, x]) if t > 0 else cur
-                elif use_sharp and sharp[t, y, x]:
-                    nxt = _clamped_bicubic(after, y + v, x + u) if t + 1 < S else cur
-                    prv = _clamped_bicubic(before, y - v, x - u) if t > 0 else cur
+        for x in range(W):
+            cur = float(here[y, x])
+            if keep_samples and fixed[y, x]:
+                dst[y, x] = here[y, x]
+                continue
+            u = float(vel[y, x, 0])
+            v = float(vel[y, x, 1])
+            if not math.isfinite(u):  # no flow measured there: still
+                u = 0.0
+            if not math.isfinite(v):
+                v = 0.0
+            speed2 = u * u + v * v
+            # Along λ: the neighbouring sub-frames, read at x ± (u, v); at zero flow (most
+            # voxels: the gated flow of still regions) the bilinear read is the pixel itself.
+            if u == 0.0 and v == 0.0:
+                nxt = float(after[y, x]) if t + 1 < S else cur
+                prv = float(before[y, x]) if t > 0 else cur
+            elif use_sharp and sharp[t, y, x]:
+                nxt = _clamped_bicubic(after, y + v, x + u) if t + 1 < S else cur
+                prv = _clamped_bicubic(before, y - v, x - u) if t > 0 else cur
+            else:
+                nxt = _clamped_bilinear(after, y + v, x + u) if t + 1 < S else cur
+                prv = _clamped_bilinear(before, y - v, x - u) if t > 0 else cur
+            acc = (c1 - c3) / (1.0 + speed2) * (nxt + prv - 2.0 * cur)
+            if b > 0:
+                # Along ψ, within the sub-frame: ψ = (v, −u)/|(u, v)|, or (0, −1) where still.
+                speed = math.sqrt(speed2)
+                if speed > 1e-6:
+                    px = v / speed
+                    py = -u / speed
                 else:
-                    nxt = _clamped_bilinear(after, y + v, x + u) if t + 1 < S else cur
-                    prv = _clamped_bilinear(before, y - v, x - u) if t > 0 else cur
-                acc = (c1 - c3) / (1.0 + speed2) * (nxt + prv - 2.0 * cur)
-                if b > 0:
-                    # Along ψ, within the sub-frame: ψ = (v, −u)/|(u, v)|, or (0, −1) where still.
-                    speed = math.sqrt(speed2)
-                    if speed > 1e-6:
-                        px = v / speed
-                        py = -u / speed
-                    else:
-                        px = 0.0
-                        py = -1.0
-                    acc += b * (_clamped_bilinear(here, y + py, x + px)
-                                + _clamped_bilinear(here, y - py, x - px) - 2.0 * cur)
-                if c3 > 0:
-                    up = float(after[y, x]) if t + 1 < S else cur
-                    dn = float(before[y, x]) if t > 0 else cur
-                    lap = up + dn - 2.0 * cur
-                    if x + 1 < W:
-                        lap += float(here[y, x + 1]) - cur
-                    if x > 0:
-                        lap += float(here[y, x - 1]) - cur
-                    if y + 1 < H:
-                        lap += float(here[y + 1, x]) - cur
-                    if y > 0:
-                        lap += float(here[y - 1, x]) - cur
-                    acc += c3 * lap
-                dst[y, x] = cur + dt * acc
+                    px = 0.0
+                    py = -1.0
+                acc += b * (_clamped_bilinear(here, y + py, x + px)
+                            + _clamped_bilinear(here, y - py, x - px) - 2.0 * cur)
+            if c3 > 0:
+                up = float(after[y, x]) if t + 1 < S else cur
+                dn = float(before[y, x]) if t > 0 else cur
+                lap = up + dn - 2.0 * cur
+                if x + 1 < W:
+                    lap += float(here[y, x + 1]) - cur
+                if x > 0:
+                    lap += float(here[y, x - 1]) - cur
+                if y + 1 < H:
+                    lap += float(here[y + 1, x]) - cur
+                if y > 0:
+                    lap += float(here[y - 1, x]) - cur
+                acc += c3 * lap
+            dst[y, x] = cur + dt * acc
 

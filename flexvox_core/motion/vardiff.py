@@ -47,8 +47,8 @@ _KERNEL_LOCK = threading.Lock()
 neither OpenMP nor TBB is installed) aborts the process when two threads enter a parallel region at
 once (the dask batch, napari's worker and Review's jobs may). Each call uses every core anyway."""
 
-MIN_BAND = 16
-"""The fewest output sub-frames of a band (:func:`band_length`)."""
+MIN_BAND = 8
+"""The fewest sub-frames of a band (:func:`band_length`)."""
 
 
 def explicit_steps(time: float, c) -> int:
@@ -59,11 +59,12 @@ def explicit_steps(time: float, c) -> int:
 
 
 def band_length(steps: int, threads: int) -> int:
-    """Output sub-frames per band of :func:`variable_tensor_diffusion` at ``steps`` explicit steps on ``threads``
-    threads: two sub-frames a thread (each step spreads a band's sub-frames over the threads), at least
-    :data:`MIN_BAND` and 8 per step (a band's halo of ``steps`` sub-frames each side is stepped too, a share of
-    about ``steps / band`` of the work)."""
-    return max(MIN_BAND, 2 * threads, 8 * steps)
+    """Sub-frames per band of :func:`variable_tensor_diffusion` at ``steps`` explicit steps on ``threads``
+    threads: :data:`MIN_BAND`, or one a thread where there are more (a band's flow planes are made side by side).
+    No sub-frame is stepped twice whatever the band, so it sets only the memory taken: about ``band + steps + 1``
+    planes of two float32 volumes, the flow (two float32) and two bool volumes (18 bytes a pixel; 5.5 MB a plane at
+    640×480). ``steps`` is not used."""
+    return max(MIN_BAND, threads)
 
 
 def _as_volume(x: Any) -> Any:
@@ -143,18 +144,21 @@ def variable_tensor_diffusion(
         ``mask``, ``flow`` and ``sharp`` may be longer volumes: their sub-frames ``start`` to ``start + S`` are
         ``init``'s. The ends of time are ``init``'s.
     band : int, optional
-        Output sub-frames per band (default :func:`band_length`); the result does not depend on it.
+        Input sub-frames read per band (default :func:`band_length`); the result does not depend on it.
 
     Returns
     -------
     ndarray, shape (S, H, W), float32 (``out`` when given)
 
-    The volume is diffused a band of sub-frames at a time: with ``steps`` explicit steps, the band's output
-    sub-frames [a, b) depend only on the input over [a − steps, b + steps) (each step reads one sub-frame
-    either side), so each band is stepped in two band-sized buffers from that input and written to
-    ``out[a:b]``, the same bits as stepping the whole volume. ``mask``, ``flow`` and ``sharp`` are read a
-    band at a time (:func:`~flexvox_core.motion.planes.band`): they may be volumes made on demand. No
-    volume-sized memory is taken beyond the result (none with ``out``). Each step is one compiled pass
+    The volume is diffused a band of sub-frames at a time, each step running behind the one before: step j is
+    known up to sub-frame e − j once the input is read up to e (each step reads one sub-frame either side). A
+    band reads the input over [e0, e1) and takes each step j from e0 − j to e1 − j; the last step's sub-frames
+    are written to ``out``. Each band's planes are kept in buffers that hold a window of ``band + steps + 1``
+    sub-frames (the steps alternate between two of them; the planes a later band still reads are moved to the
+    front), so no sub-frame is stepped twice and every plane of ``mask``, ``flow`` and ``sharp`` is read once
+    (:func:`~flexvox_core.motion.planes.band`, or ``band_into(t0, t1, out)`` where the volume has it: they may be
+    volumes made on demand): the same bits as stepping the whole volume. No volume-sized memory is taken beyond
+    the result (none with ``out``); the buffers are taken once a call. Each step is one compiled pass
     (:func:`~flexvox_core.motion.vardiff_kernel.vardiff_step`);
     ``tests/flexvox_core/motion/vardiff_reference.py`` is the same in plain numpy (the tests' reference).
 

@@ -28,6 +28,25 @@ def test_bands_and_the_whole_flow_are_to_full_sizes_values():
     np.testing.assert_array_equal(held.magnitude, np.hypot(want_flow[..., 0], want_flow[..., 1]))
 
 
+def test_band_into_makes_the_planes_in_a_given_buffer():
+    vel, conf = _small()
+    want_flow, _ = to_full_size(vel, conf, (16, 21))
+    held = ScaledFlow(vel, conf, (16, 21))
+    buf = np.full((5, 16, 21, 2), -7, np.float32)
+    assert held.band_into(1, 4, buf[2:5]) is not None
+    np.testing.assert_array_equal(buf[2:5], want_flow[1:4])
+    assert (buf[:2] == -7).all() and "flow" not in held.__dict__
+    with pytest.raises(ValueError, match=r"sub-frames 4 to 7 of 6 into `out` float32 \(3, 16, 21, 2\): they must "
+                                         r"be within the sub-frames"):
+        held.band_into(4, 7, buf[:3])
+    with pytest.raises(ValueError, match=r"`out` float32 of shape \(2, 16, 21, 2\)"):
+        held.band_into(0, 2, buf[:3])
+    assert held.flow.shape == (6, 16, 21, 2)  # once made, read from it
+    buf[...] = -7
+    held.band_into(0, 2, buf[:2])
+    np.testing.assert_array_equal(buf[:2], want_flow[:2])
+
+
 def test_confidence_of_one_is_a_read_only_view():
     vel, _ = _small()
     held = ScaledFlow(vel, np.ones(vel.shape[:3], np.float32), (10, 14))

@@ -74,13 +74,28 @@ def test_mask_flow_and_sharp_are_read_a_band_at_a_time(band, steps):
     init, mask, flow, sharp = case(11, seed=4)
     time = time_of(steps)
     expected = whole_volume(init, mask, flow, time=time, sharp=sharp)
-    longest = band + 2 * steps  # a band's output and its halo each side
-    volumes = [Counted(v, longest) for v in (mask, flow, sharp)]
+    volumes = [Counted(v, band) for v in (mask, flow, sharp)]  # a band's own sub-frames, no halo
     got = variable_tensor_diffusion(init, volumes[0], volumes[1], c=C, time=time, sharp=volumes[2], band=band)
     assert np.array_equal(got, expected)
-    bands = -(-11 // band)
-    for v in volumes:
-        assert 11 <= v.handed <= 11 + bands * 2 * steps
+    for v in volumes:  # each sub-frame once: the planes a later band reads are carried to it
+        assert v.handed == 11 and v.calls == -(-11 // band)
+
+
+class Into(Counted):
+    """A :class:`Counted` volume that makes a band in the caller's buffer (as ``ScaledFlow.band_into``)."""
+
+    def band_into(self, t0, t1, out):
+        out[...] = self.band(t0, t1)
+        self.into = getattr(self, "into", 0) + 1
+
+
+def test_a_volume_with_band_into_is_read_into_the_buffers():
+    init, mask, flow, sharp = case(9, seed=6)
+    time = time_of(2)
+    flows = Into(flow, 3)
+    got = variable_tensor_diffusion(init, mask, flows, c=C, time=time, sharp=sharp, band=3)
+    assert np.array_equal(got, whole_volume(init, mask, flow, time=time, sharp=sharp))
+    assert flows.into == 3 and flows.handed == 9
 
 
 def test_start_reads_the_sub_frames_of_longer_volumes():

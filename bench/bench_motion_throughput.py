@@ -184,11 +184,84 @@ def _long_reach_on_sample_planes() -> Iterator[None]:
         stages.CpuStages.long_reach = kept
 
 
+@contextlib.contextmanager
+def _refine_halo_bands() -> Iterator[None]:
+    """Before the refinement carried its steps from band to band: bands of max(16, 2 threads, 8 steps) output
+    sub-frames, each stepped from its input with a halo of ``steps`` sub-frames each side (the halo stepped again by
+    the next band), the flow, mask and sharp planes of band and halo made in fresh memory for each band; and no
+    still speed (the still voxels' tiny speeds read along the trajectory)."""
+    import numba
+
+    from flexvox_core.motion import planes, stages
+    from flexvox_core.motion.vardiff import _KERNEL_LOCK, explicit_steps
+    from flexvox_core.motion.vardiff_kernel import vardiff_step
+
+    kept = stages.variable_tensor_diffusion
+
+    def before(init, mask, flow, *, c, time, out, sharp, start, still_speed=None):
+        c1, c2, c3 = c
+        steps = explicit_steps(time, c)
+        vol = init
+        S, H, W = vol.shape
+        L = min(max(16, 2 * numba.get_num_threads(), 8 * steps), S)
+        bufs = np.empty((2, min(S, L + 2 * steps), H, W), np.float32)
+        saved = np.empty((min(S, steps), H, W), np.float32)  # in place: the input a later band still reads
+        with _KERNEL_LOCK:
+            for a in range(0, S, L):
+                b = min(a + L, S)
+                c0, c1_ = max(0, a - steps), min(S, b + steps)
+                n = c1_ - c0
+                x = bufs[0, :n]
+                if c0 < a:
+                    x[:a - c0] = saved[:a - c0]
+                    x[a - c0:] = vol[a:c1_]
+                else:
+                    x[:] = vol[c0:c1_]
+                k0 = max(c0, b - steps)
+                saved[:b - k0] = x[k0 - c0:b - c0]
+                fb = np.ascontiguousarray(planes.band(flow, start + c0, start + c1_), dtype=np.float32)
+                mb = np.ascontiguousarray(planes.band(mask, start + c0, start + c1_), dtype=bool)
+                sb = np.ascontiguousarray(planes.band(sharp, start + c0, start + c1_), dtype=bool)
+                src, dst = x, bufs[1, :n]
+                for j in range(1, steps + 1):
+                    lo, hi = max(0, a - c0 - (steps - j)), min(n, b - c0 + (steps - j))
+                    vardiff_step(src, dst, fb, mb, True, c1, c2, c3, time / steps, sb, True, lo, hi)
+                    src, dst = dst, src
+                out[a:b] = src[a - c0:b - c0]
+        return out
+
+    stages.variable_tensor_diffusion = before
+    try:
+        yield
+    finally:
+        stages.variable_tensor_diffusion = kept
+
+
+@contextlib.contextmanager
+def _refine_moving_still() -> Iterator[None]:
+    """Before the refinement took the voxels slower than the still speed as still: their tiny speeds (the flow made
+    full-size from a smaller scale) read along the trajectory, four pixels a read."""
+    from flexvox_core.motion import stages
+
+    kept = stages.variable_tensor_diffusion
+
+    def before(*args, still_speed=None, **kwargs):
+        return kept(*args, **kwargs)
+
+    stages.variable_tensor_diffusion = before
+    try:
+        yield
+    finally:
+        stages.variable_tensor_diffusion = kept
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
     "scratch-volume": _scratch_volume,
     "long-reach-remap": _long_reach_on_sample_planes,
+    "refine-halo-bands": _refine_halo_bands,
+    "refine-moving-still": _refine_moving_still,
 }
 """The code as it was before each change (``kept``: as it is), for ``--ab``."""
 

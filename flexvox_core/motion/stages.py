@@ -20,8 +20,8 @@ stage                  what it computes
                        :mod:`~flexvox_core.motion.mcnc`), and each sample's leave-one-out estimate
 ``long_reach``         the slow voxels' range-weighted gather over ``slow_reach`` sampling periods
                        (:mod:`~flexvox_core.motion.longreach`)
-``refinement``         the monotone variable-tensor diffusion along the trajectories
-                       (:mod:`~flexvox_core.motion.vardiff`)
+``refinement``         the monotone variable-tensor diffusion along the trajectories, the still voxels' at zero
+                       flow (:mod:`~flexvox_core.motion.vardiff`)
 ``local_choice``       where oriented nc predicts the samples better, blend it in
                        (:mod:`~flexvox_core.motion.local_choice`)
 ``gaps``               a dropped frame's sub-frames filled from both sides along the flow (:mod:`flexvox_core.gaps`)
@@ -561,7 +561,8 @@ class CpuStages:
 
     def refinement(self, video: Volume, flow: Flow, slow: Volume) -> None:
         """Along each trajectory; the slow voxels read their neighbours by clipped Catmull-Rom (a bilinear read
-        a fraction of a pixel off is a blur, which would take the texture their long-reach gather kept)."""
+        a fraction of a pixel off is a blur, which would take the texture their long-reach gather kept), the still
+        ones (slower than ``still_speed``) none: their flow is taken as zero."""
         w = self.window
         refine_time = w.refine_time
         if refine_time <= 0:
@@ -569,7 +570,7 @@ class CpuStages:
         g0, g1 = w.gathered
         # A band of sub-frames at a time: the mask, the flow and the classes are read by bands (planes.band).
         variable_tensor_diffusion(video[g0:g1], self._mask(), flow, c=REFINE_C, time=refine_time,
-                                  out=video[g0:g1], sharp=slow, start=g0)
+                                  out=video[g0:g1], sharp=slow, start=g0, still_speed=w.still_speed)
 
     def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume) -> None:
         w = self.window

@@ -68,13 +68,14 @@ def _clamped_bicubic(plane, y, x):
 
 
 @numba.njit(parallel=True, nogil=True, cache=True)
-def vardiff_step(vol, new, flow, mask, keep_samples, c1, c2, c3, dt, sharp, use_sharp, t0, t1):
+def vardiff_step(vol, new, flow, mask, keep_samples, c1, c2, c3, dt, sharp, use_sharp, t0, t1, still2=0.0):
     """``new[t0:t1]`` = one explicit step of ``vol`` (S, H, W) float32 under the Eq. 4 tensors of ``flow``
     (S, H, W, 2) at sub-frames ``t0`` to ``t1`` (the rest of ``new`` is not written); voxels in ``mask`` stay
     as they are when ``keep_samples``. With ``use_sharp``, the voxels in ``sharp`` (S, H, W) read their
     trajectory neighbours by :func:`_clamped_bicubic`. Sub-frames 0 and S − 1 are the ends of time (the
     neighbour beyond them is the voxel itself): a band of a longer volume is stepped exactly where its
-    neighbours were, one sub-frame in from each end that is not the longer volume's."""
+    neighbours were, one sub-frame in from each end that is not the longer volume's. A voxel whose speed² u² + v²
+    is below ``still2`` is still: its flow is taken as zero."""
     S, H, W = vol.shape
     b = c2 - c3
     for row in numba.prange(max(t1 - t0, 0) * H):  # rows, not sub-frames: a band of a few sub-frames fills the cores
@@ -98,6 +99,10 @@ def vardiff_step(vol, new, flow, mask, keep_samples, c1, c2, c3, dt, sharp, use_
             if not math.isfinite(v):
                 v = 0.0
             speed2 = u * u + v * v
+            if speed2 < still2:  # still: no trajectory read (the flow made at a smaller scale is seldom exactly 0)
+                u = 0.0
+                v = 0.0
+                speed2 = 0.0
             # Along λ: the neighbouring sub-frames, read at x ± (u, v); at zero flow (most
             # voxels: the gated flow of still regions) the bilinear read is the pixel itself.
             if u == 0.0 and v == 0.0:

@@ -199,7 +199,8 @@ class CudaStages:
         if t <= 0:
             return
         g0, g1 = w.gathered
-        refine(self.ws, video[g0:g1], self.mask[g0:g1], flow[g0:g1], slow[g0:g1], c=REFINE_C, time=t)
+        refine(self.ws, video[g0:g1], self.mask[g0:g1], flow[g0:g1], slow[g0:g1], c=REFINE_C, time=t,
+               still_speed=w.still_speed)
 
     def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume) -> None:
         w = self.window

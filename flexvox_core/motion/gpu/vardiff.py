@@ -80,8 +80,8 @@ def _clamped_bicubic(plane, t, y, x, H, W):
 
 
 @kernel("void(float32[:, :, ::1], float32[:, :, ::1], float32[:, :, :, ::1], uint8[:, :, ::1], uint8[:, :, ::1], "
-        "float32, float32, float32, float32)")
-def _step(vol, new, flow, mask, sharp, c1, c2, c3, dt):
+        "float32, float32, float32, float32, float32)")
+def _step(vol, new, flow, mask, sharp, c1, c2, c3, dt, still2):
     i = cuda.grid(1)
     S, H, W = vol.shape
     if i >= S * H * W:
@@ -98,6 +98,10 @@ def _step(vol, new, flow, mask, sharp, c1, c2, c3, dt):
     if not math.isfinite(v):
         v = np.float32(0)
     speed2 = u * u + v * v
+    if speed2 < still2:  # still: no trajectory read
+        u = np.float32(0)
+        v = np.float32(0)
+        speed2 = np.float32(0)
     fy = np.float32(y)
     fx = np.float32(x)
     two = np.float32(2)
@@ -138,21 +142,23 @@ def _step(vol, new, flow, mask, sharp, c1, c2, c3, dt):
     new[t, y, x] = cur + dt * acc
 
 
-def refine(ws, video, mask, flow, sharp, *, c, time: float) -> None:
+def refine(ws, video, mask, flow, sharp, *, c, time: float, still_speed: float | None = None) -> None:
     """``video`` (S, H, W) float32 diffused for ``time`` under Eq. 4's tensors of ``flow`` with eigenvalues ``c``,
     in place; ``mask`` (uint8) voxels held, ``sharp`` (uint8) voxels read along the trajectory by clipped
-    Catmull-Rom. Device arrays (views of a window's sub-frames will do)."""
+    Catmull-Rom, voxels slower than ``still_speed`` taken as still (zero flow). Device arrays (views of a window's
+    sub-frames will do)."""
     c1, c2, c3 = (float(v) for v in c)
     steps = explicit_steps(time, (c1, c2, c3))
     if not steps:
         return
     dt = time / steps
     S, H, W = video.shape
+    still2 = np.float32(0 if still_speed is None else float(still_speed) ** 2)
     other = ws.get("refine.other", (S, H, W))
     src, dst = video, other
     for _ in range(steps):
         launch(_step, S * H * W, src, dst, flow, mask, sharp, np.float32(c1), np.float32(c2), np.float32(c3),
-               np.float32(dt))
+               np.float32(dt), still2)
         src, dst = dst, src
     if src is not video:
         video.copy_to_device(src)

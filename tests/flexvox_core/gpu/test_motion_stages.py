@@ -149,6 +149,15 @@ def test_refinement_is_the_cpus(rng, ws, clip):
     want[4:8] = variable_tensor_diffusion(init[4:8], mask[4:8], flow[4:8], c=(0.95, 0.05, 0.02), time=0.5,
                                           sharp=sharp[4:8])
     np.testing.assert_allclose(video.copy_to_host(), want, atol=2e-6)
+    # The voxels slower than a still speed taken as still: half of them here (a speed between two voxels').
+    speeds = np.unique(np.hypot(flow[..., 0].astype(np.float64), flow[..., 1].astype(np.float64)))
+    still = float(speeds[len(speeds) // 2] + speeds[len(speeds) // 2 + 1]) / 2
+    want = variable_tensor_diffusion(init, mask, flow, c=REFINE_C, time=1.0, sharp=sharp, still_speed=still)
+    assert not np.array_equal(want, variable_tensor_diffusion(init, mask, flow, c=REFINE_C, time=1.0, sharp=sharp))
+    video = _dev(init)
+    refine(ws, video, _dev(mask.astype(np.uint8)), _dev(flow), _dev(sharp.astype(np.uint8)), c=REFINE_C, time=1.0,
+           still_speed=still)
+    np.testing.assert_allclose(video.copy_to_host(), want, atol=2e-6)
 
 
 def test_speed_classes_are_the_cpus(rng, ws, clip):

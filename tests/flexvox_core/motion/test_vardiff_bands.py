@@ -143,3 +143,24 @@ def test_a_scratch_volume_is_deprecated_and_ignored():
     assert (scratch == -5.0).all()
     with pytest.raises(TypeError, match=r"unexpected keyword arguments \['scrach'\]"):
         variable_tensor_diffusion(init, mask, flow, time=1.0, scrach=scratch)
+
+
+@pytest.mark.parametrize("band", [2, None])
+def test_voxels_slower_than_the_still_speed_are_taken_as_still(band):
+    init, mask, flow, sharp = case(8, seed=7)
+    flow[1:3] *= 0.01  # tiny speeds, as the flow made full-size from a smaller scale gives still voxels
+    still = 0.05
+    finite = np.where(np.isfinite(flow), flow, np.float32(0))  # NaN counts as 0 (its voxel's speed is |v|)
+    speed2 = finite[..., 0].astype(np.float64) ** 2 + finite[..., 1].astype(np.float64) ** 2
+    zeroed = np.where((speed2 < still**2)[..., None], np.float32(0), finite)
+    assert 0 < (zeroed == 0).all(-1).mean() < 0.5
+    time = time_of(2)
+    got = variable_tensor_diffusion(init, mask, flow, c=C, time=time, sharp=sharp, band=band, still_speed=still)
+    assert np.array_equal(got, variable_tensor_diffusion(init, mask, zeroed, c=C, time=time, sharp=sharp, band=band))
+    assert not np.array_equal(got, variable_tensor_diffusion(init, mask, flow, c=C, time=time, sharp=sharp))
+    reference = variable_tensor_diffusion_reference(init, mask, flow, c=C, time=time, sharp=sharp, still_speed=still)
+    np.testing.assert_allclose(got, reference, atol=2e-6)
+    assert np.array_equal(variable_tensor_diffusion(init, mask, flow, c=C, time=time, still_speed=0),
+                          variable_tensor_diffusion(init, mask, flow, c=C, time=time))
+    with pytest.raises(ValueError, match=r"`still_speed` must be a finite number >= 0 or None; got -1"):
+        variable_tensor_diffusion(init, mask, flow, time=time, still_speed=-1)

@@ -36,7 +36,7 @@ def _sample_sharp(img: np.ndarray, gy, gx) -> np.ndarray:
 
 
 def variable_tensor_diffusion_reference(init, mask, flow, *, c=DEFAULT_C, time: float = 1.0,
-                                        keep_samples: bool = True, sharp=None) -> np.ndarray:
+                                        keep_samples: bool = True, sharp=None, still_speed=None) -> np.ndarray:
     """:func:`variable_tensor_diffusion` in plain numpy and scipy, float64 (slow; the tests' reference)."""
     (c1, c2, c3), vol, m, f, steps, dt = _check(init, mask, flow, time, c)
     m, f = np.asarray(m, bool), np.asarray(f)
@@ -44,6 +44,8 @@ def variable_tensor_diffusion_reference(init, mask, flow, *, c=DEFAULT_C, time: 
     vol = vol.astype(np.float64)
     S, H, W = vol.shape
     f = np.where(np.isfinite(f), f, 0).astype(np.float64)
+    if still_speed is not None:  # slower than it: still
+        f[f[..., 0] ** 2 + f[..., 1] ** 2 < float(still_speed) ** 2] = 0
     gx, gy = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
     speed2 = f[..., 0] ** 2 + f[..., 1] ** 2
     a = (c1 - c3) / (1 + speed2)

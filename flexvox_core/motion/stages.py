@@ -66,7 +66,7 @@ from flexvox_core.motion.packed import PackedVolume
 from flexvox_core.motion.planes import Bands, band
 from flexvox_core.motion.result import MotionAwareResult
 from flexvox_core.motion.sample_bands import SampleMask
-from flexvox_core.motion.vardiff import variable_tensor_diffusion
+from flexvox_core.motion.vardiff import refine_still_speed, variable_tensor_diffusion
 from flexvox_core.reconstruct.diffusion import diffuse, diffuse_where
 from flexvox_core.reconstruct.oriented_nc import oriented_nc
 from flexvox_core.threads import for_each, workers
@@ -562,7 +562,7 @@ class CpuStages:
     def refinement(self, video: Volume, flow: Flow, slow: Volume) -> None:
         """Along each trajectory; the slow voxels read their neighbours by clipped Catmull-Rom (a bilinear read
         a fraction of a pixel off is a blur, which would take the texture their long-reach gather kept), the still
-        ones (slower than ``still_speed``) none: their flow is taken as zero."""
+        ones (:func:`~flexvox_core.motion.vardiff.refine_still_speed`) none: their flow is taken as zero."""
         w = self.window
         refine_time = w.refine_time
         if refine_time <= 0:
@@ -570,7 +570,8 @@ class CpuStages:
         g0, g1 = w.gathered
         # A band of sub-frames at a time: the mask, the flow and the classes are read by bands (planes.band).
         variable_tensor_diffusion(video[g0:g1], self._mask(), flow, c=REFINE_C, time=refine_time,
-                                  out=video[g0:g1], sharp=slow, start=g0, still_speed=w.still_speed)
+                                  out=video[g0:g1], sharp=slow, start=g0,
+                                  still_speed=refine_still_speed(w.still_speed))
 
     def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume) -> None:
         w = self.window

@@ -51,6 +51,19 @@ MIN_BAND = 8
 """The fewest sub-frames of a band (:func:`band_length`)."""
 
 
+STILL_READ_SPEED = 1e-3
+"""The refinement's still speed, px per sub-frame (:func:`refine_still_speed`): a trajectory read this far off is
+the pixel itself to a thousandth of the difference to its neighbour."""
+
+
+def refine_still_speed(still_speed: float | None) -> float | None:
+    """The ``still_speed`` of motion-aware's refinement (both engines) for the speed classes' ``still_speed``: the
+    smaller of it and :data:`STILL_READ_SPEED` (None where there is no still class). The flow made full-size from a
+    smaller scale gives the still voxels next to moving ones tiny speeds; taken as still they skip four reads each
+    (the classes' still speed itself is too coarse for this: docs/benchmarks.md)."""
+    return None if still_speed is None else min(float(still_speed), STILL_READ_SPEED)
+
+
 def explicit_steps(time: float, c) -> int:
     """Explicit steps of :func:`variable_tensor_diffusion` for diffusion ``time`` with eigenvalues ``c``:
     ``ceil(time / dt_max)``, dt_max = 1 / (2 Σc). Each step reaches one sub-frame further in time."""

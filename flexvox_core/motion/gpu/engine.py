@@ -40,6 +40,7 @@ from flexvox_core.motion.options import (
 )
 from flexvox_core.motion.result import MotionAwareResult
 from flexvox_core.motion.stages import Flow, StageTimes, Volume, Window
+from flexvox_core.motion.vardiff import refine_still_speed
 from flexvox_core.reconstruct.diffusion import diffuse
 
 _logger = logging.getLogger(__name__)
@@ -200,7 +201,7 @@ class CudaStages:
             return
         g0, g1 = w.gathered
         refine(self.ws, video[g0:g1], self.mask[g0:g1], flow[g0:g1], slow[g0:g1], c=REFINE_C, time=t,
-               still_speed=w.still_speed)
+               still_speed=refine_still_speed(w.still_speed))
 
     def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume) -> None:
         w = self.window

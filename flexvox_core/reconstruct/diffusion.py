@@ -338,11 +338,8 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
         _blur_rows(flat, gt, flat)
     # Denominator: the mask has only K distinct sub-frames; blur those in space, then time.
     den_k = _mask_planes(order, K, gy, gx, dtype)
-    den = _PeriodicDenominator(den_k, F, gt) if present is None else _gapped_denominator(den_k, present, gt)
-    del den_k  # the denominator holds what it reads
     peak = _peak((gx, gy, gt))
-    if loo is not None:
-        _leave_one_out(loo, num, den, frames, order, (gx, gy, gt), NC_MIN_WEIGHT * peak, present)
+    floor = NC_MIN_WEIGHT * peak
     samples = frames.astype(dtype, copy=False)
     kept = captured(samples, None if present is None else ~present)
     lo, hi = kept.min(), kept.max()
@@ -351,22 +348,32 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
     low = np.zeros((S, H, W), bool)
     any_low = np.zeros(S, bool)
 
-    def finish(s):
-        # A sub-frame divided, clipped to the samples' range and given its samples back while it is in cache
-        # (not two more passes over the volume); on every core (numpy releases the GIL).
-        d = den[s]
-        low_s = d <= NC_MIN_WEIGHT * peak
+    def finish(s: int, d: np.ndarray, cols: slice = slice(None)) -> None:
+        # A sub-frame (its columns `cols` of the flattened plane) divided, clipped to the samples' range and given
+        # its samples back while it is in cache (not two more passes over the volume); on every core (numpy
+        # releases the GIL). Element by element: the same bits whichever columns at a time.
+        n = num[s].reshape(-1)[cols]
+        d = d.reshape(-1)
+        low_s = d <= floor
         if low_s.any():
-            low[s] = low_s  # only then: a sub-frame's pages of `low` are touched only when it has such voxels
+            low[s].reshape(-1)[cols] = low_s  # only then: a sub-frame's pages of `low` are touched only if it has any
             any_low[s] = True
-            np.divide(num[s], d, out=num[s], where=~low_s)
+            np.divide(n, d, out=n, where=~low_s)
         else:
-            np.divide(num[s], d, out=num[s])
-        np.clip(num[s], lo, hi, out=num[s])
+            np.divide(n, d, out=n)
+        np.clip(n, lo, hi, out=n)
         if keep_samples and (present is None or present[s // K]):
-            np.copyto(num[s], samples[s // K], where=slots[s % K])
+            np.copyto(n, samples[s // K].reshape(-1)[cols], where=slots[s % K].reshape(-1)[cols])
 
-    for_each(finish, S)
+    if present is not None:
+        den = _gapped_denominator(den_k, present, gt)
+    else:  # without the leave-one-out the ends' sub-frames are finished as their blurred mask is made, not held
+        den = _PeriodicDenominator(den_k, F, gt, ends=finish if loo is None else None)
+    del den_k  # the denominator holds what it reads
+    if loo is not None:
+        _leave_one_out(loo, num, den, frames, order, (gx, gy, gt), floor, present)
+    rows = range(S) if present is not None else den.interior
+    for_each(lambda i: finish(rows[i], den[rows[i]]), len(rows))
     if any_low.any():
         # A sample's blurred mask holds at least its own weight: no sample is among these voxels, and the
         # nearest sample's value needs no clipping.
@@ -553,12 +560,15 @@ class _PeriodicDenominator:
     The mask repeats every K sub-frames, so away from the clip's ends (farther than the time
     kernel's radius r) the blurred mask does too; only the first and last ``r + K`` sub-frames
     see the reflecting ends. Those come from blurring ``2r + K`` sub-frames at each end (exactly
-    what the whole clip's blur gives there), a band of columns at a time, keeping the ``r + K``
-    sub-frames read at each end; the rest repeats one period of the first end's. A clip too short
-    for that is blurred whole.
+    what the whole clip's blur gives there), a band of columns at a time; the rest repeats one
+    period of the first end's. A clip too short for that is blurred whole.
+
+    ``ends``: a callable ``ends(s, row, cols)`` that takes each end sub-frame's blurred mask as its
+    columns ``cols`` (a slice of the flattened plane) are made, ``row`` 1-D, in place of holding the ends
+    (:meth:`__getitem__` then gives the interior's sub-frames alone); None: the ends are held.
     """
 
-    def __init__(self, den_k: np.ndarray, F: int, gt: np.ndarray | None) -> None:
+    def __init__(self, den_k: np.ndarray, F: int, gt: np.ndarray | None, ends=None) -> None:
         K, H, W = den_k.shape
         self.K, self.S = K, F * K
         self.r = 0 if gt is None else gt.size // 2
@@ -567,6 +577,7 @@ class _PeriodicDenominator:
         self.den_k: np.ndarray | None = den_k
         self.head: np.ndarray | None = None
         self.tail: np.ndarray | None = None
+        self.streamed = False
         if gt is None:
             return
         flat = den_k.reshape(K, H * W)
@@ -576,22 +587,35 @@ class _PeriodicDenominator:
             self.head = self.tail = block.reshape(length, H, W)
             self.den_k = None
             return
-        # Of each end's blurred block only the r + K sub-frames read are kept (the head's last K are the interior's
-        # period).
-        starts, kept = [0, self.S - length], [(0, self.r + K), (length - self.r - K, length)]
-        ends = [np.empty((b - a, H * W), den_k.dtype) for a, b in kept]
+        r = self.r
+        # Of each end's blurred block the r + K sub-frames read are kept (the head's last K are the interior's
+        # period), or handed to `ends` and the period alone kept.
+        self.streamed = ends is not None
+        starts = [0, self.S - length]
+        kept = [(0, r + K), (length - r - K, length)]
+        if self.streamed:
+            held = [np.empty((K, H * W), den_k.dtype)]
+        else:
+            held = [np.empty((b - a, H * W), den_k.dtype) for a, b in kept]
         # The same column bands as _blur_rows cuts a whole block into (the same bits), one block band at a time:
-        # never a whole end's block of 2r + K sub-frames beside what is kept.
+        # never a whole end's block of 2r + K sub-frames.
         cols = list(range(0, H * W, _CHUNK))
 
         def one(i: int) -> None:
-            end, c0 = divmod(i, len(cols))
-            c0 = cols[c0]
+            end, c = divmod(i, len(cols))
+            band = slice(cols[c], cols[c] + _CHUNK)
             phases = (starts[end] + np.arange(length)) % K
-            block = flat[phases, c0: c0 + _CHUNK]  # (length, columns), a copy
+            block = flat[phases, band]  # (length, columns), a copy
             _blur_rows(block, gt, block)
             a, b = kept[end]
-            ends[end][:, c0: c0 + _CHUNK] = block[a:b]
+            if not self.streamed:
+                held[end][:, band] = block[a:b]
+                return
+            if end == 0:
+                held[0][:, band] = block[r: r + K]
+            for j in range(a, b):
+                if end == 0 or starts[1] + j >= r + K:  # a short clip's ends overlap: the head's first
+                    ends(starts[end] + j, block[j], band)
 
         # Bands side by side, one per core, for short time kernels; a long one (about 50 taps and more) is filtered
         # on OpenCV's own threads, which for_each would switch off (sigma_t = 8: 0.16 -> 0.29 s).
@@ -600,15 +624,28 @@ class _PeriodicDenominator:
         else:
             for i in range(len(starts) * len(cols)):
                 one(i)
-        self.head, self.tail = (e.reshape(-1, H, W) for e in ends)
+        if self.streamed:
+            self.period = held[0].reshape(K, H, W)  # phases r .. r + K - 1
+        else:
+            self.head, self.tail = (e.reshape(-1, H, W) for e in held)
         self.den_k = None  # read no more
 
+    @property
+    def interior(self) -> range:
+        """The sub-frames :meth:`__getitem__` gives when the ends were handed over (``ends``): those the ends' blur
+        does not reach; every sub-frame otherwise."""
+        if self.streamed:
+            return range(self.r + self.K, max(self.r + self.K, self.S - self.r - self.K))
+        return range(self.S)
+
     def __getitem__(self, s: int) -> np.ndarray:
+        r, K = self.r, self.K
+        if self.streamed:
+            return self.period[(s - r) % K]
         if self.head is None:
             assert self.den_k is not None
-            return self.den_k[s % self.K]
+            return self.den_k[s % K]
         assert self.tail is not None
-        r, K = self.r, self.K
         if self.length == self.S or s < r + K:
             return self.head[s]
         if s >= self.S - r - K:

@@ -184,11 +184,34 @@ def _long_reach_on_sample_planes() -> Iterator[None]:
         stages.CpuStages.long_reach = kept
 
 
+@contextlib.contextmanager
+def _guides_whole() -> Iterator[None]:
+    """Before nc finished its end sub-frames as their blurred mask was made and diffuse_where read the still voxels a
+    band at a time: the ends' blurred mask held (each end's r + K sub-frames: before, its whole 2r + K and a copy of
+    the period too), the still voxels unpacked into one bool volume for diffuse_where."""
+    from flexvox_core.motion import stages
+    from flexvox_core.reconstruct import diffusion
+
+    kept = diffusion._PeriodicDenominator, stages.diffuse_where
+    held = diffusion._PeriodicDenominator
+
+    def whole_where(frames, code, out, where, **kw):
+        return kept[1](frames, code, out, stages.band(where, 0, len(out)), **kw)
+
+    diffusion._PeriodicDenominator = lambda den_k, F, gt, ends=None: held(den_k, F, gt)  # type: ignore[misc]
+    stages.diffuse_where = whole_where
+    try:
+        yield
+    finally:
+        diffusion._PeriodicDenominator, stages.diffuse_where = kept  # type: ignore[misc]
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
     "scratch-volume": _scratch_volume,
     "long-reach-remap": _long_reach_on_sample_planes,
+    "guides-whole": _guides_whole,
 }
 """The code as it was before each change (``kept``: as it is), for ``--ab``."""
 

@@ -348,11 +348,12 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
     low = np.zeros((S, H, W), bool)
     any_low = np.zeros(S, bool)
 
-    def finish(s: int, d: np.ndarray, cols: slice = slice(None)) -> None:
-        # A sub-frame (its columns `cols` of the flattened plane) divided, clipped to the samples' range and given
-        # its samples back while it is in cache (not two more passes over the volume); on every core (numpy
-        # releases the GIL). Element by element: the same bits whichever columns at a time.
-        n = num[s].reshape(-1)[cols]
+    def finish(s: int, d: np.ndarray, cols: slice | None = None) -> None:
+        # A sub-frame divided, clipped to the samples' range and given its samples back while it is in cache (not
+        # two more passes over the volume); on every core (numpy releases the GIL). Its columns `cols` of the
+        # flattened plane alone: divided and clipped (element by element: the same bits whichever columns at a
+        # time), the samples given back by `give_back` (a masked copy is slow on a short row).
+        n = num[s].reshape(-1)[slice(None) if cols is None else cols]
         d = d.reshape(-1)
         low_s = d <= floor
         if low_s.any():
@@ -362,8 +363,12 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
         else:
             np.divide(n, d, out=n)
         np.clip(n, lo, hi, out=n)
+        if cols is None:
+            give_back(s)
+
+    def give_back(s: int) -> None:
         if keep_samples and (present is None or present[s // K]):
-            np.copyto(n, samples[s // K].reshape(-1)[cols], where=slots[s % K].reshape(-1)[cols])
+            np.copyto(num[s], samples[s // K], where=slots[s % K])
 
     if present is not None:
         den = _gapped_denominator(den_k, present, gt)
@@ -374,6 +379,9 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
         _leave_one_out(loo, num, den, frames, order, (gx, gy, gt), floor, present)
     rows = range(S) if present is not None else den.interior
     for_each(lambda i: finish(rows[i], den[rows[i]]), len(rows))
+    if len(rows) < S:  # the ends, finished as their blurred mask was made: their samples
+        ends = [s for s in range(S) if s not in rows]
+        for_each(lambda i: give_back(ends[i]), len(ends))
     if any_low.any():
         # A sample's blurred mask holds at least its own weight: no sample is among these voxels, and the
         # nearest sample's value needs no clipping.

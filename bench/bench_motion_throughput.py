@@ -39,6 +39,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable, Iterator
+from typing import Any
 
 import numpy as np
 
@@ -189,21 +190,25 @@ def _guides_whole() -> Iterator[None]:
     """Before nc finished its end sub-frames as their blurred mask was made and diffuse_where read the still voxels a
     band at a time: the ends' blurred mask held (each end's r + K sub-frames: before, its whole 2r + K and a copy of
     the period too), the still voxels unpacked into one bool volume for diffuse_where."""
-    from flexvox_core.motion import stages
+    from flexvox_core.motion import planes, stages
     from flexvox_core.reconstruct import diffusion
 
-    kept = diffusion._PeriodicDenominator, stages.diffuse_where
-    held = diffusion._PeriodicDenominator
+    kept_den, kept_where = diffusion._PeriodicDenominator, diffusion.diffuse_where
 
-    def whole_where(frames, code, out, where, **kw):
-        return kept[1](frames, code, out, stages.band(where, 0, len(out)), **kw)
+    def held(den_k: np.ndarray, F: int, gt: np.ndarray | None, ends: object = None) -> diffusion._PeriodicDenominator:
+        return kept_den(den_k, F, gt)
 
-    diffusion._PeriodicDenominator = lambda den_k, F, gt, ends=None: held(den_k, F, gt)  # type: ignore[misc]
-    stages.diffuse_where = whole_where
+    def whole_where(frames: np.ndarray, code: np.ndarray, out: np.ndarray, where: object,
+                    **kw: Any) -> np.ndarray:
+        return kept_where(frames, code, out, planes.band(where, 0, len(out)), **kw)
+
+    diffusion._PeriodicDenominator = held  # type: ignore[assignment, misc]
+    setattr(stages, "diffuse_where", whole_where)  # noqa: B010 - stages imports it: patched where it is read
     try:
         yield
     finally:
-        diffusion._PeriodicDenominator, stages.diffuse_where = kept  # type: ignore[misc]
+        diffusion._PeriodicDenominator = kept_den  # type: ignore[misc]
+        setattr(stages, "diffuse_where", kept_where)  # noqa: B010
 
 
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {

@@ -184,11 +184,32 @@ def _long_reach_on_sample_planes() -> Iterator[None]:
         stages.CpuStages.long_reach = kept
 
 
+@contextlib.contextmanager
+def _gather_every_corner() -> Iterator[None]:
+    """Before the trajectory gather skipped the cells without a sample of the wanted slot: every read weighed the
+    cell's four pixels (``mcnc_kernel.lattice_sums``, branch-free; the same bits)."""
+    from flexvox_core.motion import mcnc_kernel
+
+    kept = mcnc_kernel.cell_sums
+
+    def before(frames, present, row_hit, col_hit, cells, row_base, col_base, flow_t, near, y0, x0, t, S, inv_4nc1,
+               reach, num, den):
+        mcnc_kernel.lattice_sums(frames, present, row_hit, col_hit, flow_t, near, y0, x0, t, S, inv_4nc1, reach,
+                                 num, den)
+
+    mcnc_kernel.cell_sums = before
+    try:
+        yield
+    finally:
+        mcnc_kernel.cell_sums = kept
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
     "scratch-volume": _scratch_volume,
     "long-reach-remap": _long_reach_on_sample_planes,
+    "gather-every-corner": _gather_every_corner,
 }
 """The code as it was before each change (``kept``: as it is), for ``--ab``."""
 

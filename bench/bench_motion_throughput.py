@@ -186,14 +186,15 @@ def _long_reach_on_sample_planes() -> Iterator[None]:
 
 @contextlib.contextmanager
 def _gather_every_corner() -> Iterator[None]:
-    """Before the trajectory gather skipped the cells without a sample of the wanted slot: every read weighed the
-    cell's four pixels (``mcnc_kernel.lattice_sums``, branch-free; the same bits)."""
+    """Before the trajectory gather skipped the cells without a sample of the wanted slot and counted each voxel's
+    reach on a table: every read weighed the cell's four pixels and each voxel's reach took two logarithms
+    (``mcnc_kernel.lattice_sums``, branch-free; the same bits)."""
     from flexvox_core.motion import mcnc_kernel
 
     kept = mcnc_kernel.cell_sums
 
     def before(frames, present, row_hit, col_hit, cells, row_base, col_base, flow_t, near, y0, x0, t, S, inv_4nc1,
-               reach, num, den):
+               reach, num, den, thresholds):
         mcnc_kernel.lattice_sums(frames, present, row_hit, col_hit, flow_t, near, y0, x0, t, S, inv_4nc1, reach,
                                  num, den)
 

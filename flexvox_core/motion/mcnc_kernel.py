@@ -69,6 +69,33 @@ def own_reach(e: Any, reach: int) -> int:
     return min(reach, int(math.floor(math.sqrt(math.log(CUTOFF) / math.log(e64)))))
 
 
+@numba.njit(nogil=True, cache=True)
+def reach_thresholds(reach: int) -> Any:
+    """float32 ``(reach + 2,)``: entry d (1 <= d <= ``reach``) the smallest float32 e with
+    :func:`own_reach` (e, ``reach``) >= d, found by bisection over the float32 numbers of [0, 1] (whose bit
+    patterns are in their order) with :func:`own_reach` itself; entry 0 is 0, entry reach + 1 is 2 (above every e).
+    :func:`own_reach` rises with e, so it is the number of entries 1 … reach that e reaches: two comparisons and
+    an add a step, where it takes two logarithms and a square root (the gather's voxels reach 6 or 7 on the 1-s
+    clip)."""
+    th = np.zeros(reach + 2, np.float32)
+    th[reach + 1] = 2
+    buf = np.zeros(1, np.float32)
+    bits = buf.view(np.uint32)
+    for d in range(1, reach + 1):
+        lo = 0
+        hi = 0x3F800000  # 1.0: own_reach is `reach` there
+        while lo < hi:
+            mid = (lo + hi) // 2
+            bits[0] = mid
+            if own_reach(buf[0], reach) >= d:
+                hi = mid
+            else:
+                lo = mid + 1
+        bits[0] = lo
+        th[d] = buf[0]
+    return th
+
+
 def slot_tables(code: np.ndarray, height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
     """(row_hit, col_hit): :func:`lattice_sums`'s tables of an identity ``code`` (m, n, K) on a
     ``height`` × ``width`` picture, (K, height + 2) and (K, width + 2) float32."""
@@ -179,7 +206,7 @@ def lattice_sums(frames: Any, present: Any, row_hit: Any, col_hit: Any, flow_t: 
 @numba.njit(nogil=True, cache=True)
 def cell_sums(frames: Any, present: Any, row_hit: Any, col_hit: Any, cells: Any, row_base: Any, col_base: Any,
               flow_t: Any, near: Any, y0: int, x0: int, t: int, S: int, inv_4nc1: Any, reach: int, num: Any,
-              den: Any) -> None:
+              den: Any, thresholds: Any) -> None:
     """:func:`lattice_sums`, the same bits, reading only the cells that hold a sample of the wanted slot.
 
     ``cells``, ``row_base`` and ``col_base``: the lattice's corner table and its offsets
@@ -187,7 +214,8 @@ def cell_sums(frames: Any, present: Any, row_hit: Any, col_hit: Any, cells: Any,
     (y, x) for slot k are ``cells[row_base[y + 1] + col_base[x + 1] + k]``. A cell without a bit (three reads in
     four with a 4×4 code) adds nothing and is not read; a cell with one bit reads that pixel alone, weighted as
     :func:`_read` weights it (the other corners' weights are zeros there: the same float32 sums); a cell with
-    several (a tile of one row or column) is read by :func:`_read`."""
+    several (a tile of one row or column) is read by :func:`_read`. ``thresholds``: :func:`reach_thresholds`
+    (``reach``), each voxel's own reach counted on it (the same as :func:`own_reach`'s)."""
     K = row_hit.shape[0]
     H = frames.shape[1]
     W = frames.shape[2]
@@ -214,7 +242,9 @@ def cell_sums(frames: Any, present: Any, row_hit: Any, col_hit: Any, cells: Any,
                 u = np.float32(0)
                 v = np.float32(0)
             e = np.float32(math.exp(-(one + u * u + v * v) * inv_4nc1))
-            r = own_reach(e, reach)
+            r = 0
+            while e >= thresholds[r + 1]:  # own_reach(e, reach): entry reach + 1 stops it
+                r += 1
             acc_n = np.float32(0)
             acc_d = np.float32(0)
             if own_row and col_hit[k_t, x + 1] > 0:

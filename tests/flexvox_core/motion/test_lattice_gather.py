@@ -4,12 +4,14 @@ sample-volume gather (:func:`flexvox_core.motion.mcnc.motion_compensated_nc`).""
 
 import math
 
+import numba
 import numpy as np
 import pytest
 
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture, sample_mask, sparse_volume
 from flexvox_core.motion.mcnc import default_reach, motion_compensated_nc, reaches, trajectory_gather
+from flexvox_core.motion.mcnc_kernel import own_reach
 from flexvox_core.motion.noise_aware import wide_sigma
 from flexvox_core.simulate.scenes import render_scene
 
@@ -91,7 +93,7 @@ def test_cell_sums_are_lattice_sums_bit_for_bit(rng, order, dropped):
     on odd sizes (partial tiles), with fractional, integer and unmeasured flows, a dropped frame, and tiles whose
     cells hold the slot twice (one row or one column) or four times (1×1)."""
     from flexvox_core.codes import code_from_order
-    from flexvox_core.motion.mcnc_kernel import cell_sums, cell_tables, lattice_sums, slot_tables
+    from flexvox_core.motion.mcnc_kernel import cell_sums, cell_tables, lattice_sums, reach_thresholds, slot_tables
 
     code = code_from_order(np.asarray(order))
     K = code.shape[2]
@@ -112,10 +114,41 @@ def test_cell_sums_are_lattice_sums_bit_for_bit(rng, order, dropped):
         want = np.full((2, H - 1, W - 2), 7, np.float32)
         got = np.full((2, H - 1, W - 2), 5, np.float32)
         lattice_sums(frames, present, rows, cols, flow[t], near, 1, 2, t, S, inv, reach, want[0], want[1])
-        cell_sums(frames, present, rows, cols, *tables, flow[t], near, 1, 2, t, S, inv, reach, got[0], got[1])
+        cell_sums(frames, present, rows, cols, *tables, flow[t], near, 1, 2, t, S, inv, reach, got[0], got[1],
+                  reach_thresholds(reach))
         np.testing.assert_array_equal(got.view(np.uint32), want.view(np.uint32))
         read += float(got[1].sum())
     assert read > 0
+
+
+@numba.njit(cache=False)
+def _reach_mismatches(lo_bits, hi_bits, reach, thresholds):  # pragma: no cover - compiled
+    """How many float32 numbers with bit patterns in [lo_bits, hi_bits) own_reach and the thresholds disagree on."""
+    buf = np.zeros(1, np.float32)
+    bits = buf.view(np.uint32)
+    bad = 0
+    for b in range(lo_bits, hi_bits):
+        bits[0] = b
+        e = buf[0]
+        r = 0
+        while e >= thresholds[r + 1]:
+            r += 1
+        bad += r != own_reach(e, reach)
+    return bad
+
+
+@pytest.mark.parametrize("reach", [16, 5])
+def test_reach_thresholds_count_own_reach_on_every_float32(reach):
+    """Every float32 from CUTOFF / 2 to 1: the reach counted on the thresholds is own_reach's (the kernel's bits
+    rest on it)."""
+    from flexvox_core.motion.gather_weights import CUTOFF
+    from flexvox_core.motion.mcnc_kernel import reach_thresholds
+
+    th = reach_thresholds(reach)
+    lo = int(np.array(CUTOFF / 2, np.float32).view(np.uint32))
+    hi = int(np.array(1.0, np.float32).view(np.uint32)) + 1
+    assert _reach_mismatches(lo, hi, reach, th) == 0
+    assert own_reach(np.float32(th[3]), reach) == 3 and own_reach(np.nextafter(th[3], np.float32(0)), reach) == 2
 
 
 @pytest.fixture(params=TILES, ids=lambda t: f"{t[0]}x{t[1]}")

@@ -185,24 +185,17 @@ def _long_reach_on_sample_planes() -> Iterator[None]:
 
 
 @contextlib.contextmanager
-def _gather_every_corner() -> Iterator[None]:
-    """Before the trajectory gather skipped the cells without a sample of the wanted slot and counted each voxel's
-    reach on a table: every read weighed the cell's four pixels and each voxel's reach took two logarithms
-    (``mcnc_kernel.lattice_sums``, branch-free; the same bits)."""
+def _reach_by_log() -> Iterator[None]:
+    """Before the trajectory gather counted each voxel's reach on a table of thresholds: ``own_reach``, two
+    logarithms and a square root per voxel (an empty table; the same bits)."""
     from flexvox_core.motion import mcnc_kernel
 
-    kept = mcnc_kernel.cell_sums
-
-    def before(frames, present, row_hit, col_hit, cells, row_base, col_base, flow_t, near, y0, x0, t, S, inv_4nc1,
-               reach, num, den, thresholds):
-        mcnc_kernel.lattice_sums(frames, present, row_hit, col_hit, flow_t, near, y0, x0, t, S, inv_4nc1, reach,
-                                 num, den)
-
-    mcnc_kernel.cell_sums = before
+    kept = mcnc_kernel.reach_thresholds
+    mcnc_kernel.reach_thresholds = lambda reach: np.zeros(0, np.float32)
     try:
         yield
     finally:
-        mcnc_kernel.cell_sums = kept
+        mcnc_kernel.reach_thresholds = kept
 
 
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
@@ -210,7 +203,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "remap-gather": _gather_by_remap,
     "scratch-volume": _scratch_volume,
     "long-reach-remap": _long_reach_on_sample_planes,
-    "gather-every-corner": _gather_every_corner,
+    "reach-by-log": _reach_by_log,
 }
 """The code as it was before each change (``kept``: as it is), for ``--ab``."""
 

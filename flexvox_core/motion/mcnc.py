@@ -178,7 +178,7 @@ def trajectory_gather(frames, code, flow, *, missing=None, c=DEFAULT_C, time: fl
         are kept. ``max_reach`` defaults to :func:`default_reach` of the sampling period S / (frames present).
     """
     from flexvox_core.forward import tiled_code, validate_code
-    from flexvox_core.motion.mcnc_kernel import cell_sums, cell_tables, reach_thresholds, slot_tables
+    from flexvox_core.motion.mcnc_kernel import lattice_sums, reach_thresholds, slot_tables
 
     c1, c2, _ = check_c(c)
     code = validate_code(code)
@@ -219,7 +219,6 @@ def trajectory_gather(frames, code, flow, *, missing=None, c=DEFAULT_C, time: fl
     period = S // count if count else S
     reach = default_reach(time, c1, period, S) if max_reach is None else max(0, min(int(max_reach), S - 1))
     row_hit, col_hit = slot_tables(code, H, W)
-    cells, row_base, col_base = cell_tables(code, H, W)
     slots = tiled_code(code, H, W)  # (K, H, W): a slot's samples, a sixteenth of a volume at K = 16
     none = np.zeros((H, W), bool)
     inv_4nc1 = np.float32(1 / (4 * time * c1))
@@ -228,8 +227,8 @@ def trajectory_gather(frames, code, flow, *, missing=None, c=DEFAULT_C, time: fl
     def sums(t, box, near):
         planes = np.empty((2, *near.shape), np.float32)
         flow_t = np.ascontiguousarray(band(f, t, t + 1)[0], np.float32)
-        cell_sums(fr, present, row_hit, col_hit, cells, row_base, col_base, flow_t, np.ascontiguousarray(near),
-                  box[0].start, box[1].start, t, S, inv_4nc1, reach, planes[0], planes[1], thresholds)
+        lattice_sums(fr, present, row_hit, col_hit, flow_t, np.ascontiguousarray(near), box[0].start, box[1].start,
+                     t, S, inv_4nc1, reach, planes[0], planes[1], thresholds)
         return planes
 
     def samples_of(t):

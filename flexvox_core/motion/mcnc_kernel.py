@@ -8,12 +8,7 @@ their bilinear weight times the frame's value, and the read of the mask the sum 
 picture, as OpenCV's ``BORDER_CONSTANT``). This module computes the gather's unblurred sums that way, one
 sub-frame's box at a time (:func:`~flexvox_core.motion.mcnc.trajectory_gather` calls it from its threads: the
 kernel releases the GIL). The positions are exact (the GPU's
-:func:`~flexvox_core.motion.gpu.mcnc.bilinear_zero`), not rounded to 1/32 px as OpenCV's remap rounds them.
-
-The gather runs :func:`cell_sums`: the same bits as :func:`lattice_sums` (which weighs all four corners of every
-cell, branch-free, and stays as its reference), reading only the cells that hold a sample of the wanted slot (one in
-four with a 4×4 code; the corner table of :mod:`~flexvox_core.motion.longreach_kernel`).
-"""
+:func:`~flexvox_core.motion.gpu.mcnc.bilinear_zero`), not rounded to 1/32 px as OpenCV's remap rounds them."""
 
 from __future__ import annotations
 
@@ -74,9 +69,8 @@ def reach_thresholds(reach: int) -> Any:
     """float32 ``(reach + 2,)``: entry d (1 <= d <= ``reach``) the smallest float32 e with
     :func:`own_reach` (e, ``reach``) >= d, found by bisection over the float32 numbers of [0, 1] (whose bit
     patterns are in their order) with :func:`own_reach` itself; entry 0 is 0, entry reach + 1 is 2 (above every e).
-    :func:`own_reach` rises with e, so it is the number of entries 1 … reach that e reaches: two comparisons and
-    an add a step, where it takes two logarithms and a square root (the gather's voxels reach 6 or 7 on the 1-s
-    clip)."""
+    :func:`own_reach` rises with e, so it is the number of entries 1 … reach that e reaches: ``reach`` comparisons
+    without a branch, where it takes two logarithms and a square root."""
     th = np.zeros(reach + 2, np.float32)
     th[reach + 1] = 2
     buf = np.zeros(1, np.float32)
@@ -110,23 +104,9 @@ def slot_tables(code: np.ndarray, height: int, width: int) -> tuple[np.ndarray, 
     return rows, cols
 
 
-def cell_tables(code: np.ndarray, height: int, width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(cells, row_base, col_base): :func:`cell_sums`'s corner table of an identity ``code`` (m, n, K) flat, uint8
-    (:func:`~flexvox_core.motion.longreach_kernel.corner_table`), and its offsets for a cell's top-left row and
-    column y, x from −1 (at y + 1, x + 1; int64 ``(height + 1,)`` and ``(width + 1,)``)."""
-    from flexvox_core.codes import order_from_code
-    from flexvox_core.motion.longreach_kernel import corner_table
-
-    m, n, K = code.shape
-    cells = np.ascontiguousarray(corner_table(order_from_code(code)).ravel())
-    row_base = ((np.arange(-1, height) % m) * n * K).astype(np.int64)
-    col_base = ((np.arange(-1, width) % n) * K).astype(np.int64)
-    return cells, row_base, col_base
-
-
 @numba.njit(nogil=True, cache=True)
 def lattice_sums(frames: Any, present: Any, row_hit: Any, col_hit: Any, flow_t: Any, near: Any, y0: int, x0: int,
-                 t: int, S: int, inv_4nc1: Any, reach: int, num: Any, den: Any) -> None:
+                 t: int, S: int, inv_4nc1: Any, reach: int, num: Any, den: Any, thresholds: Any) -> None:
     """The unblurred sums (numerator into ``num``, weight into ``den``, both (h, w) float32) along the
     trajectories of the voxels of sub-frame ``t`` where ``near`` (h, w) is True, the box's top-left at
     (``y0``, ``x0``); 0 elsewhere in the box.
@@ -135,7 +115,9 @@ def lattice_sums(frames: Any, present: Any, row_hit: Any, col_hit: Any, flow_t: 
     ``col_hit`` (K, W + 2) float32 (:func:`slot_tables`): 1 at the rows and the columns of an identity code's slot
     k's samples, shifted by one (pixel (y, x) holds slot k's iff ``row_hit[k, y + 1]`` and ``col_hit[k, x + 1]``;
     the first and last entries, outside the picture, are 0); ``flow_t`` (H, W, 2) float32 the sub-frame's flow
-    (NaN or infinity read as still); ``inv_4nc1`` 1 / (4 n c1) float32; ``reach`` the largest offset.
+    (NaN or infinity read as still); ``inv_4nc1`` 1 / (4 n c1) float32; ``reach`` the largest offset;
+    ``thresholds`` :func:`reach_thresholds` (``reach``): each voxel's own reach is counted on it (the bits of
+    :func:`own_reach`, a tenth of the kernel's time faster on the 1-s clip), or an empty array: :func:`own_reach`.
     """
     K = row_hit.shape[0]
     H = frames.shape[1]
@@ -160,7 +142,12 @@ def lattice_sums(frames: Any, present: Any, row_hit: Any, col_hit: Any, flow_t: 
                 u = np.float32(0)
                 v = np.float32(0)
             e = np.float32(math.exp(-(one + u * u + v * v) * inv_4nc1))
-            r = own_reach(e, reach)
+            if len(thresholds):
+                r = 0
+                for d in range(1, reach + 1):  # own_reach(e, reach), branch-free
+                    r += e >= thresholds[d]
+            else:
+                r = own_reach(e, reach)
             acc_n = np.float32(0)
             acc_d = np.float32(0)
             if own_row and col_hit[k_t, x + 1] > 0:
@@ -199,115 +186,6 @@ def lattice_sums(frames: Any, present: Any, row_hit: Any, col_hit: Any, flow_t: 
                     a, b = _read(frames, row_hit, col_hit, bf, bk, by, bx, H, W)
                     acc_n += wd * a
                     acc_d += wd * b
-            num[i, j] = acc_n
-            den[i, j] = acc_d
-
-
-@numba.njit(nogil=True, cache=True)
-def cell_sums(frames: Any, present: Any, row_hit: Any, col_hit: Any, cells: Any, row_base: Any, col_base: Any,
-              flow_t: Any, near: Any, y0: int, x0: int, t: int, S: int, inv_4nc1: Any, reach: int, num: Any,
-              den: Any, thresholds: Any) -> None:
-    """:func:`lattice_sums`, the same bits, reading only the cells that hold a sample of the wanted slot.
-
-    ``cells``, ``row_base`` and ``col_base``: the lattice's corner table and its offsets
-    (:func:`~flexvox_core.motion.longreach_kernel.lattice_tables`): the bits of the cell whose top-left pixel is
-    (y, x) for slot k are ``cells[row_base[y + 1] + col_base[x + 1] + k]``. A cell without a bit (three reads in
-    four with a 4×4 code) adds nothing and is not read; a cell with one bit reads that pixel alone, weighted as
-    :func:`_read` weights it (the other corners' weights are zeros there: the same float32 sums); a cell with
-    several (a tile of one row or column) is read by :func:`_read`. ``thresholds``: :func:`reach_thresholds`
-    (``reach``), each voxel's own reach counted on it (the same as :func:`own_reach`'s)."""
-    K = row_hit.shape[0]
-    H = frames.shape[1]
-    W = frames.shape[2]
-    h, w = near.shape
-    one = np.float32(1)
-    lo = np.float32(-1)
-    hi_y = np.float32(H)
-    hi_x = np.float32(W)
-    f_t = t // K
-    k_t = t - f_t * K
-    own = present[f_t]
-    for i in range(h):
-        y = y0 + i
-        own_row = own and row_hit[k_t, y + 1] > 0
-        for j in range(w):
-            if not near[i, j]:
-                num[i, j] = 0
-                den[i, j] = 0
-                continue
-            x = x0 + j
-            u = flow_t[y, x, 0]
-            v = flow_t[y, x, 1]
-            if not (math.isfinite(u) and math.isfinite(v)):
-                u = np.float32(0)
-                v = np.float32(0)
-            e = np.float32(math.exp(-(one + u * u + v * v) * inv_4nc1))
-            r = 0
-            while e >= thresholds[r + 1]:  # own_reach(e, reach): entry reach + 1 stops it
-                r += 1
-            acc_n = np.float32(0)
-            acc_d = np.float32(0)
-            if own_row and col_hit[k_t, x + 1] > 0:
-                acc_n = frames[f_t, y, x]
-                acc_d = one
-            e2 = e * e
-            wd = one
-            step = e
-            fx = np.float32(x)
-            fy = np.float32(y)
-            bx = np.float32(x)
-            by = np.float32(y)
-            ff = bf = f_t
-            fk = bk = k_t
-            for d in range(1, r + 1):
-                wd *= step
-                step *= e2
-                fx += u
-                fy += v
-                bx -= u
-                by -= v
-                fk += 1
-                if fk == K:
-                    fk = 0
-                    ff += 1
-                bk -= 1
-                if bk < 0:
-                    bk = K - 1
-                    bf -= 1
-                for side in range(2):
-                    if side == 0:
-                        if t + d >= S or not present[ff]:
-                            continue
-                        f, k, py, px = ff, fk, fy, fx
-                    else:
-                        if t - d < 0 or not present[bf]:
-                            continue
-                        f, k, py, px = bf, bk, by, bx
-                    if not (lo < py < hi_y and lo < px < hi_x):  # no pixel of the cell in the picture
-                        continue
-                    cy = int(py)  # the floor, as _read's
-                    cy -= py < cy
-                    cx = int(px)
-                    cx -= px < cx
-                    bits = cells[row_base[cy + 1] + col_base[cx + 1] + k]
-                    if bits == 0:
-                        continue
-                    if bits == 1 or bits == 2 or bits == 4 or bits == 8:
-                        b = 0 if bits == 1 else 1 if bits == 2 else 2 if bits == 4 else 3
-                        yy = cy + (b >> 1)
-                        xx = cx + (b & 1)
-                        if not (0 <= yy < H and 0 <= xx < W):
-                            continue
-                        ay = np.float32(py - np.float32(cy))
-                        ax = np.float32(px - np.float32(cx))
-                        wy = ay if b >> 1 else one - ay
-                        wx = ax if b & 1 else one - ax
-                        a = wy * (wx * frames[f, yy, xx])
-                        c = wy * wx
-                    else:
-                        a, c = _read(frames, row_hit, col_hit, f, k, py, px, H, W)
-                    acc_n += wd * a
-                    acc_d += wd * c
             num[i, j] = acc_n
             den[i, j] = acc_d
 

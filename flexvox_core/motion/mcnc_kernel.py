@@ -8,7 +8,8 @@ their bilinear weight times the frame's value, and the read of the mask the sum 
 picture, as OpenCV's ``BORDER_CONSTANT``). This module computes the gather's unblurred sums that way, one
 sub-frame's box at a time (:func:`~flexvox_core.motion.mcnc.trajectory_gather` calls it from its threads: the
 kernel releases the GIL). The positions are exact (the GPU's
-:func:`~flexvox_core.motion.gpu.mcnc.bilinear_zero`), not rounded to 1/32 px as OpenCV's remap rounds them."""
+:func:`~flexvox_core.motion.gpu.mcnc.bilinear_zero`), not rounded to 1/32 px as OpenCV's remap rounds them.
+"""
 
 from __future__ import annotations
 
@@ -188,4 +189,3 @@ def lattice_sums(frames: Any, present: Any, row_hit: Any, col_hit: Any, flow_t: 
                     acc_d += wd * b
             num[i, j] = acc_n
             den[i, j] = acc_d
-

@@ -211,12 +211,27 @@ def _guides_whole() -> Iterator[None]:
         setattr(stages, "diffuse_where", kept_where)  # noqa: B010
 
 
+@contextlib.contextmanager
+def _reach_by_log() -> Iterator[None]:
+    """Before the trajectory gather counted each voxel's reach on a table of thresholds: ``own_reach``, two
+    logarithms and a square root per voxel (an empty table; the same bits)."""
+    from flexvox_core.motion import mcnc_kernel
+
+    kept = mcnc_kernel.reach_thresholds
+    mcnc_kernel.reach_thresholds = lambda reach: np.zeros(0, np.float32)
+    try:
+        yield
+    finally:
+        mcnc_kernel.reach_thresholds = kept
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
     "scratch-volume": _scratch_volume,
     "long-reach-remap": _long_reach_on_sample_planes,
     "guides-whole": _guides_whole,
+    "reach-by-log": _reach_by_log,
 }
 """The code as it was before each change (``kept``: as it is), for ``--ab``."""
 

@@ -39,6 +39,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable, Iterator
+from typing import Any
 
 import numpy as np
 
@@ -255,6 +256,46 @@ def _refine_moving_still() -> Iterator[None]:
         stages.variable_tensor_diffusion = kept
 
 
+@contextlib.contextmanager
+def _guides_whole() -> Iterator[None]:
+    """Before nc finished its end sub-frames as their blurred mask was made and diffuse_where read the still voxels a
+    band at a time: the ends' blurred mask held (each end's r + K sub-frames: before, its whole 2r + K and a copy of
+    the period too), the still voxels unpacked into one bool volume for diffuse_where."""
+    from flexvox_core.motion import planes, stages
+    from flexvox_core.reconstruct import diffusion
+
+    kept_den, kept_where = diffusion._PeriodicDenominator, diffusion.diffuse_where
+
+    def held(den_k: np.ndarray, F: int, gt: np.ndarray | None, ends: object = None) -> diffusion._PeriodicDenominator:
+        return kept_den(den_k, F, gt)
+
+    def whole_where(frames: np.ndarray, code: np.ndarray, out: np.ndarray, where: object,
+                    **kw: Any) -> np.ndarray:
+        return kept_where(frames, code, out, planes.band(where, 0, len(out)), **kw)
+
+    diffusion._PeriodicDenominator = held  # type: ignore[assignment, misc]
+    setattr(stages, "diffuse_where", whole_where)  # noqa: B010 - stages imports it: patched where it is read
+    try:
+        yield
+    finally:
+        diffusion._PeriodicDenominator = kept_den  # type: ignore[misc]
+        setattr(stages, "diffuse_where", kept_where)  # noqa: B010
+
+
+@contextlib.contextmanager
+def _reach_by_log() -> Iterator[None]:
+    """Before the trajectory gather counted each voxel's reach on a table of thresholds: ``own_reach``, two
+    logarithms and a square root per voxel (an empty table; the same bits)."""
+    from flexvox_core.motion import mcnc_kernel
+
+    kept = mcnc_kernel.reach_thresholds
+    mcnc_kernel.reach_thresholds = lambda reach: np.zeros(0, np.float32)
+    try:
+        yield
+    finally:
+        mcnc_kernel.reach_thresholds = kept
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
@@ -262,6 +303,8 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "long-reach-remap": _long_reach_on_sample_planes,
     "refine-halo-bands": _refine_halo_bands,
     "refine-moving-still": _refine_moving_still,
+    "guides-whole": _guides_whole,
+    "reach-by-log": _reach_by_log,
 }
 """The code as it was before each change (``kept``: as it is), for ``--ab``."""
 

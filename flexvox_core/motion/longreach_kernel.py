@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import cv2
 import numba
 import numpy as np
 
@@ -163,12 +164,13 @@ def _lattice(corners: Any, present: Any, S: int, H: int, W: int) -> tuple[Any, A
 
 
 @numba.njit(nogil=True, cache=True, error_model="numpy")
-def _subframe(frames: Any, order: Any, lat: Any, flow_t: Any, guide: Any, sel: Any, t: int, time_w: Any,
-              scale: Any, taps: Any, min_weight: Any, out: Any, num: Any, den: Any, rows: Any, cols: Any,
-              xs: Any, scratch: Any, write_samples: bool) -> None:
-    """Sub-frame ``t``, its flow ``flow_t`` (H, W, 2) and selection ``sel`` (H, W): the sums at the voxels within
-    the blur's reach of ``sel`` (into ``num``, ``den``), blurred and divided at the selected ones into ``out[t]``,
-    then (``write_samples``) the samples written."""
+def _subframe(frames: Any, order: Any, lat: Any, flow_t: Any, guide: Any, sel: Any, act: Any, t: int, time_w: Any,
+              scale: Any, taps: Any, min_weight: Any, out: Any, num: Any, den: Any, rows: Any, xs: Any,
+              scratch: Any, write_samples: bool) -> None:
+    """Sub-frame ``t``, its flow ``flow_t`` (H, W, 2), selection ``sel`` (H, W) and the voxels within the blur's
+    reach of it ``act`` (H, W; nonzero there: ``sel`` dilated by the blur's square): the sums at ``act`` (into
+    ``num``, ``den``), blurred and divided at the selected voxels into ``out[t]``, then (``write_samples``) the
+    samples written."""
     S, H, W = guide.shape
     m, n = order.shape
     r = (len(taps) - 1) // 2
@@ -182,30 +184,13 @@ def _subframe(frames: Any, order: Any, lat: Any, flow_t: Any, guide: Any, sel: A
                 break
     if found:
         for y in range(H):
-            y_lo = max(0, y - r)
-            y_hi = min(H, y + r + 1)
-            near = False
-            for yy in range(y_lo, y_hi):
-                near |= rows[yy]
-            if not near:
-                continue
-            cols[:] = False
-            for yy in range(y_lo, y_hi):
-                if rows[yy]:
-                    for x in range(W):
-                        if sel[yy, x]:
-                            cols[x] = True
             count = 0
-            for x in range(W):
-                act = False
-                for xx in range(max(0, x - r), min(W, x + r + 1)):
-                    if cols[xx]:
-                        act = True
-                        break
-                if act:
+            for x in range(W):  # the voxels within the blur's reach of `sel`: `act`, its square dilation
+                if act[y, x]:
                     xs[count] = x
                     count += 1
-            _row_sums(frames, lat, flow_t, guide, t, y, xs, count, time_w, scale, num[y], den[y], scratch)
+            if count:
+                _row_sums(frames, lat, flow_t, guide, t, y, xs, count, time_w, scale, num[y], den[y], scratch)
         # Blurred (zero outside the picture; every neighbour of a selected voxel was summed) and divided.
         for y in range(H):
             if not rows[y]:
@@ -265,16 +250,22 @@ def long_reach_kernel(frames: Any, order: Any, corners: Any, present: Any, flow:
     S, H, W = guide.shape
     lat = _lattice(corners, present, S, H, W)
 
+    r = (len(taps) - 1) // 2
+    square = np.ones((2 * r + 1, 2 * r + 1), np.uint8)
+
     def chunk(c: int) -> None:  # sub-frames c, c + chunks, ... (interleaved: a run of busy ones is shared out)
         rows = np.empty(H, np.bool_)
-        cols = np.empty(W, np.bool_)
         xs = np.empty(W, np.int64)
         scratch = np.empty((5, W), np.float32)
+        act = np.empty((H, W), np.uint8)
         for t in range(c, S, chunks):
             sel = np.ascontiguousarray(band(select, t, t + 1)[0], np.bool_)
-            flow_t = np.ascontiguousarray(band(flow, t, t + 1)[0], np.float32) if sel.any() else _NO_FLOW
-            long_reach_subframe(frames, order, lat, flow_t, guide, sel, t, time_w, scale, taps, min_weight, out,
-                                num[c], den[c], rows, cols, xs, scratch, write_samples)
+            busy = sel.any()
+            flow_t = np.ascontiguousarray(band(flow, t, t + 1)[0], np.float32) if busy else _NO_FLOW
+            if busy:  # within the blur's reach of `sel` (OpenCV's dilation: no pixel outside the picture counts)
+                cv2.dilate(sel.view(np.uint8), square, dst=act) if r else np.copyto(act, sel.view(np.uint8))
+            long_reach_subframe(frames, order, lat, flow_t, guide, sel, act, t, time_w, scale, taps, min_weight,
+                                out, num[c], den[c], rows, xs, scratch, write_samples)
 
     for_each(chunk, chunks)
 
@@ -284,11 +275,12 @@ _NO_FLOW = np.zeros((1, 1, 2), np.float32)
 
 
 @numba.njit(nogil=True, cache=True, error_model="numpy")
-def long_reach_subframe(frames: Any, order: Any, lat: Any, flow_t: Any, guide: Any, sel: Any, t: int,
+def long_reach_subframe(frames: Any, order: Any, lat: Any, flow_t: Any, guide: Any, sel: Any, act: Any, t: int,
                         time_w: Any, scale: Any, taps: Any, min_weight: Any, out: Any, num: Any, den: Any,
-                        rows: Any, cols: Any, xs: Any, scratch: Any, write_samples: bool) -> None:
-    """Sub-frame ``t`` of :func:`long_reach_kernel`: its flow ``flow_t`` (H, W, 2) and selection ``sel`` (H, W),
-    the lattice's tables ``lat`` (:func:`_lattice`), scratch ``num``, ``den`` (H, W), ``rows``, ``cols``, ``xs``
-    and ``scratch`` (5, W)."""
-    _subframe(frames, order, lat, flow_t, guide, sel, t, time_w, scale, taps, min_weight, out, num, den,
-              rows, cols, xs, scratch, write_samples)
+                        rows: Any, xs: Any, scratch: Any, write_samples: bool) -> None:
+    """Sub-frame ``t`` of :func:`long_reach_kernel`: its flow ``flow_t`` (H, W, 2), selection ``sel`` (H, W) and
+    the voxels within the blur's reach of it ``act`` (H, W uint8, read only where ``sel`` has a voxel), the
+    lattice's tables ``lat`` (:func:`_lattice`), scratch ``num``, ``den`` (H, W), ``rows``, ``xs`` and ``scratch``
+    (5, W)."""
+    _subframe(frames, order, lat, flow_t, guide, sel, act, t, time_w, scale, taps, min_weight, out, num, den,
+              rows, xs, scratch, write_samples)

@@ -178,7 +178,7 @@ def trajectory_gather(frames, code, flow, *, missing=None, c=DEFAULT_C, time: fl
         are kept. ``max_reach`` defaults to :func:`default_reach` of the sampling period S / (frames present).
     """
     from flexvox_core.forward import tiled_code, validate_code
-    from flexvox_core.motion.mcnc_kernel import lattice_sums, slot_tables
+    from flexvox_core.motion.mcnc_kernel import lattice_sums, reach_thresholds, slot_tables
 
     c1, c2, _ = check_c(c)
     code = validate_code(code)
@@ -222,12 +222,13 @@ def trajectory_gather(frames, code, flow, *, missing=None, c=DEFAULT_C, time: fl
     slots = tiled_code(code, H, W)  # (K, H, W): a slot's samples, a sixteenth of a volume at K = 16
     none = np.zeros((H, W), bool)
     inv_4nc1 = np.float32(1 / (4 * time * c1))
+    thresholds = reach_thresholds(reach)
 
     def sums(t, box, near):
         planes = np.empty((2, *near.shape), np.float32)
         flow_t = np.ascontiguousarray(band(f, t, t + 1)[0], np.float32)
         lattice_sums(fr, present, row_hit, col_hit, flow_t, np.ascontiguousarray(near), box[0].start, box[1].start,
-                     t, S, inv_4nc1, reach, planes[0], planes[1])
+                     t, S, inv_4nc1, reach, planes[0], planes[1], thresholds)
         return planes
 
     def samples_of(t):
@@ -302,25 +303,25 @@ def _leave_one_out(dst: np.ndarray, planes: np.ndarray, sampled: np.ndarray, y: 
     in reach); ``planes`` = (N, D) after the spatial blur, whose reflecting border gives a voxel more of itself
     there (:func:`~flexvox_core.reconstruct.diffusion.self_weights`); with ``wide`` (weights g of the box) the
     blur is the mixture with a Gaussian of ``wide_sigma``, and so is c."""
-    if not sampled.any():
+    ys, xs = np.nonzero(sampled)
+    if not len(ys):
         return
     h, w = sampled.shape
-    own = _own_weights(sig_space, h, w)
+    own = _own_weights_at(sig_space, h, w, ys, xs)  # at the samples alone (a sixteenth of the box at K = 16)
     if wide is not None:
-        own = own + wide.astype(np.float64) * (_own_weights(wide_sigma, h, w) - own)
-    own = own[sampled]
+        own = own + wide[ys, xs].astype(np.float64) * (_own_weights_at(wide_sigma, h, w, ys, xs) - own)
     rest = planes[1][sampled] - own
     est = (planes[0][sampled] - own * y[sampled]) / np.where(rest > MIN_WEIGHT, rest, 1.0)
     dst[sampled] = np.where(rest > MIN_WEIGHT, est, np.nan)
 
 
-def _own_weights(sigma: float, h: int, w: int) -> np.ndarray:
-    """Weight (h, w) float64 each pixel of a box gives itself in cv2.GaussianBlur with ``sigma`` (px) and
-    reflecting borders; 1 without a blur (σ <= 0.05, as the gather skips it)."""
+def _own_weights_at(sigma: float, h: int, w: int, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
+    """Weight (float64) each pixel (``ys``, ``xs``) of an (h, w) box gives itself in cv2.GaussianBlur with ``sigma``
+    (px) and reflecting borders; 1 without a blur (σ <= 0.05, as the gather skips it)."""
     if sigma <= 0.05:
-        return np.ones((h, w))
+        return np.ones(len(ys))
     g = cv2.getGaussianKernel(int(round(sigma * 8 + 1)) | 1, sigma, cv2.CV_64F).ravel()
-    return self_weights(g, h)[:, None] * self_weights(g, w)[None, :]
+    return self_weights(g, h)[ys] * self_weights(g, w)[xs]
 
 
 def default_reach(time: float, c1: float, period: int, S: int) -> int:

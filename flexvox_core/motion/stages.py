@@ -506,9 +506,9 @@ class CpuStages:
         base = fixed
         if still.any():
             if w.passes == 1 and w.skip is None:
-                # `fixed` serves this pass alone: the still voxels' values go straight into it (no volume of them);
-                # diffuse_where takes a whole bool volume: the still voxels unpacked for it, here alone.
-                diffuse_where(w.frames, w.code, base, band(still, 0, w.S), tensor=STILL_TENSOR, time=w.still_time,
+                # `fixed` serves this pass alone: the still voxels' values go straight into it (no volume of them;
+                # diffuse_where reads the still voxels a band of sub-frames at a time).
+                diffuse_where(w.frames, w.code, base, still, tensor=STILL_TENSOR, time=w.still_time,
                               missing=w.missing)
             else:
                 still_value = self.still_value

@@ -90,6 +90,9 @@ _CHUNK = 16384  # columns per cv2 call for the time axis (a wide thin image filt
 PARALLEL_ENDS_TAPS = 49
 """Time kernels shorter than this blur the two ends of :class:`_PeriodicDenominator` on two threads."""
 
+SELECT_BAND = 16
+"""Sub-frames of a selection read at a time by :func:`diffuse_where` when it is given as bands."""
+
 MAX_SIGMA = 10000.0
 """The largest blur (σ, pixels or sub-frames) a tensor and time may ask for: far beyond any recording's extent
 (the blur is then flat), and short of kernels that would not fit in memory (4 σ taps each side)."""
@@ -335,10 +338,8 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
         _blur_rows(flat, gt, flat)
     # Denominator: the mask has only K distinct sub-frames; blur those in space, then time.
     den_k = _mask_planes(order, K, gy, gx, dtype)
-    den = _PeriodicDenominator(den_k, F, gt) if present is None else _gapped_denominator(den_k, present, gt)
     peak = _peak((gx, gy, gt))
-    if loo is not None:
-        _leave_one_out(loo, num, den, frames, order, (gx, gy, gt), NC_MIN_WEIGHT * peak, present)
+    floor = NC_MIN_WEIGHT * peak
     samples = frames.astype(dtype, copy=False)
     kept = captured(samples, None if present is None else ~present)
     lo, hi = kept.min(), kept.max()
@@ -347,22 +348,40 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
     low = np.zeros((S, H, W), bool)
     any_low = np.zeros(S, bool)
 
-    def finish(s):
-        # A sub-frame divided, clipped to the samples' range and given its samples back while it is in cache
-        # (not two more passes over the volume); on every core (numpy releases the GIL).
-        d = den[s]
-        low_s = d <= NC_MIN_WEIGHT * peak
+    def finish(s: int, d: np.ndarray, cols: slice | None = None) -> None:
+        # A sub-frame divided, clipped to the samples' range and given its samples back while it is in cache (not
+        # two more passes over the volume); on every core (numpy releases the GIL). Its columns `cols` of the
+        # flattened plane alone: divided and clipped (element by element: the same bits whichever columns at a
+        # time), the samples given back by `give_back` (a masked copy is slow on a short row).
+        n = num[s].reshape(-1)[slice(None) if cols is None else cols]
+        d = d.reshape(-1)
+        low_s = d <= floor
         if low_s.any():
-            low[s] = low_s  # only then: a sub-frame's pages of `low` are touched only when it has such voxels
+            low[s].reshape(-1)[cols] = low_s  # only then: a sub-frame's pages of `low` are touched only if it has any
             any_low[s] = True
-            np.divide(num[s], d, out=num[s], where=~low_s)
+            np.divide(n, d, out=n, where=~low_s)
         else:
-            np.divide(num[s], d, out=num[s])
-        np.clip(num[s], lo, hi, out=num[s])
+            np.divide(n, d, out=n)
+        np.clip(n, lo, hi, out=n)
+        if cols is None:
+            give_back(s)
+
+    def give_back(s: int) -> None:
         if keep_samples and (present is None or present[s // K]):
             np.copyto(num[s], samples[s // K], where=slots[s % K])
 
-    for_each(finish, S)
+    if present is not None:
+        den = _gapped_denominator(den_k, present, gt)
+    else:  # without the leave-one-out the ends' sub-frames are finished as their blurred mask is made, not held
+        den = _PeriodicDenominator(den_k, F, gt, ends=finish if loo is None else None)
+    del den_k  # the denominator holds what it reads
+    if loo is not None:
+        _leave_one_out(loo, num, den, frames, order, (gx, gy, gt), floor, present)
+    rows = range(S) if present is not None else den.interior
+    for_each(lambda i: finish(rows[i], den[rows[i]]), len(rows))
+    if len(rows) < S:  # the ends, finished as their blurred mask was made: their samples
+        ends = [s for s in range(S) if s not in rows]
+        for_each(lambda i: give_back(ends[i]), len(ends))
     if any_low.any():
         # A sample's blurred mask holds at least its own weight: no sample is among these voxels, and the
         # nearest sample's value needs no clipping.
@@ -401,17 +420,32 @@ def _time_pass(samples, code, weight, first, lo: float, hi: float, dtype, *, kee
     """``out[s, y, x]`` = Σ_b weight[s, order[y, x], b] · samples[first[s] + b, y, x], clipped to [lo, hi]
     (:mod:`~flexvox_core.reconstruct.nc_time_kernel`, bands of rows spread over the cores). ``keep`` (F,)
     bool: those frames' samples are written at their voxels instead (``keep_samples``). ``out``: written
-    in place (a new volume when None); ``select`` (S, H, W) bool: only those voxels of it."""
+    in place (a new volume when None); ``select`` (S, H, W) bool, or an object read a band of sub-frames at a
+    time (``band(s0, s1)``, :data:`SELECT_BAND` of them): only those voxels of it."""
     from flexvox_core.reconstruct.nc_time_kernel import time_only_rows
 
     F, H, W = samples.shape
     m, _, K = code.shape
+    S = F * K
     order = tiled_order(code, min(H, m), W).astype(np.int64)  # repeats every m rows
     if out is None:
-        out = np.empty((F * K, H, W), dtype)
-    band = 32
-    for_each(lambda i: time_only_rows(samples, order, weight, first, lo, hi, out, i * band, min(H, (i + 1) * band),
-                                      keep, select), -(-H // band))
+        out = np.empty((S, H, W), dtype)
+    rows = 32
+
+    def run(s0: int, s1: int, chosen) -> None:
+        for_each(lambda i: time_only_rows(samples, order, weight, first, lo, hi, out, i * rows,
+                                          min(H, (i + 1) * rows), keep, chosen, s0, s1), -(-H // rows))
+
+    if select is None or isinstance(select, np.ndarray):
+        run(0, S, select)
+        return out
+    for s0 in range(0, S, SELECT_BAND):  # a band of the selection at a time: never the whole bool volume
+        s1 = min(S, s0 + SELECT_BAND)
+        chosen = np.ascontiguousarray(select.band(s0, s1), dtype=bool)
+        if chosen.shape != (s1 - s0, H, W):
+            raise ValueError(f"`where`.band({s0}, {s1}) must have shape {(s1 - s0, H, W)}; got {chosen.shape}")
+        if chosen.any():
+            run(s0, s1, chosen)
     return out
 
 
@@ -534,58 +568,97 @@ class _PeriodicDenominator:
     The mask repeats every K sub-frames, so away from the clip's ends (farther than the time
     kernel's radius r) the blurred mask does too; only the first and last ``r + K`` sub-frames
     see the reflecting ends. Those come from blurring ``2r + K`` sub-frames at each end (exactly
-    what the whole clip's blur gives there); the rest repeats one period of them. A clip too
-    short for that is blurred whole.
+    what the whole clip's blur gives there), a band of columns at a time; the rest repeats one
+    period of the first end's. A clip too short for that is blurred whole.
+
+    ``ends``: a callable ``ends(s, row, cols)`` that takes each end sub-frame's blurred mask as its
+    columns ``cols`` (a slice of the flattened plane) are made, ``row`` 1-D, in place of holding the ends
+    (:meth:`__getitem__` then gives the interior's sub-frames alone); None: the ends are held.
     """
 
-    def __init__(self, den_k: np.ndarray, F: int, gt: np.ndarray | None) -> None:
+    def __init__(self, den_k: np.ndarray, F: int, gt: np.ndarray | None, ends=None) -> None:
         K, H, W = den_k.shape
         self.K, self.S = K, F * K
         self.r = 0 if gt is None else gt.size // 2
         length = min(self.S, 2 * self.r + K)
         self.length = length
-        self.den_k = den_k
+        self.den_k: np.ndarray | None = den_k
+        self.head: np.ndarray | None = None
+        self.tail: np.ndarray | None = None
+        self.streamed = False
         if gt is None:
-            self.head = self.tail = None
             return
-        # An end's blur is exact wherever its window does not reach the short clip's other end.
-        starts = [0] if length == self.S else [0, self.S - length]
-        ends = [None] * len(starts)
-
-        def end(i):
-            ends[i] = self._blurred(den_k, starts[i], length, gt)
-
-        # The two ends side by side, one per core, for short time kernels; a long one (about 50 taps and more)
-        # is filtered on OpenCV's own threads, which for_each would switch off (sigma_t = 8: 0.16 -> 0.29 s).
-        if gt.size < PARALLEL_ENDS_TAPS:
-            for_each(end, len(starts))
+        flat = den_k.reshape(K, H * W)
+        if length == self.S:  # a short clip: blurred whole
+            block = flat[np.arange(length) % K]
+            _blur_rows(block, gt, block)
+            self.head = self.tail = block.reshape(length, H, W)
+            self.den_k = None
+            return
+        r = self.r
+        # Of each end's blurred block the r + K sub-frames read are kept (the head's last K are the interior's
+        # period), or handed to `ends` and the period alone kept.
+        self.streamed = ends is not None
+        starts = [0, self.S - length]
+        kept = [(0, r + K), (length - r - K, length)]
+        if self.streamed:
+            held = [np.empty((K, H * W), den_k.dtype)]
         else:
-            for i in range(len(starts)):
-                end(i)
-        self.head, self.tail = ends[0], ends[-1]
-        if length < self.S:  # one period of the interior, phases r .. r + K - 1 (head[s] exact for s < r + K)
-            interior = self.head[self.r: self.r + K]
-            self.period = np.empty_like(den_k)
-            for j in range(K):
-                self.period[(self.r + j) % K] = interior[j]
+            held = [np.empty((b - a, H * W), den_k.dtype) for a, b in kept]
+        # The same column bands as _blur_rows cuts a whole block into (the same bits), one block band at a time:
+        # never a whole end's block of 2r + K sub-frames.
+        cols = list(range(0, H * W, _CHUNK))
 
-    @staticmethod
-    def _blurred(den_k, start, length, gt):
-        K, H, W = den_k.shape
-        phases = (start + np.arange(length)) % K
-        block = den_k[phases]  # (length, H, W), a copy
-        flat = block.reshape(length, H * W)
-        _blur_rows(flat, gt, flat)
-        return block
+        def one(i: int) -> None:
+            end, c = divmod(i, len(cols))
+            band = slice(cols[c], cols[c] + _CHUNK)
+            phases = (starts[end] + np.arange(length)) % K
+            block = flat[phases, band]  # (length, columns), a copy
+            _blur_rows(block, gt, block)
+            a, b = kept[end]
+            if not self.streamed:
+                held[end][:, band] = block[a:b]
+                return
+            if end == 0:
+                held[0][:, band] = block[r: r + K]
+            for j in range(a, b):
+                if end == 0 or starts[1] + j >= r + K:  # a short clip's ends overlap: the head's first
+                    ends(starts[end] + j, block[j], band)
+
+        # Bands side by side, one per core, for short time kernels; a long one (about 50 taps and more) is filtered
+        # on OpenCV's own threads, which for_each would switch off (sigma_t = 8: 0.16 -> 0.29 s).
+        if gt.size < PARALLEL_ENDS_TAPS:
+            for_each(one, len(starts) * len(cols))
+        else:
+            for i in range(len(starts) * len(cols)):
+                one(i)
+        if self.streamed:
+            self.period = held[0].reshape(K, H, W)  # phases r .. r + K - 1
+        else:
+            self.head, self.tail = (e.reshape(-1, H, W) for e in held)
+        self.den_k = None  # read no more
+
+    @property
+    def interior(self) -> range:
+        """The sub-frames :meth:`__getitem__` gives when the ends were handed over (``ends``): those the ends' blur
+        does not reach; every sub-frame otherwise."""
+        if self.streamed:
+            return range(self.r + self.K, max(self.r + self.K, self.S - self.r - self.K))
+        return range(self.S)
 
     def __getitem__(self, s: int) -> np.ndarray:
+        r, K = self.r, self.K
+        if self.streamed:
+            return self.period[(s - r) % K]
         if self.head is None:
-            return self.den_k[s % self.K]
-        if self.length == self.S or s < self.r + self.K:
+            assert self.den_k is not None
+            return self.den_k[s % K]
+        assert self.tail is not None
+        if self.length == self.S or s < r + K:
             return self.head[s]
-        if s >= self.S - self.r - self.K:
-            return self.tail[s - (self.S - self.length)]
-        return self.period[s % self.K]
+        if s >= self.S - r - K:
+            return self.tail[s - (self.S - r - K)]
+        return self.head[r + (s - r) % K]  # one period of the interior: phases r .. r + K - 1
 
 
 def _put_samples(volume: np.ndarray, samples: np.ndarray, order: np.ndarray, present=None) -> None:
@@ -796,11 +869,16 @@ def diffuse_where(frames, code, out: np.ndarray, where, *, tensor=DEFAULT_TENSOR
     """``out[where] = diffuse(frames, code, tensor=tensor, time=time, missing=missing)[where]``, in place
     (``nc``, float32, samples kept), and ``out`` returned.
 
+    ``where`` is a bool array of ``out``'s shape, or a volume read a band of sub-frames at a time: an object with
+    that ``shape`` and a method ``band(s0, s1)`` giving sub-frames [s0, s1) as a bool array (e.g. motion-aware's
+    speed classes, held a bit per voxel: :class:`~flexvox_core.motion.packed.PackedVolume`).
+
     A tensor without spatial blur, (0, 0, ct), is computed at those voxels alone: the compiled time pass
     (:mod:`~flexvox_core.reconstruct.nc_time_kernel`) writes them into ``out`` and skips rows without one,
     so no volume is made (motion-aware's still voxels, :mod:`flexvox_core.motion.pipeline`; fresh memory
-    is dear: a 640×480 × 240 volume costs 0.1–0.5 s of page faults). Any other tensor, or a voxel with no
-    sample in reach, computes the whole volume and copies from it.
+    is dear: a 640×480 × 240 volume costs 0.1–0.5 s of page faults), and a ``where`` read by bands is read
+    :data:`SELECT_BAND` sub-frames at a time. Any other tensor, or a voxel with no sample in reach, computes the
+    whole volume and copies from it (a band of ``where`` at a time).
     """
     f = check_frames(frames)
     c = check_identity_code(code)
@@ -811,15 +889,26 @@ def diffuse_where(frames, code, out: np.ndarray, where, *, tensor=DEFAULT_TENSOR
     if (not isinstance(out, np.ndarray) or out.shape != shape or out.dtype != np.float32
             or not out.flags.c_contiguous or not out.flags.writeable):
         raise ValueError(f"`out` must be a writable C-contiguous float32 array of shape {shape}")
-    select = np.ascontiguousarray(where, dtype=bool)
-    if select.shape != shape:
-        raise ValueError(f"`where` must have shape {shape}; got {select.shape}")
+    if hasattr(where, "band") and not isinstance(where, np.ndarray):
+        select = where
+        got = tuple(where.shape)
+    else:
+        select = np.ascontiguousarray(where, dtype=bool)
+        got = select.shape
+    if got != shape:
+        raise ValueError(f"`where` must have shape {shape}; got {got}")
     gx, gy, gt = (gaussian_kernel(v, np.float32) for v in sig)
     if gx is None and gy is None and gt is not None:
         samples = f if present is None else np.where(present[:, None, None], f, 0).astype(f.dtype, copy=False)
         if _nc_time_only(samples, c, sig[2], True, np.float32, present, out=out, select=select) is not None:
             return out
-    np.copyto(out, _nc_kernel(f, c, sig, True, np.float32, present), where=select)
+    whole = _nc_kernel(f, c, sig, True, np.float32, present)
+    if isinstance(select, np.ndarray):
+        np.copyto(out, whole, where=select)
+        return out
+    for s0 in range(0, shape[0], SELECT_BAND):
+        s1 = min(shape[0], s0 + SELECT_BAND)
+        np.copyto(out[s0:s1], whole[s0:s1], where=np.asarray(select.band(s0, s1), dtype=bool))
     return out
 
 

@@ -19,22 +19,22 @@ import numpy as np
 
 
 @numba.njit(nogil=True, cache=True)
-def time_only_rows(frames, order, weight, first, lo, hi, out, y0, y1, present, select):
-    """Rows [y0, y1) of every sub-frame of ``out`` (S, H, W): Σ_b weight[s, k, b] · frames[first[s] + b]
+def time_only_rows(frames, order, weight, first, lo, hi, out, y0, y1, present, select, s0, s1):
+    """Rows [y0, y1) of sub-frames [s0, s1) of ``out`` (S, H, W): Σ_b weight[s, k, b] · frames[first[s] + b]
     (k = order[y, x], the weights normalised to sum 1), clipped to [lo, hi]. ``order`` repeats every
     m rows (a tiled code: m = its first axis).
 
     ``present`` (F,) bool or None: with it, each voxel of a present frame's sub-frame at its pixel's
-    slot takes the sample itself (nc's ``keep_samples``). ``select`` (S, H, W) bool or None: with it,
-    only those voxels are written (the rest of ``out`` is left as it is; rows without one are skipped)."""
-    S = out.shape[0]
+    slot takes the sample itself (nc's ``keep_samples``). ``select`` (s1 - s0, H, W) bool or None (sub-frames
+    s0 to s1): with it, only those voxels are written (the rest of ``out`` is left as it is; rows without one
+    are skipped)."""
     W = out.shape[2]
     B = weight.shape[2]
     m = order.shape[0]
-    K = S // frames.shape[0]
+    K = out.shape[0] // frames.shape[0]
     row_w = np.empty((m, B, W), np.float64)  # a sub-frame's weights along each row of the tile
     acc = np.empty(W, np.float64)
-    for s in range(S):
+    for s in range(s0, s1):
         f0 = first[s]
         k = s % K
         keep = present is not None and present[s // K]
@@ -44,7 +44,7 @@ def time_only_rows(frames, order, weight, first, lo, hi, out, y0, y1, present, s
                     row_w[ym, b, x] = weight[s, order[ym, x], b]
         for y in range(y0, y1):
             if select is not None:
-                chosen = select[s, y]
+                chosen = select[s - s0, y]
                 anything = False
                 for x in range(W):
                     if chosen[x]:
@@ -68,7 +68,7 @@ def time_only_rows(frames, order, weight, first, lo, hi, out, y0, y1, present, s
             own = frames[s // K, y]
             slot = order[y % m]
             for x in range(W):
-                if select is None or select[s, y, x]:
+                if select is None or select[s - s0, y, x]:
                     if keep and slot[x] == k:
                         dst[x] = own[x]
                     else:

@@ -4,12 +4,14 @@ sample-volume gather (:func:`flexvox_core.motion.mcnc.motion_compensated_nc`).""
 
 import math
 
+import numba
 import numpy as np
 import pytest
 
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture, sample_mask, sparse_volume
 from flexvox_core.motion.mcnc import default_reach, motion_compensated_nc, reaches, trajectory_gather
+from flexvox_core.motion.mcnc_kernel import own_reach
 from flexvox_core.motion.noise_aware import wide_sigma
 from flexvox_core.simulate.scenes import render_scene
 
@@ -56,7 +58,7 @@ def reference_sums(sparse, mask, flow, t, time, c1, reach):
 @pytest.mark.parametrize("tile", TILES)
 @pytest.mark.parametrize("dropped", [False, True])
 def test_lattice_sums_are_the_numpy_reference(rng, tile, dropped):
-    from flexvox_core.motion.mcnc_kernel import lattice_sums, slot_tables
+    from flexvox_core.motion.mcnc_kernel import lattice_sums, reach_thresholds, slot_tables
 
     code = design_code(tile).code
     K = code.shape[2]
@@ -76,11 +78,75 @@ def test_lattice_sums_are_the_numpy_reference(rng, tile, dropped):
         near = rng.random((8, 11)) > 0.3
         num, den = np.full((2, 8, 11), 7, np.float32)
         lattice_sums(frames, present, rows, cols, flow[t], near, box[0].start, box[1].start, t, S,
-                     np.float32(1 / (4 * time * c1)), reach, num, den)
+                     np.float32(1 / (4 * time * c1)), reach, num, den, reach_thresholds(reach))
         want_n, want_d = reference_sums(sparse, mask, flow, t, time, c1, reach)
         np.testing.assert_allclose(num, np.where(near, want_n[box], 0), atol=2e-5)
         np.testing.assert_allclose(den, np.where(near, want_d[box], 0), atol=2e-5)
         assert den[near].max() > 0  # samples were read
+
+
+@pytest.mark.parametrize("order", [design_code((4, 4)).order, [[2, 0, 3, 1]], [[1], [2], [0]]],
+                         ids=["4x4", "1x4", "3x1"])
+@pytest.mark.parametrize("dropped", [False, True])
+def test_lattice_sums_reach_on_the_table_is_own_reachs_bit_for_bit(rng, order, dropped):
+    """Each voxel's reach counted on :func:`reach_thresholds` gives the kernel's bits with :func:`own_reach` (an
+    empty table), on odd sizes, with fractional, integer and unmeasured flows and a dropped frame."""
+    from flexvox_core.codes import code_from_order
+    from flexvox_core.motion.mcnc_kernel import lattice_sums, reach_thresholds, slot_tables
+
+    code = code_from_order(np.asarray(order))
+    K = code.shape[2]
+    F, H, W = 3, 11, 13
+    frames = rng.uniform(0.1, 0.9, (F, H, W)).astype(np.float32)
+    present = np.array([True, not dropped, True])
+    S = F * K
+    flow = rng.normal(0, 1.5, (S, H, W, 2)).astype(np.float32)
+    flow[:, :2] = np.round(flow[:, :2])
+    flow[::3, 4, 2] = np.nan
+    reach = default_reach(2.0, 0.95, K, S)
+    inv = np.float32(1 / (4 * 2.0 * 0.95))
+    rows, cols = slot_tables(code, H, W)
+    table, none = reach_thresholds(reach), np.zeros(0, np.float32)
+    read = 0.0
+    for t in range(S):
+        near = rng.random((H - 1, W - 2)) > 0.2
+        want = np.full((2, H - 1, W - 2), 7, np.float32)
+        got = np.full((2, H - 1, W - 2), 5, np.float32)
+        lattice_sums(frames, present, rows, cols, flow[t], near, 1, 2, t, S, inv, reach, want[0], want[1], none)
+        lattice_sums(frames, present, rows, cols, flow[t], near, 1, 2, t, S, inv, reach, got[0], got[1], table)
+        np.testing.assert_array_equal(got.view(np.uint32), want.view(np.uint32))
+        read += float(got[1].sum())
+    assert read > 0
+
+
+@numba.njit(cache=False)
+def _reach_mismatches(lo_bits, hi_bits, reach, thresholds):  # pragma: no cover - compiled
+    """How many float32 numbers with bit patterns in [lo_bits, hi_bits) own_reach and the thresholds disagree on."""
+    buf = np.zeros(1, np.float32)
+    bits = buf.view(np.uint32)
+    bad = 0
+    for b in range(lo_bits, hi_bits):
+        bits[0] = b
+        e = buf[0]
+        r = 0
+        while e >= thresholds[r + 1]:
+            r += 1
+        bad += r != own_reach(e, reach)
+    return bad
+
+
+@pytest.mark.parametrize("reach", [16, 5])
+def test_reach_thresholds_count_own_reach_on_every_float32(reach):
+    """Every float32 from CUTOFF / 2 to 1: the reach counted on the thresholds is own_reach's (the kernel's bits
+    rest on it)."""
+    from flexvox_core.motion.gather_weights import CUTOFF
+    from flexvox_core.motion.mcnc_kernel import reach_thresholds
+
+    th = reach_thresholds(reach)
+    lo = int(np.array(CUTOFF / 2, np.float32).view(np.uint32))
+    hi = int(np.array(1.0, np.float32).view(np.uint32)) + 1
+    assert _reach_mismatches(lo, hi, reach, th) == 0
+    assert own_reach(np.float32(th[3]), reach) == 3 and own_reach(np.nextafter(th[3], np.float32(0)), reach) == 2
 
 
 @pytest.fixture(params=TILES, ids=lambda t: f"{t[0]}x{t[1]}")

@@ -330,3 +330,24 @@ def test_bad_subframes_are_refused_by_name(subframes, kw, message):
     frames = np.full((2, 4, 8), 0.5, np.float32)
     with pytest.raises(ValueError, match=message):
         diffuse(frames, code, subframes=subframes, **kw)
+
+
+@pytest.mark.parametrize(("tensor", "time", "F"), [
+    ((0.05, 0.05, 0.95), 5.0, 6),  # the guides' tensor: ends and an interior
+    ((1.0, 1.0, 0.05), 2.0, 4),  # the high-TR tensor: a short kernel
+    ((0.0, 0.0, 0.3), 1.0, 3),  # the two ends overlap; sub-frames without a sample in reach
+    ((1.0, 1.0, 1.0), 30.0, 9),  # a long kernel (filtered on OpenCV's threads)
+    ((0.5, 0.5, 1.0), 500.0, 2),  # a kernel longer than the clip: blurred whole
+])
+def test_nc_finishes_the_ends_as_made_with_the_same_bits_as_when_held(monkeypatch, tensor, time, F):
+    # diffuse's nc finishes the clip's end sub-frames as their blurred mask is made, a band of columns at a time;
+    # with the ends held (as the leave-one-out reads them) every bit is the same.
+    import flexvox_core.reconstruct.diffusion as D
+
+    code = code_from_order([[0, 5, 7, 2], [6, 3, 1, 4]])  # K = 8
+    frames = np.random.default_rng(3).uniform(0.1, 0.9, (F, 12, 20)).astype(np.float32)
+    monkeypatch.setattr(D, "_CHUNK", 64)  # several bands of columns, the last one short (240 = 3·64 + 48)
+    streamed = diffuse(frames, code, tensor=tensor, time=time)
+    held = D._PeriodicDenominator
+    monkeypatch.setattr(D, "_PeriodicDenominator", lambda den_k, F, gt, ends=None: held(den_k, F, gt))
+    np.testing.assert_array_equal(streamed, diffuse(frames, code, tensor=tensor, time=time))

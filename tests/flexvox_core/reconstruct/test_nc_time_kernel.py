@@ -103,7 +103,9 @@ def test_time_weights_sum_to_the_blurred_mask():
 
 @pytest.mark.parametrize(("tensor", "time"), [((0, 0, 1), 8.0), ((0, 0, 0.3), 1.0), ((0.05, 0.05, 0.95), 5.0)])
 @pytest.mark.parametrize("dropped", [False, True])
-def test_diffuse_where_writes_diffuse_at_the_chosen_voxels_alone(rng, tensor, time, dropped):
+@pytest.mark.parametrize("bands", [False, True])
+def test_diffuse_where_writes_diffuse_at_the_chosen_voxels_alone(monkeypatch, rng, tensor, time, dropped, bands):
+    from flexvox_core.motion.packed import PackedVolume
     from flexvox_core.reconstruct.diffusion import diffuse_where
 
     code = design_code((2, 4)).code
@@ -114,7 +116,13 @@ def test_diffuse_where_writes_diffuse_at_the_chosen_voxels_alone(rng, tensor, ti
     where[:, 5:37] = False  # whole rows without a chosen voxel (the kernel skips them)
     before = rng.random(where.shape).astype(np.float32)
     out = before.copy()
-    assert diffuse_where(frames, code, out, where, tensor=tensor, time=time, missing=missing) is out
+    chosen = where
+    if bands:  # held a bit per voxel, read SELECT_BAND sub-frames at a time (bands of 5: the last one short)
+        chosen = PackedVolume(where.shape)
+        for t in range(len(where)):
+            chosen.put(t, where[t])
+        monkeypatch.setattr(D, "SELECT_BAND", 5)
+    assert diffuse_where(frames, code, out, chosen, tensor=tensor, time=time, missing=missing) is out
     full = diffuse(frames, code, tensor=tensor, time=time, missing=missing)
     np.testing.assert_array_equal(out[where], full[where])  # the same bits: the same pass, samples kept
     np.testing.assert_array_equal(out[~where], before[~where])
@@ -131,3 +139,8 @@ def test_diffuse_where_refuses_a_wrong_volume(rng):
             diffuse_where(frames, code, out, where, tensor=(0, 0, 1), time=1.0)
     with pytest.raises(ValueError, match="`where` must have shape"):
         diffuse_where(frames, code, np.zeros((8, 4, 4), np.float32), where[:4], tensor=(0, 0, 1), time=1.0)
+    from flexvox_core.motion.packed import PackedVolume
+
+    with pytest.raises(ValueError, match=r"`where` must have shape \(8, 4, 4\); got \(8, 4, 5\)"):
+        diffuse_where(frames, code, np.zeros((8, 4, 4), np.float32), PackedVolume((8, 4, 5)), tensor=(0, 0, 1),
+                      time=1.0)

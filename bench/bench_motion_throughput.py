@@ -296,6 +296,20 @@ def _reach_by_log() -> Iterator[None]:
         mcnc_kernel.reach_thresholds = kept
 
 
+@contextlib.contextmanager
+def _high_tr_float32() -> Iterator[None]:
+    """Before the high-TR video was held in float16 from the flow on: float32 to the end (the later stages read
+    its values unrounded; 147 MB more from the flow on at 640x480, 240 sub-frames)."""
+    from flexvox_core.motion import stages
+
+    kept = stages.HIGH_TR_HELD
+    stages.HIGH_TR_HELD = np.float32
+    try:
+        yield
+    finally:
+        stages.HIGH_TR_HELD = kept
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
@@ -305,6 +319,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "refine-moving-still": _refine_moving_still,
     "guides-whole": _guides_whole,
     "reach-by-log": _reach_by_log,
+    "high-tr-float32": _high_tr_float32,
 }
 """The code as it was before each change (``kept``: as it is), for ``--ab``."""
 

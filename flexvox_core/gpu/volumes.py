@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 from numba import cuda
+from numba.core.types import float16, float32
 
 from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import kernel, launch
@@ -130,6 +131,20 @@ def clip(a, lo: float, hi: float) -> None:
     """``a`` clipped to [lo, hi] in place."""
     v = flat(a)
     launch(_clip, v.shape[0], v, np.float32(lo), np.float32(hi))
+
+
+@kernel("void(float32[::1])")
+def _through_half(a):
+    i = cuda.grid(1)
+    if i < a.shape[0]:
+        a[i] = float32(float16(a[i]))
+
+
+def through_half(a) -> None:
+    """``a`` (float32) rounded in place to float16's nearest value (ties to even, as numpy's
+    ``astype(np.float16)``)."""
+    v = flat(a)
+    launch(_through_half, v.shape[0], v)
 
 
 @kernel("void(float32[:, :, ::1], int32[:, ::1], uint8[::1], float32[:, :, ::1], uint8[:, :, ::1])")

@@ -18,7 +18,10 @@ class MotionAwareResult:
     Attributes
     ----------
     video : ndarray (S, H, W) float32 in the samples' range
-    high_tr : ndarray (S, H, W) float32, the Step-1 reconstruction
+    high_tr : ndarray (S, H, W) float32
+        The Step-1 reconstruction, as the stages after the flow read it: its values rounded to float16
+        (:data:`~flexvox_core.motion.stages.HIGH_TR_HELD`; the flow reads them unrounded), made float32 when first
+        read.
     flow : FlowField or ScaledFlow
         The gated flow that drove the tensors (confidence from the high-TR flow); a
         :class:`~flexvox_core.flow.estimate.ScaledFlow` (held at the flow's own scale) makes its full-size

@@ -143,7 +143,9 @@ def check_inputs(frames, code, guide, where, fallback, missing, subframes=None):
     c = check_identity_code(code)
     F, H, W = f.shape
     S = F * c.shape[2]
-    g = np.asarray(guide, np.float32)
+    g = np.asarray(guide)
+    if g.dtype not in (np.float16, np.float32):  # float16 is read a plane at a time as float32 (no float32 copy)
+        g = g.astype(np.float32)
     if g.shape != (S, H, W):
         raise ValueError(f"`guide` must be the (S, H, W) = {(S, H, W)} video whose edges orient the kernel; "
                          f"got {g.shape}")
@@ -184,7 +186,8 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
     frames : ndarray (F, H, W)
     code : ndarray (m, n, K), identity code
     guide : ndarray (F·K, H, W)
-        The picture whose structure orients the kernel at each voxel (finite values).
+        The picture whose structure orients the kernel at each voxel (finite values); float16 is read a band of
+        rows at a time as float32, any other dtype converted to float32 whole.
     where : ndarray (F·K, H, W) bool, or a volume read by bands, optional
         The voxels to estimate (default: all); elsewhere the result is ``fallback``.
     fallback : ndarray (F·K, H, W), or a volume read by bands, optional
@@ -274,7 +277,7 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
             planes = (np.zeros((3, H, W), np.float32), np.empty((H, W)), np.empty((H, W)))
         j, vt, mt = planes
         b0, b1 = max(0, y0 - _PAD), min(H, y1 + _PAD)
-        structure(g[s, b0:b1], out=j[:, b0:b1])
+        structure(np.asarray(g[s, b0:b1], np.float32), out=j[:, b0:b1])
         oriented_plane(samples, order, weight[s], int(first[s]), s % K, s // K, bool(present_f[s // K]),
                        j, wanted, offsets, weights, counts, bank.shape[1] // 2, floor, y0, y1, vt, mt, video[i],
                        loo, _LOW, _HIGH, _TAN)

@@ -21,7 +21,7 @@ from flexvox_core.gaps import captured
 from flexvox_core.gpu import volumes
 from flexvox_core.gpu.diffusion import NcPlan, nc
 from flexvox_core.gpu.volumes import Workspace
-from flexvox_core.motion import local_choice, noise_aware
+from flexvox_core.motion import local_choice, noise_aware, stages
 from flexvox_core.motion.gated_flow import DIS_PARAMS
 from flexvox_core.motion.gpu import gaps
 from flexvox_core.motion.gpu import gated_flow as gate
@@ -138,6 +138,13 @@ class CudaStages:
         if w.missing is not None:
             gaps.bridge_flow(flow, w.missing, w.K, margin=w.bridge_margin)
         return flow
+
+    def hold_high_tr(self, high_tr: Volume) -> Volume:
+        """Its values rounded through float16 in place (the CPU holds it in float16 from the flow on: the same
+        values, in the device's float32 buffer)."""
+        if stages.HIGH_TR_HELD is not np.float32:
+            volumes.through_half(high_tr)
+        return high_tr
 
     def speed_classes(self, flow: Flow) -> tuple[Volume, Volume]:
         w = self.window

@@ -185,3 +185,23 @@ def test_a_stream_on_the_gpu_reuses_its_workspace_and_follows_the_cpus(monkeypat
     assert buffers > 0  # one workspace served every window
     for g, w in zip(got, want, strict=True):
         np.testing.assert_allclose(g.video, w.video, atol=2e-4)
+
+
+def test_high_tr_is_rounded_through_float16_as_numpy_rounds():
+    """The GPU holds high-TR in float32 rounded through float16 from the flow on: the CPU's float16 values, ties to
+    even, subnormals, infinities and NaN alike (high-TR's values lie within the samples': none overflows)."""
+    from numba import cuda
+
+    from flexvox_core.gpu.volumes import through_half
+
+    e = 2.0 ** -11
+    odd = [1 + e, 1 + 3 * e, 2.0 ** -25, 3 * 2.0 ** -25, 65519.0, -0.0, np.nan, -np.inf, 1e-8]
+    a = np.concatenate([np.array(odd, np.float32),
+                        np.random.default_rng(5).normal(0.5, 0.3, 999).astype(np.float32)]).reshape(2, 3, 168)
+    d = cuda.to_device(a)
+    through_half(d)
+    want = a.astype(np.float16).astype(np.float32)
+    got = d.copy_to_host()
+    np.testing.assert_array_equal(got, want)
+    assert got[0, 0, 0] == 1 and got[0, 0, 1] == 1 + 4 * e and got[0, 0, 4] == 65504
+    assert np.signbit(got[0, 0, 5]) and (got != a)[np.isfinite(a)].any()

@@ -224,3 +224,18 @@ def test_gather_from_the_frames_refuses_what_it_cannot_read(rng):
     with pytest.raises(ValueError, match="must not share memory with `fallback`"):
         trajectory_gather(frames, code, flow, out=vol, **kw)
     assert math.isfinite(float(trajectory_gather(frames, code, flow, **kw).sum()))
+
+
+def test_a_float16_fallback_is_read_as_float32_of_its_values(rng, clip):
+    """Motion-aware holds its high-TR video (the gather's fallback) in float16 from the flow on."""
+    code, frames, flow = clip
+    S = frames.shape[0] * code.shape[2]
+    gathered = rng.random((S, *frames.shape[1:])) > 0.3
+    base = rng.random(gathered.shape).astype(np.float32)
+    held = (rng.random(gathered.shape) * 0.9 + 0.05).astype(np.float16)
+    kw = dict(time=2.0, gathered=gathered, still_value=base, max_reach=1)
+    got = trajectory_gather(frames, code, flow, fallback=held, **kw)
+    want = trajectory_gather(frames, code, flow, fallback=held.astype(np.float32), **kw)
+    assert got.dtype == np.float32
+    np.testing.assert_array_equal(got, want)
+    assert np.isin(got, held.astype(np.float32)).any()  # some voxels out of reach took the fallback

@@ -319,3 +319,18 @@ def test_a_workspace_keeps_the_threads_planes_from_call_to_call(rng, code24):
         else:
             assert kept <= {id(planes[0]) for planes in workspace}  # the planes are kept, not made again
     np.testing.assert_array_equal(loo, want_loo)
+
+
+def test_a_float16_guide_is_read_as_float32_of_its_values(rng, code24):
+    """Motion-aware holds its high-TR guide in float16: the same bits as the float32 of those values."""
+    truth = smooth_video(rng, 24, 20, 30)
+    frames = capture(truth, code24)
+    held = truth.astype(np.float16)
+    where = rng.random(truth.shape) < 0.6
+    fallback = held  # a float16 fallback too, read a band at a time
+    got = oriented_nc(frames, code24, held, where=where, fallback=fallback, subframes=(4, 20))
+    want = oriented_nc(frames, code24, held.astype(np.float32), where=where,
+                       fallback=held.astype(np.float32), subframes=(4, 20))
+    assert (held.astype(np.float32) != truth).any()  # the rounding is seen
+    for a, b in zip(got, want, strict=True):
+        assert a.dtype == np.float32 and np.array_equal(a, b, equal_nan=True)

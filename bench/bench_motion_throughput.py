@@ -40,6 +40,7 @@ import tempfile
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
+from unittest import mock
 
 import numpy as np
 
@@ -60,7 +61,6 @@ def _gather_by_remap() -> Iterator[None]:
     from flexvox_core.motion import noise_aware, stages
     from flexvox_core.motion.mcnc import motion_compensated_nc
 
-    kept = stages.CpuStages.trajectory_gather
 
     def before(self, flow, base, still, slow, high_tr, wide, *, leave_one_out):
         w = self.window
@@ -81,11 +81,8 @@ def _gather_by_remap() -> Iterator[None]:
             self.fixed = self.still_value = None
         return video, loo, gathered
 
-    stages.CpuStages.trajectory_gather = before  # type: ignore[method-assign]
-    try:
+    with mock.patch.object(stages.CpuStages, "trajectory_gather", before):
         yield
-    finally:
-        stages.CpuStages.trajectory_gather = kept  # type: ignore[method-assign]
 
 
 @contextlib.contextmanager
@@ -159,7 +156,6 @@ def _long_reach_on_sample_planes() -> Iterator[None]:
     from flexvox_core.motion import stages
     from flexvox_core.motion.longreach import long_reach_nc
 
-    kept = stages.CpuStages.long_reach
 
     def before(self, flow, video, slow):
         w = self.window
@@ -178,11 +174,8 @@ def _long_reach_on_sample_planes() -> Iterator[None]:
                       sigma_s=p.sigma_s, h=p.h, out=video)
         np.copyto(video, sparse, where=mask)
 
-    stages.CpuStages.long_reach = before
-    try:
+    with mock.patch.object(stages.CpuStages, "long_reach", before):
         yield
-    finally:
-        stages.CpuStages.long_reach = kept
 
 
 @contextlib.contextmanager
@@ -197,7 +190,6 @@ def _refine_halo_bands() -> Iterator[None]:
     from flexvox_core.motion.vardiff import _KERNEL_LOCK, explicit_steps
     from flexvox_core.motion.vardiff_kernel import vardiff_step
 
-    kept = stages.variable_tensor_diffusion
 
     def before(init, mask, flow, *, c, time, out, sharp, start, still_speed=None):
         c1, c2, c3 = c
@@ -231,11 +223,8 @@ def _refine_halo_bands() -> Iterator[None]:
                 out[a:b] = src[a - c0:b - c0]
         return out
 
-    stages.variable_tensor_diffusion = before
-    try:
+    with mock.patch.object(stages, "variable_tensor_diffusion", before):
         yield
-    finally:
-        stages.variable_tensor_diffusion = kept
 
 
 @contextlib.contextmanager
@@ -249,11 +238,8 @@ def _refine_moving_still() -> Iterator[None]:
     def before(*args, still_speed=None, **kwargs):
         return kept(*args, **kwargs)
 
-    stages.variable_tensor_diffusion = before
-    try:
+    with mock.patch.object(stages, "variable_tensor_diffusion", before):
         yield
-    finally:
-        stages.variable_tensor_diffusion = kept
 
 
 @contextlib.contextmanager
@@ -375,11 +361,8 @@ def _stage_memory(table: dict[str, list[float]]) -> Iterator[None]:
             start, peak = table[stage][0], max(peak, table[stage][1])
         table[stage] = [start, peak, end]
 
-    stages.StageTimes.__call__ = measured  # type: ignore[method-assign]
-    try:
+    with mock.patch.object(stages.StageTimes, "__call__", measured):
         yield
-    finally:
-        stages.StageTimes.__call__ = kept  # type: ignore[method-assign]
 
 
 def _memory_child(variant: str, frames_path: str, extra: dict) -> None:

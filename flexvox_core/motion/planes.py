@@ -25,7 +25,19 @@ class Bands(Protocol):
 
 
 def band(volume: np.ndarray | Bands | Any, t0: int, t1: int) -> np.ndarray:
-    """Sub-frames ``t0`` to ``t1`` (exclusive) of ``volume``: a slice of an array, or ``volume.band(t0, t1)``."""
+    """Sub-frames ``t0`` to ``t1`` (exclusive) of ``volume``: a slice of an array, or ``volume.band(t0, t1)``.
+
+    Raises
+    ------
+    ValueError
+        Unless ``t0`` and ``t1`` are whole numbers with ``0 <= t0 <= t1 <=`` the volume's sub-frames (one rule for
+        every kind: a slice of an array would clip a range past the ends, or wrap a negative one, silently).
+    """
+    S = int(volume.shape[0])
+    whole = all(isinstance(t, (int, np.integer)) and not isinstance(t, bool) for t in (t0, t1))
+    if not (whole and 0 <= t0 <= t1 <= S):
+        raise ValueError(f"sub-frames {t0!r} to {t1!r} must be whole numbers with 0 <= t0 <= t1 <= {S} (the "
+                         "volume's sub-frames)")
     if isinstance(volume, np.ndarray):
         return volume[t0:t1]
     return volume.band(t0, t1)

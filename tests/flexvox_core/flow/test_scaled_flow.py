@@ -20,7 +20,8 @@ def test_bands_and_the_whole_flow_are_to_full_sizes_values():
     held = ScaledFlow(vel.copy(), conf.copy(), (16, 21))
     assert held.shape == (6, 16, 21, 2)
     np.testing.assert_array_equal(held.band(1, 4), want_flow[1:4])
-    np.testing.assert_array_equal(band(held, 4, 99), want_flow[4:])  # clipped as a slice is
+    with pytest.raises(ValueError, match=r"sub-frames 4 to 99 must be whole numbers with 0 <= t0 <= t1 <= 6"):
+        band(held, 4, 99)  # refused, not clipped as a slice would be
     assert "flow" not in held.__dict__  # no band made the whole volume
     np.testing.assert_array_equal(held.flow, want_flow)
     np.testing.assert_array_equal(held.confidence, want_conf)

@@ -89,7 +89,8 @@ def _gather_by_remap() -> Iterator[None]:
 def _scratch_volume() -> Iterator[None]:
     """Before the refinement and the local choice ran a band at a time: one (S, H, W) scratch volume for both, freed
     at the pass's end; the refinement's explicit steps over the whole volume, oriented nc made whole, then one blend."""
-    from flexvox_core.motion import local_choice, planes, stages
+    from flexvox_core import planes
+    from flexvox_core.motion import local_choice, stages
     from flexvox_core.motion.options import REFINE_C
     from flexvox_core.motion.vardiff import _KERNEL_LOCK, explicit_steps
     from flexvox_core.motion.vardiff_kernel import vardiff_step
@@ -186,7 +187,8 @@ def _refine_halo_bands() -> Iterator[None]:
     still speed (the still voxels' tiny speeds read along the trajectory)."""
     import numba
 
-    from flexvox_core.motion import planes, stages
+    from flexvox_core import planes
+    from flexvox_core.motion import stages
     from flexvox_core.motion.vardiff import _KERNEL_LOCK, explicit_steps
     from flexvox_core.motion.vardiff_kernel import vardiff_step
 
@@ -247,7 +249,8 @@ def _guides_whole() -> Iterator[None]:
     """Before nc finished its end sub-frames as their blurred mask was made and diffuse_where read the still voxels a
     band at a time: the ends' blurred mask held (each end's r + K sub-frames: before, its whole 2r + K and a copy of
     the period too), the still voxels unpacked into one bool volume for diffuse_where."""
-    from flexvox_core.motion import planes, stages
+    from flexvox_core import planes
+    from flexvox_core.motion import stages
     from flexvox_core.reconstruct import diffusion
 
     kept_den, kept_where = diffusion._PeriodicDenominator, diffusion.diffuse_where

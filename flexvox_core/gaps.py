@@ -184,7 +184,7 @@ def bridge(video: np.ndarray, missing, K: int, flow: Any = None) -> np.ndarray:
     or end of the video the one side is held. Returns :func:`interpolated_subframes`.
 
     ``flow`` may also be a volume read a band at a time (``band(t0, t1)``, as
-    :func:`flexvox_core.motion.planes.band` reads it) with a ``put(t, plane)`` that sets a sub-frame's velocity
+    :func:`flexvox_core.planes.band` reads it) with a ``put(t, plane)`` that sets a sub-frame's velocity
     (:class:`~flexvox_core.flow.estimate.FlowField`, :class:`~flexvox_core.flow.estimate.ScaledFlow`).
     """
     m = np.asarray(missing, bool)

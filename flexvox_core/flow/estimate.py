@@ -73,7 +73,7 @@ class FlowField:
         return self.flow
 
     def band(self, t0: int, t1: int) -> np.ndarray:
-        """``flow[t0:t1]`` (a view): the :class:`~flexvox_core.motion.planes.Bands` protocol."""
+        """``flow[t0:t1]`` (a view): the :class:`~flexvox_core.planes.Bands` protocol."""
         return self.flow[t0:t1]
 
     def put(self, t: int, plane: np.ndarray) -> None:
@@ -87,7 +87,7 @@ class ScaledFlow:
     bilinear.
 
     A :class:`FlowField` in what it offers (``flow``, ``confidence``, ``params``, ``seconds``, ``magnitude``;
-    the full-size arrays made when first read, and kept), and a :class:`~flexvox_core.motion.planes.Bands`
+    the full-size arrays made when first read, and kept), and a :class:`~flexvox_core.planes.Bands`
     (``shape``, ``band``): a reader of a few sub-frames at a time never makes the whole volume (at 640×480 ×
     240 sub-frames it is 590 MB; at a third of the size, 66 MB).
 

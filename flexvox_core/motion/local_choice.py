@@ -35,7 +35,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from flexvox_core.motion import planes
+from flexvox_core import planes
 from flexvox_core.motion.subframes import flow_at
 from flexvox_core.threads import for_each
 
@@ -134,7 +134,7 @@ def still_voxel_loo(loo: np.ndarray, video: np.ndarray, samples: np.ndarray, gat
         The camera frames of the identity code.
     gathered, mask : ndarray (F·K, H, W) bool, or volumes read by bands
         The voxels the gather estimated, and the sample voxels (read a frame's sub-frames at a time,
-        :func:`~flexvox_core.motion.planes.band`).
+        :func:`~flexvox_core.planes.band`).
     flow : ndarray (F·K, H, W, 2), or a volume read by bands
         The flow the gather followed.
     K : int

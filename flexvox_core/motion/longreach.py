@@ -107,12 +107,12 @@ def long_reach(frames, code, flow, guide, select, plan: LongReachPlan, *, missin
         Identity code (a multiplexed one raises ValueError).
     flow : ndarray (S, H, W, 2)
         Velocity, pixels per sub-frame; NaN or infinity reads as still. Or a volume read a sub-frame at a time
-        (:class:`~flexvox_core.motion.planes.Bands`: ``shape`` and ``band``).
+        (:class:`~flexvox_core.planes.Bands`: ``shape`` and ``band``).
     guide : ndarray (S, H, W)
         Short-reach estimate the samples are compared with; the value wherever no sample is in reach
         and outside ``select``.
     select : ndarray (S, H, W) bool
-        Voxels to estimate (or a :class:`~flexvox_core.motion.planes.Bands` of them).
+        Voxels to estimate (or a :class:`~flexvox_core.planes.Bands` of them).
     plan : LongReachPlan
         Reach, σ_t, σ_s and h.
     missing : ndarray (F,) bool, optional

@@ -232,7 +232,7 @@ def long_reach_kernel(frames: Any, order: Any, corners: Any, present: Any, flow:
 
     ``frames`` (F, H, W) float32; ``order`` (m, n) int the tile's slots, ``corners`` their
     :func:`corner_table`; ``present`` (F,) bool; ``flow`` (S, H, W, 2) float32 and ``select`` (S, H, W) bool,
-    arrays or volumes read a sub-frame at a time (:func:`flexvox_core.motion.planes.band`); ``guide`` (S, H, W)
+    arrays or volumes read a sub-frame at a time (:func:`flexvox_core.planes.band`); ``guide`` (S, H, W)
     float32; ``time_w`` (reach + 1,) the trajectory weights exp(−d²/2σ_t²); ``scale`` −1/2h²; ``taps`` the blur's
     (odd length); ``num``, ``den`` (C, H, W) float32 scratch, one plane pair per chunk of sub-frames run side by
     side (any content) by :func:`flexvox_core.threads.for_each`, each sub-frame one compiled call that releases
@@ -243,7 +243,7 @@ def long_reach_kernel(frames: Any, order: Any, corners: Any, present: Any, flow:
     The chunks run on Python's threads rather than numba's ``parallel=True``: the parallel kernel took about
     10 s to compile on first use (a fresh install, or a new numba cache) against about 1 s for this one.
     """
-    from flexvox_core.motion.planes import band
+    from flexvox_core.planes import band
     from flexvox_core.threads import for_each
 
     chunks = num.shape[0]

@@ -29,9 +29,9 @@ import cv2
 import numpy as np
 
 from flexvox_core.motion.gather_weights import CUTOFF, MIN_WEIGHT
-from flexvox_core.motion.planes import band
 from flexvox_core.motion.subframes import flow_at, sample_planes, sampling_period
 from flexvox_core.motion.tensors import DEFAULT_C, check_c
+from flexvox_core.planes import band
 from flexvox_core.reconstruct.diffusion import self_weights
 from flexvox_core.threads import for_each
 
@@ -169,7 +169,7 @@ def trajectory_gather(frames, code, flow, *, missing=None, c=DEFAULT_C, time: fl
         Camera frames of the identity ``code`` (m, n, K); a dropped frame's values are not read.
     code : ndarray (m, n, K) bool
     flow : ndarray (F·K, H, W, 2)
-        Or a volume read a sub-frame at a time (:class:`~flexvox_core.motion.planes.Bands`), as ``gathered`` may
+        Or a volume read a sub-frame at a time (:class:`~flexvox_core.planes.Bands`), as ``gathered`` may
         be: each sub-frame reads its own plane of each, the flow only where it gathers.
     missing : ndarray (F,) bool, optional
         Dropped frames: their sub-frames hold no samples.

@@ -36,7 +36,7 @@ import math
 import cv2
 import numpy as np
 
-from flexvox_core.motion.planes import Bands, band
+from flexvox_core.planes import Bands, band
 from flexvox_core.slopes import slopes
 
 KAPPA = 2.0
@@ -65,10 +65,10 @@ def frame_noise(frames: np.ndarray, still: np.ndarray | Bands, mask: np.ndarray 
         The camera frames of an identity code (one sample per pixel and frame).
     still : ndarray (F·K, H, W) bool
         Voxels the motion gate found still (or a volume read a band of sub-frames at a time,
-        :class:`~flexvox_core.motion.planes.Bands`, as ``mask`` may be).
+        :class:`~flexvox_core.planes.Bands`, as ``mask`` may be).
     mask : ndarray (F·K, H, W) bool, or a volume read by bands
         Where the samples are (a dropped frame's sub-frames hold none), read a frame's sub-frames at a time
-        (:func:`~flexvox_core.motion.planes.band`).
+        (:func:`~flexvox_core.planes.band`).
     K : int
         Slots of the code.
 

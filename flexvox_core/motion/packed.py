@@ -1,4 +1,4 @@
-"""A bool volume held one bit per voxel, read a band of sub-frames at a time (:mod:`~flexvox_core.motion.planes`).
+"""A bool volume held one bit per voxel, read a band of sub-frames at a time (:mod:`~flexvox_core.planes`).
 
 Motion-aware's speed classes (still, slow, gathered voxels) are read at a voxel's own sub-frame; held as bool
 volumes they cost a byte per voxel each (74 MB at 640×480 × 240 sub-frames), packed an eighth of it.

@@ -10,7 +10,7 @@ from flexvox_core.forward import tiled_code
 
 class SampleMask:
     """Where an identity code samples the video, sub-frames ``t0`` to ``t1`` at a time
-    (:class:`~flexvox_core.motion.planes.Bands`): the code's lattice, repeated every K sub-frames, and no sample in
+    (:class:`~flexvox_core.planes.Bands`): the code's lattice, repeated every K sub-frames, and no sample in
     a dropped frame's sub-frames. Holds one period (K, H, W) of it.
 
     Parameters

@@ -64,10 +64,10 @@ from flexvox_core.motion.options import (
     auto_flow_scale,
 )
 from flexvox_core.motion.packed import PackedVolume
-from flexvox_core.motion.planes import Bands, band
 from flexvox_core.motion.result import MotionAwareResult
 from flexvox_core.motion.sample_bands import SampleMask
 from flexvox_core.motion.vardiff import refine_still_speed, variable_tensor_diffusion
+from flexvox_core.planes import Bands, band
 from flexvox_core.reconstruct.diffusion import diffuse, diffuse_where
 from flexvox_core.reconstruct.oriented_nc import oriented_nc
 from flexvox_core.threads import for_each, workers
@@ -657,7 +657,7 @@ def speed_classes(flow: np.ndarray | Bands, still_speed: float | None, slow_spee
                   ) -> tuple[npt.NDArray[np.bool_], npt.NDArray[np.bool_], npt.NDArray[np.bool_]]:
     """Bool volumes ``still``, ``slow`` and ``gathered`` (:func:`speed_class`; None: no such class; ``skip`` (S,)
     bool: sub-frames outside the gathered ones), a sub-frame at a time (no full-volume speed array); ``flow`` an
-    array or a volume read a band at a time (:func:`~flexvox_core.motion.planes.band`)."""
+    array or a volume read a band at a time (:func:`~flexvox_core.planes.band`)."""
     S, H, W = flow.shape[:3]
     still = np.empty((S, H, W), bool)
     slow = np.empty((S, H, W), bool)

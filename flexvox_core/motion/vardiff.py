@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from flexvox_core.motion import planes
+from flexvox_core import planes
 from flexvox_core.motion.tensors import DEFAULT_C, check_c
 
 _KERNEL_LOCK = threading.Lock()
@@ -81,7 +81,7 @@ def band_length(steps: int, threads: int) -> int:
 
 
 def _as_volume(x: Any) -> Any:
-    """``x`` itself when it is read by bands (an array or a :class:`~flexvox_core.motion.planes.Bands`), else as
+    """``x`` itself when it is read by bands (an array or a :class:`~flexvox_core.planes.Bands`), else as
     an array."""
     return x if isinstance(x, np.ndarray) or hasattr(x, "band") else np.asarray(x)
 
@@ -175,7 +175,7 @@ def variable_tensor_diffusion(
     are written to ``out``. Each band's planes are kept in buffers that hold a window of ``band + steps + 1``
     sub-frames (the steps alternate between two of them; the planes a later band still reads are moved to the
     front), so no sub-frame is stepped twice and every plane of ``mask``, ``flow`` and ``sharp`` is read once
-    (:func:`~flexvox_core.motion.planes.band`, or ``band_into(t0, t1, out)`` where the volume has it: they may be
+    (:func:`~flexvox_core.planes.band`, or ``band_into(t0, t1, out)`` where the volume has it: they may be
     volumes made on demand): the same bits as stepping the whole volume. No volume-sized memory is taken beyond
     the result (none with ``out``); the buffers are taken once a call. Each step is one compiled pass
     (:func:`~flexvox_core.motion.vardiff_kernel.vardiff_step`);

@@ -200,7 +200,7 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
     subframes : (s0, s1), optional
         Estimate these sub-frames alone (default: all, (0, F·K)): the video returned is theirs, equal to the
         whole one's ``[s0:s1]``; ``where`` and ``fallback`` are read over them alone
-        (:func:`~flexvox_core.motion.planes.band`).
+        (:func:`~flexvox_core.planes.band`).
     loo : ndarray (F, H, W) float32 C-contiguous, optional
         Where the leave-one-out estimates go (default: a new array of NaN); only the samples of the frames these
         sub-frames belong to are written.
@@ -217,7 +217,7 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
         it gives itself (as :func:`~flexvox_core.reconstruct.diffusion.nc_leave_one_out`); NaN elsewhere,
         where no other sample is in reach, and in missing frames.
     """
-    from flexvox_core.motion.planes import band
+    from flexvox_core.planes import band
     from flexvox_core.reconstruct.oriented_nc_kernel import oriented_plane, tap_lists
 
     f, c, g, where, missing = check_inputs(frames, code, guide, where, fallback, missing, subframes)

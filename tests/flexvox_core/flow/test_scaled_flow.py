@@ -5,7 +5,7 @@ import pytest
 
 from flexvox_core.flow.estimate import FlowField, ScaledFlow, to_full_size
 from flexvox_core.gaps import bridge, bridge_flow
-from flexvox_core.motion.planes import band
+from flexvox_core.planes import band
 
 
 def _small(S=6, h=5, w=7, seed=0):

@@ -1,4 +1,4 @@
-"""A volume read by bands (:class:`flexvox_core.motion.planes.Bands`) for the tests: it counts what it hands out
+"""A volume read by bands (:class:`flexvox_core.planes.Bands`) for the tests: it counts what it hands out
 and refuses a band longer than it allows."""
 
 import numpy as np

@@ -12,7 +12,7 @@ from flexvox_core.forward import capture, sample_mask, sparse_volume, tiled_orde
 from flexvox_core.metrics import psnr
 from flexvox_core.motion import motion_aware, motion_compensated_nc
 from flexvox_core.motion.local_choice import blend, local_weights, still_voxel_loo
-from flexvox_core.motion.planes import band
+from flexvox_core.planes import band
 from flexvox_core.reconstruct.diffusion import diffuse, gaussian, nc_leave_one_out
 
 from .loo_reference import gather_loo_errors

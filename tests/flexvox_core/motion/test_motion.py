@@ -14,7 +14,7 @@ from flexvox_core.motion import (
     tensor_field,
     variable_tensor_diffusion,
 )
-from flexvox_core.motion.planes import band
+from flexvox_core.planes import band
 from flexvox_core.reconstruct.diffusion import diffuse
 from flexvox_core.simulate.scenes import render_scene
 

@@ -5,8 +5,8 @@ import pytest
 
 from flexvox_core.flow.estimate import ScaledFlow
 from flexvox_core.motion.packed import PackedVolume
-from flexvox_core.motion.planes import band
 from flexvox_core.motion.stages import packed_speed_classes, speed_classes
+from flexvox_core.planes import band
 
 
 def test_a_packed_volume_reads_back_its_planes_and_counts():

@@ -3,10 +3,11 @@
 import numpy as np
 import pytest
 
+from flexvox_core import planes
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture, sample_mask
 from flexvox_core.gaps import interpolated_subframes
-from flexvox_core.motion import motion_aware, planes
+from flexvox_core.motion import motion_aware
 from flexvox_core.motion.noise_aware import frame_noise
 from flexvox_core.motion.sample_bands import SampleMask
 from flexvox_core.simulate.scenes import render_scene

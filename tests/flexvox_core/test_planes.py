@@ -5,8 +5,8 @@ import pytest
 
 from flexvox_core.design import design_code
 from flexvox_core.motion.packed import PackedVolume
-from flexvox_core.motion.planes import band
 from flexvox_core.motion.sample_bands import SampleMask
+from flexvox_core.planes import band
 
 
 def _volumes():

@@ -8,11 +8,14 @@ QApplication; they get it here, so neither imports the other.
 from __future__ import annotations
 
 import gc
+import logging
 import sys
 import threading
 
 from PySide6.QtCore import QTimer
 from PySide6.QtWidgets import QApplication
+
+_logger = logging.getLogger(__name__)
 
 DEFAULT_SIZE = (1280, 800)
 """The first window's size: every workspace's primary actions are in view at this size (and at 1024×700)."""
@@ -48,7 +51,9 @@ class GuiThreadGarbageCollector:
         self.timer.start(interval_ms)
 
     def check(self) -> None:
-        """Collect the generations whose counts passed their thresholds, youngest first (on the calling thread)."""
+        """Collect the generations whose counts passed their thresholds, youngest first (on the calling thread);
+        automatic collection, if something switched it back on, off again."""
+        keep_automatic_collection_off()
         counts = gc.get_count()
         for generation in range(3):
             if counts[generation] <= self.threshold[generation]:
@@ -59,11 +64,20 @@ class GuiThreadGarbageCollector:
 _COLLECTOR: GuiThreadGarbageCollector | None = None
 
 
+def keep_automatic_collection_off() -> None:
+    """Python's automatic garbage collection off (:class:`GuiThreadGarbageCollector` collects instead), saying so
+    when something had switched it back on."""
+    if gc.isenabled():
+        _logger.warning("automatic garbage collection was switched back on; off again (the GUI thread collects)")
+        gc.disable()
+
+
 def collect_garbage_on_gui_thread() -> GuiThreadGarbageCollector:
     """Start :class:`GuiThreadGarbageCollector` once per process (a QApplication must exist); the running one."""
     global _COLLECTOR
     if _COLLECTOR is None:
         _COLLECTOR = GuiThreadGarbageCollector()
+    keep_automatic_collection_off()
     return _COLLECTOR
 
 

@@ -57,3 +57,18 @@ def test_check_collects_the_generations_past_their_thresholds(qapp, monkeypatch,
     monkeypatch.setattr(gc, "collect", lambda generation=2: seen.append(generation) or 0)
     collector.check()
     assert seen == collected
+
+
+def test_automatic_collection_switched_back_on_is_switched_off_again(qapp, caplog):
+    from flexvox_app.gui.widgets.qapp import collect_garbage_on_gui_thread
+
+    collector = collect_garbage_on_gui_thread()
+    gc.enable()  # as a library might, around its own work
+    try:
+        assert collect_garbage_on_gui_thread() is collector and not gc.isenabled()
+        gc.enable()
+        collector.check()  # the timer's tick
+        assert not gc.isenabled()
+    finally:
+        gc.disable()
+    assert "automatic garbage collection was switched back on; off again" in caplog.text

@@ -187,10 +187,15 @@ def bridge(video: np.ndarray, missing, K: int, flow: Any = None) -> np.ndarray:
     :func:`flexvox_core.planes.band` reads it) with a ``put(t, plane)`` that sets a sub-frame's velocity
     (:class:`~flexvox_core.flow.estimate.FlowField`, :class:`~flexvox_core.flow.estimate.ScaledFlow`).
     """
-    m = np.asarray(missing, bool)
+    m = np.asarray(missing)
+    if m.ndim != 1 or not (m.dtype == bool or np.issubdtype(m.dtype, np.integer)):
+        raise ValueError(f"`missing` must be booleans, one per camera frame; got {m.dtype} {m.shape}")
+    m = m.astype(bool)
     S = video.shape[0]
     if S != len(m) * K:
         raise ValueError(f"`video` has {S} sub-frames; {len(m)} frames at K = {K} make {len(m) * K}")
+    if flow is not None and tuple(flow.shape[:1]) != (S,):
+        raise ValueError(f"`flow` must have the video's {S} sub-frames; got shape {tuple(flow.shape)}")
     H, W = video.shape[1:]
     gx, gy = (np.meshgrid(np.arange(W, dtype=np.float32), np.arange(H, dtype=np.float32)) if flow is not None
               else (None, None))

@@ -170,3 +170,13 @@ def test_outputs_stay_finite_and_in_the_samples_range(drops, seed):
         present = frames[~missing]
         assert np.isfinite(out).all()
         assert out.min() >= present.min() - 1e-5 and out.max() <= present.max() + 1e-5
+
+
+def test_bridge_refuses_a_missing_that_is_not_one_boolean_per_frame_and_a_flow_of_other_length_in_words():
+    from flexvox_core.gaps import bridge
+
+    video = np.zeros((8, 4, 4), np.float32)
+    with pytest.raises(ValueError, match=r"`missing` must be booleans, one per camera frame; got <U7 \(\)"):
+        bridge(video, "frame 1", 4)
+    with pytest.raises(ValueError, match=r"`flow` must have the video's 8 sub-frames; got shape \(3, 4, 4, 2\)"):
+        bridge(video, np.array([False, True]), 4, flow=np.zeros((3, 4, 4, 2), np.float32))

@@ -299,6 +299,21 @@ def _high_tr_float32() -> Iterator[None]:
         stages.HIGH_TR_HELD = kept
 
 
+@contextlib.contextmanager
+def _gather_reach_3_sigma() -> Iterator[None]:
+    """Before motion-aware's trajectory gather reached 1.25 standard deviations of its trajectory Gaussian
+    (``Window.gather_reach``): 3 of them, at least a sampling period (16 sub-frames at K = 16), each voxel up to
+    its weight of ``CUTOFF``."""
+    from flexvox_core.motion import stages
+    from flexvox_core.motion.mcnc import default_reach
+
+    def before(self: stages.Window) -> int:
+        return default_reach(self.gather_time, self.gather_c[0], self.sampling_period, self.S)
+
+    with mock.patch.object(stages.Window, "gather_reach", property(before)):
+        yield
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
@@ -309,6 +324,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "guides-whole": _guides_whole,
     "reach-by-log": _reach_by_log,
     "high-tr-float32": _high_tr_float32,
+    "gather-reach-3-sigma": _gather_reach_3_sigma,
 }
 """The code as it was before each change (``kept``: as it is), for ``--ab``."""
 

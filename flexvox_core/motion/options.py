@@ -21,6 +21,13 @@ STEP1_TIME = 2.0
 """Its diffusion time."""
 DEFAULT_TIME = 5.0
 """Diffusion time n of the trajectory gather (the accuracy knob)."""
+GATHER_REACH = 1.25
+"""Motion-aware's trajectory gather reaches this many standard deviations of its trajectory Gaussian at zero flow,
+√(2 n c1), each way (4 sub-frames at the default n = 5, c1 = 0.95, at any K): the voxels it gathers move, so their
+own Gaussian, √(2 n c1 / (1 + u² + v²)), is narrower still. The earlier reach (3 standard deviations and at least
+a sampling period, each voxel up to its weight of :data:`~flexvox_core.motion.gather_weights.CUTOFF`) read up to
+2.75 times the offsets for a PSNR within 0.03 dB of this one on every capture of ``bench/motion_psnr_table.py``
+(docs/benchmarks.md, "Less work per voxel")."""
 FLOW_SIDE = 160
 """Flow runs with the shorter image side at about this many pixels (:func:`auto_flow_scale`)."""
 STILL_TENSOR = (0.0, 0.0, 1.0)

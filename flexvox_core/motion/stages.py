@@ -38,6 +38,7 @@ when one is no longer needed (fresh memory is dear on the CPU: at 640×480 × 24
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -54,6 +55,7 @@ from flexvox_core.motion.gated_flow import gated_flow
 from flexvox_core.motion.longreach import LongReachPlan
 from flexvox_core.motion.mcnc import default_reach, trajectory_gather
 from flexvox_core.motion.options import (
+    GATHER_REACH,
     LONG_REACH_RANGE,
     LONG_REACH_SIGMA_S,
     REFINE_C,
@@ -276,9 +278,13 @@ class Window:
 
     @property
     def gather_reach(self) -> int:
-        """The trajectory gather's largest offset |d| in sub-frames (:func:`~flexvox_core.motion.mcnc.default_reach`
-        of :attr:`gather_time`, c1 and :attr:`sampling_period`)."""
-        return default_reach(self.gather_time, self.gather_c[0], self.sampling_period, self.S)
+        """The trajectory gather's largest offset |d| in sub-frames: :data:`~flexvox_core.motion.options.GATHER_REACH`
+        standard deviations of its trajectory Gaussian at zero flow, ⌈1.25 √(2 n c1)⌉ (n :attr:`gather_time`, c1 of
+        :attr:`gather_c`), within :func:`~flexvox_core.motion.mcnc.default_reach` (of :attr:`sampling_period`;
+        at most S − 1)."""
+        time, c1 = self.gather_time, self.gather_c[0]
+        return min(default_reach(time, c1, self.sampling_period, self.S),
+                   math.ceil(GATHER_REACH * math.sqrt(2 * time * c1)))
 
     @property
     def scores_still_voxels(self) -> bool:

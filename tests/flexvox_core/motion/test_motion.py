@@ -443,3 +443,18 @@ def test_high_tr_is_held_in_float16_after_the_flow_and_given_back_as_float32(mon
     kept = motion_aware(frames, CODE)
     assert kept.high_tr.dtype == np.float32
     np.testing.assert_array_equal(kept.high_tr, computed)
+
+
+@pytest.mark.parametrize(("tile", "frames", "time", "reach"), [
+    ((4, 4), 6, 5.0, 4),  # ⌈1.25 √(2·5·0.95)⌉ = ⌈3.85⌉, at any K (the sampling period no longer sets it)
+    ((2, 4), 6, 5.0, 4),
+    ((4, 4), 6, 20.0, 8),  # ⌈1.25 √38⌉ = ⌈7.71⌉
+    ((2, 2), 1, 20.0, 3),  # at most S − 1
+])
+def test_the_gather_reaches_one_and_a_quarter_trajectory_deviations(tile, frames, time, reach):
+    from flexvox_core.motion.options import MotionOptions
+    from flexvox_core.motion.stages import Window
+
+    code = design_code(tile).code
+    window = Window.plan(np.zeros((frames, 16, 16), np.float32), code, MotionOptions(time=time), (0.0, 1.0))
+    assert window.gather_reach == reach

@@ -14,7 +14,13 @@ Then per method: runs within 1 dB, the interval's coverage; and the order by est
 by truth wherever the truths differ by more than 1 dB (methods the API estimates). Then diffusion's three
 solvers at a 2×2 code (K = 4), and last, diffusion on captures with two dropped frames.
 
-Figures only, never pass/fail. Usage: ``python bench/bench_accuracy.py [--quick]``.
+``--motion-trajectory`` prints instead why motion-aware's estimate is refused: per run, the error of the estimate
+(which reads the probe along the sample's pixel's column) and of the same estimate read along the sample's
+trajectory in the held flow (voxels ``p + d·u`` at ``t0 + d``, bilinear, or at the nearest voxel), and how far the
+true error of the voxels that reading scores lies from the clip's; then, on fan, the terms of the error along
+the trajectory per lag, from the truth (the data give ``V + 2C`` alone).
+
+Figures only, never pass/fail. Usage: ``python bench/bench_accuracy.py [--quick] [--motion-trajectory]``.
 """
 
 from __future__ import annotations
@@ -91,7 +97,12 @@ def main() -> None:
                     help="comma-separated method names to run (default: all), e.g. gap-tv,rebin; diffusion's "
                          "other solvers as diffusion:explicit, diffusion:steady")
     ap.add_argument("--no-dropped", action="store_true", help="skip the dropped-frames runs")
+    ap.add_argument("--motion-trajectory", action="store_true",
+                    help="only motion-aware's estimate read along the held flow's trajectories, against the truth")
     args = ap.parse_args()
+    if args.motion_trajectory:
+        motion_trajectory(args.quick)
+        return
     chosen = None if args.methods is None else set(args.methods.split(","))
     solvers = chosen is None or any(c == "diffusion" or c.startswith("diffusion:") for c in chosen)
     rows = []
@@ -198,6 +209,147 @@ def dropped_frames(quick: bool) -> None:
         print(f"  {scene:8s} estimate {est.psnr:6.2f} ({est.low:.2f}-{est.high:.2f})  truth {true:6.2f}  error "
               f"{est.psnr - true:+.2f}  covers {'yes' if est.low <= true <= est.high else 'NO'}  (frames' mean "
               f"{float(psnr(truth, video)):.2f})", flush=True)
+
+
+def _bilinear(volume, t, y, x):
+    """``volume`` (S, H, W[, 2]) at sub-frames ``t`` and positions ``(y, x)`` (clamped to the frame), bilinear."""
+    S, H, W = volume.shape[:3]
+    t = np.clip(t, 0, S - 1)
+    y, x = np.clip(y, 0, H - 1.001), np.clip(x, 0, W - 1.001)
+    y0, x0 = np.floor(y).astype(int), np.floor(x).astype(int)
+    fy, fx = (y - y0).reshape(y.shape + (1,) * (volume.ndim - 3)), (x - x0).reshape(x.shape + (1,) * (volume.ndim - 3))
+    at = lambda a, b: volume[t, a, b].astype(np.float64)  # noqa: E731
+    return ((1 - fy) * (1 - fx) * at(y0, x0) + (1 - fy) * fx * at(y0, x0 + 1) + fy * (1 - fx) * at(y0 + 1, x0)
+            + fy * fx * at(y0 + 1, x0 + 1))
+
+
+def _trajectories(flow, t0, ys, xs, K):
+    """{lag d: (t0 + d, y, x)} for d in -K..K: the positions along each sample's trajectory, the held flow
+    integrated a sub-frame at a time from the sample's voxel (bilinear)."""
+    pos = {0: (t0, ys.astype(float), xs.astype(float))}
+    for sign in (1, -1):
+        y, x = ys.astype(float), xs.astype(float)
+        for k in range(1, K + 1):
+            u = _bilinear(flow, t0 + sign * (k - 1), y, x)
+            x, y = x + sign * u[:, 0], y + sign * u[:, 1]
+            pos[sign * k] = (t0 + sign * k, y.copy(), x.copy())
+    return pos
+
+
+def motion_trajectory(quick: bool) -> None:
+    """Motion-aware's estimate (the API's, reading the probe along the pixel's column) against the same estimate
+    read along the sample's trajectory in the held flow, and what the truth says of the terms it cannot see."""
+    from flexvox_core.accuracy import PROBE_DELTA, PROBE_STEP, db, probe_lattice
+    from flexvox_core.accuracy_runs import HeldRuns
+    from flexvox_core.forward import tiled_code
+
+    method = Method("motion-aware")
+    print("motion-aware, the probe read along the held flow's trajectories (errors: estimate - clip's truth, dB)")
+    print(f"{'case':22s} {'truth':>6s} {'column':>7s} {'traj bilinear':>13s} {'traj nearest':>12s}  truth of the "
+          "voxels the trajectory scores (bilinear, nearest)")
+    errors = {"column": [], "bilinear": [], "nearest": []}
+    fan = None
+    for name, truth, frames, code, noise in cases(quick):
+        f32 = np.asarray(frames, np.float32)
+        F, H, W = f32.shape
+        K = code.shape[2]
+        held = HeldRuns(f32, code, method)
+        v0 = held(f32)
+        # the probe as estimate_accuracy makes it (seed 0)
+        lattices = [probe_lattice(H, W, PROBE_STEP, shift) for shift in (0, PROBE_STEP // 2)]
+        signs = np.random.default_rng(0).choice(np.array([-1.0, 1.0]), size=(F, H, W)) * np.stack(
+            [lattices[f % 2] for f in range(F)])
+        v1 = held(f32 + np.float32(PROBE_DELTA) * signs.astype(np.float32))
+        flow = held.flows[-1].flow
+        column = estimate_accuracy(f32, code, method, noise=noise, reconstruction=v0, unchecked=True).psnr
+        slot = np.argmax(tiled_code(code, H, W), axis=0)
+        S = F * K
+        x = np.asarray(truth, np.float64)  # for the comparison only
+        sums = {k: [0.0, 0] for k in ("bilinear", "nearest", "truth bilinear", "truth nearest")}
+        for f in range(F):
+            ys, xs = np.nonzero(signs[f])
+            t0, b, y = f * K + slot[ys, xs], signs[f, ys, xs], f32[f, ys, xs].astype(np.float64)
+            s2 = noise.variance(y)
+            pos = _trajectories(flow, t0, ys, xs, K)
+            inside = (t0 >= 1) & (t0 < S - 1)
+            for how in ("bilinear", "nearest"):
+                near = how == "nearest"
+                loo = (0.5 * (_removed(v0, v1, x, pos[-1], b, y, near)[0]
+                              + _removed(v0, v1, x, pos[1], b, y, near)[0]) - y) ** 2 - s2
+                for d in range(-(K // 2), K - K // 2):
+                    ok = inside & (t0 + d >= 0) & (t0 + d < S)
+                    vm, a, u0, xu = _removed(v0, v1, x, pos[d], b, y, near)
+                    if d == 0:
+                        est = (u0 - y) ** 2 - s2 + 2 * a * s2
+                    else:
+                        est = (1 - a) ** 2 * loo + a**2 * (s2 + (vm - y) ** 2 - s2 - loo)
+                    for key_, val in ((how, est), ("truth " + how, (u0 - xu) ** 2)):
+                        sums[key_][0] += float(np.sum(val[ok]))
+                        sums[key_][1] += int(np.sum(ok))
+        true = clip_psnr(truth, v0)
+        err = {k: db(total / count) - true for k, (total, count) in sums.items()}
+        errors["column"].append(column - true)
+        errors["bilinear"].append(err["bilinear"])
+        errors["nearest"].append(err["nearest"])
+        print(f"{name:22s} {true:6.2f} {column - true:+7.2f} {err['bilinear']:+13.2f} {err['nearest']:+12.2f}  "
+              f"{err['truth bilinear']:+.2f}, {err['truth nearest']:+.2f}", flush=True)
+        if name == "fan clean":
+            fan = (v0, v1, flow, x, f32, signs, slot, K, noise)
+    for k, e in errors.items():
+        e = np.array(e)
+        print(f"  {k:9s} within 1 dB {int(np.sum(np.abs(e) <= 1))} of {e.size}, from {e.min():+.2f} to "
+              f"{e.max():+.2f} dB")
+    if fan is not None:
+        _fan_terms(*fan)
+
+
+def _removed(v0, v1, x, position, b, y, nearest=False):
+    """At ``position`` (t, y, x) along the trajectories: the value without the sample ``y`` (moved by ``b·delta`` in
+    the probe ``v1``), the response to it, the value with it and the truth ``x`` there (bilinear, or at the nearest
+    voxel)."""
+    from flexvox_core.accuracy import PROBE_DELTA
+
+    t, py, px = position
+    if nearest:
+        H, W = v0.shape[1:]
+        py, px = np.clip(np.round(py), 0, H - 1), np.clip(np.round(px), 0, W - 1)
+    u0, u1 = _bilinear(v0, t, py, px), _bilinear(v1, t, py, px)
+    a = np.clip(b * (u1 - u0) / PROBE_DELTA, 0.0, 0.9)
+    return (u0 - a * y) / (1 - a), a, u0, _bilinear(x, t, py, px)
+
+
+def _fan_terms(v0, v1, flow, x, frames, signs, slot, K, noise) -> None:
+    """Per lag along the trajectory on fan (clean): the response, what the data give (V + 2C), and from the
+    truth the error without the sample L_d, the truth's change V_d, the covariance C_d and the voxel's error."""
+    F = frames.shape[0]
+    S = F * K
+    rows = {d: [] for d in range(-(K // 2), K - K // 2)}
+    loos = []
+    for f in range(F):
+        ys, xs = np.nonzero(signs[f])
+        t0, b, y = f * K + slot[ys, xs], signs[f, ys, xs], frames[f, ys, xs].astype(np.float64)
+        pos = _trajectories(flow, t0, ys, xs, K)
+        inside = (t0 >= 1) & (t0 < S - 1)
+
+        loo = (0.5 * (_removed(v0, v1, x, pos[-1], b, y)[0] + _removed(v0, v1, x, pos[1], b, y)[0]) - y) ** 2
+        loos.append(loo[inside])
+        xi = x[t0, ys, xs]
+        for d in rows:
+            if d == 0:
+                continue
+            vm, a, u0, xu = _removed(v0, v1, x, pos[d], b, y)
+            ok = inside & (t0 + d >= 0) & (t0 + d < S)
+            rows[d].append(np.stack([a, (vm - y) ** 2 - loo, (vm - xu) ** 2, (xu - xi) ** 2, (vm - xu) * (xu - xi),
+                                     (1 - a) ** 2 * loo + a**2 * ((vm - y) ** 2 - loo), (u0 - xu) ** 2], 1)[ok])
+    print(f"\nfan, clean: along the trajectory, x 1e-3 (L = {1e3 * np.mean(np.concatenate(loos)):.2f}, the held-out "
+          "sample's error)")
+    print("  lag  response  V+2C (data)  L_d (truth)  V_d (truth)  C_d (truth)  estimate (C = 0)  error (truth)")
+    for d, r in rows.items():
+        if not r:
+            continue
+        m = np.concatenate(r).mean(axis=0)
+        print(f"  {d:3d}  {m[0]:8.2f}  {1e3 * m[1]:11.2f}  {1e3 * m[2]:11.2f}  {1e3 * m[3]:11.2f}  {1e3 * m[4]:11.2f}  "
+              f"{1e3 * m[5]:16.2f}  {1e3 * m[6]:13.2f}")
 
 
 if __name__ == "__main__":

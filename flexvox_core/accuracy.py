@@ -85,10 +85,14 @@ CLUSTER = 4
 REFUSED = {
     "motion-aware": ("even with the first run's flow held for the probe (the rest is then nearly linear: the same "
                      "estimate at a move of 0.01 and 0.05), the estimate misses the truth by -3.29 to +3.18 dB (6 of "
-                     "12 runs within 1 dB, on the built-in scenes and the SCI clips; bench/bench_accuracy.py): "
-                     "motion-aware keeps a pixel's sample far along its column (response 0.35 to 0.75 at lags 1 to 8 "
-                     "on fan) while its error grows with the lag, so the error of a sample predicted from its "
-                     "adjacent sub-frames does not stand for the error between samples"),
+                     "12 runs within 1 dB, on the built-in scenes and the SCI clips; bench/bench_accuracy.py), and "
+                     "read along the sample's trajectory in the held flow instead of its pixel's column by -0.16 to "
+                     "+2.77 dB (8 of 12; at the nearest voxel -1.20 to +1.62 dB, 7 of 12; bench/bench_accuracy.py "
+                     "--motion-trajectory): motion-aware carries a sample far (response 0.32 to 0.71 at lags 1 to 8 "
+                     "along the trajectory on fan), so the error between samples rests on how the reconstruction's "
+                     "error there covaries with the truth's change from the sample, which the probe cannot see (it "
+                     "gives their sum alone): on fan that covariance makes the true error up to 1.7 times the "
+                     "estimate's"),
     "gap-tv": ("each sample is held out exactly (its temporal neighbours never see it) and a 4-fold hold-out bounds "
                "the error, but the estimate misses the truth by more than 1 dB on 3 of the 4 runs on the SCI clips "
                "(-1.15 to -1.40 dB; within 0.26 dB on the 8 built-in runs; interval covers 9 of 12, "

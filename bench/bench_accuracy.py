@@ -150,7 +150,7 @@ def main() -> None:
               "truth's order")
     for why in dict.fromkeys(refused.values()):
         print(f"refused: {why}")
-    if chosen is None or "gap-tv" in chosen:
+    if args.methods is None or "gap-tv" in args.methods.split(","):
         gap_tv_spacing(args.quick)
     if solvers:
         solvers_at_k4(args.quick)

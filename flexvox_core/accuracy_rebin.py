@@ -1,4 +1,4 @@
-"""The accuracy estimate of interpolated re-binning, in closed form (no probe run).
+"""The accuracy estimate of re-binning, in closed form (no run).
 
 Interpolated re-binning (:func:`~flexvox_core.reconstruct.rebin.rebin` with ``interpolate=True``) is a known
 linear interpolator: each block's one sample is placed at the block's centre and every voxel ``u`` is the
@@ -20,15 +20,16 @@ reconstruction:
    holds each slot once, so no two samples share a pixel within K sub-frames or a sub-frame within a tile —
    the lags ``(dt, 0, 0)`` and ``(0, dy, dx)`` that every voxel has to its block's samples. For those:
 
-   - **the estimate** takes the anisotropic power variogram ``D(h) = (hᵀ·G·h)^(β/2)`` (``G`` a space-time
-     structure tensor, ``β`` in (0, 2]: 2 for a smooth field, 1 for one with edges) fitted to the spanned lags
-     (:func:`fit_variogram`): a moving edge gives increments linear in the lag along its motion, which ``G``
-     holds;
-   - **the interval** from the triangle inequality, which ``√D`` obeys (it is an L2 distance):
-     ``√D(h) ≤ √D(h₁) + √D(h − h₁)`` and ``√D(h) ≥ |√D(h₁) − √D(h₁ − h)|`` over spanned ``h₁``, ``h − h₁``
-     (:func:`triangle_bounds`), each pushed to its widest over the unspanned lags' weights.
-4. **Interval**: those bounds, widened by 1.96 standard errors of the clip's error over clusters of blocks
-   where that reaches further.
+   the anisotropic power variogram ``D(h) = (hᵀ·G·h)^(β/2)`` (``G`` a space-time structure tensor, ``β`` in
+   (0, 2]: 2 for a smooth field, about 1 with edges) fitted to the spanned lags the interpolation uses, each
+   weighted by its share of the weights (:func:`fit_variogram`): a moving edge gives increments that grow along
+   its motion, which ``G`` holds. About two thirds of the weights fall on unspanned lags.
+4. **Interval**: the unspanned lags' increments moved by ``± z`` times the fit's relative misfit on the spanned
+   ones (as if its error there were the same, and of one sign everywhere), and by ``z`` standard errors of the
+   clip's error over clusters of pixels (per camera frame).
+
+Re-binning without interpolation (each block filled by its sample) has the one-block stencil and the same
+expansion; its voxels reach their sample only at lags inside a block, which few pairs span (:data:`NEAREST`).
 """
 
 from __future__ import annotations

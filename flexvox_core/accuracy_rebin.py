@@ -186,10 +186,14 @@ def variogram(G: np.ndarray, beta: float, h: np.ndarray) -> np.ndarray:
 class Stencil:
     """Interpolated re-binning's weights: for each of the 8 corners, the block each voxel reads and its weight.
 
-    ``block[c]`` (S, H, W) int: flat index into the blocks ``(F·TR, Hb, Wb)``; ``weight[c]`` (S, H, W)."""
+    ``block[c]`` (S, H, W) int: flat index into the blocks ``(F·TR, Hb, Wb)``; ``weight[c]`` (S, H, W). ``cell``
+    (S, H, W): each voxel's cell of the block grid (its lower corner's block), and ``corner[c]`` (blocks,): the
+    block corner ``c`` of each cell reads, so that ``block[c] == corner[c][cell]``."""
 
     block: list[np.ndarray]
     weight: list[np.ndarray]
+    cell: np.ndarray
+    corner: list[np.ndarray]
 
 
 def _axis(n_out: int, size: int, nb: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -210,9 +214,10 @@ def stencil(shape: tuple[int, int, int], division: Division, blocks: tuple[int, 
     if not interpolate:
         flat = ((np.arange(S) // division.c)[:, None, None] * nh + (np.arange(H) // division.a)[None, :, None]) * nw
         flat = flat + (np.arange(W) // division.b)[None, None, :]
-        return Stencil([flat], [np.ones((S, H, W))])
+        return Stencil([flat], [np.ones((S, H, W))], flat, [np.arange(nt * nh * nw)])
     axes = [_axis(S, division.c, nt), _axis(H, division.a, nh), _axis(W, division.b, nw)]
-    out_b, out_w = [], []
+    out_b, out_w, corner = [], [], []
+    gt, gy, gx = np.arange(nt)[:, None, None], np.arange(nh)[None, :, None], np.arange(nw)[None, None, :]
     for ct in (0, 1):
         for cy in (0, 1):
             for cx in (0, 1):
@@ -224,7 +229,10 @@ def stencil(shape: tuple[int, int, int], division: Division, blocks: tuple[int, 
                 flat = (idx[0][:, None, None] * nh + idx[1][None, :, None]) * nw + idx[2][None, None, :]
                 out_b.append(flat)
                 out_w.append(wts[0][:, None, None] * wts[1][None, :, None] * wts[2][None, None, :])
-    return Stencil(out_b, out_w)
+                corner.append(((np.minimum(gt + ct, nt - 1) * nh + np.minimum(gy + cy, nh - 1)) * nw
+                               + np.minimum(gx + cx, nw - 1)).ravel())
+    cell = (axes[0][0][:, None, None] * nh + axes[1][0][None, :, None]) * nw + axes[2][0][None, None, :]
+    return Stencil(out_b, out_w, cell, corner)
 
 
 def _blocks(values: np.ndarray, code: np.ndarray, division: Division) -> np.ndarray:
@@ -314,9 +322,9 @@ def rebin_error(frames: np.ndarray, code: np.ndarray, division: Division, varian
         lags.append(lag)
         mass += np.bincount(lag[kept].ravel(), w[kept].ravel(), minlength=mass.size)
         base += w * w * vb[b]
-        for c2 in range(c + 1, len(st.block)):
-            b2, w2 = st.block[c2], st.weight[c2]
-            base -= w * w2 * ((yb[b] - yb[b2]) ** 2 - vb[b] - vb[b2])
+        for c2 in range(c + 1, len(st.block)):  # the pair's increment per cell of the grid, read per voxel
+            j, k = st.corner[c], st.corner[c2]
+            base -= w * st.weight[c2] * ((yb[j] - yb[k]) ** 2 - vb[j] - vb[k])[st.cell]
     mass = mass.reshape(inc.mean.shape) / max(int(kept.sum()) * H * W, 1)
     if table is None:
         G, beta, misfit = fit_variogram(inc, mass)

@@ -32,6 +32,7 @@ def test_the_stencil_is_re_binning_float64(interpolate):
     st = stencil((S, 9, 13), DIVISION, blocks.shape, interpolate=interpolate)
     got = sum(w * blocks.ravel()[b] for b, w in zip(st.block, st.weight, strict=True))
     assert np.allclose(sum(st.weight), 1.0, atol=1e-12)
+    assert all(np.array_equal(b, c[st.cell]) for b, c in zip(st.block, st.corner, strict=True))
     np.testing.assert_allclose(got, rebin(frames, CODE, DIVISION, interpolate=interpolate, dtype=np.float64),
                                atol=1e-12)
 

@@ -408,7 +408,8 @@ def _estimate(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Meth
     gaps = checked
     f32 = frames.astype(np.float32)
     if method.name == "rebin" and not (unchecked and dropped.any()):
-        return _rebin_closed_form(f32, code, method, dropped, variance_map, noise, confidence, scheme, reconstruction)
+        return _rebin_closed_form(f32, code, method, dropped, variance_map, noise, confidence, scheme, reconstruction,
+                                  unchecked)
     steps = Steps(report, F, int(reconstruction is None) + 1 + int(dropped.any()))
     try:
         run_method = _runs(f32, code, method, gaps, chunk_frames, device, steps)
@@ -588,8 +589,9 @@ def _independent(v0: np.ndarray, v1: np.ndarray, frames: np.ndarray, code: np.nd
 
 def _rebin_closed_form(frames: np.ndarray, code: np.ndarray, method: Method, dropped: np.ndarray,
                        variance_map: np.ndarray | None, noise: NoiseModel, confidence: float, scheme: str,
-                       reconstruction: ArrayLike | None) -> AccuracyEstimate:
-    """Interpolated re-binning's estimate in closed form, no run (:mod:`flexvox_core.accuracy_rebin`)."""
+                       reconstruction: ArrayLike | None, unchecked: bool) -> AccuracyEstimate:
+    """Interpolated re-binning's estimate in closed form, no run (:mod:`flexvox_core.accuracy_rebin`); checked at
+    the code's default division only (another is refused unless ``unchecked``)."""
     from flexvox_core.reconstruct.rebin import default_block
 
     F, H, W = frames.shape
@@ -599,6 +601,8 @@ def _rebin_closed_form(frames: np.ndarray, code: np.ndarray, method: Method, dro
     if reconstruction is not None and np.shape(reconstruction) != (F * K, H, W):
         raise ValueError(f"`reconstruction` must have shape {(F * K, H, W)}; got {np.shape(reconstruction)}")
     division = method.block or default_block(code)
+    if division != default_block(code) and not unchecked:
+        raise NotEstimable(f"cannot estimate the accuracy of {method.label}: {accuracy_rebin.OTHER_DIVISIONS}")
     variance = variance_map if variance_map is not None else noise.variance(frames)
     try:
         r = accuracy_rebin.rebin_error(frames.astype(np.float64), code, division, variance,

@@ -32,8 +32,9 @@ lose on still scenes. ``flexvox bench`` and ``bench/bench_motion_margin.py`` mea
 ``bench/make_quality_figure.py``'s "before" column runs OpenCV's 5."""
 
 DETECTOR_DIS_PARAMS = DIS_PARAMS
-"""The motion detector's DIS flow (successive sub-frames of the K-average, at half the flow's size): it only opens
-the gate."""
+"""The motion detector's DIS flow (successive sub-frames of the K-average, at half the flow's size), which only
+opens the gate: :data:`DIS_PARAMS`. A search no finer than pyramid level 2 (``finest_scale=2``) does a quarter of
+the work but moved PSNR both ways (drummer +0.15 to +0.3 dB, balls −0.09 dB at 240×320; docs/benchmarks.md)."""
 
 
 def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, scale: float = 0.5,

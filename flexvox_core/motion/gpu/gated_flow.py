@@ -12,10 +12,12 @@ come up).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 from numba import cuda
 
+from flexvox_core.flow.backends import dis_finest_scale
 from flexvox_core.flow.baseline import blend, default_stride, measurements
 from flexvox_core.flow.estimate import MIN_FLOW_SIDE, flow_size
 from flexvox_core.gpu.filters import box_in_time
@@ -55,14 +57,24 @@ class PairFlow:
         if self.where == "cpu":
             self._on_host(images, pairs, out)
             return
-        from flexvox_core.gpu.dis import DisParams, DisWorkspace, dis_pairs
+        from flexvox_core.gpu.dis import DisWorkspace, dis_pairs
 
         a = self.ws.put(f"{tag}.a", np.ascontiguousarray(pairs[:, 0], np.int32))
         b = self.ws.put(f"{tag}.b", np.ascontiguousarray(pairs[:, 1], np.int32))
-        params = DisParams(**self.dis_params)
+        params = self.params_for(images.shape[1:])
         size = (images.shape[0], len(pairs), *images.shape[1:], params)
         buffers = self.ws.held(f"{tag}.dis", lambda d: d.fits(*size), lambda: DisWorkspace(*size))
         dis_pairs(images, a, b, params, out=out, workspace=buffers)
+
+    def params_for(self, shape):
+        """The DIS parameters on images of ``shape`` (h, w): ``dis_params``, a ``finest_scale`` among them no coarser
+        than the images' coarsest level, as the CPU's :class:`~flexvox_core.flow.backends.DisFlow` searches."""
+        from flexvox_core.gpu.dis import DisParams
+
+        params = DisParams(**self.dis_params)
+        if "finest_scale" not in self.dis_params:
+            return params
+        return replace(params, finest_scale=dis_finest_scale(shape, params.finest_scale, params.patch_size))
 
     def _on_host(self, images, pairs, out) -> None:
         from flexvox_core.flow.backends import make_backend
@@ -226,9 +238,13 @@ def _gate(vel, disp, interp, steps, mean, px, lo, hi, use_slow, slow_speed, has_
     out[s, y, x, 1] = v
 
 
-def gated_flow(ws, video, K: int, *, gate, scale: float, slow_speed, period_gate, pair_flow, out) -> dict:
+def gated_flow(ws, video, K: int, *, gate, scale: float, slow_speed, period_gate, pair_flow, detector_flow,
+               out) -> dict:
     """The gated flow of ``video`` (S, H, W) into ``out`` (S, H, W, 2) (device arrays); returns its parameters
-    (the CPU's flow parameters: the gates, the scale, whether the slow velocity was used)."""
+    (the CPU's flow parameters: the gates, the scale, whether the slow velocity was used). ``pair_flow``: the
+    :class:`PairFlow` of the successive sub-frames and of the K-average's baseline
+    (:data:`~flexvox_core.motion.gated_flow.DIS_PARAMS`); ``detector_flow``: the motion detector's
+    (:data:`~flexvox_core.motion.gated_flow.DETECTOR_DIS_PARAMS`)."""
     S, H, W = video.shape
     lo, hi = gate
     small = shrink(ws, video, scale, "flow.small")
@@ -250,7 +266,7 @@ def gated_flow(ws, video, K: int, *, gate, scale: float, slow_speed, period_gate
     if use_slow:
         params["slow_speed"] = slow_speed
     half = shrink(ws, average, 0.5, "flow.half")
-    steps_small = successive_flow(ws, half, pair_flow, "flow.steps")
+    steps_small = successive_flow(ws, half, detector_flow, "flow.steps")
     steps = ws.get("flow.steps.up", (S, h, w, 2))
     h2, w2 = half.shape[1:]
     resize_linear(ws, steps_small, steps, scale=(w / w2, h / h2), tag="flow.steps.up")

@@ -362,6 +362,24 @@ def _flow_mean_numpy() -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def _classes_numpy() -> Iterator[None]:
+    """Before the speed classes were classified per voxel into their packed bits (compiled): numpy's rule on the
+    whole plane, then ``np.packbits`` of each class; the same bits."""
+    from flexvox_core.motion import stages
+    from flexvox_core.motion.classes_kernel import speed_class
+
+    def classify_plane(speed: np.ndarray, still_below: Any, slow_below: Any, skipped: bool,
+                       *rows: np.ndarray) -> tuple[int, ...]:
+        classes = speed_class(speed, still_below, slow_below, skipped)
+        for row, cls in zip(rows, classes, strict=True):
+            row[...] = np.packbits(cls, axis=-1)
+        return tuple(int(np.count_nonzero(cls)) for cls in classes)
+
+    with mock.patch.object(stages, "classify_plane", classify_plane):
+        yield
+
+
+@contextlib.contextmanager
 def _detector_finest_2() -> Iterator[None]:
     """A change tried and not kept: the motion detector's DIS searching no finer than pyramid level 2 (the kept
     code: level 1, OpenCV's "medium" preset, as the successive flow)."""
@@ -383,6 +401,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "high-tr-float32": _high_tr_float32,
     "gate-numpy": _gate_numpy,
     "flow-mean-numpy": _flow_mean_numpy,
+    "classes-numpy": _classes_numpy,
     "detector-finest-2": _detector_finest_2,
 }
 """The code as it was before each change (``kept``: as it is), or a change tried and not kept, for ``--ab``."""

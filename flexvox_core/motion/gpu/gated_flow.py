@@ -24,8 +24,9 @@ from flexvox_core.gpu.filters import box_in_time
 from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import device, kernel, launch
 from flexvox_core.gpu.resize import resize_area, resize_linear, to_uint8
+from flexvox_core.motion.classes_kernel import speed_class
 from flexvox_core.motion.gated_flow import takes_slow
-from flexvox_core.motion.stages import class_thresholds, speed_class
+from flexvox_core.motion.stages import class_thresholds
 
 PAIRS = ("gpu", "cpu")
 """Where the pairs' optical flow runs."""
@@ -358,7 +359,7 @@ def _classes(flow, still_below, slow_below, skip, still, slow, gather, counts):
 
 def speed_classes(ws, flow, still_speed, slow_speed, skip: np.ndarray | None, still, slow, gather) -> tuple[int, int]:
     """``still``, ``slow`` and ``gather``, uint8 (S, H, W), by the CPU's rule
-    (:func:`~flexvox_core.motion.stages.speed_class`: still below ``still_speed``, slow below ``slow_speed`` and
+    (:func:`~flexvox_core.motion.classes_kernel.speed_class`: still below ``still_speed``, slow below ``slow_speed`` and
     not still nor in ``skip``, gathered when none of these); returns the counts of still and slow voxels."""
     S = flow.shape[0]
     counts = ws.put("classes.counts", np.zeros(2, np.int32))

@@ -29,16 +29,24 @@ idle), and the camera thread's late frames: frames it delivered more than one pe
 which a real camera with one buffer would have dropped (the GUI tests record with the preview on and
 check that the simulated rig drops none).
 
+``--region-cpu SIDE`` then runs motion-aware from scratch on a fixed SIDE×SIDE region of the last size's frames
+(the ``region`` preview's run, its 3 frames), ``--calls`` times after one warm-up, and prints the process's CPU
+seconds per stage and in all (medians): the region's cost without the camera's pace or the machine's load in
+it (``taskset -c 0`` makes it one core's).
+
 Figures only, never pass/fail. Usage: ``python bench/bench_live_preview.py [--seconds S] [--sizes 160x120,640x480]
-[--strategies stride,region,stream,nc] [--device cuda] [--soak S]``.
+[--strategies stride,region,stream,nc] [--device cuda] [--soak S] [--region-cpu SIDE [--calls N]]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
+import statistics
 import threading
 import time
+from unittest import mock
 
 import numpy as np
 
@@ -199,6 +207,42 @@ def soak(frames, code, tile, shape, seconds: float) -> None:
         print(f"| {k + 1}/10 | {rate:.2f} | {lat} | {gpu:.0f} | {host:.0f} |", flush=True)
 
 
+def region_cpu(frames: np.ndarray, code: np.ndarray, side: int, calls: int) -> None:
+    """Motion-aware on a fixed ``side``² region of ``frames``' last 3 frames (top-left on the code's grid): the
+    process's CPU seconds per stage and in all, medians of ``calls`` calls after a warm-up."""
+    from flexvox_core.motion import stages
+    from flexvox_core.motion.pipeline import motion_aware
+
+    H, W = frames.shape[1:]
+    if side > min(H, W):
+        raise SystemExit(f"--region-cpu {side}: larger than the {W}x{H} frames")
+    y0, x0 = (H - side) // 8 * 4, (W - side) // 8 * 4  # centred, on the 4x4 code's grid
+    region = np.ascontiguousarray(frames[-N_FRAMES:, y0:y0 + side, x0:x0 + side])
+    used: dict[str, float] = {}
+    plain = stages.StageTimes.__call__
+
+    @contextlib.contextmanager
+    def timed(self, stage):
+        start = time.process_time()
+        with plain(self, stage):
+            yield
+        used[stage] = used.get(stage, 0.0) + time.process_time() - start
+
+    runs = []
+    with mock.patch.object(stages.StageTimes, "__call__", timed):
+        for _ in range(calls + 1):
+            used.clear()
+            start = time.process_time()
+            motion_aware(region, code)
+            runs.append({**used, "all": time.process_time() - start})
+    runs = runs[1:]  # the warm-up: numba's compilation
+    names = list(runs[-1])
+    print(f"\nmotion-aware on a {side}x{side} region, {N_FRAMES} frames, {calls} calls: CPU ms (median)")
+    print("| " + " | ".join(names) + " |")
+    print("|---" * len(names) + "|")
+    print("| " + " | ".join(f"{statistics.median(r.get(n, 0.0) for r in runs) * 1000:.0f}" for n in names) + " |")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=20.0)
@@ -207,6 +251,9 @@ def main() -> None:
     ap.add_argument("--device", choices=("cpu", "cuda"), default="cpu",
                     help="cuda: add the GPU preview (strategy gpu) to each size")
     ap.add_argument("--soak", type=float, default=0.0, metavar="S", help="then the GPU preview for S seconds")
+    ap.add_argument("--region-cpu", type=int, default=0, metavar="SIDE",
+                    help="then motion-aware on a fixed SIDE x SIDE region: CPU seconds per stage")
+    ap.add_argument("--calls", type=int, default=8, help="--region-cpu's calls (after one warm-up)")
     args = ap.parse_args()
     tile = (4, 4)
     code = design_code(tile).code
@@ -233,6 +280,8 @@ def main() -> None:
                   f"{r['late']} |", flush=True)
     if args.soak > 0:
         soak(frames, code, tile, (h, w), args.soak)
+    if args.region_cpu:
+        region_cpu(frames, code, args.region_cpu, args.calls)
 
 
 if __name__ == "__main__":

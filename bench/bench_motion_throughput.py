@@ -389,6 +389,20 @@ def _detector_finest_2() -> Iterator[None]:
         yield
 
 
+@contextlib.contextmanager
+def _vectors_by_numpy() -> Iterator[None]:
+    """Before the held flow's vectors were scaled by OpenCV: numpy's product over the last axis of 2 (the same
+    bits, 0.2-0.4 ms a plane; every stage that reads the flow makes its full-size planes so)."""
+    from flexvox_core.flow import estimate
+
+    kept = estimate.scaled_vectors
+    estimate.scaled_vectors = lambda plane, ratio: plane * ratio
+    try:
+        yield
+    finally:
+        estimate.scaled_vectors = kept
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
@@ -403,6 +417,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "flow-mean-numpy": _flow_mean_numpy,
     "classes-numpy": _classes_numpy,
     "detector-finest-2": _detector_finest_2,
+    "vectors-by-numpy": _vectors_by_numpy,
 }
 """The code as it was before each change (``kept``: as it is), or a change tried and not kept, for ``--ab``."""
 

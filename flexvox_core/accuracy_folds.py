@@ -118,3 +118,36 @@ def independent_rows(v0: np.ndarray, frames: np.ndarray, code: np.ndarray, dropp
         mse = ((K - 1) * loo + sure) / K
         rows.append(np.stack([np.full(int(ok.sum()), f, np.float64), cluster[ok], mse[ok], loo[ok]], axis=1))
     return np.concatenate(rows, axis=0) if rows else np.zeros((0, 4))
+
+
+def spacing_ratio(frames: np.ndarray, code: np.ndarray, variance: np.ndarray,
+                  dropped: np.ndarray | None = None) -> float:
+    """The unsampled voxels' mean squared increment of the truth to their sub-frame's nearest sample, over a
+    held-out voxel's to its nearest kept one (:func:`folds`), from the power variogram fitted to the capture's
+    sample pairs within two sub-frames and two tiles (:func:`~flexvox_core.accuracy_rebin.fit_variogram`).
+
+    A candidate correction of the k-fold hold-out's error ``H`` to the unsampled voxels' (``H·ratio``), scaling the
+    error by the truth's increment over the distance to the nearest sample; measured against the truth
+    (``bench/bench_accuracy.py --methods gap-tv``) it runs up to 2.78 dB high on Drop, so the estimate does not use
+    it.
+
+    Raises
+    ------
+    flexvox_core.accuracy_rebin.TooFewLags
+        Too few lags spanned by pairs of samples to fit the variogram.
+    """
+    from flexvox_core.accuracy_rebin import fit_variogram, increments, variogram
+
+    m, n, _ = code.shape
+    inc = increments(frames.astype(np.float64), code, variance, (2, 2 * m, 2 * n), dropped)
+    G, beta, _ = fit_variogram(inc, np.ones(inc.mean.shape))
+    lattice = [(a * m, b * n) for a in (-1, 0, 1) for b in (-1, 0, 1)]  # the sub-frame's samples nearby
+
+    def nearest(dy: int, dx: int, skip_own: bool) -> float:
+        lags = np.array([[0.0, dy + a, dx + b] for a, b in lattice if not (skip_own and (a, b) == (0, 0))])
+        return float(np.min(variogram(G, beta, lags)))
+
+    held = nearest(0, 0, True)  # a held-out sample's nearest kept ones: the neighbouring tiles' (other folds)
+    unsampled = [nearest(i - pi, j - pj, False) for pi in range(m) for pj in range(n)
+                 for i in range(m) for j in range(n) if (i, j) != (pi, pj)]
+    return float(np.mean(unsampled)) / max(held, 1e-30)

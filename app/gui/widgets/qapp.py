@@ -46,6 +46,7 @@ class GuiThreadGarbageCollector:
             raise RuntimeError("the garbage collector's timer must start on the GUI (main) thread")
         self.threshold = gc.get_threshold()
         gc.disable()
+        disarm_dask_slicing()
         self.timer = QTimer()
         self.timer.timeout.connect(self.check)
         self.timer.start(interval_ms)
@@ -66,10 +67,29 @@ _COLLECTOR: GuiThreadGarbageCollector | None = None
 
 def keep_automatic_collection_off() -> None:
     """Python's automatic garbage collection off (:class:`GuiThreadGarbageCollector` collects instead), saying so
-    when something had switched it back on."""
+    when something had switched it back on (as dask's array slicing does: :func:`disarm_dask_slicing`)."""
     if gc.isenabled():
         _logger.warning("automatic garbage collection was switched back on; off again (the GUI thread collects)")
         gc.disable()
+
+
+def disarm_dask_slicing() -> bool:
+    """Stop dask's array slicing from switching automatic garbage collection back on; True where it had.
+
+    ``dask.array.slicing.slice_array`` is decorated with ``dask.utils.disable_gc()``, which notes whether collection
+    is on when the decorator is made (at the module's import) and switches it on after every slice if it was. Where
+    ``dask.array`` was imported before the GUI's collector started (a notebook that used dask, a test process), every
+    later slice would switch automatic collection back on. The decorator's note is set to off. A dask whose slicing
+    is made otherwise is left as it is (:func:`keep_automatic_collection_off` still switches collection off at each
+    tick)."""
+    slicing = sys.modules.get("dask.array.slicing")
+    closure = getattr(getattr(slicing, "slice_array", None), "__closure__", None) or ()
+    for cell in closure:
+        state = getattr(cell.cell_contents, "_gc_enabled", None)
+        if isinstance(state, bool):
+            cell.cell_contents._gc_enabled = False
+            return state
+    return False
 
 
 def collect_garbage_on_gui_thread() -> GuiThreadGarbageCollector:

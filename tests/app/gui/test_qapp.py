@@ -72,3 +72,28 @@ def test_automatic_collection_switched_back_on_is_switched_off_again(qapp, caplo
     finally:
         gc.disable()
     assert "automatic garbage collection was switched back on; off again" in caplog.text
+
+
+_DASK_SLICES = """
+import gc, sys
+import numpy as np
+import dask.array as da  # imported while automatic collection is on, as a notebook would
+from flexvox_app.gui.widgets.qapp import disarm_dask_slicing
+gc.disable()
+da.from_array(np.zeros((4, 4)), chunks=2)[1:3].compute()
+before = gc.isenabled()
+gc.disable()
+was = disarm_dask_slicing()
+da.from_array(np.zeros((4, 4)), chunks=2)[1:3].compute()
+print(before, was, gc.isenabled(), disarm_dask_slicing())
+"""
+
+
+def test_dask_slicing_no_longer_switches_automatic_collection_back_on():
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", _DASK_SLICES], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    # dask switched collection back on after a slice; disarmed, it no longer does (and a second disarm finds it off)
+    assert out.stdout.split() == ["True", "True", "False", "False"]

@@ -505,7 +505,10 @@ def test_review_s_result_line_and_the_compare_list_say_where_each_result_ran(qtb
 
 
 def test_without_ground_truth_the_result_line_and_the_compare_list_show_the_estimate(qtbot, review, recording,
-                                                                                     tmp_path):
+                                                                                     tmp_path, monkeypatch):
+    from flexvox_core import accuracy
+
+    monkeypatch.setitem(accuracy.REFUSED, "rebin", "refused here")  # a refused method's line and list entry
     review.preview_check.setChecked(False)
     review.open_recording(without_ground_truth(recording, tmp_path))
     qtbot.waitUntil(lambda: review.session is not None, timeout=10_000)
@@ -519,6 +522,7 @@ def test_without_ground_truth_the_result_line_and_the_compare_list_show_the_esti
     review.frame_slider.setValue(13)  # camera frame 1: its own estimate in the panel's title
     assert cv.panel_b.title.text().endswith(f" · this frame estimated PSNR {est.per_frame[1]:.2f} dB")
     rebin = reconstruct(qtbot, review, "rebin")  # refused: nothing on the line, why in the list's tooltip
+    assert rebin.no_estimate is not None and "refused here" in rebin.no_estimate
     assert rebin.estimate is None and "estimat" not in review.result_label.text()
     assert "estimat" not in cv.box_b.itemText(1)
     assert f"no estimate: {rebin.no_estimate}" in cv.box_b.itemData(1, Qt.ItemDataRole.ToolTipRole)

@@ -110,3 +110,16 @@ def test_bridge_sets_a_held_flows_gap_planes_as_an_arrays():
     np.testing.assert_array_equal(got_video, want_video)
     assert sorted(held._put) == [4, 5, 6, 7]  # the gap's velocity, set
     np.testing.assert_array_equal(held.flow, full)
+
+
+@pytest.mark.parametrize("shape", [(1, 1, 2), (7, 5, 2), (160, 213, 2)])
+def test_scaled_vectors_are_numpy_s_product_bit_for_bit(shape):
+    from flexvox_core.flow.estimate import scaled_vectors
+
+    rng = np.random.default_rng(3)
+    plane = (rng.normal(size=shape) * 10.0 ** rng.integers(-8, 8, size=shape)).astype(np.float32)
+    plane.flat[0] = np.nan
+    ratio = np.array([640 / 213, 480 / 160], np.float32)
+    got = scaled_vectors(plane, ratio)
+    assert got.dtype == np.float32 and got.shape == shape and got is not plane
+    np.testing.assert_array_equal(got.view(np.uint32), (plane * ratio).view(np.uint32))

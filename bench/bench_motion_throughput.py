@@ -307,10 +307,10 @@ def _gate_numpy() -> Iterator[None]:
 
     from flexvox_core.flow.estimate import sanitize_flow
     from flexvox_core.motion import gated_flow
-    from flexvox_core.motion.gated_flow import takes_slow
+    from flexvox_core.motion.gated_flow_kernel import takes_slow
 
     def one(self: Any, t: int) -> None:
-        px, use_slow, slow_below, _, lo, width, plo, pwidth = self.numbers
+        px, use_slow, slow_below, lo, width, plo, pwidth = self.numbers
         vel = self.successive[t]
         slow = self.slow.at(t, np.empty_like(vel))
         speed = np.hypot(slow[..., 0], slow[..., 1]) * px

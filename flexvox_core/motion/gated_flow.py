@@ -108,14 +108,6 @@ def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, sc
     return ScaledFlow(vel, conf, video.shape[1:], params, perf_counter() - t0)
 
 
-def takes_slow(slow, successive, slow_speed):
-    """Whether a voxel's velocity is the K-average's: its speed there (``slow``) below ``slow_speed`` and its
-    successive-sub-frame speed (``successive``, both in full-size px per sub-frame) below twice it (faster, the
-    K-average blurred the motion away). Element-wise on arrays here; the GPU compiles it as a device function
-    (:mod:`flexvox_core.motion.gpu.gated_flow`)."""
-    return (slow < slow_speed) & (successive < 2 * slow_speed)
-
-
 class _GatedFlow:
     """:func:`gated_flow`'s gate, a sub-frame at a time (:meth:`one`): each sub-frame's gated velocity written over
     its successive-sub-frame one at the flow's own scale (:class:`~flexvox_core.flow.estimate.ScaledFlow` makes the
@@ -130,10 +122,9 @@ class _GatedFlow:
         f32 = np.float32
         lo, hi = gate
         plo, phi = period_gate if period_gate is not None else (0.0, 1.0)
-        below = (0.0, 0.0) if slow_speed is None else (slow_speed, 2 * slow_speed)
         # Python numbers as numpy reads them beside float32 arrays: rounded to float32 first.
-        self.numbers = (f32(px), bool(use_slow), f32(below[0]), f32(below[1]), f32(lo), f32(hi - lo), f32(plo),
-                        f32(phi - plo))
+        self.numbers = (f32(px), bool(use_slow), f32(0.0 if slow_speed is None else slow_speed), f32(lo),
+                        f32(hi - lo), f32(plo), f32(phi - plo))
         h, w = conf.shape[1:]
         self.max_magnitude = f32(0.5 * max(h, w))
         self.step_ratio = np.array([w / steps.shape[2], h / steps.shape[1]], np.float32)
@@ -147,9 +138,8 @@ class _GatedFlow:
         j0, j1, a = blend(self.slow.centres, t)
         steps = cv2.resize(self.steps[t] * self.step_ratio, (w, h), interpolation=cv2.INTER_LINEAR)
         mean = self.mean[t] if self.mean is not None else vel
-        px, use_slow, slow_below, successive_below, lo, width, plo, pwidth = self.numbers
+        px, use_slow, slow_speed, lo, width, plo, pwidth = self.numbers
         gate_plane(vel, conf, disp[j0], disp[j1], np.float64(1 - a), np.float64(a), j0 != j1, steps, mean,
-                   self.mean is not None, px, use_slow, slow_below, successive_below, lo, width, plo, pwidth,
-                   self.max_magnitude)
+                   self.mean is not None, px, use_slow, slow_speed, lo, width, plo, pwidth, self.max_magnitude)
         if conf.size and not (np.min(conf) >= 0 and np.max(conf) <= 1):  # as sanitize_flow: NaN fails both
             np.clip(conf, 0, 1, out=conf)

@@ -11,12 +11,24 @@ numpy does with Python numbers. The whole-volume form the tests compare with is
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numba
 import numpy as np
 import numpy.typing as npt
 
 Plane = npt.NDArray[np.float32]
+
+
+def takes_slow(slow: Any, successive: Any, slow_speed: Any) -> Any:
+    """Whether a voxel's velocity is the K-average's: its speed there (``slow``) below ``slow_speed`` and its
+    successive-sub-frame speed (``successive``, both in full-size px per sub-frame) below twice it (faster, the
+    K-average blurred the motion away). The rule of both engines: compiled per voxel here (:func:`gate_plane`) and
+    on the GPU (:mod:`flexvox_core.motion.gpu.gated_flow`); element-wise on arrays too."""
+    return (slow < slow_speed) & (successive < 2 * slow_speed)
+
+
+_takes_slow = numba.njit(inline="always", nogil=True, cache=True)(takes_slow)
 
 
 @numba.njit(inline="always", nogil=True, cache=True)
@@ -37,18 +49,16 @@ def _ramp(speed: np.float32, lo: np.float32, width: np.float32) -> np.float32:
 
 @numba.njit(nogil=True, cache=True, error_model="numpy")
 def gate_plane(vel: Plane, conf: Plane, d0: Plane, d1: Plane, w0: float, w1: float, blend: bool, steps: Plane,
-               mean: Plane, has_mean: bool, px: np.float32, use_slow: bool, slow_below: np.float32,
-               successive_below: np.float32, lo: np.float32, width: np.float32, plo: np.float32,
-               pwidth: np.float32, max_mag: np.float32) -> None:
+               mean: Plane, has_mean: bool, px: np.float32, use_slow: bool, slow_speed: np.float32,
+               lo: np.float32, width: np.float32, plo: np.float32, pwidth: np.float32, max_mag: np.float32) -> None:
     """Gate one sub-frame in place: ``vel`` (h, w, 2) becomes the gated velocity, sanitised (non-finite: 0 with
     ``conf`` 0; magnitudes capped at ``max_mag``).
 
     The K-average's velocity is ``w0 * d0 + w1 * d1`` (``d0`` alone unless ``blend``; float64 weights, the sum
     rounded to float32 once, as numpy makes it with :func:`~flexvox_core.flow.baseline.blend`'s); it is taken where
-    ``use_slow`` and its speed is below ``slow_below`` and the successive-sub-frame speed below
-    ``successive_below``. The ramp opens from ``lo`` over ``width`` on the larger of that speed and ``steps``'
-    (the detector's velocity, at this size), and from ``plo`` over ``pwidth`` on ``mean``'s speed when
-    ``has_mean``. Speeds in full-size pixels (times ``px``); every other number float32.
+    ``use_slow`` and :func:`takes_slow` at ``slow_speed``. The ramp opens from ``lo`` over ``width`` on the larger
+    of that speed and ``steps``' (the detector's velocity, at this size), and from ``plo`` over ``pwidth`` on
+    ``mean``'s speed when ``has_mean``. Speeds in full-size pixels (times ``px``); every other number float32.
     """
     h, w = conf.shape
     zero = np.float32(0)
@@ -63,7 +73,7 @@ def gate_plane(vel: Plane, conf: Plane, d0: Plane, d1: Plane, w0: float, w1: flo
                 su = d0[y, x, 0]
                 sv = d0[y, x, 1]
             speed = _hypot(su, sv) * px
-            take = use_slow & (speed < slow_below) & (_hypot(u, v) * px < successive_below)
+            take = use_slow & _takes_slow(speed, _hypot(u, v) * px, slow_speed)
             u = su if take else u
             v = sv if take else v
             step = _hypot(steps[y, x, 0], steps[y, x, 1]) * px

@@ -25,7 +25,7 @@ from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import device, kernel, launch
 from flexvox_core.gpu.resize import resize_area, resize_linear, to_uint8
 from flexvox_core.motion.classes_kernel import speed_class
-from flexvox_core.motion.gated_flow import takes_slow
+from flexvox_core.motion.gated_flow_kernel import takes_slow
 from flexvox_core.motion.stages import class_thresholds
 
 PAIRS = ("gpu", "cpu")
@@ -189,7 +189,7 @@ def kaverage_plan(S: int, K: int, stride: int) -> tuple[int, np.ndarray, np.ndar
 
 
 _takes_slow = device(takes_slow)
-"""The CPU's rule (:func:`~flexvox_core.motion.gated_flow.takes_slow`) for one voxel."""
+"""The CPU's rule (:func:`~flexvox_core.motion.gated_flow_kernel.takes_slow`) for one voxel."""
 
 
 @device

@@ -51,8 +51,8 @@ def test_gate_plane_gives_numpys_values(seed, period_gate, blend, use_slow):
     plo, phi = period_gate or (0.0, 1.0)
     f32 = np.float32
     gate_plane(got_vel, got_conf, d0, d1, np.float64(1 - a), np.float64(a), blend, steps, mean,
-               period_gate is not None, f32(px), use_slow, f32(slow_speed), f32(2 * slow_speed), f32(gate[0]),
-               f32(gate[1] - gate[0]), f32(plo), f32(phi - plo), f32(max_mag))
+               period_gate is not None, f32(px), use_slow, f32(slow_speed), f32(gate[0]), f32(gate[1] - gate[0]),
+               f32(plo), f32(phi - plo), f32(max_mag))
     np.testing.assert_array_equal(got_vel, want_vel)
     np.testing.assert_array_equal(got_conf, want_conf)
     assert got_conf[0, 0] == 0 and got_vel[0, 1, 0] == 0  # a non-finite velocity: 0, trusted 0

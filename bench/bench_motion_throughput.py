@@ -315,6 +315,96 @@ def _gather_reach_3_sigma() -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def _gate_numpy() -> Iterator[None]:
+    """Before the gated flow's gate was one compiled pass per sub-frame: numpy's dozen element-wise passes, four
+    ``np.hypot`` (about 9 ns an element) among them; the same bits."""
+    import cv2
+
+    from flexvox_core.flow.estimate import sanitize_flow
+    from flexvox_core.motion import gated_flow
+    from flexvox_core.motion.gated_flow_kernel import takes_slow
+
+    def one(self: Any, t: int) -> None:
+        px, use_slow, slow_below, lo, width, plo, pwidth = self.numbers
+        vel = self.successive[t]
+        slow = self.slow.at(t, np.empty_like(vel))
+        speed = np.hypot(slow[..., 0], slow[..., 1]) * px
+        if use_slow:
+            use = takes_slow(speed, np.hypot(vel[..., 0], vel[..., 1]) * px, float(slow_below))
+            vel = np.where(use[..., None], slow, vel)
+        else:
+            vel = vel.copy()
+        h, w = vel.shape[:2]
+        steps = cv2.resize(self.steps[t] * self.step_ratio, (w, h), interpolation=cv2.INTER_LINEAR)
+        speed = np.maximum(speed, np.hypot(steps[..., 0], steps[..., 1]) * px)
+        ramp = np.clip((speed - lo) / width, 0, 1).astype(np.float32)
+        if self.mean is not None:
+            mean = self.mean[t]
+            ramp = np.maximum(ramp, np.clip((np.hypot(mean[..., 0], mean[..., 1]) * px - plo) / pwidth, 0, 1))
+        vel *= ramp[..., None]
+        self.successive[t], self.conf[t] = sanitize_flow(vel, self.conf[t], max_magnitude=float(self.max_magnitude))
+
+    with mock.patch.object(gated_flow._GatedFlow, "one", one):
+        yield
+
+
+@contextlib.contextmanager
+def _flow_mean_numpy() -> Iterator[None]:
+    """Before the successive-sub-frame flow's temporal mean was a compiled pass per sub-frame on every core: a
+    numpy loop over the sub-frames on one thread; the same bits."""
+    from flexvox_core.flow import estimate
+
+    def pair_mean(fwd: np.ndarray, conf: np.ndarray, c: int, reach: int, out: np.ndarray) -> None:
+        P = len(conf)
+        num, den = np.zeros(out.shape, np.float32), np.zeros(out.shape[:2], np.float32)
+        for o in range(-reach, reach + 1):
+            if max(0, -o) <= c < P - max(0, o):
+                num += fwd[c + o]
+                den += conf[c + o] + np.float32(1e-3)
+        np.divide(num, den[..., None], out=out)
+
+    kept = estimate.for_each
+
+    def serial_mean(fn: Callable[[int], None], count: int) -> None:  # the mean's loop on one thread, as it was
+        if not fn.__qualname__.startswith("successive_flow."):
+            kept(fn, count)
+            return
+        for i in range(count):
+            fn(i)
+
+    with mock.patch.object(estimate, "pair_mean", pair_mean), mock.patch.object(estimate, "for_each", serial_mean):
+        yield
+
+
+@contextlib.contextmanager
+def _classes_numpy() -> Iterator[None]:
+    """Before the speed classes were classified per voxel into their packed bits (compiled): numpy's rule on the
+    whole plane, then ``np.packbits`` of each class; the same bits."""
+    from flexvox_core.motion import stages
+    from flexvox_core.motion.classes_kernel import speed_class
+
+    def classify_plane(speed: np.ndarray, still_below: Any, slow_below: Any, skipped: bool,
+                       *rows: np.ndarray) -> tuple[int, ...]:
+        classes = speed_class(speed, still_below, slow_below, skipped)
+        for row, cls in zip(rows, classes, strict=True):
+            row[...] = np.packbits(cls, axis=-1)
+        return tuple(int(np.count_nonzero(cls)) for cls in classes)
+
+    with mock.patch.object(stages, "classify_plane", classify_plane):
+        yield
+
+
+@contextlib.contextmanager
+def _detector_finest_2() -> Iterator[None]:
+    """A change tried and not kept: the motion detector's DIS searching no finer than pyramid level 2 (the kept
+    code: level 1, OpenCV's "medium" preset, as the successive flow)."""
+    from flexvox_core.motion import gated_flow
+
+    with mock.patch.object(gated_flow, "DETECTOR_DIS_PARAMS", {**gated_flow.DIS_PARAMS, "finest_scale": 2}):
+        yield
+
+
+@contextlib.contextmanager
 def _vectors_by_numpy() -> Iterator[None]:
     """Before the held flow's vectors were scaled by OpenCV: numpy's product over the last axis of 2 (the same
     bits, 0.2-0.4 ms a plane; every stage that reads the flow makes its full-size planes so)."""
@@ -339,9 +429,13 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "reach-by-log": _reach_by_log,
     "high-tr-float32": _high_tr_float32,
     "gather-reach-3-sigma": _gather_reach_3_sigma,
+    "gate-numpy": _gate_numpy,
+    "flow-mean-numpy": _flow_mean_numpy,
+    "classes-numpy": _classes_numpy,
+    "detector-finest-2": _detector_finest_2,
     "vectors-by-numpy": _vectors_by_numpy,
 }
-"""The code as it was before each change (``kept``: as it is), for ``--ab``."""
+"""The code as it was before each change (``kept``: as it is), or a change tried and not kept, for ``--ab``."""
 
 
 def _status_mb(field: str) -> float:

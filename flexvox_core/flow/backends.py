@@ -9,6 +9,7 @@ whose ``__call__(a, b)`` takes two uint8 images ``(H, W)`` and returns the flow 
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, fields
 
 import cv2
@@ -20,8 +21,10 @@ class DisFlow:
     """DIS (Kroeger et al. 2016) with variational refinement, which minimises the Brox et al.
     2004 energy (brightness + gradient constancy, smoothness) — the default.
 
-    ``preset`` picks DIS's patch search (ultrafast, fast, medium); the refinement weights
-    ``alpha`` (smoothness), ``delta`` (colour constancy), ``gamma`` (gradient constancy).
+    ``preset`` picks DIS's patch search (ultrafast, fast, medium); ``finest_scale`` (the finest pyramid level
+    searched, 0: full size), ``patch_size``, ``patch_stride`` and ``gradient_descent_iterations`` override the
+    preset's (None: the preset's; the names and meanings of :class:`flexvox_core.gpu.dis.DisParams`); the
+    refinement weights ``alpha`` (smoothness), ``delta`` (colour constancy), ``gamma`` (gradient constancy).
     """
 
     name = "dis"
@@ -30,6 +33,10 @@ class DisFlow:
     alpha: float = 20.0
     delta: float = 5.0
     gamma: float = 10.0
+    finest_scale: int | None = None
+    patch_size: int | None = None
+    patch_stride: int | None = None
+    gradient_descent_iterations: int | None = None
 
     def __call__(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
         presets = {"ultrafast": cv2.DISOPTICAL_FLOW_PRESET_ULTRAFAST, "fast": cv2.DISOPTICAL_FLOW_PRESET_FAST,
@@ -40,12 +47,35 @@ class DisFlow:
         dis.setVariationalRefinementDelta(float(self.delta))
         dis.setVariationalRefinementGamma(float(self.gamma))
         dis.setUseSpatialPropagation(True)
+        if self.patch_size is not None:
+            dis.setPatchSize(int(self.patch_size))
+        if self.finest_scale is not None:
+            dis.setFinestScale(dis_finest_scale(a.shape, int(self.finest_scale), dis.getPatchSize()))
+        if self.patch_stride is not None:
+            dis.setPatchStride(int(self.patch_stride))
+        if self.gradient_descent_iterations is not None:
+            dis.setGradientDescentIterations(int(self.gradient_descent_iterations))
         return dis.calc(a, b, None)
 
     def check(self) -> None:
         if self.preset not in ("ultrafast", "fast", "medium"):
             raise ValueError(f"dis.preset must be ultrafast, fast or medium; got {self.preset!r}")
         _nonneg(self, "variational_iterations", "alpha", "delta", "gamma")
+        for name, lo in (("finest_scale", 0), ("patch_size", 2), ("patch_stride", 1),
+                         ("gradient_descent_iterations", 1)):
+            v = getattr(self, name)
+            if v is not None and (isinstance(v, bool) or not isinstance(v, int | np.integer) or v < lo):
+                raise ValueError(f"dis.{name} must be None or a whole number >= {lo}; got {v!r}")
+
+
+def dis_finest_scale(shape: tuple[int, ...], finest_scale: int, patch_size: int) -> int:
+    """``finest_scale`` for DIS on images of ``shape`` (H, W), no coarser than the coarsest level OpenCV searches
+    there (:func:`flexvox_core.gpu.dis.scales`' rule; 0 at the least): OpenCV reads past its buffers when the finest
+    is coarser."""
+    H, W = int(shape[0]), int(shape[1])
+    by_motion = int(math.log(max(W, H) / (4.0 * patch_size)) / math.log(2.0) + 0.5)
+    by_patch = int(math.log(max(1, min(W, H) // patch_size)) / math.log(2.0))
+    return max(0, min(finest_scale, by_motion, by_patch))
 
 
 @dataclass(frozen=True)

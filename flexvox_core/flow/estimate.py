@@ -28,6 +28,7 @@ import cv2
 import numpy as np
 
 from flexvox_core.flow.backends import backend_params, make_backend
+from flexvox_core.flow.mean_kernel import pair_mean
 from flexvox_core.threads import for_each
 
 _logger = logging.getLogger(__name__)
@@ -371,23 +372,19 @@ def successive_flow(small: np.ndarray, flow_fn, *, consistency: bool, temporal_w
               memo=memo)
     vconf[-1] = conf[-1]
     # Velocity at sub-frame s: confidence-weighted mean of forward flows s-w .. s+w (clamped to
-    # the pairs; the last sub-frame takes the last pair's), summed a sub-frame at a time in
-    # small buffers that stay in cache (fresh memory is dear: at 640x480 x 240 sub-frames the
-    # whole-volume sums' temporaries cost 0.15-0.6 s). Each sum is made in the same order as
-    # over whole volumes: from 0, offsets in increasing order.
+    # the pairs; the last sub-frame takes the last pair's), a sub-frame at a time in one compiled
+    # pass (fresh memory is dear: at 640x480 x 240 sub-frames the whole-volume sums' temporaries
+    # cost 0.15-0.6 s). Each sum is made in the same order as over whole volumes: from 0,
+    # offsets in increasing order (mean_kernel.pair_mean).
     fwd *= (conf + np.float32(1e-3))[..., None]  # weighted flows, in place
     P = S - 1
     vel = np.empty((S, h, w, 2), np.float32)
-    num, den = np.empty((h, w, 2), np.float32), np.empty((h, w), np.float32)
-    reach = min(temporal_window, P - 1)
-    for c in range(P):
-        num.fill(0)
-        den.fill(0)
-        for o in range(-reach, reach + 1):
-            if max(0, -o) <= c < P - max(0, o):  # centres c in [a, b) read pair c + o
-                num += fwd[c + o]
-                den += conf[c + o] + np.float32(1e-3)
-        np.divide(num, den[..., None], out=vel[c])
+    reach = max(0, min(temporal_window, P - 1))
+
+    def one(c: int) -> None:  # centres c read the pairs c + o that exist (compiled: one pass a sub-frame)
+        pair_mean(fwd, conf, c, reach, vel[c])
+
+    for_each(one, P)
     vel[P] = vel[P - 1]
     return vel, vconf
 

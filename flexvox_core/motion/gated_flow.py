@@ -12,15 +12,15 @@ import numpy as np
 
 from flexvox_core.flow import FlowField
 from flexvox_core.flow.backends import backend_params, make_backend
-from flexvox_core.flow.baseline import KAverageFlow, default_stride, kaverage
+from flexvox_core.flow.baseline import KAverageFlow, blend, default_stride, kaverage
 from flexvox_core.flow.estimate import (
     ScaledFlow,
     check_video,
     downscale,
-    sanitize_flow,
     successive_flow,
     to_full_size,
 )
+from flexvox_core.motion.gated_flow_kernel import gate_plane
 from flexvox_core.motion.options import DEFAULT_GATE, PERIOD_GATE, SLOW_SPEED
 from flexvox_core.threads import for_each
 
@@ -30,6 +30,11 @@ instead of OpenCV's 5. The refinement smooths the flow of the high-TR video acro
 trajectories matter most; fewer iterations keep those edges, and each pair's flow costs less. One or none
 lose on still scenes. ``flexvox bench`` and ``bench/bench_motion_margin.py`` measure it (docs/benchmarks.md);
 ``bench/make_quality_figure.py``'s "before" column runs OpenCV's 5."""
+
+DETECTOR_DIS_PARAMS = DIS_PARAMS
+"""The motion detector's DIS flow (successive sub-frames of the K-average, at half the flow's size), which only
+opens the gate: :data:`DIS_PARAMS`. A search no finer than pyramid level 2 (``finest_scale=2``) does a quarter of
+the work but moved PSNR both ways (drummer +0.15 to +0.3 dB, balls −0.09 dB at 240×320; docs/benchmarks.md)."""
 
 
 def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, scale: float = 0.5,
@@ -83,7 +88,7 @@ def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, sc
         params["slow_speed"] = slow_speed
     # Fast motion is smeared in the K-average and can escape a flow across K of its
     # sub-frames: the detector also takes flow between its successive sub-frames (at half size).
-    steps, _ = successive_flow(downscale(average, 0.5), make_backend("dis", **DIS_PARAMS), consistency=False,
+    steps, _ = successive_flow(downscale(average, 0.5), make_backend("dis", **DETECTOR_DIS_PARAMS), consistency=False,
                                temporal_window=1, memo=memo)
     mean = None
     if period_gate is not None:
@@ -103,53 +108,38 @@ def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, sc
     return ScaledFlow(vel, conf, video.shape[1:], params, perf_counter() - t0)
 
 
-def takes_slow(slow, successive, slow_speed):
-    """Whether a voxel's velocity is the K-average's: its speed there (``slow``) below ``slow_speed`` and its
-    successive-sub-frame speed (``successive``, both in full-size px per sub-frame) below twice it (faster, the
-    K-average blurred the motion away). Element-wise on arrays here; the GPU compiles it as a device function
-    (:mod:`flexvox_core.motion.gpu.gated_flow`)."""
-    return (slow < slow_speed) & (successive < 2 * slow_speed)
-
-
 class _GatedFlow:
-    """:func:`gated_flow`'s gate, a sub-frame at a time (:meth:`one`): every step element-wise on small planes
-    that stay in cache, each sub-frame's gated velocity written over its successive-sub-frame one (the flow's
-    own scale: :class:`~flexvox_core.flow.estimate.ScaledFlow` makes the full-size planes when they are read).
-    The same operations, in the same order, as on whole volumes (the same values), without a dozen volumes at
-    flow size (fresh memory is dear: at 640x480 they would cost about a second of page faults,
-    docs/benchmarks.md)."""
+    """:func:`gated_flow`'s gate, a sub-frame at a time (:meth:`one`): each sub-frame's gated velocity written over
+    its successive-sub-frame one at the flow's own scale (:class:`~flexvox_core.flow.estimate.ScaledFlow` makes the
+    full-size planes when they are read), in one compiled pass over its planes
+    (:func:`~flexvox_core.motion.gated_flow_kernel.gate_plane`): the same values as the whole-volume numpy form,
+    without a dozen volumes at flow size (fresh memory is dear: at 640x480 they would cost about a second of page
+    faults, docs/benchmarks.md)."""
 
     def __init__(self, successive, conf, slow, use_slow, slow_speed, steps, mean, gate, period_gate, px):
         self.successive, self.conf, self.slow = successive, conf, slow
-        self.use_slow, self.slow_speed, self.steps, self.mean = use_slow, slow_speed, steps, mean
-        self.gate, self.period_gate, self.px = gate, period_gate, np.float32(px)
+        self.use_slow, self.steps, self.mean = use_slow, steps, mean
+        f32 = np.float32
+        lo, hi = gate
+        plo, phi = period_gate if period_gate is not None else (0.0, 1.0)
+        # Python numbers as numpy reads them beside float32 arrays: rounded to float32 first.
+        self.numbers = (f32(px), bool(use_slow), f32(0.0 if slow_speed is None else slow_speed), f32(lo),
+                        f32(hi - lo), f32(plo), f32(phi - plo))
         h, w = conf.shape[1:]
-        self.max_magnitude = 0.5 * max(h, w)
+        self.max_magnitude = f32(0.5 * max(h, w))
         self.step_ratio = np.array([w / steps.shape[2], h / steps.shape[1]], np.float32)
 
     def one(self, t: int) -> None:
         """Gate sub-frame ``t``: its plane of ``successive`` (read by no other sub-frame) becomes the gated,
         sanitised velocity, and its confidence is sanitised."""
-        lo, hi = self.gate
-        px = self.px
-        vel = self.successive[t]
-        slow = self.slow.at(t, np.empty_like(vel))
-        speed = np.hypot(slow[..., 0], slow[..., 1]) * px
-        if self.use_slow:
-            slow_speed = self.slow_speed
-            use = takes_slow(speed, np.hypot(vel[..., 0], vel[..., 1]) * px, slow_speed)
-            vel = np.where(use[..., None], slow, vel)
-        else:
-            vel = vel.copy()
-        h, w = vel.shape[:2]
+        vel, conf = self.successive[t], self.conf[t]
+        h, w = conf.shape
+        disp = self.slow.disp
+        j0, j1, a = blend(self.slow.centres, t)
         steps = cv2.resize(self.steps[t] * self.step_ratio, (w, h), interpolation=cv2.INTER_LINEAR)
-        speed = np.maximum(speed, np.hypot(steps[..., 0], steps[..., 1]) * px)
-        ramp = np.clip((speed - lo) / (hi - lo), 0, 1).astype(np.float32)
-        if self.mean is not None:
-            plo, phi = self.period_gate
-            mean = self.mean[t]
-            mean_speed = np.hypot(mean[..., 0], mean[..., 1]) * px
-            ramp = np.maximum(ramp, np.clip((mean_speed - plo) / (phi - plo), 0, 1))
-        vel *= ramp[..., None]
-        # to_full_size's sanitising (element-wise, so the same a plane at a time); its resize is ScaledFlow's.
-        self.successive[t], self.conf[t] = sanitize_flow(vel, self.conf[t], max_magnitude=self.max_magnitude)
+        mean = self.mean[t] if self.mean is not None else vel
+        px, use_slow, slow_speed, lo, width, plo, pwidth = self.numbers
+        gate_plane(vel, conf, disp[j0], disp[j1], np.float64(1 - a), np.float64(a), j0 != j1, steps, mean,
+                   self.mean is not None, px, use_slow, slow_speed, lo, width, plo, pwidth, self.max_magnitude)
+        if conf.size and not (np.min(conf) >= 0 and np.max(conf) <= 1):  # as sanitize_flow: NaN fails both
+            np.clip(conf, 0, 1, out=conf)

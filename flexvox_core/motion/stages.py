@@ -51,6 +51,7 @@ import numpy.typing as npt
 
 from flexvox_core.gaps import bridge, bridge_flow
 from flexvox_core.motion import local_choice, longreach, noise_aware
+from flexvox_core.motion.classes_kernel import classify_plane, speed_class
 from flexvox_core.motion.gated_flow import gated_flow
 from flexvox_core.motion.longreach import LongReachPlan
 from flexvox_core.motion.mcnc import default_reach, trajectory_gather
@@ -642,16 +643,6 @@ class CpuStages:
                                  self.device)
 
 
-def speed_class(speed: Any, still_below: Any, slow_below: Any, skipped: Any) -> tuple[Any, Any, Any]:
-    """(still, slow, gathered) of voxels moving at ``speed`` (px per sub-frame): still below ``still_below``, slow
-    below ``slow_below`` when not still and not ``skipped`` (a sub-frame outside the gathered ones), gathered when
-    none of these. The rule both engines classify by: numpy runs it on whole planes on the CPU, the GPU compiles
-    it as a device function (``x ^ True`` is the logical not of a bool there, in numpy and in Python)."""
-    still = speed < still_below
-    slow = (speed < slow_below) & (still ^ True) & (skipped ^ True)
-    return still, slow, (still | slow | skipped) ^ True
-
-
 def class_thresholds(still_speed: float | None, slow_speed: float | None) -> tuple[np.float32, np.float32]:
     """:func:`speed_class`'s thresholds, float32 (as the speeds are): −∞ for a class that does not exist."""
     return (np.float32(-np.inf if still_speed is None else still_speed),
@@ -691,10 +682,10 @@ def packed_speed_classes(flow: np.ndarray | Bands, still_speed: float | None, sl
     def one(t: int) -> None:  # a sub-frame at a time, on every core (each writes its own rows)
         plane = band(flow, t, t + 1)[0]
         speed = cv2.magnitude(plane[..., 0], plane[..., 1])
-        for volume, cls in zip((still, slow, gathered),
-                               speed_class(speed, still_below, slow_below, skip is not None and bool(skip[t])),
-                               strict=True):
-            volume.put(t, cls)
+        # speed_class at each voxel, compiled, straight into the packed bits
+        counts = classify_plane(speed, still_below, slow_below, skip is not None and bool(skip[t]),
+                                still.packed[t], slow.packed[t], gathered.packed[t])
+        still.counts[t], slow.counts[t], gathered.counts[t] = counts
 
     for_each(one, S)
     return still, slow, gathered

@@ -22,7 +22,7 @@ from flexvox_core.gpu import volumes
 from flexvox_core.gpu.diffusion import NcPlan, nc
 from flexvox_core.gpu.volumes import Workspace
 from flexvox_core.motion import local_choice, noise_aware, stages
-from flexvox_core.motion.gated_flow import DIS_PARAMS
+from flexvox_core.motion.gated_flow import DETECTOR_DIS_PARAMS, DIS_PARAMS
 from flexvox_core.motion.gpu import gaps
 from flexvox_core.motion.gpu import gated_flow as gate
 from flexvox_core.motion.gpu import local_choice as choice
@@ -83,6 +83,7 @@ class CudaStages:
         self.window = w = window
         self.ws = ws if ws is not None else Workspace()
         self.pair_flow = gate.PairFlow(self.ws, pairs, DIS_PARAMS)
+        self.detector_flow = gate.PairFlow(self.ws, pairs, DETECTOR_DIS_PARAMS)
         F, H, W = w.frames.shape
         self.present = np.ones(F, bool) if w.missing is None else ~np.asarray(w.missing, bool)
         self.frames_d = self.ws.put(Buffers.FRAMES, np.ascontiguousarray(w.frames, np.float32))
@@ -133,7 +134,8 @@ class CudaStages:
         w = self.window
         flow = self.ws.get(Buffers.FLOW, (w.S, *w.frames.shape[1:], 2))
         params = gate.gated_flow(self.ws, current, w.K, gate=w.flow_gate, scale=w.flow_scale, slow_speed=w.slow_speed,
-                                 period_gate=PERIOD_GATE, pair_flow=self.pair_flow, out=flow)
+                                 period_gate=PERIOD_GATE, pair_flow=self.pair_flow,
+                                 detector_flow=self.detector_flow, out=flow)
         self.flow_params = {"backend": "dis", **DIS_PARAMS, **params, "pairs": self.pair_flow.where}
         if w.missing is not None:
             gaps.bridge_flow(flow, w.missing, w.K, margin=w.bridge_margin)

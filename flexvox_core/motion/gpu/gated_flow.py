@@ -12,18 +12,21 @@ come up).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 from numba import cuda
 
+from flexvox_core.flow.backends import dis_finest_scale
 from flexvox_core.flow.baseline import blend, default_stride, measurements
 from flexvox_core.flow.estimate import MIN_FLOW_SIDE, flow_size
 from flexvox_core.gpu.filters import box_in_time
 from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import device, kernel, launch
 from flexvox_core.gpu.resize import resize_area, resize_linear, to_uint8
-from flexvox_core.motion.gated_flow import takes_slow
-from flexvox_core.motion.stages import class_thresholds, speed_class
+from flexvox_core.motion.classes_kernel import speed_class
+from flexvox_core.motion.gated_flow_kernel import takes_slow
+from flexvox_core.motion.stages import class_thresholds
 
 PAIRS = ("gpu", "cpu")
 """Where the pairs' optical flow runs."""
@@ -55,14 +58,24 @@ class PairFlow:
         if self.where == "cpu":
             self._on_host(images, pairs, out)
             return
-        from flexvox_core.gpu.dis import DisParams, DisWorkspace, dis_pairs
+        from flexvox_core.gpu.dis import DisWorkspace, dis_pairs
 
         a = self.ws.put(f"{tag}.a", np.ascontiguousarray(pairs[:, 0], np.int32))
         b = self.ws.put(f"{tag}.b", np.ascontiguousarray(pairs[:, 1], np.int32))
-        params = DisParams(**self.dis_params)
+        params = self.params_for(images.shape[1:])
         size = (images.shape[0], len(pairs), *images.shape[1:], params)
         buffers = self.ws.held(f"{tag}.dis", lambda d: d.fits(*size), lambda: DisWorkspace(*size))
         dis_pairs(images, a, b, params, out=out, workspace=buffers)
+
+    def params_for(self, shape):
+        """The DIS parameters on images of ``shape`` (h, w): ``dis_params``, a ``finest_scale`` among them no coarser
+        than the images' coarsest level, as the CPU's :class:`~flexvox_core.flow.backends.DisFlow` searches."""
+        from flexvox_core.gpu.dis import DisParams
+
+        params = DisParams(**self.dis_params)
+        if "finest_scale" not in self.dis_params:
+            return params
+        return replace(params, finest_scale=dis_finest_scale(shape, params.finest_scale, params.patch_size))
 
     def _on_host(self, images, pairs, out) -> None:
         from flexvox_core.flow.backends import make_backend
@@ -176,7 +189,7 @@ def kaverage_plan(S: int, K: int, stride: int) -> tuple[int, np.ndarray, np.ndar
 
 
 _takes_slow = device(takes_slow)
-"""The CPU's rule (:func:`~flexvox_core.motion.gated_flow.takes_slow`) for one voxel."""
+"""The CPU's rule (:func:`~flexvox_core.motion.gated_flow_kernel.takes_slow`) for one voxel."""
 
 
 @device
@@ -226,9 +239,13 @@ def _gate(vel, disp, interp, steps, mean, px, lo, hi, use_slow, slow_speed, has_
     out[s, y, x, 1] = v
 
 
-def gated_flow(ws, video, K: int, *, gate, scale: float, slow_speed, period_gate, pair_flow, out) -> dict:
+def gated_flow(ws, video, K: int, *, gate, scale: float, slow_speed, period_gate, pair_flow, detector_flow,
+               out) -> dict:
     """The gated flow of ``video`` (S, H, W) into ``out`` (S, H, W, 2) (device arrays); returns its parameters
-    (the CPU's flow parameters: the gates, the scale, whether the slow velocity was used)."""
+    (the CPU's flow parameters: the gates, the scale, whether the slow velocity was used). ``pair_flow``: the
+    :class:`PairFlow` of the successive sub-frames and of the K-average's baseline
+    (:data:`~flexvox_core.motion.gated_flow.DIS_PARAMS`); ``detector_flow``: the motion detector's
+    (:data:`~flexvox_core.motion.gated_flow.DETECTOR_DIS_PARAMS`)."""
     S, H, W = video.shape
     lo, hi = gate
     small = shrink(ws, video, scale, "flow.small")
@@ -250,7 +267,7 @@ def gated_flow(ws, video, K: int, *, gate, scale: float, slow_speed, period_gate
     if use_slow:
         params["slow_speed"] = slow_speed
     half = shrink(ws, average, 0.5, "flow.half")
-    steps_small = successive_flow(ws, half, pair_flow, "flow.steps")
+    steps_small = successive_flow(ws, half, detector_flow, "flow.steps")
     steps = ws.get("flow.steps.up", (S, h, w, 2))
     h2, w2 = half.shape[1:]
     resize_linear(ws, steps_small, steps, scale=(w / w2, h / h2), tag="flow.steps.up")
@@ -342,7 +359,7 @@ def _classes(flow, still_below, slow_below, skip, still, slow, gather, counts):
 
 def speed_classes(ws, flow, still_speed, slow_speed, skip: np.ndarray | None, still, slow, gather) -> tuple[int, int]:
     """``still``, ``slow`` and ``gather``, uint8 (S, H, W), by the CPU's rule
-    (:func:`~flexvox_core.motion.stages.speed_class`: still below ``still_speed``, slow below ``slow_speed`` and
+    (:func:`~flexvox_core.motion.classes_kernel.speed_class`: still below ``still_speed``, slow below ``slow_speed`` and
     not still nor in ``skip``, gathered when none of these); returns the counts of still and slow voxels."""
     S = flow.shape[0]
     counts = ws.put("classes.counts", np.zeros(2, np.int32))

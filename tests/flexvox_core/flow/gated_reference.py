@@ -9,6 +9,7 @@ from flexvox_core.flow import FlowField
 from flexvox_core.flow.backends import backend_params, make_backend
 from flexvox_core.flow.baseline import default_stride, kaverage, kaverage_flow
 from flexvox_core.flow.estimate import check_video, downscale, run_pairs, to_full_size, to_uint8, upsample_flow
+from flexvox_core.motion.gated_flow import DETECTOR_DIS_PARAMS
 from flexvox_core.motion.pipeline import DIS_PARAMS
 
 
@@ -49,7 +50,7 @@ def gated_flow_reference(video, K, *, backend, gate=(0.03, 0.15), scale=0.5, con
             use_slow = (speed < slow_speed) & (np.hypot(vel[..., 0], vel[..., 1]) * np.float32(px) < 2 * slow_speed)
             vel = np.where(use_slow[..., None], slow, vel)
             params["slow_speed"] = slow_speed
-        steps, _ = successive_flow_reference(downscale(average, 0.5), make_backend("dis", **DIS_PARAMS),
+        steps, _ = successive_flow_reference(downscale(average, 0.5), make_backend("dis", **DETECTOR_DIS_PARAMS),
                                              consistency=False, temporal_window=1)
         steps = upsample_flow(steps, small.shape[1:])
         speed = np.maximum(speed, np.hypot(steps[..., 0], steps[..., 1]) * np.float32(px))

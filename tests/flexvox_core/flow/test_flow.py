@@ -1,7 +1,9 @@
+import cv2
 import numpy as np
 import pytest
 
 from flexvox_core.flow import estimate_flow, flow_to_color, magnitude_image, make_backend, quiver_image
+from flexvox_core.flow.backends import dis_finest_scale
 from flexvox_core.flow.estimate import consistency_confidence, sanitize_flow
 from flexvox_core.simulate.textures import fine_texture, shift_image
 
@@ -71,6 +73,8 @@ def test_sanitize_replaces_nan_and_caps_magnitude():
         ({"backend": "lk"}, r"unknown flow backend 'lk'; backends: dis, deepflow, farneback, tvl1"),
         ({"backend": "dis", "preset": "slow"}, r"dis.preset must be ultrafast, fast or medium"),
         ({"backend": "dis", "alpha": -1.0}, r"dis.alpha must be a finite number >= 0"),
+        ({"backend": "dis", "finest_scale": -1}, r"dis.finest_scale must be None or a whole number >= 0; got -1"),
+        ({"backend": "dis", "patch_stride": 0.5}, r"dis.patch_stride must be None or a whole number >= 1; got 0.5"),
         ({"backend": "farneback", "winsize2": 3}, r"flow backend 'farneback' has no parameter 'winsize2'"),
         ({"scale": 0}, r"`scale` must be in \(0, 1\]; got 0"),
         ({"temporal_window": -1}, r"`temporal_window` must be a whole number >= 0"),
@@ -88,6 +92,25 @@ def test_bad_videos():
     v[2, 1, 1] = np.inf
     with pytest.raises(ValueError, match=r"sub-frame 2 holds NaN or infinite values"):
         estimate_flow(v)
+
+
+@pytest.mark.parametrize("shape, finest", [((80, 106), 2), ((48, 64), 1), ((16, 16), 0), ((160, 213), 2)])
+def test_dis_searches_no_coarser_than_the_images_coarsest_level(shape, finest):
+    # OpenCV reads past its buffers when the finest level is coarser than the coarsest (it crashed at 48x64).
+    assert dis_finest_scale(shape, 2, 8) == finest
+    rng = np.random.default_rng(0)
+    a = (rng.random(shape) * 255).astype(np.uint8)
+    flow = make_backend("dis", finest_scale=2, variational_iterations=2)(a, np.roll(a, 1, axis=1))
+    assert flow.shape == (*shape, 2) and np.isfinite(flow).all()
+
+
+def test_dis_overrides_change_the_flow():
+    rng = np.random.default_rng(1)
+    a = cv2.GaussianBlur((rng.random((80, 106)) * 255).astype(np.uint8), (0, 0), 2)
+    b = np.roll(a, 2, axis=1)
+    medium = make_backend("dis")(a, b)
+    assert np.array_equal(make_backend("dis", finest_scale=1, patch_stride=3)(a, b), medium)  # the preset's own
+    assert not np.array_equal(make_backend("dis", finest_scale=2)(a, b), medium)
 
 
 def test_every_backend_builds_with_named_parameters():

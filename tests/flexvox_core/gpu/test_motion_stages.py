@@ -222,7 +222,7 @@ def test_noise_weights_are_the_cpus(rng, ws, clip):
 
 def test_gated_flow_is_the_cpus(ws):
     """The gate, the K-average's velocity and the resizes, with the pairs' DIS on the host as the CPU runs it."""
-    from flexvox_core.motion.gated_flow import DIS_PARAMS
+    from flexvox_core.motion.gated_flow import DETECTOR_DIS_PARAMS, DIS_PARAMS
     from flexvox_core.motion.gpu.gated_flow import PairFlow
     from flexvox_core.motion.gpu.gated_flow import gated_flow as gpu_gated
 
@@ -230,8 +230,21 @@ def test_gated_flow_is_the_cpus(ws):
     want = gated_flow(video, K, backend="dis", scale=0.8, slow_speed=0.6, period_gate=PERIOD_GATE).flow
     out = _dev(np.zeros((*video.shape, 2), np.float32))
     gpu_gated(ws, _dev(video), K, gate=(0.03, 0.15), scale=0.8, slow_speed=0.6, period_gate=PERIOD_GATE,
-              pair_flow=PairFlow(ws, "cpu", DIS_PARAMS), out=out)
+              pair_flow=PairFlow(ws, "cpu", DIS_PARAMS), detector_flow=PairFlow(ws, "cpu", DETECTOR_DIS_PARAMS),
+              out=out)
     np.testing.assert_allclose(out.copy_to_host(), want, atol=2e-4)
+
+
+@pytest.mark.parametrize("shape, finest", [((80, 106), 2), ((48, 64), 1), ((20, 24), 0)])
+def test_pair_flows_dis_searches_the_level_the_cpus_does(ws, shape, finest):
+    # A finest_scale coarser than the images' coarsest level is clamped there, on both engines (the CPU's DisFlow).
+    from flexvox_core.flow.backends import dis_finest_scale
+    from flexvox_core.motion.gated_flow import DIS_PARAMS
+    from flexvox_core.motion.gpu.gated_flow import PairFlow
+
+    assert PairFlow(ws, "gpu", {**DIS_PARAMS, "finest_scale": 2}).params_for(shape).finest_scale == finest
+    assert dis_finest_scale(shape, 2, 8) == finest
+    assert PairFlow(ws, "gpu", DIS_PARAMS).params_for(shape).finest_scale == 1  # the preset's, as OpenCV's own
 
 
 def test_pair_flow_refuses_an_unknown_place(ws):

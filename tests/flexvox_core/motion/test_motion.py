@@ -316,9 +316,10 @@ def test_still_values_written_in_place_give_the_volumes_result(monkeypatch, pass
 
 
 def test_motion_aware_measures_its_flow_with_two_variational_iterations(monkeypatch):
-    # Every DIS pair of motion-aware's flow (successive sub-frames, K-averages, their steps) refines with
-    # DIS_PARAMS, and the result's flow parameters say so.
+    # Every DIS pair of motion-aware's flow (successive sub-frames, K-averages) refines with DIS_PARAMS, the
+    # detector's (the K-average's steps) with DETECTOR_DIS_PARAMS, and the result's flow parameters say so.
     import flexvox_core.motion.gated_flow as pipeline
+    from flexvox_core.motion.gated_flow import DETECTOR_DIS_PARAMS, DIS_PARAMS
 
     built = []
     real = pipeline.make_backend
@@ -332,7 +333,7 @@ def test_motion_aware_measures_its_flow_with_two_variational_iterations(monkeypa
     code = design_code((4, 4)).code
     result = motion_aware(capture(truth, code), code)
     measuring = [params for name, params in built if name == "dis" and params]
-    assert len(measuring) == 2 and all(p == {"variational_iterations": 2} for p in measuring)
+    assert measuring == [DIS_PARAMS, DETECTOR_DIS_PARAMS] == [{"variational_iterations": 2}] * 2
     assert result.flow.params["variational_iterations"] == 2
 
 

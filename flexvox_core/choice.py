@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from flexvox_core.accuracy import AccuracyEstimate, NoiseModel, NotEstimable, refusal
+from flexvox_core.gaps import as_missing
 from flexvox_core.intensity import as_relative
 
 if TYPE_CHECKING:
@@ -336,7 +337,7 @@ def choose(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method 
     from flexvox_core.multiplex import MultiplexedCode
 
     f32 = np.asarray(as_relative(frames, white=white), np.float32)
-    gaps = None if missing is None else np.asarray(missing, bool)
+    gaps = missing if missing is None or f32.ndim != 3 else as_missing(missing, f32.shape[0])  # checked before any run
     reusable = not isinstance(code, MultiplexedCode)
     if reusable:
         from flexvox_core.codes import is_identity_code, validate_code

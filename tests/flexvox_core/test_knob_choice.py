@@ -154,6 +154,14 @@ def test_a_bad_candidate_is_refused_before_anything_runs(counted):
     assert counted == []
 
 
+def test_dropped_frames_given_as_indices_are_refused_before_anything_runs(counted):
+    frames = np.zeros((4, 24, 24), np.float32)
+    with pytest.raises(ValueError, match=r"`missing` must be 4 booleans \(or 0/1\), one per camera frame; got the "
+                                         r"values 0 to 2"):
+        choose(frames, CODE, "diffusion", "time", (2.0,), missing=[0, 2, 0, 1])
+    assert counted == []
+
+
 def test_a_recording_is_chosen_on_without_reading_its_ground_truth(tmp_path, monkeypatch):
     truth = render_scene("balls", 4 * 4, 24, 28, seed=0)
     sim = simulate_video(truth, CODE, effects={"read_noise": {"sigma": 2.0}}, seed=2)

@@ -145,7 +145,8 @@ def _same_units(r: np.ndarray, v: np.ndarray, L: float) -> tuple[np.ndarray, np.
                          f"got {L:g}. To compare in counts, give both as the same dtype")
     from flexvox_core.intensity import as_relative
 
-    return tuple(as_relative(a) if a.dtype.kind in "iu" else a for a in (r, v))  # type: ignore[return-value]
+    return tuple(as_relative(a, name=name) if a.dtype.kind in "iu" else a  # type: ignore[return-value]
+                 for name, a in (("ref", r), ("x", v)))
 
 
 def _check_finite(name: str, a: np.ndarray) -> None:

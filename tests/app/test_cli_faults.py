@@ -162,6 +162,10 @@ CASES = {
                                                r"pngs holds other files than an earlier export's PNGs \(notes.txt\)",
                                                _png_folder, inputs=("pngs",)),
     "reconstruct-inside-input": Case("reconstruct {rec} -o {rec}/v.npy", 2, r"lies inside the input"),
+    "bench-into-input": Case("bench {rec} --quick -o {rec}", 2,
+                             r"the output .*rec.zarr/results.csv lies inside the input .*rec.zarr: an output never "
+                             r"replaces its input"),
+    "bench-inside-input": Case("bench {rec} --quick -o {rec}/results", 2, r"results/results.csv lies inside the input"),
     "capture-onto-code-file": Case("capture --code {code} -o {code} --overwrite --frames 2 --clock virtual", 2,
                                    r"is the input .*code.json", inputs=("code",)),
     "simulate-onto-its-video": Case("simulate {dir}/clip.npy -o {dir}/clip.npy --overwrite --tile 2x2", 2,

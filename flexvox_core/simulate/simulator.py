@@ -238,7 +238,7 @@ def simulate_video(
     Parameters
     ----------
     video : ndarray, shape (S, H, W)
-        Ground truth in [0, 1]; S a multiple of K.
+        Ground truth in [0, 1] (integers, an 8-bit clip, divided by their dtype's largest value); S a multiple of K.
     code : ndarray, shape (m, n, K)
     effects : list of str or Effect, or mapping
         Only these are simulated, in the pipeline's order (see :mod:`flexvox_core.simulate.effects`): effect

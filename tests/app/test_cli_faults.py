@@ -104,6 +104,14 @@ def _huge_npy(rec: Path) -> None:
         fh.truncate(fh.tell() + 4096 ** 3)
 
 
+def _video_store(rec: Path) -> None:
+    import numpy as np
+
+    import flexvox_core as fv
+
+    fv.write_video(rec.parent / "video.zarr", np.zeros((4, 8, 8), np.float32))
+
+
 def _png_folder(rec: Path) -> None:
     folder = rec.parent / "pngs"
     folder.mkdir()
@@ -149,6 +157,13 @@ CASES = {
                                       _garble_chunk),
     "reconstruct-truncated-chunk": Case("reconstruct {rec} -o {dir}/v.npy", 2,
                                         r"frames row 1 is damaged: its chunk cannot be decoded", _truncate_chunk),
+    # a path that is no recording is named for what it is, never called a damaged recording (exit 1)
+    "info-array-inside-recording": Case("info {rec}/frames", 2,
+                                        r"rec.zarr/frames is the `frames` array of the recording .*rec.zarr, not a "
+                                        r"recording: give the recording's folder, .*rec.zarr$"),
+    "info-video-store": Case("info {dir}/video.zarr", 2,
+                             r"video.zarr is a reconstructed video \(an OME-Zarr image\), not a recording of camera "
+                             r"frames: fv.read_video\(path\) reads it, napari and Fiji open it", _video_store),
     "slots-deleted-chunk": Case("info {rec} --slots --quick", 2, r"--slots: .*row 2 is damaged", _delete_chunk),
     "reconstruct-ids-backwards": Case("reconstruct {rec} -o {dir}/v.npy", 2,
                                       r"frame ids do not increase at row 4 \(3 then 1\)", _ids_backwards),

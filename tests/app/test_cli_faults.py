@@ -157,6 +157,13 @@ CASES = {
                                       _garble_chunk),
     "reconstruct-truncated-chunk": Case("reconstruct {rec} -o {dir}/v.npy", 2,
                                         r"frames row 1 is damaged: its chunk cannot be decoded", _truncate_chunk),
+    # a reconstruction's flags beside --what frames (the default) would export the coded frames without a word
+    "export-method-with-frames": Case("export {rec} --method diffusion -o {dir}/f.tif", 2,
+                                      r"--method goes with --what reconstruction; --what frames \(the default\) "
+                                      r"exports the camera frames as they are: add --what reconstruction"),
+    "export-option-with-ground-truth": Case("export {rec} --what ground-truth --time 3 -o {dir}/f.tif", 2,
+                                            r"--time goes with --what reconstruction; --what ground-truth exports "
+                                            r"the ground truth as it is"),
     # a path that is no recording is named for what it is, never called a damaged recording (exit 1)
     "info-array-inside-recording": Case("info {rec}/frames", 2,
                                         r"rec.zarr/frames is the `frames` array of the recording .*rec.zarr, not a "

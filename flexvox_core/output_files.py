@@ -110,8 +110,8 @@ def check_output(path, *, overwrite: bool = False, inputs: Iterable = (), hint: 
         What will be written (default: :func:`output_kind` of the path). ``overwrite`` replaces only
         the same kind: a file with a file, a Zarr store with a Zarr store (a folder holding
         ``zarr.json``), never a folder of other things with a file or a store. A ``.zarr`` of kind
-        ``auto`` is an image (a video) and never replaces a recording (:func:`is_recording`); writers of
-        recordings say ``store``.
+        ``auto`` (a video, or a file under that name) never replaces a recording (:func:`is_recording`);
+        writers of recordings say ``store``.
 
     Raises
     ------
@@ -129,8 +129,8 @@ def check_output(path, *, overwrite: bool = False, inputs: Iterable = (), hint: 
             raise OutputError(f"{path} is being written by {holder}; it cannot be replaced until that ends")
         refuse_other_kind(path, output_kind(path) if kind == "auto" else kind)
         if kind == "auto" and output_kind(path) == "store" and is_recording(path):
-            raise OutputError(f"{path} is a recording (camera frames); overwriting never replaces a recording with a "
-                              "video: choose another path")
+            raise OutputError(f"{path} is a recording (camera frames); overwriting replaces a recording only with a "
+                              "recording, never with a video or another file: choose another path")
     folder = path.parent
     if not folder.is_dir():
         raise OutputError(f"cannot write {path}: the folder {folder} does not exist")

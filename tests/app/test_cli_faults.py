@@ -192,6 +192,9 @@ CASES = {
                                    r"is the input .*code.json", inputs=("code",)),
     "simulate-onto-its-video": Case("simulate {dir}/clip.npy -o {dir}/clip.npy --overwrite --tile 2x2", 2,
                                     r"the output .*clip.npy is the input", _video_file, inputs=("clip",)),
+    "design-onto-a-recording": Case("design --tile 2x2 -o {rec} --overwrite", 2,
+                                    r"rec.zarr is a recording \(camera frames\); overwriting replaces a recording only "
+                                    r"with a recording"),
     "design-onto-verified-file": Case("design --verify {code} -o {code} --overwrite", 2, r"is the input",
                                       inputs=("code",)),
     # -o onto an existing file needs --overwrite, design and calibrate included

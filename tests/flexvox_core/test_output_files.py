@@ -219,8 +219,9 @@ def test_a_video_never_replaces_a_recording_even_with_overwrite(tmp_path):
     sim = fv.simulate_video(fv.render_scene("balls", 8, 8, 8, seed=0), code)
     rec = fv.write_simulation(tmp_path / "run1.zarr", sim)
     video = np.zeros((8, 8, 8), np.float32)
-    with pytest.raises(OutputError, match=r"run1.zarr is a recording \(camera frames\); overwriting never replaces "
-                                          r"a recording with a video: choose another path"):
+    with pytest.raises(OutputError, match=r"run1.zarr is a recording \(camera frames\); overwriting replaces a "
+                                          r"recording only with a recording, never with a video or another file: "
+                                          r"choose another path"):
         fv.write_video(rec, video, overwrite=True)
     with pytest.raises(OutputError, match=r"run1.zarr is a recording"):
         check_output(rec, overwrite=True)

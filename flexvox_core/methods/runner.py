@@ -362,8 +362,9 @@ def _run(f: np.ndarray, code, method: Method, *, chunk_frames: int | None, progr
          missing, device: str, origin: tuple[int, int]) -> MethodOutput:
     if f.ndim != 3:
         raise ValueError(f"`frames` must have shape (F, H, W); got {f.ndim} dimensions {f.shape}")
-    if chunk_frames is not None and chunk_frames < 1:
-        raise ValueError(f"`chunk_frames` must be >= 1 or None; got {chunk_frames}")
+    if chunk_frames is not None and (isinstance(chunk_frames, bool) or not isinstance(chunk_frames, Integral)
+                                     or chunk_frames < 1):
+        raise ValueError(f"`chunk_frames` must be a whole number >= 1 or None; got {chunk_frames!r}")
     code = validate_code(code)
     if origin != (0, 0):  # the crop's pixel (y, x) is the camera's (y + row, x + col)
         code = np.ascontiguousarray(np.roll(code, (-origin[0], -origin[1]), axis=(0, 1)))

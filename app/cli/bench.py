@@ -52,6 +52,13 @@ def run(args) -> int:
             refuse_output_onto_input(args.out / name, [args.recording])
     except OutputError as exc:
         raise CliError(str(exc)) from None
+    if args.recording is not None:  # opened before -o is made: a wrong path leaves no empty results folder
+        from flexvox_core.recording import RecordingError, open_recording
+
+        try:
+            open_recording(args.recording)
+        except RecordingError as exc:
+            raise CliError(str(exc)) from None
     if args.out.exists() and not args.out.is_dir():
         raise CliError(f"-o {args.out} is a file; -o takes a folder, where results.csv, results.json and pareto.png "
                        "go")

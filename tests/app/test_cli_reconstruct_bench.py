@@ -136,6 +136,14 @@ def test_bench_quick_writes_table_csv_json_and_plot(tmp_path, capsys):
     assert (tmp_path / "b" / "results.csv").read_bytes() == before
 
 
+def test_bench_on_a_recording_that_cannot_be_opened_leaves_no_results_folder(tmp_path, capsys):
+    (tmp_path / "notes.txt").write_text("not a recording")
+    for rec in (tmp_path / "none.zarr", tmp_path / "notes.txt"):
+        assert main(["bench", str(rec), "-o", str(tmp_path / "b")]) == 2
+        assert str(rec) in capsys.readouterr().err
+        assert not (tmp_path / "b").exists()  # it had been made before the recording was opened
+
+
 def test_reconstruct_motion_aware_with_figures(recording, tmp_path, capsys):
     out = tmp_path / "ma.npy"
     assert main(["reconstruct", str(recording), "--method", "motion-aware", "--flow", "farneback", "-o", str(out),

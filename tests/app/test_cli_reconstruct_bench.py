@@ -33,6 +33,16 @@ def test_reconstruct_writes_every_format(recording, tmp_path, capsys, suffix):
     assert psnr(open_recording(recording).ground_truth[:], video) > 15
 
 
+def test_the_voxel_rate_keeps_two_figures_below_ten_million_a_second():
+    from flexvox_app.cli.reconstruct import voxel_rate
+
+    # a small recording's 36864 voxels in 1.3 s had read "(0 M voxels/s)"
+    assert voxel_rate(36864, 1.3) == "0.028 M voxels/s"
+    assert voxel_rate(7_370_000, 1.0) == "7.4 M voxels/s"
+    assert voxel_rate(73_700_000, 1.0) == "74 M voxels/s"
+    assert voxel_rate(10, 0.0) == "10000 M voxels/s"  # a run too fast for the clock: 1 ns
+
+
 @pytest.mark.parametrize(
     "argv, message",
     [

@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from flexvox_core.accuracy import AccuracyEstimate, NoiseModel, NotEstimable, refusal
+from flexvox_core.gaps import as_missing
 from flexvox_core.intensity import as_relative
 
 if TYPE_CHECKING:
@@ -275,7 +276,8 @@ def _choose(method: Method | str, knob: str, candidates: Any, code: Any,
 def choose(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method | str, knob: str,
            candidates: Any = None, *, noise: NoiseModel | None = None, missing: ArrayLike | None = None,
            chunk_frames: int | None = None, device: str = "cpu", seed: int = 0, keep_video: bool = True,
-           progress: Callable[[int, int], object] | None = None, white: float | None = None) -> Choice:
+           progress: Callable[[int, int], object] | None = None, white: float | None = None,
+           origin: tuple[int, int] | None = None) -> Choice:
     """Reconstruct a capture at each candidate value of ``knob`` and keep the one with the best estimated PSNR.
 
     Parameters
@@ -309,6 +311,9 @@ def choose(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method 
         of each (its reconstruction and its estimate): an exception it raises stops the choice there.
     white : float, optional
         The count that stands for white in integer ``frames`` (a 12-bit camera's: 4095).
+    origin : (int, int), optional
+        For frames cropped from the camera frame: the crop's top-left pixel ``(row, col)`` in the camera frame, as
+        :func:`~flexvox_core.reconstruct_video` takes it (the code's phase follows it). Default (0, 0).
 
     Returns
     -------
@@ -333,10 +338,19 @@ def choose(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method 
     """
     from flexvox_core.accuracy import estimate_accuracy
     from flexvox_core.methods import run
+    from flexvox_core.methods.runner import check_origin
     from flexvox_core.multiplex import MultiplexedCode
 
+    row, col = check_origin(origin)
+    if (row, col) != (0, 0):  # the crop's pixel (y, x) is the camera's (y + row, x + col), as the runner reads it
+        if isinstance(code, MultiplexedCode):
+            raise ValueError(f"`origin` {origin!r} with a multiplexed code: choose on the whole camera frame, or on a "
+                             "crop on its tile grid")
+        from flexvox_core.codes import validate_code
+
+        code = np.ascontiguousarray(np.roll(validate_code(code), (-row, -col), axis=(0, 1)))
     f32 = np.asarray(as_relative(frames, white=white), np.float32)
-    gaps = None if missing is None else np.asarray(missing, bool)
+    gaps = missing if missing is None or f32.ndim != 3 else as_missing(missing, f32.shape[0])  # checked before any run
     reusable = not isinstance(code, MultiplexedCode)
     if reusable:
         from flexvox_core.codes import is_identity_code, validate_code

@@ -28,17 +28,35 @@ def validate_code(code) -> np.ndarray:
         are not 0/1.
     """
     arr = np.asarray(code)
+    if arr.ndim == 0 and hasattr(code, "code"):  # a DesignResult, a MultiplexedCode
+        raise ValueError(f"`code` must be the code's (m, n, K) array; got a {type(code).__name__}: give its `.code`")
     if arr.ndim != 3:
         raise ValueError(f"`code` must have shape (m, n, K); got {arr.ndim} dimensions {arr.shape}")
     m, n, K = arr.shape
-    validate_tile((m, n))
-    if K != m * n:
-        raise ValueError(f"`code` of a {m}x{n} tile must have K = {m * n} slots; got {K}")
+    try:
+        validate_tile((m, n))
+        if K != m * n:
+            raise ValueError(f"`code` of a {m}x{n} tile must have K = {m * n} slots; got {K}")
+    except ValueError as exc:
+        raise ValueError(f"{exc}{_axes_hint(arr)}") from None
     if arr.dtype != bool:
         if not np.issubdtype(arr.dtype, np.number) or not np.all((arr == 0) | (arr == 1)):
             raise ValueError("`code` values must be 0/1 (or bool)")
         arr = arr.astype(bool)
     return np.ascontiguousarray(arr)
+
+
+def _axes_hint(arr: np.ndarray) -> str:
+    """Why a 3-D array that is no (m, n, K) code may be one in another order, in words ("" when it does not look
+    like one): the slots first, or a code tiled over a sensor (:func:`flexvox_core.forward.tiled_code`)."""
+    first, rows, cols = arr.shape
+    if first > 1 and first == rows * cols:
+        return (f": a code is (m, n, K) and this one looks like (K, m, n) = {arr.shape}: "
+                "np.moveaxis(code, 0, -1)")
+    if 1 < first <= 64 and arr.dtype.kind in "biuf" and np.all(arr.sum(axis=0) == 1):
+        return (f": a code is (m, n, K) and this one looks like (K, H, W) = {arr.shape}, a code tiled over a sensor "
+                "(fv.tiled_code): give the tile's code")
+    return ""
 
 
 def is_identity_code(code) -> bool:

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from flexvox_core.codes import is_identity_code, order_from_code, validate_code
+from flexvox_core.intensity import as_relative
 
 
 def tiled_code(code, height: int, width: int) -> np.ndarray:
@@ -40,7 +41,8 @@ def tiled_order(code, height: int, width: int) -> np.ndarray:
 def check_video(video, K: int, *, name: str = "video") -> np.ndarray:
     """Validate a high-speed video ``(S, H, W)`` with S a multiple of K; keep float dtypes.
 
-    Non-float input is converted to float32. A NaN or infinite value raises
+    Integer and bool input is read in relative units as float32, divided by its dtype's largest value (uint8:
+    255; :func:`flexvox_core.intensity.as_relative`), float16 becomes float32. A NaN or infinite value raises
     ``ValueError`` naming the first sub-frame that holds one.
     """
     arr = np.asarray(video)
@@ -52,7 +54,9 @@ def check_video(video, K: int, *, name: str = "video") -> np.ndarray:
             f"`{name}` length S = {S} must be a positive multiple of K = {K} "
             "(whole camera frames)"
         )
-    if not np.issubdtype(arr.dtype, np.floating) or arr.dtype == np.float16:
+    if arr.dtype.kind in "biu":  # an 8-bit clip is a video in [0, 1], as everywhere (flexvox_core.intensity)
+        arr = as_relative(arr, name=name)
+    elif not np.issubdtype(arr.dtype, np.floating) or arr.dtype == np.float16:
         arr = arr.astype(np.float32)
     finite = np.isfinite(arr).all(axis=(1, 2))
     if not finite.all():
@@ -67,8 +71,8 @@ def capture(video, code) -> np.ndarray:
     Parameters
     ----------
     video : ndarray, shape (S, H, W)
-        High-speed video; S must be a multiple of K. float32 and float64 are kept,
-        other dtypes become float32.
+        High-speed video; S must be a multiple of K. float32 and float64 are kept; integers
+        (an 8-bit clip) become float32 in [0, 1], divided by their dtype's largest value.
     code : ndarray, shape (m, n, K)
         Identity or multiplexed code.
 

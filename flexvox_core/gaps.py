@@ -67,13 +67,20 @@ def as_missing(missing, n_frames: int) -> np.ndarray | None:
     Raises
     ------
     ValueError
-        A shape other than (n_frames,), or every frame missing.
+        A shape other than (n_frames,), integers other than 0 and 1 (frame indices are not flags), or every
+        frame missing.
     """
     if missing is None:
         return None
     m = np.asarray(missing)
     if m.shape != (n_frames,) or not (m.dtype == bool or np.issubdtype(m.dtype, np.integer)):
         raise ValueError(f"`missing` must be {n_frames} booleans, one per camera frame; got {m.dtype} {m.shape}")
+    if m.dtype != bool and not np.isin(m, (0, 1)).all():
+        indices = sorted({int(i) for i in m})
+        hint = (f": for dropped frames' indices {indices} give np.isin(np.arange({n_frames}), {indices})"
+                if 0 <= indices[0] and indices[-1] < n_frames and len(indices) <= 8 else "")
+        raise ValueError(f"`missing` must be {n_frames} booleans (or 0/1), one per camera frame; got the values "
+                         f"{indices[0]} to {indices[-1]}{hint}")
     m = m.astype(bool)
     if not m.any():
         return None

@@ -4,7 +4,9 @@ flexvox works in relative units, white = 1 (a video in [0, 1]). An integer array
 ``skimage.util.img_as_float`` reads an unsigned one: divided by its dtype's largest value
 (``np.iinfo(dtype).max``: 255 for uint8, 65535 for uint16), unless a white level is given (a 12-bit
 camera's counts in uint16: ``white=4095``). A float array is taken as relative units already, or divided
-by ``white`` when one is given. A bool array is 0 and 1.
+by ``white`` when one is given. A bool array is 0 and 1. Integers wider than 16 bits (int32, int64: what
+``astype(int)`` gives) need ``white``: their dtype's largest value is no camera's white, and dividing by it
+would read every count as black.
 """
 
 from __future__ import annotations
@@ -48,7 +50,8 @@ def as_relative(values: npt.ArrayLike, *, white: float | None = None, name: str 
     Raises
     ------
     ValueError
-        Values that are not real numbers, or a ``white`` that is not a positive finite number.
+        Values that are not real numbers, integers wider than 16 bits without ``white``, or a ``white`` that is
+        not a positive finite number.
 
     Examples
     --------
@@ -62,6 +65,11 @@ def as_relative(values: npt.ArrayLike, *, white: float | None = None, name: str 
     if a.dtype.kind not in "biuf":
         raise ValueError(f"`{name}` must hold real numbers (integer counts or floats in relative units); got "
                          f"dtype {a.dtype}")
+    if a.dtype.kind in "iu" and a.dtype.itemsize > 2 and white is None:
+        raise ValueError(f"`{name}` are {a.dtype.name} counts and {a.dtype.name}'s largest value "
+                         f"({np.iinfo(a.dtype).max}) is no camera's white: give `white=` where the call takes it (the "
+                         "count that stands for white, 4095 for a 12-bit camera), the counts as uint8 or uint16, or "
+                         "floats in [0, 1] (counts / white)")
     w = white_level(a.dtype, white)
     if a.dtype.kind in "biu":
         out = a.astype(np.float32)

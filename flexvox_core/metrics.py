@@ -134,7 +134,15 @@ def _check_pair(ref, x, data_range, *, convert: bool = True, check_finite: bool 
 def _same_units(r: np.ndarray, v: np.ndarray, L: float) -> tuple[np.ndarray, np.ndarray]:
     """An integer array against a float one: the integer one in [0, 1], divided by its dtype's largest value
     (:func:`flexvox_core.intensity.as_relative`, as ``skimage.util.img_as_float`` does for unsigned types); the
-    data range must then be 1. Two integer arrays, or two float ones, are compared as they are."""
+    data range must then be 1. Two integer arrays, or two float ones, are compared as they are: two integer arrays
+    of one dtype, in counts with the data range their white; of two dtypes, refused (two white levels)."""
+    if r.dtype.kind in "iu" and v.dtype.kind in "iu":
+        if r.dtype != v.dtype:
+            raise ValueError(f"`ref` is {r.dtype} and `x` is {v.dtype}: two integer dtypes have two white levels; give "
+                             "both as one dtype, or as floats in [0, 1]")
+        if L == 1 and max(int(r.max(initial=0)), int(v.max(initial=0))) > 1:
+            raise ValueError(f"`ref` and `x` are {r.dtype} counts, compared in counts: `data_range` must be their "
+                             f"white ({np.iinfo(r.dtype).max} for {r.dtype}); got 1")
     kinds = {r.dtype.kind in "iu", v.dtype.kind in "iu"}
     if kinds != {True, False} or "f" not in (r.dtype.kind, v.dtype.kind):
         return r, v
@@ -145,7 +153,8 @@ def _same_units(r: np.ndarray, v: np.ndarray, L: float) -> tuple[np.ndarray, np.
                          f"got {L:g}. To compare in counts, give both as the same dtype")
     from flexvox_core.intensity import as_relative
 
-    return tuple(as_relative(a) if a.dtype.kind in "iu" else a for a in (r, v))  # type: ignore[return-value]
+    return tuple(as_relative(a, name=name) if a.dtype.kind in "iu" else a  # type: ignore[return-value]
+                 for name, a in (("ref", r), ("x", v)))
 
 
 def _check_finite(name: str, a: np.ndarray) -> None:

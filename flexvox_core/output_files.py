@@ -109,7 +109,9 @@ def check_output(path, *, overwrite: bool = False, inputs: Iterable = (), hint: 
     kind : "file", "store", "folder", None or "auto"
         What will be written (default: :func:`output_kind` of the path). ``overwrite`` replaces only
         the same kind: a file with a file, a Zarr store with a Zarr store (a folder holding
-        ``zarr.json``), never a folder of other things with a file or a store.
+        ``zarr.json``), never a folder of other things with a file or a store. A ``.zarr`` of kind
+        ``auto`` (a video, or a file under that name) never replaces a recording (:func:`is_recording`);
+        writers of recordings say ``store``.
 
     Raises
     ------
@@ -126,11 +128,21 @@ def check_output(path, *, overwrite: bool = False, inputs: Iterable = (), hint: 
         if holder is not None:
             raise OutputError(f"{path} is being written by {holder}; it cannot be replaced until that ends")
         refuse_other_kind(path, output_kind(path) if kind == "auto" else kind)
+        if kind == "auto" and output_kind(path) == "store" and is_recording(path):
+            raise OutputError(f"{path} is a recording (camera frames); overwriting replaces a recording only with a "
+                              "recording, never with a video or another file: choose another path")
     folder = path.parent
     if not folder.is_dir():
         raise OutputError(f"cannot write {path}: the folder {folder} does not exist")
     check_writable(folder, path)
     return path
+
+
+def is_recording(path) -> bool:
+    """Whether ``path`` is a recording's store (a Zarr store with a ``frames`` array: the camera frames, which
+    nothing can make again), not a video's."""
+    path = Path(path)
+    return (path / "zarr.json").is_file() and (path / "frames" / "zarr.json").is_file()
 
 
 def refuse_other_kind(path: Path, kind: str | None) -> None:

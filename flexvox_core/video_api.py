@@ -3,6 +3,7 @@ subpackage of the algorithms, :mod:`flexvox_core.reconstruct`)."""
 
 from __future__ import annotations
 
+import os
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -25,12 +26,13 @@ def reconstruct_video(frames: Any, code: ArrayLike | None = None, method: Method
 
     Parameters
     ----------
-    frames : ndarray (F, H, W), or Recording
+    frames : ndarray (F, H, W), Recording, str or Path
         The camera frames. Floats are relative units (white = 1); integer counts (what a camera gives) are
         divided by their dtype's largest value (uint8: 255, uint16: 65535) unless ``white`` gives the white level
         (:mod:`flexvox_core.intensity`). Or a :class:`~flexvox_core.recording.Recording`
-        (``fv.open_recording(path)``) in place of frames and code: its code, its counts' normalisation and its
-        dropped frames come with it (``reconstruct_video(rec)``, ``reconstruct_video(rec, "diffusion")``).
+        (``fv.open_recording(path)``), or its path, in place of frames and code: its code, its counts'
+        normalisation and its dropped frames come with it (``reconstruct_video(rec)``,
+        ``reconstruct_video("run1.zarr", "diffusion")``).
     code : ndarray (m, n, K)
         The code they were captured with: an identity code, or a multiplexed one for a method that takes it
         (any other code is refused: :func:`flexvox_core.codes.check_reconstructable`). Left out with a Recording.
@@ -68,6 +70,8 @@ def reconstruct_video(frames: Any, code: ArrayLike | None = None, method: Method
         a code or ``missing`` beside a Recording, or a ``progress`` that is not a bool or a callable.
     ValueError
         Frames, a code, an origin or an option that break their rule; the message names the value and the rule.
+    RecordingError
+        A path that holds no readable recording.
 
     Examples
     --------
@@ -77,11 +81,13 @@ def reconstruct_video(frames: Any, code: ArrayLike | None = None, method: Method
     >>> fv.reconstruct_video(frames, code, "diffusion", time=2).shape
     (8, 16, 16)
     """
-    from flexvox_core.capture_reader import CaptureReader
+    from flexvox_core.capture_reader import CaptureReader, open_capture
     from flexvox_core.methods import Method, run
     from flexvox_core.methods.runner import as_method
     from flexvox_core.recording import Recording
 
+    if isinstance(frames, str | os.PathLike):
+        frames = open_capture(frames)
     if not isinstance(frames, Recording | CaptureReader):
         return run(frames, code, method, chunk_frames=chunk_frames, progress=progress, missing=missing,
                    device=device, origin=origin, white=white, **options).video

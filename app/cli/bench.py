@@ -44,9 +44,21 @@ def run(args) -> int:
 
     from flexvox_app.accuracy_bench import pareto, run_bench, summary
     from flexvox_app.cli.errors import CliError
-    from flexvox_core.output_files import OutputError, check_writable
+    from flexvox_core.output_files import OutputError, check_writable, refuse_output_onto_input
 
     device = resolved_device(args)
+    try:  # results written into the recording's own folder would be read as part of it
+        for name in OUTPUTS:
+            refuse_output_onto_input(args.out / name, [args.recording])
+    except OutputError as exc:
+        raise CliError(str(exc)) from None
+    if args.recording is not None:  # opened before -o is made: a wrong path leaves no empty results folder
+        from flexvox_core.recording import RecordingError, open_recording
+
+        try:
+            open_recording(args.recording)
+        except RecordingError as exc:
+            raise CliError(str(exc)) from None
     if args.out.exists() and not args.out.is_dir():
         raise CliError(f"-o {args.out} is a file; -o takes a folder, where results.csv, results.json and pareto.png "
                        "go")

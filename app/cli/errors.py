@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import re
 import sys
+from pathlib import Path
 
 EXIT_OK = 0
 EXIT_FAILED = 1
@@ -84,6 +85,16 @@ def positive_fps(text: str) -> float:
         return check_fps(value)
     except ValueError:
         raise ValueError(f"--fps must be above 0 and at most 1000 frames per second; got {text!r}") from None
+
+
+def check_recording_path(path: Path) -> Path:
+    """``-o REC.zarr`` of a command that writes a recording: a path ending in ``.zarr`` (a recording is a Zarr
+    store, a folder; under another suffix it would be taken for a file of that kind); ``CliError`` otherwise."""
+    if path.suffix.lower() != ".zarr":
+        got = f"ends in {path.suffix}" if path.suffix else "has no suffix"
+        raise CliError(f"-o must name a .zarr folder (a recording is a Zarr store): {path} {got}; write "
+                       f"{path.with_suffix('.zarr')}")
+    return path
 
 
 def arg_type(parse):

@@ -34,6 +34,7 @@ from flexvox_app.cli.method_options import (
     add_method_options,
     device_line,
     device_record,
+    method_flags_given,
     method_from_args,
     resolved_device,
 )
@@ -68,8 +69,13 @@ def register(sub) -> None:
                    help="replace an existing output (never the input; a folder only when it holds nothing but an "
                         "earlier export's PNGs; the old output stays until the new one is complete)")
     add_pyramid_option(p)
-    defer(p, lambda p: add_method_options(p, chunk=16))  # the methods' registry: only when this command is used
+    defer(p, _method_options)  # the methods' registry: only when this command is used
     p.set_defaults(func=run)
+
+
+def _method_options(p) -> None:
+    add_method_options(p, chunk=16)
+    p.set_defaults(method=None)  # None: not given (a reconstruction then takes the default method)
 
 
 def pyramid_levels(text: str) -> int:
@@ -193,6 +199,16 @@ def run(args) -> int:
     from flexvox_core.output_files import CLI_OVERWRITE_HINT, OutputError, atomic_output, check_output
     from flexvox_core.recording import RecordingError, open_recording
 
+    given = method_flags_given(args)
+    if given and args.what != "reconstruction":  # else the frames would be exported as they are, without a word
+        default = " (the default)" if args.what == "frames" else ""
+        what = "camera frames as they are" if args.what == "frames" else "ground truth as it is"
+        raise CliError(f"{given[0]} goes with --what reconstruction; --what {args.what}{default} exports the {what}: "
+                       "add --what reconstruction")
+    if args.method is None:
+        from flexvox_core.methods import DEFAULT
+
+        args.method = DEFAULT
     out: Path = args.output
     suffix = out.suffix.lower()
     if suffix and suffix not in FORMATS:

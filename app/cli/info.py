@@ -70,7 +70,24 @@ def not_a_recording(path) -> str | None:
     if not (path / "zarr.json").is_file():
         return (f"{path} is a folder but not a flexvox recording: it holds no zarr.json (a recording is a .zarr "
                 "folder, as flexvox simulate and flexvox capture write it)")
+    if _node_type(path) == "array" and _node_type(path.parent) == "group":
+        return (f"{path} is the `{path.name}` array of the recording {path.parent}, not a recording: give the "
+                f"recording's folder, {path.parent}")
+    if (path / "video" / "zarr.json").is_file() and not (path / "frames").exists():
+        return (f"{path} is a reconstructed video (an OME-Zarr image), not a recording of camera frames: "
+                "fv.read_video(path) reads it, napari and Fiji open it")
     return None
+
+
+def _node_type(path: Path) -> str | None:
+    """The ``node_type`` a Zarr folder's zarr.json states ("group", "array"), or None."""
+    import json
+
+    try:
+        doc = json.loads((path / "zarr.json").read_bytes())
+    except (OSError, ValueError):
+        return None
+    return doc.get("node_type") if isinstance(doc, dict) else None
 
 
 def check(rec, *, quick: bool = False, progress=None) -> tuple[dict, list[str]]:

@@ -107,6 +107,13 @@ def add_method_options(p, *, chunk: int, auto: bool = False) -> None:
     add_device_option(p)
 
 
+def method_flags_given(args) -> list[str]:
+    """The method's flags on the command line: ``--method`` where the parser's default for it is None (not given),
+    and every method option given (their defaults are None)."""
+    given = ["--method"] if getattr(args, "method", None) is not None else []
+    return given + [flag_of(name) for name in _options() if getattr(args, name, None) is not None]
+
+
 def add_device_option(p) -> None:
     """Add ``--device auto|cpu|cuda`` to parser ``p``."""
     from flexvox_core.gpu.device import DEVICES

@@ -213,7 +213,7 @@ def run(args) -> int:
     finally:
         pool.shutdown(wait=True)
     line = f"{method.label()}: {video.shape[0]} sub-frames of {H}x{W} in {seconds:.2f} s"
-    line += f" ({video.size / max(seconds, 1e-9) / 1e6:.0f} M voxels/s)"
+    line += f" ({voxel_rate(video.size, seconds)})"
     if score is not None:
         try:
             scores = score.result()
@@ -238,3 +238,9 @@ def run(args) -> int:
         written = write_figures(args.figures, *reader.input(method), method, missing=reader.missing)
         print(f"wrote {len(written)} figures to {args.figures}")
     return EXIT_OK
+
+
+def voxel_rate(voxels: int, seconds: float) -> str:
+    """``voxels`` made in ``seconds`` in words: "74 M voxels/s", two figures below ten ("0.028 M voxels/s")."""
+    rate = voxels / max(seconds, 1e-9) / 1e6
+    return f"{rate:.0f} M voxels/s" if rate >= 10 else f"{rate:.2g} M voxels/s"

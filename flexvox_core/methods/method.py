@@ -55,7 +55,10 @@ class Method:
 
     def __init__(self, name: str = DEFAULT, **options):
         spec = get(name)
-        values = spec.resolve(options)
+        try:
+            values = spec.resolve(options)
+        except ValueError as exc:
+            raise ValueError(f"{exc}{_auto_hint(spec.name, options)}") from None
         object.__setattr__(self, "_spec", spec)
         object.__setattr__(self, "_values", MappingProxyType(values))
         object.__setattr__(self, "_options", spec.build(values))
@@ -144,3 +147,13 @@ class Method:
         """Why it runs on the CPU with this code even when the GPU is asked for, or None
         (:meth:`MethodSpec.cpu_only <flexvox_core.methods.spec.MethodSpec.cpu_only>`)."""
         return self._spec.cpu_only(self._options, code)
+
+
+
+def _auto_hint(name: str, options: dict) -> str:
+    """For ``time="auto"`` or ``block="auto"`` (the command line's spelling): where Python chooses a knob."""
+    auto = [k for k, v in options.items() if isinstance(v, str) and v == "auto"]
+    if not auto:
+        return ""
+    return (f" (`{auto[0]}=\"auto\"` is the command line's: in Python fv.choose(frames, code, {name!r}, "
+            f"{auto[0]!r}) chooses it by the estimated accuracy, fv.choose_recording from a recording)")

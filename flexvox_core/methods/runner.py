@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import inspect
 import logging
+import os
 import warnings
 from numbers import Integral
 from typing import Any, NamedTuple
@@ -342,6 +343,10 @@ def run(frames, code, method: Method | str | None = None, *, chunk_frames: int |
         Frames, a code, an origin or options that break their rules (the message names the value and the rule).
     """
     method = as_method(method, options)
+    if isinstance(frames, str | os.PathLike):
+        raise TypeError(f"`frames` is a path ({frames}): a recording goes to fv.reconstruct_video(path, method), "
+                        "which reads its code and dropped frames; fv.run takes frames (F, H, W) and a code "
+                        "(fv.read_capture(path)), or fv.open_capture(path).run(method) gives the result object")
     if code is None:
         raise TypeError("run() needs the `code` the frames were captured with (a recording: "
                         "fv.reconstruct_video(recording) or fv.open_capture(recording).run(method))")
@@ -357,8 +362,9 @@ def _run(f: np.ndarray, code, method: Method, *, chunk_frames: int | None, progr
          missing, device: str, origin: tuple[int, int]) -> MethodOutput:
     if f.ndim != 3:
         raise ValueError(f"`frames` must have shape (F, H, W); got {f.ndim} dimensions {f.shape}")
-    if chunk_frames is not None and chunk_frames < 1:
-        raise ValueError(f"`chunk_frames` must be >= 1 or None; got {chunk_frames}")
+    if chunk_frames is not None and (isinstance(chunk_frames, bool) or not isinstance(chunk_frames, Integral)
+                                     or chunk_frames < 1):
+        raise ValueError(f"`chunk_frames` must be a whole number >= 1 or None; got {chunk_frames!r}")
     code = validate_code(code)
     if origin != (0, 0):  # the crop's pixel (y, x) is the camera's (y + row, x + col)
         code = np.ascontiguousarray(np.roll(code, (-origin[0], -origin[1]), axis=(0, 1)))

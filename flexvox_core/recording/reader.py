@@ -269,6 +269,8 @@ def _unreadable(path: Path) -> str:
         doc = json.loads(meta.read_bytes())
     except (OSError, ValueError):
         return "its zarr.json is not readable JSON: the file is damaged or truncated"
+    if isinstance(doc, dict) and doc.get("node_type") == "array" and (path.parent / "zarr.json").is_file():
+        return f"it is the `{path.name}` array inside the store {path.parent}: open {path.parent}"
     if not isinstance(doc, dict) or doc.get("node_type") != "group":
         return "its zarr.json does not describe a Zarr group"
     return "its zarr.json does not describe a Zarr version 3 group"

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from numbers import Integral, Real
 
 import numpy as np
 
@@ -166,7 +167,7 @@ def render_exposures(
         raise ValueError(f"`light` {light.shape} does not match {F} frames of K = {K} slots of {H}x{W}")
     if not np.isfinite(light).all() or light.min() < 0:
         raise ValueError("`light` must hold finite values >= 0")
-    _check_effects(effects, rate_hz, electrons_per_unit)
+    _check_effects(effects, rate_hz, electrons_per_unit, seed)
     if light.ndim == 4:
         weights = np.stack([_pattern_stage(light[f], effects) for f in range(F)])
     else:
@@ -177,9 +178,12 @@ def render_exposures(
     return _sensor_and_drops(frames, effects, seed, stream, rate_hz, electrons_per_unit)
 
 
-def _check_effects(effects, rate_hz, electrons_per_unit) -> None:
-    if rate_hz <= 0 or electrons_per_unit <= 0:
-        raise ValueError(f"`rate_hz` and `electrons_per_unit` must be > 0; got {rate_hz}, {electrons_per_unit}")
+def _check_effects(effects, rate_hz, electrons_per_unit, seed) -> None:
+    if isinstance(seed, bool) or not isinstance(seed, Integral) or seed < 0:
+        raise ValueError(f"`seed` must be a whole number >= 0; got {seed!r}")
+    if not all(isinstance(v, Real) and not isinstance(v, bool) and v > 0 for v in (rate_hz, electrons_per_unit)):
+        raise ValueError(f"`rate_hz` and `electrons_per_unit` must be numbers > 0; got {rate_hz!r}, "
+                         f"{electrons_per_unit!r}")
     names = [e.name for e in effects]
     if len(set(names)) != len(names):
         raise ValueError(f"each effect may be declared once; got {names}")
@@ -238,7 +242,7 @@ def simulate_video(
     Parameters
     ----------
     video : ndarray, shape (S, H, W)
-        Ground truth in [0, 1]; S a multiple of K.
+        Ground truth in [0, 1] (integers, an 8-bit clip, divided by their dtype's largest value); S a multiple of K.
     code : ndarray, shape (m, n, K)
     effects : list of str or Effect, or mapping
         Only these are simulated, in the pipeline's order (see :mod:`flexvox_core.simulate.effects`): effect
@@ -271,7 +275,7 @@ def simulate_video(
     code = validate_code(code)
     K = code.shape[2]
     video = check_video(video, K)
-    _check_effects(effects, rate_hz, electrons_per_unit)
+    _check_effects(effects, rate_hz, electrons_per_unit, seed)
     S, H, W = video.shape
     F = S // K
     weights = _weights(code, H, W, effects)

@@ -104,6 +104,14 @@ def _huge_npy(rec: Path) -> None:
         fh.truncate(fh.tell() + 4096 ** 3)
 
 
+def _video_store(rec: Path) -> None:
+    import numpy as np
+
+    import flexvox_core as fv
+
+    fv.write_video(rec.parent / "video.zarr", np.zeros((4, 8, 8), np.float32))
+
+
 def _png_folder(rec: Path) -> None:
     folder = rec.parent / "pngs"
     folder.mkdir()
@@ -149,6 +157,26 @@ CASES = {
                                       _garble_chunk),
     "reconstruct-truncated-chunk": Case("reconstruct {rec} -o {dir}/v.npy", 2,
                                         r"frames row 1 is damaged: its chunk cannot be decoded", _truncate_chunk),
+    # a reconstruction's flags beside --what frames (the default) would export the coded frames without a word
+    "export-method-with-frames": Case("export {rec} --method diffusion -o {dir}/f.tif", 2,
+                                      r"--method goes with --what reconstruction; --what frames \(the default\) "
+                                      r"exports the camera frames as they are: add --what reconstruction"),
+    "export-option-with-ground-truth": Case("export {rec} --what ground-truth --time 3 -o {dir}/f.tif", 2,
+                                            r"--time goes with --what reconstruction; --what ground-truth exports "
+                                            r"the ground truth as it is"),
+    # a recording under another suffix would be taken for a file of that kind (np.load of a folder)
+    "simulate-output-not-zarr": Case("simulate balls --tile 2x2 --frames 2 --size 24x32 -o {dir}/s.npy", 2,
+                                     r"-o must name a .zarr folder \(a recording is a Zarr store\): .*s.npy ends "
+                                     r"in .npy; write .*s.zarr", inputs=()),
+    "capture-output-not-zarr": Case("capture --frames 2 --clock virtual -o {dir}/run", 2,
+                                    r"-o must name a .zarr folder .*run has no suffix; write .*run.zarr", inputs=()),
+    # a path that is no recording is named for what it is, never called a damaged recording (exit 1)
+    "info-array-inside-recording": Case("info {rec}/frames", 2,
+                                        r"rec.zarr/frames is the `frames` array of the recording .*rec.zarr, not a "
+                                        r"recording: give the recording's folder, .*rec.zarr$"),
+    "info-video-store": Case("info {dir}/video.zarr", 2,
+                             r"video.zarr is a reconstructed video \(an OME-Zarr image\), not a recording of camera "
+                             r"frames: fv.read_video\(path\) reads it, napari and Fiji open it", _video_store),
     "slots-deleted-chunk": Case("info {rec} --slots --quick", 2, r"--slots: .*row 2 is damaged", _delete_chunk),
     "reconstruct-ids-backwards": Case("reconstruct {rec} -o {dir}/v.npy", 2,
                                       r"frame ids do not increase at row 4 \(3 then 1\)", _ids_backwards),
@@ -162,10 +190,17 @@ CASES = {
                                                r"pngs holds other files than an earlier export's PNGs \(notes.txt\)",
                                                _png_folder, inputs=("pngs",)),
     "reconstruct-inside-input": Case("reconstruct {rec} -o {rec}/v.npy", 2, r"lies inside the input"),
+    "bench-into-input": Case("bench {rec} --quick -o {rec}", 2,
+                             r"the output .*rec.zarr/results.csv lies inside the input .*rec.zarr: an output never "
+                             r"replaces its input"),
+    "bench-inside-input": Case("bench {rec} --quick -o {rec}/results", 2, r"results/results.csv lies inside the input"),
     "capture-onto-code-file": Case("capture --code {code} -o {code} --overwrite --frames 2 --clock virtual", 2,
                                    r"is the input .*code.json", inputs=("code",)),
     "simulate-onto-its-video": Case("simulate {dir}/clip.npy -o {dir}/clip.npy --overwrite --tile 2x2", 2,
                                     r"the output .*clip.npy is the input", _video_file, inputs=("clip",)),
+    "design-onto-a-recording": Case("design --tile 2x2 -o {rec} --overwrite", 2,
+                                    r"rec.zarr is a recording \(camera frames\); overwriting replaces a recording only "
+                                    r"with a recording"),
     "design-onto-verified-file": Case("design --verify {code} -o {code} --overwrite", 2, r"is the input",
                                       inputs=("code",)),
     # -o onto an existing file needs --overwrite, design and calibrate included

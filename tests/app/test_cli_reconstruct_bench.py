@@ -33,6 +33,16 @@ def test_reconstruct_writes_every_format(recording, tmp_path, capsys, suffix):
     assert psnr(open_recording(recording).ground_truth[:], video) > 15
 
 
+def test_the_voxel_rate_keeps_two_figures_below_ten_million_a_second():
+    from flexvox_app.cli.reconstruct import voxel_rate
+
+    # a small recording's 36864 voxels in 1.3 s had read "(0 M voxels/s)"
+    assert voxel_rate(36864, 1.3) == "0.028 M voxels/s"
+    assert voxel_rate(7_370_000, 1.0) == "7.4 M voxels/s"
+    assert voxel_rate(73_700_000, 1.0) == "74 M voxels/s"
+    assert voxel_rate(10, 0.0) == "10000 M voxels/s"  # a run too fast for the clock: 1 ns
+
+
 @pytest.mark.parametrize(
     "argv, message",
     [
@@ -134,6 +144,14 @@ def test_bench_quick_writes_table_csv_json_and_plot(tmp_path, capsys):
     assert "already holds results.csv, results.json, pareto.png from an earlier run; use --overwrite" in \
         capsys.readouterr().err
     assert (tmp_path / "b" / "results.csv").read_bytes() == before
+
+
+def test_bench_on_a_recording_that_cannot_be_opened_leaves_no_results_folder(tmp_path, capsys):
+    (tmp_path / "notes.txt").write_text("not a recording")
+    for rec in (tmp_path / "none.zarr", tmp_path / "notes.txt"):
+        assert main(["bench", str(rec), "-o", str(tmp_path / "b")]) == 2
+        assert str(rec) in capsys.readouterr().err
+        assert not (tmp_path / "b").exists()  # it had been made before the recording was opened
 
 
 def test_reconstruct_motion_aware_with_figures(recording, tmp_path, capsys):

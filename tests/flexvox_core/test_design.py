@@ -107,6 +107,27 @@ def test_order_code_round_trip_and_errors():
         verify(np.full((1, 1, 1), 2))
 
 
+def test_a_code_in_another_axis_order_or_still_in_its_result_is_refused_with_the_fix():
+    from flexvox_core.codes import validate_code
+    from flexvox_core.forward import tiled_code
+    from flexvox_core.multiplex import multiplexed_code
+
+    design = design_code((2, 4))
+    with pytest.raises(ValueError, match=r"`code` of a 8x2 tile must have K = 16 slots; got 4: a code is \(m, n, K\) "
+                                         r"and this one looks like \(K, m, n\) = \(8, 2, 4\): "
+                                         r"np.moveaxis\(code, 0, -1\)"):
+        validate_code(np.moveaxis(design.code, -1, 0))
+    with pytest.raises(ValueError, match=r"`code` must be the code's \(m, n, K\) array; got a DesignResult: give "
+                                         r"its `.code`"):
+        validate_code(design)
+    with pytest.raises(ValueError, match=r"got a MultiplexedCode: give its `.code`"):
+        validate_code(multiplexed_code((1, 3)))
+    with pytest.raises(ValueError, match=r"a code is \(m, n, K\) and this one looks like \(K, H, W\) = "
+                                         r"\(8, 6, 9\), a code tiled over a sensor \(fv.tiled_code\): give the "
+                                         r"tile's code"):
+        validate_code(tiled_code(design.code, 6, 9))
+
+
 def test_require_names_the_tile_and_the_reason():
     assert design_code((2, 2)).require().shape == (2, 2, 4)
     with pytest.raises(ValueError, match=r"no code for a 2x2 tile: no 2x2 code has a 4-neighbour gap >= 2"):

@@ -6,6 +6,7 @@ from hypothesis import strategies as st
 from flexvox_core.codes import code_from_order
 from flexvox_core.design import design_code
 from flexvox_core.forward import capture, sample_mask, sparse_volume, tiled_code
+from flexvox_core.simulate import render_scene, simulate_video
 
 from .independent import capture_slow
 
@@ -61,6 +62,18 @@ def test_integer_video_becomes_float32():
     code = code_from_order([[0, 1]])
     out = capture(np.ones((2, 2, 2), dtype=np.uint16), code)
     assert out.dtype == np.float32
+
+
+def test_an_integer_video_is_read_in_relative_units_by_its_dtype():
+    # an 8-bit clip (np.load of a uint8 movie) is a video in [0, 1], not one 255 times as bright
+    code = design_code((2, 2)).code
+    video = render_scene("balls", 8, 12, 12, seed=0)
+    counts = np.round(video * 255).astype(np.uint8)
+    np.testing.assert_allclose(capture(counts, code), capture(counts / np.float32(255), code), atol=1e-6)
+    sim = simulate_video(counts, code)
+    assert sim.normalised().max() <= 1 and sim.ground_truth.max() <= 1
+    with pytest.raises(ValueError, match=r"`video` are int64 counts"):
+        capture(counts.astype(np.int64), code)
 
 
 @pytest.mark.parametrize(

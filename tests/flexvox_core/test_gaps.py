@@ -51,6 +51,18 @@ def test_missing_is_checked():
         as_missing(np.ones(2, bool), 2)
 
 
+def test_missing_as_frame_indices_is_refused_not_read_as_booleans():
+    # [0, 2, 0, 1]: the indices of dropped frames, not one flag per frame; read as booleans it would
+    # drop frames 1 and 3 and keep frames 0 and 2 without a word.
+    assert as_missing(np.array([0, 1, 0, 0]), 4).tolist() == [False, True, False, False]
+    with pytest.raises(ValueError, match=r"`missing` must be 4 booleans \(or 0/1\), one per camera frame; got "
+                                         r"the values 0 to 2: for dropped frames' indices \[0, 1, 2\] give "
+                                         r"np.isin\(np.arange\(4\), \[0, 1, 2\]\)"):
+        as_missing(np.array([0, 2, 0, 1]), 4)
+    with pytest.raises(ValueError, match=r"got the values -1 to 0$"):
+        as_missing(np.array([0, -1, 0, 0]), 4)
+
+
 def test_a_gap_longer_than_the_reach_is_refused_naming_it():
     check_reach(_missing(12, [4, 5]), 2, "rebin", 16)
     with pytest.raises(GapTooLongError, match=r"frames 4-6 \(3 frames; sub-frames 64-111\) were dropped in a row; "

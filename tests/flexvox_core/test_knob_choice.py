@@ -154,6 +154,31 @@ def test_a_bad_candidate_is_refused_before_anything_runs(counted):
     assert counted == []
 
 
+def test_a_crop_off_the_tile_grid_is_chosen_on_with_the_code_s_phase_given_by_origin(scene):
+    # the guide's region: reconstruct_video takes origin=(row, col); choose without it reconstructed and estimated
+    # every candidate at the wrong phase, a wrong choice that looks right
+    import flexvox_core as fv
+
+    _, frames, noise = scene
+    crop = frames[:, 3:27, 1:31]
+    choice = choose(crop, CODE, "diffusion", "time", (2.0, 4.0), noise=noise, origin=(3, 1))
+    np.testing.assert_array_equal(choice.video, fv.reconstruct_video(crop, CODE, choice.method, origin=(3, 1)))
+    rolled = np.roll(CODE, (-3, -1), axis=(0, 1))
+    assert choice.estimate.psnr == estimate_accuracy(crop, rolled, choice.method, noise=noise).psnr
+    wrong = choose(crop, CODE, "diffusion", "time", (2.0, 4.0), noise=noise)
+    assert not np.array_equal(wrong.video, choice.video)
+    with pytest.raises(ValueError, match=r"`origin` must be two whole numbers >= 0"):
+        choose(crop, CODE, "diffusion", "time", (2.0,), origin=(-1, 0))
+
+
+def test_dropped_frames_given_as_indices_are_refused_before_anything_runs(counted):
+    frames = np.zeros((4, 24, 24), np.float32)
+    with pytest.raises(ValueError, match=r"`missing` must be 4 booleans \(or 0/1\), one per camera frame; got the "
+                                         r"values 0 to 2"):
+        choose(frames, CODE, "diffusion", "time", (2.0,), missing=[0, 2, 0, 1])
+    assert counted == []
+
+
 def test_a_recording_is_chosen_on_without_reading_its_ground_truth(tmp_path, monkeypatch):
     truth = render_scene("balls", 4 * 4, 24, 28, seed=0)
     sim = simulate_video(truth, CODE, effects={"read_noise": {"sigma": 2.0}}, seed=2)

@@ -190,6 +190,19 @@ def test_an_integer_truth_against_a_float_estimate_is_compared_in_0_1(rng, dtype
         psnr(as_float, (truth // 2 * 2) / white), abs=1e-5)
 
 
+def test_two_integer_arrays_in_other_units_are_refused_not_scored(rng):
+    # a uint8 truth against a uint16 estimate scored -90 dB, two uint8 arrays at the default data range -14 dB
+    truth = rng.integers(0, 256, (2, 16, 16)).astype(np.uint8)
+    with pytest.raises(ValueError, match=r"`ref` is uint8 and `x` is uint16: two integer dtypes have two white levels; "
+                                         r"give both as one dtype, or as floats in \[0, 1\]"):
+        psnr(truth, truth.astype(np.uint16) * 257)
+    with pytest.raises(ValueError, match=r"`ref` and `x` are uint8 counts, compared in counts: `data_range` must be "
+                                         r"their white \(255 for uint8\); got 1"):
+        ssim(truth, truth)
+    assert psnr(truth, truth // 2 * 2, data_range=255) > 40
+    assert psnr(truth > 128, truth > 100) < 20  # bool arrays: 0 and 1, the data range 1
+
+
 def test_clip_psnr_is_of_the_clip_mse_in_float64_and_from_the_frames_scores(rng):
     from flexvox_core.metrics import clip_psnr, psnr_of_rows
 

@@ -209,6 +209,29 @@ def test_overwrite_replaces_only_the_same_kind(tmp_path):
     assert (thesis / "chapter1.txt").read_text() == "years of work"
 
 
+def test_a_video_never_replaces_a_recording_even_with_overwrite(tmp_path):
+    # fv.write_video("run1.zarr", video, overwrite=True) meant for "run1-video.zarr": the camera frames would be lost
+    import numpy as np
+
+    import flexvox_core as fv
+
+    code = fv.design_code((2, 2)).code
+    sim = fv.simulate_video(fv.render_scene("balls", 8, 8, 8, seed=0), code)
+    rec = fv.write_simulation(tmp_path / "run1.zarr", sim)
+    video = np.zeros((8, 8, 8), np.float32)
+    with pytest.raises(OutputError, match=r"run1.zarr is a recording \(camera frames\); overwriting replaces a "
+                                          r"recording only with a recording, never with a video or another file: "
+                                          r"choose another path"):
+        fv.write_video(rec, video, overwrite=True)
+    with pytest.raises(OutputError, match=r"run1.zarr is a recording"):
+        check_output(rec, overwrite=True)
+    check_output(rec, overwrite=True, kind="store")  # a recording may replace a recording (simulate, capture)
+    fv.write_simulation(rec, sim, overwrite=True)
+    assert fv.open_recording(rec).n_frames == 2
+    fv.write_video(tmp_path / "video.zarr", video)
+    fv.write_video(tmp_path / "video.zarr", video, overwrite=True)  # a video replaces a video
+
+
 def test_a_python_caller_is_told_the_keyword_and_never_a_command_line_flag(tmp_path):
     """``write_video`` onto an existing file names ``overwrite=True``; no refusal from Python names ``--overwrite``."""
     import numpy as np

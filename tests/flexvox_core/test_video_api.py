@@ -87,6 +87,18 @@ def test_a_recording_in_place_of_frames_and_code_brings_its_dropped_frames(dropp
         fv.reconstruct_video(rec, NC, missing=rec.dropped)
 
 
+def test_a_recording_s_path_in_place_of_frames_is_the_recording(dropped):
+    # as fv.reconstruct_batch, fv.estimate_recording and fv.choose_recording take it; it was read as an array of
+    # one string ("`frames` must hold real numbers ...; got dtype <U..")
+    expected = fv.reconstruct_video(fv.open_recording(dropped), NC)
+    np.testing.assert_array_equal(fv.reconstruct_video(dropped, NC), expected)
+    np.testing.assert_array_equal(fv.reconstruct_video(str(dropped), "diffusion"), expected)
+    with pytest.raises(TypeError, match=r"`frames` is a path \(.*d.zarr\): a recording goes to "
+                                        r"fv.reconstruct_video\(path, method\), which reads its code and dropped "
+                                        r"frames; fv.run takes frames \(F, H, W\) and a code"):
+        fv.run(str(dropped), np.ones((2, 2, 4), bool), NC)
+
+
 def test_a_method_by_name_takes_its_options_as_keywords(scene):
     _, code, frames = scene
     by_name = fv.reconstruct_video(frames, code, "gap-tv", iterations=3)

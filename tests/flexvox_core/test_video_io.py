@@ -63,3 +63,11 @@ def test_open_recording_on_a_video_file_names_read_video(tmp_path):
     with pytest.raises(RecordingError, match=r"v.tif: not a readable Zarr store \(it is a video file; a recording is "
                                              r"a .zarr folder: fv.read_video\(path\) reads a video\)"):
         fv.open_recording(path)
+
+
+def test_open_recording_on_an_array_inside_a_recording_names_the_recording(tmp_path):
+    code = fv.design_code((2, 2)).code
+    rec = fv.write_simulation(tmp_path / "r.zarr", fv.simulate_video(fv.render_scene("balls", 4, 8, 8), code))
+    with pytest.raises(RecordingError, match=r"r.zarr/frames: not a readable Zarr store \(it is the `frames` array "
+                                             r"inside the store .*r.zarr: open .*r.zarr\)"):
+        fv.open_recording(rec / "frames")

@@ -224,3 +224,16 @@ def test_every_method_takes_a_frozen_options_object(name):
         assert getattr(options, o.name) == getattr(m, o.name) or o.name == "slow_reach"  # None: SLOW_REACH
     with pytest.raises(dataclasses.FrozenInstanceError):
         object.__getattribute__(options, "__setattr__")(m.spec.option_specs[0].name, 1)
+
+
+def test_the_command_line_s_auto_in_python_says_where_python_chooses_a_knob():
+    with pytest.raises(ValueError, match=r"`time` must be a positive finite number; got 'auto' \(`time=\"auto\"` "
+                                         r"is the command line's: in Python fv.choose\(frames, code, 'diffusion', "
+                                         r"'time'\) chooses it by the estimated accuracy, fv.choose_recording from a "
+                                         r"recording\)"):
+        Method("diffusion", time="auto")
+    with pytest.raises(ValueError, match=r"got 'auto' \(`block=\"auto\"` is the command line's: in Python "
+                                         r"fv.choose\(frames, code, 'rebin', 'block'\)"):
+        Method("rebin", block="auto")
+    with pytest.raises(ValueError, match=r"`iterations` must be a whole number >= 1; got 'two'$"):
+        Method("gap-tv", iterations="two")

@@ -72,9 +72,11 @@ def test_bad_methods(kwargs, match):
         Method(**kwargs)
 
 
-def test_bad_chunk(case):
-    with pytest.raises(ValueError, match=r"`chunk_frames` must be >= 1 or None; got 0"):
-        reconstruct_video(case[1], CODE, Method(), chunk_frames=0)
+@pytest.mark.parametrize("chunk", [0, 2.5, 2.0, "4", True])
+def test_bad_chunk(case, chunk):
+    # 2.5 and "4" had raised TypeErrors from range() and from a comparison
+    with pytest.raises(ValueError, match=rf"`chunk_frames` must be a whole number >= 1 or None; got {chunk!r}"):
+        reconstruct_video(case[1], CODE, Method(), chunk_frames=chunk)
 
 
 def test_motion_aware_chunking_matches_the_whole(rng):

@@ -245,3 +245,16 @@ def test_a_list_of_effect_names_is_simulated_at_their_defaults_in_pipeline_order
     with pytest.raises(ValueError, match=r"`effects` items must be effect names \(misregistration, .*\) or Effect "
                                          r"objects; got 3"):
         simulate_video(v, code, effects=[3])
+
+
+@pytest.mark.parametrize("seed", [None, -1, 1.5, "3", True])
+def test_a_seed_that_is_no_whole_number_is_refused_in_words(seed):
+    video = np.zeros((4, 4, 4), np.float32)
+    with pytest.raises(ValueError, match=r"`seed` must be a whole number >= 0; got "):
+        simulate_video(video, design_code((2, 2)).code, seed=seed)
+
+
+@pytest.mark.parametrize("rate", ["15", None])
+def test_a_rate_that_is_no_number_is_refused_in_words(rate):
+    with pytest.raises(ValueError, match=r"`rate_hz` and `electrons_per_unit` must be numbers > 0; got "):
+        simulate_video(np.zeros((4, 4, 4), np.float32), design_code((2, 2)).code, rate_hz=rate)

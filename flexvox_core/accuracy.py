@@ -197,6 +197,15 @@ class NoiseModel:
         Shot noise gives ``1/e`` per unit, read noise ``(σ/e)²``, dark current ``rate/(hz·e²)`` with shot noise,
         the ADC ``(1/(gain·e))²/12``, where ``e`` is the electrons per unit (the storage's, else the
         simulator's default 1000, which the source then says is assumed)."""
+        from flexvox_core.simulate.effects import EFFECTS
+
+        if not isinstance(effects, dict) or not all(isinstance(v, dict) for v in effects.values()):
+            raise TypeError(f"`effects` must be a dict of {{effect name: {{parameter: value}}}} (a recording's "
+                            f"effects); got {effects!r}")
+        unknown = sorted(set(effects) - set(EFFECTS))
+        if unknown:
+            raise ValueError(f"`effects` names {', '.join(map(repr, unknown))}, which the simulator does not have "
+                             f"(its effects: {', '.join(EFFECTS)}): a misspelt noise would be read as none")
         storage = storage or {}
         stated = electrons_per_unit or storage.get("electrons_per_unit")
         e = float(stated or 1000.0)
@@ -381,6 +390,9 @@ def _estimate(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Meth
     from flexvox_core.multiplex import MultiplexedCode
 
     method = as_method(method)  # a method's name too; anything else a TypeError naming fv.Method
+    if noise is not None and not isinstance(noise, NoiseModel):
+        raise TypeError(f"`noise` must be a NoiseModel (NoiseModel(photon=..., floor=...), or "
+                        f"NoiseModel.from_effects({{'read_noise': {{'sigma': 3.0}}}})); got {noise!r}")
     why = refusal(method)
     if why and not unchecked:
         raise NotEstimable(f"cannot estimate the accuracy of {method.label}: {why}")
@@ -488,6 +500,11 @@ def _estimate(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Meth
                 m_opt = None if m_opt is None else (1 - share) * m_opt + share * gap_mse
                 se = math.sqrt(((1 - share) * se) ** 2 + share**2 * gap_var)
                 scheme += ", dropped frames scored by captured runs held out like them"
+        if not mse > 1e-10 and noise.photon == 0 and noise.floor == 0:  # no noise taken out: nothing to measure
+            raise NotEstimable(
+                f"the held-out samples are predicted exactly (their error is {mse:.3g}, and no noise is stated): a "
+                "capture without change, or a code whose every voxel holds its own sample, leaves the estimate no "
+                "error to measure, so it gives no PSNR")
         if not mse > 1e-10:  # db() would say 100 dB: the noise taken out exceeds the error the samples show
             raise NotEstimable(
                 f"the held-out samples' error less the noise the capture states (photon {noise.photon:g}, floor "

@@ -306,7 +306,8 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
                       delta: float = PROBE_DELTA, seed: int = 0,
                       confidence: float = CONFIDENCE, chunk_frames: int | None = None,
                       device: str = "cpu", unchecked: bool = False,
-                      progress: bool | Progress | None = None, white: float | None = None) -> AccuracyEstimate:
+                      progress: bool | Progress | None = None, white: float | None = None,
+                      origin: tuple[int, int] | None = None) -> AccuracyEstimate:
     """Estimate the PSNR of ``method``'s reconstruction of a capture without its ground truth.
 
     Parameters
@@ -354,6 +355,9 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     white : float, optional
         The count that stands for white in integer ``frames`` (a 12-bit camera's: 4095), as
         :func:`~flexvox_core.methods.run`'s.
+    origin : (int, int), optional
+        For frames cropped from the camera frame: the crop's top-left pixel ``(row, col)`` in the camera frame, as
+        :func:`~flexvox_core.methods.run` takes it (the code's phase follows it). Default (0, 0).
 
     Returns
     -------
@@ -374,6 +378,14 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     >>> est.samples > 0, est.low <= est.psnr <= est.high
     (True, True)
     """
+    from flexvox_core.methods.runner import check_origin, code_at_origin
+    from flexvox_core.multiplex import MultiplexedCode
+
+    if check_origin(origin) != (0, 0):
+        if isinstance(code, MultiplexedCode):
+            raise ValueError(f"`origin` {origin!r} with a multiplexed code: estimate on the whole camera frame, or on "
+                             "a crop on its tile grid")
+        code = code_at_origin(code, origin)
     frames = as_relative(frames, white=white)
     with progress_callback(progress, desc="accuracy estimate", unit="frame") as report:
         return _estimate(frames, code, method, noise=noise, missing=missing, reconstruction=reconstruction,

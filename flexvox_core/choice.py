@@ -338,7 +338,7 @@ def choose(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method 
     """
     from flexvox_core.accuracy import estimate_accuracy
     from flexvox_core.methods import run
-    from flexvox_core.methods.runner import check_origin
+    from flexvox_core.methods.runner import check_origin, code_at_origin
     from flexvox_core.multiplex import MultiplexedCode
 
     row, col = check_origin(origin)
@@ -346,9 +346,7 @@ def choose(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method 
         if isinstance(code, MultiplexedCode):
             raise ValueError(f"`origin` {origin!r} with a multiplexed code: choose on the whole camera frame, or on a "
                              "crop on its tile grid")
-        from flexvox_core.codes import validate_code
-
-        code = np.ascontiguousarray(np.roll(validate_code(code), (-row, -col), axis=(0, 1)))
+        code = code_at_origin(code, (row, col))
     f32 = np.asarray(as_relative(frames, white=white), np.float32)
     gaps = missing if missing is None or f32.ndim != 3 else as_missing(missing, f32.shape[0])  # checked before any run
     reusable = not isinstance(code, MultiplexedCode)

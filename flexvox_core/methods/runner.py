@@ -269,6 +269,16 @@ def as_method(method=None, options: dict | None = None) -> Method:
                     f"({', '.join(names())}) with its options as keywords; got {type(method).__name__} {method!r}")
 
 
+def code_at_origin(code, origin) -> np.ndarray:
+    """``code`` (checked) as frames cropped at ``origin`` = (row, col) of the camera frame see it: the crop's pixel
+    (y, x) is the camera's (y + row, x + col), so the tile is rolled by (−row, −col)."""
+    row, col = check_origin(origin)
+    code = validate_code(code)
+    if (row, col) != (0, 0):
+        code = np.ascontiguousarray(np.roll(code, (-row, -col), axis=(0, 1)))
+    return code
+
+
 def check_origin(origin) -> tuple[int, int]:
     """``origin`` as (row, col): two whole numbers >= 0 (None: (0, 0)); ``ValueError`` otherwise."""
     if origin is None:
@@ -365,9 +375,7 @@ def _run(f: np.ndarray, code, method: Method, *, chunk_frames: int | None, progr
     if chunk_frames is not None and (isinstance(chunk_frames, bool) or not isinstance(chunk_frames, Integral)
                                      or chunk_frames < 1):
         raise ValueError(f"`chunk_frames` must be a whole number >= 1 or None; got {chunk_frames!r}")
-    code = validate_code(code)
-    if origin != (0, 0):  # the crop's pixel (y, x) is the camera's (y + row, x + col)
-        code = np.ascontiguousarray(np.roll(code, (-origin[0], -origin[1]), axis=(0, 1)))
+    code = code_at_origin(code, origin)
     check_code_for(code, method)
     K = code.shape[2]
     F = f.shape[0]

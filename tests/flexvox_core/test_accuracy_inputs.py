@@ -33,3 +33,19 @@ def test_an_exact_reconstruction_without_stated_noise_says_so():
     frames = np.full((4, 24, 32), 0.4, np.float32)  # a capture without change: every sample predicted exactly
     with pytest.raises(NotEstimable, match=r"predicted exactly .*no noise is stated"):
         estimate_accuracy(frames, code, Method("diffusion"))
+
+
+def test_a_crop_off_the_tile_grid_is_estimated_at_its_origin_s_phase():
+    from flexvox_core.methods.runner import code_at_origin
+
+    code = design_code((2, 4)).code
+    whole = capture(render_scene("balls", 4 * 8, 30, 40), code)
+    crop = whole[:, 5:29, 7:39]  # 24x32 from (5, 7): off the 2x4 grid both ways
+    at = estimate_accuracy(crop, code, Method("diffusion"), origin=(5, 7))
+    rolled = estimate_accuracy(crop, code_at_origin(code, (5, 7)), Method("diffusion"))
+    assert at.psnr == rolled.psnr and at.low == rolled.low  # the code's phase follows the origin
+    # Without the origin the crop is read at the wrong phase, which the estimate cannot see (it measures the
+    # reconstruction's consistency with the samples as assigned): a different figure, not a warning.
+    assert estimate_accuracy(crop, code, Method("diffusion")).psnr != at.psnr
+    with pytest.raises(ValueError, match=r"`origin` must be two whole numbers >= 0"):
+        estimate_accuracy(crop, code, Method("diffusion"), origin=(-1, 0))

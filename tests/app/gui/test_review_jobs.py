@@ -117,12 +117,13 @@ def test_without_ground_truth_the_result_line_and_label_say_the_estimate_made_of
 
 def test_a_refused_method_is_not_estimated_and_keeps_why(captured):
     jobs = jobs_on(captured)
-    method = Method("rebin")
+    method = Method("rebin", interpolate=False)  # refused (interpolated re-binning is estimated)
     jobs.reconstruct(method)
     jobs.runner.turn()
     r = jobs.results[0]
     assert [h.name for h in jobs.runner.handles] == ["reconstruct"] and r.estimate is None
-    assert r.no_estimate == in_gui_words(refusal(method)) and r.no_estimate.startswith("the estimate of re-binning")
+    assert r.no_estimate == in_gui_words(refusal(method)) and r.no_estimate.startswith(
+        "re-binning without interpolation")
     assert "estimat" not in jobs.result_line.text and "estimat" not in r.label()
 
 

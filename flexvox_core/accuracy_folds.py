@@ -1,5 +1,8 @@
 """The accuracy estimate of a method whose sub-frames are reconstructed apart (GAP-TV on an identity code).
 
+The estimate's internals, reached through :func:`~flexvox_core.accuracy.estimate_accuracy`, which checks its
+inputs first; :func:`spacing_ratio` is measured by ``bench/bench_accuracy.py`` and not used by the estimate.
+
 When the probe (:mod:`flexvox_core.accuracy`) finds that a sample's temporal neighbours do not respond to it,
 each sub-frame is reconstructed from its own samples alone, and the leave-one-out needs no linearisation:
 

@@ -1,5 +1,9 @@
 """The accuracy estimate of re-binning, in closed form (no run).
 
+The estimate's internals: they are reached through :func:`~flexvox_core.accuracy.estimate_accuracy` (and
+``estimate_recording``), which checks the frames (integer counts read as relative units, a wrong shape refused),
+the code, the method, the noise and the missing frames before them, and they take float arrays as it passes them.
+
 Interpolated re-binning (:func:`~flexvox_core.reconstruct.rebin.rebin` with ``interpolate=True``) is a known
 linear interpolator: each block's one sample is placed at the block's centre and every voxel ``u`` is the
 trilinear mix ``v_u = Σ_j w_j(u)·y_j`` of the (up to 8) surrounding blocks' samples, ``Σ_j w_j(u) = 1``. The

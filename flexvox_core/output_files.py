@@ -90,6 +90,22 @@ def output_kind(path) -> str | None:
     return "store" if suffix == ".zarr" else "file"
 
 
+RECORDING_SUFFIX = ".zarr"
+"""The suffix of a recording's (and any Zarr store's) folder name."""
+
+
+def check_store_suffix(path) -> Path:
+    """``path`` if its name ends in ``.zarr``; :class:`OutputError` otherwise. A recording is a Zarr store, a folder;
+    under another suffix every command would take it for a file of that kind (``.npy``: an array), and without one
+    for a folder of pictures."""
+    path = Path(path)
+    if path.suffix.lower() != RECORDING_SUFFIX:
+        got = f"ends in {path.suffix}" if path.suffix else "has no suffix"
+        raise OutputError(f"a recording (a Zarr store) is a folder whose name ends in .zarr: {path} {got}; write "
+                          f"{path.with_suffix(RECORDING_SUFFIX)}")
+    return path
+
+
 def check_output(path, *, overwrite: bool = False, inputs: Iterable = (), hint: str = OVERWRITE_HINT,
                  kind: str | None = "auto") -> Path:
     """Check, before any work, that ``path`` may be written; return it.
@@ -107,7 +123,7 @@ def check_output(path, *, overwrite: bool = False, inputs: Iterable = (), hint: 
         (:data:`~flexvox_core.output_errors.OVERWRITE_HINT`), the command line's ``--overwrite``
         (:data:`~flexvox_core.output_errors.CLI_OVERWRITE_HINT`).
     kind : "file", "store", "folder", None or "auto"
-        What will be written (default: :func:`output_kind` of the path). ``overwrite`` replaces only
+        What will be written (default: :func:`output_kind` of the path); a ``store``'s name must end in ``.zarr``. ``overwrite`` replaces only
         the same kind: a file with a file, a Zarr store with a Zarr store (a folder holding
         ``zarr.json``), never a folder of other things with a file or a store. A ``.zarr`` of kind
         ``auto`` (a video, or a file under that name) never replaces a recording (:func:`is_recording`);
@@ -117,10 +133,13 @@ def check_output(path, *, overwrite: bool = False, inputs: Iterable = (), hint: 
     ------
     OutputError
         Onto an input; an existing output without ``overwrite``, or of another kind; an output
-        another process is writing; a missing folder; a folder that refuses new files.
+        another process is writing; a missing folder; a folder that refuses new files; a ``store`` whose name
+        does not end in ``.zarr`` (:func:`check_store_suffix`).
     """
     path = Path(path).expanduser()
     refuse_output_onto_input(path, inputs)
+    if kind == "store":
+        check_store_suffix(path)
     if path.exists() or path.is_symlink():
         if not overwrite:
             raise OutputError(f"{path} already exists; {hint}")

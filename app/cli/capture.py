@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 from flexvox_app.cli.app import add_screen_options, list_screens, with_projector_screen
-from flexvox_app.cli.errors import EXIT_FAILED, EXIT_OK, CliError, OneLineParser, arg_type, check_recording_path, defer
+from flexvox_app.cli.errors import EXIT_FAILED, EXIT_OK, CliError, OneLineParser, arg_type, defer
 from flexvox_core.tiles import parse_tile
 
 _SIZE_RE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
@@ -141,7 +141,6 @@ def _build(args, display=None):
     rig_file = None if args.rig == "mock" else Path(args.rig)
     check_output(args.output, overwrite=args.overwrite,  # before the rig is built (a scene renders for seconds)
                  inputs=[args.code, args.calibration, args.sync_profile, rig_file], hint=CLI_OVERWRITE_HINT)
-    check_recording_path(args.output)
     plan = _plan(args)
     plan.code  # noqa: B018 - refuse an impossible code before any device is opened
     if args.rig == "mock":

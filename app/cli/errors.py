@@ -87,16 +87,6 @@ def positive_fps(text: str) -> float:
         raise ValueError(f"--fps must be above 0 and at most 1000 frames per second; got {text!r}") from None
 
 
-def check_recording_path(path: Path) -> Path:
-    """``-o REC.zarr`` of a command that writes a recording: a path ending in ``.zarr`` (a recording is a Zarr
-    store, a folder; under another suffix it would be taken for a file of that kind); ``CliError`` otherwise."""
-    if path.suffix.lower() != ".zarr":
-        got = f"ends in {path.suffix}" if path.suffix else "has no suffix"
-        raise CliError(f"-o must name a .zarr folder (a recording is a Zarr store): {path} {got}; write "
-                       f"{path.with_suffix('.zarr')}")
-    return path
-
-
 def arg_type(parse):
     """Wrap a ``ValueError``-raising parser as an argparse ``type=`` (message kept)."""
 

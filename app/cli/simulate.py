@@ -8,7 +8,7 @@ import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from flexvox_app.cli.errors import EXIT_OK, CliError, arg_type, check_recording_path, defer
+from flexvox_app.cli.errors import EXIT_OK, CliError, arg_type, defer
 from flexvox_core.tiles import parse_tile
 
 if TYPE_CHECKING:  # the simulator is imported where it runs: parsing needs none of it
@@ -121,7 +121,6 @@ def run_simulate(args) -> int:
         inputs = [Path(args.scene) if Path(args.scene).exists() else None, getattr(spec, "file", None)]
         # before it runs
         check_output(args.output, overwrite=args.overwrite, inputs=inputs, kind="store", hint=CLI_OVERWRITE_HINT)
-        check_recording_path(args.output)
         if args.tile:
             spec.tile, spec.order = args.tile, None
         if args.size:

@@ -78,7 +78,7 @@ class RecordingWriter:
     Parameters
     ----------
     path : str or Path
-        The store (a directory) to create.
+        The store (a directory) to create; its name ends in ``.zarr``.
     height, width : int
         Frame size.
     dtype : {"float32", "uint16"}
@@ -106,6 +106,8 @@ class RecordingWriter:
     ------
     RecordingError
         For a bad argument, or a path that exists (without ``overwrite``).
+    OutputError
+        For a path whose name does not end in ``.zarr``, or that names a file or a folder that is not a Zarr store.
     OSError
         When the store cannot be created (a full disk, a file-size limit): what the writer had
         made of it is removed and a store it was to replace is put back, so nothing is left that
@@ -115,10 +117,15 @@ class RecordingWriter:
     def __init__(self, path, *, height: int, width: int, dtype, attrs: dict, overwrite: bool = False,
                  block_frames: int = DEFAULT_BLOCK_FRAMES, fsync: bool = False, atomic: bool = False,
                  lock=None):
-        from flexvox_core.output_files import refuse_other_kind, remove_dead_partials, temporary_sibling
+        from flexvox_core.output_files import (
+            check_store_suffix,
+            refuse_other_kind,
+            remove_dead_partials,
+            temporary_sibling,
+        )
         from flexvox_core.writer_lock import WriterLock
 
-        self.path = Path(path)
+        self.path = check_store_suffix(path)  # before the lock: a refused name leaves nothing behind
         dtype = np.dtype(dtype)
         if dtype not in (np.dtype("float32"), np.dtype("uint16")):
             raise RecordingError(f"frames must be float32 or uint16; got {dtype}")

@@ -166,10 +166,11 @@ CASES = {
                                             r"the ground truth as it is"),
     # a recording under another suffix would be taken for a file of that kind (np.load of a folder)
     "simulate-output-not-zarr": Case("simulate balls --tile 2x2 --frames 2 --size 24x32 -o {dir}/s.npy", 2,
-                                     r"-o must name a .zarr folder \(a recording is a Zarr store\): .*s.npy ends "
-                                     r"in .npy; write .*s.zarr", inputs=()),
+                                     r"a recording \(a Zarr store\) is a folder whose name ends in .zarr: .*s.npy "
+                                     r"ends in .npy; write .*s.zarr", inputs=()),
     "capture-output-not-zarr": Case("capture --frames 2 --clock virtual -o {dir}/run", 2,
-                                    r"-o must name a .zarr folder .*run has no suffix; write .*run.zarr", inputs=()),
+                                    r"a recording \(a Zarr store\) is a folder whose name ends in .zarr: .*run has "
+                                    r"no suffix; write .*run.zarr", inputs=()),
     # a path that is no recording is named for what it is, never called a damaged recording (exit 1)
     "info-array-inside-recording": Case("info {rec}/frames", 2,
                                         r"rec.zarr/frames is the `frames` array of the recording .*rec.zarr, not a "

@@ -204,9 +204,15 @@ def test_overwrite_replaces_only_the_same_kind(tmp_path):
     check_output(notes, overwrite=True)  # a Zarr store may replace a Zarr store
     from flexvox_core.recording import RecordingWriter  # the writer checks it too
 
-    with pytest.raises(OutputError, match=r"thesis.tif is a folder"):
+    with pytest.raises(OutputError, match=r"thesis.tif ends in .tif; write .*thesis.zarr"):
         RecordingWriter(thesis, height=4, width=4, dtype="float32", attrs={}, overwrite=True)
     assert (thesis / "chapter1.txt").read_text() == "years of work"
+    thesis_store = tmp_path / "thesis.zarr"
+    thesis_store.mkdir()
+    (thesis_store / "chapter1.txt").write_text("years of work")
+    with pytest.raises(OutputError, match=r"thesis.zarr is a folder but not a Zarr store"):
+        RecordingWriter(thesis_store, height=4, width=4, dtype="float32", attrs={}, overwrite=True)
+    assert (thesis_store / "chapter1.txt").read_text() == "years of work"
 
 
 def test_a_video_never_replaces_a_recording_even_with_overwrite(tmp_path):

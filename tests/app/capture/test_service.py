@@ -377,3 +377,12 @@ def test_the_camera_rate_is_the_camera_s_own_not_its_delivery_bursts(tmp_path):
     svc.start()
     assert svc.wait(30)
     assert svc.stats().camera_rate_hz == pytest.approx(15.0, rel=0.01)
+
+
+def test_a_capture_into_a_name_not_ending_in_zarr_is_refused_before_the_rig_opens(tmp_path):
+    """The GUI and Python's CaptureService share the command line's rule: a recording's folder ends in .zarr."""
+    rig = make_rig()
+    with pytest.raises(CaptureError, match=r"a recording \(a Zarr store\) is a folder whose name ends in .zarr: "
+                                           r".*run1.npy ends in .npy; write .*run1.zarr"):
+        CaptureService(rig, PLAN, tmp_path / "run1.npy", frames=2)
+    assert list(tmp_path.iterdir()) == []

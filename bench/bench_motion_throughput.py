@@ -418,6 +418,20 @@ def _vectors_by_numpy() -> Iterator[None]:
         estimate.scaled_vectors = kept
 
 
+@contextlib.contextmanager
+def _choice_whole_rows() -> Iterator[None]:
+    """Before oriented nc made each sub-frame's structure tensor and time blur over bands of rows and the columns
+    holding wanted voxels: one block, from the first wanted row to the last, every column (the same bits)."""
+    from flexvox_core.reconstruct import oriented_nc
+
+    def whole_rows(wanted):
+        rows = np.flatnonzero(wanted.any(axis=1))
+        return [(int(rows[0]), int(rows[-1]) + 1, 0, wanted.shape[1])] if len(rows) else []
+
+    with mock.patch.object(oriented_nc, "_blocks", whole_rows):
+        yield
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
@@ -434,6 +448,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "classes-numpy": _classes_numpy,
     "detector-finest-2": _detector_finest_2,
     "vectors-by-numpy": _vectors_by_numpy,
+    "choice-whole-rows": _choice_whole_rows,
 }
 """The code as it was before each change (``kept``: as it is), or a change tried and not kept, for ``--ab``."""
 

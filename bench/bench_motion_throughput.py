@@ -432,6 +432,29 @@ def _choice_whole_rows() -> Iterator[None]:
         yield
 
 
+@contextlib.contextmanager
+def _choice_serial() -> Iterator[None]:
+    """Before the local choice's serial parts ran on every core: the blend in numpy a sub-frame at a time, the
+    weights a frame at a time and oriented nc's check of its guide a band at a time, on one thread (the same bits;
+    each band's copy of the fallback stays on the threads)."""
+    from flexvox_core.motion import local_choice
+    from flexvox_core.reconstruct import oriented_nc
+
+    def serial(fn, count):
+        for i in range(count):
+            fn(i)
+
+    kept = oriented_nc.for_each
+
+    def checks_serial(fn, count):
+        (serial if fn.__name__ == "finite" else kept)(fn, count)
+
+    with mock.patch.object(local_choice, "blend", local_choice.blend_numpy), \
+            mock.patch.object(local_choice, "for_each", serial), \
+            mock.patch.object(oriented_nc, "for_each", checks_serial):
+        yield
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
@@ -449,6 +472,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "detector-finest-2": _detector_finest_2,
     "vectors-by-numpy": _vectors_by_numpy,
     "choice-whole-rows": _choice_whole_rows,
+    "choice-serial": _choice_serial,
 }
 """The code as it was before each change (``kept``: as it is), or a change tried and not kept, for ``--ab``."""
 

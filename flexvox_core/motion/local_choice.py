@@ -79,10 +79,11 @@ def local_weights(loo_a: np.ndarray, loo_b: np.ndarray, samples: np.ndarray, *, 
     if not (np.isfinite(sigma) and sigma > 0) or isinstance(power, bool) or not isinstance(power, int) or power < 1:
         raise ValueError(f"`sigma` must be > 0 and `power` a whole number >= 1; got {sigma!r}, {power!r}")
     out = np.ones(a.shape, np.float32)
-    for f in range(a.shape[0]):
+
+    def frame(f):  # a frame's weights read its own planes alone: the frames run side by side, the same bits
         valid = np.isfinite(a[f]) & np.isfinite(b[f])
         if not valid.any():
-            continue
+            return
         # The mean error over the valid pixels near each one is the blurred error over the blurred
         # count; the count cancels in the ratio, so only the errors are blurred.
         ea = _pooled(np.where(valid, (a[f] - y[f]) ** 2, 0).astype(np.float32), sigma).astype(np.float64) ** power
@@ -90,6 +91,8 @@ def local_weights(loo_a: np.ndarray, loo_b: np.ndarray, samples: np.ndarray, *, 
         total = ea + eb
         ok = total > 1e-30
         out[f] = np.where(ok, eb / np.where(ok, total, 1.0), 1.0)
+
+    for_each(frame, a.shape[0])
     return out
 
 
@@ -190,13 +193,32 @@ def _pooled(plane: np.ndarray, sigma: float) -> np.ndarray:
     return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
 
 
-def blend(video: np.ndarray, other: np.ndarray, weights: np.ndarray, where: np.ndarray, K: int) -> None:
-    """``video ← w·video + (1 − w)·other`` at the voxels ``where`` (S, H, W), in place; ``weights`` (F, H, W)
-    holds frame f's weight for its K sub-frames."""
+def _check_blend(video: np.ndarray, other: np.ndarray, weights: np.ndarray, where: np.ndarray, K: int) -> None:
     S = video.shape[0]
     if other.shape != video.shape or where.shape != video.shape or weights.shape[0] * K != S:
         raise ValueError(f"`video` {video.shape}, `other` {other.shape}, `where` {where.shape} and `weights` "
                          f"{weights.shape} at K = {K} do not match")
+
+
+def blend(video: np.ndarray, other: np.ndarray, weights: np.ndarray, where: np.ndarray, K: int) -> None:
+    """``video ← w·video + (1 − w)·other`` at the voxels ``where`` (S, H, W), in place; ``weights`` (F, H, W)
+    holds frame f's weight for its K sub-frames. Compiled, a sub-frame per task on every core
+    (:func:`~flexvox_core.motion.local_choice_kernel.blend_plane`): :func:`blend_numpy`'s bits."""
+    from flexvox_core.motion.local_choice_kernel import blend_plane
+
+    _check_blend(video, other, weights, where, K)
+    where = np.asarray(where, bool)
+
+    def one(s):
+        blend_plane(video[s], other[s], weights[s // K], where[s])
+
+    for_each(one, video.shape[0])
+
+
+def blend_numpy(video: np.ndarray, other: np.ndarray, weights: np.ndarray, where: np.ndarray, K: int) -> None:
+    """:func:`blend` in numpy, a sub-frame at a time on one thread (the compiled form's reference)."""
+    _check_blend(video, other, weights, where, K)
+    S = video.shape[0]
     for s in range(S):
         if not where[s].any():
             continue

@@ -151,9 +151,14 @@ def check_inputs(frames, code, guide, where, fallback, missing, subframes=None):
         raise ValueError(f"`guide` must be the (S, H, W) = {(S, H, W)} video whose edges orient the kernel; "
                          f"got {g.shape}")
     s0, s1 = _check_subframes(subframes, S)
-    if not np.isfinite(g[s0:s1].sum(dtype=np.float64)):  # one pass, no boolean volume
-        bad = next(s for s in range(s0, s1) if not np.isfinite(g[s]).all())
-        raise ValueError(f"`guide` sub-frame {bad} holds NaN or infinite values")
+    bad = np.zeros(s1 - s0, bool)
+
+    def finite(i):  # a sub-frame's sum (no boolean plane), the sub-frames side by side
+        bad[i] = not np.isfinite(g[s0 + i].sum(dtype=np.float64))
+
+    for_each(finite, s1 - s0)
+    if bad.any():
+        raise ValueError(f"`guide` sub-frame {s0 + int(np.argmax(bad))} holds NaN or infinite values")
     if where is not None:
         if not (isinstance(where, np.ndarray) or hasattr(where, "band")):
             where = np.asarray(where)
@@ -289,12 +294,8 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
             raise ValueError(f"`out` must be a writable C-contiguous float32 array of shape {(n, H, W)} that shares "
                              "no memory with the other inputs")
         video = out
-        if fall is None:
-            video.fill(np.nan)
-        else:
-            np.copyto(video, fall, casting="unsafe")
     else:
-        video = np.full((n, H, W), np.nan, np.float32) if fall is None else np.array(fall, np.float32)
+        video = np.empty((n, H, W), np.float32)
     if loo is None:
         loo = np.full((F, H, W), np.nan, np.float32)
     elif (not isinstance(loo, np.ndarray) or loo.shape != (F, H, W) or loo.dtype != np.float32
@@ -312,6 +313,10 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
 
     def one(i):
         s = s0 + i
+        if fall is None:  # each sub-frame starts as the fallback, on the thread that estimates it
+            video[i].fill(np.nan)
+        else:
+            np.copyto(video[i], fall[i], casting="unsafe")
         wanted = everywhere if chosen is None else chosen[i]
         blocks = _blocks(wanted)
         if not blocks:

@@ -207,10 +207,9 @@ def blend(video: np.ndarray, other: np.ndarray, weights: np.ndarray, where: np.n
     from flexvox_core.motion.local_choice_kernel import blend_plane
 
     _check_blend(video, other, weights, where, K)
-    where = np.asarray(where, bool)
 
     def one(s):
-        blend_plane(video[s], other[s], weights[s // K], where[s])
+        blend_plane(video[s], other[s], weights[s // K], np.asarray(where[s], bool))
 
     for_each(one, video.shape[0])
 

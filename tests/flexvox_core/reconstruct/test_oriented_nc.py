@@ -127,6 +127,12 @@ def test_bad_shapes_are_refused(code24):
     guide[5, 2, 3] = np.nan
     with pytest.raises(ValueError, match=r"`guide` sub-frame 5 holds NaN or infinite values"):
         oriented_nc(frames, code24, guide)
+    for bad in (np.nan, np.inf, -np.inf):  # a float16 guide, checked by its exponent bits
+        held = np.full((16, 8, 8), 65504, np.float16)  # the largest finite float16 passes
+        held[9, 7, 7], held[12, 0, 0] = bad, bad
+        with pytest.raises(ValueError, match=r"`guide` sub-frame 9 holds NaN or infinite values"):
+            oriented_nc(frames, code24, held)
+    oriented_nc(frames, code24, np.full((16, 8, 8), -65504, np.float16))
     with pytest.raises(ValueError, match=r"`fallback` must be an \(S, H, W\) = \(16, 8, 8\) array"):
         oriented_nc(frames, code24, np.zeros((16, 8, 8)), fallback=np.ones((2, 8, 8)))
 

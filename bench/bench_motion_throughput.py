@@ -434,9 +434,9 @@ def _choice_whole_rows() -> Iterator[None]:
 
 @contextlib.contextmanager
 def _choice_serial() -> Iterator[None]:
-    """Before the local choice's serial parts ran on every core: the blend in numpy a sub-frame at a time, the
-    weights a frame at a time and oriented nc's check of its guide a band at a time, on one thread (the same bits;
-    each band's copy of the fallback stays on the threads)."""
+    """Before the local choice's serial parts ran on every core: the blend in numpy a sub-frame at a time and the
+    weights a frame at a time on one thread, and oriented nc's guide checked a band at a time by a float64 sum
+    (the same bits; each band's copy of the fallback stays on the threads)."""
     from flexvox_core.motion import local_choice
     from flexvox_core.reconstruct import oriented_nc
 
@@ -444,14 +444,21 @@ def _choice_serial() -> Iterator[None]:
         for i in range(count):
             fn(i)
 
-    kept = oriented_nc.for_each
-
-    def checks_serial(fn, count):
-        (serial if fn.__name__ == "finite" else kept)(fn, count)
+    def not_finite(guide, s0, s1):  # a band at a time, one pass (no boolean volume), on one thread
+        if np.isfinite(guide[s0:s1].sum(dtype=np.float64)):
+            return np.zeros(s1 - s0, bool)
+        return np.array([not np.isfinite(guide[s]).all() for s in range(s0, s1)])
 
     with mock.patch.object(local_choice, "blend", local_choice.blend_numpy), \
             mock.patch.object(local_choice, "for_each", serial), \
-            mock.patch.object(oriented_nc, "for_each", checks_serial):
+            mock.patch.object(oriented_nc, "_not_finite", not_finite):
+        yield
+
+
+@contextlib.contextmanager
+def _choice_before() -> Iterator[None]:
+    """The local choice before this round's changes to it: ``choice-whole-rows`` and ``choice-serial`` together."""
+    with _choice_whole_rows(), _choice_serial():
         yield
 
 
@@ -473,6 +480,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "vectors-by-numpy": _vectors_by_numpy,
     "choice-whole-rows": _choice_whole_rows,
     "choice-serial": _choice_serial,
+    "choice-before": _choice_before,
 }
 """The code as it was before each change (``kept``: as it is), or a change tried and not kept, for ``--ab``."""
 

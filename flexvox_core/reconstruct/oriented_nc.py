@@ -151,16 +151,7 @@ def check_inputs(frames, code, guide, where, fallback, missing, subframes=None):
         raise ValueError(f"`guide` must be the (S, H, W) = {(S, H, W)} video whose edges orient the kernel; "
                          f"got {g.shape}")
     s0, s1 = _check_subframes(subframes, S)
-    bad = np.zeros(s1 - s0, bool)
-
-    def finite(i):  # a sub-frame at a time (no boolean plane), the sub-frames side by side
-        plane = g[s0 + i]
-        if plane.dtype == np.float16:  # NaN and ±inf have every exponent bit set: 3x faster than a float64 sum
-            bad[i] = (plane.view(np.uint16) & 0x7C00).max() == 0x7C00
-        else:
-            bad[i] = not np.isfinite(plane.sum(dtype=np.float64))
-
-    for_each(finite, s1 - s0)
+    bad = _not_finite(g, s0, s1)
     if bad.any():
         raise ValueError(f"`guide` sub-frame {s0 + int(np.argmax(bad))} holds NaN or infinite values")
     if where is not None:
@@ -172,6 +163,22 @@ def check_inputs(frames, code, guide, where, fallback, missing, subframes=None):
     if fallback is not None and np.shape(fallback) != (S, H, W):
         raise ValueError(f"`fallback` must be an (S, H, W) = {(S, H, W)} array; got {np.shape(fallback)}")
     return f, c, g, where, as_missing(missing, F)
+
+
+def _not_finite(guide: np.ndarray, s0: int, s1: int) -> np.ndarray:
+    """(s1 − s0,) bool: which of the guide's sub-frames s0 to s1 hold a NaN or an infinite value (no boolean
+    plane made; the sub-frames side by side)."""
+    bad = np.zeros(s1 - s0, bool)
+
+    def finite(i):
+        plane = guide[s0 + i]
+        if plane.dtype == np.float16:  # NaN and ±inf have every exponent bit set: 3x faster than a float64 sum
+            bad[i] = (plane.view(np.uint16) & 0x7C00).max() == 0x7C00
+        else:
+            bad[i] = not np.isfinite(plane.sum(dtype=np.float64))
+
+    for_each(finite, s1 - s0)
+    return bad
 
 
 def _check_subframes(subframes, S: int) -> tuple[int, int]:

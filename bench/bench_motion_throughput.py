@@ -434,23 +434,23 @@ def _choice_whole_rows() -> Iterator[None]:
 
 @contextlib.contextmanager
 def _choice_serial() -> Iterator[None]:
-    """Before the local choice's serial parts ran on every core: the blend in numpy a sub-frame at a time and the
-    weights a frame at a time on one thread, and oriented nc's guide checked a band at a time by a float64 sum
-    (the same bits; each band's copy of the fallback stays on the threads)."""
+    """Before the local choice's serial parts were compiled and ran on every core: the blend and the weights in numpy
+    on one thread (a sub-frame, a frame at a time), and oriented nc's guide checked a band at a time by a float64
+    sum (the same bits; each band's copy of the fallback stays on the threads)."""
     from flexvox_core.motion import local_choice
     from flexvox_core.reconstruct import oriented_nc
-
-    def serial(fn, count):
-        for i in range(count):
-            fn(i)
 
     def not_finite(guide, s0, s1):  # a band at a time, one pass (no boolean volume), on one thread
         if np.isfinite(guide[s0:s1].sum(dtype=np.float64)):
             return np.zeros(s1 - s0, bool)
         return np.array([not np.isfinite(guide[s]).all() for s in range(s0, s1)])
 
+    def weights(loo_a, loo_b, samples):
+        return local_choice.local_weights_numpy(loo_a, loo_b, samples, power=local_choice.POWER,
+                                                sigma=local_choice.pooling_sigma(*np.shape(samples)[1:]))
+
     with mock.patch.object(local_choice, "blend", local_choice.blend_numpy), \
-            mock.patch.object(local_choice, "for_each", serial), \
+            mock.patch.object(local_choice, "local_weights", weights), \
             mock.patch.object(oriented_nc, "_not_finite", not_finite):
         yield
 

@@ -78,12 +78,32 @@ def local_weights(loo_a: np.ndarray, loo_b: np.ndarray, samples: np.ndarray, *, 
         sigma = pooling_sigma(*a.shape[1:])
     if not (np.isfinite(sigma) and sigma > 0) or isinstance(power, bool) or not isinstance(power, int) or power < 1:
         raise ValueError(f"`sigma` must be > 0 and `power` a whole number >= 1; got {sigma!r}, {power!r}")
+    if power != 2:
+        return local_weights_numpy(a, b, y, sigma=sigma, power=power)
+    from flexvox_core.motion.local_choice_kernel import squared_errors, weight_of_a
+
     out = np.ones(a.shape, np.float32)
 
-    def frame(f):  # a frame's weights read its own planes alone: the frames run side by side, the same bits
+    def frame(f):  # a frame's weights read its own planes alone: the frames run side by side
+        ea = np.empty(a.shape[1:], np.float32)
+        eb = np.empty(a.shape[1:], np.float32)
+        if squared_errors(a[f], b[f], y[f], ea, eb):
+            weight_of_a(_pooled(ea, sigma), _pooled(eb, sigma), out[f])
+
+    for_each(frame, a.shape[0])
+    return out
+
+
+def local_weights_numpy(loo_a: np.ndarray, loo_b: np.ndarray, samples: np.ndarray, *, sigma: float,
+                        power: int) -> np.ndarray:
+    """:func:`local_weights` in numpy, a frame at a time on one thread, at any power (its compiled form's
+    reference, which runs power 2; arguments checked there)."""
+    a, b, y = (np.asarray(v, np.float32) for v in (loo_a, loo_b, samples))
+    out = np.ones(a.shape, np.float32)
+    for f in range(a.shape[0]):
         valid = np.isfinite(a[f]) & np.isfinite(b[f])
         if not valid.any():
-            return
+            continue
         # The mean error over the valid pixels near each one is the blurred error over the blurred
         # count; the count cancels in the ratio, so only the errors are blurred.
         ea = _pooled(np.where(valid, (a[f] - y[f]) ** 2, 0).astype(np.float32), sigma).astype(np.float64) ** power
@@ -91,8 +111,6 @@ def local_weights(loo_a: np.ndarray, loo_b: np.ndarray, samples: np.ndarray, *, 
         total = ea + eb
         ok = total > 1e-30
         out[f] = np.where(ok, eb / np.where(ok, total, 1.0), 1.0)
-
-    for_each(frame, a.shape[0])
     return out
 
 

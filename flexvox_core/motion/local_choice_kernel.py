@@ -22,3 +22,42 @@ def blend_plane(video, other, weights, where):
             if where[y, x]:
                 v = video[y, x]
                 video[y, x] = v + (one - weights[y, x]) * (other[y, x] - v)
+
+
+@numba.njit(nogil=True, cache=True)
+def squared_errors(a, b, y, ea, eb):
+    """Where both estimates ``a`` and ``b`` (H, W) are finite, their squared errors (a − y)² into ``ea`` and
+    (b − y)² into ``eb`` (in the inputs' type), 0 elsewhere; returns whether any pixel had both. The first half
+    of :func:`~flexvox_core.motion.local_choice.local_weights_numpy`'s frame."""
+    H, W = a.shape
+    found = False
+    for i in range(H):
+        for j in range(W):
+            va = a[i, j]
+            vb = b[i, j]
+            if np.isfinite(va) and np.isfinite(vb):
+                da = va - y[i, j]
+                db = vb - y[i, j]
+                ea[i, j] = da * da
+                eb[i, j] = db * db
+                found = True
+            else:
+                ea[i, j] = 0
+                eb[i, j] = 0
+    return found
+
+
+@numba.njit(nogil=True, cache=True)
+def weight_of_a(pa, pb, out):
+    """``out`` ← E_b² / (E_a² + E_b²) from the pooled errors ``pa``, ``pb`` (H, W), squared in float64; 1 where
+    that sum is at most 1e-30. The second half of :func:`~flexvox_core.motion.local_choice.local_weights_numpy`'s
+    frame at its default power, 2."""
+    H, W = pa.shape
+    for i in range(H):
+        for j in range(W):
+            ea = np.float64(pa[i, j])
+            eb = np.float64(pb[i, j])
+            ea = ea * ea
+            eb = eb * eb
+            total = ea + eb
+            out[i, j] = eb / total if total > 1e-30 else 1.0

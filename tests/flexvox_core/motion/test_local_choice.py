@@ -267,20 +267,30 @@ def test_the_compiled_blend_gives_numpys_bits_on_any_number_of_threads(monkeypat
         blend(video, other, weights[:1], where, K)
 
 
-@pytest.mark.parametrize("sigma", [3.0, 12.5])  # a full-size blur and a coarse grid's
-def test_local_weights_give_the_same_bits_on_one_thread_and_on_two(monkeypatch, sigma):
+@pytest.mark.parametrize(("sigma", "shape"), [(3.0, (3, 41, 57)), (12.5, (4, 37, 50)), (None, (3, 96, 128))])
+def test_the_compiled_weights_give_numpys_bits_on_any_number_of_threads(monkeypatch, sigma, shape):
+    """Both pooling paths (a full-size blur, a coarse grid's), NaN in either estimate, a frame without a pixel
+    that both estimate (weight 1), a frame both predict exactly (weight 1), odd sizes."""
     import flexvox_core.threads
 
+    from flexvox_core.motion.local_choice import local_weights_numpy, pooling_sigma
+
     rng = np.random.default_rng(5)
-    F, H, W = 3, 41, 57
-    y = rng.uniform(0, 1, (F, H, W)).astype(np.float32)
+    F, H, W = shape
+    y = rng.uniform(0, 1, shape).astype(np.float32)
     a = (y + rng.normal(0, 0.1, y.shape)).astype(np.float32)
-    b = (y + rng.normal(0, 0.1, y.shape)).astype(np.float32)
+    b = (y + rng.normal(0, 0.05, y.shape) * (np.arange(W) > W // 2)).astype(np.float32)  # b better on the left
     a[rng.random(a.shape) < 0.3] = np.nan
-    b[2] = np.nan  # a frame without a pooled error: weight 1
-    got = []
+    b[rng.random(b.shape) < 0.1] = np.nan
+    b[F - 1] = np.nan  # no pixel both estimate
+    a[0], b[0] = y[0], y[0]  # both exact
+    want = local_weights_numpy(a, b, y, sigma=pooling_sigma(H, W) if sigma is None else sigma, power=2)
     for threads in (1, 2):
         monkeypatch.setattr(flexvox_core.threads, "workers", lambda n=threads: n)
-        got.append(local_weights(a, b, y, sigma=sigma))
-    np.testing.assert_array_equal(got[0].view(np.uint32), got[1].view(np.uint32))
-    assert (got[1][2] == 1).all() and (got[1][:2] < 1).any()
+        got = local_weights(a, b, y, sigma=sigma)
+        np.testing.assert_array_equal(got.view(np.uint32), want.view(np.uint32))
+    assert (want[0] == 1).all() and (want[F - 1] == 1).all() and (want[1:F - 1] < 1).any()
+    assert ((want[1:F - 1] > 0) & (want[1:F - 1] < 1)).any()
+    # Another power runs the numpy form itself.
+    np.testing.assert_array_equal(local_weights(a, b, y, sigma=3.0, power=3),
+                                  local_weights_numpy(a, b, y, sigma=3.0, power=3))

@@ -7,12 +7,16 @@ and a fourth for the weights' complement, and wrote the whole plane through ``co
 
 from __future__ import annotations
 
+from typing import Any
+
 import numba
 import numpy as np
+import numpy.typing as npt
 
 
 @numba.njit(nogil=True, cache=True)
-def blend_plane(video, other, weights, where):
+def blend_plane(video: npt.NDArray[Any], other: npt.NDArray[Any], weights: npt.NDArray[Any],
+                where: npt.NDArray[np.bool_]) -> None:
     """``video ← video + (1 − w)·(other − video)`` at the voxels ``where`` (H, W), in place: ``w`` from
     ``weights`` (H, W), in the arrays' own types (float32 stays float32, as numpy computes it)."""
     H, W = video.shape
@@ -25,7 +29,8 @@ def blend_plane(video, other, weights, where):
 
 
 @numba.njit(nogil=True, cache=True)
-def squared_errors(a, b, y, ea, eb):
+def squared_errors(a: npt.NDArray[np.float32], b: npt.NDArray[np.float32], y: npt.NDArray[np.float32],
+                   ea: npt.NDArray[np.float32], eb: npt.NDArray[np.float32]) -> bool:
     """Where both estimates ``a`` and ``b`` (H, W) are finite, their squared errors (a − y)² into ``ea`` and
     (b − y)² into ``eb`` (in the inputs' type), 0 elsewhere; returns whether any pixel had both. The first half
     of :func:`~flexvox_core.motion.local_choice.local_weights_numpy`'s frame."""
@@ -48,7 +53,7 @@ def squared_errors(a, b, y, ea, eb):
 
 
 @numba.njit(nogil=True, cache=True)
-def weight_of_a(pa, pb, out):
+def weight_of_a(pa: npt.NDArray[np.float32], pb: npt.NDArray[np.float32], out: npt.NDArray[np.float32]) -> None:
     """``out`` ← E_b² / (E_a² + E_b²) from the pooled errors ``pa``, ``pb`` (H, W), squared in float64; 1 where
     that sum is at most 1e-30. The second half of :func:`~flexvox_core.motion.local_choice.local_weights_numpy`'s
     frame at its default power, 2."""

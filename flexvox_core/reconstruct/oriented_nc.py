@@ -25,8 +25,8 @@ estimate is a normalized convolution of the samples, within their range, and kee
 
 The sums run in a compiled kernel (:mod:`~flexvox_core.reconstruct.oriented_nc_kernel`), one block of a
 sub-frame per call (:data:`BLOCK_ROWS`: the structure tensor and the time blur are made around the voxels asked
-for, not over the whole picture), at the voxels asked for; the tests compare it with a plain numpy form that computes each kernel
-weight from the formula above (``tests/flexvox_core/reconstruct/oriented_reference.py``).
+for, not over the whole picture), at the voxels asked for; the tests compare it with a plain numpy form that
+computes each kernel weight from the formula above (``tests/flexvox_core/reconstruct/oriented_reference.py``).
 
 References
 ----------

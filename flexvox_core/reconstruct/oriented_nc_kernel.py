@@ -74,13 +74,13 @@ def tap_lists(bank: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 @numba.njit(nogil=True, cache=True)
 def oriented_plane(frames, order, weight, first, slot, frame, present, j, select, offsets, weights, counts, h,
                    floor, y0, y1, x0, x1, vt, mt, out, loo, low, high, tan1):
-    """Rows [y0, y1) and columns [x0, x1) of sub-frame s (its ``slot`` = s mod K, ``frame`` = s div K): at each ``select``ed voxel,
-    the kernel-weighted mean of the time-blurred samples into ``out`` (H, W) — the sample itself at the
-    pixels of this slot in a ``present`` frame, whose leave-one-out estimate goes to ``loo[frame]`` —, left
-    as it is where the weights sum to at most ``floor``. ``order`` (m, W) repeats every m rows. The kernels
-    are given as tap lists (:func:`tap_lists`) reaching ``h`` px; ``vt`` and ``mt`` (H, W) float64 are
-    scratch planes for the time-blurred values and weights; ``low``, ``high``, ``tan1``: the bank's rounding
-    (:func:`_bank_index`). The planes are read and written within h px of the block alone (``j`` within it)."""
+    """Rows [y0, y1) and columns [x0, x1) of sub-frame s (its ``slot`` = s mod K, ``frame`` = s div K): at each
+    ``select``ed voxel, the kernel-weighted mean of the time-blurred samples into ``out`` (H, W) — the sample itself
+    at the pixels of this slot in a ``present`` frame, whose leave-one-out estimate goes to ``loo[frame]`` —, left as
+    it is where the weights sum to at most ``floor``. ``order`` (m, W) repeats every m rows. The kernels are given as
+    tap lists (:func:`tap_lists`) reaching ``h`` px; ``vt`` and ``mt`` (H, W) float64 are scratch planes for the
+    time-blurred values and weights; ``low``, ``high``, ``tan1``: the bank's rounding (:func:`_bank_index`). The
+    planes are read and written within h px of the block alone (``j`` within it)."""
     F, H, W = frames.shape
     m = order.shape[0]
     B = weight.shape[1]

@@ -1,8 +1,11 @@
-"""Motion-aware's local choice blended in one pass a sub-frame, compiled (numba): no whole-plane temporaries.
+"""Motion-aware's local choice, compiled (numba): the blend and the weights' per-pixel arithmetic, one pass a plane,
+no whole-plane temporaries.
 
-:func:`blend_plane` is :func:`~flexvox_core.motion.local_choice.blend_numpy` on one sub-frame, the same operations
-in the same types at each voxel (the tests compare them bit for bit); numpy made three temporary planes a sub-frame
-and a fourth for the weights' complement, and wrote the whole plane through ``copyto``.
+Each is its numpy form's operations in the same types at each pixel, so the same bits (the tests compare them):
+:func:`blend_plane` is :func:`~flexvox_core.motion.local_choice.blend_numpy` on one sub-frame (numpy made four
+temporary planes a sub-frame and wrote the whole plane through ``copyto``); :func:`squared_errors` and
+:func:`weight_of_a` are the two halves of :func:`~flexvox_core.motion.local_choice.local_weights_numpy`'s frame
+around the pooling (numpy made some twenty passes a frame, float64 planes among them).
 """
 
 from __future__ import annotations

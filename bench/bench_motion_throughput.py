@@ -418,6 +418,50 @@ def _vectors_by_numpy() -> Iterator[None]:
         estimate.scaled_vectors = kept
 
 
+@contextlib.contextmanager
+def _choice_whole_rows() -> Iterator[None]:
+    """Before oriented nc made each sub-frame's structure tensor and time blur over bands of rows and the columns
+    holding wanted voxels: one block, from the first wanted row to the last, every column (the same bits)."""
+    from flexvox_core.reconstruct import oriented_nc
+
+    def whole_rows(wanted):
+        rows = np.flatnonzero(wanted.any(axis=1))
+        return [(int(rows[0]), int(rows[-1]) + 1, 0, wanted.shape[1])] if len(rows) else []
+
+    with mock.patch.object(oriented_nc, "_blocks", whole_rows):
+        yield
+
+
+@contextlib.contextmanager
+def _choice_serial() -> Iterator[None]:
+    """Before the local choice's serial parts were compiled and ran on every core: the blend and the weights in numpy
+    on one thread (a sub-frame, a frame at a time), and oriented nc's guide checked a band at a time by a float64
+    sum (the same bits; each band's copy of the fallback stays on the threads)."""
+    from flexvox_core.motion import local_choice
+    from flexvox_core.reconstruct import oriented_nc
+
+    def not_finite(guide, s0, s1):  # a band at a time, one pass (no boolean volume), on one thread
+        if np.isfinite(guide[s0:s1].sum(dtype=np.float64)):
+            return np.zeros(s1 - s0, bool)
+        return np.array([not np.isfinite(guide[s]).all() for s in range(s0, s1)])
+
+    def weights(loo_a, loo_b, samples):
+        return local_choice.local_weights_numpy(loo_a, loo_b, samples, power=local_choice.POWER,
+                                                sigma=local_choice.pooling_sigma(*np.shape(samples)[1:]))
+
+    with mock.patch.object(local_choice, "blend", local_choice.blend_numpy), \
+            mock.patch.object(local_choice, "local_weights", weights), \
+            mock.patch.object(oriented_nc, "_not_finite", not_finite):
+        yield
+
+
+@contextlib.contextmanager
+def _choice_before() -> Iterator[None]:
+    """The local choice before this round's changes to it: ``choice-whole-rows`` and ``choice-serial`` together."""
+    with _choice_whole_rows(), _choice_serial():
+        yield
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
@@ -434,6 +478,9 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "classes-numpy": _classes_numpy,
     "detector-finest-2": _detector_finest_2,
     "vectors-by-numpy": _vectors_by_numpy,
+    "choice-whole-rows": _choice_whole_rows,
+    "choice-serial": _choice_serial,
+    "choice-before": _choice_before,
 }
 """The code as it was before each change (``kept``: as it is), or a change tried and not kept, for ``--ab``."""
 

@@ -78,6 +78,27 @@ def local_weights(loo_a: np.ndarray, loo_b: np.ndarray, samples: np.ndarray, *, 
         sigma = pooling_sigma(*a.shape[1:])
     if not (np.isfinite(sigma) and sigma > 0) or isinstance(power, bool) or not isinstance(power, int) or power < 1:
         raise ValueError(f"`sigma` must be > 0 and `power` a whole number >= 1; got {sigma!r}, {power!r}")
+    if power != 2:
+        return local_weights_numpy(a, b, y, sigma=sigma, power=power)
+    from flexvox_core.motion.local_choice_kernel import squared_errors, weight_of_a
+
+    out = np.ones(a.shape, np.float32)
+
+    def frame(f):  # a frame's weights read its own planes alone: the frames run side by side
+        ea = np.empty(a.shape[1:], np.float32)
+        eb = np.empty(a.shape[1:], np.float32)
+        if squared_errors(a[f], b[f], y[f], ea, eb):
+            weight_of_a(_pooled(ea, sigma), _pooled(eb, sigma), out[f])
+
+    for_each(frame, a.shape[0])
+    return out
+
+
+def local_weights_numpy(loo_a: np.ndarray, loo_b: np.ndarray, samples: np.ndarray, *, sigma: float,
+                        power: int) -> np.ndarray:
+    """:func:`local_weights` in numpy, a frame at a time on one thread, at any power (its compiled form's
+    reference, which runs power 2; arguments checked there)."""
+    a, b, y = (np.asarray(v, np.float32) for v in (loo_a, loo_b, samples))
     out = np.ones(a.shape, np.float32)
     for f in range(a.shape[0]):
         valid = np.isfinite(a[f]) & np.isfinite(b[f])
@@ -190,13 +211,31 @@ def _pooled(plane: np.ndarray, sigma: float) -> np.ndarray:
     return cv2.resize(small, (w, h), interpolation=cv2.INTER_LINEAR)
 
 
-def blend(video: np.ndarray, other: np.ndarray, weights: np.ndarray, where: np.ndarray, K: int) -> None:
-    """``video ← w·video + (1 − w)·other`` at the voxels ``where`` (S, H, W), in place; ``weights`` (F, H, W)
-    holds frame f's weight for its K sub-frames."""
+def _check_blend(video: np.ndarray, other: np.ndarray, weights: np.ndarray, where: np.ndarray, K: int) -> None:
     S = video.shape[0]
     if other.shape != video.shape or where.shape != video.shape or weights.shape[0] * K != S:
         raise ValueError(f"`video` {video.shape}, `other` {other.shape}, `where` {where.shape} and `weights` "
                          f"{weights.shape} at K = {K} do not match")
+
+
+def blend(video: np.ndarray, other: np.ndarray, weights: np.ndarray, where: np.ndarray, K: int) -> None:
+    """``video ← w·video + (1 − w)·other`` at the voxels ``where`` (S, H, W), in place; ``weights`` (F, H, W)
+    holds frame f's weight for its K sub-frames. Compiled, a sub-frame per task on every core
+    (:func:`~flexvox_core.motion.local_choice_kernel.blend_plane`): :func:`blend_numpy`'s bits."""
+    from flexvox_core.motion.local_choice_kernel import blend_plane
+
+    _check_blend(video, other, weights, where, K)
+
+    def one(s):
+        blend_plane(video[s], other[s], weights[s // K], np.asarray(where[s], bool))
+
+    for_each(one, video.shape[0])
+
+
+def blend_numpy(video: np.ndarray, other: np.ndarray, weights: np.ndarray, where: np.ndarray, K: int) -> None:
+    """:func:`blend` in numpy, a sub-frame at a time on one thread (the compiled form's reference)."""
+    _check_blend(video, other, weights, where, K)
+    S = video.shape[0]
     for s in range(S):
         if not where[s].any():
             continue

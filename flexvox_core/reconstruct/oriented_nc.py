@@ -23,9 +23,10 @@ kernels cut at 4 σ along their own axes (9×9 px). It serves as motion-aware's 
 (docs/reconstruction.md, "The local choice"). The guide sets the direction only; it is not averaged in: the
 estimate is a normalized convolution of the samples, within their range, and keeps them.
 
-The sums run in a compiled kernel (:mod:`~flexvox_core.reconstruct.oriented_nc_kernel`), one sub-frame
-per call, at the voxels asked for; the tests compare it with a plain numpy form that computes each kernel
-weight from the formula above (``tests/flexvox_core/reconstruct/oriented_reference.py``).
+The sums run in a compiled kernel (:mod:`~flexvox_core.reconstruct.oriented_nc_kernel`), one block of a
+sub-frame per call (:data:`BLOCK_ROWS`: the structure tensor and the time blur are made around the voxels asked
+for, not over the whole picture), at the voxels asked for; the tests compare it with a plain numpy form that
+computes each kernel weight from the formula above (``tests/flexvox_core/reconstruct/oriented_reference.py``).
 
 References
 ----------
@@ -150,9 +151,9 @@ def check_inputs(frames, code, guide, where, fallback, missing, subframes=None):
         raise ValueError(f"`guide` must be the (S, H, W) = {(S, H, W)} video whose edges orient the kernel; "
                          f"got {g.shape}")
     s0, s1 = _check_subframes(subframes, S)
-    if not np.isfinite(g[s0:s1].sum(dtype=np.float64)):  # one pass, no boolean volume
-        bad = next(s for s in range(s0, s1) if not np.isfinite(g[s]).all())
-        raise ValueError(f"`guide` sub-frame {bad} holds NaN or infinite values")
+    bad = _not_finite(g, s0, s1)
+    if bad.any():
+        raise ValueError(f"`guide` sub-frame {s0 + int(np.argmax(bad))} holds NaN or infinite values")
     if where is not None:
         if not (isinstance(where, np.ndarray) or hasattr(where, "band")):
             where = np.asarray(where)
@@ -162,6 +163,22 @@ def check_inputs(frames, code, guide, where, fallback, missing, subframes=None):
     if fallback is not None and np.shape(fallback) != (S, H, W):
         raise ValueError(f"`fallback` must be an (S, H, W) = {(S, H, W)} array; got {np.shape(fallback)}")
     return f, c, g, where, as_missing(missing, F)
+
+
+def _not_finite(guide: np.ndarray, s0: int, s1: int) -> np.ndarray:
+    """(s1 − s0,) bool: which of the guide's sub-frames s0 to s1 hold a NaN or an infinite value (no boolean
+    plane made; the sub-frames side by side)."""
+    bad = np.zeros(s1 - s0, bool)
+
+    def finite(i):
+        plane = guide[s0 + i]
+        if plane.dtype == np.float16:  # NaN and ±inf have every exponent bit set: 3x faster than a float64 sum
+            bad[i] = (plane.view(np.uint16) & 0x7C00).max() == 0x7C00
+        else:
+            bad[i] = not np.isfinite(plane.sum(dtype=np.float64))
+
+    for_each(finite, s1 - s0)
+    return bad
 
 
 def _check_subframes(subframes, S: int) -> tuple[int, int]:
@@ -175,6 +192,51 @@ def _check_subframes(subframes, S: int) -> tuple[int, int]:
     if not ok:
         raise ValueError(f"`subframes` must be (s0, s1), whole numbers with 0 <= s0 < s1 <= {S}; got {subframes!r}")
     return s0, s1
+
+
+BLOCK_ROWS = 64
+"""A sub-frame's wanted voxels are estimated a band of this many rows at a time, each band over the columns
+from its first wanted voxel to its last: the structure tensor and the time blur are made there alone (and
+:data:`_PAD` px around), not over whole rows."""
+ALIGN = 32
+"""A block's structure tensor is made over columns from a multiple of this to one (or to the picture's right
+edge): OpenCV's filters then take each pixel by the same code path as on the whole picture, so the tensor's
+bits are the whole picture's (its vector loops end elsewhere on an unaligned span, which changes the last
+few pixels' rounding)."""
+
+
+def _blocks(wanted: np.ndarray) -> list[tuple[int, int, int, int]]:
+    """(y0, y1, x0, x1) of each band of :data:`BLOCK_ROWS` rows of ``wanted`` (H, W) bool that holds a wanted
+    voxel: its first and last wanted rows and columns (ends excluded); successive bands over the same aligned
+    columns (:func:`_aligned_columns`) are one block."""
+    W = wanted.shape[1]
+    rows = wanted.any(axis=1)
+    found = np.flatnonzero(rows)
+    out: list[tuple[int, int, int, int]] = []
+    if not len(found):
+        return out
+    for r0 in range(int(found[0]) // BLOCK_ROWS * BLOCK_ROWS, int(found[-1]) + 1, BLOCK_ROWS):
+        ys = np.flatnonzero(rows[r0:r0 + BLOCK_ROWS])
+        if not len(ys):
+            continue
+        y0, y1 = r0 + int(ys[0]), r0 + int(ys[-1]) + 1
+        xs = np.flatnonzero(wanted[y0:y1].any(axis=0))
+        x0, x1 = int(xs[0]), int(xs[-1]) + 1
+        if out and _aligned_columns(*out[-1][2:], W) == _aligned_columns(x0, x1, W):
+            # the same columns as the band above: one block (no rows of tensor made twice at their seam)
+            p0, _, p2, p3 = out[-1]
+            out[-1] = (p0, y1, min(p2, x0), max(p3, x1))
+        else:
+            out.append((y0, y1, x0, x1))
+    return out
+
+
+def _aligned_columns(x0: int, x1: int, W: int) -> tuple[int, int]:
+    """The columns a block's structure tensor is made over: [x0, x1) and :data:`_PAD` px around, widened to
+    multiples of :data:`ALIGN` (or the picture's edges)."""
+    a0 = max(0, x0 - _PAD) // ALIGN * ALIGN
+    a1 = min(W, -(-(x1 + _PAD) // ALIGN) * ALIGN)
+    return a0, a1
 
 
 def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None, out=None, subframes=None, loo=None,
@@ -243,12 +305,8 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
             raise ValueError(f"`out` must be a writable C-contiguous float32 array of shape {(n, H, W)} that shares "
                              "no memory with the other inputs")
         video = out
-        if fall is None:
-            video.fill(np.nan)
-        else:
-            np.copyto(video, fall, casting="unsafe")
     else:
-        video = np.full((n, H, W), np.nan, np.float32) if fall is None else np.array(fall, np.float32)
+        video = np.empty((n, H, W), np.float32)
     if loo is None:
         loo = np.full((F, H, W), np.nan, np.float32)
     elif (not isinstance(loo, np.ndarray) or loo.shape != (F, H, W) or loo.dtype != np.float32
@@ -266,21 +324,26 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
 
     def one(i):
         s = s0 + i
+        if fall is None:  # each sub-frame starts as the fallback, on the thread that estimates it
+            video[i].fill(np.nan)
+        else:
+            np.copyto(video[i], fall[i], casting="unsafe")
         wanted = everywhere if chosen is None else chosen[i]
-        rows = np.flatnonzero(wanted.any(axis=1))
-        if not len(rows):
+        blocks = _blocks(wanted)
+        if not blocks:
             return
-        y0, y1 = int(rows[0]), int(rows[-1]) + 1
         with lock:
             planes = pool.pop() if pool else None
         if planes is None or planes[0].shape != (3, H, W):
             planes = (np.zeros((3, H, W), np.float32), np.empty((H, W)), np.empty((H, W)))
         j, vt, mt = planes
-        b0, b1 = max(0, y0 - _PAD), min(H, y1 + _PAD)
-        structure(np.asarray(g[s, b0:b1], np.float32), out=j[:, b0:b1])
-        oriented_plane(samples, order, weight[s], int(first[s]), s % K, s // K, bool(present_f[s // K]),
-                       j, wanted, offsets, weights, counts, bank.shape[1] // 2, floor, y0, y1, vt, mt, video[i],
-                       loo, _LOW, _HIGH, _TAN)
+        for y0, y1, x0, x1 in blocks:
+            b0, b1 = max(0, y0 - _PAD), min(H, y1 + _PAD)
+            a0, a1 = _aligned_columns(x0, x1, W)
+            structure(np.asarray(g[s, b0:b1, a0:a1], np.float32), out=j[:, b0:b1, a0:a1])
+            oriented_plane(samples, order, weight[s], int(first[s]), s % K, s // K, bool(present_f[s // K]),
+                           j, wanted, offsets, weights, counts, bank.shape[1] // 2, floor, y0, y1, x0, x1, vt, mt,
+                           video[i], loo, _LOW, _HIGH, _TAN)
         with lock:
             pool.append(planes)
 

@@ -73,22 +73,23 @@ def tap_lists(bank: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 @numba.njit(nogil=True, cache=True)
 def oriented_plane(frames, order, weight, first, slot, frame, present, j, select, offsets, weights, counts, h,
-                   floor, y0, y1, vt, mt, out, loo, low, high, tan1):
-    """Rows [y0, y1) of sub-frame s (its ``slot`` = s mod K, ``frame`` = s div K): at each ``select``ed voxel,
-    the kernel-weighted mean of the time-blurred samples into ``out`` (H, W) — the sample itself at the
-    pixels of this slot in a ``present`` frame, whose leave-one-out estimate goes to ``loo[frame]`` —, left
-    as it is where the weights sum to at most ``floor``. ``order`` (m, W) repeats every m rows. The kernels
-    are given as tap lists (:func:`tap_lists`) reaching ``h`` px; ``vt`` and ``mt`` (H, W) float64 are
-    scratch planes for the time-blurred values and weights; ``low``, ``high``, ``tan1``: the bank's rounding
-    (:func:`_bank_index`)."""
+                   floor, y0, y1, x0, x1, vt, mt, out, loo, low, high, tan1):
+    """Rows [y0, y1) and columns [x0, x1) of sub-frame s (its ``slot`` = s mod K, ``frame`` = s div K): at each
+    ``select``ed voxel, the kernel-weighted mean of the time-blurred samples into ``out`` (H, W) — the sample itself
+    at the pixels of this slot in a ``present`` frame, whose leave-one-out estimate goes to ``loo[frame]`` —, left as
+    it is where the weights sum to at most ``floor``. ``order`` (m, W) repeats every m rows. The kernels are given as
+    tap lists (:func:`tap_lists`) reaching ``h`` px; ``vt`` and ``mt`` (H, W) float64 are scratch planes for the
+    time-blurred values and weights; ``low``, ``high``, ``tan1``: the bank's rounding (:func:`_bank_index`). The
+    planes are read and written within h px of the block alone (``j`` within it)."""
     F, H, W = frames.shape
     m = order.shape[0]
     B = weight.shape[1]
-    # The rows the kernels read (a reflection at the picture's edge stays within them).
+    # The rows and columns the kernels read (a reflection at the picture's edge stays within them).
     lo, hi = max(0, y0 - h), min(H, y1 + h)
+    left, right = max(0, x0 - h), min(W, x1 + h)
     for y in range(lo, hi):
         ym = y % m
-        for x in range(W):
+        for x in range(left, right):
             k = order[ym, x]
             acc = 0.0
             wsum = 0.0
@@ -105,7 +106,7 @@ def oriented_plane(frames, order, weight, first, slot, frame, present, j, select
     mflat = mt.reshape(H * W)
     for y in range(y0, y1):
         ym = y % m
-        for x in range(W):
+        for x in range(x0, x1):
             if not select[y, x]:
                 continue
             kb = _bank_index(float(j[0, y, x]), float(j[1, y, x]), float(j[2, y, x]), low, high, tan1)

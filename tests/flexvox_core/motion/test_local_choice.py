@@ -237,3 +237,60 @@ def test_a_single_frame_of_a_still_subject_takes_less_of_the_candidate():
     chosen = psnr(truth, motion_aware(frames, code).video)
     gather = psnr(truth, motion_aware(frames, code, local_choice=False).video)
     assert gather - 0.7 < chosen < gather
+
+
+@pytest.mark.parametrize(("K", "F", "H", "W", "dtype"), [(8, 3, 13, 17, np.float32), (16, 2, 7, 31, np.float32),
+                                                         (4, 2, 5, 6, np.float64)])
+def test_the_compiled_blend_gives_numpys_bits_on_any_number_of_threads(monkeypatch, K, F, H, W, dtype):
+    import flexvox_core.threads
+
+    from flexvox_core.motion.local_choice import blend_numpy
+
+    rng = np.random.default_rng(K * H)
+    S = F * K
+    video = rng.uniform(0, 1, (S, H, W)).astype(np.float32)
+    other = rng.uniform(0, 1, (S, H, W)).astype(dtype)
+    same = rng.random(video.shape) < 0.1
+    other[same] = video[same]  # a sample both hold: it stays exactly
+    weights = rng.uniform(0, 1, (F, H, W)).astype(dtype)
+    where = rng.random(video.shape) < 0.6
+    where[1] = False  # a sub-frame with nothing to blend
+    want = video.copy()
+    blend_numpy(want, other, weights, where, K)
+    for threads in (1, 2):
+        monkeypatch.setattr(flexvox_core.threads, "workers", lambda n=threads: n)
+        got = video.copy()
+        blend(got, other, weights, where, K)
+        np.testing.assert_array_equal(got.view(np.uint32), want.view(np.uint32))
+    assert (want != video).any() and (want[same] == video[same]).all() and (want[~where] == video[~where]).all()
+    with pytest.raises(ValueError, match=r"`video` \(\d+, \d+, \d+\), `other` .* do not match"):
+        blend(video, other, weights[:1], where, K)
+
+
+@pytest.mark.parametrize(("sigma", "shape"), [(3.0, (3, 41, 57)), (12.5, (4, 37, 50)), (None, (3, 96, 128))])
+def test_the_compiled_weights_give_numpys_bits_on_any_number_of_threads(monkeypatch, sigma, shape):
+    """Both pooling paths (a full-size blur, a coarse grid's), NaN in either estimate, a frame without a pixel
+    that both estimate (weight 1), a frame both predict exactly (weight 1), odd sizes."""
+    import flexvox_core.threads
+
+    from flexvox_core.motion.local_choice import local_weights_numpy, pooling_sigma
+
+    rng = np.random.default_rng(5)
+    F, H, W = shape
+    y = rng.uniform(0, 1, shape).astype(np.float32)
+    a = (y + rng.normal(0, 0.1, y.shape)).astype(np.float32)
+    b = (y + rng.normal(0, 0.05, y.shape) * (np.arange(W) > W // 2)).astype(np.float32)  # b better on the left
+    a[rng.random(a.shape) < 0.3] = np.nan
+    b[rng.random(b.shape) < 0.1] = np.nan
+    b[F - 1] = np.nan  # no pixel both estimate
+    a[0], b[0] = y[0], y[0]  # both exact
+    want = local_weights_numpy(a, b, y, sigma=pooling_sigma(H, W) if sigma is None else sigma, power=2)
+    for threads in (1, 2):
+        monkeypatch.setattr(flexvox_core.threads, "workers", lambda n=threads: n)
+        got = local_weights(a, b, y, sigma=sigma)
+        np.testing.assert_array_equal(got.view(np.uint32), want.view(np.uint32))
+    assert (want[0] == 1).all() and (want[F - 1] == 1).all() and (want[1:F - 1] < 1).any()
+    assert ((want[1:F - 1] > 0) & (want[1:F - 1] < 1)).any()
+    # Another power runs the numpy form itself.
+    np.testing.assert_array_equal(local_weights(a, b, y, sigma=3.0, power=3),
+                                  local_weights_numpy(a, b, y, sigma=3.0, power=3))

@@ -127,6 +127,12 @@ def test_bad_shapes_are_refused(code24):
     guide[5, 2, 3] = np.nan
     with pytest.raises(ValueError, match=r"`guide` sub-frame 5 holds NaN or infinite values"):
         oriented_nc(frames, code24, guide)
+    for bad in (np.nan, np.inf, -np.inf):  # a float16 guide, checked by its exponent bits
+        held = np.full((16, 8, 8), 65504, np.float16)  # the largest finite float16 passes
+        held[9, 7, 7], held[12, 0, 0] = bad, bad
+        with pytest.raises(ValueError, match=r"`guide` sub-frame 9 holds NaN or infinite values"):
+            oriented_nc(frames, code24, held)
+    oriented_nc(frames, code24, np.full((16, 8, 8), -65504, np.float16))
     with pytest.raises(ValueError, match=r"`fallback` must be an \(S, H, W\) = \(16, 8, 8\) array"):
         oriented_nc(frames, code24, np.zeros((16, 8, 8)), fallback=np.ones((2, 8, 8)))
 
@@ -334,3 +340,83 @@ def test_a_float16_guide_is_read_as_float32_of_its_values(rng, code24):
     assert (held.astype(np.float32) != truth).any()  # the rounding is seen
     for a, b in zip(got, want, strict=True):
         assert a.dtype == np.float32 and np.array_equal(a, b, equal_nan=True)
+
+
+def _whole_rows(wanted):
+    """oriented_nc's blocks as they were before: the first wanted row to the last, every column."""
+    rows = np.flatnonzero(wanted.any(axis=1))
+    return [(int(rows[0]), int(rows[-1]) + 1, 0, wanted.shape[1])] if len(rows) else []
+
+
+@pytest.mark.parametrize(("tile", "shape", "dropped"), [((2, 4), (2, 150, 203), False), ((4, 4), (2, 131, 97), True),
+                                                         ((2, 2), (3, 70, 161), True)])
+def test_blocks_of_rows_and_columns_give_the_whole_rows_bits(monkeypatch, rng, tile, shape, dropped):
+    """The structure tensor and the time blur made over each band's wanted columns alone (OpenCV's filters on
+    spans aligned to ALIGN columns) give the bits of whole rows, on odd sizes and with a dropped frame."""
+    import flexvox_core.reconstruct.oriented_nc as module
+
+    code = design_code(tile).code
+    F, H, W = shape
+    K = code.shape[2]
+    truth = smooth_video(rng, F * K, H, W) + _edge_video(F * K, H, W, angle=0.6) * 0.3
+    guide = (truth + rng.normal(0, 0.05, truth.shape)).astype(np.float32)  # texture: every kernel of the bank
+    frames = capture(truth, code)
+    missing = None
+    if dropped:
+        missing = np.zeros(F, bool)
+        missing[1] = True
+    # Blobs of wanted voxels (as motion-aware's moving voxels), some reaching the picture's edges, a few alone.
+    y, x = np.mgrid[0:H, 0:W]
+    where = np.zeros(truth.shape, bool)
+    for s in range(F * K):
+        for _ in range(3):
+            cy, cx, r = rng.uniform(-5, H + 5), rng.uniform(-5, W + 5), rng.uniform(3, 25)
+            where[s] |= (y - cy) ** 2 + (x - cx) ** 2 < r * r
+        where[s] |= rng.random((H, W)) < 0.002
+    where[3] = False  # a sub-frame with nothing wanted
+    fallback = rng.uniform(0.1, 0.9, truth.shape).astype(np.float32)
+    got = oriented_nc(frames, code, guide, where=where, fallback=fallback, missing=missing)
+    blocks = [module._blocks(where[s]) for s in range(F * K)]
+    assert any(len(b) > 1 for b in blocks) and any(x1 - x0 < W for b in blocks for _, _, x0, x1 in b)
+    monkeypatch.setattr(module, "_blocks", _whole_rows)
+    want = oriented_nc(frames, code, guide, where=where, fallback=fallback, missing=missing)
+    for a, b in zip(got, want, strict=True):
+        assert np.array_equal(a, b, equal_nan=True)
+    assert np.isfinite(got[1]).any()
+
+
+def test_blocks_cover_every_wanted_voxel(rng):
+    from flexvox_core.reconstruct.oriented_nc import ALIGN, BLOCK_ROWS, _aligned_columns, _blocks
+
+    wanted = rng.random((200, 77)) < 0.002
+    wanted[:, 40:] = False  # some bands' columns end before others'
+    wanted[130:140] = False
+    covered = np.zeros_like(wanted)
+    for y0, y1, x0, x1 in _blocks(wanted):
+        assert y0 < y1 and x0 < x1
+        covered[y0:y1, x0:x1] = True
+        a0, a1 = _aligned_columns(x0, x1, 77)
+        assert a0 % ALIGN == 0 and (a1 % ALIGN == 0 or a1 == 77) and a0 <= x0 and x1 <= a1
+    assert covered[wanted].all()
+    assert _blocks(np.zeros((5, 6), bool)) == []
+    full = np.ones((3 * BLOCK_ROWS + 5, 77), bool)
+    assert _blocks(full) == [(0, 3 * BLOCK_ROWS + 5, 0, 77)]  # bands over the same columns: one block
+
+
+@pytest.mark.parametrize("W", [640, 203, 97])
+def test_a_blocks_structure_tensor_is_the_whole_pictures_bits(rng, W):
+    """OpenCV's vector loops end elsewhere on a span of other alignment, which changes the rounding of the last
+    pixels before the picture's right edge: the blocks' spans are aligned, so their tensor is the whole one's."""
+    from flexvox_core.reconstruct.oriented_nc import _PAD, _aligned_columns, structure
+
+    H = 90
+    guide = rng.random((H, W)).astype(np.float32)
+    whole = structure(guide)
+    spans = [(0, W), (W - 1, W), (W - 7, W), (W // 2, W), (3, 11), (W // 3, W // 3 + 17)]
+    spans += [tuple(sorted(rng.integers(0, W, 2) + (0, 1))) for _ in range(20)]
+    for x0, x1 in spans:
+        y0, y1 = int(rng.integers(0, H - 10)), H - int(rng.integers(0, 3))
+        b0, b1 = max(0, y0 - _PAD), min(H, y1 + _PAD)
+        a0, a1 = _aligned_columns(x0, x1, W)
+        part = structure(guide[b0:b1, a0:a1])
+        assert np.array_equal(part[:, y0 - b0:y1 - b0, x0 - a0:x1 - a0], whole[:, y0:y1, x0:x1]), (x0, x1)

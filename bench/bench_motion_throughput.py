@@ -418,6 +418,30 @@ def _vectors_by_numpy() -> Iterator[None]:
         estimate.scaled_vectors = kept
 
 
+@contextlib.contextmanager
+def _gather_finish_numpy() -> Iterator[None]:
+    """Before the trajectory gather's last steps on a box were compiled (``mcnc_kernel.divide_box``) and its
+    samples written by slices: numpy's leave-one-out at the samples' indices, N / D, the fallback converted over
+    the box and taken where the weight is small, and the samples copied where the mask is (the same bits)."""
+    from flexvox_core.motion import mcnc
+    from tests.flexvox_core.motion.finish_reference import finish
+
+    def numpy_finish(t, box, inside, planes, samples_of, wide, wide_sigma, sig_space, fallback, loo_f, out):
+        g = mcnc._blur_box(t, box, planes, wide, wide_sigma, sig_space)
+        m_t, vals_t = samples_of(t) if loo_f is not None else (None, None)
+        finish(planes, inside, None if m_t is None else m_t[box], None if vals_t is None else vals_t[box], sig_space,
+               g, wide_sigma, None if fallback is None else fallback[t][box], None if loo_f is None else loo_f[box],
+               out[t][box])
+
+    kept = mcnc._gather
+
+    def masked_samples(*args, keep_samples, **kwargs):
+        return kept(*args, keep_samples=bool(keep_samples), **kwargs)
+
+    with mock.patch.object(mcnc, "_finish", numpy_finish), mock.patch.object(mcnc, "_gather", masked_samples):
+        yield
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
@@ -434,6 +458,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "classes-numpy": _classes_numpy,
     "detector-finest-2": _detector_finest_2,
     "vectors-by-numpy": _vectors_by_numpy,
+    "gather-finish-numpy": _gather_finish_numpy,
 }
 """The code as it was before each change (``kept``: as it is), or a change tried and not kept, for ``--ab``."""
 

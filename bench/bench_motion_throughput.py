@@ -442,6 +442,18 @@ def _gather_finish_numpy() -> Iterator[None]:
         yield
 
 
+@contextlib.contextmanager
+def _gather_reads_clamped() -> Iterator[None]:
+    """Before the trajectory gather's kernel read the cells wholly in the picture without clamping: every read's
+    rows and columns clamped (``tests/flexvox_core/motion/lattice_reference.py`` compiles that kernel from the
+    module's source; the same bits)."""
+    from flexvox_core.motion import mcnc_kernel
+    from tests.flexvox_core.motion.lattice_reference import clamped_lattice_sums
+
+    with mock.patch.object(mcnc_kernel, "lattice_sums", clamped_lattice_sums()):
+        yield
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
@@ -459,6 +471,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "detector-finest-2": _detector_finest_2,
     "vectors-by-numpy": _vectors_by_numpy,
     "gather-finish-numpy": _gather_finish_numpy,
+    "gather-reads-clamped": _gather_reads_clamped,
 }
 """The code as it was before each change (``kept``: as it is), or a change tried and not kept, for ``--ab``."""
 

@@ -28,7 +28,8 @@ def _read(frames: Any, row_hit: Any, col_hit: Any, f: int, k: int, py: Any, px: 
     """Bilinear read at (py, px) of slot ``k``'s samples in frame ``f``, and of their mask. ``row_hit[k, y + 1]``
     (y from −1 to H) is 1 where row y holds slot k's samples, ``col_hit[k, x + 1]`` likewise, 0 outside the
     picture: a corner holds a sample where both are 1 (an identity code's slot: one pixel of each tile).
-    Branch-free: the four corners are read (clamped into the picture) and weighted by the tables."""
+    Branch-free within: the four corners are read (clamped into the picture where the cell is not all in it) and
+    weighted by the tables."""
     y0 = int(py)  # the floor (py, px are finite): 20 % faster than math.floor here
     y0 -= py < y0
     x0 = int(px)
@@ -36,6 +37,14 @@ def _read(frames: Any, row_hit: Any, col_hit: Any, f: int, k: int, py: Any, px: 
     ay = np.float32(py - np.float32(y0))
     ax = np.float32(px - np.float32(x0))
     one = np.float32(1)
+    if 0 <= y0 and y0 < H - 1 and 0 <= x0 and x0 < W - 1:  # the whole cell in the picture: no clamping
+        wya = (one - ay) * row_hit[k, y0 + 1]
+        wyb = ay * row_hit[k, y0 + 2]
+        wxa = (one - ax) * col_hit[k, x0 + 1]
+        wxb = ax * col_hit[k, x0 + 2]
+        val = (wya * (wxa * frames[f, y0, x0] + wxb * frames[f, y0, x0 + 1])
+               + wyb * (wxa * frames[f, y0 + 1, x0] + wxb * frames[f, y0 + 1, x0 + 1]))
+        return val, (wya + wyb) * (wxa + wxb)
     ya = min(max(y0, -1), H)  # -1 and H: outside the picture, the tables' 0
     yb = min(max(y0 + 1, -1), H)
     xa = min(max(x0, -1), W)

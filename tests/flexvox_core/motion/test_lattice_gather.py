@@ -294,3 +294,41 @@ def test_the_gathers_last_steps_are_numpys_bit_for_bit(rng, shape, wide, with_lo
     if with_loo:
         np.testing.assert_array_equal(loo, ref_loo)
         assert (loo[box][~(inside & mask[box])] == -7).all()  # written at the box's samples alone
+
+
+@pytest.mark.parametrize("order", [design_code((4, 4)).order, [[2, 0, 3, 1]], [[1], [2], [0]]],
+                         ids=["4x4", "1x4", "3x1"])
+@pytest.mark.parametrize("dropped", [False, True])
+def test_lattice_sums_read_cells_in_the_picture_as_clamped_bit_for_bit(rng, order, dropped):
+    """The reads of cells wholly in the picture (no clamping) give the bits of the kernel that clamped every read
+    (lattice_reference), on odd sizes with trajectories leaving the picture, fractional, integer and unmeasured
+    flows, multiplexed slots' tables of several tiles and a dropped frame."""
+    from flexvox_core.codes import code_from_order
+    from flexvox_core.motion.mcnc_kernel import lattice_sums, reach_thresholds, slot_tables
+
+    from .lattice_reference import clamped_lattice_sums
+
+    code = code_from_order(np.asarray(order))
+    K = code.shape[2]
+    F, H, W = 3, 11, 13
+    frames = rng.uniform(0.1, 0.9, (F, H, W)).astype(np.float32)
+    present = np.array([True, not dropped, True])
+    S = F * K
+    flow = rng.normal(0, 2.5, (S, H, W, 2)).astype(np.float32)  # up to 4 offsets of several px: off the picture
+    flow[:, :2] = np.round(flow[:, :2])
+    flow[::3, 4, 2] = np.nan
+    reach = default_reach(2.0, 0.95, K, S)
+    inv = np.float32(1 / (4 * 2.0 * 0.95))
+    rows, cols = slot_tables(code, H, W)
+    table = reach_thresholds(reach)
+    clamped = clamped_lattice_sums()
+    read = 0.0
+    for t in range(S):
+        near = rng.random((H, W)) > 0.2
+        want = np.full((2, H, W), 7, np.float32)
+        got = np.full((2, H, W), 5, np.float32)
+        clamped(frames, present, rows, cols, flow[t], near, 0, 0, t, S, inv, reach, want[0], want[1], table)
+        lattice_sums(frames, present, rows, cols, flow[t], near, 0, 0, t, S, inv, reach, got[0], got[1], table)
+        np.testing.assert_array_equal(got.view(np.uint32), want.view(np.uint32))
+        read += float(got[1].sum())
+    assert read > 0

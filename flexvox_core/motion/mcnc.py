@@ -254,7 +254,7 @@ def _gather(S, H, W, sums, samples_of, *, select, invert, still_value, fallback,
     and their neighbours within the spatial blur's reach, ``sums(t, box, near)`` (the unblurred (numerator,
     weight) planes of the box, 0 off ``near``), the blurs, the leave-one-out, the division and the fallback;
     ``samples_of(t)`` gives the sub-frame's (mask, values) planes (the samples kept, the leave-one-out's);
-    ``keep_samples``: True (the samples written where the mask is), False, or ``keep_samples(t)`` writing them."""
+    ``keep_samples``: true (the samples written where the mask is), false, or ``keep_samples(t)`` writing them."""
     per_frame = S // len(loo) if loo is not None else 0
     # The spatial blur mixes in trajectories up to `pad` away: those are gathered in full too.
     pad = int(math.ceil(max(sig_space, wide_sigma if wide is not None else 0.0) * 4)) + 1
@@ -276,11 +276,11 @@ def _gather(S, H, W, sums, samples_of, *, select, invert, still_value, fallback,
             near = inside if select is None else cv2.dilate(inside.view(np.uint8), kernel) > 0
             _finish(t, box, inside, sums(t, box, near), samples_of, wide, wide_sigma, sig_space, fallback,
                     loo[t // per_frame] if loo is not None else None, out)
-        if keep_samples is True:
+        if callable(keep_samples):
+            keep_samples(t)
+        elif keep_samples:
             m_t, vals_t = samples_of(t)
             np.copyto(out[t], vals_t, where=m_t)
-        elif keep_samples:
-            keep_samples(t)
 
     for_each(one, S)
     return out

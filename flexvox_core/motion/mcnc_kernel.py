@@ -28,8 +28,8 @@ def _read(frames: Any, row_hit: Any, col_hit: Any, f: int, k: int, py: Any, px: 
     """Bilinear read at (py, px) of slot ``k``'s samples in frame ``f``, and of their mask. ``row_hit[k, y + 1]``
     (y from −1 to H) is 1 where row y holds slot k's samples, ``col_hit[k, x + 1]`` likewise, 0 outside the
     picture: a corner holds a sample where both are 1 (an identity code's slot: one pixel of each tile).
-    Branch-free within: the four corners are read (clamped into the picture where the cell is not all in it) and
-    weighted by the tables."""
+    Branch-free but for one test: a cell wholly in the picture is read as it is, another's four corners clamped
+    into the picture (and onto the tables' 0 outside it); the corners are weighted by the tables."""
     y0 = int(py)  # the floor (py, px are finite): 20 % faster than math.floor here
     y0 -= py < y0
     x0 = int(px)

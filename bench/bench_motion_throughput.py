@@ -52,6 +52,14 @@ from flexvox_core.reconstruct import diffuse
 from flexvox_core.simulate.scenes import render_scene
 
 
+def _repository_on_path() -> None:
+    """Put the repository's root first on ``sys.path`` (``python bench/...`` puts bench/ there): the variants that
+    patch in the tests' references import ``tests``."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    if root not in sys.path:
+        sys.path.insert(0, root)
+
+
 @contextlib.contextmanager
 def _gather_by_remap() -> Iterator[None]:
     """Before the trajectory gather read the frames and the code: it remapped the sample volume (made here: no
@@ -433,6 +441,31 @@ def _choice_whole_rows() -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def _gather_finish_numpy() -> Iterator[None]:
+    """Before the trajectory gather's last steps on a box were compiled (``mcnc_kernel.divide_box``) and its
+    samples written by slices: numpy's leave-one-out at the samples' indices, N / D, the fallback converted over
+    the box and taken where the weight is small, and the samples copied where the mask is (the same bits)."""
+    from flexvox_core.motion import mcnc
+    _repository_on_path()  # the tests' reference, importable however the script is started
+    from tests.flexvox_core.motion.finish_reference import finish
+
+    def numpy_finish(t, box, inside, planes, samples_of, wide, wide_sigma, sig_space, fallback, loo_f, out):
+        g = mcnc._blur_box(t, box, planes, wide, wide_sigma, sig_space)
+        m_t, vals_t = samples_of(t) if loo_f is not None else (None, None)
+        finish(planes, inside, None if m_t is None else m_t[box], None if vals_t is None else vals_t[box], sig_space,
+               g, wide_sigma, None if fallback is None else fallback[t][box], None if loo_f is None else loo_f[box],
+               out[t][box])
+
+    kept = mcnc._gather
+
+    def masked_samples(*args, keep_samples, **kwargs):
+        return kept(*args, keep_samples=bool(keep_samples), **kwargs)
+
+    with mock.patch.object(mcnc, "_finish", numpy_finish), mock.patch.object(mcnc, "_gather", masked_samples):
+        yield
+
+
+@contextlib.contextmanager
 def _choice_serial() -> Iterator[None]:
     """Before the local choice's serial parts were compiled and ran on every core: the blend and the weights in numpy
     on one thread (a sub-frame, a frame at a time), and oriented nc's guide checked a band at a time by a float64
@@ -462,6 +495,19 @@ def _choice_before() -> Iterator[None]:
         yield
 
 
+@contextlib.contextmanager
+def _gather_reads_clamped() -> Iterator[None]:
+    """Before the trajectory gather's kernel read the cells wholly in the picture without clamping: every read's
+    rows and columns clamped (``tests/flexvox_core/motion/lattice_reference.py`` compiles that kernel from the
+    module's source; the same bits)."""
+    from flexvox_core.motion import mcnc_kernel
+    _repository_on_path()
+    from tests.flexvox_core.motion.lattice_reference import clamped_lattice_sums
+
+    with mock.patch.object(mcnc_kernel, "lattice_sums", clamped_lattice_sums()):
+        yield
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
@@ -481,6 +527,8 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "choice-whole-rows": _choice_whole_rows,
     "choice-serial": _choice_serial,
     "choice-before": _choice_before,
+    "gather-finish-numpy": _gather_finish_numpy,
+    "gather-reads-clamped": _gather_reads_clamped,
 }
 """The code as it was before each change (``kept``: as it is), or a change tried and not kept, for ``--ab``."""
 

@@ -23,12 +23,13 @@ incomplete and uncertain data", CVPR 1993, pp. 515–523.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import cv2
 import numpy as np
 
-from flexvox_core.motion.gather_weights import CUTOFF, MIN_WEIGHT
+from flexvox_core.motion.gather_weights import CUTOFF
 from flexvox_core.motion.subframes import flow_at, sample_planes, sampling_period
 from flexvox_core.motion.tensors import DEFAULT_C, check_c
 from flexvox_core.planes import band
@@ -66,7 +67,8 @@ def motion_compensated_nc(
     time : float
         Diffusion time n > 0 of Eq. 3.
     fallback : ndarray (S, H, W), optional
-        Used where the weights are below :data:`MIN_WEIGHT` (default: the sparse value).
+        Used where the weights are below :data:`~flexvox_core.motion.gather_weights.MIN_WEIGHT` (default: the
+        sparse value).
     keep_samples : bool
         Keep measured voxels exactly.
     max_reach : int, optional
@@ -234,9 +236,16 @@ def trajectory_gather(frames, code, flow, *, missing=None, c=DEFAULT_C, time: fl
     def samples_of(t):
         return (slots[t % K] if present[t // K] else none), fr[t // K]
 
+    tile = np.argwhere(np.transpose(code, (2, 0, 1)))[:, 1:]  # slot k's pixel (i, j) of the tile
+
+    def keep(t):  # a slot's samples: every m-th row's every n-th pixel from (i, j)
+        if present[t // K]:
+            i, j = tile[t % K]
+            out[t, i::m, j::n] = fr[t // K, i::m, j::n]
+
     return _gather(S, H, W, sums, samples_of, select=select, invert=False, still_value=still_value,
                    fallback=fallback, wide=wide, wide_sigma=wide_sigma, sig_space=math.sqrt(2 * time * c2), loo=loo,
-                   out=out, keep_samples=True)
+                   out=out, keep_samples=keep)
 
 
 def _gather(S, H, W, sums, samples_of, *, select, invert, still_value, fallback, wide, wide_sigma, sig_space, loo,
@@ -244,7 +253,8 @@ def _gather(S, H, W, sums, samples_of, *, select, invert, still_value, fallback,
     """The gather's frame around its sums, a sub-frame at a time on every core: the box of the voxels to gather
     and their neighbours within the spatial blur's reach, ``sums(t, box, near)`` (the unblurred (numerator,
     weight) planes of the box, 0 off ``near``), the blurs, the leave-one-out, the division and the fallback;
-    ``samples_of(t)`` gives the sub-frame's (mask, values) planes (the samples kept, the leave-one-out's)."""
+    ``samples_of(t)`` gives the sub-frame's (mask, values) planes (the samples kept, the leave-one-out's);
+    ``keep_samples``: true (the samples written where the mask is), false, or ``keep_samples(t)`` writing them."""
     per_frame = S // len(loo) if loo is not None else 0
     # The spatial blur mixes in trajectories up to `pad` away: those are gathered in full too.
     pad = int(math.ceil(max(sig_space, wide_sigma if wide is not None else 0.0) * 4)) + 1
@@ -266,7 +276,9 @@ def _gather(S, H, W, sums, samples_of, *, select, invert, still_value, fallback,
             near = inside if select is None else cv2.dilate(inside.view(np.uint8), kernel) > 0
             _finish(t, box, inside, sums(t, box, near), samples_of, wide, wide_sigma, sig_space, fallback,
                     loo[t // per_frame] if loo is not None else None, out)
-        if keep_samples:
+        if callable(keep_samples):
+            keep_samples(t)
+        elif keep_samples:
             m_t, vals_t = samples_of(t)
             np.copyto(out[t], vals_t, where=m_t)
 
@@ -276,7 +288,33 @@ def _gather(S, H, W, sums, samples_of, *, select, invert, still_value, fallback,
 
 def _finish(t, box, inside, planes, samples_of, wide, wide_sigma, sig_space, fallback, loo_f, out):
     """Blur a box's sums, write its leave-one-out into ``loo_f`` (the frame's plane) and N / D (the fallback
-    where D is tiny) at the voxels ``inside`` of ``out[t]``."""
+    where D is tiny) at the voxels ``inside`` of ``out[t]`` (the last two steps compiled:
+    :func:`~flexvox_core.motion.mcnc_kernel.divide_box`; ``tests/flexvox_core/motion/finish_reference.py`` holds
+    them in numpy)."""
+    from flexvox_core.motion.mcnc_kernel import divide_box
+
+    g = _blur_box(t, box, planes, wide, wide_sigma, sig_space)
+
+    h, w = inside.shape
+    sampled, y, own_y, own_x, wide_y, wide_x = _NO_MASK, _NO_PLANE, _NO_LINE, _NO_LINE, _NO_LINE, _NO_LINE
+    if loo_f is not None:
+        m_t, vals_t = samples_of(t)
+        sampled, y = m_t[box], vals_t[box]
+        own_y, own_x = _self_weights(sig_space, h), _self_weights(sig_space, w)
+        if g is not None:
+            wide_y, wide_x = _self_weights(wide_sigma, h), _self_weights(wide_sigma, w)
+    short = np.empty((h, w), bool)
+    dst = out[t][box]
+    count = divide_box(planes[0], planes[1], inside, sampled, y, own_y, own_x,
+                       _NO_PLANE if g is None else np.asarray(g, np.float32), wide_y, wide_x,
+                       _NO_PLANE if loo_f is None else loo_f[box], dst, short)
+    if count:  # no weight to trust: the fallback
+        np.copyto(dst, np.float32(0) if fallback is None else np.asarray(fallback[t][box], np.float32), where=short)
+
+
+def _blur_box(t, box, planes, wide, wide_sigma, sig_space):
+    """Blur a box's sums ``planes`` in place (:func:`_finish`); returns the wide kernel's weights g of the box
+    (None without them)."""
     g = wide[t] if wide is not None else None
     if g is not None:
         g = g[box]
@@ -288,40 +326,26 @@ def _finish(t, box, inside, planes, samples_of, wide, wide_sigma, sig_space, fal
             cv2.GaussianBlur(plane, (0, 0), sig_space, dst=plane, borderType=cv2.BORDER_REFLECT)
     if g is not None:  # the mixture of the two kernels, per voxel
         planes += g * (broad - planes)
-    if loo_f is not None:
-        m_t, vals_t = samples_of(t)
-        _leave_one_out(loo_f[box], planes, inside & m_t[box], vals_t[box], sig_space, g, wide_sigma)
-    ok = planes[1] > MIN_WEIGHT
-    est = np.divide(planes[0], planes[1], out=np.zeros_like(planes[0]), where=ok)
-    region = np.float32(0) if fallback is None else np.asarray(fallback[t][box], np.float32)
-    np.copyto(out[t][box], np.where(ok, est, region), where=inside)
+    return g
 
 
-def _leave_one_out(dst: np.ndarray, planes: np.ndarray, sampled: np.ndarray, y: np.ndarray, sig_space: float,
-                   wide=None, wide_sigma: float = 0.0) -> None:
-    """Write (N − c·y) / (D − c) at the ``sampled`` voxels of a box into ``dst`` (NaN where no other sample is
-    in reach); ``planes`` = (N, D) after the spatial blur, whose reflecting border gives a voxel more of itself
-    there (:func:`~flexvox_core.reconstruct.diffusion.self_weights`); with ``wide`` (weights g of the box) the
-    blur is the mixture with a Gaussian of ``wide_sigma``, and so is c."""
-    ys, xs = np.nonzero(sampled)
-    if not len(ys):
-        return
-    h, w = sampled.shape
-    own = _own_weights_at(sig_space, h, w, ys, xs)  # at the samples alone (a sixteenth of the box at K = 16)
-    if wide is not None:
-        own = own + wide[ys, xs].astype(np.float64) * (_own_weights_at(wide_sigma, h, w, ys, xs) - own)
-    rest = planes[1][sampled] - own
-    est = (planes[0][sampled] - own * y[sampled]) / np.where(rest > MIN_WEIGHT, rest, 1.0)
-    dst[sampled] = np.where(rest > MIN_WEIGHT, est, np.nan)
+_NO_MASK = np.zeros((0, 0), bool)
+_NO_PLANE = np.zeros((0, 0), np.float32)
+_NO_LINE = np.zeros(0)
+"""Empty arrays: :func:`~flexvox_core.motion.mcnc_kernel.divide_box`'s arguments not given (one type each)."""
 
 
-def _own_weights_at(sigma: float, h: int, w: int, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
-    """Weight (float64) each pixel (``ys``, ``xs``) of an (h, w) box gives itself in cv2.GaussianBlur with ``sigma``
-    (px) and reflecting borders; 1 without a blur (σ <= 0.05, as the gather skips it)."""
+@functools.lru_cache(maxsize=256)
+def _self_weights(sigma: float, length: int) -> np.ndarray:
+    """:func:`~flexvox_core.reconstruct.diffusion.self_weights` of ``cv2.GaussianBlur``'s kernel for ``sigma`` (px)
+    over ``length`` (float64; 1 without a blur, σ <= 0.05, as the gather skips it), kept: a box's sizes repeat."""
     if sigma <= 0.05:
-        return np.ones(len(ys))
-    g = cv2.getGaussianKernel(int(round(sigma * 8 + 1)) | 1, sigma, cv2.CV_64F).ravel()
-    return self_weights(g, h)[ys] * self_weights(g, w)[xs]
+        weights = np.ones(length)
+    else:
+        g = cv2.getGaussianKernel(int(round(sigma * 8 + 1)) | 1, sigma, cv2.CV_64F).ravel()
+        weights = self_weights(g, length)
+    weights.flags.writeable = False
+    return weights
 
 
 def default_reach(time: float, c1: float, period: int, S: int) -> int:

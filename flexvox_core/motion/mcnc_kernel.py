@@ -19,7 +19,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from flexvox_core.motion.gather_weights import CUTOFF
+from flexvox_core.motion.gather_weights import CUTOFF, MIN_WEIGHT
 
 
 @numba.njit(inline="always", nogil=True, cache=True)
@@ -28,7 +28,8 @@ def _read(frames: Any, row_hit: Any, col_hit: Any, f: int, k: int, py: Any, px: 
     """Bilinear read at (py, px) of slot ``k``'s samples in frame ``f``, and of their mask. ``row_hit[k, y + 1]``
     (y from −1 to H) is 1 where row y holds slot k's samples, ``col_hit[k, x + 1]`` likewise, 0 outside the
     picture: a corner holds a sample where both are 1 (an identity code's slot: one pixel of each tile).
-    Branch-free: the four corners are read (clamped into the picture) and weighted by the tables."""
+    Branch-free but for one test: a cell wholly in the picture is read as it is, another's four corners clamped
+    into the picture (and onto the tables' 0 outside it); the corners are weighted by the tables."""
     y0 = int(py)  # the floor (py, px are finite): 20 % faster than math.floor here
     y0 -= py < y0
     x0 = int(px)
@@ -36,6 +37,14 @@ def _read(frames: Any, row_hit: Any, col_hit: Any, f: int, k: int, py: Any, px: 
     ay = np.float32(py - np.float32(y0))
     ax = np.float32(px - np.float32(x0))
     one = np.float32(1)
+    if 0 <= y0 and y0 < H - 1 and 0 <= x0 and x0 < W - 1:  # the whole cell in the picture: no clamping
+        wya = (one - ay) * row_hit[k, y0 + 1]
+        wyb = ay * row_hit[k, y0 + 2]
+        wxa = (one - ax) * col_hit[k, x0 + 1]
+        wxb = ax * col_hit[k, x0 + 2]
+        val = (wya * (wxa * frames[f, y0, x0] + wxb * frames[f, y0, x0 + 1])
+               + wyb * (wxa * frames[f, y0 + 1, x0] + wxb * frames[f, y0 + 1, x0 + 1]))
+        return val, (wya + wyb) * (wxa + wxb)
     ya = min(max(y0, -1), H)  # -1 and H: outside the picture, the tables' 0
     yb = min(max(y0 + 1, -1), H)
     xa = min(max(x0, -1), W)
@@ -189,3 +198,44 @@ def lattice_sums(frames: Any, present: Any, row_hit: Any, col_hit: Any, flow_t: 
                     acc_d += wd * b
             num[i, j] = acc_n
             den[i, j] = acc_d
+
+
+@numba.njit(nogil=True, cache=True)
+def divide_box(num: Any, den: Any, inside: Any, sampled: Any, y: Any, own_y: Any, own_x: Any, wide: Any, wide_y: Any,
+               wide_x: Any, loo: Any, out: Any, short: Any) -> int:
+    """The gather's last step on a box, after the spatial blur (:func:`~flexvox_core.motion.mcnc._finish`): at the
+    voxels ``inside`` (h, w) bool, N / D into ``out`` (h, w) where D = ``den`` > float32 MIN_WEIGHT (``short``
+    (h, w) bool set where not: the caller writes the fallback there); returns how many are short.
+
+    With ``loo`` (h, w) float32 (an empty array: none) the leave-one-out at the voxels ``inside`` and ``sampled``
+    (h, w; their values ``y``): (N − c·y) / (D − c) in float64, NaN where D − c <= MIN_WEIGHT, c = ``own_y[i]`` ·
+    ``own_x[j]`` (float64: the weight a voxel gives itself in the blur, reflecting borders), mixed with
+    ``wide_y[i]`` · ``wide_x[j]`` by ``wide`` (h, w) float32 g where given (an empty array: no mixture):
+    c + g·(c_wide − c). The bits of the numpy steps this replaces (a test)."""
+    h, w = num.shape
+    limit = np.float32(MIN_WEIGHT)
+    has_loo = loo.size > 0
+    has_wide = wide.size > 0
+    count = 0
+    for i in range(h):
+        for j in range(w):
+            short[i, j] = False
+            if not inside[i, j]:
+                continue
+            n = num[i, j]
+            d = den[i, j]
+            if has_loo and sampled[i, j]:
+                own = own_y[i] * own_x[j]
+                if has_wide:
+                    own = own + np.float64(wide[i, j]) * (wide_y[i] * wide_x[j] - own)
+                rest = np.float64(d) - own
+                if rest > MIN_WEIGHT:
+                    loo[i, j] = np.float32((np.float64(n) - own * np.float64(y[i, j])) / rest)
+                else:
+                    loo[i, j] = np.nan
+            if d > limit:
+                out[i, j] = n / d
+            else:
+                short[i, j] = True
+                count += 1
+    return count

@@ -4,6 +4,7 @@ sample-volume gather (:func:`flexvox_core.motion.mcnc.motion_compensated_nc`).""
 
 import math
 
+import cv2
 import numba
 import numpy as np
 import pytest
@@ -239,3 +240,95 @@ def test_a_float16_fallback_is_read_as_float32_of_its_values(rng, clip):
     assert got.dtype == np.float32
     np.testing.assert_array_equal(got, want)
     assert np.isin(got, held.astype(np.float32)).any()  # some voxels out of reach took the fallback
+
+
+@pytest.mark.parametrize("shape", [(7, 19), (12, 15), (1, 23)])
+@pytest.mark.parametrize("wide", [False, True])
+@pytest.mark.parametrize("with_loo", [False, True])
+@pytest.mark.parametrize("fallback", ["none", "float16", "float32"])
+def test_the_gathers_last_steps_are_numpys_bit_for_bit(rng, shape, wide, with_loo, fallback):
+    """mcnc._finish (the leave-one-out and N / D compiled: mcnc_kernel.divide_box) against the numpy steps it
+    replaced (finish_reference), on odd boxes with weights about MIN_WEIGHT, samples on a 4 × 4 lattice, the wide
+    kernel's mixture and a float16 fallback."""
+    from flexvox_core.motion.mcnc import _finish
+
+    from .finish_reference import finish
+
+    h, w = shape
+    H, W = h + 3, w + 2
+    box = (slice(2, 2 + h), slice(1, 1 + w))
+    t, sig_space, wide_sigma = 1, 0.9, 2.0
+    planes = rng.random((2, h, w), dtype=np.float32)
+    planes[1][:, : (w + 1) // 2] *= np.float32(1e-6)  # weights about MIN_WEIGHT on the left, after the blur too
+    planes[0] *= planes[1]
+    inside = rng.random((h, w)) < 0.7
+    mask = np.zeros((H, W), bool)
+    mask[1::4, 2::4] = True
+    vals = rng.random((H, W), dtype=np.float32)
+    g = [None, rng.random((H, W), dtype=np.float32), None] if wide else None
+    fb = None if fallback == "none" else rng.random((3, H, W)).astype(np.float16 if fallback == "float16" else
+                                                                       np.float32)
+    out = np.full((3, H, W), -5, np.float32)
+    loo = np.full((H, W), -7, np.float32) if with_loo else None
+    _finish(t, box, inside, planes.copy(), lambda s: (mask, vals), g, wide_sigma, sig_space, fb, loo, out)
+
+    # The reference blurs as _finish does, then takes the numpy steps.
+    ref_planes = planes.copy()
+    gb = None
+    if wide:
+        gb = g[t][box]
+        broad = np.empty_like(ref_planes)
+        for plane, dst in zip(ref_planes, broad, strict=True):
+            cv2.GaussianBlur(plane, (0, 0), wide_sigma, dst=dst, borderType=cv2.BORDER_REFLECT)
+    for plane in ref_planes:
+        cv2.GaussianBlur(plane, (0, 0), sig_space, dst=plane, borderType=cv2.BORDER_REFLECT)
+    if wide:
+        ref_planes += gb * (broad - ref_planes)
+    ref_out = np.full((3, H, W), -5, np.float32)
+    ref_loo = np.full((H, W), -7, np.float32) if with_loo else None
+    finish(ref_planes, inside, mask[box], vals[box], sig_space, gb, wide_sigma, None if fb is None else fb[t][box],
+           None if ref_loo is None else ref_loo[box], ref_out[t][box])
+    small = ref_planes[1][inside] <= np.float32(1e-6)
+    assert small.any() and not small.all()  # both ways are taken
+    np.testing.assert_array_equal(out, ref_out)
+    if with_loo:
+        np.testing.assert_array_equal(loo, ref_loo)
+        assert (loo[box][~(inside & mask[box])] == -7).all()  # written at the box's samples alone
+
+
+@pytest.mark.parametrize("order", [design_code((4, 4)).order, [[2, 0, 3, 1]], [[1], [2], [0]]],
+                         ids=["4x4", "1x4", "3x1"])
+@pytest.mark.parametrize("dropped", [False, True])
+def test_lattice_sums_read_cells_in_the_picture_as_clamped_bit_for_bit(rng, order, dropped):
+    """The reads of cells wholly in the picture (no clamping) give the bits of the kernel that clamped every read
+    (lattice_reference), on odd sizes with trajectories leaving the picture, fractional, integer and unmeasured
+    flows, multiplexed slots' tables of several tiles and a dropped frame."""
+    from flexvox_core.codes import code_from_order
+    from flexvox_core.motion.mcnc_kernel import lattice_sums, reach_thresholds, slot_tables
+
+    from .lattice_reference import clamped_lattice_sums
+
+    code = code_from_order(np.asarray(order))
+    K = code.shape[2]
+    F, H, W = 3, 11, 13
+    frames = rng.uniform(0.1, 0.9, (F, H, W)).astype(np.float32)
+    present = np.array([True, not dropped, True])
+    S = F * K
+    flow = rng.normal(0, 2.5, (S, H, W, 2)).astype(np.float32)  # up to 4 offsets of several px: off the picture
+    flow[:, :2] = np.round(flow[:, :2])
+    flow[::3, 4, 2] = np.nan
+    reach = default_reach(2.0, 0.95, K, S)
+    inv = np.float32(1 / (4 * 2.0 * 0.95))
+    rows, cols = slot_tables(code, H, W)
+    table = reach_thresholds(reach)
+    clamped = clamped_lattice_sums()
+    read = 0.0
+    for t in range(S):
+        near = rng.random((H, W)) > 0.2
+        want = np.full((2, H, W), 7, np.float32)
+        got = np.full((2, H, W), 5, np.float32)
+        clamped(frames, present, rows, cols, flow[t], near, 0, 0, t, S, inv, reach, want[0], want[1], table)
+        lattice_sums(frames, present, rows, cols, flow[t], near, 0, 0, t, S, inv, reach, got[0], got[1], table)
+        np.testing.assert_array_equal(got.view(np.uint32), want.view(np.uint32))
+        read += float(got[1].sum())
+    assert read > 0

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import json
 import os
 import resource
@@ -244,6 +245,30 @@ def _refine_moving_still() -> Iterator[None]:
         yield
 
 
+@functools.cache
+def _clamped_reads_step() -> Callable[..., None]:
+    """``vardiff_step`` compiled with the clamped reads everywhere (compiled once a process)."""
+    import types
+
+    import numba
+
+    from flexvox_core.motion import vardiff_kernel as vk
+
+    f = vk.vardiff_step.py_func
+    glb = {**f.__globals__, "_bilinear": vk._clamped_bilinear, "_bicubic": vk._clamped_bicubic}
+    return numba.njit(parallel=True, nogil=True)(types.FunctionType(f.__code__, glb, f.__name__, f.__defaults__))
+
+
+@contextlib.contextmanager
+def _refine_clamped_reads() -> Iterator[None]:
+    """Before the refinement's step read its trajectory neighbours without clamps where every tap is inside the
+    picture: every bilinear and bicubic read clamped (the same bits)."""
+    from flexvox_core.motion import vardiff_kernel as vk
+
+    with mock.patch.object(vk, "vardiff_step", _clamped_reads_step()):
+        yield
+
+
 @contextlib.contextmanager
 def _guides_whole() -> Iterator[None]:
     """Before nc finished its end sub-frames as their blurred mask was made and diffuse_where read the still voxels a
@@ -425,6 +450,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "long-reach-remap": _long_reach_on_sample_planes,
     "refine-halo-bands": _refine_halo_bands,
     "refine-moving-still": _refine_moving_still,
+    "refine-clamped-reads": _refine_clamped_reads,
     "guides-whole": _guides_whole,
     "reach-by-log": _reach_by_log,
     "high-tr-float32": _high_tr_float32,

@@ -270,6 +270,24 @@ def _refine_clamped_reads() -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def _refine_copied_ends() -> Iterator[None]:
+    """Before the refinement's first step read its input and its last wrote the result themselves: each band's
+    input copied into a buffer, the last step's planes copied out of one (the same bits)."""
+    import inspect
+    import textwrap
+
+    from flexvox_core.motion import stages, vardiff
+
+    src = textwrap.dedent(inspect.getsource(vardiff.variable_tensor_diffusion))
+    kept_line = "direct = vol.flags.c_contiguous and (steps > 1 or not in_place)"
+    assert kept_line in src, "the refinement's ends changed: update this variant"
+    namespace = dict(vardiff.__dict__)
+    exec(compile(src.replace(kept_line, "direct = False"), vardiff.__file__, "exec"), namespace)
+    with mock.patch.object(stages, "variable_tensor_diffusion", namespace["variable_tensor_diffusion"]):
+        yield
+
+
+@contextlib.contextmanager
 def _guides_whole() -> Iterator[None]:
     """Before nc finished its end sub-frames as their blurred mask was made and diffuse_where read the still voxels a
     band at a time: the ends' blurred mask held (each end's r + K sub-frames: before, its whole 2r + K and a copy of
@@ -451,6 +469,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "refine-halo-bands": _refine_halo_bands,
     "refine-moving-still": _refine_moving_still,
     "refine-clamped-reads": _refine_clamped_reads,
+    "refine-copied-ends": _refine_copied_ends,
     "guides-whole": _guides_whole,
     "reach-by-log": _reach_by_log,
     "high-tr-float32": _high_tr_float32,

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import functools
 import json
 import os
 import resource
@@ -249,6 +250,48 @@ def _refine_moving_still() -> Iterator[None]:
         return kept(*args, **kwargs)
 
     with mock.patch.object(stages, "variable_tensor_diffusion", before):
+        yield
+
+
+@functools.cache
+def _clamped_reads_step() -> Callable[..., None]:
+    """``vardiff_step`` compiled with the clamped reads everywhere (compiled once a process)."""
+    import types
+
+    import numba
+
+    from flexvox_core.motion import vardiff_kernel as vk
+
+    f = vk.vardiff_step.py_func
+    glb = {**f.__globals__, "_bilinear": vk._clamped_bilinear, "_bicubic": vk._clamped_bicubic}
+    return numba.njit(parallel=True, nogil=True)(types.FunctionType(f.__code__, glb, f.__name__, f.__defaults__))
+
+
+@contextlib.contextmanager
+def _refine_clamped_reads() -> Iterator[None]:
+    """Before the refinement's step read its trajectory neighbours without clamps where every tap is inside the
+    picture: every bilinear and bicubic read clamped (the same bits)."""
+    from flexvox_core.motion import vardiff_kernel as vk
+
+    with mock.patch.object(vk, "vardiff_step", _clamped_reads_step()):
+        yield
+
+
+@contextlib.contextmanager
+def _refine_copied_ends() -> Iterator[None]:
+    """Before the refinement's first step read its input and its last wrote the result themselves: each band's
+    input copied into a buffer, the last step's planes copied out of one (the same bits)."""
+    import inspect
+    import textwrap
+
+    from flexvox_core.motion import stages, vardiff
+
+    src = textwrap.dedent(inspect.getsource(vardiff.variable_tensor_diffusion))
+    kept_line = "direct = vol.flags.c_contiguous and (steps > 1 or not in_place)"
+    assert kept_line in src, "the refinement's ends changed: update this variant"
+    namespace = dict(vardiff.__dict__)
+    exec(compile(src.replace(kept_line, "direct = False"), vardiff.__file__, "exec"), namespace)
+    with mock.patch.object(stages, "variable_tensor_diffusion", namespace["variable_tensor_diffusion"]):
         yield
 
 
@@ -515,6 +558,8 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "long-reach-remap": _long_reach_on_sample_planes,
     "refine-halo-bands": _refine_halo_bands,
     "refine-moving-still": _refine_moving_still,
+    "refine-clamped-reads": _refine_clamped_reads,
+    "refine-copied-ends": _refine_copied_ends,
     "guides-whole": _guides_whole,
     "reach-by-log": _reach_by_log,
     "high-tr-float32": _high_tr_float32,

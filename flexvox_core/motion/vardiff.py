@@ -75,8 +75,8 @@ def band_length(steps: int, threads: int) -> int:
     """Sub-frames per band of :func:`variable_tensor_diffusion` at ``steps`` explicit steps on ``threads``
     threads: :data:`MIN_BAND`, or one a thread where there are more (a band's flow planes are made side by side).
     No sub-frame is stepped twice whatever the band, so it sets only the memory taken: about ``band + steps + 1``
-    planes of two float32 volumes, the flow (two float32) and two bool volumes (18 bytes a pixel; 5.5 MB a plane at
-    640×480). ``steps`` is not used."""
+    planes of the steps' float32 buffers (one at two steps, the refinement's, from a C-contiguous ``init``), the flow
+    (two float32) and two bool volumes (14 bytes a pixel so; 4.3 MB a plane at 640×480). ``steps`` is not used."""
     return max(MIN_BAND, threads)
 
 
@@ -172,11 +172,13 @@ def variable_tensor_diffusion(
     The volume is diffused a band of sub-frames at a time, each step running behind the one before: step j is
     known up to sub-frame e − j once the input is read up to e (each step reads one sub-frame either side). A
     band reads the input over [e0, e1) and takes each step j from e0 − j to e1 − j; the last step's sub-frames
-    are written to ``out``. Each band's planes are kept in buffers that hold a window of ``band + steps + 1``
-    sub-frames (the steps alternate between two of them; the planes a later band still reads are moved to the
-    front), so no sub-frame is stepped twice and every plane of ``mask``, ``flow`` and ``sharp`` is read once
-    (:func:`~flexvox_core.planes.band`, or ``band_into(t0, t1, out)`` where the volume has it: they may be
-    volumes made on demand): the same bits as stepping the whole volume. No volume-sized memory is taken beyond
+    are written to ``out``. The first step reads ``init`` and the last writes ``out`` themselves (where ``out`` is
+    ``init`` with one step only, or ``init`` is not C-contiguous, through a buffer: a step writes sub-frames the
+    next band's first step reads). The steps between them go in buffers that hold a window of
+    ``band + steps + 1`` sub-frames (they alternate between two of them; the planes a later band still reads are
+    moved to the front), so no sub-frame is stepped twice and every plane of ``mask``, ``flow`` and ``sharp`` is
+    read once (:func:`~flexvox_core.planes.band`, or ``band_into(t0, t1, out)`` where the volume has it: they may
+    be volumes made on demand): the same bits as stepping the whole volume. No volume-sized memory is taken beyond
     the result (none with ``out``); the buffers are taken once a call. Each step is one compiled pass
     (:func:`~flexvox_core.motion.vardiff_kernel.vardiff_step`);
     ``tests/flexvox_core/motion/vardiff_reference.py`` is the same in plain numpy (the tests' reference).
@@ -224,22 +226,29 @@ def variable_tensor_diffusion(
         return result
     L = min(int(band), S)
     n_max = min(S, L + steps + 1)  # the window: the planes carried from the band before, and the band's own
-    bufs = np.empty((2, n_max, H, W), np.float32)  # the steps in turn: even ones in bufs[0], odd ones in bufs[1]
+    # The first step reads `vol` and the last writes `result` (no copy in or out) unless they are one volume and one
+    # step: a band's last step writes up to sub-frame e1 − steps, the next band's first step reads from e1 − 2 on.
+    direct = vol.flags.c_contiguous and (steps > 1 or not in_place)
+    # The steps in turn: even ones in bufs[0], odd ones in bufs[1]; only those some step writes and the next reads.
+    bufs = [np.empty((n_max if needed else 0, H, W), np.float32)
+            for needed in (not direct or steps > 2, not direct or steps > 1)]
     fb = np.empty((n_max, H, W, 2), np.float32)
     mb = np.empty((n_max, H, W), bool)
     sb = np.zeros((1, 1, 1), bool) if sh is None else np.empty((n_max, H, W), bool)  # the kernel never reads it
     use_sharp = sh is not None
+    carried = [b for b in bufs if len(b)] + [fb, mb] + ([sb] if use_sharp else [])
     c0 = 0  # the window's first sub-frame
     with _KERNEL_LOCK:
         for e0 in range(0, S, L):  # the band: input sub-frames [e0, e1)
             e1 = min(e0 + L, S)
             k0 = max(0, e0 - steps - 1)  # from here on, each step's planes are still read
             if k0 > c0:
-                for buf in (bufs[0], bufs[1], fb, mb) + ((sb,) if use_sharp else ()):
+                for buf in carried:
                     buf[:e0 - k0] = buf[k0 - c0:e0 - c0]
                 c0 = k0
             n = e1 - c0
-            bufs[0, e0 - c0:n] = vol[e0:e1]
+            if not direct:
+                bufs[0][e0 - c0:n] = vol[e0:e1]
             _read_into(f, start + e0, start + e1, fb[e0 - c0:n])
             _read_into(m, start + e0, start + e1, mb[e0 - c0:n])
             if use_sharp:
@@ -249,9 +258,11 @@ def variable_tensor_diffusion(
                 # or to the end of time. The buffers end at the window's end: where that is not the end of time,
                 # no step is taken at the window's last plane.
                 lo, hi = max(0, e0 - j), (e1 - j if e1 < S else S)
-                vardiff_step(bufs[(j - 1) % 2, :n], bufs[j % 2, :n], fb[:n], mb[:n], bool(keep_samples), c1, c2, c3,
+                src = vol[c0:e1] if direct and j == 1 else bufs[(j - 1) % 2][:n]
+                dst = result[c0:e1] if direct and j == steps else bufs[j % 2][:n]
+                vardiff_step(src, dst, fb[:n], mb[:n], bool(keep_samples), c1, c2, c3,
                              dt, sb if not use_sharp else sb[:n], use_sharp, lo - c0, hi - c0, still2)
             lo, hi = max(0, e0 - steps), (e1 - steps if e1 < S else S)
-            if hi > lo:
-                result[lo:hi] = bufs[steps % 2, lo - c0:hi - c0]
+            if hi > lo and not direct:
+                result[lo:hi] = bufs[steps % 2][lo - c0:hi - c0]
     return result

@@ -10,6 +10,8 @@ on the number of threads.
 
 Bilinear reads are exact (OpenCV rounds the fractional position to 1/32 px) and clamp at the
 border (a neighbour outside the picture is the nearest edge pixel, OpenCV's ``BORDER_REPLICATE``).
+A read whose taps all lie inside the picture (:func:`_bilinear`, :func:`_bicubic`) skips the clamps, which
+change nothing there: the same arithmetic in the same order, the same bits as the clamped read.
 ``tests/flexvox_core/motion/vardiff_reference.py`` is the same step in plain
 numpy and scipy, which the tests compare this against.
 """
@@ -67,6 +69,51 @@ def _clamped_bicubic(plane, y, x):
     return min(max(value, lo), hi)
 
 
+@numba.njit(inline="always", nogil=True, cache=True)
+def _bilinear(plane, y, x):
+    """:func:`_clamped_bilinear`, its clamps skipped where the read's four taps are inside the picture (most reads):
+    the same bits."""
+    H, W = plane.shape
+    if 0.0 <= y < H - 1.0 and 0.0 <= x < W - 1.0:
+        y0 = int(y)
+        x0 = int(x)
+        ay = y - y0
+        ax = x - x0
+        r0 = plane[y0]
+        r1 = plane[y0 + 1]
+        top = r0[x0] * (1.0 - ax) + r0[x0 + 1] * ax
+        bottom = r1[x0] * (1.0 - ax) + r1[x0 + 1] * ax
+        return top * (1.0 - ay) + bottom * ay
+    return _clamped_bilinear(plane, y, x)
+
+
+@numba.njit(inline="always", nogil=True, cache=True)
+def _bicubic(plane, y, x):
+    """:func:`_clamped_bicubic`, its clamps skipped where the read's sixteen taps are inside the picture: the same
+    bits (the same sums in the same order)."""
+    H, W = plane.shape
+    if 1.0 <= y < H - 2.0 and 1.0 <= x < W - 2.0:
+        y0 = int(y)
+        x0 = int(x)
+        wx0, wx1, wx2, wx3 = _catmull_rom(x - x0)
+        wy0, wy1, wy2, wy3 = _catmull_rom(y - y0)
+        ra = plane[y0 - 1]
+        rb = plane[y0]
+        rc = plane[y0 + 1]
+        rd = plane[y0 + 2]
+        xa, xc, xd = x0 - 1, x0 + 1, x0 + 2
+        value = 0.0
+        value += wy0 * (wx0 * ra[xa] + wx1 * ra[x0] + wx2 * ra[xc] + wx3 * ra[xd])
+        value += wy1 * (wx0 * rb[xa] + wx1 * rb[x0] + wx2 * rb[xc] + wx3 * rb[xd])
+        value += wy2 * (wx0 * rc[xa] + wx1 * rc[x0] + wx2 * rc[xc] + wx3 * rc[xd])
+        value += wy3 * (wx0 * rd[xa] + wx1 * rd[x0] + wx2 * rd[xc] + wx3 * rd[xd])
+        p00, p01, p10, p11 = float(rb[x0]), float(rb[xc]), float(rc[x0]), float(rc[xc])
+        lo = min(min(p00, p01), min(p10, p11))
+        hi = max(max(p00, p01), max(p10, p11))
+        return min(max(value, lo), hi)
+    return _clamped_bicubic(plane, y, x)
+
+
 @numba.njit(parallel=True, nogil=True, cache=True)
 def vardiff_step(vol, new, flow, mask, keep_samples, c1, c2, c3, dt, sharp, use_sharp, t0, t1, still2=0.0):
     """``new[t0:t1]`` = one explicit step of ``vol`` (S, H, W) float32 under the Eq. 4 tensors of ``flow``
@@ -109,11 +156,11 @@ def vardiff_step(vol, new, flow, mask, keep_samples, c1, c2, c3, dt, sharp, use_
                 nxt = float(after[y, x]) if t + 1 < S else cur
                 prv = float(before[y, x]) if t > 0 else cur
             elif use_sharp and sharp[t, y, x]:
-                nxt = _clamped_bicubic(after, y + v, x + u) if t + 1 < S else cur
-                prv = _clamped_bicubic(before, y - v, x - u) if t > 0 else cur
+                nxt = _bicubic(after, y + v, x + u) if t + 1 < S else cur
+                prv = _bicubic(before, y - v, x - u) if t > 0 else cur
             else:
-                nxt = _clamped_bilinear(after, y + v, x + u) if t + 1 < S else cur
-                prv = _clamped_bilinear(before, y - v, x - u) if t > 0 else cur
+                nxt = _bilinear(after, y + v, x + u) if t + 1 < S else cur
+                prv = _bilinear(before, y - v, x - u) if t > 0 else cur
             acc = (c1 - c3) / (1.0 + speed2) * (nxt + prv - 2.0 * cur)
             if b > 0:
                 # Along ψ, within the sub-frame: ψ = (v, −u)/|(u, v)|, or (0, −1) where still.
@@ -124,8 +171,7 @@ def vardiff_step(vol, new, flow, mask, keep_samples, c1, c2, c3, dt, sharp, use_
                 else:
                     px = 0.0
                     py = -1.0
-                acc += b * (_clamped_bilinear(here, y + py, x + px)
-                            + _clamped_bilinear(here, y - py, x - px) - 2.0 * cur)
+                acc += b * (_bilinear(here, y + py, x + px) + _bilinear(here, y - py, x - px) - 2.0 * cur)
             if c3 > 0:
                 up = float(after[y, x]) if t + 1 < S else cur
                 dn = float(before[y, x]) if t > 0 else cur

@@ -418,6 +418,36 @@ def _vectors_by_numpy() -> Iterator[None]:
         estimate.scaled_vectors = kept
 
 
+@contextlib.contextmanager
+def _flow_glue_serial() -> Iterator[None]:
+    """Before the gated flow's steps between its DIS pairs ran on every core: the videos taken to uint8, the
+    K-average and the period gate's box in time, the pairs' weighting, the video's check and the high-TR held in
+    float16, each a whole-volume numpy (or SciPy) call on one thread; the same bits."""
+    from scipy.ndimage import uniform_filter1d
+
+    from flexvox_core.flow import baseline, estimate
+    from flexvox_core.motion import gated_flow, stages
+
+    def sums_finite(v: np.ndarray) -> bool:
+        with np.errstate(over="ignore"):
+            return bool(np.isfinite(v.sum(dtype=np.float64)))
+
+    def weigh_pairs(fwd: np.ndarray, conf: np.ndarray) -> None:
+        fwd *= (conf + np.float32(1e-3))[..., None]
+
+    def box_in_time(video: np.ndarray, size: int) -> np.ndarray:
+        return uniform_filter1d(video, size, axis=0, mode="nearest")
+
+    with mock.patch.object(estimate, "to_uint8_planes", estimate.to_uint8), \
+            mock.patch.object(baseline, "to_uint8_planes", estimate.to_uint8), \
+            mock.patch.object(estimate, "subframe_sums_finite", sums_finite), \
+            mock.patch.object(estimate, "weigh_pairs", weigh_pairs), \
+            mock.patch.object(baseline, "box_in_time", box_in_time), \
+            mock.patch.object(gated_flow, "box_in_time", box_in_time), \
+            mock.patch.object(stages, "held_as", lambda volume, dtype: volume.astype(dtype)):
+        yield
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
@@ -434,6 +464,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "classes-numpy": _classes_numpy,
     "detector-finest-2": _detector_finest_2,
     "vectors-by-numpy": _vectors_by_numpy,
+    "flow-glue-serial": _flow_glue_serial,
 }
 """The code as it was before each change (``kept``: as it is), or a change tried and not kept, for ``--ab``."""
 

@@ -448,6 +448,25 @@ def _flow_glue_serial() -> Iterator[None]:
         yield
 
 
+@contextlib.contextmanager
+def _half_by_numpy() -> Iterator[None]:
+    """Before the high-TR video was taken to float16 by OpenCV (the CPU's conversion instructions): numpy's
+    conversion, a sub-frame at a time on every core; the same bits."""
+    from flexvox_core.motion import stages
+
+    def held_as(volume: np.ndarray, dtype: Any) -> np.ndarray:
+        out = np.empty(volume.shape, dtype)
+
+        def one(t: int) -> None:
+            out[t] = volume[t]
+
+        stages.for_each(one, len(volume))
+        return out
+
+    with mock.patch.object(stages, "held_as", held_as):
+        yield
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
@@ -465,6 +484,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "detector-finest-2": _detector_finest_2,
     "vectors-by-numpy": _vectors_by_numpy,
     "flow-glue-serial": _flow_glue_serial,
+    "half-by-numpy": _half_by_numpy,
 }
 """The code as it was before each change (``kept``: as it is), or a change tried and not kept, for ``--ab``."""
 

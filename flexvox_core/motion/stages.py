@@ -644,12 +644,18 @@ class CpuStages:
 
 
 def held_as(volume: np.ndarray, dtype: Any) -> np.ndarray:
-    """``volume.astype(dtype)``, a sub-frame at a time on every core (numpy's conversion of each value: the same
-    bits; its fresh memory faulted in on both cores)."""
+    """``volume.astype(dtype)``, a sub-frame at a time on every core (its fresh memory faulted in on both cores).
+    float32 to float16 by OpenCV (``cv2.multiply`` by 1 into a float16 plane: the CPU's conversion instructions,
+    0.2 against 0.8 ns a value), numpy's values bit for bit (every finite float32 checked, and infinities; NaN
+    is not held); anything else by numpy."""
     out = np.empty(volume.shape, dtype)
+    by_opencv = volume.dtype == np.float32 and out.dtype == np.float16 and volume.ndim == 3
 
     def one(t: int) -> None:
-        out[t] = volume[t]
+        if by_opencv:
+            cv2.multiply(volume[t], 1.0, dst=out[t], dtype=cv2.CV_16F)
+        else:
+            out[t] = volume[t]
 
     for_each(one, len(volume))
     return out

@@ -484,6 +484,36 @@ def _choice_whole_rows() -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def _flow_glue_serial() -> Iterator[None]:
+    """Before the gated flow's steps between its DIS pairs ran on every core: the videos taken to uint8, the
+    K-average and the period gate's box in time, the pairs' weighting, the video's check and the high-TR held in
+    float16, each a whole-volume numpy (or SciPy) call on one thread; the same bits."""
+    from scipy.ndimage import uniform_filter1d
+
+    from flexvox_core.flow import baseline, estimate
+    from flexvox_core.motion import gated_flow, stages
+
+    def sums_finite(v: np.ndarray) -> bool:
+        with np.errstate(over="ignore"):
+            return bool(np.isfinite(v.sum(dtype=np.float64)))
+
+    def weigh_pairs(fwd: np.ndarray, conf: np.ndarray) -> None:
+        fwd *= (conf + np.float32(1e-3))[..., None]
+
+    def box_in_time(video: np.ndarray, size: int) -> np.ndarray:
+        return uniform_filter1d(video, size, axis=0, mode="nearest")
+
+    with mock.patch.object(estimate, "to_uint8_planes", estimate.to_uint8), \
+            mock.patch.object(baseline, "to_uint8_planes", estimate.to_uint8), \
+            mock.patch.object(estimate, "subframe_sums_finite", sums_finite), \
+            mock.patch.object(estimate, "weigh_pairs", weigh_pairs), \
+            mock.patch.object(baseline, "box_in_time", box_in_time), \
+            mock.patch.object(gated_flow, "box_in_time", box_in_time), \
+            mock.patch.object(stages, "held_as", lambda volume, dtype: volume.astype(dtype)):
+        yield
+
+
+@contextlib.contextmanager
 def _gather_finish_numpy() -> Iterator[None]:
     """Before the trajectory gather's last steps on a box were compiled (``mcnc_kernel.divide_box``) and its
     samples written by slices: numpy's leave-one-out at the samples' indices, N / D, the fallback converted over
@@ -551,6 +581,25 @@ def _gather_reads_clamped() -> Iterator[None]:
         yield
 
 
+@contextlib.contextmanager
+def _half_by_numpy() -> Iterator[None]:
+    """Before the high-TR video was taken to float16 by OpenCV (the CPU's conversion instructions): numpy's
+    conversion, a sub-frame at a time on every core; the same bits."""
+    from flexvox_core.motion import stages
+
+    def held_as(volume: np.ndarray, dtype: Any) -> np.ndarray:
+        out = np.empty(volume.shape, dtype)
+
+        def one(t: int) -> None:
+            out[t] = volume[t]
+
+        stages.for_each(one, len(volume))
+        return out
+
+    with mock.patch.object(stages, "held_as", held_as):
+        yield
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
@@ -574,6 +623,8 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "choice-before": _choice_before,
     "gather-finish-numpy": _gather_finish_numpy,
     "gather-reads-clamped": _gather_reads_clamped,
+    "flow-glue-serial": _flow_glue_serial,
+    "half-by-numpy": _half_by_numpy,
 }
 """The code as it was before each change (``kept``: as it is), or a change tried and not kept, for ``--ab``."""
 

@@ -21,7 +21,8 @@ import time
 import numpy as np
 
 from flexvox_core.flow.backends import backend_params, make_backend
-from flexvox_core.flow.estimate import FlowField, check_video, downscale, run_pairs, to_full_size, to_uint8
+from flexvox_core.flow.estimate import FlowField, check_video, downscale, run_pairs, to_full_size, to_uint8_planes
+from flexvox_core.threads import for_each, workers
 
 _logger = logging.getLogger(__name__)
 
@@ -64,10 +65,27 @@ def default_stride(K: int) -> int:
 
 
 def kaverage(video: np.ndarray, K: int) -> np.ndarray:
-    """Moving average over K sub-frames (every sampling phase once), edges held."""
+    """Moving average over K sub-frames (every sampling phase once), edges held (:func:`box_in_time`)."""
+    return box_in_time(video, K) if K > 1 else video
+
+
+def box_in_time(video: np.ndarray, size: int) -> np.ndarray:
+    """``scipy.ndimage.uniform_filter1d(video, size, axis=0, mode="nearest")`` of a video (S, H, ...), a band of rows
+    per task on every core (SciPy releases the GIL; each pixel's line in time is filtered as in the whole volume:
+    the same bits)."""
     from scipy.ndimage import uniform_filter1d
 
-    return uniform_filter1d(video, K, axis=0, mode="nearest") if K > 1 else video
+    out = np.empty(video.shape, video.dtype)
+    H = video.shape[1]
+    n = max(1, min(H, 4 * workers()))
+    edges = [H * i // n for i in range(n + 1)]
+
+    def one(i: int) -> None:
+        a, b = edges[i], edges[i + 1]
+        uniform_filter1d(video[:, a:b], size, axis=0, mode="nearest", output=out[:, a:b])
+
+    for_each(one, n)
+    return out
 
 
 def kaverage_flow(small: np.ndarray, K: int, flow_fn, stride: int, *, average: np.ndarray | None = None,
@@ -115,7 +133,7 @@ class KAverageFlow:
         span, starts = measurements(S, K, stride)
         self.span = span
         average = kaverage(small, K) if average is None else average
-        u8 = to_uint8(average)
+        u8 = to_uint8_planes(average)
         disp = np.empty((len(starts), h, w, 2), np.float32)
         conf = np.ones((len(starts), h, w), np.float32)
         run_pairs(flow_fn, u8, [(a, a + span) for a in starts], disp, conf, consistency=False, memo=memo)

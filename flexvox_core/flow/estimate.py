@@ -220,6 +220,19 @@ def to_uint8(video: np.ndarray) -> np.ndarray:
     return np.clip(video * np.float32(255) + np.float32(0.5), 0, 255).astype(np.uint8)
 
 
+def to_uint8_planes(video: np.ndarray) -> np.ndarray:
+    """:func:`to_uint8` of a video (S, H, W), a sub-frame at a time on every core: its values, without its three
+    whole-volume float32 temporaries (fresh memory is dear: at the flow's size of a 1-s 640×480 clip they cost
+    0.15-0.4 s of one core)."""
+    out = np.empty(video.shape, np.uint8)
+
+    def one(s: int) -> None:
+        out[s] = to_uint8(video[s])
+
+    for_each(one, len(video))
+    return out
+
+
 def _warp(field_: np.ndarray, flow: np.ndarray) -> np.ndarray:
     """Sample ``field_`` at x + flow(x) (bilinear, replicate borders)."""
     H, W = flow.shape[:2]
@@ -351,12 +364,35 @@ def check_video(video) -> np.ndarray:
         raise ValueError(f"`video` needs at least 2 sub-frames for flow; got {v.shape[0]}")
     # One pass without a boolean volume first (a float64 sum of float32 values cannot overflow; NaN
     # and inf carry through): at 640x480 x 240 sub-frames the volume cost 0.2 s, mostly fresh memory.
-    with np.errstate(over="ignore"):  # float64 input may overflow the sum: then the exact check decides
-        total = v.sum(dtype=np.float64)
-    if not np.isfinite(total) and not np.isfinite(v).all():
+    if not subframe_sums_finite(v) and not np.isfinite(v).all():
         bad = int(np.flatnonzero(~np.isfinite(v).all(axis=(1, 2)))[0])
         raise ValueError(f"`video` sub-frame {bad} holds NaN or infinite values")
     return v
+
+
+def subframe_sums_finite(v: np.ndarray) -> bool:
+    """Whether each sub-frame's float64 sum of ``v`` (S, H, W) is finite, the sub-frames summed on every core: True
+    when every value is finite and a float32 video's (its sum cannot overflow); False for any NaN or infinity (a
+    float64 video's huge values may overflow a sum too: the caller checks the values then)."""
+    sums = np.empty(len(v), np.float64)
+
+    def one(s: int) -> None:
+        with np.errstate(over="ignore"):
+            sums[s] = v[s].sum(dtype=np.float64)
+
+    for_each(one, len(v))
+    return bool(np.isfinite(sums).all())
+
+
+def weigh_pairs(fwd: np.ndarray, conf: np.ndarray) -> None:
+    """``fwd`` (P, h, w, 2) times ``conf + 1e-3`` (P, h, w), in place, a pair at a time on every core (numpy's
+    whole-volume product's values: one float32 multiplication each)."""
+    eps = np.float32(1e-3)
+
+    def one(i: int) -> None:
+        fwd[i] *= (conf[i] + eps)[..., None]
+
+    for_each(one, len(fwd))
 
 
 def successive_flow(small: np.ndarray, flow_fn, *, consistency: bool, temporal_window: int, memo=None):
@@ -364,7 +400,7 @@ def successive_flow(small: np.ndarray, flow_fn, *, consistency: bool, temporal_w
     ``small``, in its pixels: flow between successive sub-frames, averaged over
     ``temporal_window`` by confidence. ``memo``: as :func:`run_pairs`."""
     S, h, w = small.shape
-    u8 = to_uint8(small)
+    u8 = to_uint8_planes(small)
     fwd = np.empty((S - 1, h, w, 2), np.float32)
     vconf = np.ones((S, h, w), np.float32)  # the last sub-frame takes the last pair's confidence
     conf = vconf[:-1]
@@ -376,7 +412,7 @@ def successive_flow(small: np.ndarray, flow_fn, *, consistency: bool, temporal_w
     # pass (fresh memory is dear: at 640x480 x 240 sub-frames the whole-volume sums' temporaries
     # cost 0.15-0.6 s). Each sum is made in the same order as over whole volumes: from 0,
     # offsets in increasing order (mean_kernel.pair_mean).
-    fwd *= (conf + np.float32(1e-3))[..., None]  # weighted flows, in place
+    weigh_pairs(fwd, conf)  # weighted flows, in place
     P = S - 1
     vel = np.empty((S, h, w, 2), np.float32)
     reach = max(0, min(temporal_window, P - 1))

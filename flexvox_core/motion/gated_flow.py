@@ -12,7 +12,7 @@ import numpy as np
 
 from flexvox_core.flow import FlowField
 from flexvox_core.flow.backends import backend_params, make_backend
-from flexvox_core.flow.baseline import KAverageFlow, blend, default_stride, kaverage
+from flexvox_core.flow.baseline import KAverageFlow, blend, box_in_time, default_stride, kaverage
 from flexvox_core.flow.estimate import (
     ScaledFlow,
     check_video,
@@ -96,9 +96,7 @@ def gated_flow(video: np.ndarray, K: int, *, backend: str, gate=DEFAULT_GATE, sc
         # it exactly still): the successive-sub-frame flow averaged over one sampling period.
         # The high-TR video swims with the code's period (about 1 px per sub-frame at K = 16),
         # which that average cancels; steady motion stays.
-        from scipy.ndimage import uniform_filter1d
-
-        mean = uniform_filter1d(vel, K, axis=0, mode="nearest")
+        mean = box_in_time(vel, K)
         params["period_gate"] = tuple(period_gate)
     params["gate"] = (lo, hi)
     out = _GatedFlow(vel, conf, slow, use_slow, slow_speed, steps, mean, (lo, hi), period_gate, px)

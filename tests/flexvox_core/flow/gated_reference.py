@@ -7,7 +7,7 @@ from scipy.ndimage import uniform_filter1d
 
 from flexvox_core.flow import FlowField
 from flexvox_core.flow.backends import backend_params, make_backend
-from flexvox_core.flow.baseline import default_stride, kaverage, kaverage_flow
+from flexvox_core.flow.baseline import default_stride, kaverage_flow
 from flexvox_core.flow.estimate import check_video, downscale, run_pairs, to_full_size, to_uint8, upsample_flow
 from flexvox_core.motion.gated_flow import DETECTOR_DIS_PARAMS
 from flexvox_core.motion.pipeline import DIS_PARAMS
@@ -43,7 +43,7 @@ def gated_flow_reference(video, K, *, backend, gate=(0.03, 0.15), scale=0.5, con
     px = video.shape[2] / vel.shape[2]
     params = {**backend_params(flow_fn), "scale": scale, "consistency": consistency, "temporal_window": 1}
     if K > 1 and video.shape[0] > 1:
-        average = kaverage(small, K)
+        average = uniform_filter1d(small, K, axis=0, mode="nearest")
         slow, span = kaverage_flow(small, K, flow_fn, default_stride(K), average=average)
         speed = np.hypot(slow[..., 0], slow[..., 1]) * np.float32(px)
         if slow_speed is not None and span == K:

@@ -2,11 +2,20 @@
 
 import numpy as np
 import pytest
+from scipy.ndimage import uniform_filter1d
 
 from flexvox_core.design import design_code
 from flexvox_core.flow.backends import make_backend
-from flexvox_core.flow.baseline import KAverageFlow, kaverage_flow
-from flexvox_core.flow.estimate import check_video, downscale, successive_flow
+from flexvox_core.flow.baseline import KAverageFlow, box_in_time, kaverage, kaverage_flow
+from flexvox_core.flow.estimate import (
+    check_video,
+    downscale,
+    subframe_sums_finite,
+    successive_flow,
+    to_uint8,
+    to_uint8_planes,
+    weigh_pairs,
+)
 from flexvox_core.forward import capture
 from flexvox_core.motion.pipeline import STEP1_TENSOR, STEP1_TIME, gated_flow
 from flexvox_core.reconstruct.diffusion import diffuse
@@ -70,3 +79,74 @@ def test_check_video_names_the_bad_subframe_and_passes_huge_finite_values():
     v[2, 1, 1] = np.nan
     with pytest.raises(ValueError, match="sub-frame 2"):
         check_video(v)
+
+
+# The steps between the gated flow's DIS pairs, a sub-frame (or a band of rows) at a time on every core: the
+# whole-volume numpy and SciPy calls' values, bit for bit (odd sizes: the bands and the planes do not divide them).
+
+@pytest.mark.parametrize("shape", [(7, 5, 3), (33, 17, 11), (40, 1, 9)])
+@pytest.mark.parametrize("size", [2, 5, 16])
+def test_box_in_time_is_scipys_uniform_filter(shape, size):
+    rng = np.random.default_rng(3)
+    v = rng.normal(size=shape).astype(np.float32)
+    np.testing.assert_array_equal(box_in_time(v, size), uniform_filter1d(v, size, axis=0, mode="nearest"))
+    vectors = rng.normal(size=(*shape, 2)).astype(np.float32)  # the period gate's flow (S, h, w, 2)
+    np.testing.assert_array_equal(box_in_time(vectors, size),
+                                  uniform_filter1d(vectors, size, axis=0, mode="nearest"))
+
+
+def test_kaverage_is_the_box_of_K_and_holds_a_clip_at_K_1():
+    v = np.random.default_rng(4).random((21, 9, 13), dtype=np.float32)
+    np.testing.assert_array_equal(kaverage(v, 8), uniform_filter1d(v, 8, axis=0, mode="nearest"))
+    assert kaverage(v, 1) is v
+
+
+def test_to_uint8_planes_is_to_uint8_of_the_volume():
+    rng = np.random.default_rng(5)
+    v = rng.uniform(-0.2, 1.2, (19, 7, 11)).astype(np.float32)  # clipped at both ends
+    v[3, 2, 2], v[4, 1, 1] = 0.5 / 255, 254.5 / 255  # the rounding's halfway points
+    got = to_uint8_planes(v)
+    assert got.dtype == np.uint8
+    np.testing.assert_array_equal(got, to_uint8(v))
+    assert got.min() == 0 and got.max() == 255
+
+
+def test_weigh_pairs_is_the_whole_volume_product():
+    rng = np.random.default_rng(6)
+    fwd = rng.normal(size=(9, 5, 7, 2)).astype(np.float32)
+    conf = rng.random((9, 5, 7), dtype=np.float32)
+    want = fwd * (conf + np.float32(1e-3))[..., None]
+    weigh_pairs(fwd, conf)
+    np.testing.assert_array_equal(fwd, want)
+
+
+def test_subframe_sums_finite_finds_any_nan_or_infinity():
+    v = np.random.default_rng(7).random((11, 6, 5), dtype=np.float32)
+    assert subframe_sums_finite(v)
+    for bad in (np.nan, np.inf, -np.inf):
+        w = v.copy()
+        w[9, 5, 4] = bad
+        assert not subframe_sums_finite(w)
+        with pytest.raises(ValueError, match="sub-frame 9 holds NaN or infinite values"):
+            check_video(w)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_held_as_float16_is_astype(dtype):
+    from flexvox_core.motion.stages import held_as
+
+    v = np.random.default_rng(8).normal(0, 1e4, (13, 7, 9)).astype(np.float32).clip(-6e4, 6e4)
+    # -0, float16 subnormals and below them, ties to even (1 + 2^-11 -> 1, 1 + 3·2^-11 -> 1 + 2^-9), the largest
+    # value that rounds down to 65504 and the first that rounds up to infinity, infinities
+    v[0, 0, :] = (-0.0, 6e-8, 2.9e-8, 2.99e-8, 1 + 2**-11, 1 + 3 * 2**-11, 65519.0, 65520.0, np.inf)
+    v[1, 0, 0] = -np.inf
+    if dtype is np.float64:  # numpy's conversion (it warns of the overflow in its threads): values in range
+        v[0, 0, 7:], v[1, 0, 0] = 1.0, 1.0
+    v = v.astype(dtype)
+    with np.errstate(over="ignore"):
+        want = v.astype(np.float16)
+    got = held_as(v, np.float16)
+    assert got.dtype == np.float16
+    np.testing.assert_array_equal(got.view(np.uint16), want.view(np.uint16))  # the bits: -0 is not +0
+    assert got[0, 0, 6] == 65504 and got[0, 0, 2] == 0 and got[0, 0, 3] > 0 and np.signbit(got[0, 0, 0])
+    assert dtype is np.float64 or np.isinf(got[0, 0, 7])

@@ -347,8 +347,9 @@ def run(frames, code, method: Method | str | None = None, *, chunk_frames: int |
     Raises
     ------
     TypeError
-        A ``method`` that is neither a :class:`Method` nor a name, options beside a :class:`Method`, or a
-        ``progress`` that is not a bool or a callable.
+        A ``method`` that is neither a :class:`Method` nor a name, options beside a :class:`Method`, a
+        ``progress`` that is not a bool or a callable, or a recording (its path, a ``Recording``, a
+        ``CaptureReader``) in ``frames``' place.
     ValueError
         Frames, a code, an origin or options that break their rules (the message names the value and the rule).
     """
@@ -357,6 +358,7 @@ def run(frames, code, method: Method | str | None = None, *, chunk_frames: int |
         raise TypeError(f"`frames` is a path ({frames}): a recording goes to fv.reconstruct_video(path, method), "
                         "which reads its code and dropped frames; fv.run takes frames (F, H, W) and a code "
                         "(fv.read_capture(path)), or fv.open_capture(path).run(method) gives the result object")
+    _refuse_recording(frames)
     if code is None:
         raise TypeError("run() needs the `code` the frames were captured with (a recording: "
                         "fv.reconstruct_video(recording) or fv.open_capture(recording).run(method))")
@@ -366,6 +368,19 @@ def run(frames, code, method: Method | str | None = None, *, chunk_frames: int |
                            ) as report:
         return _run(f, code, method, chunk_frames=chunk_frames, progress=report, extras=extras, missing=missing,
                     device=device, origin=(row, col))
+
+
+def _refuse_recording(frames) -> None:
+    """A Recording or a CaptureReader in ``frames``' place is refused with where it goes: read as an array it was
+    "dtype object", which said nothing of the recording."""
+    from flexvox_core.capture_reader import CaptureReader
+    from flexvox_core.recording import Recording
+
+    if isinstance(frames, Recording | CaptureReader):
+        raise TypeError(f"`frames` is a {type(frames).__name__}: a recording goes to "
+                        "fv.reconstruct_video(recording, method), which reads its code and dropped frames; fv.run "
+                        "takes frames (F, H, W) and a code (fv.read_capture(path)), or "
+                        "fv.open_capture(recording).run(method) gives the result object")
 
 
 def _run(f: np.ndarray, code, method: Method, *, chunk_frames: int | None, progress: Progress | None, extras: bool,

@@ -99,6 +99,17 @@ def test_a_recording_s_path_in_place_of_frames_is_the_recording(dropped):
         fv.run(str(dropped), np.ones((2, 2, 4), bool), NC)
 
 
+def test_a_recording_given_to_run_says_where_it_goes(dropped):
+    # read as an array it was "`frames` must hold real numbers ...; got dtype object"
+    rec = fv.open_recording(dropped)
+    for given in (rec, fv.open_capture(rec)):
+        with pytest.raises(TypeError, match=r"`frames` is a (Recording|CaptureReader): a recording goes to "
+                                            r"fv.reconstruct_video\(recording, method\), which reads its code"):
+            fv.run(given, NC)
+        with pytest.raises(TypeError, match=r"`frames` is a (Recording|CaptureReader): a recording goes to"):
+            fv.run(given, fv.read_capture(dropped)[1], "diffusion")
+
+
 def test_a_method_by_name_takes_its_options_as_keywords(scene):
     _, code, frames = scene
     by_name = fv.reconstruct_video(frames, code, "gap-tv", iterations=3)

@@ -367,6 +367,8 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     ------
     NotEstimable
         A method the estimate cannot serve (:func:`refusal`), or a capture too small to probe.
+    TypeError
+        A recording (its path, a ``Recording``) in ``frames``' place: :func:`estimate_recording` takes it.
 
     Examples
     --------
@@ -378,9 +380,10 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     >>> est.samples > 0, est.low <= est.psnr <= est.high
     (True, True)
     """
-    from flexvox_core.methods.runner import check_origin, code_at_origin
+    from flexvox_core.methods.runner import check_origin, code_at_origin, refuse_recording
     from flexvox_core.multiplex import MultiplexedCode
 
+    refuse_recording(frames, "fv.estimate_accuracy", "fv.estimate_recording(recording, method)")
     if check_origin(origin) != (0, 0):
         if isinstance(code, MultiplexedCode):
             raise ValueError(f"`origin` {origin!r} with a multiplexed code: estimate on the whole camera frame, or on "

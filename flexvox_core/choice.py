@@ -326,6 +326,8 @@ def choose(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method 
         candidate could be estimated (each one's reason quoted).
     ValueError
         ``method`` has no option ``knob``, no default candidates for it, or a candidate breaks its rule.
+    TypeError
+        A recording (its path, a ``Recording``) in ``frames``' place: :func:`choose_recording` takes it.
 
     Examples
     --------
@@ -338,9 +340,10 @@ def choose(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method 
     """
     from flexvox_core.accuracy import estimate_accuracy
     from flexvox_core.methods import run
-    from flexvox_core.methods.runner import check_origin, code_at_origin
+    from flexvox_core.methods.runner import check_origin, code_at_origin, refuse_recording
     from flexvox_core.multiplex import MultiplexedCode
 
+    refuse_recording(frames, "fv.choose", "fv.choose_recording(recording, method, knob)")
     row, col = check_origin(origin)
     if (row, col) != (0, 0):  # the crop's pixel (y, x) is the camera's (y + row, x + col), as the runner reads it
         if isinstance(code, MultiplexedCode):

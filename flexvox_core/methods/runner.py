@@ -373,14 +373,25 @@ def run(frames, code, method: Method | str | None = None, *, chunk_frames: int |
 def _refuse_recording(frames) -> None:
     """A Recording or a CaptureReader in ``frames``' place is refused with where it goes: read as an array it was
     "dtype object", which said nothing of the recording."""
+    refuse_recording(frames, "fv.run", "fv.reconstruct_video(recording, method)",
+                     "; or fv.open_capture(recording).run(method) gives the result object")
+
+
+def refuse_recording(frames, call: str, instead: str, more: str = "") -> None:
+    """Refuse a recording (its path, a ``Recording``, a ``CaptureReader``) given as ``frames`` to ``call``, which
+    takes frames and a code, naming ``instead``, the call that takes the recording (read as an array it was
+    "dtype <U..." or "dtype object")."""
     from flexvox_core.capture_reader import CaptureReader
     from flexvox_core.recording import Recording
 
-    if isinstance(frames, Recording | CaptureReader):
-        raise TypeError(f"`frames` is a {type(frames).__name__}: a recording goes to "
-                        "fv.reconstruct_video(recording, method), which reads its code and dropped frames; fv.run "
-                        "takes frames (F, H, W) and a code (fv.read_capture(path)), or "
-                        "fv.open_capture(recording).run(method) gives the result object")
+    if isinstance(frames, str | os.PathLike):
+        what = f"a path ({frames})"
+    elif isinstance(frames, Recording | CaptureReader):
+        what = f"a {type(frames).__name__}"
+    else:
+        return
+    raise TypeError(f"`frames` is {what}: a recording goes to {instead}, which reads its code and dropped frames; "
+                    f"{call} takes frames (F, H, W) and a code (fv.read_capture(path)){more}")
 
 
 def _run(f: np.ndarray, code, method: Method, *, chunk_frames: int | None, progress: Progress | None, extras: bool,

@@ -381,12 +381,13 @@ def refuse_recording(frames, call: str, instead: str, more: str = "") -> None:
     """Refuse a recording (its path, a ``Recording``, a ``CaptureReader``) given as ``frames`` to ``call``, which
     takes frames and a code, naming ``instead``, the call that takes the recording (read as an array it was
     "dtype <U..." or "dtype object")."""
-    from flexvox_core.capture_reader import CaptureReader
     from flexvox_core.recording import Recording
 
+    # capture_reader imports this module: its CaptureReader is told by its module, not imported (no import cycle)
+    reader = type(frames).__module__ == "flexvox_core.capture_reader" and type(frames).__name__ == "CaptureReader"
     if isinstance(frames, str | os.PathLike):
         what = f"a path ({frames})"
-    elif isinstance(frames, Recording | CaptureReader):
+    elif isinstance(frames, Recording) or reader:
         what = f"a {type(frames).__name__}"
     else:
         return

@@ -13,7 +13,7 @@ arrays or two float arrays are compared as they are, with the ``data_range`` giv
 **Units.** A float array with values beyond ``[-L, 2L]`` (L the data range; 8-bit values in a float array at
 the default ``data_range=1``) is refused, as are two float arrays that both lie in [0, 1] at a data range above 2
 (``data_range=255`` for videos in [0, 1], which would add 20 log₁₀ L dB): each is another unit than the data
-range says. The first is looked for on every fourth row and column.
+range says. The first is looked for on every fourth frame, row and column.
 
 .. math::
 
@@ -165,11 +165,11 @@ def _same_units(r: np.ndarray, v: np.ndarray, L: float) -> tuple[np.ndarray, np.
 
 def _check_data_range(r: np.ndarray, v: np.ndarray, L: float) -> None:
     """Float arrays in another unit than the data range ``L`` says, refused (the module's "Units"): values beyond
-    [-L, 2L] (looked for on every fourth row and column: a unit is the whole array's), or two arrays in [0, 1] at
-    an ``L`` above 2."""
+    [-L, 2L] (looked for on every fourth frame, row and column: a unit is the whole array's), or two arrays in
+    [0, 1] at an ``L`` above 2."""
     floats = [(name, a) for name, a in (("ref", r), ("x", v)) if a.dtype.kind == "f" and a.size]
     for name, a in floats:
-        sample = a[:, ::4, ::4]
+        sample = a[::4, ::4, ::4]
         lo, hi = float(np.min(sample)), float(np.max(sample))  # NaN: no comparison holds; refused later, by frame
         if hi > 2 * L or lo < -L:
             hint = "8-bit values in a float array? divide by 255; or " if L == 1 and hi > 2 else ""

@@ -394,7 +394,7 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     >>> est.samples > 0, est.low <= est.psnr <= est.high
     (True, True)
     """
-    from flexvox_core.methods.runner import check_origin, code_at_origin, refuse_recording
+    from flexvox_core.methods.runner import check_counts_within_white, check_origin, code_at_origin, refuse_recording
     from flexvox_core.multiplex import MultiplexedCode
 
     refuse_recording(frames, "fv.estimate_accuracy", "fv.estimate_recording(recording, method)")
@@ -403,7 +403,8 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
             raise ValueError(f"`origin` {origin!r} with a multiplexed code: estimate on the whole camera frame, or on "
                              "a crop on its tile grid")
         code = code_at_origin(code, origin)
-    frames = as_relative(frames, white=white)
+    counts, frames = frames, as_relative(frames, white=white)
+    check_counts_within_white(counts, frames, white, code)
     with progress_callback(progress, desc="accuracy estimate", unit="frame") as report:
         return _estimate(frames, code, method, noise=noise, missing=missing, reconstruction=reconstruction,
                          step=step, delta=delta, seed=seed, confidence=confidence, chunk_frames=chunk_frames,

@@ -364,6 +364,7 @@ def run(frames, code, method: Method | str | None = None, *, chunk_frames: int |
                         "fv.reconstruct_video(recording) or fv.open_capture(recording).run(method))")
     row, col = check_origin(origin)
     f = as_relative(frames, white=white)
+    check_counts_within_white(frames, f, white, code)
     with progress_callback(progress, desc="reconstruct", unit="frame", total=f.shape[0] if f.ndim else None
                            ) as report:
         return _run(f, code, method, chunk_frames=chunk_frames, progress=report, extras=extras, missing=missing,
@@ -375,6 +376,23 @@ def _refuse_recording(frames) -> None:
     "dtype object", which said nothing of the recording."""
     refuse_recording(frames, "fv.run", "fv.reconstruct_video(recording, method)",
                      "; or fv.open_capture(recording).run(method) gives the result object")
+
+
+def check_counts_within_white(frames, relative: np.ndarray, white, code) -> None:
+    """Integer counts given with ``white`` may reach at most twice the light of the code's most open pixel (one slot
+    for an identity code, (K+1)/2 for an S-matrix one): beyond it ``white`` is not their white (a 12-bit camera's
+    counts in the high bits of a uint16, white=4095 for counts up to 65520), and the reconstruction had been white
+    everywhere, clipped, without a word."""
+    if white is None or np.asarray(frames).dtype.kind not in "iu" or not relative.size:
+        return
+    c = getattr(code, "code", code)  # a MultiplexedCode (the estimate and the choice take one): its array
+    most_open = int(validate_code(c).sum(axis=2).max())
+    hi = float(relative.max())
+    if hi > 2 * most_open:
+        raise ValueError(f"`frames` reach {hi * float(white):.0f} counts, {hi:.3g} times `white` = {float(white):g}, "
+                         f"where the code lets in at most {most_open} slot(s) of white: `white` is not these counts' "
+                         "white (counts in the high bits of their dtype? give the dtype's largest value, or shift "
+                         "them down)")
 
 
 def refuse_recording(frames, call: str, instead: str, more: str = "") -> None:

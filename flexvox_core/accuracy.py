@@ -57,6 +57,7 @@ from flexvox_core.codes import is_identity_code, validate_code
 from flexvox_core.forward import tiled_code
 from flexvox_core.gaps import as_missing, find_gaps
 from flexvox_core.intensity import as_relative
+from flexvox_core.numbers import positive_number
 from flexvox_core.progress import Progress, progress_callback
 
 if TYPE_CHECKING:
@@ -185,6 +186,13 @@ class NoiseModel:
     floor: float = 0.0
     source: str = "none given"
 
+    def __post_init__(self) -> None:
+        from flexvox_core.numbers import checked_number
+
+        for name in ("photon", "floor"):  # a negative variance had been estimated with (6.5 dB for a 20 dB run)
+            checked_number(name, getattr(self, name), "a finite number >= 0 (a variance in relative units)",
+                           lambda v: v >= 0)
+
     def variance(self, y: ArrayLike) -> np.ndarray:
         """The noise variance of samples ``y`` (their own values stand in for the unknown signal)."""
         return self.photon * np.maximum(np.asarray(y, np.float64), 0.0) + self.floor
@@ -196,7 +204,8 @@ class NoiseModel:
 
         Shot noise gives ``1/e`` per unit, read noise ``(σ/e)²``, dark current ``rate/(hz·e²)`` with shot noise,
         the ADC ``(1/(gain·e))²/12``, where ``e`` is the electrons per unit (the storage's, else the
-        simulator's default 1000, which the source then says is assumed)."""
+        simulator's default 1000, which the source then says is assumed). Each effect's parameters follow the
+        simulator's rules (a misspelt name or a value out of its range is refused, not read as the default)."""
         from flexvox_core.simulate.effects import EFFECTS
 
         if not isinstance(effects, dict) or not all(isinstance(v, dict) for v in effects.values()):
@@ -206,6 +215,11 @@ class NoiseModel:
         if unknown:
             raise ValueError(f"`effects` names {', '.join(map(repr, unknown))}, which the simulator does not have "
                              f"(its effects: {', '.join(EFFECTS)}): a misspelt noise would be read as none")
+        for name, params in effects.items():  # the simulator's rules: a misspelt parameter, a value out of range
+            EFFECTS[name](**params)
+        positive_number("`rate_hz`", rate_hz, unit="frames per second")
+        if electrons_per_unit is not None:  # 0 had been read as not stated (the default 1000)
+            positive_number("`electrons_per_unit`", electrons_per_unit, unit="electrons")
         storage = storage or {}
         stated = electrons_per_unit or storage.get("electrons_per_unit")
         e = float(stated or 1000.0)
@@ -367,6 +381,8 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     ------
     NotEstimable
         A method the estimate cannot serve (:func:`refusal`), or a capture too small to probe.
+    TypeError
+        A recording (its path, a ``Recording``) in ``frames``' place: :func:`estimate_recording` takes it.
 
     Examples
     --------
@@ -378,15 +394,17 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     >>> est.samples > 0, est.low <= est.psnr <= est.high
     (True, True)
     """
-    from flexvox_core.methods.runner import check_origin, code_at_origin
+    from flexvox_core.methods.runner import check_counts_within_white, check_origin, code_at_origin, refuse_recording
     from flexvox_core.multiplex import MultiplexedCode
 
+    refuse_recording(frames, "fv.estimate_accuracy", "fv.estimate_recording(recording, method)")
     if check_origin(origin) != (0, 0):
         if isinstance(code, MultiplexedCode):
             raise ValueError(f"`origin` {origin!r} with a multiplexed code: estimate on the whole camera frame, or on "
                              "a crop on its tile grid")
         code = code_at_origin(code, origin)
-    frames = as_relative(frames, white=white)
+    counts, frames = frames, as_relative(frames, white=white)
+    check_counts_within_white(counts, frames, white, code)
     with progress_callback(progress, desc="accuracy estimate", unit="frame") as report:
         return _estimate(frames, code, method, noise=noise, missing=missing, reconstruction=reconstruction,
                          step=step, delta=delta, seed=seed, confidence=confidence, chunk_frames=chunk_frames,

@@ -42,6 +42,7 @@ from flexvox_core.methods.runner import check_method_reach, device_for, gpu_chun
 from flexvox_core.output_files import atomic_output, check_output
 from flexvox_core.progress import progress_callback
 from flexvox_core.recording import Recording, RecordingError, open_recording
+from flexvox_core.recording.reader import check_recording_path
 from flexvox_core.video_io import INTERPOLATED, VIDEO, provenance
 
 _logger = logging.getLogger(__name__)
@@ -201,6 +202,8 @@ def reconstruct_batch(recording, output, method: Method | str | None = None, *, 
     output = Path(output)
     if output.suffix.lower() != ".zarr":
         raise ValueError(f"the batch output must be a .zarr store; got {output}")
+    if not isinstance(recording, Recording):
+        check_recording_path(recording)
     source = recording.path if isinstance(recording, Recording) else recording
     check_output(output, overwrite=overwrite, inputs=[source])
     try:

@@ -326,6 +326,8 @@ def choose(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method 
         candidate could be estimated (each one's reason quoted).
     ValueError
         ``method`` has no option ``knob``, no default candidates for it, or a candidate breaks its rule.
+    TypeError
+        A recording (its path, a ``Recording``) in ``frames``' place: :func:`choose_recording` takes it.
 
     Examples
     --------
@@ -338,9 +340,10 @@ def choose(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method 
     """
     from flexvox_core.accuracy import estimate_accuracy
     from flexvox_core.methods import run
-    from flexvox_core.methods.runner import check_origin, code_at_origin
+    from flexvox_core.methods.runner import check_counts_within_white, check_origin, code_at_origin, refuse_recording
     from flexvox_core.multiplex import MultiplexedCode
 
+    refuse_recording(frames, "fv.choose", "fv.choose_recording(recording, method, knob)")
     row, col = check_origin(origin)
     if (row, col) != (0, 0):  # the crop's pixel (y, x) is the camera's (y + row, x + col), as the runner reads it
         if isinstance(code, MultiplexedCode):
@@ -348,6 +351,7 @@ def choose(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method 
                              "crop on its tile grid")
         code = code_at_origin(code, (row, col))
     f32 = np.asarray(as_relative(frames, white=white), np.float32)
+    check_counts_within_white(frames, f32, white, code)
     gaps = missing if missing is None or f32.ndim != 3 else as_missing(missing, f32.shape[0])  # checked before any run
     reusable = not isinstance(code, MultiplexedCode)
     if reusable:

@@ -30,6 +30,10 @@ def validate_code(code) -> np.ndarray:
     arr = np.asarray(code)
     if arr.ndim == 0 and hasattr(code, "code"):  # a DesignResult, a MultiplexedCode
         raise ValueError(f"`code` must be the code's (m, n, K) array; got a {type(code).__name__}: give its `.code`")
+    if arr.ndim == 0 and (isinstance(code, str) or arr.dtype == object):
+        got = f"the text {code!r}" if isinstance(code, str) else f"a {type(code).__name__}"
+        raise ValueError(f"`code` must be the code's (m, n, K) array (a tile's: fv.design_code(tile).code); got {got}"
+                         ": a method goes after the code, (frames, code, method)")
     if arr.ndim != 3:
         raise ValueError(f"`code` must have shape (m, n, K); got {arr.ndim} dimensions {arr.shape}")
     m, n, K = arr.shape

@@ -15,7 +15,8 @@ def read_json(path, error: type[Exception] = ValueError):
     Raises
     ------
     error
-        ``"{path}: no such file"``, ``"{path}: cannot read: ..."``, ``"{path}: not valid JSON (... at line N)"`` or
+        ``"{path}: no such file"``, ``"{path} is a folder, ..."``, ``"{path}: not a code or calibration file: a binary
+        file, ..."``, ``"{path}: cannot read: ..."``, ``"{path}: not valid JSON (... at line N)"`` or
         ``"{path}: ... too large / too deeply nested"`` (``error`` is the caller's exception class, e.g. a
         ``ValueError`` subclass).
     """
@@ -25,14 +26,16 @@ def read_json(path, error: type[Exception] = ValueError):
             raw = fh.read(MAX_BYTES + 1)
     except FileNotFoundError:
         raise error(f"{path}: no such file") from None
+    except IsADirectoryError:  # had been "cannot read: [Errno 21] Is a directory"
+        raise error(f"{path} is a folder, not a code or calibration file (a JSON file)") from None
     except OSError as exc:
         raise error(f"{path}: cannot read: {exc}") from exc
     if len(raw) > MAX_BYTES:
         raise error(f"{path}: more than {MAX_BYTES // 2**20} MiB; not a code or calibration file")
     try:
         return json.loads(raw.decode("utf-8"))
-    except UnicodeDecodeError as exc:
-        raise error(f"{path}: cannot read: {exc}") from exc
+    except UnicodeDecodeError:  # had been "cannot read: 'utf-8' codec can't decode byte 0x93 in position 0"
+        raise error(f"{path}: not a code or calibration file: a binary file, where those are JSON text") from None
     except json.JSONDecodeError as exc:
         raise error(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
     except RecursionError:

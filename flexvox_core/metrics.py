@@ -10,6 +10,11 @@ with an explicit data range (1 for videos in [0, 1]), and the per-frame scores a
 65535), as ``skimage.util.img_as_float`` does for unsigned types, and ``data_range`` must be 1. Two integer
 arrays or two float arrays are compared as they are, with the ``data_range`` given.
 
+**Units.** A float array with values beyond ``[-L, 2L]`` (L the data range; 8-bit values in a float array at
+the default ``data_range=1``) is refused, as are two float arrays that both lie in [0, 1] at a data range above 2
+(``data_range=255`` for videos in [0, 1], which would add 20 log₁₀ L dB): each is another unit than the data
+range says. The first is looked for on every fourth frame, row and column.
+
 .. math::
 
     \mathrm{PSNR} = 10 \log_{10} \frac{L^2}{\mathrm{MSE}}, \qquad
@@ -126,6 +131,7 @@ def _check_pair(ref, x, data_range, *, convert: bool = True, check_finite: bool 
             _check_finite(name, a)
     L = positive_number("`data_range`", data_range)
     r, v = _same_units(r, v, L)
+    _check_data_range(r, v, L)
     if not convert:
         return r, v, L
     return r.astype(np.float64), v.astype(np.float64), L
@@ -155,6 +161,25 @@ def _same_units(r: np.ndarray, v: np.ndarray, L: float) -> tuple[np.ndarray, np.
 
     return tuple(as_relative(a, name=name) if a.dtype.kind in "iu" else a  # type: ignore[return-value]
                  for name, a in (("ref", r), ("x", v)))
+
+
+def _check_data_range(r: np.ndarray, v: np.ndarray, L: float) -> None:
+    """Float arrays in another unit than the data range ``L`` says, refused (the module's "Units"): values beyond
+    [-L, 2L] (looked for on every fourth frame, row and column: a unit is the whole array's), or two arrays in
+    [0, 1] at an ``L`` above 2."""
+    floats = [(name, a) for name, a in (("ref", r), ("x", v)) if a.dtype.kind == "f" and a.size]
+    for name, a in floats:
+        sample = a[::4, ::4, ::4]
+        lo, hi = float(np.min(sample)), float(np.max(sample))  # NaN: no comparison holds; refused later, by frame
+        if hi > 2 * L or lo < -L:
+            hint = "8-bit values in a float array? divide by 255; or " if L == 1 and hi > 2 else ""
+            raise ValueError(f"`{name}` holds values from {lo:.4g} to {hi:.4g}, but `data_range` is {L:g} (a float "
+                             f"array must lie within [{-L:g}, {2 * L:g}], -data_range to 2·data_range): {hint}give "
+                             "both in one unit, with that unit's data range")
+    if L > 2 and len(floats) == 2:
+        if all(np.min(a) >= 0 and np.max(a) <= 1 for _, a in floats):
+            raise ValueError(f"`ref` and `x` both lie in [0, 1], but `data_range` is {L:g}: the PSNR would be "
+                             f"{20 * np.log10(L):.1f} dB too high; videos in [0, 1] take data_range=1 (the default)")
 
 
 def _check_finite(name: str, a: np.ndarray) -> None:

@@ -106,6 +106,13 @@ def check_store_suffix(path) -> Path:
     return path
 
 
+def check_overwrite(overwrite) -> None:
+    """``overwrite`` must be True or False: a string (``overwrite="no"``) is true, and had replaced the output."""
+    numpy_bool = getattr(getattr(overwrite, "dtype", None), "kind", None) == "b" and getattr(overwrite, "ndim", 1) == 0
+    if not (isinstance(overwrite, bool) or numpy_bool):
+        raise TypeError(f"`overwrite` must be True or False; got {overwrite!r}")
+
+
 def check_output(path, *, overwrite: bool = False, inputs: Iterable = (), hint: str = OVERWRITE_HINT,
                  kind: str | None = "auto") -> Path:
     """Check, before any work, that ``path`` may be written; return it.
@@ -136,6 +143,7 @@ def check_output(path, *, overwrite: bool = False, inputs: Iterable = (), hint: 
         another process is writing; a missing folder; a folder that refuses new files; a ``store`` whose name
         does not end in ``.zarr`` (:func:`check_store_suffix`).
     """
+    check_overwrite(overwrite)
     path = Path(path).expanduser()
     refuse_output_onto_input(path, inputs)
     if kind == "store":
@@ -253,6 +261,7 @@ def atomic_output(path, *, overwrite: bool = False, hint: str = OVERWRITE_HINT) 
     is untouched. ``overwrite`` is checked again here (another process may have created
     ``path`` since :func:`check_output`).
     """
+    check_overwrite(overwrite)
     path = Path(path).expanduser()
     tmp = temporary_sibling(path)
     # One writer per output: a capture (or another command) cannot start on it while this one

@@ -63,6 +63,7 @@ def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, ov
         if interpolated.shape != (v.shape[0],):
             raise ValueError(f"`interpolated` must hold one flag per sub-frame ({v.shape[0]}); "
                              f"got {interpolated.shape}")
+    check_attrs(attrs)
     check_output(path, overwrite=overwrite)
     with atomic_output(path, overwrite=overwrite) as tmp:
         if suffix == ".npy":
@@ -87,6 +88,32 @@ def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, ov
             g.attrs["flexvox"] = meta
             ngff.write_pyramid(ngff.create_image(g, VIDEO, v.shape, time_step=time_step, levels=pyramid), v)
     return path
+
+
+def check_attrs(attrs) -> None:
+    """``attrs`` must be None or a dict of JSON values (str, int, float, bool, None, and lists and dicts of them
+    with str keys), checked before any work: a numpy scalar had failed inside the write with json's "Object of
+    type float32 is not JSON serializable"."""
+    if attrs is None:
+        return
+    if not isinstance(attrs, dict):
+        raise TypeError(f"`attrs` must be a dict of JSON values; got {type(attrs).__name__}")
+
+    def walk(value, where: str) -> None:
+        if isinstance(value, dict):
+            for k, v in value.items():
+                if not isinstance(k, str):
+                    raise TypeError(f"`attrs` keys must be text; got {k!r} in {where or 'attrs'}")
+                walk(v, f"{where}[{k!r}]")
+        elif isinstance(value, list | tuple):
+            for i, v in enumerate(value):
+                walk(v, f"{where}[{i}]")
+        elif value is not None and not isinstance(value, str | int | float):  # bool is an int
+            hint = " (a numpy value: give value.item() or value.tolist())" if type(value).__module__ == "numpy" else ""
+            raise TypeError(f"`attrs` must hold JSON values (text, numbers, bools, None, lists, dicts); "
+                            f"attrs{where} is a {type(value).__name__}{hint}")
+
+    walk(attrs, "")
 
 
 def check_unit_values(video) -> np.ndarray:

@@ -128,12 +128,27 @@ class CapturePlan:
         if (isinstance(hz, bool) or not isinstance(hz, int | float) or not math.isfinite(hz)
                 or not 0 < hz <= MAX_CAMERA_HZ):
             raise ValueError(f"`camera_hz` must be a rate above 0 and at most {MAX_CAMERA_HZ:g} Hz; got {hz!r}")
+        cam = self.camera_exposure_us  # -1 had been timed as "misses the last 17 of 16 slots", NaN failed at start
+        if cam is not None and (isinstance(cam, bool) or not isinstance(cam, int | float | np.integer | np.floating)
+                                or not math.isfinite(cam) or cam <= 0):
+            raise ValueError(f"`camera_exposure_us` must be a finite number of µs above 0, or None (the default "
+                             f"exposure); got {cam!r}")
+        proj = self.projector_exposure_us  # 1.5 had been cut to 1 µs
+        if proj is not None and (isinstance(proj, bool) or not isinstance(proj, int | np.integer) or proj <= 0):
+            raise ValueError(f"`projector_exposure_us` must be a whole number of µs above 0, or None (the pattern "
+                             f"period); got {proj!r}")
+        if not isinstance(self.multiplexed, bool | np.bool_):  # multiplexed="no" had captured an S-matrix code
+            raise ValueError(f"`multiplexed` must be True or False; got {self.multiplexed!r}")
+        object.__setattr__(self, "multiplexed", bool(self.multiplexed))
         try:
-            tile = tuple(int(v) for v in self.tile)
-        except (TypeError, ValueError):
+            tile = tuple(self.tile)
+        except TypeError:
             tile = ()
-        if len(tile) != 2 or min(tile) < 1:
+        if (len(tile) != 2 or not all(isinstance(v, int | np.integer) and not isinstance(v, bool) or
+                                      isinstance(v, float | np.floating) and float(v).is_integer() for v in tile)
+                or min(tile) < 1):  # (4, 4.7) had been read as (4, 4)
             raise ValueError(f"`tile` must be two whole numbers (m, n) >= 1; got {self.tile!r}")
+        tile = tuple(int(v) for v in tile)
         object.__setattr__(self, "tile", tile)
         for name in ("order", "placement"):
             v = getattr(self, name)

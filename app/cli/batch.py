@@ -42,9 +42,12 @@ def run(args) -> int:
 
     from flexvox_app.cli.method_options import device_line, method_from_args, resolved_device
     from flexvox_core.batch import reconstruct_batch
+    from flexvox_core.output_files import CLI_OVERWRITE_HINT, check_output
     from flexvox_core.recording import RecordingError, open_recording
 
     try:
+        if args.output.suffix.lower() == ".zarr":  # reconstruct_batch names any other suffix
+            check_output(args.output, overwrite=args.overwrite, inputs=[args.recording], hint=CLI_OVERWRITE_HINT)
         rec = open_recording(args.recording)
         method = method_from_args(args, rec.attrs["tile"])
         device = resolved_device(args)

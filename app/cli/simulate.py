@@ -28,16 +28,18 @@ def parse_effect_overrides(text: str, current: dict) -> dict:
     """Apply ``--effects`` overrides: comma-separated ``name``, ``name.param=value`` or ``none``.
 
     ``none`` removes every effect declared so far; ``name`` declares an effect with its
-    defaults (or keeps its current parameters); ``name.param=value`` sets one parameter.
+    defaults (or keeps its current parameters); ``name.param=value`` sets one parameter, once (a second setting of
+    the same parameter is refused).
     """
     from flexvox_core.simulate.effects import EFFECTS
 
     table = {k: dict(v) for k, v in current.items()}
+    given: dict[str, str] = {}  # name.param -> the item that set it, since the last `none`
     for item in (t.strip() for t in text.split(",")):
         if not item:
             continue
         if item == "none":
-            table = {}
+            table, given = {}, {}
             continue
         name, _, assignment = item.partition(".")
         if name not in EFFECTS:
@@ -47,6 +49,10 @@ def parse_effect_overrides(text: str, current: dict) -> dict:
             key, eq, value = assignment.partition("=")
             if not eq:
                 raise ValueError(f"--effects item {item!r} must be name.param=value")
+            if f"{name}.{key}" in given:  # the last had been taken without a word
+                raise ValueError(f"--effects sets {name}.{key} twice ({given[f'{name}.{key}']} and {item}): give it "
+                                 "once")
+            given[f"{name}.{key}"] = item
             try:
                 table[name][key] = float(value)
             except ValueError:

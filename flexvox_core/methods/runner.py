@@ -347,8 +347,9 @@ def run(frames, code, method: Method | str | None = None, *, chunk_frames: int |
     Raises
     ------
     TypeError
-        A ``method`` that is neither a :class:`Method` nor a name, options beside a :class:`Method`, or a
-        ``progress`` that is not a bool or a callable.
+        A ``method`` that is neither a :class:`Method` nor a name, options beside a :class:`Method`, a
+        ``progress`` that is not a bool or a callable, or a recording (its path, a ``Recording``, a
+        ``CaptureReader``) in ``frames``' place.
     ValueError
         Frames, a code, an origin or options that break their rules (the message names the value and the rule).
     """
@@ -357,15 +358,59 @@ def run(frames, code, method: Method | str | None = None, *, chunk_frames: int |
         raise TypeError(f"`frames` is a path ({frames}): a recording goes to fv.reconstruct_video(path, method), "
                         "which reads its code and dropped frames; fv.run takes frames (F, H, W) and a code "
                         "(fv.read_capture(path)), or fv.open_capture(path).run(method) gives the result object")
+    _refuse_recording(frames)
     if code is None:
         raise TypeError("run() needs the `code` the frames were captured with (a recording: "
                         "fv.reconstruct_video(recording) or fv.open_capture(recording).run(method))")
     row, col = check_origin(origin)
     f = as_relative(frames, white=white)
+    check_counts_within_white(frames, f, white, code)
     with progress_callback(progress, desc="reconstruct", unit="frame", total=f.shape[0] if f.ndim else None
                            ) as report:
         return _run(f, code, method, chunk_frames=chunk_frames, progress=report, extras=extras, missing=missing,
                     device=device, origin=(row, col))
+
+
+def _refuse_recording(frames) -> None:
+    """A Recording or a CaptureReader in ``frames``' place is refused with where it goes: read as an array it was
+    "dtype object", which said nothing of the recording."""
+    refuse_recording(frames, "fv.run", "fv.reconstruct_video(recording, method)",
+                     "; or fv.open_capture(recording).run(method) gives the result object")
+
+
+def check_counts_within_white(frames, relative: np.ndarray, white, code) -> None:
+    """Integer counts given with ``white`` may reach at most twice the light of the code's most open pixel (one slot
+    for an identity code, (K+1)/2 for an S-matrix one): beyond it ``white`` is not their white (a 12-bit camera's
+    counts in the high bits of a uint16, white=4095 for counts up to 65520), and the reconstruction had been white
+    everywhere, clipped, without a word."""
+    if white is None or np.asarray(frames).dtype.kind not in "iu" or not relative.size:
+        return
+    c = getattr(code, "code", code)  # a MultiplexedCode (the estimate and the choice take one): its array
+    most_open = int(validate_code(c).sum(axis=2).max())
+    hi = float(relative.max())
+    if hi > 2 * most_open:
+        raise ValueError(f"`frames` reach {hi * float(white):.0f} counts, {hi:.3g} times `white` = {float(white):g}, "
+                         f"where the code lets in at most {most_open} slot(s) of white: `white` is not these counts' "
+                         "white (counts in the high bits of their dtype? give the dtype's largest value, or shift "
+                         "them down)")
+
+
+def refuse_recording(frames, call: str, instead: str, more: str = "") -> None:
+    """Refuse a recording (its path, a ``Recording``, a ``CaptureReader``) given as ``frames`` to ``call``, which
+    takes frames and a code, naming ``instead``, the call that takes the recording (read as an array it was
+    "dtype <U..." or "dtype object")."""
+    from flexvox_core.recording import Recording
+
+    # capture_reader imports this module: its CaptureReader is told by its module, not imported (no import cycle)
+    reader = type(frames).__module__ == "flexvox_core.capture_reader" and type(frames).__name__ == "CaptureReader"
+    if isinstance(frames, str | os.PathLike):
+        what = f"a path ({frames})"
+    elif isinstance(frames, Recording) or reader:
+        what = f"a {type(frames).__name__}"
+    else:
+        return
+    raise TypeError(f"`frames` is {what}: a recording goes to {instead}, which reads its code and dropped frames; "
+                    f"{call} takes frames (F, H, W) and a code (fv.read_capture(path)){more}")
 
 
 def _run(f: np.ndarray, code, method: Method, *, chunk_frames: int | None, progress: Progress | None, extras: bool,

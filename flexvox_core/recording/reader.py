@@ -276,12 +276,29 @@ def _unreadable(path: Path) -> str:
     return "its zarr.json does not describe a Zarr version 3 group"
 
 
+def check_recording_path(path, name: str = "recording") -> None:
+    """A recording's path must be a ``str`` or a path: frames in memory (an array, ``rec.frames``) had raised
+    pathlib's "expected str, bytes or os.PathLike object, not ndarray"."""
+    import os
+
+    if isinstance(path, str | os.PathLike):
+        return
+    if isinstance(path, VerifiedRows):
+        what = "a recording's frames (rec.frames): give the recording itself"
+    elif hasattr(path, "shape"):
+        what = f"{type(path).__name__}: frames in memory go to fv.reconstruct_video(frames, code, method)"
+    else:
+        what = f"{type(path).__name__} {path!r}"
+    raise TypeError(f"`{name}` must be a recording's path or a Recording; got {what}")
+
+
 def open_recording(path) -> Recording:
     """Open and validate a recording's structure; :class:`RecordingError` says what is wrong.
 
     Frames are checked as they are read (:attr:`Recording.frames`); :meth:`Recording.verify`
-    checks them all.
+    checks them all. A ``path`` that is no path (an array, a recording's ``frames``) is a ``TypeError`` in words.
     """
+    check_recording_path(path)
     path = Path(path)
     if not path.exists():
         raise RecordingError(f"{path}: no such recording")

@@ -146,11 +146,35 @@ class VerifiedRows:
             start, stop, step = key.indices(self.n)
             rows = self.read(start, max(start, stop)) if step == 1 else self.read(0, self.n)[key]
             return rows[(slice(None), *rest)] if rest else rows
+        if not isinstance(key, int | np.integer) or isinstance(key, bool):
+            rows = self._rows_of(key)
+            return rows[(slice(None), *rest)] if rest else rows
         idx = int(key)
         if not -self.n <= idx < self.n:
             raise IndexError(f"row {idx} is out of range for {self.n} rows")
         row = self.read(idx % self.n, idx % self.n + 1)[0]
         return row[rest] if rest else row
+
+    def _rows_of(self, key) -> np.ndarray:
+        """Rows by a list or an array of whole numbers, or of n booleans (as numpy indexes), read from the first
+        to the last of them; anything else is an ``IndexError`` naming it (``rows[1.5]`` had been row 1, and a
+        list had raised from ``int()``)."""
+        idx = np.asarray(key)
+        if idx.shape == (0,):  # [] is float64 to numpy
+            return self.read(0, 0)
+        if idx.dtype == bool and idx.shape == (self.n,):
+            idx = np.flatnonzero(idx)
+        elif idx.ndim != 1 or idx.dtype.kind not in "iu":
+            raise IndexError(f"{self.label} rows are indexed by a whole number, a slice, a list of whole numbers or "
+                             f"{self.n} booleans; got {key!r}")
+        bad = idx[(idx < -self.n) | (idx >= self.n)]
+        if bad.size:
+            raise IndexError(f"row {int(bad[0])} is out of range for {self.n} rows")
+        if not idx.size:  # a mask of no row
+            return self.read(0, 0)
+        idx = idx % self.n
+        lo = int(idx.min())
+        return self.read(lo, int(idx.max()) + 1)[idx - lo]
 
     def __repr__(self) -> str:
         shape = "x".join(str(v) for v in self.shape)

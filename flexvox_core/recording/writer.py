@@ -118,6 +118,7 @@ class RecordingWriter:
                  block_frames: int = DEFAULT_BLOCK_FRAMES, fsync: bool = False, atomic: bool = False,
                  lock=None):
         from flexvox_core.output_files import (
+            check_overwrite,
             check_store_suffix,
             refuse_other_kind,
             remove_dead_partials,
@@ -125,6 +126,7 @@ class RecordingWriter:
         )
         from flexvox_core.writer_lock import WriterLock
 
+        check_overwrite(overwrite)
         self.path = check_store_suffix(path)  # before the lock: a refused name leaves nothing behind
         dtype = np.dtype(dtype)
         if dtype not in (np.dtype("float32"), np.dtype("uint16")):

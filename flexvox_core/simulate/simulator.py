@@ -242,7 +242,8 @@ def simulate_video(
     Parameters
     ----------
     video : ndarray, shape (S, H, W)
-        Ground truth in [0, 1] (integers, an 8-bit clip, divided by their dtype's largest value); S a multiple of K.
+        Ground truth in [0, 1] (integers, an 8-bit clip, divided by their dtype's largest value; floats outside
+        [0, 1] are refused); S a multiple of K.
     code : ndarray, shape (m, n, K)
     effects : list of str or Effect, or mapping
         Only these are simulated, in the pipeline's order (see :mod:`flexvox_core.simulate.effects`): effect
@@ -275,6 +276,7 @@ def simulate_video(
     code = validate_code(code)
     K = code.shape[2]
     video = check_video(video, K)
+    _check_unit_range(video)
     _check_effects(effects, rate_hz, electrons_per_unit, seed)
     S, H, W = video.shape
     F = S // K
@@ -292,6 +294,15 @@ def simulate_video(
     _logger.info("simulated %d frames of %dx%d, K=%d, effects: %s", F, H, W, K, ", ".join(applied) or "none")
     return SimulationResult(frames, dropped, video, code, storage, applied, int(seed), float(rate_hz),
                             extra={"electrons_per_unit": electrons_per_unit})
+
+
+def _check_unit_range(video: np.ndarray) -> None:
+    """The ground truth lies in [0, 1] (white = 1), as a video file's floats must (``sources``): a float clip in
+    0..255 had been simulated 255 times too bright, its recording's ground truth in counts."""
+    lo, hi = float(video.min()), float(video.max())
+    if lo < 0 or hi > 1:
+        hint = " (8-bit values in a float array? divide by 255)" if hi > 2 else ""
+        raise ValueError(f"`video` values must lie in [0, 1] (white = 1); got {lo:g} to {hi:g}{hint}")
 
 
 def code_for(spec: SceneSpec):

@@ -135,6 +135,19 @@ def test_a_file_too_large_for_a_code_is_refused_before_it_is_parsed(capsys, tmp_
     assert code == 2 and f"{path}: more than 0 MiB; not a code or calibration file" in err
 
 
+def test_verify_names_a_folder_or_a_binary_file_for_what_it_is(capsys, tmp_path):
+    # they had said "cannot read: [Errno 21] Is a directory" and "cannot read: 'utf-8' codec can't decode byte 0x93"
+    import numpy as np
+
+    folder, array = tmp_path / "rec.zarr", tmp_path / "v.npy"
+    folder.mkdir()
+    np.save(array, np.zeros(3))
+    for path, message in ((folder, "rec.zarr is a folder, not a code or calibration file (a JSON file)"),
+                          (array, "v.npy: not a code or calibration file: a binary file, where those are JSON text")):
+        code, _, err = run_cli(capsys, "design", "--verify", str(path))
+        assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err
+
+
 def test_verify_missing_file(capsys, tmp_path):
     code, _, err = run_cli(capsys, "design", "--verify", str(tmp_path / "nope.json"))
     assert code == 2 and "no such file" in err

@@ -211,6 +211,9 @@ CASES = {
     "calibrate-existing-output": Case("calibrate --rig mock -o {dir}/cal.json", 2,
                                       r"cal.json already exists; use --overwrite .*checked before calibrating",
                                       _existing_outputs, inputs=("cal",)),
+    # batch had said "pass overwrite=True", the Python keyword
+    "batch-existing-output": Case("batch {rec} -o {dir}/video.zarr --method diffusion", 2,
+                                  r"video.zarr already exists; use --overwrite to replace it$", _video_store),
     "reconstruct-existing-output": Case("reconstruct {rec} -o {dir}/out.npy", 2, r"out.npy already exists",
                                         _existing_outputs, inputs=("rec", "out")),
     # bad values are named with their rule

@@ -62,6 +62,9 @@ def test_simulate_warns_when_trimming(capsys, tmp_path, rng):
         (["simulate", "fan", "--effects", "glitter", "-o", "x.zarr"], "unknown effect 'glitter'; effects:"),
         (["simulate", "fan", "--effects", "read_noise.sigma=-2", "-o", "x.zarr"], "read_noise.sigma must be between 0"),
         (["simulate", "fan", "--effects", "read_noise.sigma=abc", "-o", "x.zarr"], "must be a number; got 'abc'"),
+        # the last had been taken without a word
+        (["simulate", "fan", "--effects", "read_noise.sigma=2,read_noise.sigma=3", "-o", "x.zarr"],
+         "--effects sets read_noise.sigma twice (read_noise.sigma=2 and read_noise.sigma=3): give it once"),
         (["simulate", "fan", "--size", "3x3", "-o", "x.zarr"], "--size must be HxW with H, W >= 8"),
         (["simulate", "missing.npy", "-o", "x.zarr"], "missing.npy: no such file"),
     ],

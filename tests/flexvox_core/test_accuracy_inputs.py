@@ -15,6 +15,31 @@ def test_a_misspelt_effect_is_refused_not_read_as_no_noise():
     assert NoiseModel.from_effects({"read_noise": {}}).floor > 0  # the right name still reads
 
 
+@pytest.mark.parametrize(("effects", "kw", "match"), [
+    # a misspelt parameter had been read as its default (sigma 3), a negative sigma as its opposite, a NaN as a NaN
+    # floor, a gain of 0 raised ZeroDivisionError, electrons_per_unit=0 was read as not stated (1000)
+    ({"read_noise": {"sigm": 20.0}}, {}, r"effect 'read_noise' has no parameter 'sigm'; its parameters: sigma"),
+    ({"read_noise": {"sigma": -1}}, {}, r"read_noise.sigma must be between 0 and 10000 e- rms; got -1"),
+    ({"read_noise": {"sigma": float("nan")}}, {}, r"read_noise.sigma must be between 0 and 10000 .*got nan"),
+    ({"adc": {"gain": 0}}, {}, r"adc.gain must be between 1e-06 and 1000 DN/e-; got 0"),
+    ({"photon_noise": {}}, {"electrons_per_unit": 0}, r"`electrons_per_unit` must be a positive finite number of "
+                                                      r"electrons; got 0"),
+    ({"dark_current": {}, "photon_noise": {}}, {"rate_hz": -15}, r"`rate_hz` must be a positive finite number"),
+])
+def test_effects_parameters_follow_the_simulator_s_rules(effects, kw, match):
+    with pytest.raises(ValueError, match=match):
+        NoiseModel.from_effects(effects, **kw)
+
+
+@pytest.mark.parametrize("given", [{"photon": -1.0}, {"floor": float("nan")}, {"photon": "0.001"}])
+def test_a_noise_model_holds_variances(given):
+    # NoiseModel(photon=-1) was estimated with: 6.5 dB for a run of 20 dB
+    with pytest.raises(ValueError, match=r"`(photon|floor)` must be a finite number >= 0 \(a variance in relative "
+                                         r"units\); got"):
+        NoiseModel(**given)
+    assert NoiseModel(np.float32(0.001), 0).photon == pytest.approx(0.001)
+
+
 @pytest.mark.parametrize("effects", [["photon_noise", "read_noise"], {"read_noise": 3.0}])
 def test_effects_that_are_not_a_dict_of_parameters_are_refused(effects):
     with pytest.raises(TypeError, match=r"`effects` must be a dict of \{effect name: \{parameter: value\}\}"):

@@ -112,3 +112,22 @@ def test_the_deprecated_takes_raw_warns_and_answers_as_takes_multiplexed(mux_pat
                                                 r"CaptureReader\.takes_multiplexed\(method\)"):
         assert reader.takes_raw(Method("gap-tv")) is reader.takes_multiplexed(Method("gap-tv")) is True
     assert not reader.takes_multiplexed(Method("rebin"))
+
+
+def test_frames_in_a_recording_s_place_are_refused_naming_what_to_give(counts_path, tmp_path):
+    # pathlib had raised "expected str, bytes or os.PathLike object, not ndarray" (not VerifiedRows)
+    from flexvox_core.batch import reconstruct_batch
+
+    rec = open_recording(counts_path)
+    frames, _ = read_capture(counts_path)
+    for call in (read_capture, open_capture, open_recording,
+                 lambda r: reconstruct_batch(r, tmp_path / "b.zarr", "diffusion")):
+        with pytest.raises(TypeError, match=r"`recording` must be a recording's path or a Recording; got a "
+                                            r"recording's frames \(rec.frames\): give the recording itself"):
+            call(rec.frames)
+        with pytest.raises(TypeError, match=r"`recording` must be a recording's path or a Recording; got ndarray: "
+                                            r"frames in memory go to fv.reconstruct_video\(frames, code, method\)"):
+            call(frames)
+        with pytest.raises(TypeError, match=r"got NoneType None$"):
+            call(None)
+    assert not (tmp_path / "b.zarr").exists()

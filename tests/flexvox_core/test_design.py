@@ -128,6 +128,21 @@ def test_a_code_in_another_axis_order_or_still_in_its_result_is_refused_with_the
         validate_code(tiled_code(design.code, 6, 9))
 
 
+def test_a_method_or_a_tile_in_the_code_s_place_is_refused_with_the_order_of_the_arguments():
+    # reconstruct_video(frames, "diffusion") had said "`code` must have shape (m, n, K); got 0 dimensions ()"
+    import flexvox_core as fv
+
+    frames = np.zeros((2, 8, 8), np.float32)
+    for given, got in (("diffusion", r"the text 'diffusion'"), ("4x4", r"the text '4x4'"),
+                       (fv.Method("diffusion"), r"a Method")):
+        with pytest.raises(ValueError, match=r"`code` must be the code's \(m, n, K\) array \(a tile's: "
+                                             rf"fv.design_code\(tile\).code\); got {got}: a method goes after the "
+                                             r"code, \(frames, code, method\)"):
+            fv.reconstruct_video(frames, given)
+    with pytest.raises(ValueError, match=r"got the text 'gap-tv': a method goes after the code"):
+        fv.run(frames, "gap-tv")
+
+
 def test_require_names_the_tile_and_the_reason():
     assert design_code((2, 2)).require().shape == (2, 2, 4)
     with pytest.raises(ValueError, match=r"no code for a 2x2 tile: no 2x2 code has a 4-neighbour gap >= 2"):

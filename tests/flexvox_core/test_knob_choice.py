@@ -15,7 +15,7 @@ from flexvox_core.methods import Method
 from flexvox_core.metrics import psnr
 from flexvox_core.multiplex import multiplexed_code
 from flexvox_core.reconstruct.rebin import supported_divisions
-from flexvox_core.recording import Recording, write_simulation
+from flexvox_core.recording import Recording, open_recording, write_simulation
 from flexvox_core.simulate import render_scene, simulate_video
 
 CODE = design_code((2, 2)).code
@@ -176,6 +176,22 @@ def test_dropped_frames_given_as_indices_are_refused_before_anything_runs(counte
     with pytest.raises(ValueError, match=r"`missing` must be 4 booleans \(or 0/1\), one per camera frame; got the "
                                          r"values 0 to 2"):
         choose(frames, CODE, "diffusion", "time", (2.0,), missing=[0, 2, 0, 1])
+    assert counted == []
+
+
+def test_a_recording_given_to_choose_or_to_the_estimate_says_which_call_takes_it(tmp_path, counted):
+    # read as an array it was "`frames` must hold real numbers ...; got dtype object" (a path: "dtype <U..")
+    sim = simulate_video(render_scene("balls", 2 * 4, 16, 16, seed=0), CODE, seed=2)
+    path = write_simulation(tmp_path / "r.zarr", sim)
+    for given, what in ((path, r"a path \(.*r.zarr\)"), (str(path), r"a path \(.*r.zarr\)"),
+                        (open_recording(path), r"a Recording")):
+        with pytest.raises(TypeError, match=rf"`frames` is {what}: a recording goes to fv.choose_recording\(recording, "
+                                            r"method, knob\), which reads its code and dropped frames; fv.choose "
+                                            r"takes frames \(F, H, W\) and a code"):
+            choose(given, CODE, "diffusion", "time", (2.0,))
+        with pytest.raises(TypeError, match=rf"`frames` is {what}: a recording goes to "
+                                            r"fv.estimate_recording\(recording, method\), which reads"):
+            estimate_accuracy(given, CODE, Method("diffusion"))
     assert counted == []
 
 

@@ -203,6 +203,25 @@ def test_two_integer_arrays_in_other_units_are_refused_not_scored(rng):
     assert psnr(truth > 128, truth > 100) < 20  # bool arrays: 0 and 1, the data range 1
 
 
+def test_float_arrays_in_another_unit_than_the_data_range_are_refused_not_scored(rng):
+    # a float truth in 0..255 against a reconstruction in [0, 1] scored -43 dB (SSIM 2e-5); two videos in [0, 1]
+    # at data_range=255 scored 48 dB too high (68 dB)
+    truth = rng.random((3, 16, 16)).astype(np.float32)
+    x = np.clip(truth + 0.05 * rng.standard_normal(truth.shape), 0, 1).astype(np.float32)
+    for metric in (psnr, ssim, psnr_per_frame):
+        with pytest.raises(ValueError, match=r"`ref` holds values from \d.* to 2\d\d.*, but `data_range` is 1 \(a "
+                                             r"float array must lie within \[-1, 2\], -data_range to 2·data_range\): "
+                                             r"8-bit values in a float array\? divide by 255"):
+            metric(truth * 255, x)
+        with pytest.raises(ValueError, match=r"`x` holds values from .* but `data_range` is 1"):
+            metric(np.round(truth * 255).astype(np.uint8), x * 255)  # the uint8 truth is read in [0, 1]
+        with pytest.raises(ValueError, match=r"`ref` and `x` both lie in \[0, 1\], but `data_range` is 255: the PSNR "
+                                             r"would be 48.1 dB too high; videos in \[0, 1\] take data_range=1"):
+            metric(truth, x, data_range=255)
+    assert psnr(truth * 255, x * 255, data_range=255) == pytest.approx(psnr(truth, x), abs=1e-4)  # one unit: scored
+    assert np.isfinite(psnr(truth, x - 0.5))  # within [-1, 2]: scored as before
+
+
 def test_clip_psnr_is_of_the_clip_mse_in_float64_and_from_the_frames_scores(rng):
     from flexvox_core.metrics import clip_psnr, psnr_of_rows
 

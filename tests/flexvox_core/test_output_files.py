@@ -253,3 +253,28 @@ def test_a_python_caller_is_told_the_keyword_and_never_a_command_line_flag(tmp_p
     with pytest.raises(OutputError, match=r"d.npy is a folder; overwriting replaces a file with a file") as folder:
         write_video(tmp_path / "d.npy", video, overwrite=True)
     assert "--" not in str(refused.value) + str(folder.value)
+
+
+@pytest.mark.parametrize("overwrite", ["no", "False", 0, None])
+def test_overwrite_that_is_not_a_bool_is_refused_and_the_output_kept(tmp_path, overwrite):
+    # a string is true: fv.write_video("a.npy", video, overwrite="no") had replaced a.npy
+    import numpy as np
+
+    import flexvox_core as fv
+
+    code = fv.design_code("2x2").code
+    sim = fv.simulate_video(fv.render_scene("balls", 8, 16, 16, seed=0), code, seed=0)
+    video, rec = tmp_path / "a.npy", tmp_path / "s.zarr"
+    fv.write_video(video, np.full((4, 8, 8), 0.5, np.float32))
+    fv.write_simulation(rec, sim)
+    before = {p: sorted((q.relative_to(p), q.stat().st_mtime_ns) for q in p.rglob("*")) if p.is_dir()
+              else p.read_bytes() for p in (video, rec)}
+    for write in (lambda: fv.write_video(video, np.zeros((4, 8, 8), np.float32), overwrite=overwrite),
+                  lambda: fv.write_simulation(rec, sim, overwrite=overwrite),
+                  lambda: fv.reconstruct_batch(rec, tmp_path / "b.zarr", "diffusion", overwrite=overwrite)):
+        with pytest.raises(TypeError, match=rf"`overwrite` must be True or False; got {overwrite!r}"):
+            write()
+    after = {p: sorted((q.relative_to(p), q.stat().st_mtime_ns) for q in p.rglob("*")) if p.is_dir()
+             else p.read_bytes() for p in (video, rec)}
+    assert after == before and not (tmp_path / "b.zarr").exists()
+    assert fv.write_video(video, np.zeros((4, 8, 8), np.float32), overwrite=np.bool_(True)) == video

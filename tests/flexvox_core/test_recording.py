@@ -197,6 +197,26 @@ def test_interrupted_writer_opens_with_the_true_count(tmp_path):
     assert zarr.open_group(str(path), mode="r")["frame_id"][:8].tolist() == list(range(8))
 
 
+def test_rows_by_a_list_or_a_mask_as_numpy_and_a_fraction_refused(tmp_path):
+    # rec.frames[1.5] had been row 1; rec.frames[[0, 2]] had raised a TypeError from int()
+    path = tmp_path / "r.zarr"
+    w = _writer(path, block_frames=8)
+    _fill(w, 11)
+    w.close()
+    rows = open_recording(path).frames
+    whole = rows[:]
+    np.testing.assert_array_equal(rows[[0, 2, -1]], whole[[0, 2, -1]])
+    np.testing.assert_array_equal(rows[np.array([4, 3])], whole[[4, 3]])
+    np.testing.assert_array_equal(rows[np.arange(11) % 3 == 0, 1:3], whole[np.arange(11) % 3 == 0, 1:3])
+    assert rows[[]].shape == rows[np.zeros(11, bool)].shape == (0, 4, 5)
+    for key in (1.5, "1", [0.5], True):
+        with pytest.raises(IndexError, match=r"frames rows are indexed by a whole number, a slice, a list of whole "
+                                             r"numbers or 11 booleans; got "):
+            rows[key]
+    with pytest.raises(IndexError, match=r"row 11 is out of range for 11 rows"):
+        rows[[0, 11]]
+
+
 def test_torn_or_corrupt_journal_records_are_ignored(tmp_path):
     path = tmp_path / "t.zarr"
     w = _writer(path)

@@ -37,6 +37,26 @@ def test_white_gives_the_white_level_of_counts(scene):
         fv.reconstruct_video(np.full((1, 4, 4), "a"), code, NC)
 
 
+def test_counts_far_above_white_are_refused_not_clipped_to_white(scene):
+    # a 12-bit camera's counts in the high bits of a uint16 (x 16) at white=4095 had been reconstructed white
+    # everywhere, clipped, without a word
+    _, code, frames = scene
+    counts = np.round(frames * 4095).astype(np.uint16) * np.uint16(16)
+    with pytest.raises(ValueError, match=r"`frames` reach \d+ counts, 1\d.\d times `white` = 4095, where the code "
+                                         r"lets in at most 1 slot\(s\) of white: `white` is not these counts' white"):
+        fv.reconstruct_video(counts, code, NC, white=4095)
+    for call in (lambda: fv.estimate_accuracy(counts, code, NC, white=4095),
+                 lambda: fv.choose(counts, code, "diffusion", "time", (2.0,), white=4095)):
+        with pytest.raises(ValueError, match=r"`white` is not these counts' white"):
+            call()
+    noisy = np.round(np.clip(frames * 1.3, 0, None) * 4095).astype(np.uint16)  # highlights up to 1.3 white: kept
+    assert fv.reconstruct_video(noisy, code, NC, white=4095).shape == (6 * 8, 24, 32)
+    mc = fv.multiplexed_code((1, 3))  # an S-matrix pixel sums 2 slots: up to 2 whites is its light
+    sums = np.round(fv.capture(np.ones((2 * 3, 6, 6), np.float32), mc.code) * 4095).astype(np.uint16)
+    assert sums.max() == 2 * 4095
+    assert fv.reconstruct_video(sums, mc.code, NC, white=4095).shape == (6, 6, 6)
+
+
 def test_a_crop_off_the_tile_grid_follows_the_code_phase_given_by_origin(scene):
     _, code, frames = scene
     whole = fv.reconstruct_video(frames, code, NC)
@@ -97,6 +117,17 @@ def test_a_recording_s_path_in_place_of_frames_is_the_recording(dropped):
                                         r"fv.reconstruct_video\(path, method\), which reads its code and dropped "
                                         r"frames; fv.run takes frames \(F, H, W\) and a code"):
         fv.run(str(dropped), np.ones((2, 2, 4), bool), NC)
+
+
+def test_a_recording_given_to_run_says_where_it_goes(dropped):
+    # read as an array it was "`frames` must hold real numbers ...; got dtype object"
+    rec = fv.open_recording(dropped)
+    for given in (rec, fv.open_capture(rec)):
+        with pytest.raises(TypeError, match=r"`frames` is a (Recording|CaptureReader): a recording goes to "
+                                            r"fv.reconstruct_video\(recording, method\), which reads its code"):
+            fv.run(given, NC)
+        with pytest.raises(TypeError, match=r"`frames` is a (Recording|CaptureReader): a recording goes to"):
+            fv.run(given, fv.read_capture(dropped)[1], "diffusion")
 
 
 def test_a_method_by_name_takes_its_options_as_keywords(scene):

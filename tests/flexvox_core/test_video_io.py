@@ -71,3 +71,20 @@ def test_open_recording_on_an_array_inside_a_recording_names_the_recording(tmp_p
     with pytest.raises(RecordingError, match=r"r.zarr/frames: not a readable Zarr store \(it is the `frames` array "
                                              r"inside the store .*r.zarr: open .*r.zarr\)"):
         fv.open_recording(rec / "frames")
+
+
+@pytest.mark.parametrize("attrs, match", [
+    ({"gain": np.float32(2)}, r"attrs\['gain'\] is a float32 \(a numpy value: give value.item\(\) or value.tolist\(\)\)"),
+    ({"m": {"block": [np.int64(2)]}}, r"attrs\['m'\]\['block'\]\[0\] is a int64"),
+    ({"f": object()}, r"attrs\['f'\] is a object$"),
+    ({1: "a"}, r"`attrs` keys must be text; got 1 in attrs"),
+    (["a"], r"`attrs` must be a dict of JSON values; got list"),
+])
+def test_write_video_refuses_attrs_that_are_not_json_before_it_writes(tmp_path, attrs, match):
+    # a numpy scalar had failed inside the .zarr write with json's "Object of type float32 is not JSON serializable"
+    for suffix in (".zarr", ".tif"):
+        with pytest.raises(TypeError, match=match):
+            fv.write_video(tmp_path / f"v{suffix}", np.zeros((2, 4, 4), np.float32), attrs=attrs)
+        assert not (tmp_path / f"v{suffix}").exists()
+    fv.write_video(tmp_path / "ok.zarr", np.zeros((2, 4, 4), np.float32), attrs={"a": [1, 2.5, None, True, "x"]})
+    assert fv.open_video_store(tmp_path / "ok.zarr").attrs["a"] == [1, 2.5, None, True, "x"]

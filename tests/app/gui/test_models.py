@@ -269,6 +269,24 @@ def test_capture_plan_timing_errors_name_the_rule(plan, message):
     assert any(__import__("re").search(message, e) for e in t.errors), t.errors
 
 
+@pytest.mark.parametrize("given, match", [
+    ({"tile": (1, 3), "multiplexed": "no"}, r"`multiplexed` must be True or False; got 'no'"),  # had been multiplexed
+    ({"tile": (1, 3), "multiplexed": 0}, r"`multiplexed` must be True or False; got 0"),
+    ({"tile": (4, 4.7)}, r"`tile` must be two whole numbers \(m, n\) >= 1; got \(4, 4.7\)"),  # had been (4, 4)
+    ({"tile": ("4", "4")}, r"`tile` must be two whole numbers"),
+    ({"tile": (True, 4)}, r"`tile` must be two whole numbers"),
+    # timed as "misses the last 17 of 16 slots"; NaN refused only when the capture started; 1.5 µs cut to 1
+    ({"camera_exposure_us": -1}, r"`camera_exposure_us` must be a finite number of µs above 0, or None .*got -1"),
+    ({"camera_exposure_us": float("nan")}, r"`camera_exposure_us` must be a finite number .*got nan"),
+    ({"projector_exposure_us": 1.5}, r"`projector_exposure_us` must be a whole number of µs above 0, or None .*got 1.5"),
+    ({"projector_exposure_us": 0}, r"`projector_exposure_us` must be a whole number .*got 0"),
+])
+def test_capture_plan_refuses_what_it_would_have_read_as_something_else(given, match):
+    with pytest.raises(ValueError, match=match):
+        CapturePlan(**given)
+    assert CapturePlan((4, 4.0), multiplexed=np.bool_(False)) == CapturePlan((4, 4))
+
+
 def test_capture_plan_codes_and_resolutions():
     ident = CapturePlan((4, 4))
     assert [(d.tr, str(d.sr)) for d in ident.resolutions()][0] == (1, "1")

@@ -207,6 +207,18 @@ def test_simulator_rejects_bad_inputs(rng):
         simulate_video(v, CODE)
 
 
+def test_a_float_video_outside_0_1_is_refused_as_the_command_line_refuses_its_file(rng):
+    # a float clip in 0..255 had been simulated 255 times too bright, its ground truth recorded in counts
+    v = video(rng)
+    with pytest.raises(ValueError, match=r"`video` values must lie in \[0, 1\] \(white = 1\); got 25.* to 229.* "
+                                         r"\(8-bit values in a float array\? divide by 255\)"):
+        simulate_video(v * 255, CODE)
+    with pytest.raises(ValueError, match=r"`video` values must lie in \[0, 1\] \(white = 1\); got -0.3.* to 0.3.*"):
+        simulate_video(v - 0.5, CODE)
+    assert np.array_equal(simulate_video(np.round(v * 255).astype(np.uint8), CODE).ground_truth,
+                          np.round(v * 255).astype(np.float32) / 255)  # counts: read in [0, 1] by their dtype
+
+
 def test_partial_border_tiles_with_effects(rng):
     v = rng.random((8, 7, 9)).astype(np.float32)
     r = sim(v, EFFECTS["leakage"](alpha=0.0))

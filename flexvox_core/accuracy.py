@@ -394,7 +394,8 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     >>> est.samples > 0, est.low <= est.psnr <= est.high
     (True, True)
     """
-    from flexvox_core.methods.runner import check_counts_within_white, check_origin, code_at_origin, refuse_recording
+    from flexvox_core.methods.runner import check_counts_within_white, check_origin, code_at_origin
+    from flexvox_core.reconstruct._common import refuse_recording
     from flexvox_core.multiplex import MultiplexedCode
 
     refuse_recording(frames, "fv.estimate_accuracy", "fv.estimate_recording(recording, method)")

@@ -340,7 +340,8 @@ def choose(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method 
     """
     from flexvox_core.accuracy import estimate_accuracy
     from flexvox_core.methods import run
-    from flexvox_core.methods.runner import check_counts_within_white, check_origin, code_at_origin, refuse_recording
+    from flexvox_core.methods.runner import check_counts_within_white, check_origin, code_at_origin
+    from flexvox_core.reconstruct._common import refuse_recording
     from flexvox_core.multiplex import MultiplexedCode
 
     refuse_recording(frames, "fv.choose", "fv.choose_recording(recording, method, knob)")

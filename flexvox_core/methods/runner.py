@@ -48,6 +48,7 @@ from flexvox_core.memory_budget import check_fits, reconstruction_bytes
 from flexvox_core.methods.method import Method
 from flexvox_core.methods.spec import MethodOutput
 from flexvox_core.progress import Progress, progress_callback
+from flexvox_core.reconstruct._common import refuse_recording
 
 _logger = logging.getLogger(__name__)
 
@@ -393,24 +394,6 @@ def check_counts_within_white(frames, relative: np.ndarray, white, code) -> None
                          f"where the code lets in at most {most_open} slot(s) of white: `white` is not these counts' "
                          "white (counts in the high bits of their dtype? give the dtype's largest value, or shift "
                          "them down)")
-
-
-def refuse_recording(frames, call: str, instead: str, more: str = "") -> None:
-    """Refuse a recording (its path, a ``Recording``, a ``CaptureReader``) given as ``frames`` to ``call``, which
-    takes frames and a code, naming ``instead``, the call that takes the recording (read as an array it was
-    "dtype <U..." or "dtype object")."""
-    from flexvox_core.recording import Recording
-
-    # capture_reader imports this module: its CaptureReader is told by its module, not imported (no import cycle)
-    reader = type(frames).__module__ == "flexvox_core.capture_reader" and type(frames).__name__ == "CaptureReader"
-    if isinstance(frames, str | os.PathLike):
-        what = f"a path ({frames})"
-    elif isinstance(frames, Recording) or reader:
-        what = f"a {type(frames).__name__}"
-    else:
-        return
-    raise TypeError(f"`frames` is {what}: a recording goes to {instead}, which reads its code and dropped frames; "
-                    f"{call} takes frames (F, H, W) and a code (fv.read_capture(path)){more}")
 
 
 def _run(f: np.ndarray, code, method: Method, *, chunk_frames: int | None, progress: Progress | None, extras: bool,

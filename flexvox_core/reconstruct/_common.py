@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import os
 
 import numpy as np
 
@@ -15,13 +16,31 @@ _logger = logging.getLogger(__name__)
 _DTYPES = (np.float32, np.float64)
 
 
+def refuse_recording(frames, call: str, instead: str, more: str = "") -> None:
+    """Refuse a recording (its path, a ``Recording``, a ``CaptureReader``) given as ``frames`` to ``call``, which
+    takes frames and a code, naming ``instead``, the call that takes the recording (read as an array it was
+    "dtype <U..." or "dtype object", or "0 dimensions")."""
+    # Told by their modules, not imported: the recording and capture-reader modules import the reconstructions.
+    kind = (type(frames).__module__, type(frames).__name__)
+    if isinstance(frames, str | os.PathLike):
+        what = f"a path ({frames})"
+    elif kind in (("flexvox_core.capture_reader", "CaptureReader"), ("flexvox_core.recording.reader", "Recording")):
+        what = f"a {type(frames).__name__}"
+    else:
+        return
+    raise TypeError(f"`frames` is {what}: a recording goes to {instead}, which reads its code and dropped frames; "
+                    f"{call} takes frames (F, H, W) and a code (fv.read_capture(path)){more}")
+
+
 def check_frames(frames) -> np.ndarray:
     """Camera frames ``(F, H, W)`` as a float array; ``ValueError`` naming a bad frame.
 
     float32 and float64 are kept, other numbers become float32. A NaN or infinite value
     raises ``ValueError`` naming the first camera frame that holds one (via
-    :func:`flexvox_core.forward.check_video`).
+    :func:`flexvox_core.forward.check_video`). A recording (a path, a ``Recording``, a ``CaptureReader``) is a
+    ``TypeError`` naming ``fv.reconstruct_video`` (:func:`refuse_recording`).
     """
+    refuse_recording(frames, "each method's function", "fv.reconstruct_video(recording, method)")
     arr = np.asarray(frames)
     if arr.ndim != 3:
         raise ValueError(f"`frames` must have shape (F, H, W); got {arr.ndim} dimensions {arr.shape}")

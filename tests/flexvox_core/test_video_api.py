@@ -159,3 +159,19 @@ def test_progress_is_true_false_none_or_a_callable(scene, call, capsys):
     with pytest.raises(TypeError, match=r"`progress` must be True \(a bar\), False or None \(nothing\), or a "
                                         r"callable progress\(done, total\); got str 'yes'"):
         call(frames, code, NC, progress="yes")
+
+
+@pytest.mark.parametrize("call", ["motion_aware", "diffuse", "gap_tv"])
+def test_a_recording_given_to_a_methods_function_names_reconstruct_video(call, tmp_path):
+    """``fv.motion_aware(rec, code)`` said "got 0 dimensions ()"; every method's function now names the call that
+    takes a recording."""
+    code = fv.design_code((2, 2)).code
+    path = fv.write_simulation(tmp_path / "r.zarr", fv.simulate_video(fv.render_scene("balls", 8, 8, 8, seed=0), code))
+    from flexvox_core.reconstruct import diffuse, gap_tv
+
+    function = {"motion_aware": fv.motion_aware, "diffuse": diffuse, "gap_tv": gap_tv}[call]
+    for given, what in ((fv.open_recording(path), r"a Recording"), (path, r"a path \(.*r.zarr\)"),
+                        (str(path), r"a path \(.*r.zarr\)")):
+        with pytest.raises(TypeError, match=rf"`frames` is {what}: a recording goes to "
+                                            rf"fv.reconstruct_video\(recording, method\), which reads its code"):
+            function(given, code)

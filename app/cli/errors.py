@@ -87,6 +87,14 @@ def positive_fps(text: str) -> float:
         raise ValueError(f"--fps must be above 0 and at most 1000 frames per second; got {text!r}") from None
 
 
+def check_fps_output(fps: float | None, output: Path) -> None:
+    """``--fps`` is an .mp4's playback rate: given with another output it would be ignored without a word, so it is
+    refused (``CliError``)."""
+    if fps is not None and output.suffix.lower() != ".mp4":
+        raise CliError(f"--fps sets an .mp4's playback rate; -o {output} is not an .mp4 (its time step comes from the "
+                       "recording's rates): leave --fps out, or write an .mp4")
+
+
 def arg_type(parse):
     """Wrap a ``ValueError``-raising parser as an argparse ``type=`` (message kept)."""
 

@@ -29,7 +29,7 @@ import re
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from flexvox_app.cli.errors import EXIT_OK, CliError, arg_type, defer, positive_fps
+from flexvox_app.cli.errors import EXIT_OK, CliError, arg_type, check_fps_output, defer, positive_fps
 from flexvox_app.cli.method_options import (
     add_method_options,
     device_line,
@@ -64,7 +64,8 @@ def register(sub) -> None:
     p.add_argument("--what", choices=WHAT, default="frames", help="what to export (default frames)")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT", help="output file or folder")
     p.add_argument("--fps", type=arg_type(positive_fps),
-                   help="MP4 playback rate (default: the camera rate for frames, else 30)")
+                   help="MP4 playback rate (default: the camera rate for frames, else 30; refused with any other "
+                        "output)")
     p.add_argument("--overwrite", action="store_true",
                    help="replace an existing output (never the input; a folder only when it holds nothing but an "
                         "earlier export's PNGs; the old output stays until the new one is complete)")
@@ -215,6 +216,7 @@ def run(args) -> int:
         raise CliError(f"-o {out}: the output must end in .tif, .tiff, .npy, .mp4 or .zarr, or be a folder (PNG)")
     if args.pyramid and suffix != ".zarr":
         raise CliError(f"--pyramid goes with a .zarr output (an OME-Zarr image); got -o {out}")
+    check_fps_output(args.fps, out)
     try:
         check_output(out, overwrite=args.overwrite, inputs=[args.recording], kind="folder" if suffix == "" else "auto",
                      hint=CLI_OVERWRITE_HINT)

@@ -8,7 +8,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from flexvox_app.cli.errors import EXIT_OK, CliError, arg_type, defer, positive_fps
+from flexvox_app.cli.errors import EXIT_OK, CliError, arg_type, check_fps_output, defer, positive_fps
 from flexvox_app.cli.method_options import (
     add_method_options,
     auto_knob,
@@ -52,8 +52,8 @@ def register(sub) -> None:
         p.add_argument("--figures", type=Path, metavar="DIR",
                        help="motion-aware: write flow (colour wheel, quiver), resolution map and a panel "
                             "like the paper's Figs. 7-8 as PNGs")
-        p.add_argument("--fps", type=arg_type(positive_fps), default=30.0,
-                       help="playback rate of an .mp4 output (default 30)")
+        p.add_argument("--fps", type=arg_type(positive_fps),
+                       help="playback rate of an .mp4 output (default 30; refused with any other output)")
         p.add_argument("--estimate", action="store_true",
                        help="also estimate the result's PSNR from the recording alone (no ground truth: each probed "
                             "sample predicted without itself; one more reconstruction) and print "
@@ -141,6 +141,7 @@ def run(args) -> int:
     try:
         if args.output.suffix.lower() not in WRITABLE:
             raise ValueError(f"-o {args.output}: the output must end in {', '.join(WRITABLE)}")
+        check_fps_output(args.fps, args.output)
         check_output(args.output, overwrite=args.overwrite, inputs=[args.recording], hint=CLI_OVERWRITE_HINT)
         if args.figures is not None:
             from flexvox_app.figures import check_figures_dir
@@ -201,7 +202,7 @@ def run(args) -> int:
             # never held whole.
             score = pool.submit(psnr_of_rows, truth, video)
         try:
-            write_video(args.output, video, fps=args.fps, attrs=attrs, overwrite=args.overwrite,
+            write_video(args.output, video, fps=args.fps or 30.0, attrs=attrs, overwrite=args.overwrite,
                         time_step=1.0 / rec.attrs["rates"]["subframe_hz"], interpolated=out.interpolated)
         except ValueError as exc:
             raise CliError(str(exc)) from None

@@ -220,6 +220,12 @@ CASES = {
     "reconstruct-fps-0": Case("reconstruct {rec} -o {dir}/v.mp4 --fps 0", 2,
                               r"--fps must be above 0 and at most 1000 frames per second; got '0'"),
     "export-fps-negative": Case("export {rec} -o {dir}/v.mp4 --fps -5", 2, r"--fps must be above 0"),
+    # --fps is an .mp4's rate: with another output it was ignored without a word
+    "reconstruct-fps-not-mp4": Case("reconstruct {rec} --fps 30 -o {dir}/v.npy", 2,
+                                    r"--fps sets an .mp4's playback rate; -o .*v.npy is not an .mp4 \(its time step "
+                                    r"comes from the recording's rates\): leave --fps out, or write an .mp4"),
+    "export-fps-not-mp4": Case("export {rec} -o {dir}/fr.npy --fps 3", 2,
+                               r"--fps sets an .mp4's playback rate; -o .*fr.npy is not an .mp4"),
     "reconstruct-folder-missing": Case("reconstruct {rec} -o {dir}/no/such/v.npy", 2,
                                        r"the folder .*no/such does not exist"),
     # tracebacks and aborts become messages

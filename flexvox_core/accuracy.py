@@ -395,8 +395,8 @@ def estimate_accuracy(frames: ArrayLike, code: ArrayLike | MultiplexedCode, meth
     (True, True)
     """
     from flexvox_core.methods.runner import check_counts_within_white, check_origin, code_at_origin
-    from flexvox_core.reconstruct._common import refuse_recording
     from flexvox_core.multiplex import MultiplexedCode
+    from flexvox_core.reconstruct._common import refuse_recording
 
     refuse_recording(frames, "fv.estimate_accuracy", "fv.estimate_recording(recording, method)")
     if check_origin(origin) != (0, 0):

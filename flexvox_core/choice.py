@@ -341,10 +341,12 @@ def choose(frames: ArrayLike, code: ArrayLike | MultiplexedCode, method: Method 
     from flexvox_core.accuracy import estimate_accuracy
     from flexvox_core.methods import run
     from flexvox_core.methods.runner import check_counts_within_white, check_origin, code_at_origin
-    from flexvox_core.reconstruct._common import refuse_recording
     from flexvox_core.multiplex import MultiplexedCode
+    from flexvox_core.numbers import flag
+    from flexvox_core.reconstruct._common import refuse_recording
 
     refuse_recording(frames, "fv.choose", "fv.choose_recording(recording, method, knob)")
+    keep_video = flag("`keep_video`", keep_video)
     row, col = check_origin(origin)
     if (row, col) != (0, 0):  # the crop's pixel (y, x) is the camera's (y + row, x + col), as the runner reads it
         if isinstance(code, MultiplexedCode):

@@ -6,6 +6,15 @@ from __future__ import annotations
 import math
 
 
+def flag(name: str, value) -> bool:
+    """``value`` as a bool when it is True or False (a numpy bool too); ``TypeError`` naming ``name`` otherwise: a
+    string such as ``"no"`` is true to Python, and would do the opposite of what it says."""
+    numpy_bool = getattr(getattr(value, "dtype", None), "kind", None) == "b" and getattr(value, "ndim", 1) == 0
+    if not (isinstance(value, bool) or numpy_bool):
+        raise TypeError(f"{name} must be True or False; got {value!r}")
+    return bool(value)
+
+
 def positive_number(name: str, value, *, unit: str = "") -> float:
     """``value`` as a float when it is a finite number above 0; otherwise a ``ValueError`` naming
     ``name``, the rule and the value ("`time` must be a positive finite number; got 0")."""

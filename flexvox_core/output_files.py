@@ -38,6 +38,7 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+from flexvox_core.numbers import flag
 from flexvox_core.output_errors import CLI_OVERWRITE_HINT, OVERWRITE_HINT, OutputError
 from flexvox_core.writer_lock import WriterLock, lock_holder
 
@@ -108,9 +109,7 @@ def check_store_suffix(path) -> Path:
 
 def check_overwrite(overwrite) -> None:
     """``overwrite`` must be True or False: a string (``overwrite="no"``) is true, and had replaced the output."""
-    numpy_bool = getattr(getattr(overwrite, "dtype", None), "kind", None) == "b" and getattr(overwrite, "ndim", 1) == 0
-    if not (isinstance(overwrite, bool) or numpy_bool):
-        raise TypeError(f"`overwrite` must be True or False; got {overwrite!r}")
+    flag("`overwrite`", overwrite)
 
 
 def check_output(path, *, overwrite: bool = False, inputs: Iterable = (), hint: str = OVERWRITE_HINT,

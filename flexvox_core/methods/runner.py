@@ -47,6 +47,7 @@ from flexvox_core.intensity import as_relative
 from flexvox_core.memory_budget import check_fits, reconstruction_bytes
 from flexvox_core.methods.method import Method
 from flexvox_core.methods.spec import MethodOutput
+from flexvox_core.numbers import flag
 from flexvox_core.progress import Progress, progress_callback
 from flexvox_core.reconstruct._common import refuse_recording
 
@@ -355,6 +356,7 @@ def run(frames, code, method: Method | str | None = None, *, chunk_frames: int |
         Frames, a code, an origin or options that break their rules (the message names the value and the rule).
     """
     method = as_method(method, options)
+    extras = flag("`extras`", extras)
     if isinstance(frames, str | os.PathLike):
         raise TypeError(f"`frames` is a path ({frames}): a recording goes to fv.reconstruct_video(path, method), "
                         "which reads its code and dropped frames; fv.run takes frames (F, H, W) and a code "

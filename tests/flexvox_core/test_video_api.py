@@ -175,3 +175,14 @@ def test_a_recording_given_to_a_methods_function_names_reconstruct_video(call, t
         with pytest.raises(TypeError, match=rf"`frames` is {what}: a recording goes to "
                                             rf"fv.reconstruct_video\(recording, method\), which reads its code"):
             function(given, code)
+
+
+def test_a_flag_given_as_text_is_refused_not_read_as_true():
+    """``extras="no"`` computed the extras and ``keep_video="no"`` kept the video: a string is true to Python."""
+    code = fv.design_code((2, 2)).code
+    frames = fv.capture(fv.render_scene("balls", 8, 8, 8, seed=0), code)
+    with pytest.raises(TypeError, match=r"`extras` must be True or False; got 'no'"):
+        fv.run(frames, code, "diffusion", extras="no")
+    with pytest.raises(TypeError, match=r"`keep_video` must be True or False; got 'no'"):
+        fv.choose(frames, code, "diffusion", "time", (2.0, 4.0), keep_video="no")
+    assert fv.run(frames, code, "diffusion", extras=np.bool_(False)).video.shape == (8, 8, 8)

@@ -398,6 +398,17 @@ def check_counts_within_white(frames, relative: np.ndarray, white, code) -> None
                          "them down)")
 
 
+def check_whole_tile(H: int, W: int, tile: tuple[int, int], K: int) -> None:
+    """Frames of ``H`` × ``W`` pixels must hold at least one whole ``tile`` (m, n): in a smaller crop some of the K
+    slots are sampled by no pixel, and every method would make their sub-frames up from the others (a video that
+    looks right). ``ValueError`` naming the sizes."""
+    m, n = (int(v) for v in tile)
+    if H < m or W < n:
+        raise ValueError(f"`frames` of {H}x{W} pixels hold less than one {m}x{n} tile: {K - min(H, m) * min(W, n)} of "
+                         f"the code's K = {K} slots are sampled by no pixel, and their sub-frames would be made up "
+                         f"from the others; a crop must hold at least one whole tile ({m}x{n} pixels)")
+
+
 def _run(f: np.ndarray, code, method: Method, *, chunk_frames: int | None, progress: Progress | None, extras: bool,
          missing, device: str, origin: tuple[int, int]) -> MethodOutput:
     if f.ndim != 3:
@@ -410,6 +421,7 @@ def _run(f: np.ndarray, code, method: Method, *, chunk_frames: int | None, progr
     K = code.shape[2]
     F = f.shape[0]
     H, W = f.shape[1:]
+    check_whole_tile(H, W, code.shape[:2], K)
     check_fits(reconstruction_bytes(F, K, H, W, chunk_frames, method.overlap(K)),
                f"reconstructing {F} frames of {H}x{W} at K = {K} in memory ({F * K} sub-frames)",
                "reconstruct it with reconstruct_batch (`flexvox batch` on the command line), which writes chunk by "

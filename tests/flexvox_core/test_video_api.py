@@ -186,3 +186,15 @@ def test_a_flag_given_as_text_is_refused_not_read_as_true():
     with pytest.raises(TypeError, match=r"`keep_video` must be True or False; got 'no'"):
         fv.choose(frames, code, "diffusion", "time", (2.0, 4.0), keep_video="no")
     assert fv.run(frames, code, "diffusion", extras=np.bool_(False)).video.shape == (8, 8, 8)
+
+
+def test_a_crop_smaller_than_the_tile_is_refused_naming_the_unsampled_slots():
+    """A 2×2 crop of a 4×4-tile capture sees 4 of 16 slots: the other 12 sub-frames would be made up."""
+    code = fv.design_code((4, 4)).code
+    frames = fv.capture(fv.render_scene("balls", 32, 8, 8, seed=0), code)
+    with pytest.raises(ValueError, match=r"`frames` of 2x2 pixels hold less than one 4x4 tile: 12 of the code's "
+                                         r"K = 16 slots are sampled by no pixel.*at least one whole tile \(4x4 pixels\)"):
+        fv.run(frames[:, :2, :2], code, "diffusion")
+    with pytest.raises(ValueError, match=r"`frames` of 8x3 pixels hold less than one 4x4 tile: 4 of"):
+        fv.reconstruct_video(frames[:, :, :3], code, "diffusion")
+    assert fv.run(frames[:, :5, 3:7], code, "diffusion", origin=(0, 3)).video.shape == (32, 5, 4)  # a whole tile

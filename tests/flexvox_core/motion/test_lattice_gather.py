@@ -86,14 +86,12 @@ def test_lattice_sums_are_the_numpy_reference(rng, tile, dropped):
         assert den[near].max() > 0  # samples were read
 
 
-@pytest.mark.parametrize("order", [design_code((4, 4)).order, [[2, 0, 3, 1]], [[1], [2], [0]]],
-                         ids=["4x4", "1x4", "3x1"])
-@pytest.mark.parametrize("dropped", [False, True])
-def test_lattice_sums_reach_on_the_table_is_own_reachs_bit_for_bit(rng, order, dropped):
-    """Each voxel's reach counted on :func:`reach_thresholds` gives the kernel's bits with :func:`own_reach` (an
-    empty table), on odd sizes, with fractional, integer and unmeasured flows and a dropped frame."""
+def _odd_case(rng, order, dropped: bool, *, flow_sigma: float):
+    """An 11×13 capture of 3 frames through the code of ``order`` (the middle frame dropped when ``dropped``), a
+    flow of fractional, integer (rows 0–1) and unmeasured (NaN) vectors, and the kernel's tables: (frames, present,
+    flow, rows, cols, reach, inv)."""
     from flexvox_core.codes import code_from_order
-    from flexvox_core.motion.mcnc_kernel import lattice_sums, reach_thresholds, slot_tables
+    from flexvox_core.motion.mcnc_kernel import slot_tables
 
     code = code_from_order(np.asarray(order))
     K = code.shape[2]
@@ -101,12 +99,23 @@ def test_lattice_sums_reach_on_the_table_is_own_reachs_bit_for_bit(rng, order, d
     frames = rng.uniform(0.1, 0.9, (F, H, W)).astype(np.float32)
     present = np.array([True, not dropped, True])
     S = F * K
-    flow = rng.normal(0, 1.5, (S, H, W, 2)).astype(np.float32)
+    flow = rng.normal(0, flow_sigma, (S, H, W, 2)).astype(np.float32)
     flow[:, :2] = np.round(flow[:, :2])
     flow[::3, 4, 2] = np.nan
-    reach = default_reach(2.0, 0.95, K, S)
-    inv = np.float32(1 / (4 * 2.0 * 0.95))
     rows, cols = slot_tables(code, H, W)
+    return frames, present, flow, rows, cols, default_reach(2.0, 0.95, K, S), np.float32(1 / (4 * 2.0 * 0.95))
+
+
+@pytest.mark.parametrize("order", [design_code((4, 4)).order, [[2, 0, 3, 1]], [[1], [2], [0]]],
+                         ids=["4x4", "1x4", "3x1"])
+@pytest.mark.parametrize("dropped", [False, True])
+def test_lattice_sums_reach_on_the_table_is_own_reachs_bit_for_bit(rng, order, dropped):
+    """Each voxel's reach counted on :func:`reach_thresholds` gives the kernel's bits with :func:`own_reach` (an
+    empty table), on odd sizes, with fractional, integer and unmeasured flows and a dropped frame."""
+    from flexvox_core.motion.mcnc_kernel import lattice_sums, reach_thresholds
+
+    frames, present, flow, rows, cols, reach, inv = _odd_case(rng, order, dropped, flow_sigma=1.5)
+    S, H, W = flow.shape[:3]
     table, none = reach_thresholds(reach), np.zeros(0, np.float32)
     read = 0.0
     for t in range(S):
@@ -303,23 +312,13 @@ def test_lattice_sums_read_cells_in_the_picture_as_clamped_bit_for_bit(rng, orde
     """The reads of cells wholly in the picture (no clamping) give the bits of the kernel that clamped every read
     (lattice_reference), on odd sizes with trajectories leaving the picture, fractional, integer and unmeasured
     flows, multiplexed slots' tables of several tiles and a dropped frame."""
-    from flexvox_core.codes import code_from_order
-    from flexvox_core.motion.mcnc_kernel import lattice_sums, reach_thresholds, slot_tables
+    from flexvox_core.motion.mcnc_kernel import lattice_sums, reach_thresholds
 
     from .lattice_reference import clamped_lattice_sums
 
-    code = code_from_order(np.asarray(order))
-    K = code.shape[2]
-    F, H, W = 3, 11, 13
-    frames = rng.uniform(0.1, 0.9, (F, H, W)).astype(np.float32)
-    present = np.array([True, not dropped, True])
-    S = F * K
-    flow = rng.normal(0, 2.5, (S, H, W, 2)).astype(np.float32)  # up to 4 offsets of several px: off the picture
-    flow[:, :2] = np.round(flow[:, :2])
-    flow[::3, 4, 2] = np.nan
-    reach = default_reach(2.0, 0.95, K, S)
-    inv = np.float32(1 / (4 * 2.0 * 0.95))
-    rows, cols = slot_tables(code, H, W)
+    # up to 4 offsets of several px: off the picture
+    frames, present, flow, rows, cols, reach, inv = _odd_case(rng, order, dropped, flow_sigma=2.5)
+    S, H, W = flow.shape[:3]
     table = reach_thresholds(reach)
     clamped = clamped_lattice_sums()
     read = 0.0

@@ -277,3 +277,13 @@ def test_the_estimate_says_how_many_reconstructions_it_made(scene, counted):
     with pytest.raises(NotEstimable, match="copies") as refused:
         estimate_accuracy(frames, CODE, Method("diffusion", time=0.25), noise=noise)
     assert refused.value.runs == 2
+
+
+def test_a_candidate_given_twice_is_refused_before_any_run():
+    """``candidates=[2, 2.0]`` ran the same reconstruction twice and listed it twice."""
+    import flexvox_core as fv
+
+    code = fv.design_code((2, 2)).code
+    frames = fv.capture(fv.render_scene("balls", 8, 8, 8, seed=0), code)
+    with pytest.raises(ValueError, match=r"`candidates` holds 2 and 2.0, the same time: give each value once"):
+        fv.choose(frames, code, "diffusion", "time", [2, 4, 2.0])

@@ -304,12 +304,33 @@ def _signed_reads_step() -> Callable[..., None]:
 
 @contextlib.contextmanager
 def _refine_signed_indices() -> Iterator[None]:
-    """Before the refinement's unclamped reads took unsigned indices: signed ones, each with numba's wraparound of
-    negative indices (a compare and a select; the same bits)."""
+    """Before the refinement's unclamped reads took unsigned indices and its step was compiled with the SLP
+    vectorizer: signed indices, each with numba's wraparound of negative ones, and numba's default compilation (the
+    same bits)."""
     from flexvox_core.motion import vardiff_kernel as vk
 
     with mock.patch.object(vk, "vardiff_step", _signed_reads_step()):
         yield
+
+
+@contextlib.contextmanager
+def _refine_no_slp() -> Iterator[None]:
+    """Before the refinement's step was compiled with LLVM's SLP vectorizer on: numba's default, off (the same
+    bits)."""
+    from flexvox_core.motion import vardiff_kernel as vk
+
+    step = _plain_step()
+    with mock.patch.object(vk, "vardiff_step", step):
+        yield
+
+
+@functools.cache
+def _plain_step() -> Callable[..., None]:
+    import numba
+
+    from flexvox_core.motion import vardiff_kernel as vk
+
+    return numba.njit(parallel=True, nogil=True)(vk.vardiff_step.py_func)
 
 
 @contextlib.contextmanager
@@ -645,6 +666,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "refine-clamped-reads": _refine_clamped_reads,
     "refine-copied-ends": _refine_copied_ends,
     "refine-signed-indices": _refine_signed_indices,
+    "refine-no-slp": _refine_no_slp,
     "guides-whole": _guides_whole,
     "reach-by-log": _reach_by_log,
     "high-tr-float32": _high_tr_float32,

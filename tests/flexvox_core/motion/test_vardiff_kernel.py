@@ -1,5 +1,6 @@
-"""The refinement's step reads its trajectory neighbours without clamps where every tap is inside the picture:
-the bits of the clamped reads it replaced, read by read, step by step and through motion-aware."""
+"""The refinement's step reads its trajectory neighbours without clamps where every tap is inside the picture
+(with unsigned indices), and is compiled with LLVM's SLP vectorizer: the bits of the clamped reads it replaced,
+read by read, step by step and through motion-aware, and of its own source compiled without the vectorizer."""
 
 import functools
 import types
@@ -90,3 +91,17 @@ def test_motion_aware_gives_the_clamped_reads_bits(monkeypatch, missing):
     before = motion_aware(frames, code, missing=missing)
     np.testing.assert_array_equal(kept.video.view(np.uint32), before.video.view(np.uint32))
     assert kept.stage_seconds["refinement"] > 0  # the refinement ran
+
+
+def test_the_step_compiled_with_the_slp_vectorizer_gives_its_bits_without_it():
+    plain = numba.njit(parallel=True, nogil=True)(K.vardiff_step.py_func)  # numba's default: no SLP vectorizer
+    for S, H, W in ((4, 13, 11), (3, 24, 37)):
+        init, mask, flow, sharp = case(S, H, W, S * W, 0.6)
+        sharp[:] = True  # every moving voxel read by Catmull-Rom: the vectorised read
+        for c in ((0.95, 0.0, 0.0), (0.95, 0.05, 0.05)):
+            got, want = np.full_like(init, -7), np.full_like(init, -7)
+            args = (flow, mask, True, *c, 0.4, sharp, True, 0, S, 1e-6)
+            K.vardiff_step(init, got, *args)
+            plain(init, want, *args)
+            np.testing.assert_array_equal(got.view(np.uint32), want.view(np.uint32))
+    assert numba.config.SLP_VECTORIZE == 0  # set only around the step's own compilation

@@ -198,6 +198,8 @@ def _compiled_with_slp_vectorizer(dispatcher):
     (``NUMBA_SLP_VECTORIZE``; read at each compilation): it packs a bicubic read's independent products and
     float32-to-float64 conversions into vector instructions. It does not reorder the sums, so the same bits."""
     compile_one = dispatcher.compile
+    if not hasattr(numba.config, "SLP_VECTORIZE"):  # a numba without the setting: compiled as numba does
+        return dispatcher
 
     def compile_with_slp(sig):
         kept = numba.config.SLP_VECTORIZE

@@ -197,7 +197,7 @@ def _write(out: Path, src: _Source, fps: float, pyramid: int = 0) -> None:
 def run(args) -> int:
     """Carry out ``flexvox export``."""
     from flexvox_core.ngff import check_levels
-    from flexvox_core.output_files import CLI_OVERWRITE_HINT, OutputError, atomic_output, check_output
+    from flexvox_core.output_files import CLI_OVERWRITE_HINT, OutputError, atomic_output, check_output, is_recording
     from flexvox_core.recording import RecordingError, open_recording
 
     given = method_flags_given(args)
@@ -218,6 +218,8 @@ def run(args) -> int:
         raise CliError(f"--pyramid goes with a .zarr output (an OME-Zarr image); got -o {out}")
     check_fps_output(args.fps, out)
     try:
+        if args.recording.is_dir() and not is_recording(args.recording):  # `.`: said for what it is, not as the
+            open_recording(args.recording)  # folder the output would lie in (its refusal names what the folder is)
         check_output(out, overwrite=args.overwrite, inputs=[args.recording], kind="folder" if suffix == "" else "auto",
                      hint=CLI_OVERWRITE_HINT)
         if suffix == "" and out.is_dir():

@@ -134,7 +134,7 @@ def run(args) -> int:
 
     from flexvox_core.capture_reader import open_capture
     from flexvox_core.methods import specs
-    from flexvox_core.output_files import CLI_OVERWRITE_HINT, check_output
+    from flexvox_core.output_files import CLI_OVERWRITE_HINT, check_output, is_recording
     from flexvox_core.recording import RecordingError
     from flexvox_core.video_io import WRITABLE, write_video
 
@@ -142,6 +142,8 @@ def run(args) -> int:
         if args.output.suffix.lower() not in WRITABLE:
             raise ValueError(f"-o {args.output}: the output must end in {', '.join(WRITABLE)}")
         check_fps_output(args.fps, args.output)
+        if args.recording.is_dir() and not is_recording(args.recording):  # `.`: said for what it is, not as the
+            open_capture(args.recording)  # folder the output would lie in (its refusal names what the folder is)
         check_output(args.output, overwrite=args.overwrite, inputs=[args.recording], hint=CLI_OVERWRITE_HINT)
         if args.figures is not None:
             from flexvox_app.figures import check_figures_dir

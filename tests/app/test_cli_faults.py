@@ -220,6 +220,11 @@ CASES = {
     "reconstruct-fps-0": Case("reconstruct {rec} -o {dir}/v.mp4 --fps 0", 2,
                               r"--fps must be above 0 and at most 1000 frames per second; got '0'"),
     "export-fps-negative": Case("export {rec} -o {dir}/v.mp4 --fps -5", 2, r"--fps must be above 0"),
+    # a folder that is no recording is named for what it is, not as the folder the output would lie in
+    "reconstruct-folder-not-recording": Case("reconstruct {dir} -o {dir}/w.npy", 2,
+                                             r"not a readable Zarr store \(its zarr.json is missing\)"),
+    "export-folder-not-recording": Case("export {dir} -o {dir}/w.npy", 2,
+                                        r"not a readable Zarr store \(its zarr.json is missing\)"),
     # --fps is an .mp4's rate: with another output it was ignored without a word
     "reconstruct-fps-not-mp4": Case("reconstruct {rec} --fps 30 -o {dir}/v.npy", 2,
                                     r"--fps sets an .mp4's playback rate; -o .*v.npy is not an .mp4 \(its time step "

@@ -14,8 +14,30 @@ EXIT_USAGE = 2
 """Bad input: a malformed option value, a missing or unreadable file."""
 
 
+_CLI_WORDS = (
+    # Python calls a message from the core names, said as the command line's ways (the window has its own:
+    # flexvox_app.gui.models.operator_words)
+    (re.compile(r"a recording is a \.zarr folder: fv\.read_video\(path\) reads a video"),
+     "a recording is a .zarr folder, as flexvox simulate and flexvox capture write it"),
+    (re.compile(r"read it with fv\.read_video\(path\), or lazily with fv\.open_video_store\(path\)"),
+     "flexvox export writes it to TIFF, MP4, PNG or .npy"),
+)
+
+
+def in_cli_words(message: str) -> str:
+    """``message`` with the Python calls the core's messages name (``fv.read_video(path)``) replaced by what does
+    the same on the command line."""
+    for pattern, words in _CLI_WORDS:
+        message = pattern.sub(words, message)
+    return message
+
+
 class CliError(Exception):
-    """Bad input on the command line; the message is printed as one line, exit status 2."""
+    """Bad input on the command line; the message is printed as one line, exit status 2. Python calls the message
+    names are said as the command line's ways (:func:`in_cli_words`)."""
+
+    def __init__(self, message: object = "") -> None:
+        super().__init__(in_cli_words(str(message)))
 
 
 class OneLineParser(argparse.ArgumentParser):
@@ -69,7 +91,7 @@ def defer(parser, fill) -> None:
 
 def fail(prog: str, message: str) -> int:
     """Print ``prog: error: message`` on stderr and return :data:`EXIT_USAGE`."""
-    print(f"{prog}: error: {message}", file=sys.stderr)
+    print(f"{prog}: error: {in_cli_words(message)}", file=sys.stderr)
     return EXIT_USAGE
 
 

@@ -1,4 +1,5 @@
-"""``flexvox export``: a recording's frames, ground truth or reconstruction to common files.
+"""``flexvox export``: a recording's frames, ground truth or reconstruction, or a reconstructed video
+(the OME-Zarr image ``reconstruct``/``batch -o OUT.zarr`` write), to common files.
 
 Formats, by the output's suffix:
 
@@ -20,7 +21,11 @@ no suffix
     nothing but an earlier export's PNGs.
 
 Every output is written to a hidden temporary sibling and moved into place when complete; an
-output that is (or holds, or lies inside) the input recording is refused, whatever the flags.
+output that is (or holds, or lies inside) the input is refused, whatever the flags.
+
+A reconstructed video's store as input exports its video as it is: ``--what`` may only be ``reconstruction`` (it
+holds no camera frames) and the method options are refused (it is reconstructed already); its time step, method
+and interpolated sub-frames go with it where the format keeps them.
 """
 
 from __future__ import annotations
@@ -56,12 +61,15 @@ def register(sub) -> None:
             "Write a recording's camera frames, its ground truth (simulated recordings) or its "
             "reconstruction to OUT, by OUT's suffix: .tif/.tiff (an ImageJ hyperstack Fiji opens), "
             ".npy, .mp4 (8-bit), .zarr (an OME-Zarr image), or no suffix for a folder of 16-bit PNGs. The TIFF "
-            "and the OME-Zarr image carry the time step in seconds. Long recordings: "
-            "`flexvox batch` reconstructs chunk by chunk with dask."
+            "and the OME-Zarr image carry the time step in seconds. REC may also be a reconstructed video "
+            "(the .zarr `flexvox reconstruct` or `flexvox batch` wrote): its video is written as it is. Long "
+            "recordings: `flexvox batch` reconstructs chunk by chunk with dask."
         ),
     )
-    p.add_argument("recording", type=Path, metavar="REC", help="a flexvox recording (.zarr)")
-    p.add_argument("--what", choices=WHAT, default="frames", help="what to export (default frames)")
+    p.add_argument("recording", type=Path, metavar="REC",
+                   help="a flexvox recording (.zarr), or a reconstructed video (.zarr)")
+    p.add_argument("--what", choices=WHAT, default=None,
+                   help="what to export (default frames; a reconstructed video: its video, reconstruction)")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="OUT", help="output file or folder")
     p.add_argument("--fps", type=arg_type(positive_fps),
                    help="MP4 playback rate (default: the camera rate for frames, else 30; refused with any other "
@@ -154,6 +162,57 @@ class _Source:
         return np.clip(self.row(i), 0, 1).astype(np.float32, copy=False)
 
 
+class _VideoSource(_Source):
+    """The rows of a reconstructed video's store (:func:`~flexvox_core.video_io.open_video_store`), as they are."""
+
+    def __init__(self, store):
+        import numpy as np
+
+        self.rec = None
+        self.what = "reconstruction"
+        self.array = store.array
+        self.dtype = np.dtype(np.float32)
+        self.rate = None if store.time_step is None else 1.0 / store.time_step
+        self.attrs = {**store.attrs, "exported_from": str(store.path), "what": "reconstruction"}
+        self.interpolated = _interpolated(store.path, self.array.shape[0])
+        self.gaps_line = ""
+        self.device_line = ""
+        self.shape = tuple(self.array.shape)
+
+
+def _interpolated(path: Path, count: int):
+    """The store's ``interpolated`` flags (one per sub-frame), or None where it has none."""
+    import numpy as np
+    import zarr
+
+    from flexvox_core.video_io import INTERPOLATED
+
+    group = zarr.open_group(str(path), mode="r")
+    if INTERPOLATED not in group:
+        return None
+    flags = np.asarray(group[INTERPOLATED][:], bool)
+    return flags if flags.shape == (count,) else None
+
+
+def is_video_store(path: Path) -> bool:
+    """Whether ``path`` is a reconstructed video's store (an array ``video``, no camera ``frames``)."""
+    return (path / "zarr.json").is_file() and (path / "video" / "zarr.json").is_file() and not (
+        path / "frames").exists()
+
+
+def _check_video_request(args, given: list[str]) -> None:
+    """A reconstructed video exports its video: no other ``--what``, no method options."""
+    if args.what not in (None, "reconstruction"):
+        raise CliError(f"{args.recording} is a reconstructed video: it holds no {args.what.replace('-', ' ')}, only "
+                       "its video; export it without --what (or with --what reconstruction)")
+    extra = list(given)
+    if args.device != "auto":
+        extra.append("--device")
+    if extra:
+        raise CliError(f"{extra[0]} does not apply: {args.recording} is a reconstructed video, exported as it is; "
+                       "to reconstruct again with other options, give the recording it was made from")
+
+
 def _write(out: Path, src: _Source, fps: float, pyramid: int = 0) -> None:
     import numpy as np
 
@@ -165,7 +224,7 @@ def _write(out: Path, src: _Source, fps: float, pyramid: int = 0) -> None:
         from flexvox_core.video_io import imagej_metadata
 
         tifffile.imwrite(out, (src.row(i) for i in range(n)), shape=src.shape, dtype=src.dtype, imagej=True,
-                         metadata=imagej_metadata(1.0 / src.rate))
+                         metadata=imagej_metadata(None if src.rate is None else 1.0 / src.rate))
     elif suffix == ".npy":
         arr = np.lib.format.open_memmap(out, mode="w+", dtype=src.dtype, shape=src.shape)
         for i in range(n):
@@ -183,7 +242,8 @@ def _write(out: Path, src: _Source, fps: float, pyramid: int = 0) -> None:
         from flexvox_core.video_io import write_video
 
         write_video(out, np.stack([src.unit(i) for i in range(n)]) if n else np.zeros((0, *src.shape[1:])),
-                    attrs=src.attrs, time_step=1.0 / src.rate, pyramid=pyramid, interpolated=src.interpolated)
+                    attrs=src.attrs, time_step=None if src.rate is None else 1.0 / src.rate, pyramid=pyramid,
+                    interpolated=src.interpolated)
     else:
         import cv2
 
@@ -194,6 +254,16 @@ def _write(out: Path, src: _Source, fps: float, pyramid: int = 0) -> None:
                 raise CliError(f"cannot write {out / f'frame_{i:05d}.png'}")
 
 
+def _video_source(path: Path) -> _VideoSource:
+    """The reconstructed video at ``path`` (a store :func:`open_video_store` cannot read is said in words)."""
+    from flexvox_core.video_io import open_video_store
+
+    try:
+        return _VideoSource(open_video_store(path))
+    except ValueError as exc:
+        raise CliError(str(exc)) from None
+
+
 def run(args) -> int:
     """Carry out ``flexvox export``."""
     from flexvox_core.ngff import check_levels
@@ -201,7 +271,12 @@ def run(args) -> int:
     from flexvox_core.recording import RecordingError, open_recording
 
     given = method_flags_given(args)
-    if given and args.what != "reconstruction":  # else the frames would be exported as they are, without a word
+    video = args.recording.is_dir() and is_video_store(args.recording)
+    if video:
+        _check_video_request(args, given)
+    elif args.what is None:
+        args.what = "frames"
+    if given and not video and args.what != "reconstruction":  # else the frames would be exported as they are, without a word
         default = " (the default)" if args.what == "frames" else ""
         what = "camera frames as they are" if args.what == "frames" else "ground truth as it is"
         raise CliError(f"{given[0]} goes with --what reconstruction; --what {args.what}{default} exports the {what}: "
@@ -218,8 +293,9 @@ def run(args) -> int:
         raise CliError(f"--pyramid goes with a .zarr output (an OME-Zarr image); got -o {out}")
     check_fps_output(args.fps, out)
     try:
-        if args.recording.is_dir() and not is_recording(args.recording):  # `.`: said for what it is, not as the
-            open_recording(args.recording)  # folder the output would lie in (its refusal names what the folder is)
+        if not video and args.recording.is_dir() and not is_recording(args.recording):
+            # `.`: said for what it is, not as the folder the output would lie in (its refusal names what it is)
+            open_recording(args.recording)
         check_output(out, overwrite=args.overwrite, inputs=[args.recording], kind="folder" if suffix == "" else "auto",
                      hint=CLI_OVERWRITE_HINT)
         if suffix == "" and out.is_dir():
@@ -228,17 +304,16 @@ def run(args) -> int:
                 raise OutputError(f"{out} holds other files than an earlier export's PNGs ({', '.join(others[:3])}"
                                   f"{', ...' if len(others) > 3 else ''}); --overwrite replaces only such a folder: "
                                   "choose a new folder")
-        rec = open_recording(args.recording)
+        src = _video_source(args.recording) if video else _Source(open_recording(args.recording), args.what, args)
     except RecordingError as exc:
         raise CliError(str(exc)) from None
     except OutputError as exc:
         raise CliError(str(exc)) from None
-    src = _Source(rec, args.what, args)
     try:
         check_levels(args.pyramid, src.shape)
     except ValueError as exc:
         raise CliError(f"--pyramid: {exc}") from None
-    fps = args.fps or (src.rate if args.what == "frames" else 30.0)
+    fps = args.fps or (src.rate if src.what == "frames" else 30.0)
     try:
         with atomic_output(out, overwrite=args.overwrite, hint=CLI_OVERWRITE_HINT) as tmp:
             _write(tmp, src, fps, args.pyramid)
@@ -250,5 +325,5 @@ def run(args) -> int:
         print(src.gaps_line)
     if src.device_line:
         print(src.device_line)
-    print(f"wrote {args.what} ({src.shape[0]} x {src.shape[1]}x{src.shape[2]} {src.dtype}) to {out}")
+    print(f"wrote {src.what} ({src.shape[0]} x {src.shape[1]}x{src.shape[2]} {src.dtype}) to {out}")
     return EXIT_OK

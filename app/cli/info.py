@@ -75,7 +75,7 @@ def not_a_recording(path) -> str | None:
                 f"recording's folder, {path.parent}")
     if (path / "video" / "zarr.json").is_file() and not (path / "frames").exists():
         return (f"{path} is a reconstructed video (an OME-Zarr image), not a recording of camera frames: "
-                "fv.read_video(path) reads it, napari and Fiji open it")
+                "flexvox export writes it to TIFF, MP4, PNG or .npy; napari and Fiji open it")
     return None
 
 

@@ -177,7 +177,8 @@ CASES = {
                                         r"recording: give the recording's folder, .*rec.zarr$"),
     "info-video-store": Case("info {dir}/video.zarr", 2,
                              r"video.zarr is a reconstructed video \(an OME-Zarr image\), not a recording of camera "
-                             r"frames: fv.read_video\(path\) reads it, napari and Fiji open it", _video_store),
+                             r"frames: flexvox export writes it to TIFF, MP4, PNG or .npy; napari and Fiji open it",
+                             _video_store),
     "slots-deleted-chunk": Case("info {rec} --slots --quick", 2, r"--slots: .*row 2 is damaged", _delete_chunk),
     "reconstruct-ids-backwards": Case("reconstruct {rec} -o {dir}/v.npy", 2,
                                       r"frame ids do not increase at row 4 \(3 then 1\)", _ids_backwards),

@@ -39,7 +39,7 @@ from flexvox_core.capture_reader import CaptureReader, Preparation
 from flexvox_core.gaps import context, interpolated_subframes
 from flexvox_core.methods.method import Method
 from flexvox_core.methods.runner import check_method_reach, device_for, gpu_chunk_frames, run_chunk
-from flexvox_core.output_files import atomic_output, check_output
+from flexvox_core.output_files import atomic_output, check_output, check_path
 from flexvox_core.progress import progress_callback
 from flexvox_core.recording import Recording, RecordingError, open_recording
 from flexvox_core.recording.reader import check_recording_path
@@ -199,7 +199,7 @@ def reconstruct_batch(recording, output, method: Method | str | None = None, *, 
 
     method = as_method(method, options)
     check_progress(progress)
-    output = Path(output)
+    output = check_path(output, "output", call="fv.reconstruct_batch(recording, output, method)")
     if output.suffix.lower() != ".zarr":
         raise ValueError(f"the batch output must be a .zarr store; got {output}")
     if not isinstance(recording, Recording):

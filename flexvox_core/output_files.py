@@ -112,6 +112,28 @@ def check_overwrite(overwrite) -> None:
     flag("`overwrite`", overwrite)
 
 
+def check_path(path, name: str = "path", *, call: str = "") -> Path:
+    """``path`` as a :class:`~pathlib.Path`, an output's or an input's: a ``str`` or an ``os.PathLike``. Bytes, an
+    array, a result object or a number is a ``TypeError`` in words (pathlib said "argument should be a str object
+    or an os.PathLike object returning str"). ``call``: the call with its arguments in order
+    (``fv.write_video(path, video)``), named when something that is no path stands in the path's place: the
+    arguments swapped, most likely."""
+    if isinstance(path, str | os.PathLike):
+        return Path(path)
+    if isinstance(path, bytes | bytearray):
+        what = f"bytes {bytes(path)!r}: give the path as text, {bytes(path).decode(errors='replace')!r}"
+    else:
+        shape = getattr(path, "shape", None)
+        what = type(path).__name__
+        if shape is not None:
+            what += f" of shape {tuple(shape)}"
+        elif path is None or isinstance(path, int | float):
+            what += f" {path!r}"
+        if call:
+            what += f": the path comes first, {call}" if "," in call else f" ({call} takes a path)"
+    raise TypeError(f"`{name}` must be a file path (str or pathlib.Path); got {what}")
+
+
 def check_output(path, *, overwrite: bool = False, inputs: Iterable = (), hint: str = OVERWRITE_HINT,
                  kind: str | None = "auto") -> Path:
     """Check, before any work, that ``path`` may be written; return it.

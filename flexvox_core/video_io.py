@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from flexvox_core.output_files import atomic_output, check_output
+from flexvox_core.output_files import atomic_output, check_output, check_path
 from flexvox_core.reprs import describe_array, html_table, short_repr
 
 WRITABLE = (".npy", ".tif", ".tiff", ".mp4", ".zarr")
@@ -44,7 +44,7 @@ def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, ov
     """
     from flexvox_core import ngff
 
-    path = Path(path)
+    path = check_path(path, call="fv.write_video(path, video)")
     suffix = path.suffix.lower()
     if suffix not in WRITABLE:
         raise ValueError(f"cannot write {path}: the output must end in {', '.join(WRITABLE)}")
@@ -211,7 +211,7 @@ def open_video_store(path) -> VideoStore:
     import flexvox_core.zarr_exit  # noqa: F401 - a quiet exit (see there)
     from flexvox_core import ngff
 
-    path = Path(path)
+    path = check_path(path, call="fv.open_video_store(path)")
     try:
         group = zarr.open_group(str(path), mode="r")
     except (FileNotFoundError, ValueError, zarr.errors.NodeTypeValidationError) as exc:
@@ -262,7 +262,7 @@ def read_video(path) -> np.ndarray:
     >>> bool(np.array_equal(read_video(write_video(out, video)), video))
     True
     """
-    path = Path(path)
+    path = check_path(path, call="fv.read_video(path)")
     suffix = path.suffix.lower()
     if suffix not in WRITABLE:
         raise ValueError(f"cannot read {path} as a video: a video ends in {', '.join(WRITABLE)}")

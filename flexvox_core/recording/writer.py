@@ -413,6 +413,13 @@ def _identity(path: Path) -> tuple[int, int] | None:
 def write_simulation(path, result, *, overwrite: bool = False) -> Path:
     """Write a :class:`~flexvox_core.simulate.SimulationResult` as a recording, atomically: the
     store appears at ``path`` complete, or not at all (an old one stays when the write fails)."""
+    from flexvox_core.output_files import check_path
+
+    path = check_path(path, call="fv.write_simulation(path, result)")
+    if not all(hasattr(result, a) for a in ("frames", "ground_truth", "code", "rate_hz")):
+        raise TypeError(f"`result` must be a SimulationResult (fv.simulate_video(video, code)); got "
+                        f"{type(result).__name__}" + (": the path comes first, fv.write_simulation(path, result)"
+                                                      if isinstance(result, str | os.PathLike) else ""))
     F, H, W = result.frames.shape
     attrs = recording_attrs(
         result.code, rate_hz=result.rate_hz, kind="simulated", storage=result.storage,

@@ -36,11 +36,31 @@ def specs() -> tuple[MethodSpec, ...]:
 
 
 def get(name: str) -> MethodSpec:
-    """The method called ``name``; ``ValueError`` naming the known ones otherwise."""
+    """The method called ``name``; ``ValueError`` naming the known ones otherwise, and the one meant where the name
+    is a near miss (:func:`meant`)."""
     try:
         return _BY_NAME[name]
     except (KeyError, TypeError):
-        raise ValueError(f"`method` must be one of {', '.join(_BY_NAME)}; got {name!r}") from None
+        hint = meant(name) if isinstance(name, str) else ""
+        raise ValueError(f"`method` must be one of {', '.join(_BY_NAME)}; got {name!r}{hint}") from None
+
+
+def meant(name: str) -> str:
+    """What a near-miss method name most likely meant, as a clause ("": no guess). Names are exact (lower case,
+    hyphens): another case, underscores or spaces, or a close spelling (``"gaptv"``) name the method to write; a
+    diffusion solver's name (``"nc"``) names the method and option that run it. Never a silent conversion."""
+    import difflib
+
+    from flexvox_core.reconstruct.diffusion import SOLVERS
+
+    plain = "-".join(name.strip().lower().replace("_", " ").replace("-", " ").split())
+    if plain in _BY_NAME:
+        return f": write it {plain!r}"
+    if plain in SOLVERS:
+        return (f": {plain!r} is a solver of the diffusion method: ('diffusion', solver={plain!r})"
+                + (" (its default)" if plain == DIFFUSION.option("solver").default else ""))
+    close = difflib.get_close_matches(plain, list(_BY_NAME), n=1)
+    return f": did you mean {close[0]!r}?" if close else ""
 
 
 def register(spec: MethodSpec) -> MethodSpec:

@@ -1,5 +1,7 @@
 """Methods as objects: the registry, their options and capabilities, and adding one."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -237,3 +239,20 @@ def test_the_command_line_s_auto_in_python_says_where_python_chooses_a_knob():
         Method("rebin", block="auto")
     with pytest.raises(ValueError, match=r"`iterations` must be a whole number >= 1; got 'two'$"):
         Method("gap-tv", iterations="two")
+
+
+@pytest.mark.parametrize(("name", "hint"), [
+    ("motion_aware", r": write it 'motion-aware'$"),
+    ("Motion-Aware", r": write it 'motion-aware'$"),
+    ("rebin ", r": write it 'rebin'$"),
+    ("GAP TV", r": write it 'gap-tv'$"),
+    ("gaptv", r": did you mean 'gap-tv'\?$"),
+    ("nc", r": 'nc' is a solver of the diffusion method: \('diffusion', solver='nc'\) \(its default\)$"),
+    ("explicit", r": 'explicit' is a solver of the diffusion method: \('diffusion', solver='explicit'\)$"),
+    ("magic", r"$"),
+])
+def test_a_near_miss_name_is_refused_with_the_name_meant(name, hint):
+    # never converted silently: the refusal says what to write
+    with pytest.raises(ValueError, match=r"`method` must be one of rebin, diffusion, gap-tv, motion-aware; got "
+                                         + re.escape(repr(name)) + hint):
+        Method(name)

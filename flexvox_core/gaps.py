@@ -61,6 +61,14 @@ class Gap:
         return text + ")"
 
 
+def _indices_hint(m: np.ndarray, n_frames: int) -> str:
+    """How to give integers that look like dropped frames' indices as flags ("" where they cannot be)."""
+    indices = sorted({int(i) for i in m})
+    if not (0 <= indices[0] and indices[-1] < n_frames and len(indices) <= 8):
+        return ""
+    return f": for dropped frames' indices {indices} give np.isin(np.arange({n_frames}), {indices})"
+
+
 def as_missing(missing, n_frames: int) -> np.ndarray | None:
     """``missing`` as a bool array of ``n_frames``, or None when no frame is missing.
 
@@ -73,14 +81,14 @@ def as_missing(missing, n_frames: int) -> np.ndarray | None:
     if missing is None:
         return None
     m = np.asarray(missing)
+    integers = m.ndim == 1 and m.size and np.issubdtype(m.dtype, np.integer)
     if m.shape != (n_frames,) or not (m.dtype == bool or np.issubdtype(m.dtype, np.integer)):
-        raise ValueError(f"`missing` must be {n_frames} booleans, one per camera frame; got {m.dtype} {m.shape}")
+        raise ValueError(f"`missing` must be {n_frames} booleans, one per camera frame; got {m.dtype} {m.shape}"
+                         + (_indices_hint(m, n_frames) if integers else ""))
     if m.dtype != bool and not np.isin(m, (0, 1)).all():
         indices = sorted({int(i) for i in m})
-        hint = (f": for dropped frames' indices {indices} give np.isin(np.arange({n_frames}), {indices})"
-                if 0 <= indices[0] and indices[-1] < n_frames and len(indices) <= 8 else "")
         raise ValueError(f"`missing` must be {n_frames} booleans (or 0/1), one per camera frame; got the values "
-                         f"{indices[0]} to {indices[-1]}{hint}")
+                         f"{indices[0]} to {indices[-1]}{_indices_hint(m, n_frames)}")
     m = m.astype(bool)
     if not m.any():
         return None

@@ -49,6 +49,12 @@ def test_missing_is_checked():
         as_missing(np.zeros(3, bool), 4)
     with pytest.raises(ValueError, match=r"all 2 camera frames are missing \(dropped\): there is nothing"):
         as_missing(np.ones(2, bool), 2)
+    # fewer integers than frames: dropped frames' indices, most likely; said how to give them as flags
+    with pytest.raises(ValueError, match=r"`missing` must be 4 booleans, one per camera frame; got int64 \(1,\): "
+                                         r"for dropped frames' indices \[2\] give np.isin\(np.arange\(4\), \[2\]\)$"):
+        as_missing(np.array([2], np.int64), 4)
+    with pytest.raises(ValueError, match=r"got int64 \(2,\)$"):  # an index past the last frame: no such hint
+        as_missing(np.array([1, 9], np.int64), 4)
 
 
 def test_missing_as_frame_indices_is_refused_not_read_as_booleans():

@@ -6,17 +6,28 @@ flexvox works in relative units, white = 1 (a video in [0, 1]). An integer array
 camera's counts in uint16: ``white=4095``). A float array is taken as relative units already, or divided
 by ``white`` when one is given. A bool array is 0 and 1. Integers wider than 16 bits (int32, int64: what
 ``astype(int)`` gives) need ``white``: their dtype's largest value is no camera's white, and dividing by it
-would read every count as black.
+would read every count as black. uint16 counts without ``white`` that all fit in 12 bits (none above 4095: a
+10- or 12-bit camera's, most likely) are read by the rule all the same, with a :class:`CountsWarning` that says
+the video then lies within [0, 0.0625] and how to give the camera's white.
 """
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 import numpy.typing as npt
 
 from flexvox_core.numbers import positive_number
 
-__all__ = ["as_relative", "white_level"]
+__all__ = ["CountsWarning", "as_relative", "white_level"]
+
+NARROW_COUNTS = 4095
+"""The largest count of a 12-bit camera: uint16 counts none above it are most likely a 10- or 12-bit camera's."""
+
+
+class CountsWarning(UserWarning):
+    """Integer counts read by the dtype's rule that look like another white level's (a 12-bit camera in uint16)."""
 
 
 def white_level(dtype: npt.DTypeLike, white: float | None = None) -> float | None:
@@ -71,6 +82,12 @@ def as_relative(values: npt.ArrayLike, *, white: float | None = None, name: str 
                          "count that stands for white, 4095 for a 12-bit camera), the counts as uint8 or uint16, or "
                          "floats in [0, 1] (counts / white)")
     w = white_level(a.dtype, white)
+    if white is None and a.dtype == np.uint16 and a.size:
+        top = int(a.max())
+        if 0 < top <= NARROW_COUNTS:
+            warnings.warn(f"`{name}` are uint16 counts none above {top}: read as 16-bit counts (white 65535), they "
+                          f"lie within [0, {top / 65535:.4f}]; a 12-bit camera's counts need `white=4095` (10-bit: "
+                          "1023) where the call takes it, or floats (counts / white)", CountsWarning, stacklevel=3)
     if a.dtype.kind in "biu":
         out = a.astype(np.float32)
         return out if w is None else np.divide(out, np.float32(w), out=out)

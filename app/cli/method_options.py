@@ -80,13 +80,24 @@ def _or_auto(parse):
     return read
 
 
+def method_name(text: str) -> str:
+    """``--method``: a registered method's exact name; a near miss is refused with the name meant
+    (:func:`flexvox_core.methods.registry.meant`, in the command line's words)."""
+    from flexvox_core.methods.registry import meant, names
+
+    if text in names():
+        return text
+    raise ValueError(f"--method must be one of {', '.join(names())}; got {text!r}{meant(text, flags=True)}")
+
+
 def add_method_options(p, *, chunk: int, auto: bool = False) -> None:
     """Add ``--method``, every registered method's options and ``--chunk F`` (default ``chunk``
     camera frames) to parser ``p``; ``auto``: the knobs with default candidates also take ``auto``
     (:func:`auto_knob`)."""
     from flexvox_core.methods import DEFAULT, names
 
-    p.add_argument("--method", choices=names(), default=DEFAULT, help=f"default: {DEFAULT}")
+    p.add_argument("--method", choices=names(), type=arg_type(method_name), default=DEFAULT,
+                   help=f"default: {DEFAULT}")
     for name, (o, owners) in _options().items():
         kw = o.kind.arguments(o, _flag(o))
         words = _help(o, owners)

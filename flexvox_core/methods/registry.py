@@ -45,22 +45,25 @@ def get(name: str) -> MethodSpec:
         raise ValueError(f"`method` must be one of {', '.join(_BY_NAME)}; got {name!r}{hint}") from None
 
 
-def meant(name: str) -> str:
+def meant(name: str, *, flags: bool = False) -> str:
     """What a near-miss method name most likely meant, as a clause ("": no guess). Names are exact (lower case,
     hyphens): another case, underscores or spaces, or a close spelling (``"gaptv"``) name the method to write; a
-    diffusion solver's name (``"nc"``) names the method and option that run it. Never a silent conversion."""
+    diffusion solver's name (``"nc"``) names the method and option that run it, in Python's words or, with
+    ``flags``, the command line's. Never a silent conversion."""
     import difflib
 
     from flexvox_core.reconstruct.diffusion import SOLVERS
 
     plain = "-".join(name.strip().lower().replace("_", " ").replace("-", " ").split())
+    q = (lambda v: v) if flags else repr
     if plain in _BY_NAME:
-        return f": write it {plain!r}"
+        return f": write it {q(plain)}"
     if plain in SOLVERS:
-        return (f": {plain!r} is a solver of the diffusion method: ('diffusion', solver={plain!r})"
+        how = (f"--method diffusion --solver {plain}" if flags else f"('diffusion', solver={plain!r})")
+        return (f": {q(plain)} is a solver of the diffusion method: {how}"
                 + (" (its default)" if plain == DIFFUSION.option("solver").default else ""))
     close = difflib.get_close_matches(plain, list(_BY_NAME), n=1)
-    return f": did you mean {close[0]!r}?" if close else ""
+    return f": did you mean {q(close[0])}?" if close else ""
 
 
 def register(spec: MethodSpec) -> MethodSpec:

@@ -51,6 +51,12 @@ def test_the_voxel_rate_keeps_two_figures_below_ten_million_a_second():
                                                   "of the division), e.g. 2,2,4; got '2,2'"),
         (["--tensor", "1,1"], "--tensor must be three numbers"),
         (["--time", "-1"], "time"),
+        # a near-miss method name: refused with the name meant, in the command line's words
+        (["--method", "motion_aware"], "--method must be one of rebin, diffusion, gap-tv, motion-aware; got "
+                                       "'motion_aware': write it motion-aware"),
+        (["--method", "nc"], "got 'nc': nc is a solver of the diffusion method: --method diffusion --solver nc (its "
+                             "default)"),
+        (["--method", "gaptv"], "got 'gaptv': did you mean gap-tv?"),
     ],
 )
 def test_reconstruct_bad_options(recording, tmp_path, capsys, argv, message):

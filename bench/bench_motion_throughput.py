@@ -666,7 +666,7 @@ def _long_reach_scalar() -> Iterator[None]:
 
     kept = lk._lattice
 
-    def scalar(*args):
+    def scalar(*args: Any) -> tuple[Any, ...]:
         return (*kept(*args)[:-1], False)
 
     with mock.patch.object(lk, "_lattice", scalar):

@@ -29,7 +29,6 @@ import cv2
 import numba
 import numba.core.compiler
 import numpy as np
-from llvmlite import ir
 from numba import types
 from numba.core.extending import intrinsic
 
@@ -55,20 +54,25 @@ def corner_table(order: np.ndarray) -> np.ndarray:
 
 
 @intrinsic
-def _float32_from_bits(typingctx, bits):
-    """The float32 whose bit pattern is the low 32 bits of the integer ``bits``."""
+def _float32_bits(typingctx: Any, bits: Any) -> Any:
+    """The float32 whose bit pattern is the low 32 bits of the integer ``bits`` (compiled code only)."""
     if not isinstance(bits, types.Integer):
         return None
 
-    def codegen(context, builder, signature, args):
+    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
         value = args[0]
+        i32 = context.get_value_type(types.int32)
         if value.type.width > 32:
-            value = builder.trunc(value, ir.IntType(32))
+            value = builder.trunc(value, i32)
         elif value.type.width < 32:
-            value = builder.sext(value, ir.IntType(32))
-        return builder.bitcast(value, ir.FloatType())
+            value = builder.sext(value, i32)
+        return builder.bitcast(value, context.get_value_type(types.float32))
 
     return types.float32(bits), codegen
+
+
+_float32_from_bits: Any = _float32_bits
+""":func:`_float32_bits` as called (one argument: numba passes the typing context)."""
 
 
 @numba.njit(inline="always", nogil=True, cache=True, error_model="numpy")
@@ -190,18 +194,18 @@ def _row_sums(frames: Any, lat: Any, flow_t: Any, guide: Any, t: int, y: int, xs
         den[xs[i]] = acc_d[i]
 
 
-def _without_aliases(dispatcher):
+def _without_aliases(dispatcher: Any) -> Any:
     """``dispatcher`` compiling with its array arguments marked ``noalias`` (numba's ``noalias`` flag, which its
     options do not expose): LLVM then vectorizes a loop that stores into one array and gathers from another,
     which it cannot check at run time. The caller passes arrays that share no memory (rows of one array count as
     such: only their data is read or written). A numba without the flag compiles as numba does (the same sums,
     not vectorized)."""
-    compiler = getattr(dispatcher, "_compiler", None)
+    compiler: Any = getattr(dispatcher, "_compiler", None)
     customize = getattr(compiler, "_customize_flags", None)
     if customize is None or not hasattr(numba.core.compiler.Flags, "noalias"):
         return dispatcher
 
-    def with_noalias(flags):
+    def with_noalias(flags: Any) -> Any:
         flags = customize(flags)
         flags.noalias = True
         return flags
@@ -321,7 +325,7 @@ def _row_sums_one(frames: Any, lat: Any, flow_t: Any, guide: Any, t: int, y: int
 
 
 @numba.njit(nogil=True, cache=True, error_model="numpy")
-def _lattice(corners: Any, present: Any, S: int, H: int, W: int) -> tuple:
+def _lattice(corners: Any, present: Any, S: int, H: int, W: int) -> tuple[Any, ...]:
     """Lookup tables of the lattice: the flat corner table, its offsets for a cell's top-left row y0 (at y0 + 1,
     y0 from −1) and column, each sub-frame's slot (−1 where its frame was dropped) and frame, the corner that
     each one-bit cell names, each slot's row and column in the tile (float32), the tile's shape (m, n), and whether

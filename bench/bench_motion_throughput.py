@@ -657,6 +657,22 @@ def _half_by_numpy() -> Iterator[None]:
         yield
 
 
+@contextlib.contextmanager
+def _long_reach_scalar() -> Iterator[None]:
+    """Before the long reach's reads ran branch-free over a row's voxels (vectorized, float32 residues, the held
+    pixel as the sample, ``exp32``): every tile on the scalar reads (``_row_sums``: the corner table, a branch per
+    read, n/d, math.exp), the code before bit for bit."""
+    from flexvox_core.motion import longreach_kernel as lk
+
+    kept = lk._lattice
+
+    def scalar(*args: Any) -> tuple[Any, ...]:
+        return (*kept(*args)[:-1], False)
+
+    with mock.patch.object(lk, "_lattice", scalar):
+        yield
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
@@ -684,6 +700,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "gather-reads-clamped": _gather_reads_clamped,
     "flow-glue-serial": _flow_glue_serial,
     "half-by-numpy": _half_by_numpy,
+    "long-reach-scalar": _long_reach_scalar,
 }
 """The code as it was before each change (``kept``: as it is), or a change tried and not kept, for ``--ab``."""
 

@@ -295,3 +295,82 @@ def test_compiled_gather_bits_do_not_depend_on_the_thread_count(rng, monkeypatch
     assert calls  # the chunks and their threads came from the patched count
     np.testing.assert_array_equal(one, many)
     assert not np.array_equal(many[sel], guide[sel])
+
+
+def test_exp32_is_within_one_ulp_of_exp():
+    from flexvox_core.motion.longreach_kernel import exp32
+
+    import numba
+
+    @numba.njit
+    def each(x):
+        out = np.empty_like(x)
+        for i in range(x.size):
+            out[i] = exp32(x[i])
+        return out
+
+    rng = np.random.default_rng(5)
+    x = np.concatenate([-np.linspace(0, 87, 2_000_001, dtype=np.float32),
+                        -np.abs(rng.standard_normal(1_000_000)).astype(np.float32) * 3,
+                        np.array([0, -0.0, -1e-30, -1e-7, -87], np.float32)])
+    got = each(x).astype(np.float64)
+    want = np.exp(x.astype(np.float64))
+    ulp = np.spacing(want.astype(np.float32)).astype(np.float64)
+    assert np.abs(got - want).max(initial=0) > 0  # not np.exp itself
+    assert (np.abs(got - want) <= ulp).all()
+    low = each(np.array([-87.5, -100, -1e30, -np.inf], np.float32))
+    np.testing.assert_array_equal(low, 0)  # e**x < 1.7e-38 there
+    assert np.isnan(each(np.array([np.nan], np.float32))[0])
+
+
+@pytest.mark.parametrize("order, missing", [
+    ((4, 4), [False, True, False]),
+    ((2, 4), None),
+    ([[0, 2, 4], [1, 3, 5]], [True, False, False, False]),  # 2×3: residues of 3 in float32 arithmetic
+    ([[0, 3, 6], [1, 4, 7], [2, 5, 8]], None),
+])
+def test_vectorized_row_reads_are_the_scalar_reads_to_float32_rounding(rng, order, missing):
+    # The branch-free reads (_row_sums_one: float32 residues, the held pixel as the sample, exp32) against the
+    # scalar ones (_row_sums: the corner table, n/d, math.exp) row by row, odd sizes, reads on the cells' edges and
+    # beyond the picture, dropped frames. Tolerance: each term is within a few float32 ulp (the exp's 1 ulp, the n/d
+    # not taken), so the sums agree to 1e-5 relative (the positions, and so the cells read, are the same).
+    from flexvox_core.codes import order_from_code
+    from flexvox_core.motion.longreach_kernel import _lattice, _row_sums, _row_sums_one, corner_table
+
+    code, frames, flow, guide, _, _, _ = _lattice_case(rng, order, len(missing or [0, 0, 0]), 13, 19, missing)
+    frames = np.ascontiguousarray(frames)
+    S, H, W = guide.shape
+    flow[2] = np.round(flow[2] * 4) / 4  # quarter pixels: reads on the cells' edges
+    flow[3, :, :8] = 30.0  # beyond the picture
+    flow[4, :2] = np.nan  # read as still
+    order_ = order_from_code(code)
+    present = np.ones(frames.shape[0], bool) if missing is None else ~np.array(missing)
+    lat = _lattice(corner_table(order_), present, S, H, W)
+    assert lat[10]  # the vectorized reads apply
+    time_w = np.exp(-np.arange(9.0) ** 2 / 2 / 6**2).astype(np.float32)
+    scale = np.float32(-1 / (2 * 0.1**2))
+    xs = np.arange(W, dtype=np.int64)
+    scratch = np.empty((6, W + 8), np.float32)
+    compared = 0
+    for t in range(S):
+        for y in range(H):
+            count = int(rng.integers(1, W + 1))
+            xs[:count] = np.sort(rng.choice(W, count, replace=False))
+            want = np.zeros((2, W), np.float32)
+            got = np.zeros((2, W), np.float32)
+            _row_sums(frames, lat, flow[t], guide, t, y, xs, count, time_w, scale, want[0], want[1], scratch)
+            _row_sums_one(frames, lat, flow[t], guide, t, y, xs, count, time_w, scale, got[0], got[1], scratch)
+            np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-6)
+            compared += int((want[1] > 0).sum())
+    assert compared > S * H * W / 4  # most rows' voxels found samples
+
+
+def test_a_tile_one_pixel_wide_takes_the_scalar_reads():
+    from flexvox_core.codes import order_from_code
+    from flexvox_core.motion.longreach_kernel import _lattice, corner_table
+
+    order = order_from_code(code_from_order([[0, 2, 1, 3]]))  # two pixels of a cell hold each slot
+    assert not _lattice(corner_table(order), np.ones(2, bool), 8, 5, 7)[10]
+    order = order_from_code(design_code((4, 4)).code)
+    assert _lattice(corner_table(order), np.ones(2, bool), 32, 5, 7)[10]
+    assert not _lattice(corner_table(order), np.ones(2, bool), 32, 4096, 4097)[10]  # 2**24 pixels or more

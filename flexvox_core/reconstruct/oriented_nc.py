@@ -23,7 +23,7 @@ kernels cut at 4 σ along their own axes (9×9 px). It serves as motion-aware's 
 (docs/reconstruction.md, "The local choice"). The guide sets the direction only; it is not averaged in: the
 estimate is a normalized convolution of the samples, within their range, and keeps them.
 
-The sums run in a compiled kernel (:mod:`~flexvox_core.reconstruct.oriented_nc_kernel`), one block of a
+The sums run in a compiled kernel (:mod:`~flexvox_core.reconstruct.oriented_nc_kernel`, float32), one block of a
 sub-frame per call (:data:`BLOCK_ROWS`: the structure tensor and the time blur are made around the voxels asked
 for, not over the whole picture), at the voxels asked for; the tests compare it with a plain numpy form that
 computes each kernel weight from the formula above (``tests/flexvox_core/reconstruct/oriented_reference.py``).
@@ -280,7 +280,7 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
         where no other sample is in reach, and in missing frames.
     """
     from flexvox_core.planes import band
-    from flexvox_core.reconstruct.oriented_nc_kernel import oriented_plane, tap_lists
+    from flexvox_core.reconstruct.oriented_nc_kernel import ROW, dense_bank, oriented_plane, tap_lists
 
     f, c, g, where, missing = check_inputs(frames, code, guide, where, fallback, missing, subframes)
     F, H, W = f.shape
@@ -289,9 +289,12 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
     present = None if missing is None else ~missing
     gt = gaussian_kernel(SIGMA, np.float64)
     weight, first = time_weights(gt, K, F, present)
+    weight = weight.astype(np.float32)
     floor = NC_MIN_WEIGHT * float(gt.max())
     bank = kernel_bank()
     offsets, weights, counts = tap_lists(bank)
+    weights = weights.astype(np.float32)
+    dense = dense_bank(bank)
     m = c.shape[0]
     order = tiled_order(c, min(H, m), W).astype(np.int64)  # repeats every m rows
     samples = np.ascontiguousarray(f, dtype=np.float32)
@@ -334,16 +337,17 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
             return
         with lock:
             planes = pool.pop() if pool else None
-        if planes is None or planes[0].shape != (3, H, W):
-            planes = (np.zeros((3, H, W), np.float32), np.empty((H, W)), np.empty((H, W)))
+        if planes is None or planes[0].shape != (3, H, W):  # the time-blurred planes start finite (zeros)
+            planes = (np.zeros((3, H, W), np.float32), np.zeros(H * W + ROW, np.float32),
+                      np.zeros(H * W + ROW, np.float32))
         j, vt, mt = planes
         for y0, y1, x0, x1 in blocks:
             b0, b1 = max(0, y0 - _PAD), min(H, y1 + _PAD)
             a0, a1 = _aligned_columns(x0, x1, W)
             structure(np.asarray(g[s, b0:b1, a0:a1], np.float32), out=j[:, b0:b1, a0:a1])
             oriented_plane(samples, order, weight[s], int(first[s]), s % K, s // K, bool(present_f[s // K]),
-                           j, wanted, offsets, weights, counts, bank.shape[1] // 2, floor, y0, y1, x0, x1, vt, mt,
-                           video[i], loo, _LOW, _HIGH, _TAN)
+                           j, wanted, dense, offsets, weights, counts, bank.shape[1] // 2, floor, y0, y1, x0, x1,
+                           vt, mt, video[i], loo, _LOW, _HIGH, _TAN)
         with lock:
             pool.append(planes)
 

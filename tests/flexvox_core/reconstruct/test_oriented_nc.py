@@ -222,6 +222,77 @@ def test_compiled_and_numpy_bank_indices_agree_at_ties_and_odd_values():
         assert _bank_index(jxx, jxy, jyy, _LOW, _HIGH, _TAN) == int(bank_index(jxx, jxy, jyy)), (jxx, jxy, jyy)
 
 
+def test_the_bank_row_pass_chooses_as_the_numpy_bank_index():
+    """The branch-free row pass (float32 entries compared in float64) at ties, signed zeros, tiny, huge, infinite and
+    NaN entries, and random ones: numpy's choice of the same float32 values, at every offset of a row."""
+    from itertools import product
+
+    from flexvox_core.reconstruct.oriented_nc import _HIGH, _LOW, _TAN
+    from flexvox_core.reconstruct.oriented_nc_kernel import bank_row
+
+    t = float(np.float32(np.tan(np.pi / 8)))
+    values = [0.0, -0.0, 1.0, -1.0, 0.5, t, -t, 2.0, 1e-45, 3e38, np.inf, -np.inf, np.nan, 0.25, 0.75]
+    rng = np.random.default_rng(4)
+    triples = np.array(list(product(values, repeat=3)) + list(rng.normal(size=(2000, 3))), np.float32)
+    # Exact sector edges and level thresholds (in float32): J_xx − J_yy = a, 2 J_xy = b.
+    edges = [(1 + a / 2, b / 2, 1 - a / 2) for a, b in ((t, 1.0), (1.0, t), (0.5, 0.0), (1.5, 0.0))]
+    triples = np.concatenate([triples, np.array(edges, np.float32)])
+    n = len(triples)
+    j = np.ascontiguousarray(triples.T.reshape(3, 1, n))
+    want = bank_index(*(j[i, 0].astype(np.float64) for i in range(3)))
+    for x0, x1 in ((0, n), (3, n - 5), (7, 8)):
+        got = np.full(n, -1, np.int8)
+        bank_row(j, 0, x0, x1, _LOW, _HIGH, _TAN, got)
+        np.testing.assert_array_equal(got[x0:x1], want[x0:x1])
+        assert (got[:x0] == -1).all() and (got[x1:] == -1).all()
+
+
+def test_the_dense_bank_is_the_bank_in_rows_of_columns():
+    from flexvox_core.reconstruct.oriented_nc_kernel import REACH, ROW, dense_bank
+
+    bank = kernel_bank()
+    dense = dense_bank(bank)
+    n = bank.shape[1]
+    assert dense.shape == (2, len(bank), 2 * REACH + 1, ROW) and dense.dtype == np.float32
+    assert n == 2 * REACH + 1  # the bank fills the rows: no zero row read for nothing
+    np.testing.assert_array_equal(dense[0, :, :, :n], bank)
+    assert not dense[:, :, :, n:].any()
+    centre = np.zeros(dense.shape[1:], bool)
+    centre[:, REACH, REACH] = True
+    np.testing.assert_array_equal(dense[1][~centre], dense[0][~centre])
+    assert (dense[1][centre] == 0).all() and (dense[0][centre] == 1).all()
+    small = dense_bank(bank[:, 2:-2, 2:-2])  # a smaller kernel sits in the middle of the rows
+    np.testing.assert_array_equal(small[0, :, 2:-2, 2:n - 2], bank[:, 2:-2, 2:-2])
+    with pytest.raises(ValueError, match=r"kernels of 11×11 px do not fit the dense rows \(9 px, odd sizes\)"):
+        dense_bank(np.ones((2, 11, 11), np.float32))
+
+
+@pytest.mark.parametrize(("tile", "shape", "dropped"), [((4, 4), (3, 13, 14), (1,)), ((2, 4), (2, 21, 19), ()),
+                                                         ((2, 2), (4, 11, 9), (0, 2)), ((4, 4), (2, 1, 7), ())])
+def test_the_float32_kernel_is_the_float64_kernel_to_float32_rounding(rng, tile, shape, dropped):
+    """The kernel sums in float32 (dense rows away from the edges, tap lists at them), the float64 kernel it
+    replaced in float64 tap by tap: within 1e-6 at values up to 1.5 (float32's rounding of sums of at most 81
+    terms and a division: its unit at 1 is 1.2e-7), the same voxels estimated and the same leave-one-outs NaN."""
+    from .oriented_float64 import oriented_nc_float64
+
+    code = design_code(tile).code
+    F, H, W = shape
+    K = code.shape[2]
+    truth = smooth_video(rng, F * K, H, W) + _edge_video(F * K, H, W, angle=0.6) * 0.5
+    frames = capture(truth, code)
+    missing = np.zeros(F, bool)
+    missing[list(dropped)] = True
+    where = rng.random(truth.shape) < 0.7
+    fallback = np.full(truth.shape, -1.0, np.float32)
+    got_v, got_l = oriented_nc(frames, code, truth, where=where, fallback=fallback, missing=missing)
+    want_v, want_l = oriented_nc_float64(frames, code, truth, where=where, fallback=fallback, missing=missing)
+    assert np.array_equal(got_v == -1, want_v == -1) and np.array_equal(np.isnan(got_l), np.isnan(want_l))
+    np.testing.assert_allclose(got_v, want_v, atol=1e-6, rtol=0)
+    np.testing.assert_allclose(got_l, want_l, atol=1e-6, rtol=0)
+    assert np.isfinite(got_l).any() and (got_v != -1).mean() > 0.5
+    assert not np.isfinite(got_l[missing]).any()
+
+
 def test_voxels_out_of_reach_keep_the_fallback(code24):
     """Frames 0 and 2 dropped: the first sub-frames of frame 0 are beyond the time kernel's reach of frame 1's
     samples and keep the fallback, as in the reference."""

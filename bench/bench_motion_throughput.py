@@ -541,6 +541,19 @@ def _choice_whole_rows() -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def _choice_float64() -> Iterator[None]:
+    """Before oriented nc's kernel summed in float32 with vector code: the float64 kernel, its taps listed per
+    kernel and summed in a fixed order, the kernels' choice per voxel with branches, the time blur per pixel
+    (``tests/flexvox_core/reconstruct/oriented_float64.py``)."""
+    from flexvox_core.motion import stages
+    _repository_on_path()  # the tests' copy of the kernel, importable however the script is started
+    from tests.flexvox_core.reconstruct.oriented_float64 import oriented_nc_float64
+
+    with mock.patch.object(stages, "oriented_nc", oriented_nc_float64):
+        yield
+
+
+@contextlib.contextmanager
 def _flow_glue_serial() -> Iterator[None]:
     """Before the gated flow's steps between its DIS pairs ran on every core: the videos taken to uint8, the
     K-average and the period gate's box in time, the pairs' weighting, the video's check and the high-TR held in
@@ -680,6 +693,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "choice-whole-rows": _choice_whole_rows,
     "choice-serial": _choice_serial,
     "choice-before": _choice_before,
+    "choice-float64": _choice_float64,
     "gather-finish-numpy": _gather_finish_numpy,
     "gather-reads-clamped": _gather_reads_clamped,
     "flow-glue-serial": _flow_glue_serial,

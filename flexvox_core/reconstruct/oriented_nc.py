@@ -42,14 +42,13 @@ from __future__ import annotations
 import math
 import threading
 
-import cv2
 import numpy as np
 
 from flexvox_core.forward import tiled_order
 from flexvox_core.gaps import as_missing
 from flexvox_core.reconstruct._common import check_frames, check_identity_code
 from flexvox_core.reconstruct.diffusion import NC_MIN_WEIGHT, TRUNCATE, gaussian_kernel, time_weights
-from flexvox_core.slopes import cv_radius, slopes
+from flexvox_core.slopes import cv_radius
 from flexvox_core.threads import for_each
 
 SIGMA = math.sqrt(0.5)
@@ -105,14 +104,23 @@ def kernel_weights(dx, dy, sigma: float, alpha: float, level: float, theta: floa
 
 def structure(guide: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """The structure tensor's entries (3, H, W) float32 — J_xx, J_xy, J_yy — of one guide picture (H, W),
-    into ``out`` if given."""
-    gx, gy = slopes(guide, PRE_SIGMA)
+    into ``out`` if given: the guide blurred by :data:`PRE_SIGMA`, Sobel's derivatives (⅛ of them), their products
+    blurred by :data:`RHO`, with reflecting borders: OpenCV's filters and taps, compiled and fused
+    (:func:`~flexvox_core.reconstruct.oriented_nc_kernel.structure_block`; the tests compare it with OpenCV's)."""
+    from flexvox_core.reconstruct.oriented_nc_kernel import structure_block
+
+    g = np.ascontiguousarray(guide, np.float32)
+    shape = (3, *g.shape)
     if out is None:
-        out = np.empty((3, *gx.shape), np.float32)
-    product = np.empty_like(gx)
-    for i, (a, b) in enumerate(((gx, gx), (gx, gy), (gy, gy))):
-        cv2.multiply(a, b, dst=product)
-        cv2.GaussianBlur(product, (0, 0), RHO, dst=out[i], borderType=cv2.BORDER_REFLECT)
+        out = np.empty(shape, np.float32)
+    if out.shape != shape:
+        raise ValueError(f"`out` must have shape {shape}; got {out.shape}")
+    if out.dtype == np.float32 and out.flags.c_contiguous and out.flags.writeable:
+        structure_block(g, out, 0, 0)
+    else:
+        j = np.empty(shape, np.float32)
+        structure_block(g, j, 0, 0)
+        out[...] = j
     return out
 
 
@@ -200,9 +208,9 @@ from its first wanted voxel to its last: the structure tensor and the time blur 
 :data:`_PAD` px around), not over whole rows."""
 ALIGN = 32
 """A block's structure tensor is made over columns from a multiple of this to one (or to the picture's right
-edge): OpenCV's filters then take each pixel by the same code path as on the whole picture, so the tensor's
-bits are the whole picture's (its vector loops end elsewhere on an unaligned span, which changes the last
-few pixels' rounding)."""
+edge), so that successive bands over nearly the same columns make one block (:func:`_blocks`). The tensor's values
+do not depend on the span (:func:`~flexvox_core.reconstruct.oriented_nc_kernel.structure_block`): 1, 8 and 32
+took the same time on the 1-s balls clip."""
 
 
 def _blocks(wanted: np.ndarray) -> list[tuple[int, int, int, int]]:
@@ -280,7 +288,7 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
         where no other sample is in reach, and in missing frames.
     """
     from flexvox_core.planes import band
-    from flexvox_core.reconstruct.oriented_nc_kernel import ROW, dense_bank, oriented_plane, tap_lists
+    from flexvox_core.reconstruct.oriented_nc_kernel import ROW, dense_bank, oriented_plane, structure_block, tap_lists
 
     f, c, g, where, missing = check_inputs(frames, code, guide, where, fallback, missing, subframes)
     F, H, W = f.shape
@@ -344,7 +352,7 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
         for y0, y1, x0, x1 in blocks:
             b0, b1 = max(0, y0 - _PAD), min(H, y1 + _PAD)
             a0, a1 = _aligned_columns(x0, x1, W)
-            structure(np.asarray(g[s, b0:b1, a0:a1], np.float32), out=j[:, b0:b1, a0:a1])
+            structure_block(np.ascontiguousarray(g[s, b0:b1, a0:a1], np.float32), j, b0, a0)
             oriented_plane(samples, order, weight[s], int(first[s]), s % K, s // K, bool(present_f[s // K]),
                            j, wanted, dense, offsets, weights, counts, bank.shape[1] // 2, floor, y0, y1, x0, x1,
                            vt, mt, video[i], loo, _LOW, _HIGH, _TAN)

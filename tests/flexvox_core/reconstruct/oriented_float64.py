@@ -1,8 +1,10 @@
-"""Oriented nc's compiled kernel as it was in float64 (tap lists, float64 sums in a fixed order): the tests measure
-the float32 kernel's error against it, and ``bench/bench_motion_throughput.py --ab choice-float64`` puts it back.
+"""Oriented nc as it was before its kernel and its structure tensor were float32 vector code: the kernel in float64
+(tap lists, float64 sums in a fixed order, the kernels' choice per voxel), the tensor by OpenCV's filters
+(``oriented_reference.structure_opencv``). The tests measure the float32 kernel's error against it, and
+``bench/bench_motion_throughput.py --ab choice-float64`` puts it back.
 
-:func:`oriented_nc_float64` is :func:`~flexvox_core.reconstruct.oriented_nc.oriented_nc` with this kernel (its
-checks, blocks and structure tensor shared).
+:func:`oriented_nc_float64` is :func:`~flexvox_core.reconstruct.oriented_nc.oriented_nc` with these (its checks and
+blocks shared).
 """
 
 from __future__ import annotations
@@ -26,10 +28,11 @@ from flexvox_core.reconstruct.oriented_nc import (
     _check_subframes,
     check_inputs,
     kernel_bank,
-    structure,
 )
 from flexvox_core.reconstruct.oriented_nc_kernel import _bank_index, _reflect, tap_lists
 from flexvox_core.threads import for_each
+
+from .oriented_reference import structure_opencv
 
 
 @numba.njit(nogil=True, cache=True)
@@ -187,7 +190,7 @@ def oriented_nc_float64(frames, code, guide, *, where=None, fallback=None, missi
         for y0, y1, x0, x1 in blocks:
             b0, b1 = max(0, y0 - _PAD), min(H, y1 + _PAD)
             a0, a1 = _aligned_columns(x0, x1, W)
-            structure(np.asarray(g[s, b0:b1, a0:a1], np.float32), out=j[:, b0:b1, a0:a1])
+            j[:, b0:b1, a0:a1] = structure_opencv(np.asarray(g[s, b0:b1, a0:a1], np.float32))
             oriented_plane_float64(samples, order, weight[s], int(first[s]), s % K, s // K, bool(present_f[s // K]),
                            j, wanted, offsets, weights, counts, bank.shape[1] // 2, floor, y0, y1, x0, x1, vt, mt,
                            video[i], loo, _LOW, _HIGH, _TAN)

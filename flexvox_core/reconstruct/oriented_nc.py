@@ -42,6 +42,7 @@ from __future__ import annotations
 import math
 import threading
 
+import cv2
 import numpy as np
 
 from flexvox_core.forward import tiled_order
@@ -68,6 +69,10 @@ RHO = 1.0
 _PAD = cv_radius(PRE_SIGMA) + 1 + cv_radius(RHO) + 2
 """Rows of guide around the wanted ones that the structure tensor reads (the blur, Sobel's row and the
 averaging), and 2 to spare: the wanted rows' tensor is the whole picture's."""
+_STRUCTURE_TAPS = tuple(np.ascontiguousarray(cv2.getGaussianKernel(2 * cv_radius(s) + 1, s, ktype=cv2.CV_32F).ravel())
+                        for s in (PRE_SIGMA, RHO))
+"""The float32 taps ``cv2.GaussianBlur`` uses on a float32 picture for :data:`PRE_SIGMA` and :data:`RHO` (7 and 9):
+the structure tensor's blurs (:func:`structure`)."""
 _LOW, _HIGH = (LEVELS[0] + LEVELS[1]) / 2, (LEVELS[1] + LEVELS[2]) / 2
 """Where the anisotropy rounds up to the next level."""
 _TAN = math.tan(math.pi / ANGLES)
@@ -116,10 +121,10 @@ def structure(guide: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     if out.shape != shape:
         raise ValueError(f"`out` must have shape {shape}; got {out.shape}")
     if out.dtype == np.float32 and out.flags.c_contiguous and out.flags.writeable:
-        structure_block(g, out, 0, 0)
+        structure_block(g, *_STRUCTURE_TAPS, out, 0, 0)
     else:
         j = np.empty(shape, np.float32)
-        structure_block(g, j, 0, 0)
+        structure_block(g, *_STRUCTURE_TAPS, j, 0, 0)
         out[...] = j
     return out
 
@@ -352,7 +357,7 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
         for y0, y1, x0, x1 in blocks:
             b0, b1 = max(0, y0 - _PAD), min(H, y1 + _PAD)
             a0, a1 = _aligned_columns(x0, x1, W)
-            structure_block(np.ascontiguousarray(g[s, b0:b1, a0:a1], np.float32), j, b0, a0)
+            structure_block(np.ascontiguousarray(g[s, b0:b1, a0:a1], np.float32), *_STRUCTURE_TAPS, j, b0, a0)
             oriented_plane(samples, order, weight[s], int(first[s]), s % K, s // K, bool(present_f[s // K]),
                            j, wanted, dense, offsets, weights, counts, bank.shape[1] // 2, floor, y0, y1, x0, x1,
                            vt, mt, video[i], loo, _LOW, _HIGH, _TAN)

@@ -13,12 +13,8 @@ Each voxel is written once from its own sums, so the bits do not depend on how s
 """
 from __future__ import annotations
 
-import cv2
 import numba
 import numpy as np
-
-from flexvox_core.reconstruct.oriented_nc import PRE_SIGMA, RHO
-from flexvox_core.slopes import cv_radius
 
 _ANGLES = 8  # the sectors below are written for 8 directions (oriented_nc.ANGLES)
 
@@ -248,21 +244,6 @@ def oriented_plane(frames, order, weight, first, slot, frame, present, j, select
                 out[y, x] = num / den
 
 
-def _gaussian_taps(sigma: float) -> np.ndarray:
-    """The float32 taps ``cv2.GaussianBlur`` uses on a float32 picture for this σ
-    (:func:`~flexvox_core.slopes.cv_radius`)."""
-    return np.ascontiguousarray(cv2.getGaussianKernel(2 * cv_radius(sigma) + 1, sigma, ktype=cv2.CV_32F).ravel())
-
-
-_PRE_TAPS = _gaussian_taps(PRE_SIGMA)
-"""The structure tensor's pre-blur (7 taps: :func:`_blur_7` and :func:`structure_block` are written for 7)."""
-_RHO_TAPS = _gaussian_taps(RHO)
-"""The blur of the gradients' products (9 taps: :func:`_blur_9` and :func:`structure_block` are written for 9)."""
-if _PRE_TAPS.shape != (7,) or _RHO_TAPS.shape != (9,):
-    raise ImportError(f"structure_block is written for 7 and 9 taps; PRE_SIGMA and RHO give {len(_PRE_TAPS)} and "
-                      f"{len(_RHO_TAPS)}")
-
-
 @numba.njit(inline="always", nogil=True, cache=True)
 def _reflect_ends(row, r, n):
     """The r values on each side of ``row[r:r + n]`` (n + 2r long) reflected from it (the edge repeated)."""
@@ -272,42 +253,40 @@ def _reflect_ends(row, r, n):
 
 
 @numba.njit(inline="always", nogil=True, cache=True)
-def _blur_7(rows, y, h, out):
-    """``out`` ← the 7 taps of :data:`_PRE_TAPS` down the column of ``rows`` (h, w) at row y (reflected)."""
+def _blur_7(rows, k, y, h, out):
+    """``out`` ← the 7 taps ``k`` down the column of ``rows`` (h, w) at row y (reflected)."""
     r0, r1, r2, r3 = rows[_reflect(y - 3, h)], rows[_reflect(y - 2, h)], rows[_reflect(y - 1, h)], rows[y]
     r4, r5, r6 = rows[_reflect(y + 1, h)], rows[_reflect(y + 2, h)], rows[_reflect(y + 3, h)]
-    k = _PRE_TAPS
     for x in range(out.shape[0]):
         out[x] = (k[0] * r0[x] + k[1] * r1[x] + k[2] * r2[x] + k[3] * r3[x] + k[4] * r4[x] + k[5] * r5[x]
                   + k[6] * r6[x])
 
 
 @numba.njit(inline="always", nogil=True, cache=True)
-def _blur_9(rows, y, h, out):
-    """``out`` ← the 9 taps of :data:`_RHO_TAPS` down the column of ``rows`` (h, w) at row y (reflected)."""
+def _blur_9(rows, k, y, h, out):
+    """``out`` ← the 9 taps ``k`` down the column of ``rows`` (h, w) at row y (reflected)."""
     r0, r1, r2 = rows[_reflect(y - 4, h)], rows[_reflect(y - 3, h)], rows[_reflect(y - 2, h)]
     r3, r4, r5 = rows[_reflect(y - 1, h)], rows[y], rows[_reflect(y + 1, h)]
     r6, r7, r8 = rows[_reflect(y + 2, h)], rows[_reflect(y + 3, h)], rows[_reflect(y + 4, h)]
-    k = _RHO_TAPS
     for x in range(out.shape[0]):
         out[x] = (k[0] * r0[x] + k[1] * r1[x] + k[2] * r2[x] + k[3] * r3[x] + k[4] * r4[x] + k[5] * r5[x]
                   + k[6] * r6[x] + k[7] * r7[x] + k[8] * r8[x])
 
 
 @numba.njit(nogil=True, cache=True, fastmath={"contract"})
-def structure_block(g, j, b0, a0):
+def structure_block(g, kp, kq, j, b0, a0):
     """The structure tensor (J_xx, J_xy, J_yy) of the picture ``g`` (h, w) float32 C-contiguous into
-    ``j[:, b0:b0 + h, a0:a0 + w]`` (j (3, H, W) float32 C-contiguous): ``g`` blurred by the Gaussian of σ = 0.7 px
-    (OpenCV's 7 float32 taps, :data:`_PRE_TAPS`), Sobel's 3×3 derivatives scaled by ⅛, their products blurred by
-    σ = 1 px (9 taps, :data:`_RHO_TAPS`), each filter separable with reflecting borders (the edge repeated) at
-    ``g``'s own edges: :func:`~flexvox_core.reconstruct.oriented_nc.structure`'s filters (OpenCV's), in float32 with
-    multiply-adds. Each pixel's arithmetic is the same wherever the vector loops end, so a block with margins gives
-    the whole picture's values inside them. Every loop over a row's columns is vector code."""
+    ``j[:, b0:b0 + h, a0:a0 + w]`` (j (3, H, W) float32 C-contiguous): ``g`` blurred by the 7 float32 taps ``kp``,
+    Sobel's 3×3 derivatives scaled by ⅛, their products blurred by the 9 taps ``kq``, each filter separable with
+    reflecting borders (the edge repeated) at ``g``'s own edges: the filters of
+    :func:`~flexvox_core.reconstruct.oriented_nc.structure` (OpenCV's), in float32 with multiply-adds. Each pixel's
+    arithmetic is the same wherever the vector loops end, so a block with margins gives the whole picture's values
+    inside them. Every loop over a row's columns is vector code."""
     h, w = g.shape
+    if kp.shape[0] != 7 or kq.shape[0] != 9:
+        raise ValueError("structure_block is written for 7 taps, then 9")
     eighth = np.float32(0.125)
     two = np.float32(2)
-    kp = _PRE_TAPS
-    kq = _RHO_TAPS
     row = np.empty(w + 8, np.float32)
     t = np.empty((h, w), np.float32)
     for y in range(h):  # the pre-blur along x
@@ -319,7 +298,7 @@ def structure_block(g, j, b0, a0):
                       + kp[4] * row[x + 4] + kp[5] * row[x + 5] + kp[6] * row[x + 6])
     p = np.empty((h, w), np.float32)
     for y in range(h):  # and along y
-        _blur_7(t, y, h, p[y])
+        _blur_7(t, kp, y, h, p[y])
     u = np.empty((3, h, w), np.float32)
     ps = np.empty(w + 2, np.float32)
     pd = np.empty(w + 2, np.float32)
@@ -352,4 +331,4 @@ def structure_block(g, j, b0, a0):
                           + kq[8] * row[x + 8])
     for k in range(3):  # the products' blur along y
         for y in range(h):
-            _blur_9(u[k], y, h, j[k, b0 + y, a0:a0 + w])
+            _blur_9(u[k], kq, y, h, j[k, b0 + y, a0:a0 + w])

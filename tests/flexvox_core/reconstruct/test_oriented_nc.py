@@ -302,7 +302,7 @@ def test_the_compiled_structure_tensor_is_opencvs_to_float32_rounding(rng, H, W)
     of a larger plane, and into a strided ``out`` alike."""
     import cv2
 
-    from flexvox_core.reconstruct.oriented_nc import structure
+    from flexvox_core.reconstruct.oriented_nc import _STRUCTURE_TAPS, structure
     from flexvox_core.reconstruct.oriented_nc_kernel import structure_block
 
     from .oriented_reference import structure_opencv
@@ -314,7 +314,7 @@ def test_the_compiled_structure_tensor_is_opencvs_to_float32_rounding(rng, H, W)
     np.testing.assert_allclose(got, want, atol=2e-6 * math.sqrt(want.max()) * np.abs(guide).max(), rtol=0)
     assert (got.max() > 0) == (H * W > 1)  # a single pixel has no gradient
     plane = np.full((3, H + 5, W + 7), -1.0, np.float32)
-    structure_block(guide, plane, 2, 3)
+    structure_block(guide, *_STRUCTURE_TAPS, plane, 2, 3)
     np.testing.assert_array_equal(plane[:, 2:2 + H, 3:3 + W], got)  # the same bits wherever it is written
     plane[:, 2:2 + H, 3:3 + W] = -1
     assert (plane == -1).all()
@@ -323,6 +323,8 @@ def test_the_compiled_structure_tensor_is_opencvs_to_float32_rounding(rng, H, W)
     np.testing.assert_array_equal(strided, got)
     with pytest.raises(ValueError, match=r"`out` must have shape \(3, %d, %d\); got \(3, %d, %d\)" % (H, W, H, W + 1)):
         structure(guide, out=np.zeros((3, H, W + 1), np.float32))
+    with pytest.raises(ValueError, match=r"structure_block is written for 7 taps, then 9"):
+        structure_block(guide, _STRUCTURE_TAPS[1], _STRUCTURE_TAPS[0], plane, 2, 3)
 
 
 def test_voxels_out_of_reach_keep_the_fallback(code24):

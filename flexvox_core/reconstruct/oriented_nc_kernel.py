@@ -11,6 +11,7 @@ float32, in the order LLVM's vector code takes: within a few float32 units of th
 (``tests/flexvox_core/reconstruct/oriented_float64.py``; 4·10⁻⁷ at most on the 1-s balls clip, values up to 1).
 Each voxel is written once from its own sums, so the bits do not depend on how sub-frames are spread over threads.
 """
+
 from __future__ import annotations
 
 import numba

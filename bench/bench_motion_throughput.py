@@ -541,6 +541,34 @@ def _choice_whole_rows() -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def _choice_opencv_tensor() -> Iterator[None]:
+    """Before oriented nc's structure tensor was one compiled kernel: OpenCV's filters, a pass each (the blur,
+    two Sobels, three products and three blurs), per block (``oriented_reference.structure_opencv``)."""
+    from flexvox_core.reconstruct import oriented_nc_kernel
+    _repository_on_path()  # the tests' reference, importable however the script is started
+    from tests.flexvox_core.reconstruct.oriented_reference import structure_opencv
+
+    def by_opencv(g: np.ndarray, kp: np.ndarray, kq: np.ndarray, j: np.ndarray, b0: int, a0: int) -> None:
+        j[:, b0:b0 + g.shape[0], a0:a0 + g.shape[1]] = structure_opencv(g)
+
+    with mock.patch.object(oriented_nc_kernel, "structure_block", by_opencv):
+        yield
+
+
+@contextlib.contextmanager
+def _choice_float64() -> Iterator[None]:
+    """Before oriented nc's kernel and its structure tensor were float32 vector code: the float64 kernel (its taps
+    listed per kernel and summed in a fixed order, the kernels' choice per voxel with branches, the time blur per
+    pixel) and OpenCV's tensor (``tests/flexvox_core/reconstruct/oriented_float64.py``)."""
+    from flexvox_core.motion import stages
+    _repository_on_path()  # the tests' copy of the kernel, importable however the script is started
+    from tests.flexvox_core.reconstruct.oriented_float64 import oriented_nc_float64
+
+    with mock.patch.object(stages, "oriented_nc", oriented_nc_float64):
+        yield
+
+
+@contextlib.contextmanager
 def _flow_glue_serial() -> Iterator[None]:
     """Before the gated flow's steps between its DIS pairs ran on every core: the videos taken to uint8, the
     K-average and the period gate's box in time, the pairs' weighting, the video's check and the high-TR held in
@@ -696,6 +724,8 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "choice-whole-rows": _choice_whole_rows,
     "choice-serial": _choice_serial,
     "choice-before": _choice_before,
+    "choice-float64": _choice_float64,
+    "choice-opencv-tensor": _choice_opencv_tensor,
     "gather-finish-numpy": _gather_finish_numpy,
     "gather-reads-clamped": _gather_reads_clamped,
     "flow-glue-serial": _flow_glue_serial,

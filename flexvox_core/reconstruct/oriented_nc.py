@@ -23,7 +23,7 @@ kernels cut at 4 σ along their own axes (9×9 px). It serves as motion-aware's 
 (docs/reconstruction.md, "The local choice"). The guide sets the direction only; it is not averaged in: the
 estimate is a normalized convolution of the samples, within their range, and keeps them.
 
-The sums run in a compiled kernel (:mod:`~flexvox_core.reconstruct.oriented_nc_kernel`), one block of a
+The sums run in a compiled kernel (:mod:`~flexvox_core.reconstruct.oriented_nc_kernel`, float32), one block of a
 sub-frame per call (:data:`BLOCK_ROWS`: the structure tensor and the time blur are made around the voxels asked
 for, not over the whole picture), at the voxels asked for; the tests compare it with a plain numpy form that
 computes each kernel weight from the formula above (``tests/flexvox_core/reconstruct/oriented_reference.py``).
@@ -49,7 +49,7 @@ from flexvox_core.forward import tiled_order
 from flexvox_core.gaps import as_missing
 from flexvox_core.reconstruct._common import check_frames, check_identity_code
 from flexvox_core.reconstruct.diffusion import NC_MIN_WEIGHT, TRUNCATE, gaussian_kernel, time_weights
-from flexvox_core.slopes import cv_radius, slopes
+from flexvox_core.slopes import cv_radius
 from flexvox_core.threads import for_each
 
 SIGMA = math.sqrt(0.5)
@@ -69,6 +69,10 @@ RHO = 1.0
 _PAD = cv_radius(PRE_SIGMA) + 1 + cv_radius(RHO) + 2
 """Rows of guide around the wanted ones that the structure tensor reads (the blur, Sobel's row and the
 averaging), and 2 to spare: the wanted rows' tensor is the whole picture's."""
+_STRUCTURE_TAPS = tuple(np.ascontiguousarray(cv2.getGaussianKernel(2 * cv_radius(s) + 1, s, ktype=cv2.CV_32F).ravel())
+                        for s in (PRE_SIGMA, RHO))
+"""The float32 taps ``cv2.GaussianBlur`` uses on a float32 picture for :data:`PRE_SIGMA` and :data:`RHO` (7 and 9):
+the structure tensor's blurs (:func:`structure`)."""
 _LOW, _HIGH = (LEVELS[0] + LEVELS[1]) / 2, (LEVELS[1] + LEVELS[2]) / 2
 """Where the anisotropy rounds up to the next level."""
 _TAN = math.tan(math.pi / ANGLES)
@@ -105,14 +109,23 @@ def kernel_weights(dx, dy, sigma: float, alpha: float, level: float, theta: floa
 
 def structure(guide: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
     """The structure tensor's entries (3, H, W) float32 — J_xx, J_xy, J_yy — of one guide picture (H, W),
-    into ``out`` if given."""
-    gx, gy = slopes(guide, PRE_SIGMA)
+    into ``out`` if given: the guide blurred by :data:`PRE_SIGMA`, Sobel's derivatives (⅛ of them), their products
+    blurred by :data:`RHO`, with reflecting borders: OpenCV's filters and taps, compiled and fused
+    (:func:`~flexvox_core.reconstruct.oriented_nc_kernel.structure_block`; the tests compare it with OpenCV's)."""
+    from flexvox_core.reconstruct.oriented_nc_kernel import structure_block
+
+    g = np.ascontiguousarray(guide, np.float32)
+    shape = (3, *g.shape)
     if out is None:
-        out = np.empty((3, *gx.shape), np.float32)
-    product = np.empty_like(gx)
-    for i, (a, b) in enumerate(((gx, gx), (gx, gy), (gy, gy))):
-        cv2.multiply(a, b, dst=product)
-        cv2.GaussianBlur(product, (0, 0), RHO, dst=out[i], borderType=cv2.BORDER_REFLECT)
+        out = np.empty(shape, np.float32)
+    if out.shape != shape:
+        raise ValueError(f"`out` must have shape {shape}; got {out.shape}")
+    if out.dtype == np.float32 and out.flags.c_contiguous and out.flags.writeable:
+        structure_block(g, *_STRUCTURE_TAPS, out, 0, 0)
+    else:
+        j = np.empty(shape, np.float32)
+        structure_block(g, *_STRUCTURE_TAPS, j, 0, 0)
+        out[...] = j
     return out
 
 
@@ -200,9 +213,9 @@ from its first wanted voxel to its last: the structure tensor and the time blur 
 :data:`_PAD` px around), not over whole rows."""
 ALIGN = 32
 """A block's structure tensor is made over columns from a multiple of this to one (or to the picture's right
-edge): OpenCV's filters then take each pixel by the same code path as on the whole picture, so the tensor's
-bits are the whole picture's (its vector loops end elsewhere on an unaligned span, which changes the last
-few pixels' rounding)."""
+edge), so that successive bands over nearly the same columns make one block (:func:`_blocks`). The tensor's values
+do not depend on the span (:func:`~flexvox_core.reconstruct.oriented_nc_kernel.structure_block`): 1, 8 and 32
+took the same time on the 1-s balls clip."""
 
 
 def _blocks(wanted: np.ndarray) -> list[tuple[int, int, int, int]]:
@@ -280,7 +293,7 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
         where no other sample is in reach, and in missing frames.
     """
     from flexvox_core.planes import band
-    from flexvox_core.reconstruct.oriented_nc_kernel import oriented_plane, tap_lists
+    from flexvox_core.reconstruct.oriented_nc_kernel import ROW, dense_bank, oriented_plane, structure_block, tap_lists
 
     f, c, g, where, missing = check_inputs(frames, code, guide, where, fallback, missing, subframes)
     F, H, W = f.shape
@@ -289,9 +302,12 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
     present = None if missing is None else ~missing
     gt = gaussian_kernel(SIGMA, np.float64)
     weight, first = time_weights(gt, K, F, present)
+    weight = weight.astype(np.float32)
     floor = NC_MIN_WEIGHT * float(gt.max())
     bank = kernel_bank()
     offsets, weights, counts = tap_lists(bank)
+    weights = weights.astype(np.float32)
+    dense = dense_bank(bank)
     m = c.shape[0]
     order = tiled_order(c, min(H, m), W).astype(np.int64)  # repeats every m rows
     samples = np.ascontiguousarray(f, dtype=np.float32)
@@ -334,16 +350,17 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
             return
         with lock:
             planes = pool.pop() if pool else None
-        if planes is None or planes[0].shape != (3, H, W):
-            planes = (np.zeros((3, H, W), np.float32), np.empty((H, W)), np.empty((H, W)))
+        if planes is None or planes[0].shape != (3, H, W):  # the time-blurred planes start finite (zeros)
+            planes = (np.zeros((3, H, W), np.float32), np.zeros(H * W + ROW, np.float32),
+                      np.zeros(H * W + ROW, np.float32))
         j, vt, mt = planes
         for y0, y1, x0, x1 in blocks:
             b0, b1 = max(0, y0 - _PAD), min(H, y1 + _PAD)
             a0, a1 = _aligned_columns(x0, x1, W)
-            structure(np.asarray(g[s, b0:b1, a0:a1], np.float32), out=j[:, b0:b1, a0:a1])
+            structure_block(np.ascontiguousarray(g[s, b0:b1, a0:a1], np.float32), *_STRUCTURE_TAPS, j, b0, a0)
             oriented_plane(samples, order, weight[s], int(first[s]), s % K, s // K, bool(present_f[s // K]),
-                           j, wanted, offsets, weights, counts, bank.shape[1] // 2, floor, y0, y1, x0, x1, vt, mt,
-                           video[i], loo, _LOW, _HIGH, _TAN)
+                           j, wanted, dense, offsets, weights, counts, bank.shape[1] // 2, floor, y0, y1, x0, x1,
+                           vt, mt, video[i], loo, _LOW, _HIGH, _TAN)
         with lock:
             pool.append(planes)
 

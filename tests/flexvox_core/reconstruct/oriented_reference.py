@@ -3,10 +3,13 @@
 Independent of the compiled path where it can be: each tap's weight comes from the kernel's formula
 (``kernel_weights``), the direction from the arctangent and the anisotropy from the nearest level (the
 compiled kernel compares with sector edges and thresholds), the borders fold with modulo arithmetic, and the
-sample's own weight in time is nc's ``self_weights``. Shared: the structure tensor (OpenCV blurs).
+sample's own weight in time is nc's ``self_weights``. Shared: the structure tensor (compiled; :func:`structure_opencv`
+is its reference).
 """
 
 import math
+
+import cv2
 
 import numpy as np
 
@@ -22,6 +25,17 @@ from flexvox_core.reconstruct.oriented_nc import (
     kernel_weights,
     structure,
 )
+from flexvox_core.slopes import slopes
+
+
+def structure_opencv(guide: np.ndarray) -> np.ndarray:
+    """:func:`~flexvox_core.reconstruct.oriented_nc.structure` by OpenCV's filters, a pass each (the compiled
+    tensor's reference): the guide blurred and Sobel's derivatives (``slopes``), their products blurred by ρ."""
+    from flexvox_core.reconstruct.oriented_nc import PRE_SIGMA, RHO
+
+    gx, gy = slopes(guide, PRE_SIGMA)
+    return np.stack([cv2.GaussianBlur(a * b, (0, 0), RHO, borderType=cv2.BORDER_REFLECT)
+                     for a, b in ((gx, gx), (gx, gy), (gy, gy))])
 
 
 def _fold(i: np.ndarray, n: int) -> np.ndarray:

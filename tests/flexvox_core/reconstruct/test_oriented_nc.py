@@ -222,6 +222,111 @@ def test_compiled_and_numpy_bank_indices_agree_at_ties_and_odd_values():
         assert _bank_index(jxx, jxy, jyy, _LOW, _HIGH, _TAN) == int(bank_index(jxx, jxy, jyy)), (jxx, jxy, jyy)
 
 
+def test_the_bank_row_pass_chooses_as_the_numpy_bank_index():
+    """The branch-free row pass (float32 entries compared in float64) at ties, signed zeros, tiny, huge, infinite and
+    NaN entries, and random ones: numpy's choice of the same float32 values, at every offset of a row."""
+    from itertools import product
+
+    from flexvox_core.reconstruct.oriented_nc import _HIGH, _LOW, _TAN
+    from flexvox_core.reconstruct.oriented_nc_kernel import bank_row
+
+    t = float(np.float32(np.tan(np.pi / 8)))
+    values = [0.0, -0.0, 1.0, -1.0, 0.5, t, -t, 2.0, 1e-45, 3e38, np.inf, -np.inf, np.nan, 0.25, 0.75]
+    rng = np.random.default_rng(4)
+    triples = np.array(list(product(values, repeat=3)) + list(rng.normal(size=(2000, 3))), np.float32)
+    # Exact sector edges and level thresholds (in float32): J_xx − J_yy = a, 2 J_xy = b.
+    edges = [(1 + a / 2, b / 2, 1 - a / 2) for a, b in ((t, 1.0), (1.0, t), (0.5, 0.0), (1.5, 0.0))]
+    triples = np.concatenate([triples, np.array(edges, np.float32)])
+    n = len(triples)
+    j = np.ascontiguousarray(triples.T.reshape(3, 1, n))
+    want = bank_index(*(j[i, 0].astype(np.float64) for i in range(3)))
+    for x0, x1 in ((0, n), (3, n - 5), (7, 8)):
+        got = np.full(n, -1, np.int8)
+        bank_row(j, 0, x0, x1, _LOW, _HIGH, _TAN, got)
+        np.testing.assert_array_equal(got[x0:x1], want[x0:x1])
+        assert (got[:x0] == -1).all() and (got[x1:] == -1).all()
+
+
+def test_the_dense_bank_is_the_bank_in_rows_of_columns():
+    from flexvox_core.reconstruct.oriented_nc_kernel import REACH, ROW, dense_bank
+
+    bank = kernel_bank()
+    dense = dense_bank(bank)
+    n = bank.shape[1]
+    assert dense.shape == (2, len(bank), 2 * REACH + 1, ROW) and dense.dtype == np.float32
+    assert n == 2 * REACH + 1  # the bank fills the rows: no zero row read for nothing
+    np.testing.assert_array_equal(dense[0, :, :, :n], bank)
+    assert not dense[:, :, :, n:].any()
+    centre = np.zeros(dense.shape[1:], bool)
+    centre[:, REACH, REACH] = True
+    np.testing.assert_array_equal(dense[1][~centre], dense[0][~centre])
+    assert (dense[1][centre] == 0).all() and (dense[0][centre] == 1).all()
+    small = dense_bank(bank[:, 2:-2, 2:-2])  # a smaller kernel sits in the middle of the rows
+    np.testing.assert_array_equal(small[0, :, 2:-2, 2:n - 2], bank[:, 2:-2, 2:-2])
+    with pytest.raises(ValueError, match=r"kernels of 11×11 px do not fit the dense rows \(9 px, odd sizes\)"):
+        dense_bank(np.ones((2, 11, 11), np.float32))
+
+
+@pytest.mark.parametrize(("tile", "shape", "dropped"), [((4, 4), (3, 13, 14), (1,)), ((2, 4), (2, 21, 19), ()),
+                                                         ((2, 2), (4, 11, 9), (0, 2)), ((4, 4), (2, 1, 7), ())])
+def test_the_float32_kernel_is_the_float64_kernel_to_float32_rounding(rng, tile, shape, dropped):
+    """The kernel sums in float32 (dense rows away from the edges, tap lists at them), the float64 kernel it
+    replaced in float64 tap by tap (with OpenCV's structure tensor, as before; no kernel is chosen otherwise on these
+    pictures): within 1e-6 at values up to 1.5 (float32's rounding of sums of at most 81 terms and a division: its
+    unit at 1 is 1.2e-7), the same voxels estimated and the same leave-one-outs NaN."""
+    from .oriented_float64 import oriented_nc_float64
+
+    code = design_code(tile).code
+    F, H, W = shape
+    K = code.shape[2]
+    truth = smooth_video(rng, F * K, H, W) + _edge_video(F * K, H, W, angle=0.6) * 0.5
+    frames = capture(truth, code)
+    missing = np.zeros(F, bool)
+    missing[list(dropped)] = True
+    where = rng.random(truth.shape) < 0.7
+    fallback = np.full(truth.shape, -1.0, np.float32)
+    got_v, got_l = oriented_nc(frames, code, truth, where=where, fallback=fallback, missing=missing)
+    want_v, want_l = oriented_nc_float64(frames, code, truth, where=where, fallback=fallback, missing=missing)
+    assert np.array_equal(got_v == -1, want_v == -1) and np.array_equal(np.isnan(got_l), np.isnan(want_l))
+    np.testing.assert_allclose(got_v, want_v, atol=1e-6, rtol=0)
+    np.testing.assert_allclose(got_l, want_l, atol=1e-6, rtol=0)
+    assert np.isfinite(got_l).any() and (got_v != -1).mean() > 0.5
+    assert not np.isfinite(got_l[missing]).any()
+
+
+@pytest.mark.parametrize(("H", "W"), [(1, 1), (2, 9), (5, 3), (13, 14), (84, 416), (4, 1)])
+def test_the_compiled_structure_tensor_is_opencvs_to_float32_rounding(rng, H, W):
+    """One pass of float32 multiply-adds against OpenCV's five filters, to float32 rounding: a gradient is a
+    difference of blurred values, so its rounding is ~1e-7 of the guide's values (not of itself), and an entry's
+    (2·|gradient| times that) at most 2e-6 · √(largest entry) · (largest guide value) here; written into any block
+    of a larger plane, and into a strided ``out`` alike."""
+    import cv2
+
+    from flexvox_core.reconstruct.oriented_nc import _STRUCTURE_TAPS, structure
+    from flexvox_core.reconstruct.oriented_nc_kernel import structure_block
+
+    from .oriented_reference import structure_opencv
+
+    guide = cv2.GaussianBlur(rng.random((H, W)).astype(np.float32), (0, 0), 1.5) * 3 + _edge_video(1, H, W)[0]
+    want = structure_opencv(guide)
+    got = structure(guide)
+    assert got.dtype == np.float32 and got.shape == (3, H, W)
+    np.testing.assert_allclose(got, want, atol=2e-6 * math.sqrt(want.max()) * np.abs(guide).max(), rtol=0)
+    assert (got.max() > 0) == (H * W > 1)  # a single pixel has no gradient
+    plane = np.full((3, H + 5, W + 7), -1.0, np.float32)
+    structure_block(guide, *_STRUCTURE_TAPS, plane, 2, 3)
+    np.testing.assert_array_equal(plane[:, 2:2 + H, 3:3 + W], got)  # the same bits wherever it is written
+    plane[:, 2:2 + H, 3:3 + W] = -1
+    assert (plane == -1).all()
+    strided = np.zeros((3, H, 2 * W), np.float32)[:, :, ::2]
+    assert structure(guide, out=strided) is strided
+    np.testing.assert_array_equal(strided, got)
+    with pytest.raises(ValueError, match=r"`out` must have shape \(3, %d, %d\); got \(3, %d, %d\)" % (H, W, H, W + 1)):
+        structure(guide, out=np.zeros((3, H, W + 1), np.float32))
+    with pytest.raises(ValueError, match=r"structure_block is written for 7 taps, then 9"):
+        structure_block(guide, _STRUCTURE_TAPS[1], _STRUCTURE_TAPS[0], plane, 2, 3)
+
+
 def test_voxels_out_of_reach_keep_the_fallback(code24):
     """Frames 0 and 2 dropped: the first sub-frames of frame 0 are beyond the time kernel's reach of frame 1's
     samples and keep the fallback, as in the reference."""
@@ -351,8 +456,8 @@ def _whole_rows(wanted):
 @pytest.mark.parametrize(("tile", "shape", "dropped"), [((2, 4), (2, 150, 203), False), ((4, 4), (2, 131, 97), True),
                                                          ((2, 2), (3, 70, 161), True)])
 def test_blocks_of_rows_and_columns_give_the_whole_rows_bits(monkeypatch, rng, tile, shape, dropped):
-    """The structure tensor and the time blur made over each band's wanted columns alone (OpenCV's filters on
-    spans aligned to ALIGN columns) give the bits of whole rows, on odd sizes and with a dropped frame."""
+    """The structure tensor and the time blur made over each band's wanted columns alone (and their margins) give
+    the bits of whole rows, on odd sizes and with a dropped frame."""
     import flexvox_core.reconstruct.oriented_nc as module
 
     code = design_code(tile).code
@@ -405,8 +510,8 @@ def test_blocks_cover_every_wanted_voxel(rng):
 
 @pytest.mark.parametrize("W", [640, 203, 97])
 def test_a_blocks_structure_tensor_is_the_whole_pictures_bits(rng, W):
-    """OpenCV's vector loops end elsewhere on a span of other alignment, which changes the rounding of the last
-    pixels before the picture's right edge: the blocks' spans are aligned, so their tensor is the whole one's."""
+    """A block's tensor, made over its span and :data:`_PAD` px around (aligned to ALIGN columns, or not), is the
+    whole picture's there bit for bit: each pixel's arithmetic is the same wherever the vector loops end."""
     from flexvox_core.reconstruct.oriented_nc import _PAD, _aligned_columns, structure
 
     H = 90
@@ -417,6 +522,6 @@ def test_a_blocks_structure_tensor_is_the_whole_pictures_bits(rng, W):
     for x0, x1 in spans:
         y0, y1 = int(rng.integers(0, H - 10)), H - int(rng.integers(0, 3))
         b0, b1 = max(0, y0 - _PAD), min(H, y1 + _PAD)
-        a0, a1 = _aligned_columns(x0, x1, W)
-        part = structure(guide[b0:b1, a0:a1])
-        assert np.array_equal(part[:, y0 - b0:y1 - b0, x0 - a0:x1 - a0], whole[:, y0:y1, x0:x1]), (x0, x1)
+        for a0, a1 in (_aligned_columns(x0, x1, W), (max(0, x0 - _PAD), min(W, x1 + _PAD))):
+            part = structure(guide[b0:b1, a0:a1])
+            assert np.array_equal(part[:, y0 - b0:y1 - b0, x0 - a0:x1 - a0], whole[:, y0:y1, x0:x1]), (x0, x1)

@@ -628,13 +628,25 @@ def _choice_before() -> Iterator[None]:
 @contextlib.contextmanager
 def _gather_reads_clamped() -> Iterator[None]:
     """Before the trajectory gather's kernel read the cells wholly in the picture without clamping: every read's
-    rows and columns clamped (``tests/flexvox_core/motion/lattice_reference.py`` compiles that kernel from the
-    module's source; the same bits)."""
+    rows and columns clamped, a voxel at a time (``tests/flexvox_core/motion/lattice_reference.py`` compiles that
+    kernel from its own source; the same bits)."""
     from flexvox_core.motion import mcnc_kernel
     _repository_on_path()
     from tests.flexvox_core.motion.lattice_reference import clamped_lattice_sums
 
     with mock.patch.object(mcnc_kernel, "lattice_sums", clamped_lattice_sums()):
+        yield
+
+
+@contextlib.contextmanager
+def _gather_by_voxel() -> Iterator[None]:
+    """Before the trajectory gather's kernel ran a row's voxels as a list with the offsets outside it: a voxel at a
+    time, its offsets inside its loop (``tests/flexvox_core/motion/lattice_reference.py``; the same bits)."""
+    from flexvox_core.motion import mcnc_kernel
+    _repository_on_path()
+    from tests.flexvox_core.motion.lattice_reference import lattice_sums_by_voxel
+
+    with mock.patch.object(mcnc_kernel, "lattice_sums", lattice_sums_by_voxel):
         yield
 
 
@@ -682,6 +694,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "choice-before": _choice_before,
     "gather-finish-numpy": _gather_finish_numpy,
     "gather-reads-clamped": _gather_reads_clamped,
+    "gather-by-voxel": _gather_by_voxel,
     "flow-glue-serial": _flow_glue_serial,
     "half-by-numpy": _half_by_numpy,
 }

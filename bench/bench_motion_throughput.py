@@ -656,13 +656,39 @@ def _choice_before() -> Iterator[None]:
 @contextlib.contextmanager
 def _gather_reads_clamped() -> Iterator[None]:
     """Before the trajectory gather's kernel read the cells wholly in the picture without clamping: every read's
-    rows and columns clamped (``tests/flexvox_core/motion/lattice_reference.py`` compiles that kernel from the
-    module's source; the same bits)."""
+    rows and columns clamped, a voxel at a time (``tests/flexvox_core/motion/lattice_reference.py`` compiles that
+    kernel from its own source; the same bits)."""
     from flexvox_core.motion import mcnc_kernel
     _repository_on_path()
     from tests.flexvox_core.motion.lattice_reference import clamped_lattice_sums
 
     with mock.patch.object(mcnc_kernel, "lattice_sums", clamped_lattice_sums()):
+        yield
+
+
+@contextlib.contextmanager
+def _gather_by_voxel() -> Iterator[None]:
+    """Before the trajectory gather's kernel ran a row's voxels as a list with the offsets outside it: a voxel at a
+    time, its offsets inside its loop, numba's ``math.exp`` (``tests/flexvox_core/motion/lattice_reference.py``;
+    the bits of ``gather-exp-libm``)."""
+    from flexvox_core.motion import mcnc_kernel
+    _repository_on_path()
+    from tests.flexvox_core.motion.lattice_reference import lattice_sums_by_voxel
+
+    with mock.patch.object(mcnc_kernel, "lattice_sums", lattice_sums_by_voxel):
+        yield
+
+
+@contextlib.contextmanager
+def _gather_exp_libm() -> Iterator[None]:
+    """Before the trajectory gather's kernel took its exp by ``mcnc_kernel.exp_f32`` in a vectorized pass: numba's
+    ``math.exp`` per voxel (``tests/flexvox_core/motion/lattice_reference.py`` compiles it from the module's
+    source)."""
+    from flexvox_core.motion import mcnc_kernel
+    _repository_on_path()
+    from tests.flexvox_core.motion.lattice_reference import rows_with_libm_exp
+
+    with mock.patch.object(mcnc_kernel, "lattice_sums", rows_with_libm_exp()):
         yield
 
 
@@ -728,6 +754,8 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "choice-opencv-tensor": _choice_opencv_tensor,
     "gather-finish-numpy": _gather_finish_numpy,
     "gather-reads-clamped": _gather_reads_clamped,
+    "gather-by-voxel": _gather_by_voxel,
+    "gather-exp-libm": _gather_exp_libm,
     "flow-glue-serial": _flow_glue_serial,
     "half-by-numpy": _half_by_numpy,
     "long-reach-scalar": _long_reach_scalar,

@@ -23,43 +23,32 @@ from flexvox_core.motion.gather_weights import CUTOFF, MIN_WEIGHT
 
 
 @numba.njit(inline="always", nogil=True, cache=True)
-def _read(frames: Any, row_hit: Any, col_hit: Any, f: int, k: int, py: Any, px: Any, H: int, W: int
-          ) -> tuple[Any, Any]:
-    """Bilinear read at (py, px) of slot ``k``'s samples in frame ``f``, and of their mask. ``row_hit[k, y + 1]``
-    (y from −1 to H) is 1 where row y holds slot k's samples, ``col_hit[k, x + 1]`` likewise, 0 outside the
-    picture: a corner holds a sample where both are 1 (an identity code's slot: one pixel of each tile).
-    Branch-free but for one test: a cell wholly in the picture is read as it is, another's four corners clamped
-    into the picture (and onto the tables' 0 outside it); the corners are weighted by the tables."""
-    y0 = int(py)  # the floor (py, px are finite): 20 % faster than math.floor here
-    y0 -= py < y0
-    x0 = int(px)
-    x0 -= px < x0
-    ay = np.float32(py - np.float32(y0))
-    ax = np.float32(px - np.float32(x0))
-    one = np.float32(1)
-    if 0 <= y0 and y0 < H - 1 and 0 <= x0 and x0 < W - 1:  # the whole cell in the picture: no clamping
-        wya = (one - ay) * row_hit[k, y0 + 1]
-        wyb = ay * row_hit[k, y0 + 2]
-        wxa = (one - ax) * col_hit[k, x0 + 1]
-        wxb = ax * col_hit[k, x0 + 2]
-        val = (wya * (wxa * frames[f, y0, x0] + wxb * frames[f, y0, x0 + 1])
-               + wyb * (wxa * frames[f, y0 + 1, x0] + wxb * frames[f, y0 + 1, x0 + 1]))
-        return val, (wya + wyb) * (wxa + wxb)
-    ya = min(max(y0, -1), H)  # -1 and H: outside the picture, the tables' 0
-    yb = min(max(y0 + 1, -1), H)
-    xa = min(max(x0, -1), W)
-    xb = min(max(x0 + 1, -1), W)
-    wya = (one - ay) * row_hit[k, ya + 1]
-    wyb = ay * row_hit[k, yb + 1]
-    wxa = (one - ax) * col_hit[k, xa + 1]
-    wxb = ax * col_hit[k, xb + 1]
-    ia = min(max(ya, 0), H - 1)
-    ib = min(max(yb, 0), H - 1)
-    ja = min(max(xa, 0), W - 1)
-    jb = min(max(xb, 0), W - 1)
-    val = (wya * (wxa * frames[f, ia, ja] + wxb * frames[f, ia, jb])
-           + wyb * (wxa * frames[f, ib, ja] + wxb * frames[f, ib, jb]))
-    return val, (wya + wyb) * (wxa + wxb)
+def exp_f32(x: Any) -> Any:
+    """exp(x) of a float32 x <= 0, float32, within 1 ulp of the exact value from −87 to 0 (0.97 at most on a grid of
+    2 M points there, where numpy's float32 exp is within 2.4; a test); exp(−87) below −87, not 0. Cephes' expf: 2^k · p(r),
+    r = x − k ln 2 (ln 2 in two parts), p of degree 7; 2^k (k >= −126, a normal number) by exact products chosen
+    by k's bits. Arithmetic and selects alone, so a loop of it vectorizes (numba's ``math.exp`` is a call)."""
+    x = max(x, np.float32(-87.0))
+    k = np.floor(x * np.float32(1.44269504088896341) + np.float32(0.5))  # float32 (math.floor: an int64)
+    r = x - k * np.float32(0.693359375)
+    r = r + k * np.float32(2.12194440e-4)
+    p = np.float32(1.9875691500e-4)
+    p = p * r + np.float32(1.3981999507e-3)
+    p = p * r + np.float32(8.3334519073e-3)
+    p = p * r + np.float32(4.1665795894e-2)
+    p = p * r + np.float32(1.6666665459e-1)
+    p = p * r + np.float32(5.0000001201e-1)
+    p = p * (r * r) + r + np.float32(1)
+    m = np.int32(-k)
+    s = np.float32(1)
+    s = s * (np.float32(0.5) if m & 1 else np.float32(1))
+    s = s * (np.float32(0.25) if m & 2 else np.float32(1))
+    s = s * (np.float32(0.0625) if m & 4 else np.float32(1))
+    s = s * (np.float32(0.00390625) if m & 8 else np.float32(1))
+    s = s * (np.float32(1.52587890625e-05) if m & 16 else np.float32(1))
+    s = s * (np.float32(2.3283064365386963e-10) if m & 32 else np.float32(1))
+    s = s * (np.float32(5.421010862427522e-20) if m & 64 else np.float32(1))
+    return p * s
 
 
 @numba.njit(inline="always", nogil=True, cache=True)
@@ -128,76 +117,179 @@ def lattice_sums(frames: Any, present: Any, row_hit: Any, col_hit: Any, flow_t: 
     (NaN or infinity read as still); ``inv_4nc1`` 1 / (4 n c1) float32; ``reach`` the largest offset;
     ``thresholds`` :func:`reach_thresholds` (``reach``): each voxel's own reach is counted on it (the bits of
     :func:`own_reach`, a tenth of the kernel's time faster on the 1-s clip), or an empty array: :func:`own_reach`.
+
+    A row of the box at a time, its ``near`` voxels as a list, the offsets d outside the list: offset d's two
+    sub-frames (their frame and slot) are the same for every voxel, and each read is split in two passes
+    (:func:`_reads`), the positions' cells and fractions (vectorized: no loads through computed indices) and the
+    loads with the sums. Each voxel's sum is added up in the order of a voxel's loop over d (forward, then back),
+    so the bits are those of a kernel per voxel (``tests/flexvox_core/motion/lattice_reference.py``, a test).
     """
     K = row_hit.shape[0]
     H = frames.shape[1]
     W = frames.shape[2]
     h, w = near.shape
     one = np.float32(1)
+    zero = np.float32(0)
     f_t = t // K
     k_t = t - f_t * K
     own = present[f_t]
+    by_table = len(thresholds) > 0
+    # The row's voxels to gather (their columns in the box) and their state along the offsets.
+    cols = np.empty(w, np.int64)
+    reach_of = np.empty(w, np.int32)
+    e_of = np.empty(w, np.float32)
+    flow_u = np.empty(w, np.float32)
+    flow_v = np.empty(w, np.float32)
+    e2 = np.empty(w, np.float32)
+    weight = np.empty(w, np.float32)  # e^(d²)
+    step = np.empty(w, np.float32)  # e^(2d + 1)
+    fwd_x = np.empty(w, np.float32)
+    fwd_y = np.empty(w, np.float32)
+    back_x = np.empty(w, np.float32)
+    back_y = np.empty(w, np.float32)
+    acc_n = np.empty(w, np.float32)
+    acc_d = np.empty(w, np.float32)
+    cells = np.empty((8, w), np.int32)  # _reads' scratch
+    frac = np.empty((2, w), np.float32)
     for i in range(h):
         y = y0 + i
         own_row = own and row_hit[k_t, y + 1] > 0
+        n = 0
         for j in range(w):
-            if not near[i, j]:
+            if near[i, j]:
+                cols[n] = j
+                n += 1
+            else:
                 num[i, j] = 0
                 den[i, j] = 0
-                continue
-            x = x0 + j
-            u = flow_t[y, x, 0]
-            v = flow_t[y, x, 1]
-            if not (math.isfinite(u) and math.isfinite(v)):
-                u = np.float32(0)
-                v = np.float32(0)
-            e = np.float32(math.exp(-(one + u * u + v * v) * inv_4nc1))
-            if len(thresholds):
-                r = 0
-                for d in range(1, reach + 1):  # own_reach(e, reach), branch-free
-                    r += e >= thresholds[d]
-            else:
-                r = own_reach(e, reach)
-            acc_n = np.float32(0)
-            acc_d = np.float32(0)
+        for q in range(n):  # loads through the list (not vectorized)
+            x = x0 + cols[q]
+            flow_u[q] = flow_t[y, x, 0]
+            flow_v[q] = flow_t[y, x, 1]
             if own_row and col_hit[k_t, x + 1] > 0:
-                acc_n = frames[f_t, y, x]
-                acc_d = one
-            e2 = e * e
-            wd = one
-            step = e
-            fx = np.float32(x)
-            fy = np.float32(y)
-            bx = np.float32(x)
-            by = np.float32(y)
-            # The frame and slot of sub-frames t + d and t - d, stepped along with d (no division per read).
-            ff = bf = f_t
-            fk = bk = k_t
-            for d in range(1, r + 1):
-                wd *= step
-                step *= e2
-                fx += u
-                fy += v
-                bx -= u
-                by -= v
-                fk += 1
-                if fk == K:
-                    fk = 0
-                    ff += 1
-                bk -= 1
-                if bk < 0:
-                    bk = K - 1
-                    bf -= 1
-                if t + d < S and present[ff]:
-                    a, b = _read(frames, row_hit, col_hit, ff, fk, fy, fx, H, W)
-                    acc_n += wd * a
-                    acc_d += wd * b
-                if t - d >= 0 and present[bf]:
-                    a, b = _read(frames, row_hit, col_hit, bf, bk, by, bx, H, W)
-                    acc_n += wd * a
-                    acc_d += wd * b
-            num[i, j] = acc_n
-            den[i, j] = acc_d
+                acc_n[q] = frames[f_t, y, x]
+                acc_d[q] = one
+            else:
+                acc_n[q] = zero
+                acc_d[q] = zero
+        fy = np.float32(y)
+        for q in range(n):  # vectorized: exp_f32 is arithmetic and selects
+            u = flow_u[q]
+            v = flow_v[q]
+            ok = math.isfinite(u) and math.isfinite(v)
+            u = u if ok else zero
+            v = v if ok else zero
+            flow_u[q] = u
+            flow_v[q] = v
+            e = exp_f32(-(one + u * u + v * v) * inv_4nc1)
+            e_of[q] = e
+            e2[q] = e * e
+            weight[q] = one
+            step[q] = e
+            fx = np.float32(x0 + cols[q])
+            fwd_x[q] = fx
+            back_x[q] = fx
+            fwd_y[q] = fy
+            back_y[q] = fy
+            reach_of[q] = 0
+        if by_table:
+            for d in range(1, reach + 1):  # own_reach(e, reach) counted on the table
+                th = thresholds[d]
+                for q in range(n):
+                    reach_of[q] += e_of[q] >= th
+        else:
+            for q in range(n):
+                reach_of[q] = own_reach(e_of[q], reach)
+        longest = 0
+        for q in range(n):
+            longest = max(longest, reach_of[q])
+        # The frame and slot of sub-frames t + d and t - d, stepped along with d (no division per offset).
+        ff = bf = f_t
+        fk = bk = k_t
+        for d in range(1, longest + 1):
+            fk += 1
+            if fk == K:
+                fk = 0
+                ff += 1
+            bk -= 1
+            if bk < 0:
+                bk = K - 1
+                bf -= 1
+            for q in range(n):  # every voxel stepped (vectorized); the reads count those reaching d alone
+                weight[q] = weight[q] * step[q]
+                step[q] = step[q] * e2[q]
+                fwd_x[q] = fwd_x[q] + flow_u[q]
+                fwd_y[q] = fwd_y[q] + flow_v[q]
+                back_x[q] = back_x[q] - flow_u[q]
+                back_y[q] = back_y[q] - flow_v[q]
+            if t + d < S and present[ff]:
+                _reads(frames[ff], row_hit[fk], col_hit[fk], fwd_y, fwd_x, weight, reach_of, d, n, acc_n, acc_d,
+                       cells, frac)
+            if t - d >= 0 and present[bf]:
+                _reads(frames[bf], row_hit[bk], col_hit[bk], back_y, back_x, weight, reach_of, d, n, acc_n, acc_d,
+                       cells, frac)
+        for q in range(n):
+            num[i, cols[q]] = acc_n[q]
+            den[i, cols[q]] = acc_d[q]
+
+
+@numba.njit(inline="always", nogil=True, cache=True)
+def _reads(plane: Any, rows: Any, cols: Any, py: Any, px: Any, weight: Any, reach_of: Any, d: int, n: int,
+           acc_n: Any, acc_d: Any, cells: Any, frac: Any) -> None:
+    """:func:`lattice_sums`' reads of one sub-frame's ``plane`` (H, W) at (``py[q]``, ``px[q]``) for the list's
+    first ``n`` voxels, the bilinear read of the samples and of their mask (0 outside the picture, as OpenCV's
+    ``BORDER_CONSTANT``), weighted by ``weight[q]`` into ``acc_n[q]`` and ``acc_d[q]`` where ``reach_of[q]`` >= ``d``.
+    ``rows`` (H + 2) and ``cols`` (W + 2) are the slot's tables (:func:`slot_tables`): a corner holds a sample where
+    both are 1. Two passes: the cells' corners clamped into the tables' range (−1 … H, the tables' 0 outside the
+    picture) and into the picture, and the fractions, into ``cells`` (8, n) and ``frac`` (2, n) (no load through a
+    computed index, so it vectorizes); then the loads and the sums (the bits of a cell read as it is where it lies
+    in the picture: a clamped corner of a cell outside it weighs 0)."""
+    H, W = plane.shape
+    one = np.float32(1)
+    lo = np.int32(-1)
+    top = np.int32(H)
+    right = np.int32(W)
+    first = np.int32(0)
+    for q in range(n):
+        y = py[q]
+        x = px[q]
+        y0 = np.int32(y)  # the floor (y, x are finite)
+        y0 -= y < y0
+        x0 = np.int32(x)
+        x0 -= x < x0
+        frac[0, q] = np.float32(y - np.float32(y0))
+        frac[1, q] = np.float32(x - np.float32(x0))
+        ya = min(max(y0, lo), top)
+        yb = min(max(y0 + np.int32(1), lo), top)
+        xa = min(max(x0, lo), right)
+        xb = min(max(x0 + np.int32(1), lo), right)
+        cells[0, q] = ya + np.int32(1)
+        cells[1, q] = yb + np.int32(1)
+        cells[2, q] = xa + np.int32(1)
+        cells[3, q] = xb + np.int32(1)
+        cells[4, q] = min(max(ya, first), top - np.int32(1))
+        cells[5, q] = min(max(yb, first), top - np.int32(1))
+        cells[6, q] = min(max(xa, first), right - np.int32(1))
+        cells[7, q] = min(max(xb, first), right - np.int32(1))
+    for q in range(n):
+        if d > reach_of[q]:
+            continue
+        ay = frac[0, q]
+        ax = frac[1, q]
+        # unsigned indices (all >= 0 here): no wraparound of negative ones
+        wya = (one - ay) * rows[np.uint32(cells[0, q])]
+        wyb = ay * rows[np.uint32(cells[1, q])]
+        wxa = (one - ax) * cols[np.uint32(cells[2, q])]
+        wxb = ax * cols[np.uint32(cells[3, q])]
+        ia = np.uint32(cells[4, q])
+        ib = np.uint32(cells[5, q])
+        ja = np.uint32(cells[6, q])
+        jb = np.uint32(cells[7, q])
+        val = (wya * (wxa * plane[ia, ja] + wxb * plane[ia, jb])
+               + wyb * (wxa * plane[ib, ja] + wxb * plane[ib, jb]))
+        w = weight[q]
+        acc_n[q] += w * val
+        acc_d[q] += w * ((wya + wyb) * (wxa + wxb))
 
 
 @numba.njit(nogil=True, cache=True)

@@ -309,18 +309,18 @@ def test_the_gathers_last_steps_are_numpys_bit_for_bit(rng, shape, wide, with_lo
                          ids=["4x4", "1x4", "3x1"])
 @pytest.mark.parametrize("dropped", [False, True])
 def test_lattice_sums_read_cells_in_the_picture_as_clamped_bit_for_bit(rng, order, dropped):
-    """The reads of cells wholly in the picture (no clamping) give the bits of the kernel that clamped every read
-    (lattice_reference), on odd sizes with trajectories leaving the picture, fractional, integer and unmeasured
+    """The kernel (every read clamped, a row's voxels at a time) gives the bits of the kernel a voxel at a time
+    that clamped every read (lattice_reference), on odd sizes with trajectories leaving the picture, fractional, integer and unmeasured
     flows, multiplexed slots' tables of several tiles and a dropped frame."""
     from flexvox_core.motion.mcnc_kernel import lattice_sums, reach_thresholds
 
-    from .lattice_reference import clamped_lattice_sums
+    from .lattice_reference import kernel_by_voxel
 
     # up to 4 offsets of several px: off the picture
     frames, present, flow, rows, cols, reach, inv = _odd_case(rng, order, dropped, flow_sigma=2.5)
     S, H, W = flow.shape[:3]
     table = reach_thresholds(reach)
-    clamped = clamped_lattice_sums()
+    clamped = kernel_by_voxel(clamped=True, exp_f32=True)
     read = 0.0
     for t in range(S):
         near = rng.random((H, W)) > 0.2
@@ -331,3 +331,57 @@ def test_lattice_sums_read_cells_in_the_picture_as_clamped_bit_for_bit(rng, orde
         np.testing.assert_array_equal(got.view(np.uint32), want.view(np.uint32))
         read += float(got[1].sum())
     assert read > 0
+
+
+@pytest.mark.parametrize("order", [design_code((4, 4)).order, [[2, 0, 3, 1]], [[1], [2], [0]]],
+                         ids=["4x4", "1x4", "3x1"])
+@pytest.mark.parametrize("dropped", [False, True])
+@pytest.mark.parametrize("by_table", [True, False])
+def test_lattice_sums_rows_are_the_kernel_per_voxel_bit_for_bit(rng, order, dropped, by_table):
+    """The kernel a row's voxels at a time gives the bits of the kernel a voxel at a time (lattice_reference; with
+    the kernel's exp, and both with numba's), on
+    odd boxes inside an odd picture and on the whole picture, with trajectories leaving it, fractional, integer and
+    unmeasured flows, multiplexed slots' tables, a dropped frame, the reach on the table and by :func:`own_reach`."""
+    from flexvox_core.motion.mcnc_kernel import lattice_sums, reach_thresholds
+
+    from .lattice_reference import kernel_by_voxel, lattice_sums_by_voxel, rows_with_libm_exp
+
+    # the kernel's exp in both, and numba's (the benchmark's variants gather-exp-libm and gather-by-voxel)
+    pairs = ((lattice_sums, kernel_by_voxel(exp_f32=True)), (rows_with_libm_exp(), lattice_sums_by_voxel))
+    frames, present, flow, rows, cols, reach, inv = _odd_case(rng, order, dropped, flow_sigma=2.0)
+    S, H, W = flow.shape[:3]
+    table = reach_thresholds(reach) if by_table else np.zeros(0, np.float32)
+    read = 0.0
+    for t in range(S):
+        for y0, x0, h, w in ((0, 0, H, W), (1, 2, H - 3, W - 5), (4, 0, 1, W), (0, 7, H, 1)):
+            near = rng.random((h, w)) > 0.3
+            for kernel, by_voxel in pairs:
+                want = np.full((2, h, w), 7, np.float32)
+                got = np.full((2, h, w), 5, np.float32)
+                by_voxel(frames, present, rows, cols, flow[t], near, y0, x0, t, S, inv, reach, want[0], want[1], table)
+                kernel(frames, present, rows, cols, flow[t], near, y0, x0, t, S, inv, reach, got[0], got[1], table)
+                np.testing.assert_array_equal(got.view(np.uint32), want.view(np.uint32))
+                read += float(got[1].sum())
+    assert read > 0
+
+
+def test_exp_f32_is_within_an_ulp_of_exp():
+    """mcnc_kernel.exp_f32 (the gather's exp, vectorized) on a grid of float32 from −87 to 0 and at its ends: within
+    1 ulp of the exact exp (float64), and exp(−87) below −87."""
+    from flexvox_core.motion.mcnc_kernel import exp_f32
+
+    @numba.njit
+    def each(x):
+        out = np.empty_like(x)
+        for i in range(len(x)):
+            out[i] = exp_f32(x[i])
+        return out
+
+    x = np.concatenate([-np.linspace(0, 87, 400_001), [-0.0, -1e-30, -1e-7, -86.99999]]).astype(np.float32)
+    got = each(x)
+    assert got.dtype == np.float32
+    want = np.exp(x.astype(np.float64))
+    ulp = np.spacing(want.astype(np.float32)).astype(np.float64)
+    assert (np.abs(got - want) <= ulp).all()
+    assert got[0] == 1
+    np.testing.assert_array_equal(each(np.array([-88, -1e4, -np.inf], np.float32)), each(np.float32([-87] * 3)))

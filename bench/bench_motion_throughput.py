@@ -681,7 +681,7 @@ def _gather_by_voxel() -> Iterator[None]:
 
 @contextlib.contextmanager
 def _gather_exp_libm() -> Iterator[None]:
-    """Before the trajectory gather's kernel took its exp by ``mcnc_kernel.exp_f32`` in a vectorized pass: numba's
+    """Before the trajectory gather's kernel took its exp by ``exp_kernel.exp32`` in a vectorized pass: numba's
     ``math.exp`` per voxel (``tests/flexvox_core/motion/lattice_reference.py`` compiles it from the module's
     source)."""
     from flexvox_core.motion import mcnc_kernel

@@ -12,7 +12,7 @@ With a tile of at least 2×2 (one pixel of a cell per slot) the reads at the off
 row's voxels (:func:`_row_reads`), which LLVM vectorizes (8 reads a step, one gather of the frame): each read
 finds the pixel of its cell in the slot's row and column of the tile in float32 arithmetic, reads it (clamped in
 the picture) and adds its weighted sample where the cell holds it, a select rather than a branch; the sample read
-is the pixel itself (a held pixel's n/d, rounded, in the code before) and the range weight is :func:`exp32`.
+is the pixel itself (a held pixel's n/d, rounded, in the code before) and the range weight is :func:`~flexvox_core.motion.exp_kernel.exp32`.
 The sums are those of float32 rounding: within 3e-7 of the scalar reads on the 1-s balls clip. A 1×n or m×1 tile
 (two pixels of a cell per slot) takes the scalar reads, :func:`_row_sums`.
 
@@ -29,8 +29,8 @@ import cv2
 import numba
 import numba.core.compiler
 import numpy as np
-from numba import types
-from numba.core.extending import intrinsic
+
+from flexvox_core.motion.exp_kernel import exp32
 
 CORNERS = ((0, 0), (0, 1), (1, 0), (1, 1))
 """The cell's pixels (dy, dx) in the bit order of :func:`corner_table`."""
@@ -51,50 +51,6 @@ def corner_table(order: np.ndarray) -> np.ndarray:
         slot = order[(i + dy) % m, (j + dx) % n]
         table[i, j, slot] |= np.uint8(1 << bit)
     return table
-
-
-@intrinsic
-def _float32_bits(typingctx: Any, bits: Any) -> Any:
-    """The float32 whose bit pattern is the low 32 bits of the integer ``bits`` (compiled code only)."""
-    if not isinstance(bits, types.Integer):
-        return None
-
-    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-        value = args[0]
-        i32 = context.get_value_type(types.int32)
-        if value.type.width > 32:
-            value = builder.trunc(value, i32)
-        elif value.type.width < 32:
-            value = builder.sext(value, i32)
-        return builder.bitcast(value, context.get_value_type(types.float32))
-
-    return types.float32(bits), codegen
-
-
-_float32_from_bits: Any = _float32_bits
-""":func:`_float32_bits` as called (one argument: numba passes the typing context)."""
-
-
-@numba.njit(inline="always", nogil=True, cache=True, error_model="numpy")
-def exp32(x: Any) -> Any:
-    """e**x in float32 for x <= 0 (float32), branch-free so that a loop calling it vectorizes (numba's math.exp is
-    a call): Cephes' expf (x = n·ln 2 + r, |r| <= ln2/2, a polynomial of r, times 2**n built in the exponent bits).
-    Within 1 ulp of e**x for -87 <= x <= 0 (a test checks 3 M points); 0 below -87 (where e**x < 1.7e-38); NaN
-    gives NaN."""
-    lo = np.float32(-87.0)
-    z = max(x, lo)
-    n = np.floor(z * np.float32(1.44269504088896341) + np.float32(0.5))
-    r = z - n * np.float32(0.693359375) - n * np.float32(-2.12194440e-4)
-    p = np.float32(1.9875691500e-4)
-    p = p * r + np.float32(1.3981999507e-3)
-    p = p * r + np.float32(8.3334519073e-3)
-    p = p * r + np.float32(4.1665795894e-2)
-    p = p * r + np.float32(1.6666665459e-1)
-    p = p * r + np.float32(5.0000001201e-1)
-    p = p * (r * r) + r + np.float32(1)
-    scale = _float32_from_bits((np.int32(n) + np.int32(127)) << np.int32(23))
-    e = p * scale
-    return e if x >= lo else (np.float32(0) if x < lo else x)
 
 
 @numba.njit(inline="always", nogil=True, cache=True, error_model="numpy")

@@ -19,36 +19,8 @@ from typing import Any
 import numba
 import numpy as np
 
+from flexvox_core.motion.exp_kernel import exp32
 from flexvox_core.motion.gather_weights import CUTOFF, MIN_WEIGHT
-
-
-@numba.njit(inline="always", nogil=True, cache=True)
-def exp_f32(x: Any) -> Any:
-    """exp(x) of a float32 x <= 0, float32, within 1 ulp of the exact value from −87 to 0 (0.97 at most on a grid of
-    2 M points there, where numpy's float32 exp is within 2.4; a test); exp(−87) below −87, not 0. Cephes' expf: 2^k · p(r),
-    r = x − k ln 2 (ln 2 in two parts), p of degree 7; 2^k (k >= −126, a normal number) by exact products chosen
-    by k's bits. Arithmetic and selects alone, so a loop of it vectorizes (numba's ``math.exp`` is a call)."""
-    x = max(x, np.float32(-87.0))
-    k = np.floor(x * np.float32(1.44269504088896341) + np.float32(0.5))  # float32 (math.floor: an int64)
-    r = x - k * np.float32(0.693359375)
-    r = r + k * np.float32(2.12194440e-4)
-    p = np.float32(1.9875691500e-4)
-    p = p * r + np.float32(1.3981999507e-3)
-    p = p * r + np.float32(8.3334519073e-3)
-    p = p * r + np.float32(4.1665795894e-2)
-    p = p * r + np.float32(1.6666665459e-1)
-    p = p * r + np.float32(5.0000001201e-1)
-    p = p * (r * r) + r + np.float32(1)
-    m = np.int32(-k)
-    s = np.float32(1)
-    s = s * (np.float32(0.5) if m & 1 else np.float32(1))
-    s = s * (np.float32(0.25) if m & 2 else np.float32(1))
-    s = s * (np.float32(0.0625) if m & 4 else np.float32(1))
-    s = s * (np.float32(0.00390625) if m & 8 else np.float32(1))
-    s = s * (np.float32(1.52587890625e-05) if m & 16 else np.float32(1))
-    s = s * (np.float32(2.3283064365386963e-10) if m & 32 else np.float32(1))
-    s = s * (np.float32(5.421010862427522e-20) if m & 64 else np.float32(1))
-    return p * s
 
 
 @numba.njit(inline="always", nogil=True, cache=True)
@@ -173,7 +145,7 @@ def lattice_sums(frames: Any, present: Any, row_hit: Any, col_hit: Any, flow_t: 
                 acc_n[q] = zero
                 acc_d[q] = zero
         fy = np.float32(y)
-        for q in range(n):  # vectorized: exp_f32 is arithmetic and selects
+        for q in range(n):  # vectorized: exp32 is arithmetic, no call
             u = flow_u[q]
             v = flow_v[q]
             ok = math.isfinite(u) and math.isfinite(v)
@@ -181,7 +153,7 @@ def lattice_sums(frames: Any, present: Any, row_hit: Any, col_hit: Any, flow_t: 
             v = v if ok else zero
             flow_u[q] = u
             flow_v[q] = v
-            e = exp_f32(-(one + u * u + v * v) * inv_4nc1)
+            e = exp32(-(one + u * u + v * v) * inv_4nc1)
             e_of[q] = e
             e2[q] = e * e
             weight[q] = one

@@ -1,7 +1,7 @@
 """The trajectory gather's kernel a voxel at a time (:func:`lattice_sums_by_voxel`), as it was before
 :func:`flexvox_core.motion.mcnc_kernel.lattice_sums` ran each row's voxels as a list with its offsets outside it
 (numba's ``math.exp``), and variants of it (:func:`kernel_by_voxel`: every read clamped into the picture, as before
-the cells wholly in the picture were read without clamping; the kernel's ``exp_f32``); the kernel with numba's exp
+the cells wholly in the picture were read without clamping; the kernel's ``exp32``); the kernel with numba's exp
 (:func:`rows_with_libm_exp`): for the tests' bit-for-bit comparisons and the benchmark's variants. Compiled by
 numba, not cached on disk."""
 
@@ -20,7 +20,7 @@ from flexvox_core.motion.mcnc_kernel import own_reach
 FAST_PATH = "    if 0 <= y0 and y0 < H - 1 and 0 <= x0 and x0 < W - 1:"
 CLAMPED = "    ya = min(max(y0, -1), H)"
 LIBM_EXP = "e = np.float32(math.exp(-(one + u * u + v * v) * inv_4nc1))"
-KERNEL_EXP = "e = exp_f32(-(one + u * u + v * v) * inv_4nc1)"
+KERNEL_EXP = "e = exp32(-(one + u * u + v * v) * inv_4nc1)"
 
 
 @numba.njit(inline="always", nogil=True, cache=False)
@@ -141,18 +141,18 @@ def lattice_sums_by_voxel(frames: Any, present: Any, row_hit: Any, col_hit: Any,
 
 
 @functools.cache
-def kernel_by_voxel(*, clamped: bool = False, exp_f32: bool = False):
+def kernel_by_voxel(*, clamped: bool = False, exp32: bool = False):
     """:func:`lattice_sums_by_voxel` compiled from this module's source: with every read clamped (without the path
-    of the cells wholly in the picture), and/or with :func:`~flexvox_core.motion.mcnc_kernel.exp_f32` for
+    of the cells wholly in the picture), and/or with :func:`~flexvox_core.motion.exp_kernel.exp32` for
     numba's ``math.exp`` (the kernel's exp since it was vectorized: the tests' bit-for-bit references)."""
     source = inspect.getsource(sys.modules[__name__])
     if clamped:
         start, end = source.index(FAST_PATH), source.index(CLAMPED)
         source = source[:start] + source[end:]
-    if exp_f32:
+    if exp32:
         kernel = source.index("def lattice_sums_by_voxel(")
         assert source[kernel:].count(LIBM_EXP) == 1
-        source = (source[:kernel].replace("import own_reach", "import exp_f32, own_reach")
+        source = (source[:kernel].replace("import own_reach", "import exp32, own_reach")
                   + source[kernel:].replace(LIBM_EXP, KERNEL_EXP))
     module = types.ModuleType("lattice_reference_variant")
     exec(compile(source, "<lattice_reference, a variant>", "exec"), module.__dict__)  # noqa: S102
@@ -167,7 +167,7 @@ def clamped_lattice_sums():
 
 @functools.cache
 def rows_with_libm_exp():
-    """:func:`~flexvox_core.motion.mcnc_kernel.lattice_sums` with numba's ``math.exp`` for ``exp_f32`` (compiled from
+    """:func:`~flexvox_core.motion.mcnc_kernel.lattice_sums` with numba's ``math.exp`` for ``exp32`` (compiled from
     that module's source): the kernel before its exp was vectorized."""
     from flexvox_core.motion import mcnc_kernel
 

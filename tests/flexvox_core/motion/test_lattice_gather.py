@@ -320,7 +320,7 @@ def test_lattice_sums_read_cells_in_the_picture_as_clamped_bit_for_bit(rng, orde
     frames, present, flow, rows, cols, reach, inv = _odd_case(rng, order, dropped, flow_sigma=2.5)
     S, H, W = flow.shape[:3]
     table = reach_thresholds(reach)
-    clamped = kernel_by_voxel(clamped=True, exp_f32=True)
+    clamped = kernel_by_voxel(clamped=True, exp32=True)
     read = 0.0
     for t in range(S):
         near = rng.random((H, W)) > 0.2
@@ -347,7 +347,7 @@ def test_lattice_sums_rows_are_the_kernel_per_voxel_bit_for_bit(rng, order, drop
     from .lattice_reference import kernel_by_voxel, lattice_sums_by_voxel, rows_with_libm_exp
 
     # the kernel's exp in both, and numba's (the benchmark's variants gather-exp-libm and gather-by-voxel)
-    pairs = ((lattice_sums, kernel_by_voxel(exp_f32=True)), (rows_with_libm_exp(), lattice_sums_by_voxel))
+    pairs = ((lattice_sums, kernel_by_voxel(exp32=True)), (rows_with_libm_exp(), lattice_sums_by_voxel))
     frames, present, flow, rows, cols, reach, inv = _odd_case(rng, order, dropped, flow_sigma=2.0)
     S, H, W = flow.shape[:3]
     table = reach_thresholds(reach) if by_table else np.zeros(0, np.float32)
@@ -363,25 +363,3 @@ def test_lattice_sums_rows_are_the_kernel_per_voxel_bit_for_bit(rng, order, drop
                 np.testing.assert_array_equal(got.view(np.uint32), want.view(np.uint32))
                 read += float(got[1].sum())
     assert read > 0
-
-
-def test_exp_f32_is_within_an_ulp_of_exp():
-    """mcnc_kernel.exp_f32 (the gather's exp, vectorized) on a grid of float32 from −87 to 0 and at its ends: within
-    1 ulp of the exact exp (float64), and exp(−87) below −87."""
-    from flexvox_core.motion.mcnc_kernel import exp_f32
-
-    @numba.njit
-    def each(x):
-        out = np.empty_like(x)
-        for i in range(len(x)):
-            out[i] = exp_f32(x[i])
-        return out
-
-    x = np.concatenate([-np.linspace(0, 87, 400_001), [-0.0, -1e-30, -1e-7, -86.99999]]).astype(np.float32)
-    got = each(x)
-    assert got.dtype == np.float32
-    want = np.exp(x.astype(np.float64))
-    ulp = np.spacing(want.astype(np.float32)).astype(np.float64)
-    assert (np.abs(got - want) <= ulp).all()
-    assert got[0] == 1
-    np.testing.assert_array_equal(each(np.array([-88, -1e4, -np.inf], np.float32)), each(np.float32([-87] * 3)))

@@ -297,32 +297,6 @@ def test_compiled_gather_bits_do_not_depend_on_the_thread_count(rng, monkeypatch
     assert not np.array_equal(many[sel], guide[sel])
 
 
-def test_exp32_is_within_one_ulp_of_exp():
-    from flexvox_core.motion.longreach_kernel import exp32
-
-    import numba
-
-    @numba.njit
-    def each(x):
-        out = np.empty_like(x)
-        for i in range(x.size):
-            out[i] = exp32(x[i])
-        return out
-
-    rng = np.random.default_rng(5)
-    x = np.concatenate([-np.linspace(0, 87, 2_000_001, dtype=np.float32),
-                        -np.abs(rng.standard_normal(1_000_000)).astype(np.float32) * 3,
-                        np.array([0, -0.0, -1e-30, -1e-7, -87], np.float32)])
-    got = each(x).astype(np.float64)
-    want = np.exp(x.astype(np.float64))
-    ulp = np.spacing(want.astype(np.float32)).astype(np.float64)
-    assert np.abs(got - want).max(initial=0) > 0  # not np.exp itself
-    assert (np.abs(got - want) <= ulp).all()
-    low = each(np.array([-87.5, -100, -1e30, -np.inf], np.float32))
-    np.testing.assert_array_equal(low, 0)  # e**x < 1.7e-38 there
-    assert np.isnan(each(np.array([np.nan], np.float32))[0])
-
-
 @pytest.mark.parametrize("order, missing", [
     ((4, 4), [False, True, False]),
     ((2, 4), None),

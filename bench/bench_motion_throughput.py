@@ -264,13 +264,13 @@ def _clamped_reads_step() -> Callable[..., None]:
 
     f = vk.vardiff_step.py_func
     glb = {**f.__globals__, "_bilinear": vk._clamped_bilinear, "_bicubic": vk._clamped_bicubic}
-    return numba.njit(parallel=True, nogil=True)(types.FunctionType(f.__code__, glb, f.__name__, f.__defaults__))
+    return numba.njit(**vk.STEP_OPTIONS)(types.FunctionType(f.__code__, glb, f.__name__, f.__defaults__))
 
 
 @contextlib.contextmanager
 def _refine_clamped_reads() -> Iterator[None]:
     """Before the refinement's step read its trajectory neighbours without clamps where every tap is inside the
-    picture: every bilinear and bicubic read clamped (the same bits)."""
+    picture: every bilinear and bicubic read clamped (the same arithmetic: the last bit or two, FMA contraction)."""
     from flexvox_core.motion import vardiff_kernel as vk
 
     with mock.patch.object(vk, "vardiff_step", _clamped_reads_step()):
@@ -299,14 +299,14 @@ def _signed_reads_step() -> Callable[..., None]:
         exec(compile(src, vk.__file__, "exec"), namespace)
     f = vk.vardiff_step.py_func
     glb = {**f.__globals__, "_bilinear": namespace["_bilinear"], "_bicubic": namespace["_bicubic"]}
-    return numba.njit(parallel=True, nogil=True)(types.FunctionType(f.__code__, glb, f.__name__, f.__defaults__))
+    return numba.njit(**vk.STEP_OPTIONS)(types.FunctionType(f.__code__, glb, f.__name__, f.__defaults__))
 
 
 @contextlib.contextmanager
 def _refine_signed_indices() -> Iterator[None]:
     """Before the refinement's unclamped reads took unsigned indices and its step was compiled with the SLP
     vectorizer: signed indices, each with numba's wraparound of negative ones, and numba's default compilation (the
-    same bits)."""
+    same arithmetic)."""
     from flexvox_core.motion import vardiff_kernel as vk
 
     with mock.patch.object(vk, "vardiff_step", _signed_reads_step()):
@@ -316,7 +316,7 @@ def _refine_signed_indices() -> Iterator[None]:
 @contextlib.contextmanager
 def _refine_no_slp() -> Iterator[None]:
     """Before the refinement's step was compiled with LLVM's SLP vectorizer on: numba's default, off (the same
-    bits)."""
+    arithmetic)."""
     from flexvox_core.motion import vardiff_kernel as vk
 
     step = _plain_step()
@@ -324,14 +324,32 @@ def _refine_no_slp() -> Iterator[None]:
         yield
 
 
+@contextlib.contextmanager
+def _refine_float64() -> Iterator[None]:
+    """Before the refinement's step computed in float32: its step as it was (``bench/vardiff_kernel_float64.py``:
+    float64 arithmetic, each read at a float64 position y + v, no FMA contraction), given the eigenvalues, the step and
+    the still speed² as Python floats."""
+    from bench import vardiff_kernel_float64
+    from flexvox_core.motion import vardiff
+    from flexvox_core.motion import vardiff_kernel as vk
+
+    def float64_step(c, dt, still2):
+        return (*(float(v) for v in c), float(dt), float(still2))
+
+    with mock.patch.object(vk, "vardiff_step", vardiff_kernel_float64.vardiff_step), \
+            mock.patch.object(vardiff, "float32_step", float64_step):
+        yield
+
+
 @functools.cache
 def _plain_step() -> Callable[..., None]:
-    """``vardiff_step``'s source compiled as numba compiles by default (compiled once a process)."""
+    """``vardiff_step``'s source compiled as numba compiles by default, with the step's own options (compiled once a
+    process)."""
     import numba
 
     from flexvox_core.motion import vardiff_kernel as vk
 
-    return numba.njit(parallel=True, nogil=True)(vk.vardiff_step.py_func)
+    return numba.njit(**vk.STEP_OPTIONS)(vk.vardiff_step.py_func)
 
 
 @contextlib.contextmanager
@@ -738,6 +756,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "refine-copied-ends": _refine_copied_ends,
     "refine-signed-indices": _refine_signed_indices,
     "refine-no-slp": _refine_no_slp,
+    "refine-float64": _refine_float64,
     "guides-whole": _guides_whole,
     "reach-by-log": _reach_by_log,
     "high-tr-float32": _high_tr_float32,

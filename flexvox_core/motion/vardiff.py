@@ -15,7 +15,9 @@ the step along λ ∝ (u, v, 1) lands exactly on the neighbouring sub-frames, so
 bilinear interpolation is needed — ``D²_ψ`` likewise within the sub-frame, and Δ by the
 7-point stencil. Every neighbour weight is ≥ 0 and they add up to at most 2·trace T, so
 an explicit step with ``dt ≤ 1 / (2 trace T)`` is a convex combination of neighbour values:
-monotone, stable at any anisotropy, and the result stays within the range of the data.
+monotone, stable at any anisotropy, and the result stays within the range of the data. The step
+computes in float32; ``dt`` is kept a millionth inside that bound (:func:`float32_step`), a margin
+for the rounding of its sums, so this holds of the float32 results too.
 
 Voxels given as ``sharp`` read their two neighbours along λ by Catmull-Rom bicubic interpolation
 clipped to the range of the four pixels the bilinear read would take. Such a read is not monotone
@@ -94,6 +96,23 @@ def _read_into(volume: Any, t0: int, t1: int, out: np.ndarray) -> None:
         into(t0, t1, out)
     else:
         out[...] = planes.band(volume, t0, t1)
+
+
+STEP_MARGIN = 2.0**-20
+"""The float32 step keeps 2 dt trace T ≤ 1 − this (:func:`float32_step`): the convex combination's margin for the
+rounding of its dozen float32 operations (each within 2⁻²⁴ of its terms), so that the result stays within the range
+of the values it combines."""
+
+
+def float32_step(c, dt: float, still2: float) -> tuple[np.float32, ...]:
+    """The step's scalars in float32, the kernel's arithmetic: the eigenvalues ``c``, ``dt`` (rounded down until
+    2 dt trace T ≤ 1 − :data:`STEP_MARGIN` with the float32 eigenvalues: only a step within a millionth of the bound
+    1 / (2 trace T) changes) and the still speed² ``still2``."""
+    c32 = tuple(np.float32(v) for v in c)
+    dt32 = np.float32(dt)
+    while dt32 > 0 and 2.0 * float(dt32) * sum(float(v) for v in c32) > 1.0 - STEP_MARGIN:
+        dt32 = np.nextafter(dt32, np.float32(0))
+    return (*c32, dt32, np.float32(still2))
 
 
 def _check(init, mask, flow, time, c, start: int = 0):
@@ -219,6 +238,7 @@ def variable_tensor_diffusion(
         band = band_length(steps, numba.get_num_threads())
     if isinstance(band, bool) or not isinstance(band, (int, np.integer)) or band < 1:
         raise ValueError(f"`band` must be a whole number of sub-frames >= 1; got {band!r}")
+    k1, k2, k3, kdt, kstill2 = float32_step((c1, c2, c3), dt, still2)
     result = out if out is not None else np.empty_like(vol)
     if not steps:
         if result is not vol:
@@ -260,8 +280,8 @@ def variable_tensor_diffusion(
                 lo, hi = max(0, e0 - j), (e1 - j if e1 < S else S)
                 src = vol[c0:e1] if direct and j == 1 else bufs[(j - 1) % 2][:n]
                 dst = result[c0:e1] if direct and j == steps else bufs[j % 2][:n]
-                vardiff_step(src, dst, fb[:n], mb[:n], bool(keep_samples), c1, c2, c3,
-                             dt, sb if not use_sharp else sb[:n], use_sharp, lo - c0, hi - c0, still2)
+                vardiff_step(src, dst, fb[:n], mb[:n], bool(keep_samples), k1, k2, k3, kdt,
+                             sb if not use_sharp else sb[:n], use_sharp, lo - c0, hi - c0, kstill2)
             lo, hi = max(0, e0 - steps), (e1 - steps if e1 < S else S)
             if hi > lo and not direct:
                 result[lo:hi] = bufs[steps % 2][lo - c0:hi - c0]

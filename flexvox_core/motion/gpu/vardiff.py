@@ -1,8 +1,10 @@
 """The refinement on the GPU: explicit steps of the monotone variable-tensor diffusion
 (:func:`~flexvox_core.motion.vardiff.variable_tensor_diffusion`), one thread per voxel and step.
 
-The step is :func:`~flexvox_core.motion.vardiff_kernel.vardiff_step` line for line: exact bilinear reads
-clamped at the border, clipped Catmull-Rom reads for the ``sharp`` voxels, the samples held. Steps alternate
+The step is :func:`~flexvox_core.motion.vardiff_kernel.vardiff_step` line for line, in float32 with the same
+scalars (:func:`~flexvox_core.motion.vardiff.float32_step`): exact bilinear reads clamped at the border, each at
+a whole pixel plus an offset (its cell exact), clipped Catmull-Rom reads for the ``sharp`` voxels, the
+samples held. Steps alternate
 between two volumes; each reads only the previous step, so the result does not depend on the launch order.
 
 References
@@ -21,11 +23,25 @@ from numba import cuda
 
 from flexvox_core.gpu.index import voxel
 from flexvox_core.gpu.launch import device, kernel, launch
-from flexvox_core.motion.vardiff import explicit_steps
+from flexvox_core.motion.vardiff import explicit_steps, float32_step
+
+
+@device
+def _cell(i, d, n):
+    """The cell of the position i + d on an axis of n pixels (i a whole pixel, |d| ≤ n a float32 offset), clamped to
+    the picture: its first pixel, exact, and the fraction, within 3e-8 (no float32 position i + d)."""
+    k = int(math.floor(d))
+    i0 = i + k
+    if i0 < 0:
+        return 0, np.float32(0)
+    if i0 >= n - 1:
+        return n - 1, np.float32(0)
+    return i0, d - np.float32(k)
 
 
 @device
 def _clamped_bilinear(plane, t, y, x, H, W):
+    """Bilinear read at the float32 position (y, x), clamped at the border (the gaps' read)."""
     y = min(max(y, np.float32(0)), np.float32(H - 1))
     x = min(max(x, np.float32(0)), np.float32(W - 1))
     y0 = int(y)
@@ -34,6 +50,19 @@ def _clamped_bilinear(plane, t, y, x, H, W):
     x1 = min(x0 + 1, W - 1)
     ay = y - np.float32(y0)
     ax = x - np.float32(x0)
+    one = np.float32(1)
+    top = plane[t, y0, x0] * (one - ax) + plane[t, y0, x1] * ax
+    bottom = plane[t, y1, x0] * (one - ax) + plane[t, y1, x1] * ax
+    return top * (one - ay) + bottom * ay
+
+
+@device
+def _bilinear_at(plane, t, y, x, dy, dx, H, W):
+    """Bilinear read at the whole pixel (y, x) plus the offset (dy, dx), clamped at the border."""
+    y0, ay = _cell(y, dy, H)
+    x0, ax = _cell(x, dx, W)
+    y1 = min(y0 + 1, H - 1)
+    x1 = min(x0 + 1, W - 1)
     one = np.float32(1)
     top = plane[t, y0, x0] * (one - ax) + plane[t, y0, x1] * ax
     bottom = plane[t, y1, x0] * (one - ax) + plane[t, y1, x1] * ax
@@ -56,13 +85,9 @@ def _cubic_weight(t, k):
 
 
 @device
-def _clamped_bicubic(plane, t, y, x, H, W):
-    y = min(max(y, np.float32(0)), np.float32(H - 1))
-    x = min(max(x, np.float32(0)), np.float32(W - 1))
-    y0 = int(y)
-    x0 = int(x)
-    fy = y - np.float32(y0)
-    fx = x - np.float32(x0)
+def _bicubic_at(plane, t, y, x, dy, dx, H, W):
+    y0, fy = _cell(y, dy, H)
+    x0, fx = _cell(x, dx, W)
     value = np.float32(0)
     for j in range(4):
         yy = min(max(y0 + j - 1, 0), H - 1)
@@ -102,18 +127,18 @@ def _step(vol, new, flow, mask, sharp, c1, c2, c3, dt, still2):
         u = np.float32(0)
         v = np.float32(0)
         speed2 = np.float32(0)
-    fy = np.float32(y)
-    fx = np.float32(x)
     two = np.float32(2)
+    dy = min(max(v, -np.float32(H)), np.float32(H))  # an offset beyond the picture's size reads as its size
+    dx = min(max(u, -np.float32(W)), np.float32(W))
     if u == 0 and v == 0:
         nxt = vol[t + 1, y, x] if t + 1 < S else cur
         prv = vol[t - 1, y, x] if t > 0 else cur
     elif sharp[t, y, x]:
-        nxt = _clamped_bicubic(vol, t + 1, fy + v, fx + u, H, W) if t + 1 < S else cur
-        prv = _clamped_bicubic(vol, t - 1, fy - v, fx - u, H, W) if t > 0 else cur
+        nxt = _bicubic_at(vol, t + 1, y, x, dy, dx, H, W) if t + 1 < S else cur
+        prv = _bicubic_at(vol, t - 1, y, x, -dy, -dx, H, W) if t > 0 else cur
     else:
-        nxt = _clamped_bilinear(vol, t + 1, fy + v, fx + u, H, W) if t + 1 < S else cur
-        prv = _clamped_bilinear(vol, t - 1, fy - v, fx - u, H, W) if t > 0 else cur
+        nxt = _bilinear_at(vol, t + 1, y, x, dy, dx, H, W) if t + 1 < S else cur
+        prv = _bilinear_at(vol, t - 1, y, x, -dy, -dx, H, W) if t > 0 else cur
     acc = (c1 - c3) / (np.float32(1) + speed2) * (nxt + prv - two * cur)
     b = c2 - c3
     if b > 0:
@@ -124,8 +149,8 @@ def _step(vol, new, flow, mask, sharp, c1, c2, c3, dt, still2):
         else:
             px = np.float32(0)
             py = np.float32(-1)
-        acc += b * (_clamped_bilinear(vol, t, fy + py, fx + px, H, W)
-                    + _clamped_bilinear(vol, t, fy - py, fx - px, H, W) - two * cur)
+        acc += b * (_bilinear_at(vol, t, y, x, py, px, H, W)
+                    + _bilinear_at(vol, t, y, x, -py, -px, H, W) - two * cur)
     if c3 > 0:
         up = vol[t + 1, y, x] if t + 1 < S else cur
         dn = vol[t - 1, y, x] if t > 0 else cur
@@ -151,14 +176,12 @@ def refine(ws, video, mask, flow, sharp, *, c, time: float, still_speed: float |
     steps = explicit_steps(time, (c1, c2, c3))
     if not steps:
         return
-    dt = time / steps
+    scalars = float32_step((c1, c2, c3), time / steps, 0 if still_speed is None else float(still_speed) ** 2)
     S, H, W = video.shape
-    still2 = np.float32(0 if still_speed is None else float(still_speed) ** 2)
     other = ws.get("refine.other", (S, H, W))
     src, dst = video, other
     for _ in range(steps):
-        launch(_step, S * H * W, src, dst, flow, mask, sharp, np.float32(c1), np.float32(c2), np.float32(c3),
-               np.float32(dt), still2)
+        launch(_step, S * H * W, src, dst, flow, mask, sharp, *scalars)
         src, dst = dst, src
     if src is not video:
         video.copy_to_device(src)

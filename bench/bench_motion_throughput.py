@@ -326,17 +326,18 @@ def _refine_no_slp() -> Iterator[None]:
 
 @contextlib.contextmanager
 def _refine_float64() -> Iterator[None]:
-    """Before the refinement's step computed in float32: its step as it was (``bench/vardiff_kernel_float64.py``:
-    float64 arithmetic, each read at a float64 position y + v, no FMA contraction), given the eigenvalues, the step and
-    the still speed² as Python floats."""
-    from bench import vardiff_kernel_float64
+    """Before the refinement's step computed in float32: its step as it was
+    (``tests/flexvox_core/motion/vardiff_float64.py``: float64 arithmetic, each read at a float64 position y + v, no FMA
+    contraction), given the eigenvalues, the step and the still speed² as Python floats."""
+    _repository_on_path()  # the tests' copy of the kernel, importable however the script is started
     from flexvox_core.motion import vardiff
     from flexvox_core.motion import vardiff_kernel as vk
+    from tests.flexvox_core.motion import vardiff_float64
 
     def float64_step(c, dt, still2):
         return (*(float(v) for v in c), float(dt), float(still2))
 
-    with mock.patch.object(vk, "vardiff_step", vardiff_kernel_float64.vardiff_step), \
+    with mock.patch.object(vk, "vardiff_step", vardiff_float64.vardiff_step), \
             mock.patch.object(vardiff, "float32_step", float64_step):
         yield
 

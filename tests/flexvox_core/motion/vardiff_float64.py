@@ -1,6 +1,6 @@
 """The refinement's step as it was before it computed in float32 (a copy of ``flexvox_core/motion/vardiff_kernel.py``
-at 674595b, uncached): float64 Python floats, each read at a float64 position. ``bench_motion_throughput.py``'s
-``refine-float64`` variant patches it in; not the library's code."""
+at 674595b, uncached): float64 Python floats, each read at a float64 position. The ``refine-float64`` variant of
+``bench/bench_motion_throughput.py`` (and of ``bench/bench_refinement.py``) patches it in; not the library's code."""
 from __future__ import annotations
 
 import math

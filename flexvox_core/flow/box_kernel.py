@@ -1,9 +1,9 @@
 """The moving average in time of :func:`~flexvox_core.flow.baseline.box_in_time`, compiled (numba): SciPy's
 ``uniform_filter1d(v, size, axis=0, mode="nearest")`` bit for bit (its reference: the tests compare the two), its
-running box's arithmetic (a running sum since SciPy 1.0, scipy/scipy#7516): each line in time read as float64 with its edges held, the first ``size`` values summed
-in order, then at each next sub-frame ``entering − leaving`` added to the sum; each result the sum divided by
-``size``, rounded to float32 once. The lines run side by side (the pixels of a band of columns at once, unit
-stride), not one at a time through a copied line buffer as SciPy's do."""
+running box's arithmetic (a running sum since SciPy 1.0, scipy/scipy#7516): each line in time read as float64 with
+its edges held, the first ``size`` values summed in order, then at each next sub-frame ``entering − leaving`` added
+to the sum; each result the sum divided by ``size``, rounded to float32 once. The lines run side by side (the pixels
+of a band of columns at once, unit stride), not one at a time through a copied line buffer as SciPy's do."""
 
 from __future__ import annotations
 

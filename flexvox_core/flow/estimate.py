@@ -259,19 +259,22 @@ def sanitize_flow(flow: np.ndarray, confidence: np.ndarray | None = None, *, max
     if flow.ndim < 3 or flow.shape[-1] != 2:
         raise ValueError(f"`flow` must have shape (..., H, W, 2); got {flow.shape}")
     conf = np.ones(flow.shape[:-1], np.float32) if confidence is None else np.array(confidence, np.float32)
-    # Each check first in one pass that usually settles it (no temporaries): every value finite
-    # (a float64 sum of float32 values cannot overflow), no component beyond max_magnitude / √2.
-    if not np.isfinite(flow.sum(dtype=np.float64)):
+    # Both checks first from the largest and smallest values, two passes that usually settle them (no
+    # temporaries): every value finite (NaN makes both NaN), no component beyond max_magnitude / √2.
+    top, bottom = (flow.max(), flow.min()) if flow.size else (np.float32(0), np.float32(0))
+    if not (np.isfinite(top) and np.isfinite(bottom)):
         bad = ~np.isfinite(flow).all(axis=-1)
         flow = flow.copy()
         flow[bad] = 0
         conf[bad] = 0
-    if max_magnitude is not None and flow.size and max(flow.max(), -flow.min()) * np.sqrt(2) > max_magnitude:
+        top, bottom = flow.max(), flow.min()
+    if max_magnitude is not None and max(top, -bottom) * np.sqrt(2) > max_magnitude:
         mag = np.hypot(flow[..., 0], flow[..., 1])
         over = mag > max_magnitude
         if over.any():
             flow = flow * np.where(over, max_magnitude / np.maximum(mag, 1e-12), 1)[..., None]
-    if conf.size and not (np.min(conf) >= 0 and np.max(conf) <= 1):  # NaN fails both: clipped (stays NaN)
+    # A confidence made here is 1 or 0; one given is clipped to [0, 1] (NaN fails both checks: it stays NaN).
+    if confidence is not None and conf.size and not (np.min(conf) >= 0 and np.max(conf) <= 1):
         conf = np.clip(conf, 0, 1)
     return flow.astype(np.float32, copy=False), conf
 

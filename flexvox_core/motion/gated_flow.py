@@ -17,6 +17,7 @@ from flexvox_core.flow.estimate import (
     ScaledFlow,
     check_video,
     downscale,
+    scaled_vectors,
     successive_flow,
     to_full_size,
 )
@@ -134,7 +135,7 @@ class _GatedFlow:
         h, w = conf.shape
         disp = self.slow.disp
         j0, j1, a = blend(self.slow.centres, t)
-        steps = cv2.resize(self.steps[t] * self.step_ratio, (w, h), interpolation=cv2.INTER_LINEAR)
+        steps = cv2.resize(scaled_vectors(self.steps[t], self.step_ratio), (w, h), interpolation=cv2.INTER_LINEAR)
         mean = self.mean[t] if self.mean is not None else vel
         px, use_slow, slow_speed, lo, width, plo, pwidth = self.numbers
         gate_plane(vel, conf, disp[j0], disp[j1], np.float64(1 - a), np.float64(a), j0 != j1, steps, mean,

@@ -6,7 +6,7 @@ from scipy.ndimage import uniform_filter1d
 
 from flexvox_core.design import design_code
 from flexvox_core.flow.backends import make_backend
-from flexvox_core.flow.baseline import KAverageFlow, box_in_time, kaverage, kaverage_flow
+from flexvox_core.flow.baseline import BOX_COLUMNS, KAverageFlow, box_in_time, kaverage, kaverage_flow
 from flexvox_core.flow.estimate import (
     check_video,
     downscale,
@@ -93,6 +93,34 @@ def test_box_in_time_is_scipys_uniform_filter(shape, size):
     vectors = rng.normal(size=(*shape, 2)).astype(np.float32)  # the period gate's flow (S, h, w, 2)
     np.testing.assert_array_equal(box_in_time(vectors, size),
                                   uniform_filter1d(vectors, size, axis=0, mode="nearest"))
+
+
+@pytest.mark.parametrize("size", [1, 3, 7, 16, 17, 50])
+@pytest.mark.parametrize("scale", [1e-3, 1.0, 1e3])
+def test_box_in_time_compiled_is_scipys_bits_at_odd_sizes_and_long_boxes(size, scale):
+    # The compiled running box (several bands of columns: 2 × 41 × 53 × 2 > BOX_COLUMNS) against SciPy itself, bit
+    # for bit: boxes odd and even (only a power of two divides exactly), longer than the clip, values far from 1.
+    rng = np.random.default_rng(size)
+    v = (rng.normal(size=(23, 41, 53, 2)) * scale).astype(np.float32)
+    assert v[0].size > BOX_COLUMNS
+    want = uniform_filter1d(v, size, axis=0, mode="nearest")
+    np.testing.assert_array_equal(box_in_time(v, size).view(np.uint32), want.view(np.uint32))
+    strided = v[:, ::2]  # not C-contiguous: read as a copy
+    np.testing.assert_array_equal(box_in_time(strided, size),
+                                  uniform_filter1d(strided, size, axis=0, mode="nearest"))
+
+
+@pytest.mark.parametrize("shape", [(1, 4, 5), (2, 3, 1, 2)])
+def test_box_in_time_of_one_or_two_sub_frames_and_other_dtypes_is_scipys(shape):
+    rng = np.random.default_rng(5)
+    v = rng.normal(size=shape).astype(np.float32)
+    np.testing.assert_array_equal(box_in_time(v, 16), uniform_filter1d(v, 16, axis=0, mode="nearest"))
+    d = rng.normal(size=shape)  # float64: SciPy's own
+    got = box_in_time(d, 3)
+    assert got.dtype == np.float64
+    np.testing.assert_array_equal(got, uniform_filter1d(d, 3, axis=0, mode="nearest"))
+    with pytest.raises(RuntimeError, match="incorrect filter size"):
+        box_in_time(v, 0)
 
 
 def test_kaverage_is_the_box_of_K_and_holds_a_clip_at_K_1():

@@ -348,23 +348,19 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
     low = np.zeros((S, H, W), bool)
     any_low = np.zeros(S, bool)
 
+    floor_t = num.dtype.type(floor)  # numpy compares a float32 plane with a Python float in float32
+
     def finish(s: int, d: np.ndarray, cols: slice | None = None) -> None:
-        # A sub-frame divided, clipped to the samples' range and given its samples back while it is in cache (not
-        # two more passes over the volume); on every core (numpy releases the GIL). Its columns `cols` of the
-        # flattened plane alone: divided and clipped (element by element: the same bits whichever columns at a
-        # time), the samples given back by `give_back` (a masked copy is slow on a short row).
+        # A sub-frame divided, clipped to the samples' range and given its samples back in one pass (compiled,
+        # :func:`_finish_plane`), while it is in cache; on every core. Its columns `cols` of the flattened plane
+        # alone: divided and clipped (element by element: the same bits whichever columns at a time), the samples
+        # given back by `give_back` (a masked copy is slow on a short row).
         n = num[s].reshape(-1)[slice(None) if cols is None else cols]
         d = d.reshape(-1)
-        low_s = d <= floor
-        if low_s.any():
-            low[s].reshape(-1)[cols] = low_s  # only then: a sub-frame's pages of `low` are touched only if it has any
-            any_low[s] = True
-            np.divide(n, d, out=n, where=~low_s)
-        else:
-            np.divide(n, d, out=n)
-        np.clip(n, lo, hi, out=n)
-        if cols is None:
-            give_back(s)
+        give = cols is None and keep_samples and (present is None or present[s // K])
+        if _finish_plane(n, d, floor_t, lo, hi, samples[s // K].reshape(-1), slots[s % K].reshape(-1), give):
+            low[s].reshape(-1)[cols] = d <= floor_t  # only then: a sub-frame's pages of `low` are touched only if
+            any_low[s] = True  # it has any
 
     def give_back(s: int) -> None:
         if keep_samples and (present is None or present[s // K]):
@@ -392,6 +388,30 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
             mask &= np.repeat(present, K)[:, None, None]
         _nearest_fill(num, mask, low, sig)
     return num
+
+
+def _finish_numpy(num, den, floor, lo, hi, own, slot, keep: bool) -> int:
+    """:func:`~flexvox_core.reconstruct.nc_time_kernel.finish_plane` in numpy (its reference, the same bits): ``num``
+    divided by ``den`` where it is above ``floor``, clipped to [lo, hi], ``own`` written at ``slot`` with ``keep``;
+    in place (1-D). Returns how many voxels are at or below ``floor``."""
+    low = den <= floor
+    count = int(np.count_nonzero(low))
+    if count:
+        np.divide(num, den, out=num, where=~low)
+    else:
+        np.divide(num, den, out=num)
+    np.clip(num, lo, hi, out=num)
+    if keep:
+        np.copyto(num, own, where=slot)
+    return count
+
+
+def _finish_plane(num, den, floor, lo, hi, own, slot, keep: bool) -> int:
+    """nc's last steps on one sub-frame (or a band of its columns), compiled:
+    :func:`~flexvox_core.reconstruct.nc_time_kernel.finish_plane` (:func:`_finish_numpy` its reference)."""
+    from flexvox_core.reconstruct.nc_time_kernel import finish_plane
+
+    return finish_plane(num, den, floor, lo, hi, own, slot, keep)
 
 
 def time_weights(g: np.ndarray, K: int, F: int, present) -> tuple[np.ndarray, np.ndarray]:

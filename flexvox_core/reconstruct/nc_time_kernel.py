@@ -74,3 +74,29 @@ def time_only_rows(frames, order, weight, first, lo, hi, out, y0, y1, present, s
                     else:
                         dst[x] = min(max(acc[x], lo), hi)
 
+
+
+@numba.njit(nogil=True, cache=True, error_model="numpy")
+def finish_plane(num, den, floor, lo, hi, own, slot, keep):
+    """nc's last steps on one sub-frame's numerator ``num`` (1-D, in place) in one pass: divided by the blurred mask
+    ``den`` where it is above ``floor`` (left undivided elsewhere: those voxels take their nearest sample later),
+    clipped to [lo, hi] as ``np.clip`` does (``x < lo ? lo : x``, then ``x > hi ? hi : x``: a tie, a signed
+    zero, keeps x; NaN stays NaN), and with ``keep`` the samples ``own`` written at the voxels ``slot``. Returns
+    how many voxels are at or below ``floor``.
+
+    The same bits as ``diffusion._finish_numpy`` (a float32 division and a compare are exact in both); ``floor``,
+    ``lo`` and ``hi`` come in ``num``'s dtype, as numpy compares and clips a float32 plane in float32."""
+    low = 0
+    for i in range(num.size):
+        v = num[i]
+        d = den[i]
+        if d > floor:
+            v = v / d
+        else:
+            low += 1
+        v = lo if v < lo else v
+        v = hi if v > hi else v
+        if keep and slot[i]:
+            v = own[i]
+        num[i] = v
+    return low

@@ -353,18 +353,15 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
     def finish(s: int, d: np.ndarray, cols: slice | None = None) -> None:
         # A sub-frame divided, clipped to the samples' range and given its samples back in one pass (compiled,
         # :func:`_finish_plane`), while it is in cache; on every core. Its columns `cols` of the flattened plane
-        # alone: divided and clipped (element by element: the same bits whichever columns at a time), the samples
-        # given back by `give_back` (a masked copy is slow on a short row).
-        n = num[s].reshape(-1)[slice(None) if cols is None else cols]
+        # alone (element by element: the same bits whichever columns at a time).
+        part = slice(None) if cols is None else cols
+        n = num[s].reshape(-1)[part]
         d = d.reshape(-1)
-        give = cols is None and keep_samples and (present is None or present[s // K])
-        if _finish_plane(n, d, floor_t, lo, hi, samples[s // K].reshape(-1), slots[s % K].reshape(-1), give):
+        give = keep_samples and (present is None or present[s // K])
+        if _finish_plane(n, d, floor_t, lo, hi, samples[s // K].reshape(-1)[part], slots[s % K].reshape(-1)[part],
+                         give):
             low[s].reshape(-1)[cols] = d <= floor_t  # only then: a sub-frame's pages of `low` are touched only if
             any_low[s] = True  # it has any
-
-    def give_back(s: int) -> None:
-        if keep_samples and (present is None or present[s // K]):
-            np.copyto(num[s], samples[s // K], where=slots[s % K])
 
     if present is not None:
         den = _gapped_denominator(den_k, present, gt)
@@ -375,9 +372,6 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
         _leave_one_out(loo, num, den, frames, order, (gx, gy, gt), floor, present)
     rows = range(S) if present is not None else den.interior
     for_each(lambda i: finish(rows[i], den[rows[i]]), len(rows))
-    if len(rows) < S:  # the ends, finished as their blurred mask was made: their samples
-        ends = [s for s in range(S) if s not in rows]
-        for_each(lambda i: give_back(ends[i]), len(ends))
     if any_low.any():
         # A sample's blurred mask holds at least its own weight: no sample is among these voxels, and the
         # nearest sample's value needs no clipping.

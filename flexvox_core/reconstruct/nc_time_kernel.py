@@ -10,6 +10,9 @@ weights depend only on the sub-frame s, the pixel's slot k and the frame f: a sm
 mask). Each voxel is written once, from a float64 sum in a fixed order: the output bits do not depend on the number of
 threads. :func:`flexvox_core.reconstruct.diffusion.diffuse` keeps the general path (spatial blur of
 every sub-frame, then the time blur) as the reference the tests compare this against.
+
+:func:`finish_plane`: the general path's last steps on a sub-frame (divide by the blurred mask, clip, give the samples
+back) in one pass; ``diffusion._finish_numpy`` is its numpy reference, with the same bits.
 """
 
 from __future__ import annotations

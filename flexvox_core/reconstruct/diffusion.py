@@ -343,7 +343,7 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
     samples = frames.astype(dtype, copy=False)
     kept = captured(samples, None if present is None else ~present)
     lo, hi = kept.min(), kept.max()
-    slots = [order == k for k in range(K)]
+    slots = [np.ascontiguousarray(order == k) for k in range(K)]  # row-major, as the planes (order may be a view)
     # The voxels without a sample in reach (rare): zeroed pages cost nothing until a sub-frame writes its own.
     low = np.zeros((S, H, W), bool)
     any_low = np.zeros(S, bool)

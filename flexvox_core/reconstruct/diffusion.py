@@ -340,7 +340,7 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
     den_k = _mask_planes(order, K, gy, gx, dtype)
     peak = _peak((gx, gy, gt))
     floor = NC_MIN_WEIGHT * peak
-    samples = frames.astype(dtype, copy=False)
+    samples = np.ascontiguousarray(frames, dtype=dtype)  # read a plane at a time, flat, by the finish
     kept = captured(samples, None if present is None else ~present)
     lo, hi = kept.min(), kept.max()
     slots = [np.ascontiguousarray(order == k) for k in range(K)]  # row-major, as the planes (order may be a view)

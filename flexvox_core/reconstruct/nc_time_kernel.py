@@ -78,7 +78,6 @@ def time_only_rows(frames, order, weight, first, lo, hi, out, y0, y1, present, s
                         dst[x] = min(max(acc[x], lo), hi)
 
 
-
 @numba.njit(nogil=True, cache=True, error_model="numpy")
 def finish_plane(num, den, floor, lo, hi, own, slot, keep):
     """nc's last steps on one sub-frame's numerator ``num`` (1-D, in place) in one pass: divided by the blurred mask

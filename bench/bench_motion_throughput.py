@@ -799,6 +799,17 @@ def _long_reach_scalar() -> Iterator[None]:
         yield
 
 
+@contextlib.contextmanager
+def _nc_finish_numpy() -> Iterator[None]:
+    """Before nc finished a sub-frame in one compiled pass (``nc_time_kernel.finish_plane``): numpy's compare, any,
+    divide, clip and masked copy of the samples (``diffusion._finish_numpy``, the same bits; the ends' samples by a
+    masked copy per band of columns, before a second pass per end sub-frame)."""
+    from flexvox_core.reconstruct import diffusion
+
+    with mock.patch.object(diffusion, "_finish_plane", diffusion._finish_numpy):
+        yield
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
@@ -833,6 +844,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "flow-glue-serial": _flow_glue_serial,
     "half-by-numpy": _half_by_numpy,
     "long-reach-scalar": _long_reach_scalar,
+    "nc-finish-numpy": _nc_finish_numpy,
 }
 """The code as it was before each change (``kept``: as it is), or a change tried and not kept, for ``--ab``."""
 

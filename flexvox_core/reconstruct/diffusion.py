@@ -340,35 +340,28 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
     den_k = _mask_planes(order, K, gy, gx, dtype)
     peak = _peak((gx, gy, gt))
     floor = NC_MIN_WEIGHT * peak
-    samples = frames.astype(dtype, copy=False)
+    samples = np.ascontiguousarray(frames, dtype=dtype)  # read a plane at a time, flat, by the finish
     kept = captured(samples, None if present is None else ~present)
     lo, hi = kept.min(), kept.max()
-    slots = [order == k for k in range(K)]
+    slots = [np.ascontiguousarray(order == k) for k in range(K)]  # row-major, as the planes (order may be a view)
     # The voxels without a sample in reach (rare): zeroed pages cost nothing until a sub-frame writes its own.
     low = np.zeros((S, H, W), bool)
     any_low = np.zeros(S, bool)
 
-    def finish(s: int, d: np.ndarray, cols: slice | None = None) -> None:
-        # A sub-frame divided, clipped to the samples' range and given its samples back while it is in cache (not
-        # two more passes over the volume); on every core (numpy releases the GIL). Its columns `cols` of the
-        # flattened plane alone: divided and clipped (element by element: the same bits whichever columns at a
-        # time), the samples given back by `give_back` (a masked copy is slow on a short row).
-        n = num[s].reshape(-1)[slice(None) if cols is None else cols]
-        d = d.reshape(-1)
-        low_s = d <= floor
-        if low_s.any():
-            low[s].reshape(-1)[cols] = low_s  # only then: a sub-frame's pages of `low` are touched only if it has any
-            any_low[s] = True
-            np.divide(n, d, out=n, where=~low_s)
-        else:
-            np.divide(n, d, out=n)
-        np.clip(n, lo, hi, out=n)
-        if cols is None:
-            give_back(s)
+    floor_t = num.dtype.type(floor)  # numpy compares a float32 plane with a Python float in float32
 
-    def give_back(s: int) -> None:
-        if keep_samples and (present is None or present[s // K]):
-            np.copyto(num[s], samples[s // K], where=slots[s % K])
+    def finish(s: int, d: np.ndarray, cols: slice | None = None) -> None:
+        # A sub-frame divided, clipped to the samples' range and given its samples back in one pass (compiled,
+        # :func:`_finish_plane`), while it is in cache; on every core. Its columns `cols` of the flattened plane
+        # alone (element by element: the same bits whichever columns at a time).
+        part = slice(None) if cols is None else cols
+        n = num[s].reshape(-1)[part]
+        d = d.reshape(-1)
+        give = keep_samples and (present is None or present[s // K])
+        if _finish_plane(n, d, floor_t, lo, hi, samples[s // K].reshape(-1)[part], slots[s % K].reshape(-1)[part],
+                         give):
+            low[s].reshape(-1)[cols] = d <= floor_t  # only then: a sub-frame's pages of `low` are touched only if
+            any_low[s] = True  # it has any
 
     if present is not None:
         den = _gapped_denominator(den_k, present, gt)
@@ -379,9 +372,6 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
         _leave_one_out(loo, num, den, frames, order, (gx, gy, gt), floor, present)
     rows = range(S) if present is not None else den.interior
     for_each(lambda i: finish(rows[i], den[rows[i]]), len(rows))
-    if len(rows) < S:  # the ends, finished as their blurred mask was made: their samples
-        ends = [s for s in range(S) if s not in rows]
-        for_each(lambda i: give_back(ends[i]), len(ends))
     if any_low.any():
         # A sample's blurred mask holds at least its own weight: no sample is among these voxels, and the
         # nearest sample's value needs no clipping.
@@ -392,6 +382,30 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
             mask &= np.repeat(present, K)[:, None, None]
         _nearest_fill(num, mask, low, sig)
     return num
+
+
+def _finish_numpy(num, den, floor, lo, hi, own, slot, keep: bool) -> int:
+    """:func:`~flexvox_core.reconstruct.nc_time_kernel.finish_plane` in numpy (its reference, the same bits): ``num``
+    divided by ``den`` where it is above ``floor``, clipped to [lo, hi], ``own`` written at ``slot`` with ``keep``;
+    in place (1-D). Returns how many voxels are at or below ``floor``."""
+    low = den <= floor
+    count = int(np.count_nonzero(low))
+    if count:
+        np.divide(num, den, out=num, where=~low)
+    else:
+        np.divide(num, den, out=num)
+    np.clip(num, lo, hi, out=num)
+    if keep:
+        np.copyto(num, own, where=slot)
+    return count
+
+
+def _finish_plane(num, den, floor, lo, hi, own, slot, keep: bool) -> int:
+    """nc's last steps on one sub-frame (or a band of its columns), compiled:
+    :func:`~flexvox_core.reconstruct.nc_time_kernel.finish_plane` (:func:`_finish_numpy` its reference)."""
+    from flexvox_core.reconstruct.nc_time_kernel import finish_plane
+
+    return finish_plane(num, den, floor, lo, hi, own, slot, keep)
 
 
 def time_weights(g: np.ndarray, K: int, F: int, present) -> tuple[np.ndarray, np.ndarray]:

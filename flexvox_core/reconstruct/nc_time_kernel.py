@@ -10,6 +10,9 @@ weights depend only on the sub-frame s, the pixel's slot k and the frame f: a sm
 mask). Each voxel is written once, from a float64 sum in a fixed order: the output bits do not depend on the number of
 threads. :func:`flexvox_core.reconstruct.diffusion.diffuse` keeps the general path (spatial blur of
 every sub-frame, then the time blur) as the reference the tests compare this against.
+
+:func:`finish_plane`: the general path's last steps on a sub-frame (divide by the blurred mask, clip, give the samples
+back) in one pass; ``diffusion._finish_numpy`` is its numpy reference, with the same bits.
 """
 
 from __future__ import annotations
@@ -74,3 +77,28 @@ def time_only_rows(frames, order, weight, first, lo, hi, out, y0, y1, present, s
                     else:
                         dst[x] = min(max(acc[x], lo), hi)
 
+
+@numba.njit(nogil=True, cache=True, error_model="numpy")
+def finish_plane(num, den, floor, lo, hi, own, slot, keep):
+    """nc's last steps on one sub-frame's numerator ``num`` (1-D, in place) in one pass: divided by the blurred mask
+    ``den`` where it is above ``floor`` (left undivided elsewhere: those voxels take their nearest sample later),
+    clipped to [lo, hi] as ``np.clip`` does (``x < lo ? lo : x``, then ``x > hi ? hi : x``: a tie, a signed
+    zero, keeps x; NaN stays NaN), and with ``keep`` the samples ``own`` written at the voxels ``slot``. Returns
+    how many voxels are at or below ``floor``.
+
+    The same bits as ``diffusion._finish_numpy`` (a float32 division and a compare are exact in both); ``floor``,
+    ``lo`` and ``hi`` come in ``num``'s dtype, as numpy compares and clips a float32 plane in float32."""
+    low = 0
+    for i in range(num.size):
+        v = num[i]
+        d = den[i]
+        if d > floor:
+            v = v / d
+        else:
+            low += 1
+        v = lo if v < lo else v
+        v = hi if v > hi else v
+        if keep and slot[i]:
+            v = own[i]
+        num[i] = v
+    return low

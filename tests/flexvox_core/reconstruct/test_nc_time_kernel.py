@@ -1,5 +1,7 @@
 """nc's compiled time pass (flexvox_core/reconstruct/nc_time_kernel.py) against the plain numpy path it replaces."""
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -144,3 +146,71 @@ def test_diffuse_where_refuses_a_wrong_volume(rng):
     with pytest.raises(ValueError, match=r"`where` must have shape \(8, 4, 4\); got \(8, 4, 5\)"):
         diffuse_where(frames, code, np.zeros((8, 4, 4), np.float32), PackedVolume((8, 4, 5)), tensor=(0, 0, 1),
                       time=1.0)
+
+
+# --------------------------------------------------------------------------- nc's finish, compiled
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_finish_plane_has_the_bits_of_its_numpy_reference(dtype):
+    # One pass (divide above the floor, clip as np.clip, samples back) against the numpy steps it replaces: the
+    # blurred mask at, just above and just below the floor, zeros and signed zeros at the range's ends.
+    from flexvox_core.reconstruct.nc_time_kernel import finish_plane
+
+    rng = np.random.default_rng(11)
+    n = 1031  # odd
+    floor = dtype(1e-12 * 0.37)
+    den = rng.uniform(0.01, 1.0, n).astype(dtype)
+    den[::7] = floor
+    den[1::7] = np.nextafter(floor, dtype(1))
+    den[2::7] = np.nextafter(floor, dtype(0))
+    den[3::11] = 0
+    num = (den * rng.uniform(-0.2, 1.2, n)).astype(dtype)
+    num[4::13] = 0
+    num[5::13] = -0.0
+    own = rng.uniform(0, 1, n).astype(dtype)
+    slot = rng.random(n) < 0.3
+    for (lo, hi), keep in itertools.product([(dtype(0), dtype(0.8)), (dtype(-1), dtype(-0.0))], (True, False)):
+        a, b = num.copy(), num.copy()
+        low_a = finish_plane(a, den, floor, lo, hi, own, slot, keep)
+        low_b = D._finish_numpy(b, den, floor, lo, hi, own, slot, keep)
+        assert low_a == low_b == np.count_nonzero(den <= floor)
+        assert a.tobytes() == b.tobytes()
+
+
+def _nc_finished_by_numpy(monkeypatch, *args, **kwargs):
+    with monkeypatch.context() as m:
+        m.setattr(D, "_finish_plane", D._finish_numpy)
+        return diffuse(*args, **kwargs)
+
+
+@pytest.mark.parametrize(("tensor", "time", "tile", "shape", "missing"), [
+    ((0.05, 0.05, 0.95), 5.0, (4, 4), (6, 19, 23), None),  # the guides' tensor, odd sizes: ends and an interior
+    ((1, 1, 0.05), 2.0, (2, 4), (5, 10, 13), [False, True, False, False, True]),  # high-TR, dropped frames
+    ((0.2, 0.0, 0.3), 0.5, (2, 2), (4, 9, 11), None),  # voxels without a sample in reach (nearest sample)
+    ((1, 1, 1), 30.0, (2, 2), (3, 7, 9), [False, False, True]),  # a long kernel, a dropped frame
+])
+@pytest.mark.parametrize("keep_samples", [True, False])
+def test_nc_with_compiled_finish_has_the_same_bits(monkeypatch, tensor, time, tile, shape, missing, keep_samples):
+    code = design_code(tile).code
+    frames = np.random.default_rng(5).uniform(0.1, 0.9, shape).astype(np.float32)
+    frames[:, :2, :3] = 0.1  # the range's end reached
+    kw = dict(tensor=tensor, time=time, missing=missing, keep_samples=keep_samples)
+    kept = diffuse(frames, code, **kw)
+    ref = _nc_finished_by_numpy(monkeypatch, frames, code, **kw)
+    assert kept.tobytes() == ref.tobytes()
+    if tensor == (0.2, 0.0, 0.3):
+        # the nearest-sample fill ran (some voxel has no sample within the kernels' reach)
+        assert np.isfinite(kept).all()
+
+
+def test_nc_with_compiled_finish_has_the_same_bits_on_a_multiplexed_capture(monkeypatch):
+    # A multiplexed capture, demultiplexed first (as every reconstruction takes it): nc on its identity capture.
+    from flexvox_core import multiplexed_code
+    from flexvox_core.reconstruct import as_identity_capture
+
+    mc = multiplexed_code((1, 3), placement=[[0, 1, 2]])
+    video = np.random.default_rng(8).uniform(0.2, 0.8, (9, 7, 11)).astype(np.float32)
+    f, c = as_identity_capture(capture(video, mc.code), mc)
+    kept = diffuse(f, c, tensor=(1, 1, 0.05), time=2.0)
+    assert kept.tobytes() == _nc_finished_by_numpy(monkeypatch, f, c, tensor=(1, 1, 0.05), time=2.0).tobytes()

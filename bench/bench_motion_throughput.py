@@ -510,41 +510,13 @@ def _flow_plumbing_before() -> Iterator[None]:
     bands of columns; the detector's steps were scaled by numpy's broadcast over a last axis of 2; and each pair's
     :func:`~flexvox_core.flow.estimate.sanitize_flow` checked its values from a float64 sum and clipped a
     confidence it made."""
-    from scipy.ndimage import uniform_filter1d
-
+    _repository_on_path()  # the tests' reference, importable however the script is started
     from flexvox_core.flow import baseline, estimate
     from flexvox_core.motion import gated_flow
-    from flexvox_core.threads import for_each, workers
-
-    def sanitize_flow(flow: Any, confidence: Any = None, *, max_magnitude: float | None = None) -> Any:
-        flow = np.asarray(flow, dtype=np.float32)
-        conf = np.ones(flow.shape[:-1], np.float32) if confidence is None else np.array(confidence, np.float32)
-        if not np.isfinite(flow.sum(dtype=np.float64)):
-            bad = ~np.isfinite(flow).all(axis=-1)
-            flow = flow.copy()
-            flow[bad] = 0
-            conf[bad] = 0
-        if max_magnitude is not None and flow.size and max(flow.max(), -flow.min()) * np.sqrt(2) > max_magnitude:
-            mag = np.hypot(flow[..., 0], flow[..., 1])
-            over = mag > max_magnitude
-            if over.any():
-                flow = flow * np.where(over, max_magnitude / np.maximum(mag, 1e-12), 1)[..., None]
-        if conf.size and not (np.min(conf) >= 0 and np.max(conf) <= 1):
-            conf = np.clip(conf, 0, 1)
-        return flow.astype(np.float32, copy=False), conf
+    from tests.flexvox_core.flow.sanitize_reference import sanitize_reference as sanitize_flow
 
     def box_in_time(video: np.ndarray, size: int) -> np.ndarray:
-        out = np.empty(video.shape, video.dtype)
-        H = video.shape[1]
-        n = max(1, min(H, 4 * workers()))
-        edges = [H * i // n for i in range(n + 1)]
-
-        def one(i: int) -> None:
-            a, b = edges[i], edges[i + 1]
-            uniform_filter1d(video[:, a:b], size, axis=0, mode="nearest", output=out[:, a:b])
-
-        for_each(one, n)
-        return out
+        return baseline.box_in_time_scipy(video, size)
 
     def scaled_vectors(plane: np.ndarray, ratio: np.ndarray) -> np.ndarray:
         return plane * ratio

@@ -7,6 +7,8 @@ from flexvox_core.flow.backends import dis_finest_scale
 from flexvox_core.flow.estimate import consistency_confidence, sanitize_flow
 from flexvox_core.simulate.textures import fine_texture, shift_image
 
+from .sanitize_reference import sanitize_reference
+
 
 @pytest.fixture
 def translating(rng):
@@ -67,25 +69,6 @@ def test_sanitize_replaces_nan_and_caps_magnitude():
     assert np.hypot(*g[0, 1, 1]) == pytest.approx(50)
 
 
-def _sanitize_reference(flow, confidence=None, *, max_magnitude=None):
-    """sanitize_flow as it was (its checks from a float64 sum and a clip of any confidence): the same bits."""
-    flow = np.asarray(flow, dtype=np.float32)
-    conf = np.ones(flow.shape[:-1], np.float32) if confidence is None else np.array(confidence, np.float32)
-    if not np.isfinite(flow.sum(dtype=np.float64)):
-        bad = ~np.isfinite(flow).all(axis=-1)
-        flow = flow.copy()
-        flow[bad] = 0
-        conf[bad] = 0
-    if max_magnitude is not None and flow.size and max(flow.max(), -flow.min()) * np.sqrt(2) > max_magnitude:
-        mag = np.hypot(flow[..., 0], flow[..., 1])
-        over = mag > max_magnitude
-        if over.any():
-            flow = flow * np.where(over, max_magnitude / np.maximum(mag, 1e-12), 1)[..., None]
-    if conf.size and not (np.min(conf) >= 0 and np.max(conf) <= 1):
-        conf = np.clip(conf, 0, 1)
-    return flow.astype(np.float32, copy=False), conf
-
-
 @pytest.mark.parametrize("bad", [None, np.nan, np.inf, -np.inf, 3e38, -3e38])
 @pytest.mark.parametrize("max_magnitude", [None, 2.0, 1e3])
 @pytest.mark.parametrize("with_confidence", [False, True])
@@ -98,7 +81,7 @@ def test_sanitize_flow_gives_the_bits_of_its_float64_sum_form(bad, max_magnitude
     if conf is not None:
         conf[0, 0, 0] = np.nan
     got = sanitize_flow(f, conf, max_magnitude=max_magnitude)
-    want = _sanitize_reference(f, conf, max_magnitude=max_magnitude)
+    want = sanitize_reference(f, conf, max_magnitude=max_magnitude)
     for g, w in zip(got, want, strict=True):
         assert g.dtype == w.dtype == np.float32
         np.testing.assert_array_equal(g.view(np.uint32), w.view(np.uint32))

@@ -135,7 +135,8 @@ class _GatedFlow:
         h, w = conf.shape
         disp = self.slow.disp
         j0, j1, a = blend(self.slow.centres, t)
-        steps = cv2.resize(scaled_vectors(self.steps[t], self.step_ratio), (w, h), interpolation=cv2.INTER_LINEAR)
+        steps = np.asarray(cv2.resize(scaled_vectors(self.steps[t], self.step_ratio), (w, h),
+                                      interpolation=cv2.INTER_LINEAR), np.float32)  # float32 already: no copy
         mean = self.mean[t] if self.mean is not None else vel
         px, use_slow, slow_speed, lo, width, plo, pwidth = self.numbers
         gate_plane(vel, conf, disp[j0], disp[j1], np.float64(1 - a), np.float64(a), j0 != j1, steps, mean,

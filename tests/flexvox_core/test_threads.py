@@ -41,3 +41,46 @@ def test_workers_follow_the_process_affinity_not_the_machine(monkeypatch):
     assert threads.cores() == 3 and workers() == 3
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(40)), raising=False)
     assert workers() == threads.MAX_WORKERS
+
+
+def test_calls_inside_items_and_from_several_threads_all_finish(monkeypatch):
+    import threading
+
+    from flexvox_core import threads
+
+    monkeypatch.setattr(threads, "workers", lambda: 4)
+    hits = [0] * (3 * 5 * 7)
+    lock = threading.Lock()
+
+    def leaf(i, j, k):
+        with lock:
+            hits[(i * 5 + j) * 7 + k] += 1
+
+    def outer(i):
+        for_each(lambda j: for_each(lambda k: leaf(i, j, k), 7), 5)
+
+    callers = [threading.Thread(target=for_each, args=(outer, 3)) for _ in range(2)]
+    for t in callers:
+        t.start()
+    for t in callers:
+        t.join(timeout=60)
+    assert not any(t.is_alive() for t in callers)
+    assert hits == [2] * len(hits)  # each caller ran every item once
+
+
+def test_the_pool_is_kept_from_call_to_call(monkeypatch):
+    import threading
+
+    from flexvox_core import threads
+
+    monkeypatch.setattr(threads, "workers", lambda: 2)
+    names = set()
+
+    def fn(i):
+        names.add(threading.current_thread().name)
+
+    for _ in range(20):
+        for_each(fn, 8)
+    helpers = {n for n in names if n.startswith("flexvox-for-each")}
+    assert names <= helpers | {threading.current_thread().name}  # the caller and the kept pool, nothing else
+    assert len(helpers) <= threads.MAX_WORKERS  # no new threads per call (a pool per call: up to 20 names)

@@ -26,7 +26,8 @@ def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, ov
 
     ``.npy`` and ``.tif`` keep float32 (a TIFF stack with one page per sub-frame, which Fiji
     opens as a stack; with ``time_step`` its ImageJ metadata gives the frame interval in seconds,
-    ``finterval`` and ``tunit``, and ``attrs`` its Info); ``.mp4`` is 8-bit grey at ``fps``; ``.zarr`` is an
+    ``finterval`` and ``tunit``, and ``attrs`` its Info); ``.mp4`` is 8-bit grey at ``fps``, its height and
+    width even and at least 16 px (:func:`check_mp4_size`: a ``ValueError`` otherwise); ``.zarr`` is an
     OME-Zarr image
     (NGFF 0.5 on Zarr v3, :mod:`flexvox_core.ngff`): array ``video`` (one sub-frame per chunk, axes
     t, y, x) with ``time_step`` as its t scale, ``pyramid`` levels of 2×2 means (default none) and
@@ -54,6 +55,7 @@ def write_video(path, video, *, fps: float = 30.0, attrs: dict | None = None, ov
     v = check_unit_values(v)
     if suffix == ".mp4":
         check_fps(fps)
+        check_mp4_size(v.shape[1:], path)
     time_step = ngff.check_time_step(time_step)
     if pyramid and suffix != ".zarr":
         raise ValueError(f"a pyramid is written only into a .zarr store; got {path} with pyramid={pyramid!r}")
@@ -331,14 +333,35 @@ def check_fps(fps) -> float:
     return value
 
 
+MP4_MIN_SIDE = 16
+"""The smallest height and width an ``.mp4`` is written at (both even, too)."""
+
+
+def check_mp4_size(size: tuple[int, int], path) -> None:
+    """Refuse an ``.mp4`` of frames ``size`` = (H, W) unless both are even and at least :data:`MP4_MIN_SIDE`:
+    OpenCV's MPEG-4 (mp4v) writer drops an odd last row or column without a word, and on some smaller frames
+    (4×4, 8×6, 20×4, 24×6: found by writing every even size up to 24) corrupts memory and aborts the process.
+    Even sizes of at least 16 px were written and read back whole (100 sizes from 16×16 to 480×640)."""
+    H, W = (int(v) for v in size)
+    if H >= MP4_MIN_SIDE and W >= MP4_MIN_SIDE and H % 2 == 0 and W % 2 == 0:
+        return
+    odd, small = bool(H % 2 or W % 2), min(H, W) < MP4_MIN_SIDE
+    why = (f"even and of at least {MP4_MIN_SIDE} px" if odd and small else
+           "even (OpenCV's writer would drop the odd row or column)" if odd else f"of at least {MP4_MIN_SIDE} px")
+    raise ValueError(f"cannot write {path}: an .mp4 (MPEG-4, mp4v) needs a height and width {why}; the frames are "
+                     f"{H}x{W}: write .tif, .npy or .zarr instead, which keep every pixel")
+
+
 def write_mp4(path, frames, size: tuple[int, int], fps: float) -> None:
     """Write ``frames`` (an iterable of ``(H, W)`` arrays in [0, 1]) as 8-bit grey MP4 (mp4v) at ``fps``.
 
-    ``size`` is ``(H, W)``. Writes ``path`` directly: callers go through
+    ``size`` is ``(H, W)``, both even and at least :data:`MP4_MIN_SIDE` (:func:`check_mp4_size`; ``ValueError``
+    otherwise, before anything is written). Writes ``path`` directly: callers go through
     :func:`~flexvox_core.output_files.atomic_output`.
     """
     import cv2
 
+    check_mp4_size(size, path)
     H, W = size
     writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), check_fps(fps), (W, H), False)
     if not writer.isOpened():

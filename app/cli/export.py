@@ -11,7 +11,8 @@ Formats, by the output's suffix:
 ``.npy``
     The same array (written row by row into a memory-mapped file).
 ``.mp4``
-    8-bit grey (OpenCV), values in [0, 1] (counts normalised first) at ``--fps``.
+    8-bit grey (OpenCV), values in [0, 1] at ``--fps``; height and width even and at least 16 px (refused
+    otherwise, before any reconstruction).
 ``.zarr``
     An OME-Zarr image (NGFF 0.5 on Zarr v3) with array ``video`` (float32 in [0, 1]) and the time
     step as its t scale, as ``flexvox reconstruct`` writes; ``--pyramid N`` adds N levels of 2×2 means.
@@ -19,6 +20,11 @@ no suffix
     A folder of 16-bit PNGs ``frame_00000.png`` ...: uint16 counts as they are, float
     values in [0, 1] scaled to 0..65535. ``--overwrite`` replaces only a folder that holds
     nothing but an earlier export's PNGs.
+
+Camera frames in [0, 1] (.mp4, .zarr, float PNGs): counts normalised to relative units first, then divided by
+the slots a pixel is open in each exposure (a multiplexed code's (K + 1)/2: its frames sum that many sub-frames;
+1 for an identity code), then clipped to [0, 1]. A share of values clipped (ambient light, leakage, saturation)
+is said on stderr; .tif and .npy keep the frames as they are.
 
 Every output is written to a hidden temporary sibling and moved into place when complete; an
 output that is (or holds, or lies inside) the input is refused, whatever the flags.
@@ -31,6 +37,7 @@ and interpolated sub-frames go with it where the format keeps them.
 from __future__ import annotations
 
 import re
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -114,10 +121,17 @@ class _Source:
         self.attrs = {"source": str(rec.path), "what": what}
         self.gaps_line = ""
         self.device_line = ""
+        self.divisor = 1
+        """Camera frames in [0, 1] are divided by this: the slots a pixel is open in each exposure."""
+        self.clipped = [0, 0]
+        """Of the values :meth:`unit` gave: (outside [0, 1], clipped; all)."""
         if what == "frames":
             self.array = rec.frames
             self.dtype = np.dtype(rec.frames.dtype)
             self.rate = rec.attrs["rates"]["camera_hz"]
+            self.divisor = int(np.asarray(rec.code).sum(axis=-1).max()) if rec.attrs.get("multiplexed") else 1
+            if self.divisor != 1:
+                self.attrs["frames_divided_by"] = self.divisor
         elif what == "ground-truth":
             if not rec.has_ground_truth:
                 raise CliError(f"{rec.path} holds no ground truth (only simulated recordings have one)")
@@ -158,8 +172,23 @@ class _Source:
         if self.what == "frames":
             from flexvox_core.simulate.simulator import normalise_frames
 
-            return np.clip(normalise_frames(self.row(i)[None], self.rec.attrs["storage"])[0], 0, 1)
-        return np.clip(self.row(i), 0, 1).astype(np.float32, copy=False)
+            values = normalise_frames(self.row(i)[None], self.rec.attrs["storage"])[0]
+            if self.divisor != 1:
+                values = values / np.float32(self.divisor)
+        else:
+            values = np.asarray(self.row(i), np.float32)
+        self.clipped[0] += int(np.count_nonzero((values < 0) | (values > 1)))
+        self.clipped[1] += values.size
+        return np.clip(values, 0, 1).astype(np.float32, copy=False)
+
+    def clipped_line(self, out) -> str:
+        """A warning when :meth:`unit` clipped values, naming their share; "" otherwise."""
+        outside, count = self.clipped
+        if not outside:
+            return ""
+        why = "ambient light, leakage or saturation" if self.what == "frames" else "values outside [0, 1]"
+        return (f"warning: {outside / count:.2%} of the values lay outside [0, 1] ({why}) and were clipped in {out}; "
+                ".tif and .npy keep them as they are")
 
 
 class _VideoSource(_Source):
@@ -177,6 +206,8 @@ class _VideoSource(_Source):
         self.interpolated = _interpolated(store.path, self.array.shape[0])
         self.gaps_line = ""
         self.device_line = ""
+        self.divisor = 1
+        self.clipped = [0, 0]
         self.shape = tuple(self.array.shape)
 
 
@@ -304,10 +335,13 @@ def run(args) -> int:
                 raise OutputError(f"{out} holds other files than an earlier export's PNGs ({', '.join(others[:3])}"
                                   f"{', ...' if len(others) > 3 else ''}); --overwrite replaces only such a folder: "
                                   "choose a new folder")
+        if suffix == ".mp4":  # refused before a reconstruction runs, not after it
+            from flexvox_core.video_io import check_mp4_size, open_video_store
+
+            size = (open_video_store(args.recording).array if video else open_recording(args.recording).frames).shape
+            check_mp4_size(size[1:], out)
         src = _video_source(args.recording) if video else _Source(open_recording(args.recording), args.what, args)
-    except RecordingError as exc:
-        raise CliError(str(exc)) from None
-    except OutputError as exc:
+    except ValueError as exc:  # RecordingError and OutputError are ValueErrors: said as they are
         raise CliError(str(exc)) from None
     try:
         check_levels(args.pyramid, src.shape)
@@ -321,6 +355,8 @@ def run(args) -> int:
         raise CliError(f"{exc}; {out} was not written") from None
     except OSError as exc:
         raise CliError(f"cannot write {out}: {exc.strerror or exc}; nothing was replaced") from None
+    if src.clipped_line(out):
+        print(src.clipped_line(out), file=sys.stderr)
     if src.gaps_line:
         print(src.gaps_line)
     if src.device_line:

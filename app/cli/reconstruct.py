@@ -136,7 +136,7 @@ def run(args) -> int:
     from flexvox_core.methods import specs
     from flexvox_core.output_files import CLI_OVERWRITE_HINT, check_output, is_recording
     from flexvox_core.recording import RecordingError
-    from flexvox_core.video_io import WRITABLE, write_video
+    from flexvox_core.video_io import WRITABLE, check_mp4_size, write_video
 
     try:
         if args.output.suffix.lower() not in WRITABLE:
@@ -151,6 +151,8 @@ def run(args) -> int:
             check_figures_dir(args.figures, overwrite=args.overwrite, inputs=[args.recording])
         reader = open_capture(args.recording)
         rec = reader.recording
+        if args.output.suffix.lower() == ".mp4":  # refused before the reconstruction, not after it
+            check_mp4_size(reader.shape, args.output)
         knob = auto_knob(args)
         method = method_from_args(args, rec.attrs["tile"], auto=True)
         device = resolved_device(args)

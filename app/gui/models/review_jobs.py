@@ -35,7 +35,7 @@ from flexvox_app.gui.models.review_session import ReviewSession
 from flexvox_core.accuracy import REFUSED_MULTIPLEXED, estimate_recording, noise_of, refusal
 from flexvox_core.choice import candidates_for
 from flexvox_core.output_files import OutputError, check_output
-from flexvox_core.video_io import write_video
+from flexvox_core.video_io import check_mp4_size, write_video
 
 _logger = logging.getLogger(__name__)
 
@@ -339,6 +339,12 @@ class JobsModel:
             return None
         method = r.method
         full = r if not r.extra.get("preview") else self.full_result_of(method)
+        if path.suffix.lower() == ".mp4":  # said now, not after a reconstruction made for it
+            try:
+                check_mp4_size((full.video if full is not None else s.frames).shape[1:], path)
+            except ValueError as exc:
+                self.set_export_line(Line(f"not exported: {exc}", error=True))
+                return None
         fps = float(self.playback.fps)
         (frames, code), truth, missing = s.input(method), self.truth, s.missing
         chunk = chunk_frames_for(method, s.n_frames, s.K)

@@ -5,7 +5,9 @@ sweep for several tensors, and each solver), GAP-TV (an iteration sweep) and the
 motion-aware reconstruction (diffusion time, refinement, a second pass) on the
 built-in scenes at K = 8 (2×4) and K = 16 (4×4), and on the SCI benchmark's Runner and
 Drop (2×4 code) when that data is present. Writes ``results.csv``, ``results.json`` and a
-Pareto plot ``pareto.png`` (mean PSNR against log time), and returns the rows.
+Pareto plot ``pareto.png`` (mean PSNR against log time), and returns the rows. Each method runs once on a small
+capture of each code before any is timed (:func:`~flexvox_core.methods.warm_up.warm_up`): no row pays numba's
+one-time compile or cache load.
 
 Each row carries its method's options (``options``: :meth:`Method.as_dict()
 <flexvox_core.methods.Method.as_dict>`, the name and every option's value; JSON text in the CSV), which is
@@ -131,12 +133,19 @@ def run_bench(out_dir, *, quick: bool = False, sci: bool = True, progress=None, 
     """Run the benchmark, write CSV/JSON/PNG into ``out_dir`` and return the rows (``device``: where each
     reconstruction runs, :func:`~flexvox_core.methods.runner.device_for`; each row says where it ran)."""
     from flexvox_core.methods import run
+    from flexvox_core.methods.warm_up import warm_up
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = []
     all_cases = cases(quick=quick, sci=sci)
+    warmed: set[tuple] = set()
     for i, case in enumerate(all_cases):
-        for family, method in methods_for(case, quick=quick):
+        methods = methods_for(case, quick=quick)
+        key = (case.code.shape, case.frames.dtype.str)
+        if key not in warmed:  # no row pays a one-time compile or load
+            warm_up(case.code, [method for _, method in methods], device=device, dtype=case.frames.dtype)
+            warmed.add(key)
+        for family, method in methods:
             t0 = time.perf_counter()
             out = run(case.frames, case.code, method, chunk_frames=None, device=device)
             seconds = time.perf_counter() - t0

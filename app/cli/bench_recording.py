@@ -1,6 +1,8 @@
 """``flexvox bench REC``: what accuracy costs in time on the user's own recording, from the estimate.
 
-Every method and knob setting of :func:`methods_for` reconstructs the recording; each result is timed and
+Every method and knob setting of :func:`methods_for` reconstructs the recording; each result is timed (after one
+run of each and its estimate on a small capture, :func:`~flexvox_core.methods.warm_up.warm_up`, and one read of the
+recording: no row pays a one-time compile or load) and
 scored by the estimate without ground truth (:func:`flexvox_core.accuracy.estimate_recording`), with the
 true PSNR beside it when the recording holds a ground truth (read only after the estimate): ``truth`` is the
 PSNR of the clip's mean squared error, the one the estimate estimates (:func:`flexvox_core.metrics.clip_psnr`),
@@ -41,11 +43,14 @@ def run_recording_bench(path, out_dir, *, quick: bool = False, device: str = "cp
     rows (``estimate``, ``low``, ``high``: dB or None with ``why``; ``truth``: dB or None)."""
     from flexvox_core.accuracy import NotEstimable, estimate_recording
     from flexvox_core.capture_reader import open_capture
+    from flexvox_core.methods.warm_up import warm_up
     from flexvox_core.metrics import clip_psnr, psnr
 
     reader = open_capture(path)
     rec = reader.recording
     methods = methods_for(reader.code, quick=quick)
+    warm_up(reader.code, methods, device=device, estimates=True)  # no row pays a one-time compile or load
+    reader.run(methods[0], chunk_frames=chunk_frames, device=device)  # nor the recording's first read
     rows = []
     for i, method in enumerate(methods):
         t0 = time.perf_counter()

@@ -47,6 +47,7 @@ from pathlib import Path
 import numpy as np
 import zarr
 
+from flexvox_core.codes import is_identity_code
 from flexvox_core.ngff import image_compressor
 from flexvox_core.output_errors import OVERWRITE_HINT
 from flexvox_core.recording.errors import RecordingError
@@ -420,6 +421,11 @@ def write_simulation(path, result, *, overwrite: bool = False) -> Path:
         raise TypeError(f"`result` must be a SimulationResult (fv.simulate_video(video, code)); got "
                         f"{type(result).__name__}" + (": the path comes first, fv.write_simulation(path, result)"
                                                       if isinstance(result, str | os.PathLike) else ""))
+    if not result.multiplexed and not is_identity_code(result.code):  # the reader would call it damaged
+        raise ValueError("`result`'s code opens pixels in more than one slot, and the simulation is not marked "
+                         "multiplexed: no reconstruction could tell what its frames hold. Simulate a multiplexed "
+                         "capture through the MultiplexedCode itself, fv.simulate_video(video, "
+                         "fv.multiplexed_code(tile)), not its `.code`; nothing was written")
     F, H, W = result.frames.shape
     attrs = recording_attrs(
         result.code, rate_hz=result.rate_hz, kind="simulated", storage=result.storage,

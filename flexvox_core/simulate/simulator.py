@@ -20,7 +20,7 @@ import numpy as np
 from flexvox_core.codes import code_from_order, is_identity_code, order_from_code, validate_code
 from flexvox_core.forward import capture, check_video, tiled_code
 from flexvox_core.memory_budget import FLOAT, check_fits, simulation_bytes
-from flexvox_core.multiplex import multiplexed_code
+from flexvox_core.multiplex import MultiplexedCode, multiplexed_code
 from flexvox_core.simulate.effects import Adc, Effect, SyncPhase
 from flexvox_core.simulate.scene_file import SceneSpec
 from flexvox_core.simulate.scenes import render_scene
@@ -244,7 +244,11 @@ def simulate_video(
     video : ndarray, shape (S, H, W)
         Ground truth in [0, 1] (integers, an 8-bit clip, divided by their dtype's largest value; floats outside
         [0, 1] are refused); S a multiple of K.
-    code : ndarray, shape (m, n, K)
+    code : ndarray, shape (m, n, K), or MultiplexedCode
+        An identity code, or a multiplexed one (:func:`~flexvox_core.multiplexed_code`, given itself: the result
+        is then marked ``multiplexed`` with its placement, and :func:`~flexvox_core.recording.write_simulation`
+        writes a recording every reconstruction reads). A code array that is neither (its ``.code`` among them)
+        simulates all the same, but no recording is written of it.
     effects : list of str or Effect, or mapping
         Only these are simulated, in the pipeline's order (see :mod:`flexvox_core.simulate.effects`): effect
         names at their defaults (``["photon_noise", "read_noise"]``, ``fv.EFFECTS`` lists them), Effect
@@ -273,7 +277,8 @@ def simulate_video(
     from flexvox_core.simulate.effects import as_effects
 
     effects = as_effects(effects)
-    code = validate_code(code)
+    mc = code if isinstance(code, MultiplexedCode) else None
+    code = validate_code(code if mc is None else mc.code)
     K = code.shape[2]
     video = check_video(video, K)
     _check_unit_range(video)
@@ -293,6 +298,7 @@ def simulate_video(
     applied = {e.name: e.as_dict() for e in effects}
     _logger.info("simulated %d frames of %dx%d, K=%d, effects: %s", F, H, W, K, ", ".join(applied) or "none")
     return SimulationResult(frames, dropped, video, code, storage, applied, int(seed), float(rate_hz),
+                            multiplexed=mc is not None, placement=None if mc is None else mc.placement,
                             extra={"electrons_per_unit": electrons_per_unit})
 
 

@@ -132,9 +132,19 @@ def test_a_pixel_closed_in_every_slot_is_refused():
 @pytest.fixture
 def mux_path(tmp_path):
     truth = render_scene("balls", 4 * 3, 12, 15)
-    result = simulate_video(truth, MC.code, seed=4)
-    result.multiplexed, result.placement = True, MC.placement
+    result = simulate_video(truth, MC, seed=4)  # the MultiplexedCode itself: marked multiplexed, with its placement
+    assert result.multiplexed and np.array_equal(result.placement, MC.placement)
+    np.testing.assert_array_equal(result.frames, simulate_video(truth, MC.code, seed=4).frames)
     return write_simulation(tmp_path / "m.zarr", result)
+
+
+def test_a_simulation_through_the_code_array_alone_is_not_written_as_a_recording(tmp_path):
+    result = simulate_video(render_scene("balls", 4 * 3, 12, 15), MC.code)  # its `.code`: not marked multiplexed
+    with pytest.raises(ValueError, match=r"opens pixels in more than one slot, and the simulation is not marked "
+                                         r"multiplexed.*fv\.simulate_video\(video, fv\.multiplexed_code\(tile\)\), not "
+                                         r"its `\.code`; nothing was written"):
+        write_simulation(tmp_path / "m.zarr", result)
+    assert not (tmp_path / "m.zarr").exists()
 
 
 def test_the_reader_hands_multiplexed_frames_to_methods_that_take_them(mux_path):

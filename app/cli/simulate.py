@@ -85,6 +85,9 @@ def register(sub) -> None:
     p.add_argument("--frames", type=int, metavar="F", help="camera frames to simulate")
     p.add_argument("--size", type=arg_type(_size), metavar="HxW", help="size of a built-in scene")
     p.add_argument("--seed", type=int, metavar="S", help="random seed (scene texture and effect noise)")
+    p.add_argument("--white", type=float, metavar="COUNTS",
+                   help="a video file of integer counts: the count that stands for white (4095 for a 12-bit "
+                        "camera; default the type's largest, 255 or 65535)")
     p.add_argument("--overwrite", action="store_true",
                    help="replace an existing recording (never the scene's own file, nor a recording being written; "
                         "the old one stays until the new one is complete)")
@@ -120,6 +123,7 @@ def run_simulate(args) -> int:
     from flexvox_core.recording import RecordingError, write_simulation
     from flexvox_core.simulate.effects import parse_effects
     from flexvox_core.simulate.simulator import simulate
+    from flexvox_core.intensity import CountsWarning
     from flexvox_core.simulate.sources import TrimWarning, load_video
 
     try:
@@ -145,9 +149,15 @@ def run_simulate(args) -> int:
         if args.effects:
             current = {e.name: e.as_dict() for e in spec.effects}
             spec.effects = parse_effects(parse_effect_overrides(args.effects, current))
-        video = load_video(spec.file) if spec.file is not None else None
+        if args.white is not None:
+            if spec.file is None:
+                raise ValueError("--white is the count that stands for white in a video file of counts; a built-in "
+                                 "scene has none")
+            spec.white = args.white
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", TrimWarning)
+            warnings.simplefilter("always", CountsWarning)
+            video = load_video(spec.file, white=spec.white) if spec.file is not None else None
             result = simulate(spec, video=video)
         for w in caught:
             print(f"warning: {w.message}")

@@ -4,7 +4,8 @@
 
     seed = 0
     [source]
-    builtin = "drummer"          # or: file = "video.npy" (relative to this file)
+    builtin = "drummer"          # or: file = "video.npy" (relative to this file); with a file of integer
+                                 # counts, white = 4095 (the count that stands for white; default the dtype's max)
     height = 120                 # built-in scenes only
     width = 160
     frames = 8                   # camera frames; or duration_s = 0.5
@@ -34,7 +35,7 @@ from flexvox_core.simulate.scenes import SCENES
 from flexvox_core.tiles import parse_tile
 
 _TOP = {"seed", "name", "source", "camera", "code", "effects"}
-_SOURCE = {"builtin", "file", "height", "width", "frames", "duration_s"}
+_SOURCE = {"builtin", "file", "white", "height", "width", "frames", "duration_s"}
 _CAMERA = {"rate_hz", "electrons_per_unit"}
 _CODE = {"tile", "multiplexed", "order"}
 MAX_DURATION_S = 86_400.0
@@ -55,6 +56,8 @@ class SceneSpec:
     duration_s: float | None = None
     rate_hz: float = 15.0
     electrons_per_unit: float = 1000.0
+    white: float | None = None
+    """A ``file``'s count that stands for white (None: its dtype's largest value)."""
     tile: tuple[int, int] = (4, 4)
     multiplexed: bool = False
     order: list | None = None
@@ -129,6 +132,11 @@ def scene_from_mapping(data: dict, *, base_dir: Path | None = None, where: str =
                 f"{where} [source]: unknown scene {src['builtin']!r}; built-in scenes: {', '.join(SCENES)}"
             )
         spec.builtin = src["builtin"]
+    if "white" in src:
+        if spec.file is None:
+            raise ValueError(f"{where} [source]: `white` is the count that stands for white in a `file` of counts; a "
+                             "built-in scene has none")
+        spec.white = _number(src["white"], f"{where} [source] white", minimum=1)
     for key in ("height", "width"):
         if key in src and spec.file is not None:
             raise ValueError(f"{where} [source]: `{key}` sets the size of a built-in scene; a `file` is a video of "

@@ -353,7 +353,7 @@ def simulate(spec: SceneSpec, *, video: np.ndarray | None = None) -> SimulationR
     if video is None:
         if spec.file is not None:
             _check_file_fits(spec, K)
-            video = load_video(spec.file)
+            video = load_video(spec.file, white=spec.white)
         else:
             frames = spec.camera_frames() or 8
             check_fits(simulation_bytes(frames, K, spec.height, spec.width),

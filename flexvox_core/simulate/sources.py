@@ -1,8 +1,10 @@
 """Video sources from files: ``.npy`` (S, H, W), multi-page TIFF, videos OpenCV reads,
 and the video-SCI benchmark's ``.mat`` files (variable ``orig``, H×W×T uint8).
 
-All load as float32 ``(S, H, W)`` in [0, 1]: uint8 / 255, uint16 / 65535, float kept
-(and required to lie in [0, 1]). Colour is converted to luminance (Rec. 601) on the same scales. Nothing
+All load as float32 ``(S, H, W)`` in [0, 1]: uint8 / 255, uint16 / 65535 (or counts / ``white`` when it is
+given: 4095 for a 12-bit camera's counts), float kept (and required to lie in [0, 1]). uint16 counts none above
+4095 read without ``white`` give a :class:`~flexvox_core.intensity.CountsWarning` (a 12-bit camera's counts read
+as 16-bit ones make the scene 16 times darker). Colour is converted to luminance (Rec. 601) on the same scales. Nothing
 is unpickled.
 A file is judged by its header first (:func:`video_shape`): a truncated ``.npy`` is named as
 such, and a video that would not fit in memory as float32 is refused before it is read.
@@ -30,9 +32,25 @@ class TrimWarning(UserWarning):
     """A source was shortened to whole camera frames (a multiple of K sub-frames)."""
 
 
-def _to_unit_float(arr: np.ndarray, path: Path) -> np.ndarray:
+def _to_unit_float(arr: np.ndarray, path: Path, white: float | None = None) -> np.ndarray:
+    from flexvox_core.intensity import NARROW_COUNTS, CountsWarning
+
     if not arr.dtype.isnative:  # big-endian counts or floats (a .npy or TIFF from another machine): the same values
         arr = arr.astype(arr.dtype.newbyteorder("="))
+    if white is not None:
+        if arr.dtype not in (np.uint8, np.uint16):
+            raise ValueError(f"{path}: `white` divides integer counts (uint8, uint16); this video holds {arr.dtype} "
+                             "values (floats must lie in [0, 1] already): leave `white` out")
+        top = int(arr.max()) if arr.size else 0
+        if top > white:
+            raise ValueError(f"{path}: counts up to {top} lie above white = {white:g}: give the count that stands "
+                             "for white (4095 for a 12-bit camera, 65535 for 16-bit counts)")
+        return arr.astype(np.float32) / np.float32(white)
+    if arr.dtype == np.uint16 and arr.size and 0 < int(arr.max()) <= NARROW_COUNTS:
+        top = int(arr.max())
+        warnings.warn(f"{path}: uint16 counts none above {top}: read as 16-bit counts (white 65535) the scene lies "
+                      f"within [0, {top / 65535:.4f}]; a 12-bit camera's counts need white 4095 (10-bit: 1023): "
+                      "`white = 4095` in the scene file's [source], or --white 4095", CountsWarning, stacklevel=3)
     if arr.dtype == np.uint8:
         return arr.astype(np.float32) / np.float32(255)
     if arr.dtype == np.uint16:
@@ -65,9 +83,14 @@ def _gray(arr: np.ndarray, path: Path) -> np.ndarray:
     return arr
 
 
-def load_video(path) -> np.ndarray:
-    """Load a video file as float32 ``(S, H, W)`` in [0, 1] (see the module docstring)."""
+def load_video(path, *, white: float | None = None) -> np.ndarray:
+    """Load a video file as float32 ``(S, H, W)`` in [0, 1] (see the module docstring); ``white``: the count that
+    stands for white in an integer video (default its dtype's largest value)."""
+    from flexvox_core.numbers import positive_number
+
     path = Path(path)
+    if white is not None:
+        white = positive_number("`white`", white, unit="counts")
     suffix = path.suffix.lower()
     if suffix not in SUFFIXES:
         raise ValueError(f"{path}: unknown video type {suffix!r}; readable: {', '.join(SUFFIXES)}")
@@ -99,7 +122,7 @@ def load_video(path) -> np.ndarray:
     arr = _gray(np.asarray(arr), path)
     if min(arr.shape) == 0:
         raise ValueError(f"{path}: the video is empty {arr.shape}")
-    return np.ascontiguousarray(_to_unit_float(arr, path))
+    return np.ascontiguousarray(_to_unit_float(arr, path, white))
 
 
 def video_shape(path) -> tuple[int, int, int] | None:

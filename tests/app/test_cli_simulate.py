@@ -101,3 +101,20 @@ def test_scenes_lists_scenes_and_effects(capsys):
     assert payload["effects"]["read_noise"]["params"]["sigma"]["unit"] == "e- rms"
     code, out, _ = run_cli(capsys, "scenes")
     assert code == 0 and "photon_noise" in out and "electrons_per_unit" in out
+
+
+def test_white_reads_a_12_bit_camera_s_counts_and_its_absence_is_warned_of(tmp_path, capsys):
+    from flexvox_core.simulate.scenes import render_scene
+
+    counts = np.round(render_scene("balls", 16, 16, 16) * 4095).astype(np.uint16)
+    np.save(tmp_path / "c.npy", counts)
+    assert main(["simulate", str(tmp_path / "c.npy"), "--tile", "4x4", "-o", str(tmp_path / "dim.zarr")]) == 0
+    out = capsys.readouterr().out
+    assert "warning: " in out and "uint16 counts none above" in out and "--white 4095" in out
+    assert main(["simulate", str(tmp_path / "c.npy"), "--tile", "4x4", "--white", "4095",
+                 "-o", str(tmp_path / "w.zarr")]) == 0
+    assert "warning" not in capsys.readouterr().out
+    truth = open_recording(tmp_path / "w.zarr").ground_truth[:]
+    np.testing.assert_allclose(truth, counts / 4095, rtol=1e-6)
+    assert main(["simulate", "balls", "--white", "4095", "-o", str(tmp_path / "b.zarr")]) == 2
+    assert "--white is the count that stands for white in a video file of counts" in capsys.readouterr().err

@@ -234,3 +234,32 @@ def test_the_strobe_lights_one_sub_frame_in_17():
     lit = v.reshape(40, -1).max(axis=1) > 0
     assert STROBE_PERIOD == 17 and np.flatnonzero(lit).tolist() == [0, 17, 34]
     np.testing.assert_array_equal(v[17], v[0])  # the same wall every flash
+
+
+def test_counts_of_a_12_bit_camera_are_read_with_their_white_or_warned_of(tmp_path):
+    from flexvox_core.intensity import CountsWarning
+
+    counts = np.round(render_scene("balls", 16, 16, 16) * 4095).astype(np.uint16)
+    np.save(tmp_path / "c.npy", counts)
+    with pytest.warns(CountsWarning, match=r"c\.npy: uint16 counts none above \d+: read as 16-bit counts .* "
+                                           r"`white = 4095` in the scene file's \[source\], or --white 4095"):
+        dim = load_video(tmp_path / "c.npy")
+    np.testing.assert_allclose(dim, counts / 65535, rtol=1e-6)
+    np.testing.assert_allclose(load_video(tmp_path / "c.npy", white=4095), counts / 4095, rtol=1e-6)
+    with pytest.raises(ValueError, match=r"counts up to \d+ lie above white = 1000"):
+        load_video(tmp_path / "c.npy", white=1000)
+    np.save(tmp_path / "f.npy", counts / np.float32(4095))
+    with pytest.raises(ValueError, match=r"`white` divides integer counts .* this video holds float"):
+        load_video(tmp_path / "f.npy", white=4095)
+
+
+def test_a_scene_file_gives_its_file_s_white(tmp_path):
+    counts = np.round(render_scene("balls", 32, 16, 16) * 4095).astype(np.uint16)
+    np.save(tmp_path / "c.npy", counts)
+    spec = scene_from_mapping({"source": {"file": "c.npy", "white": 4095}, "code": {"tile": "2x2"}},
+                              base_dir=tmp_path)
+    assert spec.white == 4095
+    np.testing.assert_allclose(simulate(spec).ground_truth, counts[:32] / 4095, rtol=1e-6)
+    with pytest.raises(ValueError, match=r"`white` is the count that stands for white in a `file` of counts; a "
+                                         r"built-in scene has none"):
+        scene_from_mapping({"source": {"builtin": "balls", "white": 4095}})

@@ -487,3 +487,24 @@ def test_a_bad_probe_step_is_refused_in_words(kw, message):
         estimate_accuracy(f, code, "diffusion", **kw)
     with pytest.raises(ValueError, match=r"`shift` must be a whole number >= 0; got -1"):
         probe_lattice(8, 8, 4, -1)
+
+
+def test_a_recording_whose_code_light_spills_gets_its_estimate_called_an_upper_bound(tmp_path):
+    from flexvox_core.accuracy import estimate_recording, spill_caveat
+    from flexvox_core.design import design_code
+    from flexvox_core.recording import write_simulation
+    from flexvox_core.simulate.scenes import render_scene
+    from flexvox_core.simulate.simulator import simulate_video
+
+    assert spill_caveat({"kind": "simulated", "effects": {"photon_noise": {}}}) is None
+    assert spill_caveat({"kind": "simulated", "effects": {"pattern_blur": {}, "misregistration": {}}}).startswith(
+        "the recording states pattern_blur and misregistration, so a slot's light spills")
+    assert spill_caveat({"kind": "captured", "effects": {}}).startswith("a rig's projector blurs its code")
+    code = design_code((2, 2)).code
+    video = render_scene("drummer", 4 * 4, 32, 48)
+    for effects, caveat in (({}, False), ({"pattern_blur": {}}, True)):
+        path = write_simulation(tmp_path / f"r{len(effects)}.zarr", simulate_video(video, code, effects=effects))
+        est = estimate_recording(path, Method("diffusion"))
+        assert (est.caveat is not None) == caveat
+        assert ("; an upper bound: the recording states pattern_blur" in est.line()) == caveat
+        assert est.line().endswith(")") and est.as_dict()["caveat"] == est.caveat

@@ -37,6 +37,20 @@ def test_white_gives_the_white_level_of_counts(scene):
         fv.reconstruct_video(np.full((1, 4, 4), "a"), code, NC)
 
 
+def test_counts_held_as_floats_are_refused_naming_white_not_clipped_to_white(scene):
+    _, code, frames = scene
+    counts = np.round(frames * 4095)  # float64 counts: read as relative units they were 4095 times too bright
+    with pytest.raises(ValueError, match=r"`frames` are floats reaching \d+, where the code lets in at most 1 slot\(s\) "
+                                         r"of white \(white = 1\): counts held as floats\? give `white=`"):
+        fv.reconstruct_video(counts, code, NC)
+    got = fv.reconstruct_video(counts, code, NC, white=4095)  # said so, they are read right
+    np.testing.assert_allclose(got, fv.reconstruct_video(counts / 4095, code, NC), atol=1e-6)
+    assert fv.reconstruct_video(frames * 1.3, code, NC).shape == (6 * 8, 24, 32)  # highlights up to 1.3: kept
+    mc = fv.multiplexed_code((1, 3))  # an S-matrix pixel sums 2 slots: floats up to 2 whites are its light
+    sums = fv.capture(np.ones((2 * 3, 6, 6), np.float32), mc.code)
+    assert fv.reconstruct_video(sums, mc.code, NC).shape == (6, 6, 6)
+
+
 def test_counts_far_above_white_are_refused_not_clipped_to_white(scene):
     # a 12-bit camera's counts in the high bits of a uint16 (x 16) at white=4095 had been reconstructed white
     # everywhere, clipped, without a word

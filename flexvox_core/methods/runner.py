@@ -382,27 +382,34 @@ def _refuse_recording(frames) -> None:
 
 
 def check_counts_within_white(frames, relative: np.ndarray, white, code) -> None:
-    """Frames in relative units (``relative``) may reach at most twice the light of the code's most open pixel (one
-    slot for an identity code, (K+1)/2 for an S-matrix one); beyond it the reconstruction had been white everywhere,
-    clipped, without a word. Integer counts given with ``white``: ``white`` is not their white (a 12-bit camera's
-    counts in the high bits of a uint16, white=4095 for counts up to 65520). Floats without ``white``: counts held
-    as floats (``counts.astype(float)``), which need ``white``."""
+    """Refuse frames whose light no capture through ``code`` gives; the reconstruction had been white everywhere,
+    clipped, without a word.
+
+    - Integer counts given with ``white`` may reach at most twice the light of the code's most open pixel (one slot
+      for an identity code, (K+1)/2 for an S-matrix one): beyond it ``white`` is not their white (a 12-bit camera's
+      counts in the high bits of a uint16, white=4095 for counts up to 65520).
+    - Floats without ``white`` (relative units) may reach at most 2·K: twice the light of every slot open on white
+      for the whole exposure, ambient light included. Beyond it they are counts held as floats
+      (``counts.astype(float)``: 8-bit ones reach 255), which need ``white``. A recording's frames, normalised by
+      its own storage, stay far below it."""
     kind = np.asarray(frames).dtype.kind
-    if not relative.size or (kind in "iu" and white is None) or kind not in "iuf":
+    if not relative.size or kind not in "iuf" or (kind in "iu" and white is None):
         return
-    c = getattr(code, "code", code)  # a MultiplexedCode (the estimate and the choice take one): its array
-    most_open = int(validate_code(c).sum(axis=2).max())
+    c = validate_code(getattr(code, "code", code))  # a MultiplexedCode (the estimate and the choice take one)
+    most_open, K = int(c.sum(axis=2).max()), c.shape[2]
     hi = float(relative.max())
-    if not hi > 2 * most_open:  # NaN too: refused later, naming its frame
-        return
     if white is None:  # floats taken as relative units
-        raise ValueError(f"`frames` are floats reaching {hi:g}, where the code lets in at most {most_open} slot(s) "
-                         f"of white (white = 1): counts held as floats? give `white=` (the count that stands for "
-                         "white: 4095 for a 12-bit camera, 65535 for 16-bit counts), or divide them by it")
-    raise ValueError(f"`frames` reach {hi * float(white):.0f} counts, {hi:.3g} times `white` = {float(white):g}, "
-                     f"where the code lets in at most {most_open} slot(s) of white: `white` is not these counts' "
-                     "white (counts in the high bits of their dtype? give the dtype's largest value, or shift "
-                     "them down)")
+        if hi > 2 * K:  # NaN is not: refused later, naming its frame
+            raise ValueError(f"`frames` are floats reaching {hi:g}, more than twice the light of all {K} slots open "
+                             "on white (white = 1): counts held as floats? give `white=` (the count that stands for "
+                             "white: 255 for 8-bit, 4095 for a 12-bit camera, 65535 for 16-bit counts), or divide "
+                             "them by it")
+        return
+    if hi > 2 * most_open:
+        raise ValueError(f"`frames` reach {hi * float(white):.0f} counts, {hi:.3g} times `white` = {float(white):g}, "
+                         f"where the code lets in at most {most_open} slot(s) of white: `white` is not these counts' "
+                         "white (counts in the high bits of their dtype? give the dtype's largest value, or shift "
+                         "them down)")
 
 
 def check_whole_tile(H: int, W: int, tile: tuple[int, int], K: int) -> None:

@@ -40,15 +40,15 @@ def test_white_gives_the_white_level_of_counts(scene):
 def test_counts_held_as_floats_are_refused_naming_white_not_clipped_to_white(scene):
     _, code, frames = scene
     counts = np.round(frames * 4095)  # float64 counts: read as relative units they were 4095 times too bright
-    with pytest.raises(ValueError, match=r"`frames` are floats reaching \d+, where the code lets in at most 1 slot\(s\) "
-                                         r"of white \(white = 1\): counts held as floats\? give `white=`"):
+    with pytest.raises(ValueError, match=r"`frames` are floats reaching \d+, more than twice the light of all 8 "
+                                         r"slots open on white \(white = 1\): counts held as floats\? give `white=`"):
         fv.reconstruct_video(counts, code, NC)
     got = fv.reconstruct_video(counts, code, NC, white=4095)  # said so, they are read right
     np.testing.assert_allclose(got, fv.reconstruct_video(counts / 4095, code, NC), atol=1e-6)
     assert fv.reconstruct_video(frames * 1.3, code, NC).shape == (6 * 8, 24, 32)  # highlights up to 1.3: kept
-    mc = fv.multiplexed_code((1, 3))  # an S-matrix pixel sums 2 slots: floats up to 2 whites are its light
-    sums = fv.capture(np.ones((2 * 3, 6, 6), np.float32), mc.code)
-    assert fv.reconstruct_video(sums, mc.code, NC).shape == (6, 6, 6)
+    assert fv.reconstruct_video(frames + 9.0, code, NC).shape == (6 * 8, 24, 32)  # ambient light over K slots: kept
+    with pytest.raises(ValueError, match=r"counts held as floats"):
+        fv.reconstruct_video(frames * 20, code, NC)  # 8-bit-like counts (up to 255 at K = 8)
 
 
 def test_counts_far_above_white_are_refused_not_clipped_to_white(scene):

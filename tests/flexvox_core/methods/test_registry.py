@@ -23,7 +23,7 @@ def frame_mean():
 def test_a_method_is_one_class_and_one_registration(frame_mean, rng):
     assert names()[-1] == "frame-mean" and Method("frame-mean").label() == "frame-mean r=1"
     truth = rng.random((10 * 4, 6, 8)).astype(np.float32)
-    frames = capture(truth, CODE) * 1.8  # outside [0, 1] (within twice white): the whole range rescales it
+    frames = capture(truth, CODE) * 3  # outside [0, 1]: the whole range rescales it
     m = Method("frame-mean", radius=2)
     whole = run(frames, CODE, m, chunk_frames=None, extras=True)
     chunked = run(frames, CODE, m, chunk_frames=3, extras=True)

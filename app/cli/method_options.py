@@ -250,4 +250,10 @@ def method_from_args(args, tile, *, auto: bool = False):
         o = spec.option(name)
         if o.kind.needs_tile:  # kept as typed: read with the recording's tile
             given[name] = o.kind.parse(o, value, name=_flag(o), tile=tile)
-    return Method(spec.name, **given)
+    try:
+        return Method(spec.name, **given)
+    except ValueError as exc:  # the option's rule, said with its flag (`refine_time` is --refine here)
+        message = str(exc)
+        for name in given:
+            message = message.replace(f"`{name}`", _flag(spec.option(name)))
+        raise ValueError(message) from None

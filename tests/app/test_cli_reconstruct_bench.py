@@ -50,7 +50,9 @@ def test_the_voxel_rate_keeps_two_figures_below_ten_million_a_second():
         (["--method", "rebin", "--block", "2,2"], "--block must be three whole numbers a,b,c (rows, columns, slots "
                                                   "of the division), e.g. 2,2,4; got '2,2'"),
         (["--tensor", "1,1"], "--tensor must be three numbers"),
-        (["--time", "-1"], "time"),
+        (["--time", "-1"], "--time must be a finite number > 0; got -1"),  # the flag, not `time`
+        (["--time", "0"], "--time must be a finite number > 0; got 0"),
+        (["--method", "motion-aware", "--refine", "-1"], "--refine must be a number from 0"),  # not `refine_time`
         # a near-miss method name: refused with the name meant, in the command line's words
         (["--method", "motion_aware"], "--method must be one of rebin, diffusion, gap-tv, motion-aware; got "
                                        "'motion_aware': write it motion-aware"),
@@ -187,7 +189,7 @@ def test_reconstruct_motion_aware_slow_reach(recording, tmp_path, capsys):
 
 @pytest.mark.parametrize("args, message", [
     (["--method", "diffusion", "--slow-reach", "1"], "--slow-reach goes with --method motion-aware"),
-    (["--method", "motion-aware", "--slow-reach", "-1"], "`slow_reach` must be a number from 0 to 1000"),
+    (["--method", "motion-aware", "--slow-reach", "-1"], "--slow-reach must be a number from 0 to 1000"),
 ])
 def test_bad_slow_reach(recording, tmp_path, capsys, args, message):
     assert main(["reconstruct", str(recording), *args, "-o", str(tmp_path / "o.npy")]) == 2

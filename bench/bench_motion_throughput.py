@@ -476,6 +476,23 @@ def _gate_numpy() -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def _gate_scalar() -> Iterator[None]:
+    """Before the gated flow's gate was vector code: one scalar compiled loop a pixel, four float64 square roots in
+    it, the flags and the cap branches (``tests/flexvox_core/motion/gate_scalar_reference.py``), and the
+    confidences' range checked after it by numpy's min and max; the same bits."""
+    _repository_on_path()
+    from flexvox_core.motion import gated_flow
+    from tests.flexvox_core.motion.gate_scalar_reference import gate_plane_scalar
+
+    def gate_plane(vel: Any, conf: Any, *args: Any) -> bool:
+        gate_plane_scalar(vel, conf, *args)
+        return bool(conf.size and not (np.min(conf) >= 0 and np.max(conf) <= 1))
+
+    with mock.patch.object(gated_flow, "gate_plane", gate_plane):
+        yield
+
+
+@contextlib.contextmanager
 def _flow_mean_numpy() -> Iterator[None]:
     """Before the successive-sub-frame flow's temporal mean was a compiled pass per sub-frame on every core: a
     numpy loop over the sub-frames on one thread; the same bits."""
@@ -799,6 +816,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "high-tr-float32": _high_tr_float32,
     "gather-reach-3-sigma": _gather_reach_3_sigma,
     "gate-numpy": _gate_numpy,
+    "gate-scalar": _gate_scalar,
     "flow-mean-numpy": _flow_mean_numpy,
     "classes-numpy": _classes_numpy,
     "flow-plumbing-before": _flow_plumbing_before,

@@ -394,7 +394,7 @@ def successive_flow(small: np.ndarray, flow_fn, *, consistency: bool, temporal_w
     S, h, w = small.shape
     u8 = to_uint8_planes(small)
     fwd = np.empty((S - 1, h, w, 2), np.float32)
-    vconf = np.ones((S, h, w), np.float32)  # the last sub-frame takes the last pair's confidence
+    vconf = np.empty((S, h, w), np.float32)  # each pair writes its plane; the last sub-frame takes the last pair's
     conf = vconf[:-1]
     run_pairs(flow_fn, u8, list(zip(range(S - 1), range(1, S), strict=True)), fwd, conf, consistency=consistency,
               memo=memo)

@@ -53,13 +53,13 @@ def pair_mean(flow: Array, conf: Array, c: int, reach: int, out: Array) -> None:
             nu, nv, den = _add(f0, c0, i, zero, zero, zero)
             of[2 * i] = nu / den
             of[2 * i + 1] = nv / den
-    else:  # more pairs: a pass each, the sums in `out` and `den`
-        den = np.zeros(n, np.float32)
+    else:  # more pairs: a pass each, the sums in `out` and `dens`
+        dens = np.zeros(n, np.float32)
         of[:] = zero
         for k in range(first, first + count):
             fk, ck = flow[k].reshape(2 * n), conf[k].reshape(n)
             for i in range(n):
-                of[2 * i], of[2 * i + 1], den[i] = _add(fk, ck, i, of[2 * i], of[2 * i + 1], den[i])
+                of[2 * i], of[2 * i + 1], dens[i] = _add(fk, ck, i, of[2 * i], of[2 * i + 1], dens[i])
         for i in range(n):
-            of[2 * i] /= den[i]
-            of[2 * i + 1] /= den[i]
+            of[2 * i] /= dens[i]
+            of[2 * i + 1] /= dens[i]

@@ -70,7 +70,7 @@ def squared_below(px: np.float32, slow_speed: np.float32, successive: bool) -> f
         else:
             hi = mid
     bits[0] = hi
-    return square[0]
+    return float(square[0])
 
 
 @numba.njit(inline="always", nogil=True, cache=True, error_model="numpy")
@@ -92,7 +92,7 @@ def _square(u: np.float32, v: np.float32) -> float:
 @numba.njit(inline="always", nogil=True, cache=True)
 def _finite(x: np.float32) -> bool:
     """``math.isfinite(x)`` as vector code: ``x - x`` is NaN for NaN and infinities, 0 otherwise."""
-    return x - x == 0
+    return bool(x - x == 0)
 
 
 @numba.njit(inline="always", nogil=True, cache=True, error_model="numpy")

@@ -6,12 +6,14 @@ Each speed is ``hypot`` as numpy's float32 ``np.hypot`` gives it: the square roo
 float32 throughout, with the thresholds rounded to float32 first, as numpy does with Python numbers. The whole-volume
 form the tests compare with is ``tests/flexvox_core/flow/gated_reference.py``.
 
-The pass is vector code (AVX: eight or four pixels at a time, float64 square roots included): no branch depends on
-a pixel. Its flags (the K-average's blend, the period gate) pick one of four loops before it; a speed only compared
-with a threshold is compared as its float64 square, with the least square whose speed fails the test
-(:func:`squared_below`: the speed is monotone in it, so the test is the same); the larger of two speeds is the speed
-of the larger square; and the magnitude cap, which a sane flow never reaches, is a second pass over the plane that
-runs only when a velocity comes within reach of it. Two square roots a pixel remain (of five).
+The pass is vector code (AVX: four or eight pixels at a time, float64 square roots included): no branch depends on
+a pixel, and its flags (the K-average's blend, the period gate) are selections, every plane read whatever they are (a
+read that depends on a flag is a masked gather; four loops, one for each pair of flags, ran no faster and took three
+times as long to compile). A speed only compared with a threshold is compared as its float64 square, with the least
+square whose speed fails the test (:func:`squared_below`: the speed is monotone in it, so the test is the same); the
+larger of two speeds is the speed of the larger square; and the magnitude cap, which a sane flow never reaches, is a
+second pass over the plane that runs only when a velocity comes within reach of it. Two square roots a pixel remain
+(of five).
 """
 
 from __future__ import annotations
@@ -100,9 +102,8 @@ def _gate_loop(vel: Plane, conf: Plane, d0: Plane, d1: Plane, w0: float, w1: flo
                mean: Plane, has_mean: bool, px: np.float32, use_slow: bool, slow_below: float, fast_below: float,
                lo: np.float32, width: np.float32, plo: np.float32, pwidth: np.float32,
                near: np.float32) -> tuple[int, int]:
-    """:func:`gate_plane`'s pass without the cap, ``blend`` and ``has_mean`` constants where it is inlined (one
-    loop each, no branch in it): the number of velocities with a component beyond ``near`` (the cap may apply), and
-    of confidences outside [0, 1] (NaN included)."""
+    """:func:`gate_plane`'s pass without the cap, no branch in it: the number of velocities with a component beyond
+    ``near`` (the cap may apply), and of confidences outside [0, 1] (NaN included)."""
     n = conf.size
     vf = vel.reshape(2 * n)
     cf = conf.reshape(n)
@@ -117,12 +118,11 @@ def _gate_loop(vel: Plane, conf: Plane, d0: Plane, d1: Plane, w0: float, w1: flo
     for i in range(n):
         u = vf[2 * i]
         v = vf[2 * i + 1]
-        if blend:
-            su = np.float32(w0 * np.float64(a0[2 * i]) + w1 * np.float64(a1[2 * i]))
-            sv = np.float32(w0 * np.float64(a0[2 * i + 1]) + w1 * np.float64(a1[2 * i + 1]))
-        else:
-            su = a0[2 * i]
-            sv = a0[2 * i + 1]
+        # Both flags by selection, every plane read (loads that depend on a flag would be masked gathers).
+        bu = np.float32(w0 * np.float64(a0[2 * i]) + w1 * np.float64(a1[2 * i]))
+        bv = np.float32(w0 * np.float64(a0[2 * i + 1]) + w1 * np.float64(a1[2 * i + 1]))
+        su = bu if blend else a0[2 * i]
+        sv = bv if blend else a0[2 * i + 1]
         square = _square(su, sv)
         take = use_slow & (square < slow_below) & (_square(u, v) < fast_below)
         u = su if take else u
@@ -130,9 +130,8 @@ def _gate_loop(vel: Plane, conf: Plane, d0: Plane, d1: Plane, w0: float, w1: flo
         step = _square(sf[2 * i], sf[2 * i + 1])
         square = step if (step > square) | (step != step) else square  # np.maximum of the speeds: a NaN wins
         ramp = _ramp(_speed(square, px), lo, width)
-        if has_mean:
-            other = _ramp(_hypot(mf[2 * i], mf[2 * i + 1]) * px, plo, pwidth)
-            ramp = other if (other > ramp) | (other != other) else ramp
+        other = _ramp(_hypot(mf[2 * i], mf[2 * i + 1]) * px, plo, pwidth)
+        ramp = other if has_mean & ((other > ramp) | (other != other)) else ramp
         u = u * ramp
         v = v * ramp
         good = _finite(u) & _finite(v)
@@ -153,7 +152,8 @@ def gate_plane(vel: Plane, conf: Plane, d0: Plane, d1: Plane, w0: float, w1: flo
                lo: np.float32, width: np.float32, plo: np.float32, pwidth: np.float32, max_mag: np.float32) -> bool:
     """Gate one sub-frame in place: ``vel`` (h, w, 2) becomes the gated velocity, sanitised (non-finite: 0 with
     ``conf`` 0; magnitudes capped at ``max_mag``); returns whether a confidence is outside [0, 1] (NaN included:
-    the caller clips them, as :func:`~flexvox_core.flow.estimate.sanitize_flow`). The planes are C-contiguous.
+    the caller clips them, as :func:`~flexvox_core.flow.estimate.sanitize_flow`). The planes are C-contiguous, and
+    every one is read whatever the flags (``d1`` and ``mean`` of ``vel``'s shape even when unused).
 
     The K-average's velocity is ``w0 * d0 + w1 * d1`` (``d0`` alone unless ``blend``; float64 weights, the sum
     rounded to float32 once, as numpy makes it with :func:`~flexvox_core.flow.baseline.blend`'s); it is taken where
@@ -165,19 +165,8 @@ def gate_plane(vel: Plane, conf: Plane, d0: Plane, d1: Plane, w0: float, w1: flo
     fast_below = squared_below(px, slow_speed, True)
     # A component beyond max_mag / 1.5 flags a pixel for the cap's pass, which tests max_mag / √2 as before.
     near = max_mag / np.float32(1.5)
-    if blend:
-        if has_mean:
-            near_cap, outside = _gate_loop(vel, conf, d0, d1, w0, w1, True, steps, mean, True, px, use_slow,
-                                           slow_below, fast_below, lo, width, plo, pwidth, near)
-        else:
-            near_cap, outside = _gate_loop(vel, conf, d0, d1, w0, w1, True, steps, mean, False, px, use_slow,
-                                           slow_below, fast_below, lo, width, plo, pwidth, near)
-    elif has_mean:
-        near_cap, outside = _gate_loop(vel, conf, d0, d1, w0, w1, False, steps, mean, True, px, use_slow,
-                                       slow_below, fast_below, lo, width, plo, pwidth, near)
-    else:
-        near_cap, outside = _gate_loop(vel, conf, d0, d1, w0, w1, False, steps, mean, False, px, use_slow,
-                                       slow_below, fast_below, lo, width, plo, pwidth, near)
+    near_cap, outside = _gate_loop(vel, conf, d0, d1, w0, w1, blend, steps, mean, has_mean, px, use_slow,
+                                   slow_below, fast_below, lo, width, plo, pwidth, near)
     if near_cap:
         vf = vel.reshape(vel.size)
         for i in range(conf.size):

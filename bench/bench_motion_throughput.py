@@ -671,8 +671,9 @@ def _flow_mean_unfused() -> Iterator[None]:
 @contextlib.contextmanager
 def _flow_glue_serial() -> Iterator[None]:
     """Before the gated flow's steps between its DIS pairs ran on every core: the videos taken to uint8, the
-    K-average and the period gate's box in time, the pairs' weighting, the video's check and the high-TR held in
-    float16, each a whole-volume numpy (or SciPy) call on one thread; the same bits."""
+    K-average and the period gate's box in time, the pairs' weighting (a pass of its own before the scalar mean, as
+    then: ``_weighed_apart``), the video's check and the high-TR held in float16, each a whole-volume numpy (or
+    SciPy) call on one thread; the same bits."""
     from scipy.ndimage import uniform_filter1d
 
     from flexvox_core.flow import baseline, estimate

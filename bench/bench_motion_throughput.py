@@ -476,6 +476,23 @@ def _gate_numpy() -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def _gate_scalar() -> Iterator[None]:
+    """Before the gated flow's gate was vector code: one scalar compiled loop a pixel, four float64 square roots in
+    it, the flags and the cap branches (``tests/flexvox_core/motion/gate_scalar_reference.py``), and the
+    confidences' range checked after it by numpy's min and max; the same bits."""
+    _repository_on_path()
+    from flexvox_core.motion import gated_flow
+    from tests.flexvox_core.motion.gate_scalar_reference import gate_plane_scalar
+
+    def gate_plane(vel: Any, conf: Any, *args: Any) -> bool:
+        gate_plane_scalar(vel, conf, *args)
+        return bool(conf.size and not (np.min(conf) >= 0 and np.max(conf) <= 1))
+
+    with mock.patch.object(gated_flow, "gate_plane", gate_plane):
+        yield
+
+
+@contextlib.contextmanager
 def _flow_mean_numpy() -> Iterator[None]:
     """Before the successive-sub-frame flow's temporal mean was a compiled pass per sub-frame on every core: a
     numpy loop over the sub-frames on one thread; the same bits."""
@@ -486,7 +503,7 @@ def _flow_mean_numpy() -> Iterator[None]:
         num, den = np.zeros(out.shape, np.float32), np.zeros(out.shape[:2], np.float32)
         for o in range(-reach, reach + 1):
             if max(0, -o) <= c < P - max(0, o):
-                num += fwd[c + o]
+                num += fwd[c + o] * (conf[c + o] + np.float32(1e-3))[..., None]  # weighed as read: the same bits
                 den += conf[c + o] + np.float32(1e-3)
         np.divide(num, den[..., None], out=out)
 
@@ -613,10 +630,50 @@ def _choice_float64() -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def _weighed_apart(weigh_pairs: Callable[[np.ndarray, np.ndarray], None]) -> Iterator[None]:
+    """The successive flow's pairs weighted by ``weigh_pairs(fwd, conf)`` in place once DIS has run, and its mean the
+    scalar loop over those weighted flows (``tests/flexvox_core/flow/mean_scalar_reference.py``): as before the mean
+    weighed the flows as it read them; the same bits."""
+    _repository_on_path()
+    from flexvox_core.flow import estimate
+    from tests.flexvox_core.flow.mean_scalar_reference import pair_mean_scalar
+
+    run_pairs = estimate.run_pairs
+
+    def run_and_weigh(flow_fn: Any, u8: np.ndarray, pairs: Any, out: np.ndarray, conf: np.ndarray,
+                      **kwargs: Any) -> None:
+        run_pairs(flow_fn, u8, pairs, out, conf, **kwargs)
+        weigh_pairs(out, conf)
+
+    with mock.patch.object(estimate, "run_pairs", run_and_weigh), \
+            mock.patch.object(estimate, "pair_mean", pair_mean_scalar):
+        yield
+
+
+@contextlib.contextmanager
+def _flow_mean_unfused() -> Iterator[None]:
+    """Before the successive flow's mean weighed the flows as it read them and ran as vector code: a pass that
+    weighted the pairs in place (a pair per task on every core), then the scalar loop a pixel; the same bits."""
+    from flexvox_core.flow.estimate import for_each
+
+    def weigh_pairs(fwd: np.ndarray, conf: np.ndarray) -> None:
+        eps = np.float32(1e-3)
+
+        def one(i: int) -> None:
+            fwd[i] *= (conf[i] + eps)[..., None]
+
+        for_each(one, len(fwd))
+
+    with _weighed_apart(weigh_pairs):
+        yield
+
+
+@contextlib.contextmanager
 def _flow_glue_serial() -> Iterator[None]:
     """Before the gated flow's steps between its DIS pairs ran on every core: the videos taken to uint8, the
-    K-average and the period gate's box in time, the pairs' weighting, the video's check and the high-TR held in
-    float16, each a whole-volume numpy (or SciPy) call on one thread; the same bits."""
+    K-average and the period gate's box in time, the pairs' weighting (a pass of its own before the scalar mean, as
+    then: ``_weighed_apart``), the video's check and the high-TR held in float16, each a whole-volume numpy (or
+    SciPy) call on one thread; the same bits."""
     from scipy.ndimage import uniform_filter1d
 
     from flexvox_core.flow import baseline, estimate
@@ -635,7 +692,7 @@ def _flow_glue_serial() -> Iterator[None]:
     with mock.patch.object(estimate, "to_uint8_planes", estimate.to_uint8), \
             mock.patch.object(baseline, "to_uint8_planes", estimate.to_uint8), \
             mock.patch.object(estimate, "subframe_sums_finite", sums_finite), \
-            mock.patch.object(estimate, "weigh_pairs", weigh_pairs), \
+            _weighed_apart(weigh_pairs), \
             mock.patch.object(baseline, "box_in_time", box_in_time), \
             mock.patch.object(gated_flow, "box_in_time", box_in_time), \
             mock.patch.object(stages, "held_as", lambda volume, dtype: volume.astype(dtype)):
@@ -799,7 +856,9 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "high-tr-float32": _high_tr_float32,
     "gather-reach-3-sigma": _gather_reach_3_sigma,
     "gate-numpy": _gate_numpy,
+    "gate-scalar": _gate_scalar,
     "flow-mean-numpy": _flow_mean_numpy,
+    "flow-mean-unfused": _flow_mean_unfused,
     "classes-numpy": _classes_numpy,
     "flow-plumbing-before": _flow_plumbing_before,
     "detector-finest-2": _detector_finest_2,

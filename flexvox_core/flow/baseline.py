@@ -162,7 +162,7 @@ class KAverageFlow:
         average = kaverage(small, K) if average is None else average
         u8 = to_uint8_planes(average)
         disp = np.empty((len(starts), h, w, 2), np.float32)
-        conf = np.ones((len(starts), h, w), np.float32)
+        conf = np.empty((len(starts), h, w), np.float32)  # each pair writes its plane (run_pairs)
         run_pairs(flow_fn, u8, [(a, a + span) for a in starts], disp, conf, consistency=False, memo=memo)
         disp /= span
         self.disp = disp

@@ -387,17 +387,6 @@ def subframe_sums_finite(v: np.ndarray) -> bool:
     return bool(np.isfinite(sums).all())
 
 
-def weigh_pairs(fwd: np.ndarray, conf: np.ndarray) -> None:
-    """``fwd`` (P, h, w, 2) times ``conf + 1e-3`` (P, h, w), in place, a pair at a time on every core (numpy's
-    whole-volume product's values: one float32 multiplication each)."""
-    eps = np.float32(1e-3)
-
-    def one(i: int) -> None:
-        fwd[i] *= (conf[i] + eps)[..., None]
-
-    for_each(one, len(fwd))
-
-
 def successive_flow(small: np.ndarray, flow_fn, *, consistency: bool, temporal_window: int, memo=None):
     """Velocity ``(S, h, w, 2)`` and confidence ``(S, h, w)`` of the :func:`downscale` d video
     ``small``, in its pixels: flow between successive sub-frames, averaged over
@@ -405,17 +394,16 @@ def successive_flow(small: np.ndarray, flow_fn, *, consistency: bool, temporal_w
     S, h, w = small.shape
     u8 = to_uint8_planes(small)
     fwd = np.empty((S - 1, h, w, 2), np.float32)
-    vconf = np.ones((S, h, w), np.float32)  # the last sub-frame takes the last pair's confidence
+    vconf = np.empty((S, h, w), np.float32)  # each pair writes its plane; the last sub-frame takes the last pair's
     conf = vconf[:-1]
     run_pairs(flow_fn, u8, list(zip(range(S - 1), range(1, S), strict=True)), fwd, conf, consistency=consistency,
               memo=memo)
     vconf[-1] = conf[-1]
     # Velocity at sub-frame s: confidence-weighted mean of forward flows s-w .. s+w (clamped to
     # the pairs; the last sub-frame takes the last pair's), a sub-frame at a time in one compiled
-    # pass (fresh memory is dear: at 640x480 x 240 sub-frames the whole-volume sums' temporaries
-    # cost 0.15-0.6 s). Each sum is made in the same order as over whole volumes: from 0,
-    # offsets in increasing order (mean_kernel.pair_mean).
-    weigh_pairs(fwd, conf)  # weighted flows, in place
+    # pass that weighs the flows as it reads them (fresh memory is dear: at 640x480 x 240 sub-frames
+    # the whole-volume sums' temporaries cost 0.15-0.6 s). Each sum is made in the same order as over
+    # whole volumes: from 0, offsets in increasing order (mean_kernel.pair_mean).
     P = S - 1
     vel = np.empty((S, h, w, 2), np.float32)
     reach = max(0, min(temporal_window, P - 1))

@@ -139,7 +139,6 @@ class _GatedFlow:
                                       interpolation=cv2.INTER_LINEAR), np.float32)  # float32 already: no copy
         mean = self.mean[t] if self.mean is not None else vel
         px, use_slow, slow_speed, lo, width, plo, pwidth = self.numbers
-        gate_plane(vel, conf, disp[j0], disp[j1], np.float64(1 - a), np.float64(a), j0 != j1, steps, mean,
-                   self.mean is not None, px, use_slow, slow_speed, lo, width, plo, pwidth, self.max_magnitude)
-        if conf.size and not (np.min(conf) >= 0 and np.max(conf) <= 1):  # as sanitize_flow: NaN fails both
-            np.clip(conf, 0, 1, out=conf)
+        if gate_plane(vel, conf, disp[j0], disp[j1], np.float64(1 - a), np.float64(a), j0 != j1, steps, mean,
+                      self.mean is not None, px, use_slow, slow_speed, lo, width, plo, pwidth, self.max_magnitude):
+            np.clip(conf, 0, 1, out=conf)  # as sanitize_flow: a NaN stays

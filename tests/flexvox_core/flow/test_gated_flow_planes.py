@@ -14,8 +14,8 @@ from flexvox_core.flow.estimate import (
     successive_flow,
     to_uint8,
     to_uint8_planes,
-    weigh_pairs,
 )
+from flexvox_core.flow.mean_kernel import pair_mean
 from flexvox_core.forward import capture
 from flexvox_core.motion.pipeline import STEP1_TENSOR, STEP1_TIME, gated_flow
 from flexvox_core.reconstruct.diffusion import diffuse
@@ -139,13 +139,29 @@ def test_to_uint8_planes_is_to_uint8_of_the_volume():
     assert got.min() == 0 and got.max() == 255
 
 
-def test_weigh_pairs_is_the_whole_volume_product():
-    rng = np.random.default_rng(6)
-    fwd = rng.normal(size=(9, 5, 7, 2)).astype(np.float32)
-    conf = rng.random((9, 5, 7), dtype=np.float32)
-    want = fwd * (conf + np.float32(1e-3))[..., None]
-    weigh_pairs(fwd, conf)
-    np.testing.assert_array_equal(fwd, want)
+@pytest.mark.parametrize("P", [1, 2, 3, 6])
+@pytest.mark.parametrize("reach", [0, 1, 2, 3])
+def test_pair_mean_is_the_whole_volume_weighted_mean(P, reach):
+    """Each centre's weighted mean (the pairs weighed as they are read) against numpy's whole-volume product and
+    sums, bit for bit, at odd sizes, with zero confidences, -0 and huge flows."""
+    rng = np.random.default_rng(6 + P + 10 * reach)
+    h, w = 5, 7
+    fwd = (rng.normal(size=(P, h, w, 2)) * rng.choice([1e-3, 1, 1e3], (P, h, w, 2))).astype(np.float32)
+    fwd[0, 0, :2] = [[-0.0, -0.0], [3e38, -3e38]]
+    conf = rng.random((P, h, w), dtype=np.float32)
+    conf[:, 1] = 0
+    weighted = fwd * (conf + np.float32(1e-3))[..., None]
+    for c in range(P):
+        num, den = np.zeros((h, w, 2), np.float32), np.zeros((h, w), np.float32)
+        for o in range(-reach, reach + 1):
+            if 0 <= c + o < P:
+                num += weighted[c + o]
+                den += conf[c + o] + np.float32(1e-3)
+        with np.errstate(over="ignore", invalid="ignore"):
+            want = num / den[..., None]
+        got = np.full((h, w, 2), np.nan, np.float32)
+        pair_mean(fwd, conf, c, reach, got)
+        np.testing.assert_array_equal(got.view(np.uint32), want.view(np.uint32))
 
 
 def test_subframe_sums_finite_finds_any_nan_or_infinity():

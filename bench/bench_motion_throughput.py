@@ -649,6 +649,42 @@ def _choice_bands_apart() -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def _choice_blocks_numpy() -> Iterator[None]:
+    """Before oriented nc found its blocks by a compiled row scan and made the float16 guide's blocks float32 through
+    OpenCV: numpy's ``any`` along and across the rows of each band, numpy's conversion (the same bits)."""
+    from flexvox_core.reconstruct import oriented_nc
+
+    def blocks_numpy(wanted: np.ndarray) -> list[tuple[int, int, int, int]]:
+        W = wanted.shape[1]
+        rows = wanted.any(axis=1)
+        out: list[tuple[int, int, int, int]] = []
+        for r0 in range(0, wanted.shape[0], oriented_nc.BLOCK_ROWS):
+            ys = np.flatnonzero(rows[r0:r0 + oriented_nc.BLOCK_ROWS])
+            if not len(ys):
+                continue
+            y0, y1 = r0 + int(ys[0]), r0 + int(ys[-1]) + 1
+            xs = np.flatnonzero(wanted[y0:y1].any(axis=0))
+            x0, x1 = int(xs[0]), int(xs[-1]) + 1
+            if out and oriented_nc._aligned_columns(*out[-1][2:], W) == oriented_nc._aligned_columns(x0, x1, W):
+                p0, _, p2, p3 = out[-1]
+                out[-1] = (p0, y1, min(p2, x0), max(p3, x1))
+            else:
+                out.append((y0, y1, x0, x1))
+        return out
+
+    with mock.patch.object(oriented_nc, "_blocks", blocks_numpy), \
+            mock.patch.object(oriented_nc, "_as_float32", lambda block: np.ascontiguousarray(block, np.float32)):
+        yield
+
+
+@contextlib.contextmanager
+def _choice_glue_before() -> Iterator[None]:
+    """The local choice's glue before this round: ``choice-bands-apart`` and ``choice-blocks-numpy`` together."""
+    with _choice_bands_apart(), _choice_blocks_numpy():
+        yield
+
+
+@contextlib.contextmanager
 def _choice_float64() -> Iterator[None]:
     """Before oriented nc's kernel and its structure tensor were float32 vector code: the float64 kernel (its taps
     listed per kernel and summed in a fixed order, the kernels' choice per voxel with branches, the time blur per
@@ -860,6 +896,8 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "choice-float64": _choice_float64,
     "choice-opencv-tensor": _choice_opencv_tensor,
     "choice-bands-apart": _choice_bands_apart,
+    "choice-blocks-numpy": _choice_blocks_numpy,
+    "choice-glue-before": _choice_glue_before,
     "gather-finish-numpy": _gather_finish_numpy,
     "gather-reads-clamped": _gather_reads_clamped,
     "gather-by-voxel": _gather_by_voxel,

@@ -597,7 +597,14 @@ class CpuStages:
 
     def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume) -> None:
         w = self.window
-        if not np.isfinite(loo).any():
+        F = loo.shape[0]
+        finite = np.zeros(F, bool)
+
+        def some_finite(f: int) -> None:  # a frame per task: no serial pass over the leave-one-out
+            finite[f] = np.isfinite(loo[f]).any()
+
+        for_each(some_finite, F)
+        if not finite.any():
             return
         if w.scores_still_voxels:  # at gathered voxels slower than STILL_VOXEL_SPEED the pixel's own sample scores
             mask = self._mask()
@@ -614,7 +621,8 @@ class CpuStages:
         per_band = max(1, -(-max(local_choice.BAND, 2 * workers()) // w.K))  # whole frames, two sub-frames a thread
         other = np.empty((min(F, per_band) * w.K, H, W), np.float32)
         chosen = np.empty(other.shape, bool)
-        other_loo = np.full(w.frames.shape, np.nan, np.float32)
+        other_loo = np.empty(w.frames.shape, np.float32)
+        for_each(lambda f: other_loo[f].fill(np.nan), F)  # a frame per task (18 MB at 640×480, K = 16)
         workspace: list[Any] = []  # the threads' planes, kept from band to band
         plan = OrientedNc(frames, w.code, high_tr, missing=w.missing)
         counts = getattr(gathered, "counts", None)  # a packed volume's True voxels per sub-frame

@@ -368,7 +368,7 @@ class OrientedNc:
         if chosen is not None and chosen.dtype != bool:
             raise ValueError(f"`where` must be a bool (S, H, W) = {(F * K, H, W)} array; its sub-frames {s0} to {s1} "
                              f"are {chosen.dtype}")
-        everywhere = np.ones((H, W), bool)
+        everywhere = np.ones((H, W), bool) if chosen is None else None
         # Planes a thread works in, taken from the pool and given back (fresh memory costs page faults every time).
         pool = [] if workspace is None else workspace
         lock = threading.Lock()

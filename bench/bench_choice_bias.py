@@ -12,7 +12,7 @@ a slow vertical ripple; the built-in ``static`` scene's first sub-frame, 128×96
 benchmark data is present (``$FLEXVOX_DATA/sci_benchmark``), the first sub-frame of Runner and of Drop
 held still. Figures only, never pass/fail. Usage: ``python bench/bench_choice_bias.py [--quick]`` (about a
 minute; ``--quick``: K = 8 and the plain square only, a few seconds). The isotropic candidate replaces
-``flexvox_core.motion.stages.oriented_nc``, the name the CPU stages call (the run is on the CPU).
+``flexvox_core.motion.stages.OrientedNc``, the name the CPU stages call (the run is on the CPU).
 """
 
 from __future__ import annotations
@@ -27,10 +27,10 @@ from flexvox_core.design import design_code
 from flexvox_core.forward import capture
 from flexvox_core.metrics import psnr
 from flexvox_core.motion import motion_aware
-from flexvox_core.reconstruct.oriented_nc import oriented_nc
+from flexvox_core.reconstruct.oriented_nc import OrientedNc
 from flexvox_core.simulate.scenes import render_scene
 
-ORIENTED = stages.oriented_nc
+ORIENTED = stages.OrientedNc
 """The candidate the CPU stages call, read at import: a renamed or moved name fails here, under ``--help`` too."""
 
 
@@ -57,9 +57,11 @@ def clips(K: int, quick: bool = False) -> dict[str, np.ndarray]:
     return out
 
 
-def isotropic(frames, code, guide, **kw):
+class Isotropic(OrientedNc):
     """The local choice's candidate before oriented nc: the same kernel with a guide without edges."""
-    return oriented_nc(frames, code, np.zeros_like(guide), **kw)
+
+    def __init__(self, frames, code, guide, **kw) -> None:
+        super().__init__(frames, code, np.zeros_like(guide), **kw)
 
 
 def main() -> None:
@@ -76,11 +78,11 @@ def main() -> None:
             frames = capture(truth, code)
             alone = psnr(truth, motion_aware(frames, code, local_choice=False, device="cpu").video)
             default = psnr(truth, motion_aware(frames, code, device="cpu").video)
-            stages.oriented_nc = isotropic
+            stages.OrientedNc = Isotropic  # type: ignore[misc]
             try:
                 iso = psnr(truth, motion_aware(frames, code, device="cpu").video)
             finally:
-                stages.oriented_nc = oriented
+                stages.OrientedNc = oriented  # type: ignore[misc]
             print(f"| {K} | {name} | {alone:.2f} | {iso:.2f} | {default:.2f} |", flush=True)
 
 

@@ -616,16 +616,102 @@ def _choice_opencv_tensor() -> Iterator[None]:
         yield
 
 
+def _choice_per_band(oriented: Callable[..., Any]) -> Callable[..., None]:
+    """The local choice's stage as it was before its bands shared one :class:`OrientedNc`: ``oriented`` (an
+    ``oriented_nc``) called per band with the whole gathered volume and the video as the fallback, which checked its
+    inputs again (the frames' values, the band's guide), made the bank and the time weights, unpacked the band's
+    gathered voxels on the calling thread (twice: the stage's test and oriented nc's) and copied the fallback whole
+    into each sub-frame."""
+    from flexvox_core.motion import local_choice
+    from flexvox_core.motion.stages import workers
+    from flexvox_core.planes import band
+
+    def stage(self: Any, video: np.ndarray, loo: np.ndarray, gathered: Any, flow: Any, high_tr: np.ndarray) -> None:
+        w = self.window
+        if not np.isfinite(loo).any():
+            return
+        if w.scores_still_voxels:
+            local_choice.still_voxel_loo(loo, video, w.frames, gathered, self._mask(),
+                                         flow if hasattr(flow, "band") else flow.flow, w.K)
+        frames = np.ascontiguousarray(w.frames, np.float32)
+        F, H, W = frames.shape
+        per_band = max(1, -(-max(local_choice.BAND, 2 * workers()) // w.K))
+        other = np.empty((min(F, per_band) * w.K, H, W), np.float32)
+        other_loo = np.full(w.frames.shape, np.nan, np.float32)
+        workspace: list[Any] = []
+        for f0 in range(0, F, per_band):
+            f1 = min(F, f0 + per_band)
+            s0, s1 = f0 * w.K, f1 * w.K
+            where = band(gathered, s0, s1)
+            if not where.any():
+                continue
+            got, _ = oriented(frames, w.code, high_tr, where=gathered, fallback=video, missing=w.missing,
+                              out=other[:s1 - s0], subframes=(s0, s1), loo=other_loo, workspace=workspace)
+            weights = local_choice.local_weights(loo[f0:f1], other_loo[f0:f1], frames[f0:f1])
+            local_choice.blend(video[s0:s1], got, weights, where, w.K)
+
+    return stage
+
+
+@contextlib.contextmanager
+def _choice_bands_apart() -> Iterator[None]:
+    """Before the local choice's bands shared one oriented nc (``OrientedNc``: its checks and constants made once,
+    the gathered voxels unpacked a sub-frame a task, no fallback copied into oriented nc's planes): an
+    ``oriented_nc`` call per band (:func:`_choice_per_band`; the same bits)."""
+    from flexvox_core.motion import stages
+    from flexvox_core.reconstruct.oriented_nc import oriented_nc
+
+    with mock.patch.object(stages.CpuStages, "local_choice", _choice_per_band(oriented_nc)):
+        yield
+
+
+@contextlib.contextmanager
+def _choice_blocks_numpy() -> Iterator[None]:
+    """Before oriented nc found its blocks by a compiled row scan and made the float16 guide's blocks float32 through
+    OpenCV: numpy's ``any`` along and across the rows of each band, numpy's conversion (the same bits)."""
+    from flexvox_core.reconstruct import oriented_nc
+
+    def blocks_numpy(wanted: np.ndarray) -> list[tuple[int, int, int, int]]:
+        W = wanted.shape[1]
+        rows = wanted.any(axis=1)
+        out: list[tuple[int, int, int, int]] = []
+        for r0 in range(0, wanted.shape[0], oriented_nc.BLOCK_ROWS):
+            ys = np.flatnonzero(rows[r0:r0 + oriented_nc.BLOCK_ROWS])
+            if not len(ys):
+                continue
+            y0, y1 = r0 + int(ys[0]), r0 + int(ys[-1]) + 1
+            xs = np.flatnonzero(wanted[y0:y1].any(axis=0))
+            x0, x1 = int(xs[0]), int(xs[-1]) + 1
+            if out and oriented_nc._aligned_columns(*out[-1][2:], W) == oriented_nc._aligned_columns(x0, x1, W):
+                p0, _, p2, p3 = out[-1]
+                out[-1] = (p0, y1, min(p2, x0), max(p3, x1))
+            else:
+                out.append((y0, y1, x0, x1))
+        return out
+
+    with mock.patch.object(oriented_nc, "_blocks", blocks_numpy), \
+            mock.patch.object(oriented_nc, "_as_float32", lambda block: np.ascontiguousarray(block, np.float32)):
+        yield
+
+
+@contextlib.contextmanager
+def _choice_glue_before() -> Iterator[None]:
+    """The local choice's glue before this round: ``choice-bands-apart`` and ``choice-blocks-numpy`` together."""
+    with _choice_bands_apart(), _choice_blocks_numpy():
+        yield
+
+
 @contextlib.contextmanager
 def _choice_float64() -> Iterator[None]:
     """Before oriented nc's kernel and its structure tensor were float32 vector code: the float64 kernel (its taps
     listed per kernel and summed in a fixed order, the kernels' choice per voxel with branches, the time blur per
-    pixel) and OpenCV's tensor (``tests/flexvox_core/reconstruct/oriented_float64.py``)."""
+    pixel) and OpenCV's tensor (``tests/flexvox_core/reconstruct/oriented_float64.py``), called per band as then
+    (:func:`_choice_per_band`)."""
     from flexvox_core.motion import stages
     _repository_on_path()  # the tests' copy of the kernel, importable however the script is started
     from tests.flexvox_core.reconstruct.oriented_float64 import oriented_nc_float64
 
-    with mock.patch.object(stages, "oriented_nc", oriented_nc_float64):
+    with mock.patch.object(stages.CpuStages, "local_choice", _choice_per_band(oriented_nc_float64)):
         yield
 
 
@@ -868,6 +954,9 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "choice-before": _choice_before,
     "choice-float64": _choice_float64,
     "choice-opencv-tensor": _choice_opencv_tensor,
+    "choice-bands-apart": _choice_bands_apart,
+    "choice-blocks-numpy": _choice_blocks_numpy,
+    "choice-glue-before": _choice_glue_before,
     "gather-finish-numpy": _gather_finish_numpy,
     "gather-reads-clamped": _gather_reads_clamped,
     "gather-by-voxel": _gather_by_voxel,

@@ -82,13 +82,15 @@ def local_weights(loo_a: np.ndarray, loo_b: np.ndarray, samples: np.ndarray, *, 
         return local_weights_numpy(a, b, y, sigma=sigma, power=power)
     from flexvox_core.motion.local_choice_kernel import squared_errors, weight_of_a
 
-    out = np.ones(a.shape, np.float32)
+    out = np.empty(a.shape, np.float32)
 
     def frame(f):  # a frame's weights read its own planes alone: the frames run side by side
         ea = np.empty(a.shape[1:], np.float32)
         eb = np.empty(a.shape[1:], np.float32)
         if squared_errors(a[f], b[f], y[f], ea, eb):
             weight_of_a(_pooled(ea, sigma), _pooled(eb, sigma), out[f])
+        else:
+            out[f].fill(1)
 
     for_each(frame, a.shape[0])
     return out

@@ -21,7 +21,8 @@ import numpy.typing as npt
 def blend_plane(video: npt.NDArray[Any], other: npt.NDArray[Any], weights: npt.NDArray[Any],
                 where: npt.NDArray[np.bool_]) -> None:
     """``video ← video + (1 − w)·(other − video)`` at the voxels ``where`` (H, W), in place: ``w`` from
-    ``weights`` (H, W), in the arrays' own types (float32 stays float32, as numpy computes it)."""
+    ``weights`` (H, W), in the arrays' own types (float32 stays float32, as numpy computes it); ``other`` is read at
+    those voxels alone (elsewhere it may hold anything)."""
     H, W = video.shape
     one = weights.dtype.type(1)
     for y in range(H):

@@ -72,7 +72,7 @@ from flexvox_core.motion.sample_bands import SampleMask
 from flexvox_core.motion.vardiff import refine_still_speed, variable_tensor_diffusion
 from flexvox_core.planes import Bands, band
 from flexvox_core.reconstruct.diffusion import diffuse, diffuse_where
-from flexvox_core.reconstruct.oriented_nc import oriented_nc
+from flexvox_core.reconstruct.oriented_nc import OrientedNc
 from flexvox_core.threads import for_each, workers
 
 if TYPE_CHECKING:
@@ -597,7 +597,14 @@ class CpuStages:
 
     def local_choice(self, video: Volume, loo: Volume, gathered: Volume, flow: Flow, high_tr: Volume) -> None:
         w = self.window
-        if not np.isfinite(loo).any():
+        F = loo.shape[0]
+        finite = np.zeros(F, bool)
+
+        def some_finite(f: int) -> None:  # a frame per task: no serial pass over the leave-one-out
+            finite[f] = np.isfinite(loo[f]).any()
+
+        for_each(some_finite, F)
+        if not finite.any():
             return
         if w.scores_still_voxels:  # at gathered voxels slower than STILL_VOXEL_SPEED the pixel's own sample scores
             mask = self._mask()
@@ -605,21 +612,35 @@ class CpuStages:
             local_choice.still_voxel_loo(loo, video, w.frames, gathered, mask,
                                          flow if hasattr(flow, "band") else flow.flow, w.K)
         # A band of frames at a time: a frame's weights pool its own samples' leave-one-out alone, so each band's
-        # oriented nc (at its gathered voxels) is blended in before the next band's is made.
+        # oriented nc (at its gathered voxels) is blended in before the next band's is made. What the bands share is
+        # made once (oriented nc's checks, the guide's included, and constants); the blend reads oriented nc's value at
+        # the gathered voxels alone, so no fallback is copied into it; the gathered voxels are unpacked a sub-frame a
+        # task (nothing serial between the bands' parallel passes but their calls).
         frames = np.ascontiguousarray(w.frames, np.float32)  # as oriented nc reads them: made once, not per band
         F, H, W = frames.shape
         per_band = max(1, -(-max(local_choice.BAND, 2 * workers()) // w.K))  # whole frames, two sub-frames a thread
         other = np.empty((min(F, per_band) * w.K, H, W), np.float32)
-        other_loo = np.full(w.frames.shape, np.nan, np.float32)
+        chosen = np.empty(other.shape, bool)
+        other_loo = np.empty(w.frames.shape, np.float32)
+        for_each(lambda f: other_loo[f].fill(np.nan), F)  # a frame per task (18 MB at 640×480, K = 16)
         workspace: list[Any] = []  # the threads' planes, kept from band to band
+        plan = OrientedNc(frames, w.code, high_tr, missing=w.missing)
+        counts = getattr(gathered, "counts", None)  # a packed volume's True voxels per sub-frame
         for f0 in range(0, F, per_band):
             f1 = min(F, f0 + per_band)
             s0, s1 = f0 * w.K, f1 * w.K
-            where = band(gathered, s0, s1)
-            if not where.any():
+            where = chosen[:s1 - s0]
+            if counts is not None and not counts[s0:s1].any():
                 continue
-            got, _ = oriented_nc(frames, w.code, high_tr, where=gathered, fallback=video, missing=w.missing,
-                                 out=other[:s1 - s0], subframes=(s0, s1), loo=other_loo, workspace=workspace)
+
+            def unpack(i: int, s0: int = s0, where: np.ndarray = where) -> None:
+                where[i] = band(gathered, s0 + i, s0 + i + 1)[0]
+
+            for_each(unpack, s1 - s0)
+            if counts is None and not where.any():
+                continue
+            got, _ = plan.run(s0, s1, where, video[s0:s1], out=other[:s1 - s0], loo=other_loo, workspace=workspace,
+                              fill=False)
             weights = local_choice.local_weights(loo[f0:f1], other_loo[f0:f1], frames[f0:f1])
             local_choice.blend(video[s0:s1], got, weights, where, w.K)
 

@@ -194,6 +194,16 @@ def _not_finite(guide: np.ndarray, s0: int, s1: int) -> np.ndarray:
     return bad
 
 
+def _as_float32(block: np.ndarray) -> np.ndarray:
+    """``block`` (h, w) of the guide as a C-contiguous float32 array: float16 by OpenCV where it is at least 2×2
+    (``cv2.multiply`` by 1 into float32: the CPU's conversion instructions, 0.13 against numpy's 1.0 ns a value;
+    every float16 value is a float32 one, so the same values, tested on all of them), numpy otherwise (OpenCV reads
+    a 1×1 array as a number)."""
+    if block.dtype == np.float16 and min(block.shape) >= 2:
+        return cv2.multiply(block, 1.0, dtype=cv2.CV_32F)
+    return np.ascontiguousarray(block, np.float32)
+
+
 def _check_subframes(subframes, S: int) -> tuple[int, int]:
     if subframes is None:
         return 0, S
@@ -222,19 +232,16 @@ def _blocks(wanted: np.ndarray) -> list[tuple[int, int, int, int]]:
     """(y0, y1, x0, x1) of each band of :data:`BLOCK_ROWS` rows of ``wanted`` (H, W) bool that holds a wanted
     voxel: its first and last wanted rows and columns (ends excluded); successive bands over the same aligned
     columns (:func:`_aligned_columns`) are one block."""
-    W = wanted.shape[1]
-    rows = wanted.any(axis=1)
-    found = np.flatnonzero(rows)
+    from flexvox_core.reconstruct.oriented_nc_kernel import band_spans
+
+    H, W = wanted.shape
+    wanted = np.ascontiguousarray(wanted, bool)
+    spans = np.empty((-(-H // BLOCK_ROWS), 4), np.int64)
+    band_spans(wanted, wanted[:, :W // 8 * 8].view(np.uint64), BLOCK_ROWS, spans)  # compiled: no GIL held
     out: list[tuple[int, int, int, int]] = []
-    if not len(found):
-        return out
-    for r0 in range(int(found[0]) // BLOCK_ROWS * BLOCK_ROWS, int(found[-1]) + 1, BLOCK_ROWS):
-        ys = np.flatnonzero(rows[r0:r0 + BLOCK_ROWS])
-        if not len(ys):
+    for y0, y1, x0, x1 in spans.tolist():
+        if y0 < 0:
             continue
-        y0, y1 = r0 + int(ys[0]), r0 + int(ys[-1]) + 1
-        xs = np.flatnonzero(wanted[y0:y1].any(axis=0))
-        x0, x1 = int(xs[0]), int(xs[-1]) + 1
         if out and _aligned_columns(*out[-1][2:], W) == _aligned_columns(x0, x1, W):
             # the same columns as the band above: one block (no rows of tensor made twice at their seam)
             p0, _, p2, p3 = out[-1]
@@ -293,76 +300,107 @@ def oriented_nc(frames, code, guide, *, where=None, fallback=None, missing=None,
         where no other sample is in reach, and in missing frames.
     """
     from flexvox_core.planes import band
-    from flexvox_core.reconstruct.oriented_nc_kernel import ROW, dense_bank, oriented_plane, structure_block, tap_lists
 
-    f, c, g, where, missing = check_inputs(frames, code, guide, where, fallback, missing, subframes)
-    F, H, W = f.shape
-    K = c.shape[2]
-    s0, s1 = _check_subframes(subframes, F * K)
-    present = None if missing is None else ~missing
-    gt = gaussian_kernel(SIGMA, np.float64)
-    weight, first = time_weights(gt, K, F, present)
-    weight = weight.astype(np.float32)
-    floor = NC_MIN_WEIGHT * float(gt.max())
-    bank = kernel_bank()
-    offsets, weights, counts = tap_lists(bank)
-    weights = weights.astype(np.float32)
-    dense = dense_bank(bank)
-    m = c.shape[0]
-    order = tiled_order(c, min(H, m), W).astype(np.int64)  # repeats every m rows
-    samples = np.ascontiguousarray(f, dtype=np.float32)
-    n = s1 - s0
-    fall = None if fallback is None else band(fallback, s0, s1)
-    if out is not None:
-        if (not isinstance(out, np.ndarray) or out.shape != (n, H, W) or out.dtype != np.float32
-                or not out.flags.c_contiguous or not out.flags.writeable
-                or any(np.may_share_memory(out, a) for a in (frames, guide, where, fall)
-                       if isinstance(a, np.ndarray))):
-            raise ValueError(f"`out` must be a writable C-contiguous float32 array of shape {(n, H, W)} that shares "
-                             "no memory with the other inputs")
-        video = out
-    else:
-        video = np.empty((n, H, W), np.float32)
-    if loo is None:
-        loo = np.full((F, H, W), np.nan, np.float32)
-    elif (not isinstance(loo, np.ndarray) or loo.shape != (F, H, W) or loo.dtype != np.float32
-          or not loo.flags.c_contiguous or not loo.flags.writeable):
-        raise ValueError(f"`loo` must be a writable C-contiguous float32 array of shape {(F, H, W)}")
-    chosen = None if where is None else band(where, s0, s1)
-    if chosen is not None and chosen.dtype != bool:
-        raise ValueError(f"`where` must be a bool (S, H, W) = {(F * K, H, W)} array; its sub-frames {s0} to {s1} are "
-                         f"{chosen.dtype}")
-    present_f = np.ones(F, bool) if present is None else present
-    everywhere = np.ones((H, W), bool)
-    # Planes a thread works in, taken from the pool and given back (fresh memory costs page faults every time).
-    pool = [] if workspace is None else workspace
-    lock = threading.Lock()
+    plan = OrientedNc(frames, code, guide, where=where, fallback=fallback, missing=missing, subframes=subframes)
+    s0, s1 = _check_subframes(subframes, plan.S)
+    chosen = None if plan.where is None else band(plan.where, s0, s1)
+    fall = None if plan.fallback is None else band(plan.fallback, s0, s1)
+    return plan.run(s0, s1, chosen, fall, out=out, loo=loo, workspace=workspace)
 
-    def one(i):
-        s = s0 + i
-        if fall is None:  # each sub-frame starts as the fallback, on the thread that estimates it
-            video[i].fill(np.nan)
+
+class OrientedNc:
+    """:func:`oriented_nc`'s checked inputs and the constants its sums read (the kernel bank, the time weights, the
+    code's slots), made once for the calls on bands of sub-frames of one video (:meth:`run`): motion-aware's local
+    choice calls it a band at a time. The arguments are :func:`oriented_nc`'s; the guide's values are checked at
+    ``subframes`` alone (default: all)."""
+
+    def __init__(self, frames, code, guide, *, where=None, fallback=None, missing=None, subframes=None) -> None:
+        from flexvox_core.reconstruct.oriented_nc_kernel import dense_bank, tap_lists
+
+        f, c, g, where, missing = check_inputs(frames, code, guide, where, fallback, missing, subframes)
+        F, H, W = f.shape
+        K = c.shape[2]
+        self.frames, self.guide, self.where, self.fallback = frames, g, where, fallback
+        self.S, self.K = F * K, K
+        self.present = np.ones(F, bool) if missing is None else ~missing
+        gt = gaussian_kernel(SIGMA, np.float64)
+        weight, self.first = time_weights(gt, K, F, None if missing is None else ~missing)
+        self.weight = weight.astype(np.float32)
+        self.floor = NC_MIN_WEIGHT * float(gt.max())
+        bank = kernel_bank()
+        self.offsets, weights, self.counts = tap_lists(bank)
+        self.weights = weights.astype(np.float32)
+        self.dense = dense_bank(bank)
+        self.h = bank.shape[1] // 2
+        self.order = tiled_order(c, min(H, c.shape[0]), W).astype(np.int64)  # repeats every m rows
+        self.samples = np.ascontiguousarray(f, dtype=np.float32)
+
+    def run(self, s0: int, s1: int, chosen, fall, *, out=None, loo=None, workspace: list | None = None,
+            fill: bool = True) -> tuple[np.ndarray, np.ndarray]:
+        """Sub-frames ``s0`` to ``s1`` (checked by the caller): ``chosen`` and ``fall`` their ``where`` and
+        ``fallback`` (arrays (s1 − s0, H, W), or None), ``out``, ``loo`` and ``workspace`` as :func:`oriented_nc`'s.
+        ``fill=False`` (``chosen`` and ``fall`` given): ``out`` is written at the ``chosen`` voxels alone, the
+        fallback's value where no estimate is made; elsewhere it keeps what it held (a reader of the chosen voxels
+        alone need not have the fallback copied whole)."""
+        from flexvox_core.reconstruct.oriented_nc_kernel import ROW, oriented_plane, structure_block
+
+        F, H, W = self.samples.shape
+        K = self.K
+        n = s1 - s0
+        g, samples, weight, first, present_f = self.guide, self.samples, self.weight, self.first, self.present
+        if not fill and (chosen is None or fall is None):
+            raise ValueError("`fill=False` needs the voxels to estimate and a fallback")
+        if out is not None:
+            if (not isinstance(out, np.ndarray) or out.shape != (n, H, W) or out.dtype != np.float32
+                    or not out.flags.c_contiguous or not out.flags.writeable
+                    or any(np.may_share_memory(out, a) for a in (self.frames, g, chosen, fall)
+                           if isinstance(a, np.ndarray))):
+                raise ValueError(f"`out` must be a writable C-contiguous float32 array of shape {(n, H, W)} that "
+                                 "shares no memory with the other inputs")
+            video = out
         else:
-            np.copyto(video[i], fall[i], casting="unsafe")
-        wanted = everywhere if chosen is None else chosen[i]
-        blocks = _blocks(wanted)
-        if not blocks:
-            return
-        with lock:
-            planes = pool.pop() if pool else None
-        if planes is None or planes[0].shape != (3, H, W):  # the time-blurred planes start finite (zeros)
-            planes = (np.zeros((3, H, W), np.float32), np.zeros(H * W + ROW, np.float32),
-                      np.zeros(H * W + ROW, np.float32))
-        j, vt, mt = planes
-        for y0, y1, x0, x1 in blocks:
-            b0, b1 = max(0, y0 - _PAD), min(H, y1 + _PAD)
-            a0, a1 = _aligned_columns(x0, x1, W)
-            structure_block(np.ascontiguousarray(g[s, b0:b1, a0:a1], np.float32), *_STRUCTURE_TAPS, j, b0, a0)
-            oriented_plane(samples, order, weight[s], int(first[s]), s % K, s // K, bool(present_f[s // K]),
-                           j, wanted, dense, offsets, weights, counts, bank.shape[1] // 2, floor, y0, y1, x0, x1,
-                           vt, mt, video[i], loo, _LOW, _HIGH, _TAN)
-        with lock:
-            pool.append(planes)
+            video = np.empty((n, H, W), np.float32)
+        if loo is None:
+            loo = np.full((F, H, W), np.nan, np.float32)
+        elif (not isinstance(loo, np.ndarray) or loo.shape != (F, H, W) or loo.dtype != np.float32
+              or not loo.flags.c_contiguous or not loo.flags.writeable):
+            raise ValueError(f"`loo` must be a writable C-contiguous float32 array of shape {(F, H, W)}")
+        if chosen is not None and chosen.dtype != bool:
+            raise ValueError(f"`where` must be a bool (S, H, W) = {(F * K, H, W)} array; its sub-frames {s0} to {s1} "
+                             f"are {chosen.dtype}")
+        everywhere = np.ones((H, W), bool) if chosen is None else None
+        # Planes a thread works in, taken from the pool and given back (fresh memory costs page faults every time).
+        pool = [] if workspace is None else workspace
+        lock = threading.Lock()
 
-    for_each(one, n)
-    return video, loo
+        def one(i):
+            s = s0 + i
+            if not fill:
+                pass  # the chosen voxels take the fallback's value in the kernel where no estimate is made
+            elif fall is None:  # each sub-frame starts as the fallback, on the thread that estimates it
+                video[i].fill(np.nan)
+            else:
+                np.copyto(video[i], fall[i], casting="unsafe")
+            wanted = everywhere if chosen is None else chosen[i]
+            blocks = _blocks(wanted)
+            if not blocks:
+                return
+            with lock:
+                planes = pool.pop() if pool else None
+            if planes is None or planes[0].shape != (3, H, W):  # the time-blurred planes start finite (zeros)
+                planes = (np.zeros((3, H, W), np.float32), np.zeros(H * W + ROW, np.float32),
+                          np.zeros(H * W + ROW, np.float32))
+            j, vt, mt = planes
+            fallback = video[i] if fill else fall[i]
+            for y0, y1, x0, x1 in blocks:
+                b0, b1 = max(0, y0 - _PAD), min(H, y1 + _PAD)
+                a0, a1 = _aligned_columns(x0, x1, W)
+                structure_block(_as_float32(g[s, b0:b1, a0:a1]), *_STRUCTURE_TAPS, j, b0, a0)
+                oriented_plane(samples, self.order, weight[s], int(first[s]), s % K, s // K, bool(present_f[s // K]),
+                               j, wanted, self.dense, self.offsets, self.weights, self.counts, self.h, self.floor,
+                               y0, y1, x0, x1, vt, mt, video[i], fallback, loo, _LOW, _HIGH, _TAN)
+            with lock:
+                pool.append(planes)
+
+        for_each(one, n)
+        return video, loo

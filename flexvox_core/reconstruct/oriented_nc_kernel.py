@@ -178,15 +178,16 @@ def _time_blur(frames, order, weight, first, lo, hi, left, right, vt, mt):
 
 @numba.njit(nogil=True, cache=True)
 def oriented_plane(frames, order, weight, first, slot, frame, present, j, select, dense, offsets, weights, counts, h,
-                   floor, y0, y1, x0, x1, vt, mt, out, loo, low, high, tan1):
+                   floor, y0, y1, x0, x1, vt, mt, out, fall, loo, low, high, tan1):
     """Rows [y0, y1) and columns [x0, x1) of sub-frame s (its ``slot`` = s mod K, ``frame`` = s div K): at each
     ``select``ed voxel, the kernel-weighted mean of the time-blurred samples into ``out`` (H, W) — the sample itself
-    at the pixels of this slot in a ``present`` frame, whose leave-one-out estimate goes to ``loo[frame]`` —, left as
-    it is where the weights sum to at most ``floor``. ``order`` (m, W) repeats every m rows; ``weight`` (K, B)
-    float32. At least :data:`REACH` px from the edges the kernels are the rows of :func:`dense_bank` (``dense``),
-    nearer their tap lists (:func:`tap_lists`, reaching ``h`` px; ``weights`` float32) with reflecting borders.
-    ``vt`` and ``mt`` (H·W + :data:`ROW`,) float32 are scratch planes for the time-blurred values and weights, every
-    value in them finite (a dense row reads columns beyond its kernel at weight 0, and 0 · inf would be NaN);
+    at the pixels of this slot in a ``present`` frame, whose leave-one-out estimate goes to ``loo[frame]`` —, and
+    ``fall[y, x]`` (H, W) where the weights sum to at most ``floor`` (``fall`` is ``out``: left as it is). ``order``
+    (m, W) repeats every m rows; ``weight`` (K, B) float32. At least :data:`REACH` px from the edges the kernels are
+    the rows of :func:`dense_bank` (``dense``), nearer their tap lists (:func:`tap_lists`, reaching ``h`` px;
+    ``weights`` float32) with reflecting borders. ``vt`` and ``mt`` (H·W + :data:`ROW`,) float32 are scratch planes
+    for the time-blurred values and weights, every value in them finite (a dense row reads columns beyond its kernel
+    at weight 0, and 0 · inf would be NaN);
     ``low``, ``high``, ``tan1``: the bank's rounding (:func:`bank_row`). The planes are read and written within h px
     of the block alone (``j`` within it).
 
@@ -243,6 +244,50 @@ def oriented_plane(frames, order, weight, first, slot, frame, present, j, select
                     loo[frame, y, x] = num / den
             elif den > floor:
                 out[y, x] = num / den
+            else:
+                out[y, x] = fall[y, x]
+
+
+@numba.njit(nogil=True, cache=True)
+def band_spans(wanted, words, rows, out):
+    """For each band of ``rows`` rows of ``wanted`` (H, W) bool, its first and last rows holding a wanted voxel and
+    the first and last columns holding one within them (ends excluded) into ``out`` (⌈H / rows⌉, 4) int64 as
+    (y0, y1, x0, x1); y0 = −1 where the band holds none. ``words`` (H, W // 8) uint64: the same rows' first
+    8·(W // 8) columns read 8 at a time (``wanted.view`` of them). A row is read from each end to its first wanted
+    voxel, a word at a time (in full where it holds none)."""
+    H, W = wanted.shape
+    n = words.shape[1]
+    for b in range(out.shape[0]):
+        y0, y1, x0, x1 = -1, 0, W, 0
+        for y in range(b * rows, min(H, (b + 1) * rows)):
+            row = wanted[y]
+            k = 0
+            while k < n and words[y, k] == 0:
+                k += 1
+            lo = 8 * k
+            while lo < W and not row[lo]:
+                lo += 1
+            if lo == W:
+                continue
+            hi = W - 1
+            while hi >= 8 * n and not row[hi]:
+                hi -= 1
+            if hi < 8 * n:
+                k = n - 1
+                while words[y, k] == 0:
+                    k -= 1
+                hi = 8 * k + 7
+                while not row[hi]:
+                    hi -= 1
+            if y0 < 0:
+                y0 = y
+            y1 = y + 1
+            x0 = min(x0, lo)
+            x1 = max(x1, hi + 1)
+        out[b, 0] = y0
+        out[b, 1] = y1
+        out[b, 2] = x0
+        out[b, 3] = x1
 
 
 @numba.njit(inline="always", nogil=True, cache=True)

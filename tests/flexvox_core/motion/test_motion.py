@@ -422,18 +422,19 @@ def test_high_tr_is_held_in_float16_after_the_flow_and_given_back_as_float32(mon
     _, frames, _, _ = capture_case
     computed = diffuse(frames, CODE, tensor=STEP1_TENSOR, time=STEP1_TIME)
     flow_read, guides = [], []
-    kept_flow, kept_oriented = pipeline.gated_flow, pipeline.oriented_nc
+    kept_flow = pipeline.gated_flow
 
     def flow_spy(current, *a, **kw):
         flow_read.append(current.copy())
         return kept_flow(current, *a, **kw)
 
-    def oriented_spy(f, c, guide, **kw):
-        guides.append(guide)
-        return kept_oriented(f, c, guide, **kw)
+    class OrientedSpy(pipeline.OrientedNc):
+        def __init__(self, f, c, guide, **kw):
+            guides.append(guide)
+            super().__init__(f, c, guide, **kw)
 
     monkeypatch.setattr(pipeline, "gated_flow", flow_spy)
-    monkeypatch.setattr(pipeline, "oriented_nc", oriented_spy)
+    monkeypatch.setattr(pipeline, "OrientedNc", OrientedSpy)
     held = motion_aware(frames, CODE)
     np.testing.assert_array_equal(flow_read[0], computed)
     assert flow_read[0].dtype == np.float32 and guides and all(g.dtype == np.float16 for g in guides)

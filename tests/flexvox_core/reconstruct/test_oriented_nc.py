@@ -525,3 +525,91 @@ def test_a_blocks_structure_tensor_is_the_whole_pictures_bits(rng, W):
         for a0, a1 in (_aligned_columns(x0, x1, W), (max(0, x0 - _PAD), min(W, x1 + _PAD))):
             part = structure(guide[b0:b1, a0:a1])
             assert np.array_equal(part[:, y0 - b0:y1 - b0, x0 - a0:x1 - a0], whole[:, y0:y1, x0:x1]), (x0, x1)
+
+
+def _blocks_numpy(wanted):
+    """oriented_nc's blocks found by numpy (the compiled row scan's reference): each band's wanted rows by
+    ``any`` along them, its columns by ``any`` across its rows."""
+    from flexvox_core.reconstruct.oriented_nc import BLOCK_ROWS, _aligned_columns
+
+    W = wanted.shape[1]
+    rows = wanted.any(axis=1)
+    out = []
+    for r0 in range(0, wanted.shape[0], BLOCK_ROWS):
+        ys = np.flatnonzero(rows[r0:r0 + BLOCK_ROWS])
+        if not len(ys):
+            continue
+        y0, y1 = r0 + int(ys[0]), r0 + int(ys[-1]) + 1
+        xs = np.flatnonzero(wanted[y0:y1].any(axis=0))
+        x0, x1 = int(xs[0]), int(xs[-1]) + 1
+        if out and _aligned_columns(*out[-1][2:], W) == _aligned_columns(x0, x1, W):
+            p0, _, p2, p3 = out[-1]
+            out[-1] = (p0, y1, min(p2, x0), max(p3, x1))
+        else:
+            out.append((y0, y1, x0, x1))
+    return out
+
+
+@pytest.mark.parametrize("W", [1, 7, 8, 9, 16, 77, 640])
+def test_the_compiled_row_scan_finds_numpys_blocks(rng, W):
+    """The blocks from the compiled scan (8 columns a word, the rest one by one) are numpy's, on widths around a
+    word's, on views that are not contiguous, at any density, wanted voxels in the first and last columns too."""
+    from flexvox_core.reconstruct.oriented_nc import BLOCK_ROWS, _blocks
+
+    for density in (0.0, 0.0005, 0.01, 0.3, 1.0):
+        for H in (1, 5, BLOCK_ROWS + 3, 3 * BLOCK_ROWS):
+            wanted = rng.random((H, W + 1)) < density
+            wanted[rng.integers(0, H), [0, -1]] = density > 0
+            for plane in (wanted[:, :W], wanted[:, 1:], np.ascontiguousarray(wanted[:, 1:])):
+                assert _blocks(plane) == _blocks_numpy(plane)
+
+
+def test_a_float16_guide_block_is_converted_to_its_float32_values():
+    """The guide's float16 blocks go to float32 through OpenCV: every finite float16 value (subnormals, ±0, the
+    largest) is numpy's float32 of it bit for bit; blocks too small for OpenCV (1×1) and strided ones too."""
+    from flexvox_core.reconstruct.oriented_nc import _as_float32
+
+    every = np.arange(1 << 16, dtype=np.uint16).view(np.float16)
+    every = every[np.isfinite(every)]
+    plane = np.resize(every, (2, every.size // 2 + 1))
+    got = _as_float32(plane)
+    assert got.dtype == np.float32 and got.flags.c_contiguous
+    np.testing.assert_array_equal(got.view(np.uint32), plane.astype(np.float32).view(np.uint32))
+    big = np.resize(every, (40, 50))
+    for block in (big[3:4, 5:6], big[3:20, 5:6], big[3:4, 5:40], big[3:20:2, 5:40], big[1:39, 7:49]):
+        got = _as_float32(block)
+        assert got.shape == block.shape and got.dtype == np.float32 and got.flags.c_contiguous
+        np.testing.assert_array_equal(got.view(np.uint32), block.astype(np.float32).view(np.uint32))
+
+
+@pytest.mark.parametrize(("tile", "shape", "dropped"), [((2, 4), (2, 12, 17), False), ((2, 2), (4, 11, 9), True),
+                                                         ((4, 4), (4, 23, 30), True)])
+def test_a_plan_without_the_fallback_copied_writes_the_wanted_voxels_alone(rng, tile, shape, dropped):
+    """``OrientedNc.run(..., fill=False)``: at the wanted voxels the bits of ``oriented_nc`` (the fallback's value
+    where no sample is in reach), every other voxel of ``out`` as it was; the same leave-one-out. Odd sizes, dropped
+    frames."""
+    from flexvox_core.reconstruct.oriented_nc import OrientedNc
+
+    code = design_code(tile).code
+    F, H, W = shape
+    K = code.shape[2]
+    truth = smooth_video(rng, F * K, H, W) + _edge_video(F * K, H, W, angle=0.6) * 0.5
+    frames = capture(truth, code)
+    missing = np.array([False, True, True, False]) if dropped else None  # two dropped: a gap beyond nc's reach
+    where = rng.random(truth.shape) < 0.4
+    fallback = rng.uniform(0.1, 0.9, truth.shape).astype(np.float32)
+    want, want_loo = oriented_nc(frames, code, truth, where=where, fallback=fallback, missing=missing)
+    plan = OrientedNc(frames, code, truth, missing=missing)
+    loo = np.full(frames.shape, np.nan, np.float32)
+    for s0, s1 in ((0, K), (K, F * K)):
+        out = np.full((s1 - s0, H, W), -7.0, np.float32)
+        got, _ = plan.run(s0, s1, where[s0:s1], fallback[s0:s1], out=out, loo=loo, fill=False)
+        assert got is out
+        chosen = where[s0:s1]
+        np.testing.assert_array_equal(got[chosen], want[s0:s1][chosen])
+        assert (got[~chosen] == -7).all()
+    np.testing.assert_array_equal(loo, want_loo)
+    if dropped:  # the gap's middle sub-frames have no sample in reach: the fallback's value
+        assert (want[where] == fallback[where]).any()
+    with pytest.raises(ValueError, match=r"`fill=False` needs the voxels to estimate and a fallback"):
+        plan.run(0, K, None, fallback[:K], fill=False)

@@ -782,6 +782,17 @@ def _nc_finish_numpy() -> Iterator[None]:
         yield
 
 
+@contextlib.contextmanager
+def _nc_blur_apart() -> Iterator[None]:
+    """Before nc's general path blurred each interior sub-frame's numerator in space just before finishing it: every
+    sub-frame blurred in a pass of its own first (beside the mask's planes and slots, on the threads as kept; before
+    the change those were made on the main thread); the same bits."""
+    from flexvox_core.reconstruct import diffusion
+
+    with mock.patch.object(diffusion, "_BLUR_AT_FINISH", False):
+        yield
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
@@ -817,6 +828,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "half-by-numpy": _half_by_numpy,
     "long-reach-scalar": _long_reach_scalar,
     "nc-finish-numpy": _nc_finish_numpy,
+    "nc-blur-apart": _nc_blur_apart,
 }
 """The code as it was before each change (``kept``: as it is), or a change tried and not kept, for ``--ab``."""
 

@@ -461,8 +461,9 @@ def _time_pass(samples, code, weight, first, lo: float, hi: float, dtype, *, kee
     """``out[s, y, x]`` = Σ_b weight[s, order[y, x], b] · samples[first[s] + b, y, x], clipped to [lo, hi]
     (:mod:`~flexvox_core.reconstruct.nc_time_kernel`, bands of rows spread over the cores). ``keep`` (F,)
     bool: those frames' samples are written at their voxels instead (``keep_samples``). ``out``: written
-    in place (a new volume when None); ``select`` (S, H, W) bool, or an object read a band of sub-frames at a
-    time (``band(s0, s1)``, :data:`SELECT_BAND` of them): only those voxels of it."""
+    in place (a new volume when None); ``select`` (S, H, W) bool, an object holding it packed (``packed``: see
+    :func:`diffuse_where`), read by the kernel as it is, or one read a band of sub-frames at a time (``band(s0, s1)``,
+    :data:`SELECT_BAND` of them): only those voxels of it."""
     from flexvox_core.reconstruct.nc_time_kernel import time_only_rows
 
     F, H, W = samples.shape
@@ -473,12 +474,20 @@ def _time_pass(samples, code, weight, first, lo: float, hi: float, dtype, *, kee
         out = np.empty((S, H, W), dtype)
     rows = 32
 
-    def run(s0: int, s1: int, chosen) -> None:
+    def run(s0: int, s1: int, chosen, packed=None) -> None:
         for_each(lambda i: time_only_rows(samples, order, weight, first, lo, hi, out, i * rows,
-                                          min(H, (i + 1) * rows), keep, chosen, s0, s1), -(-H // rows))
+                                          min(H, (i + 1) * rows), keep, chosen, s0, s1, packed), -(-H // rows))
 
     if select is None or isinstance(select, np.ndarray):
         run(0, S, select)
+        return out
+    packed = getattr(select, "packed", None)
+    if packed is not None:  # every sub-frame in one pass, the bits read where they are
+        packed = np.asarray(packed)
+        if packed.shape != (S, H, (W + 7) // 8) or packed.dtype != np.uint8 or not packed.flags.c_contiguous:
+            raise ValueError(f"`where`.packed must be a C-contiguous uint8 array of shape {(S, H, (W + 7) // 8)}; "
+                             f"got {packed.dtype} {packed.shape}")
+        run(0, S, None, packed)
         return out
     for s0 in range(0, S, SELECT_BAND):  # a band of the selection at a time: never the whole bool volume
         s1 = min(S, s0 + SELECT_BAND)
@@ -921,13 +930,15 @@ def diffuse_where(frames, code, out: np.ndarray, where, *, tensor=DEFAULT_TENSOR
 
     ``where`` is a bool array of ``out``'s shape, or a volume read a band of sub-frames at a time: an object with
     that ``shape`` and a method ``band(s0, s1)`` giving sub-frames [s0, s1) as a bool array (e.g. motion-aware's
-    speed classes, held a bit per voxel: :class:`~flexvox_core.motion.packed.PackedVolume`).
+    speed classes, held a bit per voxel: :class:`~flexvox_core.motion.packed.PackedVolume`). Such an object may
+    also hold the bits as ``packed``, a C-contiguous uint8 array ``(S, H, ⌈W/8⌉)``, each row's voxels 8 to a byte,
+    the first in the highest bit (:func:`numpy.packbits`), as PackedVolume does.
 
     A tensor without spatial blur, (0, 0, ct), is computed at those voxels alone: the compiled time pass
     (:mod:`~flexvox_core.reconstruct.nc_time_kernel`) writes them into ``out`` and skips rows without one,
     so no volume is made (motion-aware's still voxels, :mod:`flexvox_core.motion.pipeline`; fresh memory
-    is dear: a 640×480 × 240 volume costs 0.1–0.5 s of page faults), and a ``where`` read by bands is read
-    :data:`SELECT_BAND` sub-frames at a time. Any other tensor, or a voxel with no sample in reach, computes the
+    is dear: a 640×480 × 240 volume costs 0.1–0.5 s of page faults); it reads ``packed`` bits as they are, and
+    a ``where`` read by bands otherwise :data:`SELECT_BAND` sub-frames at a time. Any other tensor, or a voxel with no sample in reach, computes the
     whole volume and copies from it (a band of ``where`` at a time).
     """
     f = check_frames(frames)

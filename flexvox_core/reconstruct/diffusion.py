@@ -938,8 +938,8 @@ def diffuse_where(frames, code, out: np.ndarray, where, *, tensor=DEFAULT_TENSOR
     (:mod:`~flexvox_core.reconstruct.nc_time_kernel`) writes them into ``out`` and skips rows without one,
     so no volume is made (motion-aware's still voxels, :mod:`flexvox_core.motion.pipeline`; fresh memory
     is dear: a 640×480 × 240 volume costs 0.1–0.5 s of page faults); it reads ``packed`` bits as they are, and
-    a ``where`` read by bands otherwise :data:`SELECT_BAND` sub-frames at a time. Any other tensor, or a voxel with no sample in reach, computes the
-    whole volume and copies from it (a band of ``where`` at a time).
+    a ``where`` read by bands otherwise :data:`SELECT_BAND` sub-frames at a time. Any other tensor, or a voxel
+    with no sample in reach, computes the whole volume and copies from it (a band of ``where`` at a time).
     """
     f = check_frames(frames)
     c = check_identity_code(code)

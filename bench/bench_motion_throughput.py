@@ -925,6 +925,36 @@ def _nc_finish_numpy() -> Iterator[None]:
         yield
 
 
+@contextlib.contextmanager
+def _nc_blur_apart() -> Iterator[None]:
+    """Before nc's general path blurred each interior sub-frame's numerator in space just before finishing it: every
+    sub-frame blurred in a pass of its own first (beside the mask's planes and slots, on the threads as kept; before
+    the change those were made on the main thread); the same bits."""
+    from flexvox_core.reconstruct import diffusion
+
+    with mock.patch.object(diffusion, "_BLUR_AT_FINISH", False):
+        yield
+
+
+@contextlib.contextmanager
+def _where_by_bands() -> Iterator[None]:
+    """Before ``diffuse_where`` read the still voxels' packed bits in its compiled time pass: the selection unpacked
+    on the main thread SELECT_BAND sub-frames at a time, a pass of the kernel per band; the same bits."""
+    from flexvox_core.motion import stages
+
+    kept = stages.diffuse_where
+
+    class Bands:
+        def __init__(self, held: Any) -> None:
+            self.shape, self.band = held.shape, held.band
+
+    def by_bands(frames: Any, code: Any, out: Any, where: Any, **kw: Any) -> Any:
+        return kept(frames, code, out, Bands(where) if hasattr(where, "packed") else where, **kw)
+
+    with mock.patch.object(stages, "diffuse_where", by_bands):
+        yield
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
     "remap-gather": _gather_by_remap,
@@ -965,6 +995,8 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "half-by-numpy": _half_by_numpy,
     "long-reach-scalar": _long_reach_scalar,
     "nc-finish-numpy": _nc_finish_numpy,
+    "nc-blur-apart": _nc_blur_apart,
+    "where-by-bands": _where_by_bands,
 }
 """The code as it was before each change (``kept``: as it is), or a change tried and not kept, for ``--ab``."""
 

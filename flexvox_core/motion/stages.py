@@ -529,7 +529,7 @@ class CpuStages:
         if still.any():
             if w.passes == 1 and w.skip is None:
                 # `fixed` serves this pass alone: the still voxels' values go straight into it (no volume of them;
-                # diffuse_where reads the still voxels a band of sub-frames at a time).
+                # diffuse_where reads the still voxels' packed bits as they are held).
                 diffuse_where(w.frames, w.code, base, still, tensor=STILL_TENSOR, time=w.still_time,
                               missing=w.missing)
             else:

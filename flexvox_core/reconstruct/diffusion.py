@@ -90,6 +90,10 @@ _CHUNK = 16384  # columns per cv2 call for the time axis (a wide thin image filt
 PARALLEL_ENDS_TAPS = 49
 """Time kernels shorter than this blur the two ends of :class:`_PeriodicDenominator` on two threads."""
 
+_BLUR_AT_FINISH = True
+"""nc's general path blurs a sub-frame's numerator in space just before it finishes it (False: every sub-frame
+blurred in a pass of its own first; ``bench/bench_motion_throughput.py --ab nc-blur-apart``)."""
+
 SELECT_BAND = 16
 """Sub-frames of a selection read at a time by :func:`diffuse_where` when it is given as bands."""
 
@@ -321,29 +325,45 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
         fast = _nc_time_only(frames, code, sig[2], keep_samples, dtype, present)
         if fast is not None:
             return fast
+    spatial = gx is not None or gy is not None
     if gt is not None:
         # Numerator: each pixel's samples blurred in time (a few per sub-frame: compiled, no volume of
-        # mostly-zero sub-frames blurred), then every sub-frame in space (two at a time: OpenCV releases
-        # the GIL). The blurs commute: the same sums up to float rounding (and the same with ``loo``, so
-        # that nc_leave_one_out's video stays diffuse's, bit for bit).
+        # mostly-zero sub-frames blurred), then every sub-frame in space. The blurs commute: the same sums up to
+        # float rounding (and the same with ``loo``, so that nc_leave_one_out's video stays diffuse's, bit for bit).
         num, order = _time_blurred_samples(frames, code, sig[2], dtype, present)
-        if gx is not None or gy is not None:
-            for_each(lambda s: _blur_plane(num[s], gy, gx, num[s]), S)
+        late = spatial and loo is None and _BLUR_AT_FINISH  # sub-frames blurred in space as they are finished
     else:
         num, order = _sample_volume(frames, code, dtype)
         # Numerator: spatial blur of every sub-frame (two at a time: OpenCV releases the GIL), then time.
-        if gx is not None or gy is not None:
+        if spatial:
             for_each(lambda s: _blur_plane(num[s], gy, gx, num[s]), S)
         flat = num.reshape(S, H * W)
         _blur_rows(flat, gt, flat)
-    # Denominator: the mask has only K distinct sub-frames; blur those in space, then time.
-    den_k = _mask_planes(order, K, gy, gx, dtype)
+        late = False
+    # Denominator: the mask has only K distinct sub-frames; blur those in space, then time. The sub-frames the
+    # last pass finishes (all, or the interior the blurred mask's ends leave) are blurred in space there, while in
+    # cache; the others (the ends' sub-frames, finished as their blurred mask is made) here, beside the mask's planes.
+    finished_last = range(S) if present is not None or loo is not None else _interior(S, K, gt)
+    early = [] if not spatial or gt is None else [s for s in range(S) if not late or s not in finished_last]
+    blur_late = np.zeros(S, bool)
+    blur_late[finished_last] = late
+    den_k = np.empty((K, H, W), dtype=dtype)
+    slots: list[np.ndarray] = [np.empty(0, bool)] * K  # each slot's sample mask, row-major (order may be a view)
+
+    def first(i: int) -> None:
+        if i < K:
+            slots[i] = np.ascontiguousarray(order == i)
+            _blur_plane(slots[i].astype(dtype), gy, gx, den_k[i])
+        else:
+            s = early[i - K]
+            _blur_plane(num[s], gy, gx, num[s])
+
+    for_each(first, K + len(early))
     peak = _peak((gx, gy, gt))
     floor = NC_MIN_WEIGHT * peak
     samples = np.ascontiguousarray(frames, dtype=dtype)  # read a plane at a time, flat, by the finish
     kept = captured(samples, None if present is None else ~present)
     lo, hi = kept.min(), kept.max()
-    slots = [np.ascontiguousarray(order == k) for k in range(K)]  # row-major, as the planes (order may be a view)
     # The voxels without a sample in reach (rare): zeroed pages cost nothing until a sub-frame writes its own.
     low = np.zeros((S, H, W), bool)
     any_low = np.zeros(S, bool)
@@ -371,7 +391,14 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
     if loo is not None:
         _leave_one_out(loo, num, den, frames, order, (gx, gy, gt), floor, present)
     rows = range(S) if present is not None else den.interior
-    for_each(lambda i: finish(rows[i], den[rows[i]]), len(rows))
+
+    def last(i: int) -> None:
+        s = rows[i]
+        if blur_late[s]:
+            _blur_plane(num[s], gy, gx, num[s])
+        finish(s, den[s])
+
+    for_each(last, len(rows))
     if any_low.any():
         # A sample's blurred mask holds at least its own weight: no sample is among these voxels, and the
         # nearest sample's value needs no clipping.
@@ -434,8 +461,9 @@ def _time_pass(samples, code, weight, first, lo: float, hi: float, dtype, *, kee
     """``out[s, y, x]`` = Σ_b weight[s, order[y, x], b] · samples[first[s] + b, y, x], clipped to [lo, hi]
     (:mod:`~flexvox_core.reconstruct.nc_time_kernel`, bands of rows spread over the cores). ``keep`` (F,)
     bool: those frames' samples are written at their voxels instead (``keep_samples``). ``out``: written
-    in place (a new volume when None); ``select`` (S, H, W) bool, or an object read a band of sub-frames at a
-    time (``band(s0, s1)``, :data:`SELECT_BAND` of them): only those voxels of it."""
+    in place (a new volume when None); ``select`` (S, H, W) bool, an object holding it packed (``packed``: see
+    :func:`diffuse_where`), read by the kernel as it is, or one read a band of sub-frames at a time (``band(s0, s1)``,
+    :data:`SELECT_BAND` of them): only those voxels of it."""
     from flexvox_core.reconstruct.nc_time_kernel import time_only_rows
 
     F, H, W = samples.shape
@@ -446,12 +474,20 @@ def _time_pass(samples, code, weight, first, lo: float, hi: float, dtype, *, kee
         out = np.empty((S, H, W), dtype)
     rows = 32
 
-    def run(s0: int, s1: int, chosen) -> None:
+    def run(s0: int, s1: int, chosen, packed=None) -> None:
         for_each(lambda i: time_only_rows(samples, order, weight, first, lo, hi, out, i * rows,
-                                          min(H, (i + 1) * rows), keep, chosen, s0, s1), -(-H // rows))
+                                          min(H, (i + 1) * rows), keep, chosen, s0, s1, packed), -(-H // rows))
 
     if select is None or isinstance(select, np.ndarray):
         run(0, S, select)
+        return out
+    packed = getattr(select, "packed", None)
+    if packed is not None:  # every sub-frame in one pass, the bits read where they are
+        packed = np.asarray(packed)
+        if packed.shape != (S, H, (W + 7) // 8) or packed.dtype != np.uint8 or not packed.flags.c_contiguous:
+            raise ValueError(f"`where`.packed must be a C-contiguous uint8 array of shape {(S, H, (W + 7) // 8)}; "
+                             f"got {packed.dtype} {packed.shape}")
+        run(0, S, None, packed)
         return out
     for s0 in range(0, S, SELECT_BAND):  # a band of the selection at a time: never the whole bool volume
         s1 = min(S, s0 + SELECT_BAND)
@@ -574,6 +610,15 @@ def _gapped_denominator(den_k: np.ndarray, present: np.ndarray, gt: np.ndarray |
     flat = den.reshape(F * K, H * W)
     _blur_rows(flat, gt, flat)
     return den
+
+
+def _interior(S: int, K: int, gt: np.ndarray | None) -> range:
+    """:attr:`_PeriodicDenominator.interior` of an ``S``-sub-frame clip with time kernel ``gt``, its ends handed over
+    (``ends``), before it is made."""
+    r = 0 if gt is None else gt.size // 2
+    if gt is None or min(S, 2 * r + K) == S:
+        return range(S)
+    return range(r + K, max(r + K, S - r - K))
 
 
 class _PeriodicDenominator:
@@ -885,14 +930,16 @@ def diffuse_where(frames, code, out: np.ndarray, where, *, tensor=DEFAULT_TENSOR
 
     ``where`` is a bool array of ``out``'s shape, or a volume read a band of sub-frames at a time: an object with
     that ``shape`` and a method ``band(s0, s1)`` giving sub-frames [s0, s1) as a bool array (e.g. motion-aware's
-    speed classes, held a bit per voxel: :class:`~flexvox_core.motion.packed.PackedVolume`).
+    speed classes, held a bit per voxel: :class:`~flexvox_core.motion.packed.PackedVolume`). Such an object may
+    also hold the bits as ``packed``, a C-contiguous uint8 array ``(S, H, ⌈W/8⌉)``, each row's voxels 8 to a byte,
+    the first in the highest bit (:func:`numpy.packbits`), as PackedVolume does.
 
     A tensor without spatial blur, (0, 0, ct), is computed at those voxels alone: the compiled time pass
     (:mod:`~flexvox_core.reconstruct.nc_time_kernel`) writes them into ``out`` and skips rows without one,
     so no volume is made (motion-aware's still voxels, :mod:`flexvox_core.motion.pipeline`; fresh memory
-    is dear: a 640×480 × 240 volume costs 0.1–0.5 s of page faults), and a ``where`` read by bands is read
-    :data:`SELECT_BAND` sub-frames at a time. Any other tensor, or a voxel with no sample in reach, computes the
-    whole volume and copies from it (a band of ``where`` at a time).
+    is dear: a 640×480 × 240 volume costs 0.1–0.5 s of page faults); it reads ``packed`` bits as they are, and
+    a ``where`` read by bands otherwise :data:`SELECT_BAND` sub-frames at a time. Any other tensor, or a voxel
+    with no sample in reach, computes the whole volume and copies from it (a band of ``where`` at a time).
     """
     f = check_frames(frames)
     c = check_identity_code(code)

@@ -22,7 +22,7 @@ import numpy as np
 
 
 @numba.njit(nogil=True, cache=True)
-def time_only_rows(frames, order, weight, first, lo, hi, out, y0, y1, present, select, s0, s1):
+def time_only_rows(frames, order, weight, first, lo, hi, out, y0, y1, present, select, s0, s1, packed=None):
     """Rows [y0, y1) of sub-frames [s0, s1) of ``out`` (S, H, W): Σ_b weight[s, k, b] · frames[first[s] + b]
     (k = order[y, x], the weights normalised to sum 1), clipped to [lo, hi]. ``order`` repeats every
     m rows (a tiled code: m = its first axis).
@@ -30,13 +30,16 @@ def time_only_rows(frames, order, weight, first, lo, hi, out, y0, y1, present, s
     ``present`` (F,) bool or None: with it, each voxel of a present frame's sub-frame at its pixel's
     slot takes the sample itself (nc's ``keep_samples``). ``select`` (s1 - s0, H, W) bool or None (sub-frames
     s0 to s1): with it, only those voxels are written (the rest of ``out`` is left as it is; rows without one
-    are skipped)."""
+    are skipped). ``packed`` (s1 - s0, H, ⌈W/8⌉) uint8 or None, in place of ``select``: the same selection with each
+    row's voxels 8 to a byte, the first in the highest bit (:func:`numpy.packbits`)."""
     W = out.shape[2]
     B = weight.shape[2]
     m = order.shape[0]
     K = out.shape[0] // frames.shape[0]
     row_w = np.empty((m, B, W), np.float64)  # a sub-frame's weights along each row of the tile
     acc = np.empty(W, np.float64)
+    pick = np.zeros(W, np.bool_)  # a packed selection's row, unpacked
+    masked = select is not None or packed is not None
     for s in range(s0, s1):
         f0 = first[s]
         k = s % K
@@ -46,6 +49,7 @@ def time_only_rows(frames, order, weight, first, lo, hi, out, y0, y1, present, s
                 for x in range(W):
                     row_w[ym, b, x] = weight[s, order[ym, x], b]
         for y in range(y0, y1):
+            chosen = pick
             if select is not None:
                 chosen = select[s - s0, y]
                 anything = False
@@ -55,6 +59,17 @@ def time_only_rows(frames, order, weight, first, lo, hi, out, y0, y1, present, s
                         break
                 if not anything:
                     continue
+            elif packed is not None:
+                bits = packed[s - s0, y]
+                anything = False
+                for i in range(bits.size):
+                    if bits[i] != 0:
+                        anything = True
+                        break
+                if not anything:
+                    continue
+                for x in range(W):
+                    pick[x] = (bits[x >> 3] >> (7 - (x & 7))) & 1 != 0
             w = row_w[y % m]
             for x in range(W):
                 acc[x] = 0.0
@@ -64,14 +79,14 @@ def time_only_rows(frames, order, weight, first, lo, hi, out, y0, y1, present, s
                 for x in range(W):
                     acc[x] += wb[x] * src[x]
             dst = out[s, y]
-            if select is None and not keep:
+            if not masked and not keep:
                 for x in range(W):
                     dst[x] = min(max(acc[x], lo), hi)
                 continue
             own = frames[s // K, y]
             slot = order[y % m]
             for x in range(W):
-                if select is None or select[s - s0, y, x]:
+                if not masked or chosen[x]:
                     if keep and slot[x] == k:
                         dst[x] = own[x]
                     else:

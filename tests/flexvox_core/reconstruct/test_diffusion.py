@@ -351,3 +351,24 @@ def test_nc_finishes_the_ends_as_made_with_the_same_bits_as_when_held(monkeypatc
     held = D._PeriodicDenominator
     monkeypatch.setattr(D, "_PeriodicDenominator", lambda den_k, F, gt, ends=None: held(den_k, F, gt))
     np.testing.assert_array_equal(streamed, diffuse(frames, code, tensor=tensor, time=time))
+
+
+@pytest.mark.parametrize(("tensor", "time", "F"), [
+    ((0.05, 0.05, 0.95), 5.0, 6),  # the guides' tensor: ends and an interior
+    ((1.0, 1.0, 0.05), 2.0, 4),  # the high-TR tensor: a short kernel
+    ((0.0, 0.0, 0.3), 1.0, 3),  # the two ends overlap; sub-frames without a sample in reach
+    ((1.0, 1.0, 1.0), 30.0, 9),  # a long kernel (filtered on OpenCV's threads)
+    ((0.5, 0.5, 1.0), 500.0, 2),  # a kernel longer than the clip: blurred whole
+])
+@pytest.mark.parametrize("missing", [False, True])
+def test_nc_blurs_in_space_as_it_finishes_with_the_same_bits_as_before(monkeypatch, tensor, time, F, missing):
+    # diffuse's nc blurs the numerator's interior sub-frames in space just before it finishes each (the ends' first,
+    # beside the mask's planes); with every sub-frame blurred first, in a pass of its own, every bit is the same.
+    import flexvox_core.reconstruct.diffusion as D
+
+    code = code_from_order([[0, 5, 7, 2], [6, 3, 1, 4]])  # K = 8
+    frames = np.random.default_rng(5).uniform(0.1, 0.9, (F, 11, 19)).astype(np.float32)
+    gone = (np.arange(F) == F // 2) if missing else None
+    late = diffuse(frames, code, tensor=tensor, time=time, missing=gone)
+    monkeypatch.setattr(D, "_BLUR_AT_FINISH", False)
+    np.testing.assert_array_equal(late, diffuse(frames, code, tensor=tensor, time=time, missing=gone))

@@ -105,13 +105,13 @@ def test_time_weights_sum_to_the_blurred_mask():
 
 @pytest.mark.parametrize(("tensor", "time"), [((0, 0, 1), 8.0), ((0, 0, 0.3), 1.0), ((0.05, 0.05, 0.95), 5.0)])
 @pytest.mark.parametrize("dropped", [False, True])
-@pytest.mark.parametrize("bands", [False, True])
-def test_diffuse_where_writes_diffuse_at_the_chosen_voxels_alone(monkeypatch, rng, tensor, time, dropped, bands):
+@pytest.mark.parametrize("held", ["array", "packed", "bands"])
+def test_diffuse_where_writes_diffuse_at_the_chosen_voxels_alone(monkeypatch, rng, tensor, time, dropped, held):
     from flexvox_core.motion.packed import PackedVolume
     from flexvox_core.reconstruct.diffusion import diffuse_where
 
     code = design_code((2, 4)).code
-    F, H, W = 4, 40, 12
+    F, H, W = 4, 40, 13  # a row's bits end in a partial byte
     frames = capture(smooth_video(rng, F * 8, H, W), code)
     missing = np.array([False, True, False, False]) if dropped else None
     where = rng.random((F * 8, H, W)) < 0.3
@@ -119,15 +119,24 @@ def test_diffuse_where_writes_diffuse_at_the_chosen_voxels_alone(monkeypatch, rn
     before = rng.random(where.shape).astype(np.float32)
     out = before.copy()
     chosen = where
-    if bands:  # held a bit per voxel, read SELECT_BAND sub-frames at a time (bands of 5: the last one short)
-        chosen = PackedVolume(where.shape)
+    if held != "array":  # held a bit per voxel: the bits read by the kernel as they are, or (an object without
+        chosen = PackedVolume(where.shape)  # them) read SELECT_BAND sub-frames at a time (bands of 5: the last short)
         for t in range(len(where)):
             chosen.put(t, where[t])
-        monkeypatch.setattr(D, "SELECT_BAND", 5)
+        if held == "bands":
+            chosen = _Bands(chosen)
+            monkeypatch.setattr(D, "SELECT_BAND", 5)
     assert diffuse_where(frames, code, out, chosen, tensor=tensor, time=time, missing=missing) is out
     full = diffuse(frames, code, tensor=tensor, time=time, missing=missing)
     np.testing.assert_array_equal(out[where], full[where])  # the same bits: the same pass, samples kept
     np.testing.assert_array_equal(out[~where], before[~where])
+
+
+class _Bands:
+    """A selection read by bands alone (no ``packed`` bits)."""
+
+    def __init__(self, packed):
+        self.shape, self.band = packed.shape, packed.band
 
 
 def test_diffuse_where_refuses_a_wrong_volume(rng):
@@ -146,6 +155,10 @@ def test_diffuse_where_refuses_a_wrong_volume(rng):
     with pytest.raises(ValueError, match=r"`where` must have shape \(8, 4, 4\); got \(8, 4, 5\)"):
         diffuse_where(frames, code, np.zeros((8, 4, 4), np.float32), PackedVolume((8, 4, 5)), tensor=(0, 0, 1),
                       time=1.0)
+    wrong = PackedVolume((8, 4, 4))
+    wrong.packed = np.zeros((8, 4, 2), np.uint8)
+    with pytest.raises(ValueError, match=r"`where`.packed must be a C-contiguous uint8 array of shape \(8, 4, 1\)"):
+        diffuse_where(frames, code, np.zeros((8, 4, 4), np.float32), wrong, tensor=(0, 0, 1), time=1.0)
 
 
 # --------------------------------------------------------------------------- nc's finish, compiled

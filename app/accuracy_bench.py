@@ -6,7 +6,7 @@ motion-aware reconstruction (diffusion time, refinement, a second pass) on the
 built-in scenes at K = 8 (2×4) and K = 16 (4×4), and on the SCI benchmark's Runner and
 Drop (2×4 code) when that data is present. Writes ``results.csv``, ``results.json`` and a
 Pareto plot ``pareto.png`` (mean PSNR against log time), and returns the rows. Each method runs once on a small
-capture of each code before any is timed (:func:`~flexvox_core.methods.warm_up.warm_up`): no row pays numba's
+capture of each code before any is timed (:func:`~flexvox_core.warm_up.warm_up`): no row pays numba's
 one-time compile or cache load.
 
 Each row carries its method's options (``options``: :meth:`Method.as_dict()
@@ -133,7 +133,7 @@ def run_bench(out_dir, *, quick: bool = False, sci: bool = True, progress=None, 
     """Run the benchmark, write CSV/JSON/PNG into ``out_dir`` and return the rows (``device``: where each
     reconstruction runs, :func:`~flexvox_core.methods.runner.device_for`; each row says where it ran)."""
     from flexvox_core.methods import run
-    from flexvox_core.methods.warm_up import warm_up
+    from flexvox_core.warm_up import warm_up
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     rows = []

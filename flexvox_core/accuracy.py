@@ -884,7 +884,7 @@ SPILL_EFFECTS = ("pattern_blur", "misregistration")
 the held-out sample's light, and the estimate reads high (docs/reconstruction.md, "Accuracy without ground truth")."""
 
 
-def spill_caveat(attrs: dict) -> str | None:
+def spill_caveat(attrs: dict[str, Any]) -> str | None:
     """Why an estimate of the recording with attributes ``attrs`` may read high, or None: it states an effect of
     :data:`SPILL_EFFECTS`, or it was captured on a rig (whose projector blurs and registers its code to within the
     calibration's error). Measured: drummer 48×64, 4×4 code, nc: +2.6 dB with pattern blur's defaults and +2.0 dB

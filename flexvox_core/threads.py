@@ -28,6 +28,9 @@ def workers() -> int:
     return min(cores(), MAX_WORKERS)
 
 
+POOL_THREAD_PREFIX = "flexvox-for-each"
+"""The names of :func:`for_each`'s kept threads begin so."""
+
 _pool: ThreadPoolExecutor | None = None
 _pool_lock = threading.Lock()
 
@@ -38,7 +41,7 @@ def _shared_pool() -> ThreadPoolExecutor:
     global _pool
     with _pool_lock:
         if _pool is None:
-            _pool = ThreadPoolExecutor(max_workers=MAX_WORKERS, thread_name_prefix="flexvox-for-each")
+            _pool = ThreadPoolExecutor(max_workers=MAX_WORKERS, thread_name_prefix=POOL_THREAD_PREFIX)
         return _pool
 
 

@@ -1,7 +1,7 @@
 """``flexvox bench REC``: what accuracy costs in time on the user's own recording, from the estimate.
 
 Every method and knob setting of :func:`methods_for` reconstructs the recording; each result is timed (after one
-run of each and its estimate on a small capture, :func:`~flexvox_core.methods.warm_up.warm_up`, and one read of the
+run of each and its estimate on a small capture, :func:`~flexvox_core.warm_up.warm_up`, and one read of the
 recording: no row pays a one-time compile or load) and
 scored by the estimate without ground truth (:func:`flexvox_core.accuracy.estimate_recording`), with the
 true PSNR beside it when the recording holds a ground truth (read only after the estimate): ``truth`` is the
@@ -43,7 +43,7 @@ def run_recording_bench(path, out_dir, *, quick: bool = False, device: str = "cp
     rows (``estimate``, ``low``, ``high``: dB or None with ``why``; ``truth``: dB or None)."""
     from flexvox_core.accuracy import NotEstimable, estimate_recording
     from flexvox_core.capture_reader import open_capture
-    from flexvox_core.methods.warm_up import warm_up
+    from flexvox_core.warm_up import warm_up
     from flexvox_core.metrics import clip_psnr, psnr
 
     reader = open_capture(path)

@@ -110,8 +110,13 @@ def _describe(w: QWidget) -> str:
 
 
 def flexvox_threads() -> list[str]:
-    """Names of flexvox's own Python threads still alive (capture reader and writer, rig work)."""
-    return [t.name for t in threading.enumerate() if t.name.startswith("flexvox") and t.is_alive()]
+    """Names of flexvox's own Python threads still alive (capture reader and writer, rig work), but for the
+    process's per-item pool (:data:`flexvox_core.threads.POOL_THREAD_PREFIX`), whose threads are kept, idle, for the
+    next ``for_each`` and hold no work between calls."""
+    from flexvox_core.threads import POOL_THREAD_PREFIX
+
+    return [t.name for t in threading.enumerate()
+            if t.name.startswith("flexvox") and not t.name.startswith(POOL_THREAD_PREFIX) and t.is_alive()]
 
 
 # ---------------------------------------------------------------------- the session

@@ -7,7 +7,7 @@ from flexvox_core.methods import Method
 
 
 def test_the_recording_bench_warms_up_every_method_before_timing_any(recording, monkeypatch, tmp_path):
-    import flexvox_core.methods.warm_up as warm
+    import flexvox_core.warm_up as warm
     from flexvox_app.cli import bench_recording
     from flexvox_core.capture_reader import CaptureReader
 
@@ -30,7 +30,7 @@ def test_the_recording_bench_warms_up_every_method_before_timing_any(recording, 
 
 def test_the_scene_bench_warms_up_each_code_before_timing_any(monkeypatch, tmp_path):
     import flexvox_core.methods as methods_module
-    import flexvox_core.methods.warm_up as warm
+    import flexvox_core.warm_up as warm
     from flexvox_app import accuracy_bench
     from flexvox_core.forward import capture
 

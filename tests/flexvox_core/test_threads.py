@@ -81,6 +81,6 @@ def test_the_pool_is_kept_from_call_to_call(monkeypatch):
 
     for _ in range(20):
         for_each(fn, 8)
-    helpers = {n for n in names if n.startswith("flexvox-for-each")}
+    helpers = {n for n in names if n.startswith(threads.POOL_THREAD_PREFIX)}
     assert names <= helpers | {threading.current_thread().name}  # the caller and the kept pool, nothing else
     assert len(helpers) <= threads.MAX_WORKERS  # no new threads per call (a pool per call: up to 20 names)

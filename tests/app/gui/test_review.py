@@ -194,12 +194,16 @@ def test_export_writes_the_reconstruction(qtbot, opened, tmp_path, suffix):
     assert "an output never replaces its input" in opened.export_label.text()
 
 
-@pytest.mark.recording(frames=3, size=(15, 24), tile=(2, 2))
-def test_an_mp4_its_writer_cannot_keep_is_refused_before_any_work(qtbot, opened, tmp_path):
-    reconstruct(qtbot, opened, "diffusion")
-    assert opened.export(tmp_path / "out.mp4") is None  # 15 rows: OpenCV's writer would drop one
-    assert ("not exported: cannot write" in opened.export_label.text()
-            and "needs a height and width even" in opened.export_label.text())
+def test_an_mp4_its_writer_cannot_keep_is_refused_before_any_work(qtbot, review, tmp_path):
+    from tests.recordings import simulate_recording
+
+    review.preview_check.setChecked(False)
+    review.open_recording(simulate_recording(tmp_path, frames=3, size=(15, 24), tile=(2, 2), name="odd.zarr"))
+    qtbot.waitUntil(lambda: review.session is not None, timeout=10_000)
+    reconstruct(qtbot, review, "diffusion")
+    assert review.export(tmp_path / "out.mp4") is None  # 15 rows: OpenCV's writer would drop one
+    assert ("not exported: cannot write" in review.export_label.text()
+            and "needs a height and width even" in review.export_label.text())
     assert not (tmp_path / "out.mp4").exists()
 
 

@@ -6,7 +6,7 @@ import pytest
 from flexvox_core.design import design_code
 from flexvox_core.methods import Method
 from flexvox_core.methods import runner as runner_module
-from flexvox_core.methods.warm_up import WARM_UP_FRAMES, warm_up
+from flexvox_core.warm_up import WARM_UP_FRAMES, warm_up
 
 
 def test_each_method_runs_once_on_a_small_capture_of_whole_tiles(monkeypatch):

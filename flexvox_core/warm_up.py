@@ -6,8 +6,10 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Iterable
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 _logger = logging.getLogger(__name__)
 
@@ -18,7 +20,8 @@ WARM_UP_FRAMES = 3
 """Its camera frames: enough for every method's windows (motion-aware's flow takes two frames or more)."""
 
 
-def warm_up(code, methods: Iterable, *, device: str = "cpu", dtype=np.float32, estimates: bool = False) -> float:
+def warm_up(code: npt.ArrayLike, methods: Iterable[Any], *, device: str = "cpu", dtype: npt.DTypeLike = np.float32,
+            estimates: bool = False) -> float:
     """Run each of ``methods`` (:class:`~flexvox_core.methods.Method`) once on a small random capture through the
     identity ``code`` (m, n, K), :data:`WARM_UP_FRAMES` frames of :data:`WARM_UP_SIZE` in ``dtype``, on
     ``device``, and with ``estimates`` the accuracy estimate of each that it does not refuse by name

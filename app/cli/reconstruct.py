@@ -45,8 +45,9 @@ def register(sub) -> None:
             "`interpolated`); a run of them longer than the method's reach is refused, naming it. "
             "--time auto (diffusion, motion-aware) and --block auto (rebin) choose the knob by the PSNR estimated "
             "from the recording alone: each candidate is reconstructed and estimated, the best is written, and every "
-            "candidate's estimate and what choosing cost are printed; a method the estimate refuses (today every "
-            "one but diffusion's nc solver) is refused with the reason."
+            "candidate's estimate and what choosing cost are printed; a candidate the estimate refuses is listed with "
+            "the reason and never chosen (rebin: every division but the code's default), and a method it refuses "
+            "(today motion-aware, and diffusion's explicit and steady solvers) is refused with the reason."
         )
         add_method_options(p, chunk=16, auto=True)
         p.add_argument("--figures", type=Path, metavar="DIR",

@@ -391,8 +391,8 @@ def long_reach_kernel(frames: Any, order: Any, corners: Any, present: Any, flow:
     :func:`corner_table`; ``present`` (F,) bool; ``flow`` (S, H, W, 2) float32 and ``select`` (S, H, W) bool,
     arrays or volumes read a sub-frame at a time (:func:`flexvox_core.planes.band`), a flow with a ``scaled``
     method (:class:`~flexvox_core.flow.estimate.ScaledFlow`) read at the voxels from its small planes
-    (:mod:`~flexvox_core.motion.flow_kernel`); ``guide`` (S, H, W) float32; ``time_w`` (reach + 1,) the trajectory weights exp(−d²/2σ_t²); ``scale`` −1/2h²; ``taps`` the blur's
-    (odd length); ``num``, ``den`` (C, H, W) float32 scratch, one plane pair per chunk of sub-frames run side by
+    (:mod:`~flexvox_core.motion.flow_kernel`); ``guide`` (S, H, W) float32; ``time_w`` (reach + 1,) the
+    trajectory weights exp(−d²/2σ_t²); ``scale`` −1/2h²; ``taps`` the blur's (odd length); ``num``, ``den`` (C, H, W) float32 scratch, one plane pair per chunk of sub-frames run side by
     side (any content) by :func:`flexvox_core.threads.for_each`, each sub-frame one compiled call that releases
     the GIL (:func:`long_reach_subframe`) with its own planes of ``flow`` and ``select``. ``write_samples``: write
     each sub-frame's samples into ``out`` after it. Each voxel's sums are made in one order by one thread: the

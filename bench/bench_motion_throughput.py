@@ -955,8 +955,19 @@ def _where_by_bands() -> Iterator[None]:
         yield
 
 
+@contextlib.contextmanager
+def _flow_full_planes() -> Iterator[None]:
+    """Before the long reach read a flow held small at its voxels (``ScaledFlow.scaled``):
+    each sub-frame's full-size plane made by ``cv2.resize`` and read; the same bits."""
+    from flexvox_core.flow.estimate import ScaledFlow
+
+    with mock.patch.object(ScaledFlow, "scaled", lambda self, t: None):
+        yield
+
+
 VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "kept": contextlib.nullcontext,
+    "flow-full-planes": _flow_full_planes,
     "remap-gather": _gather_by_remap,
     "scratch-volume": _scratch_volume,
     "long-reach-remap": _long_reach_on_sample_planes,

@@ -143,6 +143,25 @@ class ScaledFlow:
                        interpolation=cv2.INTER_LINEAR)
         return out
 
+    def scaled(self, t: int) -> tuple[np.ndarray, ...] | None:
+        """Sub-frame ``t``'s velocity for a reader of a few voxels: ``(plane, *tables)``, the small plane scaled
+        (h, w, 2) and :func:`resize_tables`, from which :func:`resize_at` gives any voxel of :meth:`plane` (t),
+        the same bits, without the full-size plane. None where :meth:`plane` is not that resize: a plane
+        :meth:`put`, the full-size volume made (read it), or an OpenCV whose resize the tables do not reproduce
+        (checked once on a plane)."""
+        if t in self._put or "flow" in self.__dict__ or self._tables is None:
+            return None
+        return (scaled_vectors(self.small[t], self.ratio), *self._tables)
+
+    @cached_property
+    def _tables(self) -> tuple[np.ndarray, ...] | None:
+        """:func:`resize_tables` of the sizes where they reproduce ``cv2.resize`` on the middle plane, else None."""
+        tables = resize_tables(self.small.shape[1:3], self.size)
+        t = len(self.small) // 2
+        small = scaled_vectors(self.small[t], self.ratio)
+        full = cv2.resize(small, self.size[::-1], interpolation=cv2.INTER_LINEAR)
+        return tables if np.array_equal(resize_at(small, *tables), full, equal_nan=True) else None
+
     def band(self, t0: int, t1: int) -> np.ndarray:
         """Full-size sub-frames ``t0`` to ``t1`` (exclusive; clipped to the sub-frames, as a slice is)."""
         if "flow" in self.__dict__:
@@ -333,6 +352,38 @@ def run_pairs(flow_fn, u8: np.ndarray, pairs, out: np.ndarray, conf: np.ndarray,
             memo.put(key, out[i], conf[i])
 
     for_each(one, len(pairs))
+
+
+def resize_tables(small: tuple[int, int], size: tuple[int, int]) -> tuple[np.ndarray, ...]:
+    """``cv2.resize``'s bilinear (``INTER_LINEAR``, float32) from ``small`` (h, w) to ``size`` (H, W) as tables:
+    ``(rows0, rows1, wy0, wy1, cols0, cols1, wx0, wx1)``, the two source rows (int64, (H,)) and their float32
+    weights of each output row, the same of each column (W,). Output pixel (y, x) is
+    ``(p[r0, c0]·a0 + p[r0, c1]·a1)·b0 + (p[r1, c0]·a0 + p[r1, c1]·a1)·b1`` in float32 (:func:`resize_at`), OpenCV's
+    coefficients and order of operations: its position (d + ½)·(source / output) − ½ rounded to float32, its
+    fraction f and weights (1 − f, f); a column outside the source takes the edge pixel with weight 1, a row
+    outside takes the edge row as both rows, with the fraction's weights (as OpenCV's generic resize does)."""
+
+    def axis(n_out: int, n_in: int, rows: bool) -> tuple[np.ndarray, ...]:
+        pos = ((np.arange(n_out) + 0.5) * (1.0 / (n_out / n_in)) - 0.5).astype(np.float32)
+        start = np.floor(pos).astype(np.int64)
+        frac = (pos - start.astype(np.float32)).astype(np.float32)
+        if not rows:
+            low, high = start < 0, start >= n_in - 1
+            frac[low | high] = 0
+            start = np.clip(start, 0, n_in - 1)
+        return (np.clip(start, 0, n_in - 1), np.clip(start + 1, 0, n_in - 1), (np.float32(1) - frac).astype(np.float32),
+                frac)
+
+    (h, w), (H, W) = small, size
+    return (*axis(H, h, True), *axis(W, w, False))
+
+
+def resize_at(plane: np.ndarray, rows0, rows1, wy0, wy1, cols0, cols1, wx0, wx1) -> np.ndarray:
+    """The full-size plane of :func:`resize_tables` in numpy (the compiled readers take single voxels)."""
+    a0, a1 = wx0[:, None], wx1[:, None]
+    top = plane[rows0][:, cols0] * a0 + plane[rows0][:, cols1] * a1
+    bottom = plane[rows1][:, cols0] * a0 + plane[rows1][:, cols1] * a1
+    return top * wy0[:, None, None] + bottom * wy1[:, None, None]
 
 
 def scaled_vectors(plane: np.ndarray, ratio: np.ndarray) -> np.ndarray:

@@ -107,7 +107,8 @@ def long_reach(frames, code, flow, guide, select, plan: LongReachPlan, *, missin
         Identity code (a multiplexed one raises ValueError).
     flow : ndarray (S, H, W, 2)
         Velocity, pixels per sub-frame; NaN or infinity reads as still. Or a volume read a sub-frame at a time
-        (:class:`~flexvox_core.planes.Bands`: ``shape`` and ``band``).
+        (:class:`~flexvox_core.planes.Bands`: ``shape`` and ``band``); a
+        :class:`~flexvox_core.flow.estimate.ScaledFlow` is read at the voxels from its small planes (the same bits).
     guide : ndarray (S, H, W)
         Short-reach estimate the samples are compared with; the value wherever no sample is in reach
         and outside ``select``.

@@ -31,6 +31,7 @@ import numba.core.compiler
 import numpy as np
 
 from flexvox_core.motion.exp_kernel import exp32
+from flexvox_core.motion.flow_kernel import flow_at
 
 CORNERS = ((0, 0), (0, 1), (1, 0), (1, 1))
 """The cell's pixels (dy, dx) in the bit order of :func:`corner_table`."""
@@ -55,10 +56,9 @@ def corner_table(order: np.ndarray) -> np.ndarray:
 
 @numba.njit(inline="always", nogil=True, cache=True, error_model="numpy")
 def _velocity(flow_t: Any, y: int, x: int) -> tuple[Any, Any]:
-    """(u, v) of the voxel (``flow_t``: its sub-frame's plane), NaN or infinity read as still (as the GPU's
-    ``velocity``)."""
-    u = flow_t[y, x, 0]
-    v = flow_t[y, x, 1]
+    """(u, v) of the voxel (``flow_t``: its sub-frame's plane, or :func:`flow_at`'s small one), NaN or infinity
+    read as still (as the GPU's ``velocity``)."""
+    u, v = flow_at(flow_t, y, x)
     if not (math.isfinite(u) and math.isfinite(v)):
         return np.float32(0), np.float32(0)
     return u, v
@@ -389,9 +389,10 @@ def long_reach_kernel(frames: Any, order: Any, corners: Any, present: Any, flow:
 
     ``frames`` (F, H, W) float32; ``order`` (m, n) int the tile's slots, ``corners`` their
     :func:`corner_table`; ``present`` (F,) bool; ``flow`` (S, H, W, 2) float32 and ``select`` (S, H, W) bool,
-    arrays or volumes read a sub-frame at a time (:func:`flexvox_core.planes.band`); ``guide`` (S, H, W)
-    float32; ``time_w`` (reach + 1,) the trajectory weights exp(−d²/2σ_t²); ``scale`` −1/2h²; ``taps`` the blur's
-    (odd length); ``num``, ``den`` (C, H, W) float32 scratch, one plane pair per chunk of sub-frames run side by
+    arrays or volumes read a sub-frame at a time (:func:`flexvox_core.planes.band`), a flow with a ``scaled``
+    method (:class:`~flexvox_core.flow.estimate.ScaledFlow`) read at the voxels from its small planes
+    (:mod:`~flexvox_core.motion.flow_kernel`); ``guide`` (S, H, W) float32; ``time_w`` (reach + 1,) the
+    trajectory weights exp(−d²/2σ_t²); ``scale`` −1/2h²; ``taps`` the blur's (odd length); ``num``, ``den`` (C, H, W) float32 scratch, one plane pair per chunk of sub-frames run side by
     side (any content) by :func:`flexvox_core.threads.for_each`, each sub-frame one compiled call that releases
     the GIL (:func:`long_reach_subframe`) with its own planes of ``flow`` and ``select``. ``write_samples``: write
     each sub-frame's samples into ``out`` after it. Each voxel's sums are made in one order by one thread: the
@@ -419,7 +420,12 @@ def long_reach_kernel(frames: Any, order: Any, corners: Any, present: Any, flow:
         for t in range(c, S, chunks):
             sel = np.ascontiguousarray(band(select, t, t + 1)[0], np.bool_)
             busy = sel.any()
-            flow_t = np.ascontiguousarray(band(flow, t, t + 1)[0], np.float32) if busy else _NO_FLOW
+            flow_t: Any = _NO_FLOW
+            if busy:  # a flow held small is read at the voxels alone (no full-size plane made: the same bits)
+                scaled = getattr(flow, "scaled", None)
+                flow_t = scaled(t) if scaled is not None else None
+                if flow_t is None:
+                    flow_t = np.ascontiguousarray(band(flow, t, t + 1)[0], np.float32)
             if busy:  # within the blur's reach of `sel` (OpenCV's dilation: no pixel outside the picture counts)
                 cv2.dilate(sel.view(np.uint8), square, dst=act) if r else np.copyto(act, sel.view(np.uint8))
             long_reach_subframe(frames, order, lat, flow_t, guide, sel, act, t, time_w, scale, taps, min_weight,

@@ -123,3 +123,29 @@ def test_scaled_vectors_are_numpy_s_product_bit_for_bit(shape):
     got = scaled_vectors(plane, ratio)
     assert got.dtype == np.float32 and got.shape == shape and got is not plane
     np.testing.assert_array_equal(got.view(np.uint32), (plane * ratio).view(np.uint32))
+
+
+@pytest.mark.parametrize("small, size", [((5, 7), (16, 21)), ((160, 213), (480, 640)), ((11, 3), (31, 8)),
+                                         ((4, 4), (4, 4)), ((33, 45), (97, 131)), ((7, 9), (21, 27))])
+def test_resize_tables_are_opencvs_bilinear_resize_bit_for_bit(small, size):
+    import cv2
+
+    from flexvox_core.flow.estimate import resize_at, resize_tables
+
+    plane = np.random.default_rng(3).normal(0, 3, (*small, 2)).astype(np.float32)
+    plane[0, 0] = np.inf  # carried as the resize carries it (read as still downstream)
+    want = cv2.resize(plane, size[::-1], interpolation=cv2.INTER_LINEAR)
+    np.testing.assert_array_equal(resize_at(plane, *resize_tables(small, size)), want)
+
+
+def test_scaled_is_the_plane_where_no_full_size_plane_was_set():
+    from flexvox_core.flow.estimate import resize_at
+
+    vel, conf = _small()
+    held = ScaledFlow(vel, conf, (16, 21))
+    for t in range(6):
+        np.testing.assert_array_equal(resize_at(*held.scaled(t)), held.plane(t))
+    held.put(2, np.ones((16, 21, 2), np.float32))
+    assert held.scaled(2) is None and held.scaled(3) is not None  # a plane put is read as put
+    held.flow  # noqa: B018 - the whole volume made: read from it
+    assert held.scaled(3) is None

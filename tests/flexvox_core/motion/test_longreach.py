@@ -348,3 +348,28 @@ def test_a_tile_one_pixel_wide_takes_the_scalar_reads():
     order = order_from_code(design_code((4, 4)).code)
     assert _lattice(corner_table(order), np.ones(2, bool), 32, 5, 7)[10]
     assert not _lattice(corner_table(order), np.ones(2, bool), 32, 4096, 4097)[10]  # 2**24 pixels or more
+
+
+@pytest.mark.parametrize("tile, F, H, W, missing", [
+    ((4, 4), 3, 15, 13, None),
+    ((2, 4), 5, 11, 19, [False, True, False, False, True]),
+    ([[0, 2, 1, 3]], 6, 9, 10, [False, False, True, False, False, False]),  # the scalar reads
+])
+def test_a_flow_held_small_gives_the_bits_of_its_full_size_planes(rng, tile, F, H, W, missing):
+    # The long reach reads a ScaledFlow at its voxels from the small planes (ScaledFlow.scaled): the same bits as
+    # the full-size planes the flow makes.
+    from flexvox_core.flow.estimate import ScaledFlow
+    from flexvox_core.motion.longreach import LongReachPlan, long_reach
+
+    code, frames, _, guide, sel, _, _ = _lattice_case(rng, tile, F, H, W, missing)
+    K = code.shape[2]
+    small = rng.normal(0, 0.4, (F * K, (H + 2) // 3, (W + 2) // 3, 2)).astype(np.float32)
+    small[0, 0, 0] = np.nan  # read as still, either way
+    held = ScaledFlow(small, np.ones(small.shape[:3], np.float32), (H, W))
+    assert held.scaled(1) is not None
+    plan = LongReachPlan.of(F * K, reach=K, sigma_t=K * 0.75, sigma_s=0.3, h=0.1)
+    miss = None if missing is None else np.array(missing)
+    got = long_reach(frames, code, held, guide, sel, plan, missing=miss, write_samples=True)
+    want = long_reach(frames, code, held.band(0, F * K), guide, sel, plan, missing=miss, write_samples=True)
+    np.testing.assert_array_equal(got, want)
+    assert (np.abs(got - guide)[sel] > 1e-3).mean() > 0.5  # the gather did something

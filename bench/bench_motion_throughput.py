@@ -340,6 +340,15 @@ def _refine_serial_glue() -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def _refine_band_8() -> Iterator[None]:
+    """Before the refinement's bands took 16 sub-frames: 8 (``vardiff.MIN_BAND``)."""
+    from flexvox_core.motion import vardiff
+
+    with mock.patch.object(vardiff, "MIN_BAND", 8):
+        yield
+
+
+@contextlib.contextmanager
 def _refine_float64() -> Iterator[None]:
     """Before the refinement's step computed in float32: its step as it was
     (``tests/flexvox_core/motion/vardiff_float64.py``: float64 arithmetic, each read at a float64 position y + v, no FMA
@@ -983,6 +992,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "refine-no-slp": _refine_no_slp,
     "refine-float64": _refine_float64,
     "refine-serial-glue": _refine_serial_glue,
+    "refine-band-8": _refine_band_8,
     "guides-whole": _guides_whole,
     "reach-by-log": _reach_by_log,
     "high-tr-float32": _high_tr_float32,

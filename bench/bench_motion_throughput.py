@@ -325,6 +325,30 @@ def _refine_no_slp() -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def _refine_serial_glue() -> Iterator[None]:
+    """Before the refinement's glue ran on the threads: its input check (the float64 sum), the carried planes and
+    the mask's and the classes' bands on the calling thread alone, one after another (the flow's planes side by
+    side, in ``ScaledFlow.band_into``)."""
+    from flexvox_core.motion import vardiff
+
+    def serial(fn: Callable[[int], None], count: int) -> None:
+        for i in range(count):
+            fn(i)
+
+    with mock.patch.object(vardiff, "for_each", serial):
+        yield
+
+
+@contextlib.contextmanager
+def _refine_band_8() -> Iterator[None]:
+    """Before the refinement's bands took 16 sub-frames: 8 (``vardiff.MIN_BAND``)."""
+    from flexvox_core.motion import vardiff
+
+    with mock.patch.object(vardiff, "MIN_BAND", 8):
+        yield
+
+
+@contextlib.contextmanager
 def _refine_float64() -> Iterator[None]:
     """Before the refinement's step computed in float32: its step as it was
     (``tests/flexvox_core/motion/vardiff_float64.py``: float64 arithmetic, each read at a float64 position y + v, no FMA
@@ -978,6 +1002,8 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "refine-signed-indices": _refine_signed_indices,
     "refine-no-slp": _refine_no_slp,
     "refine-float64": _refine_float64,
+    "refine-serial-glue": _refine_serial_glue,
+    "refine-band-8": _refine_band_8,
     "guides-whole": _guides_whole,
     "reach-by-log": _reach_by_log,
     "high-tr-float32": _high_tr_float32,

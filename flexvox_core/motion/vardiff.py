@@ -43,14 +43,16 @@ import numpy as np
 
 from flexvox_core import planes
 from flexvox_core.motion.tensors import DEFAULT_C, check_c
+from flexvox_core.threads import for_each, workers
 
 _KERNEL_LOCK = threading.Lock()
 """One call of the parallel kernel at a time: numba's fallback threading layer (``workqueue``, where
 neither OpenMP nor TBB is installed) aborts the process when two threads enter a parallel region at
 once (the dask batch, napari's worker and Review's jobs may). Each call uses every core anyway."""
 
-MIN_BAND = 8
-"""The fewest sub-frames of a band (:func:`band_length`)."""
+MIN_BAND = 16
+"""The fewest sub-frames of a band (:func:`band_length`): the planes carried from band to band (``steps + 1`` of
+each buffer) and the kernel's calls (each ends waiting on its last thread) come once a band."""
 
 
 STILL_READ_SPEED = 1e-3
@@ -76,9 +78,10 @@ def explicit_steps(time: float, c) -> int:
 def band_length(steps: int, threads: int) -> int:
     """Sub-frames per band of :func:`variable_tensor_diffusion` at ``steps`` explicit steps on ``threads``
     threads: :data:`MIN_BAND`, or one a thread where there are more (a band's flow planes are made side by side).
-    No sub-frame is stepped twice whatever the band, so it sets only the memory taken: about ``band + steps + 1``
+    No sub-frame is stepped twice whatever the band, so it sets the memory taken: about ``band + steps + 1``
     planes of the steps' float32 buffers (one at two steps, the refinement's, from a C-contiguous ``init``), the flow
-    (two float32) and two bool volumes (14 bytes a pixel so; 4.3 MB a plane at 640×480). ``steps`` is not used."""
+    (two float32) and two bool volumes (14 bytes a pixel so; 4.3 MB a plane at 640×480, 82 MB at 16 sub-frames and
+    two steps), and the work of the glue (the carried planes, a kernel call per step). ``steps`` is not used."""
     return max(MIN_BAND, threads)
 
 
@@ -96,6 +99,32 @@ def _read_into(volume: Any, t0: int, t1: int, out: np.ndarray) -> None:
         into(t0, t1, out)
     else:
         out[...] = planes.band(volume, t0, t1)
+
+
+def _read_bands(reads: list[tuple[Any, int, int, np.ndarray]]) -> None:
+    """Each ``(volume, t0, t1, out)`` of ``reads`` as :func:`_read_into`, a volume per task on the threads: the
+    mask's and the classes' bands beside the flow's (whose ``band_into`` spreads its planes over the threads too,
+    a thread joining it once its own task is done)."""
+
+    def one(k: int) -> None:
+        _read_into(*reads[k])
+
+    for_each(one, len(reads))
+
+
+def _all_finite(vol: np.ndarray) -> bool:
+    """Whether every value of the float32 ``vol`` is finite: a float64 sum per chunk of sub-frames on the threads
+    (a sum of finite float32 values cannot overflow float64: NaN or inf in it is NaN or inf in the volume)."""
+    n = len(vol)
+    chunks = min(n, 4 * workers())
+    finite = np.ones(max(chunks, 0), bool)
+
+    def one(i: int) -> None:
+        part = vol[i * n // chunks:(i + 1) * n // chunks]
+        finite[i] = np.isfinite(part.sum(dtype=np.float64))
+
+    for_each(one, chunks)
+    return bool(finite.all())
 
 
 STEP_MARGIN = 2.0**-20
@@ -128,7 +157,7 @@ def _check(init, mask, flow, time, c, start: int = 0):
         raise ValueError(
             f"`mask` {ms} and `flow` {fs} must match `init` {vol.shape} (flow with a last axis of 2)"
             + (f" from sub-frame `start` = {start} on" if start else ""))
-    if not np.isfinite(vol.sum(dtype=np.float64)):  # one pass, no boolean volume
+    if not _all_finite(vol):  # one pass, no boolean volume
         raise ValueError("`init` holds NaN or infinite values")
     if not math.isfinite(time) or time < 0:
         raise ValueError(f"`time` must be a finite number >= 0; got {time!r}")
@@ -262,17 +291,24 @@ def variable_tensor_diffusion(
         for e0 in range(0, S, L):  # the band: input sub-frames [e0, e1)
             e1 = min(e0 + L, S)
             k0 = max(0, e0 - steps - 1)  # from here on, each step's planes are still read
-            if k0 > c0:
-                for buf in carried:
-                    buf[:e0 - k0] = buf[k0 - c0:e0 - c0]
+            if k0 > c0:  # the planes carried: each a task on the threads where none is moved onto another's source
+                if k0 - c0 >= e0 - k0:
+                    moves = [(buf, p) for buf in carried for p in range(e0 - k0)]
+
+                    def move(i: int, c0: int = c0) -> None:
+                        buf, p = moves[i]
+                        buf[p] = buf[k0 - c0 + p]
+
+                    for_each(move, len(moves))
+                else:
+                    for buf in carried:
+                        buf[:e0 - k0] = buf[k0 - c0:e0 - c0]
                 c0 = k0
             n = e1 - c0
             if not direct:
                 bufs[0][e0 - c0:n] = vol[e0:e1]
-            _read_into(f, start + e0, start + e1, fb[e0 - c0:n])
-            _read_into(m, start + e0, start + e1, mb[e0 - c0:n])
-            if use_sharp:
-                _read_into(sh, start + e0, start + e1, sb[e0 - c0:n])
+            _read_bands([(f, start + e0, start + e1, fb[e0 - c0:n]), (m, start + e0, start + e1, mb[e0 - c0:n])]
+                         + ([(sh, start + e0, start + e1, sb[e0 - c0:n])] if use_sharp else []))
             for j in range(1, steps + 1):
                 # Step j is known up to sub-frame e0 − j (each step reads one sub-frame either side); now to e1 − j,
                 # or to the end of time. The buffers end at the window's end: where that is not the end of time,

@@ -180,3 +180,21 @@ def test_an_init_read_through_a_buffer_gives_the_same_bits(steps):
         got = variable_tensor_diffusion(view, mask, flow, c=C, time=time, sharp=sharp, band=3, out=out)
         np.testing.assert_array_equal(got, expected)
     np.testing.assert_array_equal(strided[:, :, 1::2], 0)  # the input's neighbours untouched
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+@pytest.mark.parametrize("where", [0, 6, 12, 20])
+def test_a_nan_or_inf_anywhere_in_init_is_refused(bad, where):
+    # The check sums chunks of sub-frames on the threads: each chunk's sub-frames are read, the last one's too.
+    init, mask, flow, _ = case(21, seed=8)
+    init[where, 4, 7] = bad
+    with pytest.raises(ValueError, match=r"`init` holds NaN or infinite values"):
+        variable_tensor_diffusion(init, mask, flow, c=C, time=time_of(2))
+
+
+def test_the_largest_finite_values_pass_the_check():
+    # A float64 sum of float32 values cannot overflow: a volume whose float32 sum would (1e38 a voxel) is not refused.
+    init, mask, flow, _ = case(21, seed=8)
+    big = np.full_like(init, 1e38)
+    got = variable_tensor_diffusion(big, mask, flow, c=C, time=time_of(1))
+    np.testing.assert_allclose(got, big, rtol=1e-6)  # a constant stays itself, to float32 rounding

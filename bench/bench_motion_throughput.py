@@ -340,11 +340,11 @@ def _refine_serial_glue() -> Iterator[None]:
 
 
 @contextlib.contextmanager
-def _refine_band_8() -> Iterator[None]:
-    """Before the refinement's bands took 16 sub-frames: 8 (``vardiff.MIN_BAND``)."""
+def _refine_band_16() -> Iterator[None]:
+    """Tried and not kept: the refinement's bands of 16 sub-frames (``vardiff.MIN_BAND``; 8 kept)."""
     from flexvox_core.motion import vardiff
 
-    with mock.patch.object(vardiff, "MIN_BAND", 8):
+    with mock.patch.object(vardiff, "MIN_BAND", 16):
         yield
 
 
@@ -1003,7 +1003,7 @@ VARIANTS: dict[str, Callable[[], contextlib.AbstractContextManager[None]]] = {
     "refine-no-slp": _refine_no_slp,
     "refine-float64": _refine_float64,
     "refine-serial-glue": _refine_serial_glue,
-    "refine-band-8": _refine_band_8,
+    "refine-band-16": _refine_band_16,
     "guides-whole": _guides_whole,
     "reach-by-log": _reach_by_log,
     "high-tr-float32": _high_tr_float32,

@@ -50,9 +50,8 @@ _KERNEL_LOCK = threading.Lock()
 neither OpenMP nor TBB is installed) aborts the process when two threads enter a parallel region at
 once (the dask batch, napari's worker and Review's jobs may). Each call uses every core anyway."""
 
-MIN_BAND = 16
-"""The fewest sub-frames of a band (:func:`band_length`): the planes carried from band to band (``steps + 1`` of
-each buffer) and the kernel's calls (each ends waiting on its last thread) come once a band."""
+MIN_BAND = 8
+"""The fewest sub-frames of a band (:func:`band_length`)."""
 
 
 STILL_READ_SPEED = 1e-3
@@ -78,10 +77,9 @@ def explicit_steps(time: float, c) -> int:
 def band_length(steps: int, threads: int) -> int:
     """Sub-frames per band of :func:`variable_tensor_diffusion` at ``steps`` explicit steps on ``threads``
     threads: :data:`MIN_BAND`, or one a thread where there are more (a band's flow planes are made side by side).
-    No sub-frame is stepped twice whatever the band, so it sets the memory taken: about ``band + steps + 1``
+    No sub-frame is stepped twice whatever the band, so it sets only the memory taken: about ``band + steps + 1``
     planes of the steps' float32 buffers (one at two steps, the refinement's, from a C-contiguous ``init``), the flow
-    (two float32) and two bool volumes (14 bytes a pixel so; 4.3 MB a plane at 640×480, 82 MB at 16 sub-frames and
-    two steps), and the work of the glue (the carried planes, a kernel call per step). ``steps`` is not used."""
+    (two float32) and two bool volumes (14 bytes a pixel so; 4.3 MB a plane at 640×480). ``steps`` is not used."""
     return max(MIN_BAND, threads)
 
 

@@ -332,13 +332,17 @@ def test_bad_subframes_are_refused_by_name(subframes, kw, message):
         diffuse(frames, code, subframes=subframes, **kw)
 
 
-@pytest.mark.parametrize(("tensor", "time", "F"), [
+NC_END_CASES = [
     ((0.05, 0.05, 0.95), 5.0, 6),  # the guides' tensor: ends and an interior
     ((1.0, 1.0, 0.05), 2.0, 4),  # the high-TR tensor: a short kernel
     ((0.0, 0.0, 0.3), 1.0, 3),  # the two ends overlap; sub-frames without a sample in reach
     ((1.0, 1.0, 1.0), 30.0, 9),  # a long kernel (filtered on OpenCV's threads)
     ((0.5, 0.5, 1.0), 500.0, 2),  # a kernel longer than the clip: blurred whole
-])
+]
+"""(tensor, time, F) of the tests of nc's ends and interior made as they are finished."""
+
+
+@pytest.mark.parametrize(("tensor", "time", "F"), NC_END_CASES)
 def test_nc_finishes_the_ends_as_made_with_the_same_bits_as_when_held(monkeypatch, tensor, time, F):
     # diffuse's nc finishes the clip's end sub-frames as their blurred mask is made, a band of columns at a time;
     # with the ends held (as the leave-one-out reads them) every bit is the same.
@@ -353,13 +357,7 @@ def test_nc_finishes_the_ends_as_made_with_the_same_bits_as_when_held(monkeypatc
     np.testing.assert_array_equal(streamed, diffuse(frames, code, tensor=tensor, time=time))
 
 
-@pytest.mark.parametrize(("tensor", "time", "F"), [
-    ((0.05, 0.05, 0.95), 5.0, 6),  # the guides' tensor: ends and an interior
-    ((1.0, 1.0, 0.05), 2.0, 4),  # the high-TR tensor: a short kernel
-    ((0.0, 0.0, 0.3), 1.0, 3),  # the two ends overlap; sub-frames without a sample in reach
-    ((1.0, 1.0, 1.0), 30.0, 9),  # a long kernel (filtered on OpenCV's threads)
-    ((0.5, 0.5, 1.0), 500.0, 2),  # a kernel longer than the clip: blurred whole
-])
+@pytest.mark.parametrize(("tensor", "time", "F"), NC_END_CASES)
 @pytest.mark.parametrize("missing", [False, True])
 def test_nc_blurs_in_space_as_it_finishes_with_the_same_bits_as_before(monkeypatch, tensor, time, F, missing):
     # diffuse's nc blurs the numerator's interior sub-frames in space just before it finishes each (the ends' first,

@@ -149,3 +149,24 @@ def test_scaled_is_the_plane_where_no_full_size_plane_was_set():
     assert held.scaled(2) is None and held.scaled(3) is not None  # a plane put is read as put
     held.flow  # noqa: B018 - the whole volume made: read from it
     assert held.scaled(3) is None
+
+
+def test_flow_at_reads_a_voxel_of_the_plane_or_of_the_small_flow_with_the_same_bits():
+    import numba
+
+    from flexvox_core.flow.estimate import ScaledFlow
+    from flexvox_core.motion.flow_kernel import flow_at
+
+    small = np.random.default_rng(5).normal(0, 2, (3, 7, 9, 2)).astype(np.float32)
+    flow = ScaledFlow(small, np.ones((3, 7, 9), np.float32), (17, 23))
+    scaled, plane = flow.scaled(1), flow.plane(1)
+    assert scaled is not None
+
+    @numba.njit
+    def compiled(flow_t, y, x):  # type: ignore[no-untyped-def]
+        return flow_at(flow_t, y, x)
+
+    for y, x in ((0, 0), (16, 22), (8, 5), (3, 19)):
+        want = (plane[y, x, 0], plane[y, x, 1])
+        assert flow_at(scaled, y, x) == want and flow_at(plane, y, x) == want
+        assert compiled(scaled, y, x) == want and compiled(plane, y, x) == want

@@ -890,6 +890,8 @@ def spill_caveat(attrs: dict[str, Any]) -> str | None:
     calibration's error). Measured: drummer 48×64, 4×4 code, nc: +2.6 dB with pattern blur's defaults and +2.0 dB
     with misregistration's, the truth below the interval (+0.7 dB and inside it with neither); the mock rig's
     calibrated captures +1.6 to +2.4 dB (bench/bench_accuracy.py does not yet cover either)."""
+    if not isinstance(attrs, dict):
+        raise TypeError(f"`attrs` must be a recording's attribute dict (`recording.attrs`); got {type(attrs).__name__}")
     stated = [name for name in SPILL_EFFECTS if name in (attrs.get("effects") or {})]
     if stated:
         why = f"the recording states {' and '.join(stated)}"

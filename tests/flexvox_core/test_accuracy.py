@@ -500,6 +500,8 @@ def test_a_recording_whose_code_light_spills_gets_its_estimate_called_an_upper_b
     assert spill_caveat({"kind": "simulated", "effects": {"pattern_blur": {}, "misregistration": {}}}).startswith(
         "the recording states pattern_blur and misregistration, so a slot's light spills")
     assert spill_caveat({"kind": "captured", "effects": {}}).startswith("a rig's projector blurs its code")
+    with pytest.raises(TypeError, match=r"`attrs` must be a recording's attribute dict \(`recording.attrs`\); got str"):
+        spill_caveat("rec.zarr")
     code = design_code((2, 2)).code
     video = render_scene("drummer", 4 * 4, 32, 48)
     for effects, caveat in (({}, False), ({"pattern_blur": {}}, True)):

@@ -30,12 +30,13 @@ which a real camera with one buffer would have dropped (the GUI tests record wit
 check that the simulated rig drops none).
 
 ``--region-cpu SIDE`` then runs motion-aware from scratch on a fixed SIDE×SIDE region of the last size's frames
-(the ``region`` preview's run, its 3 frames), ``--calls`` times after one warm-up, and prints the process's CPU
+(the ``region`` preview's run, its 3 frames, with the preview's options; ``--region-all``: every stage at the
+region's own flow scale), ``--calls`` times after one warm-up, and prints the process's CPU
 seconds per stage and in all (medians): the region's cost without the camera's pace or the machine's load in
 it (``taskset -c 0`` makes it one core's).
 
 Figures only, never pass/fail. Usage: ``python bench/bench_live_preview.py [--seconds S] [--sizes 160x120,640x480]
-[--strategies stride,region,stream,nc] [--device cuda] [--soak S] [--region-cpu SIDE [--calls N]]``.
+[--strategies stride,region,stream,nc] [--device cuda] [--soak S] [--region-cpu SIDE [--calls N] [--region-all]]``.
 """
 
 from __future__ import annotations
@@ -207,9 +208,12 @@ def soak(frames, code, tile, shape, seconds: float) -> None:
         print(f"| {k + 1}/10 | {rate:.2f} | {lat} | {gpu:.0f} | {host:.0f} |", flush=True)
 
 
-def region_cpu(frames: np.ndarray, code: np.ndarray, side: int, calls: int) -> None:
-    """Motion-aware on a fixed ``side``² region of ``frames``' last 3 frames (top-left on the code's grid): the
-    process's CPU seconds per stage and in all, medians of ``calls`` calls after a warm-up."""
+def region_cpu(frames: np.ndarray, code: np.ndarray, side: int, calls: int, everything: bool = False) -> None:
+    """Motion-aware on a fixed ``side``² region of ``frames``' last 3 frames (top-left on the code's grid), with the
+    preview's options (:func:`~flexvox_app.capture.live_preview.preview_options` of the whole frame) or, ``all``, every
+    stage at the region's own flow scale: the process's CPU seconds per stage and in all, medians of ``calls`` calls
+    after a warm-up."""
+    from flexvox_app.capture.live_preview import preview_options
     from flexvox_core.motion import stages
     from flexvox_core.motion.pipeline import motion_aware
 
@@ -218,6 +222,7 @@ def region_cpu(frames: np.ndarray, code: np.ndarray, side: int, calls: int) -> N
         raise SystemExit(f"--region-cpu {side}: larger than the {W}x{H} frames")
     y0, x0 = (H - side) // 8 * 4, (W - side) // 8 * 4  # centred, on the 4x4 code's grid
     region = np.ascontiguousarray(frames[-N_FRAMES:, y0:y0 + side, x0:x0 + side])
+    options = {} if everything else {"sample_range": (0.0, 1.0), **preview_options((H, W))}
     used: dict[str, float] = {}
     plain = stages.StageTimes.__call__
 
@@ -233,11 +238,12 @@ def region_cpu(frames: np.ndarray, code: np.ndarray, side: int, calls: int) -> N
         for _ in range(calls + 1):
             used.clear()
             start = time.process_time()
-            motion_aware(region, code)
+            motion_aware(region, code, **options)
             runs.append({**used, "all": time.process_time() - start})
     runs = runs[1:]  # the warm-up: numba's compilation
     names = list(runs[-1])
-    print(f"\nmotion-aware on a {side}x{side} region, {N_FRAMES} frames, {calls} calls: CPU ms (median)")
+    how = "every stage, the region's own flow scale" if everything else f"the preview's options {options}"
+    print(f"\nmotion-aware on a {side}x{side} region, {N_FRAMES} frames, {how}, {calls} calls: CPU ms (median)")
     print("| " + " | ".join(names) + " |")
     print("|---" * len(names) + "|")
     print("| " + " | ".join(f"{statistics.median(r.get(n, 0.0) for r in runs) * 1000:.0f}" for n in names) + " |")
@@ -254,6 +260,8 @@ def main() -> None:
     ap.add_argument("--region-cpu", type=int, default=0, metavar="SIDE",
                     help="then motion-aware on a fixed SIDE x SIDE region: CPU seconds per stage")
     ap.add_argument("--calls", type=int, default=8, help="--region-cpu's calls (after one warm-up)")
+    ap.add_argument("--region-all", action="store_true",
+                    help="--region-cpu with every stage at the region's own flow scale, not the preview's options")
     args = ap.parse_args()
     tile = (4, 4)
     code = design_code(tile).code
@@ -281,7 +289,7 @@ def main() -> None:
     if args.soak > 0:
         soak(frames, code, tile, (h, w), args.soak)
     if args.region_cpu:
-        region_cpu(frames, code, args.region_cpu, args.calls)
+        region_cpu(frames, code, args.region_cpu, args.calls, args.region_all)
 
 
 if __name__ == "__main__":

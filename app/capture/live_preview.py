@@ -16,6 +16,8 @@ need no Qt, so that a benchmark and the tests can run them alone:
   (:mod:`flexvox_core.motion.streaming`: the frame before the newest, its flow pairs and frames kept
   between runs), or the fast constant-tensor ``nc`` (the preview's fallback: the whole VGA frame in
   about a tenth of a second, the newest frame), of a region of the newest frames: K sub-frames.
+* :func:`preview_options` — motion-aware's options for it: the flow at the whole frame's scale, whatever the
+  region, so that a region shows what the recording's reconstruction will show there.
 
 When the machine cannot keep up the preview gives way in this order: first frames are skipped (the newest
 wins, always), then the region shrinks; it never shows a subsampled frame.
@@ -330,18 +332,19 @@ class PreviewReconstructor:
         """(K sub-frames, the frame id shown, frames in its window) by the stream."""
         from flexvox_core.motion.streaming import StreamingMotionAware
 
+        options = preview_options(key[3], self.device)  # key[3]: the camera frame's (H, W)
         stream = self._stream
         pushed_to = None if stream is None else self._first_id + stream.pushed - 1  # newest id in the stream
         if (stream is None or key != self._key or ids != list(range(ids[0], ids[0] + len(ids)))
                 or ids[0] > pushed_to + 1 or ids[-1] <= pushed_to):
-            stream = self._stream = StreamingMotionAware(identity, device=self.device, **self._options())
+            stream = self._stream = StreamingMotionAware(identity, device=self.device, **options)
             self._key, self._first_id, pushed_to = key, ids[0], ids[0] - 1
         if len(ids) == 1:  # the first frame of a run: nothing after it yet, shown alone
             self._stream = None
             from flexvox_core.motion import motion_aware
 
             return motion_aware(stack, identity, sample_range=(0.0, 1.0), device=self.device,
-                                **self._options()).video, ids[0], 1
+                                **options).video, ids[0], 1
         target = ids[-1] - 1 - self._first_id  # the frame before the newest, as the stream counts
         out = []
         for fid, image in zip(ids, stack, strict=True):
@@ -353,13 +356,23 @@ class PreviewReconstructor:
         return shown.video, self._first_id + shown.index, b - a
 
 
-    def _options(self) -> dict:
-        """Motion-aware's options for the preview: on the CPU without the refinement (a sixth less time per run, so
-        a larger region; it adds ~0.4 dB offline), the local choice (about 8 % of a VGA run for a few hundredths
-        of a dB there) and the noise-aware smoothing (a wider blur, more voxels gathered); on the GPU all of it."""
-        if self.device == "cuda":
-            return {}
-        return {"refine_time": 0.0, "local_choice": False, "noise_aware": False}
+def preview_options(frame_shape: tuple[int, int], device: str = "cpu") -> dict:
+    """Motion-aware's options for a preview of a camera frame of ``frame_shape`` (H, W), whatever region of it runs.
+
+    * The flow at the scale the whole frame's reconstruction uses (:func:`~flexvox_core.motion.options.auto_flow_scale`
+      of the frame, not of the region): a region then shows what the recording's reconstruction will show there,
+      where a region's own scale (finer: 0.56-0.83 for 288-192 px regions of a 640×480 frame, against 1/3) made it
+      0.2-1.5 dB better or worse than that, at 1.2-2× the time (docs/benchmarks.md, "Live preview").
+    * On the CPU without the refinement (a sixth less time per run, so a larger region; it adds ~0.4 dB offline),
+      the local choice (about 8 % of a VGA run for a few hundredths of a dB there) and the noise-aware smoothing
+      (a wider blur, more voxels gathered); on the GPU all of them.
+    """
+    from flexvox_core.motion.options import auto_flow_scale
+
+    scale = {"flow_scale": auto_flow_scale(*frame_shape)}
+    if device == "cuda":
+        return scale
+    return {**scale, "refine_time": 0.0, "local_choice": False, "noise_aware": False}
 
 
 def _full_scale(stack: np.ndarray) -> float:

@@ -344,7 +344,10 @@ def test_on_the_gpu_the_preview_takes_the_whole_frame_every_run_and_says_so(qtbo
     preview = LivePreview(device="cuda")
     assert preview.device == "cuda" and preview.reconstructor.device == "cuda" and preview.rest_fraction == 0
     assert preview._next_region((480, 640)).covers((480, 640))
-    assert preview.reconstructor._options() == {}
+    from flexvox_app.capture.live_preview import preview_options
+
+    # All the stages; the flow at the whole frame's scale, which the whole frame's default is.
+    assert preview_options((480, 640), "cuda") == {"flow_scale": pytest.approx(1 / 3)}
     preview.enabled, preview.runs = True, 1
     preview.result = PreviewResult(np.zeros((16, 48, 64), np.float32), 3, 3, Region(0, 48, 0, 64), (48, 64), 0.01,
                                    (0.0, 1.0), "motion-aware", "cuda")
@@ -384,3 +387,29 @@ def test_the_preview_region_shrunk_under_load_grows_back_when_runs_get_faster():
         cost.add(run(region.pixels, 1.0), region.pixels)
         region = preview_region(shape, (4, 4), cost.pixels_for(budget, 160 * 120))
     assert region.covers(shape), (small, region)
+
+
+def test_a_region_is_previewed_with_the_whole_frames_flow_scale():
+    # A 96x96 region of a 240x320 frame: its flow runs at 2/3 (auto_flow_scale of the frame, as the recording's
+    # reconstruction runs it), not at the region's own scale (1, full size), which shows a different picture.
+    from flexvox_app.capture.live_preview import preview_options
+    from flexvox_core.motion.streaming import StreamingMotionAware
+
+    code = design_code((2, 4)).code
+    truth = render_scene("balls", 24, 240, 320)
+    frames = [Frame(f, frame_id=i, timestamp_s=i / 15) for i, f in enumerate(capture_frames(truth, code))]
+    region = Region(72, 168, 112, 208)
+    got = reconstruct_preview(frames, code, region).video
+    assert preview_options((240, 320)) == {"flow_scale": pytest.approx(2 / 3), "refine_time": 0.0,
+                                           "local_choice": False, "noise_aware": False}
+    assert preview_options((240, 320), "cuda") == {"flow_scale": pytest.approx(2 / 3)}
+    crop = np.stack([region.crop(f.image) for f in frames]).astype(np.float32)
+
+    def stream(**scale):
+        s = StreamingMotionAware(code, sample_range=(0.0, 1.0), refine_time=0.0, local_choice=False,
+                                 noise_aware=False, **scale)
+        out = [r for image in crop for r in s.push(image)]
+        return np.clip(out[-1].video, 0.0, 1.0)
+
+    np.testing.assert_array_equal(got, stream(flow_scale=2 / 3))
+    assert np.abs(got - stream()).max() > 0.01  # the region's own scale: another picture

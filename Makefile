@@ -52,7 +52,7 @@ docs-check: $(STAMP) $(DOCS_STAMP)
 	$(BIN)/python -m tests.docs_check
 
 lint: $(STAMP)
-	$(BIN)/python -m pip install --quiet ruff
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
 	$(BIN)/python -m ruff check .
 
 bench: $(STAMP)

@@ -231,8 +231,8 @@ def _choose(method: Method | str, knob: str, candidates: Any, code: Any,
     methods = [_with(method, knob, v) for v in values]  # a bad value: Method's own ValueError, before any run
     for i, m in enumerate(methods):  # 2 and 2.0 are one candidate: it would cost its runs twice, and be shown twice
         if m in methods[:i]:
-            raise ValueError(f"`candidates` holds {values[methods.index(m)]!r} and {values[i]!r}, the same {knob}: give "
-                             "each value once")
+            raise ValueError(f"`candidates` holds {values[methods.index(m)]!r} and {values[i]!r}, the same {knob}: "
+                             "give each value once")
     t_start = time.perf_counter()
     tried: list[Candidate] = []
     best: tuple[int, Any] | None = None

@@ -151,7 +151,8 @@ def check_output(path, *, overwrite: bool = False, inputs: Iterable = (), hint: 
         (:data:`~flexvox_core.output_errors.OVERWRITE_HINT`), the command line's ``--overwrite``
         (:data:`~flexvox_core.output_errors.CLI_OVERWRITE_HINT`).
     kind : "file", "store", "folder", None or "auto"
-        What will be written (default: :func:`output_kind` of the path); a ``store``'s name must end in ``.zarr``. ``overwrite`` replaces only
+        What will be written (default: :func:`output_kind` of the path); a ``store``'s name must end in ``.zarr``.
+        ``overwrite`` replaces only
         the same kind: a file with a file, a Zarr store with a Zarr store (a folder holding
         ``zarr.json``), never a folder of other things with a file or a store. A ``.zarr`` of kind
         ``auto`` (a video, or a file under that name) never replaces a recording (:func:`is_recording`);

@@ -43,8 +43,8 @@ def run_recording_bench(path, out_dir, *, quick: bool = False, device: str = "cp
     rows (``estimate``, ``low``, ``high``: dB or None with ``why``; ``truth``: dB or None)."""
     from flexvox_core.accuracy import NotEstimable, estimate_recording
     from flexvox_core.capture_reader import open_capture
-    from flexvox_core.warm_up import warm_up
     from flexvox_core.metrics import clip_psnr, psnr
+    from flexvox_core.warm_up import warm_up
 
     reader = open_capture(path)
     rec = reader.recording

@@ -307,7 +307,8 @@ def run(args) -> int:
         _check_video_request(args, given)
     elif args.what is None:
         args.what = "frames"
-    if given and not video and args.what != "reconstruction":  # else the frames would be exported as they are, without a word
+    # else the frames would be exported as they are, without a word
+    if given and not video and args.what != "reconstruction":
         default = " (the default)" if args.what == "frames" else ""
         what = "camera frames as they are" if args.what == "frames" else "ground truth as it is"
         raise CliError(f"{given[0]} goes with --what reconstruction; --what {args.what}{default} exports the {what}: "

@@ -119,11 +119,11 @@ def _spec_from_argument(text: str) -> SceneSpec:
 
 def run_simulate(args) -> int:
     """Carry out ``flexvox simulate``."""
+    from flexvox_core.intensity import CountsWarning
     from flexvox_core.output_files import CLI_OVERWRITE_HINT, check_output
     from flexvox_core.recording import RecordingError, write_simulation
     from flexvox_core.simulate.effects import parse_effects
     from flexvox_core.simulate.simulator import simulate
-    from flexvox_core.intensity import CountsWarning
     from flexvox_core.simulate.sources import TrimWarning, load_video
 
     try:

@@ -12,7 +12,8 @@ With a tile of at least 2×2 (one pixel of a cell per slot) the reads at the off
 row's voxels (:func:`_row_reads`), which LLVM vectorizes (8 reads a step, one gather of the frame): each read
 finds the pixel of its cell in the slot's row and column of the tile in float32 arithmetic, reads it (clamped in
 the picture) and adds its weighted sample where the cell holds it, a select rather than a branch; the sample read
-is the pixel itself (a held pixel's n/d, rounded, in the code before) and the range weight is :func:`~flexvox_core.motion.exp_kernel.exp32`.
+is the pixel itself (a held pixel's n/d, rounded, in the code before) and the range weight is
+:func:`~flexvox_core.motion.exp_kernel.exp32`.
 The sums are those of float32 rounding: within 3e-7 of the scalar reads on the 1-s balls clip. A 1×n or m×1 tile
 (two pixels of a cell per slot) takes the scalar reads, :func:`_row_sums`.
 
@@ -244,7 +245,6 @@ def _row_sums_one(frames: Any, lat: Any, flow_t: Any, guide: Any, t: int, y: int
     ky_of, kx_of, m, n = lat[6], lat[7], lat[8], lat[9]
     S, H, W = guide.shape
     zero = np.float32(0)
-    one = np.float32(1)
     us, vs, gs, acc_n, acc_d, fx = scratch[0], scratch[1], scratch[2], scratch[3], scratch[4], scratch[5]
     k = slot_of[t]
     f = frame_of[t]
@@ -392,7 +392,8 @@ def long_reach_kernel(frames: Any, order: Any, corners: Any, present: Any, flow:
     arrays or volumes read a sub-frame at a time (:func:`flexvox_core.planes.band`), a flow with a ``scaled``
     method (:class:`~flexvox_core.flow.estimate.ScaledFlow`) read at the voxels from its small planes
     (:mod:`~flexvox_core.motion.flow_kernel`); ``guide`` (S, H, W) float32; ``time_w`` (reach + 1,) the
-    trajectory weights exp(−d²/2σ_t²); ``scale`` −1/2h²; ``taps`` the blur's (odd length); ``num``, ``den`` (C, H, W) float32 scratch, one plane pair per chunk of sub-frames run side by
+    trajectory weights exp(−d²/2σ_t²); ``scale`` −1/2h²; ``taps`` the blur's (odd length); ``num``, ``den`` (C, H, W)
+    float32 scratch, one plane pair per chunk of sub-frames run side by
     side (any content) by :func:`flexvox_core.threads.for_each`, each sub-frame one compiled call that releases
     the GIL (:func:`long_reach_subframe`) with its own planes of ``flow`` and ``select``. ``write_samples``: write
     each sub-frame's samples into ``out`` after it. Each voxel's sums are made in one order by one thread: the

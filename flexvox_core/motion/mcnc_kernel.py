@@ -97,8 +97,6 @@ def lattice_sums(frames: Any, present: Any, row_hit: Any, col_hit: Any, flow_t: 
     so the bits are those of a kernel per voxel (``tests/flexvox_core/motion/lattice_reference.py``, a test).
     """
     K = row_hit.shape[0]
-    H = frames.shape[1]
-    W = frames.shape[2]
     h, w = near.shape
     one = np.float32(1)
     zero = np.float32(0)

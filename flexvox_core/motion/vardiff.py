@@ -293,9 +293,9 @@ def variable_tensor_diffusion(
                 if k0 - c0 >= e0 - k0:
                     moves = [(buf, p) for buf in carried for p in range(e0 - k0)]
 
-                    def move(i: int, c0: int = c0) -> None:
+                    def move(i: int, moves: list = moves, shift: int = k0 - c0) -> None:
                         buf, p = moves[i]
-                        buf[p] = buf[k0 - c0 + p]
+                        buf[p] = buf[shift + p]
 
                     for_each(move, len(moves))
                 else:

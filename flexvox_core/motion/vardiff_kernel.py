@@ -12,7 +12,8 @@ The step computes in float32 (the GPU twin's arithmetic): the volume's values, t
 (:func:`~flexvox_core.motion.vardiff.float32_step` gives them, ``dt`` within 2 dt trace T ≤ 1 − 2⁻²⁰, so the
 rounding of the step's sums keeps each result within the range of the values it combines), with FMA contraction
 (:data:`STEP_OPTIONS`). A read is taken at a whole pixel plus the flow's float32 offset, its cell exact and its
-fraction within 3e-8 (:func:`_cell`): no float32 position x + u, whose rounding (6e-5 px at x = 640) can move a Catmull-Rom read's clip
+fraction within 3e-8 (:func:`_cell`): no float32 position x + u, whose rounding (6e-5 px at x = 640) can move a
+Catmull-Rom read's clip
 to the neighbouring cell. Against the float64 reference the step agrees to a few float32 ulps of the values.
 
 Bilinear reads are exact (OpenCV rounds the fractional position to 1/32 px) and clamp at the

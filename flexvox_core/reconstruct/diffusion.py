@@ -350,7 +350,7 @@ def _nc_kernel(frames, code, sig, keep_samples: bool, dtype, present=None, loo=N
     den_k = np.empty((K, H, W), dtype=dtype)
     slots: list[np.ndarray] = [np.empty(0, bool)] * K  # each slot's sample mask, row-major (order may be a view)
 
-    def first(i: int) -> None:
+    def first(i: int, den_k: np.ndarray = den_k) -> None:
         if i < K:
             slots[i] = np.ascontiguousarray(order == i)
             _blur_plane(slots[i].astype(dtype), gy, gx, den_k[i])

@@ -207,7 +207,8 @@ def test_a_crop_smaller_than_the_tile_is_refused_naming_the_unsampled_slots():
     code = fv.design_code((4, 4)).code
     frames = fv.capture(fv.render_scene("balls", 32, 8, 8, seed=0), code)
     with pytest.raises(ValueError, match=r"`frames` of 2x2 pixels hold less than one 4x4 tile: 12 of the code's "
-                                         r"K = 16 slots are sampled by no pixel.*at least one whole tile \(4x4 pixels\)"):
+                                         r"K = 16 slots are sampled by no pixel.*"
+                                         r"at least one whole tile \(4x4 pixels\)"):
         fv.run(frames[:, :2, :2], code, "diffusion")
     with pytest.raises(ValueError, match=r"`frames` of 8x3 pixels hold less than one 4x4 tile: 4 of"):
         fv.reconstruct_video(frames[:, :, :3], code, "diffusion")

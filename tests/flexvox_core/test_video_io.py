@@ -74,7 +74,8 @@ def test_open_recording_on_an_array_inside_a_recording_names_the_recording(tmp_p
 
 
 @pytest.mark.parametrize("attrs, match", [
-    ({"gain": np.float32(2)}, r"attrs\['gain'\] is a float32 \(a numpy value: give value.item\(\) or value.tolist\(\)\)"),
+    ({"gain": np.float32(2)},
+     r"attrs\['gain'\] is a float32 \(a numpy value: give value.item\(\) or value.tolist\(\)\)"),
     ({"m": {"block": [np.int64(2)]}}, r"attrs\['m'\]\['block'\]\[0\] is a int64"),
     ({"f": object()}, r"attrs\['f'\] is a object$"),
     ({1: "a"}, r"`attrs` keys must be text; got 1 in attrs"),

@@ -1,7 +1,6 @@
 """Methods run once on a small capture before a benchmark times them (no row pays a one-time compile)."""
 
 import numpy as np
-import pytest
 
 from flexvox_core.design import design_code
 from flexvox_core.methods import Method

@@ -278,7 +278,8 @@ def test_capture_plan_timing_errors_name_the_rule(plan, message):
     # timed as "misses the last 17 of 16 slots"; NaN refused only when the capture started; 1.5 µs cut to 1
     ({"camera_exposure_us": -1}, r"`camera_exposure_us` must be a finite number of µs above 0, or None .*got -1"),
     ({"camera_exposure_us": float("nan")}, r"`camera_exposure_us` must be a finite number .*got nan"),
-    ({"projector_exposure_us": 1.5}, r"`projector_exposure_us` must be a whole number of µs above 0, or None .*got 1.5"),
+    ({"projector_exposure_us": 1.5},
+     r"`projector_exposure_us` must be a whole number of µs above 0, or None .*got 1.5"),
     ({"projector_exposure_us": 0}, r"`projector_exposure_us` must be a whole number .*got 0"),
 ])
 def test_capture_plan_refuses_what_it_would_have_read_as_something_else(given, match):

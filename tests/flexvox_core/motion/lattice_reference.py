@@ -65,8 +65,9 @@ def _read(frames: Any, row_hit: Any, col_hit: Any, f: int, k: int, py: Any, px: 
 
 
 @numba.njit(nogil=True, cache=False)
-def lattice_sums_by_voxel(frames: Any, present: Any, row_hit: Any, col_hit: Any, flow_t: Any, near: Any, y0: int, x0: int,
-                 t: int, S: int, inv_4nc1: Any, reach: int, num: Any, den: Any, thresholds: Any) -> None:
+def lattice_sums_by_voxel(frames: Any, present: Any, row_hit: Any, col_hit: Any, flow_t: Any, near: Any, y0: int,
+                          x0: int, t: int, S: int, inv_4nc1: Any, reach: int, num: Any, den: Any,
+                          thresholds: Any) -> None:
     """:func:`~flexvox_core.motion.mcnc_kernel.lattice_sums` a voxel at a time (its offsets inside the voxel's
     loop), as it was before it ran a row's voxels as a list: the same arguments, the same bits (a test)."""
     K = row_hit.shape[0]

@@ -310,7 +310,8 @@ def test_the_gathers_last_steps_are_numpys_bit_for_bit(rng, shape, wide, with_lo
 @pytest.mark.parametrize("dropped", [False, True])
 def test_lattice_sums_read_cells_in_the_picture_as_clamped_bit_for_bit(rng, order, dropped):
     """The kernel (every read clamped, a row's voxels at a time) gives the bits of the kernel a voxel at a time
-    that clamped every read (lattice_reference), on odd sizes with trajectories leaving the picture, fractional, integer and unmeasured
+    that clamped every read (lattice_reference), on odd sizes with trajectories leaving the picture, fractional,
+    integer and unmeasured
     flows, multiplexed slots' tables of several tiles and a dropped frame."""
     from flexvox_core.motion.mcnc_kernel import lattice_sums, reach_thresholds
 

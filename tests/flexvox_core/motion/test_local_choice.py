@@ -251,7 +251,6 @@ def test_a_single_frame_of_a_still_subject_takes_less_of_the_candidate():
                                                          (4, 2, 5, 6, np.float64)])
 def test_the_compiled_blend_gives_numpys_bits_on_any_number_of_threads(monkeypatch, K, F, H, W, dtype):
     import flexvox_core.threads
-
     from flexvox_core.motion.local_choice import blend_numpy
 
     rng = np.random.default_rng(K * H)
@@ -283,7 +282,6 @@ def test_the_compiled_weights_give_numpys_bits_on_any_number_of_threads(monkeypa
     """Both pooling paths (a full-size blur, a coarse grid's), NaN in either estimate, a frame without a pixel
     that both estimate (weight 1), a frame both predict exactly (weight 1), odd sizes."""
     import flexvox_core.threads
-
     from flexvox_core.motion.local_choice import local_weights_numpy, pooling_sigma
 
     rng = np.random.default_rng(5)

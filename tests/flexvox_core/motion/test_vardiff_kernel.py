@@ -18,7 +18,6 @@ from flexvox_core.motion import motion_aware
 from flexvox_core.motion import vardiff_kernel as K
 from flexvox_core.simulate.scenes import render_scene
 
-
 ULPS = 4e-7
 """Two code paths' reads and steps agree to this (values within [-1, 2]; float32 eps 1.2e-7): the step is compiled
 with FMA contraction, which LLVM chooses for each inlined copy of a read's sums, so a read's last bits differ."""

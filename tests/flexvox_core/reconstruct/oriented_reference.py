@@ -10,7 +10,6 @@ is its reference).
 import math
 
 import cv2
-
 import numpy as np
 
 from flexvox_core.forward import tiled_order

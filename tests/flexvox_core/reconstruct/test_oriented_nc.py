@@ -321,7 +321,7 @@ def test_the_compiled_structure_tensor_is_opencvs_to_float32_rounding(rng, H, W)
     strided = np.zeros((3, H, 2 * W), np.float32)[:, :, ::2]
     assert structure(guide, out=strided) is strided
     np.testing.assert_array_equal(strided, got)
-    with pytest.raises(ValueError, match=r"`out` must have shape \(3, %d, %d\); got \(3, %d, %d\)" % (H, W, H, W + 1)):
+    with pytest.raises(ValueError, match=rf"`out` must have shape \(3, {H}, {W}\); got \(3, {H}, {W + 1}\)"):
         structure(guide, out=np.zeros((3, H, W + 1), np.float32))
     with pytest.raises(ValueError, match=r"structure_block is written for 7 taps, then 9"):
         structure_block(guide, _STRUCTURE_TAPS[1], _STRUCTURE_TAPS[0], plane, 2, 3)

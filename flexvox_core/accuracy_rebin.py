@@ -92,33 +92,21 @@ def _slots(code: np.ndarray, F: int, H: int, W: int) -> np.ndarray:
 def increments(frames: np.ndarray, code: np.ndarray, variance: np.ndarray, half: tuple[int, int, int],
                dropped: np.ndarray | None = None) -> Increments:
     """The mean of ``(y_a − y_b)² − σ_a² − σ_b²`` over every pair of captured samples at each lag in the box
-    ``|dt| ≤ T, |dy| ≤ Y, |dx| ≤ X`` (``half``), symmetric in the lag."""
+    ``|dt| ≤ T, |dy| ≤ Y, |dx| ≤ X`` (``half``), symmetric in the lag (compiled,
+    :func:`~flexvox_core.accuracy_rebin_kernel.pair_increments`, a row lag per item on the threads)."""
+    from flexvox_core.accuracy_rebin_kernel import pair_increments
+    from flexvox_core.threads import for_each
+
     F, H, W = frames.shape
     K = code.shape[2]
     T, Y, X = half
-    t = _slots(code, F, H, W)
-    y = frames.astype(np.float64)
-    var = variance.astype(np.float64)
+    slots = np.ascontiguousarray(_slots(code, F, H, W), np.int64)
+    y = np.ascontiguousarray(frames, np.float64)
+    var = np.ascontiguousarray(variance, np.float64)
     ok = np.ones(F, bool) if dropped is None else ~np.asarray(dropped, bool)
     total = np.zeros((2 * T + 1, 2 * Y + 1, 2 * X + 1))
     count = np.zeros_like(total)
-    reach = T // K + 1
-    for dy in range(-Y, Y + 1):
-        for dx in range(-X, X + 1):
-            a = (slice(max(0, -dy), H - max(0, dy)), slice(max(0, -dx), W - max(0, dx)))
-            b = (slice(max(0, dy), H - max(0, -dy)), slice(max(0, dx), W - max(0, -dx)))
-            for f in np.nonzero(ok)[0]:
-                for g in range(max(0, f - reach), min(F, f + reach + 1)):
-                    if not ok[g]:
-                        continue
-                    dt = (t[g][b] - t[f][a]).ravel()
-                    inside = np.abs(dt) <= T
-                    if not inside.any():
-                        continue
-                    d2 = ((y[g][b] - y[f][a]) ** 2 - var[g][b] - var[f][a]).ravel()
-                    idx = dt[inside] + T
-                    total[:, dy + Y, dx + X] += np.bincount(idx, d2[inside], minlength=2 * T + 1)
-                    count[:, dy + Y, dx + X] += np.bincount(idx, minlength=2 * T + 1)
+    for_each(lambda i: pair_increments(i - Y, slots, y, var, ok, half, T // K + 1, total, count), 2 * Y + 1)
     mean = np.where(count > 0, total / np.maximum(count, 1), 0.0)
     return Increments(mean, count)
 
@@ -276,14 +264,17 @@ class RebinError:
     unspanned: float
 
 
-def _cluster_se(err: np.ndarray, cluster: np.ndarray) -> float:
-    """The standard error of the mean of ``err`` (F', S', H, W) from the spread of its clusters' means (per
-    camera frame and cluster of pixels)."""
-    cells = []
-    for e in err:
-        m = e.mean(axis=0).ravel()
-        cells.append(np.bincount(cluster, m) / np.maximum(np.bincount(cluster), 1))
-    means = np.concatenate(cells)
+def _cluster_means(err: np.ndarray, cluster: np.ndarray) -> np.ndarray:
+    """The means of one camera frame's ``err`` (S', H, W) over its sub-frames, then over each cluster of pixels."""
+    m = err.mean(axis=0).ravel()
+    out: np.ndarray = np.bincount(cluster, m) / np.maximum(np.bincount(cluster), 1)
+    return out
+
+
+def _spread(cells: list[np.ndarray]) -> float:
+    """The standard error of the clip's mean from the spread of its clusters' means (per camera frame and cluster
+    of pixels: :func:`_cluster_means`)."""
+    means = np.concatenate(cells) if cells else np.zeros(0)
     return float(np.std(means, ddof=1) / math.sqrt(means.size)) if means.size > 1 else 0.0
 
 
@@ -296,11 +287,18 @@ def rebin_error(frames: np.ndarray, code: np.ndarray, division: Division, varian
     ``table`` (2·2c + 1, 2·2a + 1, 2·2b + 1), when given, is ``D`` at every lag of the box ``|dt| ≤ 2c, |dy| ≤ 2a,
     |dx| ≤ 2b`` in place of the capture's increments and the fit (a reference: the identity is then exact).
 
+    Each voxel's terms are made a voxel at a time by :mod:`~flexvox_core.accuracy_rebin_kernel` (compiled), one camera
+    frame's sub-frames held at a time: the memory is the blocks' and one frame's (about 40 MB at 640×480, K = 16),
+    whatever the clip's length.
+
     Raises
     ------
     TooFewLags
         Too few lags the interpolation uses are spanned by pairs of samples to fit the increments.
     """
+    from flexvox_core.accuracy_rebin_kernel import frame_error, lag_mass
+    from flexvox_core.threads import for_each, workers
+
     F, H, W = frames.shape
     K = code.shape[2]
     S = F * K
@@ -312,23 +310,19 @@ def rebin_error(frames: np.ndarray, code: np.ndarray, division: Division, varian
     vb = _blocks(variance, code, division).ravel()
     rows = np.broadcast_to(np.arange(H)[None, :, None], (F, H, W))
     cols = np.broadcast_to(np.arange(W)[None, None, :], (F, H, W))
-    pos = [_blocks(a, code, division).ravel().astype(np.intp) for a in (_slots(code, F, H, W), rows, cols)]
-    nt, nh, nw = F * (K // division.c), -(-H // division.a), -(-W // division.b)
-    st = stencil((S, H, W), division, (nt, nh, nw), interpolate=interpolate)
-    tt, yy, xx = np.mgrid[0:S, 0:H, 0:W]
+    # each block's sample: its sub-frame, row and column
+    pos_t, pos_y, pos_x = (_blocks(a, code, division).ravel().astype(np.int64)
+                           for a in (_slots(code, F, H, W), rows, cols))
+    blocks = (F * (K // division.c), -(-H // division.a), -(-W // division.b))
+    axes = _axes((S, H, W), division, blocks, interpolate=interpolate)
+    corners = 8 if interpolate else 1
     kept = np.repeat(keep, K)
-    lags = []
-    mass = np.zeros((2 * T + 1) * (2 * Y + 1) * (2 * X + 1))
-    base = np.zeros((S, H, W))  # noise less the pairs' increments, per voxel
-    for c, (b, w) in enumerate(zip(st.block, st.weight, strict=True)):
-        lag = ((np.clip(tt - pos[0][b], -T, T) + T) * (2 * Y + 1) + np.clip(yy - pos[1][b], -Y, Y) + Y) * (
-            2 * X + 1) + np.clip(xx - pos[2][b], -X, X) + X
-        lags.append(lag)
-        mass += np.bincount(lag[kept].ravel(), w[kept].ravel(), minlength=mass.size)
-        base += w * w * vb[b]
-        for c2 in range(c + 1, len(st.block)):  # the pair's increment per cell of the grid, read per voxel
-            j, k = st.corner[c], st.corner[c2]
-            base -= w * st.weight[c2] * ((yb[j] - yb[k]) ** 2 - vb[j] - vb[k])[st.cell]
+    box = (2 * T + 1) * (2 * Y + 1) * (2 * X + 1)
+    per_corner = np.zeros((corners, box))
+    for_each(lambda c: lag_mass(c, (S, H, W), axes, blocks, pos_t, pos_y, pos_x, half, kept, per_corner[c]), corners)
+    mass = np.zeros(box)
+    for m in per_corner:  # the corners' sums added in their order
+        mass += m
     mass = mass.reshape(inc.mean.shape) / max(int(kept.sum()) * H * W, 1)
     if table is None:
         G, beta, misfit = fit_variogram(inc, mass)
@@ -338,21 +332,46 @@ def rebin_error(frames: np.ndarray, code: np.ndarray, division: Division, varian
         beta, misfit, spanned, model = math.nan, 0.0, np.zeros(inc.mean.shape, bool), np.asarray(table, np.float64)
     est = np.where(spanned, inc.mean, model).ravel()
     unsp = np.where(spanned, 0.0, model).ravel()
-    err = base.copy()
-    for c, lag in enumerate(lags):
-        err += st.weight[c] * est[lag]
     per_frame = np.full(F, np.nan)
-    blocks = err.reshape(F, K, H, W)
-    for f in np.nonzero(keep)[0]:
-        per_frame[f] = float(np.mean(blocks[f]))
-    mse = float(np.mean(blocks[keep]))
+    cluster = ((np.arange(H)[:, None] // CLUSTER) * (W // CLUSTER + 1) + np.arange(W)[None, :] // CLUSTER).ravel()
+    frames_kept = [int(f) for f in np.nonzero(keep)[0]]
+    sums = np.zeros(len(frames_kept))
+    cells: list[np.ndarray] = [np.zeros(0)] * len(frames_kept)
+    n = min(workers(), len(frames_kept))
+
+    def share(w: int) -> None:  # every n-th kept frame, into this worker's own frame of errors
+        err = np.empty((K, H, W))
+        for i in range(w, len(frames_kept), n):
+            f = frames_kept[i]
+            frame_error(f * K, (S, H, W), axes, corners, blocks, pos_t, pos_y, pos_x, half, yb, vb, est, err)
+            per_frame[f] = float(np.mean(err))
+            sums[i] = float(np.sum(err))
+            cells[i] = _cluster_means(err, cluster)
+
+    for_each(share, n)
+    mse = float(np.sum(sums) / max(len(frames_kept) * K * H * W, 1))
     moved = float(np.sum(mass.ravel() * unsp))  # the unspanned lags' share of the error
-    cluster = ((yy[0] // CLUSTER) * (W // CLUSTER + 1) + xx[0] // CLUSTER).ravel()
-    se = _cluster_se(blocks[keep], cluster)
+    se = _spread(cells)
     total = float(np.sum(mass.ravel() * est))
     return RebinError(mse=mse, low=mse - z * (misfit * moved + se), high=mse + z * (misfit * moved + se),
                       per_frame=per_frame, samples=int(keep.sum()) * H * W, beta=beta, misfit=misfit,
                       unspanned=moved / max(total, 1e-30))
+
+
+def _axes(shape: tuple[int, int, int], division: Division, blocks: tuple[int, int, int], *,
+          interpolate: bool) -> tuple[np.ndarray, ...]:
+    """:func:`stencil`'s axis tables for the kernels: ``(i0, i1, w1)`` of time, rows and columns (int64, int64,
+    float64); without interpolation each voxel's block on both corners, ``w1`` 0."""
+    out: list[np.ndarray] = []
+    for n_out, size, nb in zip(shape, (division.c, division.a, division.b), blocks, strict=True):
+        if interpolate:
+            i0, i1, w1 = _axis(n_out, size, nb)
+        else:
+            i0 = i1 = np.arange(n_out) // size
+            w1 = np.zeros(n_out)
+        out += [np.ascontiguousarray(i0, np.int64), np.ascontiguousarray(i1, np.int64),
+                np.ascontiguousarray(w1, np.float64)]
+    return tuple(out)
 
 
 NEAREST = ("re-binning without interpolation (each block's sample fills its block) is estimated by the same closed "

@@ -194,8 +194,11 @@ def _slots(rec) -> dict:
     except RecordingError as exc:
         raise CliError(f"--slots: {exc}") from None
     check = slot_accuracy(frames, truth, code)
+    cal = rec.attrs.get("calibration")
+    stated = cal.get("warnings") if isinstance(cal, dict) else None  # the capture's timing guesses, if any
+    warnings = [str(w) for w in stated] if isinstance(stated, list) else []
     return {"accuracy": check.accuracy, "decidable_fraction": check.decidable_fraction,
-            "message": check.describe()}
+            "single_slot_fit": check.single_slot_fit, "message": check.describe(warnings)}
 
 
 def run(args) -> int:

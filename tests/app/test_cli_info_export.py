@@ -164,3 +164,13 @@ def test_chunk_help_names_each_default(command, chunk, capsys):
     with pytest.raises(SystemExit):
         cli([command, "--help"])
     assert f"camera frames per chunk (default {chunk})" in " ".join(capsys.readouterr().out.split())
+
+
+@pytest.mark.recording(frames=2, size=(16, 24), tile=(2, 4), name="few.zarr")
+def test_info_slots_from_fewer_frames_than_k_says_what_the_figure_cannot_see(recording, capsys):
+    # 2 frames of K = 8: the single-slot fit, whose line says the projector's spilled light reads as wrong slots
+    assert cli(["info", str(recording), "--slots", "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)["slots"]
+    assert s["single_slot_fit"] is True
+    assert re.search(r"read from 2 frame\(s\), fewer than K = 8, .*: record 17 frames of the strobe scene$",
+                     s["message"])

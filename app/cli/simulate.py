@@ -78,7 +78,9 @@ def register(sub) -> None:
     defer(p, describe)
     p.add_argument("scene", metavar="SCENE", help="scene file, built-in scene name, or video file")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="REC.zarr", help="recording to write")
-    p.add_argument("--tile", type=arg_type(parse_tile), metavar="MxN", help="tile (overrides the scene; default 4x4)")
+    p.add_argument("--tile", type=arg_type(parse_tile), metavar="MxN",
+                   help="tile of a designed code (overrides the scene's tile; refused where a scene file states "
+                        "its own [code] order; default 4x4)")
     p.add_argument("--effects", metavar="SPEC",
                    help="effect overrides, comma-separated: NAME, NAME.PARAM=VALUE, or none "
                         "(e.g. none,photon_noise,read_noise.sigma=2); see `flexvox scenes`")
@@ -132,6 +134,11 @@ def run_simulate(args) -> int:
         # before it runs
         check_output(args.output, overwrite=args.overwrite, inputs=inputs, kind="store", hint=CLI_OVERWRITE_HINT)
         if args.tile:
+            if spec.order is not None:  # the file's own code would be replaced by a designed one, without a word
+                m, n = args.tile
+                raise ValueError(f"--tile {m}x{n} would replace the code {args.scene} states in [code] order (a "
+                                 f"{spec.tile[0]}x{spec.tile[1]} tile) with a designed one: drop --tile to simulate "
+                                 "the scene's code, or take [code] order out of the file to use a designed code")
             spec.tile, spec.order = args.tile, None
         if args.size:
             if spec.file is not None:

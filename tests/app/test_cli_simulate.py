@@ -118,3 +118,16 @@ def test_white_reads_a_12_bit_camera_s_counts_and_its_absence_is_warned_of(tmp_p
     np.testing.assert_allclose(truth, counts / 4095, rtol=1e-6)
     assert main(["simulate", "balls", "--white", "4095", "-o", str(tmp_path / "b.zarr")]) == 2
     assert "--white is the count that stands for white in a video file of counts" in capsys.readouterr().err
+
+
+def test_a_tile_given_over_a_scene_files_own_code_order_is_refused(capsys, tmp_path):
+    scene = tmp_path / "seq.toml"
+    scene.write_text('seed = 0\n[source]\nbuiltin = "balls"\nheight = 16\nwidth = 16\nframes = 2\n'
+                     "[code]\norder = [[0, 1], [2, 3]]\n")
+    code, out, _ = run_cli(capsys, "simulate", str(scene), "-o", str(tmp_path / "a.zarr"))
+    assert code == 0 and open_recording(tmp_path / "a.zarr").attrs["order"] == [[0, 1], [2, 3]]
+    for tile in ("2x2", "4x4"):  # the same tile or another: the file's code would be replaced without a word
+        code, _, err = run_cli(capsys, "simulate", str(scene), "--tile", tile, "-o", str(tmp_path / "b.zarr"))
+        assert code == 2 and not (tmp_path / "b.zarr").exists()
+        assert (f"--tile {tile} would replace the code {scene} states in [code] order (a 2x2 tile) with a designed "
+                "one: drop --tile") in err

@@ -310,6 +310,7 @@ def design_code(
     t0 = time.perf_counter()
     # Eq. 1 alone first: an infeasible request is answered without the gap search.
     status, order = _solve(m, n, A_div, 1, node_limit)
+    at_any_gap = order is None  # Eq. 1 alone has no answer: no gap is the reason
     if order is not None and target > 1:
         lo, hi = neighbour_separation(order) or 1, target
         if separation != "auto" and lo < hi:
@@ -331,14 +332,14 @@ def design_code(
 
     if order is None:
         if status == STATUS_INFEASIBLE:
-            what = "infeasible" if target == 1 else f"infeasible with a neighbour gap >= {target}"
-            if separation != "auto" and target > 1:
+            what = "infeasible" if target == 1 or at_any_gap else f"infeasible with a neighbour gap >= {target}"
+            if separation != "auto" and target > 1 and not at_any_gap:
                 msg = f"no {m}x{n} code has a 4-neighbour gap >= {target} while supporting "
             else:
                 msg = f"no {m}x{n} code supports "
             msg += ", ".join(d.label for d in divs) + f": {what}; " + (
                 "ask for a smaller neighbour gap, or fewer divisions" if separation != "auto" and target > 1
-                else f"ask for fewer divisions, or take another tile ({TILES_WITH_CODES})")
+                and not at_any_gap else f"ask for fewer divisions, or take another tile ({TILES_WITH_CODES})")
         else:
             status = STATUS_LIMIT
             msg = (f"the solver reached its node limit ({node_limit}) before finding a code; ask for fewer "

@@ -140,6 +140,10 @@ class CapturePlan:
         if not isinstance(self.multiplexed, bool | np.bool_):  # multiplexed="no" had captured an S-matrix code
             raise ValueError(f"`multiplexed` must be True or False; got {self.multiplexed!r}")
         object.__setattr__(self, "multiplexed", bool(self.multiplexed))
+        if isinstance(self.tile, str):  # "4x4": the one spelling of sizes everywhere (a bad one refused by its rule)
+            from flexvox_core.tiles import parse_tile
+
+            object.__setattr__(self, "tile", parse_tile(self.tile))
         try:
             tile = tuple(self.tile)
         except TypeError:

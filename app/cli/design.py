@@ -189,7 +189,9 @@ def run(args) -> int:
         print(json.dumps(payload))
         return EXIT_OK if result.success else EXIT_FAILED
     if not result.success:
-        flags = "--separation N for the gap, --divisions AxBxC,... for the divisions"
+        flags = "--divisions AxBxC,... for the divisions"
+        if "neighbour gap" in result.message:  # not where no code exists at any gap
+            flags = "--separation N for the gap, " + flags
         print(f"{m}x{n} tile: {result.message} ({flags})", file=sys.stderr)
         return EXIT_FAILED
     print(f"{m}x{n} tile, K = {m * n}: {result.message}")

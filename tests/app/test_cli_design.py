@@ -191,3 +191,12 @@ def test_separation_option_validation(capsys):
 def test_no_command_prints_help_and_exits_2(capsys):
     code, out, _ = run_cli(capsys)
     assert code == 2 and "design" in out
+
+
+def test_a_tile_with_no_code_at_any_gap_points_to_the_divisions_only(capsys, monkeypatch):
+    from flexvox_core import design
+
+    monkeypatch.setattr(design, "_solve", lambda m, n, A, gap, limit: (design.STATUS_INFEASIBLE, None))
+    code, _, err = run_cli(capsys, "design", "--tile", "4x4")
+    assert code == 1 and "infeasible; ask for fewer divisions" in err
+    assert "--divisions AxBxC,... for the divisions" in err and "--separation" not in err

@@ -156,3 +156,17 @@ def test_a_tile_is_written_mxn_too():
     assert design_code("2x4").tile == (2, 4)
     with pytest.raises(ValueError, match=r"tile must be written MxN with two whole numbers, e.g. 4x4; got '4 by 4'"):
         design_code("4 by 4")
+
+
+def test_a_tile_with_no_code_at_any_gap_is_not_blamed_on_the_gap(monkeypatch):
+    # 6x6 with every division is infeasible by Eq. 1 alone (gap 1): the message had said "with a neighbour gap >= 9"
+    # and sent the user to a smaller gap, which fails the same way. The solver is stood in for (HiGHS takes ~9 s).
+    from flexvox_core import design
+
+    monkeypatch.setattr(design, "_solve", lambda m, n, A, gap, limit: (STATUS_INFEASIBLE, None))
+    result = design.design_code((4, 4))
+    assert result.status == STATUS_INFEASIBLE and "gap" not in result.message
+    assert result.message.startswith("no 4x4 code supports ")
+    assert "infeasible; ask for fewer divisions" in result.message
+    demanded = design.design_code((4, 4), separation=3)
+    assert "gap" not in demanded.message and "infeasible; ask for fewer divisions" in demanded.message

@@ -275,6 +275,7 @@ def test_capture_plan_timing_errors_name_the_rule(plan, message):
     ({"tile": (4, 4.7)}, r"`tile` must be two whole numbers \(m, n\) >= 1; got \(4, 4.7\)"),  # had been (4, 4)
     ({"tile": ("4", "4")}, r"`tile` must be two whole numbers"),
     ({"tile": (True, 4)}, r"`tile` must be two whole numbers"),
+    ({"tile": "4x4.5"}, r"tile must be written MxN with two whole numbers, e.g. 4x4; got '4x4.5'"),
     # timed as "misses the last 17 of 16 slots"; NaN refused only when the capture started; 1.5 µs cut to 1
     ({"camera_exposure_us": -1}, r"`camera_exposure_us` must be a finite number of µs above 0, or None .*got -1"),
     ({"camera_exposure_us": float("nan")}, r"`camera_exposure_us` must be a finite number .*got nan"),
@@ -285,7 +286,7 @@ def test_capture_plan_timing_errors_name_the_rule(plan, message):
 def test_capture_plan_refuses_what_it_would_have_read_as_something_else(given, match):
     with pytest.raises(ValueError, match=match):
         CapturePlan(**given)
-    assert CapturePlan((4, 4.0), multiplexed=np.bool_(False)) == CapturePlan((4, 4))
+    assert CapturePlan((4, 4.0), multiplexed=np.bool_(False)) == CapturePlan((4, 4)) == CapturePlan("4x4")
 
 
 def test_capture_plan_codes_and_resolutions():

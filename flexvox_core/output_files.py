@@ -13,9 +13,10 @@ Every command and every GUI save that writes a file or a store goes through here
   sibling and leaves the old output as it was.
 * :func:`write_text_atomic` — small text files (calibration files, code files, sync profiles):
   written, flushed to the disk, then renamed into place.
-* :func:`find_leftovers` — what killed writers left in a folder (partial outputs, outputs moved aside, lock
-  files), each with whether its writer still runs; ``flexvox clean`` lists and removes them.
-  :func:`atomic_output` removes the partial outputs a killed writer of the same output left, and says so.
+* :func:`classify_leftover` — what a hidden sibling that a killed writer left is (a partial output, an output
+  moved aside, a lock file), with whether its writer still runs; :func:`flexvox_core.leftovers.find_leftovers`
+  lists a folder's (``flexvox clean``). :func:`atomic_output` removes the partial outputs a killed writer of the
+  same output left, and says so.
 
 Replacing a file is one ``os.replace`` (atomic on POSIX and Windows). Replacing a *folder*
 (a Zarr store, a folder of PNGs) takes two renames, because no portable call swaps two
@@ -345,7 +346,12 @@ def _process_runs(pid: int) -> bool:
     return True
 
 
-def _leftover(path: Path, *, lock_held_here: bool = False) -> Leftover | None:
+def classify_leftover(path: Path, *, lock_held_here: bool = False) -> Leftover | None:
+    """What the hidden sibling ``path`` is by its name and its writer alone, or None when it is no leftover.
+
+    :func:`flexvox_core.leftovers.find_leftovers` looks further at an earlier recording moved aside (whether the
+    one in its place holds frames); ask it, not this, whether a leftover may go.
+    """
     m = _LEFTOVER.match(path.name)
     if m:
         output = path.with_name(m["stem"] + m["suffix"])
@@ -376,16 +382,6 @@ def _leftover(path: Path, *, lock_held_here: bool = False) -> Leftover | None:
     return None
 
 
-def find_leftovers(folder) -> list[Leftover]:
-    """Every leftover of an unfinished write in ``folder`` (not recursive), sorted by name.
-
-    A leftover whose writer still runs (its output's lock is held, or the process named in its name runs) has
-    ``writer`` set and is never ``removable``.
-    """
-    found = [_leftover(p) for p in sorted(Path(folder).iterdir()) if p.name.startswith(".")]
-    return [f for f in found if f is not None]
-
-
 def remove_dead_partials(path) -> list[str]:
     """Remove the partial outputs of ``path`` that a killed writer left; return their names.
 
@@ -396,7 +392,7 @@ def remove_dead_partials(path) -> list[str]:
     if not path.parent.is_dir():
         return removed
     for p in sorted(path.parent.glob(f".{glob.escape(path.stem)}.partial-*")):
-        item = _leftover(p, lock_held_here=True)  # the lock is this process's: only the process id can tell
+        item = classify_leftover(p, lock_held_here=True)  # the lock is this process's: only the process id can tell
         if item is not None and item.kind == "partial" and item.output == path and item.writer is None:
             remove_path(item.path)
             removed.append(item.path.name)

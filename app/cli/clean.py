@@ -18,7 +18,9 @@ def register(sub) -> None:
             "perhaps the earlier output it was replacing (.NAME.replaced-PID-XXXX.SUFFIX) and its lock file "
             "(.NAME.lock). This lists them with whether their writer still runs; --remove deletes those whose "
             "writer no longer runs. One whose writer runs is never touched, nor an earlier output that is now its "
-            "only copy. The next write to the same output also removes a killed writer's partial output and says so."
+            "only copy: its output is missing, or is a recording that holds no frame (a capture with --overwrite "
+            "killed before its first frame; flexvox info --repair puts the earlier one back). The next write to "
+            "the same output also removes a killed writer's partial output and says so."
         ),
     )
     p.add_argument("folder", type=Path, nargs="?", default=Path("."), metavar="FOLDER",
@@ -29,7 +31,8 @@ def register(sub) -> None:
 
 def run(args) -> int:
     """Carry out ``flexvox clean``."""
-    from flexvox_core.output_files import find_leftovers, remove_path
+    from flexvox_core.leftovers import find_leftovers
+    from flexvox_core.output_files import remove_path
 
     folder = args.folder
     if not folder.is_dir():

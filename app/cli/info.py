@@ -29,7 +29,9 @@ def register(sub) -> None:
     p.add_argument("--quick", action="store_true",
                    help="check the metadata only (schema, counts, frame ids), not every chunk's data")
     p.add_argument("--repair", action="store_true",
-                   help="finalise an interrupted capture in place (exact array lengths, journal removed)")
+                   help="finalise an interrupted capture in place (exact array lengths, journal removed); one that "
+                        "--overwrite began and that was killed before its first frame is deleted and the recording "
+                        "it had moved aside put back")
     p.add_argument("--slots", action="store_true",
                    help="simulated recordings: read back which slot every pixel sampled (against the ground "
                         "truth) and print the slot accuracy; record 17 frames of the strobe scene for a full answer")
@@ -43,18 +45,44 @@ def leftovers(path) -> list[str]:
     return sorted(p.name for pattern in patterns for p in path.parent.glob(pattern))
 
 
-def _left_by_a_killed_write(path) -> str:
-    """"; a killed write left …" when unfinished outputs of ``path`` lie beside it, else ""."""
-    from flexvox_core.output_files import find_leftovers
+def _beside(path) -> list:
+    """The leftovers of unfinished writes of ``path`` beside it (:func:`flexvox_core.leftovers.find_leftovers`;
+    lock files left out)."""
+    from flexvox_core.leftovers import find_leftovers
 
     path = Path(path)
     if not path.parent.is_dir():
-        return ""
-    left = [i.path.name for i in find_leftovers(path.parent) if i.output.name == path.name and i.kind != "lock"]
-    if not left:
-        return ""
-    return (f"; an unfinished write left {', '.join(left)} beside it (`flexvox clean {path.parent}` lists such "
-            "leftovers and removes them)")
+        return []
+    return [i for i in find_leftovers(path.parent) if i.output.name == path.name and i.kind != "lock"]
+
+
+def _only_copy(item) -> bool:
+    """Whether a leftover is an earlier output that is now its only copy (never to be removed)."""
+    return item.kind == "replaced" and item.writer is None and not item.removable
+
+
+def _left_by_a_killed_write(path) -> str:
+    """"; a killed write left …" when unfinished outputs of ``path`` lie beside it, else ""."""
+    items = _beside(path)
+    parts = [f"{i.path.name} beside it is {i.why}" for i in items if _only_copy(i)]
+    rest = [i.path.name for i in items if not _only_copy(i)]
+    if rest:
+        parts.append(f"an unfinished write left {', '.join(rest)} beside it (`flexvox clean {Path(path).parent}` "
+                     "lists such leftovers and removes them)")
+    return "".join(f"; {p}" for p in parts)
+
+
+def _leftover_notes(path) -> list[str]:
+    """One "note:" line for each leftover of an unfinished write beside the recording ``path``."""
+    lines = []
+    for item in _beside(path):
+        if _only_copy(item):
+            lines.append(f"note: {item.path.name} beside it is {item.why}")
+            continue
+        kind = "the recording an overwriting capture moved aside" if item.kind == "replaced" else "a partial write"
+        lines.append(f"note: {item.path.name} beside it is {kind}, left by a write that did not finish; "
+                     "`flexvox clean` lists such leftovers and removes them")
+    return lines
 
 
 def not_a_recording(path) -> str | None:
@@ -98,6 +126,8 @@ def check(rec, *, quick: bool = False, progress=None) -> tuple[dict, list[str]]:
     """
     import numpy as np
 
+    from flexvox_core.recording import moved_aside_by
+
     problems = []
     ids = rec.per_frame("frame_id")
     dropped = rec.per_frame("dropped")
@@ -120,6 +150,7 @@ def check(rec, *, quick: bool = False, progress=None) -> tuple[dict, list[str]]:
     if not quick:
         for line in rec.verify(progress):
             (notes if line.startswith("no checksums") else problems).append(line)
+    aside = moved_aside_by(rec.path) if rec.interrupted and F == 0 else None
     a = rec.attrs
     rates = a.get("rates", {})
     summary = {
@@ -137,6 +168,7 @@ def check(rec, *, quick: bool = False, progress=None) -> tuple[dict, list[str]]:
         "effects": a.get("effects"), "writer": lock_holder(rec.path), "leftovers": leftovers(rec.path),
         "checked": "metadata" if quick else "metadata and every chunk",
         "checksums": rec.has_checksums, "notes": notes, "problems": problems,
+        "moved_aside": aside.name if aside is not None else None,
     }
     return summary, problems
 
@@ -169,13 +201,13 @@ def _text(s: dict) -> list[str]:
     lines += [f"note: {n}" for n in s["notes"]]
     if s["interrupted"] and s["writer"]:
         lines.append(f"being written now by {s['writer']}: the frames committed so far are readable")
+    elif s["interrupted"] and s["moved_aside"]:
+        lines.append(f"interrupted: the capture was killed before its first frame; `flexvox info --repair` deletes "
+                     f"it and puts back {s['moved_aside']}, the earlier recording it had moved aside to replace it")
     elif s["interrupted"]:
         lines.append("interrupted: the capture did not finish (killed or power lost); every committed frame "
                      "is readable. `flexvox info --repair` finalises it.")
-    for name in s["leftovers"]:
-        kind = "the recording an overwriting capture moved aside" if ".replaced-" in name else "a partial write"
-        lines.append(f"note: {name} beside it is {kind}, left by a write that did not finish; `flexvox clean` "
-                     "lists such leftovers and removes them")
+    lines += _leftover_notes(s["path"])
     return lines
 
 
@@ -204,7 +236,7 @@ def _slots(rec) -> dict:
 def run(args) -> int:
     """Carry out ``flexvox info``."""
     from flexvox_core.output_files import OutputError
-    from flexvox_core.recording import RecordingError, open_recording, recover_recording
+    from flexvox_core.recording import RecordingError, open_recording, repair_recording
 
     if not args.recording.exists():
         raise CliError(f"{args.recording}: no such recording{_left_by_a_killed_write(args.recording)}")
@@ -214,13 +246,13 @@ def run(args) -> int:
     try:
         if args.repair:
             try:
-                n = recover_recording(args.recording)
+                repair = repair_recording(args.recording)
             except OutputError as exc:  # a capture still writes it
                 raise CliError(f"--repair: {exc}") from None
             except OSError as exc:  # a read-only recording
                 raise CliError(f"--repair: cannot finalise {args.recording}: {exc.strerror or exc}; nothing was "
                                "changed") from None
-            print(f"{args.recording}: finalised, {n} frames")
+            print(f"{args.recording}: {repair.describe()}")
         rec = open_recording(args.recording)
     except RecordingError as exc:
         payload = {"path": str(args.recording), "problems": [str(exc)]}
@@ -228,6 +260,8 @@ def run(args) -> int:
             print(json.dumps(payload))
         else:
             print(f"{args.recording}: DAMAGED: {exc}")
+            for line in _leftover_notes(args.recording):
+                print(line)
         return EXIT_FAILED
     from tqdm import tqdm
 

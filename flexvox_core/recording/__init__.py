@@ -35,8 +35,8 @@ The package's modules, one per part:
 * :mod:`~flexvox_core.recording.verified_rows` — :class:`VerifiedRows`, rows checked as they are read;
 * :mod:`~flexvox_core.recording.reader` — :func:`open_recording` and :class:`Recording`;
 * :mod:`~flexvox_core.recording.validation` — :func:`validate_recording`, the structural checks;
-* :mod:`~flexvox_core.recording.repair` — :func:`recover_recording`, an interrupted capture
-  finalised in place.
+* :mod:`~flexvox_core.recording.repair` — :func:`repair_recording` (and :func:`recover_recording`), an
+  interrupted capture finalised in place, or the recording it was replacing put back when it holds no frame.
 
 Every name below is importable from the package itself (``from flexvox_core.recording import X``).
 """
@@ -45,7 +45,7 @@ import flexvox_core.zarr_exit  # noqa: F401 - zarr's I/O thread stopped before i
 from flexvox_core.recording.errors import DamagedRecordingError, RecordingError
 from flexvox_core.recording.journal import JOURNAL, read_journal
 from flexvox_core.recording.reader import SNAPSHOT_TRIES, GroundTruthRows, Recording, open_recording
-from flexvox_core.recording.repair import recover_recording
+from flexvox_core.recording.repair import Repair, moved_aside_by, recover_recording, repair_recording
 from flexvox_core.recording.schema import (
     FRAME_AXES,
     PER_FRAME,
@@ -70,13 +70,16 @@ __all__ = [
     "Recording",
     "RecordingError",
     "RecordingWriter",
+    "Repair",
     "RowsView",
     "VerifiedRows",
     "frames_ngff",
+    "moved_aside_by",
     "open_recording",
     "read_journal",
     "recording_attrs",
     "recover_recording",
+    "repair_recording",
     "validate_recording",
     "values_crc",
     "write_simulation",

@@ -55,6 +55,19 @@ def journal_record(frame_id: int, timestamp: float, dropped: bool, crc: int) -> 
     return head + struct.pack("<I", zlib.crc32(head))
 
 
+def journal_writer_pid(path) -> int | None:
+    """The process id a capture journal's header names (the writer that made it), or None when the file is
+    missing, too short or not a flexvox journal."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(JOURNAL_HEADER_SIZE)
+    except OSError:
+        return None
+    if len(head) < JOURNAL_HEADER_SIZE or head[:len(_JOURNAL_MAGIC)] not in (_JOURNAL_MAGIC, _JOURNAL_MAGIC_V1):
+        return None
+    return _HEADER.unpack_from(head, len(_JOURNAL_MAGIC))[1]
+
+
 def read_journal(path) -> dict:
     """The committed records of a capture journal: ``frame_id``, ``timestamp``, ``dropped`` and
     ``frame_crc`` (None in a schema-1 journal, which has no frame CRCs).

@@ -184,8 +184,9 @@ class Recording:
 
     @property
     def calibration(self) -> dict | None:
-        """The calibration the capture used (its file's name, checksum, phase, delay), or None (a simulated
-        recording, or a capture without one)."""
+        """The calibration a capture used: its source (the file's name and checksum), ``calibrated`` (False for a
+        capture made without a calibration file, on the identity map), homography, phase, trigger delay and
+        warnings. None for a simulated recording, which has no rig."""
         return self.attrs.get("calibration")
 
     def __repr__(self) -> str:
@@ -194,7 +195,10 @@ class Recording:
         drops = int(self.dropped.sum()) if F else 0
         state = ", interrupted" if self.interrupted else ""
         truth = ", ground truth" if self.has_ground_truth else ""
-        calib = ", calibrated" if self.calibration else ""
+        cal = self.calibration
+        calib = ""
+        if isinstance(cal, dict):  # a capture's: say which, by its flag (an uncalibrated capture has one too)
+            calib = ", calibrated" if cal.get("calibrated") is True else ", uncalibrated"
         return (f"<Recording {self.path.name}: {F} frames of {H}x{W}, tile {m}x{n} (K = {self.K}), "
                 f"{self.camera_hz:g} Hz, {drops} dropped{truth}{calib}{state}>")
 
@@ -206,7 +210,8 @@ class Recording:
                 ("camera", f"{self.camera_hz:g} Hz ({self.camera_hz * self.K:g} sub-frames/s)"),
                 ("dropped", str(int(self.dropped.sum()) if F else 0)),
                 ("ground truth", "yes" if self.has_ground_truth else "no"),
-                ("calibration", str(self.calibration.get("source", "")) if self.calibration else "none"),
+                ("calibration", str(self.calibration.get("source", ""))
+                 if isinstance(self.calibration, dict) else "none"),
                 ("interrupted", "yes" if self.interrupted else "no")]
         body = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>"
                        for k, v in rows)

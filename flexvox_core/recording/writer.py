@@ -348,11 +348,8 @@ class RecordingWriter:
             if self._atomic:
                 move_into_place(self.store, self.path)
             elif self._replaced is not None:
-                if self.count:
+                if not restore_if_empty(self.path, self._replaced, self.count):
                     remove_path(self._replaced)
-                else:
-                    remove_path(self.store)
-                    os.rename(self._replaced, self.path)
                 self._replaced = None
         except BaseException:
             if self._atomic:
@@ -399,6 +396,26 @@ class RecordingWriter:
             self.discard()
         else:
             self.close()
+
+
+def restore_if_empty(path, replaced, committed: int) -> bool:
+    """The rule for an overwriting capture that ends with no frame: the recording it moved aside comes back.
+
+    When ``committed`` (the frames the new store at ``path`` holds) is 0, the new store is deleted and ``replaced``
+    (the earlier recording, ``.NAME.replaced-PID-XXXX.zarr``) is renamed back to ``path``; return True. Otherwise
+    change nothing and return False. :meth:`RecordingWriter.close` applies it (and deletes the earlier recording
+    once the new one holds frames), and so does :func:`~flexvox_core.recording.repair.repair_recording` for a
+    capture killed before its first frame.
+    """
+    from flexvox_core.output_files import fsync_folder, remove_path
+
+    if committed:
+        return False
+    path = Path(path)
+    remove_path(path)
+    os.rename(replaced, path)
+    fsync_folder(path.parent)
+    return True
 
 
 def _identity(path: Path) -> tuple[int, int] | None:

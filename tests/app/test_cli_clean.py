@@ -6,6 +6,7 @@ import os
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from tests.app.command_line import assert_refused, flexvox
@@ -116,3 +117,56 @@ def test_bench_out_onto_a_file_says_it_takes_a_folder(tmp_path):
     assert_refused(flexvox("bench", "--quick", "-o", notes), 2,
                    r"-o .*notes.txt is a file; -o takes a folder, where results.csv, results.json and pareto.png go")
     assert notes.read_text() == "keep me"
+
+
+def _overwrite_killed_before_its_first_frame(path):
+    """What `flexvox capture -o PATH --overwrite` killed before its first frame leaves: the new, empty recording in
+    PATH's place and the old one moved aside."""
+    from flexvox_core.recording import RecordingWriter, open_recording
+    from tests.killed_writer import kill
+
+    rec = open_recording(path)
+    F, H, W = rec.shape
+    kill(RecordingWriter(path, height=H, width=W, dtype="float32", attrs={**rec.attrs, "kind": "captured"},
+                         overwrite=True))
+    [aside] = [p for p in path.parent.iterdir() if ".replaced-" in p.name]
+    return aside
+
+
+def test_a_capture_killed_before_its_first_frame_never_loses_the_recording_it_was_replacing(tmp_path, capsys):
+    from flexvox_app.cli.main import main
+    from flexvox_core.recording import open_recording
+
+    path = tmp_path / "run1.zarr"
+    assert main(["simulate", "balls", "--size", "24x32", "--frames", "3", "--tile", "2x2", "-o", str(path)]) == 0
+    old = open_recording(path).frames[:]
+    capsys.readouterr()
+    aside = _overwrite_killed_before_its_first_frame(path)
+    assert main(["info", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert (f"interrupted: the capture was killed before its first frame; `flexvox info --repair` deletes it and puts "
+            f"back {aside.name}, the earlier recording it had moved aside to replace it") in out
+    assert (f"note: {aside.name} beside it is the earlier run1.zarr, moved aside when a capture began to replace it; "
+            "run1.zarr holds no frame (that capture stopped before its first frame), so this is the only copy; "
+            f"`flexvox info --repair {path}` puts it back") in out
+    assert "lists such leftovers and removes them" not in out  # no advice to remove the only copy
+    assert main(["clean", str(tmp_path), "--remove"]) == 0
+    out = capsys.readouterr().out
+    assert f"{aside.name}: the earlier run1.zarr, moved aside when a capture began" in out
+    assert "so this is the only copy; `flexvox info --repair" in out and "puts it back; kept" in out
+    assert aside.is_dir()
+    assert main(["info", "--repair", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"{path}: put back {aside.name}, the earlier run1.zarr that an overwriting capture killed "
+                          "before its first frame had moved aside; 3 frames\n") and out.strip().endswith("OK")
+    np.testing.assert_array_equal(open_recording(path).frames[:], old)
+    assert sorted(p.name for p in tmp_path.iterdir() if not p.name.endswith(".lock")) == ["run1.zarr"]
+
+
+def test_info_on_a_missing_output_names_the_earlier_one_as_the_only_copy_not_as_a_leftover(tmp_path):
+    aside = tmp_path / f".run.replaced-{dead_pid()}-0a0b0c.zarr"
+    aside.mkdir()
+    assert_refused(flexvox("info", tmp_path / "run.zarr"), 2,
+                   rf"run.zarr: no such recording; {aside.name} beside it is the earlier run.zarr, moved aside by "
+                   r"process \d+, which stopped before the new one took its place: the only copy; rename it back to "
+                   r"run.zarr to keep it$")

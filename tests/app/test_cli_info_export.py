@@ -91,6 +91,18 @@ def test_info_reports_and_repairs_an_interrupted_capture(tmp_path, capsys):
     assert not (tmp_path / "i.zarr" / JOURNAL).exists() and not open_recording(tmp_path / "i.zarr").interrupted
 
 
+def test_info_repair_of_a_recording_that_needs_nothing_says_so_and_changes_nothing(recording, capsys):
+    before = {p.relative_to(recording): (p.read_bytes(), p.stat().st_mtime_ns) for p in recording.rglob("*")
+              if p.is_file()}
+    assert cli(["info", "--repair", str(recording)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"{recording}: nothing to repair: a finished recording of 5 frames; nothing was changed\n")
+    assert "finalised" not in out and out.strip().endswith("OK")
+    after = {p.relative_to(recording): (p.read_bytes(), p.stat().st_mtime_ns) for p in recording.rglob("*")
+             if p.is_file()}
+    assert after == before
+
+
 def test_export_frames_to_every_format(recording, tmp_path, capsys):
     rec = open_recording(recording)
     frames = rec.frames[:]

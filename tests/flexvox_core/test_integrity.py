@@ -18,6 +18,7 @@ from flexvox_core.recording import (
     write_simulation,
 )
 from flexvox_core.simulate.simulator import simulate_video
+from tests.killed_writer import kill
 
 
 @pytest.fixture
@@ -147,6 +148,81 @@ def test_a_capture_that_overwrites_keeps_the_old_recording_until_it_has_frames(r
     w.close()
     assert open_recording(rec_path).n_frames == 1
     assert [p.name for p in rec_path.parent.iterdir() if p.name.startswith(".")] == []
+
+
+def _hidden(folder):
+    return sorted(p.name for p in folder.iterdir() if p.name.startswith(".") and not p.name.endswith(".lock"))
+
+
+def test_repair_puts_back_the_recording_an_overwriting_capture_killed_before_its_first_frame_moved_aside(rec_path):
+    from flexvox_core.leftovers import find_leftovers
+    from flexvox_core.recording import repair_recording
+
+    old = open_recording(rec_path).frames[:]
+    kill(_writer(rec_path, overwrite=True))  # killed after moving the old one aside, before its first frame
+    [aside] = _hidden(rec_path.parent)
+    assert open_recording(rec_path).interrupted and open_recording(rec_path).n_frames == 0
+    [item] = [i for i in find_leftovers(rec_path.parent) if i.kind == "replaced"]
+    assert not item.removable and item.writer is None  # the only copy: never offered for removal
+    assert item.why.endswith(f"r.zarr holds no frame (that capture stopped before its first frame), so this is the "
+                             f"only copy; `flexvox info --repair {rec_path}` puts it back")
+    repair = repair_recording(rec_path)
+    assert repair.restored == (aside,) and not repair.finalised and repair.frames == 6
+    assert repair.describe() == (f"put back {aside}, the earlier r.zarr that an overwriting capture killed before "
+                                 "its first frame had moved aside; 6 frames")
+    np.testing.assert_array_equal(open_recording(rec_path).frames[:], old)
+    assert _hidden(rec_path.parent) == [] and not open_recording(rec_path).interrupted
+
+
+def test_repair_puts_back_the_first_recording_after_two_overwrites_killed_before_their_first_frame(rec_path,
+                                                                                                   monkeypatch):
+    from flexvox_core.recording import repair_recording
+
+    old = open_recording(rec_path).frames[:]
+    monkeypatch.setattr(os, "getpid", lambda: 999991)  # two capture processes, one after the other
+    kill(_writer(rec_path, overwrite=True))
+    first = _hidden(rec_path.parent)
+    monkeypatch.setattr(os, "getpid", lambda: 999992)
+    kill(_writer(rec_path, overwrite=True))  # it moves the first one's empty store aside in turn
+    monkeypatch.undo()
+    assert len(_hidden(rec_path.parent)) == 2
+    repair = repair_recording(rec_path)
+    assert len(repair.restored) == 2 and repair.restored[-1] == first[0] and repair.frames == 6
+    np.testing.assert_array_equal(open_recording(rec_path).frames[:], old)
+    assert _hidden(rec_path.parent) == []
+
+
+def test_a_killed_overwrite_with_committed_frames_is_finalised_and_the_old_recording_may_go(rec_path):
+    from flexvox_core.leftovers import find_leftovers
+    from flexvox_core.recording import repair_recording
+
+    w = _writer(rec_path, overwrite=True)
+    for i in range(2):
+        w.append(np.full((4, 5), i + 1, np.float32), frame_id=i, timestamp=i / 30)
+    kill(w)
+    [aside] = _hidden(rec_path.parent)
+    [item] = [i for i in find_leftovers(rec_path.parent) if i.kind == "replaced"]
+    assert item.removable and item.why.startswith("the earlier r.zarr, moved aside by process")  # as before
+    repair = repair_recording(rec_path)
+    assert (repair.frames, repair.finalised, repair.restored) == (2, True, ())
+    assert repair.describe() == "finalised, 2 frames"
+    assert open_recording(rec_path).n_frames == 2 and _hidden(rec_path.parent) == [aside]  # kept for clean
+
+
+def test_an_earlier_recording_beside_one_that_holds_no_frame_or_is_unreadable_is_never_removable(rec_path):
+    from flexvox_core.leftovers import find_leftovers
+    from flexvox_core.recording.repair import _finalise
+
+    kill(_writer(rec_path, overwrite=True))
+    _finalise(open_recording(rec_path))  # what --repair made of it before: a finished recording of 0 frames
+    [item] = [i for i in find_leftovers(rec_path.parent) if i.kind == "replaced"]
+    assert not item.removable and item.why.endswith(
+        "r.zarr holds no frame (that capture stopped before its first frame), so this is the only copy; to keep it, "
+        "delete r.zarr and rename this back to r.zarr")
+    shutil.rmtree(rec_path)
+    rec_path.mkdir()  # killed while it made its new store: not a recording yet
+    [item] = [i for i in find_leftovers(rec_path.parent) if i.kind == "replaced"]
+    assert not item.removable and "r.zarr is not a readable recording (that capture stopped" in item.why
 
 
 def test_durable_writes_flush_every_frame(tmp_path, monkeypatch):

@@ -441,6 +441,17 @@ def test_a_capture_starting_between_the_snapshot_and_the_checks_is_looked_at_aga
     w.close()
 
 
+@pytest.mark.parametrize("calibrated, said", [(False, ", uncalibrated>"), (True, ", calibrated>")])
+def test_a_captures_repr_says_calibrated_only_when_it_was(tmp_path, calibrated, said):
+    attrs = recording_attrs(np.eye(4, dtype=bool).reshape(2, 2, 4), rate_hz=30.0, kind="captured",
+                            storage={"kind": "float"}, calibration={"calibrated": calibrated, "source": "x"})
+    with RecordingWriter(tmp_path / "c.zarr", height=4, width=4, dtype="float32", attrs=attrs) as w:
+        w.append(np.ones((4, 4), np.float32), frame_id=0, timestamp=0.0)
+    rec = open_recording(tmp_path / "c.zarr")
+    assert rec.calibration["calibrated"] is calibrated  # a capture always records its calibration, as a dict
+    assert repr(rec).endswith(said)
+
+
 def test_recording_names_say_what_they_hold_and_old_names_warn(tmp_path):
     from flexvox_core import code_from_order, render_scene, sequential_order
     from flexvox_core.recording import GroundTruthRows

@@ -164,3 +164,15 @@ def test_chunk_help_names_each_default(command, chunk, capsys):
     with pytest.raises(SystemExit):
         cli([command, "--help"])
     assert f"camera frames per chunk (default {chunk})" in " ".join(capsys.readouterr().out.split())
+
+
+@pytest.mark.parametrize("key", ["calibration", "rig", "capture"])
+def test_info_names_an_attribute_edited_into_something_that_is_no_object(recording, capsys, key):
+    root = recording / "zarr.json"
+    meta = json.loads(root.read_text())
+    meta["attributes"]["flexvox"][key] = "cal.json"
+    root.write_text(json.dumps(meta))
+    assert cli(["info", str(recording)]) == 1
+    out = capsys.readouterr().out
+    assert f"problem: the `{key}` attribute must be an object; got 'cal.json' (the attributes were edited or " \
+           "damaged)" in out and out.strip().endswith("DAMAGED")

@@ -1,5 +1,7 @@
 """The sync timing a calibration or sync profile hands to capture: taken as written, or refused."""
 
+import re
+
 import pytest
 
 from flexvox_calibration.capture_setup import CalibrationRefused, SyncTiming
@@ -100,3 +102,20 @@ def test_a_hand_edited_calibration_file_is_refused_naming_the_file_and_the_field
     path = _write(tmp_path / "q.json", edit)
     with pytest.raises(CalibrationRefused, match=message):
         load_for_capture(path, _identity())
+
+
+def test_a_sync_profile_alone_ties_the_calibration_to_its_rig_and_is_named_by_its_file(tmp_path):
+    import dataclasses
+
+    from flexvox_calibration.capture_setup import load_sync_for_capture
+    from flexvox_calibration.files import write_versioned
+    from flexvox_calibration.sync import SYNC_FORMAT, SYNC_VERSION
+
+    path = tmp_path / "sync.json"
+    write_versioned(path, SYNC_FORMAT, SYNC_VERSION, _identity(), {"sync": GOOD})
+    cal = load_sync_for_capture(path, _identity())
+    assert cal.rig == _identity().as_dict() and cal.phase_slots == 5
+    other = dataclasses.replace(_identity(), camera_size=(40, 64))
+    with pytest.raises(CalibrationRefused, match=rf"^{re.escape(str(path))} \(sha256 [0-9a-f]{{16}}\), made "
+                                                 r".* was made for a camera resolution of 48x64, this rig's is 40x64"):
+        cal.check_rig(other)

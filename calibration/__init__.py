@@ -21,11 +21,13 @@ name below is imported when first used.
 
 import importlib
 
-__all__ = ["CalibrationError", "CalibrationRefused", "CaptureCalibration", "calibrate_rig", "load_rig_calibration"]
+__all__ = ["CalibrationError", "CalibrationRefused", "CalibrationWarning", "CaptureCalibration", "calibrate_rig",
+           "load_rig_calibration"]
 
 _WHERE = {
     "CalibrationError": "flexvox_calibration.errors",
     "CalibrationRefused": "flexvox_calibration.capture_setup",
+    "CalibrationWarning": "flexvox_calibration.errors",
     "CaptureCalibration": "flexvox_calibration.capture_setup",
     "calibrate_rig": "flexvox_calibration.for_rig",
     "load_rig_calibration": "flexvox_calibration.for_rig",

@@ -90,6 +90,9 @@ class SyncTiming:
     def from_summary(cls, sync: dict | None) -> SyncTiming | None:
         """From a sync measurement's summary (:meth:`flexvox_calibration.sync.SyncResult.summary`); None when
         there is none, or it failed."""
+        if sync is not None and not isinstance(sync, dict):
+            raise CalibrationRefused(f"the sync measurement must be an object (the sync step's summary) or null; got "
+                                     f"{sync!r}")
         if not sync or sync.get("status") not in (None, "ok") or sync.get("phase_slots") is None:
             return None
         # The values as written, never rounded into range: a phase of 2.5 is a damaged file, not phase 2.
@@ -136,6 +139,11 @@ class CaptureCalibration:
         True when the homography was measured (False: the identity stand-in).
     sha256 : str
         The calibration file's content hash (hex), "" when the calibration is no file's.
+    rig : dict, optional
+        The identity of the rig it was made for (:meth:`flexvox_calibration.session.RigIdentity.as_dict`; a
+        ``RigIdentity`` is taken too): :func:`load_for_capture` and :func:`from_run` keep it, and
+        :meth:`check_rig` refuses it on another rig, camera or resolution as a file is refused. None: tied to
+        no rig (the uncalibrated default, or one built by hand), taken on any.
     """
 
     homography: np.ndarray = field(default_factory=lambda: np.eye(3))
@@ -145,6 +153,7 @@ class CaptureCalibration:
     created: str = ""
     calibrated: bool = False
     sha256: str = ""
+    rig: dict | None = None
 
     def __post_init__(self):
         try:
@@ -156,6 +165,30 @@ class CaptureCalibration:
         object.__setattr__(self, "homography", h / h[2, 2])
         if self.sync is not None and not isinstance(self.sync, SyncTiming):
             raise CalibrationRefused(f"`sync` must be a SyncTiming or None; got {type(self.sync).__name__}")
+        rig = self.rig.as_dict() if hasattr(self.rig, "as_dict") else self.rig
+        if rig is not None and not isinstance(rig, dict):
+            raise CalibrationRefused(f"`rig` must be a RigIdentity, its as_dict(), or None; got {type(rig).__name__}")
+        object.__setattr__(self, "rig", None if rig is None else dict(rig))
+
+    def check_rig(self, identity) -> None:
+        """Refuse this calibration on the rig of ``identity`` when it was made for another rig, camera or
+        resolution: :class:`CalibrationRefused`, in the words a calibration file made for another rig is refused
+        with (:func:`flexvox_calibration.files.check_identity`). A calibration tied to no rig (:attr:`rig` None)
+        passes.
+        """
+        if self.rig is None:
+            return
+        try:
+            check_identity({"rig": self.rig}, identity, self.made_as)
+        except CalibrationError as exc:
+            raise CalibrationRefused(str(exc)) from None
+
+    @property
+    def made_as(self) -> str:
+        """What messages name the calibration by: its file (or run) without a sync profile put on top; the sync
+        profile when it is all there is."""
+        own, _, sync = self.source.partition("; sync from ")
+        return sync if sync and not self.calibrated else own
 
     # ------------------------------------------------------------------ what capture uses
     @property
@@ -175,7 +208,7 @@ class CaptureCalibration:
         (reduced mod K), and a warning says to measure it again. Without a sync measurement:
         phase 0, no delay, and a warning.
         """
-        warnings = []
+        warnings: list[str] = []
         if not self.calibrated:
             warnings.append("no calibration: the patterns assume the identity projector-to-camera map; calibrate "
                             "the rig (flexvox calibrate -o CAL.json) and load the file")
@@ -183,14 +216,22 @@ class CaptureCalibration:
             warnings.append("no sync measurement: phase 0 and no trigger delay (run the synchronisation step)")
             return 0, 0.0, warnings
         s = self.sync
-        if (s.K, s.period_us) != (int(K), int(period_us)):
-            warnings.append(f"the sync was measured at K = {s.K}, {s.period_us} µs patterns; this capture is K = {K}, "
-                            f"{period_us} µs: phase {s.phase_slots % K} is a guess, run the synchronisation at this "
-                            "timing")
+        guess = self.timing_guess(K, period_us)
+        if guess:
+            warnings.append(guess)
         delay = s.trigger_delay_us
         if delay >= period_us:
             delay = float(delay % period_us)
         return s.phase_slots % int(K), delay, warnings
+
+    def timing_guess(self, K: int, period_us: int) -> str:
+        """Why the phase is only a guess for a code of ``K`` slots at ``period_us`` (the sync was measured at
+        another timing); "" when the sync was measured at this one, or there is none."""
+        s = self.sync
+        if s is None or (s.K, s.period_us) == (int(K), int(period_us)):
+            return ""
+        return (f"the sync was measured at K = {s.K}, {s.period_us} µs patterns; this capture is K = {K}, "
+                f"{period_us} µs: phase {s.phase_slots % int(K)} is a guess, run the synchronisation at this timing")
 
     def with_sync(self, sync: SyncTiming | None, *, source: str | None = None) -> CaptureCalibration:
         """The same homography with another synchronisation (a sync profile loaded on top)."""
@@ -265,17 +306,29 @@ def load_for_capture(path, identity) -> CaptureCalibration:
         data = load_calibration(path, identity)  # also says what is wrong with any other file
     except CalibrationError as exc:
         raise CalibrationRefused(str(exc)) from exc
-    quality = data.get("quality") or {}
+    quality = data.get("quality")
+    if quality is None:
+        quality = {}
+    if not isinstance(quality, dict):
+        raise CalibrationRefused(f"{path}: `quality` must be an object (the homography step's summary) or null; got "
+                                 f"{quality!r}")
     if quality.get("status") not in (None, "ok", "partial"):
         raise CalibrationRefused(f"{path}: the calibration's homography step did not succeed "
                                  f"({quality.get('status')}): calibrate again")
-    sync = SyncTiming.from_summary(data.get("sync"))
+    try:
+        sync = SyncTiming.from_summary(data.get("sync"))
+    except CalibrationRefused as exc:
+        raise CalibrationRefused(f"{path}: `sync`: {exc}") from None
     rms = quality.get("rms_px")
+    if rms is not None and (isinstance(rms, bool) or not isinstance(rms, int | float)):
+        raise CalibrationRefused(f"{path}: `quality.rms_px` must be a number (the homography's RMS reprojection "
+                                 f"error in pixels) or null; got {rms!r}")
     created = str(data.get("created", ""))
     sha256 = file_sha256(path)
     _logger.info("calibration for capture: %s (sha256 %s)", path, sha256)
     source = named(path, sha256) + (" (a partial calibration)" if quality.get("status") == "partial" else "")
-    return CaptureCalibration(data["H"], sync, source, None if rms is None else float(rms), created, True, sha256)
+    return CaptureCalibration(data["H"], sync, source, None if rms is None else float(rms), created, True, sha256,
+                              _rig_of(identity))
 
 
 def load_sync_for_capture(path, identity, *, base: CaptureCalibration | None = None) -> CaptureCalibration:
@@ -295,12 +348,16 @@ def load_sync_for_capture(path, identity, *, base: CaptureCalibration | None = N
         data = load_sync_profile(path, identity)
     except CalibrationError as exc:
         raise CalibrationRefused(str(exc)) from exc
-    sync = SyncTiming.from_summary(data.get("sync"))
+    try:
+        sync = SyncTiming.from_summary(data.get("sync"))
+    except CalibrationRefused as exc:
+        raise CalibrationRefused(f"{path}: `sync`: {exc}") from None
     if sync is None:
         raise CalibrationRefused(f"{path}: the sync profile holds no successful measurement")
     _logger.info("sync profile for capture: %s (%s)", path, sync.describe())
-    return (base or CaptureCalibration()).with_sync(
+    calibration = (base or CaptureCalibration()).with_sync(
         sync, source=f"{named(path, file_sha256(path))}, made {data.get('created', 'undated')}")
+    return calibration if calibration.rig is not None else replace(calibration, rig=_rig_of(identity))
 
 
 def from_run(run, run_identity, identity, *, now=None) -> CaptureCalibration:
@@ -329,7 +386,13 @@ def from_run(run, run_identity, identity, *, now=None) -> CaptureCalibration:
     when = (now or _dt.datetime.now(_dt.UTC)).isoformat(timespec="seconds")
     return CaptureCalibration(np.asarray(hom.homography, np.float64),
                               SyncTiming.from_summary(None if sync is None else sync.summary()),
-                              "the calibration just run (not saved)", float(hom.rms_px), when, True)
+                              "the calibration just run (not saved)", float(hom.rms_px), when, True,
+                              rig=_rig_of(identity))
+
+
+def _rig_of(identity) -> dict:
+    """The identity a calibration was checked against, as :attr:`CaptureCalibration.rig` keeps it."""
+    return identity.as_dict() if hasattr(identity, "as_dict") else dict(identity)
 
 
 __all__ = ["CalibrationRefused", "CaptureCalibration", "SyncTiming", "file_sha256", "from_run", "load_for_capture",

@@ -9,6 +9,9 @@ calibration files that do not belong to the rig at hand.
     CalibrationError              misuse: bad arguments, a step run out of order
     ├── CalibrationFileError      a calibration/sync file that cannot be read or is malformed
     └── CalibrationMismatchError  a file made for another rig or resolution
+
+    CalibrationWarning            (a UserWarning) a calibration used at another timing than it was measured at:
+                                  its phase is a guess
 """
 
 from __future__ import annotations
@@ -24,3 +27,8 @@ class CalibrationFileError(CalibrationError):
 
 class CalibrationMismatchError(CalibrationError):
     """A calibration file was made for another rig, camera resolution or projector resolution."""
+
+
+class CalibrationWarning(UserWarning):
+    """A calibration is used where it holds only approximately (a capture at another timing than its sync was
+    measured at: the phase is a guess); the message says what to measure again."""

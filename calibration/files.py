@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from flexvox_calibration.errors import CalibrationError, CalibrationFileError, CalibrationMismatchError
-from flexvox_core.json_file import read_json
+from flexvox_core.json_file import finite_or_null, read_json
 
 CALIBRATION_FORMAT = "flexvox-calibration"
 CALIBRATION_VERSION = 1
@@ -45,7 +45,9 @@ def write_versioned(path, fmt: str, version: int, identity, body: dict, *, overw
 
     Atomically (a temporary sibling, flushed, renamed into place): a failed write leaves an old
     file as it was. ``overwrite=False`` refuses an existing file (the command line's default; GUI
-    file dialogs ask the operator themselves).
+    file dialogs ask the operator themselves). Strict JSON: a number that is not finite (a value a step did not
+    measure, a slip time that is infinite without drift) is written as ``null``
+    (:func:`flexvox_core.json_file.finite_or_null`).
     """
     from flexvox_core.output_files import OutputError, write_text_atomic
 
@@ -54,7 +56,8 @@ def write_versioned(path, fmt: str, version: int, identity, body: dict, *, overw
     payload = {"format": fmt, "version": version, "created": when.isoformat(timespec="seconds"),
                "software": _software(), "rig": _identity_dict(identity), **body}
     try:
-        write_text_atomic(path, json.dumps(payload, indent=1, allow_nan=True) + "\n", overwrite=overwrite)
+        write_text_atomic(path, json.dumps(finite_or_null(payload), indent=1, allow_nan=False) + "\n",
+                          overwrite=overwrite)
     except OutputError as exc:
         raise CalibrationFileError(str(exc)) from None
     except OSError as exc:
@@ -86,7 +89,11 @@ def check_identity(data: dict, identity, path) -> None:
     want = _identity_dict(identity)
     have = data["rig"]
     for key, what in (("camera_size", "camera resolution"), ("projector_size", "projector resolution")):
-        if list(have.get(key, [])) != list(want[key]):
+        size = have.get(key, [])
+        if not (isinstance(size, list) and all(isinstance(v, int) and not isinstance(v, bool) for v in size)):
+            raise CalibrationFileError(f"{path}: `rig.{key}` must be [rows, columns] in pixels, the {what} it was "
+                                       f"made for; got {size!r}")
+        if list(size) != list(want[key]):
             a = "x".join(str(v) for v in have.get(key, [])) or "unknown"
             b = "x".join(str(v) for v in want[key])
             raise CalibrationMismatchError(

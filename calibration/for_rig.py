@@ -61,14 +61,16 @@ def calibrate_rig(rig, *, tile=(4, 4), progress: bool | Callable[[int, int], Non
     rig : rig_drivers.interfaces.Rig
         What :func:`rig_drivers.open_rig` returns (the simulated rig with ``"mock"``). On the simulated
         rig the calibration target is put in view and the scene comes back at the end.
-    tile : (int, int), keyword-only
-        The code's tile the shutter step checks.
+    tile : (int, int) or "MxN", keyword-only
+        The code's tile the shutter and sync steps check: at least 2 slots (a 1x1 tile has nothing to shutter).
     progress : bool or callable(done_steps, total_steps), keyword-only
         The rule of every long call (:mod:`flexvox_core.progress`): True: one ``tqdm.auto`` bar over the steps,
         with its total (:func:`step_count`); False or None: nothing; a callable is called as each step starts
         and ends.
     save : str or Path, optional, keyword-only
-        Also write the calibration file (``flexvox calibrate -o``'s format) there.
+        Also write the calibration file (``flexvox calibrate -o``'s format) there. Checked before calibrating, as
+        ``flexvox calibrate -o`` is: an existing file (without ``overwrite``) or a missing folder is refused before
+        any step runs.
     overwrite : bool, keyword-only
         Replace an existing ``save`` file.
 
@@ -82,6 +84,9 @@ def calibrate_rig(rig, *, tile=(4, 4), progress: bool | Callable[[int, int], Non
     ------
     CalibrationRefused
         When a step fails; the message names the step and what it measured.
+    flexvox_calibration.errors.CalibrationFileError
+        Before calibrating, for a ``save`` that may not be written (it exists and ``overwrite`` is False, its
+        folder is missing or refuses new files).
 
     Examples
     --------
@@ -91,17 +96,24 @@ def calibrate_rig(rig, *, tile=(4, 4), progress: bool | Callable[[int, int], Non
     >>> cal.phase_slots, round(cal.rms_px, 2)  # doctest: +SKIP
     (6, 0.18)
     """
+    from flexvox_calibration.errors import CalibrationFileError
     from flexvox_calibration.files import save_calibration
-    from flexvox_calibration.pipeline import run_calibration
+    from flexvox_calibration.pipeline import calibration_tile, run_calibration
     from flexvox_calibration.session import RigSession
+    from flexvox_core.output_files import OutputError, check_output
     from flexvox_core.progress import progress_callback
-    from flexvox_core.tiles import validate_tile
 
+    tile = calibration_tile(tile)
+    if save is not None:
+        try:  # as `flexvox calibrate -o` does
+            check_output(save, overwrite=overwrite)
+        except OutputError as exc:
+            raise CalibrationFileError(f"{exc} (checked before calibrating, so no run is lost)") from None
     total = step_count(rig)
     with progress_callback(progress, desc="calibrate", unit="step", total=total) as report:
         session = RigSession.from_rig(rig)
         steps = None if report is None else _Steps(report, total)
-        run = run_calibration(rig, session, tile=validate_tile(tile), progress=steps)
+        run = run_calibration(rig, session, tile=tile, progress=steps)
         if report is not None and run.success:
             report(total, total)
     if not run.success:

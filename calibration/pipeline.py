@@ -32,6 +32,29 @@ class CalibrationRun:
     keep: dict = field(default_factory=dict)
 
 
+def calibration_tile(tile) -> tuple[int, int]:
+    """``tile`` (``(m, n)`` or ``"MxN"``) as a calibration's code tile: at least 2 slots.
+
+    Raises
+    ------
+    CalibrationError
+        For a 1x1 tile: K = 1 slot is open all the time, so there is no shutter to verify and no phase to
+        measure (a 1x1 capture needs no calibration); or a tile that is no tile (the message says why).
+    """
+    from flexvox_calibration.errors import CalibrationError
+    from flexvox_core.tiles import validate_tile
+
+    try:
+        m, n = validate_tile(tile)
+    except ValueError as exc:
+        raise CalibrationError(str(exc)) from None
+    if m * n < 2:
+        raise CalibrationError(f"a {m}x{n} tile (K = 1) has nothing to shutter: its one slot is open all the time, "
+                               "so there is no shutter to verify and no phase to measure; calibrate with the tile "
+                               "you capture with (at least 2 slots, e.g. 4x4). A 1x1 capture needs no calibration")
+    return m, n
+
+
 def _no_progress(desc: str):
     return lambda done, total: None
 
@@ -64,7 +87,7 @@ def _run_steps(rig, session, tile, progress) -> CalibrationRun:
     from flexvox_calibration.sync import band_patterns, check_frames, measure_sync
     from flexvox_core.design import design_code
 
-    code = design_code(tuple(tile)).require()  # an impossible tile is refused before any device moves
+    code = design_code(calibration_tile(tile)).require()  # an impossible tile is refused before any device moves
     run = CalibrationRun()
     report, keep = run.report, run.keep
     with session:

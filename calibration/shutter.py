@@ -223,8 +223,11 @@ def verify_shutter(session, shutter: ShutterPatterns, *, min_accuracy: float = 0
             accuracy=0.0, crosstalk=0.0, decodable=decodable, seen_slot=seen_map, expected_slot=order, wrong=wrong,
             decodable_fraction=frac)
     acc = 1.0 - float(wrong.sum()) / n
-    top2 = np.sort(stack, axis=0)[-2:]
-    cross = float((top2[0][decodable] > CROSSTALK_RATIO * top2[1][decodable]).mean())
+    if K > 1:
+        top2 = np.sort(stack, axis=0)[-2:]
+        cross = float((top2[0][decodable] > CROSSTALK_RATIO * top2[1][decodable]).mean())
+    else:  # one slot: no neighbour's slot to get light from
+        cross = 0.0
     warnings = list(shutter.notes)
     if cross > 0.01:
         warnings.append(f"{cross:.1%} of the pixels get a neighbour's slot at more than {CROSSTALK_RATIO:.0%} of "

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
+from typing import Any
 
 MAX_BYTES = 64 * 2**20
 """The largest JSON file read (a code or a calibration is a few kB; a device like /dev/zero never ends)."""
@@ -42,3 +44,22 @@ def read_json(path, error: type[Exception] = ValueError):
         raise error(f"{path}: not a code or calibration file (its JSON is nested too deeply to read)") from None
     except ValueError as exc:  # e.g. an integer of thousands of digits
         raise error(f"{path}: not valid JSON ({exc})") from None
+
+
+def finite_or_null(value: Any) -> Any:
+    """``value`` for strict JSON: every number that is not finite (NaN, ±infinity) as None (``null``), NumPy scalars as
+    Python numbers, tuples as lists, recursively through dicts and lists. JSON has no NaN or infinity: Python writes
+    them as ``NaN`` and ``Infinity``, which strict parsers (``JSON.parse``, ``jq``) refuse.
+
+    >>> finite_or_null({"rms_px": float("nan"), "slip_s": float("inf"), "K": 16, "sweep": [(0, 1.5)]})
+    {'rms_px': None, 'slip_s': None, 'K': 16, 'sweep': [[0, 1.5]]}
+    """
+    if isinstance(value, dict):
+        return {k: finite_or_null(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [finite_or_null(v) for v in value]
+    if hasattr(value, "item") and getattr(value, "shape", None) == ():  # a NumPy scalar or 0-d array
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value

@@ -112,6 +112,37 @@ class RigSetup:
                 "trigger_delay_set_by": self.delay_by}
 
 
+def check_calibration_rig(calibration: CaptureCalibration, rig: Rig, projector_size=None) -> bool:
+    """Refuse ``calibration`` on ``rig`` when it was made for another rig, camera or resolution.
+
+    The rule and the words are those a calibration file made for another rig is refused with
+    (:meth:`CaptureCalibration.check_rig`); a calibration tied to no rig passes.
+
+    Returns
+    -------
+    bool
+        False when the rig cannot say who it is yet (a closed camera that reports its size only once open, a
+        projector that reports no size): :func:`set_up_rig` checks again once the devices are open.
+
+    Raises
+    ------
+    flexvox_calibration.capture_setup.CalibrationRefused
+        For a calibration made for another rig, camera or resolution.
+    """
+    if calibration.rig is None:
+        return True
+    from flexvox_calibration.errors import CalibrationError
+    from flexvox_calibration.session import RigSession
+    from rig_drivers.errors import DeviceError
+
+    try:
+        identity = RigSession.from_rig(rig, projector_size=projector_size).identity
+    except (DeviceError, CalibrationError):
+        return False
+    calibration.check_rig(identity)
+    return True
+
+
 def _open(device) -> None:
     if device.state is DeviceState.CLOSED:
         device.open()
@@ -146,8 +177,9 @@ def set_up_rig(rig: Rig, plan: CapturePlan, calibration: CaptureCalibration | No
     Raises
     ------
     CaptureError
-        For a timing the projector or camera refuses, a missing sync box or projector size, a camera
-        that cannot shutter, or a trigger delay nobody applies (not in a preview).
+        For a timing the projector or camera refuses, a missing sync box or projector size, a calibration made
+        for another rig, camera or resolution (:func:`check_calibration_rig`), a camera that cannot shutter, or
+        a trigger delay nobody applies (not in a preview).
     """
     cal = calibration or CaptureCalibration()
     timing = plan.timing()
@@ -175,6 +207,10 @@ def set_up_rig(rig: Rig, plan: CapturePlan, calibration: CaptureCalibration | No
     if psize is None:
         raise CaptureError(f"the projector size of {projector.name} is unknown: give it (rows, columns)")
     psize = tuple(int(v) for v in psize)
+    try:
+        check_calibration_rig(cal, rig, psize)
+    except ValueError as exc:  # CalibrationRefused: the calibration is another rig's
+        raise CaptureError(str(exc)) from None
     K, period = plan.K, timing.period_us
     phase, delay, cal_warnings = cal.for_plan(K, period)
     delay_by = trigger_delay_by(camera.capabilities, delay, delay_set_by_hand)

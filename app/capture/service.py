@@ -65,25 +65,54 @@ message says that nothing was recorded.
 
 from __future__ import annotations
 
+import contextvars
 import logging
 import queue
 import threading
 import time
-from collections.abc import Callable
+import warnings
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import asdict
 
 from flexvox_app.capture.engine import AcquisitionEngine, CameraStopped
 from flexvox_app.capture.events import CaptureEvents
 from flexvox_app.capture.plan import CapturePlan
-from flexvox_app.capture.rig_setup import CaptureError, RigSetup
+from flexvox_app.capture.rig_setup import CaptureError, RigSetup, check_calibration_rig
 from flexvox_app.capture.settings import QueuePolicy, SyncSetting
 from flexvox_app.capture.sink import RecordingSink, check_output, os_message
 from flexvox_app.capture.status import CaptureResult, CaptureState, CaptureStats
 from flexvox_calibration.capture_setup import CaptureCalibration
+from flexvox_calibration.errors import CalibrationWarning
 from flexvox_core.recording import RecordingError
 from rig_drivers.interfaces import Frame, Rig
 
 _logger = logging.getLogger(__name__)
+
+_SHOWN_BY_CALLER: contextvars.ContextVar[bool] = contextvars.ContextVar("flexvox_capture_warnings_shown",
+                                                                         default=False)
+
+
+@contextmanager
+def warnings_shown_by_caller() -> Iterator[None]:
+    """For a front end that shows a capture's warnings itself (``flexvox capture``'s ``warning:`` lines, the
+    Capture workspace's question): services built inside log them at INFO only, and issue no
+    :class:`~flexvox_calibration.errors.CalibrationWarning`."""
+    token = _SHOWN_BY_CALLER.set(True)
+    try:
+        yield
+    finally:
+        _SHOWN_BY_CALLER.reset(token)
+
+
+def _warn(message: str) -> None:
+    """``message`` to the user: a WARNING in the log and a :class:`CalibrationWarning` at the caller's line (only
+    the log, at INFO, inside :func:`warnings_shown_by_caller`)."""
+    if _SHOWN_BY_CALLER.get():
+        _logger.info("capture: %s", message)
+        return
+    _logger.warning("capture: %s", message)
+    warnings.warn(message, CalibrationWarning, stacklevel=3)  # the line that built the CaptureService
 
 
 class LatestFrame:
@@ -126,7 +155,11 @@ class CaptureService:
     frames : int or None
         Rows to record (frames + dropped rows); None: until :meth:`stop`.
     calibration : CaptureCalibration
-        Homography, phase and trigger delay (default: uncalibrated).
+        Homography, phase and trigger delay (default: uncalibrated). One made for another rig, camera or
+        resolution (:attr:`CaptureCalibration.rig`) is refused with the words a calibration file made for another
+        rig is refused with. One whose sync was measured at another timing than the plan's is used with its phase
+        as a guess: a :class:`~flexvox_calibration.errors.CalibrationWarning` and a WARNING in the log say so, and
+        :attr:`warnings` and :attr:`CaptureResult.warnings` hold it.
     sync : SyncSetting
     queue_policy : QueuePolicy
     projector_size : (H, W), optional
@@ -151,8 +184,18 @@ class CaptureService:
     progress_every_s : float
         How often :attr:`events` publishes ``progress`` while the capture runs.
 
+    Raises
+    ------
+    CaptureError
+        For a bad argument, or an existing ``path`` without ``overwrite``.
+    flexvox_calibration.capture_setup.CalibrationRefused
+        For a calibration made for another rig, camera or resolution.
+
     Attributes
     ----------
+    warnings : list of str
+        What the capture is made with that is worth reading: the calibration's at this timing
+        (:meth:`CaptureCalibration.for_plan`), and after :meth:`start` the rig set-up's notes.
     engine : AcquisitionEngine
         The devices' side.
     sink : RecordingSink
@@ -180,15 +223,19 @@ class CaptureService:
                                f"{type(calibration).__name__}")
         if not 0 < progress_every_s <= 60:
             raise CaptureError(f"`progress_every_s` must be in (0, 60] s; got {progress_every_s!r}")
+        self.calibration = calibration or CaptureCalibration()
+        check_calibration_rig(self.calibration, rig, projector_size)  # again at start() if the rig cannot say yet
         self.rig = rig
         self.plan = plan
         self.path = check_output(path, overwrite=overwrite)
         self.n_target = frames
-        self.calibration = calibration or CaptureCalibration()
         self.sync_setting = sync or SyncSetting()
         self.policy = queue_policy or QueuePolicy()
         self.K = int(self.code.shape[2])
         self.phase_slots, self.trigger_delay_us, self.warnings = self.calibration.for_plan(self.K, plan.period_us)
+        guess = self.calibration.timing_guess(self.K, plan.period_us)
+        if guess:
+            _warn(guess)
         self.engine = AcquisitionEngine(rig, plan, self.calibration, self.sync_setting, projector_size=projector_size)
         self.sink = RecordingSink(self.path, plan, self.calibration, target=frames, storage=storage,
                                   ground_truth=self.engine.ground_truth() if ground_truth else None,
@@ -501,7 +548,7 @@ class CaptureService:
         else:
             verb = "captured" if reason == "done" else "stopped after"
             message = f"{verb} {s.rows_written} frames: {drops}; {where}{writer_note}"
-        self._result = CaptureResult(self.path, reason, message, held, s, self._error)
+        self._result = CaptureResult(self.path, reason, message, held, s, self._error, tuple(self.warnings))
         _logger.info("%s", message)
         self._done.set()
 

@@ -82,7 +82,9 @@ class CaptureResult:
 
     ``reason`` is ``done`` (N frames), ``stopped`` (:meth:`CaptureService.stop`) or
     ``error``; ``frames_in_recording`` is read back from the recording on disk (None when
-    it cannot be opened), ``message`` says it all in one line.
+    it cannot be opened), ``message`` says it all in one line. ``warnings`` are
+    :attr:`CaptureService.warnings`: what the recording was made with that is worth reading (a
+    phase that is a guess at this timing, no calibration); the recording's attributes hold them too.
     """
 
     path: Path
@@ -91,6 +93,7 @@ class CaptureResult:
     frames_in_recording: int | None
     stats: CaptureStats
     error: str | None = None
+    warnings: tuple[str, ...] = ()
 
     def __repr__(self) -> str:
         return f"<CaptureResult {self.reason}: {self.message}>"

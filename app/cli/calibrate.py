@@ -9,13 +9,15 @@ from pathlib import Path
 
 from flexvox_app.cli.app import add_screen_options, list_screens, with_projector_screen
 from flexvox_app.cli.errors import EXIT_FAILED, EXIT_OK, CliError, arg_type
+from flexvox_core.json_file import finite_or_null
 
 HELP = "calibrate the rig: co-location, projector-camera homography, shutter masks, synchronisation"
 
 def _tile(text: str):
+    from flexvox_calibration.pipeline import calibration_tile
     from flexvox_core.tiles import parse_tile
 
-    return parse_tile(text)
+    return calibration_tile(parse_tile(text))
 
 
 def _baseline(text: str):
@@ -53,11 +55,13 @@ def register(sub) -> None:
     p.add_argument("--seed", type=arg_type(_seed), default=0, metavar="S",
                    help="simulated rig: seed of its hidden homography, timing and noise (default 0)")
     p.add_argument("--tile", type=arg_type(_tile), default=(4, 4), metavar="MxN",
-                   help="tile of the shutter code to verify (K = M*N slots; default 4x4)")
+                   help="tile of the shutter code to verify (K = M*N slots, at least 2; default 4x4)")
     p.add_argument("--mock-baseline", type=arg_type(_baseline), default=(0.0, 0.0, 0.0), metavar="BX,BY,BZ",
                    help="simulated rig: the projector's offset from the camera's centre, in units of the "
                         "target distance (default 0,0,0: co-located)")
-    p.add_argument("--json", action="store_true", help="print one JSON object instead of text")
+    p.add_argument("--json", action="store_true",
+                   help="print one JSON object instead of text (strict JSON: a number that is not finite, such as "
+                        "a value a step did not measure, is null)")
     p.add_argument("-o", "--output", type=Path, metavar="CAL.json",
                    help="write the calibration (homography + sync) when every step succeeds")
     p.add_argument("--overwrite", action="store_true",
@@ -166,7 +170,7 @@ def _calibrate(args, spec, display=None, interrupted=None) -> int:
     if ok and args.output is not None:
         flat["output"] = str(args.output)
     if args.json:
-        print(json.dumps(flat | {"steps": report}, default=float))
+        print(json.dumps(finite_or_null(flat | {"steps": report}), default=float, allow_nan=False))
         return EXIT_OK if ok else EXIT_FAILED
     for name in ("colocation", "homography", "shutter", "sync", "frames"):
         step = report.get(name)

@@ -131,6 +131,7 @@ def _plan(args):
 def _build(args, display=None):
     from flexvox_app.capture import CaptureService, QueuePolicy, SyncSetting
     from flexvox_app.capture.pacing import PacedClock
+    from flexvox_app.capture.service import warnings_shown_by_caller
     from flexvox_app.capture.sink import check_output
     from flexvox_core.output_errors import CLI_OVERWRITE_HINT
     from rig_drivers.profile import open_rig
@@ -159,12 +160,14 @@ def _build(args, display=None):
         if args.ground_truth:
             raise ValueError("--ground-truth goes with --rig mock (a real scene has no ground truth)")
         rig = open_rig(args.rig, projector_display=display)
-    service = CaptureService(
-        rig, plan, args.output, frames=args.frames, calibration=_calibration(args, rig),
-        sync=SyncSetting(delay_set_by_hand=args.delay_set_by_hand),
-        queue_policy=QueuePolicy(capacity=args.queue, block_s=args.block),
-        projector_size=args.projector_size, ground_truth=args.ground_truth, overwrite=args.overwrite,
-        durable=args.durable, rig_info={"profile": args.rig}, progress_every_s=PROGRESS_EVERY_S)
+    calibration = _calibration(args, rig)
+    with warnings_shown_by_caller():  # _follow prints them as `warning:` lines
+        service = CaptureService(
+            rig, plan, args.output, frames=args.frames, calibration=calibration,
+            sync=SyncSetting(delay_set_by_hand=args.delay_set_by_hand),
+            queue_policy=QueuePolicy(capacity=args.queue, block_s=args.block),
+            projector_size=args.projector_size, ground_truth=args.ground_truth, overwrite=args.overwrite,
+            durable=args.durable, rig_info={"profile": args.rig}, progress_every_s=PROGRESS_EVERY_S)
     return service
 
 

@@ -152,6 +152,10 @@ def check(rec, *, quick: bool = False, progress=None) -> tuple[dict, list[str]]:
             (notes if line.startswith("no checksums") else problems).append(line)
     aside = moved_aside_by(rec.path) if rec.interrupted and F == 0 else None
     a = rec.attrs
+    for key in ("calibration", "rig", "capture"):  # objects as written; an edited one is named, not a traceback
+        if a.get(key) is not None and not isinstance(a[key], dict):
+            problems.append(f"the `{key}` attribute must be an object; got {a[key]!r} (the attributes were edited "
+                            "or damaged)")
     rates = a.get("rates", {})
     summary = {
         "path": str(rec.path), "kind": a.get("kind"), "schema_version": a.get("schema_version"),
@@ -186,14 +190,14 @@ def _text(s: dict) -> list[str]:
         f"ground truth: {'yes' if s['ground_truth'] else 'no'}",
     ]
     cal = s["calibration"]
-    if cal:
+    if cal and isinstance(cal, dict):
         delay = cal.get("trigger_delay_us")
         lines.append(f"calibration: {cal.get('source', '?')}, phase {cal.get('phase_slots', '?')} slot(s)"
                      + (f", camera trigger delay {delay:.0f} µs" if delay else ""))
-    if s["rig"]:
+    if s["rig"] and isinstance(s["rig"], dict):
         lines.append("rig: " + ", ".join(f"{k} {v:g}" if isinstance(v, float) else f"{k} {v}"
                                          for k, v in s["rig"].items() if not isinstance(v, dict | list)))
-    if s["capture"]:
+    if s["capture"] and isinstance(s["capture"], dict):
         c = s["capture"]
         lines.append(f"capture: ended {c.get('reason')}" + (f" ({c['error']})" if c.get("error") else "")
                      + f", {c.get('queue_drops', 0)} frame(s) discarded by the queue")

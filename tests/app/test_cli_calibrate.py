@@ -27,7 +27,21 @@ def run(capsys, *argv):
 def test_json_meets_the_targets_against_the_hidden_truth(capsys, tmp_path):
     cal = tmp_path / "cal.json"
     code, out, _ = run(capsys, "--rig", "mock", "--seed", "7", "--json", "-o", str(cal))
-    d = json.loads(out)
+
+    def refuse(constant):  # strict JSON (JSON.parse, jq): no NaN, no Infinity
+        raise AssertionError(f"not strict JSON: {constant}")
+
+    d = json.loads(out, parse_constant=refuse)
+    json.loads(cal.read_text(), parse_constant=refuse)
+    # what no step measured, or an infinite slip time (no drift), is null in both, and the file loads back
+    assert d["steps"]["sync"]["residual_leakage"] is None and d["steps"]["frames"]["seconds_per_slot_slip"] is None
+    from flexvox_calibration.capture_setup import load_for_capture
+    from flexvox_calibration.session import RigIdentity
+
+    rig = load_calibration(cal)["rig"]
+    identity = RigIdentity(rig["name"], rig["camera"], rig["projector"], tuple(rig["camera_size"]),
+                           tuple(rig["projector_size"]), rig["pixel_layout"])
+    assert load_for_capture(cal, identity).phase_slots in range(16)
     assert code == 0 and d["success"] is True
     for key in ("homography_error_px", "rms_px", "coverage", "shutter_slot_accuracy", "phase_found", "phase_true"):
         assert key in d
@@ -52,6 +66,8 @@ def test_text_output_and_a_rig_that_is_not_co_located(capsys, tmp_path):
     (["--seed", "-3"], "--seed must be a whole number >= 0; got '-3'"),
     (["--mock-baseline", "1,2"], "--mock-baseline must be three numbers BX,BY,BZ"),
     (["--tile", "0x4"], "`tile` side m must be between 1 and 8; got 0"),
+    (["--tile", "1x1"], "a 1x1 tile (K = 1) has nothing to shutter: its one slot is open all the time, so there is "
+                        "no shutter to verify and no phase to measure"),
 ])
 def test_bad_options_exit_2_with_one_line(capsys, argv, message):
     with pytest.raises(SystemExit) as exc:

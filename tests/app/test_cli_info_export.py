@@ -186,3 +186,15 @@ def test_info_slots_from_fewer_frames_than_k_says_what_the_figure_cannot_see(rec
     assert s["single_slot_fit"] is True
     assert re.search(r"read from 2 frame\(s\), fewer than K = 8, .*: record 17 frames of the strobe scene$",
                      s["message"])
+
+
+@pytest.mark.parametrize("key", ["calibration", "rig", "capture"])
+def test_info_names_an_attribute_edited_into_something_that_is_no_object(recording, capsys, key):
+    root = recording / "zarr.json"
+    meta = json.loads(root.read_text())
+    meta["attributes"]["flexvox"][key] = "cal.json"
+    root.write_text(json.dumps(meta))
+    assert cli(["info", str(recording)]) == 1
+    out = capsys.readouterr().out
+    assert f"problem: the `{key}` attribute must be an object; got 'cal.json' (the attributes were edited or " \
+           "damaged)" in out and out.strip().endswith("DAMAGED")

@@ -93,3 +93,13 @@ def test_the_whole_calibration_on_a_diamond_dmd_models_its_stagger():
     modelled, ignored = results["diamond"], results["square"]
     assert modelled["accuracy"] >= 0.97 and modelled["crosstalk"] < 0.05
     assert ignored["accuracy"] < modelled["accuracy"] - 0.01 and ignored["crosstalk"] > 2 * modelled["crosstalk"]
+
+
+def test_a_one_slot_code_verifies_without_a_neighbour_slot(calibrated):
+    """K = 1 (a 1x1 tile; calibrate refuses it up front): every pixel sees its one slot, and none a neighbour's."""
+    rig, res = calibrated[SEEDS[0]]
+    with RigSession.from_rig(rig) as session:
+        shutter = make_shutter_patterns(design_code((1, 1)).code, res.homography, session.camera_size,
+                                        session.projector_size)
+        ver = verify_shutter(session, shutter)
+    assert ver.status == "ok" and ver.accuracy == 1.0 and ver.crosstalk == 0.0

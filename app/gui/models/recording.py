@@ -18,7 +18,13 @@ from collections.abc import Callable
 from pathlib import Path
 
 from flexvox_app.capture.plan import CapturePlan
-from flexvox_app.capture.service import CaptureResult, CaptureService, CaptureStats, SyncSetting
+from flexvox_app.capture.service import (
+    CaptureResult,
+    CaptureService,
+    CaptureStats,
+    SyncSetting,
+    warnings_shown_by_caller,
+)
 from flexvox_app.gui.models.live_source import put_scene_in_view
 from flexvox_app.gui.models.rig_service import RigService
 from flexvox_calibration.capture_setup import CaptureCalibration
@@ -68,10 +74,11 @@ def make_capture(service: RigService, plan: CapturePlan, path, *, frames: int | 
     if ground_truth and service.rig.simulated is None:
         raise ValueError("ground truth exists only on the simulated rig")
     put_scene_in_view(service)
-    return factory(service.rig, plan, path, frames=frames, calibration=calibration or CaptureCalibration(),
-                   sync=SyncSetting(delay_set_by_hand=delay_set_by_hand), ground_truth=ground_truth,
-                   overwrite=overwrite, durable=durable,
-                   rig_info={"profile": "mock" if service.simulated else service.name, "source": "flexvox app"})
+    with warnings_shown_by_caller():  # the Capture workspace shows them, and asks before a phase that is a guess
+        return factory(service.rig, plan, path, frames=frames, calibration=calibration or CaptureCalibration(),
+                       sync=SyncSetting(delay_set_by_hand=delay_set_by_hand), ground_truth=ground_truth,
+                       overwrite=overwrite, durable=durable,
+                       rig_info={"profile": "mock" if service.simulated else service.name, "source": "flexvox app"})
 
 
 def megabytes(n_bytes: float) -> str:

@@ -78,9 +78,13 @@ def register(sub) -> None:
     defer(p, describe)
     p.add_argument("scene", metavar="SCENE", help="scene file, built-in scene name, or video file")
     p.add_argument("-o", "--output", type=Path, required=True, metavar="REC.zarr", help="recording to write")
-    p.add_argument("--tile", type=arg_type(parse_tile), metavar="MxN",
-                   help="tile of a designed code (overrides the scene's tile; refused where a scene file states "
-                        "its own [code] order; default 4x4)")
+    code = p.add_mutually_exclusive_group()
+    code.add_argument("--tile", type=arg_type(parse_tile), metavar="MxN",
+                      help="tile of a designed code (overrides the scene's tile; refused where a scene file states "
+                           "its own [code] order; default 4x4)")
+    code.add_argument("--code", type=Path, metavar="CODE.json",
+                      help="a code written by `flexvox design -o` (identity or multiplexed) instead of a designed "
+                           "one (refused where a scene file states its own [code] order)")
     p.add_argument("--effects", metavar="SPEC",
                    help="effect overrides, comma-separated: NAME, NAME.PARAM=VALUE, or none "
                         "(e.g. none,photon_noise,read_noise.sigma=2); see `flexvox scenes`")
@@ -119,6 +123,21 @@ def _spec_from_argument(text: str) -> SceneSpec:
     )
 
 
+def _use_code_file(spec, path: Path) -> None:
+    """``spec`` takes the code of ``path`` (what ``flexvox design -o`` writes): an identity code's order, or a
+    multiplexed code's tile and placement (refused, in the file's words, when it is neither)."""
+    from flexvox_core.code_file import load_shutter_code
+    from flexvox_core.codes import order_from_code
+    from flexvox_core.multiplex import MultiplexedCode
+
+    code = load_shutter_code(path)
+    if isinstance(code, MultiplexedCode):
+        spec.tile, spec.order, spec.multiplexed = tuple(code.tile), None, True
+        spec.placement = code.placement.tolist()
+    else:
+        spec.tile, spec.order, spec.multiplexed = tuple(code.shape[:2]), order_from_code(code).tolist(), False
+
+
 def run_simulate(args) -> int:
     """Carry out ``flexvox simulate``."""
     from flexvox_core.intensity import CountsWarning
@@ -132,14 +151,18 @@ def run_simulate(args) -> int:
         spec = _spec_from_argument(args.scene)
         inputs = [Path(args.scene) if Path(args.scene).exists() else None, getattr(spec, "file", None)]
         # before it runs
-        check_output(args.output, overwrite=args.overwrite, inputs=inputs, kind="store", hint=CLI_OVERWRITE_HINT)
+        check_output(args.output, overwrite=args.overwrite, inputs=[*inputs, args.code], kind="store",
+                     hint=CLI_OVERWRITE_HINT)
+        given = f"--tile {args.tile[0]}x{args.tile[1]}" if args.tile else f"--code {args.code}" if args.code else None
+        if given and spec.order is not None:  # the file's own code would be replaced, without a word
+            flag = given.split()[0]
+            raise ValueError(f"{given} would replace the code {args.scene} states in [code] order (a "
+                             f"{spec.tile[0]}x{spec.tile[1]} tile): drop {flag} to simulate the scene's code, or "
+                             f"take [code] order out of the file")
         if args.tile:
-            if spec.order is not None:  # the file's own code would be replaced by a designed one, without a word
-                m, n = args.tile
-                raise ValueError(f"--tile {m}x{n} would replace the code {args.scene} states in [code] order (a "
-                                 f"{spec.tile[0]}x{spec.tile[1]} tile) with a designed one: drop --tile to simulate "
-                                 "the scene's code, or take [code] order out of the file to use a designed code")
             spec.tile, spec.order = args.tile, None
+        if args.code:
+            _use_code_file(spec, args.code)
         if args.size:
             if spec.file is not None:
                 raise ValueError(f"--size sets the size of a built-in scene; {spec.file} is a video of its own size "

@@ -61,6 +61,9 @@ class SceneSpec:
     tile: tuple[int, int] = (4, 4)
     multiplexed: bool = False
     order: list | None = None
+    placement: list | None = None
+    """A multiplexed code's placement order (:func:`~flexvox_core.multiplex.multiplexed_code`'s; None: its default);
+    set from a code file (``flexvox simulate --code``), not from a scene file."""
     effects: list[Effect] = field(default_factory=list)
     seed: int = 0
     name: str = ""

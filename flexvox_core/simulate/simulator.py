@@ -316,7 +316,7 @@ def code_for(spec: SceneSpec):
     if spec.order is not None:
         return code_from_order(spec.order), False, None
     if spec.multiplexed:
-        mc = multiplexed_code(spec.tile)
+        mc = multiplexed_code(spec.tile, placement=spec.placement)
         return mc.code, True, mc.placement
     from flexvox_core.design import design_code  # its solver's scipy.optimize: only when a code is designed
 

@@ -120,14 +120,42 @@ def test_white_reads_a_12_bit_camera_s_counts_and_its_absence_is_warned_of(tmp_p
     assert "--white is the count that stands for white in a video file of counts" in capsys.readouterr().err
 
 
-def test_a_tile_given_over_a_scene_files_own_code_order_is_refused(capsys, tmp_path):
+def test_a_tile_or_a_code_given_over_a_scene_files_own_code_order_is_refused(capsys, tmp_path):
     scene = tmp_path / "seq.toml"
     scene.write_text('seed = 0\n[source]\nbuiltin = "balls"\nheight = 16\nwidth = 16\nframes = 2\n'
                      "[code]\norder = [[0, 1], [2, 3]]\n")
     code, out, _ = run_cli(capsys, "simulate", str(scene), "-o", str(tmp_path / "a.zarr"))
     assert code == 0 and open_recording(tmp_path / "a.zarr").attrs["order"] == [[0, 1], [2, 3]]
-    for tile in ("2x2", "4x4"):  # the same tile or another: the file's code would be replaced without a word
-        code, _, err = run_cli(capsys, "simulate", str(scene), "--tile", tile, "-o", str(tmp_path / "b.zarr"))
+    assert run_cli(capsys, "design", "--tile", "2x2", "-o", str(tmp_path / "c.json"))[0] == 0
+    # the same tile or another, a designed code or a code file: the file's code would be replaced without a word
+    for given, flag in (("--tile 2x2", "--tile"), ("--tile 4x4", "--tile"),
+                        (f"--code {tmp_path / 'c.json'}", "--code")):
+        code, _, err = run_cli(capsys, "simulate", str(scene), *given.split(), "-o", str(tmp_path / "b.zarr"))
         assert code == 2 and not (tmp_path / "b.zarr").exists()
-        assert (f"--tile {tile} would replace the code {scene} states in [code] order (a 2x2 tile) with a designed "
-                "one: drop --tile") in err
+        assert (f"{given} would replace the code {scene} states in [code] order (a 2x2 tile): drop {flag} to "
+                "simulate the scene's code") in err
+
+
+def test_a_code_file_from_design_is_simulated_as_written(capsys, tmp_path):
+    # identity: the file's order is the recording's; multiplexed: its S-matrix code, tile and placement
+    for tile, extra in (("4x4", []), ("3x5", ["--multiplexed"])):
+        assert run_cli(capsys, "design", "--tile", tile, *extra, "-o", str(tmp_path / f"{tile}.json"))[0] == 0
+        written = json.loads((tmp_path / f"{tile}.json").read_text())
+        out = tmp_path / f"{tile}.zarr"
+        code, _, err = run_cli(capsys, "simulate", "balls", "--code", str(tmp_path / f"{tile}.json"), "--size",
+                               "30x30", "--frames", "2", "-o", str(out))
+        assert code == 0, err
+        attrs = open_recording(out).attrs
+        if extra:
+            assert attrs["multiplexed"] and attrs["tile"] == [3, 5]
+            assert attrs["placement_order"] == written["placement_order"]
+        else:
+            assert attrs["order"] == written["order"] and not attrs.get("multiplexed")
+    with pytest.raises(SystemExit) as exc:
+        main(["simulate", "balls", "--code", str(tmp_path / "4x4.json"), "--tile", "2x2", "-o",
+              str(tmp_path / "x.zarr")])
+    assert exc.value.code == 2 and "argument --tile: not allowed with argument --code" in capsys.readouterr().err
+    (tmp_path / "bad.json").write_text('{"order": [[0, 0], [1, 2]]}')
+    code, _, err = run_cli(capsys, "simulate", "balls", "--code", str(tmp_path / "bad.json"), "-o",
+                           str(tmp_path / "y.zarr"))
+    assert code == 2 and str(tmp_path / "bad.json") in err and not (tmp_path / "y.zarr").exists()
